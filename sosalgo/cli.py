@@ -1,0 +1,172 @@
+"""Command-line interface: a thin layer over the Python API.
+
+Exit codes: 0 success, 2 bad input or usage, 1 internal error. Errors are one line on
+stderr naming the file and the field; no traceback (set SOSALGO_DEBUG=1 to see one).
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import os
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import click
+
+from sosalgo.model import ModelError
+from sosalgo.rows import SettingsMismatch
+from sosalgo.spec import SpecError, load_spec, parse_kappa
+
+__all__ = ["main", "cli"]
+
+
+class InputError(Exception):
+    """Bad input discovered by a command (exit code 2)."""
+
+
+def _fail(msg: str, code: int) -> None:
+    click.echo(f"error: {msg}", err=True)
+    sys.exit(code)
+
+
+def handle_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """Map our exceptions to one-line messages and exit codes."""
+
+    @functools.wraps(fn)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return fn(*args, **kwargs)
+        except (SpecError, InputError, SettingsMismatch) as exc:
+            _fail(_one_line(str(exc)), 2)
+        except ModelError as exc:
+            src = kwargs.get("spec_path", "")
+            _fail(_one_line(f"{src}: {exc}" if src else str(exc)), 2)
+        except KeyboardInterrupt:
+            click.echo("interrupted: finished rows are saved; rerun to resume", err=True)
+            sys.exit(130)
+        except click.exceptions.Exit:
+            raise
+        except Exception as exc:  # noqa: BLE001 - last line of defence
+            if os.environ.get("SOSALGO_DEBUG"):
+                raise
+            _fail(_one_line(f"internal error: {type(exc).__name__}: {exc}"), 1)
+
+    return wrapper
+
+
+def _one_line(msg: str) -> str:
+    return " ".join(msg.split())[:500]
+
+
+def _kappas(spec, values: tuple[str, ...]) -> tuple[float, ...]:
+    if not values:
+        return spec.kappa
+    out: list[float] = []
+    for v in values:
+        out.extend(parse_kappa(v, spec.source, "--kappa"))
+    return tuple(out)
+
+
+def _out_dir(out: str) -> Path:
+    path = Path(out)
+    if path.exists() and not path.is_dir():
+        raise InputError(f"--out {out}: exists and is not a directory")
+    return path
+
+
+def _check_tol(tol: float) -> None:
+    if not (0 < tol < 0.5):
+        raise InputError(f"--tol {tol}: must be in (0, 0.5)")
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(package_name="sosalgo")
+def cli() -> None:
+    """Certify and design first-order methods for L-smooth, m-strongly convex functions."""
+
+
+# --------------------------------------------------------------------------- analyze
+@cli.command()
+@click.argument("spec_path", metavar="SPEC", type=click.Path(dir_okay=False))
+@click.option("--kappa", "kappa", multiple=True, metavar="K",
+              help="Condition number(s) L/m; repeat for several. Default: the spec's list.")
+@click.option("--tol", default=1e-6, show_default=True, type=float,
+              help="Bisection tolerance on rho.")
+@click.option("--out", default="outputs", show_default=True, metavar="DIR",
+              help="Directory for <name>-analysis.csv and <name>-rate.png/.pdf.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON document on stdout.")
+@click.option("--workers", type=click.IntRange(min=1), default=None,
+              help="Local worker processes (default: all cores; short runs stay serial).")
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="Run on an existing Dask distributed scheduler, e.g. tcp://host:8786.")
+@click.option("--restart", is_flag=True, help="Discard earlier rows written with other settings.")
+@click.option("--quiet", is_flag=True, help="No progress bar.")
+@click.option("--no-plot", is_flag=True, help="Skip the figure.")
+@handle_errors
+def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_json: bool,
+            workers: int | None, scheduler: str | None, restart: bool, quiet: bool,
+            no_plot: bool) -> None:
+    """Best rate certified by Theorem 1 at each kappa, with its certificate (P, lambda)."""
+    from sosalgo.jobs import csv_row_to_json, run_analysis_sweep
+    from sosalgo.report import format_table, plot_rates
+
+    spec = load_spec(spec_path)
+    kappas = _kappas(spec, kappa)
+    _check_tol(tol)
+    out_dir = _out_dir(out)
+    spec_text = Path(spec_path).read_text(encoding="utf-8")
+    csv_path = out_dir / f"{spec.name}-analysis.csv"
+    rows = run_analysis_sweep(spec, spec_text, kappas, csv_path, tol, workers=workers,
+                              scheduler=scheduler, restart=restart, progress=not quiet)
+    jrows = [csv_row_to_json(spec, r) for r in rows]
+    figs = []
+    if not no_plot:
+        figs = plot_rates(
+            f"{spec.name}: certified rate (Theorem 1)",
+            [r["kappa"] for r in jrows],
+            {"certified rate": [r["rho"] for r in jrows]},
+            {name: [r["references"][name] for r in jrows] for name in spec.references},
+            out_dir / f"{spec.name}-rate",
+            uncertified=[r["kappa"] for r in jrows if not r["certified"]],
+        )
+    if as_json:
+        doc = {"spec": spec.name, "source": spec.source, "tol": tol, "csv": str(csv_path),
+               "figures": [str(p) for p in figs], "rows": jrows}
+        click.echo(json.dumps(doc, indent=2))
+        return
+    cols = ["kappa", "rho", "certified", "lambda", "max_eig_M", "min_eig_P", "solves",
+            "seconds"]
+    table_rows = [{**r, **r["references"]} for r in jrows]
+    click.echo(f"{spec.name}: {spec.description}".rstrip(": "))
+    click.echo(format_table(table_rows, cols + list(spec.references)))
+    click.echo(f"wrote {csv_path}" + "".join(f", {p}" for p in figs))
+
+
+# --------------------------------------------------------------------------- lmi
+@cli.command()
+@click.argument("spec_path", metavar="SPEC", type=click.Path(dir_okay=False))
+@click.option("--latex", is_flag=True, help="Print LaTeX instead of plain text.")
+@click.option("--free", default=None, metavar="NAMES",
+              help="Comma-separated parameters kept symbolic (default: all untied ones).")
+@handle_errors
+def lmi(spec_path: str, latex: bool, free: str | None) -> None:
+    """Print the symbolic matrix M(theta, rho, lambda, P) of Theorem 1 (eq. 15)."""
+    from sosalgo.symbolic import symbolic_lmi
+
+    spec = load_spec(spec_path)
+    names = None if free is None else [p.strip() for p in free.split(",") if p.strip()]
+    if names is not None:
+        spec.check_free(names, need_range=False)
+    click.echo(symbolic_lmi(spec, free=names, latex=latex))
+
+
+def main() -> None:
+    """Console-script entry point."""
+    cli(prog_name="sosalgo")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

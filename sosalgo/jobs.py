@@ -1,0 +1,173 @@
+"""Batch jobs built on :mod:`sosalgo.batch`: kappa sweeps of the analysis (and grids).
+
+Each job has a module-level chunk function (runs in workers), a column list, and a
+driver that writes rows to a resumable CSV as they finish.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sosalgo.analysis import AnalysisResult, analyze_spec
+from sosalgo.batch import Progress, run_batch
+from sosalgo.model import ModelError
+from sosalgo.numeric import compile_expression
+from sosalgo.rows import ResumableCSV
+from sosalgo.spec import BASE_SYMBOLS, Spec, spec_from_text
+
+__all__ = [
+    "analysis_columns",
+    "analysis_chunk",
+    "run_analysis_sweep",
+    "reference_values",
+    "csv_row_to_json",
+]
+
+_SPECS: dict[tuple[str, str], Spec] = {}
+
+
+def _spec(text: str, source: str) -> Spec:
+    """Per-process cache of parsed specs (workers get the YAML text, not objects)."""
+    key = (text, source)
+    if key not in _SPECS:
+        _SPECS.clear()
+        _SPECS[key] = spec_from_text(text, source)
+    return _SPECS[key]
+
+
+def p_columns(n: int) -> list[str]:
+    """Column names of P's upper triangle: P11, P12, ..., Pnn (1-based)."""
+    return [f"P{i + 1}{j + 1}" for i in range(n) for j in range(i, n)]
+
+
+def analysis_columns(spec: Spec) -> list[str]:
+    """CSV columns of ``sosalgo analyze`` (a contract: extend, never rename)."""
+    return (
+        ["kappa", "rho", "certified", "lambda"]
+        + p_columns(spec.n)
+        + ["max_eig_M", "min_eig_P", "solves", "seconds", "solver", "rho_infeasible", "error"]
+        + list(spec.references)
+    )
+
+
+def reference_values(spec: Spec, kappa: float) -> dict[str, float | None]:
+    """Closed-form reference rates at kappa (None where not defined)."""
+    out: dict[str, float | None] = {}
+    m, L = spec.mL(kappa)
+    for name, expr in spec.references.items():
+        try:
+            out[name] = compile_expression(expr, list(BASE_SYMBOLS.values()))([m, L, kappa])
+        except ValueError:
+            out[name] = None
+    return out
+
+
+def result_row(spec: Spec, res: AnalysisResult) -> dict[str, Any]:
+    """A CSV row of the analysis table."""
+    row: dict[str, Any] = {
+        "kappa": float(res.kappa),
+        "rho": res.rho,
+        "certified": res.certified,
+        "lambda": res.lam,
+        "max_eig_M": res.max_eig_M,
+        "min_eig_P": res.min_eig_P,
+        "solves": res.solves,
+        "seconds": round(res.seconds, 6),
+        "solver": res.solver,
+        "rho_infeasible": res.rho_infeasible,
+        "error": None,
+    }
+    n = spec.n
+    cols = p_columns(n)
+    pairs = [(i, j) for i in range(n) for j in range(i, n)]
+    for c, (i, j) in zip(cols, pairs, strict=True):
+        row[c] = None if res.P is None else float(res.P[i, j])
+    row.update(reference_values(spec, res.kappa))
+    return row
+
+
+def analysis_chunk(
+    spec_text: str, source: str, options: dict[str, Any], chunk: list[dict[str, Any]]
+) -> list[dict[str, Any]]:
+    """Worker: analysis at each task's kappa (and parameter overrides in task['theta'])."""
+    spec = _spec(spec_text, source)
+    rows = []
+    for task in chunk:
+        kappa = float(task["kappa"])
+        try:
+            res = analyze_spec(spec, kappa, task.get("theta"), tol=options["tol"],
+                               solvers=options.get("solvers", ("clarabel-fast", "clarabel", "scs")))
+            row = result_row(spec, res)
+        except ModelError as exc:  # e.g. a grid point outside a function's domain
+            row = {"kappa": kappa, "certified": False, "error": str(exc)}
+            row.update(reference_values(spec, kappa))
+        row.update(task.get("extra", {}))
+        rows.append(row)
+    return rows
+
+
+def run_analysis_sweep(
+    spec: Spec,
+    spec_text: str,
+    kappas: Sequence[float],
+    out_csv: Path,
+    tol: float,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    restart: bool = False,
+    progress: bool = True,
+    solvers: Sequence[str] | None = None,
+) -> list[dict[str, str]]:
+    """Analysis over kappa, resumable; returns the rows (as CSV strings) in kappa order."""
+    options: dict[str, Any] = {"tol": tol}
+    if solvers:
+        options["solvers"] = tuple(solvers)
+    settings = {"job": "analyze", "spec": spec_text, "tol": tol,
+                "solvers": list(solvers) if solvers else None}
+    store = ResumableCSV(out_csv, analysis_columns(spec), ["kappa"], settings, restart=restart)
+    tasks = [{"kappa": float(k)} for k in kappas]
+    todo = [t for t in tasks if not store.is_done(t)]
+    bar = Progress(len(tasks), f"analyze {spec.name}", progress, done=len(tasks) - len(todo))
+    try:
+        with store:
+            run_batch(analysis_chunk, spec_text, spec.source, options, todo, store.write,
+                      workers=workers, scheduler=scheduler, progress=bar)
+    finally:
+        bar.close()
+    by_key = {store.row_key({"kappa": float(k)}): None for k in kappas}
+    rows = [r for r in store.rows() if store.row_key(r) in by_key]
+    return sorted(rows, key=lambda r: float(r["kappa"]))
+
+
+def _num(v: str) -> float | None:
+    return None if v in ("", None) else float(v)
+
+
+def csv_row_to_json(spec: Spec, row: dict[str, str]) -> dict[str, Any]:
+    """The JSON form of an analysis row (the `rows` entries of ``analyze --json``)."""
+    n = spec.n
+    P = None
+    if row.get("P11", "") != "":
+        P = np.zeros((n, n))
+        for i in range(n):
+            for j in range(i, n):
+                P[i, j] = P[j, i] = float(row[f"P{i + 1}{j + 1}"])
+    return {
+        "kappa": float(row["kappa"]),
+        "rho": _num(row["rho"]),
+        "certified": row["certified"] == "true",
+        "P": None if P is None else P.tolist(),
+        "lambda": _num(row["lambda"]),
+        "max_eig_M": _num(row["max_eig_M"]),
+        "min_eig_P": _num(row["min_eig_P"]),
+        "solves": int(row["solves"]) if row.get("solves") else None,
+        "seconds": _num(row["seconds"]),
+        "solver": row.get("solver") or None,
+        "rho_infeasible": _num(row.get("rho_infeasible", "")),
+        "error": row.get("error") or None,
+        "references": {name: _num(row[name]) for name in spec.references},
+    }

@@ -1,0 +1,166 @@
+"""Bind a spec to numbers: kappa (m, L) and parameter values -> numeric A, B, C, E.
+
+Also checks the fixed-point conditions of eq. (11): there must be a u with
+(I - A) u = 0, C u = 1 and E u = 1, so that xi* = u ⊗ x* is a fixed point with
+y* = x* (Remark 1 reduction).
+"""
+
+from __future__ import annotations
+
+import weakref
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sosalgo.numeric import NumericError, compile_expression, compile_matrix
+from sosalgo.spec import BASE_SYMBOLS, MATRIX_NAMES, Spec, _value_order
+
+__all__ = ["Algorithm", "ModelError", "bind", "fixed_point"]
+
+FIXED_POINT_TOL = 1e-8
+
+
+class ModelError(ValueError):
+    """The spec cannot be evaluated at this point (domain error, no fixed point, ...)."""
+
+    def __init__(self, field_: str, message: str):
+        self.field = field_
+        self.message = message
+        super().__init__(f"{field_}: {message}")
+
+
+@dataclass(frozen=True)
+class Algorithm:
+    """Numeric reduced templates (Remark 1) of one method on F(m, L)."""
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    E: np.ndarray
+    m: float
+    L: float
+    params: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def kappa(self) -> float:
+        return self.L / self.m
+
+    @property
+    def n(self) -> int:
+        return int(self.A.shape[0])
+
+
+class _Compiled:
+    """Per-spec compiled evaluators (built once, reused at every kappa / grid point)."""
+
+    def __init__(self, spec: Spec):
+        self.names = list(spec.parameters)
+        syms = list(BASE_SYMBOLS.values()) + [spec.symbols[p] for p in self.names]
+        self.order = _value_order(spec.parameters, spec.source)
+        self.param_fns = {}
+        for p, par in spec.parameters.items():
+            expr = par.tied if par.is_tied else par.value
+            self.param_fns[p] = compile_expression(expr, syms)
+        self.matrix_fns = {k: compile_matrix(spec.matrices[k], syms) for k in MATRIX_NAMES}
+        base = list(BASE_SYMBOLS.values())
+        self.range_fns = {
+            p: (compile_expression(par.range[0], base), compile_expression(par.range[1], base))
+            for p, par in spec.parameters.items()
+            if par.range is not None
+        }
+
+
+_CACHE: weakref.WeakKeyDictionary[Spec, _Compiled] = weakref.WeakKeyDictionary()
+
+
+def _compiled(spec: Spec) -> _Compiled:
+    comp = _CACHE.get(spec)
+    if comp is None:
+        comp = _CACHE[spec] = _Compiled(spec)
+    return comp
+
+
+def parameter_values(
+    spec: Spec, kappa: float, theta: Mapping[str, float] | None = None
+) -> dict[str, float]:
+    """Numeric values of every parameter at ``kappa``; ``theta`` overrides input parameters."""
+    comp = _compiled(spec)
+    m, L = spec.mL(kappa)
+    theta = dict(theta or {})
+    for p in theta:
+        if p not in spec.parameters:
+            raise ModelError(f"parameters.{p}", "unknown parameter")
+        if spec.parameters[p].is_tied:
+            raise ModelError(f"parameters.{p}", "is tied to other parameters; it cannot be set")
+    values = [m, L, kappa] + [0.0] * len(comp.names)
+    pos = {p: 3 + i for i, p in enumerate(comp.names)}
+    for p in comp.order:
+        if p in theta:
+            val = float(theta[p])
+            if not np.isfinite(val):
+                raise ModelError(f"parameters.{p}", "value is not finite")
+        else:
+            try:
+                val = comp.param_fns[p](values)
+            except NumericError as exc:
+                what = "" if spec.parameters[p].is_tied else ".value"
+                raise ModelError(f"parameters.{p}{what}", str(exc)) from None
+        values[pos[p]] = val
+    return {p: values[pos[p]] for p in comp.names}
+
+
+def parameter_box(spec: Spec, kappa: float, names: list[str]) -> list[tuple[float, float]]:
+    """Numeric (lo, hi) of each named parameter's range at ``kappa``."""
+    comp = _compiled(spec)
+    m, L = spec.mL(kappa)
+    out = []
+    for p in names:
+        if p not in comp.range_fns:
+            raise ModelError(f"parameters.{p}.range", "missing")
+        lo_fn, hi_fn = comp.range_fns[p]
+        try:
+            lo, hi = lo_fn([m, L, kappa]), hi_fn([m, L, kappa])
+        except NumericError as exc:
+            raise ModelError(f"parameters.{p}.range", str(exc)) from None
+        if lo > hi:
+            raise ModelError(f"parameters.{p}.range", f"empty box [{lo:g}, {hi:g}]")
+        out.append((lo, hi))
+    return out
+
+
+def bind(spec: Spec, kappa: float, theta: Mapping[str, float] | None = None) -> Algorithm:
+    """Numeric Algorithm at condition number ``kappa`` (m = spec.m, L = kappa m).
+
+    ``theta`` sets input parameters (others keep their ``value``; tied ones follow).
+    """
+    if not (np.isfinite(kappa) and kappa > 1):
+        raise ModelError("kappa", f"condition number must be > 1, got {kappa:g}")
+    comp = _compiled(spec)
+    params = parameter_values(spec, kappa, theta)
+    m, L = spec.mL(kappa)
+    values = [m, L, kappa] + [params[p] for p in comp.names]
+    mats = {}
+    for k in MATRIX_NAMES:
+        try:
+            mats[k] = comp.matrix_fns[k](values)
+        except NumericError as exc:
+            raise ModelError(f"matrices.{k}", str(exc)) from None
+    alg = Algorithm(mats["A"], mats["B"], mats["C"], mats["E"], m, L, params)
+    if fixed_point(alg) is None:
+        raise ModelError(
+            "matrices",
+            "no fixed point: eq. (11) needs u with (I - A) u = 0, C u = 1, E u = 1",
+        )
+    return alg
+
+
+def fixed_point(alg: Algorithm, tol: float = FIXED_POINT_TOL) -> np.ndarray | None:
+    """The u of eq. (11) (least-squares solution), or None if the conditions fail."""
+    n = alg.n
+    lhs = np.vstack([np.eye(n) - alg.A, alg.C, alg.E])
+    rhs = np.concatenate([np.zeros(n), [1.0, 1.0]])
+    u, *_ = np.linalg.lstsq(lhs, rhs, rcond=None)
+    resid = np.linalg.norm(lhs @ u - rhs)
+    scale = 1.0 + np.linalg.norm(lhs) * np.linalg.norm(u)
+    return u if resid <= tol * scale else None

@@ -1,0 +1,232 @@
+"""One small door to the conic solvers, returning a status we trust.
+
+``solve_lmi`` asks whether an :class:`~sosalgo.certificates.base.LMIProblem` is feasible at a
+given rho with a small margin (every block ⪯ -margin I) and answers ``feasible`` only when
+the solver reports *solved* **and** the returned x passes a floating-point eigenvalue check
+of every block. Anything else (inaccurate, iteration limit, numerical error, exception, a
+"solved" point that violates the inequality) is ``failed``; a solver's proof of
+infeasibility is ``infeasible``. Callers never read a raw solver status.
+
+The problem data go straight to Clarabel (upper-triangular scaled svec) or SCS
+(lower-triangular scaled svec), so one feasibility test costs well under a millisecond.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import weakref
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sps
+
+from sosalgo.certificates.base import LMIProblem
+
+__all__ = ["Outcome", "solve_lmi", "SOLVERS", "DEFAULT_SOLVERS", "margin_for"]
+
+SQRT2 = math.sqrt(2.0)
+RELATIVE_MARGIN = 1e-9
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """Trusted answer of one feasibility test."""
+
+    status: str  # "feasible" | "infeasible" | "failed"
+    x: np.ndarray | None
+    solver: str
+    detail: str = ""
+    near_boundary: bool = False  # failed because the point is (almost) on the boundary
+
+    @property
+    def feasible(self) -> bool:
+        return self.status == "feasible"
+
+
+def _tri_indices(s: int, upper_colmajor: bool) -> tuple[np.ndarray, np.ndarray]:
+    if upper_colmajor:  # Clarabel: (0,0),(0,1),(1,1),(0,2),...
+        pairs = [(i, j) for j in range(s) for i in range(j + 1)]
+    else:  # SCS: lower triangle column-major: (0,0),(1,0),(2,0),(1,1),...
+        pairs = [(i, j) for j in range(s) for i in range(j, s)]
+    rows = np.array([p[0] for p in pairs])
+    cols = np.array([p[1] for p in pairs])
+    return rows, cols
+
+
+def svec(mats: np.ndarray, upper_colmajor: bool) -> np.ndarray:
+    """Scaled half-vectorization of symmetric matrix/matrices (last two axes)."""
+    s = mats.shape[-1]
+    r, c = _tri_indices(s, upper_colmajor)
+    scale = np.where(r == c, 1.0, SQRT2)
+    return mats[..., r, c] * scale
+
+
+class _ConicForm:
+    """``A(rho) x + s = b(rho)``, s in a product of PSD cones, for -G_b(x) - margin I ⪰ 0.
+
+    A and b are affine in rho^2; the sparse pattern, cones and settings are built once per
+    problem, so each feasibility test only fills in numbers.
+    """
+
+    def __init__(self, problem: LMIProblem, upper: bool):
+        a0, a1, b0, b1, eye, sizes = [], [], [], [], [], []
+        for blk in problem.blocks:
+            s = blk.size
+            a0.append(svec(blk.l0, upper).T)
+            a1.append(svec(blk.l1, upper).T)
+            b0.append(svec(-blk.c0, upper))
+            b1.append(svec(-blk.c1, upper))
+            eye.append(svec(np.eye(s) if blk.strict else np.zeros((s, s)), upper))
+            sizes.append(s)
+        self.sizes = sizes
+        a0m, a1m = np.vstack(a0), np.vstack(a1)
+        self.b0, self.b1, self.eye = np.concatenate(b0), np.concatenate(b1), np.concatenate(eye)
+        self.A = sps.csc_matrix((np.abs(a0m) + np.abs(a1m)) > 0, dtype=float)
+        self.A.sort_indices()
+        cols = np.repeat(np.arange(self.A.shape[1]), np.diff(self.A.indptr))
+        self.a0 = a0m[self.A.indices, cols]
+        self.a1 = a1m[self.A.indices, cols]
+        self.zero_P = sps.csc_matrix((problem.nvar, problem.nvar))
+        self.q = np.zeros(problem.nvar)
+        self.scale = max(
+            [1.0] + [float(np.abs(b.c0).max() + np.abs(b.c1).max()) for b in problem.blocks]
+        )
+
+    def data(self, rho: float, margin: float) -> tuple[sps.csc_matrix, np.ndarray]:
+        r2 = rho * rho
+        self.A.data = self.a0 + r2 * self.a1
+        return self.A, self.b0 + r2 * self.b1 - margin * self.eye
+
+
+_FORMS: weakref.WeakKeyDictionary[LMIProblem, dict[bool, _ConicForm]] = (
+    weakref.WeakKeyDictionary()
+)
+
+
+def _form(problem: LMIProblem, upper: bool) -> _ConicForm:
+    forms = _FORMS.setdefault(problem, {})
+    if upper not in forms:
+        forms[upper] = _ConicForm(problem, upper)
+    return forms[upper]
+
+
+def margin_for(problem: LMIProblem, rho: float) -> float:
+    """Strictness margin for the strict blocks, relative to the size of the data."""
+    del rho
+    return RELATIVE_MARGIN * _form(problem, True).scale
+
+
+@functools.cache
+def _clarabel_settings(equilibrate: bool):
+    import clarabel
+
+    settings = clarabel.DefaultSettings()
+    settings.verbose = False
+    settings.max_iter = 200
+    settings.presolve_enable = False
+    settings.equilibrate_enable = equilibrate
+    return settings
+
+
+def _clarabel_run(problem: LMIProblem, rho: float, margin: float, equilibrate: bool):
+    import clarabel
+
+    form = _form(problem, upper=True)
+    A, b = form.data(rho, margin)
+    cones = [
+        clarabel.NonnegativeConeT(1) if s == 1 else clarabel.PSDTriangleConeT(s)
+        for s in form.sizes
+    ]
+    solver = clarabel.DefaultSolver(
+        form.zero_P, form.q, A, b, cones, _clarabel_settings(equilibrate)
+    )
+    sol = solver.solve()
+    status = str(sol.status)
+    if status == "Solved":
+        return "solved", np.array(sol.x), status
+    if status == "PrimalInfeasible":
+        return "infeasible", None, status
+    return ("near" if status.startswith("Almost") else "failed"), None, status
+
+
+def _clarabel_fast(problem: LMIProblem, rho: float, margin: float):
+    """Clarabel without equilibration: about 4x faster on these tiny, well-scaled LMIs."""
+    return _clarabel_run(problem, rho, margin, equilibrate=False)
+
+
+def _clarabel(problem: LMIProblem, rho: float, margin: float):
+    """Clarabel with its default (equilibrated) settings."""
+    return _clarabel_run(problem, rho, margin, equilibrate=True)
+
+
+def _scs(problem: LMIProblem, rho: float, margin: float):
+    """SCS at tight tolerance: the independent second opinion."""
+    import scs
+
+    form = _form(problem, upper=False)
+    A, b = form.data(rho, margin)
+    sizes = form.sizes
+    n = problem.nvar
+    # SCS wants the nonnegative rows first, then the PSD cones: reorder rows.
+    offsets = np.cumsum([0] + [s * (s + 1) // 2 for s in sizes])
+    order = [i for i, s in enumerate(sizes) if s == 1] + [i for i, s in enumerate(sizes) if s > 1]
+    rows = np.concatenate([np.arange(offsets[i], offsets[i + 1]) for i in order])
+    data = {"A": sps.csc_matrix(A[rows]), "b": b[rows], "c": np.zeros(n)}
+    cone = {"l": sum(1 for s in sizes if s == 1), "s": [s for s in sizes if s > 1]}
+    solver = scs.SCS(data, cone, verbose=False, eps_abs=1e-9, eps_rel=1e-9, max_iters=5000)
+    sol = solver.solve()
+    status = str(sol["info"]["status"])
+    if status == "solved":
+        return "solved", np.array(sol["x"]), status
+    if status == "infeasible":
+        return "infeasible", None, status
+    return ("near" if "inaccurate" in status else "failed"), None, status
+
+
+RawSolver = Callable[[LMIProblem, float, float], tuple[str, "np.ndarray | None", str]]
+SOLVERS: dict[str, RawSolver] = {
+    "clarabel-fast": _clarabel_fast,
+    "clarabel": _clarabel,
+    "scs": _scs,
+}
+DEFAULT_SOLVERS: tuple[str, ...] = ("clarabel-fast", "clarabel", "scs")
+
+
+def _checked(problem: LMIProblem, rho: float, name: str) -> Outcome:
+    margin = margin_for(problem, rho)
+    try:
+        status, x, detail = SOLVERS[name](problem, rho, margin)
+    except Exception as exc:  # noqa: BLE001 - any solver crash is a failed step
+        return Outcome("failed", None, name, f"exception: {type(exc).__name__}: {exc}"[:200])
+    if status == "infeasible":
+        return Outcome("infeasible", None, name, detail)
+    if status != "solved" or x is None:
+        return Outcome("failed", None, name, detail, near_boundary=status == "near")
+    if x.shape != (problem.nvar,) or not np.all(np.isfinite(x)):
+        return Outcome("failed", None, name, "solver returned a malformed point")
+    x = problem.project(x)
+    worst = max(problem.max_eigs(x, rho).values())
+    if worst > 0.0:
+        msg = f"certificate check failed (max eig {worst:.3g})"
+        return Outcome("failed", None, name, msg, near_boundary=True)
+    return Outcome("feasible", x, name, detail)
+
+
+def solve_lmi(
+    problem: LMIProblem, rho: float, solvers: Sequence[str] = DEFAULT_SOLVERS
+) -> Outcome:
+    """Feasibility of ``problem`` at ``rho``.
+
+    A failed step is retried with the next solver in ``solvers``. From the second solver
+    on, a failure *near the boundary* (an "almost" status or a point that fails the
+    eigenvalue check) ends the chain as ``failed``: the LMI is then feasible at best by
+    a hair and a slower solver does not change that; hard errors go on to the next.
+    """
+    out = Outcome("failed", None, "", "no solver")
+    for i, name in enumerate(solvers):
+        out = _checked(problem, rho, name)
+        if out.status != "failed" or (out.near_boundary and i >= 1):
+            return out
+    return out

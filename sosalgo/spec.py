@@ -1,0 +1,532 @@
+"""Algorithm specs: YAML in, validated symbolic templates out.
+
+A spec describes a first-order method in the state-space form of eq. (10) of the paper,
+
+    xi_{k+1} = A xi_k + B grad f(y_k),   y_k = C xi_k,   x_k = E xi_k,
+
+through the reduced templates A (n x n), B (n x 1), C and E (1 x n) of Remark 1 (the
+Kronecker factor ``⊗ I_d`` is implied). Entries are safe expressions (see :mod:`sosalgo.expr`)
+of the parameters and of ``m``, ``L``, ``kappa``. Loading checks shapes, names, ranges,
+cycles among tied parameters and the fixed-point conditions of eq. (11).
+
+Every problem is reported as a :class:`SpecError` naming the file and the field.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import sympy as sp
+import yaml
+
+from sosalgo.expr import ExprError, parse_expression
+from sosalgo.numeric import NumericError, compile_expression
+
+__all__ = ["SpecError", "Parameter", "Spec", "load_spec", "spec_from_dict", "BASE_SYMBOLS"]
+
+M_SYM, L_SYM, KAPPA_SYM = sp.symbols("m L kappa", positive=True)
+BASE_SYMBOLS: dict[str, sp.Symbol] = {"m": M_SYM, "L": L_SYM, "kappa": KAPPA_SYM}
+MATRIX_NAMES = ("A", "B", "C", "E")
+TOP_KEYS = {
+    "name", "description", "parameters", "matrices", "references", "kappa", "m", "certificate",
+}
+NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,79}$")
+PARAM_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,31}$")
+RESERVED = set(BASE_SYMBOLS) | {"sqrt", "exp", "log", "abs", "min", "max", "pi", "rho", "lambda"}
+MAX_FILE_BYTES = 1_000_000
+MAX_STATE = 12
+MAX_KAPPA_POINTS = 10_000
+
+
+class SpecError(ValueError):
+    """Invalid spec: carries the file and the field so the message is one precise line."""
+
+    def __init__(self, source: str, field_: str, message: str):
+        self.source = source
+        self.field = field_
+        self.message = message
+        where = f"{source}: {field_}" if field_ else source
+        super().__init__(f"{where}: {message}")
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A tunable parameter (``value`` and optional ``range``) or a tied one (``tied``)."""
+
+    name: str
+    value: sp.Expr | None = None
+    range: tuple[sp.Expr, sp.Expr] | None = None
+    tied: sp.Expr | None = None
+
+    @property
+    def is_tied(self) -> bool:
+        return self.tied is not None
+
+
+@dataclass(frozen=True, eq=False)
+class Spec:
+    """A validated spec. Expressions are sympy objects over parameters and m, L, kappa."""
+
+    name: str
+    description: str
+    source: str
+    parameters: dict[str, Parameter]
+    matrices: dict[str, sp.Matrix]
+    references: dict[str, sp.Expr]
+    kappa: tuple[float, ...]
+    m: float = 1.0
+    certificate: str = "theorem1"
+    symbols: dict[str, sp.Symbol] = field(default_factory=dict, repr=False)
+
+    @property
+    def n(self) -> int:
+        """State dimension (rows of A)."""
+        return int(self.matrices["A"].shape[0])
+
+    @property
+    def inputs(self) -> list[str]:
+        """Parameters that are not tied (they have a value, maybe a range)."""
+        return [p for p, par in self.parameters.items() if not par.is_tied]
+
+    @property
+    def ranged(self) -> list[str]:
+        """Parameters with a range: the default free set of design and grids."""
+        return [p for p, par in self.parameters.items() if par.range is not None]
+
+    def mL(self, kappa: float) -> tuple[float, float]:
+        """(m, L) for a condition number: L = kappa * m."""
+        return self.m, kappa * self.m
+
+    def tied_closure(self) -> dict[str, sp.Expr]:
+        """Every tied parameter written in terms of input parameters and m, L, kappa."""
+        order = _tied_order(self.parameters, self.source)
+        out: dict[str, sp.Expr] = {}
+        for name in order:
+            expr = self.parameters[name].tied
+            assert expr is not None
+            out[name] = expr.xreplace({self.symbols[k]: v for k, v in out.items()})
+        return out
+
+    def templates(self, free: Sequence[str] | None = None) -> dict[str, sp.Matrix]:
+        """Symbolic A, B, C, E with tied parameters substituted.
+
+        Parameters in ``free`` stay symbols; other input parameters are replaced by their
+        ``value`` expressions when ``free`` is given (``free=None`` keeps every input
+        parameter symbolic).
+        """
+        sub: dict[sp.Symbol, sp.Expr] = {}
+        tied = self.tied_closure()
+        for name, expr in tied.items():
+            sub[self.symbols[name]] = expr
+        out = {k: mat.xreplace(sub) for k, mat in self.matrices.items()}
+        if free is not None:
+            fixed = {
+                self.symbols[p]: self.parameters[p].value
+                for p in self.inputs
+                if p not in free
+            }
+            out = {k: mat.xreplace(fixed) for k, mat in out.items()}
+        return out
+
+    def check_free(self, free: Sequence[str], need_range: bool = True) -> None:
+        """Raise SpecError unless every name in ``free`` is an input parameter (with range)."""
+        for p in free:
+            if p not in self.parameters:
+                raise SpecError(self.source, f"--free {p}", "unknown parameter")
+            par = self.parameters[p]
+            if par.is_tied:
+                raise SpecError(self.source, f"parameters.{p}", "tied parameters cannot be free")
+            if need_range and par.range is None:
+                raise SpecError(self.source, f"parameters.{p}.range", "a free parameter needs a range")
+
+
+# --------------------------------------------------------------------------- loading
+
+
+class _StrictLoader(yaml.SafeLoader):
+    """SafeLoader that refuses duplicate keys and aliases (no billion-laughs tricks)."""
+
+
+def _construct_mapping(loader: _StrictLoader, node: yaml.MappingNode, deep: bool = False):
+    seen: set[Any] = set()
+    for key_node, _ in node.value:
+        key = loader.construct_object(key_node, deep=deep)
+        try:
+            hash(key)
+        except TypeError:
+            raise yaml.constructor.ConstructorError(
+                None, None, "mapping keys must be plain scalars", key_node.start_mark
+            ) from None
+        if key in seen:
+            raise yaml.constructor.ConstructorError(
+                None, None, f"duplicate key {key!r}", key_node.start_mark
+            )
+        seen.add(key)
+    return yaml.SafeLoader.construct_mapping(loader, node, deep=deep)
+
+
+_StrictLoader.add_constructor(
+    yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping
+)
+
+
+def _compose_node(self: _StrictLoader, parent, index):
+    if self.check_event(yaml.AliasEvent):
+        event = self.peek_event()
+        raise yaml.composer.ComposerError(
+            None, None, "YAML aliases are not supported", event.start_mark
+        )
+    return yaml.SafeLoader.compose_node(self, parent, index)
+
+
+_StrictLoader.compose_node = _compose_node  # type: ignore[method-assign]
+
+
+def load_spec(path: str | Path) -> Spec:
+    """Read and validate a YAML spec file."""
+    p = Path(path)
+    source = str(path)
+    try:
+        if p.stat().st_size > MAX_FILE_BYTES:
+            raise SpecError(source, "", f"file larger than {MAX_FILE_BYTES} bytes")
+        text = p.read_text(encoding="utf-8")
+    except SpecError:
+        raise
+    except FileNotFoundError:
+        raise SpecError(source, "", "no such file") from None
+    except IsADirectoryError:
+        raise SpecError(source, "", "is a directory, not a spec file") from None
+    except UnicodeDecodeError:
+        raise SpecError(source, "", "not UTF-8 text") from None
+    except OSError as exc:
+        raise SpecError(source, "", f"cannot read ({exc.strerror})") from None
+    return spec_from_text(text, source=source)
+
+
+def spec_from_text(text: str, source: str = "<spec>") -> Spec:
+    """Parse YAML text into a validated spec."""
+    try:
+        data = yaml.load(text, Loader=_StrictLoader)  # noqa: S506 - strict *safe* loader
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        where = f"line {mark.line + 1}" if mark is not None else "YAML"
+        problem = (exc.problem or exc.context or "invalid YAML").strip()
+        raise SpecError(source, where, f"invalid YAML: {problem}") from None
+    except (yaml.YAMLError, RecursionError, MemoryError, ValueError) as exc:
+        raise SpecError(source, "", f"invalid YAML: {type(exc).__name__}") from None
+    return spec_from_dict(data, source=source)
+
+
+def spec_from_dict(data: object, source: str = "<spec>") -> Spec:
+    """Validate an already-parsed spec mapping."""
+    try:
+        return _Builder(source).build(data)
+    except RecursionError:
+        raise SpecError(source, "", "structure nested too deeply") from None
+
+
+class _Builder:
+    def __init__(self, source: str):
+        self.source = source
+
+    def fail(self, field_: str, message: str) -> SpecError:
+        return SpecError(self.source, field_, message)
+
+    # -- top level -------------------------------------------------------------------
+    def build(self, data: object) -> Spec:
+        if not isinstance(data, dict):
+            raise self.fail("", "a spec must be a YAML mapping (name, parameters, matrices, ...)")
+        for key in data:
+            if not isinstance(key, str) or key not in TOP_KEYS:
+                raise self.fail(str(key)[:40], f"unknown field (known: {', '.join(sorted(TOP_KEYS))})")
+        name = self.name(data.get("name"))
+        description = data.get("description", "")
+        if not isinstance(description, str):
+            raise self.fail("description", "must be a string")
+        m = self.m_value(data.get("m", 1))
+        certificate = data.get("certificate", "theorem1")
+        from sosalgo.certificates import FAMILIES
+
+        if certificate not in FAMILIES:
+            raise self.fail("certificate", f"unknown family (known: {', '.join(FAMILIES)})")
+
+        raw_params = data.get("parameters", {})
+        if raw_params is None:
+            raw_params = {}
+        if not isinstance(raw_params, dict):
+            raise self.fail("parameters", "must be a mapping of parameter names")
+        symbols: dict[str, sp.Symbol] = {}
+        for pname in raw_params:
+            if not isinstance(pname, str) or not PARAM_RE.match(pname):
+                raise self.fail(f"parameters.{str(pname)[:40]}", "not a valid parameter name")
+            if pname in RESERVED:
+                raise self.fail(f"parameters.{pname}", "name is reserved")
+            symbols[pname] = sp.Symbol(pname, real=True)
+        names = {**BASE_SYMBOLS, **symbols}
+        params = {p: self.parameter(p, raw, names) for p, raw in raw_params.items()}
+        _tied_order(params, self.source)  # detects cycles
+        _value_order(params, self.source)
+
+        matrices = self.matrices(data.get("matrices"), names)
+        references = self.references(data.get("references", {}))
+        kappa = self.kappa(data.get("kappa", [10]))
+        spec = Spec(
+            name=name, description=description, source=self.source, parameters=params,
+            matrices=matrices, references=references, kappa=kappa, m=m,
+            certificate=certificate, symbols=symbols,
+        )
+        self.check_values(spec)
+        return spec
+
+    def name(self, raw: object) -> str:
+        if raw is None:
+            raise self.fail("name", "missing (a short file-name-safe identifier)")
+        if not isinstance(raw, str) or not NAME_RE.match(raw) or ".." in raw:
+            raise self.fail(
+                "name", "must be letters, digits, '_', '-', '.' (no path separators, no '..')"
+            )
+        return raw
+
+    def m_value(self, raw: object) -> float:
+        try:
+            expr = parse_expression(raw, {})
+            val = float(expr)
+        except (ExprError, TypeError) as exc:
+            raise self.fail("m", str(exc)) from None
+        if not (math.isfinite(val) and val > 0):
+            raise self.fail("m", "must be a positive finite number")
+        return val
+
+    # -- parameters ------------------------------------------------------------------
+    def parameter(self, pname: str, raw: object, names: dict[str, sp.Symbol]) -> Parameter:
+        where = f"parameters.{pname}"
+        if isinstance(raw, dict):
+            for key in raw:
+                if key not in ("value", "range"):
+                    raise self.fail(f"{where}.{str(key)[:40]}", "unknown field (use value, range)")
+            if "value" not in raw:
+                raise self.fail(f"{where}.value", "missing (analysis needs a value)")
+            value = self.expr(raw["value"], names, f"{where}.value")
+            if names[pname] in value.free_symbols:
+                raise self.fail(f"{where}.value", "refers to itself")
+            rng = None
+            if "range" in raw:
+                rng = self.range(raw["range"], f"{where}.range")
+            return Parameter(pname, value=value, range=rng)
+        if raw is None:
+            raise self.fail(where, "missing value: give {value: ..., range: [lo, hi]} or a tie")
+        tied = self.expr(raw, names, where)
+        return Parameter(pname, tied=tied)
+
+    def range(self, raw: object, where: str) -> tuple[sp.Expr, sp.Expr]:
+        if not isinstance(raw, list) or len(raw) != 2:
+            raise self.fail(where, "must be a list [lo, hi]")
+        lo = self.expr(raw[0], BASE_SYMBOLS, f"{where}[0]")
+        hi = self.expr(raw[1], BASE_SYMBOLS, f"{where}[1]")
+        # ranges may depend on m, L, kappa; check lo <= hi where it is decidable.
+        diff = sp.simplify(hi - lo)
+        if diff.is_negative:
+            raise self.fail(where, f"lower bound {raw[0]} exceeds upper bound {raw[1]}")
+        return lo, hi
+
+    def expr(self, raw: object, names: Mapping[str, sp.Symbol], where: str) -> sp.Expr:
+        try:
+            return parse_expression(raw, names)
+        except ExprError as exc:
+            raise self.fail(where, str(exc)) from None
+
+    # -- matrices --------------------------------------------------------------------
+    def matrices(self, raw: object, names: dict[str, sp.Symbol]) -> dict[str, sp.Matrix]:
+        if raw is None:
+            raise self.fail("matrices", "missing (A, B, C, E)")
+        if not isinstance(raw, dict):
+            raise self.fail("matrices", "must be a mapping with A, B, C, E")
+        for key in raw:
+            if key not in MATRIX_NAMES:
+                raise self.fail(f"matrices.{str(key)[:40]}", "unknown matrix (use A, B, C, E)")
+        out: dict[str, sp.Matrix] = {}
+        for key in MATRIX_NAMES:
+            if key not in raw:
+                raise self.fail(f"matrices.{key}", "missing")
+            out[key] = self.matrix(raw[key], names, f"matrices.{key}")
+        n = out["A"].shape[0]
+        if out["A"].shape != (n, n):
+            raise self.fail("matrices.A", f"must be square, got {_shape(out['A'])}")
+        if n > MAX_STATE:
+            raise self.fail("matrices.A", f"state dimension {n} exceeds {MAX_STATE}")
+        if out["B"].shape != (n, 1):
+            raise self.fail("matrices.B", f"must be {n}x1 (A is {n}x{n}), got {_shape(out['B'])}")
+        for key in ("C", "E"):
+            if out[key].shape != (1, n):
+                raise self.fail(f"matrices.{key}", f"must be 1x{n}, got {_shape(out[key])}")
+        return out
+
+    def matrix(self, raw: object, names: dict[str, sp.Symbol], where: str) -> sp.Matrix:
+        if not isinstance(raw, list) or not raw:
+            raise self.fail(where, "must be a non-empty list of rows, e.g. [[0, 1], [1, 0]]")
+        rows = []
+        for i, row in enumerate(raw):
+            if not isinstance(row, list) or not row:
+                raise self.fail(f"{where}[{i}]", "each row must be a non-empty list")
+            rows.append([self.expr(v, names, f"{where}[{i}][{j}]") for j, v in enumerate(row)])
+        widths = {len(r) for r in rows}
+        if len(widths) != 1:
+            raise self.fail(where, "rows have different lengths")
+        return sp.Matrix(rows)
+
+    # -- references and kappa --------------------------------------------------------
+    def references(self, raw: object) -> dict[str, sp.Expr]:
+        if raw is None:
+            return {}
+        if not isinstance(raw, dict):
+            raise self.fail("references", "must be a mapping name: expression")
+        out = {}
+        for key, val in raw.items():
+            if not isinstance(key, str) or not key.strip() or len(key) > 80:
+                raise self.fail("references", "names must be non-empty strings (<= 80 chars)")
+            if any(c in key for c in "\n\r\t"):
+                raise self.fail(f"references.{key[:40]}", "name has control characters")
+            out[key] = self.expr(val, BASE_SYMBOLS, f"references.{key}")
+        return out
+
+    def kappa(self, raw: object) -> tuple[float, ...]:
+        return parse_kappa(raw, self.source, "kappa")
+
+    # -- numeric checks at the spec's own values -------------------------------------
+    def check_values(self, spec: Spec) -> None:
+        from sosalgo.model import ModelError, bind
+
+        for ref, expr in spec.references.items():
+            fn = compile_expression(expr, list(BASE_SYMBOLS.values()))
+            for k in spec.kappa:
+                try:
+                    fn([spec.m, k * spec.m, k])
+                except NumericError as exc:
+                    raise self.fail(f"references.{ref}", f"at kappa={k:g}: {exc}") from None
+        for pname, par in spec.parameters.items():
+            if par.range is None:
+                continue
+            for k in spec.kappa:
+                lo, hi = (_num(e, spec, k, self, f"parameters.{pname}.range") for e in par.range)
+                if lo > hi:
+                    raise self.fail(
+                        f"parameters.{pname}.range",
+                        f"lower bound {lo:g} exceeds upper bound {hi:g} at kappa={k:g}",
+                    )
+        for k in spec.kappa:
+            try:
+                bind(spec, k)
+            except ModelError as exc:
+                raise self.fail(exc.field, f"at kappa={k:g}: {exc.message}") from None
+
+
+def parse_kappa(raw: object, source: str, where: str) -> tuple[float, ...]:
+    """A kappa list ``[2, 10]`` or a range ``{from, to, points, scale: log|linear}``."""
+    def fail(msg: str, sub: str = "") -> SpecError:
+        return SpecError(source, where + sub, msg)
+
+    def number(v: object, sub: str) -> float:
+        try:
+            val = float(parse_expression(v, {}))
+        except (ExprError, TypeError) as exc:
+            raise fail(str(exc), sub) from None
+        if not math.isfinite(val):
+            raise fail("must be finite", sub)
+        if val <= 1:
+            raise fail(f"condition number must be > 1, got {val:g}", sub)
+        return val
+
+    if isinstance(raw, bool):
+        raise fail("must be a number, a list or {from, to, points, scale}")
+    if isinstance(raw, int | float | str):
+        return (number(raw, ""),)
+    if isinstance(raw, list):
+        if not raw:
+            raise fail("empty list")
+        if len(raw) > MAX_KAPPA_POINTS:
+            raise fail(f"more than {MAX_KAPPA_POINTS} values")
+        return tuple(number(v, f"[{i}]") for i, v in enumerate(raw))
+    if isinstance(raw, dict):
+        allowed = {"from", "to", "points", "scale"}
+        for key in raw:
+            if key not in allowed:
+                raise fail("unknown field (use from, to, points, scale)", f".{str(key)[:40]}")
+        for key in ("from", "to", "points"):
+            if key not in raw:
+                raise fail("missing", f".{key}")
+        lo = number(raw["from"], ".from")
+        hi = number(raw["to"], ".to")
+        if lo > hi:
+            raise fail(f"from ({lo:g}) exceeds to ({hi:g})")
+        pts = raw["points"]
+        if isinstance(pts, bool) or not isinstance(pts, int) or not 1 <= pts <= MAX_KAPPA_POINTS:
+            raise fail(f"must be an integer in 1..{MAX_KAPPA_POINTS}", ".points")
+        scale = raw.get("scale", "log")
+        if scale not in ("log", "linear"):
+            raise fail("must be 'log' or 'linear'", ".scale")
+        if pts == 1:
+            return (lo,)
+        vals = np.geomspace(lo, hi, pts) if scale == "log" else np.linspace(lo, hi, pts)
+        return tuple(float(v) for v in vals)
+    raise fail("must be a number, a list or {from, to, points, scale}")
+
+
+def _num(expr: sp.Expr, spec: Spec, kappa: float, b: _Builder, where: str) -> float:
+    m, L = spec.mL(kappa)
+    try:
+        return compile_expression(expr, list(BASE_SYMBOLS.values()))([m, L, kappa])
+    except NumericError as exc:
+        raise b.fail(where, f"at kappa={kappa:g}: {exc}") from None
+
+
+def _shape(mat: sp.Matrix) -> str:
+    return f"{mat.shape[0]}x{mat.shape[1]}"
+
+
+def _deps(expr: sp.Expr | None, params: Mapping[str, Parameter]) -> set[str]:
+    if expr is None:
+        return set()
+    return {s.name for s in expr.free_symbols if s.name in params}
+
+
+def _topo(graph: dict[str, set[str]], source: str, what: str) -> list[str]:
+    order: list[str] = []
+    state: dict[str, int] = {}
+
+    def visit(node: str, path: list[str]) -> None:
+        if state.get(node) == 2:
+            return
+        if state.get(node) == 1:
+            cycle = " -> ".join(path[path.index(node):] + [node])
+            raise SpecError(source, f"parameters.{node}", f"cycle among {what}: {cycle}")
+        state[node] = 1
+        for dep in sorted(graph[node]):
+            visit(dep, path + [node])
+        state[node] = 2
+        order.append(node)
+
+    for node in graph:
+        visit(node, [])
+    return order
+
+
+def _tied_order(params: Mapping[str, Parameter], source: str) -> list[str]:
+    """Tied parameters in dependency order; raises on a cycle."""
+    graph = {
+        p: {d for d in _deps(par.tied, params) if params[d].is_tied}
+        for p, par in params.items()
+        if par.is_tied
+    }
+    return _topo(graph, source, "tied parameters")
+
+
+def _value_order(params: Mapping[str, Parameter], source: str) -> list[str]:
+    """All parameters in the order their values can be computed; raises on a cycle."""
+    graph = {p: _deps(par.tied if par.is_tied else par.value, params) for p, par in params.items()}
+    return _topo(graph, source, "parameter values")
