@@ -16,9 +16,9 @@ from typing import Any
 import numpy as np
 
 from sosalgo.certificates import get_family
-from sosalgo.certificates.base import CertificateFamily
+from sosalgo.certificates.base import CertificateFamily, LMIProblem
 from sosalgo.model import Algorithm, bind
-from sosalgo.solvers import DEFAULT_SOLVERS, Outcome, solve_lmi
+from sosalgo.solvers import DEFAULT_SOLVERS, Outcome, check_point, solve_lmi, solve_margin
 from sosalgo.spec import Spec
 
 __all__ = ["AnalysisResult", "analyze_algorithm", "analyze_spec", "DEFAULT_TOL"]
@@ -63,40 +63,156 @@ class AnalysisResult:
         }
 
 
+class _Search:
+    """Counts solves and classifies one rho: certified (with a checked point) or not."""
+
+    def __init__(self, problem: LMIProblem, solvers: Sequence[str], use_margin: bool):
+        self.problem, self.solvers, self.use_margin = problem, solvers, use_margin
+        self.solves = 0
+
+    def plain(self, rho: float) -> Outcome:
+        self.solves += 1
+        return solve_lmi(self.problem, rho, self.solvers)
+
+    def test(self, rho: float) -> tuple[Outcome, float | None]:
+        """(outcome, margin t); the margin is None when not computed or not trusted."""
+        if not self.use_margin:
+            return self.plain(rho), None
+        self.solves += 1
+        mg = solve_margin(self.problem, rho)
+        if not mg.ok or mg.t is None:
+            return self.plain(rho), None
+        if mg.t > 0 and mg.x is not None:
+            out = check_point(self.problem, rho, mg.x, "clarabel-margin")
+            if out.feasible:
+                return out, mg.t
+            return self.plain(rho), mg.t  # a rescaled point too close to call: ask plainly
+        return Outcome("infeasible", None, "clarabel-margin", f"margin {mg.t:.3g}"), mg.t
+
+
+def _bisect(search: _Search, lo: float, hi: float, best: Outcome, tol: float):
+    while hi - lo > tol:
+        mid = 0.5 * (lo + hi)
+        out, _ = search.test(mid)
+        if out.feasible:
+            hi, best = mid, out
+        else:
+            lo = mid
+    return lo, hi, best
+
+
+def _line_root(p: tuple[float, float], q: tuple[float, float]) -> float | None:
+    """Root of the line through two (rho, t) points, if the line is not flat."""
+    (x0, t0), (x1, t1) = p, q
+    if t1 == t0 or x1 == x0:
+        return None
+    return x1 - t1 * (x1 - x0) / (t1 - t0)
+
+
+def _estimate(lo: float, hi: float, upper: list, lower: list) -> float:
+    """Root estimate: a secant on the side whose latest margin is smallest, else regula
+    falsi across the bracket, else the midpoint."""
+    sides = [pts for pts in (upper, lower) if len(pts) >= 2]
+    sides.sort(key=lambda pts: abs(pts[-1][1]))
+    for pts in sides:
+        est = _line_root(pts[-2], pts[-1])
+        if est is not None and lo < est < hi:
+            return est
+    if upper and lower:
+        est = _line_root(lower[-1], upper[-1])
+        if est is not None and lo < est < hi:
+            return est
+    return 0.5 * (lo + hi)
+
+
+def _secant(search: _Search, t_one: float, best: Outcome, tol: float):
+    """Bracketed root-finding on the margin t(rho).
+
+    Near the threshold t is close to piecewise linear with a kink at the root, so the
+    estimate comes from a secant through the last two points on one side (certified side
+    first), else regula falsi on the bracket, with a bisection step whenever the bracket
+    fails to halve. Each estimate is tested a quarter tolerance above and then below, which
+    closes the bracket in two solves once the estimate is good. Invariant: hi is certified
+    by a checked point, lo is not certified.
+    """
+    lo, hi = 0.0, 1.0
+    upper: list[tuple[float, float]] = [(1.0, t_one)]
+    lower: list[tuple[float, float]] = []
+
+    def record(x: float, out: Outcome, t: float | None) -> None:
+        nonlocal lo, hi, best
+        if out.feasible:
+            hi, best = x, out
+            if t is not None and t > 0:
+                upper.append((x, t))
+        else:
+            lo = x
+            if t is not None and t < 0:
+                lower.append((x, t))
+
+    out, t = search.test(0.5)
+    record(0.5, out, t)
+    if out.feasible:
+        out0, t0 = search.test(0.0)
+        if out0.feasible:
+            return 0.0, 0.0, out0
+        record(0.0, out0, t0)
+    while hi - lo > tol:
+        width = hi - lo
+        est = _estimate(lo, hi, upper, lower)
+        x = min(max(est + 0.25 * tol, lo + 0.25 * tol), hi - 0.25 * tol)
+        out, t = search.test(x)
+        record(x, out, t)
+        if out.feasible and hi - lo > tol and len(upper) >= 2:
+            again = _line_root(upper[-2], upper[-1])
+            if again is not None and abs(again - est) < 0.25 * tol and lo < est - 0.25 * tol:
+                below = est - 0.25 * tol  # the estimate is confirmed: close from below
+                out, t = search.test(below)
+                record(below, out, t)
+                continue
+        if hi - lo > 0.5 * width and hi - lo > tol:
+            mid = 0.5 * (lo + hi)  # poor progress: one bisection step
+            out, t = search.test(mid)
+            record(mid, out, t)
+    return lo, hi, best
+
+
 def analyze_algorithm(
     alg: Algorithm,
     tol: float = DEFAULT_TOL,
     family: CertificateFamily | str = "theorem1",
     solvers: Sequence[str] = DEFAULT_SOLVERS,
+    method: str = "secant",
 ) -> AnalysisResult:
-    """Bisection on rho in [0, 1] to width ``tol`` (eq. 16)."""
+    """Smallest certified rho in [0, 1] to width ``tol`` (eq. 16).
+
+    ``method="secant"`` (default) root-finds on the continuous margin of
+    :func:`sosalgo.solvers.solve_margin`; ``"bisection"`` (also used whenever ``solvers``
+    is not the default chain) tests plain feasibility only.
+    Both keep a bracket [lo, hi] with hi certified by a checked certificate.
+    """
     if not tol > 0:
         raise ValueError("tol must be positive")
+    if method not in ("secant", "bisection"):
+        raise ValueError("method must be 'secant' or 'bisection'")
     fam = get_family(family) if isinstance(family, str) else family
     start = time.perf_counter()
     problem = fam.problem(alg)
-    solves = 0
-
-    def test(rho: float) -> Outcome:
-        nonlocal solves
-        solves += 1
-        return solve_lmi(problem, rho, solvers)
-
-    best = test(1.0)
+    # The margin problem is solved by Clarabel; a custom solver chain means plain bisection.
+    use_margin = method == "secant" and tuple(solvers) == DEFAULT_SOLVERS
+    search = _Search(problem, solvers, use_margin=use_margin)
+    best, t_one = search.test(1.0)
     if not best.feasible:
         return AnalysisResult(
             kappa=alg.kappa, rho=None, certified=False, P=None, lam=None, max_eig_M=None,
-            min_eig_P=None, solves=solves, seconds=time.perf_counter() - start, solver=None,
-            rho_infeasible=1.0, params=dict(alg.params), family=fam.name,
+            min_eig_P=None, solves=search.solves, seconds=time.perf_counter() - start,
+            solver=None, rho_infeasible=1.0, params=dict(alg.params), family=fam.name,
         )
-    lo, hi = 0.0, 1.0
-    while hi - lo > tol:
-        mid = 0.5 * (lo + hi)
-        out = test(mid)
-        if out.feasible:
-            hi, best = mid, out
-        else:
-            lo = mid
+    if method == "secant" and t_one is not None:
+        lo, hi, best = _secant(search, t_one, best, tol)
+    else:
+        lo, hi, best = _bisect(search, 0.0, 1.0, best, tol)
+    solves = search.solves
     assert best.x is not None
     cert = problem.unpack(best.x)
     M = fam.matrix(alg, hi, cert)

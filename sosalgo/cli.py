@@ -77,6 +77,17 @@ def _out_dir(out: str) -> Path:
     return path
 
 
+def _check_points(spec, kappas, theta=None) -> None:
+    """Evaluate the spec at every requested kappa before any output is written."""
+    from sosalgo.model import bind
+
+    for k in kappas:
+        try:
+            bind(spec, k, theta)
+        except ModelError as exc:
+            raise InputError(f"{spec.source}: {exc.field}: at kappa={k:g}: {exc.message}") from None
+
+
 def _check_tol(tol: float) -> None:
     if not (0 < tol < 0.5):
         raise InputError(f"--tol {tol}: must be in (0, 0.5)")
@@ -116,6 +127,7 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
     spec = load_spec(spec_path)
     kappas = _kappas(spec, kappa)
     _check_tol(tol)
+    _check_points(spec, kappas)
     out_dir = _out_dir(out)
     spec_text = Path(spec_path).read_text(encoding="utf-8")
     csv_path = out_dir / f"{spec.name}-analysis.csv"
@@ -161,6 +173,59 @@ def lmi(spec_path: str, latex: bool, free: str | None) -> None:
     if names is not None:
         spec.check_free(names, need_range=False)
     click.echo(symbolic_lmi(spec, free=names, latex=latex))
+
+
+# --------------------------------------------------------------------------- table1
+@cli.command()
+@click.option("--specs", "spec_paths", multiple=True, metavar="SPEC",
+              help="Specs to tabulate (default: specs/*.yaml).")
+@click.option("--kappa", "kappa", multiple=True, metavar="K", help="Default: 2, 10, 100.")
+@click.option("--tol", default=1e-6, show_default=True, type=float)
+@click.option("--out", default="outputs", show_default=True, metavar="DIR")
+@handle_errors
+def table1(spec_paths: tuple[str, ...], kappa: tuple[str, ...], tol: float, out: str) -> None:
+    """Table 1 of the paper: certified rate beside each spec's closed-form rate.
+
+    The closed-form rate of a spec is the first entry of its ``references``.
+    """
+    from sosalgo.analysis import analyze_spec
+    from sosalgo.jobs import reference_values
+    from sosalgo.report import format_table
+    from sosalgo.rows import format_value
+
+    _check_tol(tol)
+    paths = list(spec_paths) or sorted(str(p) for p in Path("specs").glob("*.yaml"))
+    if not paths:
+        raise InputError("--specs: no spec files given and none in specs/")
+    specs = [load_spec(p) for p in paths]
+    kappas = [k for v in kappa for k in parse_kappa(v, "table1", "--kappa")] or [2.0, 10.0, 100.0]
+    rows = []
+    for spec in specs:
+        for k in kappas:
+            res = analyze_spec(spec, k, tol=tol)
+            refs = reference_values(spec, k)
+            name, val = next(iter(refs.items()), ("", None))
+            rows.append({
+                "spec": spec.name, "kappa": float(k), "rho_certified": res.rho,
+                "certified": res.certified, "closed_form": name, "closed_form_rate": val,
+                "difference": None if (res.rho is None or val is None) else res.rho - val,
+            })
+    cols = ["spec", "kappa", "rho_certified", "certified", "closed_form", "closed_form_rate",
+            "difference"]
+    out_dir = _out_dir(out)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    path = out_dir / "table1.csv"
+    tmp = path.with_name(".table1.csv.tmp")
+    import csv
+
+    with open(tmp, "w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(cols)
+        for r in rows:
+            w.writerow([format_value(r[c]) for c in cols])
+    os.replace(tmp, path)
+    click.echo(format_table(rows, cols))
+    click.echo(f"wrote {path}")
 
 
 def main() -> None:

@@ -169,4 +169,6 @@ def _check_power(base: sp.Expr, exponent: sp.Expr) -> None:
 def _check_finite(expr: sp.Expr) -> sp.Expr:
     if expr.has(sp.zoo, sp.oo, -sp.oo, sp.nan):
         raise ExprError("expression is not finite (division by zero?)")
+    if expr.has(sp.I):
+        raise ExprError("expression is not real (square root or log of a negative number?)")
     return expr

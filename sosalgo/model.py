@@ -60,15 +60,31 @@ class _Compiled:
         self.order = _value_order(spec.parameters, spec.source)
         self.param_fns = {}
         for p, par in spec.parameters.items():
+            field_ = f"parameters.{p}" + ("" if par.is_tied else ".value")
             expr = par.tied if par.is_tied else par.value
-            self.param_fns[p] = compile_expression(expr, syms)
-        self.matrix_fns = {k: compile_matrix(spec.matrices[k], syms) for k in MATRIX_NAMES}
+            self.param_fns[p] = _compile(expr, syms, field_)
+        self.matrix_fns = {}
+        for k in MATRIX_NAMES:
+            try:
+                self.matrix_fns[k] = compile_matrix(spec.matrices[k], syms)
+            except NumericError as exc:
+                raise ModelError(f"matrices.{k}", str(exc)) from None
         base = list(BASE_SYMBOLS.values())
         self.range_fns = {
-            p: (compile_expression(par.range[0], base), compile_expression(par.range[1], base))
+            p: (
+                _compile(par.range[0], base, f"parameters.{p}.range"),
+                _compile(par.range[1], base, f"parameters.{p}.range"),
+            )
             for p, par in spec.parameters.items()
             if par.range is not None
         }
+
+
+def _compile(expr, symbols, field_: str):
+    try:
+        return compile_expression(expr, symbols)
+    except NumericError as exc:
+        raise ModelError(field_, str(exc)) from None
 
 
 _CACHE: weakref.WeakKeyDictionary[Spec, _Compiled] = weakref.WeakKeyDictionary()

@@ -38,7 +38,9 @@ def compile_expression(expr: sp.Expr, symbols: Sequence[sp.Symbol]) -> Fn:
     return evaluate
 
 
-def compile_matrix(mat: sp.Matrix, symbols: Sequence[sp.Symbol]) -> Callable[[Sequence[float]], np.ndarray]:
+def compile_matrix(
+    mat: sp.Matrix, symbols: Sequence[sp.Symbol]
+) -> Callable[[Sequence[float]], np.ndarray]:
     """Compile every entry of ``mat``; returns ``f(values) -> ndarray``."""
     rows, cols = mat.shape
     fns = [compile_expression(mat[i, j], symbols) for i in range(rows) for j in range(cols)]

@@ -24,7 +24,10 @@ import scipy.sparse as sps
 
 from sosalgo.certificates.base import LMIProblem
 
-__all__ = ["Outcome", "solve_lmi", "SOLVERS", "DEFAULT_SOLVERS", "margin_for"]
+__all__ = [
+    "Outcome", "solve_lmi", "solve_margin", "check_point", "Margin", "SOLVERS",
+    "DEFAULT_SOLVERS", "margin_for",
+]
 
 SQRT2 = math.sqrt(2.0)
 RELATIVE_MARGIN = 1e-9
@@ -185,6 +188,109 @@ def _scs(problem: LMIProblem, rho: float, margin: float):
     return ("near" if "inaccurate" in status else "failed"), None, status
 
 
+class _MarginForm:
+    """Homogenized margin problem: max t s.t. G_h(x, c) + t I ⪯ 0 on strict blocks,
+    the other blocks ⪯ 0, c >= 0 and c + sum of tr(-G_b(x)) over non-strict blocks = 1
+    (for Theorem 1: c + tr P + lambda = 1), where G_h is G with its constant scaled by c.
+
+    Every certificate of G ⪯ 0 rescales into this compact set, so t(rho) > 0 exactly when
+    the LMI is strictly feasible; t(rho) is a continuous feasibility margin for root-finding.
+    Variables z = (x, c, t). Clarabel's upper-triangular svec.
+    """
+
+    def __init__(self, problem: LMIProblem):
+        nv = problem.nvar
+        self.nz = nv + 2
+        w = np.zeros(nv)
+        a0, a1, eye, sizes = [], [], [], []
+        for blk in problem.blocks:
+            s = blk.size
+            if not blk.strict:
+                w += -np.trace(blk.l0, axis1=1, axis2=2)
+            a0.append(np.column_stack([svec(blk.l0, True).T, svec(blk.c0, True)]))
+            a1.append(np.column_stack([svec(blk.l1, True).T, svec(blk.c1, True)]))
+            eye.append(svec(np.eye(s) if blk.strict else np.zeros((s, s)), True))
+            sizes.append(s)
+        top0 = np.zeros((2, nv + 1))
+        top0[0, :nv], top0[0, nv] = w, 1.0  # c + w.x = 1   (zero cone)
+        top0[1, nv] = -1.0  # -c + s = 0, s >= 0             (c >= 0)
+        a0m = np.vstack([top0] + a0)
+        a1m = np.vstack([np.zeros_like(top0)] + a1)
+        t_col = np.concatenate([[0.0, 0.0], np.concatenate(eye)])
+        self.dense0 = np.column_stack([a0m, t_col])
+        self.dense1 = np.column_stack([a1m, np.zeros_like(t_col)])
+        self.b = np.zeros(self.dense0.shape[0])
+        self.b[0] = 1.0
+        self.q = np.zeros(self.nz)
+        self.q[-1] = -1.0
+        self.sizes = sizes
+        self.A = sps.csc_matrix((np.abs(self.dense0) + np.abs(self.dense1)) > 0, dtype=float)
+        self.A.sort_indices()
+        cols = np.repeat(np.arange(self.A.shape[1]), np.diff(self.A.indptr))
+        self.v0 = self.dense0[self.A.indices, cols]
+        self.v1 = self.dense1[self.A.indices, cols]
+        self.zero_P = sps.csc_matrix((self.nz, self.nz))
+
+    def data(self, rho: float) -> sps.csc_matrix:
+        self.A.data = self.v0 + rho * rho * self.v1
+        return self.A
+
+
+_MARGINS: weakref.WeakKeyDictionary[LMIProblem, _MarginForm] = weakref.WeakKeyDictionary()
+
+
+@dataclass(frozen=True)
+class Margin:
+    """Feasibility margin t(rho) and, when t > 0 and c > 0, the rescaled certificate x/c."""
+
+    ok: bool  # the solver reported solved
+    t: float | None
+    x: np.ndarray | None
+    detail: str = ""
+
+
+def solve_margin(problem: LMIProblem, rho: float) -> Margin:
+    """t(rho) of the homogenized margin problem (Clarabel without, then with equilibration)."""
+    import clarabel
+
+    form = _MARGINS.get(problem)
+    if form is None:
+        form = _MARGINS[problem] = _MarginForm(problem)
+    A = form.data(rho)
+    detail = ""
+    for equilibrate in (False, True):
+        cones = [clarabel.ZeroConeT(1), clarabel.NonnegativeConeT(1)] + [
+            clarabel.NonnegativeConeT(1) if s == 1 else clarabel.PSDTriangleConeT(s)
+            for s in form.sizes
+        ]
+        try:
+            sol = clarabel.DefaultSolver(
+                form.zero_P, form.q, A, form.b, cones, _clarabel_settings(equilibrate)
+            ).solve()
+        except Exception as exc:  # noqa: BLE001 - a crash is just "no answer"
+            detail = f"exception: {type(exc).__name__}"
+            continue
+        detail = str(sol.status)
+        if detail == "Solved":
+            z = np.array(sol.x)
+            t, c = float(z[-1]), float(z[-2])
+            x = z[:-2] / c if (t > 0 and c > 0) else None
+            return Margin(True, t, x, detail)
+    return Margin(False, None, None, detail)
+
+
+def check_point(problem: LMIProblem, rho: float, x: np.ndarray, solver: str) -> Outcome:
+    """Trusted verdict on a candidate x: feasible only if every block passes in floats."""
+    if x.shape != (problem.nvar,) or not np.all(np.isfinite(x)):
+        return Outcome("failed", None, solver, "malformed point")
+    x = problem.project(x)
+    worst = max(problem.max_eigs(x, rho).values())
+    if worst > 0.0:
+        msg = f"certificate check failed (max eig {worst:.3g})"
+        return Outcome("failed", None, solver, msg, near_boundary=True)
+    return Outcome("feasible", x, solver, "checked")
+
+
 RawSolver = Callable[[LMIProblem, float, float], tuple[str, "np.ndarray | None", str]]
 SOLVERS: dict[str, RawSolver] = {
     "clarabel-fast": _clarabel_fast,
@@ -204,14 +310,8 @@ def _checked(problem: LMIProblem, rho: float, name: str) -> Outcome:
         return Outcome("infeasible", None, name, detail)
     if status != "solved" or x is None:
         return Outcome("failed", None, name, detail, near_boundary=status == "near")
-    if x.shape != (problem.nvar,) or not np.all(np.isfinite(x)):
-        return Outcome("failed", None, name, "solver returned a malformed point")
-    x = problem.project(x)
-    worst = max(problem.max_eigs(x, rho).values())
-    if worst > 0.0:
-        msg = f"certificate check failed (max eig {worst:.3g})"
-        return Outcome("failed", None, name, msg, near_boundary=True)
-    return Outcome("feasible", x, name, detail)
+    out = check_point(problem, rho, x, name)
+    return out if not out.feasible else Outcome("feasible", out.x, name, detail)
 
 
 def solve_lmi(

@@ -39,6 +39,10 @@ TOP_KEYS = {
 NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,79}$")
 PARAM_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,31}$")
 RESERVED = set(BASE_SYMBOLS) | {"sqrt", "exp", "log", "abs", "min", "max", "pi", "rho", "lambda"}
+RESERVED_COLUMNS = {
+    "kappa", "rho", "certified", "lambda", "max_eig_M", "min_eig_P", "solves", "seconds",
+    "solver", "rho_infeasible", "error", "spec", "lower_bound", "rho_certified", "gap",
+}
 MAX_FILE_BYTES = 1_000_000
 MAX_STATE = 12
 MAX_KAPPA_POINTS = 10_000
@@ -143,7 +147,9 @@ class Spec:
             if par.is_tied:
                 raise SpecError(self.source, f"parameters.{p}", "tied parameters cannot be free")
             if need_range and par.range is None:
-                raise SpecError(self.source, f"parameters.{p}.range", "a free parameter needs a range")
+                raise SpecError(
+                    self.source, f"parameters.{p}.range", "a free parameter needs a range"
+                )
 
 
 # --------------------------------------------------------------------------- loading
@@ -244,7 +250,8 @@ class _Builder:
             raise self.fail("", "a spec must be a YAML mapping (name, parameters, matrices, ...)")
         for key in data:
             if not isinstance(key, str) or key not in TOP_KEYS:
-                raise self.fail(str(key)[:40], f"unknown field (known: {', '.join(sorted(TOP_KEYS))})")
+                known = ", ".join(sorted(TOP_KEYS))
+                raise self.fail(str(key)[:40], f"unknown field (known: {known})")
         name = self.name(data.get("name"))
         description = data.get("description", "")
         if not isinstance(description, str):
@@ -392,6 +399,8 @@ class _Builder:
                 raise self.fail("references", "names must be non-empty strings (<= 80 chars)")
             if any(c in key for c in "\n\r\t"):
                 raise self.fail(f"references.{key[:40]}", "name has control characters")
+            if key in RESERVED_COLUMNS or re.fullmatch(r"P\d+", key):
+                raise self.fail(f"references.{key}", "name clashes with an output column")
             out[key] = self.expr(val, BASE_SYMBOLS, f"references.{key}")
         return out
 
@@ -403,10 +412,9 @@ class _Builder:
         from sosalgo.model import ModelError, bind
 
         for ref, expr in spec.references.items():
-            fn = compile_expression(expr, list(BASE_SYMBOLS.values()))
             for k in spec.kappa:
                 try:
-                    fn([spec.m, k * spec.m, k])
+                    compile_expression(expr, list(BASE_SYMBOLS.values()))([spec.m, k * spec.m, k])
                 except NumericError as exc:
                     raise self.fail(f"references.{ref}", f"at kappa={k:g}: {exc}") from None
         for pname, par in spec.parameters.items():

@@ -1,0 +1,50 @@
+# sosalgo — every target creates .venv from a bare Python 3.11 when needed.
+PYTHON ?= python3
+VENV   ?= .venv
+BIN    := $(VENV)/bin
+OUT    ?= outputs
+WORKERS ?=
+SCHEDULER ?=
+BATCH_OPTS := $(if $(WORKERS),--workers $(WORKERS)) $(if $(SCHEDULER),--scheduler $(SCHEDULER))
+
+.PHONY: help venv dev demo test lint table1 bench fig1 fig2 fig3 sweeps figures fuzz clean
+
+help:
+	@echo "make demo     - create .venv, install, analyze specs/nesterov.yaml into $(OUT)/"
+	@echo "make test     - create/reuse .venv with dev extras, run ruff and pytest"
+	@echo "make table1   - $(OUT)/table1.csv: shipped specs at kappa 2, 10, 100 vs closed forms"
+	@echo "make bench    - benchmarks in bench/ (prints a table)"
+
+$(BIN)/python:
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+
+$(VENV)/.installed: pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install --quiet -e .
+	touch $@
+
+$(VENV)/.installed-dev: pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	touch $@ $(VENV)/.installed
+
+venv: $(VENV)/.installed
+dev: $(VENV)/.installed-dev
+
+demo: $(VENV)/.installed
+	$(BIN)/sosalgo analyze specs/nesterov.yaml --out $(OUT) $(BATCH_OPTS)
+
+test: $(VENV)/.installed-dev
+	$(BIN)/ruff check sosalgo tests bench
+	$(BIN)/python -m pytest
+
+lint: $(VENV)/.installed-dev
+	$(BIN)/ruff check sosalgo tests bench
+
+table1: $(VENV)/.installed
+	$(BIN)/sosalgo table1 --out $(OUT)
+
+bench: $(VENV)/.installed-dev
+	$(BIN)/python -m bench $(BENCH_OPTS)
+
+clean:
+	rm -rf $(OUT)/*.csv $(OUT)/*.png $(OUT)/*.pdf $(OUT)/*.json
