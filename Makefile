@@ -48,3 +48,13 @@ bench: $(VENV)/.installed-dev
 
 clean:
 	rm -rf $(OUT)/*.csv $(OUT)/*.png $(OUT)/*.pdf $(OUT)/*.json
+
+KAPPA_SWEEP := {from: 1.5, to: 1000, points: 20, scale: log}
+
+fig1: $(VENV)/.installed
+	$(BIN)/sosalgo design specs/gradient.yaml --free h --kappa '$(KAPPA_SWEEP)' --time-limit 30 --out $(OUT) $(BATCH_OPTS)
+	@echo "Figure 1: $(OUT)/gradient-design.png"
+
+fig2: $(VENV)/.installed
+	$(BIN)/sosalgo design specs/nesterov.yaml --free beta --kappa '$(KAPPA_SWEEP)' --time-limit 30 --out $(OUT) $(BATCH_OPTS)
+	@echo "Figure 2: $(OUT)/nesterov-design.png"

@@ -64,10 +64,20 @@ def _one_line(msg: str) -> str:
 def _kappas(spec, values: tuple[str, ...]) -> tuple[float, ...]:
     if not values:
         return spec.kappa
-    out: list[float] = []
-    for v in values:
-        out.extend(parse_kappa(v, spec.source, "--kappa"))
-    return tuple(out)
+    return tuple(k for v in values for k in _kappa_option(v))
+
+
+def _kappa_option(value: str) -> tuple[float, ...]:
+    """One --kappa value: a number, or a YAML list/range like '{from: 2, to: 100, points: 9}'."""
+    import yaml
+
+    raw: object = value
+    if value.strip()[:1] in "[{":
+        try:
+            raw = yaml.safe_load(value)
+        except yaml.YAMLError:
+            raise InputError(f"--kappa {value}: not a number, list or range") from None
+    return parse_kappa(raw, "--kappa", "value")
 
 
 def _out_dir(out: str) -> Path:
@@ -157,6 +167,101 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
     click.echo(f"wrote {csv_path}" + "".join(f", {p}" for p in figs))
 
 
+# --------------------------------------------------------------------------- design
+@cli.command()
+@click.argument("spec_path", metavar="SPEC", type=click.Path(dir_okay=False))
+@click.option("--kappa", "kappa", multiple=True, metavar="K",
+              help="Condition number(s); repeat or give a range. Default: the spec's list.")
+@click.option("--free", default=None, metavar="NAMES",
+              help="Comma-separated parameters to design (default: those with a range).")
+@click.option("--scalarize", type=click.Choice(["pmi", "minors"]), default="pmi",
+              show_default=True, help="Matrix inequality kept whole (pmi) or as minors.")
+@click.option("--order", type=click.IntRange(min=1), default=None,
+              help="Relaxation order (default: 3 for pmi, the minimum for minors).")
+@click.option("--gap", default=1e-4, show_default=True, type=float,
+              help="Target gap between certified rate and lower bound.")
+@click.option("--time-limit", default=120.0, show_default=True, type=float,
+              help="Seconds per kappa for polishing, higher orders and branch and bound.")
+@click.option("--out", default="outputs", show_default=True, metavar="DIR")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON document on stdout.")
+@click.option("--workers", type=click.IntRange(min=1), default=None)
+@click.option("--scheduler", default=None, metavar="ADDRESS")
+@click.option("--restart", is_flag=True)
+@click.option("--quiet", is_flag=True)
+@handle_errors
+def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: str,
+           order: int | None, gap: float, time_limit: float, out: str, as_json: bool,
+           workers: int | None, scheduler: str | None, restart: bool, quiet: bool) -> None:
+    """Design parameters by sum-of-squares: lower bound, designed theta, certified rate."""
+    from sosalgo.jobs import design_csv_to_json, run_design_sweep
+    from sosalgo.model import parameter_box
+    from sosalgo.report import format_table, plot_rates
+
+    spec = load_spec(spec_path)
+    kappas = _kappas(spec, kappa)
+    names = spec.ranged if free is None else [p.strip() for p in free.split(",") if p.strip()]
+    if not names:
+        raise InputError(f"{spec.source}: parameters: no parameter has a range (use --free)")
+    spec.check_free(names)
+    if not gap > 0:
+        raise InputError(f"--gap {gap}: must be positive")
+    if not time_limit > 0:
+        raise InputError(f"--time-limit {time_limit}: must be positive")
+    _check_points(spec, kappas)
+    for k in kappas:
+        try:
+            parameter_box(spec, k, names)
+        except ModelError as exc:
+            raise InputError(f"{spec.source}: {exc.field}: at kappa={k:g}: {exc.message}") from None
+    out_dir = _out_dir(out)
+    spec_text = Path(spec_path).read_text(encoding="utf-8")
+    options = {"free": names, "scalarize": scalarize, "order": order, "gap": gap,
+               "time_limit": time_limit}
+    csv_path = out_dir / f"{spec.name}-design.csv"
+    rows, fresh = run_design_sweep(spec, spec_text, kappas, csv_path, options, workers=workers,
+                                   scheduler=scheduler, restart=restart, progress=not quiet)
+    docs = [fresh.get(float(r["kappa"])) or design_csv_to_json(spec, names, r) for r in rows]
+    figs = []
+    if len(docs) > 1:
+        refs = {name: [r.get("references", {}).get(name) for r in
+                       (design_csv_to_json(spec, names, x) for x in rows)]
+                for name in spec.references}
+        figs = plot_rates(
+            f"{spec.name}: designed {', '.join(names)} (SOS, {scalarize})",
+            [d["kappa"] for d in docs],
+            {"designed (certified)": [d["rho_certified"] for d in docs],
+             "lower bound (relaxation)": [d["lower_bound"] for d in docs],
+             "spec values (certified)": [d["rho_at_values"] for d in docs]},
+            refs, out_dir / f"{spec.name}-design",
+            uncertified=[d["kappa"] for d in docs if d["rho_certified"] is None],
+        )
+    if as_json:
+        if len(docs) == 1:
+            click.echo(json.dumps(docs[0], indent=2))
+        else:
+            click.echo(json.dumps({"spec": spec.name, "csv": str(csv_path),
+                                   "figures": [str(p) for p in figs], "rows": docs}, indent=2))
+        return
+    table = []
+    for d in docs:
+        row = {"kappa": d["kappa"], "lower_bound": d["lower_bound"],
+               "rho_certified": d["rho_certified"], "gap": d["gap"],
+               "rho_at_values": d["rho_at_values"], "order": d["relaxation"]["order"],
+               "flat": d["relaxation"]["flat"], "seconds": d["seconds"]}
+        row.update({p: d["theta"].get(p) for p in names})
+        table.append(row)
+    cols = ["kappa", *names, "lower_bound", "rho_certified", "gap", "rho_at_values", "order",
+            "flat", "seconds"]
+    click.echo(f"{spec.name}: design of {', '.join(names)} by moment relaxation ({scalarize})")
+    click.echo(format_table(table, cols))
+    if len(docs) == 1:
+        for step in docs[0]["steps"]:
+            click.echo(f"  - {step}")
+    click.echo("lower_bound: relaxation value (no method in the box can be certified faster); "
+               "rho_certified: Theorem 1 analysis at the designed theta")
+    click.echo(f"wrote {csv_path}" + "".join(f", {p}" for p in figs))
+
+
 # --------------------------------------------------------------------------- lmi
 @cli.command()
 @click.argument("spec_path", metavar="SPEC", type=click.Path(dir_okay=False))
@@ -198,7 +303,7 @@ def table1(spec_paths: tuple[str, ...], kappa: tuple[str, ...], tol: float, out:
     if not paths:
         raise InputError("--specs: no spec files given and none in specs/")
     specs = [load_spec(p) for p in paths]
-    kappas = [k for v in kappa for k in parse_kappa(v, "table1", "--kappa")] or [2.0, 10.0, 100.0]
+    kappas = [k for v in kappa for k in _kappa_option(v)] or [2.0, 10.0, 100.0]
     rows = []
     for spec in specs:
         for k in kappas:

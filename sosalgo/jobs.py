@@ -171,3 +171,123 @@ def csv_row_to_json(spec: Spec, row: dict[str, str]) -> dict[str, Any]:
         "error": row.get("error") or None,
         "references": {name: _num(row[name]) for name in spec.references},
     }
+
+
+# --------------------------------------------------------------------------- design sweeps
+def design_columns(spec: Spec, free: Sequence[str]) -> list[str]:
+    """CSV columns of ``sosalgo design`` over kappa (a contract: extend, never rename)."""
+    return (
+        ["kappa", "lower_bound", "rho_certified", "gap", "gap_met"]
+        + [f"theta_{p}" for p in free]
+        + ["rho_at_values", "lambda"] + p_columns(spec.n)
+        + ["scalarize", "order", "status", "flat", "ranks", "seconds", "steps", "error"]
+        + list(spec.references)
+    )
+
+
+def design_row(spec: Spec, res: Any) -> dict[str, Any]:
+    """A CSV row from a :class:`sosalgo.design.DesignResult`."""
+    row: dict[str, Any] = {
+        "kappa": res.kappa, "lower_bound": res.lower_bound, "rho_certified": res.rho_certified,
+        "gap": res.gap, "gap_met": res.gap_met, "rho_at_values": res.rho_at_values,
+        "lambda": res.certificate.get("lambda"),
+        "scalarize": res.relaxation.get("scalarize"), "order": res.relaxation.get("order"),
+        "status": res.relaxation.get("status"), "flat": res.relaxation.get("flat"),
+        "ranks": " ".join(map(str, res.relaxation.get("ranks", []))),
+        "seconds": round(res.seconds, 4), "steps": " | ".join(res.steps), "error": None,
+    }
+    for p, v in res.theta.items():
+        row[f"theta_{p}"] = v
+    P = res.certificate.get("P")
+    n = spec.n
+    for c, (i, j) in zip(p_columns(n), [(i, j) for i in range(n) for j in range(i, n)],
+                         strict=True):
+        row[c] = None if P is None else float(P[i][j])
+    row.update(reference_values(spec, res.kappa))
+    return row
+
+
+def design_chunk(
+    spec_text: str, source: str, options: dict[str, Any], chunk: list[dict[str, Any]]
+) -> list[dict[str, Any]]:
+    """Worker: one design per task's kappa."""
+    from sosalgo.design import design
+
+    spec = _spec(spec_text, source)
+    rows = []
+    for task in chunk:
+        kappa = float(task["kappa"])
+        try:
+            res = design(spec, kappa, free=options["free"], scalarize=options["scalarize"],
+                         order=options["order"], gap=options["gap"],
+                         time_limit=options["time_limit"])
+            row = design_row(spec, res)
+            row["_result"] = res.to_dict()
+        except ModelError as exc:
+            row = {"kappa": kappa, "error": str(exc)}
+            row.update(reference_values(spec, kappa))
+        rows.append(row)
+    return rows
+
+
+def run_design_sweep(
+    spec: Spec, spec_text: str, kappas: Sequence[float], out_csv: Path,
+    options: dict[str, Any], workers: int | None = None, scheduler: str | None = None,
+    restart: bool = False, progress: bool = True,
+) -> tuple[list[dict[str, str]], dict[float, dict[str, Any]]]:
+    """Design over kappa, resumable. Returns the CSV rows (kappa order) and the full
+    results of the rows computed in this run (keyed by kappa)."""
+    settings = {"job": "design", "spec": spec_text, **options}
+    store = ResumableCSV(out_csv, design_columns(spec, options["free"]), ["kappa"], settings,
+                         restart=restart)
+    tasks = [{"kappa": float(k)} for k in kappas]
+    todo = [t for t in tasks if not store.is_done(t)]
+    fresh: dict[float, dict[str, Any]] = {}
+
+    def on_row(row: dict[str, Any]) -> None:
+        full = row.pop("_result", None)
+        if full is not None:
+            fresh[float(row["kappa"])] = full
+        store.write(row)
+
+    bar = Progress(len(tasks), f"design {spec.name}", progress, done=len(tasks) - len(todo))
+    try:
+        with store:
+            run_batch(design_chunk, spec_text, spec.source, options, todo, on_row,
+                      workers=workers, scheduler=scheduler, progress=bar)
+    finally:
+        bar.close()
+    wanted = {store.row_key({"kappa": float(k)}) for k in kappas}
+    rows = [r for r in store.rows() if store.row_key(r) in wanted]
+    return sorted(rows, key=lambda r: float(r["kappa"])), fresh
+
+
+def design_csv_to_json(spec: Spec, free: Sequence[str], row: dict[str, str]) -> dict[str, Any]:
+    """JSON form of a design CSV row (same keys as the single-kappa document)."""
+    n = spec.n
+    P = None
+    if row.get("P11", "") != "":
+        P = [[0.0] * n for _ in range(n)]
+        for i in range(n):
+            for j in range(i, n):
+                P[i][j] = P[j][i] = float(row[f"P{i + 1}{j + 1}"])
+    return {
+        "spec": spec.name,
+        "kappa": float(row["kappa"]),
+        "free": list(free),
+        "lower_bound": _num(row["lower_bound"]),
+        "theta": {p: _num(row[f"theta_{p}"]) for p in free},
+        "rho_certified": _num(row["rho_certified"]),
+        "gap": _num(row["gap"]),
+        "certificate": {"P": P, "lambda": _num(row["lambda"])},
+        "relaxation": {"scalarize": row["scalarize"] or None,
+                       "order": int(row["order"]) if row["order"] else None,
+                       "status": row["status"] or None, "flat": row["flat"] == "true",
+                       "ranks": [int(x) for x in row["ranks"].split()]},
+        "seconds": _num(row["seconds"]),
+        "steps": row["steps"].split(" | ") if row["steps"] else [],
+        "gap_met": row["gap_met"] == "true",
+        "rho_at_values": _num(row["rho_at_values"]),
+        "error": row.get("error") or None,
+        "references": {name: _num(row[name]) for name in spec.references},
+    }

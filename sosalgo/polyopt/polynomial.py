@@ -1,0 +1,126 @@
+"""Sparse real polynomials as ``{exponent tuple: float coefficient}`` dictionaries.
+
+All inner-loop algebra of the moment relaxation works on these dictionaries; sympy is
+used only once, in :func:`from_sympy`, to expand the user's expressions.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections import defaultdict
+from collections.abc import Sequence
+
+import numpy as np
+import sympy as sp
+
+Exponent = tuple[int, ...]
+PolyDict = dict[Exponent, float]
+
+__all__ = [
+    "Exponent",
+    "PolyDict",
+    "from_sympy",
+    "degree",
+    "evaluate",
+    "abs_evaluate",
+    "affine_substitute",
+    "max_abs_coefficient",
+    "scaled",
+    "monomials_up_to",
+]
+
+
+def from_sympy(expr: object, variables: Sequence[sp.Symbol]) -> PolyDict:
+    """Expand a sympy expression into a :data:`PolyDict` over ``variables``.
+
+    Raises ``ValueError`` if ``expr`` is not a polynomial with real numeric coefficients
+    in exactly these variables (other free symbols, ``sin``, ``1/x`` ... are refused).
+    """
+    try:
+        expr = sp.sympify(expr)
+    except (sp.SympifyError, TypeError) as exc:
+        raise ValueError(f"cannot interpret {expr!r} as a sympy expression") from exc
+    extra = expr.free_symbols - set(variables)
+    if extra:
+        names = ", ".join(sorted(str(s) for s in extra))
+        raise ValueError(f"expression {expr} contains symbols that are not variables: {names}")
+    try:
+        poly = sp.Poly(expr, *variables)
+    except sp.PolynomialError as exc:
+        raise ValueError(f"expression {expr} is not a polynomial in the variables") from exc
+    out: PolyDict = {}
+    for monom, coeff in poly.terms():
+        try:
+            value = float(coeff)
+        except TypeError as exc:
+            raise ValueError(f"coefficient {coeff} of {expr} is not a real number") from exc
+        if not math.isfinite(value):
+            raise ValueError(f"coefficient {coeff} of {expr} is not finite")
+        if value != 0.0:
+            out[tuple(int(a) for a in monom)] = value
+    return out
+
+
+def degree(p: PolyDict) -> int:
+    """Total degree of ``p`` (0 for constants and for the zero polynomial)."""
+    return max((sum(e) for e in p), default=0)
+
+
+def evaluate(p: PolyDict, x: Sequence[float] | np.ndarray) -> float:
+    """Value of ``p`` at the point ``x``."""
+    xv = np.asarray(x, dtype=float)
+    total = 0.0
+    for e, c in p.items():
+        total += c * float(np.prod(xv ** np.asarray(e)))
+    return total
+
+
+def abs_evaluate(p: PolyDict, x: Sequence[float] | np.ndarray) -> float:
+    """``sum_alpha |c_alpha| |x^alpha|``: the magnitude scale of ``p``'s terms at ``x``."""
+    xv = np.abs(np.asarray(x, dtype=float))
+    return float(sum(abs(c) * np.prod(xv ** np.asarray(e)) for e, c in p.items()))
+
+
+def affine_substitute(p: PolyDict, offset: Sequence[float], width: Sequence[float]) -> PolyDict:
+    """Rewrite ``p(x)`` in the variables ``z`` where ``x_i = offset_i + width_i * z_i``."""
+    out: defaultdict[Exponent, float] = defaultdict(float)
+    for e, c in p.items():
+        factors: list[list[tuple[int, float]]] = []
+        for a, o, w in zip(e, offset, width, strict=True):
+            if o == 0.0:
+                factors.append([(a, w**a)])
+            else:
+                factors.append([(j, math.comb(a, j) * o ** (a - j) * w**j) for j in range(a + 1)])
+        for combo in itertools.product(*factors):
+            coef = c
+            for _, f in combo:
+                coef *= f
+            out[tuple(j for j, _ in combo)] += coef
+    return {e: c for e, c in out.items() if c != 0.0}
+
+
+def max_abs_coefficient(p: PolyDict) -> float:
+    """Largest absolute coefficient; 0 for the zero polynomial."""
+    return max((abs(c) for c in p.values()), default=0.0)
+
+
+def scaled(p: PolyDict, factor: float) -> PolyDict:
+    """``factor * p``."""
+    return {e: factor * c for e, c in p.items()}
+
+
+def monomials_up_to(n: int, d: int) -> list[Exponent]:
+    """Exponents of all monomials of degree <= ``d`` in ``n`` variables, graded order.
+
+    Within a degree the order is ``x1^d, x1^(d-1) x2, ..., xn^d`` (GloptiPoly's order), so
+    the basis of degree <= s is a prefix of the basis of degree <= t for s <= t.
+    """
+    out: list[Exponent] = []
+    for t in range(d + 1):
+        for combo in itertools.combinations_with_replacement(range(n), t):
+            e = [0] * n
+            for i in combo:
+                e[i] += 1
+            out.append(tuple(e))
+    return out

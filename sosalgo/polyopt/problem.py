@@ -1,0 +1,276 @@
+"""Polynomial optimization problems (POPs) and their numeric, scaled form.
+
+A :class:`PolyProblem` is stated with sympy; :func:`compile_problem` converts it once into
+dictionary polynomials (see :mod:`sosalgo.polyopt.polynomial`) in the variables used by
+the relaxation, optionally after the affine change of variables
+``x = (lo + hi)/2 + (hi - lo)/2 * z`` that maps every bounded variable onto ``z in [-1, 1]``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import sympy as sp
+
+from .polynomial import (
+    PolyDict,
+    abs_evaluate,
+    affine_substitute,
+    degree,
+    evaluate,
+    from_sympy,
+    max_abs_coefficient,
+    scaled,
+)
+
+__all__ = ["PolyProblem", "CompiledProblem", "compile_problem", "constraint_violation"]
+
+
+@dataclass(frozen=True)
+class PolyProblem:
+    """``min f(x)  s.t.  g_i(x) >= 0,  G_j(x) ⪰ 0,  h_l(x) = 0,  lo <= x <= hi``.
+
+    Attributes:
+        variables: the decision variables (distinct sympy Symbols).
+        objective: polynomial to minimize.
+        inequalities: polynomials ``g_i`` constrained by ``g_i(x) >= 0``.
+        matrix_inequalities: square symmetric sympy matrices ``G(x)`` with polynomial
+            entries, constrained by ``G(x) ⪰ 0`` (polynomial matrix inequalities, PMIs).
+        equalities: polynomials ``h_l`` constrained by ``h_l(x) == 0``.
+        bounds: optional ``{variable: (lo, hi)}`` boxes. They are added as the constraints
+            ``(x - lo)(hi - x) >= 0`` and used to rescale the variable to ``[-1, 1]``.
+
+    The data are validated and expanded into coefficient dictionaries once, here; a
+    ``ValueError`` names anything that is not a real polynomial in ``variables``.
+    """
+
+    variables: Sequence[sp.Symbol]
+    objective: sp.Expr | float
+    inequalities: Sequence[sp.Expr] = ()
+    matrix_inequalities: Sequence[sp.MatrixBase] = ()
+    equalities: Sequence[sp.Expr] = ()
+    bounds: Mapping[sp.Symbol, tuple[float, float]] = field(default_factory=dict)
+    _polys: _ExpandedData = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        variables = tuple(self.variables)
+        if not variables:
+            raise ValueError("a PolyProblem needs at least one variable")
+        for v in variables:
+            if not isinstance(v, sp.Symbol):
+                raise ValueError(f"variables must be sympy Symbols, got {v!r}")
+        if len(set(variables)) != len(variables):
+            raise ValueError("variables must be distinct")
+        mats = []
+        for G in self.matrix_inequalities:
+            M = sp.ImmutableMatrix(G)
+            if M.rows != M.cols:
+                raise ValueError(f"matrix inequality must be square, got shape {M.shape}")
+            if not (M - M.T).expand().is_zero_matrix:
+                raise ValueError("matrix inequality must be symmetric")
+            mats.append(M)
+        bounds: dict[sp.Symbol, tuple[float, float]] = {}
+        for v, (lo, hi) in dict(self.bounds).items():
+            if v not in variables:
+                raise ValueError(f"bound given for {v}, which is not a variable")
+            lo_f, hi_f = float(lo), float(hi)
+            if not (math.isfinite(lo_f) and math.isfinite(hi_f) and lo_f < hi_f):
+                raise ValueError(f"bounds of {v} must be finite with lo < hi, got {(lo, hi)}")
+            bounds[v] = (lo_f, hi_f)
+        setattr_ = object.__setattr__
+        setattr_(self, "variables", variables)
+        setattr_(self, "objective", sp.sympify(self.objective))
+        setattr_(self, "inequalities", tuple(sp.sympify(g) for g in self.inequalities))
+        setattr_(self, "equalities", tuple(sp.sympify(h) for h in self.equalities))
+        setattr_(self, "matrix_inequalities", tuple(mats))
+        setattr_(self, "bounds", bounds)
+
+        def poly(expr: object) -> PolyDict:
+            return from_sympy(expr, variables)
+
+        setattr_(
+            self,
+            "_polys",
+            _ExpandedData(
+                objective=poly(self.objective),
+                inequalities=[poly(g) for g in self.inequalities],
+                equalities=[poly(h) for h in self.equalities],
+                matrix_inequalities=[
+                    [[poly(M[a, b]) for b in range(M.cols)] for a in range(M.rows)] for M in mats
+                ],
+            ),
+        )
+
+
+@dataclass(frozen=True)
+class _ExpandedData:
+    """A :class:`PolyProblem`'s data as coefficient dictionaries, original coordinates."""
+
+    objective: PolyDict
+    inequalities: list[PolyDict]
+    equalities: list[PolyDict]
+    matrix_inequalities: list[list[list[PolyDict]]]
+
+
+@dataclass
+class CompiledProblem:
+    """Numeric form of a :class:`PolyProblem` in the relaxation's variables ``z``.
+
+    ``x = offset + width * z`` componentwise (``offset = 0, width = 1`` for variables that
+    are not rescaled). Every constraint is divided by its largest absolute coefficient
+    (a positive factor, so the feasible set is unchanged); the objective is stored as
+    ``objective_constant + objective_scale * objective`` with ``objective`` normalized and
+    without constant term.
+    """
+
+    variables: list[sp.Symbol]
+    offset: np.ndarray
+    width: np.ndarray
+    objective: PolyDict
+    objective_constant: float
+    objective_scale: float
+    objective_degree: int
+    inequalities: list[PolyDict]
+    equalities: list[PolyDict]
+    matrix_inequalities: list[list[list[PolyDict]]]
+
+    @property
+    def n(self) -> int:
+        """Number of variables."""
+        return len(self.variables)
+
+    def constraint_degrees(self) -> list[int]:
+        """Degrees of all constraints (inequalities, PMIs by entry degree, equalities)."""
+        degs = [degree(g) for g in self.inequalities]
+        degs += [degree(h) for h in self.equalities]
+        degs += [_matrix_degree(G) for G in self.matrix_inequalities]
+        return degs
+
+    def minimal_order(self) -> int:
+        """Smallest admissible relaxation order ``max(1, ceil(deg/2))`` over all data."""
+        degs = [self.objective_degree, *self.constraint_degrees()]
+        return max([1, *(math.ceil(d / 2) for d in degs)])
+
+    def flatness_shift(self) -> int:
+        """``d_K = max(1, ceil(deg/2))`` over the constraints (Henrion-Lasserre 2005)."""
+        return max([1, *(math.ceil(d / 2) for d in self.constraint_degrees())])
+
+    def to_original(self, z: np.ndarray) -> np.ndarray:
+        """Map relaxation coordinates ``z`` back to the problem's ``x``."""
+        return self.offset + self.width * np.asarray(z, dtype=float)
+
+
+def _matrix_degree(G: list[list[PolyDict]]) -> int:
+    return max((degree(e) for row in G for e in row), default=0)
+
+
+def _normalized(p: PolyDict) -> PolyDict:
+    m = max_abs_coefficient(p)
+    return scaled(p, 1.0 / m) if m > 0 else {}
+
+
+def compile_problem(problem: PolyProblem, scale: bool = True) -> CompiledProblem:
+    """Convert ``problem`` to dictionary polynomials, rescaling bounded variables if asked.
+
+    With ``scale=True`` each variable with bounds ``(lo, hi)`` is replaced by
+    ``x = c + w z`` with ``c = (lo + hi)/2``, ``w = (hi - lo)/2``, and the box becomes
+    ``1 - z^2 >= 0``; otherwise the box is kept as ``(x - lo)(hi - x) >= 0``.
+
+    Both are the same constraint up to an affine change of variables and a positive factor,
+    and moment relaxations are invariant under affine changes of variables, so the bound is
+    the same in exact arithmetic; numerically, moments of ``[-1, 1]`` are far better
+    conditioned than those of ``[0, 1]`` (whose moment matrix is a Hilbert matrix). The
+    quadratic box implies the two linear ones ``1 - z >= 0``, ``1 + z >= 0`` at every order
+    (``2(1 - z) = (1 - z)^2 + (1 - z^2)``), so it is at least as tight and needs one
+    localizing matrix per variable instead of two.
+    """
+    variables = list(problem.variables)
+    n = len(variables)
+    offset = np.zeros(n)
+    width = np.ones(n)
+    if scale:
+        for i, v in enumerate(variables):
+            if v in problem.bounds:
+                lo, hi = problem.bounds[v]
+                offset[i], width[i] = 0.5 * (lo + hi), 0.5 * (hi - lo)
+
+    def convert(p: PolyDict) -> PolyDict:
+        return affine_substitute(p, offset, width) if scale else dict(p)
+
+    data = problem._polys
+    obj = convert(data.objective)
+    zero = (0,) * n
+    obj_const = obj.pop(zero, 0.0)
+    obj_scale = max_abs_coefficient(obj)
+    obj_deg = degree(obj)
+    obj = scaled(obj, 1.0 / obj_scale) if obj_scale > 0 else {}
+    obj_scale = obj_scale if obj_scale > 0 else 1.0
+
+    # A constant constraint is kept only if it is violated (the solver then reports the
+    # relaxation infeasible); satisfied constants carry no information.
+    inequalities: list[PolyDict] = []
+    for g in data.inequalities:
+        p = convert(g)
+        if p and not (degree(p) == 0 and p[zero] >= 0):
+            inequalities.append(_normalized(p))
+    for i, v in enumerate(variables):
+        if v not in problem.bounds:
+            continue
+        e1 = tuple(1 if j == i else 0 for j in range(n))
+        e2 = tuple(2 if j == i else 0 for j in range(n))
+        if scale:
+            box = {zero: 1.0, e2: -1.0}  # 1 - z^2
+        else:
+            lo, hi = problem.bounds[v]
+            box = {e2: -1.0, e1: lo + hi, zero: -lo * hi}  # (x - lo)(hi - x)
+            box = {e: c for e, c in box.items() if c != 0.0}
+        inequalities.append(_normalized(box))
+
+    equalities: list[PolyDict] = []
+    for h in data.equalities:
+        p = convert(h)
+        if p:
+            equalities.append(_normalized(p))
+
+    pmis: list[list[list[PolyDict]]] = []
+    for G in data.matrix_inequalities:
+        entries = [[convert(e) for e in row] for row in G]
+        m = max((max_abs_coefficient(e) for row in entries for e in row), default=0.0)
+        if m == 0.0:
+            continue
+        pmis.append([[scaled(e, 1.0 / m) for e in row] for row in entries])
+
+    return CompiledProblem(
+        variables=variables,
+        offset=offset,
+        width=width,
+        objective=obj,
+        objective_constant=obj_const,
+        objective_scale=obj_scale,
+        objective_degree=obj_deg,
+        inequalities=inequalities,
+        equalities=equalities,
+        matrix_inequalities=pmis,
+    )
+
+
+def constraint_violation(compiled: CompiledProblem, z: np.ndarray) -> float:
+    """Largest relative violation of the compiled constraints at ``z``.
+
+    A violation is divided by ``max(1, sum_alpha |c_alpha| |z^alpha|)`` of its polynomial
+    (for a PMI: summed over the entries), i.e. measured relative to the size of the terms.
+    """
+    worst = 0.0
+    for g in compiled.inequalities:
+        worst = max(worst, -evaluate(g, z) / max(1.0, abs_evaluate(g, z)))
+    for h in compiled.equalities:
+        worst = max(worst, abs(evaluate(h, z)) / max(1.0, abs_evaluate(h, z)))
+    for G in compiled.matrix_inequalities:
+        vals = np.array([[evaluate(e, z) for e in row] for row in G])
+        lam = float(np.linalg.eigvalsh(0.5 * (vals + vals.T))[0])
+        norm = max(1.0, sum(abs_evaluate(e, z) for row in G for e in row))
+        worst = max(worst, -lam / norm)
+    return worst

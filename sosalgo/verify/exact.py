@@ -1,0 +1,855 @@
+"""Exact (rational) verification of a Theorem 1 certificate.
+
+A certificate (rho, P, lambda) from a floating-point solver is re-checked without floating
+point in the proof path:
+
+1. The method is made exact. kappa and m become rationals (the exact binary value of the
+   floats, so kappa = 10.0 is 10), L = kappa m, and every parameter is evaluated from the
+   spec's own expressions (eq. 10 templates, tied parameters followed) with sympy. Entries
+   that are irrational (e.g. (sqrt(10) - 1)/(sqrt(10) + 1)) are enclosed in rational balls
+   c ± r by mpmath's outward-rounding interval arithmetic (``mpmath.iv``), rounded outwards
+   to ``digits`` decimals. ``theta`` overrides are the exact binary values of the floats.
+2. P and lambda are rounded to rationals (limit_denominator, then the exact binary value,
+   then P + eps I); rho to the smallest candidate rational >= rho, then a few slightly
+   larger ones (the proven rate is never below the requested one).
+3. M of eq. (15), M = M0 + rho^2 (N1 + N2) + (1 - rho^2)(N1 + N3) + lambda N4 with the
+   blocks of eq. (14), is computed in exact midpoint-radius arithmetic: its centre Mc is
+   the exact Theorem 1 matrix of the centre method, and |M - Mc| <= R entrywise for every
+   method inside the enclosures. With ||M - Mc||_2 <= ||R||_F <= eta, proving
+   -Mc - t I ⪰ 0 exactly for a rational t >= eta proves M ⪯ -(t - eta) I = -delta I.
+4. PSD-ness of rational symmetric matrices is decided by an LDL^T factorization with
+   rational pivots; a zero pivot (semidefinite case) falls back to principal minors
+   (n <= 8) or to LDL^T with diagonal pivoting. P ⪰ 0, lambda >= 0, 0 < rho <= 1 and the
+   fixed point of eq. (11) (u with (I - A)u = 0, Cu = 1, Eu = 1, exactly, with sympy) are
+   checked too.
+
+By Remark 1 the full method is A ⊗ I_d, ..., with P ⊗ I_d, and its inequality is
+M ⊗ I_d ⪯ 0 up to a permutation, so the d = 1 proof covers every dimension d.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+import numbers
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from fractions import Fraction
+from pathlib import Path
+from typing import Any
+
+import mpmath
+import numpy as np
+import sympy as sp
+from mpmath import libmp
+
+from sosalgo.model import bind, fixed_point
+from sosalgo.spec import BASE_SYMBOLS, MATRIX_NAMES, Spec, _value_order
+
+__all__ = [
+    "Ball",
+    "ExactAlgorithm",
+    "ExactResult",
+    "PSDProof",
+    "exact_algorithm",
+    "prove_psd",
+    "psd_by_minors",
+    "rational_at_least",
+    "theorem1_exact",
+    "verify_exact",
+    "write_certificate",
+]
+
+DEFAULT_MAX_DEN = 10**12
+DEFAULT_RHO_STEPS = (0.0, 1e-12, 1e-10, 1e-9, 1e-8, 1e-7)  # relative increases tried
+DEFAULT_DIGITS = 50  # decimals of the rational enclosures of irrational entries
+MINORS_MAX_N = 8  # principal-minor fallback up to this size, pivoted LDL^T beyond
+
+Matrix = list[list[Fraction]]
+
+
+def _fmt(x: Fraction) -> str:
+    return f"{x.numerator}/{x.denominator}" if x.denominator != 1 else str(x.numerator)
+
+
+def _float_str(x: Fraction) -> str:
+    return f"{float(x):.6g}"
+
+
+# --------------------------------------------------------------------------- PSD proofs
+
+
+@dataclass(frozen=True)
+class PSDProof:
+    """Outcome of an exact PSD test of a rational symmetric matrix.
+
+    ``kind`` is "definite", "semidefinite" or "indefinite"; ``method`` says which test
+    decided ("ldl", "minors" or "pivoted-ldl"); ``pivots`` are the LDL^T pivots computed.
+    """
+
+    psd: bool
+    kind: str
+    method: str
+    pivots: tuple[Fraction, ...]
+    detail: str
+
+
+def _as_fractions(S: Sequence[Sequence[Any]]) -> Matrix:
+    out = [[Fraction(v) for v in row] for row in S]
+    n = len(out)
+    if any(len(row) != n for row in out):
+        raise ValueError("matrix must be square")
+    for i in range(n):
+        for j in range(i):
+            if out[i][j] != out[j][i]:
+                raise ValueError(f"matrix is not symmetric at ({i}, {j})")
+    return out
+
+
+def _det(S: Matrix) -> Fraction:
+    """Exact determinant by Gaussian elimination with row exchanges."""
+    a = [row[:] for row in S]
+    n = len(a)
+    det = Fraction(1)
+    for k in range(n):
+        piv = next((i for i in range(k, n) if a[i][k] != 0), None)
+        if piv is None:
+            return Fraction(0)
+        if piv != k:
+            a[k], a[piv] = a[piv], a[k]
+            det = -det
+        det *= a[k][k]
+        for i in range(k + 1, n):
+            f = a[i][k] / a[k][k]
+            if f:
+                for j in range(k + 1, n):
+                    a[i][j] -= f * a[k][j]
+    return det
+
+
+def psd_by_minors(S: Sequence[Sequence[Any]]) -> bool:
+    """PSD iff every principal minor (all 2^n - 1 of them) is >= 0, exactly."""
+    a = _as_fractions(S)
+    n = len(a)
+    for size in range(1, n + 1):
+        for idx in itertools.combinations(range(n), size):
+            if _det([[a[i][j] for j in idx] for i in idx]) < 0:
+                return False
+    return True
+
+
+def _pivoted_ldl(a: Matrix) -> tuple[bool, list[Fraction], str]:
+    """Schur complements on the largest diagonal entry.
+
+    A diagonal < 0 proves indefiniteness; if every remaining diagonal is 0 the matrix is
+    PSD iff the remaining block is 0 (a PSD matrix with a zero diagonal entry has a zero
+    row); with a pivot > 0, S ⪰ 0 iff its Schur complement ⪰ 0.
+    """
+    a = [row[:] for row in a]
+    pivots: list[Fraction] = []
+    while a:
+        diag = [a[i][i] for i in range(len(a))]
+        neg = [i for i, v in enumerate(diag) if v < 0]
+        if neg:
+            msg = f"negative diagonal {_float_str(diag[neg[0]])} in a Schur complement"
+            return False, pivots, msg
+        k = max(range(len(a)), key=lambda i: diag[i])
+        if diag[k] == 0:
+            nz = any(v != 0 for row in a for v in row)
+            msg = "zero-diagonal block with a nonzero entry" if nz else "zero remaining block"
+            return not nz, pivots, msg
+        p = a[k][k]
+        pivots.append(p)
+        rest = [i for i in range(len(a)) if i != k]
+        a = [[a[i][j] - a[i][k] * a[k][j] / p for j in rest] for i in rest]
+    return True, pivots, "all pivots > 0 or zero block"
+
+
+def prove_psd(S: Sequence[Sequence[Any]]) -> PSDProof:
+    """Decide S ⪰ 0 exactly for a rational symmetric S.
+
+    LDL^T without pivoting: all pivots > 0 means positive definite (Sylvester). A negative
+    pivot after positive ones is a negative leading principal minor: not PSD. A zero pivot
+    (semidefinite or indefinite) falls back to principal minors (n <= 8) or to LDL^T with
+    diagonal pivoting.
+    """
+    a = _as_fractions(S)
+    n = len(a)
+    if n == 0:
+        return PSDProof(True, "definite", "ldl", (), "empty matrix")
+    w = [row[:] for row in a]
+    pivots: list[Fraction] = []
+    for k in range(n):
+        p = w[k][k]
+        if p < 0:
+            pivots.append(p)
+            return PSDProof(
+                False, "indefinite", "ldl", tuple(pivots),
+                f"pivot {k + 1} is negative ({_float_str(p)}): a leading principal minor < 0",
+            )
+        if p == 0:
+            break
+        pivots.append(p)
+        for i in range(k + 1, n):
+            f = w[i][k] / p
+            if f:
+                row_k = w[k]
+                row_i = w[i]
+                for j in range(k + 1, n):
+                    row_i[j] -= f * row_k[j]
+    else:
+        return PSDProof(True, "definite", "ldl", tuple(pivots), "all LDL^T pivots > 0")
+    if n <= MINORS_MAX_N:
+        ok = psd_by_minors(a)
+        detail = "all principal minors >= 0" if ok else "a principal minor is negative"
+        return PSDProof(ok, "semidefinite" if ok else "indefinite", "minors", tuple(pivots), detail)
+    ok, piv, detail = _pivoted_ldl(a)
+    return PSDProof(ok, "semidefinite" if ok else "indefinite", "pivoted-ldl", tuple(piv), detail)
+
+
+# --------------------------------------------------------------------------- ball arithmetic
+
+
+class Ball:
+    """A real number known to lie in [c - r, c + r] (exact rationals c, r >= 0)."""
+
+    __slots__ = ("c", "r")
+
+    def __init__(self, c: Fraction | int, r: Fraction | int = 0):
+        self.c = Fraction(c)
+        self.r = Fraction(r)
+
+    @staticmethod
+    def of(x: Ball | Fraction | int) -> Ball:
+        return x if isinstance(x, Ball) else Ball(x)
+
+    def __add__(self, o: Ball | Fraction | int) -> Ball:
+        o = Ball.of(o)
+        return Ball(self.c + o.c, self.r + o.r)
+
+    __radd__ = __add__
+
+    def __neg__(self) -> Ball:
+        return Ball(-self.c, self.r)
+
+    def __sub__(self, o: Ball | Fraction | int) -> Ball:
+        o = Ball.of(o)
+        return Ball(self.c - o.c, self.r + o.r)
+
+    def __rsub__(self, o: Ball | Fraction | int) -> Ball:
+        return Ball.of(o) - self
+
+    def __mul__(self, o: Ball | Fraction | int) -> Ball:
+        o = Ball.of(o)
+        if not self.r and not o.r:
+            return Ball(self.c * o.c)
+        return Ball(self.c * o.c, abs(self.c) * o.r + abs(o.c) * self.r + self.r * o.r)
+
+    __rmul__ = __mul__
+
+    @property
+    def lo(self) -> Fraction:
+        return self.c - self.r
+
+    @property
+    def hi(self) -> Fraction:
+        return self.c + self.r
+
+    def __repr__(self) -> str:
+        return f"Ball({float(self.c)!r} ± {float(self.r):.3g})"
+
+
+BallMatrix = list[list[Ball]]
+
+
+def _mm(X: BallMatrix, Y: BallMatrix) -> BallMatrix:
+    inner = range(len(Y))
+    return [
+        [sum((X[i][k] * Y[k][j] for k in inner), Ball(0)) for j in range(len(Y[0]))]
+        for i in range(len(X))
+    ]
+
+
+def _tr(X: BallMatrix) -> BallMatrix:
+    return [list(col) for col in zip(*X, strict=True)]
+
+
+def _quad(X: BallMatrix, Q: BallMatrix) -> BallMatrix:
+    return _mm(_tr(X), _mm(Q, X))
+
+
+def _lin(*terms: tuple[Ball | Fraction | int, BallMatrix]) -> BallMatrix:
+    s = len(terms[0][1])
+    return [
+        [sum((Ball.of(c) * T[i][j] for c, T in terms), Ball(0)) for j in range(s)]
+        for i in range(s)
+    ]
+
+
+def theorem1_balls(
+    A: BallMatrix, B: BallMatrix, C: BallMatrix, E: BallMatrix,
+    m: Fraction, L: Fraction, P: Matrix, rho2: Fraction, lam: Fraction,
+) -> BallMatrix:
+    """M of eq. (15) from the blocks of eq. (14), in midpoint-radius arithmetic.
+
+    Written from the paper independently of :mod:`sosalgo.certificates.theorem1`.
+    """
+    n = len(A)
+    z, one, half = Ball(0), Ball(1), Ball(Fraction(1, 2))
+    Pb = [[Ball(v) for v in row] for row in P]
+    S = [A[i] + [B[i][0]] for i in range(n)]  # [A B], n x (n+1)
+    M0 = _quad(S, Pb)
+    for i in range(n):
+        for j in range(n):
+            M0[i][j] = M0[i][j] - rho2 * Pb[i][j]
+    EA = _mm(E, A)[0]
+    EB = _mm(E, B)[0][0]
+    last = [z] * n + [one]
+    X1 = [[EA[j] - C[0][j] for j in range(n)] + [EB], last]
+    X2 = [[C[0][j] - E[0][j] for j in range(n)] + [z], last]
+    X3 = [C[0][:] + [z], last]
+    mb, Lb = Ball(m), Ball(L)
+    Q1 = [[Lb * half, half], [half, z]]
+    Q2 = [[-mb * half, half], [half, z]]
+    Q4 = [[Ball(-m * L / (m + L)), half], [half, Ball(-1 / (m + L))]]
+    N1, N2, N3, N4 = _quad(X1, Q1), _quad(X2, Q2), _quad(X3, Q2), _quad(X3, Q4)
+    M = _lin((1, M0), (rho2, N1), (rho2, N2), (1 - rho2, N1), (1 - rho2, N3), (lam, N4))
+    s = n + 1
+    for i in range(s):  # exact centres are symmetric; take the larger radius
+        for j in range(i):
+            if M[i][j].c != M[j][i].c:
+                raise AssertionError("Theorem 1 matrix centre is not symmetric")
+            r = max(M[i][j].r, M[j][i].r)
+            M[i][j] = M[j][i] = Ball(M[i][j].c, r)
+    return M
+
+
+def theorem1_exact(
+    A: Sequence[Sequence[Any]], B: Sequence[Sequence[Any]], C: Sequence[Sequence[Any]],
+    E: Sequence[Sequence[Any]], m: Any, L: Any, P: Sequence[Sequence[Any]], rho: Any, lam: Any,
+) -> Matrix:
+    """Exact M of eq. (15) for rational data (numbers convertible by ``Fraction``)."""
+    def balls(X: Sequence[Sequence[Any]]) -> BallMatrix:
+        return [[Ball(Fraction(v)) for v in row] for row in X]
+
+    r = Fraction(rho)
+    M = theorem1_balls(
+        balls(A), balls(B), balls(C), balls(E), Fraction(m), Fraction(L),
+        [[Fraction(v) for v in row] for row in P], r * r, Fraction(lam),
+    )
+    return [[b.c for b in row] for row in M]
+
+
+# --------------------------------------------------------------------------- exact method
+
+
+def _mpf_fraction(raw: tuple) -> Fraction:
+    if raw in (libmp.finf, libmp.fninf, libmp.fnan):
+        raise ValueError("interval enclosure is unbounded")
+    sign, man, exp, _ = raw
+    val = Fraction(man) * (Fraction(2) ** exp)
+    return -val if sign else val
+
+
+def _iv(expr: sp.Expr) -> Any:
+    """Rigorous mpmath interval of a constant sympy expression (outward rounding)."""
+    iv = mpmath.iv
+    if expr.is_Rational:
+        return iv.mpf(int(expr.p)) / iv.mpf(int(expr.q))
+    if expr.is_Float:
+        q = Fraction(*sp.Rational(expr).as_numer_denom())
+        return iv.mpf(q.numerator) / iv.mpf(q.denominator)
+    if expr is sp.pi:
+        return iv.pi
+    if expr is sp.E:
+        return iv.e
+    if isinstance(expr, sp.Add):
+        out = iv.mpf(0)
+        for a in expr.args:
+            out = out + _iv(a)
+        return out
+    if isinstance(expr, sp.Mul):
+        out = iv.mpf(1)
+        for a in expr.args:
+            out = out * _iv(a)
+        return out
+    if isinstance(expr, sp.Pow):
+        base, ex = expr.args
+        if ex.is_Integer:
+            b = _iv(base)
+            k = int(ex)
+            return b ** k if k >= 0 else iv.mpf(1) / (b ** (-k))
+        if ex == sp.Rational(1, 2):
+            return iv.sqrt(_iv(base))
+        if ex == sp.Rational(-1, 2):
+            return iv.mpf(1) / iv.sqrt(_iv(base))
+        return iv.exp(_iv(ex) * iv.log(_iv(base)))
+    if isinstance(expr, sp.exp):
+        return iv.exp(_iv(expr.args[0]))
+    if isinstance(expr, sp.log):
+        return iv.log(_iv(expr.args[0]))
+    if isinstance(expr, sp.Abs):
+        return abs(_iv(expr.args[0]))
+    if isinstance(expr, sp.Min | sp.Max):
+        parts = [_iv(a)._mpi_ for a in expr.args]
+        pick = min if isinstance(expr, sp.Min) else max
+        lo = pick(mpmath.mp.make_mpf(p[0]) for p in parts)
+        hi = pick(mpmath.mp.make_mpf(p[1]) for p in parts)
+        return iv.mpf([lo, hi])
+    raise ValueError(f"cannot enclose {type(expr).__name__} in {expr}")
+
+
+def enclose(expr: sp.Expr, digits: int = DEFAULT_DIGITS) -> Ball:
+    """A rational ball containing the real constant ``expr`` (exact when it is rational)."""
+    expr = sp.sympify(expr)
+    if expr.free_symbols:
+        names = sorted(map(str, expr.free_symbols))
+        raise ValueError(f"expression {expr} still has symbols {names}")
+    if expr.is_Rational:
+        return Ball(Fraction(int(expr.p), int(expr.q)))
+    old = mpmath.iv.prec
+    try:
+        mpmath.iv.prec = int(digits * 3.33) + 64
+        val = _iv(expr)
+    finally:
+        mpmath.iv.prec = old
+    if not isinstance(val, mpmath.iv.mpf):
+        raise ValueError(f"{expr} is not a real number")
+    lo, hi = (_mpf_fraction(r) for r in val._mpi_)
+    scale = 10**digits
+    lo_r = Fraction(math.floor(lo * scale), scale)
+    hi_r = Fraction(math.ceil(hi * scale), scale)
+    return Ball((lo_r + hi_r) / 2, (hi_r - lo_r) / 2)
+
+
+@dataclass(frozen=True, eq=False)
+class ExactAlgorithm:
+    """The method at rational kappa, m, L: exact sympy entries and rational enclosures."""
+
+    name: str
+    kappa: Fraction
+    m: Fraction
+    L: Fraction
+    params: dict[str, sp.Expr]
+    matrices: dict[str, sp.Matrix]
+    balls: dict[str, BallMatrix]
+    theta: dict[str, Fraction] = field(default_factory=dict)
+
+    def enclosures(self) -> dict[str, list[list[list[str]]]]:
+        """[lo, hi] of every entry as exact decimal/rational strings (lo == hi if exact)."""
+        return {
+            k: [[[_fmt(b.lo), _fmt(b.hi)] for b in row] for row in mat]
+            for k, mat in self.balls.items()
+        }
+
+
+def _rational(x: Any) -> Fraction:
+    """Exact rational value of a float (its binary value) / int / Fraction / "p/q" string."""
+    if _is_exact(x):
+        return Fraction(x if not isinstance(x, numbers.Integral) else int(x))
+    xf = float(x)
+    if not math.isfinite(xf):
+        raise ValueError(f"{x} is not finite")
+    return Fraction(xf)
+
+
+def _is_exact(x: Any) -> bool:
+    """Exact inputs (int, Fraction, "p/q" strings) are used as given, without rounding."""
+    return isinstance(x, numbers.Rational | str) and not isinstance(x, bool)
+
+
+def exact_algorithm(
+    spec: Spec, kappa: float | Fraction, theta: Mapping[str, float] | None = None,
+    digits: int = DEFAULT_DIGITS,
+) -> ExactAlgorithm:
+    """Exact templates A, B, C, E (eq. 10) at rational kappa, m = spec.m, L = kappa m."""
+    kq = _rational(kappa)
+    if not kq > 1:
+        raise ValueError(f"condition number must be > 1, got {kappa}")
+    mq = _rational(spec.m)
+    Lq = kq * mq
+    base = {
+        BASE_SYMBOLS["m"]: sp.Rational(mq.numerator, mq.denominator),
+        BASE_SYMBOLS["L"]: sp.Rational(Lq.numerator, Lq.denominator),
+        BASE_SYMBOLS["kappa"]: sp.Rational(kq.numerator, kq.denominator),
+    }
+    theta_q: dict[str, Fraction] = {}
+    for p, v in (theta or {}).items():
+        if p not in spec.parameters:
+            raise ValueError(f"unknown parameter {p!r}")
+        if spec.parameters[p].is_tied:
+            raise ValueError(f"parameter {p!r} is tied to other parameters; it cannot be set")
+        theta_q[p] = _rational(v)
+    values: dict[sp.Symbol, sp.Expr] = dict(base)
+    params: dict[str, sp.Expr] = {}
+    for p in _value_order(spec.parameters, spec.source):
+        par = spec.parameters[p]
+        if p in theta_q:
+            val: sp.Expr = sp.Rational(theta_q[p].numerator, theta_q[p].denominator)
+        else:
+            expr = par.tied if par.is_tied else par.value
+            assert expr is not None
+            val = expr.xreplace(values)
+        if val.free_symbols:
+            raise ValueError(f"parameter {p} did not evaluate to a number: {val}")
+        params[p] = val
+        values[spec.symbols[p]] = val
+    mats: dict[str, sp.Matrix] = {}
+    balls: dict[str, BallMatrix] = {}
+    for k in MATRIX_NAMES:
+        mat = spec.matrices[k].xreplace(values)
+        mats[k] = mat
+        balls[k] = [[enclose(mat[i, j], digits) for j in range(mat.shape[1])]
+                    for i in range(mat.shape[0])]
+    return ExactAlgorithm(spec.name, kq, mq, Lq, params, mats, balls, theta_q)
+
+
+def _is_zero(expr: sp.Expr) -> bool:
+    """True only when ``expr == 0`` is proven (automatic or exact algebraic simplification)."""
+    expr = sp.sympify(expr)
+    if expr == 0 or expr.is_zero is True:
+        return True
+    if sp.simplify(expr) == 0:
+        return True
+    try:
+        x = sp.Dummy("x")
+        return sp.minimal_polynomial(expr, x) == x
+    except (NotImplementedError, ValueError, sp.polys.polyerrors.PolynomialError):
+        return False
+
+
+def _exact_fixed_point(ex: ExactAlgorithm, u_float: np.ndarray | None) -> list[sp.Expr] | None:
+    """u of eq. (11) with (I - A)u = 0, C u = 1, E u = 1 proven exactly, or None."""
+    if u_float is None:
+        return None
+    u = [sp.nsimplify(float(v), rational=True, tolerance=1e-10) for v in u_float]
+    uv = sp.Matrix(u)
+    A, C, E = ex.matrices["A"], ex.matrices["C"], ex.matrices["E"]
+    res = list((sp.eye(A.shape[0]) - A) * uv) + [(C * uv)[0] - 1, (E * uv)[0] - 1]
+    return u if all(_is_zero(r) for r in res) else None
+
+
+# --------------------------------------------------------------------------- rationals
+
+
+def rational_at_least(x: float | Fraction, max_den: int = DEFAULT_MAX_DEN) -> Fraction:
+    """A rational >= x with denominator <= max_den (x itself when its denominator fits).
+
+    The best approximation is used when it is >= x, else ceil(x max_den) / max_den.
+    """
+    f = Fraction(x)
+    if f.denominator <= max_den:
+        return f
+    g = f.limit_denominator(max_den)
+    return g if g >= f else Fraction(math.ceil(f * max_den), max_den)
+
+
+def _rho_candidates(rho: Fraction, steps: Sequence[float], max_den: int) -> list[Fraction]:
+    r = rho
+    out: list[Fraction] = []
+    for s in steps:
+        c = rational_at_least(r * (1 + _rational(s)), max_den)
+        if c > 1 >= r:
+            c = Fraction(1)
+        if c not in out:
+            out.append(c)
+    return out
+
+
+def _p_candidates(P: np.ndarray, max_den: int) -> list[tuple[str, Matrix]]:
+    n = P.shape[0]
+    Ps = 0.5 * (P + P.T)
+    exact = [[Fraction(float(Ps[i, j])) for j in range(n)] for i in range(n)]
+    lim = [[v.limit_denominator(max_den) for v in row] for row in exact]
+    scale = max((abs(v) for row in exact for v in row), default=Fraction(0))
+    eps = Fraction(1, 10**12) * max(scale, Fraction(1))
+    eps = Fraction(eps).limit_denominator(max_den) or Fraction(1, max_den)
+    shifted = [[lim[i][j] + (eps if i == j else 0) for j in range(n)] for i in range(n)]
+    out = [(f"limit_denominator({max_den})", lim)]
+    if exact != lim:
+        out.append(("exact binary value", exact))
+    out.append((f"limit_denominator({max_den}) + {_fmt(eps)} I", shifted))
+    return out
+
+
+def _upper_sqrt(s: Fraction, sig: int = 8) -> Fraction:
+    """A rational t >= sqrt(s) (s >= 0) with about ``sig`` significant digits."""
+    if s <= 0:
+        return Fraction(0)
+    p, q = s.numerator, s.denominator
+    t = Fraction(math.isqrt(p * q) + 1, q)  # (isqrt(pq) + 1)^2 > pq, so t^2 > s
+    mag = len(str(t.numerator)) - len(str(t.denominator))  # ~ log10(t)
+    scale = Fraction(10) ** (sig - mag)
+    return Fraction(math.ceil(t * scale)) / scale
+
+
+def _round_down(x: Fraction, sig: int = 8) -> Fraction:
+    """A rational <= x with about ``sig`` significant digits (x itself if x <= 0)."""
+    if x <= 0:
+        return x
+    mag = len(str(x.numerator)) - len(str(x.denominator))
+    scale = Fraction(10) ** (sig - mag)
+    return Fraction(math.floor(x * scale)) / scale
+
+
+def _frobenius_bound(M: BallMatrix) -> Fraction:
+    return _upper_sqrt(sum((b.r * b.r for row in M for b in row), Fraction(0)))
+
+
+# --------------------------------------------------------------------------- result
+
+
+@dataclass
+class ExactResult:
+    """Outcome of :func:`verify_exact`; ``to_dict`` has everything needed to re-check."""
+
+    spec: str
+    verified: str  # "exact" or "failed"
+    rho_requested: float
+    rho_proven: str | None = None
+    rho_proven_float: float | None = None
+    rho_step: float | None = None  # relative increase of rho that was needed
+    P_rational: list[list[str]] | None = None
+    P_rounding: str | None = None
+    lambda_rational: str | None = None
+    delta: str | None = None  # proven margin: M ⪯ -delta I
+    delta_float: float | None = None
+    perturbation: str | None = None  # bound on ||M - M(centre)||_2 over the enclosures
+    M_proof: str | None = None
+    P_proof: str | None = None
+    fixed_point: list[str] | None = None
+    reason: str | None = None
+    attempts: int = 0
+    seconds: float = 0.0
+    kappa: str = ""
+    m: str = ""
+    L: str = ""
+    params: dict[str, str] = field(default_factory=dict)
+    theta: dict[str, str] = field(default_factory=dict)
+    matrices: dict[str, list[list[str]]] = field(default_factory=dict)
+    enclosures: dict[str, list[list[list[str]]]] = field(default_factory=dict)
+    model_max_abs_diff: float | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.verified == "exact"
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dict: the exact method, m, L, rho, P, lambda and the proof outcome."""
+        return {
+            "certificate": "Theorem 1 (eq. 15), reduced d = 1 templates (Remark 1)",
+            "spec": self.spec,
+            "verified": self.verified,
+            "rho_requested": self.rho_requested,
+            "rho_proven": self.rho_proven,
+            "rho_proven_float": self.rho_proven_float,
+            "rho_step": self.rho_step,
+            "P": self.P_rational,
+            "P_rounding": self.P_rounding,
+            "lambda": self.lambda_rational,
+            "delta": self.delta,
+            "delta_float": self.delta_float,
+            "perturbation": self.perturbation,
+            "M_proof": self.M_proof,
+            "P_proof": self.P_proof,
+            "fixed_point_u": self.fixed_point,
+            "reason": self.reason,
+            "attempts": self.attempts,
+            "seconds": self.seconds,
+            "kappa": self.kappa,
+            "m": self.m,
+            "L": self.L,
+            "params": dict(self.params),
+            "theta": dict(self.theta),
+            "matrices": {k: [list(r) for r in v] for k, v in self.matrices.items()},
+            "enclosures": self.enclosures,
+            "model_max_abs_diff": self.model_max_abs_diff,
+        }
+
+
+def write_certificate(result: ExactResult, path: str | Path) -> Path:
+    """Write ``result.to_dict()`` as JSON (exact strings: any CAS can re-check it)."""
+    p = Path(path)
+    p.write_text(json.dumps(result.to_dict(), indent=2) + "\n", encoding="utf-8")
+    return p
+
+
+# --------------------------------------------------------------------------- verification
+
+
+def _prove_M(
+    ex: ExactAlgorithm, P: Matrix, rho: Fraction, lam: Fraction
+) -> tuple[bool, dict[str, Any]]:
+    """Try to prove M(rho, P, lambda) ⪯ -delta I for every method in the enclosures."""
+    M = theorem1_balls(
+        ex.balls["A"], ex.balls["B"], ex.balls["C"], ex.balls["E"], ex.m, ex.L, P,
+        rho * rho, lam,
+    )
+    eta = _frobenius_bound(M)
+    Mc = [[b.c for b in row] for row in M]
+    s = len(Mc)
+    # a margin to aim for (heuristic only: the proof below is exact)
+    try:
+        est = float(np.linalg.eigvalsh(np.array([[float(v) for v in row] for row in Mc]))[-1])
+    except (OverflowError, np.linalg.LinAlgError):
+        est = math.nan
+    targets: list[Fraction] = []
+    if math.isfinite(est) and est < 0 and Fraction(f"{-est / 2:.3g}") > eta:
+        targets.append(Fraction(f"{-est / 2:.3g}"))
+    targets.append(eta)
+    proof = None
+    for t in targets:
+        S = [[-Mc[i][j] - (t if i == j else 0) for j in range(s)] for i in range(s)]
+        proof = prove_psd(S)
+        if proof.psd:
+            return True, {"t": t, "eta": eta, "proof": proof}
+    # not proven: is M ⪯ 0 false for sure? -Mc + eta I not PSD implies it.
+    S = [[-Mc[i][j] + (eta if i == j else 0) for j in range(s)] for i in range(s)]
+    disproof = prove_psd(S)
+    try:
+        scale = max(float(abs(v)) for row in Mc for v in row)
+    except OverflowError:
+        scale = math.inf
+    detail = proof.detail if proof is not None else ""
+    return False, {"eta": eta, "detail": detail, "disproved": not disproof.psd, "est": est,
+                   "scale": scale}
+
+
+def verify_exact(
+    spec: Spec,
+    kappa: float,
+    rho: float,
+    P: Any,
+    lam: float,
+    theta: Mapping[str, float] | None = None,
+    *,
+    max_den: int = DEFAULT_MAX_DEN,
+    rho_steps: Sequence[float] = DEFAULT_RHO_STEPS,
+    digits: int = DEFAULT_DIGITS,
+) -> ExactResult:
+    """Prove in exact arithmetic that (rho, P, lambda) is a Theorem 1 certificate.
+
+    Checks P ⪰ 0, lambda >= 0, 0 < rho <= 1, the fixed point of eq. (11) and M ⪯ 0 of
+    eq. (15) for the exact method of ``spec`` at ``kappa`` (``theta`` overrides input
+    parameters with the exact values of the floats). Float P, lambda are rounded to
+    rationals (several roundings are tried); exact inputs (Fraction, int, "p/q") are used
+    as given. The rational rho that is proven is >= ``rho``: the relative increases
+    ``rho_steps`` are tried in order (``rho_steps=(0,)`` proves ``rho`` itself).
+    """
+    start = time.perf_counter()
+    try:
+        ex = exact_algorithm(spec, kappa, theta, digits)
+    except ValueError as exc:
+        return ExactResult(spec=spec.name, verified="failed", rho_requested=float(rho),
+                           reason=f"the exact method cannot be built: {exc}",
+                           seconds=time.perf_counter() - start)
+    result = ExactResult(
+        spec=spec.name, verified="failed", rho_requested=float(rho), kappa=_fmt(ex.kappa),
+        m=_fmt(ex.m), L=_fmt(ex.L), params={k: str(v) for k, v in ex.params.items()},
+        theta={k: _fmt(v) for k, v in ex.theta.items()},
+        matrices={k: [[str(v) for v in mat.row(i)] for i in range(mat.shape[0])]
+                  for k, mat in ex.matrices.items()},
+        enclosures=ex.enclosures(),
+    )
+
+    def done(reason: str | None) -> ExactResult:
+        result.reason = reason
+        result.seconds = time.perf_counter() - start
+        return result
+
+    try:
+        alg = bind(spec, float(kappa), theta)
+    except ValueError as exc:
+        return done(f"the method cannot be evaluated: {exc}")
+    diff = max(
+        float(np.max(np.abs(np.array(getattr(alg, k), float)
+                            - np.array([[float(b.c) for b in row] for row in ex.balls[k]]))))
+        for k in MATRIX_NAMES
+    )
+    result.model_max_abs_diff = diff
+    if not diff <= 1e-9 * (1 + max(float(np.max(np.abs(getattr(alg, k)))) for k in MATRIX_NAMES)):
+        return done(f"exact matrices differ from sosalgo.model.bind by {diff:.3g}")
+    u = _exact_fixed_point(ex, fixed_point(alg))
+    if u is None:
+        return done("fixed point of eq. (11) (u with (I - A)u = 0, Cu = 1, Eu = 1) not proven")
+    result.fixed_point = [str(v) for v in u]
+
+    n = len(ex.balls["A"])
+    P_raw = np.atleast_2d(np.asarray(P, dtype=object))
+    if P_raw.shape != (n, n):
+        return done(f"P has shape {P_raw.shape}, expected {(n, n)}")
+    try:
+        rho_q = _rational(rho)
+        if _is_exact(lam):
+            lam_opts = [_rational(lam)]
+        else:
+            lam_exact = _rational(float(lam))
+            lam_q = lam_exact.limit_denominator(max_den)
+            lam_opts = [lam_q] + ([lam_exact] if lam_exact != lam_q else [])
+        if all(_is_exact(v) for v in P_raw.flat):
+            Pq = [[_rational(P_raw[i, j]) for j in range(n)] for i in range(n)]
+            if any(Pq[i][j] != Pq[j][i] for i in range(n) for j in range(i)):
+                return done("P is not symmetric")
+            p_cands = [("as given (exact)", Pq)]
+        else:
+            p_cands = _p_candidates(P_raw.astype(float), max_den)
+    except (ValueError, TypeError, OverflowError) as exc:
+        return done(f"P, lambda and rho must be finite numbers: {exc}")
+    if lam_opts[0] < 0:
+        return done(f"lambda = {float(lam_opts[0]):.6g} < 0")
+    if not 0 < rho_q <= 1:
+        return done(f"rho = {float(rho_q)!r} is not in (0, 1] (Theorem 1)")
+
+    P_opts = []
+    first_p_reason = None
+    for label, Pq in p_cands:
+        pp = prove_psd(Pq)
+        if pp.psd:
+            P_opts.append((label, Pq, pp))
+        elif first_p_reason is None:
+            first_p_reason = f"P ⪰ 0 fails for P {label}: {pp.detail}"
+    if not P_opts:
+        return done(first_p_reason)
+
+    first_fail: str | None = None
+    cands = _rho_candidates(rho_q, list(rho_steps), max_den)
+    for rq in cands:
+        for label, Pq, pp in P_opts:
+            for lq in lam_opts:
+                result.attempts += 1
+                ok, info = _prove_M(ex, Pq, rq, lq)
+                if ok:
+                    t, eta, proof = info["t"], info["eta"], info["proof"]
+                    result.verified = "exact"
+                    result.rho_proven = _fmt(rq)
+                    result.rho_proven_float = float(rq)
+                    result.rho_step = float(rq / rho_q - 1)
+                    result.P_rational = [[_fmt(v) for v in row] for row in Pq]
+                    result.P_rounding = label
+                    result.lambda_rational = _fmt(lq)
+                    margin = _round_down(t - eta)
+                    result.delta = _fmt(margin)
+                    result.delta_float = float(margin)
+                    result.perturbation = _fmt(eta)
+                    result.M_proof = (f"-M(centre) - {_float_str(t)} I ⪰ 0: {proof.kind} "
+                                      f"({proof.method})")
+                    result.P_proof = f"{pp.kind} ({pp.method})"
+                    return done(None)
+                if first_fail is None:
+                    verdict = (
+                        "M ⪯ 0 is false (disproved exactly: -M(centre) + eta I is not PSD)"
+                        if info["disproved"] else "M ⪯ 0 not proven"
+                    )
+                    first_fail = (
+                        f"{verdict} at rho = {_fmt(rq)} with P rounded by {label}; "
+                        f"estimated max eig of M = {info['est']:.3g}; {info['detail']}"
+                    )
+                if info["disproved"] and info["est"] > 1e-6 * info["scale"]:
+                    break  # clearly infeasible: other roundings of P, lambda cannot help
+            else:
+                continue
+            break
+    assert first_fail is not None
+    return done(first_fail + f" (tried {len(cands)} rho values up to {float(cands[-1])!r})")

@@ -1,0 +1,296 @@
+"""Tests of sosalgo.polyopt against global optima published in the literature.
+
+References (values quoted in the comments of each test):
+  [L01]   J.B. Lasserre, "Global optimization with polynomials and the problem of moments",
+          SIAM J. Optim. 11(3), 2001.
+  [HL03]  D. Henrion, J.B. Lasserre, "GloptiPoly: global optimization over polynomials with
+          Matlab and SeDuMi", ACM TOMS 29(2), 2003 (and the GloptiPoly 3 manual/demo).
+  [HL05]  D. Henrion, J.B. Lasserre, "Detecting global optimality and extracting solutions
+          in GloptiPoly", 2005.
+  [HL06]  D. Henrion, J.B. Lasserre, "Convergent relaxations of polynomial matrix
+          inequalities and static output feedback", IEEE TAC 51(2), 2006.
+  [CEC06] J.J. Liang et al., "Problem definitions and evaluation criteria for the CEC 2006
+          special session on constrained real-parameter optimization" (problem g24, which
+          is Floudas & Pardalos' test problem also used in [L01]).
+"""
+
+from __future__ import annotations
+
+import math
+
+import cvxpy as cp
+import numpy as np
+import pytest
+import sympy as sp
+
+from sosalgo.polyopt import PolyProblem, RelaxationResult, solve_moment_relaxation
+
+x1, x2, x3 = sp.symbols("x1 x2 x3")
+
+
+def _points(res: RelaxationResult, variables: list[sp.Symbol]) -> np.ndarray:
+    pts = np.array([[m[v] for v in variables] for m in res.minimizers], dtype=float)
+    return pts[np.lexsort(pts.T[::-1])] if len(pts) else pts.reshape(0, len(variables))
+
+
+def _assert_same_points(res: RelaxationResult, variables, expected, tol=1e-3) -> None:
+    got = _points(res, variables)
+    exp = np.array(expected, dtype=float)
+    exp = exp[np.lexsort(exp.T[::-1])]
+    assert got.shape == exp.shape, f"extracted {got.tolist()}, expected {exp.tolist()}"
+    assert np.max(np.abs(got - exp)) < tol, f"extracted {got.tolist()}, expected {exp.tolist()}"
+
+
+# --------------------------------------------------------------------------------------
+# Unconstrained problems
+# --------------------------------------------------------------------------------------
+
+
+def test_six_hump_camel_back() -> None:
+    # [HL03] GloptiPoly demo / [L01]: min = -1.0316284535 at +-(0.0898, -0.7126), certified
+    # at the 3rd relaxation (the objective has degree 6). Benchmark pages (e.g.
+    # benchmarkfcns.info "sixhumpcamel") list the same two global minimizers.
+    f = 4 * x1**2 + x1 * x2 - 4 * x2**2 - sp.Rational(21, 10) * x1**4 + 4 * x2**4 + x1**6 / 3
+    res = solve_moment_relaxation(PolyProblem([x1, x2], f), order=3)
+    assert res.status == "optimal"
+    assert res.order == 3 and res.solver == "CLARABEL"
+    assert abs(res.bound - (-1.0316284535)) < 1e-5
+    assert res.flat
+    _assert_same_points(res, [x1, x2], [[0.0898, -0.7126], [-0.0898, 0.7126]])
+    # the optimal measure is symmetric: its mean is the origin
+    assert abs(res.first_moments[x1]) < 1e-4 and abs(res.first_moments[x2]) < 1e-4
+    assert len(res.ranks) == 3 and res.seconds > 0
+
+
+def test_univariate_quartic() -> None:
+    # f = 3x^4 - 4x^3 - 12x^2 + 5, f' = 12 x (x - 2)(x + 1): f(-1) = 0, f(0) = 5,
+    # f(2) = -27, so the global minimum is -27 at x = 2 (univariate nonnegative polynomials
+    # are SOS, so the first admissible relaxation, order 2, is exact [L01, Sec. 2]).
+    x = sp.Symbol("x")
+    res = solve_moment_relaxation(PolyProblem([x], 3 * x**4 - 4 * x**3 - 12 * x**2 + 5))
+    assert res.order == 2  # order=None picks the minimal order
+    assert res.status == "optimal"
+    assert abs(res.bound - (-27.0)) < 1e-5
+    assert res.flat
+    _assert_same_points(res, [x], [[2.0]])
+    assert abs(res.first_moments[x] - 2.0) < 1e-3
+
+
+def test_rosenbrock_2d() -> None:
+    # Rosenbrock's function 100 (x2 - x1^2)^2 + (1 - x1)^2: global minimum 0 at (1, 1).
+    f = 100 * (x2 - x1**2) ** 2 + (1 - x1) ** 2
+    res = solve_moment_relaxation(PolyProblem([x1, x2], f), order=2)
+    assert res.status == "optimal"
+    assert abs(res.bound) < 1e-5
+    assert res.flat and res.ranks[0] == 1
+    _assert_same_points(res, [x1, x2], [[1.0, 1.0]])
+
+
+def test_motzkin_relaxation_is_not_exact() -> None:
+    # The Motzkin polynomial x^4 y^2 + x^2 y^4 - 3 x^2 y^2 + 1 is nonnegative (min 0 at
+    # |x| = |y| = 1) but M - gamma is a sum of squares for no gamma (Motzkin 1967; see the
+    # discussion of this example in [L01]). The order-3 moment relaxation is therefore
+    # unbounded: it must not certify 0, nor report minimizers.
+    f = x1**4 * x2**2 + x1**2 * x2**4 - 3 * x1**2 * x2**2 + 1
+    res = solve_moment_relaxation(PolyProblem([x1, x2], f), order=3)
+    assert not (res.status == "optimal" and abs(res.bound) < 1e-3)
+    assert res.status == "failed" or res.bound < -1e-2
+    assert not res.flat
+    assert res.minimizers == []
+
+
+# --------------------------------------------------------------------------------------
+# Constrained problems
+# --------------------------------------------------------------------------------------
+
+
+def test_henrion_lasserre_2005_three_minimizers() -> None:
+    # [HL05], Section 2.3: min -(x1-1)^2 - (x1-x2)^2 - (x2-3)^2 s.t. 1-(x1-1)^2 >= 0,
+    # 1-(x1-x2)^2 >= 0, 1-(x2-3)^2 >= 0. The first relaxation gives -3, the second one is
+    # exact with optimum -2 and rank M_1 = rank M_2 = 3: global minimizers (1,2), (2,2),
+    # (2,3).
+    f = -((x1 - 1) ** 2) - (x1 - x2) ** 2 - (x2 - 3) ** 2
+    prob = PolyProblem(
+        [x1, x2], f, inequalities=[1 - (x1 - 1) ** 2, 1 - (x1 - x2) ** 2, 1 - (x2 - 3) ** 2]
+    )
+    first = solve_moment_relaxation(prob, order=1)
+    assert abs(first.bound - (-3.0)) < 1e-5 and not first.flat
+    res = solve_moment_relaxation(prob, order=2)
+    assert res.status == "optimal"
+    assert abs(res.bound - (-2.0)) < 1e-5
+    assert res.flat and res.ranks == [3, 3]
+    _assert_same_points(res, [x1, x2], [[1, 2], [2, 2], [2, 3]])
+
+
+def test_floudas_g24_and_box_scaling() -> None:
+    # [CEC06] g24 = [L01]'s Floudas-Pardalos example: min -x1 - x2 s.t.
+    # x2 <= 2x1^4 - 8x1^3 + 8x1^2 + 2, x2 <= 4x1^4 - 32x1^3 + 88x1^2 - 96x1 + 36,
+    # 0 <= x1 <= 3, 0 <= x2 <= 4; optimum -5.5080132716 at (2.32952, 3.17849).
+    # Stated here in u = (100 x1 / 3, 25 x2) in [0, 100]^2, which only scaling makes
+    # numerically tractable (unscaled, moments up to 100^8 ruin the solver's accuracy).
+    u1, u2 = sp.symbols("u1 u2")
+    a, b = 3 * u1 / 100, u2 / 25
+    prob = PolyProblem(
+        [u1, u2],
+        -a - b,
+        inequalities=[
+            2 * a**4 - 8 * a**3 + 8 * a**2 + 2 - b,
+            4 * a**4 - 32 * a**3 + 88 * a**2 - 96 * a + 36 - b,
+        ],
+        bounds={u1: (0, 100), u2: (0, 100)},
+    )
+    res = solve_moment_relaxation(prob, order=4, scale=True)
+    assert res.status == "optimal"
+    assert abs(res.bound - (-5.5080132716)) < 1e-5
+    assert res.flat
+    _assert_same_points(res, [u1, u2], [[2.32952 * 100 / 3, 3.17849 * 25]], tol=1e-2)
+    # first moments are reported in the original (unscaled) coordinates
+    assert abs(res.first_moments[u1] - 77.6507) < 1e-2
+    assert abs(res.first_moments[u2] - 79.4623) < 1e-2
+
+
+def test_gloptipoly_constrained_example() -> None:
+    # GloptiPoly manual example ([HL03]; a Floudas et al. test problem): min -2x1 + x2 - x3
+    # s.t. 24 - 20x1 + 9x2 - 13x3 + 4x1^2 - 4x1x2 + 4x1x3 + 2x2^2 - 2x2x3 + 2x3^2 >= 0,
+    # x1 + x2 + x3 <= 4, 3x2 + x3 <= 6, 0 <= x1 <= 2, 0 <= x2, 0 <= x3 <= 3.
+    # Global optimum -4 at (0.5, 0, 3) and (2, 0, 0) (both points satisfy the quadratic
+    # constraint with equality). With the box stated linearly, GloptiPoly needs order 4;
+    # the manual lists lower bounds -6, -5.6923, -4.0685 for orders 1-3 (recalled from the
+    # manual, not re-verifiable here). x2 <= 2 is implied by 3x2 + x3 <= 6, x3 >= 0.
+    g = (
+        24
+        - 20 * x1
+        + 9 * x2
+        - 13 * x3
+        + 4 * x1**2
+        - 4 * x1 * x2
+        + 4 * x1 * x3
+        + 2 * x2**2
+        - 2 * x2 * x3
+        + 2 * x3**2
+    )
+    f = -2 * x1 + x2 - x3
+    linear = PolyProblem(
+        [x1, x2, x3],
+        f,
+        inequalities=[g, 4 - x1 - x2 - x3, 6 - 3 * x2 - x3, x1, 2 - x1, x2, x3, 3 - x3],
+    )
+    low = [solve_moment_relaxation(linear, order=k) for k in (1, 2)]
+    assert abs(low[0].bound - (-6.0)) < 1e-4
+    assert abs(low[1].bound - (-5.6923)) < 1e-4
+    assert all(not r.flat and r.minimizers == [] for r in low)
+
+    boxed = PolyProblem(
+        [x1, x2, x3],
+        f,
+        inequalities=[g, 4 - x1 - x2 - x3, 6 - 3 * x2 - x3],
+        bounds={x1: (0, 2), x2: (0, 2), x3: (0, 3)},
+    )
+    res = solve_moment_relaxation(boxed, order=3)
+    assert res.status == "optimal"
+    assert abs(res.bound - (-4.0)) < 1e-5
+    assert res.flat
+    _assert_same_points(res, [x1, x2, x3], [[0.5, 0, 3], [2, 0, 0]])
+
+
+def test_equality_constraint_sphere() -> None:
+    # min -x1 x2 x3 s.t. x1^2 + x2^2 + x3^2 = 1. By AM-GM, (x1 x2 x3)^2 <= (1/3)^3, so the
+    # minimum is -3^(-3/2) = -0.19245..., attained exactly at the four points
+    # (s1, s2, s3)/sqrt(3) with s_i = +-1 and s1 s2 s3 = 1.
+    prob = PolyProblem([x1, x2, x3], -x1 * x2 * x3, equalities=[x1**2 + x2**2 + x3**2 - 1])
+    res = solve_moment_relaxation(prob, order=2)
+    assert res.status == "optimal"
+    assert abs(res.bound - (-(3**-1.5))) < 1e-5
+    assert res.flat
+    a = 1 / math.sqrt(3)
+    _assert_same_points(res, [x1, x2, x3], [[a, a, a], [a, -a, -a], [-a, a, -a], [-a, -a, a]])
+
+
+def test_polynomial_matrix_inequality() -> None:
+    # [HL06] 2x2 PMI example: min -x1^2 - x2^2 s.t. G(x) = [[1 - 4x1x2, x1],
+    # [x1, 4 - x1^2 - x2^2]] ⪰ 0. By hand: G ⪰ 0 needs G22 = 4 - x1^2 - x2^2 >= 0, so the
+    # objective is >= -4; equality forces G22 = 0, then det G = -x1^2 >= 0 gives x1 = 0,
+    # and G(0, +-2) = diag(1, 0) ⪰ 0. Optimum -4 at (0, 2) and (0, -2). The first
+    # relaxation already gives -4 but without certificate; the second is flat.
+    G = sp.Matrix([[1 - 4 * x1 * x2, x1], [x1, 4 - x1**2 - x2**2]])
+    prob = PolyProblem([x1, x2], -(x1**2) - x2**2, matrix_inequalities=[G])
+    first = solve_moment_relaxation(prob, order=1)
+    assert abs(first.bound - (-4.0)) < 1e-5 and not first.flat
+    res = solve_moment_relaxation(prob, order=2)
+    assert res.status == "optimal"
+    assert abs(res.bound - (-4.0)) < 1e-5
+    assert res.flat
+    _assert_same_points(res, [x1, x2], [[0, -2], [0, 2]])
+
+
+# --------------------------------------------------------------------------------------
+# Solvers, failures, validation
+# --------------------------------------------------------------------------------------
+
+
+def test_scs_agrees_with_published_value() -> None:
+    # [HL05] example again, solved with SCS: a second opinion within 1e-3.
+    f = -((x1 - 1) ** 2) - (x1 - x2) ** 2 - (x2 - 3) ** 2
+    prob = PolyProblem(
+        [x1, x2], f, inequalities=[1 - (x1 - 1) ** 2, 1 - (x1 - x2) ** 2, 1 - (x2 - 3) ** 2]
+    )
+    scs = solve_moment_relaxation(prob, order=2, solver="scs")
+    clarabel = solve_moment_relaxation(prob, order=2, solver="clarabel")
+    assert scs.solver == "SCS" and scs.status in ("optimal", "inaccurate")
+    assert abs(scs.bound - (-2.0)) < 1e-3
+    assert abs(scs.bound - clarabel.bound) < 1e-3
+
+
+def test_solver_failure_is_reported_not_raised(monkeypatch: pytest.MonkeyPatch) -> None:
+    def broken_solve(self, *args, **kwargs):
+        raise cp.error.SolverError("Solver 'CLARABEL' failed: NumericalError")
+
+    monkeypatch.setattr(cp.Problem, "solve", broken_solve)
+    res = solve_moment_relaxation(PolyProblem([x1], x1**2 - x1), order=1)
+    assert res.status == "failed"
+    assert math.isnan(res.bound)
+    assert res.minimizers == [] and not res.flat
+    assert "NumericalError" in res.solver_status
+
+
+def test_unexpected_solver_status_maps_to_failed(monkeypatch: pytest.MonkeyPatch) -> None:
+    def limit_solve(self, *args, **kwargs):
+        self._status = cp.USER_LIMIT
+        return None
+
+    monkeypatch.setattr(cp.Problem, "solve", limit_solve)
+    res = solve_moment_relaxation(PolyProblem([x1], x1**2 - x1), order=1)
+    assert res.status == "failed" and math.isnan(res.bound)
+
+
+def test_failed_extraction_keeps_flat(monkeypatch: pytest.MonkeyPatch) -> None:
+    import sosalgo.polyopt.relaxation as relaxation
+
+    monkeypatch.setattr(relaxation, "extract_atoms", lambda *args, **kwargs: None)
+    res = solve_moment_relaxation(PolyProblem([x1], (x1 - 1) ** 2 * (x1 + 2) ** 2), order=2)
+    assert res.status == "optimal" and abs(res.bound) < 1e-5
+    assert res.flat and res.minimizers == []
+
+
+def test_infeasible_problem() -> None:
+    # x^2 <= -1 has no real solution; already the first relaxation is infeasible.
+    res = solve_moment_relaxation(PolyProblem([x1], x1, inequalities=[-1 - x1**2]), order=1)
+    assert res.status == "infeasible"
+    assert math.isnan(res.bound)
+
+
+def test_order_validation_and_bad_input() -> None:
+    prob = PolyProblem([x1, x2], x1**4 + x2**2, inequalities=[1 - x1**2 - x2**2])
+    with pytest.raises(ValueError):
+        solve_moment_relaxation(prob, order=1)
+    assert solve_moment_relaxation(prob).order == 2
+    with pytest.raises(ValueError):
+        PolyProblem([x1], x1 * x2)  # x2 is not a variable
+    with pytest.raises(ValueError):
+        solve_moment_relaxation(PolyProblem([x1], sp.sin(x1)))
+    with pytest.raises(ValueError):
+        PolyProblem([x1, x2], x1, matrix_inequalities=[sp.Matrix([[1, x1], [x2, 1]])])
+    with pytest.raises(ValueError):
+        PolyProblem([x1], x1, bounds={x1: (1, 0)})
+    with pytest.raises(ValueError):
+        solve_moment_relaxation(PolyProblem([x1], x1**2), solver="no-such-solver")
