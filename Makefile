@@ -58,3 +58,19 @@ fig1: $(VENV)/.installed
 fig2: $(VENV)/.installed
 	$(BIN)/sosalgo design specs/nesterov.yaml --free beta --kappa '$(KAPPA_SWEEP)' --time-limit 30 --out $(OUT) $(BATCH_OPTS)
 	@echo "Figure 2: $(OUT)/nesterov-design.png"
+
+fig3: $(VENV)/.installed
+	$(BIN)/sosalgo grid specs/nesterov.yaml --kappa 10 --points 60 --free h,beta --out $(OUT) $(BATCH_OPTS)
+	@echo "Figure 3: $(OUT)/nesterov-grid-k10.png"
+
+SWEEP := {from: 1.5, to: 1000, points: 40, scale: log}
+sweeps: $(VENV)/.installed
+	for spec in specs/*.yaml; do \
+	  $(BIN)/sosalgo analyze $$spec --kappa '$(SWEEP)' --out $(OUT)/sweeps $(BATCH_OPTS) || exit $$?; \
+	done
+
+figures: table1 fig1 fig2 fig3
+
+FUZZ_EXAMPLES ?= 20000
+fuzz: $(VENV)/.installed-dev
+	SOSALGO_FUZZ_EXAMPLES=$(FUZZ_EXAMPLES) $(BIN)/python -m pytest tests/test_fuzz.py

@@ -126,10 +126,12 @@ def cli() -> None:
 @click.option("--restart", is_flag=True, help="Discard earlier rows written with other settings.")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 @click.option("--no-plot", is_flag=True, help="Skip the figure.")
+@click.option("--verify", "verify_", is_flag=True,
+              help="Prove each certificate in exact arithmetic and simulate it.")
 @handle_errors
 def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_json: bool,
             workers: int | None, scheduler: str | None, restart: bool, quiet: bool,
-            no_plot: bool) -> None:
+            no_plot: bool, verify_: bool) -> None:
     """Best rate certified by Theorem 1 at each kappa, with its certificate (P, lambda)."""
     from sosalgo.jobs import csv_row_to_json, run_analysis_sweep
     from sosalgo.report import format_table, plot_rates
@@ -154,13 +156,21 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
             out_dir / f"{spec.name}-rate",
             uncertified=[r["kappa"] for r in jrows if not r["certified"]],
         )
+    cols = ["kappa", "rho", "certified", "lambda", "max_eig_M", "min_eig_P", "solves",
+            "seconds"]
+    if verify_:
+        from sosalgo.verification import verify_document_rows
+
+        checks = verify_document_rows(spec, jrows, out_dir / "certificates")
+        for r, v in zip(jrows, checks, strict=True):
+            r["verification"] = v
+            r["verified"] = None if v is None else v["verified"]
+        cols.append("verified")
     if as_json:
         doc = {"spec": spec.name, "source": spec.source, "tol": tol, "csv": str(csv_path),
                "figures": [str(p) for p in figs], "rows": jrows}
         click.echo(json.dumps(doc, indent=2))
         return
-    cols = ["kappa", "rho", "certified", "lambda", "max_eig_M", "min_eig_P", "solves",
-            "seconds"]
     table_rows = [{**r, **r["references"]} for r in jrows]
     click.echo(f"{spec.name}: {spec.description}".rstrip(": "))
     click.echo(format_table(table_rows, cols + list(spec.references)))
@@ -188,10 +198,13 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
 @click.option("--scheduler", default=None, metavar="ADDRESS")
 @click.option("--restart", is_flag=True)
 @click.option("--quiet", is_flag=True)
+@click.option("--verify", "verify_", is_flag=True,
+              help="Prove each certificate in exact arithmetic and simulate it.")
 @handle_errors
 def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: str,
            order: int | None, gap: float, time_limit: float, out: str, as_json: bool,
-           workers: int | None, scheduler: str | None, restart: bool, quiet: bool) -> None:
+           workers: int | None, scheduler: str | None, restart: bool, quiet: bool,
+           verify_: bool) -> None:
     """Design parameters by sum-of-squares: lower bound, designed theta, certified rate."""
     from sosalgo.jobs import design_csv_to_json, run_design_sweep
     from sosalgo.model import parameter_box
@@ -221,6 +234,14 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
     rows, fresh = run_design_sweep(spec, spec_text, kappas, csv_path, options, workers=workers,
                                    scheduler=scheduler, restart=restart, progress=not quiet)
     docs = [fresh.get(float(r["kappa"])) or design_csv_to_json(spec, names, r) for r in rows]
+    for d in docs:
+        d["source"] = spec.source
+    if verify_:
+        from sosalgo.verification import verify_document_rows
+
+        checks = verify_document_rows(spec, docs, out_dir / "certificates")
+        for d, v in zip(docs, checks, strict=True):
+            d["verification"] = v
     figs = []
     if len(docs) > 1:
         refs = {name: [r.get("references", {}).get(name) for r in
@@ -257,9 +278,162 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
     if len(docs) == 1:
         for step in docs[0]["steps"]:
             click.echo(f"  - {step}")
+    for d in docs:
+        v = d.get("verification")
+        if v is not None:
+            sim = v.get("simulation")
+            note = "" if sim is None else (", simulation ok" if sim["ok"] else
+                                           ", SIMULATION VIOLATION")
+            click.echo(f"  kappa {d['kappa']:g}: verified {v['verified']} "
+                       f"(rho proven {v['rho_proven_float']:.10g}{note})")
     click.echo("lower_bound: relaxation value (no method in the box can be certified faster); "
                "rho_certified: Theorem 1 analysis at the designed theta")
     click.echo(f"wrote {csv_path}" + "".join(f", {p}" for p in figs))
+
+
+# --------------------------------------------------------------------------- grid
+GRID_COLUMNS = {"kappa", "rho", "certified", "lambda", "max_eig_M", "min_eig_P", "solves",
+                "seconds", "solver", "error"}
+
+
+@cli.command()
+@click.argument("spec_path", metavar="SPEC", type=click.Path(dir_okay=False))
+@click.option("--kappa", "kappa", multiple=True, metavar="K", required=True,
+              help="Condition number(s); one grid (and one CSV/figure) per value.")
+@click.option("--points", default=60, show_default=True, type=click.IntRange(2, 2000),
+              help="Grid points per free parameter.")
+@click.option("--free", default=None, metavar="NAMES",
+              help="Comma-separated parameters to grid (default: those with a range).")
+@click.option("--tol", default=1e-6, show_default=True, type=float)
+@click.option("--out", default="outputs", show_default=True, metavar="DIR")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON document on stdout.")
+@click.option("--workers", type=click.IntRange(min=1), default=None,
+              help="Local worker processes (default: all cores).")
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="Run on an existing Dask distributed scheduler.")
+@click.option("--restart", is_flag=True, help="Discard rows written with other settings.")
+@click.option("--quiet", is_flag=True, help="No progress bar.")
+@handle_errors
+def grid(spec_path: str, kappa: tuple[str, ...], points: int, free: str | None, tol: float,
+         out: str, as_json: bool, workers: int | None, scheduler: str | None, restart: bool,
+         quiet: bool) -> None:
+    """Exhaustive search: certified rate on a grid over the free parameters (Figure 3)."""
+    import numpy as np
+
+    from sosalgo.jobs import run_grid
+    from sosalgo.model import parameter_box, parameter_values
+    from sosalgo.report import plot_grid
+
+    spec = load_spec(spec_path)
+    kappas = _kappas(spec, kappa)
+    names = spec.ranged if free is None else [p.strip() for p in free.split(",") if p.strip()]
+    if not names:
+        raise InputError(f"{spec.source}: parameters: no parameter has a range (use --free)")
+    spec.check_free(names)
+    for p in names:
+        if p in GRID_COLUMNS:
+            raise InputError(f"{spec.source}: parameters.{p}: name clashes with a grid column")
+    _check_tol(tol)
+    boxes = {}
+    for k in kappas:
+        try:
+            boxes[k] = parameter_box(spec, k, names)
+        except ModelError as exc:
+            raise InputError(f"{spec.source}: {exc.field}: at kappa={k:g}: {exc.message}") from None
+    out_dir = _out_dir(out)
+    spec_text = Path(spec_path).read_text(encoding="utf-8")
+    docs = []
+    for k in kappas:
+        stem = out_dir / f"{spec.name}-grid-k{k:g}"
+        rows = run_grid(spec, spec_text, k, names, boxes[k], points,
+                        stem.with_name(stem.name + ".csv"), tol, workers=workers,
+                        scheduler=scheduler, restart=restart, progress=not quiet)
+        rho = np.array([float(r["rho"]) if r["rho"] else np.nan for r in rows])
+        figs = []
+        if len(names) <= 2:
+            axes = [np.linspace(lo, hi, points) for lo, hi in boxes[k]]
+            vals = parameter_values(spec, k)
+            figs = plot_grid(f"{spec.name}: certified rate, kappa = {k:g}", names, axes,
+                             rho.reshape([points] * len(names)), stem,
+                             value_point=[vals[p] for p in names])
+        finite = np.isfinite(rho)
+        best = None
+        if finite.any():
+            i = int(np.nanargmin(np.where(finite, rho, np.nan)))
+            best = {"rho": float(rho[i]), "theta": {p: float(rows[i][p]) for p in names}}
+        docs.append({"kappa": k, "csv": str(stem.with_name(stem.name + ".csv")),
+                     "figures": [str(f) for f in figs], "points": len(rows),
+                     "certified": int(finite.sum()), "minimum": best})
+    if as_json:
+        click.echo(json.dumps({"spec": spec.name, "free": names, "grids": docs}, indent=2))
+        return
+    for d in docs:
+        m = d["minimum"]
+        where = "none certified" if m is None else (
+            f"minimum rho {m['rho']:.6f} at "
+            + ", ".join(f"{p} = {v:.6g}" for p, v in m["theta"].items()))
+        click.echo(f"{spec.name} kappa={d['kappa']:g}: {d['certified']}/{d['points']} points "
+                   f"certified; {where}")
+        click.echo(f"wrote {d['csv']}" + "".join(f", {p}" for p in d["figures"]))
+
+
+# --------------------------------------------------------------------------- verify
+@cli.command()
+@click.argument("result_path", metavar="RESULT.json", type=click.Path(dir_okay=False))
+@click.option("--spec", "spec_override", default=None, metavar="SPEC",
+              help="The spec file (default: the 'source' recorded in the result).")
+@click.option("--out", default="outputs", show_default=True, metavar="DIR",
+              help="Rational certificates go to DIR/certificates/.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON document on stdout.")
+@click.option("--no-simulate", is_flag=True, help="Skip the simulation check.")
+@handle_errors
+def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
+           no_simulate: bool) -> None:
+    """Verify every certificate of an `analyze --json` or `design --json` result.
+
+    Exit code 3 when some certificate fails to verify.
+    """
+    from sosalgo.verification import verify_document_rows
+
+    try:
+        doc = json.loads(Path(result_path).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(f"{result_path}: no such file") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise InputError(f"{result_path}: not a JSON result ({type(exc).__name__})") from None
+    if not isinstance(doc, dict):
+        raise InputError(f"{result_path}: not a sosalgo result document")
+    rows = doc.get("rows", [doc] if "rho_certified" in doc else None)
+    if not isinstance(rows, list) or not all(isinstance(r, dict) and "kappa" in r for r in rows):
+        raise InputError(f"{result_path}: rows: expected analyze or design results")
+    src = spec_override or doc.get("source") or (rows[0].get("source") if rows else None)
+    if not src:
+        raise InputError(f"{result_path}: source: unknown spec file; pass --spec")
+    spec = load_spec(src)
+    if doc.get("spec") not in (None, spec.name):
+        raise InputError(f"{result_path}: spec: result is for '{doc.get('spec')}', "
+                         f"{src} is '{spec.name}'")
+    out_dir = _out_dir(out)
+    checks = verify_document_rows(spec, rows, out_dir / "certificates", not no_simulate)
+    failed = [c for c in checks if c is not None and (
+        c["verified"] != "exact" or not c.get("simulation", {"ok": True})["ok"])]
+    if as_json:
+        click.echo(json.dumps({"spec": spec.name, "source": src, "results": checks}, indent=2))
+    else:
+        from sosalgo.report import format_table
+
+        table = [{"kappa": r["kappa"], "rho": (c or {}).get("rho"),
+                  "verified": "no certificate" if c is None else c["verified"],
+                  "rho_proven": None if c is None else c["rho_proven_float"],
+                  "simulation": None if c is None or "simulation" not in c
+                  else ("ok" if c["simulation"]["ok"] else "VIOLATION"),
+                  "reason": None if c is None else c["reason"]} for r, c in zip(rows, checks,
+                                                                             strict=True)]
+        click.echo(format_table(table, ["kappa", "rho", "verified", "rho_proven", "simulation",
+                                        "reason"]))
+        click.echo(f"rational certificates in {out_dir / 'certificates'}")
+    if failed:
+        sys.exit(3)
 
 
 # --------------------------------------------------------------------------- lmi

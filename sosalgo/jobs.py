@@ -200,8 +200,8 @@ def design_row(spec: Spec, res: Any) -> dict[str, Any]:
         row[f"theta_{p}"] = v
     P = res.certificate.get("P")
     n = spec.n
-    for c, (i, j) in zip(p_columns(n), [(i, j) for i in range(n) for j in range(i, n)],
-                         strict=True):
+    pairs = [(a, b) for a in range(n) for b in range(a, n)]
+    for c, (i, j) in zip(p_columns(n), pairs, strict=True):
         row[c] = None if P is None else float(P[i][j])
     row.update(reference_values(spec, res.kappa))
     return row
@@ -291,3 +291,59 @@ def design_csv_to_json(spec: Spec, free: Sequence[str], row: dict[str, str]) -> 
         "error": row.get("error") or None,
         "references": {name: _num(row[name]) for name in spec.references},
     }
+
+
+# --------------------------------------------------------------------------- grids
+def grid_columns(spec: Spec, free: Sequence[str]) -> list[str]:
+    """CSV columns of ``sosalgo grid`` (a contract: extend, never rename)."""
+    return (
+        ["kappa", *free, "rho", "certified", "lambda"] + p_columns(spec.n)
+        + ["max_eig_M", "min_eig_P", "solves", "seconds", "solver", "error"]
+    )
+
+
+def grid_points(box: Sequence[tuple[float, float]], points: int) -> list[tuple[float, ...]]:
+    """Cartesian grid with ``points`` values per axis, endpoints included."""
+    axes = [np.linspace(lo, hi, points) for lo, hi in box]
+    mesh = np.meshgrid(*axes, indexing="ij")
+    return [tuple(float(v) for v in vals) for vals in zip(*(m.ravel() for m in mesh), strict=True)]
+
+
+def grid_chunk(
+    spec_text: str, source: str, options: dict[str, Any], chunk: list[dict[str, Any]]
+) -> list[dict[str, Any]]:
+    """Worker: analysis at each grid point (task: kappa and theta)."""
+    rows = analysis_chunk(spec_text, source, options, chunk)
+    spec = _spec(spec_text, source)
+    cols = set(grid_columns(spec, options["free"]))
+    return [{k: v for k, v in r.items() if k in cols} for r in rows]
+
+
+def run_grid(
+    spec: Spec, spec_text: str, kappa: float, free: Sequence[str],
+    box: Sequence[tuple[float, float]], points: int, out_csv: Path, tol: float,
+    workers: int | None = None, scheduler: str | None = None, restart: bool = False,
+    progress: bool = True,
+) -> list[dict[str, str]]:
+    """Analysis on a grid over Θ at one kappa, resumable; rows in grid order."""
+    options = {"tol": tol, "free": list(free)}
+    settings = {"job": "grid", "spec": spec_text, "tol": tol, "kappa": float(kappa),
+                "free": list(free), "points": points, "box": [list(b) for b in box]}
+    store = ResumableCSV(out_csv, grid_columns(spec, free), ["kappa", *free], settings,
+                         restart=restart)
+    tasks = []
+    for vals in grid_points(box, points):
+        theta = dict(zip(free, vals, strict=True))
+        tasks.append({"kappa": float(kappa), "theta": theta, "extra": theta, **theta})
+    todo = [t for t in tasks if not store.is_done(t)]
+    bar = Progress(len(tasks), f"grid {spec.name} k={kappa:g}", progress,
+                   done=len(tasks) - len(todo))
+    try:
+        with store:
+            run_batch(grid_chunk, spec_text, spec.source, options, todo, store.write,
+                      workers=workers, scheduler=scheduler, progress=bar)
+    finally:
+        bar.close()
+    order = {store.row_key(t): i for i, t in enumerate(tasks)}
+    rows = [r for r in store.rows() if store.row_key(r) in order]
+    return sorted(rows, key=lambda r: order[store.row_key(r)])

@@ -18,7 +18,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-__all__ = ["format_table", "plot_rates", "save_figure"]
+__all__ = ["format_table", "plot_rates", "save_figure", "plot_grid"]
 
 
 def _fmt(v: Any, digits: int = 7) -> str:
@@ -93,4 +93,58 @@ def plot_rates(
     ax.set_title(title)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8, loc="lower right")
+    return save_figure(fig, stem)
+
+
+def plot_grid(
+    title: str,
+    names: Sequence[str],
+    axes: Sequence[np.ndarray],
+    rho: np.ndarray,
+    stem: Path,
+    value_point: Sequence[float] | None = None,
+) -> list[Path]:
+    """Certified rate over a 1-D or 2-D grid. ``rho`` holds NaN where no certificate was
+    found; those points are drawn as a hatched grey region (2-D) or marked (1-D), never as
+    rho = 1. The grid minimum and the spec's own value point are marked."""
+    fig, ax = plt.subplots(figsize=(6.4, 4.8))
+    finite = np.isfinite(rho)
+    if len(names) == 1:
+        x = axes[0]
+        ax.plot(x, np.where(finite, rho, np.nan), lw=1.6, label="certified rate")
+        if (~finite).any():
+            ax.plot(x[~finite], np.ones((~finite).sum()), "x", color="grey",
+                    label="no certificate", clip_on=False)
+        if finite.any():
+            i = int(np.nanargmin(np.where(finite, rho, np.nan)))
+            ax.plot(x[i], rho[i], "*", ms=12, color="red",
+                    label=f"grid minimum {rho[i]:.4f}")
+        if value_point is not None:
+            ax.axvline(value_point[0], ls=":", color="k", label="spec value")
+        ax.set_xlabel(names[0])
+        ax.set_ylabel(r"certified rate $\rho$")
+    else:
+        X, Y = np.meshgrid(axes[0], axes[1], indexing="ij")
+        Z = np.where(finite, rho, np.nan)
+        if (~finite).any():
+            ax.contourf(X, Y, (~finite).astype(float), levels=[0.5, 1.5], colors=["0.85"],
+                        hatches=["//"])
+            ax.plot([], [], "s", color="0.85", label="no certificate")
+        if finite.sum() >= 4:
+            lo, hi = float(np.nanmin(Z)), float(np.nanmax(Z))
+            levels = np.unique(np.round(np.linspace(lo, hi, 12), 4))
+            if len(levels) >= 2:
+                cf = ax.contourf(X, Y, Z, levels=levels, cmap="viridis", alpha=0.85)
+                cs = ax.contour(X, Y, Z, levels=levels, colors="k", linewidths=0.6)
+                ax.clabel(cs, fmt="%.3f", fontsize=7)
+                fig.colorbar(cf, ax=ax, label=r"certified rate $\rho$")
+            i = np.unravel_index(int(np.nanargmin(Z)), Z.shape)
+            ax.plot(X[i], Y[i], "*", ms=14, color="red",
+                    label=f"grid minimum {Z[i]:.4f}")
+        if value_point is not None:
+            ax.plot(*value_point, "o", ms=8, mfc="white", mec="k", label="spec value")
+        ax.set_xlabel(names[0])
+        ax.set_ylabel(names[1])
+    ax.set_title(title)
+    ax.legend(fontsize=8, loc="best")
     return save_figure(fig, stem)
