@@ -281,8 +281,8 @@ def design(
     def out_of_time() -> bool:
         return time.perf_counter() - t0 > time_limit
 
-    if gap_now() > gap and best_theta is not None and not out_of_time():
-        polished = _polish(spec, kappa, free, box, best_theta, t0 + time_limit)
+    if gap_now() > gap and best_theta is not None:  # cheap: always allowed one polish
+        polished = _polish(spec, kappa, free, box, best_theta, time.perf_counter() + 60.0)
         consider(polished, "polished locally")
     cur_order = root.info["order"]
     top = max_order if max_order is not None else cur_order + 1
