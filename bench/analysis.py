@@ -69,10 +69,19 @@ def _time(fn, repeats: int) -> tuple[float, object]:
 
 def run(quick: bool = False) -> None:
     try:
-        os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
+        saved = os.sched_getaffinity(0)
+        os.sched_setaffinity(0, {sorted(saved)[0]})
         core = "one core (pinned)"
     except (AttributeError, OSError):
-        core = "unpinned"
+        saved, core = None, "unpinned"
+    try:
+        _run(quick, core)
+    finally:
+        if saved is not None:
+            os.sched_setaffinity(0, saved)
+
+
+def _run(quick: bool, core: str) -> None:
     repeats, naive_repeats = (5, 1) if quick else (21, 3)
     print(f"analysis: median time per certified rate, tol {TOL:g}, {core}")
     print("| spec | kappa | rho (sosalgo) | rho (naive) | sosalgo ms | naive ms | speed-up |")
