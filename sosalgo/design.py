@@ -170,7 +170,7 @@ def relaxation_bound(
     k = max(k, _min_order(prob))
     first, second = _solvers(solver, len(prob.variables))
     res = solve_moment_relaxation(prob, order=k, solver=first, solver_options=_OPTS[first])
-    if res.status != "optimal" and second is not None:  # second opinion
+    if res.status != "optimal" and second is not None and len(prob.variables) <= 5:
         res = solve_moment_relaxation(prob, order=k, solver=second, solver_options=_OPTS[second])
     info = {"scalarize": scalarize, "order": res.order, "status": res.status,
             "solver": res.solver,
@@ -193,7 +193,8 @@ _OPTS: dict[str, dict[str, Any] | None] = {"clarabel": None, "scs": {"max_iters"
 def _solvers(choice: str, nvars: int) -> tuple[str, str | None]:
     """Clarabel is accurate and fast up to 4 variables; SCS scales far better beyond
     (6 variables at order 3: 0.4 s vs 27 s). "auto" picks by size; the other one is the
-    second opinion when the first does not report optimal."""
+    second opinion when the first does not report optimal (only up to 5 variables:
+    beyond, Clarabel takes minutes)."""
     if choice == "auto":
         choice = "clarabel" if nvars <= 4 else "scs"
     if choice not in _OPTS:

@@ -22,6 +22,9 @@ __all__ = ["ExprError", "parse_expression", "FUNCTIONS", "MAX_LENGTH"]
 MAX_LENGTH = 2000  # characters; longer strings are refused before parsing
 MAX_DEPTH = 60  # nesting depth of the syntax tree
 MAX_MAGNITUDE_LOG10 = 300  # numeric constants must stay below 1e300 in magnitude
+# exp() of a constant beyond this would leave the float range (and sympy's arbitrary-precision
+# evalf of exp(exp(exp(100))) never finishes), so such constants are refused while parsing.
+MAX_EXP_ARGUMENT = MAX_MAGNITUDE_LOG10 * math.log(10)
 
 FUNCTIONS: dict[str, object] = {
     "sqrt": sp.sqrt,
@@ -149,21 +152,41 @@ class _Converter:
             raise ExprError(f"{name}() takes exactly one argument")
         if name == "log" and args[0].is_zero:
             raise ExprError("log(0)")
+        if name == "exp" and args[0].is_number and _magnitude(args[0]) > MAX_EXP_ARGUMENT:
+            raise ExprError("argument of exp() too large in magnitude")
+        if name in ("min", "max"):
+            # Kept as written: sympy's evaluation of Min/Max compares every pair of arguments
+            # through the assumptions system, which takes seconds for a few dozen arguments.
+            return _check_finite(FUNCTIONS[name](*args, evaluate=False))  # type: ignore[operator]
         return _check_finite(FUNCTIONS[name](*args))  # type: ignore[operator]
 
 
 def _check_power(base: sp.Expr, exponent: sp.Expr) -> None:
     """Refuse powers whose value could explode (e.g. 10**10**10)."""
     if exponent.is_number:
-        e = float(sp.re(exponent.evalf(20)))
-        if abs(e) > 64:
+        e = _magnitude(exponent)
+        if e > 64:
             raise ExprError("exponent larger than 64 in magnitude")
+        e = _real(exponent)
         if base.is_number:
-            b = abs(complex(base.evalf(20)))
+            b = _magnitude(base)
             if b == 0 and e < 0:
                 raise ExprError("division by zero")
             if b > 0 and abs(e * math.log10(b)) > MAX_MAGNITUDE_LOG10:
                 raise ExprError("number too large")
+
+
+def _magnitude(value: sp.Expr) -> float:
+    """|value| of a constant (inf when it leaves the float range or cannot be evaluated)."""
+    try:
+        return abs(complex(value.evalf(20)))
+    except (OverflowError, TypeError, ValueError):
+        return math.inf
+
+
+def _real(value: sp.Expr) -> float:
+    """Real part of a constant whose magnitude is known to be small."""
+    return complex(value.evalf(20)).real
 
 
 def _check_finite(expr: sp.Expr) -> sp.Expr:

@@ -65,21 +65,42 @@ def _pow(a: float, b: float) -> float:
     return math.pow(a, b)
 
 
+def _short(expr: sp.Basic, n: int = 60) -> str:
+    text = str(expr)
+    return text if len(text) <= n else text[: n - 3] + "..."
+
+
 def _compile(expr: sp.Basic, index: dict[sp.Symbol, int]) -> Callable[[Sequence[float]], float]:
     if isinstance(expr, sp.Symbol):
         if expr not in index:
             raise NumericError(f"unbound symbol '{expr}'")
         i = index[expr]
         return lambda v: float(v[i])
-    if expr.is_number:
+    if isinstance(expr, sp.Number | sp.NumberSymbol):
         try:
-            c = complex(expr.evalf(30))
-        except (TypeError, ValueError):
-            raise NumericError(f"cannot evaluate {expr}") from None
-        if c.imag != 0 or not math.isfinite(c.real):
-            raise NumericError(f"constant {expr} is not a finite real number")
-        value = c.real
+            value = float(expr)
+        except (TypeError, ValueError, OverflowError):
+            value = math.nan
+        if not math.isfinite(value):
+            raise NumericError(f"constant {_short(expr)} is not a finite real number")
         return lambda v: value
+    if expr.is_number:
+        # Other constants (sqrt(2), exp(3), ...) are folded in floating point through the
+        # closures below: sympy's arbitrary-precision evalf can take unbounded time.
+        fn = _compile_operation(expr, index)
+        try:
+            value = fn(())
+        except (ValueError, ZeroDivisionError, OverflowError, TypeError):
+            value = math.nan
+        if isinstance(value, complex) or not math.isfinite(value):
+            raise NumericError(f"constant {_short(expr)} is not a finite real number")
+        return lambda v: value
+    return _compile_operation(expr, index)
+
+
+def _compile_operation(
+    expr: sp.Basic, index: dict[sp.Symbol, int]
+) -> Callable[[Sequence[float]], float]:
     args = [_compile(a, index) for a in expr.args]
     if isinstance(expr, sp.Add):
         return lambda v: math.fsum(f(v) for f in args)

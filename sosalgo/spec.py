@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -43,20 +43,38 @@ RESERVED_COLUMNS = {
     "kappa", "rho", "certified", "lambda", "max_eig_M", "min_eig_P", "solves", "seconds",
     "solver", "rho_infeasible", "error", "spec", "lower_bound", "rho_certified", "gap",
 }
-MAX_FILE_BYTES = 1_000_000
+# Size limits keep loading well under a second or two whatever the input: PyYAML's pure-Python
+# parser needs about 15 us per token, and every parameter is compiled against all the others.
+MAX_FILE_BYTES = 64_000
 MAX_STATE = 12
+MAX_PARAMETERS = 100
+MAX_REFERENCES = 100
 MAX_KAPPA_POINTS = 10_000
+MAX_MESSAGE = 300  # characters of a SpecError's field or message (the rest is cut)
+
+
+def _printable(text: str, limit: int | None = None) -> str:
+    """``text`` on one printable line: line breaks, control and surrogate characters escaped."""
+    if limit is not None and len(text) > limit:
+        text = text[: limit - 3] + "..."
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() else ascii(c)[1:-1] for c in text)
 
 
 class SpecError(ValueError):
-    """Invalid spec: carries the file and the field so the message is one precise line."""
+    """Invalid spec: carries the file and the field so the message is one precise line.
+
+    Field and message are made printable (newlines, control characters and lone surrogates
+    from the spec are escaped), so ``str(error)`` is always a single line.
+    """
 
     def __init__(self, source: str, field_: str, message: str):
-        self.source = source
-        self.field = field_
-        self.message = message
-        where = f"{source}: {field_}" if field_ else source
-        super().__init__(f"{where}: {message}")
+        self.source = _printable(source)
+        self.field = _printable(field_, MAX_MESSAGE)
+        self.message = _printable(message, MAX_MESSAGE)
+        where = f"{self.source}: {self.field}" if self.field else self.source
+        super().__init__(f"{where}: {self.message}")
 
 
 @dataclass(frozen=True)
@@ -194,14 +212,32 @@ def _compose_node(self: _StrictLoader, parent, index):
 _StrictLoader.compose_node = _compose_node  # type: ignore[method-assign]
 
 
+def _construct_object(self: _StrictLoader, node: yaml.Node, deep: bool = False) -> Any:
+    """PyYAML's constructors fail with KeyError, IndexError, ... on explicitly tagged values
+    such as ``!!bool abc`` or ``!!timestamp x``: report them as YAML errors at the node."""
+    try:
+        return yaml.SafeLoader.construct_object(self, node, deep=deep)
+    except (ArithmeticError, AttributeError, LookupError, TypeError, ValueError):
+        tag = str(node.tag).replace("tag:yaml.org,2002:", "!!")
+        raise yaml.constructor.ConstructorError(
+            None, None, f"invalid {tag} value", node.start_mark
+        ) from None
+
+
+_StrictLoader.construct_object = _construct_object  # type: ignore[method-assign]
+
+
 def load_spec(path: str | Path) -> Spec:
     """Read and validate a YAML spec file."""
     p = Path(path)
     source = str(path)
     try:
-        if p.stat().st_size > MAX_FILE_BYTES:
+        # a bounded read: the size of /dev/zero, a pipe or a growing file is not known upfront
+        with p.open("rb") as fh:
+            raw = fh.read(MAX_FILE_BYTES + 1)
+        if len(raw) > MAX_FILE_BYTES:
             raise SpecError(source, "", f"file larger than {MAX_FILE_BYTES} bytes")
-        text = p.read_text(encoding="utf-8")
+        text = raw.decode("utf-8")
     except SpecError:
         raise
     except FileNotFoundError:
@@ -217,6 +253,8 @@ def load_spec(path: str | Path) -> Spec:
 
 def spec_from_text(text: str, source: str = "<spec>") -> Spec:
     """Parse YAML text into a validated spec."""
+    if len(text) > MAX_FILE_BYTES:
+        raise SpecError(source, "", f"text longer than {MAX_FILE_BYTES} characters")
     try:
         data = yaml.load(text, Loader=_StrictLoader)  # noqa: S506 - strict *safe* loader
     except yaml.MarkedYAMLError as exc:
@@ -224,7 +262,7 @@ def spec_from_text(text: str, source: str = "<spec>") -> Spec:
         where = f"line {mark.line + 1}" if mark is not None else "YAML"
         problem = (exc.problem or exc.context or "invalid YAML").strip()
         raise SpecError(source, where, f"invalid YAML: {problem}") from None
-    except (yaml.YAMLError, RecursionError, MemoryError, ValueError) as exc:
+    except (yaml.YAMLError, RecursionError, MemoryError, ValueError, LookupError) as exc:
         raise SpecError(source, "", f"invalid YAML: {type(exc).__name__}") from None
     return spec_from_dict(data, source=source)
 
@@ -256,11 +294,13 @@ class _Builder:
         description = data.get("description", "")
         if not isinstance(description, str):
             raise self.fail("description", "must be a string")
+        if not _is_unicode(description):
+            raise self.fail("description", "contains an invalid (surrogate) character")
         m = self.m_value(data.get("m", 1))
         certificate = data.get("certificate", "theorem1")
         from sosalgo.certificates import FAMILIES
 
-        if certificate not in FAMILIES:
+        if not isinstance(certificate, str) or certificate not in FAMILIES:
             raise self.fail("certificate", f"unknown family (known: {', '.join(FAMILIES)})")
 
         raw_params = data.get("parameters", {})
@@ -268,9 +308,11 @@ class _Builder:
             raw_params = {}
         if not isinstance(raw_params, dict):
             raise self.fail("parameters", "must be a mapping of parameter names")
+        if len(raw_params) > MAX_PARAMETERS:
+            raise self.fail("parameters", f"more than {MAX_PARAMETERS} parameters")
         symbols: dict[str, sp.Symbol] = {}
         for pname in raw_params:
-            if not isinstance(pname, str) or not PARAM_RE.match(pname):
+            if not isinstance(pname, str) or not PARAM_RE.fullmatch(pname):
                 raise self.fail(f"parameters.{str(pname)[:40]}", "not a valid parameter name")
             if pname in RESERVED:
                 raise self.fail(f"parameters.{pname}", "name is reserved")
@@ -294,7 +336,7 @@ class _Builder:
     def name(self, raw: object) -> str:
         if raw is None:
             raise self.fail("name", "missing (a short file-name-safe identifier)")
-        if not isinstance(raw, str) or not NAME_RE.match(raw) or ".." in raw:
+        if not isinstance(raw, str) or not NAME_RE.fullmatch(raw) or ".." in raw:
             raise self.fail(
                 "name", "must be letters, digits, '_', '-', '.' (no path separators, no '..')"
             )
@@ -336,9 +378,9 @@ class _Builder:
             raise self.fail(where, "must be a list [lo, hi]")
         lo = self.expr(raw[0], BASE_SYMBOLS, f"{where}[0]")
         hi = self.expr(raw[1], BASE_SYMBOLS, f"{where}[1]")
-        # ranges may depend on m, L, kappa; check lo <= hi where it is decidable.
-        diff = sp.simplify(hi - lo)
-        if diff.is_negative:
+        # ranges may depend on m, L, kappa; check lo <= hi where the assumptions decide it
+        # (no sp.simplify: it can take minutes). check_values compares them at every kappa.
+        if (hi - lo).is_negative:
             raise self.fail(where, f"lower bound {raw[0]} exceeds upper bound {raw[1]}")
         return lo, hi
 
@@ -393,12 +435,14 @@ class _Builder:
             return {}
         if not isinstance(raw, dict):
             raise self.fail("references", "must be a mapping name: expression")
+        if len(raw) > MAX_REFERENCES:
+            raise self.fail("references", f"more than {MAX_REFERENCES} references")
         out = {}
         for key, val in raw.items():
             if not isinstance(key, str) or not key.strip() or len(key) > 80:
                 raise self.fail("references", "names must be non-empty strings (<= 80 chars)")
-            if any(c in key for c in "\n\r\t"):
-                raise self.fail(f"references.{key[:40]}", "name has control characters")
+            if not key.isprintable():
+                raise self.fail(f"references.{key[:40]}", "name has non-printable characters")
             if key in RESERVED_COLUMNS or re.fullmatch(r"P\d+", key):
                 raise self.fail(f"references.{key}", "name clashes with an output column")
             out[key] = self.expr(val, BASE_SYMBOLS, f"references.{key}")
@@ -411,17 +455,21 @@ class _Builder:
     def check_values(self, spec: Spec) -> None:
         from sosalgo.model import ModelError, bind
 
+        for k in spec.kappa:
+            if not math.isfinite(spec.mL(k)[1]):
+                raise self.fail("kappa", f"L = kappa * m overflows at kappa={k:g}, m={spec.m:g}")
         for ref, expr in spec.references.items():
+            where = f"references.{ref}"
+            fn = _compile_or_fail(expr, self, where)
             for k in spec.kappa:
-                try:
-                    compile_expression(expr, list(BASE_SYMBOLS.values()))([spec.m, k * spec.m, k])
-                except NumericError as exc:
-                    raise self.fail(f"references.{ref}", f"at kappa={k:g}: {exc}") from None
+                _num(fn, spec, k, self, where)
         for pname, par in spec.parameters.items():
             if par.range is None:
                 continue
+            where = f"parameters.{pname}.range"
+            fns = [_compile_or_fail(e, self, where) for e in par.range]
             for k in spec.kappa:
-                lo, hi = (_num(e, spec, k, self, f"parameters.{pname}.range") for e in par.range)
+                lo, hi = (_num(fn, spec, k, self, where) for fn in fns)
                 if lo > hi:
                     raise self.fail(
                         f"parameters.{pname}.range",
@@ -485,12 +533,31 @@ def parse_kappa(raw: object, source: str, where: str) -> tuple[float, ...]:
     raise fail("must be a number, a list or {from, to, points, scale}")
 
 
-def _num(expr: sp.Expr, spec: Spec, kappa: float, b: _Builder, where: str) -> float:
+def _compile_or_fail(expr: sp.Expr, b: _Builder, where: str) -> Callable[[Sequence[float]], float]:
+    """``expr`` (over m, L, kappa) compiled once for evaluation at every kappa."""
+    try:
+        return compile_expression(expr, list(BASE_SYMBOLS.values()))
+    except NumericError as exc:
+        raise b.fail(where, str(exc)) from None
+
+
+def _num(
+    fn: Callable[[Sequence[float]], float], spec: Spec, kappa: float, b: _Builder, where: str
+) -> float:
     m, L = spec.mL(kappa)
     try:
-        return compile_expression(expr, list(BASE_SYMBOLS.values()))([m, L, kappa])
+        return fn([m, L, kappa])
     except NumericError as exc:
         raise b.fail(where, f"at kappa={kappa:g}: {exc}") from None
+
+
+def _is_unicode(text: str) -> bool:
+    """False when ``text`` holds a lone surrogate (it could not be written as UTF-8)."""
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        return False
+    return True
 
 
 def _shape(mat: sp.Matrix) -> str:
