@@ -153,8 +153,10 @@ def bind(spec: Spec, kappa: float, theta: Mapping[str, float] | None = None) -> 
     if not (np.isfinite(kappa) and kappa > 1):
         raise ModelError("kappa", f"condition number must be > 1, got {kappa:g}")
     comp = _compiled(spec)
-    params = parameter_values(spec, kappa, theta)
     m, L = spec.mL(kappa)
+    if not np.isfinite(L):
+        raise ModelError("kappa", f"L = kappa * m overflows at kappa={kappa:g}")
+    params = parameter_values(spec, kappa, theta)
     values = [m, L, kappa] + [params[p] for p in comp.names]
     mats = {}
     for k in MATRIX_NAMES:
