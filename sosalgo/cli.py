@@ -98,6 +98,28 @@ def _check_points(spec, kappas, theta=None) -> None:
             raise InputError(f"{spec.source}: {exc.field}: at kappa={k:g}: {exc.message}") from None
 
 
+def _free_names(spec, free: str | None) -> list[str]:
+    """The --free list (default: parameters with a range), checked against the spec."""
+    names = spec.ranged if free is None else [p.strip() for p in free.split(",") if p.strip()]
+    if not names:
+        raise InputError(f"{spec.source}: parameters: no parameter has a range (use --free)")
+    spec.check_free(names)
+    return names
+
+
+def _boxes(spec, kappas, names) -> dict[float, list[tuple[float, float]]]:
+    """The box Θ at every kappa, or a one-line input error."""
+    from sosalgo.model import parameter_box
+
+    boxes = {}
+    for k in kappas:
+        try:
+            boxes[k] = parameter_box(spec, k, names)
+        except ModelError as exc:
+            raise InputError(f"{spec.source}: {exc.field}: at kappa={k:g}: {exc.message}") from None
+    return boxes
+
+
 def _check_tol(tol: float) -> None:
     if not (0 < tol < 0.5):
         raise InputError(f"--tol {tol}: must be in (0, 0.5)")
@@ -207,25 +229,17 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
            verify_: bool) -> None:
     """Design parameters by sum-of-squares: lower bound, designed theta, certified rate."""
     from sosalgo.jobs import design_csv_to_json, run_design_sweep
-    from sosalgo.model import parameter_box
     from sosalgo.report import format_table, plot_rates
 
     spec = load_spec(spec_path)
     kappas = _kappas(spec, kappa)
-    names = spec.ranged if free is None else [p.strip() for p in free.split(",") if p.strip()]
-    if not names:
-        raise InputError(f"{spec.source}: parameters: no parameter has a range (use --free)")
-    spec.check_free(names)
+    names = _free_names(spec, free)
     if not gap > 0:
         raise InputError(f"--gap {gap}: must be positive")
     if not time_limit > 0:
         raise InputError(f"--time-limit {time_limit}: must be positive")
     _check_points(spec, kappas)
-    for k in kappas:
-        try:
-            parameter_box(spec, k, names)
-        except ModelError as exc:
-            raise InputError(f"{spec.source}: {exc.field}: at kappa={k:g}: {exc.message}") from None
+    _boxes(spec, kappas, names)
     out_dir = _out_dir(out)
     spec_text = Path(spec_path).read_text(encoding="utf-8")
     options = {"free": names, "scalarize": scalarize, "order": order, "gap": gap,
@@ -321,25 +335,17 @@ def grid(spec_path: str, kappa: tuple[str, ...], points: int, free: str | None, 
     import numpy as np
 
     from sosalgo.jobs import run_grid
-    from sosalgo.model import parameter_box, parameter_values
+    from sosalgo.model import parameter_values
     from sosalgo.report import plot_grid
 
     spec = load_spec(spec_path)
     kappas = _kappas(spec, kappa)
-    names = spec.ranged if free is None else [p.strip() for p in free.split(",") if p.strip()]
-    if not names:
-        raise InputError(f"{spec.source}: parameters: no parameter has a range (use --free)")
-    spec.check_free(names)
+    names = _free_names(spec, free)
     for p in names:
         if p in GRID_COLUMNS:
             raise InputError(f"{spec.source}: parameters.{p}: name clashes with a grid column")
     _check_tol(tol)
-    boxes = {}
-    for k in kappas:
-        try:
-            boxes[k] = parameter_box(spec, k, names)
-        except ModelError as exc:
-            raise InputError(f"{spec.source}: {exc.field}: at kappa={k:g}: {exc.message}") from None
+    boxes = _boxes(spec, kappas, names)
     out_dir = _out_dir(out)
     spec_text = Path(spec_path).read_text(encoding="utf-8")
     docs = []
