@@ -125,6 +125,27 @@ def _check_tol(tol: float) -> None:
         raise InputError(f"--tol {tol}: must be in (0, 0.5)")
 
 
+def batch_options(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """The options every batch command shares: --json, --workers, --scheduler, --restart,
+    --quiet."""
+    options = [
+        click.option("--json", "as_json", is_flag=True,
+                     help="Print one JSON document on stdout."),
+        click.option("--workers", type=click.IntRange(min=1), default=None,
+                     help="Local worker processes (default: all cores; short runs stay "
+                          "serial)."),
+        click.option("--scheduler", default=None, metavar="ADDRESS",
+                     help="Run on an existing Dask distributed scheduler, e.g. "
+                          "tcp://host:8786."),
+        click.option("--restart", is_flag=True,
+                     help="Discard earlier rows written with other settings."),
+        click.option("--quiet", is_flag=True, help="No progress bar."),
+    ]
+    for opt in reversed(options):
+        fn = opt(fn)
+    return fn
+
+
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="sosalgo")
 def cli() -> None:
@@ -140,13 +161,7 @@ def cli() -> None:
               help="Bisection tolerance on rho.")
 @click.option("--out", default="outputs", show_default=True, metavar="DIR",
               help="Directory for <name>-analysis.csv and <name>-rate.png/.pdf.")
-@click.option("--json", "as_json", is_flag=True, help="Print one JSON document on stdout.")
-@click.option("--workers", type=click.IntRange(min=1), default=None,
-              help="Local worker processes (default: all cores; short runs stay serial).")
-@click.option("--scheduler", default=None, metavar="ADDRESS",
-              help="Run on an existing Dask distributed scheduler, e.g. tcp://host:8786.")
-@click.option("--restart", is_flag=True, help="Discard earlier rows written with other settings.")
-@click.option("--quiet", is_flag=True, help="No progress bar.")
+@batch_options
 @click.option("--no-plot", is_flag=True, help="Skip the figure.")
 @click.option("--verify", "verify_", is_flag=True,
               help="Prove each certificate in exact arithmetic and simulate it.")
@@ -215,11 +230,7 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
 @click.option("--time-limit", default=120.0, show_default=True, type=float,
               help="Seconds per kappa for polishing, higher orders and branch and bound.")
 @click.option("--out", default="outputs", show_default=True, metavar="DIR")
-@click.option("--json", "as_json", is_flag=True, help="Print one JSON document on stdout.")
-@click.option("--workers", type=click.IntRange(min=1), default=None)
-@click.option("--scheduler", default=None, metavar="ADDRESS")
-@click.option("--restart", is_flag=True)
-@click.option("--quiet", is_flag=True)
+@batch_options
 @click.option("--verify", "verify_", is_flag=True,
               help="Prove each certificate in exact arithmetic and simulate it.")
 @handle_errors
@@ -320,13 +331,7 @@ GRID_COLUMNS = {"kappa", "rho", "certified", "lambda", "max_eig_M", "min_eig_P",
               help="Comma-separated parameters to grid (default: those with a range).")
 @click.option("--tol", default=1e-6, show_default=True, type=float)
 @click.option("--out", default="outputs", show_default=True, metavar="DIR")
-@click.option("--json", "as_json", is_flag=True, help="Print one JSON document on stdout.")
-@click.option("--workers", type=click.IntRange(min=1), default=None,
-              help="Local worker processes (default: all cores).")
-@click.option("--scheduler", default=None, metavar="ADDRESS",
-              help="Run on an existing Dask distributed scheduler.")
-@click.option("--restart", is_flag=True, help="Discard rows written with other settings.")
-@click.option("--quiet", is_flag=True, help="No progress bar.")
+@batch_options
 @handle_errors
 def grid(spec_path: str, kappa: tuple[str, ...], points: int, free: str | None, tol: float,
          out: str, as_json: bool, workers: int | None, scheduler: str | None, restart: bool,

@@ -17,6 +17,7 @@ from sosalgo.batch import Progress, run_batch
 from sosalgo.model import ModelError
 from sosalgo.numeric import compile_expression
 from sosalgo.rows import ResumableCSV
+from sosalgo.solvers import DEFAULT_SOLVERS
 from sosalgo.spec import BASE_SYMBOLS, Spec, spec_from_text
 
 __all__ = [
@@ -42,6 +43,13 @@ def _spec(text: str, source: str) -> Spec:
 def p_columns(n: int) -> list[str]:
     """Column names of P's upper triangle: P11, P12, ..., Pnn (1-based)."""
     return [f"P{i + 1}{j + 1}" for i in range(n) for j in range(i, n)]
+
+
+def p_entries(n: int, P: Any) -> dict[str, float | None]:
+    """CSV cells P11, P12, ... of a certificate matrix (None when there is none)."""
+    pairs = [(i, j) for i in range(n) for j in range(i, n)]
+    return {c: None if P is None else float(np.asarray(P)[i, j])
+            for c, (i, j) in zip(p_columns(n), pairs, strict=True)}
 
 
 def analysis_columns(spec: Spec) -> list[str]:
@@ -81,11 +89,7 @@ def result_row(spec: Spec, res: AnalysisResult) -> dict[str, Any]:
         "rho_infeasible": res.rho_infeasible,
         "error": None,
     }
-    n = spec.n
-    cols = p_columns(n)
-    pairs = [(i, j) for i in range(n) for j in range(i, n)]
-    for c, (i, j) in zip(cols, pairs, strict=True):
-        row[c] = None if res.P is None else float(res.P[i, j])
+    row.update(p_entries(spec.n, res.P))
     row.update(reference_values(spec, res.kappa))
     return row
 
@@ -100,7 +104,7 @@ def analysis_chunk(
         kappa = float(task["kappa"])
         try:
             res = analyze_spec(spec, kappa, task.get("theta"), tol=options["tol"],
-                               solvers=options.get("solvers", ("clarabel-fast", "clarabel", "scs")))
+                               solvers=options.get("solvers", DEFAULT_SOLVERS))
             row = result_row(spec, res)
         except ModelError as exc:  # e.g. a grid point outside a function's domain
             row = {"kappa": kappa, "certified": False, "error": str(exc)}
@@ -198,11 +202,7 @@ def design_row(spec: Spec, res: Any) -> dict[str, Any]:
     }
     for p, v in res.theta.items():
         row[f"theta_{p}"] = v
-    P = res.certificate.get("P")
-    n = spec.n
-    pairs = [(a, b) for a in range(n) for b in range(a, n)]
-    for c, (i, j) in zip(p_columns(n), pairs, strict=True):
-        row[c] = None if P is None else float(P[i][j])
+    row.update(p_entries(spec.n, res.certificate.get("P")))
     row.update(reference_values(spec, res.kappa))
     return row
 
