@@ -16,7 +16,7 @@ import numpy as np
 from sosalgo.numeric import NumericError, compile_expression, compile_matrix
 from sosalgo.spec import BASE_SYMBOLS, MATRIX_NAMES, Spec, _value_order
 
-__all__ = ["Algorithm", "ModelError", "bind", "fixed_point"]
+__all__ = ["Algorithm", "ModelError", "bind", "evaluate_algorithm", "fixed_point"]
 
 FIXED_POINT_TOL = 1e-8
 
@@ -149,7 +149,22 @@ def bind(spec: Spec, kappa: float, theta: Mapping[str, float] | None = None) -> 
     """Numeric Algorithm at condition number ``kappa`` (m = spec.m, L = kappa m).
 
     ``theta`` sets input parameters (others keep their ``value``; tied ones follow).
+    The fixed-point conditions of eq. (11) are checked.
     """
+    alg = evaluate_algorithm(spec, kappa, theta)
+    if fixed_point(alg) is None:
+        raise ModelError(
+            "matrices",
+            "no fixed point: eq. (11) needs u with (I - A) u = 0, C u = 1, E u = 1",
+        )
+    return alg
+
+
+def evaluate_algorithm(
+    spec: Spec, kappa: float, theta: Mapping[str, float] | None = None
+) -> Algorithm:
+    """The numeric templates at ``kappa`` and ``theta`` without the fixed-point check
+    (design evaluates them at interpolation nodes, where only the data matter)."""
     if not (np.isfinite(kappa) and kappa > 1):
         raise ModelError("kappa", f"condition number must be > 1, got {kappa:g}")
     comp = _compiled(spec)
@@ -164,13 +179,7 @@ def bind(spec: Spec, kappa: float, theta: Mapping[str, float] | None = None) -> 
             mats[k] = comp.matrix_fns[k](values)
         except NumericError as exc:
             raise ModelError(f"matrices.{k}", str(exc)) from None
-    alg = Algorithm(mats["A"], mats["B"], mats["C"], mats["E"], m, L, params)
-    if fixed_point(alg) is None:
-        raise ModelError(
-            "matrices",
-            "no fixed point: eq. (11) needs u with (I - A) u = 0, C u = 1, E u = 1",
-        )
-    return alg
+    return Algorithm(mats["A"], mats["B"], mats["C"], mats["E"], m, L, params)
 
 
 def fixed_point(alg: Algorithm, tol: float = FIXED_POINT_TOL) -> np.ndarray | None:

@@ -1,0 +1,579 @@
+"""Lower bounds for design (eq. 17) by dual certificates that hold over whole boxes.
+
+For fixed θ and r = ρ², a family's inequalities ``G_b(x; r) ⪯ 0`` (Theorem 1: M ⪯ 0 of
+eq. 15, -P ⪯ 0, -λ ≤ 0) have no solution x when there are Z_b ⪰ 0 with
+
+    Σ_b <Z_b, L_{b,i}(θ, r)> = 0 for every variable x_i,   Σ_b <Z_b, C_b(θ, r)> > 0     (F)
+
+(Farkas: Σ_b <Z_b, G_b(x)> would be both <= 0 and > 0). Blocks that are plain cones on the
+variables and do not depend on θ or r ("cone blocks": P ⪰ 0 and λ >= 0) absorb the first
+condition: their Z is *determined* by the others, Z_c(θ, r) = -Φ_c^{-1}(g(θ, r)), and only
+has to stay ⪰ 0. So one dual point Z of the remaining blocks, computed by a tiny SDP at the
+center of a box of (θ, r), proves (F) on the whole box when
+
+    h(θ, r) = Σ <Z_b, C_b(θ, r)> > 0   and   Z_c(θ, r) ⪰ 0   for all (θ, r) in the box,
+
+which is checked rigorously from the polynomial data of :mod:`sosalgo.polymodel`
+(h and Z_c are polynomials in θ, affine in r: check both ends of the r-interval and bound
+the θ-variation by the sum of the absolute Taylor coefficients around the box center).
+A proven box contains no θ that Theorem 1 certifies at any ρ² in the box's r-range.
+
+Branch and bound covers Θ × [0, T²] by proven boxes, which proves that no θ ∈ Θ is
+certified below T. Unlike the homogenized moment relaxation, the f - f* term keeps its
+coefficient 1, so degenerate "certificates" with c = 0 and singular P are excluded by
+construction.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sps
+
+from sosalgo.polymodel import PolyLMI, fit_tensor, shift_tensor
+from sosalgo.solvers import svec
+
+__all__ = ["DualStructure", "BoundSearch", "QuadraticTest", "dual_structure"]
+
+MIN_HALF_WIDTH = 1e-10  # boxes narrower than this (in scaled units) are not split further
+SAFETY = 1e-9  # relative safety margin of every box check
+
+
+@dataclass
+class DualStructure:
+    """Which blocks get a dual matrix from the SDP (``dep``) and which are cone blocks
+    reconstructed from it (``cone``: block index, variables, map R with
+    Z_c = -Σ_i R[..., i] g_i)."""
+
+    dep: list[int]
+    cone: list[tuple[int, list[int], np.ndarray]]
+
+
+def dual_structure(model: PolyLMI) -> DualStructure | None:
+    """Split the blocks as above; None when some variable is in no cone block (then a
+    box-wide dual certificate would need an exact polynomial identity: not supported)."""
+    k = model.k
+    dep, cone = [], []
+    owner: dict[int, int] = {}
+    nvar = model.template.nvar
+    for b in range(len(model.names)):
+        co = model.coef[b]
+        const_free = not (np.any(co["c0"]) or np.any(co["c1"]) or np.any(co["l1"]))
+        if const_free and not model.depends_on_theta(b):
+            l0 = co["l0"][(0,) * k]  # (nvar, s, s)
+            vars_ = [i for i in range(nvar) if np.any(l0[i])]
+            s = l0.shape[-1]
+            pairs = [(a, c) for a in range(s) for c in range(a, s)]
+            if len(vars_) == len(pairs) and not any(i in owner for i in vars_):
+                Phi = np.array([[l0[i, a, c] * (1.0 if a == c else 2.0) for a, c in pairs]
+                                for i in vars_])
+                if np.linalg.matrix_rank(Phi) == len(pairs):
+                    inv = np.linalg.inv(Phi)  # entries of Z_c from (<Z_c, l0_i>)_i
+                    R = np.zeros((s, s, len(vars_)))
+                    for q, (a, c) in enumerate(pairs):
+                        R[a, c] = R[c, a] = inv[q]
+                    cone.append((b, vars_, R))
+                    for i in vars_:
+                        owner[i] = b
+                    continue
+        dep.append(b)
+    if len(owner) != nvar or not dep:
+        return None
+    return DualStructure(dep, cone)
+
+
+class QuadraticTest:
+    """Boxes where the method is provably slower than T on a quadratic.
+
+    On f(x) = q x²/2 (q = m or L, both in F(m, L)) the method is ξ+ = X_q ξ with
+    X_q = A + q B C. If X_q has an eigenvalue μ with |μ| > T whose eigenvector v is seen by
+    the output (E v ≠ 0), the trajectory from v has |x_k| ~ |μ|^k, so no certificate of any
+    family proves a rate below |μ| there. Over a box of θ this is shown by polynomial sign
+    tests: some necessary condition for all roots of det(λI - X_q) inside |λ| < T fails
+    (det(T I - X_q) < 0, (-1)^n det(-T I - X_q) < 0, or |det X_q| > T^n), and no eigenvector
+    in ker E has |μ| >= T (||K' X_q K||_2 < T, K an orthonormal basis of ker E).
+
+    This settles the boxes near degenerate faces (e.g. h -> 0, where the method hardly
+    moves and dual certificates fade), which no finite set of dual boxes can cover.
+    """
+
+    def __init__(self, eval_alg: Callable[[np.ndarray], Any], half: np.ndarray):
+        self.eval_alg, self.half = eval_alg, half
+        alg0 = eval_alg(np.zeros(len(half)))
+        self.n = alg0.n
+        self.qs = (alg0.m, alg0.L)
+        _, Ecoef, _ = fit_tensor(lambda z: np.asarray(eval_alg(z).E, float).ravel(), half)
+        flat = Ecoef.reshape(-1, Ecoef.shape[-1])
+        self.ok = not np.any(flat[1:])  # K is fixed only when E does not depend on θ
+        E = np.asarray(alg0.E, float).reshape(1, -1)
+        _, _, Vt = np.linalg.svd(E)
+        self.K = Vt[1:].T  # orthonormal basis of ker E
+        self._cache: dict[float, tuple] = {}
+
+    def _fits(self, T: float):
+        if T not in self._cache:
+            n, K = self.n, self.K
+
+            def fn(z: np.ndarray) -> np.ndarray:
+                alg = self.eval_alg(z)
+                out = []
+                for q in self.qs:
+                    X = alg.A + q * alg.B @ alg.C
+                    out += [np.linalg.det(T * np.eye(n) - X),
+                            (-1) ** n * np.linalg.det(-T * np.eye(n) - X),
+                            np.linalg.det(X)]
+                    out += list((K.T @ X @ K).ravel()) if K.size else []
+                return np.array(out, dtype=float)
+
+            self._cache = {T: fit_tensor(fn, self.half)}
+        return self._cache[T]
+
+    def proves(self, zc: np.ndarray, w: np.ndarray, T: float) -> bool:
+        """True when every θ of the box has a visible mode slower than T (see above)."""
+        if not self.ok or not 0 < T < 1:
+            return False
+        degrees, coef, _ = self._fits(T)
+        c = shift_tensor(coef, degrees, zc, w)
+        c = c.reshape(-1, c.shape[-1])
+        nk = self.K.shape[1]
+        per = 3 + nk * nk
+        for j in range(len(self.qs)):
+            blk = c[:, j * per:(j + 1) * per]
+            if nk:
+                N = blk[:, 3:].reshape(-1, nk, nk)
+                norm = float(np.linalg.norm(N[0], 2)) + float(
+                    sum(np.linalg.norm(a, 2) for a in N[1:] if np.any(a)))
+                if not norm < T * (1 - SAFETY):
+                    continue
+            p_T, p_mT, det = blk[:, 0], blk[:, 1], blk[:, 2]
+            tn = np.zeros_like(det)
+            tn[0] = T**self.n  # the constant T^n enters the constant coefficient only
+            if (_positive_lower(-p_T, 0) or _positive_lower(-p_mT, 0)
+                    or _positive_lower(det - tn, 0) or _positive_lower(-det - tn, 0)):
+                return True
+        return False
+
+
+@dataclass
+class _Box:
+    zc: np.ndarray  # center and half-widths in scaled coordinates z
+    w: np.ndarray
+    lb: float = 0.0  # r = ρ² below which the box is already proven empty
+
+    def key(self) -> tuple[float, float]:
+        return (self.lb, -float(self.w.max()) if self.w.size else 0.0)
+
+
+@dataclass
+class BoundState:
+    """Progress of a bound search: counts and the boxes still open."""
+
+    target: float  # r = ρ² up to which boxes are being proven empty
+    proven: int = 0
+    quadratic: int = 0  # of which proven by the quadratic test
+    solves: int = 0
+    stuck: list[_Box] = field(default_factory=list)
+    heap: list[tuple[tuple[float, float], int, _Box]] = field(default_factory=list)
+
+    def lower_r(self) -> float:
+        """Largest r proven: no θ of Θ is certified with ρ² below it."""
+        opens = [b.lb for b in self.stuck] + [item[2].lb for item in self.heap]
+        return min([self.target, *opens])
+
+    @property
+    def complete(self) -> bool:
+        return not self.stuck and not self.heap
+
+
+class BoundSearch:
+    """Best-first branch and bound over Θ: each box needs one dual point Z valid on the
+    whole box for every r in [0, T²] (found by a robust SDP, then checked in floats)."""
+
+    def __init__(self, model: PolyLMI, structure: DualStructure, target_r: float,
+                 quadratic: QuadraticTest | None = None):
+        self.model, self.st, self.quad = model, structure, quadratic
+        k = model.k
+        self.state = BoundState(target=target_r)
+        self._count = 0
+        self._push(_Box(np.zeros(k), np.ones(k) * (model.half > 0)))
+
+    def _push(self, box: _Box) -> None:
+        heapq.heappush(self.state.heap, (box.key(), self._count, box))
+        self._count += 1
+
+    def lower_target(self, r: float) -> None:
+        """A better design was certified: only ρ² below ``r`` needs proving now."""
+        self.state.target = min(self.state.target, r)
+
+    # ------------------------------------------------------------------ data of a box
+    def _box_data(self, box: _Box, w: np.ndarray) -> list[dict[str, np.ndarray]]:
+        """Per dep block: coefficients in the box's local coordinates u (not flattened)."""
+        m = self.model
+        return [{key: m.shifted(b, key, box.zc, w) for key in ("c0", "c1", "l0", "l1")}
+                for b in self.st.dep]
+
+    def _place(self, arr: np.ndarray, j: int) -> np.ndarray:
+        """Coefficients of u_j · p(u) (j = 0: p itself) on the extended monomial grid,
+        flattened over monomials: shape (#monomials, *data shape)."""
+        k = self.model.k
+        ext = np.zeros(tuple(n + 1 for n in arr.shape[:k]) + arr.shape[k:])
+        idx = tuple(slice(1, None) if i == j - 1 else slice(0, -1) for i in range(k))
+        ext[idx] = arr
+        return ext.reshape((-1,) + arr.shape[k:])
+
+    def _even(self) -> np.ndarray:
+        """Which extended monomials have only even exponents (so u^α ∈ [0, 1])."""
+        k = self.model.k
+        shape = tuple(d + 2 for d in self.model.degrees)
+        grids = np.meshgrid(*[np.arange(n) for n in shape], indexing="ij")
+        even = np.ones(shape, dtype=bool)
+        for g in grids[:k]:
+            even &= g % 2 == 0
+        return even.reshape(-1)
+
+    def _sums(self, data, Zs, r: float) -> tuple[np.ndarray, np.ndarray]:
+        """Coefficients of h(u) = Σ <Z_d(u), C_d(u, r)> and g_i(u) = Σ <Z_d(u), L_di(u, r)>
+        for affine dual matrices Z_d(u) = Z_d0 + Σ_j u_j Z_dj."""
+        h = 0.0
+        g = 0.0
+        for d, Zd in zip(data, Zs, strict=True):
+            C = d["c0"] + r * d["c1"]
+            Lm = d["l0"] + r * d["l1"]
+            for j, Z in enumerate(Zd):
+                h = h + self._place(np.tensordot(C, Z, axes=([-2, -1], [0, 1])), j)
+                g = g + self._place(np.tensordot(Lm, Z, axes=([-2, -1], [0, 1])), j)
+        return np.asarray(h), np.asarray(g)
+
+    def _holds(self, data, Zs, r: float, bounds: dict | None = None) -> bool:
+        """(F) on the whole box at this r, in floats with a safety margin. ``bounds``
+        maps (cone, monomial) to the SDP's matrices S with -S ⪯ Z_c,α ⪯ S (repaired here
+        before use); without them the matrix absolute value is used."""
+        even = self._even()
+        h, g = self._sums(data, Zs, r)
+        if not _positive_lower(h, even):
+            return False
+        for c, (_, vars_, R) in enumerate(self.st.cone):
+            Zc = -np.tensordot(g[:, vars_], R, axes=([1], [2]))  # (monomials, s, s)
+            S = None if bounds is None else {a: v for (cc, a), v in bounds.items() if cc == c}
+            if not _psd_lower(Zc, even, S):
+                return False
+        return True
+
+    def _proven_up_to(self, data, Zs, r_hi: float) -> float:
+        """Largest r in [0, r_hi] with (F) on the box for all of [0, r] (0 if none)."""
+        if not self._holds(data, Zs, 0.0):
+            return 0.0
+        if self._holds(data, Zs, r_hi):
+            return r_hi
+        lo, hi = 0.0, r_hi  # the set of good r is an interval (concave conditions)
+        for _ in range(12):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if self._holds(data, Zs, mid) else (lo, mid)
+        return lo
+
+    # ------------------------------------------------------------------ robust dual SDP
+    def _dual(self, data, r_ends: tuple[float, ...], affine: bool = True):
+        """Affine dual matrices Z_d(u) = Z_d0 + Σ_j u_j Z_dj (⪰ 0 on the box) maximizing the
+        worst margin of (F) over the box (|u^α| <= 1, u^α ∈ [0, 1] for even α) at each r
+        in ``r_ends``; None unless the margin is > 0. ``affine=False``: constant Z."""
+        import clarabel
+
+        k = self.model.k
+        nz_terms = k + 1 if affine else 1
+        sizes = [d["c0"].shape[-1] for d in data]
+        tri = [s * (s + 1) // 2 for s in sizes]
+        zoff = []  # column offset of Z_dj
+        col = 0
+        for t_ in tri:
+            zoff.append([col + j * t_ for j in range(nz_terms)])
+            col += nz_terms * t_
+        nzcols = col
+        even = self._even()
+        nmono = even.size
+        cones_ = self.st.cone
+        ctri = [R.shape[0] * (R.shape[0] + 1) // 2 for _, _, R in cones_]
+        nvar = self.model.template.nvar
+        # linear maps y -> h_β, g_β,i for each r
+        maps = []
+        for r in r_ends:
+            H = np.zeros((nmono, nzcols))
+            Gm = np.zeros((nmono, nvar, nzcols))
+            for q, d in enumerate(data):
+                C = d["c0"] + r * d["c1"]
+                Lm = d["l0"] + r * d["l1"]
+                sC, sL = svec(C, True), svec(Lm, True)
+                for j in range(nz_terms):
+                    c0 = zoff[q][j]
+                    H[:, c0:c0 + tri[q]] = self._place(sC, j)
+                    Gm[:, :, c0:c0 + tri[q]] = self._place(sL, j)
+            maps.append((H, Gm))
+        live = [a for a in range(nmono) if a == 0 or any(
+            np.any(H[a]) or np.any(Gm[a]) for H, Gm in maps)]
+        per_alpha = 1 + sum(ctri)
+        nS = (sum(tri) * k) if affine else 0  # S_dj bounding Z_dj
+        t_col = nzcols
+        s_base = nzcols + 1 + nS
+        ny = s_base + len(r_ends) * (len(live) - 1) * per_alpha
+        rows: list[np.ndarray] = []
+        cones: list = []
+        b: list[float] = []
+
+        def add(A: np.ndarray, cone, rhs=None) -> None:
+            A = np.atleast_2d(A)
+            rows.append(A)
+            cones.append(cone)
+            b.extend([0.0] * A.shape[0] if rhs is None else rhs)
+
+        def psd(s: int):
+            return clarabel.NonnegativeConeT(1) if s == 1 else clarabel.PSDTriangleConeT(s)
+
+        tr = np.zeros(ny)
+        soff = nzcols + 1
+        for q, s in enumerate(sizes):
+            tr[zoff[q][0]:zoff[q][0] + tri[q]] = svec(np.eye(s), True)
+            A = np.zeros((tri[q], ny))
+            A[:, zoff[q][0]:zoff[q][0] + tri[q]] = -np.eye(tri[q])
+            for j in range(1, nz_terms):  # Z_d0 - Σ_j S_dj ⪰ 0, S_dj ∓ Z_dj ⪰ 0
+                sc = soff + (j - 1) * tri[q]
+                A[:, sc:sc + tri[q]] += np.eye(tri[q])
+                for sign in (1.0, -1.0):
+                    B = np.zeros((tri[q], ny))
+                    B[:, sc:sc + tri[q]] = -np.eye(tri[q])
+                    B[:, zoff[q][j]:zoff[q][j] + tri[q]] = sign * np.eye(tri[q])
+                    add(B, psd(s))
+            soff += (nz_terms - 1) * tri[q]
+            add(A, psd(s))
+        add(tr[None, :], clarabel.ZeroConeT(1), [1.0])  # Σ tr Z_d0 = 1
+        for e, (H, Gm) in enumerate(maps):
+            base = s_base + e * (len(live) - 1) * per_alpha
+
+            def s_col(a_pos: int) -> int:
+                return base + (a_pos - 1) * per_alpha
+
+            A = np.zeros(ny)  # h_0 - Σ s_α - t >= 0
+            A[:nzcols] = -H[0]
+            A[t_col] += 1.0
+            for pos in range(1, len(live)):
+                A[s_col(pos)] += 1.0
+            add(A[None, :], clarabel.NonnegativeConeT(1))
+            for pos, a in enumerate(live):
+                if pos == 0:
+                    continue
+                signs = (-1.0,) if even[a] else (1.0, -1.0)
+                for sign in signs:  # s_α ∓ h_α >= 0 (even α: s_α >= -h_α, s_α >= 0)
+                    A = np.zeros(ny)
+                    A[:nzcols] = sign * H[a]
+                    A[s_col(pos)] -= 1.0
+                    add(A[None, :], clarabel.NonnegativeConeT(1))
+                if even[a]:
+                    A = np.zeros(ny)
+                    A[s_col(pos)] = -1.0
+                    add(A[None, :], clarabel.NonnegativeConeT(1))
+            off_c = 1
+            for (_, vars_, R), ct in zip(cones_, ctri, strict=True):
+                s = R.shape[0]
+                Zmap = -np.tensordot(R, Gm[live][:, vars_, :], axes=([2], [1]))  # s,s,α,y
+                Mv = np.moveaxis(svec(np.moveaxis(Zmap, (2, 3), (0, 1)), True), 2, 1)
+                eye = svec(np.eye(s), True)
+                A = np.zeros((ct, ny))  # Z_c,0 - Σ S_α - t I ⪰ 0
+                A[:, :nzcols] = -Mv[0]
+                A[:, t_col] += eye
+                for pos in range(1, len(live)):
+                    c0 = s_col(pos) + off_c
+                    A[:, c0:c0 + ct] += np.eye(ct)
+                add(A, psd(s))
+                for pos, a in enumerate(live):
+                    if pos == 0:
+                        continue
+                    c0 = s_col(pos) + off_c
+                    signs = (-1.0,) if even[a] else (1.0, -1.0)
+                    for sign in signs:  # S_α ∓ Z_c,α ⪰ 0 (even α: S_α + Z_c,α, S_α ⪰ 0)
+                        A = np.zeros((ct, ny))
+                        A[:, :nzcols] = sign * Mv[pos]
+                        A[:, c0:c0 + ct] -= np.eye(ct)
+                        add(A, psd(s))
+                    if even[a]:
+                        A = np.zeros((ct, ny))
+                        A[:, c0:c0 + ct] = -np.eye(ct)
+                        add(A, psd(s))
+                off_c += ct
+        q = np.zeros(ny)
+        q[t_col] = -1.0
+        settings = clarabel.DefaultSettings()
+        settings.verbose = False
+        settings.max_iter = 100
+        try:
+            sol = clarabel.DefaultSolver(sps.csc_matrix((ny, ny)), q,
+                                         sps.csc_matrix(np.vstack(rows)), np.array(b), cones,
+                                         settings).solve()
+        except Exception:  # noqa: BLE001 - a crash is just "no dual point"
+            return None
+        self.state.solves += 1
+        if str(sol.status) not in ("Solved", "AlmostSolved"):
+            return None
+        y = np.array(sol.x)
+        if not y[t_col] > 0:
+            return None
+        Zs = []
+        soff = nzcols + 1
+        for qq, s in enumerate(sizes):
+            terms = [_unsvec(y[zoff[qq][j]:zoff[qq][j] + tri[qq]], s) for j in range(nz_terms)]
+            Ss = [_unsvec(y[soff + j * tri[qq]:soff + (j + 1) * tri[qq]], s)
+                  for j in range(nz_terms - 1)]
+            soff += (nz_terms - 1) * tri[qq]
+            terms += [np.zeros((s, s))] * (k + 1 - nz_terms)
+            Ss += [np.zeros((s, s))] * (k + 1 - nz_terms)
+            Zs.append(_repair(terms, Ss))
+        bounds: list[dict] = []
+        for e in range(len(r_ends)):
+            base = s_base + e * (len(live) - 1) * per_alpha
+            bd: dict = {}
+            off_c = 1
+            for c, ((_, _, R), ct) in enumerate(zip(cones_, ctri, strict=True)):
+                for pos in range(1, len(live)):
+                    c0 = base + (pos - 1) * per_alpha + off_c
+                    bd[(c, live[pos])] = _unsvec(y[c0:c0 + ct], R.shape[0])
+                off_c += ct
+            bounds.append(bd)
+        return Zs, bounds
+
+    # ------------------------------------------------------------------ driver
+    def run(
+        self, deadline: float, on_open: Callable[[np.ndarray, float], float | None],
+        max_boxes: int = 1_000_000,
+    ) -> BoundState:
+        """Prove boxes until none is left, time runs out or ``max_boxes`` were handled.
+
+        ``on_open(z, r)`` is called when not even the box center has a dual certificate at
+        r = T²: the point may be certifiable below the target. It returns a new (lower)
+        target r when it certified a better design there, else None.
+        """
+        st = self.state
+        handled = 0
+        while st.heap and time.perf_counter() < deadline and handled < max_boxes:
+            _, _, box = heapq.heappop(st.heap)
+            handled += 1
+            T2 = st.target
+            if box.lb >= T2:
+                st.proven += 1
+                continue
+            if self.quad is not None and self.quad.proves(box.zc, box.w, math.sqrt(T2)):
+                st.proven += 1
+                st.quadratic += 1
+                continue
+            data = self._box_data(box, box.w)
+            out = self._dual(data, (0.0, T2))
+            Zs = None
+            if out is not None:
+                Zs, bd = out
+                if self._holds(data, Zs, 0.0, bd[0]) and self._holds(data, Zs, T2, bd[1]):
+                    st.proven += 1
+                    continue
+            if Zs is None:  # is the center itself certifiable below T?
+                center = self._box_data(box, np.zeros_like(box.w))
+                outc = self._dual(center, (T2,), affine=False)
+                Zc = None if outc is None else outc[0]
+                if Zc is None:
+                    new = on_open(box.zc, T2)
+                    if new is not None and new < T2:
+                        self.lower_target(new)
+                        self._push(box)
+                        continue
+                else:
+                    Zs = Zc
+            if Zs is not None:
+                box.lb = max(box.lb, self._proven_up_to(data, Zs, T2))
+            self._split(box)
+        return st
+
+    def _split(self, box: _Box) -> None:
+        if box.w.size == 0 or box.w.max() < MIN_HALF_WIDTH:
+            self.state.stuck.append(box)
+            return
+        i = int(np.argmax(box.w))
+        w = box.w.copy()
+        w[i] *= 0.5
+        for sign in (-1.0, 1.0):
+            zc = box.zc.copy()
+            zc[i] += sign * w[i]
+            self._push(_Box(zc, w, box.lb))
+
+
+def _unsvec(v: np.ndarray, s: int) -> np.ndarray:
+    """Inverse of Clarabel's scaled upper-triangular svec."""
+    Z = np.zeros((s, s))
+    q = 0
+    for j in range(s):
+        for i in range(j + 1):
+            Z[i, j] = Z[j, i] = v[q] if i == j else v[q] / math.sqrt(2.0)
+            q += 1
+    return Z
+
+
+def _repair(terms: list[np.ndarray], Ss: list[np.ndarray]) -> list[np.ndarray]:
+    """Make Z(u) = Z_0 + Σ_j u_j Z_j ⪰ 0 on the box exactly (up to rounding): raise each
+    S_j until S_j ± Z_j ⪰ 0, then raise Z_0 until Z_0 - Σ_j S_j ⪰ 0, with margins."""
+    terms = [0.5 * (t + t.T) for t in terms]
+    low = terms[0].copy()
+    size = float(np.abs(low).max())
+    for t, S in zip(terms[1:], Ss, strict=True):
+        S = _cover(t, 0.5 * (S + S.T), even=False)
+        low -= S
+        size += float(np.abs(S).max())
+    deficiency = -float(np.linalg.eigvalsh(low)[0])
+    bump = max(deficiency, 0.0) + 4 * SAFETY * (1.0 + size)
+    terms[0] = terms[0] + bump * np.eye(terms[0].shape[0])
+    return terms
+
+
+def _cover(A: np.ndarray, S: np.ndarray | None, even: bool) -> np.ndarray:
+    """A matrix S with S ± A ⪰ 0 (even: S + A ⪰ 0 and S ⪰ 0), from a candidate S raised
+    by its deficiency plus a margin; without a candidate, |A| (resp. the negative part)."""
+    A = 0.5 * (A + A.T)
+    if S is None:
+        wv, V = np.linalg.eigh(A)
+        part = np.maximum(-wv, 0.0) if even else np.abs(wv)
+        S = (V * part) @ V.T
+    n = A.shape[0]
+    checks = (S + A, S) if even else (S + A, S - A)
+    deficiency = max(-float(np.linalg.eigvalsh(M)[0]) for M in checks)
+    scale = 1.0 + float(np.abs(A).max())
+    return S + (max(deficiency, 0.0) + 2 * SAFETY * scale) * np.eye(n)
+
+
+def _positive_lower(coef: np.ndarray, even: np.ndarray) -> bool:
+    """p(u) > 0 on [-1, 1]^k for monomial coefficients ``coef`` (flattened; index 0 the
+    constant): a_0 - Σ_odd |a_α| - Σ_even max(0, -a_α) > margin (u^α ∈ [0, 1] if even)."""
+    flat = coef.reshape(-1)
+    a0 = float(flat[0])
+    ev = np.asarray(even, dtype=bool).reshape(-1)[1:] if np.ndim(even) else np.zeros(
+        flat.size - 1, dtype=bool)
+    rest = flat[1:]
+    loss = float(np.abs(rest[~ev]).sum() + np.maximum(-rest[ev], 0.0).sum())
+    return a0 - loss > SAFETY * (1.0 + abs(a0) + float(np.abs(rest).sum()))
+
+
+def _psd_lower(coef: np.ndarray, even: np.ndarray, bounds: dict | None = None) -> bool:
+    """Σ_α u^α A_α ⪰ 0 on [-1, 1]^k: A_0 - Σ_{α≠0} S_α ≻ 0 with S_α ± A_α ⪰ 0 (even α,
+    u^α ∈ [0, 1]: S_α + A_α ⪰ 0, S_α ⪰ 0); S_α from ``bounds`` (repaired) or |A_α|."""
+    s = coef.shape[-1]
+    flat = coef.reshape(-1, s, s)
+    ev = np.asarray(even, dtype=bool).reshape(-1) if np.ndim(even) else np.zeros(
+        flat.shape[0], dtype=bool)
+    total = 0.5 * (flat[0] + flat[0].T)
+    size = float(np.abs(total).max())
+    for a in range(1, flat.shape[0]):
+        A = flat[a]
+        if not np.any(A):
+            continue
+        S = _cover(A, None if bounds is None else bounds.get(a), bool(ev[a]))
+        total = total - S
+        size += float(np.abs(S).max())
+    lam = float(np.linalg.eigvalsh(total)[0])
+    return lam > SAFETY * (1.0 + size)
