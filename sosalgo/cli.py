@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import functools
 import json
+import math
 import os
 import sys
 from collections.abc import Callable
@@ -228,17 +229,22 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
 @click.option("--gap", default=1e-4, show_default=True, type=float,
               help="Target gap between certified rate and lower bound.")
 @click.option("--time-limit", default=120.0, show_default=True, type=float,
-              help="Seconds per kappa for polishing, higher orders and branch and bound.")
+              help="Wall-clock seconds per kappa (all phases); the best proven results "
+                   "so far are returned when it runs out.")
+@click.option("--method", type=click.Choice(["dual", "moment"]), default="dual",
+              show_default=True,
+              help="Lower bound by box-wide dual certificates (dual) or by the paper's "
+                   "moment relaxation (moment; uses --scalarize and --order).")
 @click.option("--out", default="outputs", show_default=True, metavar="DIR")
 @batch_options
 @click.option("--verify", "verify_", is_flag=True,
               help="Prove each certificate in exact arithmetic and simulate it.")
 @handle_errors
 def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: str,
-           order: int | None, gap: float, time_limit: float, out: str, as_json: bool,
-           workers: int | None, scheduler: str | None, restart: bool, quiet: bool,
-           verify_: bool) -> None:
-    """Design parameters by sum-of-squares: lower bound, designed theta, certified rate."""
+           order: int | None, gap: float, time_limit: float, method: str, out: str,
+           as_json: bool, workers: int | None, scheduler: str | None, restart: bool,
+           quiet: bool, verify_: bool) -> None:
+    """Design parameters: certified design, proven lower bound, gap between them."""
     from sosalgo.jobs import design_csv_to_json, run_design_sweep
     from sosalgo.report import format_table, plot_rates
 
@@ -249,12 +255,18 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
         raise InputError(f"--gap {gap}: must be positive")
     if not time_limit > 0:
         raise InputError(f"--time-limit {time_limit}: must be positive")
+    if not math.isfinite(time_limit):
+        raise InputError(f"--time-limit {time_limit}: must be finite")
     _check_points(spec, kappas)
     _boxes(spec, kappas, names)
+    from sosalgo.polymodel import check_polynomial
+
+    check_polynomial(spec, names)  # before anything is written
     out_dir = _out_dir(out)
     spec_text = Path(spec_path).read_text(encoding="utf-8")
     options = {"free": names, "scalarize": scalarize, "order": order, "gap": gap,
-               "time_limit": time_limit}
+               "time_limit": time_limit, "method": method,
+               "progress_steps": len(kappas) == 1 and not quiet and not as_json}
     csv_path = out_dir / f"{spec.name}-design.csv"
     rows, fresh = run_design_sweep(spec, spec_text, kappas, csv_path, options, workers=workers,
                                    scheduler=scheduler, restart=restart, progress=not quiet)
@@ -272,11 +284,12 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
         refs = {name: [r.get("references", {}).get(name) for r in
                        (design_csv_to_json(spec, names, x) for x in rows)]
                 for name in spec.references}
+        how = "dual certificates" if method == "dual" else f"moment relaxation, {scalarize}"
         figs = plot_rates(
-            f"{spec.name}: designed {', '.join(names)} (SOS, {scalarize})",
+            f"{spec.name}: designed {', '.join(names)} (bound: {how})",
             [d["kappa"] for d in docs],
             {"designed (certified)": [d["rho_certified"] for d in docs],
-             "lower bound (relaxation)": [d["lower_bound"] for d in docs],
+             "lower bound (proven)": [d["lower_bound"] for d in docs],
              "spec values (certified)": [d["rho_at_values"] for d in docs]},
             refs, out_dir / f"{spec.name}-design",
             uncertified=[d["kappa"] for d in docs if d["rho_certified"] is None],
@@ -292,13 +305,18 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
     for d in docs:
         row = {"kappa": d["kappa"], "lower_bound": d["lower_bound"],
                "rho_certified": d["rho_certified"], "gap": d["gap"],
-               "rho_at_values": d["rho_at_values"], "order": d["relaxation"]["order"],
-               "flat": d["relaxation"]["flat"], "seconds": d["seconds"]}
+               "verdict": _verdict(d, gap), "rho_at_values": d["rho_at_values"],
+               "floor": d.get("floor"), "seconds": d["seconds"]}
+        if method == "moment":
+            row.update(order=d["relaxation"].get("order"), flat=d["relaxation"].get("flat"))
         row.update({p: d["theta"].get(p) for p in names})
         table.append(row)
-    cols = ["kappa", *names, "lower_bound", "rho_certified", "gap", "rho_at_values", "order",
-            "flat", "seconds"]
-    click.echo(f"{spec.name}: design of {', '.join(names)} by moment relaxation ({scalarize})")
+    cols = ["kappa", *names, "lower_bound", "rho_certified", "gap", "verdict",
+            "rho_at_values", "floor"] + (["order", "flat"] if method == "moment" else []) + [
+            "seconds"]
+    how = ("box-wide dual certificates" if method == "dual"
+           else f"moment relaxation ({scalarize})")
+    click.echo(f"{spec.name}: design of {', '.join(names)}; lower bound by {how}")
     click.echo(format_table(table, cols))
     if len(docs) == 1:
         for step in docs[0]["steps"]:
@@ -311,9 +329,21 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
                                            ", SIMULATION VIOLATION")
             click.echo(f"  kappa {d['kappa']:g}: verified {v['verified']} "
                        f"(rho proven {v['rho_proven_float']:.10g}{note})")
-    click.echo("lower_bound: relaxation value (no method in the box can be certified faster); "
-               "rho_certified: Theorem 1 analysis at the designed theta")
+    click.echo("rho_certified: analysis at the designed theta (with its certificate); "
+               "lower_bound: proven, no theta in the box is certified below it; "
+               "floor: 1 - 1/sqrt(kappa), no first-order method is faster on F(m, L)")
     click.echo(f"wrote {csv_path}" + "".join(f", {p}" for p in figs))
+
+
+def _verdict(doc: dict, gap: float) -> str:
+    """What the numbers prove: optimal within the gap only when the gap proves it."""
+    if doc.get("rho_certified") is None:
+        return "no certified design"
+    if doc.get("lower_bound") is None or doc.get("gap") is None:
+        return "no bound" + (" (time limit)" if doc.get("time_limited") else "")
+    if doc.get("gap_met"):
+        return f"optimal (gap <= {gap:g})"
+    return f"gap {doc['gap']:.1e}" + (" (time limit)" if doc.get("time_limited") else "")
 
 
 # --------------------------------------------------------------------------- grid

@@ -192,7 +192,7 @@ def design(
     family = get_family(spec.certificate)
     model = fit_poly_lmi(spec, kappa, free, box, family)  # refuses non-polynomial θ
     run = _Run(spec, kappa, free, box, t0 + time_limit, on_step)
-    run.log(f"kappa {kappa:g}: certifying the spec's values", record=False)
+    run.log("certifying the spec's values", record=False)
     values_res = run.certify({})
     if values_res is not None and values_res.certified:
         run.consider({p: values_res.params[p] for p in free}, "spec values")
@@ -244,7 +244,16 @@ def _search(run: _Run) -> None:
     good = [th for r, th in scored if math.isfinite(r)]
     run.log(f"grid: {len(scored)} points, {len(good)} certified"
             + (f", best {scored[0][0]:.6f}" if good else ""))
-    for theta in good[:3]:
+    starts: list[dict[str, float]] = []
+    widths = np.array([max(hi - lo, 1e-300) for lo, hi in run.box])
+    for theta in good:  # the best points that are not neighbours of a better one
+        x = np.array([theta[p] for p in run.free])
+        if all(np.max(np.abs(x - np.array([s[p] for p in run.free])) / widths) > 1.5 / (pts - 1)
+               for s in starts):
+            starts.append(theta)
+        if len(starts) == 2:
+            break
+    for theta in starts:
         if not run.can_afford(10 * run.analysis_seconds):
             break
         run.log("polishing locally", record=False)
@@ -277,7 +286,7 @@ def _polish(run: _Run, theta: dict[str, float]) -> dict[str, float] | None:
         len(free), 5)) for i in range(len(free))]
     simplex = [np.clip(s, [b[0] for b in box], [b[1] for b in box]) for s in simplex]
     out = minimize(f, x0, method="Nelder-Mead", bounds=box,
-                   options={"xatol": 1e-9, "fatol": 1e-10, "maxfev": 400,
+                   options={"xatol": 1e-9, "fatol": 1e-10, "maxfev": 150 * len(free),
                             "initial_simplex": np.array(simplex)})
     return dict(zip(free, map(float, out.x), strict=True))
 

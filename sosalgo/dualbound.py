@@ -180,6 +180,14 @@ class BoundState:
     solves: int = 0
     stuck: list[_Box] = field(default_factory=list)
     heap: list[tuple[tuple[float, float], int, _Box]] = field(default_factory=list)
+    record: list[tuple[np.ndarray, np.ndarray, float, str]] | None = None  # proven boxes
+
+    def done(self, box: _Box, r: float, how: str) -> None:
+        """Count a box proven empty for ρ² < r (``how``: dual / quadratic / inherited)."""
+        self.proven += 1
+        self.quadratic += how == "quadratic"
+        if self.record is not None:
+            self.record.append((box.zc.copy(), box.w.copy(), r, how))
 
     def lower_r(self) -> float:
         """Largest r proven: no θ of Θ is certified with ρ² below it."""
@@ -196,10 +204,10 @@ class BoundSearch:
     whole box for every r in [0, T²] (found by a robust SDP, then checked in floats)."""
 
     def __init__(self, model: PolyLMI, structure: DualStructure, target_r: float,
-                 quadratic: QuadraticTest | None = None):
+                 quadratic: QuadraticTest | None = None, record: bool = False):
         self.model, self.st, self.quad = model, structure, quadratic
         k = model.k
-        self.state = BoundState(target=target_r)
+        self.state = BoundState(target=target_r, record=[] if record else None)
         self._count = 0
         self._push(_Box(np.zeros(k), np.ones(k) * (model.half > 0)))
 
@@ -353,7 +361,7 @@ class BoundSearch:
         for e, (H, Gm) in enumerate(maps):
             base = s_base + e * (len(live) - 1) * per_alpha
 
-            def s_col(a_pos: int) -> int:
+            def s_col(a_pos: int, base: int = base) -> int:
                 return base + (a_pos - 1) * per_alpha
 
             A = np.zeros(ny)  # h_0 - Σ s_α - t >= 0
@@ -461,11 +469,10 @@ class BoundSearch:
             handled += 1
             T2 = st.target
             if box.lb >= T2:
-                st.proven += 1
+                st.done(box, box.lb, "inherited")
                 continue
             if self.quad is not None and self.quad.proves(box.zc, box.w, math.sqrt(T2)):
-                st.proven += 1
-                st.quadratic += 1
+                st.done(box, T2, "quadratic")
                 continue
             data = self._box_data(box, box.w)
             out = self._dual(data, (0.0, T2))
@@ -473,7 +480,7 @@ class BoundSearch:
             if out is not None:
                 Zs, bd = out
                 if self._holds(data, Zs, 0.0, bd[0]) and self._holds(data, Zs, T2, bd[1]):
-                    st.proven += 1
+                    st.done(box, T2, "dual")
                     continue
             if Zs is None:  # is the center itself certifiable below T?
                 center = self._box_data(box, np.zeros_like(box.w))

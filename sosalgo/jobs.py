@@ -6,6 +6,7 @@ driver that writes rows to a resumable CSV as they finish.
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -184,7 +185,8 @@ def design_columns(spec: Spec, free: Sequence[str]) -> list[str]:
         ["kappa", "lower_bound", "rho_certified", "gap", "gap_met"]
         + [f"theta_{p}" for p in free]
         + ["rho_at_values", "lambda"] + p_columns(spec.n)
-        + ["scalarize", "order", "status", "flat", "ranks", "seconds", "steps", "error"]
+        + ["scalarize", "order", "status", "flat", "ranks", "seconds", "steps", "error",
+           "method", "floor", "time_limited"]
         + list(spec.references)
     )
 
@@ -199,6 +201,7 @@ def design_row(spec: Spec, res: Any) -> dict[str, Any]:
         "status": res.relaxation.get("status"), "flat": res.relaxation.get("flat"),
         "ranks": " ".join(map(str, res.relaxation.get("ranks", []))),
         "seconds": round(res.seconds, 4), "steps": " | ".join(res.steps), "error": None,
+        "method": res.method, "floor": res.floor, "time_limited": res.time_limited,
     }
     for p, v in res.theta.items():
         row[f"theta_{p}"] = v
@@ -218,9 +221,14 @@ def design_chunk(
     for task in chunk:
         kappa = float(task["kappa"])
         try:
+            on_step = None
+            if options.get("progress_steps"):
+                def on_step(msg: str, kappa: float = kappa) -> None:
+                    print(f"  [kappa {kappa:g}] {msg}", file=sys.stderr, flush=True)
             res = design(spec, kappa, free=options["free"], scalarize=options["scalarize"],
                          order=options["order"], gap=options["gap"],
-                         time_limit=options["time_limit"])
+                         time_limit=options["time_limit"],
+                         method=options.get("method", "dual"), on_step=on_step)
             row = design_row(spec, res)
             row["_result"] = res.to_dict()
         except ModelError as exc:
@@ -282,8 +290,12 @@ def design_csv_to_json(spec: Spec, free: Sequence[str], row: dict[str, str]) -> 
         "certificate": {"P": P, "lambda": _num(row["lambda"])},
         "relaxation": {"scalarize": row["scalarize"] or None,
                        "order": int(row["order"]) if row["order"] else None,
-                       "status": row["status"] or None, "flat": row["flat"] == "true",
+                       "status": row["status"] or None,
+                       "flat": {"true": True, "false": False}.get(row["flat"]),
                        "ranks": [int(x) for x in row["ranks"].split()]},
+        "method": row.get("method") or None,
+        "floor": _num(row.get("floor", "")),
+        "time_limited": row.get("time_limited") == "true",
         "seconds": _num(row["seconds"]),
         "steps": row["steps"].split(" | ") if row["steps"] else [],
         "gap_met": row["gap_met"] == "true",

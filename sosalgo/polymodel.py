@@ -37,28 +37,38 @@ FIT_RTOL = 1e-8
 def check_polynomial(spec: Spec, free: Sequence[str]) -> None:
     """Raise ModelError unless every template entry is a polynomial in the free parameters.
 
-    Other input parameters keep their ``value`` and tied ones are substituted, so
-    ``gamma: min(1, 200*h)`` is caught through the matrix entries it enters.
+    Tied parameters are checked first (naming the parameter and its expression), then the
+    matrix entries (other input parameters keep their ``value``).
     """
-    mats = spec.templates(free)
     syms = [spec.symbols[p] for p in free]
-    for key, mat in mats.items():
+    symset = set(syms)
+    for name, expr in spec.tied_closure().items():
+        if expr.free_symbols & symset and not expr.is_polynomial(*syms):
+            raise ModelError(
+                f"parameters.{name}",
+                f"{name} = {_show(spec.parameters[name].tied)} is not polynomial in the free "
+                f"parameter(s) {_names(free, syms, expr)}; design needs polynomial dependence",
+            )
+    for key, mat in spec.templates(free).items():
         for (i, j), entry in np.ndenumerate(np.array(mat.tolist(), dtype=object)):
             entry = sp.sympify(entry)
-            if not entry.free_symbols & set(syms):
-                continue
-            if not entry.is_polynomial(*syms):
-                names = ", ".join(p for p, s in zip(free, syms, strict=True)
-                                  if s in entry.free_symbols)
+            if entry.free_symbols & symset and not entry.is_polynomial(*syms):
                 raise ModelError(
                     f"matrices.{key}[{i}][{j}]",
-                    f"{_short(entry)} is not polynomial in the free parameter(s) {names}; "
-                    "design needs polynomial dependence (fix the parameter or rewrite it)",
+                    f"{_show(entry)} is not polynomial in the free parameter(s) "
+                    f"{_names(free, syms, entry)}; design needs polynomial dependence",
                 )
 
 
-def _short(expr: sp.Basic, n: int = 80) -> str:
+def _names(free: Sequence[str], syms: Sequence[sp.Symbol], expr: sp.Expr) -> str:
+    return ", ".join(p for p, s in zip(free, syms, strict=True) if s in expr.free_symbols)
+
+
+def _show(expr: sp.Basic, n: int = 80) -> str:
+    """An expression as a spec would write it (min, max, abs in lower case)."""
     text = str(expr)
+    for a, b in (("Min(", "min("), ("Max(", "max("), ("Abs(", "abs(")):
+        text = text.replace(a, b)
     return text if len(text) <= n else text[: n - 3] + "..."
 
 
