@@ -43,7 +43,8 @@ __all__ = ["DesignResult", "design", "design_problem", "relaxation_bound", "METH
 CERT_TOL = 1e-7  # tolerance of the certifying analyses
 GRID_TOL = 1e-5  # tolerance of the screening grid
 METHODS = ("dual", "moment")
-GRID_POINTS = {1: 33, 2: 13, 3: 7}  # per axis, by number of free parameters
+GRID_POINTS = {1: 21, 2: 13, 3: 7}  # per axis, by number of free parameters
+POLISH_TOL = 1e-6  # tolerance of the analyses inside local polishing
 
 
 @dataclass
@@ -108,6 +109,7 @@ class _Run:
         self.on_step = on_step
         self.analysis_seconds = 0.02  # running estimate of one certifying analysis
         self.out_of_time = False
+        self.phase_end = deadline  # the search phases stop earlier to leave time for bounds
 
     def log(self, msg: str, record: bool = True) -> None:
         if record:
@@ -119,9 +121,11 @@ class _Run:
         return self.deadline - time.perf_counter()
 
     def can_afford(self, seconds: float) -> bool:
-        if self.left() > seconds:
+        now = time.perf_counter()
+        if now + seconds < min(self.deadline, self.phase_end):
             return True
-        self.out_of_time = True
+        if now + seconds >= self.deadline:
+            self.out_of_time = True
         return False
 
     def clip(self, theta: dict[str, float]) -> dict[str, float]:
@@ -196,7 +200,10 @@ def design(
     values_res = run.certify({})
     if values_res is not None and values_res.certified:
         run.consider({p: values_res.params[p] for p in free}, "spec values")
+    total = run.deadline - time.perf_counter()
+    run.phase_end = time.perf_counter() + 0.3 * total  # grid
     _search(run)
+    run.phase_end = run.deadline
     relax: dict[str, Any]
     lb: float | None
     if method == "dual":
@@ -236,9 +243,10 @@ def _search(run: _Run) -> None:
     scored: list[tuple[float, dict[str, float]]] = []
     for pt in product(*axes):
         theta = dict(zip(run.free, map(float, pt), strict=True))
-        res = run.certify(theta, tol=GRID_TOL)
-        if res is None and run.out_of_time:
+        if not run.can_afford(2 * run.analysis_seconds):
+            run.log("grid cut short to leave time for the bound")
             break
+        res = run.certify(theta, tol=GRID_TOL)
         scored.append((_rate(res), theta))
     scored.sort(key=lambda item: item[0])
     good = [th for r, th in scored if math.isfinite(r)]
@@ -251,8 +259,9 @@ def _search(run: _Run) -> None:
         if all(np.max(np.abs(x - np.array([s[p] for p in run.free])) / widths) > 1.5 / (pts - 1)
                for s in starts):
             starts.append(theta)
-        if len(starts) == 2:
+        if len(starts) == (1 if k == 1 else 2):
             break
+    run.phase_end = time.perf_counter() + 0.4 * max(run.left(), 0.0)  # polishing
     for theta in starts:
         if not run.can_afford(10 * run.analysis_seconds):
             break
@@ -267,7 +276,7 @@ def _polish(run: _Run, theta: dict[str, float]) -> dict[str, float] | None:
     free, box = run.free, run.box
 
     def f(z: np.ndarray) -> float:
-        res = run.certify(dict(zip(free, map(float, z), strict=True)))
+        res = run.certify(dict(zip(free, map(float, z), strict=True)), tol=POLISH_TOL)
         r = _rate(res)
         return r if math.isfinite(r) else 2.0
 
@@ -278,7 +287,7 @@ def _polish(run: _Run, theta: dict[str, float]) -> dict[str, float] | None:
         step = (hi - lo) / (GRID_POINTS[1] - 1)
         a, b = max(lo, theta[free[0]] - step), min(hi, theta[free[0]] + step)
         out = minimize_scalar(lambda s: f(np.array([s])), bounds=(a, b), method="bounded",
-                              options={"xatol": 1e-10 * (hi - lo), "maxiter": 60})
+                              options={"xatol": 1e-7 * (hi - lo), "maxiter": 60})
         return {free[0]: float(out.x)}
     x0 = np.array([theta[p] for p in free])
     widths = np.array([hi - lo for lo, hi in box])
@@ -286,7 +295,7 @@ def _polish(run: _Run, theta: dict[str, float]) -> dict[str, float] | None:
         len(free), 5)) for i in range(len(free))]
     simplex = [np.clip(s, [b[0] for b in box], [b[1] for b in box]) for s in simplex]
     out = minimize(f, x0, method="Nelder-Mead", bounds=box,
-                   options={"xatol": 1e-9, "fatol": 1e-10, "maxfev": 150 * len(free),
+                   options={"xatol": 1e-8, "fatol": 1e-8, "maxfev": 120 * len(free),
                             "initial_simplex": np.array(simplex)})
     return dict(zip(free, map(float, out.x), strict=True))
 

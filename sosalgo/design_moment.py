@@ -22,6 +22,7 @@ import sympy as sp
 
 from sosalgo.certificates.theorem1 import theorem1_terms
 from sosalgo.polyopt import PolyProblem, solve_moment_relaxation
+from sosalgo.solvers import c_stdout_to_stderr
 from sosalgo.spec import BASE_SYMBOLS, Spec
 
 __all__ = ["design_problem", "relaxation_bound", "relaxation_size", "MomentBound"]
@@ -153,12 +154,14 @@ def relaxation_bound(
         why = (f"{moments} moments > {MAX_MOMENTS}" if moments > MAX_MOMENTS else
                f"estimated {est:.0f} s > {seconds:.0f} s left")
         return MomentBound(None, None, "skipped", {**base, "status": "skipped", "why": why})
-    res = solve_moment_relaxation(prob, order=k, solver=first,
-                                  solver_options=_options(first, seconds))
+    with c_stdout_to_stderr():
+        res = solve_moment_relaxation(prob, order=k, solver=first,
+                                      solver_options=_options(first, seconds))
     if (res.status != "optimal" and second is not None and len(prob.variables) <= 5
             and _seconds_estimate(second, side) < seconds - res.seconds):
-        res = solve_moment_relaxation(prob, order=k, solver=second,
-                                      solver_options=_options(second, seconds - res.seconds))
+        with c_stdout_to_stderr():
+            res = solve_moment_relaxation(prob, order=k, solver=second,
+                                          solver_options=_options(second, seconds - res.seconds))
     info = {**base, "order": res.order, "status": res.status, "solver": res.solver,
             "ranks": list(res.ranks), "flat": bool(res.flat), "seconds": res.seconds}
     if res.status == "infeasible":

@@ -13,8 +13,11 @@ The problem data go straight to Clarabel (upper-triangular scaled svec) or SCS
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import math
+import os
+import sys
 import weakref
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -178,14 +181,35 @@ def _scs(problem: LMIProblem, rho: float, margin: float):
     rows = np.concatenate([np.arange(offsets[i], offsets[i + 1]) for i in order])
     data = {"A": sps.csc_matrix(A[rows]), "b": b[rows], "c": np.zeros(n)}
     cone = {"l": sum(1 for s in sizes if s == 1), "s": [s for s in sizes if s > 1]}
-    solver = scs.SCS(data, cone, verbose=False, eps_abs=1e-9, eps_rel=1e-9, max_iters=5000)
-    sol = solver.solve()
+    with c_stdout_to_stderr():  # SCS's C code prints some errors on stdout
+        solver = scs.SCS(data, cone, verbose=False, eps_abs=1e-9, eps_rel=1e-9,
+                         max_iters=5000)
+        sol = solver.solve()
     status = str(sol["info"]["status"])
     if status == "solved":
         return "solved", np.array(sol["x"]), status
     if status == "infeasible":
         return "infeasible", None, status
     return ("near" if "inaccurate" in status else "failed"), None, status
+
+
+@contextlib.contextmanager
+def c_stdout_to_stderr():
+    """Send C-level writes to file descriptor 1 to stderr for the duration (so a solver's
+    messages never mix into ``--json`` output on stdout)."""
+    try:
+        sys.stdout.flush()
+        saved = os.dup(1)
+    except (OSError, ValueError, AttributeError):
+        yield
+        return
+    try:
+        os.dup2(2, 1)
+        yield
+    finally:
+        sys.stdout.flush()
+        os.dup2(saved, 1)
+        os.close(saved)
 
 
 class _MarginForm:
