@@ -195,17 +195,19 @@ def _scs(problem: LMIProblem, rho: float, margin: float):
 
 @contextlib.contextmanager
 def c_stdout_to_stderr():
-    """Send C-level writes to file descriptor 1 to stderr for the duration (so a solver's
-    messages never mix into ``--json`` output on stdout)."""
+    """Send writes to stdout (C-level file descriptor 1 and Python's sys.stdout) to stderr
+    for the duration, so a solver's messages never mix into ``--json`` output."""
     try:
         sys.stdout.flush()
         saved = os.dup(1)
     except (OSError, ValueError, AttributeError):
-        yield
+        with contextlib.redirect_stdout(sys.stderr):
+            yield
         return
     try:
         os.dup2(2, 1)
-        yield
+        with contextlib.redirect_stdout(sys.stderr):  # PySys_WriteStdout goes here
+            yield
     finally:
         sys.stdout.flush()
         os.dup2(saved, 1)
