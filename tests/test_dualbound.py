@@ -25,7 +25,7 @@ def _search(name, free, kappa, T, record=True, quadratic=True):
     quad = QuadraticTest(lambda z: evaluate_algorithm(spec, kappa, model.theta(z)),
                          model.half) if quadratic else None
     search = BoundSearch(model, dual_structure(model), T**2, quad, record=record)
-    state = search.run(time.perf_counter() + 60, lambda z, r: None)
+    state = search.run(time.perf_counter() + 15, lambda z, r: None)
     return spec, model, state
 
 
