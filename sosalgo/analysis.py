@@ -43,6 +43,7 @@ class AnalysisResult:
     rho_infeasible: float | None = None  # largest rho found infeasible (lower end of bracket)
     params: dict[str, float] = field(default_factory=dict)
     family: str = "theorem1"
+    certificate: dict[str, Any] | None = None  # the family's named parts (unpack)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict (the `rows` entries of ``sosalgo analyze --json``)."""
@@ -60,7 +61,18 @@ class AnalysisResult:
             "rho_infeasible": self.rho_infeasible,
             "params": dict(self.params),
             "family": self.family,
-        }
+        } | ({} if self.family == "theorem1" else {"certificate": _jsonable(self.certificate)})
+
+
+def _jsonable(v: Any) -> Any:
+    """Certificate parts as JSON values (arrays become nested lists)."""
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    if isinstance(v, dict):
+        return {k: _jsonable(x) for k, x in v.items()}
+    if isinstance(v, list | tuple):
+        return [_jsonable(x) for x in v]
+    return v
 
 
 class _Search:
@@ -215,13 +227,20 @@ def analyze_algorithm(
     solves = search.solves
     assert best.x is not None
     cert = problem.unpack(best.x)
-    M = fam.matrix(alg, hi, cert)
     P = np.asarray(cert["P"])
+    if hasattr(fam, "summary"):  # families whose P need not be PSD report their own parts
+        eigs = fam.summary(alg, hi, cert)
+    else:
+        M = fam.matrix(alg, hi, cert)
+        eigs = {"max_eig_M": float(np.linalg.eigvalsh(M)[-1]),
+                "min_eig_P": float(np.linalg.eigvalsh(P)[0])}
+    lam = cert.get("lambda")
     return AnalysisResult(
-        kappa=alg.kappa, rho=hi, certified=True, P=P, lam=float(cert["lambda"]),
-        max_eig_M=float(np.linalg.eigvalsh(M)[-1]), min_eig_P=float(np.linalg.eigvalsh(P)[0]),
-        solves=solves, seconds=time.perf_counter() - start, solver=best.solver,
-        rho_infeasible=lo, params=dict(alg.params), family=fam.name,
+        kappa=alg.kappa, rho=hi, certified=True, P=P,
+        lam=None if lam is None else float(lam), max_eig_M=eigs["max_eig_M"],
+        min_eig_P=eigs["min_eig_P"], solves=solves, seconds=time.perf_counter() - start,
+        solver=best.solver, rho_infeasible=lo, params=dict(alg.params), family=fam.name,
+        certificate=cert,
     )
 
 
@@ -231,6 +250,16 @@ def analyze_spec(
     theta: Mapping[str, float] | None = None,
     tol: float = DEFAULT_TOL,
     solvers: Sequence[str] = DEFAULT_SOLVERS,
+    family: CertificateFamily | str | None = None,
 ) -> AnalysisResult:
-    """Analysis of a spec at one kappa (parameters at their values unless set by theta)."""
-    return analyze_algorithm(bind(spec, kappa, theta), tol, spec.certificate, solvers)
+    """Analysis of a spec at one kappa (parameters at their values unless set by theta).
+
+    ``family`` overrides the spec's certificate family (default: the spec's, with its
+    options)."""
+    fam = spec_family(spec) if family is None else family
+    return analyze_algorithm(bind(spec, kappa, theta), tol, fam, solvers)
+
+
+def spec_family(spec: Spec) -> CertificateFamily:
+    """The certificate family a spec asks for, with its options."""
+    return get_family(spec.certificate, getattr(spec, "certificate_options", None))
