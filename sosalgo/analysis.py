@@ -21,7 +21,10 @@ from sosalgo.model import Algorithm, bind
 from sosalgo.solvers import DEFAULT_SOLVERS, Outcome, check_point, solve_lmi, solve_margin
 from sosalgo.spec import Spec
 
-__all__ = ["AnalysisResult", "analyze_algorithm", "analyze_spec", "DEFAULT_TOL"]
+__all__ = [
+    "AnalysisResult", "analyze_algorithm", "analyze_spec", "DEFAULT_TOL", "quadratic_rate",
+    "spec_family",
+]
 
 DEFAULT_TOL = 1e-6
 
@@ -263,3 +266,10 @@ def analyze_spec(
 def spec_family(spec: Spec) -> CertificateFamily:
     """The certificate family a spec asks for, with its options."""
     return get_family(spec.certificate, getattr(spec, "certificate_options", None))
+
+
+def quadratic_rate(alg: Algorithm, points: int = 2001) -> float:
+    """max over q in [m, L] of the spectral radius of A + q B C (grid): the method's rate on
+    quadratics, a lower bound for any certificate family (drawn on comparison plots)."""
+    qs = np.linspace(alg.m, alg.L, points)
+    return max(float(np.abs(np.linalg.eigvals(alg.A + q * alg.B @ alg.C)).max()) for q in qs)

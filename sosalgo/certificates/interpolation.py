@@ -28,6 +28,7 @@ verifier) and sympy (``sosalgo lmi``): it only uses sums, products and stacking.
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from typing import Any
 
@@ -339,6 +340,36 @@ class Interpolation:
         pt = self.parts(alg, rho, cert)
         return {"max_eig_M": float(np.linalg.eigvalsh(pt["D"])[-1]),
                 "min_eig_P": float(np.linalg.eigvalsh(pt["Pq"])[0])}
+
+    # -- tables ------------------------------------------------------------------------------
+    def p_size(self, n: int) -> int:
+        """Side of P (z = (xi, u_k, ..., u_{k-l}))."""
+        return n + self.lag_for(n) + 1
+
+    def csv_columns(self, n: int) -> list[str]:
+        """Extra CSV columns (after the common ones): family, lag, p0..pl, c, multipliers."""
+        return ["family", "lag"] + [f"p{j}" for j in range(self.lag_for(n) + 1)] + [
+            "c", "multipliers"]
+
+    def csv_cells(self, n: int, cert: dict[str, Any] | None) -> dict[str, Any]:
+        """CSV cells of a certificate (multipliers as one JSON object: pair -> value)."""
+        out: dict[str, Any] = {"family": self.name, "lag": self.lag_for(n)}
+        if cert is None:
+            return out
+        out.update({f"p{j}": float(v) for j, v in enumerate(cert["p"])})
+        out["c"] = cert["c"]
+        out["multipliers"] = json.dumps(cert["multipliers"], separators=(",", ":"))
+        return out
+
+    def cert_from_csv(self, n: int, row: dict[str, str], P: Any) -> dict[str, Any] | None:
+        """Inverse of :meth:`csv_cells` (None when the row has no certificate)."""
+        if P is None or not row.get("multipliers"):
+            return None
+        lag = int(row["lag"])
+        return {"family": self.name, "lag": lag, "P": P,
+                "p": [float(row[f"p{j}"]) for j in range(lag + 1)],
+                "c": float(row["c"]) if row.get("c") else None,
+                "multipliers": json.loads(row["multipliers"])}
 
     def symbolic(self, A, B, C, E, m, L) -> tuple[sp.Matrix, dict[str, Any]]:
         """Symbolic row maps and interpolation pairs; the returned matrix is the decrease
