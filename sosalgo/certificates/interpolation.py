@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass
+from fractions import Fraction
 from typing import Any
 
 import numpy as np
@@ -110,7 +111,7 @@ def _window(A, B, C, E, m, L, lag: int, steps: int, has_x: bool, obj: bool) -> W
     pts.append(("*", _zeros((1, width), obj), _zeros((1, width), obj), None))
     MM = np.array([[-m * L, m * L, m, -L], [m * L, -m * L, -m, L], [m, -m, -1, 1],
                    [-L, L, 1, -1]], dtype=object if obj else float)
-    half = sp.Rational(1, 2) if obj else 0.5
+    half = Fraction(1, 2) if obj else 0.5
     labels, Mq, mq = [], [], []
     for ni, xi, gi, fi in pts:
         for nj, xj, gj, fj in pts:
