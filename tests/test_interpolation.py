@@ -245,3 +245,59 @@ def test_spec_certificate_field():
     assert get_family("interpolation", {"lag": 0}).lag == 0
     with pytest.raises(ValueError):
         get_family("theorem1", {"lag": 0})
+
+
+# --------------------------------------------------------------------------- command line
+def _run(args):
+    from click.testing import CliRunner
+
+    from sosalgo.cli import cli
+
+    return CliRunner().invoke(cli, [str(a) for a in args], catch_exceptions=False)
+
+
+def test_cli_triple_momentum_and_verify(tmp_path):
+    import csv
+    import json
+
+    spec = _spec("triple-momentum")
+    res = _run(["analyze", SPECS / "triple-momentum.yaml", "--certificate", "interpolation",
+                "--out", tmp_path, "--quiet", "--json"])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    assert [r["kappa"] for r in doc["rows"]] == list(spec.kappa)
+    for r in doc["rows"]:
+        assert r["certified"] and abs(r["rho"] - (1 - r["kappa"] ** -0.5)) <= 1e-5
+        assert r["family"] == "interpolation" and r["lambda"] is None
+        cert = r["certificate"]
+        assert np.array(cert["P"]).shape == (4, 4) and len(cert["p"]) == 2
+        assert set(cert["multipliers"]) == {"decrease", "positivity"}
+    rows = list(csv.DictReader(open(tmp_path / "triple-momentum-analysis-interpolation.csv")))
+    assert {"P44", "p0", "p1", "c", "multipliers", "family", "lag"} <= set(rows[0])
+    assert not (tmp_path / "triple-momentum-analysis.csv").exists()
+    (tmp_path / "tm.json").write_text(json.dumps({**doc, "rows": doc["rows"][:2]}))
+    res = _run(["verify", tmp_path / "tm.json", "--out", tmp_path])
+    assert res.exit_code == 0, res.output
+    assert res.stdout.count("exact") == 2
+
+
+def test_cli_compare_families_and_table1(tmp_path):
+    import csv
+
+    res = _run(["analyze", SPECS / "nesterov.yaml", "--certificate", "theorem1,interpolation",
+                "--kappa", "10", "--out", tmp_path, "--quiet"])
+    assert res.exit_code == 0, res.output
+    t1 = list(csv.DictReader(open(tmp_path / "nesterov-analysis.csv")))
+    ti = list(csv.DictReader(open(tmp_path / "nesterov-analysis-interpolation.csv")))
+    assert "p0" not in t1[0] and float(ti[0]["rho"]) < float(t1[0]["rho"])
+    assert (tmp_path / "nesterov-rate.png").stat().st_size > 1000
+    res = _run(["table1", "--specs", SPECS / "gradient.yaml", "--kappa", "10",
+                "--certificate", "theorem1,interpolation", "--out", tmp_path])
+    assert res.exit_code == 0, res.output
+    row = next(csv.DictReader(open(tmp_path / "table1.csv")))
+    assert float(row["rho_certified"]) == pytest.approx(0.9, abs=1e-5)
+    assert float(row["rho_interpolation"]) == pytest.approx(0.9, abs=1e-5)
+    res = _run(["analyze", SPECS / "nesterov.yaml", "--certificate", "tight", "--out", tmp_path])
+    assert res.exit_code == 2 and "--certificate tight" in res.output
+    res = _run(["lmi", SPECS / "nesterov.yaml", "--certificate", "interpolation", "--lag", "0"])
+    assert res.exit_code == 0 and "lag l = 0" in res.output and "*>y0" in res.output
