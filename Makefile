@@ -41,7 +41,7 @@ lint: $(VENV)/.installed-dev
 	$(BIN)/ruff check sosalgo tests bench
 
 table1: $(VENV)/.installed
-	$(BIN)/sosalgo table1 --out $(OUT)
+	$(BIN)/sosalgo table1 --certificate theorem1,interpolation --out $(OUT)
 
 bench: $(VENV)/.installed-dev
 	$(BIN)/python -m bench $(BENCH_OPTS)

@@ -84,6 +84,7 @@ class _Search:
     def __init__(self, problem: LMIProblem, solvers: Sequence[str], use_margin: bool):
         self.problem, self.solvers, self.use_margin = problem, solvers, use_margin
         self.solves = 0
+        self.slope: float | None = None  # dt/drho of the last margin solve
 
     def plain(self, rho: float) -> Outcome:
         self.solves += 1
@@ -95,6 +96,7 @@ class _Search:
             return self.plain(rho), None
         self.solves += 1
         mg = solve_margin(self.problem, rho)
+        self.slope = mg.slope if mg.ok else None
         if not mg.ok or mg.t is None:
             return self.plain(rho), None
         if mg.t > 0 and mg.x is not None:
@@ -192,6 +194,68 @@ def _secant(search: _Search, t_one: float, best: Outcome, tol: float):
     return lo, hi, best
 
 
+def _newton(search: _Search, t_one: float, slope_one: float | None, best: Outcome, tol: float):
+    """Bracketed Newton-type iteration on the margin t(rho), slopes from the dual solution.
+
+    Above the threshold t is smooth and convex-like; the estimate from the certified side is
+    the root of the quadratic through the last two certified points (value and slope at the
+    last), else a Newton step. From the other side a Newton step is used, and with both the
+    larger estimate (both tend to fall short). A step is tested a quarter tolerance above
+    its estimate; once the next step from a certified point is shorter than half a
+    tolerance, one test just below closes the bracket. Estimates outside the bracket fall
+    back to bisection. Invariant: hi is certified by a checked point, lo is not certified.
+    """
+    lo, hi = 0.0, 1.0
+    ups: list[tuple[float, float, float | None]] = [(1.0, t_one, slope_one)]
+    down: tuple[float, float, float | None] | None = None
+
+    def inside(est: float | None) -> float | None:
+        return float(est) if est is not None and np.isfinite(est) and lo < est < hi else None
+
+    def newton(pt) -> float | None:
+        x, t, d = pt
+        return None if d is None or not d > 0 else inside(x - t / d)
+
+    def from_above() -> float | None:
+        est = newton(ups[-1])
+        if len(ups) < 2 or est is None:
+            return est
+        (x1, t1, _), (x2, t2, d2) = ups[-2], ups[-1]
+        a = (t1 - t2 - d2 * (x1 - x2)) / (x1 - x2) ** 2  # t ~ t2 + d2 s + a s^2, s = x - x2
+        disc = d2 * d2 - 4 * a * t2
+        if a <= 0 or disc < 0:
+            return est
+        return inside(x2 + (-d2 + np.sqrt(disc)) / (2 * a)) or est
+
+    for step in range(200):
+        if hi - lo <= tol:
+            break
+        ests = [e for e in (from_above(), newton(down) if down else None) if e is not None]
+        est = max(ests) if ests and step < 60 else 0.5 * (lo + hi)
+        x = min(max(est + 0.25 * tol, lo + 0.25 * tol), hi - 0.25 * tol)
+        out, t = search.test(x)
+        if not out.feasible:
+            lo = x
+            down = (x, t, search.slope) if t is not None and t < 0 else down
+            continue
+        hi, best = x, out
+        if t is None or not t > 0:
+            continue
+        ups.append((x, t, search.slope))
+        nxt = newton(ups[-1])
+        if nxt is not None and x - nxt < 0.5 * tol and hi - lo > tol:
+            below = max(x - 0.999 * tol, lo + 0.5 * tol)  # estimate confirmed: close below
+            out, t = search.test(below)
+            if out.feasible:
+                hi, best = below, out
+                if t is not None and t > 0:
+                    ups.append((below, t, search.slope))
+            else:
+                lo = below
+                down = (below, t, search.slope) if t is not None and t < 0 else down
+    return lo, hi, best
+
+
 def analyze_algorithm(
     alg: Algorithm,
     tol: float = DEFAULT_TOL,
@@ -217,13 +281,16 @@ def analyze_algorithm(
     use_margin = method == "secant" and tuple(solvers) == DEFAULT_SOLVERS
     search = _Search(problem, solvers, use_margin=use_margin)
     best, t_one = search.test(1.0)
+    slope_one = search.slope
     if not best.feasible:
         return AnalysisResult(
             kappa=alg.kappa, rho=None, certified=False, P=None, lam=None, max_eig_M=None,
             min_eig_P=None, solves=search.solves, seconds=time.perf_counter() - start,
             solver=None, rho_infeasible=1.0, params=dict(alg.params), family=fam.name,
         )
-    if method == "secant" and t_one is not None:
+    if method == "secant" and t_one is not None and slope_one is not None:
+        lo, hi, best = _newton(search, t_one, slope_one, best, tol)
+    elif method == "secant" and t_one is not None:
         lo, hi, best = _secant(search, t_one, best, tol)
     else:
         lo, hi, best = _bisect(search, 0.0, 1.0, best, tol)

@@ -230,6 +230,7 @@ class _MarginForm:
         self.v0 = self.dense0[self.A.indices, cols]
         self.v1 = self.dense1[self.A.indices, cols]
         self.zero_P = sps.csc_matrix((self.nz, self.nz))
+        self.A1 = sps.csc_matrix(self.dense1)  # dA/d(rho^2), for the slope of t(rho)
 
     def data(self, rho: float) -> sps.csc_matrix:
         self.A.data = self.v0 + rho * rho * self.v1
@@ -247,6 +248,7 @@ class Margin:
     t: float | None
     x: np.ndarray | None
     detail: str = ""
+    slope: float | None = None  # dt/drho from the dual solution (envelope theorem)
 
 
 def solve_margin(problem: LMIProblem, rho: float) -> Margin:
@@ -275,7 +277,9 @@ def solve_margin(problem: LMIProblem, rho: float) -> Margin:
             z = np.array(sol.x)
             t, c = float(z[-1]), float(z[-2])
             x = z[:-2] / c if (t > 0 and c > 0) else None
-            return Margin(True, t, x, detail)
+            # optimal value -t of min q'z s.t. A(r) z + s = b: d(-t)/dr = y' A1 z (y dual)
+            slope = -float(np.asarray(sol.z) @ (form.A1 @ z)) * 2.0 * rho
+            return Margin(True, t, x, detail, slope if np.isfinite(slope) else None)
     return Margin(False, None, None, detail)
 
 
