@@ -354,6 +354,9 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
     from sosalgo.report import format_table, plot_rates
 
     spec = load_spec(spec_path)
+    if spec.certificate != "theorem1":  # the relaxation is built on Theorem 1's inequality
+        raise InputError(f"{spec.source}: certificate: design supports only theorem1, "
+                         f"not {spec.certificate}")
     kappas = _kappas(spec, kappa)
     names = _free_names(spec, free)
     if not gap > 0:
