@@ -194,7 +194,8 @@ def _secant(search: _Search, t_one: float, best: Outcome, tol: float):
     return lo, hi, best
 
 
-def _newton(search: _Search, t_one: float, slope_one: float | None, best: Outcome, tol: float):
+def _newton(search: _Search, ups: list, down: tuple | None, lo: float, hi: float,
+            best: Outcome, tol: float):
     """Bracketed Newton-type iteration on the margin t(rho), slopes from the dual solution.
 
     Above the threshold t is smooth and convex-like; the estimate from the certified side is
@@ -205,10 +206,6 @@ def _newton(search: _Search, t_one: float, slope_one: float | None, best: Outcom
     tolerance, one test just below closes the bracket. Estimates outside the bracket fall
     back to bisection. Invariant: hi is certified by a checked point, lo is not certified.
     """
-    lo, hi = 0.0, 1.0
-    ups: list[tuple[float, float, float | None]] = [(1.0, t_one, slope_one)]
-    down: tuple[float, float, float | None] | None = None
-
     def inside(est: float | None) -> float | None:
         return float(est) if est is not None and np.isfinite(est) and lo < est < hi else None
 
@@ -280,6 +277,14 @@ def analyze_algorithm(
     # The margin problem is solved by Clarabel; a custom solver chain means plain bisection.
     use_margin = method == "secant" and tuple(solvers) == DEFAULT_SOLVERS
     search = _Search(problem, solvers, use_margin=use_margin)
+    quad = quadratic_rate(alg, 401) if use_margin and getattr(fam, "tight", False) else None
+    lo0, down0 = 0.0, None
+    if quad is not None and quad < 1 - tol:
+        lo, hi, best_near, ups, down0 = _start_near(search, quad, tol)
+        if best_near is not None:
+            lo, hi, best = _newton(search, ups, down0, lo, hi, best_near, tol)
+            return _result(alg, fam, problem, search, lo, hi, best, start)
+        lo0 = lo
     best, t_one = search.test(1.0)
     slope_one = search.slope
     if not best.feasible:
@@ -289,11 +294,51 @@ def analyze_algorithm(
             solver=None, rho_infeasible=1.0, params=dict(alg.params), family=fam.name,
         )
     if method == "secant" and t_one is not None and slope_one is not None:
-        lo, hi, best = _newton(search, t_one, slope_one, best, tol)
+        lo, hi, best = _newton(search, [(1.0, t_one, slope_one)], down0, lo0, 1.0, best, tol)
     elif method == "secant" and t_one is not None:
         lo, hi, best = _secant(search, t_one, best, tol)
     else:
         lo, hi, best = _bisect(search, 0.0, 1.0, best, tol)
+    return _result(alg, fam, problem, search, lo, hi, best, start)
+
+
+def _start_near(search: _Search, guess: float, tol: float):
+    """For families expected to be tight: test just above ``guess`` (the method's rate on
+    quadratics, where gradient descent and triple momentum are certified) and close the
+    bracket below it, or climb with Newton steps from below until a certified point.
+
+    Returns (lo, hi, best, certified points, last uncertified point); ``best`` is None when
+    no certified point turned up (lo and the last point below then seed the usual search).
+    """
+    x = min(guess + 0.25 * tol, 1.0)
+    lo, down = 0.0, None
+    for _ in range(8):
+        out, t = search.test(x)
+        if out.feasible:
+            if t is None or not t > 0:
+                return lo, 1.0, None, [], down
+            ups = [(x, t, search.slope)]
+            if lo == 0.0 and x - tol > 0:  # certified at the first guess: close below it
+                below = x - 0.999 * tol
+                out2, t2 = search.test(below)
+                if out2.feasible:
+                    return 0.0, 1.0, None, [], None  # not a bound here: search anew
+                lo = below
+                down = (below, t2, search.slope) if t2 is not None and t2 < 0 else None
+            return lo, x, out, ups, down
+        lo = x
+        if t is None or not t < 0 or search.slope is None or not search.slope > 0:
+            break
+        down = (x, t, search.slope)
+        est = x - t / search.slope
+        if not x < est < 1:
+            break
+        x = min(est + 0.25 * tol, 1.0)
+    return lo, 1.0, None, [], down
+
+
+def _result(alg: Algorithm, fam: CertificateFamily, problem: LMIProblem, search: _Search,
+            lo: float, hi: float, best: Outcome, start: float) -> AnalysisResult:
     solves = search.solves
     assert best.x is not None
     cert = problem.unpack(best.x)
@@ -339,4 +384,5 @@ def quadratic_rate(alg: Algorithm, points: int = 2001) -> float:
     """max over q in [m, L] of the spectral radius of A + q B C (grid): the method's rate on
     quadratics, a lower bound for any certificate family (drawn on comparison plots)."""
     qs = np.linspace(alg.m, alg.L, points)
-    return max(float(np.abs(np.linalg.eigvals(alg.A + q * alg.B @ alg.C)).max()) for q in qs)
+    mats = alg.A[None, :, :] + qs[:, None, None] * (alg.B @ alg.C)[None, :, :]
+    return float(np.abs(np.linalg.eigvals(mats)).max())

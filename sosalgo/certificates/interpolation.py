@@ -187,6 +187,7 @@ class Interpolation:
     """Lyapunov functions with interpolation conditions (lag l; default l = n - 1)."""
 
     name = "interpolation"
+    tight = True  # its rate is often the rate on quadratics: the search starts there
     description = ("interpolation: V = z'Pz + sum p_j (f(y_{k-j}) - f*) + c (f(x_k) - f*), "
                    "F(m, L) interpolation inequalities (tight)")
 
