@@ -201,7 +201,8 @@ def _newton(search: _Search, ups: list, down: tuple | None, lo: float, hi: float
     Above the threshold t is smooth and convex-like; the estimate from the certified side is
     the root of the quadratic through the last two certified points (value and slope at the
     last), else a Newton step. From the other side a Newton step is used, and with both the
-    larger estimate (both tend to fall short). A step is tested a quarter tolerance above
+    larger estimate (both tend to fall short), unless the step from the certified side is
+    short (< 20 tol), which is then accurate. A step is tested a quarter tolerance above
     its estimate; once the next step from a certified point is shorter than half a
     tolerance, one test just below closes the bracket. Estimates outside the bracket fall
     back to bisection. Invariant: hi is certified by a checked point, lo is not certified.
@@ -224,24 +225,14 @@ def _newton(search: _Search, ups: list, down: tuple | None, lo: float, hi: float
             return est
         return inside(x2 + (-d2 + np.sqrt(disc)) / (2 * a)) or est
 
+    confirmed_at = None
     for step in range(200):
         if hi - lo <= tol:
             break
-        ests = [e for e in (from_above(), newton(down) if down else None) if e is not None]
-        est = max(ests) if ests and step < 60 else 0.5 * (lo + hi)
-        x = min(max(est + 0.25 * tol, lo + 0.25 * tol), hi - 0.25 * tol)
-        out, t = search.test(x)
-        if not out.feasible:
-            lo = x
-            down = (x, t, search.slope) if t is not None and t < 0 else down
-            continue
-        hi, best = x, out
-        if t is None or not t > 0:
-            continue
-        ups.append((x, t, search.slope))
-        nxt = newton(ups[-1])
-        if nxt is not None and x - nxt < 0.5 * tol and hi - lo > tol:
-            below = max(x - 0.999 * tol, lo + 0.5 * tol)  # estimate confirmed: close below
+        nxt = newton(ups[-1]) if ups and ups[-1][0] == hi else None
+        if nxt is not None and hi - nxt < 0.5 * tol and confirmed_at != hi:
+            confirmed_at = hi  # the estimate is confirmed: close from below, once per hi
+            below = max(hi - 0.999 * tol, lo + 0.5 * tol)
             out, t = search.test(below)
             if out.feasible:
                 hi, best = below, out
@@ -250,6 +241,22 @@ def _newton(search: _Search, ups: list, down: tuple | None, lo: float, hi: float
             else:
                 lo = below
                 down = (below, t, search.slope) if t is not None and t < 0 else down
+            continue
+        est_u, est_l = from_above(), newton(down) if down else None
+        ests = [e for e in (est_u, est_l) if e is not None]
+        if est_u is not None and hi - est_u < 20 * tol:
+            est = est_u  # a short step from a certified point is accurate
+        else:
+            est = max(ests) if ests and step < 60 else 0.5 * (lo + hi)
+        x = min(max(est + 0.25 * tol, lo + 0.25 * tol), hi - 0.25 * tol)
+        out, t = search.test(x)
+        if not out.feasible:
+            lo = x
+            down = (x, t, search.slope) if t is not None and t < 0 else down
+            continue
+        hi, best = x, out
+        if t is not None and t > 0:
+            ups.append((x, t, search.slope))
     return lo, hi, best
 
 

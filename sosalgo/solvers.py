@@ -49,6 +49,7 @@ class Outcome:
         return self.status == "feasible"
 
 
+@functools.cache
 def _tri_indices(s: int, upper_colmajor: bool) -> tuple[np.ndarray, np.ndarray]:
     if upper_colmajor:  # Clarabel: (0,0),(0,1),(1,1),(0,2),...
         pairs = [(i, j) for j in range(s) for i in range(j + 1)]
@@ -62,6 +63,8 @@ def _tri_indices(s: int, upper_colmajor: bool) -> tuple[np.ndarray, np.ndarray]:
 def svec(mats: np.ndarray, upper_colmajor: bool) -> np.ndarray:
     """Scaled half-vectorization of symmetric matrix/matrices (last two axes)."""
     s = mats.shape[-1]
+    if s == 1:
+        return mats[..., 0, :1]
     r, c = _tri_indices(s, upper_colmajor)
     scale = np.where(r == c, 1.0, SQRT2)
     return mats[..., r, c] * scale
