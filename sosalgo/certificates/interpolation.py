@@ -138,10 +138,9 @@ def _scale(M: np.ndarray, half: Any) -> np.ndarray:
 
 
 def has_output_point(C: np.ndarray, E: np.ndarray) -> bool:
-    """False when x_k = y_k (E = C), so the x-points are the y-points."""
+    """False when x_k = y_k (E = C exactly), so the x-points are the y-points."""
     try:
-        return not bool(np.allclose(np.asarray(C, float), np.asarray(E, float), rtol=0,
-                                    atol=1e-14))
+        return not np.array_equal(np.asarray(C, float), np.asarray(E, float))
     except TypeError:
         return any(sp.simplify(a - b) != 0 for a, b in zip(np.ravel(C), np.ravel(E), strict=True))
 
