@@ -284,7 +284,7 @@ def analyze_algorithm(
     # The margin problem is solved by Clarabel; a custom solver chain means plain bisection.
     use_margin = method == "secant" and tuple(solvers) == DEFAULT_SOLVERS
     search = _Search(problem, solvers, use_margin=use_margin)
-    quad = quadratic_rate(alg, 401) if use_margin and getattr(fam, "tight", False) else None
+    quad = quadratic_rate(alg, 201) if use_margin and getattr(fam, "tight", False) else None
     lo0, down0 = 0.0, None
     if quad is not None and quad < 1 - tol:
         lo, hi, best_near, ups, down0 = _start_near(search, quad, tol)

@@ -246,7 +246,6 @@ class _MarginForm:
         self.v0 = self.dense0[self.A.indices, cols]
         self.v1 = self.dense1[self.A.indices, cols]
         self.zero_P = sps.csc_matrix((self.nz, self.nz))
-        self.A1 = sps.csc_matrix(self.dense1)  # dA/d(rho^2), for the slope of t(rho)
         self._cones: list | None = None
         self.solver: Any = None  # a Clarabel solver kept for data updates (same sparsity)
 
@@ -318,7 +317,7 @@ def solve_margin(problem: LMIProblem, rho: float) -> Margin:
             t, c = float(z[-1]), float(z[-2])
             x = z[:-2] / c if (t > 0 and c > 0) else None
             # optimal value -t of min q'z s.t. A(r) z + s = b: d(-t)/dr = y' A1 z (y dual)
-            slope = -float(np.asarray(sol.z) @ (form.A1 @ z)) * 2.0 * rho
+            slope = -float(np.asarray(sol.z) @ (form.dense1 @ z)) * 2.0 * rho
             return Margin(True, t, x, detail, slope if np.isfinite(slope) else None)
     return Margin(False, None, None, detail)
 
