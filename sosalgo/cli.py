@@ -162,10 +162,17 @@ def _families(spec, value: str | None, lag: int | None, single: bool = False) ->
     return fams
 
 
+def _family_suffix(fam) -> str:
+    """'' for Theorem 1, '-<family>' otherwise, '-<family>-lag<l>' for an explicit lag."""
+    if fam.name == "theorem1":
+        return ""
+    lag = getattr(fam, "lag", None)
+    return f"-{fam.name}" + ("" if lag is None else f"-lag{lag}")
+
+
 def _analysis_csv(out_dir: Path, spec, fam) -> Path:
-    """<name>-analysis.csv for Theorem 1, <name>-analysis-<family>.csv otherwise."""
-    suffix = "" if fam.name == "theorem1" else f"-{fam.name}"
-    return out_dir / f"{spec.name}-analysis{suffix}.csv"
+    """<name>-analysis.csv for Theorem 1, <name>-analysis-<family>[-lag<l>].csv otherwise."""
+    return out_dir / f"{spec.name}-analysis{_family_suffix(fam)}.csv"
 
 
 def batch_options(fn: Callable[..., Any]) -> Callable[..., Any]:
@@ -471,8 +478,7 @@ def grid(spec_path: str, kappa: tuple[str, ...], points: int, free: str | None, 
     spec_text = Path(spec_path).read_text(encoding="utf-8")
     docs = []
     for k in kappas:
-        suffix = "" if fam.name == "theorem1" else f"-{fam.name}"
-        stem = out_dir / f"{spec.name}-grid-k{k:g}{suffix}"
+        stem = out_dir / f"{spec.name}-grid-k{k:g}{_family_suffix(fam)}"
         rows = run_grid(spec, spec_text, k, names, boxes[k], points,
                         stem.with_name(stem.name + ".csv"), tol, workers=workers,
                         scheduler=scheduler, restart=restart, progress=not quiet, family=fam)
