@@ -283,7 +283,9 @@ def analyze_algorithm(
     problem = fam.problem(alg)
     # The margin problem is solved by Clarabel; a custom solver chain means plain bisection.
     use_margin = method == "secant" and tuple(solvers) == DEFAULT_SOLVERS
-    search = _Search(problem, solvers, use_margin=use_margin)
+    # a family may name a shorter fallback chain for points the margin path cannot check
+    fallback = getattr(fam, "fallback_solvers", None) if use_margin else None
+    search = _Search(problem, fallback or solvers, use_margin=use_margin)
     quad = quadratic_rate(alg, 201) if use_margin and getattr(fam, "tight", False) else None
     lo0, down0 = 0.0, None
     if quad is not None and quad < 1 - tol:

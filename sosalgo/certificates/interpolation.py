@@ -187,6 +187,9 @@ class Interpolation:
 
     name = "interpolation"
     tight = True  # its rate is often the rate on quadratics: the search starts there
+    # points the margin search cannot check sit on a degenerate boundary (tight rates),
+    # where SCS only runs into its iteration limit: Clarabel alone is asked
+    fallback_solvers = ("clarabel-fast", "clarabel")
     description = ("interpolation: V = z'Pz + sum p_j (f(y_{k-j}) - f*) + c (f(x_k) - f*), "
                    "F(m, L) interpolation inequalities (tight)")
 
