@@ -28,6 +28,12 @@ def main() -> None:
         suites["grid"] = grid.run
     except ImportError:
         pass
+    try:
+        from bench import interpolation
+
+        suites["interpolation"] = interpolation.run
+    except ImportError:
+        pass
     for name, fn in suites.items():
         if args.only and name != args.only:
             continue

@@ -21,7 +21,10 @@ from sosalgo.model import Algorithm, bind
 from sosalgo.solvers import DEFAULT_SOLVERS, Outcome, check_point, solve_lmi, solve_margin
 from sosalgo.spec import Spec
 
-__all__ = ["AnalysisResult", "analyze_algorithm", "analyze_spec", "DEFAULT_TOL"]
+__all__ = [
+    "AnalysisResult", "analyze_algorithm", "analyze_spec", "DEFAULT_TOL", "quadratic_rate",
+    "spec_family",
+]
 
 DEFAULT_TOL = 1e-6
 
@@ -43,6 +46,7 @@ class AnalysisResult:
     rho_infeasible: float | None = None  # largest rho found infeasible (lower end of bracket)
     params: dict[str, float] = field(default_factory=dict)
     family: str = "theorem1"
+    certificate: dict[str, Any] | None = None  # the family's named parts (unpack)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict (the `rows` entries of ``sosalgo analyze --json``)."""
@@ -60,7 +64,18 @@ class AnalysisResult:
             "rho_infeasible": self.rho_infeasible,
             "params": dict(self.params),
             "family": self.family,
-        }
+        } | ({} if self.family == "theorem1" else {"certificate": _jsonable(self.certificate)})
+
+
+def _jsonable(v: Any) -> Any:
+    """Certificate parts as JSON values (arrays become nested lists)."""
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    if isinstance(v, dict):
+        return {k: _jsonable(x) for k, x in v.items()}
+    if isinstance(v, list | tuple):
+        return [_jsonable(x) for x in v]
+    return v
 
 
 class _Search:
@@ -69,6 +84,7 @@ class _Search:
     def __init__(self, problem: LMIProblem, solvers: Sequence[str], use_margin: bool):
         self.problem, self.solvers, self.use_margin = problem, solvers, use_margin
         self.solves = 0
+        self.slope: float | None = None  # dt/drho of the last margin solve
 
     def plain(self, rho: float) -> Outcome:
         self.solves += 1
@@ -80,6 +96,7 @@ class _Search:
             return self.plain(rho), None
         self.solves += 1
         mg = solve_margin(self.problem, rho)
+        self.slope = mg.slope if mg.ok else None
         if not mg.ok or mg.t is None:
             return self.plain(rho), None
         if mg.t > 0 and mg.x is not None:
@@ -177,6 +194,72 @@ def _secant(search: _Search, t_one: float, best: Outcome, tol: float):
     return lo, hi, best
 
 
+def _newton(search: _Search, ups: list, down: tuple | None, lo: float, hi: float,
+            best: Outcome, tol: float):
+    """Bracketed Newton-type iteration on the margin t(rho), slopes from the dual solution.
+
+    Above the threshold t is smooth and convex-like; the estimate from the certified side is
+    the root of the quadratic through the last two certified points (value and slope at the
+    last), else a Newton step. From the other side a Newton step is used, and with both the
+    larger estimate (both tend to fall short), unless the step from the certified side is
+    short (< 20 tol), which is then accurate. A step is tested a quarter tolerance above
+    its estimate; once the next step from a certified point is shorter than half a
+    tolerance, one test just below closes the bracket. Estimates outside the bracket fall
+    back to bisection. Invariant: hi is certified by a checked point, lo is not certified.
+    """
+    def inside(est: float | None) -> float | None:
+        return float(est) if est is not None and np.isfinite(est) and lo < est < hi else None
+
+    def newton(pt) -> float | None:
+        x, t, d = pt
+        return None if d is None or not d > 0 else inside(x - t / d)
+
+    def from_above() -> float | None:
+        est = newton(ups[-1])
+        if len(ups) < 2 or est is None:
+            return est
+        (x1, t1, _), (x2, t2, d2) = ups[-2], ups[-1]
+        a = (t1 - t2 - d2 * (x1 - x2)) / (x1 - x2) ** 2  # t ~ t2 + d2 s + a s^2, s = x - x2
+        disc = d2 * d2 - 4 * a * t2
+        if a <= 0 or disc < 0:
+            return est
+        return inside(x2 + (-d2 + np.sqrt(disc)) / (2 * a)) or est
+
+    confirmed_at = None
+    for step in range(200):
+        if hi - lo <= tol:
+            break
+        nxt = newton(ups[-1]) if ups and ups[-1][0] == hi else None
+        if nxt is not None and hi - nxt < 0.5 * tol and confirmed_at != hi:
+            confirmed_at = hi  # the estimate is confirmed: close from below, once per hi
+            below = max(hi - 0.999 * tol, lo + 0.5 * tol)
+            out, t = search.test(below)
+            if out.feasible:
+                hi, best = below, out
+                if t is not None and t > 0:
+                    ups.append((below, t, search.slope))
+            else:
+                lo = below
+                down = (below, t, search.slope) if t is not None and t < 0 else down
+            continue
+        est_u, est_l = from_above(), newton(down) if down else None
+        ests = [e for e in (est_u, est_l) if e is not None]
+        if est_u is not None and hi - est_u < 20 * tol:
+            est = est_u  # a short step from a certified point is accurate
+        else:
+            est = max(ests) if ests and step < 60 else 0.5 * (lo + hi)
+        x = min(max(est + 0.25 * tol, lo + 0.25 * tol), hi - 0.25 * tol)
+        out, t = search.test(x)
+        if not out.feasible:
+            lo = x
+            down = (x, t, search.slope) if t is not None and t < 0 else down
+            continue
+        hi, best = x, out
+        if t is not None and t > 0:
+            ups.append((x, t, search.slope))
+    return lo, hi, best
+
+
 def analyze_algorithm(
     alg: Algorithm,
     tol: float = DEFAULT_TOL,
@@ -200,28 +283,91 @@ def analyze_algorithm(
     problem = fam.problem(alg)
     # The margin problem is solved by Clarabel; a custom solver chain means plain bisection.
     use_margin = method == "secant" and tuple(solvers) == DEFAULT_SOLVERS
-    search = _Search(problem, solvers, use_margin=use_margin)
+    # a family may name a shorter fallback chain for points the margin path cannot check
+    fallback = getattr(fam, "fallback_solvers", None) if use_margin else None
+    search = _Search(problem, fallback or solvers, use_margin=use_margin)
+    quad = quadratic_rate(alg, 201) if use_margin and getattr(fam, "tight", False) else None
+    lo0, down0 = 0.0, None
+    if quad is not None and quad < 1 - tol:
+        lo, hi, best_near, ups, down0 = _start_near(search, quad, tol)
+        if best_near is not None:
+            lo, hi, best = _newton(search, ups, down0, lo, hi, best_near, tol)
+            return _result(alg, fam, problem, search, lo, hi, best, start)
+        lo0 = lo
     best, t_one = search.test(1.0)
+    slope_one = search.slope
     if not best.feasible:
         return AnalysisResult(
             kappa=alg.kappa, rho=None, certified=False, P=None, lam=None, max_eig_M=None,
             min_eig_P=None, solves=search.solves, seconds=time.perf_counter() - start,
             solver=None, rho_infeasible=1.0, params=dict(alg.params), family=fam.name,
         )
-    if method == "secant" and t_one is not None:
+    if method == "secant" and t_one is not None and slope_one is not None:
+        lo, hi, best = _newton(search, [(1.0, t_one, slope_one)], down0, lo0, 1.0, best, tol)
+    elif method == "secant" and t_one is not None:
         lo, hi, best = _secant(search, t_one, best, tol)
     else:
         lo, hi, best = _bisect(search, 0.0, 1.0, best, tol)
+    return _result(alg, fam, problem, search, lo, hi, best, start)
+
+
+def _start_near(search: _Search, guess: float, tol: float):
+    """For families expected to be tight: test just above ``guess`` (the method's rate on
+    quadratics, where gradient descent and triple momentum are certified) and close the
+    bracket below it, or climb with Newton steps from below until a certified point.
+
+    Returns (lo, hi, best, certified points, last uncertified point); ``best`` is None when
+    no certified point turned up (lo and the last point below then seed the usual search).
+    """
+    x = min(guess + 0.25 * tol, 1.0)
+    lo, down = 0.0, None
+    for _ in range(8):
+        out, t = search.test(x)
+        if out.feasible:
+            if t is None or not t > 0:
+                return lo, 1.0, None, [], down
+            ups = [(x, t, search.slope)]
+            if lo == 0.0 and x - tol > 0:  # certified at the first guess: close below it
+                below = x - 0.999 * tol
+                out2, t2 = search.test(below)
+                if out2.feasible:
+                    return 0.0, 1.0, None, [], None  # not a bound here: search anew
+                lo = below
+                down = (below, t2, search.slope) if t2 is not None and t2 < 0 else None
+            return lo, x, out, ups, down
+        lo = x
+        if t is not None and t >= 0 and x + tol < 1:  # margin >= 0 but not checkable: the
+            x = x + tol  # certificate degenerates here (a tight rate); try one tol above
+            continue
+        if t is None or not t < 0 or search.slope is None or not search.slope > 0:
+            break
+        down = (x, t, search.slope)
+        est = x - t / search.slope
+        if not x < est < 1:
+            break
+        x = min(est + 0.25 * tol, 1.0)
+    return lo, 1.0, None, [], down
+
+
+def _result(alg: Algorithm, fam: CertificateFamily, problem: LMIProblem, search: _Search,
+            lo: float, hi: float, best: Outcome, start: float) -> AnalysisResult:
     solves = search.solves
     assert best.x is not None
     cert = problem.unpack(best.x)
-    M = fam.matrix(alg, hi, cert)
     P = np.asarray(cert["P"])
+    if hasattr(fam, "summary"):  # families whose P need not be PSD report their own parts
+        eigs = fam.summary(alg, hi, cert)
+    else:
+        M = fam.matrix(alg, hi, cert)
+        eigs = {"max_eig_M": float(np.linalg.eigvalsh(M)[-1]),
+                "min_eig_P": float(np.linalg.eigvalsh(P)[0])}
+    lam = cert.get("lambda")
     return AnalysisResult(
-        kappa=alg.kappa, rho=hi, certified=True, P=P, lam=float(cert["lambda"]),
-        max_eig_M=float(np.linalg.eigvalsh(M)[-1]), min_eig_P=float(np.linalg.eigvalsh(P)[0]),
-        solves=solves, seconds=time.perf_counter() - start, solver=best.solver,
-        rho_infeasible=lo, params=dict(alg.params), family=fam.name,
+        kappa=alg.kappa, rho=hi, certified=True, P=P,
+        lam=None if lam is None else float(lam), max_eig_M=eigs["max_eig_M"],
+        min_eig_P=eigs["min_eig_P"], solves=solves, seconds=time.perf_counter() - start,
+        solver=best.solver, rho_infeasible=lo, params=dict(alg.params), family=fam.name,
+        certificate=cert,
     )
 
 
@@ -231,6 +377,24 @@ def analyze_spec(
     theta: Mapping[str, float] | None = None,
     tol: float = DEFAULT_TOL,
     solvers: Sequence[str] = DEFAULT_SOLVERS,
+    family: CertificateFamily | str | None = None,
 ) -> AnalysisResult:
-    """Analysis of a spec at one kappa (parameters at their values unless set by theta)."""
-    return analyze_algorithm(bind(spec, kappa, theta), tol, spec.certificate, solvers)
+    """Analysis of a spec at one kappa (parameters at their values unless set by theta).
+
+    ``family`` overrides the spec's certificate family (default: the spec's, with its
+    options)."""
+    fam = spec_family(spec) if family is None else family
+    return analyze_algorithm(bind(spec, kappa, theta), tol, fam, solvers)
+
+
+def spec_family(spec: Spec) -> CertificateFamily:
+    """The certificate family a spec asks for, with its options."""
+    return get_family(spec.certificate, getattr(spec, "certificate_options", None))
+
+
+def quadratic_rate(alg: Algorithm, points: int = 2001) -> float:
+    """max over q in [m, L] of the spectral radius of A + q B C (grid): the method's rate on
+    quadratics, a lower bound for any certificate family (drawn on comparison plots)."""
+    qs = np.linspace(alg.m, alg.L, points)
+    mats = alg.A[None, :, :] + qs[:, None, None] * (alg.B @ alg.C)[None, :, :]
+    return float(np.abs(np.linalg.eigvals(mats)).max())

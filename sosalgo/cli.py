@@ -126,6 +126,56 @@ def _check_tol(tol: float) -> None:
         raise InputError(f"--tol {tol}: must be in (0, 0.5)")
 
 
+def certificate_options(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """--certificate NAME[,NAME...] and --lag L (the interpolation family's lag)."""
+    fn = click.option("--lag", type=click.IntRange(0, 8), default=None,
+                      help="Lag of the interpolation family (default: states - 1).")(fn)
+    return click.option("--certificate", "certificate", default=None, metavar="FAMILY",
+                        help="Certificate family: theorem1 (default) or interpolation; "
+                             "comma-separated to compare several.")(fn)
+
+
+def _families(spec, value: str | None, lag: int | None, single: bool = False) -> list[Any]:
+    """The certificate families asked for (default: the spec's own)."""
+    from sosalgo.analysis import spec_family
+    from sosalgo.certificates import FAMILIES, FAMILY_OPTIONS, get_family
+
+    if value is None:
+        fams = [spec_family(spec)]
+        names = [fams[0].name]
+    else:
+        names = [v.strip() for v in value.split(",") if v.strip()]
+        if not names or len(set(names)) != len(names):
+            raise InputError(f"--certificate {value}: expected distinct family names")
+        for nm in names:
+            if nm not in FAMILIES:
+                raise InputError(f"--certificate {nm}: unknown family "
+                                 f"(known: {', '.join(FAMILIES)})")
+        fams = [get_family(nm, spec.certificate_options if nm == spec.certificate else None)
+                for nm in names]
+    if single and len(fams) > 1:
+        raise InputError(f"--certificate {value}: this command takes one family")
+    if lag is not None:
+        if not any("lag" in FAMILY_OPTIONS[nm] for nm in names):
+            raise InputError("--lag: only the interpolation family has a lag")
+        fams = [get_family(f.name, {"lag": lag}) if "lag" in FAMILY_OPTIONS[f.name] else f
+                for f in fams]
+    return fams
+
+
+def _family_suffix(fam) -> str:
+    """'' for Theorem 1, '-<family>' otherwise, '-<family>-lag<l>' for an explicit lag."""
+    if fam.name == "theorem1":
+        return ""
+    lag = getattr(fam, "lag", None)
+    return f"-{fam.name}" + ("" if lag is None else f"-lag{lag}")
+
+
+def _analysis_csv(out_dir: Path, spec, fam) -> Path:
+    """<name>-analysis.csv for Theorem 1, <name>-analysis-<family>[-lag<l>].csv otherwise."""
+    return out_dir / f"{spec.name}-analysis{_family_suffix(fam)}.csv"
+
+
 def batch_options(fn: Callable[..., Any]) -> Callable[..., Any]:
     """The options every batch command shares: --json, --workers, --scheduler, --restart,
     --quiet."""
@@ -166,20 +216,33 @@ def cli() -> None:
 @click.option("--no-plot", is_flag=True, help="Skip the figure.")
 @click.option("--verify", "verify_", is_flag=True,
               help="Prove each certificate in exact arithmetic and simulate it.")
+@certificate_options
 @handle_errors
 def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_json: bool,
             workers: int | None, scheduler: str | None, restart: bool, quiet: bool,
-            no_plot: bool, verify_: bool) -> None:
-    """Best rate certified by Theorem 1 at each kappa, with its certificate (P, lambda)."""
+            no_plot: bool, verify_: bool, certificate: str | None, lag: int | None) -> None:
+    """Best rate certified at each kappa, with its certificate (Theorem 1: P, lambda)."""
     from sosalgo.jobs import csv_row_to_json, run_analysis_sweep
-    from sosalgo.report import format_table, plot_rates
 
     spec = load_spec(spec_path)
     kappas = _kappas(spec, kappa)
     _check_tol(tol)
+    fams = _families(spec, certificate, lag)
     _check_points(spec, kappas)
     out_dir = _out_dir(out)
     spec_text = Path(spec_path).read_text(encoding="utf-8")
+    if len(fams) > 1 or fams[0].name != "theorem1":
+        runs = []
+        for fam in fams:
+            path = _analysis_csv(out_dir, spec, fam)
+            rows = run_analysis_sweep(spec, spec_text, kappas, path, tol, workers=workers,
+                                      scheduler=scheduler, restart=restart,
+                                      progress=not quiet, family=fam)
+            runs.append((fam, path, [csv_row_to_json(spec, r, fam) for r in rows]))
+        _analyze_families(spec, runs, out_dir, tol, as_json, no_plot, verify_)
+        return
+    from sosalgo.report import format_table, plot_rates
+
     csv_path = out_dir / f"{spec.name}-analysis.csv"
     rows = run_analysis_sweep(spec, spec_text, kappas, csv_path, tol, workers=workers,
                               scheduler=scheduler, restart=restart, progress=not quiet)
@@ -213,6 +276,61 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
     click.echo(f"{spec.name}: {spec.description}".rstrip(": "))
     click.echo(format_table(table_rows, cols + list(spec.references)))
     click.echo(f"wrote {csv_path}" + "".join(f", {p}" for p in figs))
+
+
+FAMILY_LABELS = {"theorem1": "Theorem 1", "interpolation": "interpolation"}
+
+
+def _analyze_families(spec, runs: list, out_dir: Path, tol: float, as_json: bool,
+                      no_plot: bool, verify_: bool) -> None:
+    """Output of ``analyze`` for a family other than Theorem 1 or several families: one CSV
+    per family, one figure with every family, 1 - 1/sqrt(kappa) and the quadratic bound."""
+    from sosalgo.analysis import quadratic_rate
+    from sosalgo.model import bind
+    from sosalgo.report import format_table, plot_rates
+
+    kap = [r["kappa"] for r in runs[0][2]]
+    figs = []
+    if not no_plot:
+        series = {f"certified rate ({FAMILY_LABELS.get(f.name, f.name)})":
+                  [r["rho"] for r in rows] for f, _, rows in runs}
+        refs = {name: [r["references"][name] for r in runs[0][2]] for name in spec.references}
+        extra = {"1 - 1/sqrt(kappa)": [1 - k ** -0.5 for k in kap],
+                 "quadratic bound max_q rho(A + qBC)": [quadratic_rate(bind(spec, k))
+                                                         for k in kap]}
+        for label, vals in extra.items():  # unless the spec already draws the same curve
+            if not any(all(v is not None and abs(v - w) < 1e-6 for v, w in
+                           zip(ref, vals, strict=True)) for ref in refs.values()):
+                refs[label] = vals
+        none = [k for i, k in enumerate(kap) if all(rows[i]["rho"] is None for _, _, rows in runs)]
+        title = " vs ".join(FAMILY_LABELS.get(f.name, f.name) for f, _, _ in runs)
+        figs = plot_rates(f"{spec.name}: certified rate ({title})", kap, series, refs,
+                          out_dir / f"{spec.name}-rate", uncertified=none)
+    cols = ["kappa", "rho", "certified", "max_eig_M", "min_eig_P", "solves", "seconds"]
+    for fam, _, rows in runs:
+        for r in rows:
+            r["family"] = fam.name
+        if verify_:
+            from sosalgo.verification import verify_document_rows
+
+            checks = verify_document_rows(spec, rows, out_dir / "certificates", family=fam)
+            for r, v in zip(rows, checks, strict=True):
+                r["verification"] = v
+                r["verified"] = None if v is None else v["verified"]
+    if verify_:
+        cols.append("verified")
+    if as_json:
+        doc = {"spec": spec.name, "source": spec.source, "tol": tol, "csv": str(runs[0][1]),
+               "csvs": {f.name: str(p) for f, p, _ in runs},
+               "figures": [str(p) for p in figs], "rows": [r for _, _, rows in runs for r in rows]}
+        click.echo(json.dumps(doc, indent=2))
+        return
+    click.echo(f"{spec.name}: {spec.description}".rstrip(": "))
+    for fam, _, rows in runs:
+        click.echo(f"certificate family: {fam.description}")
+        table_rows = [{**r, **r["references"]} for r in rows]
+        click.echo(format_table(table_rows, cols + list(spec.references)))
+    click.echo("wrote " + ", ".join([str(p) for _, p, _ in runs] + [str(p) for p in figs]))
 
 
 # --------------------------------------------------------------------------- design
@@ -249,6 +367,9 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
     from sosalgo.report import format_table, plot_rates
 
     spec = load_spec(spec_path)
+    if spec.certificate != "theorem1":  # the relaxation is built on Theorem 1's inequality
+        raise InputError(f"{spec.source}: certificate: design supports only theorem1, "
+                         f"not {spec.certificate}")
     kappas = _kappas(spec, kappa)
     names = _free_names(spec, free)
     if not gap > 0:
@@ -362,10 +483,11 @@ GRID_COLUMNS = {"kappa", "rho", "certified", "lambda", "max_eig_M", "min_eig_P",
 @click.option("--tol", default=1e-6, show_default=True, type=float)
 @click.option("--out", default="outputs", show_default=True, metavar="DIR")
 @batch_options
+@certificate_options
 @handle_errors
 def grid(spec_path: str, kappa: tuple[str, ...], points: int, free: str | None, tol: float,
          out: str, as_json: bool, workers: int | None, scheduler: str | None, restart: bool,
-         quiet: bool) -> None:
+         quiet: bool, certificate: str | None, lag: int | None) -> None:
     """Exhaustive search: certified rate on a grid over the free parameters (Figure 3)."""
     import numpy as np
 
@@ -380,15 +502,16 @@ def grid(spec_path: str, kappa: tuple[str, ...], points: int, free: str | None, 
         if p in GRID_COLUMNS:
             raise InputError(f"{spec.source}: parameters.{p}: name clashes with a grid column")
     _check_tol(tol)
+    fam = _families(spec, certificate, lag, single=True)[0]
     boxes = _boxes(spec, kappas, names)
     out_dir = _out_dir(out)
     spec_text = Path(spec_path).read_text(encoding="utf-8")
     docs = []
     for k in kappas:
-        stem = out_dir / f"{spec.name}-grid-k{k:g}"
+        stem = out_dir / f"{spec.name}-grid-k{k:g}{_family_suffix(fam)}"
         rows = run_grid(spec, spec_text, k, names, boxes[k], points,
                         stem.with_name(stem.name + ".csv"), tol, workers=workers,
-                        scheduler=scheduler, restart=restart, progress=not quiet)
+                        scheduler=scheduler, restart=restart, progress=not quiet, family=fam)
         rho = np.array([float(r["rho"]) if r["rho"] else np.nan for r in rows])
         figs = []
         if len(names) <= 2:
@@ -427,9 +550,10 @@ def grid(spec_path: str, kappa: tuple[str, ...], points: int, free: str | None, 
               help="Rational certificates go to DIR/certificates/.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document on stdout.")
 @click.option("--no-simulate", is_flag=True, help="Skip the simulation check.")
+@certificate_options
 @handle_errors
 def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
-           no_simulate: bool) -> None:
+           no_simulate: bool, certificate: str | None, lag: int | None) -> None:
     """Verify every certificate of an `analyze --json` or `design --json` result.
 
     Exit code 3 when some certificate fails to verify.
@@ -455,7 +579,10 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
         raise InputError(f"{result_path}: spec: result is for '{doc.get('spec')}', "
                          f"{src} is '{spec.name}'")
     out_dir = _out_dir(out)
-    checks = verify_document_rows(spec, rows, out_dir / "certificates", not no_simulate)
+    fam = None if certificate is None and lag is None else _families(spec, certificate, lag,
+                                                                      single=True)[0]
+    checks = verify_document_rows(spec, rows, out_dir / "certificates", not no_simulate,
+                                  family=fam)
     failed = [c for c in checks if c is not None and (
         c["verified"] != "exact" or not c.get("simulation", {"ok": True})["ok"])]
     if as_json:
@@ -483,16 +610,20 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
 @click.option("--latex", is_flag=True, help="Print LaTeX instead of plain text.")
 @click.option("--free", default=None, metavar="NAMES",
               help="Comma-separated parameters kept symbolic (default: all untied ones).")
+@certificate_options
 @handle_errors
-def lmi(spec_path: str, latex: bool, free: str | None) -> None:
-    """Print the symbolic matrix M(theta, rho, lambda, P) of Theorem 1 (eq. 15)."""
+def lmi(spec_path: str, latex: bool, free: str | None, certificate: str | None,
+        lag: int | None) -> None:
+    """Print the symbolic matrix M(theta, rho, lambda, P) of Theorem 1 (eq. 15), or the
+    blocks of another certificate family."""
     from sosalgo.symbolic import symbolic_lmi
 
     spec = load_spec(spec_path)
     names = None if free is None else [p.strip() for p in free.split(",") if p.strip()]
     if names is not None:
         spec.check_free(names, need_range=False)
-    click.echo(symbolic_lmi(spec, free=names, latex=latex))
+    fam = _families(spec, certificate, lag, single=True)[0]
+    click.echo(symbolic_lmi(spec, free=names, latex=latex, family=fam))
 
 
 # --------------------------------------------------------------------------- table1
@@ -502,11 +633,15 @@ def lmi(spec_path: str, latex: bool, free: str | None) -> None:
 @click.option("--kappa", "kappa", multiple=True, metavar="K", help="Default: 2, 10, 100.")
 @click.option("--tol", default=1e-6, show_default=True, type=float)
 @click.option("--out", default="outputs", show_default=True, metavar="DIR")
+@certificate_options
 @handle_errors
-def table1(spec_paths: tuple[str, ...], kappa: tuple[str, ...], tol: float, out: str) -> None:
+def table1(spec_paths: tuple[str, ...], kappa: tuple[str, ...], tol: float, out: str,
+           certificate: str | None, lag: int | None) -> None:
     """Table 1 of the paper: certified rate beside each spec's closed-form rate.
 
-    The closed-form rate of a spec is the first entry of its ``references``.
+    The closed-form rate of a spec is the first entry of its ``references``. With several
+    families (--certificate theorem1,interpolation) the first fills rho_certified and every
+    further family adds rho_<family>, certified_<family> and difference_<family>.
     """
     from sosalgo.analysis import analyze_spec
     from sosalgo.jobs import reference_values
@@ -520,18 +655,30 @@ def table1(spec_paths: tuple[str, ...], kappa: tuple[str, ...], tol: float, out:
     specs = [load_spec(p) for p in paths]
     kappas = [k for v in kappa for k in _kappa_option(v)] or [2.0, 10.0, 100.0]
     rows = []
+    extra_cols: list[str] = []
     for spec in specs:
+        fams = _families(spec, certificate, lag) if certificate or lag is not None else [None]
         for k in kappas:
-            res = analyze_spec(spec, k, tol=tol)
             refs = reference_values(spec, k)
             name, val = next(iter(refs.items()), ("", None))
-            rows.append({
-                "spec": spec.name, "kappa": float(k), "rho_certified": res.rho,
-                "certified": res.certified, "closed_form": name, "closed_form_rate": val,
-                "difference": None if (res.rho is None or val is None) else res.rho - val,
-            })
+            row: dict[str, Any] = {"spec": spec.name, "kappa": float(k)}
+            for i, fam in enumerate(fams):
+                res = analyze_spec(spec, k, tol=tol, family=fam)
+                diff = None if (res.rho is None or val is None) else res.rho - val
+                if i == 0:
+                    row.update({"rho_certified": res.rho, "certified": res.certified,
+                                "closed_form": name, "closed_form_rate": val,
+                                "difference": diff})
+                    if fam is not None and fam.name != "theorem1":
+                        row["family"] = fam.name
+                else:
+                    row.update({f"rho_{fam.name}": res.rho, f"certified_{fam.name}":
+                                res.certified, f"difference_{fam.name}": diff})
+            extra_cols += [c for c in row if c not in extra_cols]
+            rows.append(row)
     cols = ["spec", "kappa", "rho_certified", "certified", "closed_form", "closed_form_rate",
             "difference"]
+    cols += [c for c in extra_cols if c not in cols]
     out_dir = _out_dir(out)
     out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / "table1.csv"
@@ -542,7 +689,7 @@ def table1(spec_paths: tuple[str, ...], kappa: tuple[str, ...], tol: float, out:
         w = csv.writer(fh, lineterminator="\n")
         w.writerow(cols)
         for r in rows:
-            w.writerow([format_value(r[c]) for c in cols])
+            w.writerow([format_value(r.get(c)) for c in cols])
     os.replace(tmp, path)
     click.echo(format_table(rows, cols))
     click.echo(f"wrote {path}")

@@ -13,8 +13,9 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.analysis import AnalysisResult, analyze_spec
+from sosalgo.analysis import AnalysisResult, analyze_spec, spec_family
 from sosalgo.batch import Progress, run_batch
+from sosalgo.certificates import CertificateFamily, get_family
 from sosalgo.model import ModelError
 from sosalgo.numeric import compile_expression
 from sosalgo.rows import ResumableCSV
@@ -53,14 +54,44 @@ def p_entries(n: int, P: Any) -> dict[str, float | None]:
             for c, (i, j) in zip(p_columns(n), pairs, strict=True)}
 
 
-def analysis_columns(spec: Spec) -> list[str]:
-    """CSV columns of ``sosalgo analyze`` (a contract: extend, never rename)."""
+def _extra(fam: CertificateFamily | None) -> Any:
+    """The family when it has its own table columns (not Theorem 1), else None."""
+    return fam if fam is not None and hasattr(fam, "csv_columns") else None
+
+
+def p_size(spec: Spec, fam: CertificateFamily | None) -> int:
+    """Side of the family's P (n for Theorem 1)."""
+    fam = _extra(fam)
+    return spec.n if fam is None else fam.p_size(spec.n)
+
+
+def analysis_columns(spec: Spec, family: CertificateFamily | None = None) -> list[str]:
+    """CSV columns of ``sosalgo analyze`` (a contract: extend, never rename).
+
+    Theorem 1 (the default) has exactly the historical columns; another family has P's
+    entries of its own size and its extra parts at the end (see its ``csv_columns``)."""
+    fam = _extra(family)
     return (
         ["kappa", "rho", "certified", "lambda"]
-        + p_columns(spec.n)
+        + p_columns(p_size(spec, family))
         + ["max_eig_M", "min_eig_P", "solves", "seconds", "solver", "rho_infeasible", "error"]
         + list(spec.references)
+        + ([] if fam is None else fam.csv_columns(spec.n))
     )
+
+
+def family_options(fam: CertificateFamily) -> dict[str, Any]:
+    """Picklable description of a family for workers and settings files."""
+    out: dict[str, Any] = {"family": fam.name}
+    if getattr(fam, "lag", None) is not None:
+        out["lag"] = fam.lag  # type: ignore[attr-defined]
+    return out
+
+
+def family_from_options(options: dict[str, Any] | None) -> CertificateFamily | None:
+    if not options:
+        return None
+    return get_family(options["family"], {k: v for k, v in options.items() if k != "family"})
 
 
 def reference_values(spec: Spec, kappa: float) -> dict[str, float | None]:
@@ -75,7 +106,8 @@ def reference_values(spec: Spec, kappa: float) -> dict[str, float | None]:
     return out
 
 
-def result_row(spec: Spec, res: AnalysisResult) -> dict[str, Any]:
+def result_row(spec: Spec, res: AnalysisResult,
+               family: CertificateFamily | None = None) -> dict[str, Any]:
     """A CSV row of the analysis table."""
     row: dict[str, Any] = {
         "kappa": float(res.kappa),
@@ -90,8 +122,11 @@ def result_row(spec: Spec, res: AnalysisResult) -> dict[str, Any]:
         "rho_infeasible": res.rho_infeasible,
         "error": None,
     }
-    row.update(p_entries(spec.n, res.P))
+    row.update(p_entries(p_size(spec, family), res.P))
     row.update(reference_values(spec, res.kappa))
+    fam = _extra(family)
+    if fam is not None:
+        row.update(fam.csv_cells(spec.n, res.certificate))
     return row
 
 
@@ -100,16 +135,19 @@ def analysis_chunk(
 ) -> list[dict[str, Any]]:
     """Worker: analysis at each task's kappa (and parameter overrides in task['theta'])."""
     spec = _spec(spec_text, source)
+    fam = family_from_options(options.get("certificate")) or spec_family(spec)
     rows = []
     for task in chunk:
         kappa = float(task["kappa"])
         try:
             res = analyze_spec(spec, kappa, task.get("theta"), tol=options["tol"],
-                               solvers=options.get("solvers", DEFAULT_SOLVERS))
-            row = result_row(spec, res)
+                               solvers=options.get("solvers", DEFAULT_SOLVERS), family=fam)
+            row = result_row(spec, res, fam)
         except ModelError as exc:  # e.g. a grid point outside a function's domain
             row = {"kappa": kappa, "certified": False, "error": str(exc)}
             row.update(reference_values(spec, kappa))
+            if _extra(fam) is not None:
+                row.update(_extra(fam).csv_cells(spec.n, None))
         row.update(task.get("extra", {}))
         rows.append(row)
     return rows
@@ -126,14 +164,22 @@ def run_analysis_sweep(
     restart: bool = False,
     progress: bool = True,
     solvers: Sequence[str] | None = None,
+    family: CertificateFamily | None = None,
 ) -> list[dict[str, str]]:
-    """Analysis over kappa, resumable; returns the rows (as CSV strings) in kappa order."""
-    options: dict[str, Any] = {"tol": tol}
+    """Analysis over kappa, resumable; returns the rows (as CSV strings) in kappa order.
+
+    ``family`` overrides the spec's certificate family (recorded in the settings unless it
+    is Theorem 1, so that Theorem 1 runs keep their settings files)."""
+    fam = family or spec_family(spec)
+    options: dict[str, Any] = {"tol": tol, "certificate": family_options(fam)}
     if solvers:
         options["solvers"] = tuple(solvers)
     settings = {"job": "analyze", "spec": spec_text, "tol": tol,
                 "solvers": list(solvers) if solvers else None}
-    store = ResumableCSV(out_csv, analysis_columns(spec), ["kappa"], settings, restart=restart)
+    if fam.name != "theorem1":
+        settings["certificate"] = family_options(fam)
+    store = ResumableCSV(out_csv, analysis_columns(spec, fam), ["kappa"], settings,
+                         restart=restart)
     tasks = [{"kappa": float(k)} for k in kappas]
     todo = [t for t in tasks if not store.is_done(t)]
     bar = Progress(len(tasks), f"analyze {spec.name}", progress, done=len(tasks) - len(todo))
@@ -152,9 +198,12 @@ def _num(v: str) -> float | None:
     return None if v in ("", None) else float(v)
 
 
-def csv_row_to_json(spec: Spec, row: dict[str, str]) -> dict[str, Any]:
-    """The JSON form of an analysis row (the `rows` entries of ``analyze --json``)."""
-    n = spec.n
+def csv_row_to_json(spec: Spec, row: dict[str, str],
+                    family: CertificateFamily | None = None) -> dict[str, Any]:
+    """The JSON form of an analysis row (the `rows` entries of ``analyze --json``).
+
+    A family other than Theorem 1 adds ``family`` and ``certificate`` (its named parts)."""
+    n = p_size(spec, family)
     P = None
     if row.get("P11", "") != "":
         P = np.zeros((n, n))
@@ -175,7 +224,16 @@ def csv_row_to_json(spec: Spec, row: dict[str, str]) -> dict[str, Any]:
         "rho_infeasible": _num(row.get("rho_infeasible", "")),
         "error": row.get("error") or None,
         "references": {name: _num(row[name]) for name in spec.references},
-    }
+    } | _family_json(spec, row, family, P)
+
+
+def _family_json(spec: Spec, row: dict[str, str], family: CertificateFamily | None,
+                 P: Any) -> dict[str, Any]:
+    fam = _extra(family)
+    if fam is None:
+        return {}
+    return {"family": fam.name,
+            "certificate": fam.cert_from_csv(spec.n, row, None if P is None else P.tolist())}
 
 
 # --------------------------------------------------------------------------- design sweeps
@@ -306,11 +364,14 @@ def design_csv_to_json(spec: Spec, free: Sequence[str], row: dict[str, str]) -> 
 
 
 # --------------------------------------------------------------------------- grids
-def grid_columns(spec: Spec, free: Sequence[str]) -> list[str]:
+def grid_columns(spec: Spec, free: Sequence[str],
+                 family: CertificateFamily | None = None) -> list[str]:
     """CSV columns of ``sosalgo grid`` (a contract: extend, never rename)."""
+    fam = _extra(family)
     return (
-        ["kappa", *free, "rho", "certified", "lambda"] + p_columns(spec.n)
+        ["kappa", *free, "rho", "certified", "lambda"] + p_columns(p_size(spec, family))
         + ["max_eig_M", "min_eig_P", "solves", "seconds", "solver", "error"]
+        + ([] if fam is None else fam.csv_columns(spec.n))
     )
 
 
@@ -327,7 +388,8 @@ def grid_chunk(
     """Worker: analysis at each grid point (task: kappa and theta)."""
     rows = analysis_chunk(spec_text, source, options, chunk)
     spec = _spec(spec_text, source)
-    cols = set(grid_columns(spec, options["free"]))
+    fam = family_from_options(options.get("certificate")) or spec_family(spec)
+    cols = set(grid_columns(spec, options["free"], fam))
     return [{k: v for k, v in r.items() if k in cols} for r in rows]
 
 
@@ -335,13 +397,16 @@ def run_grid(
     spec: Spec, spec_text: str, kappa: float, free: Sequence[str],
     box: Sequence[tuple[float, float]], points: int, out_csv: Path, tol: float,
     workers: int | None = None, scheduler: str | None = None, restart: bool = False,
-    progress: bool = True,
+    progress: bool = True, family: CertificateFamily | None = None,
 ) -> list[dict[str, str]]:
     """Analysis on a grid over Θ at one kappa, resumable; rows in grid order."""
-    options = {"tol": tol, "free": list(free)}
+    fam = family or spec_family(spec)
+    options = {"tol": tol, "free": list(free), "certificate": family_options(fam)}
     settings = {"job": "grid", "spec": spec_text, "tol": tol, "kappa": float(kappa),
                 "free": list(free), "points": points, "box": [list(b) for b in box]}
-    store = ResumableCSV(out_csv, grid_columns(spec, free), ["kappa", *free], settings,
+    if fam.name != "theorem1":
+        settings["certificate"] = family_options(fam)
+    store = ResumableCSV(out_csv, grid_columns(spec, free, fam), ["kappa", *free], settings,
                          restart=restart)
     tasks = []
     for vals in grid_points(box, points):

@@ -21,6 +21,7 @@ import sys
 import weakref
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sps
@@ -51,6 +52,7 @@ class Outcome:
         return self.status == "feasible"
 
 
+@functools.cache
 def _tri_indices(s: int, upper_colmajor: bool) -> tuple[np.ndarray, np.ndarray]:
     if upper_colmajor:  # Clarabel: (0,0),(0,1),(1,1),(0,2),...
         pairs = [(i, j) for j in range(s) for i in range(j + 1)]
@@ -64,6 +66,8 @@ def _tri_indices(s: int, upper_colmajor: bool) -> tuple[np.ndarray, np.ndarray]:
 def svec(mats: np.ndarray, upper_colmajor: bool) -> np.ndarray:
     """Scaled half-vectorization of symmetric matrix/matrices (last two axes)."""
     s = mats.shape[-1]
+    if s == 1:
+        return mats[..., 0, :1]
     r, c = _tri_indices(s, upper_colmajor)
     scale = np.where(r == c, 1.0, SQRT2)
     return mats[..., r, c] * scale
@@ -231,6 +235,18 @@ class _MarginForm:
         a0, a1, eye, sizes = [], [], [], []
         for blk in problem.blocks:
             s = blk.size
+            if s == 1:  # scalar rows (many in some families): no svec needed
+                row0 = np.empty((1, nv + 1))
+                row0[0, :nv], row0[0, nv] = blk.l0[:, 0, 0], blk.c0[0, 0]
+                row1 = np.empty((1, nv + 1))
+                row1[0, :nv], row1[0, nv] = blk.l1[:, 0, 0], blk.c1[0, 0]
+                a0.append(row0)
+                a1.append(row1)
+                eye.append(np.ones(1) if blk.strict else np.zeros(1))
+                if not blk.strict:
+                    w -= blk.l0[:, 0, 0]
+                sizes.append(1)
+                continue
             if not blk.strict:
                 w += -np.trace(blk.l0, axis1=1, axis2=2)
             a0.append(np.column_stack([svec(blk.l0, True).T, svec(blk.c0, True)]))
@@ -256,6 +272,27 @@ class _MarginForm:
         self.v0 = self.dense0[self.A.indices, cols]
         self.v1 = self.dense1[self.A.indices, cols]
         self.zero_P = sps.csc_matrix((self.nz, self.nz))
+        self._cones: list | None = None
+        self.solver: Any = None  # a Clarabel solver kept for data updates (same sparsity)
+
+    def cones(self) -> list:
+        """Clarabel cones (built once): runs of scalar rows become one nonnegative cone."""
+        if self._cones is None:
+            import clarabel
+
+            out = [clarabel.ZeroConeT(1), clarabel.NonnegativeConeT(1)]
+            run = 0
+            for s in self.sizes + [0]:
+                if s == 1:
+                    run += 1
+                    continue
+                if run:
+                    out.append(clarabel.NonnegativeConeT(run))
+                    run = 0
+                if s > 1:
+                    out.append(clarabel.PSDTriangleConeT(s))
+            self._cones = out
+        return self._cones
 
     def data(self, rho: float) -> sps.csc_matrix:
         self.A.data = self.v0 + rho * rho * self.v1
@@ -273,6 +310,7 @@ class Margin:
     t: float | None
     x: np.ndarray | None
     detail: str = ""
+    slope: float | None = None  # dt/drho from the dual solution (envelope theorem)
 
 
 def solve_margin(problem: LMIProblem, rho: float) -> Margin:
@@ -285,14 +323,17 @@ def solve_margin(problem: LMIProblem, rho: float) -> Margin:
     A = form.data(rho)
     detail = ""
     for equilibrate in (False, True):
-        cones = [clarabel.ZeroConeT(1), clarabel.NonnegativeConeT(1)] + [
-            clarabel.NonnegativeConeT(1) if s == 1 else clarabel.PSDTriangleConeT(s)
-            for s in form.sizes
-        ]
+        cones = form.cones()
         try:
-            sol = clarabel.DefaultSolver(
-                form.zero_P, form.q, A, form.b, cones, _clarabel_settings(equilibrate)
-            ).solve()
+            if not equilibrate and form.solver is not None:  # same pattern: update numbers
+                form.solver.update(A=A.data.copy())
+                sol = form.solver.solve()
+            else:
+                solver = clarabel.DefaultSolver(
+                    form.zero_P, form.q, A, form.b, cones, _clarabel_settings(equilibrate))
+                if not equilibrate and solver.is_data_update_allowed():
+                    form.solver = solver
+                sol = solver.solve()
         except Exception as exc:  # noqa: BLE001 - a crash is just "no answer"
             detail = f"exception: {type(exc).__name__}"
             continue
@@ -301,7 +342,9 @@ def solve_margin(problem: LMIProblem, rho: float) -> Margin:
             z = np.array(sol.x)
             t, c = float(z[-1]), float(z[-2])
             x = z[:-2] / c if (t > 0 and c > 0) else None
-            return Margin(True, t, x, detail)
+            # optimal value -t of min q'z s.t. A(r) z + s = b: d(-t)/dr = y' A1 z (y dual)
+            slope = -float(np.asarray(sol.z) @ (form.dense1 @ z)) * 2.0 * rho
+            return Margin(True, t, x, detail, slope if np.isfinite(slope) else None)
     return Margin(False, None, None, detail)
 
 

@@ -105,6 +105,7 @@ class Spec:
     m: float = 1.0
     certificate: str = "theorem1"
     symbols: dict[str, sp.Symbol] = field(default_factory=dict, repr=False)
+    certificate_options: dict[str, Any] = field(default_factory=dict)
 
     @property
     def n(self) -> int:
@@ -297,11 +298,7 @@ class _Builder:
         if not _is_unicode(description):
             raise self.fail("description", "contains an invalid (surrogate) character")
         m = self.m_value(data.get("m", 1))
-        certificate = data.get("certificate", "theorem1")
-        from sosalgo.certificates import FAMILIES
-
-        if not isinstance(certificate, str) or certificate not in FAMILIES:
-            raise self.fail("certificate", f"unknown family (known: {', '.join(FAMILIES)})")
+        certificate, cert_options = self.certificate(data.get("certificate", "theorem1"))
 
         raw_params = data.get("parameters", {})
         if raw_params is None:
@@ -328,7 +325,7 @@ class _Builder:
         spec = Spec(
             name=name, description=description, source=self.source, parameters=params,
             matrices=matrices, references=references, kappa=kappa, m=m,
-            certificate=certificate, symbols=symbols,
+            certificate=certificate, symbols=symbols, certificate_options=cert_options,
         )
         self.check_values(spec)
         return spec
@@ -341,6 +338,31 @@ class _Builder:
                 "name", "must be letters, digits, '_', '-', '.' (no path separators, no '..')"
             )
         return raw
+
+    def certificate(self, raw: object) -> tuple[str, dict[str, Any]]:
+        """``certificate: NAME`` or ``certificate: {family: NAME, lag: L}``."""
+        from sosalgo.certificates import FAMILIES, FAMILY_OPTIONS
+
+        known = ", ".join(FAMILIES)
+        if isinstance(raw, dict):
+            name = raw.get("family")
+            if not isinstance(name, str) or name not in FAMILIES:
+                raise self.fail("certificate.family", f"missing or unknown family (known: {known})")
+            options: dict[str, Any] = {}
+            for key, val in raw.items():
+                if key == "family":
+                    continue
+                if not isinstance(key, str) or key not in FAMILY_OPTIONS[name]:
+                    raise self.fail(f"certificate.{str(key)[:40]}",
+                                    f"unknown option of family {name}")
+                if key == "lag":
+                    if isinstance(val, bool) or not isinstance(val, int) or not 0 <= val <= 8:
+                        raise self.fail("certificate.lag", "must be an integer in 0..8")
+                options[key] = val
+            return name, options
+        if not isinstance(raw, str) or raw not in FAMILIES:
+            raise self.fail("certificate", f"unknown family (known: {known})")
+        return raw, {}
 
     def m_value(self, raw: object) -> float:
         try:

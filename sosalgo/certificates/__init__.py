@@ -8,17 +8,28 @@ Theorem 1 by adding a module and an entry in :data:`FAMILIES`.
 """
 
 from sosalgo.certificates.base import AffineBlock, CertificateFamily, LMIProblem
+from sosalgo.certificates.interpolation import INTERPOLATION
 from sosalgo.certificates.theorem1 import THEOREM1
 
-FAMILIES: dict[str, CertificateFamily] = {THEOREM1.name: THEOREM1}
+FAMILIES: dict[str, CertificateFamily] = {
+    THEOREM1.name: THEOREM1, INTERPOLATION.name: INTERPOLATION,
+}
+FAMILY_OPTIONS: dict[str, tuple[str, ...]] = {THEOREM1.name: (), INTERPOLATION.name: ("lag",)}
 
 
-def get_family(name: str) -> CertificateFamily:
-    """The certificate family registered under ``name``."""
+def get_family(name: str, options: dict | None = None) -> CertificateFamily:
+    """The certificate family registered under ``name``, with its options (e.g. lag)."""
     try:
-        return FAMILIES[name]
+        fam = FAMILIES[name]
     except KeyError:
         raise ValueError(f"unknown certificate family {name!r}") from None
+    opts = {k: v for k, v in (options or {}).items() if v is not None}
+    unknown = set(opts) - set(FAMILY_OPTIONS[name])
+    if unknown:
+        raise ValueError(f"family {name!r} has no option {sorted(unknown)[0]!r}")
+    return fam.with_options(**opts) if opts else fam  # type: ignore[attr-defined]
 
 
-__all__ = ["AffineBlock", "CertificateFamily", "LMIProblem", "FAMILIES", "get_family"]
+__all__ = [
+    "AffineBlock", "CertificateFamily", "LMIProblem", "FAMILIES", "FAMILY_OPTIONS", "get_family",
+]

@@ -60,7 +60,13 @@ class LMIProblem:
 
     def max_eigs(self, x: np.ndarray, rho: float) -> dict[str, float]:
         """Largest eigenvalue of each block at (x, rho): all must be <= 0."""
-        return {b.name: float(np.linalg.eigvalsh(b.value(x, rho))[-1]) for b in self.blocks}
+        out = {}
+        for b in self.blocks:
+            if b.size == 1:  # a scalar row: its value is its eigenvalue
+                out[b.name] = float(b.value(x, rho)[0, 0])
+            else:
+                out[b.name] = float(np.linalg.eigvalsh(b.value(x, rho))[-1])
+        return out
 
 
 class CertificateFamily(Protocol):

@@ -15,6 +15,13 @@ a short run in absolute coordinates checks that both agree. Along every trajecto
 must satisfy V_{k+1} <= rho^2 V_k (eq. 13) and f(x_k) - f* <= rho^(2k) V_0 (eq. 16), up to
 a relative tolerance. Finding no violation is evidence, not proof; finding one disproves
 the certificate (or the rate) for that function.
+
+Certificates with function values and past gradients (the interpolation family) pass
+``lyapunov={"lag": l, "p": [...], "c": c}``: then P acts on z_k = (e_k, u_k, ..., u_{k-l}) and
+
+    V_k = z_k' (P ⊗ I_d) z_k + sum_j p_j (f(y_{k-j}) - f*) + c (f(x_k) - f*)
+
+(c = None: no x term), checked from k = l on with the bound f(x_k) - f* <= rho^(2(k-l)) V_l.
 """
 
 from __future__ import annotations
@@ -123,6 +130,39 @@ def _lyapunov(
     return gap + quad, gap
 
 
+def _lyapunov_hist(
+    f: Objective, E: np.ndarray, P: np.ndarray, e: np.ndarray, grads: list[np.ndarray],
+    gaps_y: list[np.ndarray], p: Sequence[float], c: float | None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(V, f(x) - f*) with z = (e, u_k, ..., u_{k-l}); ``grads``/``gaps_y`` newest first."""
+    z = np.concatenate([e] + [g[:, None, :] for g in grads], axis=1)
+    gap = f.gap(np.einsum("j,bjd->bd", E, e))
+    V = np.einsum("bid,ij,bjd->b", z, P, z)
+    for pj, gy in zip(p, gaps_y, strict=True):
+        V = V + pj * gy
+    if c is not None:
+        V = V + c * gap
+    return V, gap
+
+
+def _push(f: Objective, C: np.ndarray, e: np.ndarray, hist: tuple[list, list],
+          lag: int) -> tuple[list, list]:
+    """Add u_k = grad f(y_k) and f(y_k) - f* at the new state e (newest first, l + 1 kept)."""
+    y = np.einsum("j,bjd->bd", C, e)
+    return ([f.grad_z(y)] + hist[0])[: lag + 1], ([f.gap(y)] + hist[1])[: lag + 1]
+
+
+def _history_start(alg: Algorithm, f: Objective, e: np.ndarray,
+                   lag: int) -> tuple[np.ndarray, tuple[list, list]]:
+    """Run l steps from e_0 so that V_l (which needs u_0..u_l) is defined."""
+    A, B, C = alg.A, alg.B[:, 0], alg.C[0]
+    hist: tuple[list, list] = _push(f, C, e, ([], []), lag)
+    for _ in range(lag):
+        e = np.einsum("ij,bjd->bid", A, e) + B[None, :, None] * hist[0][0][:, None, :]
+        hist = _push(f, C, e, hist, lag)
+    return e, hist
+
+
 def _consistency(
     alg: Algorithm, f: Objective, u: np.ndarray, e0: np.ndarray, steps: int = 5
 ) -> float:
@@ -154,21 +194,24 @@ def simulate_check(
     iters: int = 60,
     seed: int = 0,
     functions: FunctionSource | None = None,
+    lyapunov: dict[str, Any] | None = None,
 ) -> SimulationResult:
     """Run the method on functions of F(m, L) and check eq. (13) and (16) along trajectories.
 
     ``functions``: None (the default :func:`~sosalgo.verify.functions.function_suite`), a
     callable ``(m, L, d, rng) -> list[Objective]`` used for every d in ``dims``, or a list of
     Objective (their own dimensions are used and ``dims`` is ignored). ``lam`` does not enter
-    V; it is accepted so a whole certificate can be passed.
+    V; it is accepted so a whole certificate can be passed. ``lyapunov`` (lag, p, c) selects
+    the Lyapunov function with past gradients and function values (module docstring).
     """
     del lam
     start_t = time.perf_counter()
     rng = np.random.default_rng(seed)
     P = np.atleast_2d(np.asarray(P, float))
     n = alg.n
-    if P.shape != (n, n):
-        raise ValueError(f"P has shape {P.shape}, expected {(n, n)}")
+    lag = -1 if lyapunov is None else int(lyapunov["lag"])
+    if P.shape != (n + lag + 1, n + lag + 1):
+        raise ValueError(f"P has shape {P.shape}, expected {(n + lag + 1, n + lag + 1)}")
     u = fixed_point(alg)
     if u is None:
         raise ValueError("the method has no fixed point (eq. 11)")
@@ -208,7 +251,12 @@ def simulate_check(
                 consistency = max(consistency, _consistency(alg, f, u, e[: min(4, len(e))]))
                 batch = e.shape[0]
                 traj += batch
-                V, gap = _lyapunov(f, E, P, e)
+                if lyapunov is not None:
+                    e, hist = _history_start(alg, f, e, lag)
+                    V, gap = _lyapunov_hist(f, E, P, e, hist[0], hist[1], lyapunov["p"],
+                                            lyapunov["c"])
+                else:
+                    V, gap = _lyapunov(f, E, P, e)
                 V0 = V.copy()
                 active = np.isfinite(V) & (V >= UNDERFLOW)
                 bound_scale = np.ones(batch)
@@ -223,8 +271,14 @@ def simulate_check(
                             violations.append(Violation(f.name, d, int(b), k, "bound",
                                                         float(gap[b] / limit[b])))
                     y = np.einsum("j,bjd->bd", C, e)
-                    e = np.einsum("ij,bjd->bid", A, e) + B[None, :, None] * f.grad_z(y)[:, None, :]
-                    Vn, gapn = _lyapunov(f, E, P, e)
+                    g = hist[0][0] if lyapunov is not None else f.grad_z(y)
+                    e = np.einsum("ij,bjd->bid", A, e) + B[None, :, None] * g[:, None, :]
+                    if lyapunov is not None:
+                        hist = _push(f, C, e, hist, lag)
+                        Vn, gapn = _lyapunov_hist(f, E, P, e, hist[0], hist[1], lyapunov["p"],
+                                                  lyapunov["c"])
+                    else:
+                        Vn, gapn = _lyapunov(f, E, P, e)
                     ok = Vn <= r2 * V + REL_TOL * V + ABS_FLOOR
                     checked = active
                     steps += int(checked.sum())

@@ -1,0 +1,138 @@
+"""Interpolation certificate family: time per certified rate (tol 1e-6) against a cvxpy
+model of the same family rebuilt and solved (Clarabel) at every bisection step, both in
+this process, pinned to one core; then the rates of both families on four methods.
+"""
+
+from __future__ import annotations
+
+import os
+import statistics
+import time
+from pathlib import Path
+
+import cvxpy as cp
+import numpy as np
+
+from sosalgo.analysis import analyze_algorithm
+from sosalgo.certificates.interpolation import Interpolation, has_output_point, structure
+from sosalgo.model import Algorithm, bind
+from sosalgo.spec import load_spec
+
+SPECS = Path(__file__).resolve().parents[1] / "specs"
+TOL = 1e-6
+
+
+def naive_feasible(alg: Algorithm, rho: float, lag: int) -> bool:
+    """The family at rho written directly in cvxpy (normalized to F(m/L, 1)), from scratch."""
+    st = structure(alg.A, alg.B * alg.L, alg.C, alg.E, alg.m / alg.L, 1.0, lag,
+                   has_output_point(alg.C, alg.E))
+    d, p = st.dec, st.pos
+    P = cp.Variable((st.nz, st.nz), symmetric=True)
+    pi = cp.Variable(st.npi)
+    eta = cp.Variable(len(d.labels), nonneg=True)
+    lam = cp.Variable(len(p.labels), nonneg=True)
+    r = rho**2
+    Z1, Z0, Zp = d.Z[lag + 1], d.Z[lag], p.Z[lag]
+    D = Z1.T @ P @ Z1 - r * (Z0.T @ P @ Z0) + sum(eta[k] * M for k, M in enumerate(d.Mq))
+    Df = d.F[lag + 1].T @ pi - r * (d.F[lag].T @ pi) + np.array(d.mq).T @ eta
+    Pq = Zp.T @ P @ Zp - sum(lam[k] * M for k, M in enumerate(p.Mq))
+    Pf = p.F[lag].T @ pi - st.norm - np.array(p.mq).T @ lam
+    cons = [(D + D.T) / 2 << 0, Df <= 0, (Pq + Pq.T) / 2 >> 0, Pf >= 0]
+    prob = cp.Problem(cp.Minimize(0), cons)
+    try:
+        prob.solve(solver=cp.CLARABEL)
+    except cp.SolverError:
+        return False
+    return prob.status == cp.OPTIMAL
+
+
+def naive_rate(alg: Algorithm, lag: int, tol: float = TOL) -> float | None:
+    if not naive_feasible(alg, 1.0, lag):
+        return None
+    lo, hi = 0.0, 1.0
+    while hi - lo > tol:
+        mid = 0.5 * (lo + hi)
+        if naive_feasible(alg, mid, lag):
+            hi = mid
+        else:
+            lo = mid
+    return hi
+
+
+def _time(fn, repeats: int) -> tuple[float, object, float]:
+    """(median seconds, last result, minimum seconds)."""
+    times, out = [], None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times), out, min(times)
+
+
+def run(quick: bool = False) -> None:
+    try:
+        saved = os.sched_getaffinity(0)
+        os.sched_setaffinity(0, {sorted(saved)[0]})
+        core = "one core (pinned)"
+    except (AttributeError, OSError):
+        saved, core = None, "unpinned"
+    try:
+        _speed(quick, core)
+        _rates(quick)
+    finally:
+        if saved is not None:
+            os.sched_setaffinity(0, saved)
+
+
+def _speed(quick: bool, core: str) -> None:
+    repeats, naive_repeats = (5, 1) if quick else (21, 3)
+    print(f"interpolation family: median time per certified rate, tol {TOL:g}, {core}")
+    print(f"(load average at start: {os.getloadavg()[0]:.1f}; min ms = fastest repeat)")
+    print("| spec | κ | lag | ρ (sosalgo) | ρ (cvxpy) | solves | sosalgo ms | min ms | "
+          "cvxpy ms | speed-up |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    ours_all: dict[int, list[float]] = {1: [], 0: []}
+    naive_all: dict[int, list[float]] = {1: [], 0: []}
+    spec = load_spec(SPECS / "nesterov.yaml")
+    for k in (10.0,) if quick else (2.0, 10.0, 100.0):
+        alg = bind(spec, k)
+        for lag in (1, 0):
+            fam = Interpolation(lag)
+            analyze_algorithm(alg, tol=TOL, family=fam)  # warm imports
+            t_ours, res, t_min = _time(
+                lambda a=alg, f=fam: analyze_algorithm(a, tol=TOL, family=f), repeats)
+            t_naive, rho_naive, _ = _time(lambda a=alg, g=lag: naive_rate(a, g), naive_repeats)
+            ours_all[lag].append(t_ours)
+            naive_all[lag].append(t_naive)
+            rn = "-" if rho_naive is None else f"{rho_naive:.6f}"
+            print(f"| nesterov | {k:g} | {lag} | {res.rho:.6f} | {rn} | {res.solves} | "
+                  f"{t_ours * 1e3:.1f} | {t_min * 1e3:.1f} | {t_naive * 1e3:.0f} | "
+                  f"{t_naive / t_ours:.0f}x |", flush=True)
+    print()
+    for lag in (1, 0):
+        o, n = statistics.median(ours_all[lag]), statistics.median(naive_all[lag])
+        print(f"lag {lag}: median {o * 1e3:.1f} ms per rate vs cvxpy {n * 1e3:.0f} ms "
+              f"({n / o:.0f}x faster)")
+
+
+def _rates(quick: bool) -> None:
+    kappas = (10.0,) if quick else (2.0, 10.0, 100.0, 1000.0)
+    print()
+    print(f"certified rates (tol {TOL:g}); '-' = not certified; ms per rate")
+    print("| method | κ | Theorem 1 | ms | interpolation lag 1 | ms | lag 0 | ms | "
+          "1 − 1/√κ | quadratic bound |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for name in ("gradient", "nesterov", "triple-momentum", "heavy-ball"):
+        spec = load_spec(SPECS / f"{name}.yaml")
+        for k in kappas:
+            alg = bind(spec, k)
+            cells = []
+            for fam in ("theorem1", Interpolation(1), Interpolation(0)):
+                t0 = time.perf_counter()
+                res = analyze_algorithm(alg, tol=TOL, family=fam)
+                ms = (time.perf_counter() - t0) * 1e3
+                cells += ["-" if res.rho is None else f"{res.rho:.6f}", f"{ms:.0f}"]
+            qs = np.linspace(alg.m, alg.L, 2001)
+            quad = max(np.abs(np.linalg.eigvals(alg.A + q * alg.B @ alg.C)).max() for q in qs)
+            print(f"| {name} | {k:g} | " + " | ".join(cells)
+                  + f" | {1 - k ** -0.5:.6f} | {quad:.6f} |", flush=True)

@@ -1,0 +1,401 @@
+"""The interpolation ("tight") certificate family: Lyapunov functions with function values.
+
+Following Taylor, Van Scoy and Lessard (ICML 2018), written for sosalgo's state-space form
+xi+ = A xi + B u, u = grad f(y), y = C xi, x = E xi (reduced d = 1 templates, Remark 1).
+With the lag l >= 0 and z_k = (xi_k - xi*, u_k, u_{k-1}, ..., u_{k-l}),
+
+    V_k = z_k' P z_k + sum_{j=0..l} p_j (f(y_{k-j}) - f*) + c (f(x_k) - f*),
+
+P symmetric (not required PSD), p, c free. A rate rho is certified when, for r = rho^2,
+
+    (D)   V_{k+1} - r V_k + sum eta_ij q_ij <= 0   as a quadratic form + linear form in the
+          function values of the window y_0..y_{l+1}, x_l, x_{l+1}, x*  (eta_ij >= 0),
+    (P)   V_k - (f(x_k) - f*) - sum lambda_ij q_ij >= 0   on the window y_0..y_l, x_l, x*,
+
+where q_ij = (L - m)(f_i - f_j) + 1/2 [x_i; x_j; g_i; g_j]' MM [x_i; x_j; g_i; g_j] >= 0 are
+the F(m, L) interpolation inequalities between every ordered pair of points of a window
+(Taylor, Hendrickx, Glineur 2017). On a trajectory every q_ij >= 0 and every f - f* >= 0,
+so V_{k+1} <= r V_k and f(x_k) - f* <= V_k, hence f(x_k) - f* <= rho^(2(k-l)) V_l.
+
+The quadratic parts are matrix inequalities, the function-value parts hold coefficient-wise
+(each f - f* >= 0). Theorem 1 is the special case P = [P_T1 0; 0 0], p = 0, c = 1, so this
+family never certifies a worse rate. When E = C the x-points coincide with the y-points and
+are dropped (c merges into p_0).
+
+The same structure builder works on floats (the LMI data), rationals/balls (the exact
+verifier) and sympy (``sosalgo lmi``): it only uses sums, products and stacking.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from fractions import Fraction
+from typing import Any
+
+import numpy as np
+import sympy as sp
+
+from sosalgo.certificates.base import AffineBlock, LMIProblem
+from sosalgo.model import Algorithm
+
+__all__ = ["INTERPOLATION", "Interpolation", "Structure", "structure", "evaluate"]
+
+
+@dataclass
+class Window:
+    """One window of the method: row maps on the lifted vector w and the point list."""
+
+    width: int  # length of w
+    nphi: int  # number of function values
+    Z: dict[int, Any]  # Z_t: rows (xi_t, u_t, u_{t-1}, ..., u_{t-l}) as maps on w
+    F: dict[int, Any]  # F_t: 0/1 rows selecting f(y_t), ..., f(y_{t-l}), f(x_t) from phi
+    labels: list[str]  # pair labels "i>j" (q_ij >= 0 for this ordered pair)
+    Mq: list[Any]  # quadratic part of q_ij (width x width)
+    mq: list[Any]  # linear part of q_ij on phi (nphi)
+
+
+@dataclass
+class Structure:
+    """Both windows of a method for a given lag (see module docstring)."""
+
+    n: int
+    lag: int
+    has_x: bool
+    dec: Window  # decrease window, times 0..l+1
+    pos: Window  # positivity window, times 0..l
+    norm: Any  # the "1" of V >= f(x_l) - f*, as a vector on phi of the positivity window
+
+    @property
+    def nz(self) -> int:
+        return self.n + self.lag + 1
+
+    @property
+    def npi(self) -> int:
+        return self.lag + 1 + (1 if self.has_x else 0)
+
+
+def _zeros(shape: tuple[int, ...], obj: bool) -> np.ndarray:
+    return np.zeros(shape, dtype=object) if obj else np.zeros(shape)
+
+
+def _window(A, B, C, E, m, L, lag: int, steps: int, has_x: bool, obj: bool) -> Window:
+    """Window with gradients u_0..u_{steps-1}, x-points at times steps-2, steps-1 (decrease)
+    or steps-1 (positivity); ``steps`` = l + 2 (decrease) or l + 1 (positivity)."""
+    n = A.shape[0]
+    x_times = [t for t in (steps - 2, steps - 1) if t >= lag] if has_x else []
+    width = n + steps + len(x_times)
+    nphi = steps + len(x_times)
+
+    def unit(k: int) -> np.ndarray:
+        e = _zeros((1, width), obj)
+        e[0, k] = 1
+        return e
+
+    U = [unit(n + t) for t in range(steps)]
+    V = {t: unit(n + steps + i) for i, t in enumerate(x_times)}
+    Xi = [np.hstack([np.eye(n, dtype=object) if obj else np.eye(n), _zeros((n, width - n), obj)])]
+    for t in range(steps - 1):
+        Xi.append(A @ Xi[t] + B @ U[t])
+    Z, F = {}, {}
+    for t in range(lag, steps):
+        Z[t] = np.vstack([Xi[t]] + [U[t - j] for j in range(lag + 1)])
+        rows = [t - j for j in range(lag + 1)] + ([steps + x_times.index(t)] if has_x else [])
+        Ft = _zeros((len(rows), nphi), obj)
+        for r, k in enumerate(rows):
+            Ft[r, k] = 1
+        F[t] = Ft
+    # points: (name, x row, g row, index in phi or None for x*)
+    pts = [(f"y{t}", C @ Xi[t], U[t], t) for t in range(steps)]
+    pts += [(f"x{t}", E @ Xi[t], V[t], steps + i) for i, t in enumerate(x_times)]
+    pts.append(("*", _zeros((1, width), obj), _zeros((1, width), obj), None))
+    MM = np.array([[-m * L, m * L, m, -L], [m * L, -m * L, -m, L], [m, -m, -1, 1],
+                   [-L, L, 1, -1]], dtype=object if obj else float)
+    half = Fraction(1, 2) if obj else 0.5
+    labels, Mq, mq = [], [], []
+    for ni, xi, gi, fi in pts:
+        for nj, xj, gj, fj in pts:
+            if ni == nj:
+                continue
+            X = np.vstack([xi, xj, gi, gj])
+            M = X.T @ MM @ X
+            Mq.append(M * half if not obj else _scale(M, half))
+            lin = _zeros((nphi,), obj)
+            if fi is not None:
+                lin[fi] = lin[fi] + (L - m)
+            if fj is not None:
+                lin[fj] = lin[fj] - (L - m)
+            mq.append(lin)
+            labels.append(f"{ni}>{nj}")
+    return Window(width, nphi, Z, F, labels, Mq, mq)
+
+
+def _scale(M: np.ndarray, half: Any) -> np.ndarray:
+    out = np.empty(M.shape, dtype=object)
+    for idx in np.ndindex(M.shape):
+        out[idx] = M[idx] * half
+    return out
+
+
+def has_output_point(C: np.ndarray, E: np.ndarray) -> bool:
+    """False when x_k = y_k (E = C exactly), so the x-points are the y-points."""
+    try:
+        return not np.array_equal(np.asarray(C, float), np.asarray(E, float))
+    except TypeError:
+        return any(sp.simplify(a - b) != 0 for a, b in zip(np.ravel(C), np.ravel(E), strict=True))
+
+
+def structure(A, B, C, E, m, L, lag: int, has_x: bool, obj: bool = False) -> Structure:
+    """Windows, row maps and interpolation pairs (float arrays, or object arrays of exact
+    numbers / sympy expressions when ``obj``)."""
+    n = A.shape[0]
+    dec = _window(A, B, C, E, m, L, lag, lag + 2, has_x, obj)
+    pos = _window(A, B, C, E, m, L, lag, lag + 1, has_x, obj)
+    norm = _zeros((pos.nphi,), obj)
+    norm[pos.nphi - 1 if has_x else lag] = 1  # f(x_l), or f(y_l) when x = y
+    return Structure(n, lag, has_x, dec, pos, norm)
+
+
+def _sym_basis(n: int) -> list[tuple[int, int]]:
+    return [(i, j) for i in range(n) for j in range(i, n)]
+
+
+def evaluate(st: Structure, r: Any, P: Any, pi: Any, eta: Any, lam: Any) -> dict[str, Any]:
+    """The four inequality parts at a certificate, in the units of ``st``:
+
+    ``D`` (⪯ 0), ``Df`` (<= 0 entrywise), ``Pq`` (⪰ 0), ``Pf`` (>= 0 entrywise), where
+    D = Z_{l+1}' P Z_{l+1} - r Z_l' P Z_l + sum eta M, Df = F_{l+1}' pi - r F_l' pi + sum eta m,
+    Pq = Z+' P Z+ - sum lambda M+, Pf = F+' pi - norm - sum lambda m+.
+    """
+    d, p, lag = st.dec, st.pos, st.lag
+    Z1, Z0, Zp = d.Z[lag + 1], d.Z[lag], p.Z[lag]
+    D = Z1.T @ P @ Z1 - r * (Z0.T @ P @ Z0)
+    Df = d.F[lag + 1].T @ pi - r * (d.F[lag].T @ pi)
+    for e, M, mv in zip(eta, d.Mq, d.mq, strict=True):
+        D = D + e * M
+        Df = Df + e * mv
+    Pq = Zp.T @ P @ Zp
+    Pf = p.F[lag].T @ pi - st.norm
+    for lv, M, mv in zip(lam, p.Mq, p.mq, strict=True):
+        Pq = Pq - lv * M
+        Pf = Pf - lv * mv
+    return {"D": D, "Df": Df, "Pq": Pq, "Pf": Pf}
+
+
+class Interpolation:
+    """Lyapunov functions with interpolation conditions (lag l; default l = n - 1)."""
+
+    name = "interpolation"
+    tight = True  # its rate is often the rate on quadratics: the search starts there
+    # points the margin search cannot check sit on a degenerate boundary (tight rates),
+    # where SCS only runs into its iteration limit: Clarabel alone is asked
+    fallback_solvers = ("clarabel-fast", "clarabel")
+    description = ("interpolation: V = z'Pz + sum p_j (f(y_{k-j}) - f*) + c (f(x_k) - f*), "
+                   "F(m, L) interpolation inequalities (tight)")
+
+    def __init__(self, lag: int | None = None):
+        if lag is not None and (not isinstance(lag, int) or isinstance(lag, bool) or lag < 0):
+            raise ValueError("lag must be a non-negative integer")
+        self.lag = lag
+
+    def lag_for(self, n: int) -> int:
+        return n - 1 if self.lag is None else self.lag
+
+    def with_options(self, lag: int | None = None) -> Interpolation:
+        return Interpolation(lag)
+
+    # -- layout of the decision vector -----------------------------------------------------
+    def _layout(self, st: Structure) -> dict[str, slice]:
+        nP = st.nz * (st.nz + 1) // 2
+        k1 = nP + st.npi
+        k2 = k1 + len(st.dec.labels)
+        return {"P": slice(0, nP), "pi": slice(nP, k1), "eta": slice(k1, k2),
+                "lam": slice(k2, k2 + len(st.pos.labels))}
+
+    def _structure(self, alg: Algorithm, normalized: bool) -> Structure:
+        lag = self.lag_for(alg.n)
+        hx = has_output_point(alg.C, alg.E)
+        if normalized:
+            return structure(alg.A, alg.B * alg.L, alg.C, alg.E, alg.m / alg.L, 1.0, lag, hx)
+        return structure(alg.A, alg.B, alg.C, alg.E, alg.m, alg.L, lag, hx)
+
+    def problem(self, alg: Algorithm) -> LMIProblem:
+        """Affine blocks in x = (P_ab (a <= b), p_0..p_l, c, eta, lambda), built for the
+        normalized class F(m/L, 1) with B scaled by L; ``unpack`` returns original units."""
+        st = self._structure(alg, normalized=True)
+        lay = self._layout(st)
+        pairs = _sym_basis(st.nz)
+        nvar = lay["lam"].stop
+        d, p, lag = st.dec, st.pos, st.lag
+        Z1, Z0, Zp = d.Z[lag + 1], d.Z[lag], p.Z[lag]
+        sD, sP = d.width, p.width
+        D0, D1 = np.zeros((nvar, sD, sD)), np.zeros((nvar, sD, sD))
+        P0 = np.zeros((nvar, sP, sP))
+        for k, (a, b) in enumerate(pairs):
+            D0[k] = _unit_quad(Z1, a, b)
+            D1[k] = -_unit_quad(Z0, a, b)
+            P0[k] = -_unit_quad(Zp, a, b)
+        for k, M in enumerate(d.Mq):
+            D0[lay["eta"].start + k] = M
+        for k, M in enumerate(p.Mq):
+            P0[lay["lam"].start + k] = M
+        blocks = [
+            AffineBlock("decrease", np.zeros((sD, sD)), np.zeros((sD, sD)), D0, D1),
+            AffineBlock("positivity", np.zeros((sP, sP)), np.zeros((sP, sP)), P0,
+                        np.zeros_like(P0)),
+        ]
+        one = np.zeros((1, 1))
+        for q in range(d.nphi):
+            l0, l1 = np.zeros((nvar, 1, 1)), np.zeros((nvar, 1, 1))
+            l0[lay["pi"], 0, 0] = d.F[lag + 1][:, q]
+            l1[lay["pi"], 0, 0] = -d.F[lag][:, q]
+            l0[lay["eta"], 0, 0] = [mv[q] for mv in d.mq]
+            blocks.append(AffineBlock(f"decrease-f[{q}]", one, one, l0, l1))
+        for q in range(p.nphi):
+            l0 = np.zeros((nvar, 1, 1))
+            l0[lay["pi"], 0, 0] = -p.F[lag][:, q]
+            l0[lay["lam"], 0, 0] = [mv[q] for mv in p.mq]
+            blocks.append(AffineBlock(f"positivity-f[{q}]", np.full((1, 1), st.norm[q]), one,
+                                      l0, np.zeros_like(l0), strict=False))
+        for k in range(lay["eta"].start, nvar):
+            l0 = np.zeros((nvar, 1, 1))
+            l0[k, 0, 0] = -1.0
+            blocks.append(AffineBlock(f"mult[{k - lay['eta'].start}]", one, one, l0,
+                                      np.zeros_like(l0), strict=False))
+        zero = np.zeros((nvar, 1, 1))
+        blocks.append(AffineBlock("normalization", -np.ones((1, 1)), one, zero, zero))
+        Fp = p.F[lag]
+        mpos = np.array(p.mq) if p.mq else np.zeros((0, p.nphi))
+
+        def project(x: np.ndarray) -> np.ndarray:
+            x = np.array(x, dtype=float)
+            x[lay["eta"]] = np.maximum(x[lay["eta"]], 0.0)
+            x[lay["lam"]] = np.maximum(x[lay["lam"]], 0.0)
+            lam = x[lay["lam"]]
+            pi = x[lay["pi"]]
+            for q in range(p.nphi):  # raise p_j (or c) until positivity-f[q] holds exactly
+                j = int(np.flatnonzero(Fp[:, q])[0])
+                terms = lam * mpos[:, q]
+                need = float(st.norm[q]) + float(np.sum(terms))
+                need += 1e-13 * (1.0 + float(np.sum(np.abs(terms))))
+                pi[j] = max(pi[j], need)
+            x[lay["pi"]] = pi
+            return x
+
+        def unpack(x: np.ndarray) -> dict[str, Any]:
+            return self._unpack(st, lay, alg.L, x)
+
+        return LMIProblem(nvar, tuple(blocks), unpack, project)
+
+    def _unpack(self, st: Structure, lay: dict[str, slice], L: float,
+                x: np.ndarray) -> dict[str, Any]:
+        """Original units: with u = L u~, V = L V~ gives P = L D^-1 P~ D^-1 (D = diag(I_n,
+        L I_{l+1})), p = p~, c = c~, and q_ij = L^2 q~_ij gives eta = eta~/L, lambda = lambda~/L."""
+        Pn = np.zeros((st.nz, st.nz))
+        for k, (a, b) in enumerate(_sym_basis(st.nz)):
+            Pn[a, b] = Pn[b, a] = x[lay["P"]][k]
+        dinv = np.concatenate([np.ones(st.n), np.full(st.lag + 1, 1.0 / L)])
+        P = L * (dinv[:, None] * Pn * dinv[None, :])
+        pi = [float(v) for v in x[lay["pi"]]]
+        return {
+            "family": self.name,
+            "lag": st.lag,
+            "P": P,
+            "p": pi[: st.lag + 1],
+            "c": pi[st.lag + 1] if st.has_x else None,
+            "multipliers": {
+                "decrease": {lab: float(v) / L for lab, v in zip(st.dec.labels, x[lay["eta"]],
+                                                                 strict=True)},
+                "positivity": {lab: float(v) / L for lab, v in zip(st.pos.labels, x[lay["lam"]],
+                                                                   strict=True)},
+            },
+        }
+
+    def pack(self, alg: Algorithm, cert: dict[str, Any]) -> np.ndarray:
+        """Inverse of ``unpack``: the normalized decision vector of a certificate."""
+        st = self._structure(alg, normalized=True)
+        lay = self._layout(st)
+        L = alg.L
+        d = np.concatenate([np.ones(st.n), np.full(st.lag + 1, L)])
+        Pn = (d[:, None] * np.asarray(cert["P"], float) * d[None, :]) / L
+        x = np.zeros(lay["lam"].stop)
+        x[lay["P"]] = [Pn[a, b] for a, b in _sym_basis(st.nz)]
+        x[lay["pi"]] = list(cert["p"]) + ([cert["c"]] if st.has_x else [])
+        mult = cert["multipliers"]
+        x[lay["eta"]] = [L * mult["decrease"][k] for k in st.dec.labels]
+        x[lay["lam"]] = [L * mult["positivity"][k] for k in st.pos.labels]
+        return x
+
+    def parts(self, alg: Algorithm, rho: float, cert: dict[str, Any]) -> dict[str, Any]:
+        """The inequality parts (D, Df, Pq, Pf) at a certificate, original units (floats)."""
+        st = self._structure(alg, normalized=False)
+        pi = np.array(list(cert["p"]) + ([cert["c"]] if st.has_x else []), float)
+        mult = cert["multipliers"]
+        eta = [mult["decrease"][k] for k in st.dec.labels]
+        lam = [mult["positivity"][k] for k in st.pos.labels]
+        return evaluate(st, rho**2, np.asarray(cert["P"], float), pi, eta, lam)
+
+    def matrix(self, alg: Algorithm, rho: float, cert: dict[str, Any]) -> np.ndarray:
+        """The decrease matrix (D) at a numeric certificate (original units)."""
+        return self.parts(alg, rho, cert)["D"]
+
+    def summary(self, alg: Algorithm, rho: float, cert: dict[str, Any]) -> dict[str, float]:
+        """max eig of (D) (<= 0) and min eig of the positivity matrix (>= 0)."""
+        pt = self.parts(alg, rho, cert)
+        return {"max_eig_M": float(np.linalg.eigvalsh(pt["D"])[-1]),
+                "min_eig_P": float(np.linalg.eigvalsh(pt["Pq"])[0])}
+
+    # -- tables ------------------------------------------------------------------------------
+    def p_size(self, n: int) -> int:
+        """Side of P (z = (xi, u_k, ..., u_{k-l}))."""
+        return n + self.lag_for(n) + 1
+
+    def csv_columns(self, n: int) -> list[str]:
+        """Extra CSV columns (after the common ones): family, lag, p0..pl, c, multipliers."""
+        return ["family", "lag"] + [f"p{j}" for j in range(self.lag_for(n) + 1)] + [
+            "c", "multipliers"]
+
+    def csv_cells(self, n: int, cert: dict[str, Any] | None) -> dict[str, Any]:
+        """CSV cells of a certificate (multipliers as one JSON object: pair -> value)."""
+        out: dict[str, Any] = {"family": self.name, "lag": self.lag_for(n)}
+        if cert is None:
+            return out
+        out.update({f"p{j}": float(v) for j, v in enumerate(cert["p"])})
+        out["c"] = cert["c"]
+        out["multipliers"] = json.dumps(cert["multipliers"], separators=(",", ":"))
+        return out
+
+    def cert_from_csv(self, n: int, row: dict[str, str], P: Any) -> dict[str, Any] | None:
+        """Inverse of :meth:`csv_cells` (None when the row has no certificate)."""
+        if P is None or not row.get("multipliers"):
+            return None
+        lag = int(row["lag"])
+        return {"family": self.name, "lag": lag, "P": P,
+                "p": [float(row[f"p{j}"]) for j in range(lag + 1)],
+                "c": float(row["c"]) if row.get("c") else None,
+                "multipliers": json.loads(row["multipliers"])}
+
+    def symbolic(self, A, B, C, E, m, L) -> tuple[sp.Matrix, dict[str, Any]]:
+        """Symbolic row maps and interpolation pairs; the returned matrix is the decrease
+        block (D) with symbolic P, p, c and multipliers (large: printed on request)."""
+        n = A.shape[0]
+        lag = self.lag_for(n)
+        hx = any(sp.simplify(C[0, j] - E[0, j]) != 0 for j in range(n))
+        st = structure(*(np.array(M.tolist(), dtype=object) for M in (A, B, C, E)), m, L, lag,
+                       hx, obj=True)
+        P = sp.zeros(st.nz, st.nz)
+        for i, j in _sym_basis(st.nz):
+            P[i, j] = P[j, i] = sp.Symbol(f"P{i + 1}{j + 1}", real=True)
+        rho = sp.Symbol("rho", nonnegative=True)
+        return sp.Matrix(st.dec.Z[lag + 1]), {
+            "P": P, "rho": rho, "structure": st, "lag": lag, "has_x": hx,
+        }
+
+
+def _unit_quad(Z: np.ndarray, a: int, b: int) -> np.ndarray:
+    """Z' E_ab Z for the symmetric unit matrix E_ab (1 at (a, b) and (b, a))."""
+    out = np.outer(Z[a], Z[b])
+    return out if a == b else out + out.T
+
+
+INTERPOLATION = Interpolation()

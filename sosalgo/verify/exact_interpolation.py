@@ -1,0 +1,242 @@
+"""Exact (rational) verification of an interpolation-family certificate.
+
+The certificate (rho, P, p, c, multipliers eta, lambda) is checked in original units
+(F(m, L), no normalization) without floating point in the proof path:
+
+1. The method is made exact as for Theorem 1 (:func:`sosalgo.verify.exact.exact_algorithm`):
+   rational kappa, m, L and rational balls enclosing irrational entries of A, B, C, E.
+2. P, p, c, eta, lambda are rounded to rationals; negative multipliers are set to 0, and
+   p_j (or c) is raised where needed so that the function-value rows of the positivity
+   condition hold exactly (raising a weight only increases V). The rows of both
+   conditions involve only m, L and 0/1 selections, so they are exact rationals.
+3. The decrease matrix (D) and the positivity matrix are computed in midpoint-radius
+   arithmetic; with eta >= ||R||_F for the radius matrix R, exact LDL^T proofs of
+   -D(centre) - t I ⪰ 0 and Pq(centre) - t I ⪰ 0 for rationals t >= eta prove
+   D ⪯ 0 and Pq ⪰ 0 for every method inside the enclosures.
+
+The window algebra (row maps, interpolation pairs) is the family's own builder run on
+exact numbers (:func:`sosalgo.certificates.interpolation.structure`); the simulation check
+(:mod:`sosalgo.verify.simulate`) evaluates the Lyapunov function independently along
+trajectories of actual functions.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from fractions import Fraction
+from typing import Any
+
+import numpy as np
+
+from sosalgo.certificates.interpolation import evaluate, structure
+from sosalgo.model import bind, fixed_point
+from sosalgo.spec import MATRIX_NAMES, Spec
+from sosalgo.verify.exact import (
+    DEFAULT_DIGITS,
+    DEFAULT_MAX_DEN,
+    DEFAULT_RHO_STEPS,
+    Ball,
+    _exact_fixed_point,
+    _fmt,
+    _frobenius_bound,
+    _is_zero,
+    _rational,
+    _rho_candidates,
+    _round_down,
+    exact_algorithm,
+    prove_psd,
+)
+
+__all__ = ["InterpolationExactResult", "verify_exact_interpolation"]
+
+
+@dataclass
+class InterpolationExactResult:
+    """Outcome of :func:`verify_exact_interpolation` (``to_dict`` has what a re-check needs)."""
+
+    spec: str
+    verified: str  # "exact" or "failed"
+    rho_requested: float
+    rho_proven: str | None = None
+    rho_proven_float: float | None = None
+    delta: str | None = None  # D ⪯ -delta I and Pq ⪰ delta I (delta may be 0 for exact data)
+    certificate: dict[str, Any] = field(default_factory=dict)  # rational parts
+    reason: str | None = None
+    attempts: int = 0
+    seconds: float = 0.0
+    kappa: str = ""
+    m: str = ""
+    L: str = ""
+    params: dict[str, str] = field(default_factory=dict)
+    enclosures: dict[str, Any] = field(default_factory=dict)
+    proofs: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return self.verified == "exact"
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "certificate_family": "interpolation (Lyapunov function with function values, "
+                                  "F(m, L) interpolation inequalities)",
+            "spec": self.spec, "verified": self.verified, "rho_requested": self.rho_requested,
+            "rho_proven": self.rho_proven, "rho_proven_float": self.rho_proven_float,
+            "delta": self.delta, "certificate": self.certificate, "proofs": self.proofs,
+            "reason": self.reason, "attempts": self.attempts, "seconds": self.seconds,
+            "kappa": self.kappa, "m": self.m, "L": self.L, "params": dict(self.params),
+            "enclosures": self.enclosures,
+        }
+
+
+def _q(x: Any, max_den: int) -> Fraction:
+    f = _rational(x)
+    return f.limit_denominator(max_den) if not isinstance(x, Fraction | str) else f
+
+
+def _obj(mat: list[list[Ball]]) -> np.ndarray:
+    out = np.empty((len(mat), len(mat[0])), dtype=object)
+    for i, row in enumerate(mat):
+        for j, b in enumerate(row):
+            out[i, j] = b
+    return out
+
+
+def _symmetrize(M: np.ndarray) -> list[list[Ball]]:
+    s = M.shape[0]
+    out = [[Ball.of(M[i, j]) for j in range(s)] for i in range(s)]
+    for i in range(s):
+        for j in range(i):
+            if out[i][j].c != out[j][i].c:
+                raise AssertionError("matrix centre is not symmetric")
+            r = max(out[i][j].r, out[j][i].r)
+            out[i][j] = out[j][i] = Ball(out[i][j].c, r)
+    return out
+
+
+def _definite(M: list[list[Ball]], sign: int) -> tuple[bool, Fraction, str]:
+    """Prove sign * M ⪰ delta I for every matrix in the ball matrix M; (ok, delta, detail)."""
+    eta = _frobenius_bound(M)
+    S = [[sign * b.c for b in row] for row in M]
+    s = len(S)
+    try:
+        est = float(np.linalg.eigvalsh(np.array([[float(v) for v in row] for row in S]))[0])
+    except (OverflowError, np.linalg.LinAlgError):
+        est = math.nan
+    targets = []
+    if math.isfinite(est) and est > 0 and Fraction(f"{est / 2:.3g}") > eta:
+        targets.append(Fraction(f"{est / 2:.3g}"))
+    targets.append(eta)
+    detail = ""
+    for t in targets:
+        proof = prove_psd([[S[i][j] - (t if i == j else 0) for j in range(s)] for i in range(s)])
+        if proof.psd:
+            return True, _round_down(t - eta), f"{proof.kind} ({proof.method})"
+        detail = proof.detail
+    return False, Fraction(0), f"not proven (min eig estimate {est:.3g}): {detail}"
+
+
+def verify_exact_interpolation(
+    spec: Spec, kappa: float, rho: float, cert: Mapping[str, Any],
+    theta: Mapping[str, float] | None = None, *, max_den: int = DEFAULT_MAX_DEN,
+    rho_steps: tuple[float, ...] = DEFAULT_RHO_STEPS, digits: int = DEFAULT_DIGITS,
+) -> InterpolationExactResult:
+    """Prove in exact arithmetic that ``cert`` certifies ``rho`` (or a rational rho slightly
+    above it, from ``rho_steps``) for the exact method of ``spec`` at ``kappa``."""
+    start = time.perf_counter()
+    res = InterpolationExactResult(spec=spec.name, verified="failed", rho_requested=float(rho))
+
+    def done(reason: str | None) -> InterpolationExactResult:
+        res.reason = reason
+        res.seconds = time.perf_counter() - start
+        return res
+
+    try:
+        ex = exact_algorithm(spec, kappa, theta, digits)
+    except ValueError as exc:
+        return done(f"the exact method cannot be built: {exc}")
+    res.kappa, res.m, res.L = _fmt(ex.kappa), _fmt(ex.m), _fmt(ex.L)
+    res.params = {k: str(v) for k, v in ex.params.items()}
+    res.enclosures = ex.enclosures()
+    try:
+        alg = bind(spec, float(kappa), theta)
+    except ValueError as exc:
+        return done(f"the method cannot be evaluated: {exc}")
+    for k in MATRIX_NAMES:
+        cen = np.array([[float(b.c) for b in row] for row in ex.balls[k]])
+        if not np.allclose(cen, getattr(alg, k), rtol=1e-9, atol=1e-9):
+            return done(f"exact matrix {k} differs from sosalgo.model.bind")
+    if _exact_fixed_point(ex, fixed_point(alg)) is None:
+        return done("fixed point (u with (I - A)u = 0, Cu = 1, Eu = 1) not proven")
+    try:
+        lag = int(cert["lag"])
+        n = alg.n
+        has_x = cert.get("c") is not None
+        if not has_x and not all(_is_zero(v) for v in (ex.matrices["E"] - ex.matrices["C"])):
+            return done("certificate has no c term but x_k != y_k (E != C)")
+        nz = n + lag + 1
+        P_raw = np.asarray(cert["P"], dtype=object)
+        if P_raw.shape != (nz, nz):
+            return done(f"P has shape {P_raw.shape}, expected {(nz, nz)}")
+        P = np.empty((nz, nz), dtype=object)
+        for i in range(nz):
+            for j in range(i, nz):
+                P[i, j] = P[j, i] = _q(0.5 * (float(P_raw[i, j]) + float(P_raw[j, i]))
+                                       if not isinstance(P_raw[i, j], Fraction | str)
+                                       else P_raw[i, j], max_den)
+        pi = [_q(v, max_den) for v in list(cert["p"]) + ([cert["c"]] if has_x else [])]
+        if len(pi) != lag + 1 + has_x:
+            return done(f"p has {len(cert['p'])} weights, expected {lag + 1}")
+        m_dec, m_pos = cert["multipliers"]["decrease"], cert["multipliers"]["positivity"]
+    except (KeyError, TypeError, ValueError, OverflowError) as exc:
+        return done(f"malformed certificate: {type(exc).__name__}: {exc}")
+    st = structure(_obj(ex.balls["A"]), _obj(ex.balls["B"]), _obj(ex.balls["C"]),
+                   _obj(ex.balls["E"]), ex.m, ex.L, lag, has_x, obj=True)
+    try:
+        eta = [max(Fraction(0), _q(m_dec[k], max_den)) for k in st.dec.labels]
+        lam = [max(Fraction(0), _q(m_pos[k], max_den)) for k in st.pos.labels]
+    except KeyError as exc:
+        return done(f"multiplier of pair {exc} missing")
+    if not np.isfinite(float(rho)) or not 0 < _rational(rho) <= 1:
+        return done(f"rho = {rho!r} is not in (0, 1]")
+    # raise p_j / c so that the positivity function-value rows hold exactly
+    Fp = st.pos.F[lag]
+    for q in range(st.pos.nphi):
+        j = next(r for r in range(Fp.shape[0]) if Fp[r, q] == 1)
+        need = Fraction(st.norm[q]) + sum(
+            (lv * Fraction(mv[q]) for lv, mv in zip(lam, st.pos.mq, strict=True)), Fraction(0))
+        pi[j] = max(pi[j], need)
+    res.certificate = {
+        "lag": lag, "P": [[_fmt(P[i, j]) for j in range(nz)] for i in range(nz)],
+        "p": [_fmt(v) for v in pi[: lag + 1]], "c": _fmt(pi[-1]) if has_x else None,
+        "multipliers": {"decrease": dict(zip(st.dec.labels, map(_fmt, eta), strict=True)),
+                        "positivity": dict(zip(st.pos.labels, map(_fmt, lam), strict=True))},
+    }
+    first_fail = None
+    for rq in _rho_candidates(_rational(rho), list(rho_steps), max_den):
+        res.attempts += 1
+        parts = evaluate(st, rq * rq, P, np.array(pi, dtype=object), eta, lam)
+        df = [Ball.of(v) for v in parts["Df"]]
+        pf = [Ball.of(v) for v in parts["Pf"]]
+        bad_df = [i for i, b in enumerate(df) if b.hi > 0]
+        bad_pf = [i for i, b in enumerate(pf) if b.lo < 0]
+        ok_d, delta_d, det_d = _definite(_symmetrize(parts["D"]), -1)
+        ok_p, delta_p, det_p = _definite(_symmetrize(parts["Pq"]), +1)
+        if not bad_df and not bad_pf and ok_d and ok_p:
+            res.verified = "exact"
+            res.rho_proven, res.rho_proven_float = _fmt(rq), float(rq)
+            res.delta = _fmt(min(delta_d, delta_p))
+            res.proofs = {"decrease": f"-D ⪰ {_fmt(delta_d)} I: {det_d}",
+                          "positivity": f"Pq ⪰ {_fmt(delta_p)} I: {det_p}",
+                          "function values": "all rows exact (<= 0 / >= 0)"}
+            return done(None)
+        if first_fail is None:
+            first_fail = "; ".join(
+                ([f"decrease function-value rows {bad_df} > 0"] if bad_df else [])
+                + ([f"positivity function-value rows {bad_pf} < 0"] if bad_pf else [])
+                + ([f"decrease matrix: {det_d}"] if not ok_d else [])
+                + ([f"positivity matrix: {det_p}"] if not ok_p else [])
+            ) + f" at rho = {_fmt(rq)}"
+    return done(first_fail)
