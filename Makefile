@@ -7,7 +7,7 @@ WORKERS ?=
 SCHEDULER ?=
 BATCH_OPTS := $(if $(WORKERS),--workers $(WORKERS)) $(if $(SCHEDULER),--scheduler $(SCHEDULER))
 
-.PHONY: help venv dev demo test lint table1 bench fig1 fig2 fig3 sweeps figures fuzz clean
+.PHONY: help venv dev demo test lint table1 bench fig1 fig2 fig3 fig4 sweeps figures fuzz clean
 
 help:
 	@echo "make demo     - create .venv, install, analyze specs/nesterov.yaml into $(OUT)/"
@@ -63,13 +63,17 @@ fig3: $(VENV)/.installed
 	$(BIN)/sosalgo grid specs/nesterov.yaml --kappa 10 --points 60 --free h,beta --out $(OUT) $(BATCH_OPTS)
 	@echo "Figure 3: $(OUT)/nesterov-grid-k10.png"
 
+fig4: $(VENV)/.installed
+	$(BIN)/sosalgo fig4 --kappa '$(KAPPA_SWEEP)' --out $(OUT)/fig4 $(BATCH_OPTS)
+	@echo "Figure 4: $(OUT)/fig4/fig4-tight-design.png"
+
 SWEEP := {from: 1.5, to: 1000, points: 40, scale: log}
 sweeps: $(VENV)/.installed
 	for spec in specs/*.yaml; do \
 	  $(BIN)/sosalgo analyze $$spec --kappa '$(SWEEP)' --out $(OUT)/sweeps $(BATCH_OPTS) || exit $$?; \
 	done
 
-figures: table1 fig1 fig2 fig3
+figures: table1 fig1 fig2 fig3 fig4
 
 FUZZ_EXAMPLES ?= 20000
 fuzz: $(VENV)/.installed-dev

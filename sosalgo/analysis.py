@@ -64,17 +64,17 @@ class AnalysisResult:
             "rho_infeasible": self.rho_infeasible,
             "params": dict(self.params),
             "family": self.family,
-        } | ({} if self.family == "theorem1" else {"certificate": _jsonable(self.certificate)})
+        } | ({} if self.family == "theorem1" else {"certificate": jsonable(self.certificate)})
 
 
-def _jsonable(v: Any) -> Any:
+def jsonable(v: Any) -> Any:
     """Certificate parts as JSON values (arrays become nested lists)."""
     if isinstance(v, np.ndarray):
         return v.tolist()
     if isinstance(v, dict):
-        return {k: _jsonable(x) for k, x in v.items()}
+        return {k: jsonable(x) for k, x in v.items()}
     if isinstance(v, list | tuple):
-        return [_jsonable(x) for x in v]
+        return [jsonable(x) for x in v]
     return v
 
 

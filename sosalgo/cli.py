@@ -357,19 +357,21 @@ def _analyze_families(spec, runs: list, out_dir: Path, tol: float, as_json: bool
 @batch_options
 @click.option("--verify", "verify_", is_flag=True,
               help="Prove each certificate in exact arithmetic and simulate it.")
+@certificate_options
 @handle_errors
 def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: str,
            order: int | None, gap: float, time_limit: float, method: str, out: str,
            as_json: bool, workers: int | None, scheduler: str | None, restart: bool,
-           quiet: bool, verify_: bool) -> None:
+           quiet: bool, verify_: bool, certificate: str | None, lag: int | None) -> None:
     """Design parameters: certified design, proven lower bound, gap between them."""
     from sosalgo.jobs import design_csv_to_json, run_design_sweep
     from sosalgo.report import format_table, plot_rates
 
     spec = load_spec(spec_path)
-    if spec.certificate != "theorem1":  # the relaxation is built on Theorem 1's inequality
-        raise InputError(f"{spec.source}: certificate: design supports only theorem1, "
-                         f"not {spec.certificate}")
+    fam = _families(spec, certificate, lag, single=True)[0]
+    if method == "moment" and fam.name != "theorem1":
+        raise InputError(f"--method moment: the moment relaxation is built on Theorem 1, "
+                         f"not {fam.name} (use --method dual)")
     kappas = _kappas(spec, kappa)
     names = _free_names(spec, free)
     if not gap > 0:
@@ -385,13 +387,17 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
     check_polynomial(spec, names)  # before anything is written
     out_dir = _out_dir(out)
     spec_text = Path(spec_path).read_text(encoding="utf-8")
+    from sosalgo.jobs import family_options
+
     options = {"free": names, "scalarize": scalarize, "order": order, "gap": gap,
                "time_limit": time_limit, "method": method,
+               "certificate": family_options(fam),
                "progress_steps": len(kappas) == 1 and not quiet and not as_json}
-    csv_path = out_dir / f"{spec.name}-design.csv"
+    csv_path = out_dir / f"{spec.name}-design{_family_suffix(fam)}.csv"
     rows, fresh = run_design_sweep(spec, spec_text, kappas, csv_path, options, workers=workers,
                                    scheduler=scheduler, restart=restart, progress=not quiet)
-    docs = [fresh.get(float(r["kappa"])) or design_csv_to_json(spec, names, r) for r in rows]
+    docs = [fresh.get(float(r["kappa"])) or design_csv_to_json(spec, names, r, fam)
+            for r in rows]
     for d in docs:
         d["source"] = spec.source
     if verify_:
@@ -403,16 +409,16 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
     figs = []
     if len(docs) > 1:
         refs = {name: [r.get("references", {}).get(name) for r in
-                       (design_csv_to_json(spec, names, x) for x in rows)]
+                       (design_csv_to_json(spec, names, x, fam) for x in rows)]
                 for name in spec.references}
         how = "dual certificates" if method == "dual" else f"moment relaxation, {scalarize}"
         figs = plot_rates(
-            f"{spec.name}: designed {', '.join(names)} (bound: {how})",
+            f"{spec.name}: designed {', '.join(names)} ({fam.name}; bound: {how})",
             [d["kappa"] for d in docs],
             {"designed (certified)": [d["rho_certified"] for d in docs],
              "lower bound (proven)": [d["lower_bound"] for d in docs],
              "spec values (certified)": [d["rho_at_values"] for d in docs]},
-            refs, out_dir / f"{spec.name}-design",
+            refs, out_dir / f"{spec.name}-design{_family_suffix(fam)}",
             uncertified=[d["kappa"] for d in docs if d["rho_certified"] is None],
         )
     if as_json:
@@ -437,7 +443,8 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
             "seconds"]
     how = ("box-wide dual certificates" if method == "dual"
            else f"moment relaxation ({scalarize})")
-    click.echo(f"{spec.name}: design of {', '.join(names)}; lower bound by {how}")
+    click.echo(f"{spec.name}: design of {', '.join(names)} certified by {fam.name}; "
+               f"lower bound by {how}")
     click.echo(format_table(table, cols))
     if len(docs) == 1:
         for step in docs[0]["steps"]:
@@ -465,6 +472,42 @@ def _verdict(doc: dict, gap: float) -> str:
     if doc.get("gap_met"):
         return f"optimal (gap <= {gap:g})"
     return f"gap {doc['gap']:.1e}" + (" (time limit)" if doc.get("time_limited") else "")
+
+
+# --------------------------------------------------------------------------- fig4
+@cli.command()
+@click.option("--kappa", "kappa", multiple=True, metavar="K",
+              help="Condition numbers (default: 20 from 1.5 to 1000, log scale).")
+@click.option("--time-limit", default=120.0, show_default=True, type=float,
+              help="Wall-clock seconds per kappa and design.")
+@click.option("--out", default="outputs/fig4", show_default=True, metavar="DIR")
+@batch_options
+@handle_errors
+def fig4(kappa: tuple[str, ...], time_limit: float, out: str, as_json: bool,
+         workers: int | None, scheduler: str | None, restart: bool, quiet: bool) -> None:
+    """Figure 4: the three-parameter family designed with tight certificates vs kappa."""
+    from sosalgo.figures import fig4 as run_fig4
+
+    values = kappa or ("{from: 1.5, to: 1000, points: 20, scale: log}",)
+    kappas = sorted({k for v in values for k in _kappa_option(v)})
+    if not (time_limit > 0 and math.isfinite(time_limit)):
+        raise InputError(f"--time-limit {time_limit}: must be positive and finite")
+    figs, data = run_fig4(_out_dir(out), kappas, workers=workers, scheduler=scheduler,
+                          restart=restart, progress=not quiet, time_limit=time_limit)
+    if as_json:
+        click.echo(json.dumps({"figures": [str(p) for p in figs], **data}, indent=2))
+        return
+    rows = [{"kappa": k, "designed (interpolation)": a, "designed (Theorem 1)": b,
+             "Nesterov (interpolation)": c, "Nesterov (Theorem 1)": d,
+             "1 - 1/sqrt(kappa)": 1 - 1 / math.sqrt(k)}
+            for k, a, b, c, d in zip(data["kappa"], data["designed (interpolation)"],
+                                     data["designed (Theorem 1)"],
+                                     data["Nesterov's tuning (interpolation)"],
+                                     data["Nesterov's tuning (Theorem 1)"], strict=True)]
+    from sosalgo.report import format_table
+
+    click.echo(format_table(rows, list(rows[0]) if rows else []))
+    click.echo("wrote " + ", ".join(str(p) for p in figs))
 
 
 # --------------------------------------------------------------------------- grid

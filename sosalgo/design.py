@@ -29,8 +29,8 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.analysis import AnalysisResult, analyze_spec
-from sosalgo.certificates import get_family
+from sosalgo.analysis import AnalysisResult, analyze_spec, jsonable, spec_family
+from sosalgo.certificates import CertificateFamily, get_family
 from sosalgo.design_moment import design_problem, relaxation_bound
 from sosalgo.dualbound import BoundSearch, QuadraticTest, dual_structure
 from sosalgo.model import ModelError, bind, evaluate_algorithm, parameter_box
@@ -67,6 +67,8 @@ class DesignResult:
     method: str = "dual"
     floor: float | None = None  # 1 - 1/sqrt(kappa): the class lower bound (a theorem)
     time_limited: bool = False
+    family: str = "theorem1"
+    lag: int | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON document of ``sosalgo design --json`` (a contract: extend, never rename)."""
@@ -89,7 +91,8 @@ class DesignResult:
             "gap_to_floor": (None if self.rho_certified is None or self.floor is None
                              else self.rho_certified - self.floor),
             "time_limited": self.time_limited,
-        }
+            "family": self.family,
+        } | ({} if self.lag is None else {"lag": self.lag})
 
 
 def _rate(res: AnalysisResult | None) -> float:
@@ -100,8 +103,9 @@ class _Run:
     """State of one design at one κ: the best certified point, the clock, the log."""
 
     def __init__(self, spec: Spec, kappa: float, free: list[str], box, deadline: float,
-                 on_step: Callable[[str], None] | None):
+                 on_step: Callable[[str], None] | None, family: CertificateFamily):
         self.spec, self.kappa, self.free, self.box = spec, kappa, free, box
+        self.family = family
         self.deadline = deadline
         self.best: AnalysisResult | None = None
         self.best_theta: dict[str, float] | None = None
@@ -138,7 +142,8 @@ class _Run:
             return None
         t = time.perf_counter()
         try:
-            res = analyze_spec(self.spec, self.kappa, self.clip(theta), tol=tol)
+            res = analyze_spec(self.spec, self.kappa, self.clip(theta), tol=tol,
+                               family=self.family)
         except ModelError:
             return None
         finally:
@@ -174,6 +179,7 @@ def design(
     max_order: int | None = None,
     method: str = "dual",
     on_step: Callable[[str], None] | None = None,
+    family: CertificateFamily | str | None = None,
 ) -> DesignResult:
     """Design the free parameters at ``kappa`` (eq. 17): search, certify, bound.
 
@@ -182,7 +188,8 @@ def design(
     ``method`` ("dual": box-wide dual certificates, which also certifies every better
     point it meets; "moment": the paper's moment relaxation, order ``order``, raised up to
     ``max_order``). ``time_limit`` is a wall-clock limit for all of it; ``on_step``
-    receives progress messages. ``steps`` in the result records what happened.
+    receives progress messages. ``family`` overrides the spec's certificate family.
+    ``steps`` in the result records what happened.
     """
     t0 = time.perf_counter()
     if method not in METHODS:
@@ -193,9 +200,14 @@ def design(
     spec.check_free(free)
     box = parameter_box(spec, kappa, free)
     bind(spec, kappa)  # the spec's own values must make sense here
-    family = get_family(spec.certificate)
+    if family is None:
+        family = spec_family(spec)
+    elif isinstance(family, str):
+        family = get_family(family)
+    if method == "moment" and family.name != "theorem1":
+        raise ModelError("certificate", "--method moment is built on Theorem 1 only")
     model = fit_poly_lmi(spec, kappa, free, box, family)  # refuses non-polynomial θ
-    run = _Run(spec, kappa, free, box, t0 + time_limit, on_step)
+    run = _Run(spec, kappa, free, box, t0 + time_limit, on_step, family)
     run.log("certifying the spec's values", record=False)
     values_res = run.certify({})
     if values_res is not None and values_res.certified:
@@ -216,8 +228,13 @@ def design(
         lb = rho_c
     g = None if (lb is None or rho_c is None) else rho_c - lb
     best = run.best
-    cert = {} if best is None else {"P": best.P.tolist(), "lambda": best.lam,
-                                    "max_eig_M": best.max_eig_M, "min_eig_P": best.min_eig_P}
+    cert: dict[str, Any] = {}
+    if best is not None and family.name == "theorem1":
+        cert = {"P": best.P.tolist(), "lambda": best.lam,
+                "max_eig_M": best.max_eig_M, "min_eig_P": best.min_eig_P}
+    elif best is not None:  # the family's named parts
+        cert = {**jsonable(best.certificate or {}), "max_eig_M": best.max_eig_M,
+                "min_eig_P": best.min_eig_P}
     gap_met = g is not None and g <= gap
     if run.out_of_time and not gap_met:
         run.log(f"time limit {time_limit:g} s reached")
@@ -228,7 +245,8 @@ def design(
         gap_met=gap_met,
         rho_at_values=None if values_res is None or not values_res.certified
         else values_res.rho,
-        method=method, floor=1.0 - 1.0 / math.sqrt(kappa),
+        method=method, floor=1.0 - 1.0 / math.sqrt(kappa), family=family.name,
+        lag=getattr(family, "lag", None),
         time_limited=run.out_of_time and not gap_met,
     )
 
@@ -289,15 +307,27 @@ def _polish(run: _Run, theta: dict[str, float]) -> dict[str, float] | None:
         out = minimize_scalar(lambda s: f(np.array([s])), bounds=(a, b), method="bounded",
                               options={"xatol": 1e-7 * (hi - lo), "maxiter": 60})
         return {free[0]: float(out.x)}
-    x0 = np.array([theta[p] for p in free])
-    widths = np.array([hi - lo for lo, hi in box])
-    simplex = [x0] + [x0 + np.eye(len(free))[i] * widths[i] / (2 * GRID_POINTS.get(
-        len(free), 5)) for i in range(len(free))]
-    simplex = [np.clip(s, [b[0] for b in box], [b[1] for b in box]) for s in simplex]
-    out = minimize(f, x0, method="Nelder-Mead", bounds=box,
-                   options={"xatol": 1e-8, "fatol": 1e-8, "maxfev": 120 * len(free),
-                            "initial_simplex": np.array(simplex)})
-    return dict(zip(free, map(float, out.x), strict=True))
+    lo = np.array([b[0] for b in box])
+    hi = np.array([b[1] for b in box])
+    widths = hi - lo
+    x = np.array([theta[p] for p in free])
+    fx = f(x)
+    # Nelder-Mead, restarted from its result with smaller simplices (the certified rate
+    # has kinks where restarts help); each simplex steps away from the nearer bound.
+    for frac in (0.5 / GRID_POINTS.get(len(free), 5), 0.01, 0.001):
+        if not run.can_afford(40 * run.analysis_seconds):
+            break
+        steps = np.where(x - lo > hi - x, -1.0, 1.0) * widths * frac
+        simplex = np.array([x] + [x + np.eye(len(free))[i] * steps[i]
+                                  for i in range(len(free))])
+        out = minimize(f, x, method="Nelder-Mead", bounds=box,
+                       options={"xatol": 1e-9, "fatol": 1e-9, "maxfev": 80 * len(free),
+                                "initial_simplex": np.clip(simplex, lo, hi)})
+        if out.fun < fx - 1e-9:
+            x, fx = np.clip(out.x, lo, hi), float(out.fun)
+        elif frac < 0.01:
+            break
+    return dict(zip(free, map(float, x), strict=True))
 
 
 # --------------------------------------------------------------------------- lower bounds
@@ -307,7 +337,8 @@ def _dual_bound(run: _Run, model, gap: float) -> tuple[float | None, dict[str, A
                             "order": None, "flat": None, "ranks": []}
     structure = dual_structure(model)
     if structure is None:
-        run.log(f"no box-wide dual bound for the {run.spec.certificate} family")
+        run.log(f"no proven lower bound for the {run.family.name} family (its Lyapunov "
+                "variables are not all sign-constrained); see floor")
         return None, info
 
     def target() -> float:
@@ -324,7 +355,7 @@ def _dual_bound(run: _Run, model, gap: float) -> tuple[float | None, dict[str, A
         """No dual certificate at this center: certify it if it is feasible below T."""
         theta = model.theta(z)
         try:
-            problem = get_family(spec.certificate).problem(bind(spec, kappa, theta))
+            problem = run.family.problem(bind(spec, kappa, theta))
         except ModelError:
             return None
         mg = solve_margin(problem, math.sqrt(r))

@@ -237,19 +237,25 @@ def _family_json(spec: Spec, row: dict[str, str], family: CertificateFamily | No
 
 
 # --------------------------------------------------------------------------- design sweeps
-def design_columns(spec: Spec, free: Sequence[str]) -> list[str]:
-    """CSV columns of ``sosalgo design`` over kappa (a contract: extend, never rename)."""
+def design_columns(spec: Spec, free: Sequence[str],
+                   family: CertificateFamily | None = None) -> list[str]:
+    """CSV columns of ``sosalgo design`` over kappa (a contract: extend, never rename).
+
+    Another family than Theorem 1 has P's entries of its own size and its extra parts at
+    the end (see its ``csv_columns``)."""
+    fam = _extra(family)
     return (
         ["kappa", "lower_bound", "rho_certified", "gap", "gap_met"]
         + [f"theta_{p}" for p in free]
-        + ["rho_at_values", "lambda"] + p_columns(spec.n)
+        + ["rho_at_values", "lambda"] + p_columns(p_size(spec, family))
         + ["scalarize", "order", "status", "flat", "ranks", "seconds", "steps", "error",
            "method", "floor", "time_limited"]
         + list(spec.references)
+        + ([] if fam is None else fam.csv_columns(spec.n))
     )
 
 
-def design_row(spec: Spec, res: Any) -> dict[str, Any]:
+def design_row(spec: Spec, res: Any, family: CertificateFamily | None = None) -> dict[str, Any]:
     """A CSV row from a :class:`sosalgo.design.DesignResult`."""
     row: dict[str, Any] = {
         "kappa": res.kappa, "lower_bound": res.lower_bound, "rho_certified": res.rho_certified,
@@ -263,8 +269,11 @@ def design_row(spec: Spec, res: Any) -> dict[str, Any]:
     }
     for p, v in res.theta.items():
         row[f"theta_{p}"] = v
-    row.update(p_entries(spec.n, res.certificate.get("P")))
+    row.update(p_entries(p_size(spec, family), res.certificate.get("P")))
     row.update(reference_values(spec, res.kappa))
+    fam = _extra(family)
+    if fam is not None:
+        row.update(fam.csv_cells(spec.n, res.certificate or None))
     return row
 
 
@@ -275,6 +284,7 @@ def design_chunk(
     from sosalgo.design import design
 
     spec = _spec(spec_text, source)
+    fam = family_from_options(options.get("certificate")) or spec_family(spec)
     rows = []
     for task in chunk:
         kappa = float(task["kappa"])
@@ -286,8 +296,9 @@ def design_chunk(
             res = design(spec, kappa, free=options["free"], scalarize=options["scalarize"],
                          order=options["order"], gap=options["gap"],
                          time_limit=options["time_limit"],
-                         method=options.get("method", "dual"), on_step=on_step)
-            row = design_row(spec, res)
+                         method=options.get("method", "dual"), on_step=on_step,
+                         family=fam)
+            row = design_row(spec, res, fam)
             row["_result"] = res.to_dict()
         except ModelError as exc:
             row = {"kappa": kappa, "error": str(exc)}
@@ -304,8 +315,9 @@ def run_design_sweep(
     """Design over kappa, resumable. Returns the CSV rows (kappa order) and the full
     results of the rows computed in this run (keyed by kappa)."""
     settings = {"job": "design", "spec": spec_text, **options}
-    store = ResumableCSV(out_csv, design_columns(spec, options["free"]), ["kappa"], settings,
-                         restart=restart)
+    fam = family_from_options(options.get("certificate")) or spec_family(spec)
+    store = ResumableCSV(out_csv, design_columns(spec, options["free"], fam), ["kappa"],
+                         settings, restart=restart)
     tasks = [{"kappa": float(k)} for k in kappas]
     todo = [t for t in tasks if not store.is_done(t)]
     fresh: dict[float, dict[str, Any]] = {}
@@ -328,9 +340,10 @@ def run_design_sweep(
     return sorted(rows, key=lambda r: float(r["kappa"])), fresh
 
 
-def design_csv_to_json(spec: Spec, free: Sequence[str], row: dict[str, str]) -> dict[str, Any]:
+def design_csv_to_json(spec: Spec, free: Sequence[str], row: dict[str, str],
+                       family: CertificateFamily | None = None) -> dict[str, Any]:
     """JSON form of a design CSV row (same keys as the single-kappa document)."""
-    n = spec.n
+    n = p_size(spec, family)
     P = None
     if row.get("P11", "") != "":
         P = [[0.0] * n for _ in range(n)]
@@ -345,7 +358,7 @@ def design_csv_to_json(spec: Spec, free: Sequence[str], row: dict[str, str]) -> 
         "theta": {p: _num(row[f"theta_{p}"]) for p in free},
         "rho_certified": _num(row["rho_certified"]),
         "gap": _num(row["gap"]),
-        "certificate": {"P": P, "lambda": _num(row["lambda"])},
+        "certificate": _design_certificate(spec, row, family, P),
         "relaxation": {"scalarize": row["scalarize"] or None,
                        "order": int(row["order"]) if row["order"] else None,
                        "status": row["status"] or None,
@@ -360,7 +373,16 @@ def design_csv_to_json(spec: Spec, free: Sequence[str], row: dict[str, str]) -> 
         "rho_at_values": _num(row["rho_at_values"]),
         "error": row.get("error") or None,
         "references": {name: _num(row[name]) for name in spec.references},
+        "family": (family or spec_family(spec)).name,
     }
+
+
+def _design_certificate(spec: Spec, row: dict[str, str], family: CertificateFamily | None,
+                        P: Any) -> dict[str, Any]:
+    fam = _extra(family)
+    if fam is None:
+        return {"P": P, "lambda": _num(row["lambda"])}
+    return fam.cert_from_csv(spec.n, row, P) or {}
 
 
 # --------------------------------------------------------------------------- grids
