@@ -392,7 +392,10 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
     options = {"free": names, "scalarize": scalarize, "order": order, "gap": gap,
                "time_limit": time_limit, "method": method,
                "certificate": family_options(fam),
-               "progress_steps": len(kappas) == 1 and not quiet and not as_json}
+               "progress_steps": len(kappas) == 1 and not quiet and not as_json,
+               # one kappa: its grid and local searches use the workers
+               "inner_workers": (workers or os.cpu_count() or 1)
+               if len(kappas) == 1 and scheduler is None else 1}
     csv_path = out_dir / f"{spec.name}-design{_family_suffix(fam)}.csv"
     rows, fresh = run_design_sweep(spec, spec_text, kappas, csv_path, options, workers=workers,
                                    scheduler=scheduler, restart=restart, progress=not quiet)

@@ -114,6 +114,7 @@ class _Run:
         self.analysis_seconds = 0.02  # running estimate of one certifying analysis
         self.out_of_time = False
         self.phase_end = deadline  # the search phases stop earlier to leave time for bounds
+        self.workers = 1  # processes for the grid and the local searches
 
     def log(self, msg: str, record: bool = True) -> None:
         if record:
@@ -180,6 +181,7 @@ def design(
     method: str = "dual",
     on_step: Callable[[str], None] | None = None,
     family: CertificateFamily | str | None = None,
+    workers: int | None = None,
 ) -> DesignResult:
     """Design the free parameters at ``kappa`` (eq. 17): search, certify, bound.
 
@@ -189,6 +191,7 @@ def design(
     point it meets; "moment": the paper's moment relaxation, order ``order``, raised up to
     ``max_order``). ``time_limit`` is a wall-clock limit for all of it; ``on_step``
     receives progress messages. ``family`` overrides the spec's certificate family.
+    ``workers`` > 1 evaluates the grid and the local searches on that many processes.
     ``steps`` in the result records what happened.
     """
     t0 = time.perf_counter()
@@ -208,6 +211,7 @@ def design(
         raise ModelError("certificate", "--method moment is built on Theorem 1 only")
     model = fit_poly_lmi(spec, kappa, free, box, family)  # refuses non-polynomial θ
     run = _Run(spec, kappa, free, box, t0 + time_limit, on_step, family)
+    run.workers = _usable_workers(workers)
     run.log("certifying the spec's values", record=False)
     values_res = run.certify({})
     if values_res is not None and values_res.certified:
@@ -258,14 +262,21 @@ def _search(run: _Run) -> None:
     pts = GRID_POINTS.get(k, 5)
     axes = [np.linspace(lo, hi, pts) if hi > lo else np.array([lo]) for lo, hi in run.box]
     run.log(f"grid search: {pts}^{k} points", record=False)
-    scored: list[tuple[float, dict[str, float]]] = []
-    for pt in product(*axes):
-        theta = dict(zip(run.free, map(float, pt), strict=True))
-        if not run.can_afford(2 * run.analysis_seconds):
+    thetas = [dict(zip(run.free, map(float, pt), strict=True)) for pt in product(*axes)]
+    if run.workers > 1:
+        rates = _parallel(run, _grid_task, [thetas[i::4 * run.workers]
+                                             for i in range(4 * run.workers)])
+        scored = [(r, th) for i in range(4 * run.workers)
+                  for r, th in zip(rates[i] or [], thetas[i::4 * run.workers], strict=False)]
+        if len(scored) < len(thetas):
             run.log("grid cut short to leave time for the bound")
-            break
-        res = run.certify(theta, tol=GRID_TOL)
-        scored.append((_rate(res), theta))
+    else:
+        scored = []
+        for theta in thetas:
+            if not run.can_afford(2 * run.analysis_seconds):
+                run.log("grid cut short to leave time for the bound")
+                break
+            scored.append((_rate(run.certify(theta, tol=GRID_TOL)), theta))
     scored.sort(key=lambda item: item[0])
     good = [th for r, th in scored if math.isfinite(r)]
     run.log(f"grid: {len(scored)} points, {len(good)} certified"
@@ -280,11 +291,75 @@ def _search(run: _Run) -> None:
         if len(starts) == (1 if k == 1 else 2):
             break
     run.phase_end = time.perf_counter() + 0.4 * max(run.left(), 0.0)  # polishing
+    if run.workers > 1 and len(starts) > 1:
+        run.log(f"polishing locally from {len(starts)} points in parallel", record=False)
+        for theta in _parallel(run, _polish_task, starts):
+            run.consider(theta, "grid point polished")
+        return
     for theta in starts:
         if not run.can_afford(10 * run.analysis_seconds):
             break
         run.log("polishing locally", record=False)
         run.consider(_polish(run, theta), "grid point polished")
+
+
+def _usable_workers(workers: int | None) -> int:
+    """Processes for one design: 1 inside daemonic workers (they cannot have children)."""
+    import multiprocessing as mp
+
+    if not workers or workers <= 1 or mp.current_process().daemon:
+        return 1
+    return int(workers)
+
+
+def _worker_run(run: _Run) -> tuple:
+    """What a worker needs to rebuild the run (no callbacks), with the phase's seconds."""
+    seconds = min(run.deadline, run.phase_end) - time.perf_counter()
+    return (run.spec, run.kappa, run.family, run.free, run.box, seconds)
+
+
+def _rebuild(spec, kappa, family, free, box, seconds) -> _Run:
+    return _Run(spec, kappa, free, box, time.perf_counter() + seconds, None, family)
+
+
+def _grid_task(args: tuple) -> list[float]:
+    *base, thetas = args
+    run = _rebuild(*base)
+    out = []
+    for theta in thetas:
+        res = run.certify(theta, tol=GRID_TOL)
+        if res is None and run.out_of_time:
+            break
+        out.append(_rate(res))
+    return out
+
+
+def _polish_task(args: tuple) -> dict[str, float] | None:
+    *base, theta = args
+    return _polish(_rebuild(*base), theta)
+
+
+def _parallel(run: _Run, fn: Callable, items: list) -> list:
+    """fn((*worker_run, item)) for every item on run.workers processes, within the phase;
+    an item not finished in time gives None."""
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor, TimeoutError, wait
+
+    base = _worker_run(run)
+    ctx = mp.get_context("fork") if "fork" in mp.get_all_start_methods() else None
+    pool = ProcessPoolExecutor(max_workers=run.workers, mp_context=ctx)
+    try:
+        futs = [pool.submit(fn, (*base, item)) for item in items]
+        wait(futs, timeout=max(0.0, base[-1]) + 1.0)
+        out = []
+        for f in futs:
+            try:
+                out.append(f.result(timeout=0) if f.done() else None)
+            except (TimeoutError, Exception):  # noqa: BLE001 - a lost item is just missing
+                out.append(None)
+        return out
+    finally:
+        pool.shutdown(wait=False, cancel_futures=True)
 
 
 def _polish(run: _Run, theta: dict[str, float]) -> dict[str, float] | None:

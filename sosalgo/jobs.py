@@ -237,6 +237,9 @@ def _family_json(spec: Spec, row: dict[str, str], family: CertificateFamily | No
 
 
 # --------------------------------------------------------------------------- design sweeps
+RUNTIME_OPTIONS = ("progress_steps", "inner_workers")  # how to run, not what: not settings
+
+
 def design_columns(spec: Spec, free: Sequence[str],
                    family: CertificateFamily | None = None) -> list[str]:
     """CSV columns of ``sosalgo design`` over kappa (a contract: extend, never rename).
@@ -297,7 +300,7 @@ def design_chunk(
                          order=options["order"], gap=options["gap"],
                          time_limit=options["time_limit"],
                          method=options.get("method", "dual"), on_step=on_step,
-                         family=fam)
+                         family=fam, workers=options.get("inner_workers"))
             row = design_row(spec, res, fam)
             row["_result"] = res.to_dict()
         except ModelError as exc:
@@ -314,7 +317,8 @@ def run_design_sweep(
 ) -> tuple[list[dict[str, str]], dict[float, dict[str, Any]]]:
     """Design over kappa, resumable. Returns the CSV rows (kappa order) and the full
     results of the rows computed in this run (keyed by kappa)."""
-    settings = {"job": "design", "spec": spec_text, **options}
+    settings = {"job": "design", "spec": spec_text,
+                **{k: v for k, v in options.items() if k not in RUNTIME_OPTIONS}}
     fam = family_from_options(options.get("certificate")) or spec_family(spec)
     store = ResumableCSV(out_csv, design_columns(spec, options["free"], fam), ["kappa"],
                          settings, restart=restart)
