@@ -16,9 +16,10 @@ from typing import Any
 
 import click
 
+from sosalgo.batch import BatchError
 from sosalgo.model import ModelError
-from sosalgo.rows import SettingsMismatch
-from sosalgo.spec import SpecError, load_spec, parse_kappa
+from sosalgo.rows import OutputError, kappa_label, output_lock
+from sosalgo.spec import SpecError, load_spec, parse_kappa, read_spec_text, spec_from_text
 
 __all__ = ["main", "cli"]
 
@@ -39,7 +40,7 @@ def handle_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
             return fn(*args, **kwargs)
-        except (SpecError, InputError, SettingsMismatch) as exc:
+        except (SpecError, InputError, OutputError, BatchError) as exc:
             _fail(_one_line(str(exc)), 2)
         except ModelError as exc:
             src = kwargs.get("spec_path", "")
@@ -47,6 +48,9 @@ def handle_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
         except KeyboardInterrupt:
             click.echo("interrupted: finished rows are saved; rerun to resume", err=True)
             sys.exit(130)
+        except Terminated:
+            click.echo("terminated: finished rows are saved; rerun to resume", err=True)
+            sys.exit(143)
         except click.exceptions.Exit:
             raise
         except Exception as exc:  # noqa: BLE001 - last line of defence
@@ -55,6 +59,14 @@ def handle_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
             _fail(_one_line(f"internal error: {type(exc).__name__}: {exc}"), 1)
 
     return wrapper
+
+
+class Terminated(BaseException):
+    """SIGTERM received: unwinds like KeyboardInterrupt, so worker pools are shut down."""
+
+
+def _on_sigterm(signum: int, frame: Any) -> None:
+    raise Terminated()
 
 
 def _one_line(msg: str) -> str:
@@ -72,6 +84,10 @@ def _kappa_option(value: str) -> tuple[float, ...]:
     import yaml
 
     raw: object = value
+    if "," in value and value.strip()[:1] not in "[{":
+        raise InputError(f"--kappa {value}: one value per --kappa; write --kappa "
+                         + " --kappa ".join(v.strip() for v in value.split(","))
+                         + f" or a list --kappa '[{value}]'")
     if value.strip()[:1] in "[{":
         try:
             raw = yaml.safe_load(value)
@@ -81,10 +97,32 @@ def _kappa_option(value: str) -> tuple[float, ...]:
 
 
 def _out_dir(out: str) -> Path:
+    """The --out directory, checked writable (nothing is created yet)."""
     path = Path(out)
     if path.exists() and not path.is_dir():
         raise InputError(f"--out {out}: exists and is not a directory")
+    probe = path
+    while not probe.exists():
+        if probe.parent == probe:
+            break
+        probe = probe.parent
+    if not probe.is_dir() or not os.access(probe, os.W_OK | os.X_OK):
+        raise InputError(f"--out {out}: not writable ({probe} does not accept new files)")
     return path
+
+
+def _load(spec_path: str):
+    """The spec and its text, read once (so a pipe or /dev/stdin works)."""
+    text = read_spec_text(spec_path)
+    return spec_from_text(text, source=str(spec_path)), text
+
+
+def _check_scheduler(scheduler: str | None) -> None:
+    """Fail early (exit 2, nothing written) on a missing Dask or an unusable scheduler."""
+    if scheduler:
+        from sosalgo.batch import check_scheduler
+
+        check_scheduler(scheduler)
 
 
 def _check_points(spec, kappas, theta=None) -> None:
@@ -171,28 +209,22 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
             no_plot: bool, verify_: bool) -> None:
     """Best rate certified by Theorem 1 at each kappa, with its certificate (P, lambda)."""
     from sosalgo.jobs import csv_row_to_json, run_analysis_sweep
-    from sosalgo.report import format_table, plot_rates
+    from sosalgo.report import format_table
 
-    spec = load_spec(spec_path)
+    spec, spec_text = _load(spec_path)
     kappas = _kappas(spec, kappa)
     _check_tol(tol)
     _check_points(spec, kappas)
     out_dir = _out_dir(out)
-    spec_text = Path(spec_path).read_text(encoding="utf-8")
+    _check_scheduler(scheduler)
     csv_path = out_dir / f"{spec.name}-analysis.csv"
-    rows = run_analysis_sweep(spec, spec_text, kappas, csv_path, tol, workers=workers,
-                              scheduler=scheduler, restart=restart, progress=not quiet)
-    jrows = [csv_row_to_json(spec, r) for r in rows]
-    figs = []
-    if not no_plot:
-        figs = plot_rates(
-            f"{spec.name}: certified rate (Theorem 1)",
-            [r["kappa"] for r in jrows],
-            {"certified rate": [r["rho"] for r in jrows]},
-            {name: [r["references"][name] for r in jrows] for name in spec.references},
-            out_dir / f"{spec.name}-rate",
-            uncertified=[r["kappa"] for r in jrows if not r["certified"]],
-        )
+    fig_stem = out_dir / f"{spec.name}-rate"
+    with output_lock(csv_path):
+        rows = run_analysis_sweep(spec, spec_text, kappas, csv_path, tol, workers=workers,
+                                  scheduler=scheduler, restart=restart, progress=not quiet,
+                                  companions=_figures(fig_stem))
+        jrows = [csv_row_to_json(spec, r) for r in rows]
+        figs = [] if no_plot else _plot_analysis(spec, jrows, fig_stem)
     cols = ["kappa", "rho", "certified", "lambda", "max_eig_M", "min_eig_P", "solves",
             "seconds"]
     if verify_:
@@ -204,14 +236,33 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
             r["verified"] = None if v is None else v["verified"]
         cols.append("verified")
     if as_json:
-        doc = {"spec": spec.name, "source": spec.source, "tol": tol, "csv": str(csv_path),
-               "figures": [str(p) for p in figs], "rows": jrows}
+        doc = {"spec": spec.name, "source": spec.source, "spec_text": spec_text, "tol": tol,
+               "csv": str(csv_path), "figures": [str(p) for p in figs], "rows": jrows}
         click.echo(json.dumps(doc, indent=2))
         return
     table_rows = [{**r, **r["references"]} for r in jrows]
     click.echo(f"{spec.name}: {spec.description}".rstrip(": "))
     click.echo(format_table(table_rows, cols + list(spec.references)))
     click.echo(f"wrote {csv_path}" + "".join(f", {p}" for p in figs))
+
+
+def _figures(stem: Path) -> list[Path]:
+    """The PNG and PDF written for a figure stem (they move with their CSV)."""
+    return [stem.with_name(f"{stem.name}.{ext}") for ext in ("png", "pdf")]
+
+
+def _plot_analysis(spec, jrows: list[dict[str, Any]], stem: Path) -> list[Path]:
+    """Certified rate vs kappa with the spec's references (figure of ``analyze``)."""
+    from sosalgo.report import plot_rates
+
+    return plot_rates(
+        f"{spec.name}: certified rate (Theorem 1)",
+        [r["kappa"] for r in jrows],
+        {"certified rate": [r["rho"] for r in jrows]},
+        {name: [r["references"][name] for r in jrows] for name in spec.references},
+        stem,
+        uncertified=[r["kappa"] for r in jrows if not r["certified"]],
+    )
 
 
 # --------------------------------------------------------------------------- design
@@ -240,9 +291,9 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
            verify_: bool) -> None:
     """Design parameters by sum-of-squares: lower bound, designed theta, certified rate."""
     from sosalgo.jobs import design_csv_to_json, run_design_sweep
-    from sosalgo.report import format_table, plot_rates
+    from sosalgo.report import format_table
 
-    spec = load_spec(spec_path)
+    spec, spec_text = _load(spec_path)
     kappas = _kappas(spec, kappa)
     names = _free_names(spec, free)
     if not gap > 0:
@@ -252,35 +303,29 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
     _check_points(spec, kappas)
     _boxes(spec, kappas, names)
     out_dir = _out_dir(out)
-    spec_text = Path(spec_path).read_text(encoding="utf-8")
+    _check_scheduler(scheduler)
     options = {"free": names, "scalarize": scalarize, "order": order, "gap": gap,
                "time_limit": time_limit}
     csv_path = out_dir / f"{spec.name}-design.csv"
-    rows, fresh = run_design_sweep(spec, spec_text, kappas, csv_path, options, workers=workers,
-                                   scheduler=scheduler, restart=restart, progress=not quiet)
-    docs = [fresh.get(float(r["kappa"])) or design_csv_to_json(spec, names, r) for r in rows]
-    for d in docs:
-        d["source"] = spec.source
+    fig_stem = out_dir / f"{spec.name}-design"
+    with output_lock(csv_path):
+        rows, fresh = run_design_sweep(spec, spec_text, kappas, csv_path, options,
+                                       workers=workers, scheduler=scheduler, restart=restart,
+                                       progress=not quiet, companions=_figures(fig_stem))
+        docs = [fresh.get(float(r["kappa"])) or design_csv_to_json(spec, names, r)
+                for r in rows]
+        for d in docs:
+            d["source"] = spec.source
+            d["spec_text"] = spec_text
+        figs = []
+        if len(docs) > 1:
+            figs = _plot_design(spec, names, scalarize, rows, docs, fig_stem)
     if verify_:
         from sosalgo.verification import verify_document_rows
 
         checks = verify_document_rows(spec, docs, out_dir / "certificates")
         for d, v in zip(docs, checks, strict=True):
             d["verification"] = v
-    figs = []
-    if len(docs) > 1:
-        refs = {name: [r.get("references", {}).get(name) for r in
-                       (design_csv_to_json(spec, names, x) for x in rows)]
-                for name in spec.references}
-        figs = plot_rates(
-            f"{spec.name}: designed {', '.join(names)} (SOS, {scalarize})",
-            [d["kappa"] for d in docs],
-            {"designed (certified)": [d["rho_certified"] for d in docs],
-             "lower bound (relaxation)": [d["lower_bound"] for d in docs],
-             "spec values (certified)": [d["rho_at_values"] for d in docs]},
-            refs, out_dir / f"{spec.name}-design",
-            uncertified=[d["kappa"] for d in docs if d["rho_certified"] is None],
-        )
     if as_json:
         if len(docs) == 1:
             click.echo(json.dumps(docs[0], indent=2))
@@ -316,6 +361,25 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
     click.echo(f"wrote {csv_path}" + "".join(f", {p}" for p in figs))
 
 
+def _plot_design(spec, names, scalarize, rows, docs, stem: Path) -> list[Path]:
+    """Designed rate, lower bound and spec-value rate vs kappa (figure of ``design``)."""
+    from sosalgo.jobs import design_csv_to_json
+    from sosalgo.report import plot_rates
+
+    refs = {name: [r.get("references", {}).get(name) for r in
+                   (design_csv_to_json(spec, names, x) for x in rows)]
+            for name in spec.references}
+    return plot_rates(
+        f"{spec.name}: designed {', '.join(names)} (SOS, {scalarize})",
+        [d["kappa"] for d in docs],
+        {"designed (certified)": [d["rho_certified"] for d in docs],
+         "lower bound (relaxation)": [d["lower_bound"] for d in docs],
+         "spec values (certified)": [d["rho_at_values"] for d in docs]},
+        refs, stem,
+        uncertified=[d["kappa"] for d in docs if d["rho_certified"] is None],
+    )
+
+
 # --------------------------------------------------------------------------- grid
 GRID_COLUMNS = {"kappa", "rho", "certified", "lambda", "max_eig_M", "min_eig_P", "solves",
                 "seconds", "solver", "error"}
@@ -343,7 +407,7 @@ def grid(spec_path: str, kappa: tuple[str, ...], points: int, free: str | None, 
     from sosalgo.model import parameter_values
     from sosalgo.report import plot_grid
 
-    spec = load_spec(spec_path)
+    spec, spec_text = _load(spec_path)
     kappas = _kappas(spec, kappa)
     names = _free_names(spec, free)
     for p in names:
@@ -352,27 +416,29 @@ def grid(spec_path: str, kappa: tuple[str, ...], points: int, free: str | None, 
     _check_tol(tol)
     boxes = _boxes(spec, kappas, names)
     out_dir = _out_dir(out)
-    spec_text = Path(spec_path).read_text(encoding="utf-8")
+    _check_scheduler(scheduler)
     docs = []
-    for k in kappas:
-        stem = out_dir / f"{spec.name}-grid-k{k:g}"
-        rows = run_grid(spec, spec_text, k, names, boxes[k], points,
-                        stem.with_name(stem.name + ".csv"), tol, workers=workers,
-                        scheduler=scheduler, restart=restart, progress=not quiet)
-        rho = np.array([float(r["rho"]) if r["rho"] else np.nan for r in rows])
-        figs = []
-        if len(names) <= 2:
-            axes = [np.linspace(lo, hi, points) for lo, hi in boxes[k]]
-            vals = parameter_values(spec, k)
-            figs = plot_grid(f"{spec.name}: certified rate, kappa = {k:g}", names, axes,
-                             rho.reshape([points] * len(names)), stem,
-                             value_point=[vals[p] for p in names])
+    for k in dict.fromkeys(kappas):
+        stem = out_dir / f"{spec.name}-grid-k{kappa_label(k)}"
+        csv_path = stem.with_name(stem.name + ".csv")
+        with output_lock(csv_path):
+            rows = run_grid(spec, spec_text, k, names, boxes[k], points, csv_path, tol,
+                            workers=workers, scheduler=scheduler, restart=restart,
+                            progress=not quiet, companions=_figures(stem))
+            rho = np.array([float(r["rho"]) if r["rho"] else np.nan for r in rows])
+            figs = []
+            if len(names) <= 2:
+                axes = [np.linspace(lo, hi, points) for lo, hi in boxes[k]]
+                vals = parameter_values(spec, k)
+                figs = plot_grid(f"{spec.name}: certified rate, kappa = {k:.10g}", names, axes,
+                                 rho.reshape([points] * len(names)), stem,
+                                 value_point=[vals[p] for p in names])
         finite = np.isfinite(rho)
         best = None
         if finite.any():
             i = int(np.nanargmin(np.where(finite, rho, np.nan)))
             best = {"rho": float(rho[i]), "theta": {p: float(rows[i][p]) for p in names}}
-        docs.append({"kappa": k, "csv": str(stem.with_name(stem.name + ".csv")),
+        docs.append({"kappa": k, "csv": str(csv_path),
                      "figures": [str(f) for f in figs], "points": len(rows),
                      "certified": int(finite.sum()), "minimum": best})
     if as_json:
@@ -519,7 +585,10 @@ def table1(spec_paths: tuple[str, ...], kappa: tuple[str, ...], tol: float, out:
 
 
 def main() -> None:
-    """Console-script entry point."""
+    """Console-script entry point (SIGTERM unwinds like Ctrl-C: pools are shut down)."""
+    import signal
+
+    signal.signal(signal.SIGTERM, _on_sigterm)
     cli(prog_name="sosalgo")
 
 

@@ -16,7 +16,7 @@ from sosalgo.analysis import AnalysisResult, analyze_spec
 from sosalgo.batch import Progress, run_batch
 from sosalgo.model import ModelError
 from sosalgo.numeric import compile_expression
-from sosalgo.rows import ResumableCSV
+from sosalgo.rows import ResumableCSV, kappa_label
 from sosalgo.solvers import DEFAULT_SOLVERS
 from sosalgo.spec import BASE_SYMBOLS, Spec, spec_from_text
 
@@ -114,6 +114,22 @@ def analysis_chunk(
     return rows
 
 
+def _run_store(
+    store: ResumableCSV, tasks: list[dict[str, Any]], label: str, progress: bool,
+    fn: Any, spec_text: str, source: str, options: dict[str, Any],
+    on_row: Any, workers: int | None, scheduler: str | None,
+) -> None:
+    """Open (lock, reconcile) the store, then run the tasks not done yet into it."""
+    with store:
+        todo = [t for t in tasks if not store.is_done(t)]
+        bar = Progress(len(tasks), label, progress, done=len(tasks) - len(todo))
+        try:
+            run_batch(fn, spec_text, source, options, todo, on_row or store.write,
+                      workers=workers, scheduler=scheduler, progress=bar)
+        finally:
+            bar.close()
+
+
 def run_analysis_sweep(
     spec: Spec,
     spec_text: str,
@@ -125,23 +141,20 @@ def run_analysis_sweep(
     restart: bool = False,
     progress: bool = True,
     solvers: Sequence[str] | None = None,
+    companions: Sequence[Path] = (),
 ) -> list[dict[str, str]]:
     """Analysis over kappa, resumable; returns the rows (as CSV strings) in kappa order."""
     options: dict[str, Any] = {"tol": tol}
     if solvers:
         options["solvers"] = tuple(solvers)
     settings = {"job": "analyze", "spec": spec_text, "tol": tol,
-                "solvers": list(solvers) if solvers else None}
-    store = ResumableCSV(out_csv, analysis_columns(spec), ["kappa"], settings, restart=restart)
+                "solvers": list(solvers) if solvers else None,
+                "kappa": [float(k) for k in kappas]}
+    store = ResumableCSV(out_csv, analysis_columns(spec), ["kappa"], settings, restart=restart,
+                         companions=companions)
     tasks = [{"kappa": float(k)} for k in kappas]
-    todo = [t for t in tasks if not store.is_done(t)]
-    bar = Progress(len(tasks), f"analyze {spec.name}", progress, done=len(tasks) - len(todo))
-    try:
-        with store:
-            run_batch(analysis_chunk, spec_text, spec.source, options, todo, store.write,
-                      workers=workers, scheduler=scheduler, progress=bar)
-    finally:
-        bar.close()
+    _run_store(store, tasks, f"analyze {spec.name}", progress, analysis_chunk, spec_text,
+               spec.source, options, None, workers, scheduler)
     by_key = {store.row_key({"kappa": float(k)}): None for k in kappas}
     rows = [r for r in store.rows() if store.row_key(r) in by_key]
     return sorted(rows, key=lambda r: float(r["kappa"]))
@@ -233,15 +246,15 @@ def design_chunk(
 def run_design_sweep(
     spec: Spec, spec_text: str, kappas: Sequence[float], out_csv: Path,
     options: dict[str, Any], workers: int | None = None, scheduler: str | None = None,
-    restart: bool = False, progress: bool = True,
+    restart: bool = False, progress: bool = True, companions: Sequence[Path] = (),
 ) -> tuple[list[dict[str, str]], dict[float, dict[str, Any]]]:
     """Design over kappa, resumable. Returns the CSV rows (kappa order) and the full
     results of the rows computed in this run (keyed by kappa)."""
-    settings = {"job": "design", "spec": spec_text, **options}
+    settings = {"job": "design", "spec": spec_text, **options,
+                "kappa": [float(k) for k in kappas]}
     store = ResumableCSV(out_csv, design_columns(spec, options["free"]), ["kappa"], settings,
-                         restart=restart)
+                         restart=restart, companions=companions)
     tasks = [{"kappa": float(k)} for k in kappas]
-    todo = [t for t in tasks if not store.is_done(t)]
     fresh: dict[float, dict[str, Any]] = {}
 
     def on_row(row: dict[str, Any]) -> None:
@@ -250,13 +263,8 @@ def run_design_sweep(
             fresh[float(row["kappa"])] = full
         store.write(row)
 
-    bar = Progress(len(tasks), f"design {spec.name}", progress, done=len(tasks) - len(todo))
-    try:
-        with store:
-            run_batch(design_chunk, spec_text, spec.source, options, todo, on_row,
-                      workers=workers, scheduler=scheduler, progress=bar)
-    finally:
-        bar.close()
+    _run_store(store, tasks, f"design {spec.name}", progress, design_chunk, spec_text,
+               spec.source, options, on_row, workers, scheduler)
     wanted = {store.row_key({"kappa": float(k)}) for k in kappas}
     rows = [r for r in store.rows() if store.row_key(r) in wanted]
     return sorted(rows, key=lambda r: float(r["kappa"])), fresh
@@ -323,27 +331,20 @@ def run_grid(
     spec: Spec, spec_text: str, kappa: float, free: Sequence[str],
     box: Sequence[tuple[float, float]], points: int, out_csv: Path, tol: float,
     workers: int | None = None, scheduler: str | None = None, restart: bool = False,
-    progress: bool = True,
+    progress: bool = True, companions: Sequence[Path] = (),
 ) -> list[dict[str, str]]:
     """Analysis on a grid over Θ at one kappa, resumable; rows in grid order."""
     options = {"tol": tol, "free": list(free)}
     settings = {"job": "grid", "spec": spec_text, "tol": tol, "kappa": float(kappa),
                 "free": list(free), "points": points, "box": [list(b) for b in box]}
     store = ResumableCSV(out_csv, grid_columns(spec, free), ["kappa", *free], settings,
-                         restart=restart)
+                         restart=restart, companions=companions)
     tasks = []
     for vals in grid_points(box, points):
         theta = dict(zip(free, vals, strict=True))
         tasks.append({"kappa": float(kappa), "theta": theta, "extra": theta, **theta})
-    todo = [t for t in tasks if not store.is_done(t)]
-    bar = Progress(len(tasks), f"grid {spec.name} k={kappa:g}", progress,
-                   done=len(tasks) - len(todo))
-    try:
-        with store:
-            run_batch(grid_chunk, spec_text, spec.source, options, todo, store.write,
-                      workers=workers, scheduler=scheduler, progress=bar)
-    finally:
-        bar.close()
+    _run_store(store, tasks, f"grid {spec.name} k={kappa_label(kappa)}", progress, grid_chunk,
+               spec_text, spec.source, options, None, workers, scheduler)
     order = {store.row_key(t): i for i, t in enumerate(tasks)}
     rows = [r for r in store.rows() if store.row_key(r) in order]
     return sorted(rows, key=lambda r: order[store.row_key(r)])

@@ -28,7 +28,10 @@ import yaml
 from sosalgo.expr import ExprError, parse_expression
 from sosalgo.numeric import NumericError, compile_expression
 
-__all__ = ["SpecError", "Parameter", "Spec", "load_spec", "spec_from_dict", "BASE_SYMBOLS"]
+__all__ = [
+    "SpecError", "Parameter", "Spec", "load_spec", "read_spec_text", "spec_from_dict",
+    "spec_from_text", "BASE_SYMBOLS",
+]
 
 M_SYM, L_SYM, KAPPA_SYM = sp.symbols("m L kappa", positive=True)
 BASE_SYMBOLS: dict[str, sp.Symbol] = {"m": M_SYM, "L": L_SYM, "kappa": KAPPA_SYM}
@@ -227,8 +230,8 @@ def _construct_object(self: _StrictLoader, node: yaml.Node, deep: bool = False) 
 _StrictLoader.construct_object = _construct_object  # type: ignore[method-assign]
 
 
-def load_spec(path: str | Path) -> Spec:
-    """Read and validate a YAML spec file."""
+def read_spec_text(path: str | Path) -> str:
+    """The text of a spec file, read once (pipes and ``/dev/stdin`` work), bounded in size."""
     p = Path(path)
     source = str(path)
     try:
@@ -237,7 +240,7 @@ def load_spec(path: str | Path) -> Spec:
             raw = fh.read(MAX_FILE_BYTES + 1)
         if len(raw) > MAX_FILE_BYTES:
             raise SpecError(source, "", f"file larger than {MAX_FILE_BYTES} bytes")
-        text = raw.decode("utf-8")
+        return raw.decode("utf-8")
     except SpecError:
         raise
     except FileNotFoundError:
@@ -248,7 +251,11 @@ def load_spec(path: str | Path) -> Spec:
         raise SpecError(source, "", "not UTF-8 text") from None
     except OSError as exc:
         raise SpecError(source, "", f"cannot read ({exc.strerror})") from None
-    return spec_from_text(text, source=source)
+
+
+def load_spec(path: str | Path) -> Spec:
+    """Read and validate a YAML spec file."""
+    return spec_from_text(read_spec_text(path), source=str(path))
 
 
 def spec_from_text(text: str, source: str = "<spec>") -> Spec:
