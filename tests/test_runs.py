@@ -228,7 +228,7 @@ def test_cluster_losing_its_last_worker_fails_instead_of_hanging(monkeypatch):
 
     monkeypatch.setattr("sosalgo.batch.NO_WORKER_TIMEOUT", 1.0)
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
-                                  host="127.0.0.1", dashboard_address=None) as cluster:
+                                  dashboard_address=None) as cluster:
         def lose_worker():
             time.sleep(1.0)
             cluster.scale(0)
