@@ -215,14 +215,36 @@ def analyze_algorithm(
     solves = search.solves
     assert best.x is not None
     cert = problem.unpack(best.x)
-    M = fam.matrix(alg, hi, cert)
     P = np.asarray(cert["P"])
+    eigs = _final_check(fam, alg, hi, cert, P)
+    if eigs is None:  # NaN/overflow in M or P: a check that cannot be evaluated never passes
+        return AnalysisResult(
+            kappa=alg.kappa, rho=None, certified=False, P=None, lam=None, max_eig_M=None,
+            min_eig_P=None, solves=solves, seconds=time.perf_counter() - start,
+            solver=best.solver, rho_infeasible=lo, params=dict(alg.params), family=fam.name,
+        )
     return AnalysisResult(
         kappa=alg.kappa, rho=hi, certified=True, P=P, lam=float(cert["lambda"]),
-        max_eig_M=float(np.linalg.eigvalsh(M)[-1]), min_eig_P=float(np.linalg.eigvalsh(P)[0]),
+        max_eig_M=eigs[0], min_eig_P=eigs[1],
         solves=solves, seconds=time.perf_counter() - start, solver=best.solver,
         rho_infeasible=lo, params=dict(alg.params), family=fam.name,
     )
+
+
+def _final_check(fam: CertificateFamily, alg: Algorithm, rho: float, cert: dict[str, Any],
+                 P: np.ndarray) -> tuple[float, float] | None:
+    """(max eig of M, min eig of P) of eq. (15) in floats, or None when not finite."""
+    try:
+        with np.errstate(all="ignore"):
+            M = fam.matrix(alg, rho, cert)
+            if not (np.all(np.isfinite(M)) and np.all(np.isfinite(P))):
+                return None
+            top, low = float(np.linalg.eigvalsh(M)[-1]), float(np.linalg.eigvalsh(P)[0])
+    except (np.linalg.LinAlgError, ValueError, OverflowError):
+        return None
+    if not (np.isfinite(top) and np.isfinite(low) and np.isfinite(cert["lambda"])):
+        return None
+    return top, low
 
 
 def analyze_spec(

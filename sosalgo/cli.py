@@ -239,11 +239,21 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
         doc = {"spec": spec.name, "source": spec.source, "spec_text": spec_text, "tol": tol,
                "csv": str(csv_path), "figures": [str(p) for p in figs], "rows": jrows}
         click.echo(json.dumps(doc, indent=2))
-        return
-    table_rows = [{**r, **r["references"]} for r in jrows]
-    click.echo(f"{spec.name}: {spec.description}".rstrip(": "))
-    click.echo(format_table(table_rows, cols + list(spec.references)))
-    click.echo(f"wrote {csv_path}" + "".join(f", {p}" for p in figs))
+    else:
+        table_rows = [{**r, **r["references"]} for r in jrows]
+        click.echo(f"{spec.name}: {spec.description}".rstrip(": "))
+        click.echo(format_table(table_rows, cols + list(spec.references)))
+        click.echo(f"wrote {csv_path}" + "".join(f", {p}" for p in figs))
+    _exit_if_unverified([r.get("verification") for r in jrows])
+
+
+def _exit_if_unverified(checks: list[Any]) -> None:
+    """Exit code 3 when some certificate failed its check (as ``sosalgo verify`` does)."""
+    from sosalgo.verification import check_failed
+
+    if any(check_failed(c) for c in checks):
+        click.echo("error: some certificate failed verification (exit code 3)", err=True)
+        sys.exit(3)
 
 
 def _figures(stem: Path) -> list[Path]:
@@ -330,8 +340,10 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
         if len(docs) == 1:
             click.echo(json.dumps(docs[0], indent=2))
         else:
-            click.echo(json.dumps({"spec": spec.name, "csv": str(csv_path),
+            click.echo(json.dumps({"spec": spec.name, "source": spec.source,
+                                   "spec_text": spec_text, "csv": str(csv_path),
                                    "figures": [str(p) for p in figs], "rows": docs}, indent=2))
+        _exit_if_unverified([d.get("verification") for d in docs])
         return
     table = []
     for d in docs:
@@ -470,30 +482,32 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
 
     Exit code 3 when some certificate fails to verify.
     """
-    from sosalgo.verification import verify_document_rows
+    from sosalgo.verification import ResultError, check_failed, verify_document_rows
 
-    try:
-        doc = json.loads(Path(result_path).read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(f"{result_path}: no such file") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise InputError(f"{result_path}: not a JSON result ({type(exc).__name__})") from None
-    if not isinstance(doc, dict):
-        raise InputError(f"{result_path}: not a sosalgo result document")
+    doc = _read_result(result_path)
     rows = doc.get("rows", [doc] if "rho_certified" in doc else None)
     if not isinstance(rows, list) or not all(isinstance(r, dict) and "kappa" in r for r in rows):
         raise InputError(f"{result_path}: rows: expected analyze or design results")
-    src = spec_override or doc.get("source") or (rows[0].get("source") if rows else None)
-    if not src:
+    first = rows[0] if rows else {}
+    src = spec_override or doc.get("source") or first.get("source")
+    text = None if spec_override else (doc.get("spec_text") or first.get("spec_text"))
+    if text is not None:  # the spec embedded in the result: moving or editing files is fine
+        if not isinstance(text, str) or not isinstance(src or "", str):
+            raise InputError(f"{result_path}: spec_text: expected the spec's YAML text")
+        spec = spec_from_text(text, source=f"{result_path}: spec_text")
+    elif not src or not isinstance(src, str):
         raise InputError(f"{result_path}: source: unknown spec file; pass --spec")
-    spec = load_spec(src)
+    else:
+        spec = load_spec(src)
     if doc.get("spec") not in (None, spec.name):
         raise InputError(f"{result_path}: spec: result is for '{doc.get('spec')}', "
                          f"{src} is '{spec.name}'")
     out_dir = _out_dir(out)
-    checks = verify_document_rows(spec, rows, out_dir / "certificates", not no_simulate)
-    failed = [c for c in checks if c is not None and (
-        c["verified"] != "exact" or not c.get("simulation", {"ok": True})["ok"])]
+    try:
+        checks = verify_document_rows(spec, rows, out_dir / "certificates", not no_simulate)
+    except ResultError as exc:
+        raise InputError(f"{result_path}: {exc}") from None
+    failed = [c for c in checks if check_failed(c)]
     if as_json:
         click.echo(json.dumps({"spec": spec.name, "source": src, "results": checks}, indent=2))
     else:
@@ -511,6 +525,26 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
         click.echo(f"rational certificates in {out_dir / 'certificates'}")
     if failed:
         sys.exit(3)
+
+
+def _read_result(result_path: str) -> dict[str, Any]:
+    """A result JSON document (bounded in size and depth), or a one-line InputError."""
+    try:
+        with open(result_path, "rb") as fh:
+            raw = fh.read(MAX_RESULT_BYTES + 1)
+        if len(raw) > MAX_RESULT_BYTES:
+            raise InputError(f"{result_path}: larger than {MAX_RESULT_BYTES} bytes")
+        doc = json.loads(raw.decode("utf-8"))
+    except FileNotFoundError:
+        raise InputError(f"{result_path}: no such file") from None
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as exc:
+        raise InputError(f"{result_path}: not a JSON result ({type(exc).__name__})") from None
+    if not isinstance(doc, dict):
+        raise InputError(f"{result_path}: not a sosalgo result document")
+    return doc
+
+
+MAX_RESULT_BYTES = 200_000_000
 
 
 # --------------------------------------------------------------------------- lmi
