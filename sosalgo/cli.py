@@ -16,6 +16,7 @@ from typing import Any
 
 import click
 
+from sosalgo import __version__
 from sosalgo.batch import BatchError
 from sosalgo.model import ModelError
 from sosalgo.rows import OutputError, kappa_label, output_lock
@@ -185,7 +186,7 @@ def batch_options(fn: Callable[..., Any]) -> Callable[..., Any]:
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
-@click.version_option(package_name="sosalgo")
+@click.version_option(version=__version__, prog_name="sosalgo")
 def cli() -> None:
     """Certify and design first-order methods for L-smooth, m-strongly convex functions."""
 
@@ -568,7 +569,7 @@ def lmi(spec_path: str, latex: bool, free: str | None) -> None:
 # --------------------------------------------------------------------------- table1
 @cli.command()
 @click.option("--specs", "spec_paths", multiple=True, metavar="SPEC",
-              help="Specs to tabulate (default: specs/*.yaml).")
+              help="Specs to tabulate (default: specs/*.yaml, else the shipped examples).")
 @click.option("--kappa", "kappa", multiple=True, metavar="K", help="Default: 2, 10, 100.")
 @click.option("--tol", default=1e-6, show_default=True, type=float)
 @click.option("--out", default="outputs", show_default=True, metavar="DIR")
@@ -585,9 +586,15 @@ def table1(spec_paths: tuple[str, ...], kappa: tuple[str, ...], tol: float, out:
 
     _check_tol(tol)
     paths = list(spec_paths) or sorted(str(p) for p in Path("specs").glob("*.yaml"))
-    if not paths:
+    if paths:
+        specs = [load_spec(p) for p in paths]
+    else:  # outside a checkout: the example specs shipped with sosalgo
+        from sosalgo.resources import example_specs
+
+        specs = [spec_from_text(f.read_text(encoding="utf-8"), source=f"examples/{name}.yaml")
+                 for name, f in example_specs().items()]
+    if not specs:
         raise InputError("--specs: no spec files given and none in specs/")
-    specs = [load_spec(p) for p in paths]
     kappas = [k for v in kappa for k in _kappa_option(v)] or [2.0, 10.0, 100.0]
     rows = []
     for spec in specs:
@@ -616,6 +623,42 @@ def table1(spec_paths: tuple[str, ...], kappa: tuple[str, ...], tol: float, out:
     os.replace(tmp, path)
     click.echo(format_table(rows, cols))
     click.echo(f"wrote {path}")
+
+
+# --------------------------------------------------------------------------- examples
+@cli.command()
+@click.argument("names", nargs=-1, metavar="[NAME ...]")
+@click.option("--copy", "copy_to", default=None, metavar="DIR",
+              help="Copy the named example specs (default: all) into DIR.")
+@handle_errors
+def examples(names: tuple[str, ...], copy_to: str | None) -> None:
+    """List the example specs shipped with sosalgo, or copy them to start from."""
+    from sosalgo.report import format_table
+    from sosalgo.resources import example_specs
+
+    found = example_specs()
+    unknown = [n for n in names if n not in found]
+    if unknown:
+        raise InputError(f"{unknown[0]}: no such example (known: {', '.join(found)})")
+    chosen = {n: found[n] for n in (names or found)}
+    if copy_to is None:
+        rows = []
+        for name, f in chosen.items():
+            spec = spec_from_text(f.read_text(encoding="utf-8"), source=f"{name}.yaml")
+            rows.append({"name": name, "description": spec.description})
+        click.echo(format_table(rows, ["name", "description"]))
+        click.echo("copy one to edit it: sosalgo examples NAME --copy DIR")
+        return
+    out_dir = _out_dir(copy_to)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    for name, f in chosen.items():
+        target = out_dir / f"{name}.yaml"
+        text = f.read_text(encoding="utf-8")
+        if target.exists() and target.read_text(encoding="utf-8") != text:
+            click.echo(f"kept {target} (exists and differs; not overwritten)", err=True)
+            continue
+        target.write_text(text, encoding="utf-8")
+        click.echo(f"wrote {target}")
 
 
 def main() -> None:

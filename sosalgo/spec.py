@@ -487,6 +487,24 @@ class _Builder:
                 bind(spec, k)
             except ModelError as exc:
                 raise self.fail(exc.field, f"at kappa={k:g}: {exc.message}") from None
+        self.check_in_range(spec)
+
+    def check_in_range(self, spec: Spec) -> None:
+        """Each ranged parameter's value lies in its own range at every kappa of the spec."""
+        from sosalgo.model import parameter_box, parameter_values
+
+        ranged = spec.ranged
+        if not ranged:
+            return
+        for k in spec.kappa:
+            values = parameter_values(spec, k)
+            for pname, (lo, hi) in zip(ranged, parameter_box(spec, k, ranged), strict=True):
+                v = values[pname]
+                slack = 1e-12 * max(1.0, abs(lo), abs(hi))
+                if not lo - slack <= v <= hi + slack:
+                    raise self.fail(f"parameters.{pname}.value",
+                                    f"{v:.6g} is outside its range [{lo:.6g}, {hi:.6g}] "
+                                    f"at kappa={k:g}")
 
 
 def parse_kappa(raw: object, source: str, where: str) -> tuple[float, ...]:
