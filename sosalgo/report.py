@@ -12,11 +12,17 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+
+def _pyplot() -> Any:
+    """matplotlib.pyplot with the Agg backend, imported on first use (tables need none)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
 
 __all__ = ["format_table", "plot_rates", "save_figure", "plot_grid"]
 
@@ -47,7 +53,7 @@ def format_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[str],
     return "\n".join(out)
 
 
-def save_figure(fig: plt.Figure, stem: Path) -> list[Path]:
+def save_figure(fig: Any, stem: Path) -> list[Path]:
     """Write ``stem.png`` and ``stem.pdf`` atomically; returns the paths."""
     stem.parent.mkdir(parents=True, exist_ok=True)
     paths = []
@@ -57,7 +63,7 @@ def save_figure(fig: plt.Figure, stem: Path) -> list[Path]:
         fig.savefig(tmp, format=ext, dpi=150, bbox_inches="tight")
         os.replace(tmp, final)
         paths.append(final)
-    plt.close(fig)
+    _pyplot().close(fig)
     return paths
 
 
@@ -75,7 +81,7 @@ def plot_rates(
     ``uncertified`` kappas (no certificate) are marked along the top, never drawn as
     rho = 1.
     """
-    fig, ax = plt.subplots(figsize=(6.4, 4.4))
+    fig, ax = _pyplot().subplots(figsize=(6.4, 4.4))
     k = np.asarray(kappa, dtype=float)
     markers = "os^Dv<>"
     for i, (label, vals) in enumerate(series.items()):
@@ -107,7 +113,7 @@ def plot_grid(
     """Certified rate over a 1-D or 2-D grid. ``rho`` holds NaN where no certificate was
     found; those points are drawn as a hatched grey region (2-D) or marked (1-D), never as
     rho = 1. The grid minimum and the spec's own value point are marked."""
-    fig, ax = plt.subplots(figsize=(6.4, 4.8))
+    fig, ax = _pyplot().subplots(figsize=(6.4, 4.8))
     finite = np.isfinite(rho)
     if len(names) == 1:
         x = axes[0]

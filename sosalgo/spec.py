@@ -507,6 +507,9 @@ class _Builder:
                                     f"at kappa={k:g}")
 
 
+_PLAIN_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
+
+
 def parse_kappa(raw: object, source: str, where: str) -> tuple[float, ...]:
     """A kappa list ``[2, 10]`` or a range ``{from, to, points, scale: log|linear}``."""
     def fail(msg: str, sub: str = "") -> SpecError:
@@ -514,8 +517,13 @@ def parse_kappa(raw: object, source: str, where: str) -> tuple[float, ...]:
 
     def number(v: object, sub: str) -> float:
         try:
-            val = float(parse_expression(v, {}))
-        except (ExprError, TypeError) as exc:
+            if isinstance(v, int | float) and not isinstance(v, bool):
+                val = float(v)  # a number is a number: no symbolic parsing
+            elif isinstance(v, str) and _PLAIN_NUMBER.fullmatch(v.strip()):
+                val = float(v)
+            else:
+                val = float(parse_expression(v, {}))
+        except (ExprError, TypeError, OverflowError) as exc:
             raise fail(str(exc), sub) from None
         if not math.isfinite(val):
             raise fail("must be finite", sub)
