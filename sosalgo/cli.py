@@ -264,6 +264,7 @@ def _figures(stem: Path) -> list[Path]:
 
 def _plot_analysis(spec, jrows: list[dict[str, Any]], stem: Path) -> list[Path]:
     """Certified rate vs kappa with the spec's references (figure of ``analyze``)."""
+    from sosalgo.jobs import reference_curves
     from sosalgo.report import plot_rates
 
     return plot_rates(
@@ -273,6 +274,7 @@ def _plot_analysis(spec, jrows: list[dict[str, Any]], stem: Path) -> list[Path]:
         {name: [r["references"][name] for r in jrows] for name in spec.references},
         stem,
         uncertified=[r["kappa"] for r in jrows if not r["certified"]],
+        reference_curves=reference_curves(spec, [r["kappa"] for r in jrows]),
     )
 
 
@@ -376,7 +378,7 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
 
 def _plot_design(spec, names, scalarize, rows, docs, stem: Path) -> list[Path]:
     """Designed rate, lower bound and spec-value rate vs kappa (figure of ``design``)."""
-    from sosalgo.jobs import design_csv_to_json
+    from sosalgo.jobs import design_csv_to_json, reference_curves
     from sosalgo.report import plot_rates
 
     refs = {name: [r.get("references", {}).get(name) for r in
@@ -390,6 +392,7 @@ def _plot_design(spec, names, scalarize, rows, docs, stem: Path) -> list[Path]:
          "spec values (certified)": [d["rho_at_values"] for d in docs]},
         refs, stem,
         uncertified=[d["kappa"] for d in docs if d["rho_certified"] is None],
+        reference_curves=reference_curves(spec, [d["kappa"] for d in docs]),
     )
 
 

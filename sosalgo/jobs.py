@@ -74,6 +74,30 @@ def reference_values(spec: Spec, kappa: float) -> dict[str, float | None]:
     return out
 
 
+def reference_curves(
+    spec: Spec, kappas: Sequence[float], points: int = 400
+) -> tuple[list[float], dict[str, list[float | None]]] | None:
+    """The references on a fine kappa grid spanning ``kappas`` (log-spaced over a decade or
+    more, else linear), for smooth curves in figures; None for fewer than two kappas."""
+    ks = [float(k) for k in kappas]
+    if len(set(ks)) < 2:
+        return None
+    lo, hi = min(ks), max(ks)
+    grid = np.geomspace(lo, hi, points) if hi >= 10 * lo else np.linspace(lo, hi, points)
+    grid = np.union1d(grid, ks)  # the data kappas stay on the curve
+    fns = {name: compile_expression(expr, list(BASE_SYMBOLS.values()))
+           for name, expr in spec.references.items()}
+    out: dict[str, list[float | None]] = {name: [] for name in fns}
+    for k in grid:
+        m, L = spec.mL(float(k))
+        for name, fn in fns.items():
+            try:
+                out[name].append(fn([m, L, float(k)]))
+            except ValueError:
+                out[name].append(None)
+    return [float(k) for k in grid], out
+
+
 def result_row(spec: Spec, res: AnalysisResult) -> dict[str, Any]:
     """A CSV row of the analysis table."""
     row: dict[str, Any] = {

@@ -116,14 +116,14 @@ def test_distinct_kappas_get_distinct_grid_files(tmp_path):
 
 def test_two_concurrent_runs_write_each_row_once(tmp_path):
     cmd = [sys.executable, "-m", "sosalgo.cli", "analyze", str(GRADIENT), "--kappa",
-           "{from: 2, to: 50, points: 30}", "--out", str(tmp_path), "--no-plot", "--quiet",
+           "{from: 2, to: 50, points: 300}", "--out", str(tmp_path), "--no-plot", "--quiet",
            "--workers", "1"]
     procs = [subprocess.Popen(cmd, env=ENV, stdout=subprocess.DEVNULL,
                               stderr=subprocess.PIPE) for _ in range(2)]
     for p in procs:
         assert p.wait(timeout=300) == 0, p.stderr.read()
     kappas = [r["kappa"] for r in rows_of(tmp_path / "gradient-analysis.csv")]
-    assert len(kappas) == len(set(kappas)) == 30
+    assert len(kappas) == len(set(kappas)) == 300
 
 
 def test_spec_from_a_pipe_is_read_once(tmp_path):
