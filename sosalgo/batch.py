@@ -15,8 +15,10 @@ import os
 import sys
 import time
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # pragma: no cover - imported where a pool is started
+    from concurrent.futures import Future, ProcessPoolExecutor
 
 __all__ = ["BatchError", "Progress", "check_scheduler", "default_workers", "run_batch"]
 
@@ -133,6 +135,8 @@ def run_batch(
         for task in tasks:
             deliver(fn(spec_text, source, options, [task]))
         return
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
     size = chunk_size(len(tasks), workers)
     pool = ProcessPoolExecutor(max_workers=workers, initializer=_die_with_parent)
     try:

@@ -199,7 +199,8 @@ def cli() -> None:
 @click.option("--tol", default=1e-6, show_default=True, type=float,
               help="Bisection tolerance on rho.")
 @click.option("--out", default="outputs", show_default=True, metavar="DIR",
-              help="Directory for <name>-analysis.csv and <name>-rate.png/.pdf.")
+              help="Directory for <name>-analysis.csv and <name>-rate.png/.pdf (two kappas "
+                   "or more).")
 @batch_options
 @click.option("--no-plot", is_flag=True, help="Skip the figure.")
 @click.option("--verify", "verify_", is_flag=True,
@@ -225,7 +226,8 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
                                   scheduler=scheduler, restart=restart, progress=not quiet,
                                   companions=_figures(fig_stem))
         jrows = [csv_row_to_json(spec, r) for r in rows]
-        figs = [] if no_plot else _plot_analysis(spec, jrows, fig_stem)
+        # a rate-vs-kappa figure needs two kappas or more (one point is not a curve)
+        figs = [] if no_plot or len(jrows) < 2 else _plot_analysis(spec, jrows, fig_stem)
     cols = ["kappa", "rho", "certified", "lambda", "max_eig_M", "min_eig_P", "solves",
             "seconds"]
     if verify_:

@@ -142,3 +142,27 @@ def test_algorithm_accepts_lists_and_refuses_no_fixed_point():
         Algorithm([[0.5]], [[-0.1]], [[1.0]], [[1.0]], 1.0, 10.0)
     with pytest.raises(ModelError, match="matrices.B"):
         Algorithm([[1.0]], [[-0.1, 0.0]], [[1.0]], [[1.0]], 1.0, 10.0)
+
+
+def test_one_kappa_analyze_imports_no_plotting_cvxpy_or_dask(tmp_path):
+    code = ("import sys\nfrom sosalgo.cli import cli\n"
+            "try:\n    cli(['analyze', sys.argv[1], '--kappa', '10', '--out', sys.argv[2],"
+            " '--quiet'])\nexcept SystemExit as e:\n    assert not e.code, e.code\n"
+            "print('MODULES:' + ' '.join(m for m in ('matplotlib', 'cvxpy', 'dask', 'distributed')"
+            " if m in sys.modules))")
+    res = subprocess.run([sys.executable, "-c", code, str(SPECS / "nesterov.yaml"),
+                          str(tmp_path)], capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.strip().splitlines()[-1] == "MODULES:", res.stdout
+
+
+def test_kappa_numbers_are_parsed_as_numbers(monkeypatch):
+    import sosalgo.spec as spec_mod
+
+    def boom(*a, **k):
+        raise AssertionError("symbolic parsing of a plain number")
+
+    monkeypatch.setattr(spec_mod, "parse_expression", boom)
+    values = [f"{1.5 + 0.25 * i:g}" for i in range(241)]
+    out = spec_mod.parse_kappa(values + [7, 2.5, "1e6"], "x", "kappa")
+    assert out[:241] == tuple(float(v) for v in values) and out[-1] == 1e6
