@@ -25,7 +25,7 @@ __all__ = ["BatchError", "Progress", "check_scheduler", "default_workers", "run_
 Row = dict[str, Any]
 ChunkFn = Callable[[str, str, dict[str, Any], list[dict[str, Any]]], list[Row]]
 SERIAL_BELOW = 8  # fewer tasks than this run in-process: pool start-up would dominate
-CONNECT_TIMEOUT = 10.0  # seconds to reach a Dask scheduler
+CONNECT_TIMEOUT = float(os.environ.get("SOSALGO_CONNECT_TIMEOUT", "20"))  # seconds
 NO_WORKER_TIMEOUT = float(os.environ.get("SOSALGO_NO_WORKER_TIMEOUT", "120"))
 
 
@@ -218,8 +218,26 @@ def check_scheduler(address: str) -> None:
 def _run_dask(fn, spec_text, source, options, tasks, deliver, address: str) -> None:
     """Run the chunks on a Dask cluster. Fails with a BatchError (finished rows are kept)
     when the scheduler goes away or no worker has been connected for NO_WORKER_TIMEOUT s."""
+    import asyncio
+    import concurrent.futures
+    import logging
+
     distributed = _import_distributed()
+    # the client logs reconnection tracebacks itself; our one-line error says it all
+    for name in ["distributed", *logging.root.manager.loggerDict]:
+        if name.startswith("distributed"):
+            logging.getLogger(name).setLevel(logging.CRITICAL + 1)
     client = _connect(address)
+    lost = (OSError, TimeoutError, distributed.comm.CommClosedError,
+            concurrent.futures.CancelledError, asyncio.CancelledError)
+
+    def failed(exc: BaseException) -> BatchError:
+        msg = ("the scheduler connection was cancelled"
+               if isinstance(exc, concurrent.futures.CancelledError | asyncio.CancelledError)
+               else " ".join(str(exc).split())[:160] or type(exc).__name__)
+        return BatchError(f"--scheduler {address}: connection lost ({msg}); finished rows "
+                          "are saved, rerun to resume")
+
     try:
         nworkers = max(1, len(client.scheduler_info().get("workers", {})))
         size = chunk_size(len(tasks), nworkers)
@@ -234,17 +252,27 @@ def _run_dask(fn, spec_text, source, options, tasks, deliver, address: str) -> N
                                                  return_when="FIRST_COMPLETED")
             except TimeoutError:
                 done = set()
+            except lost as exc:
+                raise failed(exc) from None
             for fut in done:
-                deliver(fut.result())
+                if fut.status == "error":  # the task itself raised: a bug, not the cluster
+                    fut.result()
+                try:
+                    rows = fut.result()
+                except lost as exc:
+                    raise failed(exc) from None
+                deliver(rows)
             if not pending:
                 break
-            idle_since = _watch_workers(client, address, idle_since)
-    except (OSError, distributed.comm.CommClosedError) as exc:
-        msg = " ".join(str(exc).split())[:200] or type(exc).__name__
-        raise BatchError(f"--scheduler {address}: connection lost ({msg}); finished rows "
-                         "are saved, rerun to resume") from None
+            try:
+                idle_since = _watch_workers(client, address, idle_since)
+            except lost as exc:
+                raise failed(exc) from None
     finally:
-        client.close()
+        try:
+            client.close(timeout=5)
+        except lost:
+            pass
 
 
 def _watch_workers(client: Any, address: str, idle_since: float | None) -> float | None:

@@ -276,3 +276,29 @@ def test_kill_of_a_pool_run_leaves_no_worker_alive(tmp_path):
     while time.time() < deadline and any(_alive(k) for k in kids):
         time.sleep(0.1)
     assert not any(_alive(k) for k in kids)
+
+
+def test_scheduler_going_away_is_one_line_exit_2(tmp_path):
+    pytest.importorskip("distributed")
+    env = {**ENV, "SOSALGO_CONNECT_TIMEOUT": "30"}
+    sched = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host",
+                              "127.0.0.1", "--port", "8793", "--no-dashboard"], env=env,
+                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    worker = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker",
+                               "tcp://127.0.0.1:8793", "--nthreads", "1", "--no-dashboard"],
+                              env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        run_ = subprocess.Popen([sys.executable, "-m", "sosalgo.cli", "grid", str(NESTEROV),
+                                 "--kappa", "10", "--points", "120", "--out", str(tmp_path),
+                                 "--scheduler", "tcp://127.0.0.1:8793", "--quiet"], env=env,
+                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        time.sleep(25)
+        assert run_.poll() is None, run_.stderr.read()
+        sched.terminate()
+        err = run_.communicate(timeout=120)[1]
+        assert run_.returncode == 2, err
+        assert err.count("\n") == 1 and "Traceback" not in err and "--scheduler" in err
+    finally:
+        for p in (worker, sched):
+            p.kill()
+            p.wait()
