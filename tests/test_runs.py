@@ -302,3 +302,27 @@ def test_scheduler_going_away_is_one_line_exit_2(tmp_path):
         for p in (worker, sched):
             p.kill()
             p.wait()
+
+
+def _fake_design_chunk(spec_text, source, options, chunk):
+    """Stands in for the SOS design (slow): one row per kappa naming the free set."""
+    return [{"kappa": float(t["kappa"]), "lower_bound": 0.5, "steps": ",".join(options["free"]),
+             **{f"theta_{p}": 0.1 for p in options["free"]}} for t in chunk]
+
+
+def test_design_with_another_free_set_keeps_the_first_aside(tmp_path, monkeypatch, capsys):
+    from sosalgo.jobs import run_design_sweep
+    from sosalgo.spec import load_spec
+
+    monkeypatch.setattr("sosalgo.jobs.design_chunk", _fake_design_chunk)
+    spec, text = load_spec(NESTEROV), NESTEROV.read_text()
+    out = tmp_path / "nesterov-design.csv"
+    base = {"scalarize": "pmi", "order": None, "gap": 1e-4, "time_limit": 10.0}
+    for free in (["beta"], ["h", "beta"], ["beta"]):
+        rows, _ = run_design_sweep(spec, text, [10.0], out, {"free": free, **base},
+                                   workers=1, progress=False)
+        assert rows[0]["steps"] == ",".join(free)
+    notes = capsys.readouterr().err
+    assert 'free: ["beta"] -> ["h", "beta"]' in notes and "kept it aside" in notes
+    assert "resuming" in notes  # the third run got the first one's rows back
+    assert len(list(tmp_path.glob("nesterov-design-*.csv"))) == 1
