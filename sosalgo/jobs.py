@@ -31,6 +31,12 @@ __all__ = [
 _SPECS: dict[tuple[str, str], Spec] = {}
 
 
+def _seed(spec: Spec, text: str) -> None:
+    """Let in-process chunks reuse the caller's parsed spec (no second parse)."""
+    _SPECS.clear()
+    _SPECS[(text, spec.source)] = spec
+
+
 def _spec(text: str, source: str) -> Spec:
     """Per-process cache of parsed specs (workers get the YAML text, not objects)."""
     key = (text, source)
@@ -177,6 +183,7 @@ def run_analysis_sweep(
     store = ResumableCSV(out_csv, analysis_columns(spec), ["kappa"], settings, restart=restart,
                          companions=companions)
     tasks = [{"kappa": float(k)} for k in kappas]
+    _seed(spec, spec_text)
     _run_store(store, tasks, f"analyze {spec.name}", progress, analysis_chunk, spec_text,
                spec.source, options, None, workers, scheduler)
     by_key = {store.row_key({"kappa": float(k)}): None for k in kappas}
@@ -287,6 +294,7 @@ def run_design_sweep(
             fresh[float(row["kappa"])] = full
         store.write(row)
 
+    _seed(spec, spec_text)
     _run_store(store, tasks, f"design {spec.name}", progress, design_chunk, spec_text,
                spec.source, options, on_row, workers, scheduler)
     wanted = {store.row_key({"kappa": float(k)}) for k in kappas}
@@ -367,6 +375,7 @@ def run_grid(
     for vals in grid_points(box, points):
         theta = dict(zip(free, vals, strict=True))
         tasks.append({"kappa": float(kappa), "theta": theta, "extra": theta, **theta})
+    _seed(spec, spec_text)
     _run_store(store, tasks, f"grid {spec.name} k={kappa_label(kappa)}", progress, grid_chunk,
                spec_text, spec.source, options, None, workers, scheduler)
     order = {store.row_key(t): i for i, t in enumerate(tasks)}
