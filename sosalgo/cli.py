@@ -18,9 +18,7 @@ import click
 
 from sosalgo import __version__
 from sosalgo.batch import BatchError
-from sosalgo.model import ModelError
 from sosalgo.rows import OutputError, kappa_label, output_lock
-from sosalgo.spec import SpecError, load_spec, parse_kappa, read_spec_text, spec_from_text
 
 __all__ = ["main", "cli"]
 
@@ -41,11 +39,8 @@ def handle_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
             return fn(*args, **kwargs)
-        except (SpecError, InputError, OutputError, BatchError) as exc:
+        except (InputError, OutputError, BatchError) as exc:
             _fail(_one_line(str(exc)), 2)
-        except ModelError as exc:
-            src = kwargs.get("spec_path", "")
-            _fail(_one_line(f"{src}: {exc}" if src else str(exc)), 2)
         except KeyboardInterrupt:
             click.echo("interrupted: finished rows are saved; rerun to resume", err=True)
             sys.exit(130)
@@ -55,11 +50,22 @@ def handle_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
         except click.exceptions.Exit:
             raise
         except Exception as exc:  # noqa: BLE001 - last line of defence
+            _fail_input(exc, kwargs.get("spec_path", ""))
             if os.environ.get("SOSALGO_DEBUG"):
                 raise
             _fail(_one_line(f"internal error: {type(exc).__name__}: {exc}"), 1)
 
     return wrapper
+
+
+def _fail_input(exc: Exception, src: str) -> None:
+    """Exit 2 for a spec or model error (their modules are imported lazily, so they are
+    looked up only once loaded: an error of theirs implies they are)."""
+    spec_mod, model_mod = sys.modules.get("sosalgo.spec"), sys.modules.get("sosalgo.model")
+    if spec_mod is not None and isinstance(exc, spec_mod.SpecError):
+        _fail(_one_line(str(exc)), 2)
+    if model_mod is not None and isinstance(exc, model_mod.ModelError):
+        _fail(_one_line(f"{src}: {exc}" if src else str(exc)), 2)
 
 
 class Terminated(BaseException):
@@ -94,6 +100,8 @@ def _kappa_option(value: str) -> tuple[float, ...]:
             raw = yaml.safe_load(value)
         except yaml.YAMLError:
             raise InputError(f"--kappa {value}: not a number, list or range") from None
+    from sosalgo.spec import parse_kappa
+
     return parse_kappa(raw, "--kappa", "value")
 
 
@@ -114,6 +122,8 @@ def _out_dir(out: str) -> Path:
 
 def _load(spec_path: str):
     """The spec and its text, read once (so a pipe or /dev/stdin works)."""
+    from sosalgo.spec import read_spec_text, spec_from_text
+
     text = read_spec_text(spec_path)
     return spec_from_text(text, source=str(spec_path)), text
 
@@ -128,7 +138,7 @@ def _check_scheduler(scheduler: str | None) -> None:
 
 def _check_points(spec, kappas, theta=None) -> None:
     """Evaluate the spec at every requested kappa before any output is written."""
-    from sosalgo.model import bind
+    from sosalgo.model import ModelError, bind
 
     for k in kappas:
         try:
@@ -148,7 +158,7 @@ def _free_names(spec, free: str | None) -> list[str]:
 
 def _boxes(spec, kappas, names) -> dict[float, list[tuple[float, float]]]:
     """The box Θ at every kappa, or a one-line input error."""
-    from sosalgo.model import parameter_box
+    from sosalgo.model import ModelError, parameter_box
 
     boxes = {}
     for k in kappas:
@@ -488,6 +498,7 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
 
     Exit code 3 when some certificate fails to verify.
     """
+    from sosalgo.spec import load_spec, spec_from_text
     from sosalgo.verification import ResultError, check_failed, verify_document_rows
 
     doc = _read_result(result_path)
@@ -562,6 +573,7 @@ MAX_RESULT_BYTES = 200_000_000
 @handle_errors
 def lmi(spec_path: str, latex: bool, free: str | None) -> None:
     """Print the symbolic matrix M(theta, rho, lambda, P) of Theorem 1 (eq. 15)."""
+    from sosalgo.spec import load_spec
     from sosalgo.symbolic import symbolic_lmi
 
     spec = load_spec(spec_path)
@@ -588,6 +600,7 @@ def table1(spec_paths: tuple[str, ...], kappa: tuple[str, ...], tol: float, out:
     from sosalgo.jobs import reference_values
     from sosalgo.report import format_table
     from sosalgo.rows import format_value
+    from sosalgo.spec import load_spec, spec_from_text
 
     _check_tol(tol)
     paths = list(spec_paths) or sorted(str(p) for p in Path("specs").glob("*.yaml"))
@@ -640,6 +653,7 @@ def examples(names: tuple[str, ...], copy_to: str | None) -> None:
     """List the example specs shipped with sosalgo, or copy them to start from."""
     from sosalgo.report import format_table
     from sosalgo.resources import example_specs
+    from sosalgo.spec import spec_from_text
 
     found = example_specs()
     unknown = [n for n in names if n not in found]
