@@ -280,17 +280,23 @@ def test_kill_of_a_pool_run_leaves_no_worker_alive(tmp_path):
 
 def test_scheduler_going_away_is_one_line_exit_2(tmp_path):
     pytest.importorskip("distributed")
+    import socket
+
     env = {**ENV, "SOSALGO_CONNECT_TIMEOUT": "30"}
+    with socket.socket() as sock:  # a free port
+        sock.bind(("127.0.0.1", 0))
+        port = sock.getsockname()[1]
+    address = f"tcp://127.0.0.1:{port}"
     sched = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host",
-                              "127.0.0.1", "--port", "8793", "--no-dashboard"], env=env,
+                              "127.0.0.1", "--port", str(port), "--no-dashboard"], env=env,
                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     worker = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker",
-                               "tcp://127.0.0.1:8793", "--nthreads", "1", "--no-dashboard"],
+                               address, "--nthreads", "1", "--no-dashboard"],
                               env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         run_ = subprocess.Popen([sys.executable, "-m", "sosalgo.cli", "grid", str(NESTEROV),
                                  "--kappa", "10", "--points", "120", "--out", str(tmp_path),
-                                 "--scheduler", "tcp://127.0.0.1:8793", "--quiet"], env=env,
+                                 "--scheduler", address, "--quiet"], env=env,
                                 stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         time.sleep(25)
         assert run_.poll() is None, run_.stderr.read()
