@@ -238,10 +238,10 @@ class ResumableCSV:
         self._lock: Any = None
         self._new = True
         self._reconciled = False
-        if not restart and _regular_or_missing(self.path):
+        if not restart and _regular_or_missing(self.path):  # a first look, without the lock
             old = _read_settings(self.settings_path)
             if old == self.settings:
-                self._load()
+                self._load(repair=False)
 
     # -- reconciling an existing file with this run's settings ---------------------------
     def _files(self) -> list[Path]:
@@ -258,7 +258,7 @@ class ResumableCSV:
 
     def _reconcile(self) -> None:
         """Under the lock: resume, keep aside, replace or reuse a kept-aside file."""
-        self.done, self.dropped = {}, 0
+        self.done = {}
         exists = _regular_or_missing(self.path)
         if exists and self.restart:
             for p in self._files():
@@ -283,13 +283,15 @@ class ResumableCSV:
                 self.notify(f"resuming the results of these settings kept in {aside.name}")
                 exists = True
         if exists:
+            self.dropped = 0
             self._load()
         self._new = not exists or self.path.stat().st_size == 0
         self._reconciled = True
 
     # -- reading -----------------------------------------------------------------------
-    def _load(self) -> None:
-        """Read the rows on disk; drop a truncated last line and malformed rows."""
+    def _load(self, repair: bool = True) -> None:
+        """Read the rows on disk; drop a truncated last line and malformed rows (and, with
+        ``repair``, under the lock, say so and rewrite the file without them)."""
         with open(self.path, encoding="utf-8", errors="replace", newline="") as fh:
             text = fh.read()
         lines = text.splitlines(keepends=True)
@@ -313,7 +315,7 @@ class ResumableCSV:
                 done[key] = row
                 good.append(line)
         self.done = done
-        if self.dropped:
+        if self.dropped and repair:
             self.notify(f"{self.path}: dropped {self.dropped} incomplete or malformed row(s); "
                         "they will be recomputed")
             if lines:
