@@ -201,6 +201,15 @@ def _atomic_write(path: Path, text: str) -> None:
     os.replace(tmp, path)
 
 
+def _content_hash(path: Path) -> str:
+    """Eight hex digits naming a file whose settings are unknown (by its content)."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()[:8]
+
+
 def _aside_name(path: Path, digest: str) -> Path:
     """``DIR/stem-<digest>.ext`` (``.csv.settings.json`` keeps its double suffix)."""
     name = path.name
@@ -268,7 +277,7 @@ class ResumableCSV:
         elif exists:
             old = _read_settings(self.settings_path)
             if old != self.settings:
-                digest = settings_hash(old) if isinstance(old, dict) else "unknown"
+                digest = settings_hash(old) if isinstance(old, dict) else _content_hash(self.path)
                 why = describe_difference(old, self.settings)
                 self._move_all(digest)
                 self.notify(f"{self.path} was written with other settings ({why}); "

@@ -332,3 +332,16 @@ def test_design_with_another_free_set_keeps_the_first_aside(tmp_path, monkeypatc
     assert 'free: ["beta"] -> ["h", "beta"]' in notes and "kept it aside" in notes
     assert "resuming" in notes  # the third run got the first one's rows back
     assert len(list(tmp_path.glob("nesterov-design-*.csv"))) == 1
+
+
+def test_outputs_without_settings_are_kept_aside_not_overwritten(tmp_path):
+    path = tmp_path / "x.csv"
+    notes: list[str] = []
+    for content in ("kappa,v\n2.0,1\n", "kappa,v\n3.0,1\n"):  # two foreign files in turn
+        path.write_text(content)
+        with ResumableCSV(path, ["kappa", "v"], ["kappa"], {"a": 1}, notify=notes.append) as s:
+            s.write({"kappa": 5.0, "v": 2})
+        path.with_name("x.csv.settings.json").unlink()
+    kept = sorted(p.read_text() for p in tmp_path.glob("x-*.csv"))
+    assert kept == ["kappa,v\n2.0,1\n", "kappa,v\n3.0,1\n"]
+    assert all("settings file is missing" in n for n in notes)
