@@ -187,7 +187,8 @@ def batch_options(fn: Callable[..., Any]) -> Callable[..., Any]:
                      help="Run on an existing Dask distributed scheduler, e.g. "
                           "tcp://host:8786."),
         click.option("--restart", is_flag=True,
-                     help="Discard earlier rows written with other settings."),
+                     help="Replace the results in the output file instead of resuming them "
+                          "(results of other settings are kept aside anyway)."),
         click.option("--quiet", is_flag=True, help="No progress bar."),
     ]
     for opt in reversed(options):
