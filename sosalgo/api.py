@@ -12,6 +12,7 @@ code, the exact verifier) are imported only when used.
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -34,11 +35,14 @@ def _kappas(spec: Spec, kappa: float | Sequence[float] | None) -> tuple[list[flo
     """(kappas, single): the spec's list when None; a number gives one result."""
     if kappa is None:
         return list(spec.kappa), False
-    if isinstance(kappa, int | float) and not isinstance(kappa, bool):
+    if isinstance(kappa, numbers.Real) and not isinstance(kappa, bool):
         return [float(kappa)], True
-    if isinstance(kappa, str | bytes) or not isinstance(kappa, Sequence | Any):
+    if isinstance(kappa, str | bytes | bool):
         raise TypeError("kappa must be a number or a list of numbers")
-    return [float(k) for k in kappa], False
+    try:
+        return [float(k) for k in kappa], False  # lists, tuples, numpy arrays
+    except TypeError:
+        raise TypeError("kappa must be a number or a list of numbers") from None
 
 
 def analyze(
