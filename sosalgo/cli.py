@@ -478,8 +478,8 @@ def grid(spec_path: str, kappa: tuple[str, ...], points: int, free: str | None, 
         where = "none certified" if m is None else (
             f"minimum rho {m['rho']:.6f} at "
             + ", ".join(f"{p} = {v:.6g}" for p, v in m["theta"].items()))
-        click.echo(f"{spec.name} kappa={d['kappa']:g}: {d['certified']}/{d['points']} points "
-                   f"certified; {where}")
+        click.echo(f"{spec.name} kappa={kappa_label(d['kappa'])}: {d['certified']}/"
+                   f"{d['points']} points certified; {where}")
         click.echo(f"wrote {d['csv']}" + "".join(f", {p}" for p in d["figures"]))
 
 
