@@ -6,6 +6,7 @@ driver that writes rows to a resumable CSV as they finish.
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -68,13 +69,30 @@ def analysis_columns(spec: Spec) -> list[str]:
     )
 
 
+_REFERENCES: weakref.WeakKeyDictionary[Spec, dict[str, Any]] = weakref.WeakKeyDictionary()
+
+
+def _reference_fns(spec: Spec) -> dict[str, Any]:
+    """The spec's references compiled once (None for one that cannot be compiled)."""
+    fns = _REFERENCES.get(spec)
+    if fns is None:
+        fns = {}
+        for name, expr in spec.references.items():
+            try:
+                fns[name] = compile_expression(expr, list(BASE_SYMBOLS.values()))
+            except ValueError:
+                fns[name] = None
+        _REFERENCES[spec] = fns
+    return fns
+
+
 def reference_values(spec: Spec, kappa: float) -> dict[str, float | None]:
     """Closed-form reference rates at kappa (None where not defined)."""
     out: dict[str, float | None] = {}
     m, L = spec.mL(kappa)
-    for name, expr in spec.references.items():
+    for name, fn in _reference_fns(spec).items():
         try:
-            out[name] = compile_expression(expr, list(BASE_SYMBOLS.values()))([m, L, kappa])
+            out[name] = None if fn is None else fn([m, L, kappa])
         except ValueError:
             out[name] = None
     return out
@@ -91,16 +109,10 @@ def reference_curves(
     lo, hi = min(ks), max(ks)
     grid = np.geomspace(lo, hi, points) if hi >= 10 * lo else np.linspace(lo, hi, points)
     grid = np.union1d(grid, ks)  # the data kappas stay on the curve
-    fns = {name: compile_expression(expr, list(BASE_SYMBOLS.values()))
-           for name, expr in spec.references.items()}
-    out: dict[str, list[float | None]] = {name: [] for name in fns}
+    out: dict[str, list[float | None]] = {name: [] for name in spec.references}
     for k in grid:
-        m, L = spec.mL(float(k))
-        for name, fn in fns.items():
-            try:
-                out[name].append(fn([m, L, float(k)]))
-            except ValueError:
-                out[name].append(None)
+        for name, v in reference_values(spec, float(k)).items():
+            out[name].append(v)
     return [float(k) for k in grid], out
 
 

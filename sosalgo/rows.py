@@ -17,8 +17,10 @@ that determine them (job, spec text, kappa list, tolerance, free parameters, ...
   from reading the done set to the last row, so two concurrent runs into one folder never
   write a row twice: the second waits (with a note) and then resumes or keeps aside.
 - Nothing is written before the first row is ready (header and settings come with it).
-- Each row is written with a single ``write`` of a complete line followed by flush and
-  fsync. On reading, a truncated last line (a killed writer) and malformed rows (wrong
+- Each row is written with a single ``write`` of a complete line followed by a flush (a
+  killed process loses nothing written); the file is fsync'ed at most every
+  ``FSYNC_SECONDS`` and when the run ends, so an OS crash loses at most that much. On
+  reading, a truncated last line (a killed writer) and malformed rows (wrong
   number of cells, unreadable key) are dropped with a warning and the file is rewritten
   atomically. A path that is not a regular file (a symlink to ``/dev/full``, a FIFO) is
   refused (:class:`OutputError`).
@@ -34,6 +36,7 @@ import math
 import os
 import stat
 import sys
+import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
@@ -51,6 +54,7 @@ __all__ = [
 ]
 
 MAX_SETTINGS_BYTES = 4_000_000
+FSYNC_SECONDS = 1.0  # a per-row fsync costs milliseconds on a busy disk: as much as a rate
 
 
 class OutputError(RuntimeError):
@@ -244,6 +248,7 @@ class ResumableCSV:
         self.done: dict[tuple[str, ...], dict[str, str]] = {}
         self.dropped = 0
         self._fh: io.TextIOWrapper | None = None
+        self._synced = 0.0
         self._lock: Any = None
         self._new = True
         self._reconciled = False
@@ -369,7 +374,10 @@ class ResumableCSV:
         csv.writer(buf, lineterminator="\n").writerow([format_value(v) for v in values])
         self._fh.write(buf.getvalue())
         self._fh.flush()
-        os.fsync(self._fh.fileno())
+        now = time.monotonic()
+        if now - self._synced >= FSYNC_SECONDS:
+            os.fsync(self._fh.fileno())
+            self._synced = now
 
     def write(self, row: dict[str, Any]) -> None:
         """Append one complete row (skipped if its key is already present)."""
@@ -386,6 +394,8 @@ class ResumableCSV:
 
     def close(self) -> None:
         if self._fh is not None:
+            self._fh.flush()
+            os.fsync(self._fh.fileno())
             self._fh.close()
             self._fh = None
         if self._lock is not None:
