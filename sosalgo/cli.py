@@ -263,6 +263,8 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
 
 def _exit_if_unverified(checks: list[Any]) -> None:
     """Exit code 3 when some certificate failed its check (as ``sosalgo verify`` does)."""
+    if all(c is None for c in checks):
+        return  # nothing was verified (no --verify): nothing to import or report
     from sosalgo.verification import check_failed
 
     if any(check_failed(c) for c in checks):

@@ -148,7 +148,8 @@ def test_one_kappa_analyze_imports_no_plotting_cvxpy_or_dask(tmp_path):
     code = ("import sys\nfrom sosalgo.cli import cli\n"
             "try:\n    cli(['analyze', sys.argv[1], '--kappa', '10', '--out', sys.argv[2],"
             " '--quiet'])\nexcept SystemExit as e:\n    assert not e.code, e.code\n"
-            "print('MODULES:' + ' '.join(m for m in ('matplotlib', 'cvxpy', 'dask', 'distributed')"
+            "print('MODULES:' + ' '.join(m for m in ('matplotlib', 'cvxpy', 'dask', 'distributed',"
+            " 'sosalgo.verify', 'sosalgo.design', 'sosalgo.polyopt')"
             " if m in sys.modules))")
     res = subprocess.run([sys.executable, "-c", code, str(SPECS / "nesterov.yaml"),
                           str(tmp_path)], capture_output=True, text=True, timeout=300)
