@@ -281,9 +281,14 @@ class ResumableCSV:
             exists = False
         elif exists:
             old = _read_settings(self.settings_path)
+            why = None
             if old != self.settings:
                 digest = settings_hash(old) if isinstance(old, dict) else _content_hash(self.path)
                 why = describe_difference(old, self.settings)
+            elif not self._header_ok(self.path):
+                digest = _content_hash(self.path)
+                why = "its columns differ: written by another version of sosalgo"
+            if why is not None:
                 self._move_all(digest)
                 self.notify(f"{self.path} was written with other settings ({why}); "
                             f"kept it aside as {_aside_name(self.path, digest).name}; "
@@ -291,8 +296,8 @@ class ResumableCSV:
                 exists = False
         if not exists and not self.restart:
             aside = _aside_name(self.path, self.digest)
-            if _regular_or_missing(aside) and _read_settings(
-                    _aside_name(self.settings_path, self.digest)) == self.settings:
+            if (_regular_or_missing(aside) and self._header_ok(aside) and _read_settings(
+                    _aside_name(self.settings_path, self.digest)) == self.settings):
                 self._move_all(self.digest, back=True)
                 self.notify(f"resuming the results of these settings kept in {aside.name}")
                 exists = True
@@ -302,38 +307,44 @@ class ResumableCSV:
         self._new = not exists or self.path.stat().st_size == 0
         self._reconciled = True
 
+    def _header_ok(self, path: Path) -> bool:
+        """True when ``path`` is empty or starts with this run's header line."""
+        with open(path, encoding="utf-8", errors="replace", newline="") as fh:
+            first = fh.readline()
+        if not first:
+            return True
+        return next(csv.reader([first]), None) == self.columns
+
     # -- reading -----------------------------------------------------------------------
     def _load(self, repair: bool = True) -> None:
         """Read the rows on disk; drop a truncated last line and malformed rows (and, with
         ``repair``, under the lock, say so and rewrite the file without them)."""
         with open(self.path, encoding="utf-8", errors="replace", newline="") as fh:
             text = fh.read()
-        lines = text.splitlines(keepends=True)
-        if lines and not lines[-1].endswith("\n"):  # a killed writer left half a line
-            lines.pop()
+        if text and not text.endswith("\n"):  # a killed writer left half a line
+            text = text[: text.rfind("\n") + 1]
             self.dropped += 1
-        good: list[str] = []
-        header = next(csv.reader(lines[:1]), None) if lines else None
-        if header is not None and header != self.columns:
-            raise OutputError(f"{self.path}: has other columns than this run writes; "
-                              "use --restart to replace it")
+        records = list(csv.reader(io.StringIO(text)))
+        if records and records[0] != self.columns:
+            if not repair:
+                return  # the locked reconcile keeps this file aside
+            raise OutputError(f"{self.path}: has other columns than this run writes")
         done: dict[tuple[str, ...], dict[str, str]] = {}
-        for line in lines[1:]:
-            cells = next(csv.reader([line]), [])
+        for cells in records[1:]:
             row = dict(zip(self.columns, cells, strict=False))
             if len(cells) != len(self.columns) or not self._key_ok(row):
                 self.dropped += 1
                 continue
-            key = self.row_key(row)
-            if key not in done:
-                done[key] = row
-                good.append(line)
+            done.setdefault(self.row_key(row), row)
         self.done = done
         if self.dropped and repair:
             self.notify(f"{self.path}: dropped {self.dropped} incomplete or malformed row(s); "
                         "they will be recomputed")
-            if lines:
-                _atomic_write(self.path, "".join(lines[:1] + good))
+            buf = io.StringIO()
+            writer = csv.writer(buf, lineterminator="\n")
+            writer.writerow(self.columns)
+            writer.writerows([row[c] for c in self.columns] for row in done.values())
+            _atomic_write(self.path, buf.getvalue())
 
     def _key_ok(self, row: dict[str, str]) -> bool:
         try:

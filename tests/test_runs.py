@@ -345,3 +345,27 @@ def test_outputs_without_settings_are_kept_aside_not_overwritten(tmp_path):
     kept = sorted(p.read_text() for p in tmp_path.glob("x-*.csv"))
     assert kept == ["kappa,v\n2.0,1\n", "kappa,v\n3.0,1\n"]
     assert all("settings file is missing" in n for n in notes)
+
+
+def test_a_file_with_other_columns_is_kept_aside(tmp_path):
+    path = tmp_path / "x.csv"
+    with ResumableCSV(path, ["kappa", "v"], ["kappa"], {"a": 1}) as s:
+        s.write({"kappa": 2.0, "v": 1})
+    notes: list[str] = []
+    with ResumableCSV(path, ["kappa", "v", "w"], ["kappa"], {"a": 1}, notify=notes.append) as s:
+        assert not s.is_done({"kappa": 2.0})
+        s.write({"kappa": 2.0, "v": 1, "w": 3})
+    assert "columns differ" in notes[0]
+    assert path.read_text().splitlines()[0] == "kappa,v,w"
+    assert [p.read_text() for p in tmp_path.glob("x-*.csv")] == ["kappa,v\n2.0,1\n"]
+
+
+def test_quoted_multiline_cells_survive_a_resume(tmp_path):
+    path = tmp_path / "x.csv"
+    with ResumableCSV(path, ["kappa", "error"], ["kappa"], {"a": 1}) as s:
+        s.write({"kappa": 2.0, "error": "line one\nline two, with a comma"})
+    path.write_text(path.read_text() + "3.0,half")  # a killed writer's half line
+    with ResumableCSV(path, ["kappa", "error"], ["kappa"], {"a": 1},
+                      notify=lambda m: None) as s:
+        assert s.is_done({"kappa": 2.0})
+        assert s.rows()[0]["error"] == "line one\nline two, with a comma"
