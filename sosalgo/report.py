@@ -106,8 +106,8 @@ def rate_figure(
         y = np.array([np.nan if v is None else v for v in vals], dtype=float)
         ax.plot(k, y, marker=markers[i % len(markers)], label=label, zorder=3 + n - i,
                 **styles[min(i, len(styles) - 1)])
-        missing = ~np.isfinite(y)
-        if missing.any() and (~missing).any():
+        missing = ~np.isfinite(y) & ~np.isin(k, np.asarray(uncertified, dtype=float))
+        if missing.any() and (~missing).any():  # gaps not already marked "no certificate"
             ax.plot(k[missing], np.zeros(missing.sum()), ls="none", marker="v", ms=7,
                     color=ax.lines[-1].get_color(), label=f"{label}: missing",
                     transform=ax.get_xaxis_transform(), clip_on=False, zorder=6)

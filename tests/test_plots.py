@@ -98,3 +98,10 @@ def test_grid_contours_have_no_white_band():
     crop = img[int(H_px - bb.y1) + 3:int(H_px - bb.y0) - 3, int(bb.x0) + 3:int(bb.x1) - 3]
     white = np.all(crop >= 250, axis=-1).mean()
     assert white < 0.002, white
+
+
+def test_uncertified_kappas_are_not_marked_twice():
+    fig = rate_figure("t", [2.0, 10.0], {"certified rate": [0.5, None]}, {},
+                      uncertified=[10.0])
+    labels = [ln.get_label() for ln in fig.axes[0].lines]
+    assert "no certificate" in labels and "certified rate: missing" not in labels
