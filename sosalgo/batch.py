@@ -161,11 +161,12 @@ def run_batch(
 
 
 def _die_with_parent() -> None:
-    """Pool initializer: SIGTERM this worker when the parent dies, even by SIGKILL (Linux
-    prctl PR_SET_PDEATHSIG); Ctrl-C is left to the parent."""
+    """Pool initializer: SIGTERM (which then simply ends this worker) when the parent dies,
+    even by SIGKILL (Linux prctl PR_SET_PDEATHSIG); Ctrl-C is left to the parent."""
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # not the parent's handler (inherited by fork)
     try:
         import ctypes
 
