@@ -167,3 +167,27 @@ def test_kappa_numbers_are_parsed_as_numbers(monkeypatch):
     values = [f"{1.5 + 0.25 * i:g}" for i in range(241)]
     out = spec_mod.parse_kappa(values + [7, 2.5, "1e6"], "x", "kappa")
     assert out[:241] == tuple(float(v) for v in values) and out[-1] == 1e6
+
+
+def test_readme_python_api_example_runs_as_shown(monkeypatch):
+    text = (ROOT / "README.md").read_text()
+    block = text[text.index("## Python API"):].split("```python\n", 1)[1].split("```", 1)[0]
+    monkeypatch.chdir(ROOT)
+    scope: dict = {}
+    lines = block.splitlines()
+    checked = 0
+    for i, line in enumerate(lines):
+        if not line.startswith(">>> "):
+            continue
+        code = line[4:].split("  #")[0]
+        expected = lines[i + 1] if i + 1 < len(lines) and not lines[i + 1].startswith(">>>") \
+            else None
+        try:
+            value = eval(code, scope)  # noqa: S307 - the README's own example
+        except SyntaxError:
+            exec(code, scope)  # noqa: S102
+            continue
+        if expected is not None:
+            assert repr(value) == expected, (code, value)
+            checked += 1
+    assert checked >= 4
