@@ -6,7 +6,7 @@ import argparse
 import os
 import sys
 
-from bench import analysis
+from bench import analysis, startup
 
 
 def main() -> None:
@@ -15,7 +15,7 @@ def main() -> None:
     parser.add_argument("--only", default=None, help="run only this benchmark")
     args = parser.parse_args()
     os.environ.setdefault("OMP_NUM_THREADS", "1")
-    suites = {"analysis": analysis.run}
+    suites = {"startup": startup.run, "analysis": analysis.run}
     try:  # later issues add suites; absent modules are skipped, not faked
         from bench import design
 

@@ -1,0 +1,74 @@
+"""sosalgo: certify and design first-order methods for L-smooth, m-strongly convex functions.
+
+The Python API (see the README, "Python API"): :func:`load_spec`, :func:`analyze`,
+:func:`design`, :func:`verify`, and the result types :class:`AnalysisResult`,
+:class:`DesignResult`, :class:`ExactResult`, plus :class:`Spec` and :class:`Algorithm`.
+Everything is imported on first use, so ``import sosalgo`` stays fast.
+"""
+
+from __future__ import annotations
+
+import sys
+import types
+from importlib import import_module
+from typing import Any
+
+__version__ = "0.1.0"
+
+
+class _CallableModule(types.ModuleType):
+    """``sosalgo.design`` and ``sosalgo.verify`` are both submodules and API functions: the
+    module objects stay modules (attributes, ``import sosalgo.verify.exact``) and calling
+    them calls :func:`sosalgo.api.design` / :func:`sosalgo.api.verify`."""
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        api = import_module("sosalgo.api")
+        return getattr(api, self.__name__.rsplit(".", 1)[1])(*args, **kwargs)
+
+
+_CALLABLE = ("design", "verify")
+
+
+class _Package(types.ModuleType):
+    """The package module: makes the design/verify submodules callable when imported."""
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if name in _CALLABLE and type(value) is types.ModuleType:
+            value.__class__ = _CallableModule
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
+
+_EXPORTS = {
+    "load_spec": "sosalgo.spec",
+    "spec_from_text": "sosalgo.spec",
+    "Spec": "sosalgo.spec",
+    "SpecError": "sosalgo.spec",
+    "Algorithm": "sosalgo.model",
+    "ModelError": "sosalgo.model",
+    "bind": "sosalgo.model",
+    "analyze": "sosalgo.api",
+    "design": "sosalgo.design",  # the module, callable (see _CallableModule)
+    "verify": "sosalgo.verify",
+    "AnalysisResult": "sosalgo.analysis",
+    "analyze_algorithm": "sosalgo.analysis",
+    "DesignResult": "sosalgo.design",
+    "ExactResult": "sosalgo.verify.exact",
+}
+
+__all__ = ["__version__", *_EXPORTS]
+
+
+def __getattr__(name: str) -> Any:
+    if name in _CALLABLE:
+        return import_module(f"sosalgo.{name}")  # the import sets the (callable) attribute
+    if name in _EXPORTS:
+        value = getattr(import_module(_EXPORTS[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'sosalgo' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_EXPORTS))

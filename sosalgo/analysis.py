@@ -355,20 +355,44 @@ def _result(alg: Algorithm, fam: CertificateFamily, problem: LMIProblem, search:
     assert best.x is not None
     cert = problem.unpack(best.x)
     P = np.asarray(cert["P"])
-    if hasattr(fam, "summary"):  # families whose P need not be PSD report their own parts
-        eigs = fam.summary(alg, hi, cert)
-    else:
-        M = fam.matrix(alg, hi, cert)
-        eigs = {"max_eig_M": float(np.linalg.eigvalsh(M)[-1]),
-                "min_eig_P": float(np.linalg.eigvalsh(P)[0])}
+    eigs = _final_check(fam, alg, hi, cert, P)
+    if eigs is None:  # NaN/overflow in M or P: a check that cannot be evaluated never passes
+        return AnalysisResult(
+            kappa=alg.kappa, rho=None, certified=False, P=None, lam=None, max_eig_M=None,
+            min_eig_P=None, solves=solves, seconds=time.perf_counter() - start,
+            solver=best.solver, rho_infeasible=lo, params=dict(alg.params), family=fam.name,
+        )
     lam = cert.get("lambda")
     return AnalysisResult(
         kappa=alg.kappa, rho=hi, certified=True, P=P,
-        lam=None if lam is None else float(lam), max_eig_M=eigs["max_eig_M"],
-        min_eig_P=eigs["min_eig_P"], solves=solves, seconds=time.perf_counter() - start,
-        solver=best.solver, rho_infeasible=lo, params=dict(alg.params), family=fam.name,
-        certificate=cert,
+        lam=None if lam is None else float(lam), max_eig_M=eigs[0], min_eig_P=eigs[1],
+        solves=solves, seconds=time.perf_counter() - start, solver=best.solver,
+        rho_infeasible=lo, params=dict(alg.params), family=fam.name, certificate=cert,
     )
+
+
+def _final_check(fam: CertificateFamily, alg: Algorithm, rho: float, cert: dict[str, Any],
+                 P: np.ndarray) -> tuple[float, float] | None:
+    """(max eig of the main inequality, min eig of P) in floats, or None when not finite.
+
+    Families whose P need not be PSD report their own pair (``summary``)."""
+    try:
+        with np.errstate(all="ignore"):
+            if hasattr(fam, "summary"):
+                eigs = fam.summary(alg, rho, cert)
+                top, low = float(eigs["max_eig_M"]), float(eigs["min_eig_P"])
+            else:
+                M = fam.matrix(alg, rho, cert)
+                if not (np.all(np.isfinite(M)) and np.all(np.isfinite(P))):
+                    return None
+                top, low = float(np.linalg.eigvalsh(M)[-1]), float(np.linalg.eigvalsh(P)[0])
+    except (np.linalg.LinAlgError, ValueError, OverflowError, TypeError):
+        return None
+    lam = cert.get("lambda", 0.0)
+    if not (np.isfinite(top) and np.isfinite(low) and np.all(np.isfinite(P))
+            and (lam is None or np.isfinite(lam))):
+        return None
+    return top, low
 
 
 def analyze_spec(

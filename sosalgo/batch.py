@@ -15,14 +15,23 @@ import os
 import sys
 import time
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-__all__ = ["run_batch", "default_workers", "Progress"]
+if TYPE_CHECKING:  # pragma: no cover - imported where a pool is started
+    from concurrent.futures import Future, ProcessPoolExecutor
+
+__all__ = ["BatchError", "Progress", "check_scheduler", "default_workers", "run_batch"]
 
 Row = dict[str, Any]
 ChunkFn = Callable[[str, str, dict[str, Any], list[dict[str, Any]]], list[Row]]
 SERIAL_BELOW = 8  # fewer tasks than this run in-process: pool start-up would dominate
+CONNECT_TIMEOUT = float(os.environ.get("SOSALGO_CONNECT_TIMEOUT", "20"))  # seconds
+NO_WORKER_TIMEOUT = float(os.environ.get("SOSALGO_NO_WORKER_TIMEOUT", "120"))
+
+
+class BatchError(RuntimeError):
+    """The execution environment cannot run the batch (Dask missing, scheduler unreachable,
+    no workers left): one line, exit code 2."""
 
 
 def default_workers() -> int:
@@ -126,8 +135,11 @@ def run_batch(
         for task in tasks:
             deliver(fn(spec_text, source, options, [task]))
         return
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
     size = chunk_size(len(tasks), workers)
-    with ProcessPoolExecutor(max_workers=workers) as pool:
+    pool = ProcessPoolExecutor(max_workers=workers, initializer=_die_with_parent)
+    try:
         pending: set[Future] = set()
         chunks = _chunks(tasks, size)
         for chunk in chunks:
@@ -142,21 +154,141 @@ def run_batch(
                 pending.add(pool.submit(fn, spec_text, source, options, chunk))
                 if len(pending) >= workers * 2:
                     break
+    except BaseException:
+        _kill_pool(pool)  # interrupted or failed: do not wait for (or leave) running workers
+        raise
+    pool.shutdown(wait=True)
+
+
+def _die_with_parent() -> None:
+    """Pool initializer: SIGTERM (which then simply ends this worker) when the parent dies,
+    even by SIGKILL (Linux prctl PR_SET_PDEATHSIG); Ctrl-C is left to the parent."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # not the parent's handler (inherited by fork)
+    try:
+        import ctypes
+
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):  # pragma: no cover - not Linux/glibc
+        pass
+    if os.getppid() == 1:  # the parent died before prctl took effect
+        os._exit(1)
+
+
+def _kill_pool(pool: ProcessPoolExecutor) -> None:
+    """Terminate the pool's worker processes and drop queued work."""
+    procs = list(getattr(pool, "_processes", {}).values())
+    for proc in procs:
+        if proc.is_alive():
+            proc.terminate()
+    pool.shutdown(wait=False, cancel_futures=True)
+    for proc in procs:
+        proc.join(timeout=5)
+
+
+def _import_distributed():
+    try:
+        import distributed
+    except ImportError:
+        raise BatchError("--scheduler needs Dask distributed, which is not installed: "
+                         "pip install 'sosalgo[dist]'") from None
+    return distributed
+
+
+def _connect(address: str):
+    """A Dask client for ``address``, or a one-line BatchError."""
+    distributed = _import_distributed()
+    if not isinstance(address, str) or "://" not in address and ":" not in address:
+        raise BatchError(f"--scheduler {address}: not a scheduler address "
+                         "(e.g. tcp://host:8786)")
+    try:
+        return distributed.Client(address, timeout=CONNECT_TIMEOUT)
+    except (OSError, TimeoutError, ValueError, TypeError) as exc:
+        msg = " ".join(str(exc).split())[:200] or type(exc).__name__
+        raise BatchError(f"--scheduler {address}: cannot connect ({msg})") from None
+
+
+def check_scheduler(address: str) -> None:
+    """Connect once (then disconnect): Dask installed, address well formed and reachable."""
+    client = _connect(address)
+    client.close()
 
 
 def _run_dask(fn, spec_text, source, options, tasks, deliver, address: str) -> None:
+    """Run the chunks on a Dask cluster. Fails with a BatchError (finished rows are kept)
+    when the scheduler goes away or no worker has been connected for NO_WORKER_TIMEOUT s."""
+    import asyncio
+    import concurrent.futures
+    import logging
+
+    distributed = _import_distributed()
+    # the client logs reconnection tracebacks itself; our one-line error says it all
+    for name in ["distributed", *logging.root.manager.loggerDict]:
+        if name.startswith("distributed"):
+            logging.getLogger(name).setLevel(logging.CRITICAL + 1)
+    client = _connect(address)
+    lost = (OSError, TimeoutError, distributed.comm.CommClosedError,
+            concurrent.futures.CancelledError, asyncio.CancelledError)
+
+    def failed(exc: BaseException) -> BatchError:
+        msg = ("the scheduler connection was cancelled"
+               if isinstance(exc, concurrent.futures.CancelledError | asyncio.CancelledError)
+               else " ".join(str(exc).split())[:160] or type(exc).__name__)
+        return BatchError(f"--scheduler {address}: connection lost ({msg}); finished rows "
+                          "are saved, rerun to resume")
+
     try:
-        from distributed import Client, as_completed
-    except ImportError as exc:  # pragma: no cover - depends on the install
-        raise RuntimeError(
-            "--scheduler needs dask.distributed: pip install 'sosalgo[dist]'"
-        ) from exc
-    with Client(address, timeout="20s") as client:
         nworkers = max(1, len(client.scheduler_info().get("workers", {})))
         size = chunk_size(len(tasks), nworkers)
-        futures = [
+        pending = {
             client.submit(fn, spec_text, source, options, chunk, pure=False)
             for chunk in _chunks(tasks, size)
-        ]
-        for fut in as_completed(futures):
-            deliver(fut.result())
+        }
+        idle_since: float | None = None
+        while pending:
+            try:
+                done, pending = distributed.wait(pending, timeout=2.0,
+                                                 return_when="FIRST_COMPLETED")
+            except TimeoutError:
+                done = set()
+            except lost as exc:
+                raise failed(exc) from None
+            for fut in done:
+                if fut.status == "error":  # the task itself raised: a bug, not the cluster
+                    fut.result()
+                try:
+                    rows = fut.result()
+                except lost as exc:
+                    raise failed(exc) from None
+                deliver(rows)
+            if not pending:
+                break
+            try:
+                idle_since = _watch_workers(client, address, idle_since)
+            except lost as exc:
+                raise failed(exc) from None
+    finally:
+        try:
+            client.close(timeout=5)
+        except lost:
+            pass
+
+
+def _watch_workers(client: Any, address: str, idle_since: float | None) -> float | None:
+    """Track how long the cluster has had no worker; fail after NO_WORKER_TIMEOUT s."""
+    if client.status not in ("running", "connecting"):
+        raise BatchError(f"--scheduler {address}: the scheduler went away; finished rows "
+                         "are saved, rerun to resume")
+    if client.scheduler_info().get("workers"):
+        return None
+    now = time.monotonic()
+    if idle_since is None:
+        sys.stderr.write(f"note: the cluster at {address} has no workers; waiting up to "
+                         f"{NO_WORKER_TIMEOUT:g} s for one to join\n")
+        return now
+    if now - idle_since > NO_WORKER_TIMEOUT:
+        raise BatchError(f"--scheduler {address}: no workers for {NO_WORKER_TIMEOUT:g} s; "
+                         "finished rows are saved, rerun to resume")
+    return idle_since

@@ -17,9 +17,9 @@ from typing import Any
 
 import click
 
-from sosalgo.model import ModelError
-from sosalgo.rows import SettingsMismatch
-from sosalgo.spec import SpecError, load_spec, parse_kappa
+from sosalgo import __version__
+from sosalgo.batch import BatchError
+from sosalgo.rows import OutputError, kappa_label, output_lock
 
 __all__ = ["main", "cli"]
 
@@ -40,22 +40,41 @@ def handle_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
             return fn(*args, **kwargs)
-        except (SpecError, InputError, SettingsMismatch) as exc:
+        except (InputError, OutputError, BatchError) as exc:
             _fail(_one_line(str(exc)), 2)
-        except ModelError as exc:
-            src = kwargs.get("spec_path", "")
-            _fail(_one_line(f"{src}: {exc}" if src else str(exc)), 2)
         except KeyboardInterrupt:
             click.echo("interrupted: finished rows are saved; rerun to resume", err=True)
             sys.exit(130)
+        except Terminated:
+            click.echo("terminated: finished rows are saved; rerun to resume", err=True)
+            sys.exit(143)
         except click.exceptions.Exit:
             raise
         except Exception as exc:  # noqa: BLE001 - last line of defence
+            _fail_input(exc, kwargs.get("spec_path", ""))
             if os.environ.get("SOSALGO_DEBUG"):
                 raise
             _fail(_one_line(f"internal error: {type(exc).__name__}: {exc}"), 1)
 
     return wrapper
+
+
+def _fail_input(exc: Exception, src: str) -> None:
+    """Exit 2 for a spec or model error (their modules are imported lazily, so they are
+    looked up only once loaded: an error of theirs implies they are)."""
+    spec_mod, model_mod = sys.modules.get("sosalgo.spec"), sys.modules.get("sosalgo.model")
+    if spec_mod is not None and isinstance(exc, spec_mod.SpecError):
+        _fail(_one_line(str(exc)), 2)
+    if model_mod is not None and isinstance(exc, model_mod.ModelError):
+        _fail(_one_line(f"{src}: {exc}" if src else str(exc)), 2)
+
+
+class Terminated(BaseException):
+    """SIGTERM received: unwinds like KeyboardInterrupt, so worker pools are shut down."""
+
+
+def _on_sigterm(signum: int, frame: Any) -> None:
+    raise Terminated()
 
 
 def _one_line(msg: str) -> str:
@@ -73,24 +92,54 @@ def _kappa_option(value: str) -> tuple[float, ...]:
     import yaml
 
     raw: object = value
+    if "," in value and value.strip()[:1] not in "[{":
+        raise InputError(f"--kappa {value}: one value per --kappa; write --kappa "
+                         + " --kappa ".join(v.strip() for v in value.split(","))
+                         + f" or a list --kappa '[{value}]'")
     if value.strip()[:1] in "[{":
         try:
             raw = yaml.safe_load(value)
         except yaml.YAMLError:
             raise InputError(f"--kappa {value}: not a number, list or range") from None
+    from sosalgo.spec import parse_kappa
+
     return parse_kappa(raw, "--kappa", "value")
 
 
 def _out_dir(out: str) -> Path:
+    """The --out directory, checked writable (nothing is created yet)."""
     path = Path(out)
     if path.exists() and not path.is_dir():
         raise InputError(f"--out {out}: exists and is not a directory")
+    probe = path
+    while not probe.exists():
+        if probe.parent == probe:
+            break
+        probe = probe.parent
+    if not probe.is_dir() or not os.access(probe, os.W_OK | os.X_OK):
+        raise InputError(f"--out {out}: not writable ({probe} does not accept new files)")
     return path
+
+
+def _load(spec_path: str):
+    """The spec and its text, read once (so a pipe or /dev/stdin works)."""
+    from sosalgo.spec import read_spec_text, spec_from_text
+
+    text = read_spec_text(spec_path)
+    return spec_from_text(text, source=str(spec_path)), text
+
+
+def _check_scheduler(scheduler: str | None) -> None:
+    """Fail early (exit 2, nothing written) on a missing Dask or an unusable scheduler."""
+    if scheduler:
+        from sosalgo.batch import check_scheduler
+
+        check_scheduler(scheduler)
 
 
 def _check_points(spec, kappas, theta=None) -> None:
     """Evaluate the spec at every requested kappa before any output is written."""
-    from sosalgo.model import bind
+    from sosalgo.model import ModelError, bind
 
     for k in kappas:
         try:
@@ -110,7 +159,7 @@ def _free_names(spec, free: str | None) -> list[str]:
 
 def _boxes(spec, kappas, names) -> dict[float, list[tuple[float, float]]]:
     """The box Θ at every kappa, or a one-line input error."""
-    from sosalgo.model import parameter_box
+    from sosalgo.model import ModelError, parameter_box
 
     boxes = {}
     for k in kappas:
@@ -189,7 +238,8 @@ def batch_options(fn: Callable[..., Any]) -> Callable[..., Any]:
                      help="Run on an existing Dask distributed scheduler, e.g. "
                           "tcp://host:8786."),
         click.option("--restart", is_flag=True,
-                     help="Discard earlier rows written with other settings."),
+                     help="Replace the results in the output file instead of resuming them "
+                          "(results of other settings are kept aside anyway)."),
         click.option("--quiet", is_flag=True, help="No progress bar."),
     ]
     for opt in reversed(options):
@@ -198,7 +248,7 @@ def batch_options(fn: Callable[..., Any]) -> Callable[..., Any]:
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
-@click.version_option(package_name="sosalgo")
+@click.version_option(version=__version__, prog_name="sosalgo")
 def cli() -> None:
     """Certify and design first-order methods for L-smooth, m-strongly convex functions."""
 
@@ -211,7 +261,8 @@ def cli() -> None:
 @click.option("--tol", default=1e-6, show_default=True, type=float,
               help="Bisection tolerance on rho.")
 @click.option("--out", default="outputs", show_default=True, metavar="DIR",
-              help="Directory for <name>-analysis.csv and <name>-rate.png/.pdf.")
+              help="Directory for <name>-analysis.csv and <name>-rate.png/.pdf (two kappas "
+                   "or more).")
 @batch_options
 @click.option("--no-plot", is_flag=True, help="Skip the figure.")
 @click.option("--verify", "verify_", is_flag=True,
@@ -223,40 +274,35 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
             no_plot: bool, verify_: bool, certificate: str | None, lag: int | None) -> None:
     """Best rate certified at each kappa, with its certificate (Theorem 1: P, lambda)."""
     from sosalgo.jobs import csv_row_to_json, run_analysis_sweep
+    from sosalgo.report import format_table
 
-    spec = load_spec(spec_path)
+    spec, spec_text = _load(spec_path)
     kappas = _kappas(spec, kappa)
     _check_tol(tol)
     fams = _families(spec, certificate, lag)
     _check_points(spec, kappas)
     out_dir = _out_dir(out)
-    spec_text = Path(spec_path).read_text(encoding="utf-8")
+    _check_scheduler(scheduler)
     if len(fams) > 1 or fams[0].name != "theorem1":
         runs = []
         for fam in fams:
             path = _analysis_csv(out_dir, spec, fam)
-            rows = run_analysis_sweep(spec, spec_text, kappas, path, tol, workers=workers,
-                                      scheduler=scheduler, restart=restart,
-                                      progress=not quiet, family=fam)
+            with output_lock(path):
+                rows = run_analysis_sweep(spec, spec_text, kappas, path, tol, workers=workers,
+                                          scheduler=scheduler, restart=restart,
+                                          progress=not quiet, family=fam)
             runs.append((fam, path, [csv_row_to_json(spec, r, fam) for r in rows]))
-        _analyze_families(spec, runs, out_dir, tol, as_json, no_plot, verify_)
+        _analyze_families(spec, runs, out_dir, tol, as_json, no_plot, verify_, spec_text)
         return
-    from sosalgo.report import format_table, plot_rates
-
     csv_path = out_dir / f"{spec.name}-analysis.csv"
-    rows = run_analysis_sweep(spec, spec_text, kappas, csv_path, tol, workers=workers,
-                              scheduler=scheduler, restart=restart, progress=not quiet)
-    jrows = [csv_row_to_json(spec, r) for r in rows]
-    figs = []
-    if not no_plot:
-        figs = plot_rates(
-            f"{spec.name}: certified rate (Theorem 1)",
-            [r["kappa"] for r in jrows],
-            {"certified rate": [r["rho"] for r in jrows]},
-            {name: [r["references"][name] for r in jrows] for name in spec.references},
-            out_dir / f"{spec.name}-rate",
-            uncertified=[r["kappa"] for r in jrows if not r["certified"]],
-        )
+    fig_stem = out_dir / f"{spec.name}-rate"
+    with output_lock(csv_path):
+        rows = run_analysis_sweep(spec, spec_text, kappas, csv_path, tol, workers=workers,
+                                  scheduler=scheduler, restart=restart, progress=not quiet,
+                                  companions=_figures(fig_stem))
+        jrows = [csv_row_to_json(spec, r) for r in rows]
+        # a rate-vs-kappa figure needs two kappas or more (one point is not a curve)
+        figs = [] if no_plot or len(jrows) < 2 else _plot_analysis(spec, jrows, fig_stem)
     cols = ["kappa", "rho", "certified", "lambda", "max_eig_M", "min_eig_P", "solves",
             "seconds"]
     if verify_:
@@ -268,21 +314,54 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
             r["verified"] = None if v is None else v["verified"]
         cols.append("verified")
     if as_json:
-        doc = {"spec": spec.name, "source": spec.source, "tol": tol, "csv": str(csv_path),
-               "figures": [str(p) for p in figs], "rows": jrows}
+        doc = {"spec": spec.name, "source": spec.source, "spec_text": spec_text, "tol": tol,
+               "csv": str(csv_path), "figures": [str(p) for p in figs], "rows": jrows}
         click.echo(json.dumps(doc, indent=2))
-        return
-    table_rows = [{**r, **r["references"]} for r in jrows]
-    click.echo(f"{spec.name}: {spec.description}".rstrip(": "))
-    click.echo(format_table(table_rows, cols + list(spec.references)))
-    click.echo(f"wrote {csv_path}" + "".join(f", {p}" for p in figs))
+    else:
+        table_rows = [{**r, **r["references"]} for r in jrows]
+        click.echo(f"{spec.name}: {spec.description}".rstrip(": "))
+        click.echo(format_table(table_rows, cols + list(spec.references)))
+        click.echo(f"wrote {csv_path}" + "".join(f", {p}" for p in figs))
+    _exit_if_unverified([r.get("verification") for r in jrows])
+
+
+def _exit_if_unverified(checks: list[Any]) -> None:
+    """Exit code 3 when some certificate failed its check (as ``sosalgo verify`` does)."""
+    if all(c is None for c in checks):
+        return  # nothing was verified (no --verify): nothing to import or report
+    from sosalgo.verification import check_failed
+
+    if any(check_failed(c) for c in checks):
+        click.echo("error: some certificate failed verification (exit code 3)", err=True)
+        sys.exit(3)
+
+
+def _figures(stem: Path) -> list[Path]:
+    """The PNG and PDF written for a figure stem (they move with their CSV)."""
+    return [stem.with_name(f"{stem.name}.{ext}") for ext in ("png", "pdf")]
+
+
+def _plot_analysis(spec, jrows: list[dict[str, Any]], stem: Path) -> list[Path]:
+    """Certified rate vs kappa with the spec's references (figure of ``analyze``)."""
+    from sosalgo.jobs import reference_curves
+    from sosalgo.report import plot_rates
+
+    return plot_rates(
+        f"{spec.name}: certified rate (Theorem 1)",
+        [r["kappa"] for r in jrows],
+        {"certified rate": [r["rho"] for r in jrows]},
+        {name: [r["references"][name] for r in jrows] for name in spec.references},
+        stem,
+        uncertified=[r["kappa"] for r in jrows if not r["certified"]],
+        reference_curves=reference_curves(spec, [r["kappa"] for r in jrows]),
+    )
 
 
 FAMILY_LABELS = {"theorem1": "Theorem 1", "interpolation": "interpolation"}
 
 
 def _analyze_families(spec, runs: list, out_dir: Path, tol: float, as_json: bool,
-                      no_plot: bool, verify_: bool) -> None:
+                      no_plot: bool, verify_: bool, spec_text: str) -> None:
     """Output of ``analyze`` for a family other than Theorem 1 or several families: one CSV
     per family, one figure with every family, 1 - 1/sqrt(kappa) and the quadratic bound."""
     from sosalgo.analysis import quadratic_rate
@@ -320,17 +399,18 @@ def _analyze_families(spec, runs: list, out_dir: Path, tol: float, as_json: bool
     if verify_:
         cols.append("verified")
     if as_json:
-        doc = {"spec": spec.name, "source": spec.source, "tol": tol, "csv": str(runs[0][1]),
-               "csvs": {f.name: str(p) for f, p, _ in runs},
+        doc = {"spec": spec.name, "source": spec.source, "spec_text": spec_text, "tol": tol,
+               "csv": str(runs[0][1]), "csvs": {f.name: str(p) for f, p, _ in runs},
                "figures": [str(p) for p in figs], "rows": [r for _, _, rows in runs for r in rows]}
         click.echo(json.dumps(doc, indent=2))
-        return
-    click.echo(f"{spec.name}: {spec.description}".rstrip(": "))
-    for fam, _, rows in runs:
-        click.echo(f"certificate family: {fam.description}")
-        table_rows = [{**r, **r["references"]} for r in rows]
-        click.echo(format_table(table_rows, cols + list(spec.references)))
-    click.echo("wrote " + ", ".join([str(p) for _, p, _ in runs] + [str(p) for p in figs]))
+    else:
+        click.echo(f"{spec.name}: {spec.description}".rstrip(": "))
+        for fam, _, rows in runs:
+            click.echo(f"certificate family: {fam.description}")
+            table_rows = [{**r, **r["references"]} for r in rows]
+            click.echo(format_table(table_rows, cols + list(spec.references)))
+        click.echo("wrote " + ", ".join([str(p) for _, p, _ in runs] + [str(p) for p in figs]))
+    _exit_if_unverified([r.get("verification") for _, _, rows in runs for r in rows])
 
 
 # --------------------------------------------------------------------------- design
@@ -365,9 +445,9 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
            quiet: bool, verify_: bool, certificate: str | None, lag: int | None) -> None:
     """Design parameters: certified design, proven lower bound, gap between them."""
     from sosalgo.jobs import design_csv_to_json, run_design_sweep
-    from sosalgo.report import format_table, plot_rates
+    from sosalgo.report import format_table
 
-    spec = load_spec(spec_path)
+    spec, spec_text = _load(spec_path)
     fam = _families(spec, certificate, lag, single=True)[0]
     if method == "moment" and fam.name != "theorem1":
         raise InputError(f"--method moment: the moment relaxation is built on Theorem 1, "
@@ -386,7 +466,7 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
 
     check_polynomial(spec, names)  # before anything is written
     out_dir = _out_dir(out)
-    spec_text = Path(spec_path).read_text(encoding="utf-8")
+    _check_scheduler(scheduler)
     from sosalgo.jobs import family_options
 
     options = {"free": names, "scalarize": scalarize, "order": order, "gap": gap,
@@ -397,39 +477,35 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
                "inner_workers": (workers or os.cpu_count() or 1)
                if len(kappas) == 1 and scheduler is None else 1}
     csv_path = out_dir / f"{spec.name}-design{_family_suffix(fam)}.csv"
-    rows, fresh = run_design_sweep(spec, spec_text, kappas, csv_path, options, workers=workers,
-                                   scheduler=scheduler, restart=restart, progress=not quiet)
-    docs = [fresh.get(float(r["kappa"])) or design_csv_to_json(spec, names, r, fam)
-            for r in rows]
-    for d in docs:
-        d["source"] = spec.source
+    fig_stem = out_dir / f"{spec.name}-design{_family_suffix(fam)}"
+    with output_lock(csv_path):
+        rows, fresh = run_design_sweep(spec, spec_text, kappas, csv_path, options,
+                                       workers=workers, scheduler=scheduler, restart=restart,
+                                       progress=not quiet, companions=_figures(fig_stem))
+        docs = [fresh.get(float(r["kappa"])) or design_csv_to_json(spec, names, r, fam)
+                for r in rows]
+        for d in docs:
+            d["source"] = spec.source
+            d["spec_text"] = spec_text
+        figs = []
+        if len(docs) > 1:
+            figs = _plot_design(spec, names, rows, docs, fig_stem, fam,
+                                "dual certificates" if method == "dual"
+                                else f"moment relaxation, {scalarize}")
     if verify_:
         from sosalgo.verification import verify_document_rows
 
         checks = verify_document_rows(spec, docs, out_dir / "certificates")
         for d, v in zip(docs, checks, strict=True):
             d["verification"] = v
-    figs = []
-    if len(docs) > 1:
-        refs = {name: [r.get("references", {}).get(name) for r in
-                       (design_csv_to_json(spec, names, x, fam) for x in rows)]
-                for name in spec.references}
-        how = "dual certificates" if method == "dual" else f"moment relaxation, {scalarize}"
-        figs = plot_rates(
-            f"{spec.name}: designed {', '.join(names)} ({fam.name}; bound: {how})",
-            [d["kappa"] for d in docs],
-            {"designed (certified)": [d["rho_certified"] for d in docs],
-             "lower bound (proven)": [d["lower_bound"] for d in docs],
-             "spec values (certified)": [d["rho_at_values"] for d in docs]},
-            refs, out_dir / f"{spec.name}-design{_family_suffix(fam)}",
-            uncertified=[d["kappa"] for d in docs if d["rho_certified"] is None],
-        )
     if as_json:
         if len(docs) == 1:
             click.echo(json.dumps(docs[0], indent=2))
         else:
-            click.echo(json.dumps({"spec": spec.name, "csv": str(csv_path),
+            click.echo(json.dumps({"spec": spec.name, "source": spec.source,
+                                   "spec_text": spec_text, "csv": str(csv_path),
                                    "figures": [str(p) for p in figs], "rows": docs}, indent=2))
+        _exit_if_unverified([d.get("verification") for d in docs])
         return
     table = []
     for d in docs:
@@ -513,6 +589,26 @@ def fig4(kappa: tuple[str, ...], time_limit: float, out: str, as_json: bool,
     click.echo("wrote " + ", ".join(str(p) for p in figs))
 
 
+def _plot_design(spec, names, rows, docs, stem: Path, fam, how: str) -> list[Path]:
+    """Designed rate, lower bound and spec-value rate vs kappa (figure of ``design``)."""
+    from sosalgo.jobs import design_csv_to_json, reference_curves
+    from sosalgo.report import plot_rates
+
+    refs = {name: [r.get("references", {}).get(name) for r in
+                   (design_csv_to_json(spec, names, x, fam) for x in rows)]
+            for name in spec.references}
+    return plot_rates(
+        f"{spec.name}: designed {', '.join(names)} ({fam.name}; bound: {how})",
+        [d["kappa"] for d in docs],
+        {"designed (certified)": [d["rho_certified"] for d in docs],
+         "lower bound (proven)": [d["lower_bound"] for d in docs],
+         "spec values (certified)": [d["rho_at_values"] for d in docs]},
+        refs, stem,
+        uncertified=[d["kappa"] for d in docs if d["rho_certified"] is None],
+        reference_curves=reference_curves(spec, [d["kappa"] for d in docs]),
+    )
+
+
 # --------------------------------------------------------------------------- grid
 GRID_COLUMNS = {"kappa", "rho", "certified", "lambda", "max_eig_M", "min_eig_P", "solves",
                 "seconds", "solver", "error"}
@@ -541,7 +637,7 @@ def grid(spec_path: str, kappa: tuple[str, ...], points: int, free: str | None, 
     from sosalgo.model import parameter_values
     from sosalgo.report import plot_grid
 
-    spec = load_spec(spec_path)
+    spec, spec_text = _load(spec_path)
     kappas = _kappas(spec, kappa)
     names = _free_names(spec, free)
     for p in names:
@@ -551,27 +647,29 @@ def grid(spec_path: str, kappa: tuple[str, ...], points: int, free: str | None, 
     fam = _families(spec, certificate, lag, single=True)[0]
     boxes = _boxes(spec, kappas, names)
     out_dir = _out_dir(out)
-    spec_text = Path(spec_path).read_text(encoding="utf-8")
+    _check_scheduler(scheduler)
     docs = []
-    for k in kappas:
-        stem = out_dir / f"{spec.name}-grid-k{k:g}{_family_suffix(fam)}"
-        rows = run_grid(spec, spec_text, k, names, boxes[k], points,
-                        stem.with_name(stem.name + ".csv"), tol, workers=workers,
-                        scheduler=scheduler, restart=restart, progress=not quiet, family=fam)
-        rho = np.array([float(r["rho"]) if r["rho"] else np.nan for r in rows])
-        figs = []
-        if len(names) <= 2:
-            axes = [np.linspace(lo, hi, points) for lo, hi in boxes[k]]
-            vals = parameter_values(spec, k)
-            figs = plot_grid(f"{spec.name}: certified rate, kappa = {k:g}", names, axes,
-                             rho.reshape([points] * len(names)), stem,
-                             value_point=[vals[p] for p in names])
+    for k in dict.fromkeys(kappas):
+        stem = out_dir / f"{spec.name}-grid-k{kappa_label(k)}{_family_suffix(fam)}"
+        csv_path = stem.with_name(stem.name + ".csv")
+        with output_lock(csv_path):
+            rows = run_grid(spec, spec_text, k, names, boxes[k], points, csv_path, tol,
+                            workers=workers, scheduler=scheduler, restart=restart,
+                            progress=not quiet, companions=_figures(stem), family=fam)
+            rho = np.array([float(r["rho"]) if r["rho"] else np.nan for r in rows])
+            figs = []
+            if len(names) <= 2:
+                axes = [np.linspace(lo, hi, points) for lo, hi in boxes[k]]
+                vals = parameter_values(spec, k)
+                figs = plot_grid(f"{spec.name}: certified rate, kappa = {k:.10g}", names, axes,
+                                 rho.reshape([points] * len(names)), stem,
+                                 value_point=[vals[p] for p in names])
         finite = np.isfinite(rho)
         best = None
         if finite.any():
             i = int(np.nanargmin(np.where(finite, rho, np.nan)))
             best = {"rho": float(rho[i]), "theta": {p: float(rows[i][p]) for p in names}}
-        docs.append({"kappa": k, "csv": str(stem.with_name(stem.name + ".csv")),
+        docs.append({"kappa": k, "csv": str(csv_path),
                      "figures": [str(f) for f in figs], "points": len(rows),
                      "certified": int(finite.sum()), "minimum": best})
     if as_json:
@@ -582,8 +680,8 @@ def grid(spec_path: str, kappa: tuple[str, ...], points: int, free: str | None, 
         where = "none certified" if m is None else (
             f"minimum rho {m['rho']:.6f} at "
             + ", ".join(f"{p} = {v:.6g}" for p, v in m["theta"].items()))
-        click.echo(f"{spec.name} kappa={d['kappa']:g}: {d['certified']}/{d['points']} points "
-                   f"certified; {where}")
+        click.echo(f"{spec.name} kappa={kappa_label(d['kappa'])}: {d['certified']}/"
+                   f"{d['points']} points certified; {where}")
         click.echo(f"wrote {d['csv']}" + "".join(f", {p}" for p in d["figures"]))
 
 
@@ -604,33 +702,36 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
 
     Exit code 3 when some certificate fails to verify.
     """
-    from sosalgo.verification import verify_document_rows
+    from sosalgo.spec import load_spec, spec_from_text
+    from sosalgo.verification import ResultError, check_failed, verify_document_rows
 
-    try:
-        doc = json.loads(Path(result_path).read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(f"{result_path}: no such file") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise InputError(f"{result_path}: not a JSON result ({type(exc).__name__})") from None
-    if not isinstance(doc, dict):
-        raise InputError(f"{result_path}: not a sosalgo result document")
+    doc = _read_result(result_path)
     rows = doc.get("rows", [doc] if "rho_certified" in doc else None)
     if not isinstance(rows, list) or not all(isinstance(r, dict) and "kappa" in r for r in rows):
         raise InputError(f"{result_path}: rows: expected analyze or design results")
-    src = spec_override or doc.get("source") or (rows[0].get("source") if rows else None)
-    if not src:
+    first = rows[0] if rows else {}
+    src = spec_override or doc.get("source") or first.get("source")
+    text = None if spec_override else (doc.get("spec_text") or first.get("spec_text"))
+    if text is not None:  # the spec embedded in the result: moving or editing files is fine
+        if not isinstance(text, str) or not isinstance(src or "", str):
+            raise InputError(f"{result_path}: spec_text: expected the spec's YAML text")
+        spec = spec_from_text(text, source=f"{result_path}: spec_text")
+    elif not src or not isinstance(src, str):
         raise InputError(f"{result_path}: source: unknown spec file; pass --spec")
-    spec = load_spec(src)
+    else:
+        spec = load_spec(src)
     if doc.get("spec") not in (None, spec.name):
         raise InputError(f"{result_path}: spec: result is for '{doc.get('spec')}', "
                          f"{src} is '{spec.name}'")
     out_dir = _out_dir(out)
     fam = None if certificate is None and lag is None else _families(spec, certificate, lag,
                                                                       single=True)[0]
-    checks = verify_document_rows(spec, rows, out_dir / "certificates", not no_simulate,
-                                  family=fam)
-    failed = [c for c in checks if c is not None and (
-        c["verified"] != "exact" or not c.get("simulation", {"ok": True})["ok"])]
+    try:
+        checks = verify_document_rows(spec, rows, out_dir / "certificates", not no_simulate,
+                                      family=fam)
+    except ResultError as exc:
+        raise InputError(f"{result_path}: {exc}") from None
+    failed = [c for c in checks if check_failed(c)]
     if as_json:
         click.echo(json.dumps({"spec": spec.name, "source": src, "results": checks}, indent=2))
     else:
@@ -650,6 +751,26 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
         sys.exit(3)
 
 
+def _read_result(result_path: str) -> dict[str, Any]:
+    """A result JSON document (bounded in size and depth), or a one-line InputError."""
+    try:
+        with open(result_path, "rb") as fh:
+            raw = fh.read(MAX_RESULT_BYTES + 1)
+        if len(raw) > MAX_RESULT_BYTES:
+            raise InputError(f"{result_path}: larger than {MAX_RESULT_BYTES} bytes")
+        doc = json.loads(raw.decode("utf-8"))
+    except FileNotFoundError:
+        raise InputError(f"{result_path}: no such file") from None
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as exc:
+        raise InputError(f"{result_path}: not a JSON result ({type(exc).__name__})") from None
+    if not isinstance(doc, dict):
+        raise InputError(f"{result_path}: not a sosalgo result document")
+    return doc
+
+
+MAX_RESULT_BYTES = 200_000_000
+
+
 # --------------------------------------------------------------------------- lmi
 @cli.command()
 @click.argument("spec_path", metavar="SPEC", type=click.Path(dir_okay=False))
@@ -662,6 +783,7 @@ def lmi(spec_path: str, latex: bool, free: str | None, certificate: str | None,
         lag: int | None) -> None:
     """Print the symbolic matrix M(theta, rho, lambda, P) of Theorem 1 (eq. 15), or the
     blocks of another certificate family."""
+    from sosalgo.spec import load_spec
     from sosalgo.symbolic import symbolic_lmi
 
     spec = load_spec(spec_path)
@@ -675,7 +797,7 @@ def lmi(spec_path: str, latex: bool, free: str | None, certificate: str | None,
 # --------------------------------------------------------------------------- table1
 @cli.command()
 @click.option("--specs", "spec_paths", multiple=True, metavar="SPEC",
-              help="Specs to tabulate (default: specs/*.yaml).")
+              help="Specs to tabulate (default: specs/*.yaml, else the shipped examples).")
 @click.option("--kappa", "kappa", multiple=True, metavar="K", help="Default: 2, 10, 100.")
 @click.option("--tol", default=1e-6, show_default=True, type=float)
 @click.option("--out", default="outputs", show_default=True, metavar="DIR")
@@ -693,12 +815,19 @@ def table1(spec_paths: tuple[str, ...], kappa: tuple[str, ...], tol: float, out:
     from sosalgo.jobs import reference_values
     from sosalgo.report import format_table
     from sosalgo.rows import format_value
+    from sosalgo.spec import load_spec, spec_from_text
 
     _check_tol(tol)
     paths = list(spec_paths) or sorted(str(p) for p in Path("specs").glob("*.yaml"))
-    if not paths:
+    if paths:
+        specs = [load_spec(p) for p in paths]
+    else:  # outside a checkout: the example specs shipped with sosalgo
+        from sosalgo.resources import example_specs
+
+        specs = [spec_from_text(f.read_text(encoding="utf-8"), source=f"examples/{name}.yaml")
+                 for name, f in example_specs().items()]
+    if not specs:
         raise InputError("--specs: no spec files given and none in specs/")
-    specs = [load_spec(p) for p in paths]
     kappas = [k for v in kappa for k in _kappa_option(v)] or [2.0, 10.0, 100.0]
     rows = []
     extra_cols: list[str] = []
@@ -741,8 +870,48 @@ def table1(spec_paths: tuple[str, ...], kappa: tuple[str, ...], tol: float, out:
     click.echo(f"wrote {path}")
 
 
+# --------------------------------------------------------------------------- examples
+@cli.command()
+@click.argument("names", nargs=-1, metavar="[NAME ...]")
+@click.option("--copy", "copy_to", default=None, metavar="DIR",
+              help="Copy the named example specs (default: all) into DIR.")
+@handle_errors
+def examples(names: tuple[str, ...], copy_to: str | None) -> None:
+    """List the example specs shipped with sosalgo, or copy them to start from."""
+    from sosalgo.report import format_table
+    from sosalgo.resources import example_specs
+    from sosalgo.spec import spec_from_text
+
+    found = example_specs()
+    unknown = [n for n in names if n not in found]
+    if unknown:
+        raise InputError(f"{unknown[0]}: no such example (known: {', '.join(found)})")
+    chosen = {n: found[n] for n in (names or found)}
+    if copy_to is None:
+        rows = []
+        for name, f in chosen.items():
+            spec = spec_from_text(f.read_text(encoding="utf-8"), source=f"{name}.yaml")
+            rows.append({"name": name, "description": spec.description})
+        click.echo(format_table(rows, ["name", "description"]))
+        click.echo("copy one to edit it: sosalgo examples NAME --copy DIR")
+        return
+    out_dir = _out_dir(copy_to)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    for name, f in chosen.items():
+        target = out_dir / f"{name}.yaml"
+        text = f.read_text(encoding="utf-8")
+        if target.exists() and target.read_text(encoding="utf-8") != text:
+            click.echo(f"kept {target} (exists and differs; not overwritten)", err=True)
+            continue
+        target.write_text(text, encoding="utf-8")
+        click.echo(f"wrote {target}")
+
+
 def main() -> None:
-    """Console-script entry point."""
+    """Console-script entry point (SIGTERM unwinds like Ctrl-C: pools are shut down)."""
+    import signal
+
+    signal.signal(signal.SIGTERM, _on_sigterm)
     cli(prog_name="sosalgo")
 
 

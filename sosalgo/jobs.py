@@ -7,6 +7,7 @@ driver that writes rows to a resumable CSV as they finish.
 from __future__ import annotations
 
 import sys
+import weakref
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -18,7 +19,7 @@ from sosalgo.batch import Progress, run_batch
 from sosalgo.certificates import CertificateFamily, get_family
 from sosalgo.model import ModelError
 from sosalgo.numeric import compile_expression
-from sosalgo.rows import ResumableCSV
+from sosalgo.rows import ResumableCSV, kappa_label
 from sosalgo.solvers import DEFAULT_SOLVERS
 from sosalgo.spec import BASE_SYMBOLS, Spec, spec_from_text
 
@@ -31,6 +32,12 @@ __all__ = [
 ]
 
 _SPECS: dict[tuple[str, str], Spec] = {}
+
+
+def _seed(spec: Spec, text: str) -> None:
+    """Let in-process chunks reuse the caller's parsed spec (no second parse)."""
+    _SPECS.clear()
+    _SPECS[(text, spec.source)] = spec
 
 
 def _spec(text: str, source: str) -> Spec:
@@ -94,16 +101,51 @@ def family_from_options(options: dict[str, Any] | None) -> CertificateFamily | N
     return get_family(options["family"], {k: v for k, v in options.items() if k != "family"})
 
 
+_REFERENCES: weakref.WeakKeyDictionary[Spec, dict[str, Any]] = weakref.WeakKeyDictionary()
+
+
+def _reference_fns(spec: Spec) -> dict[str, Any]:
+    """The spec's references compiled once (None for one that cannot be compiled)."""
+    fns = _REFERENCES.get(spec)
+    if fns is None:
+        fns = {}
+        for name, expr in spec.references.items():
+            try:
+                fns[name] = compile_expression(expr, list(BASE_SYMBOLS.values()))
+            except ValueError:
+                fns[name] = None
+        _REFERENCES[spec] = fns
+    return fns
+
+
 def reference_values(spec: Spec, kappa: float) -> dict[str, float | None]:
     """Closed-form reference rates at kappa (None where not defined)."""
     out: dict[str, float | None] = {}
     m, L = spec.mL(kappa)
-    for name, expr in spec.references.items():
+    for name, fn in _reference_fns(spec).items():
         try:
-            out[name] = compile_expression(expr, list(BASE_SYMBOLS.values()))([m, L, kappa])
+            out[name] = None if fn is None else fn([m, L, kappa])
         except ValueError:
             out[name] = None
     return out
+
+
+def reference_curves(
+    spec: Spec, kappas: Sequence[float], points: int = 400
+) -> tuple[list[float], dict[str, list[float | None]]] | None:
+    """The references on a fine kappa grid spanning ``kappas`` (log-spaced over a decade or
+    more, else linear), for smooth curves in figures; None for fewer than two kappas."""
+    ks = [float(k) for k in kappas]
+    if len(set(ks)) < 2:
+        return None
+    lo, hi = min(ks), max(ks)
+    grid = np.geomspace(lo, hi, points) if hi >= 10 * lo else np.linspace(lo, hi, points)
+    grid = np.union1d(grid, ks)  # the data kappas stay on the curve
+    out: dict[str, list[float | None]] = {name: [] for name in spec.references}
+    for k in grid:
+        for name, v in reference_values(spec, float(k)).items():
+            out[name].append(v)
+    return [float(k) for k in grid], out
 
 
 def result_row(spec: Spec, res: AnalysisResult,
@@ -153,6 +195,22 @@ def analysis_chunk(
     return rows
 
 
+def _run_store(
+    store: ResumableCSV, tasks: list[dict[str, Any]], label: str, progress: bool,
+    fn: Any, spec_text: str, source: str, options: dict[str, Any],
+    on_row: Any, workers: int | None, scheduler: str | None,
+) -> None:
+    """Open (lock, reconcile) the store, then run the tasks not done yet into it."""
+    with store:
+        todo = [t for t in tasks if not store.is_done(t)]
+        bar = Progress(len(tasks), label, progress, done=len(tasks) - len(todo))
+        try:
+            run_batch(fn, spec_text, source, options, todo, on_row or store.write,
+                      workers=workers, scheduler=scheduler, progress=bar)
+        finally:
+            bar.close()
+
+
 def run_analysis_sweep(
     spec: Spec,
     spec_text: str,
@@ -165,6 +223,7 @@ def run_analysis_sweep(
     progress: bool = True,
     solvers: Sequence[str] | None = None,
     family: CertificateFamily | None = None,
+    companions: Sequence[Path] = (),
 ) -> list[dict[str, str]]:
     """Analysis over kappa, resumable; returns the rows (as CSV strings) in kappa order.
 
@@ -175,20 +234,16 @@ def run_analysis_sweep(
     if solvers:
         options["solvers"] = tuple(solvers)
     settings = {"job": "analyze", "spec": spec_text, "tol": tol,
-                "solvers": list(solvers) if solvers else None}
+                "solvers": list(solvers) if solvers else None,
+                "kappa": [float(k) for k in kappas]}
     if fam.name != "theorem1":
         settings["certificate"] = family_options(fam)
     store = ResumableCSV(out_csv, analysis_columns(spec, fam), ["kappa"], settings,
-                         restart=restart)
+                         restart=restart, companions=companions)
     tasks = [{"kappa": float(k)} for k in kappas]
-    todo = [t for t in tasks if not store.is_done(t)]
-    bar = Progress(len(tasks), f"analyze {spec.name}", progress, done=len(tasks) - len(todo))
-    try:
-        with store:
-            run_batch(analysis_chunk, spec_text, spec.source, options, todo, store.write,
-                      workers=workers, scheduler=scheduler, progress=bar)
-    finally:
-        bar.close()
+    _seed(spec, spec_text)
+    _run_store(store, tasks, f"analyze {spec.name}", progress, analysis_chunk, spec_text,
+               spec.source, options, None, workers, scheduler)
     by_key = {store.row_key({"kappa": float(k)}): None for k in kappas}
     rows = [r for r in store.rows() if store.row_key(r) in by_key]
     return sorted(rows, key=lambda r: float(r["kappa"]))
@@ -313,17 +368,17 @@ def design_chunk(
 def run_design_sweep(
     spec: Spec, spec_text: str, kappas: Sequence[float], out_csv: Path,
     options: dict[str, Any], workers: int | None = None, scheduler: str | None = None,
-    restart: bool = False, progress: bool = True,
+    restart: bool = False, progress: bool = True, companions: Sequence[Path] = (),
 ) -> tuple[list[dict[str, str]], dict[float, dict[str, Any]]]:
     """Design over kappa, resumable. Returns the CSV rows (kappa order) and the full
     results of the rows computed in this run (keyed by kappa)."""
     settings = {"job": "design", "spec": spec_text,
-                **{k: v for k, v in options.items() if k not in RUNTIME_OPTIONS}}
+                **{k: v for k, v in options.items() if k not in RUNTIME_OPTIONS},
+                "kappa": [float(k) for k in kappas]}
     fam = family_from_options(options.get("certificate")) or spec_family(spec)
     store = ResumableCSV(out_csv, design_columns(spec, options["free"], fam), ["kappa"],
-                         settings, restart=restart)
+                         settings, restart=restart, companions=companions)
     tasks = [{"kappa": float(k)} for k in kappas]
-    todo = [t for t in tasks if not store.is_done(t)]
     fresh: dict[float, dict[str, Any]] = {}
 
     def on_row(row: dict[str, Any]) -> None:
@@ -332,13 +387,9 @@ def run_design_sweep(
             fresh[float(row["kappa"])] = full
         store.write(row)
 
-    bar = Progress(len(tasks), f"design {spec.name}", progress, done=len(tasks) - len(todo))
-    try:
-        with store:
-            run_batch(design_chunk, spec_text, spec.source, options, todo, on_row,
-                      workers=workers, scheduler=scheduler, progress=bar)
-    finally:
-        bar.close()
+    _seed(spec, spec_text)
+    _run_store(store, tasks, f"design {spec.name}", progress, design_chunk, spec_text,
+               spec.source, options, on_row, workers, scheduler)
     wanted = {store.row_key({"kappa": float(k)}) for k in kappas}
     rows = [r for r in store.rows() if store.row_key(r) in wanted]
     return sorted(rows, key=lambda r: float(r["kappa"])), fresh
@@ -424,6 +475,7 @@ def run_grid(
     box: Sequence[tuple[float, float]], points: int, out_csv: Path, tol: float,
     workers: int | None = None, scheduler: str | None = None, restart: bool = False,
     progress: bool = True, family: CertificateFamily | None = None,
+    companions: Sequence[Path] = (),
 ) -> list[dict[str, str]]:
     """Analysis on a grid over Θ at one kappa, resumable; rows in grid order."""
     fam = family or spec_family(spec)
@@ -433,20 +485,14 @@ def run_grid(
     if fam.name != "theorem1":
         settings["certificate"] = family_options(fam)
     store = ResumableCSV(out_csv, grid_columns(spec, free, fam), ["kappa", *free], settings,
-                         restart=restart)
+                         restart=restart, companions=companions)
     tasks = []
     for vals in grid_points(box, points):
         theta = dict(zip(free, vals, strict=True))
         tasks.append({"kappa": float(kappa), "theta": theta, "extra": theta, **theta})
-    todo = [t for t in tasks if not store.is_done(t)]
-    bar = Progress(len(tasks), f"grid {spec.name} k={kappa:g}", progress,
-                   done=len(tasks) - len(todo))
-    try:
-        with store:
-            run_batch(grid_chunk, spec_text, spec.source, options, todo, store.write,
-                      workers=workers, scheduler=scheduler, progress=bar)
-    finally:
-        bar.close()
+    _seed(spec, spec_text)
+    _run_store(store, tasks, f"grid {spec.name} k={kappa_label(kappa)}", progress, grid_chunk,
+               spec_text, spec.source, options, None, workers, scheduler)
     order = {store.row_key(t): i for i, t in enumerate(tasks)}
     rows = [r for r in store.rows() if store.row_key(r) in order]
     return sorted(rows, key=lambda r: order[store.row_key(r)])

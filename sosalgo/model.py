@@ -32,7 +32,13 @@ class ModelError(ValueError):
 
 @dataclass(frozen=True)
 class Algorithm:
-    """Numeric reduced templates (Remark 1) of one method on F(m, L)."""
+    """Numeric reduced templates (Remark 1) of one method on F(m, L).
+
+    A, B, C, E may be given as nested lists or arrays; they are stored as float arrays of
+    shapes n x n, n x 1, 1 x n, 1 x n. As in the spec loader, a method without the fixed
+    point of eq. (11) is refused with a :class:`ModelError` (``require_fixed_point=False``
+    skips that check, for algebraic tests only).
+    """
 
     A: np.ndarray
     B: np.ndarray
@@ -41,6 +47,34 @@ class Algorithm:
     m: float
     L: float
     params: dict[str, float] = field(default_factory=dict)
+    require_fixed_point: bool = field(default=True, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        mats = {}
+        for k in MATRIX_NAMES:
+            try:
+                mats[k] = np.array(getattr(self, k), dtype=float, ndmin=2)
+            except (TypeError, ValueError):
+                raise ModelError(f"matrices.{k}", "must be a matrix of numbers") from None
+            if not np.all(np.isfinite(mats[k])):
+                raise ModelError(f"matrices.{k}", "entries must be finite")
+            object.__setattr__(self, k, mats[k])
+        n = mats["A"].shape[0]
+        shapes = {"A": (n, n), "B": (n, 1), "C": (1, n), "E": (1, n)}
+        for k, shape in shapes.items():
+            if mats[k].shape != shape:
+                raise ModelError(f"matrices.{k}", f"must be {shape[0]}x{shape[1]}, "
+                                 f"got {mats[k].shape[0]}x{mats[k].shape[1]}")
+        m, L = float(self.m), float(self.L)
+        if not (np.isfinite(m) and np.isfinite(L) and 0 < m < L):
+            raise ModelError("m, L", f"need 0 < m < L (finite), got m={m:g}, L={L:g}")
+        object.__setattr__(self, "m", m)
+        object.__setattr__(self, "L", L)
+        if self.require_fixed_point and fixed_point(self) is None:
+            raise ModelError(
+                "matrices",
+                "no fixed point: eq. (11) needs u with (I - A) u = 0, C u = 1, E u = 1",
+            )
 
     @property
     def kappa(self) -> float:

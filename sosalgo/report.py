@@ -12,13 +12,20 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
 
-__all__ = ["format_table", "plot_rates", "save_figure", "plot_grid"]
+def _pyplot() -> Any:
+    """matplotlib.pyplot with the Agg backend, imported on first use (tables need none)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+__all__ = ["format_table", "grid_figure", "plot_grid", "plot_rates", "rate_figure",
+           "save_figure"]
 
 
 def _fmt(v: Any, digits: int = 7) -> str:
@@ -47,7 +54,7 @@ def format_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[str],
     return "\n".join(out)
 
 
-def save_figure(fig: plt.Figure, stem: Path) -> list[Path]:
+def save_figure(fig: Any, stem: Path) -> list[Path]:
     """Write ``stem.png`` and ``stem.pdf`` atomically; returns the paths."""
     stem.parent.mkdir(parents=True, exist_ok=True)
     paths = []
@@ -57,7 +64,7 @@ def save_figure(fig: plt.Figure, stem: Path) -> list[Path]:
         fig.savefig(tmp, format=ext, dpi=150, bbox_inches="tight")
         os.replace(tmp, final)
         paths.append(final)
-    plt.close(fig)
+    _pyplot().close(fig)
     return paths
 
 
@@ -69,31 +76,73 @@ def plot_rates(
     stem: Path,
     uncertified: Sequence[float] = (),
     ylabel: str = r"rate $\rho$",
+    reference_curves: tuple[Sequence[float], Mapping[str, Sequence[float | None]]] | None = None,
 ) -> list[Path]:
-    """Rate vs kappa on a log-kappa axis: solid series, dashed references.
+    """Rate vs kappa, written as ``stem.png`` and ``stem.pdf`` (see :func:`rate_figure`)."""
+    return save_figure(rate_figure(title, kappa, series, references, uncertified, ylabel,
+                                   reference_curves), stem)
 
-    ``uncertified`` kappas (no certificate) are marked along the top, never drawn as
-    rho = 1.
-    """
-    fig, ax = plt.subplots(figsize=(6.4, 4.4))
+
+def rate_figure(
+    title: str,
+    kappa: Sequence[float],
+    series: Mapping[str, Sequence[float | None]],
+    references: Mapping[str, Sequence[float | None]],
+    uncertified: Sequence[float] = (),
+    ylabel: str = r"rate $\rho$",
+    reference_curves: tuple[Sequence[float], Mapping[str, Sequence[float | None]]] | None = None,
+) -> Any:
+    """Rate vs kappa: series with markers (later series drawn under earlier ones, so the
+    first, e.g. the designed rate, stays visible where it meets a bound), references
+    dashed (smooth ``reference_curves`` = (fine kappa grid, values) when given, else at
+    the data kappas). Kappas where a series has no value are marked along the bottom
+    ("<series>: missing"); ``uncertified`` kappas along the top, never as rho = 1 data."""
+    fig, ax = _pyplot().subplots(figsize=(6.4, 4.4))
     k = np.asarray(kappa, dtype=float)
     markers = "os^Dv<>"
+    styles = [dict(ms=5, lw=1.8), dict(ms=7, lw=1.2, mfc="none"), dict(ms=4, lw=1.0)]
+    n = len(series)
     for i, (label, vals) in enumerate(series.items()):
         y = np.array([np.nan if v is None else v for v in vals], dtype=float)
-        ax.plot(k, y, marker=markers[i % len(markers)], ms=4, lw=1.6, label=label)
-    for label, vals in references.items():
+        ax.plot(k, y, marker=markers[i % len(markers)], label=label, zorder=3 + n - i,
+                **styles[min(i, len(styles) - 1)])
+        missing = ~np.isfinite(y) & ~np.isin(k, np.asarray(uncertified, dtype=float))
+        if missing.any() and (~missing).any():  # gaps not already marked "no certificate"
+            ax.plot(k[missing], np.zeros(missing.sum()), ls="none", marker="v", ms=7,
+                    color=ax.lines[-1].get_color(), label=f"{label}: missing",
+                    transform=ax.get_xaxis_transform(), clip_on=False, zorder=6)
+    ref_k, ref_vals = (k, references) if reference_curves is None else reference_curves
+    for label, vals in ref_vals.items():
         y = np.array([np.nan if v is None else v for v in vals], dtype=float)
-        ax.plot(k, y, ls="--", lw=1.2, label=label)
+        ax.plot(np.asarray(ref_k, dtype=float), y, ls="--", lw=1.2, label=label, zorder=2)
     if len(uncertified):
         ax.plot(uncertified, np.ones(len(uncertified)), ls="none", marker="x", color="red",
                 ms=7, label="no certificate", clip_on=False)
-    ax.set_xscale("log")
+    _kappa_axis(ax, k)
     ax.set_xlabel(r"condition number $\kappa = L/m$")
     ax.set_ylabel(ylabel)
     ax.set_title(title)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8, loc="lower right")
-    return save_figure(fig, stem)
+    return fig
+
+
+def _kappa_axis(ax: Any, k: np.ndarray) -> None:
+    """Log kappa axis over a decade or more; over shorter spans a linear axis with a few
+    plain ticks (a log axis would label its minor ticks and the labels overlap)."""
+    from matplotlib.ticker import MaxNLocator, NullFormatter, ScalarFormatter
+
+    finite = k[np.isfinite(k) & (k > 0)]
+    lo, hi = (finite.min(), finite.max()) if finite.size else (1.0, 10.0)
+    if hi >= 10 * lo:
+        ax.set_xscale("log")
+        ax.xaxis.set_minor_formatter(NullFormatter())
+        return
+    ax.set_xscale("linear")
+    ax.xaxis.set_major_locator(MaxNLocator(nbins=5, min_n_ticks=2))
+    fmt = ScalarFormatter(useOffset=True, useMathText=True)
+    fmt.set_powerlimits((-3, 4))
+    ax.xaxis.set_major_formatter(fmt)
 
 
 def plot_grid(
@@ -104,47 +153,79 @@ def plot_grid(
     stem: Path,
     value_point: Sequence[float] | None = None,
 ) -> list[Path]:
+    """Certified rate over a 1-D or 2-D grid, as ``stem.png``/``.pdf`` (see
+    :func:`grid_figure`)."""
+    return save_figure(grid_figure(title, names, axes, rho, value_point), stem)
+
+
+def grid_figure(
+    title: str,
+    names: Sequence[str],
+    axes: Sequence[np.ndarray],
+    rho: np.ndarray,
+    value_point: Sequence[float] | None = None,
+) -> Any:
     """Certified rate over a 1-D or 2-D grid. ``rho`` holds NaN where no certificate was
-    found; those points are drawn as a hatched grey region (2-D) or marked (1-D), never as
-    rho = 1. The grid minimum and the spec's own value point are marked."""
-    fig, ax = plt.subplots(figsize=(6.4, 4.8))
+    found; those parameters are drawn as a hatched grey region (2-D: everything the
+    certified contours do not cover, so no white band between the two; 1-D: shaded
+    intervals), never as rho = 1. The grid minimum and the spec's own value are marked."""
+    fig, ax = _pyplot().subplots(figsize=(6.4, 4.8))
     finite = np.isfinite(rho)
     if len(names) == 1:
-        x = axes[0]
-        ax.plot(x, np.where(finite, rho, np.nan), lw=1.6, label="certified rate")
-        if (~finite).any():
-            ax.plot(x[~finite], np.ones((~finite).sum()), "x", color="grey",
-                    label="no certificate", clip_on=False)
-        if finite.any():
-            i = int(np.nanargmin(np.where(finite, rho, np.nan)))
-            ax.plot(x[i], rho[i], "*", ms=12, color="red",
-                    label=f"grid minimum {rho[i]:.4f}")
-        if value_point is not None:
-            ax.axvline(value_point[0], ls=":", color="k", label="spec value")
+        _grid_1d(ax, axes[0], rho, finite, value_point)
         ax.set_xlabel(names[0])
         ax.set_ylabel(r"certified rate $\rho$")
     else:
-        X, Y = np.meshgrid(axes[0], axes[1], indexing="ij")
-        Z = np.where(finite, rho, np.nan)
-        if (~finite).any():
-            ax.contourf(X, Y, (~finite).astype(float), levels=[0.5, 1.5], colors=["0.85"],
-                        hatches=["//"])
-            ax.plot([], [], "s", color="0.85", label="no certificate")
-        if finite.sum() >= 4:
-            lo, hi = float(np.nanmin(Z)), float(np.nanmax(Z))
-            levels = np.unique(np.round(np.linspace(lo, hi, 12), 4))
-            if len(levels) >= 2:
-                cf = ax.contourf(X, Y, Z, levels=levels, cmap="viridis", alpha=0.85)
-                cs = ax.contour(X, Y, Z, levels=levels, colors="k", linewidths=0.6)
-                ax.clabel(cs, fmt="%.3f", fontsize=7)
-                fig.colorbar(cf, ax=ax, label=r"certified rate $\rho$")
-            i = np.unravel_index(int(np.nanargmin(Z)), Z.shape)
-            ax.plot(X[i], Y[i], "*", ms=14, color="red",
-                    label=f"grid minimum {Z[i]:.4f}")
-        if value_point is not None:
-            ax.plot(*value_point, "o", ms=8, mfc="white", mec="k", label="spec value")
+        _grid_2d(fig, ax, axes, rho, finite, value_point)
         ax.set_xlabel(names[0])
         ax.set_ylabel(names[1])
     ax.set_title(title)
     ax.legend(fontsize=8, loc="best")
-    return save_figure(fig, stem)
+    return fig
+
+
+def _grid_1d(ax: Any, x: np.ndarray, rho: np.ndarray, finite: np.ndarray,
+             value_point: Sequence[float] | None) -> None:
+    ax.plot(x, np.where(finite, rho, np.nan), lw=1.6, marker=".", ms=3,
+            label="certified rate")
+    if (~finite).any():
+        half = np.diff(x).min() / 2 if len(x) > 1 else 0.5
+        first = True
+        for xi in x[~finite]:  # shaded cells, never points at rho = 1
+            ax.axvspan(xi - half, xi + half, color="0.85", hatch="//", lw=0,
+                       label="no certificate" if first else None)
+            first = False
+        ax.set_xlim(x.min(), x.max())
+    if finite.any():
+        i = int(np.nanargmin(np.where(finite, rho, np.nan)))
+        ax.plot(x[i], rho[i], "*", ms=12, color="red", label=f"grid minimum {rho[i]:.4f}")
+    if value_point is not None:
+        ax.axvline(value_point[0], ls=":", color="k", label="spec value")
+
+
+def _grid_2d(fig: Any, ax: Any, axes: Sequence[np.ndarray], rho: np.ndarray,
+             finite: np.ndarray, value_point: Sequence[float] | None) -> None:
+    from matplotlib.patches import Rectangle
+
+    X, Y = np.meshgrid(axes[0], axes[1], indexing="ij")
+    Z = np.where(finite, rho, np.nan)
+    x0, x1, y0, y1 = axes[0].min(), axes[0].max(), axes[1].min(), axes[1].max()
+    if (~finite).any():  # the background is the uncertified region
+        ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, facecolor="0.85", hatch="//",
+                               edgecolor="0.6", lw=0, zorder=0, label="no certificate"))
+    if finite.sum() >= 4:
+        lo, hi = float(np.nanmin(Z)), float(np.nanmax(Z))
+        levels = np.unique(np.round(np.linspace(lo, hi, 12), 4))
+        if len(levels) >= 2:
+            levels[0], levels[-1] = min(levels[0], lo), max(levels[-1], hi)
+            cf = ax.contourf(X, Y, Z, levels=levels, cmap="viridis", zorder=1)
+            cs = ax.contour(X, Y, Z, levels=levels, colors="k", linewidths=0.6, zorder=2)
+            ax.clabel(cs, fmt="%.3f", fontsize=7)
+            fig.colorbar(cf, ax=ax, label=r"certified rate $\rho$")
+        i = np.unravel_index(int(np.nanargmin(Z)), Z.shape)
+        ax.plot(X[i], Y[i], "*", ms=14, color="red", label=f"grid minimum {Z[i]:.4f}",
+                zorder=4)
+    if value_point is not None:
+        ax.plot(*value_point, "o", ms=8, mfc="white", mec="k", label="spec value", zorder=4)
+    ax.set_xlim(x0, x1)
+    ax.set_ylim(y0, y1)

@@ -353,8 +353,12 @@ def check_point(problem: LMIProblem, rho: float, x: np.ndarray, solver: str) -> 
     if x.shape != (problem.nvar,) or not np.all(np.isfinite(x)):
         return Outcome("failed", None, solver, "malformed point")
     x = problem.project(x)
-    worst = max(problem.max_eigs(x, rho).values())
-    if worst > 0.0:
+    try:
+        with np.errstate(all="ignore"):
+            worst = max(problem.max_eigs(x, rho).values())
+    except (np.linalg.LinAlgError, ValueError, OverflowError) as exc:
+        return Outcome("failed", None, solver, f"certificate check failed ({exc})"[:200])
+    if not worst <= 0.0:  # NaN fails: a check that cannot be evaluated never passes
         msg = f"certificate check failed (max eig {worst:.3g})"
         return Outcome("failed", None, solver, msg, near_boundary=True)
     return Outcome("feasible", x, solver, "checked")

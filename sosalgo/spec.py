@@ -28,7 +28,10 @@ import yaml
 from sosalgo.expr import ExprError, parse_expression
 from sosalgo.numeric import NumericError, compile_expression
 
-__all__ = ["SpecError", "Parameter", "Spec", "load_spec", "spec_from_dict", "BASE_SYMBOLS"]
+__all__ = [
+    "SpecError", "Parameter", "Spec", "load_spec", "read_spec_text", "spec_from_dict",
+    "spec_from_text", "BASE_SYMBOLS",
+]
 
 M_SYM, L_SYM, KAPPA_SYM = sp.symbols("m L kappa", positive=True)
 BASE_SYMBOLS: dict[str, sp.Symbol] = {"m": M_SYM, "L": L_SYM, "kappa": KAPPA_SYM}
@@ -228,8 +231,8 @@ def _construct_object(self: _StrictLoader, node: yaml.Node, deep: bool = False) 
 _StrictLoader.construct_object = _construct_object  # type: ignore[method-assign]
 
 
-def load_spec(path: str | Path) -> Spec:
-    """Read and validate a YAML spec file."""
+def read_spec_text(path: str | Path) -> str:
+    """The text of a spec file, read once (pipes and ``/dev/stdin`` work), bounded in size."""
     p = Path(path)
     source = str(path)
     try:
@@ -238,7 +241,7 @@ def load_spec(path: str | Path) -> Spec:
             raw = fh.read(MAX_FILE_BYTES + 1)
         if len(raw) > MAX_FILE_BYTES:
             raise SpecError(source, "", f"file larger than {MAX_FILE_BYTES} bytes")
-        text = raw.decode("utf-8")
+        return raw.decode("utf-8")
     except SpecError:
         raise
     except FileNotFoundError:
@@ -249,7 +252,11 @@ def load_spec(path: str | Path) -> Spec:
         raise SpecError(source, "", "not UTF-8 text") from None
     except OSError as exc:
         raise SpecError(source, "", f"cannot read ({exc.strerror})") from None
-    return spec_from_text(text, source=source)
+
+
+def load_spec(path: str | Path) -> Spec:
+    """Read and validate a YAML spec file."""
+    return spec_from_text(read_spec_text(path), source=str(path))
 
 
 def spec_from_text(text: str, source: str = "<spec>") -> Spec:
@@ -502,6 +509,27 @@ class _Builder:
                 bind(spec, k)
             except ModelError as exc:
                 raise self.fail(exc.field, f"at kappa={k:g}: {exc.message}") from None
+        self.check_in_range(spec)
+
+    def check_in_range(self, spec: Spec) -> None:
+        """Each ranged parameter's value lies in its own range at every kappa of the spec."""
+        from sosalgo.model import parameter_box, parameter_values
+
+        ranged = spec.ranged
+        if not ranged:
+            return
+        for k in spec.kappa:
+            values = parameter_values(spec, k)
+            for pname, (lo, hi) in zip(ranged, parameter_box(spec, k, ranged), strict=True):
+                v = values[pname]
+                slack = 1e-12 * max(1.0, abs(lo), abs(hi))
+                if not lo - slack <= v <= hi + slack:
+                    raise self.fail(f"parameters.{pname}.value",
+                                    f"{v:.6g} is outside its range [{lo:.6g}, {hi:.6g}] "
+                                    f"at kappa={k:g}")
+
+
+_PLAIN_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
 
 
 def parse_kappa(raw: object, source: str, where: str) -> tuple[float, ...]:
@@ -511,8 +539,13 @@ def parse_kappa(raw: object, source: str, where: str) -> tuple[float, ...]:
 
     def number(v: object, sub: str) -> float:
         try:
-            val = float(parse_expression(v, {}))
-        except (ExprError, TypeError) as exc:
+            if isinstance(v, int | float) and not isinstance(v, bool):
+                val = float(v)  # a number is a number: no symbolic parsing
+            elif isinstance(v, str) and _PLAIN_NUMBER.fullmatch(v.strip()):
+                val = float(v)
+            else:
+                val = float(parse_expression(v, {}))
+        except (ExprError, TypeError, OverflowError) as exc:
             raise fail(str(exc), sub) from None
         if not math.isfinite(val):
             raise fail("must be finite", sub)

@@ -20,7 +20,7 @@ from sosalgo.analysis import analyze_spec
 from sosalgo.cli import cli
 from sosalgo.jobs import run_grid
 from sosalgo.model import parameter_box
-from sosalgo.rows import ResumableCSV, SettingsMismatch
+from sosalgo.rows import ResumableCSV
 from sosalgo.spec import load_spec
 
 from .conftest import SPECS
@@ -84,16 +84,18 @@ def test_grid_minimum_is_near_a_polished_optimum(tmp_path):
     assert opt.fun <= rho[i] + 1e-9
 
 
-def test_settings_are_recorded_and_mismatch_refused(tmp_path):
+def test_settings_are_recorded_and_other_settings_kept_aside(tmp_path):
     path = tmp_path / "x.csv"
     with ResumableCSV(path, ["kappa", "v"], ["kappa"], {"a": 1}) as store:
         store.write({"kappa": 2.0, "v": 1})
         store.write({"kappa": 2.0, "v": 99})  # duplicate key: ignored
     assert json.loads(path.with_name("x.csv.settings.json").read_text()) == {"a": 1}
-    with pytest.raises(SettingsMismatch):
-        ResumableCSV(path, ["kappa", "v"], ["kappa"], {"a": 2})
-    again = ResumableCSV(path, ["kappa", "v"], ["kappa"], {"a": 1})
-    assert again.is_done({"kappa": 2.0}) and len(again.rows()) == 1
+    notes = []
+    with ResumableCSV(path, ["kappa", "v"], ["kappa"], {"a": 2}, notify=notes.append) as s2:
+        assert not s2.is_done({"kappa": 2.0})
+    assert "a: 1 -> 2" in notes[0] and "kept it aside" in notes[0]
+    with ResumableCSV(path, ["kappa", "v"], ["kappa"], {"a": 1}, notify=notes.append) as again:
+        assert again.is_done({"kappa": 2.0}) and len(again.rows()) == 1
     path.write_text(path.read_text() + "3.0,4")  # a half-written line from a killed writer
     assert len(ResumableCSV(path, ["kappa", "v"], ["kappa"], {"a": 1}).rows()) == 1
 
@@ -156,4 +158,4 @@ def test_quiet_and_different_settings(tmp_path):
     res = CliRunner().invoke(cli, [*args, "--quiet"])
     assert res.exit_code == 0 and res.stderr == ""
     res = CliRunner().invoke(cli, [*args, "--tol", "1e-3"])
-    assert res.exit_code == 2 and "different settings" in res.stderr
+    assert res.exit_code == 0 and "tol: 1e-06 -> 0.001" in res.stderr

@@ -59,7 +59,7 @@ def test_uncertified_is_a_result_not_an_error(tmp_path):
     assert row["certified"] is False and row["rho"] is None
 
 
-def test_rerun_resumes_and_refuses_other_settings(tmp_path):
+def test_rerun_resumes_and_recomputes_other_settings(tmp_path):
     args = ["analyze", SPECS / "gradient.yaml", "--kappa", "2", "--kappa", "10", "--out", tmp_path,
             "--quiet", "--no-plot"]
     assert run(args).exit_code == 0
@@ -67,7 +67,8 @@ def test_rerun_resumes_and_refuses_other_settings(tmp_path):
     assert run(args).exit_code == 0
     assert (tmp_path / "gradient-analysis.csv").read_text() == before  # nothing recomputed
     res = CliRunner().invoke(cli, [str(a) for a in args] + ["--tol", "1e-4"])
-    assert res.exit_code == 2 and "--restart" in res.stderr
+    assert res.exit_code == 0 and "tol: 1e-06 -> 0.0001" in res.stderr
+    assert len(list(tmp_path.glob("gradient-analysis-*.csv"))) == 1  # kept aside
     assert run([*args, "--tol", "1e-4", "--restart"]).exit_code == 0
 
 

@@ -29,7 +29,7 @@ def _rename(M: sp.Matrix) -> sp.Matrix:
 
 def test_gradient_matches_section_iv_with_notes_fix():
     """Section IV, gradient method; M3 = Q_f = 2(m+L) N4, so lambda_paper = lambda/(2(m+L));
-    M22 with the factor p the paper drops (NOTES item 2)."""
+    M22 with the factor p the paper drops (docs/paper-notes.md, item 2)."""
     M, _ = symbolic_matrix(load_spec(SPECS / "gradient.yaml"), free=["h"])
     M = _rename(M)
     lp = lam / (2 * (m + L))

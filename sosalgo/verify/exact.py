@@ -794,7 +794,12 @@ def verify_exact(
                 return done("P is not symmetric")
             p_cands = [("as given (exact)", Pq)]
         else:
-            p_cands = _p_candidates(P_raw.astype(float), max_den)
+            P_float = P_raw.astype(float)
+            if not np.all(np.isfinite(P_float)):
+                return done("P has entries that are not finite")
+            if not np.array_equal(P_float, P_float.T):
+                return done("P is not symmetric (refused, never symmetrized)")
+            p_cands = _p_candidates(P_float, max_den)
     except (ValueError, TypeError, OverflowError) as exc:
         return done(f"P, lambda and rho must be finite numbers: {exc}")
     if lam_opts[0] < 0:

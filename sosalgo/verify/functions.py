@@ -192,11 +192,17 @@ def _lse_excess(w: Array, p: Array) -> Array:
         out[tiny] = c2 / 2 + c3 / 6 + (c4 - 3 * c2**2) / 24
     if np.any(mid):
         out[mid] = np.log1p(np.expm1(w[mid]) @ p) - mu[mid]
-    if np.any(big):
-        wb = w[big]
-        shift = np.max(wb, axis=1)
-        out[big] = shift + np.log(np.exp(wb - shift[:, None]) @ p) - mu[big]
+    if np.any(big):  # log sum_i exp(log p_i + w_i), shifted by its largest term
+        u = _log_p(p) + w[big]
+        shift = np.max(u, axis=1)
+        out[big] = shift + np.log(np.exp(u - shift[:, None]).sum(axis=1)) - mu[big]
     return np.maximum(out, 0.0)
+
+
+def _log_p(p: Array) -> Array:
+    """log p with log 0 = -inf (an underflowed softmax weight), without a warning."""
+    with np.errstate(divide="ignore"):
+        return np.log(p)
 
 
 def _softmax_minus_p(w: Array, p: Array) -> Array:
@@ -208,9 +214,10 @@ def _softmax_minus_p(w: Array, p: Array) -> Array:
         S = e @ p
         out[~big] = p * (e - S[:, None]) / (1 + S[:, None])
     if np.any(big):
-        wb = w[big]
-        shift = np.max(wb, axis=1, keepdims=True)
-        ex = p * np.exp(wb - shift)
+        # shift by the largest log p_i + w_i (finite: p has an entry >= 1/k), so the
+        # largest term is exp(0) = 1 and the sum is >= 1: never 0/0 at large errors
+        u = _log_p(p) + w[big]
+        ex = np.exp(u - np.max(u, axis=1, keepdims=True))
         out[big] = ex / ex.sum(axis=1, keepdims=True) - p
     return out
 
