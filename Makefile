@@ -15,18 +15,15 @@ help:
 	@echo "make dev      - create .venv with the dev extras (pytest, hypothesis, ruff, dask)"
 	@echo "make demo     - create .venv, install, analyze specs/nesterov.yaml into $(OUT)/"
 	@echo "make test     - create/reuse .venv with dev extras, run ruff and pytest"
-<<<<<<< HEAD
-	@echo "make table1   - $(OUT)/table1.csv: shipped specs at kappa 2, 10, 100 vs closed forms (Theorem 1 and interpolation)"
-=======
 	@echo "make lint     - ruff check sosalgo tests bench"
-	@echo "make table1   - $(OUT)/table1.csv: shipped specs at kappa 2, 10, 100 vs closed forms"
->>>>>>> issue9
+	@echo "make table1   - $(OUT)/table1.csv: shipped specs at kappa 2, 10, 100 vs closed forms (Theorem 1 and interpolation)"
 	@echo "make bench    - benchmarks in bench/ (prints a table)"
-	@echo "make fig1     - Figure 1: gradient step designed by SOS over kappa"
-	@echo "make fig2     - Figure 2: Nesterov momentum designed by SOS over kappa"
+	@echo "make fig1     - Figure 1: gradient step designed over kappa, with a proven bound"
+	@echo "make fig2     - Figure 2: Nesterov momentum designed over kappa, with a proven bound"
 	@echo "make fig3     - Figure 3: certified rate on an (h, beta) grid at kappa = 10"
 	@echo "make sweeps   - every shipped spec analyzed over 40 kappas into $(OUT)/sweeps/"
-	@echo "make figures  - table1, fig1, fig2 and fig3"
+	@echo "make fig4     - Figure 4: three-parameter family designed with tight certificates"
+	@echo "make figures  - table1, fig1, fig2, fig3 and fig4"
 	@echo "make fuzz     - the loader fuzz tests with FUZZ_EXAMPLES (default 20000) cases"
 	@echo "make clean    - remove CSV, PNG, PDF and JSON files from $(OUT)/"
 	@echo "Options: WORKERS=N, SCHEDULER=tcp://host:8786 (batch targets), OUT=DIR"
