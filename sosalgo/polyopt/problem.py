@@ -136,6 +136,7 @@ class CompiledProblem:
     inequalities: list[PolyDict]
     equalities: list[PolyDict]
     matrix_inequalities: list[list[list[PolyDict]]]
+    radius: np.ndarray | None = None
 
     @property
     def n(self) -> int:
@@ -157,6 +158,14 @@ class CompiledProblem:
     def flatness_shift(self) -> int:
         """``d_K = max(1, ceil(deg/2))`` over the constraints (Henrion-Lasserre 2005)."""
         return max([1, *(math.ceil(d / 2) for d in self.constraint_degrees())])
+
+    def box_radius(self) -> np.ndarray | None:
+        """``rho`` with ``|z_i| <= rho_i`` on the feasible set, or None if a variable is free.
+
+        Every bounded variable has ``|z| <= 1`` when rescaled, ``|x| <= max(|lo|, |hi|)``
+        otherwise (its box constraint is part of the problem, so this holds on K).
+        """
+        return None if self.radius is None else self.radius.copy()
 
     def to_original(self, z: np.ndarray) -> np.ndarray:
         """Map relaxation coordinates ``z`` back to the problem's ``x``."""
@@ -243,7 +252,13 @@ def compile_problem(problem: PolyProblem, scale: bool = True) -> CompiledProblem
             continue
         pmis.append([[scaled(e, 1.0 / m) for e in row] for row in entries])
 
+    radius: np.ndarray | None = None
+    if all(v in problem.bounds for v in variables):
+        radius = np.ones(n)
+        if not scale:
+            radius = np.array([max(abs(b) for b in problem.bounds[v]) for v in variables])
     return CompiledProblem(
+        radius=radius,
         variables=variables,
         offset=offset,
         width=width,

@@ -23,11 +23,13 @@ from typing import Any
 
 import cvxpy as cp
 import numpy as np
+import scipy.sparse as sps
 import sympy as sp
 
-from .extraction import extract_atoms, flat_orders, numerical_rank
+from .certificate import DualData, certified_bound
+from .extraction import RANK_GAP, extract_atoms, flat_orders, numerical_rank, rank_gap
 from .moment import MomentIndex
-from .polynomial import abs_evaluate, evaluate
+from .polynomial import evaluate
 from .problem import CompiledProblem, PolyProblem, compile_problem, constraint_violation
 
 __all__ = ["RelaxationResult", "solve_moment_relaxation", "DEFAULT_SOLVER_OPTIONS"]
@@ -83,19 +85,27 @@ class RelaxationResult:
     solver: str = ""
     solver_status: str = ""
     flat_order: int | None = None
+    certified: bool = False
+    solver_bound: float = math.nan
 
 
-def _build(compiled: CompiledProblem, order: int) -> tuple[MomentIndex, cp.Problem, cp.Variable]:
+def _build(
+    compiled: CompiledProblem, order: int
+) -> tuple[MomentIndex, cp.Problem, cp.Variable, _Parts]:
     """Assemble the order-``order`` moment relaxation as a cvxpy problem in ``y``."""
     index = MomentIndex(compiled.n, order)
     y = cp.Variable(index.size, name="y")
-    constraints: list[cp.Constraint] = [y[0] == 1]
+    first = y[0] == 1
+    constraints: list[cp.Constraint] = [first]
+    parts = _Parts(c=np.zeros(0), y0=first)
 
     def psd(S: Any, dim: int) -> None:
         if dim == 1:
-            constraints.append(S @ y >= 0)
+            con = S @ y >= 0
         else:
-            constraints.append(cp.reshape(S @ y, (dim, dim), order="F") >> 0)
+            con = cp.reshape(S @ y, (dim, dim), order="F") >> 0
+        constraints.append(con)
+        parts.psd.append((S, dim, con))
 
     psd(index.moment_map(order), index.basis_size(order))
     for g in compiled.inequalities:
@@ -106,9 +116,47 @@ def _build(compiled: CompiledProblem, order: int) -> tuple[MomentIndex, cp.Probl
         t = order - math.ceil(dG / 2)
         psd(index.matrix_localizing_map(G, t), len(G) * index.basis_size(t))
     for h in compiled.equalities:
-        constraints.append(index.equality_map(h) @ y == 0)
-    objective = cp.Minimize(index.linear_functional(compiled.objective) @ y)
-    return index, cp.Problem(objective, constraints), y
+        A = index.equality_map(h)
+        con = A @ y == 0
+        constraints.append(con)
+        parts.eq.append((A, con))
+    parts.c = index.linear_functional(compiled.objective)
+    objective = cp.Minimize(parts.c @ y)
+    return index, cp.Problem(objective, constraints), y, parts
+
+
+@dataclass
+class _Parts:
+    """The relaxation's constraints with their linear maps, to read the dual back."""
+
+    c: np.ndarray
+    y0: cp.Constraint
+    psd: list[tuple[Any, int, cp.Constraint]] = field(default_factory=list)
+    eq: list[tuple[Any, cp.Constraint]] = field(default_factory=list)
+
+    def dual(self) -> DualData | None:
+        """The solver's dual as :class:`DualData`, or None if some dual is missing."""
+        if self.y0.dual_value is None:
+            return None
+        duals = []
+        for _, dim, con in self.psd:
+            if con.dual_value is None:
+                return None
+            duals.append(np.reshape(np.asarray(con.dual_value, dtype=float), (dim, dim)))
+        eq_map = eq_dual = None
+        if self.eq:
+            if any(con.dual_value is None for _, con in self.eq):
+                return None
+            eq_map = sps.vstack([A for A, _ in self.eq]).tocsr()
+            eq_dual = np.concatenate([np.ravel(con.dual_value) for _, con in self.eq])
+        return DualData(
+            c=self.c,
+            psd_maps=[sps.csr_array(S) for S, _, _ in self.psd],
+            psd_duals=duals,
+            eq_map=eq_map,
+            eq_dual=eq_dual,
+            y0_dual=float(np.ravel(self.y0.dual_value)[0]),
+        )
 
 
 def solve_moment_relaxation(
@@ -120,6 +168,7 @@ def solve_moment_relaxation(
     scale: bool = True,
     feas_tol: float = 1e-4,
     seed: int = 0,
+    gap_tol: float = 1e-6,
 ) -> RelaxationResult:
     """Solve the order-``order`` Lasserre moment relaxation of ``problem``.
 
@@ -140,6 +189,8 @@ def solve_moment_relaxation(
             (in the scaled coordinates) is at most ``feas_tol`` and its objective value is
             within ``10 * feas_tol`` (relative) of the relaxation's value.
         seed: seed of the random combination of multiplication matrices.
+        gap_tol: status "optimal" needs the certified bound within
+            ``gap_tol * max(1, |bound|)`` of the solver's value of the relaxation.
 
     Never raises on solver failure: the status is "failed" and the bound ``nan``.
     """
@@ -157,7 +208,7 @@ def solve_moment_relaxation(
     opts = dict(DEFAULT_SOLVER_OPTIONS.get(name, {}))
     opts.update(solver_options or {})
 
-    index, prob, y = _build(compiled, order)
+    index, prob, y, parts = _build(compiled, order)
     result = RelaxationResult(bound=math.nan, status="failed", order=order, solver=name)
     try:
         with warnings.catch_warnings():
@@ -179,43 +230,98 @@ def solve_moment_relaxation(
         return result
 
     value = float(prob.value)
-    result.bound = compiled.objective_constant + compiled.objective_scale * value
+    to_orig = compiled.objective_constant, compiled.objective_scale
+    result.solver_bound = to_orig[0] + to_orig[1] * value
     first = compiled.to_original(yv[1 : compiled.n + 1])
     result.first_moments = dict(zip(compiled.variables, map(float, first), strict=True))
-
-    ranks = [1] + [
+    result.ranks = [
         numerical_rank(index.moment_matrix(yv, s), rank_tol) for s in range(1, order + 1)
     ]
-    result.ranks = ranks[1:]
-    shift = compiled.flatness_shift()
-    flats = flat_orders(ranks, shift)
-    if flats:
-        result.flat = True
-        result.flat_order = flats[-1]
-        rng = np.random.default_rng(seed)
-        best: list[np.ndarray] = []
-        for s in reversed(flats):  # keep the order whose extraction passes most checks
-            atoms = extract_atoms(index, yv, s, shift, ranks[s], rng)
-            if atoms is None:
-                continue
-            good = [z for z in atoms if _acceptable(compiled, z, value, feas_tol)]
-            if len(good) > len(best):
-                best, result.flat_order = good, s
-        result.minimizers = [
-            dict(zip(compiled.variables, map(float, compiled.to_original(z)), strict=True))
-            for z in best
-        ]
+
+    target = value - gap_tol * max(1.0, abs(result.solver_bound)) / compiled.objective_scale
+    cert = _certify(index, parts, compiled, target)
+    result.certified = math.isfinite(cert)
+    result.bound = cert if result.certified else result.solver_bound
+    gap = abs(result.solver_bound - cert) if result.certified else math.inf
+    accurate = gap <= gap_tol * max(1.0, abs(result.bound))
+    result.status = "optimal" if status == "optimal" and accurate else "inaccurate"
+    if result.status == "optimal":
+        _flat_and_minimizers(result, compiled, index, yv, rank_tol, feas_tol, seed)
     result.seconds = time.perf_counter() - t0
     return result
 
 
-def _acceptable(compiled: CompiledProblem, z: np.ndarray, value: float, tol: float) -> bool:
-    """Is ``z`` feasible (relative ``tol``) and is its objective within ``10 tol`` of ``value``?
+def _certify(
+    index: MomentIndex, parts: _Parts, compiled: CompiledProblem, target: float
+) -> float:
+    """Rigorous lower bound (original units) from the solver's dual; -inf if none.
 
-    A global minimizer attains the relaxation's value exactly when the relaxation is exact,
-    so a point far from it (above *or below*) reveals a wrong rank or an inaccurate solve.
+    See :mod:`sosalgo.polyopt.certificate`. The map back ``constant + scale * b`` is
+    rounded down by a few ulps.
+    """
+    data = parts.dual()
+    if data is None:
+        return -math.inf
+    try:
+        unconstrained = not (
+            compiled.inequalities or compiled.equalities or compiled.matrix_inequalities
+        )
+        support = list(compiled.objective) if unconstrained else None
+        b, _ = certified_bound(index, data, compiled.box_radius(), target, support)
+    except (np.linalg.LinAlgError, ValueError):
+        return -math.inf
+    if not math.isfinite(b):
+        return -math.inf
+    const, scale = compiled.objective_constant, compiled.objective_scale
+    out = const + scale * b
+    return out - 4.0 * np.finfo(float).eps * (abs(const) + abs(scale * b))
+
+
+def _flat_and_minimizers(
+    result: RelaxationResult,
+    compiled: CompiledProblem,
+    index: MomentIndex,
+    yv: np.ndarray,
+    rank_tol: float,
+    feas_tol: float,
+    seed: int,
+) -> None:
+    """Set ``flat``, ``flat_order`` and ``minimizers`` (only called when status is optimal).
+
+    ``flat`` needs (i) ``rank M_s == rank M_{s-d}`` with both ranks separated from the
+    discarded eigenvalues by a factor :data:`RANK_GAP`, and (ii) a consistent extraction:
+    exactly ``rank M_s`` atoms, each feasible and attaining the bound (``_acceptable``).
+    """
+    ranks = [1] + list(result.ranks)
+    robust = [True] + [
+        rank_gap(index.moment_matrix(yv, s), ranks[s]) >= RANK_GAP
+        for s in range(1, result.order + 1)
+    ]
+    shift = compiled.flatness_shift()
+    flats = [s for s in flat_orders(ranks, shift) if robust[s] and robust[s - shift]]
+    rng = np.random.default_rng(seed)
+    for s in reversed(flats):
+        atoms = extract_atoms(index, yv, s, shift, ranks[s], rng)
+        if atoms is None or len(atoms) != ranks[s]:
+            continue
+        if not all(_acceptable(compiled, z, result.bound, feas_tol) for z in atoms):
+            continue
+        result.flat, result.flat_order = True, s
+        result.minimizers = [
+            dict(zip(compiled.variables, map(float, compiled.to_original(z)), strict=True))
+            for z in atoms
+        ]
+        return
+
+
+def _acceptable(compiled: CompiledProblem, z: np.ndarray, bound: float, tol: float) -> bool:
+    """Is ``z`` feasible (relative ``tol``) and is ``f(z)`` within ``10 tol`` of ``bound``?
+
+    Measured in the problem's own units, relative to ``max(1, |bound|)``: a global
+    minimizer attains the bound when the relaxation is exact, so a point far from it (above
+    *or below*) reveals a wrong rank or an inaccurate solve.
     """
     if constraint_violation(compiled, z) > tol:
         return False
-    gap = abs(evaluate(compiled.objective, z) - value)
-    return gap <= 10.0 * tol * max(1.0, abs(value), abs_evaluate(compiled.objective, z))
+    fz = compiled.objective_constant + compiled.objective_scale * evaluate(compiled.objective, z)
+    return abs(fz - bound) <= 10.0 * tol * max(1.0, abs(bound))
