@@ -34,7 +34,7 @@ import scipy.sparse as sps
 
 from .moment import MomentIndex
 
-__all__ = ["DualData", "certified_bound"]
+__all__ = ["DualData", "certified_bound", "interior_dual", "newton_keep"]
 
 _EPS = np.finfo(float).eps
 
@@ -121,8 +121,9 @@ def gram_bound(
 
     ``keep`` (boolean, over the basis of ``M_k``; the constant monomial must be kept)
     restricts the Gram matrix to a subset of the basis; ``Z0``, ``r`` and ``margin`` must
-    come from :func:`residual` with the same ``keep`` (``Z0`` unmasked). Each residual coefficient ``r_alpha`` is then spread evenly over the kept
-    entries ``(b, c)`` with ``b + c = alpha``. Returns ``-inf`` when some nonzero
+    come from :func:`residual` with the same ``keep`` (``Z0`` unmasked). Each residual
+    coefficient ``r_alpha`` is then spread evenly over the kept entries ``(b, c)`` with
+    ``b + c = alpha``. Returns ``-inf`` when some nonzero
     ``r_alpha`` has no such entry or no finite ``delta`` works (the non-constant block is
     not positive definite with a safe margin).
     """
@@ -181,6 +182,7 @@ def certified_bound(
     radius: np.ndarray | None,
     target: float = -math.inf,
     newton_support: list[tuple[int, ...]] | None = None,
+    keeps: list[np.ndarray] | None = None,
 ) -> tuple[float, float]:
     """``(certified lower bound, dual value gamma)`` in the relaxation's (scaled) units.
 
@@ -201,7 +203,7 @@ def certified_bound(
         if best >= target:
             return best, gamma
     Z0 = zplus[0]
-    candidates: list[np.ndarray | None] = [None]
+    candidates: list[np.ndarray | None] = [None, *(keeps or [])]
     if newton_support is not None:
         candidates.append(newton_keep(index, newton_support))
     diag = np.diag(Z0)
@@ -223,3 +225,70 @@ def certified_bound(
         if best >= target:
             break
     return best, gamma
+
+
+def interior_dual(
+    index: MomentIndex,
+    data: DualData,
+    gamma: float,
+    keep: np.ndarray | None,
+    solver: str,
+    options: dict,
+) -> DualData | None:
+    """A dual for the backed-off level ``gamma`` whose Gram matrix is as interior as possible.
+
+    Solves ``max eps`` s.t. ``f - gamma = <Z_0, m_B m_B^T> + sum_i <Z_i, M_i> + sum_j h_j q_j``,
+    ``Z_0 ⪰ eps I`` (on the kept basis ``B``), ``Z_i ⪰ 0``, ``eps <= 1``. An interior
+    point solver's own dual sits on the boundary of the PSD cone (``Z_0 m(x*) = 0`` at a
+    minimizer), where no residual can be absorbed; with ``gamma`` a little below the
+    relaxation's value, ``Z_0`` can be definite and :func:`gram_bound` then succeeds.
+    Returns None if the solve fails. Only used for problems with unbounded variables.
+    """
+    import cvxpy as cp
+
+    N = index.basis_size(index.order)
+    if keep is None:
+        keep = np.ones(N, dtype=bool)
+    kept = np.flatnonzero(keep)
+    nb = kept.size
+    rows = (kept[:, None] + N * kept[None, :]).reshape(-1, order="F")
+    S0 = data.psd_maps[0][rows]
+    Q = cp.Variable((nb, nb), symmetric=True)
+    eps = cp.Variable()
+    expr = S0.T @ cp.vec(Q, order="F")
+    cons = [Q - eps * np.eye(nb) >> 0, eps <= 1.0]
+    zs = []
+    for S, Z in zip(data.psd_maps[1:], data.psd_duals[1:], strict=True):
+        dim = Z.shape[0]
+        if dim == 1:
+            Zv = cp.Variable((1, 1))
+            cons.append(Zv >= 0)
+        else:
+            Zv = cp.Variable((dim, dim), symmetric=True)
+            cons.append(Zv >> 0)
+        zs.append(Zv)
+        expr = expr + S.T @ cp.vec(Zv, order="F")
+    w = None
+    if data.eq_map is not None:
+        w = cp.Variable(data.eq_map.shape[0])
+        expr = expr + data.eq_map.T @ w
+    rhs = np.array(data.c, dtype=float)
+    rhs[0] -= gamma
+    cons.append(expr == rhs)
+    prob = cp.Problem(cp.Maximize(eps), cons)
+    try:
+        prob.solve(solver=solver, **options)
+    except Exception:  # noqa: BLE001 - a failed refinement just leaves the bound as it was
+        return None
+    if Q.value is None or any(Zv.value is None for Zv in zs):
+        return None
+    Z0 = np.zeros((N, N))
+    Z0[np.ix_(kept, kept)] = Q.value
+    return DualData(
+        c=data.c,
+        psd_maps=data.psd_maps,
+        psd_duals=[Z0, *[np.asarray(Zv.value, dtype=float) for Zv in zs]],
+        eq_map=data.eq_map,
+        eq_dual=None if w is None else -np.asarray(w.value, dtype=float),
+        y0_dual=-gamma,
+    )

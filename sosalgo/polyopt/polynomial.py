@@ -38,7 +38,7 @@ def from_sympy(expr: object, variables: Sequence[sp.Symbol]) -> PolyDict:
     in exactly these variables (other free symbols, ``sin``, ``1/x`` ... are refused).
     """
     try:
-        expr = sp.sympify(expr)
+        expr = sp.sympify(expr, strict=True)  # strict: never parses (evaluates) a string
     except (sp.SympifyError, TypeError) as exc:
         raise ValueError(f"cannot interpret {expr!r} as a sympy expression") from exc
     extra = expr.free_symbols - set(variables)

@@ -15,6 +15,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import sympy as sp
 
+from sosalgo.expr import ExprError, parse_expression
+
 from .polynomial import (
     PolyDict,
     abs_evaluate,
@@ -64,9 +66,10 @@ class PolyProblem:
                 raise ValueError(f"variables must be sympy Symbols, got {v!r}")
         if len(set(variables)) != len(variables):
             raise ValueError("variables must be distinct")
+        names = {str(v): v for v in variables}
         mats = []
         for G in self.matrix_inequalities:
-            M = sp.ImmutableMatrix(G)
+            M = _as_matrix(G, names)
             if M.rows != M.cols:
                 raise ValueError(f"matrix inequality must be square, got shape {M.shape}")
             if not (M - M.T).expand().is_zero_matrix:
@@ -82,9 +85,17 @@ class PolyProblem:
             bounds[v] = (lo_f, hi_f)
         setattr_ = object.__setattr__
         setattr_(self, "variables", variables)
-        setattr_(self, "objective", sp.sympify(self.objective))
-        setattr_(self, "inequalities", tuple(sp.sympify(g) for g in self.inequalities))
-        setattr_(self, "equalities", tuple(sp.sympify(h) for h in self.equalities))
+        setattr_(self, "objective", _as_expr(self.objective, names, "objective"))
+        setattr_(
+            self,
+            "inequalities",
+            tuple(_as_expr(g, names, f"inequality {i}") for i, g in enumerate(self.inequalities)),
+        )
+        setattr_(
+            self,
+            "equalities",
+            tuple(_as_expr(h, names, f"equality {i}") for i, h in enumerate(self.equalities)),
+        )
         setattr_(self, "matrix_inequalities", tuple(mats))
         setattr_(self, "bounds", bounds)
 
@@ -103,6 +114,43 @@ class PolyProblem:
                 ],
             ),
         )
+
+
+def _as_expr(obj: object, names: Mapping[str, sp.Symbol], what: str = "expression") -> sp.Expr:
+    """A sympy expression from a sympy object, a real number or a string.
+
+    Strings are *parsed* by :func:`sosalgo.expr.parse_expression` over the variables'
+    names (never ``sympify``-ed: that evaluates Python code); anything else must be a
+    sympy object or a number that sympy converts without parsing (``strict=True``).
+    """
+    if isinstance(obj, str):
+        try:
+            return parse_expression(obj, names)
+        except ExprError as exc:
+            raise ValueError(f"{what}: {exc}") from exc
+    if isinstance(obj, sp.Basic):
+        return obj
+    try:
+        return sp.sympify(obj, strict=True)
+    except (sp.SympifyError, TypeError, ValueError) as exc:
+        raise TypeError(
+            f"{what}: expected a sympy expression, a number or a string, "
+            f"got {type(obj).__name__}"
+        ) from exc
+
+
+def _as_matrix(G: object, names: Mapping[str, sp.Symbol]) -> sp.ImmutableMatrix:
+    """A sympy matrix from a sympy matrix or a nested sequence of :func:`_as_expr` entries."""
+    if isinstance(G, sp.MatrixBase):
+        return sp.ImmutableMatrix(G)
+    if isinstance(G, str) or not isinstance(G, Sequence):
+        raise TypeError(f"a matrix inequality must be a sympy Matrix, got {type(G).__name__}")
+    rows = []
+    for row in G:
+        if isinstance(row, str) or not isinstance(row, Sequence):
+            raise TypeError("a matrix inequality given as a list must be a list of rows")
+        rows.append([_as_expr(e, names, "matrix inequality entry") for e in row])
+    return sp.ImmutableMatrix(rows)
 
 
 @dataclass(frozen=True)

@@ -26,7 +26,7 @@ import numpy as np
 import scipy.sparse as sps
 import sympy as sp
 
-from .certificate import DualData, certified_bound
+from .certificate import DualData, certified_bound, interior_dual, newton_keep
 from .extraction import RANK_GAP, extract_atoms, flat_orders, numerical_rank, rank_gap
 from .moment import MomentIndex
 from .polynomial import evaluate
@@ -239,7 +239,7 @@ def solve_moment_relaxation(
     ]
 
     target = value - gap_tol * max(1.0, abs(result.solver_bound)) / compiled.objective_scale
-    cert = _certify(index, parts, compiled, target)
+    cert = _certify(index, parts, compiled, value, target, (name, opts))
     result.certified = math.isfinite(cert)
     result.bound = cert if result.certified else result.solver_bound
     gap = abs(result.solver_bound - cert) if result.certified else math.inf
@@ -252,22 +252,38 @@ def solve_moment_relaxation(
 
 
 def _certify(
-    index: MomentIndex, parts: _Parts, compiled: CompiledProblem, target: float
+    index: MomentIndex,
+    parts: _Parts,
+    compiled: CompiledProblem,
+    value: float,
+    target: float,
+    solver: tuple[str, dict[str, Any]],
 ) -> float:
     """Rigorous lower bound (original units) from the solver's dual; -inf if none.
 
-    See :mod:`sosalgo.polyopt.certificate`. The map back ``constant + scale * b`` is
-    rounded down by a few ulps.
+    See :mod:`sosalgo.polyopt.certificate`. ``value`` is the solver's value and ``target``
+    the level the bound must reach for status "optimal" (both in the relaxation's
+    normalized units). When some variable is unbounded and the solver's own dual falls
+    short, a second, interior dual is computed at the level ``(value + target) / 2``. The
+    map back ``constant + scale * b`` is rounded down by a few ulps.
     """
     data = parts.dual()
     if data is None:
         return -math.inf
+    unconstrained = not (
+        compiled.inequalities or compiled.equalities or compiled.matrix_inequalities
+    )
+    support = list(compiled.objective) if unconstrained else None
+    radius = compiled.box_radius()
     try:
-        unconstrained = not (
-            compiled.inequalities or compiled.equalities or compiled.matrix_inequalities
-        )
-        support = list(compiled.objective) if unconstrained else None
-        b, _ = certified_bound(index, data, compiled.box_radius(), target, support)
+        b, _ = certified_bound(index, data, radius, target, support)
+        if b < target and radius is None and math.isfinite(target):
+            keep = newton_keep(index, support) if support is not None else None
+            level = 0.5 * (value + target)
+            interior = interior_dual(index, data, level, keep, solver[0], solver[1])
+            if interior is not None:
+                keeps = [keep] if keep is not None else None
+                b = max(b, certified_bound(index, interior, None, target, None, keeps)[0])
     except (np.linalg.LinAlgError, ValueError):
         return -math.inf
     if not math.isfinite(b):
