@@ -41,6 +41,9 @@ DEFAULT_SOLVER_OPTIONS: dict[str, dict[str, Any]] = {
     "SCS": {"eps_abs": 1e-8, "eps_rel": 1e-8, "max_iters": 100_000},
 }
 
+#: Back-off levels of the interior dual, as fractions of the allowed gap below the value.
+_BACKOFF = (0.05, 0.5)
+
 _STATUS = {
     cp.OPTIMAL: "optimal",
     cp.OPTIMAL_INACCURATE: "inaccurate",
@@ -168,7 +171,7 @@ def solve_moment_relaxation(
     scale: bool = True,
     feas_tol: float = 1e-4,
     seed: int = 0,
-    gap_tol: float = 1e-6,
+    gap_tol: float = 1e-5,
 ) -> RelaxationResult:
     """Solve the order-``order`` Lasserre moment relaxation of ``problem``.
 
@@ -264,7 +267,8 @@ def _certify(
     See :mod:`sosalgo.polyopt.certificate`. ``value`` is the solver's value and ``target``
     the level the bound must reach for status "optimal" (both in the relaxation's
     normalized units). When some variable is unbounded and the solver's own dual falls
-    short, a second, interior dual is computed at the level ``(value + target) / 2``. The
+    short, a second, interior dual is computed a little below ``value`` (fractions
+    :data:`_BACKOFF` of the allowed gap, closest first). The
     map back ``constant + scale * b`` is rounded down by a few ulps.
     """
     data = parts.dual()
@@ -279,11 +283,16 @@ def _certify(
         b, _ = certified_bound(index, data, radius, target, support)
         if b < target and radius is None and math.isfinite(target):
             keep = newton_keep(index, support) if support is not None else None
-            level = 0.5 * (value + target)
-            interior = interior_dual(index, data, level, keep, solver[0], solver[1])
-            if interior is not None:
-                keeps = [keep] if keep is not None else None
-                b = max(b, certified_bound(index, interior, None, target, None, keeps)[0])
+            keeps = [keep] if keep is not None else None
+            for frac in _BACKOFF:
+                level = value - frac * (value - target)
+                with warnings.catch_warnings():
+                    warnings.filterwarnings("ignore", message="Solution may be inaccurate")
+                    interior = interior_dual(index, data, level, keep, solver[0], solver[1])
+                if interior is not None:
+                    b = max(b, certified_bound(index, interior, None, target, None, keeps)[0])
+                if b >= target:
+                    break
     except (np.linalg.LinAlgError, ValueError):
         return -math.inf
     if not math.isfinite(b):
