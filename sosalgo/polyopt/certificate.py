@@ -46,7 +46,9 @@ class DualData:
     ``c @ y`` is the objective; ``psd_maps[i] @ y = vec(M_i(y))`` (column-major) with dual
     ``psd_duals[i]`` (square, expected PSD), ``psd_maps[0]`` being the moment matrix
     ``M_k``; ``eq_map @ y = 0`` with dual ``eq_dual``; ``y_0 = 1`` with dual ``y0_dual``
-    (cvxpy's sign: ``gamma = -y0_dual``).
+    (cvxpy's sign: ``gamma = -y0_dual``). ``c_error``, ``psd_error_maps`` and
+    ``eq_error_map`` are the same maps for the bounds on the coefficients' rounding errors
+    (the stored problem vs the exact one); they are charged to the residual's margin.
     """
 
     c: np.ndarray
@@ -55,6 +57,9 @@ class DualData:
     eq_map: sps.csr_array | None
     eq_dual: np.ndarray | None
     y0_dual: float
+    c_error: np.ndarray | None = None
+    psd_error_maps: list[sps.csr_array | None] | None = None
+    eq_error_map: sps.csr_array | None = None
 
 
 def _psd_part(Z: np.ndarray) -> np.ndarray:
@@ -97,7 +102,29 @@ def residual(
         mag += abs(data.eq_map).T @ np.abs(nu)
         terms += int(np.diff(data.eq_map.tocsc().indptr).max(initial=0))
     margin = 2.0 * terms * _EPS * mag
+    margin += _data_error(data, zplus, keep)
     return gamma, r, margin
+
+
+def _data_error(data: DualData, zplus: list[np.ndarray], keep: np.ndarray | None) -> np.ndarray:
+    """Bound on the residual change if the exact (unrounded) problem data were used.
+
+    ``|c_err| + sum_i |E_i|^T |Z_i| + |E_eq|^T |nu|`` with ``|Z_ab| <= sqrt(Z_aa Z_bb)``.
+    """
+    out = np.zeros(len(data.c))
+    if data.c_error is not None:
+        out += np.abs(data.c_error)
+    for i, E in enumerate(data.psd_error_maps or []):
+        if E is None:
+            continue
+        Zp = zplus[i]
+        if i == 0 and keep is not None:
+            Zp = np.where(keep[:, None] & keep[None, :], Zp, 0.0)
+        d = np.sqrt(np.clip(np.diag(Zp), 0.0, None))
+        out += abs(E).T @ np.outer(d, d).reshape(-1, order="F")
+    if data.eq_error_map is not None and data.eq_dual is not None:
+        out += abs(data.eq_error_map).T @ np.abs(np.asarray(data.eq_dual, dtype=float).ravel())
+    return out * (1.0 + 1e-12)
 
 
 def box_bound(
@@ -291,4 +318,7 @@ def interior_dual(
         eq_map=data.eq_map,
         eq_dual=None if w is None else -np.asarray(w.value, dtype=float),
         y0_dual=-gamma,
+        c_error=data.c_error,
+        psd_error_maps=data.psd_error_maps,
+        eq_error_map=data.eq_error_map,
     )

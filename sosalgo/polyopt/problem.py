@@ -30,6 +30,8 @@ from .polynomial import (
 
 __all__ = ["PolyProblem", "CompiledProblem", "compile_problem", "constraint_violation"]
 
+_EPS = float(np.finfo(float).eps)
+
 
 @dataclass(frozen=True)
 class PolyProblem:
@@ -172,6 +174,12 @@ class CompiledProblem:
     (a positive factor, so the feasible set is unchanged); the objective is stored as
     ``objective_constant + objective_scale * objective`` with ``objective`` normalized and
     without constant term.
+
+    The ``*_error`` fields bound, coefficient by coefficient, how far the stored (rounded)
+    polynomials may be from the exact ones (same normalization; the objective's includes
+    the constant term, relative to ``objective_scale``). The certificate
+    (:mod:`sosalgo.polyopt.certificate`) charges them, so a certified bound holds for the
+    problem as stated, not only for its floating-point image.
     """
 
     variables: list[sp.Symbol]
@@ -185,6 +193,10 @@ class CompiledProblem:
     equalities: list[PolyDict]
     matrix_inequalities: list[list[list[PolyDict]]]
     radius: np.ndarray | None = None
+    objective_error: PolyDict = field(default_factory=dict)
+    inequality_errors: list[PolyDict] = field(default_factory=list)
+    equality_errors: list[PolyDict] = field(default_factory=list)
+    matrix_inequality_errors: list[list[list[PolyDict]]] = field(default_factory=list)
 
     @property
     def n(self) -> int:
@@ -224,12 +236,12 @@ def _matrix_degree(G: list[list[PolyDict]]) -> int:
     return max((degree(e) for row in G for e in row), default=0)
 
 
-def _normalized(p: PolyDict) -> PolyDict:
-    m = max_abs_coefficient(p)
-    return scaled(p, 1.0 / m) if m > 0 else {}
-
-
-def compile_problem(problem: PolyProblem, scale: bool = True) -> CompiledProblem:
+def compile_problem(
+    problem: PolyProblem,
+    scale: bool = True,
+    center: np.ndarray | None = None,
+    var_scale: np.ndarray | None = None,
+) -> CompiledProblem:
     """Convert ``problem`` to dictionary polynomials, rescaling bounded variables if asked.
 
     With ``scale=True`` each variable with bounds ``(lo, hi)`` is replaced by
@@ -243,62 +255,94 @@ def compile_problem(problem: PolyProblem, scale: bool = True) -> CompiledProblem
     quadratic box implies the two linear ones ``1 - z >= 0``, ``1 + z >= 0`` at every order
     (``2(1 - z) = (1 - z)^2 + (1 - z^2)``), so it is at least as tight and needs one
     localizing matrix per variable instead of two.
+
+    ``center`` and ``var_scale`` (arrays over all variables, used only with ``scale=True``
+    and only for variables *without* bounds) substitute ``x = center + var_scale * z``: the
+    same kind of affine change, used to re-solve an inaccurate relaxation around an
+    estimated minimizer with equilibrated coefficients (see :func:`equilibrating_scale`).
     """
     variables = list(problem.variables)
     n = len(variables)
     offset = np.zeros(n)
     width = np.ones(n)
+    if scale and center is not None:
+        offset = np.array(center, dtype=float)
+    if scale and var_scale is not None:
+        width = np.array(var_scale, dtype=float)
     if scale:
         for i, v in enumerate(variables):
             if v in problem.bounds:
                 lo, hi = problem.bounds[v]
-                offset[i], width[i] = 0.5 * (lo + hi), 0.5 * (hi - lo)
+                offset[i] = 0.5 * (lo + hi)
+                # rounded outwards, so that the z-box covers [lo, hi] in exact arithmetic
+                width[i] = 0.5 * (hi - lo) * (1 + 4 * _EPS) + 4 * _EPS * abs(offset[i])
 
-    def convert(p: PolyDict) -> PolyDict:
-        return affine_substitute(p, offset, width) if scale else dict(p)
+    def convert(p: PolyDict) -> tuple[PolyDict, PolyDict]:
+        """The substituted polynomial and a bound on its coefficients' rounding errors."""
+        if not scale:
+            return dict(p), {e: _EPS * abs(c) for e, c in p.items()}
+        return affine_substitute(p, offset, width), _substitution_error(p, offset, width)
+
+    def normalized(p: PolyDict, err: PolyDict, m: float) -> tuple[PolyDict, PolyDict]:
+        out = scaled(p, 1.0 / m)
+        return out, {e: (u / m + _EPS * abs(out.get(e, 0.0))) * (1 + _EPS) for e, u in
+                     {**{e: 0.0 for e in p}, **err}.items()}
 
     data = problem._polys
-    obj = convert(data.objective)
+    obj, obj_err = convert(data.objective)
     zero = (0,) * n
     obj_const = obj.pop(zero, 0.0)
     obj_scale = max_abs_coefficient(obj)
     obj_deg = degree(obj)
-    obj = scaled(obj, 1.0 / obj_scale) if obj_scale > 0 else {}
     obj_scale = obj_scale if obj_scale > 0 else 1.0
+    obj, obj_err = normalized(obj, obj_err, obj_scale)
 
     # A constant constraint is kept only if it is violated (the solver then reports the
     # relaxation infeasible); satisfied constants carry no information.
     inequalities: list[PolyDict] = []
+    ineq_err: list[PolyDict] = []
     for g in data.inequalities:
-        p = convert(g)
+        p, err = convert(g)
         if p and not (degree(p) == 0 and p[zero] >= 0):
-            inequalities.append(_normalized(p))
+            q, qe = normalized(p, err, max_abs_coefficient(p))
+            inequalities.append(q)
+            ineq_err.append(qe)
     for i, v in enumerate(variables):
         if v not in problem.bounds:
             continue
         e1 = tuple(1 if j == i else 0 for j in range(n))
         e2 = tuple(2 if j == i else 0 for j in range(n))
         if scale:
-            box = {zero: 1.0, e2: -1.0}  # 1 - z^2
+            inequalities.append({zero: 1.0, e2: -1.0})  # 1 - z^2, exact
+            ineq_err.append({})
         else:
             lo, hi = problem.bounds[v]
             box = {e2: -1.0, e1: lo + hi, zero: -lo * hi}  # (x - lo)(hi - x)
             box = {e: c for e, c in box.items() if c != 0.0}
-        inequalities.append(_normalized(box))
+            q, qe = normalized(box, {e: _EPS * abs(c) for e, c in box.items()},
+                               max_abs_coefficient(box))
+            inequalities.append(q)
+            ineq_err.append(qe)
 
     equalities: list[PolyDict] = []
+    eq_err: list[PolyDict] = []
     for h in data.equalities:
-        p = convert(h)
+        p, err = convert(h)
         if p:
-            equalities.append(_normalized(p))
+            q, qe = normalized(p, err, max_abs_coefficient(p))
+            equalities.append(q)
+            eq_err.append(qe)
 
     pmis: list[list[list[PolyDict]]] = []
+    pmi_err: list[list[list[PolyDict]]] = []
     for G in data.matrix_inequalities:
-        entries = [[convert(e) for e in row] for row in G]
-        m = max((max_abs_coefficient(e) for row in entries for e in row), default=0.0)
+        conv = [[convert(e) for e in row] for row in G]
+        m = max((max_abs_coefficient(e) for row in conv for e, _ in row), default=0.0)
         if m == 0.0:
             continue
-        pmis.append([[scaled(e, 1.0 / m) for e in row] for row in entries])
+        pairs = [[normalized(e, err, m) for e, err in row] for row in conv]
+        pmis.append([[q for q, _ in row] for row in pairs])
+        pmi_err.append([[qe for _, qe in row] for row in pairs])
 
     radius: np.ndarray | None = None
     if all(v in problem.bounds for v in variables):
@@ -317,7 +361,63 @@ def compile_problem(problem: PolyProblem, scale: bool = True) -> CompiledProblem
         inequalities=inequalities,
         equalities=equalities,
         matrix_inequalities=pmis,
+        objective_error=obj_err,
+        inequality_errors=ineq_err,
+        equality_errors=eq_err,
+        matrix_inequality_errors=pmi_err,
     )
+
+
+def _substitution_error(p: PolyDict, offset: np.ndarray, width: np.ndarray) -> PolyDict:
+    """Bound on the rounding error of each coefficient of ``affine_substitute(p, ...)``.
+
+    Each output coefficient is a sum of products ``c C(a, j) o^(a-j) w^j``; the error of
+    such a floating-point sum is at most (number of operations) x eps x the same sum with
+    absolute values, which is ``affine_substitute(|p|, |o|, |w|)``. The input coefficients'
+    own conversion to float (relative eps) is one more operation.
+    """
+    if not p:
+        return {}
+    ops = 4 * (degree(p) + 3) + sum(math.prod(a + 1 for a in e) for e in p)
+    mags = affine_substitute({e: abs(c) for e, c in p.items()}, np.abs(offset), np.abs(width))
+    return {e: 2.0 * ops * _EPS * v for e, v in mags.items()}
+
+
+def equilibrating_scale(problem: PolyProblem, center: np.ndarray) -> np.ndarray:
+    """Powers of two ``s`` for the unbounded variables that equilibrate the coefficients.
+
+    After ``x = center + s z`` a coefficient ``c_alpha`` becomes ``c_alpha s^alpha``. The
+    exponents ``t = log2 s`` minimize ``sum (log2 |c_alpha| + alpha . t - m_p)^2`` over all
+    non-constant terms of the objective and all terms of the constraints, with one free
+    level ``m_p`` per polynomial (least squares, minimum norm; bounded variables keep
+    ``s = 1`` here, they are rescaled by their box). Powers of two keep the substitution
+    exact in floating point.
+    """
+    variables = list(problem.variables)
+    n = len(variables)
+    free = np.array([v not in problem.bounds for v in variables])
+    data = problem._polys
+    polys = [data.objective, *data.inequalities, *data.equalities]
+    polys += [{e: c for row in G for entry in row for e, c in entry.items()}
+              for G in data.matrix_inequalities]
+    rows, rhs = [], []
+    for k, p in enumerate(polys):
+        q = affine_substitute(p, center, np.ones(n))
+        if k == 0:
+            q.pop((0,) * n, None)
+        for e, c in q.items():
+            if c == 0.0:
+                continue
+            row = np.zeros(n + len(polys))
+            row[:n] = np.where(free, e, 0)
+            row[n + k] = -1.0
+            rows.append(row)
+            rhs.append(-math.log2(abs(c)))
+    if not rows:
+        return np.ones(n)
+    t, *_ = np.linalg.lstsq(np.array(rows), np.array(rhs), rcond=None)
+    t = np.clip(np.round(t[:n]), -60, 60)
+    return np.where(free, 2.0**t, 1.0)
 
 
 def constraint_violation(compiled: CompiledProblem, z: np.ndarray) -> float:

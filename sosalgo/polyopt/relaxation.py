@@ -29,8 +29,14 @@ import sympy as sp
 from .certificate import DualData, certified_bound, interior_dual, newton_keep
 from .extraction import RANK_GAP, extract_atoms, flat_orders, numerical_rank, rank_gap
 from .moment import MomentIndex
-from .polynomial import evaluate
-from .problem import CompiledProblem, PolyProblem, compile_problem, constraint_violation
+from .polynomial import PolyDict, evaluate
+from .problem import (
+    CompiledProblem,
+    PolyProblem,
+    compile_problem,
+    constraint_violation,
+    equilibrating_scale,
+)
 
 __all__ = ["RelaxationResult", "solve_moment_relaxation", "DEFAULT_SOLVER_OPTIONS"]
 
@@ -40,6 +46,10 @@ DEFAULT_SOLVER_OPTIONS: dict[str, dict[str, Any]] = {
     "CLARABEL": {"static_regularization_constant": 1e-7},
     "SCS": {"eps_abs": 1e-8, "eps_rel": 1e-8, "max_iters": 100_000},
 }
+
+#: Re-solves of an inaccurate relaxation with unbounded variables, each centred at the
+#: previous first moments with equilibrated variable scales.
+_REFINE_PASSES = 2
 
 #: Back-off levels of the interior dual, as fractions of the allowed gap below the value.
 _BACKOFF = (0.05, 0.5)
@@ -100,65 +110,104 @@ def _build(
     y = cp.Variable(index.size, name="y")
     first = y[0] == 1
     constraints: list[cp.Constraint] = [first]
-    parts = _Parts(c=np.zeros(0), y0=first)
+    parts = _Parts(c=np.zeros(0), c_error=np.zeros(0), y0=first)
 
-    def psd(S: Any, dim: int) -> None:
+    def psd(S: Any, dim: int, E: Any = None) -> None:
         if dim == 1:
             con = S @ y >= 0
         else:
             con = cp.reshape(S @ y, (dim, dim), order="F") >> 0
         constraints.append(con)
-        parts.psd.append((S, dim, con))
+        parts.psd.append((S, dim, con, E))
 
     psd(index.moment_map(order), index.basis_size(order))
-    for g in compiled.inequalities:
+    ineq_errs = _errors(compiled.inequality_errors, compiled.inequalities)
+    for g, err in zip(compiled.inequalities, ineq_errs, strict=True):
         t = order - math.ceil(max(sum(e) for e in g) / 2)
-        psd(index.localizing_map(g, t), index.basis_size(t))
-    for G in compiled.matrix_inequalities:
+        E = index.localizing_map(err, t) if err else None
+        psd(index.localizing_map(g, t), index.basis_size(t), E)
+    pmi_errs = _errors(compiled.matrix_inequality_errors, compiled.matrix_inequalities)
+    for G, Gerr in zip(compiled.matrix_inequalities, pmi_errs, strict=True):
         dG = max((sum(e) for row in G for entry in row for e in entry), default=0)
         t = order - math.ceil(dG / 2)
-        psd(index.matrix_localizing_map(G, t), len(G) * index.basis_size(t))
-    for h in compiled.equalities:
+        E = None
+        if Gerr and any(entry for row in Gerr for entry in row):
+            E = index.matrix_localizing_map(Gerr, t)
+        psd(index.matrix_localizing_map(G, t), len(G) * index.basis_size(t), E)
+    eq_errs = _errors(compiled.equality_errors, compiled.equalities)
+    for h, err in zip(compiled.equalities, eq_errs, strict=True):
         A = index.equality_map(h)
         con = A @ y == 0
         constraints.append(con)
-        parts.eq.append((A, con))
+        E = _equality_error_map(index, h, err) if err else None
+        parts.eq.append((A, con, E))
+    parts.c_error = np.zeros(index.size)
+    for e, u in compiled.objective_error.items():
+        parts.c_error[index.index_of(e)] += u
     parts.c = index.linear_functional(compiled.objective)
     objective = cp.Minimize(parts.c @ y)
     return index, cp.Problem(objective, constraints), y, parts
 
 
+def _errors(errs: list, polys: list) -> list:
+    """Error bounds aligned with ``polys`` (empty ones when the compiled problem has none)."""
+    return errs if len(errs) == len(polys) else [{} for _ in polys]
+
+
+def _equality_error_map(index: MomentIndex, h: PolyDict, err: PolyDict) -> sps.csr_array:
+    """Rows ``L_y(err x^alpha)`` for the same ``alpha`` as ``index.equality_map(h)``."""
+    dh = max(sum(e) for e in h)
+    padded = {**err, **{e: err.get(e, 0.0) for e in h}}
+    padded = {e: u for e, u in padded.items() if sum(e) <= dh}
+    if not padded:
+        return sps.csr_array((index.basis_size(2 * index.order - dh), index.size))
+    top = next(e for e in h if sum(e) == dh)
+    padded.setdefault(top, 0.0)
+    return index.equality_map(padded)
+
+
 @dataclass
 class _Parts:
-    """The relaxation's constraints with their linear maps, to read the dual back."""
+    """The relaxation's constraints with their linear maps, to read the dual back.
+
+    ``E`` maps (or None) are the maps of the coefficient error bounds of the same
+    constraint (see :class:`~sosalgo.polyopt.problem.CompiledProblem`).
+    """
 
     c: np.ndarray
+    c_error: np.ndarray
     y0: cp.Constraint
-    psd: list[tuple[Any, int, cp.Constraint]] = field(default_factory=list)
-    eq: list[tuple[Any, cp.Constraint]] = field(default_factory=list)
+    psd: list[tuple[Any, int, cp.Constraint, Any]] = field(default_factory=list)
+    eq: list[tuple[Any, cp.Constraint, Any]] = field(default_factory=list)
 
     def dual(self) -> DualData | None:
         """The solver's dual as :class:`DualData`, or None if some dual is missing."""
         if self.y0.dual_value is None:
             return None
         duals = []
-        for _, dim, con in self.psd:
+        for _, dim, con, _ in self.psd:
             if con.dual_value is None:
                 return None
             duals.append(np.reshape(np.asarray(con.dual_value, dtype=float), (dim, dim)))
-        eq_map = eq_dual = None
+        eq_map = eq_dual = eq_err = None
         if self.eq:
-            if any(con.dual_value is None for _, con in self.eq):
+            if any(con.dual_value is None for _, con, _ in self.eq):
                 return None
-            eq_map = sps.vstack([A for A, _ in self.eq]).tocsr()
-            eq_dual = np.concatenate([np.ravel(con.dual_value) for _, con in self.eq])
+            eq_map = sps.vstack([A for A, _, _ in self.eq]).tocsr()
+            eq_dual = np.concatenate([np.ravel(con.dual_value) for _, con, _ in self.eq])
+            eq_err = sps.vstack(
+                [E if E is not None else sps.csr_array(A.shape) for A, _, E in self.eq]
+            ).tocsr()
         return DualData(
             c=self.c,
-            psd_maps=[sps.csr_array(S) for S, _, _ in self.psd],
+            psd_maps=[sps.csr_array(S) for S, _, _, _ in self.psd],
             psd_duals=duals,
             eq_map=eq_map,
             eq_dual=eq_dual,
             y0_dual=float(np.ravel(self.y0.dual_value)[0]),
+            c_error=self.c_error,
+            psd_error_maps=[None if E is None else sps.csr_array(E) for _, _, _, E in self.psd],
+            eq_error_map=eq_err,
         )
 
 
@@ -211,6 +260,39 @@ def solve_moment_relaxation(
     opts = dict(DEFAULT_SOLVER_OPTIONS.get(name, {}))
     opts.update(solver_options or {})
 
+    result = _solve_once(compiled, order, (name, opts), rank_tol, feas_tol, seed, gap_tol)
+    if scale and result.status == "inaccurate" and len(problem.bounds) < compiled.n:
+        for _ in range(_REFINE_PASSES):
+            center = np.array([result.first_moments.get(v, math.nan) for v in compiled.variables])
+            if not np.all(np.isfinite(center)):
+                break
+            var_scale = equilibrating_scale(problem, center)
+            again = compile_problem(problem, True, center, var_scale)
+            retry = _solve_once(again, order, (name, opts), rank_tol, feas_tol, seed, gap_tol)
+            if _rank(retry) > _rank(result):
+                result = retry
+            if result.status == "optimal" or not retry.first_moments:
+                break
+    result.seconds = time.perf_counter() - t0
+    return result
+
+
+def _rank(res: RelaxationResult) -> tuple[bool, bool, float]:
+    """Order of preference between two solves of the same relaxation."""
+    return (res.status == "optimal", res.certified, res.bound if res.certified else -math.inf)
+
+
+def _solve_once(
+    compiled: CompiledProblem,
+    order: int,
+    solver: tuple[str, dict[str, Any]],
+    rank_tol: float,
+    feas_tol: float,
+    seed: int,
+    gap_tol: float,
+) -> RelaxationResult:
+    """Build, solve, certify and (when optimal) extract, in ``compiled``'s coordinates."""
+    name, opts = solver
     index, prob, y, parts = _build(compiled, order)
     result = RelaxationResult(bound=math.nan, status="failed", order=order, solver=name)
     try:
@@ -221,7 +303,6 @@ def solve_moment_relaxation(
         result.solver_status = str(prob.status)
     except Exception as exc:  # noqa: BLE001 - solver failures must not raise
         result.solver_status = f"{type(exc).__name__}: {exc}"
-        result.seconds = time.perf_counter() - t0
         return result
     status = _STATUS.get(prob.status, "failed")
     yv = None if y.value is None else np.asarray(y.value, dtype=float)
@@ -229,7 +310,6 @@ def solve_moment_relaxation(
         status = "failed"
     result.status = status
     if status not in ("optimal", "inaccurate"):
-        result.seconds = time.perf_counter() - t0
         return result
 
     value = float(prob.value)
@@ -241,16 +321,15 @@ def solve_moment_relaxation(
         numerical_rank(index.moment_matrix(yv, s), rank_tol) for s in range(1, order + 1)
     ]
 
-    target = value - gap_tol * max(1.0, abs(result.solver_bound)) / compiled.objective_scale
-    cert = _certify(index, parts, compiled, value, target, (name, opts))
+    allowed = gap_tol * max(1.0, abs(result.solver_bound))
+    target = value - allowed / compiled.objective_scale
+    cert = _certify(index, parts, compiled, value, target, solver)
     result.certified = math.isfinite(cert)
     result.bound = cert if result.certified else result.solver_bound
-    gap = abs(result.solver_bound - cert) if result.certified else math.inf
-    accurate = gap <= gap_tol * max(1.0, abs(result.bound))
+    accurate = result.certified and abs(result.solver_bound - cert) <= allowed
     result.status = "optimal" if status == "optimal" and accurate else "inaccurate"
     if result.status == "optimal":
         _flat_and_minimizers(result, compiled, index, yv, rank_tol, feas_tol, seed)
-    result.seconds = time.perf_counter() - t0
     return result
 
 
