@@ -23,7 +23,8 @@ from .polynomial import (
     affine_substitute,
     degree,
     evaluate,
-    from_sympy,
+    exact_affine_substitute,
+    from_sympy_with_error,
     max_abs_coefficient,
     scaled,
 )
@@ -58,6 +59,7 @@ class PolyProblem:
     equalities: Sequence[sp.Expr] = ()
     bounds: Mapping[sp.Symbol, tuple[float, float]] = field(default_factory=dict)
     _polys: _ExpandedData = field(init=False, repr=False, compare=False)
+    _errors: _ExpandedData = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         variables = tuple(self.variables)
@@ -101,21 +103,24 @@ class PolyProblem:
         setattr_(self, "matrix_inequalities", tuple(mats))
         setattr_(self, "bounds", bounds)
 
-        def poly(expr: object) -> PolyDict:
-            return from_sympy(expr, variables)
+        def conv(expr: object) -> tuple[PolyDict, PolyDict]:
+            return from_sympy_with_error(expr, variables)
 
-        setattr_(
-            self,
-            "_polys",
-            _ExpandedData(
-                objective=poly(self.objective),
-                inequalities=[poly(g) for g in self.inequalities],
-                equalities=[poly(h) for h in self.equalities],
-                matrix_inequalities=[
-                    [[poly(M[a, b]) for b in range(M.cols)] for a in range(M.rows)] for M in mats
-                ],
-            ),
-        )
+        obj = conv(self.objective)
+        ineqs = [conv(g) for g in self.inequalities]
+        eqs = [conv(h) for h in self.equalities]
+        pmis = [[[conv(M[a, b]) for b in range(M.cols)] for a in range(M.rows)] for M in mats]
+
+        def pick(i: int) -> _ExpandedData:
+            return _ExpandedData(
+                objective=obj[i],
+                inequalities=[g[i] for g in ineqs],
+                equalities=[h[i] for h in eqs],
+                matrix_inequalities=[[[e[i] for e in row] for row in G] for G in pmis],
+            )
+
+        setattr_(self, "_polys", pick(0))
+        setattr_(self, "_errors", pick(1))
 
 
 def _as_expr(obj: object, names: Mapping[str, sp.Symbol], what: str = "expression") -> sp.Expr:
@@ -277,19 +282,33 @@ def compile_problem(
                 # rounded outwards, so that the z-box covers [lo, hi] in exact arithmetic
                 width[i] = 0.5 * (hi - lo) * (1 + 4 * _EPS) + 4 * _EPS * abs(offset[i])
 
-    def convert(p: PolyDict) -> tuple[PolyDict, PolyDict]:
-        """The substituted polynomial and a bound on its coefficients' rounding errors."""
+    def convert(p: PolyDict, perr: PolyDict) -> tuple[PolyDict, PolyDict]:
+        """The substituted polynomial and a bound on its coefficients' errors.
+
+        Errors: the rounding of the substitution (exact arithmetic, one rounding per
+        coefficient, unless the polynomial is too large) plus the conversion errors
+        ``perr`` of the input coefficients carried through the substitution.
+        """
         if not scale:
-            return dict(p), {e: _EPS * abs(c) for e, c in p.items()}
-        return affine_substitute(p, offset, width), _substitution_error(p, offset, width)
+            return dict(p), dict(perr)
+        if _combos(p) <= _EXACT_LIMIT:
+            q, err = exact_affine_substitute(p, offset, width)
+        else:
+            q, err = affine_substitute(p, offset, width), _substitution_error(p, offset, width)
+        if perr:
+            carried = affine_substitute(perr, np.abs(offset), np.abs(width))
+            slack = 1 + 4 * (degree(perr) + 3) * _EPS
+            for e, u in carried.items():
+                err[e] = err.get(e, 0.0) + u * slack
+        return q, err
 
     def normalized(p: PolyDict, err: PolyDict, m: float) -> tuple[PolyDict, PolyDict]:
         out = scaled(p, 1.0 / m)
         return out, {e: (u / m + _EPS * abs(out.get(e, 0.0))) * (1 + _EPS) for e, u in
                      {**{e: 0.0 for e in p}, **err}.items()}
 
-    data = problem._polys
-    obj, obj_err = convert(data.objective)
+    data, data_err = problem._polys, problem._errors
+    obj, obj_err = convert(data.objective, data_err.objective)
     zero = (0,) * n
     obj_const = obj.pop(zero, 0.0)
     obj_scale = max_abs_coefficient(obj)
@@ -301,8 +320,8 @@ def compile_problem(
     # relaxation infeasible); satisfied constants carry no information.
     inequalities: list[PolyDict] = []
     ineq_err: list[PolyDict] = []
-    for g in data.inequalities:
-        p, err = convert(g)
+    for g, gerr in zip(data.inequalities, data_err.inequalities, strict=True):
+        p, err = convert(g, gerr)
         if p and not (degree(p) == 0 and p[zero] >= 0):
             q, qe = normalized(p, err, max_abs_coefficient(p))
             inequalities.append(q)
@@ -326,8 +345,8 @@ def compile_problem(
 
     equalities: list[PolyDict] = []
     eq_err: list[PolyDict] = []
-    for h in data.equalities:
-        p, err = convert(h)
+    for h, herr in zip(data.equalities, data_err.equalities, strict=True):
+        p, err = convert(h, herr)
         if p:
             q, qe = normalized(p, err, max_abs_coefficient(p))
             equalities.append(q)
@@ -335,8 +354,11 @@ def compile_problem(
 
     pmis: list[list[list[PolyDict]]] = []
     pmi_err: list[list[list[PolyDict]]] = []
-    for G in data.matrix_inequalities:
-        conv = [[convert(e) for e in row] for row in G]
+    for G, Gerr in zip(data.matrix_inequalities, data_err.matrix_inequalities, strict=True):
+        conv = [
+            [convert(e, u) for e, u in zip(row, urow, strict=True)]
+            for row, urow in zip(G, Gerr, strict=True)
+        ]
         m = max((max_abs_coefficient(e) for row in conv for e, _ in row), default=0.0)
         if m == 0.0:
             continue
@@ -366,6 +388,14 @@ def compile_problem(
         equality_errors=eq_err,
         matrix_inequality_errors=pmi_err,
     )
+
+
+_EXACT_LIMIT = 200_000  # products in a substitution done in exact rational arithmetic
+
+
+def _combos(p: PolyDict) -> int:
+    """Number of products in ``affine_substitute(p, ...)``."""
+    return sum(math.prod(a + 1 for a in e) for e in p)
 
 
 def _substitution_error(p: PolyDict, offset: np.ndarray, width: np.ndarray) -> PolyDict:
