@@ -430,3 +430,47 @@ def test_strings_are_parsed_not_evaluated() -> None:
     # plain arithmetic over the variables' names is accepted
     res = solve_moment_relaxation(PolyProblem([x], "(x - 1)**2 + 3", inequalities=["x"]))
     assert res.status == "optimal" and abs(res.bound - 3.0) < 1e-6 and res.bound <= 3.0
+
+
+def test_large_coefficients_solved_accurately_after_recentring() -> None:
+    # The same hand-derived minima: re-centring at the first moments, equilibrated
+    # scales and exact substitution make these provable to full accuracy with Clarabel.
+    cases = [
+        (PolyProblem([x], 1e12 * (x - 1) ** 2 + 1), 1.0, [[1.0]]),
+        (PolyProblem([x, y], (1e6 * x - 1) ** 2 + (y - 2) ** 2), 0.0, [[1e-6, 2.0]]),
+        (PolyProblem([x], x, inequalities=[1e12 - x**2]), -1e6, [[-1e6]]),
+    ]
+    for prob, true_min, points in cases:
+        res = solve_moment_relaxation(prob)
+        _assert_honest(res, true_min)
+        assert res.status == "optimal" and res.flat
+        assert true_min - 1e-5 * max(1.0, abs(true_min)) <= res.bound <= true_min
+        got = _points(res, list(prob.variables))
+        scale = np.maximum(1e-6, np.abs(np.array(points)))
+        assert got.shape == (1, len(prob.variables))
+        assert np.all(np.abs(got - np.array(points)) <= 1e-3 * scale)
+
+
+def test_overstated_dual_is_caught(monkeypatch: pytest.MonkeyPatch) -> None:
+    # A solver that reports its dual level and its value 0.5 (normalized units) too high:
+    # the certificate recomputes the residual from the data, so the bound stays below the
+    # true minimum 3 of (x - 1)^2 + (y + 2)^2 + 3, and on the box, where no re-solve
+    # happens, the status is not "optimal". (Without the box the re-solve zooms in on the
+    # first moments, where the same lie is tiny in the problem's units: only honesty is
+    # checked there.)
+    original = cp.Problem.solve
+
+    def lying_solve(self, *args, **kwargs):
+        out = original(self, *args, **kwargs)
+        first = self.constraints[0]  # y_0 == 1, whose dual is -gamma
+        first.dual_variables[0].save_value(first.dual_value - 0.5)
+        self._value = self._value + 0.5
+        return out
+
+    monkeypatch.setattr(cp.Problem, "solve", lying_solve)
+    f = (x - 1) ** 2 + (y + 2) ** 2 + 3
+    boxed = solve_moment_relaxation(PolyProblem([x, y], f, bounds={x: (-4, 4), y: (-4, 4)}))
+    _assert_honest(boxed, 3.0)
+    assert boxed.certified and boxed.solver_bound > 3.1  # the lie was told, and caught
+    assert boxed.status == "inaccurate" and not boxed.flat and boxed.minimizers == []
+    _assert_honest(solve_moment_relaxation(PolyProblem([x, y], f)), 3.0)
