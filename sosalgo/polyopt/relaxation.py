@@ -348,7 +348,8 @@ def _solve_once(
 
     allowed = gap_tol * max(1.0, abs(result.solver_bound))
     target = value - allowed / compiled.objective_scale
-    cert = _certify(index, parts, compiled, value, target, solver)
+    # the interior dual (extra SDP solves) only when "optimal" is still within reach
+    cert = _certify(index, parts, compiled, value, target, solver, status == "optimal")
     result.certified = math.isfinite(cert)
     result.bound = cert if result.certified else result.solver_bound
     slack = compiled.objective_scale * _infeasibility_cost(parts, yv)
@@ -366,15 +367,16 @@ def _certify(
     value: float,
     target: float,
     solver: tuple[str, dict[str, Any]],
+    interior: bool = True,
 ) -> float:
     """Rigorous lower bound (original units) from the solver's dual; -inf if none.
 
     See :mod:`sosalgo.polyopt.certificate`. ``value`` is the solver's value and ``target``
     the level the bound must reach for status "optimal" (both in the relaxation's
     normalized units). When some variable is unbounded and the solver's own dual falls
-    short, a second, interior dual is computed a little below ``value`` (fractions
-    :data:`_BACKOFF` of the allowed gap, closest first). The
-    map back ``constant + scale * b`` is rounded down by a few ulps.
+    short (and ``interior`` is set), a second, interior dual is computed a little below
+    ``value`` (fractions :data:`_BACKOFF` of the allowed gap, closest first). The map back
+    ``constant + scale * b`` is rounded down by a few ulps.
     """
     data = parts.dual()
     if data is None:
@@ -386,7 +388,7 @@ def _certify(
     radius = compiled.box_radius()
     try:
         b, _ = certified_bound(index, data, radius, target, support)
-        if b < target and radius is None and math.isfinite(target):
+        if interior and b < target and radius is None and math.isfinite(target):
             keep = newton_keep(index, support) if support is not None else None
             keeps = [keep] if keep is not None else None
             for frac in _BACKOFF:
