@@ -474,3 +474,13 @@ def test_overstated_dual_is_caught(monkeypatch: pytest.MonkeyPatch) -> None:
     assert boxed.certified and boxed.solver_bound > 3.1  # the lie was told, and caught
     assert boxed.status == "inaccurate" and not boxed.flat and boxed.minimizers == []
     _assert_honest(solve_moment_relaxation(PolyProblem([x, y], f)), 3.0)
+
+
+def test_float_coefficients_are_expanded_exactly() -> None:
+    # 1e9 (x - 1/3)^2 + 7 has minimum exactly 7 at x = 1/3. Expanded in sympy Float
+    # arithmetic, its constant 1e9/9 + 7 is rounded before the relaxation sees it, which
+    # moved the proven bound to 7.0000000066; Floats are now taken at their exact binary
+    # values and expanded exactly.
+    res = solve_moment_relaxation(PolyProblem([x], 1e9 * (x - sp.Rational(1, 3)) ** 2 + 7))
+    _assert_honest(res, 7.0, rel=0.0)
+    assert res.status == "optimal" and 7.0 - 1e-5 <= res.bound <= 7.0

@@ -61,6 +61,12 @@ def from_sympy_with_error(
     if extra:
         names = ", ".join(sorted(str(s) for s in extra))
         raise ValueError(f"expression {expr} contains symbols that are not variables: {names}")
+    # Floats are replaced by their exact (binary) rational values first, so that sympy's
+    # expansion is exact: expanding 1e9*(x - 1/3)**2 in Float arithmetic would round the
+    # coefficients silently (and move the minimum) before any error could be accounted for.
+    floats = expr.atoms(sp.Float)
+    if floats:
+        expr = expr.xreplace({f: sp.Rational(f) for f in floats})
     try:
         poly = sp.Poly(expr, *variables)
     except sp.PolynomialError as exc:
