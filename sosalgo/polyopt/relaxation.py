@@ -9,8 +9,10 @@ of moments"; Henrion-Lasserre 2006 for matrix inequalities)::
            M_{k - ceil(deg G / 2)}(G y) ⪰ 0               for every G(x) ⪰ 0,
            L_y(h_j x^alpha) = 0, |alpha| <= 2k - deg h_j   for every h_j(x) = 0.
 
-Its value is a lower bound on the POP's minimum; flatness of the optimal moment matrix
-certifies exactness and yields the minimizers (:mod:`sosalgo.polyopt.extraction`).
+Its value is a lower bound on the POP's minimum. The solver's value is not trusted: the
+reported bound is the one its dual *proves* (:mod:`sosalgo.polyopt.certificate`). Flatness
+of the optimal moment matrix certifies exactness and yields the minimizers
+(:mod:`sosalgo.polyopt.extraction`).
 """
 
 from __future__ import annotations
@@ -64,27 +66,34 @@ _STATUS = {
 
 @dataclass
 class RelaxationResult:
-    """Outcome of :func:`solve_moment_relaxation`.
+    """Outcome of :func:`solve_moment_relaxation` (docs/polyopt.md, "Result").
 
     Attributes:
-        bound: lower bound on the POP's minimum, up to the solver's accuracy (``nan``
-            unless status is "optimal" or "inaccurate"; treat "inaccurate" bounds with care).
-        status: "optimal", "inaccurate", "infeasible" (the relaxation, hence the POP, is
-            infeasible) or "failed" (solver error, unbounded relaxation, iteration limit).
+        bound: "optimal": a lower bound on the POP's minimum proven by the dual
+            certificate (:mod:`sosalgo.polyopt.certificate`). "inaccurate": the proven bound
+            if ``certified``, else the solver's unverified value (possibly above the
+            minimum). ``nan`` for "infeasible" and "failed".
+        status: "optimal" (certified, and bound, solver value and primal point agree within
+            ``gap_tol * max(1, |value|)``), "inaccurate" (anything short of that),
+            "infeasible" (the relaxation, hence the POP, is infeasible) or "failed" (solver
+            error, unbounded relaxation, iteration limit).
         order: relaxation order k.
         ranks: numerical ranks of ``M_1(y), ..., M_k(y)``.
-        flat: flat extension detected (``rank M_s == rank M_{s-d}`` for some s, with
-            ``d = max(1, ceil(deg/2))`` over the constraints): the bound is the global
-            minimum (meaningful only when status is "optimal").
-        minimizers: extracted global minimizers (original coordinates) when flat; only
-            points passing the feasibility/objective checks are listed, so it may be
-            empty even when ``flat`` is True (numerical extraction failure).
+        flat: only with status "optimal": flat extension ``rank M_s == rank M_{s-d}``
+            (``d = max(1, ceil(deg/2))`` over the constraints) with both ranks separated by
+            a factor :data:`~sosalgo.polyopt.extraction.RANK_GAP`, and a consistent
+            extraction (exactly ``rank M_s`` feasible points attaining the bound). Then the
+            relaxation is exact: ``bound <= min <= f(minimizer)``.
+        minimizers: the extracted global minimizers (original coordinates); non-empty
+            exactly when ``flat``.
         first_moments: ``y_{e_i}`` in original coordinates (the mean of the optimal
             measure; equals the minimizer when it is unique and the relaxation is exact).
-        seconds: wall time of build, solve and extraction.
+        seconds: wall time of build, solves, certificate and extraction.
         solver: solver name as given to cvxpy.
         solver_status: raw cvxpy status, or the exception text if the solver raised.
         flat_order: the order s at which flatness was detected (None if not flat).
+        certified: ``bound`` is proven by the dual certificate.
+        solver_bound: the solver's own value of the relaxation, in the problem's units.
     """
 
     bound: float
@@ -236,13 +245,17 @@ def solve_moment_relaxation(
         rank_tol: an eigenvalue of ``M_s(y)`` counts towards the rank when it exceeds
             ``rank_tol`` times the largest eigenvalue.
         scale: substitute ``x = (lo + hi)/2 + (hi - lo)/2 * z``, ``z in [-1, 1]``, for
-            every bounded variable (results are mapped back to ``x``).
+            every bounded variable (results are mapped back to ``x``); when a result is
+            "inaccurate" and some variable is unbounded, also re-solve (at most
+            :data:`_REFINE_PASSES` times) centred at the first moments with equilibrated
+            scales (:func:`~sosalgo.polyopt.problem.equilibrating_scale`).
         feas_tol: an extracted point is kept only if its relative constraint violation
             (in the scaled coordinates) is at most ``feas_tol`` and its objective value is
-            within ``10 * feas_tol`` (relative) of the relaxation's value.
+            within ``10 * feas_tol * max(1, |bound|)`` of the bound (problem units).
         seed: seed of the random combination of multiplication matrices.
-        gap_tol: status "optimal" needs the certified bound within
-            ``gap_tol * max(1, |bound|)`` of the solver's value of the relaxation.
+        gap_tol: status "optimal" needs the certified bound, the solver's value of the
+            relaxation and the primal point's infeasibility cost to agree within
+            ``gap_tol * max(1, |value|)`` (problem units).
 
     Never raises on solver failure: the status is "failed" and the bound ``nan``.
     """
