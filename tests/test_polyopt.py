@@ -78,12 +78,32 @@ def test_univariate_quartic() -> None:
 
 def test_rosenbrock_2d() -> None:
     # Rosenbrock's function 100 (x2 - x1^2)^2 + (1 - x1)^2: global minimum 0 at (1, 1).
+    # With a box containing (1, 1) the bound is proven (box certificate) and exact.
     f = 100 * (x2 - x1**2) ** 2 + (1 - x1) ** 2
-    res = solve_moment_relaxation(PolyProblem([x1, x2], f), order=2)
-    assert res.status == "optimal"
-    assert abs(res.bound) < 1e-5
+    boxed = PolyProblem([x1, x2], f, bounds={x1: (-1.5, 1.5), x2: (-1.5, 1.5)})
+    res = solve_moment_relaxation(boxed, order=2)
+    assert res.status == "optimal" and res.certified
+    assert -1e-5 < res.bound <= 0.0
     assert res.flat and res.ranks[0] == 1
     _assert_same_points(res, [x1, x2], [[1.0, 1.0]])
+    # Without a box the interior-point dual cannot be turned into a proof (the Gram matrix
+    # of (x2 - x1^2)^2 is singular on every SOS certificate): whatever the status, a bound
+    # above the minimum 0 must never come with status "optimal" or certified=True.
+    free = solve_moment_relaxation(PolyProblem([x1, x2], f), order=2)
+    _assert_honest(free, 0.0)
+    assert abs(free.bound) < 1e-4
+
+
+def _assert_honest(res: RelaxationResult, true_min: float, rel: float = 1e-9) -> None:
+    """The contract of RelaxationResult against a hand-derived global minimum."""
+    slack = rel * max(1.0, abs(true_min))
+    if res.status == "optimal" or res.certified:
+        assert res.bound <= true_min + slack, (res.status, res.bound, true_min)
+    if res.status == "optimal":
+        assert res.certified
+    if res.flat or res.minimizers:
+        assert res.status == "optimal" and res.flat and res.minimizers
+        assert abs(res.bound - true_min) <= 1e-6 * max(1.0, abs(true_min))
 
 
 def test_motzkin_relaxation_is_not_exact() -> None:
@@ -263,13 +283,14 @@ def test_unexpected_solver_status_maps_to_failed(monkeypatch: pytest.MonkeyPatch
     assert res.status == "failed" and math.isnan(res.bound)
 
 
-def test_failed_extraction_keeps_flat(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_failed_extraction_means_not_flat(monkeypatch: pytest.MonkeyPatch) -> None:
+    # flat is claimed only with a consistent extraction: no atoms, no claim.
     import sosalgo.polyopt.relaxation as relaxation
 
     monkeypatch.setattr(relaxation, "extract_atoms", lambda *args, **kwargs: None)
     res = solve_moment_relaxation(PolyProblem([x1], (x1 - 1) ** 2 * (x1 + 2) ** 2), order=2)
     assert res.status == "optimal" and abs(res.bound) < 1e-5
-    assert res.flat and res.minimizers == []
+    assert not res.flat and res.minimizers == [] and res.flat_order is None
 
 
 def test_infeasible_problem() -> None:
@@ -294,3 +315,172 @@ def test_order_validation_and_bad_input() -> None:
         PolyProblem([x1], x1, bounds={x1: (1, 0)})
     with pytest.raises(ValueError):
         solve_moment_relaxation(PolyProblem([x1], x1**2), solver="no-such-solver")
+
+
+# --------------------------------------------------------------------------------------
+# Honest bounds: large coefficients, unbounded problems, flatness (issue 8, item 6).
+# True minima derived by hand in each comment.
+# --------------------------------------------------------------------------------------
+
+x, y = sp.symbols("x y")
+
+
+@pytest.mark.parametrize(
+    "objective, inequalities, order, true_min",
+    [
+        # 1e12 (x - 1)^2 + 1 >= 1 with equality at x = 1 (was reported 1378.9 "optimal, flat")
+        (1e12 * (x - 1) ** 2 + 1, [], None, 1.0),
+        # both squares vanish at x = 1e-6, y = 2 (was 131.5)
+        ((1e6 * x - 1) ** 2 + (y - 2) ** 2, [], None, 0.0),
+        # x^2 <= 1e12 means |x| <= 1e6, so min x = -1e6 (was -999845)
+        (x, [1e12 - x**2], None, -1e6),
+        # 1e4 x Rosenbrock: a sum of squares vanishing at (1, 1) (was 0.1095)
+        (1e4 * (100 * (y - x**2) ** 2 + (1 - x) ** 2), [], 2, 0.0),
+        # Rosenbrock at order 3 (was 1.1e-5 above 0)
+        (100 * (y - x**2) ** 2 + (1 - x) ** 2, [], 3, 0.0),
+    ],
+)
+def test_large_coefficients_never_overstate(objective, inequalities, order, true_min) -> None:
+    for solver in ("clarabel", "scs"):
+        res = solve_moment_relaxation(
+            PolyProblem([x, y], objective, inequalities=inequalities), order=order, solver=solver
+        )
+        _assert_honest(res, true_min)
+
+
+def test_scaled_rosenbrock_with_box_is_proven() -> None:
+    # The same 1e4 x Rosenbrock with a box around (1, 1): the box certificate proves a
+    # bound <= 0, and it is accurate at the problem's scale or the status says otherwise.
+    f = 1e4 * (100 * (y - x**2) ** 2 + (1 - x) ** 2)
+    res = solve_moment_relaxation(PolyProblem([x, y], f, bounds={x: (0, 2), y: (0, 2)}), order=2)
+    _assert_honest(res, 0.0)
+    assert res.certified and res.bound <= 0.0
+
+
+def test_unbounded_problem_is_not_flat() -> None:
+    # min x over the reals is unbounded below: no finite bound can be optimal, nothing is
+    # flat (was "optimal, flat, -1.2e7").
+    for solver in ("clarabel", "scs"):
+        res = solve_moment_relaxation(PolyProblem([x], x), order=1, solver=solver)
+        assert res.status != "optimal"
+        assert not res.flat and res.minimizers == []
+        assert not res.certified
+
+
+@pytest.mark.parametrize(
+    "objective, true_min",
+    [
+        # Motzkin: >= 0 by AM-GM on (x^4 y^2, x^2 y^4, 1), equality at |x| = |y| = 1
+        (x**4 * y**2 + x**2 * y**4 - 3 * x**2 * y**2 + 1, 0.0),
+        # with u = x^2, v = y^2 >= 0: u v (u + v - 1); on u = v = t, t^2 (2t - 1) is
+        # minimal at t = 1/3, value -1/27 (the global minimum, attained at |x| = |y| = 1/sqrt3)
+        (x**2 * y**2 * (x**2 + y**2 - 1), -1.0 / 27.0),
+    ],
+)
+def test_non_sos_examples_are_not_flat_at_order_5(objective, true_min) -> None:
+    # Neither f - f* is SOS; the order-5 relaxations are unbounded or below f*, and were
+    # reported flat.
+    res = solve_moment_relaxation(PolyProblem([x, y], objective), order=5)
+    _assert_honest(res, true_min)
+    assert not res.flat and res.minimizers == []
+
+
+def test_no_minimizers_unless_optimal() -> None:
+    # min x s.t. 1e12 - x^2 >= 0 with SCS ended "inaccurate" and still listed a minimizer
+    # (-90.6 for the true -1e6).
+    res = solve_moment_relaxation(PolyProblem([x], x, inequalities=[1e12 - x**2]), solver="scs")
+    _assert_honest(res, -1e6)
+    if res.status != "optimal":
+        assert res.minimizers == [] and not res.flat
+
+
+def test_random_boxed_problems_bound_is_proven() -> None:
+    # Random quartics on a box, coefficients from 1e-3 to 1e8: a certified bound never
+    # exceeds the minimum found by a fine grid (an upper estimate of the true minimum).
+    rng = np.random.default_rng(7)
+    gx, gy = np.meshgrid(np.linspace(-2, 3, 301), np.linspace(-1, 2, 301))
+    terms = [(i, j) for i in range(5) for j in range(5 - i)]
+    certified = 0
+    for _ in range(8):
+        coef = rng.normal(size=len(terms)) * 10.0 ** rng.integers(-3, 9)
+        f = sum(float(c) * x**i * y**j for c, (i, j) in zip(coef, terms, strict=True))
+        grid = sum(c * gx**i * gy**j for c, (i, j) in zip(coef, terms, strict=True))
+        res = solve_moment_relaxation(
+            PolyProblem([x, y], f, bounds={x: (-2, 3), y: (-1, 2)}), order=3
+        )
+        if res.certified:
+            certified += 1
+            assert res.bound <= float(grid.min())
+    assert certified >= 6
+
+
+def test_strings_are_parsed_not_evaluated() -> None:
+    import sys
+
+    attack = "__import__('sys').modules.__setitem__('polyopt_probe', 1)"
+    with pytest.raises(ValueError):
+        PolyProblem([x], attack)
+    with pytest.raises(ValueError):
+        PolyProblem([x], x, inequalities=["x.__class__"])
+    with pytest.raises(ValueError):
+        PolyProblem([x], x, matrix_inequalities=[[[attack, "x"], ["x", "1"]]])
+    assert "polyopt_probe" not in sys.modules
+    with pytest.raises(TypeError):
+        PolyProblem([x], object())
+    # plain arithmetic over the variables' names is accepted
+    res = solve_moment_relaxation(PolyProblem([x], "(x - 1)**2 + 3", inequalities=["x"]))
+    assert res.status == "optimal" and abs(res.bound - 3.0) < 1e-6 and res.bound <= 3.0
+
+
+def test_large_coefficients_solved_accurately_after_recentring() -> None:
+    # The same hand-derived minima: re-centring at the first moments, equilibrated
+    # scales and exact substitution make these provable to full accuracy with Clarabel.
+    cases = [
+        (PolyProblem([x], 1e12 * (x - 1) ** 2 + 1), 1.0, [[1.0]]),
+        (PolyProblem([x, y], (1e6 * x - 1) ** 2 + (y - 2) ** 2), 0.0, [[1e-6, 2.0]]),
+        (PolyProblem([x], x, inequalities=[1e12 - x**2]), -1e6, [[-1e6]]),
+    ]
+    for prob, true_min, points in cases:
+        res = solve_moment_relaxation(prob)
+        _assert_honest(res, true_min)
+        assert res.status == "optimal" and res.flat
+        assert true_min - 1e-5 * max(1.0, abs(true_min)) <= res.bound <= true_min
+        got = _points(res, list(prob.variables))
+        scale = np.maximum(1e-6, np.abs(np.array(points)))
+        assert got.shape == (1, len(prob.variables))
+        assert np.all(np.abs(got - np.array(points)) <= 1e-3 * scale)
+
+
+def test_overstated_dual_is_caught(monkeypatch: pytest.MonkeyPatch) -> None:
+    # A solver that reports its dual level and its value 0.5 (normalized units) too high:
+    # the certificate recomputes the residual from the data, so the bound stays below the
+    # true minimum 3 of (x - 1)^2 + (y + 2)^2 + 3, and on the box, where no re-solve
+    # happens, the status is not "optimal". (Without the box the re-solve zooms in on the
+    # first moments, where the same lie is tiny in the problem's units: only honesty is
+    # checked there.)
+    original = cp.Problem.solve
+
+    def lying_solve(self, *args, **kwargs):
+        out = original(self, *args, **kwargs)
+        first = self.constraints[0]  # y_0 == 1, whose dual is -gamma
+        first.dual_variables[0].save_value(first.dual_value - 0.5)
+        self._value = self._value + 0.5
+        return out
+
+    monkeypatch.setattr(cp.Problem, "solve", lying_solve)
+    f = (x - 1) ** 2 + (y + 2) ** 2 + 3
+    boxed = solve_moment_relaxation(PolyProblem([x, y], f, bounds={x: (-4, 4), y: (-4, 4)}))
+    _assert_honest(boxed, 3.0)
+    assert boxed.certified and boxed.solver_bound > 3.1  # the lie was told, and caught
+    assert boxed.status == "inaccurate" and not boxed.flat and boxed.minimizers == []
+    _assert_honest(solve_moment_relaxation(PolyProblem([x, y], f)), 3.0)
+
+
+def test_float_coefficients_are_expanded_exactly() -> None:
+    # 1e9 (x - 1/3)^2 + 7 has minimum exactly 7 at x = 1/3. Expanded in sympy Float
+    # arithmetic, its constant 1e9/9 + 7 is rounded before the relaxation sees it, which
+    # moved the proven bound to 7.0000000066; Floats are now taken at their exact binary
+    # values and expanded exactly.
+    res = solve_moment_relaxation(PolyProblem([x], 1e9 * (x - sp.Rational(1, 3)) ** 2 + 7))
+    _assert_honest(res, 7.0, rel=0.0)
+    assert res.status == "optimal" and 7.0 - 1e-5 <= res.bound <= 7.0

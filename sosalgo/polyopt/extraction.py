@@ -22,7 +22,11 @@ import scipy.linalg as sla
 
 from .moment import MomentIndex
 
-__all__ = ["numerical_rank", "flat_orders", "extract_atoms"]
+__all__ = ["numerical_rank", "rank_gap", "flat_orders", "extract_atoms", "RANK_GAP"]
+
+#: A numerical rank r counts for the flatness test only when the r-th largest eigenvalue
+#: exceeds the (r+1)-th by at least this factor (a clear gap, not a threshold artefact).
+RANK_GAP = 1e3
 
 
 def numerical_rank(M: np.ndarray, tol: float) -> int:
@@ -32,6 +36,20 @@ def numerical_rank(M: np.ndarray, tol: float) -> int:
     if top <= 0.0:
         return 0
     return int(np.count_nonzero(w > tol * top))
+
+
+def rank_gap(M: np.ndarray, rank: int) -> float:
+    """Ratio of the ``rank``-th to the ``(rank+1)``-th largest eigenvalue (inf if none).
+
+    Eigenvalues at or below zero count as zero; 0 when the ``rank``-th is not positive.
+    """
+    w = np.sort(np.linalg.eigvalsh(0.5 * (M + M.T)))[::-1]
+    if rank < 1 or rank > w.size or w[rank - 1] <= 0.0:
+        return 0.0
+    if rank == w.size:
+        return np.inf
+    nxt = max(float(w[rank]), 0.0)
+    return np.inf if nxt == 0.0 else float(w[rank - 1]) / nxt
 
 
 def flat_orders(ranks: list[int], shift: int) -> list[int]:

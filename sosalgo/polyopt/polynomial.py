@@ -10,9 +10,12 @@ import itertools
 import math
 from collections import defaultdict
 from collections.abc import Sequence
+from fractions import Fraction
 
 import numpy as np
 import sympy as sp
+
+_EPS = float(np.finfo(float).eps)
 
 Exponent = tuple[int, ...]
 PolyDict = dict[Exponent, float]
@@ -21,6 +24,8 @@ __all__ = [
     "Exponent",
     "PolyDict",
     "from_sympy",
+    "from_sympy_with_error",
+    "exact_affine_substitute",
     "degree",
     "evaluate",
     "abs_evaluate",
@@ -37,19 +42,37 @@ def from_sympy(expr: object, variables: Sequence[sp.Symbol]) -> PolyDict:
     Raises ``ValueError`` if ``expr`` is not a polynomial with real numeric coefficients
     in exactly these variables (other free symbols, ``sin``, ``1/x`` ... are refused).
     """
+    return from_sympy_with_error(expr, variables)[0]
+
+
+def from_sympy_with_error(
+    expr: object, variables: Sequence[sp.Symbol]
+) -> tuple[PolyDict, PolyDict]:
+    """:func:`from_sympy` and a bound on each coefficient's conversion error.
+
+    The error is exactly ``|float(c) - c|`` (rounded up) for rational and floating-point
+    sympy coefficients, and ``2 eps |float(c)|`` for others (``sqrt(2)`` ...).
+    """
     try:
-        expr = sp.sympify(expr)
+        expr = sp.sympify(expr, strict=True)  # strict: never parses (evaluates) a string
     except (sp.SympifyError, TypeError) as exc:
         raise ValueError(f"cannot interpret {expr!r} as a sympy expression") from exc
     extra = expr.free_symbols - set(variables)
     if extra:
         names = ", ".join(sorted(str(s) for s in extra))
         raise ValueError(f"expression {expr} contains symbols that are not variables: {names}")
+    # Floats are replaced by their exact (binary) rational values first, so that sympy's
+    # expansion is exact: expanding 1e9*(x - 1/3)**2 in Float arithmetic would round the
+    # coefficients silently (and move the minimum) before any error could be accounted for.
+    floats = expr.atoms(sp.Float)
+    if floats:
+        expr = expr.xreplace({f: sp.Rational(f) for f in floats})
     try:
         poly = sp.Poly(expr, *variables)
     except sp.PolynomialError as exc:
         raise ValueError(f"expression {expr} is not a polynomial in the variables") from exc
     out: PolyDict = {}
+    err: PolyDict = {}
     for monom, coeff in poly.terms():
         try:
             value = float(coeff)
@@ -57,9 +80,59 @@ def from_sympy(expr: object, variables: Sequence[sp.Symbol]) -> PolyDict:
             raise ValueError(f"coefficient {coeff} of {expr} is not a real number") from exc
         if not math.isfinite(value):
             raise ValueError(f"coefficient {coeff} of {expr} is not finite")
+        e = tuple(int(a) for a in monom)
+        if coeff.is_Rational or coeff.is_Float:
+            q = sp.Rational(coeff)
+            exact = Fraction(int(q.p), int(q.q))
+            u = _round_up(abs(Fraction(value) - exact))
+        else:
+            u = 2.0 * _EPS * abs(value)
         if value != 0.0:
-            out[tuple(int(a) for a in monom)] = value
-    return out
+            out[e] = value
+        if u > 0.0:
+            err[e] = u
+    return out, err
+
+
+def _round_up(q: Fraction) -> float:
+    """A float >= the nonnegative rational ``q``."""
+    f = float(q)
+    return f if Fraction(f) >= q else math.nextafter(f, math.inf)
+
+
+def exact_affine_substitute(
+    p: PolyDict, offset: Sequence[float], width: Sequence[float]
+) -> tuple[PolyDict, PolyDict]:
+    """:func:`affine_substitute` in exact rational arithmetic, then rounded once.
+
+    Returns the rounded polynomial and the exact rounding error of each coefficient
+    (rounded up), so the only error left is one rounding per coefficient (no cancellation
+    error, which matters when a large-coefficient polynomial is re-centred near a root).
+    """
+    out: defaultdict[Exponent, Fraction] = defaultdict(Fraction)
+    offs = [Fraction(float(o)) for o in offset]
+    wids = [Fraction(float(w)) for w in width]
+    for e, c in p.items():
+        factors = [
+            [(j, math.comb(a, j) * o ** (a - j) * w**j) for j in range(a + 1)]
+            for a, o, w in zip(e, offs, wids, strict=True)
+        ]
+        cf = Fraction(c)
+        for combo in itertools.product(*factors):
+            coef = cf
+            for _, f in combo:
+                coef *= f
+            out[tuple(j for j, _ in combo)] += coef
+    poly: PolyDict = {}
+    err: PolyDict = {}
+    for e, q in out.items():
+        v = float(q)
+        if v != 0.0:
+            poly[e] = v
+        u = _round_up(abs(Fraction(v) - q))
+        if u > 0.0:
+            err[e] = u
+    return poly, err
 
 
 def degree(p: PolyDict) -> int:

@@ -15,18 +15,23 @@ from dataclasses import dataclass, field
 import numpy as np
 import sympy as sp
 
+from sosalgo.expr import ExprError, parse_expression
+
 from .polynomial import (
     PolyDict,
     abs_evaluate,
     affine_substitute,
     degree,
     evaluate,
-    from_sympy,
+    exact_affine_substitute,
+    from_sympy_with_error,
     max_abs_coefficient,
     scaled,
 )
 
 __all__ = ["PolyProblem", "CompiledProblem", "compile_problem", "constraint_violation"]
+
+_EPS = float(np.finfo(float).eps)
 
 
 @dataclass(frozen=True)
@@ -54,6 +59,7 @@ class PolyProblem:
     equalities: Sequence[sp.Expr] = ()
     bounds: Mapping[sp.Symbol, tuple[float, float]] = field(default_factory=dict)
     _polys: _ExpandedData = field(init=False, repr=False, compare=False)
+    _errors: _ExpandedData = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         variables = tuple(self.variables)
@@ -64,9 +70,10 @@ class PolyProblem:
                 raise ValueError(f"variables must be sympy Symbols, got {v!r}")
         if len(set(variables)) != len(variables):
             raise ValueError("variables must be distinct")
+        names = {str(v): v for v in variables}
         mats = []
         for G in self.matrix_inequalities:
-            M = sp.ImmutableMatrix(G)
+            M = _as_matrix(G, names)
             if M.rows != M.cols:
                 raise ValueError(f"matrix inequality must be square, got shape {M.shape}")
             if not (M - M.T).expand().is_zero_matrix:
@@ -82,27 +89,75 @@ class PolyProblem:
             bounds[v] = (lo_f, hi_f)
         setattr_ = object.__setattr__
         setattr_(self, "variables", variables)
-        setattr_(self, "objective", sp.sympify(self.objective))
-        setattr_(self, "inequalities", tuple(sp.sympify(g) for g in self.inequalities))
-        setattr_(self, "equalities", tuple(sp.sympify(h) for h in self.equalities))
+        setattr_(self, "objective", _as_expr(self.objective, names, "objective"))
+        setattr_(
+            self,
+            "inequalities",
+            tuple(_as_expr(g, names, f"inequality {i}") for i, g in enumerate(self.inequalities)),
+        )
+        setattr_(
+            self,
+            "equalities",
+            tuple(_as_expr(h, names, f"equality {i}") for i, h in enumerate(self.equalities)),
+        )
         setattr_(self, "matrix_inequalities", tuple(mats))
         setattr_(self, "bounds", bounds)
 
-        def poly(expr: object) -> PolyDict:
-            return from_sympy(expr, variables)
+        def conv(expr: object) -> tuple[PolyDict, PolyDict]:
+            return from_sympy_with_error(expr, variables)
 
-        setattr_(
-            self,
-            "_polys",
-            _ExpandedData(
-                objective=poly(self.objective),
-                inequalities=[poly(g) for g in self.inequalities],
-                equalities=[poly(h) for h in self.equalities],
-                matrix_inequalities=[
-                    [[poly(M[a, b]) for b in range(M.cols)] for a in range(M.rows)] for M in mats
-                ],
-            ),
-        )
+        obj = conv(self.objective)
+        ineqs = [conv(g) for g in self.inequalities]
+        eqs = [conv(h) for h in self.equalities]
+        pmis = [[[conv(M[a, b]) for b in range(M.cols)] for a in range(M.rows)] for M in mats]
+
+        def pick(i: int) -> _ExpandedData:
+            return _ExpandedData(
+                objective=obj[i],
+                inequalities=[g[i] for g in ineqs],
+                equalities=[h[i] for h in eqs],
+                matrix_inequalities=[[[e[i] for e in row] for row in G] for G in pmis],
+            )
+
+        setattr_(self, "_polys", pick(0))
+        setattr_(self, "_errors", pick(1))
+
+
+def _as_expr(obj: object, names: Mapping[str, sp.Symbol], what: str = "expression") -> sp.Expr:
+    """A sympy expression from a sympy object, a real number or a string.
+
+    Strings are *parsed* by :func:`sosalgo.expr.parse_expression` over the variables'
+    names (never ``sympify``-ed: that evaluates Python code); anything else must be a
+    sympy object or a number that sympy converts without parsing (``strict=True``).
+    """
+    if isinstance(obj, str):
+        try:
+            return parse_expression(obj, names)
+        except ExprError as exc:
+            raise ValueError(f"{what}: {exc}") from exc
+    if isinstance(obj, sp.Basic):
+        return obj
+    try:
+        return sp.sympify(obj, strict=True)
+    except (sp.SympifyError, TypeError, ValueError) as exc:
+        raise TypeError(
+            f"{what}: expected a sympy expression, a number or a string, "
+            f"got {type(obj).__name__}"
+        ) from exc
+
+
+def _as_matrix(G: object, names: Mapping[str, sp.Symbol]) -> sp.ImmutableMatrix:
+    """A sympy matrix from a sympy matrix or a nested sequence of :func:`_as_expr` entries."""
+    if isinstance(G, sp.MatrixBase):
+        return sp.ImmutableMatrix(G)
+    if isinstance(G, str) or not isinstance(G, Sequence):
+        raise TypeError(f"a matrix inequality must be a sympy Matrix, got {type(G).__name__}")
+    rows = []
+    for row in G:
+        if isinstance(row, str) or not isinstance(row, Sequence):
+            raise TypeError("a matrix inequality given as a list must be a list of rows")
+        rows.append([_as_expr(e, names, "matrix inequality entry") for e in row])
+    return sp.ImmutableMatrix(rows)
 
 
 @dataclass(frozen=True)
@@ -124,6 +179,12 @@ class CompiledProblem:
     (a positive factor, so the feasible set is unchanged); the objective is stored as
     ``objective_constant + objective_scale * objective`` with ``objective`` normalized and
     without constant term.
+
+    The ``*_error`` fields bound, coefficient by coefficient, how far the stored (rounded)
+    polynomials may be from the exact ones (same normalization; the objective's includes
+    the constant term, relative to ``objective_scale``). The certificate
+    (:mod:`sosalgo.polyopt.certificate`) charges them, so a certified bound holds for the
+    problem as stated, not only for its floating-point image.
     """
 
     variables: list[sp.Symbol]
@@ -136,6 +197,11 @@ class CompiledProblem:
     inequalities: list[PolyDict]
     equalities: list[PolyDict]
     matrix_inequalities: list[list[list[PolyDict]]]
+    radius: np.ndarray | None = None
+    objective_error: PolyDict = field(default_factory=dict)
+    inequality_errors: list[PolyDict] = field(default_factory=list)
+    equality_errors: list[PolyDict] = field(default_factory=list)
+    matrix_inequality_errors: list[list[list[PolyDict]]] = field(default_factory=list)
 
     @property
     def n(self) -> int:
@@ -158,6 +224,14 @@ class CompiledProblem:
         """``d_K = max(1, ceil(deg/2))`` over the constraints (Henrion-Lasserre 2005)."""
         return max([1, *(math.ceil(d / 2) for d in self.constraint_degrees())])
 
+    def box_radius(self) -> np.ndarray | None:
+        """``rho`` with ``|z_i| <= rho_i`` on the feasible set, or None if a variable is free.
+
+        Every bounded variable has ``|z| <= 1`` when rescaled, ``|x| <= max(|lo|, |hi|)``
+        otherwise (its box constraint is part of the problem, so this holds on K).
+        """
+        return None if self.radius is None else self.radius.copy()
+
     def to_original(self, z: np.ndarray) -> np.ndarray:
         """Map relaxation coordinates ``z`` back to the problem's ``x``."""
         return self.offset + self.width * np.asarray(z, dtype=float)
@@ -167,12 +241,12 @@ def _matrix_degree(G: list[list[PolyDict]]) -> int:
     return max((degree(e) for row in G for e in row), default=0)
 
 
-def _normalized(p: PolyDict) -> PolyDict:
-    m = max_abs_coefficient(p)
-    return scaled(p, 1.0 / m) if m > 0 else {}
-
-
-def compile_problem(problem: PolyProblem, scale: bool = True) -> CompiledProblem:
+def compile_problem(
+    problem: PolyProblem,
+    scale: bool = True,
+    center: np.ndarray | None = None,
+    var_scale: np.ndarray | None = None,
+) -> CompiledProblem:
     """Convert ``problem`` to dictionary polynomials, rescaling bounded variables if asked.
 
     With ``scale=True`` each variable with bounds ``(lo, hi)`` is replaced by
@@ -186,64 +260,119 @@ def compile_problem(problem: PolyProblem, scale: bool = True) -> CompiledProblem
     quadratic box implies the two linear ones ``1 - z >= 0``, ``1 + z >= 0`` at every order
     (``2(1 - z) = (1 - z)^2 + (1 - z^2)``), so it is at least as tight and needs one
     localizing matrix per variable instead of two.
+
+    ``center`` and ``var_scale`` (arrays over all variables, used only with ``scale=True``
+    and only for variables *without* bounds) substitute ``x = center + var_scale * z``: the
+    same kind of affine change, used to re-solve an inaccurate relaxation around an
+    estimated minimizer with equilibrated coefficients (see :func:`equilibrating_scale`).
     """
     variables = list(problem.variables)
     n = len(variables)
     offset = np.zeros(n)
     width = np.ones(n)
+    if scale and center is not None:
+        offset = np.array(center, dtype=float)
+    if scale and var_scale is not None:
+        width = np.array(var_scale, dtype=float)
     if scale:
         for i, v in enumerate(variables):
             if v in problem.bounds:
                 lo, hi = problem.bounds[v]
-                offset[i], width[i] = 0.5 * (lo + hi), 0.5 * (hi - lo)
+                offset[i] = 0.5 * (lo + hi)
+                # rounded outwards, so that the z-box covers [lo, hi] in exact arithmetic
+                width[i] = 0.5 * (hi - lo) * (1 + 4 * _EPS) + 4 * _EPS * abs(offset[i])
 
-    def convert(p: PolyDict) -> PolyDict:
-        return affine_substitute(p, offset, width) if scale else dict(p)
+    def convert(p: PolyDict, perr: PolyDict) -> tuple[PolyDict, PolyDict]:
+        """The substituted polynomial and a bound on its coefficients' errors.
 
-    data = problem._polys
-    obj = convert(data.objective)
+        Errors: the rounding of the substitution (exact arithmetic, one rounding per
+        coefficient, unless the polynomial is too large) plus the conversion errors
+        ``perr`` of the input coefficients carried through the substitution.
+        """
+        if not scale:
+            return dict(p), dict(perr)
+        if _combos(p) <= _EXACT_LIMIT:
+            q, err = exact_affine_substitute(p, offset, width)
+        else:
+            q, err = affine_substitute(p, offset, width), _substitution_error(p, offset, width)
+        if perr:
+            carried = affine_substitute(perr, np.abs(offset), np.abs(width))
+            slack = 1 + 4 * (degree(perr) + 3) * _EPS
+            for e, u in carried.items():
+                err[e] = err.get(e, 0.0) + u * slack
+        return q, err
+
+    def normalized(p: PolyDict, err: PolyDict, m: float) -> tuple[PolyDict, PolyDict]:
+        out = scaled(p, 1.0 / m)
+        return out, {e: (u / m + _EPS * abs(out.get(e, 0.0))) * (1 + _EPS) for e, u in
+                     {**{e: 0.0 for e in p}, **err}.items()}
+
+    data, data_err = problem._polys, problem._errors
+    obj, obj_err = convert(data.objective, data_err.objective)
     zero = (0,) * n
     obj_const = obj.pop(zero, 0.0)
     obj_scale = max_abs_coefficient(obj)
     obj_deg = degree(obj)
-    obj = scaled(obj, 1.0 / obj_scale) if obj_scale > 0 else {}
     obj_scale = obj_scale if obj_scale > 0 else 1.0
+    obj, obj_err = normalized(obj, obj_err, obj_scale)
 
     # A constant constraint is kept only if it is violated (the solver then reports the
     # relaxation infeasible); satisfied constants carry no information.
     inequalities: list[PolyDict] = []
-    for g in data.inequalities:
-        p = convert(g)
+    ineq_err: list[PolyDict] = []
+    for g, gerr in zip(data.inequalities, data_err.inequalities, strict=True):
+        p, err = convert(g, gerr)
         if p and not (degree(p) == 0 and p[zero] >= 0):
-            inequalities.append(_normalized(p))
+            q, qe = normalized(p, err, max_abs_coefficient(p))
+            inequalities.append(q)
+            ineq_err.append(qe)
     for i, v in enumerate(variables):
         if v not in problem.bounds:
             continue
         e1 = tuple(1 if j == i else 0 for j in range(n))
         e2 = tuple(2 if j == i else 0 for j in range(n))
         if scale:
-            box = {zero: 1.0, e2: -1.0}  # 1 - z^2
+            inequalities.append({zero: 1.0, e2: -1.0})  # 1 - z^2, exact
+            ineq_err.append({})
         else:
             lo, hi = problem.bounds[v]
             box = {e2: -1.0, e1: lo + hi, zero: -lo * hi}  # (x - lo)(hi - x)
             box = {e: c for e, c in box.items() if c != 0.0}
-        inequalities.append(_normalized(box))
+            q, qe = normalized(box, {e: _EPS * abs(c) for e, c in box.items()},
+                               max_abs_coefficient(box))
+            inequalities.append(q)
+            ineq_err.append(qe)
 
     equalities: list[PolyDict] = []
-    for h in data.equalities:
-        p = convert(h)
+    eq_err: list[PolyDict] = []
+    for h, herr in zip(data.equalities, data_err.equalities, strict=True):
+        p, err = convert(h, herr)
         if p:
-            equalities.append(_normalized(p))
+            q, qe = normalized(p, err, max_abs_coefficient(p))
+            equalities.append(q)
+            eq_err.append(qe)
 
     pmis: list[list[list[PolyDict]]] = []
-    for G in data.matrix_inequalities:
-        entries = [[convert(e) for e in row] for row in G]
-        m = max((max_abs_coefficient(e) for row in entries for e in row), default=0.0)
+    pmi_err: list[list[list[PolyDict]]] = []
+    for G, Gerr in zip(data.matrix_inequalities, data_err.matrix_inequalities, strict=True):
+        conv = [
+            [convert(e, u) for e, u in zip(row, urow, strict=True)]
+            for row, urow in zip(G, Gerr, strict=True)
+        ]
+        m = max((max_abs_coefficient(e) for row in conv for e, _ in row), default=0.0)
         if m == 0.0:
             continue
-        pmis.append([[scaled(e, 1.0 / m) for e in row] for row in entries])
+        pairs = [[normalized(e, err, m) for e, err in row] for row in conv]
+        pmis.append([[q for q, _ in row] for row in pairs])
+        pmi_err.append([[qe for _, qe in row] for row in pairs])
 
+    radius: np.ndarray | None = None
+    if all(v in problem.bounds for v in variables):
+        radius = np.ones(n)
+        if not scale:
+            radius = np.array([max(abs(b) for b in problem.bounds[v]) for v in variables])
     return CompiledProblem(
+        radius=radius,
         variables=variables,
         offset=offset,
         width=width,
@@ -254,7 +383,71 @@ def compile_problem(problem: PolyProblem, scale: bool = True) -> CompiledProblem
         inequalities=inequalities,
         equalities=equalities,
         matrix_inequalities=pmis,
+        objective_error=obj_err,
+        inequality_errors=ineq_err,
+        equality_errors=eq_err,
+        matrix_inequality_errors=pmi_err,
     )
+
+
+_EXACT_LIMIT = 200_000  # products in a substitution done in exact rational arithmetic
+
+
+def _combos(p: PolyDict) -> int:
+    """Number of products in ``affine_substitute(p, ...)``."""
+    return sum(math.prod(a + 1 for a in e) for e in p)
+
+
+def _substitution_error(p: PolyDict, offset: np.ndarray, width: np.ndarray) -> PolyDict:
+    """Bound on the rounding error of each coefficient of ``affine_substitute(p, ...)``.
+
+    Each output coefficient is a sum of products ``c C(a, j) o^(a-j) w^j``; the error of
+    such a floating-point sum is at most (number of operations) x eps x the same sum with
+    absolute values, which is ``affine_substitute(|p|, |o|, |w|)``. The input coefficients'
+    own conversion to float (relative eps) is one more operation.
+    """
+    if not p:
+        return {}
+    ops = 4 * (degree(p) + 3) + sum(math.prod(a + 1 for a in e) for e in p)
+    mags = affine_substitute({e: abs(c) for e, c in p.items()}, np.abs(offset), np.abs(width))
+    return {e: 2.0 * ops * _EPS * v for e, v in mags.items()}
+
+
+def equilibrating_scale(problem: PolyProblem, center: np.ndarray) -> np.ndarray:
+    """Powers of two ``s`` for the unbounded variables that equilibrate the coefficients.
+
+    After ``x = center + s z`` a coefficient ``c_alpha`` becomes ``c_alpha s^alpha``. The
+    exponents ``t = log2 s`` minimize ``sum (log2 |c_alpha| + alpha . t - m_p)^2`` over all
+    non-constant terms of the objective and all terms of the constraints, with one free
+    level ``m_p`` per polynomial (least squares, minimum norm; bounded variables keep
+    ``s = 1`` here, they are rescaled by their box). Powers of two keep the substitution
+    exact in floating point.
+    """
+    variables = list(problem.variables)
+    n = len(variables)
+    free = np.array([v not in problem.bounds for v in variables])
+    data = problem._polys
+    polys = [data.objective, *data.inequalities, *data.equalities]
+    polys += [{e: c for row in G for entry in row for e, c in entry.items()}
+              for G in data.matrix_inequalities]
+    rows, rhs = [], []
+    for k, p in enumerate(polys):
+        q = affine_substitute(p, center, np.ones(n))
+        if k == 0:
+            q.pop((0,) * n, None)
+        for e, c in q.items():
+            if c == 0.0:
+                continue
+            row = np.zeros(n + len(polys))
+            row[:n] = np.where(free, e, 0)
+            row[n + k] = -1.0
+            rows.append(row)
+            rhs.append(-math.log2(abs(c)))
+    if not rows:
+        return np.ones(n)
+    t, *_ = np.linalg.lstsq(np.array(rows), np.array(rhs), rcond=None)
+    t = np.clip(np.round(t[:n]), -60, 60)
+    return np.where(free, 2.0**t, 1.0)
 
 
 def constraint_violation(compiled: CompiledProblem, z: np.ndarray) -> float:

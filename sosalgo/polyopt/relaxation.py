@@ -9,8 +9,10 @@ of moments"; Henrion-Lasserre 2006 for matrix inequalities)::
            M_{k - ceil(deg G / 2)}(G y) ⪰ 0               for every G(x) ⪰ 0,
            L_y(h_j x^alpha) = 0, |alpha| <= 2k - deg h_j   for every h_j(x) = 0.
 
-Its value is a lower bound on the POP's minimum; flatness of the optimal moment matrix
-certifies exactness and yields the minimizers (:mod:`sosalgo.polyopt.extraction`).
+Its value is a lower bound on the POP's minimum. The solver's value is not trusted: the
+reported bound is the one its dual *proves* (:mod:`sosalgo.polyopt.certificate`). Flatness
+of the optimal moment matrix certifies exactness and yields the minimizers
+(:mod:`sosalgo.polyopt.extraction`).
 """
 
 from __future__ import annotations
@@ -23,12 +25,20 @@ from typing import Any
 
 import cvxpy as cp
 import numpy as np
+import scipy.sparse as sps
 import sympy as sp
 
-from .extraction import extract_atoms, flat_orders, numerical_rank
+from .certificate import DualData, certified_bound, interior_dual, newton_keep
+from .extraction import RANK_GAP, extract_atoms, flat_orders, numerical_rank, rank_gap
 from .moment import MomentIndex
-from .polynomial import abs_evaluate, evaluate
-from .problem import CompiledProblem, PolyProblem, compile_problem, constraint_violation
+from .polynomial import PolyDict, evaluate
+from .problem import (
+    CompiledProblem,
+    PolyProblem,
+    compile_problem,
+    constraint_violation,
+    equilibrating_scale,
+)
 
 __all__ = ["RelaxationResult", "solve_moment_relaxation", "DEFAULT_SOLVER_OPTIONS"]
 
@@ -38,6 +48,13 @@ DEFAULT_SOLVER_OPTIONS: dict[str, dict[str, Any]] = {
     "CLARABEL": {"static_regularization_constant": 1e-7},
     "SCS": {"eps_abs": 1e-8, "eps_rel": 1e-8, "max_iters": 100_000},
 }
+
+#: Re-solves of an inaccurate relaxation with unbounded variables, each centred at the
+#: previous first moments with equilibrated variable scales.
+_REFINE_PASSES = 2
+
+#: Back-off levels of the interior dual, as fractions of the allowed gap below the value.
+_BACKOFF = (0.05, 0.5)
 
 _STATUS = {
     cp.OPTIMAL: "optimal",
@@ -49,27 +66,34 @@ _STATUS = {
 
 @dataclass
 class RelaxationResult:
-    """Outcome of :func:`solve_moment_relaxation`.
+    """Outcome of :func:`solve_moment_relaxation` (docs/polyopt.md, "Result").
 
     Attributes:
-        bound: lower bound on the POP's minimum, up to the solver's accuracy (``nan``
-            unless status is "optimal" or "inaccurate"; treat "inaccurate" bounds with care).
-        status: "optimal", "inaccurate", "infeasible" (the relaxation, hence the POP, is
-            infeasible) or "failed" (solver error, unbounded relaxation, iteration limit).
+        bound: "optimal": a lower bound on the POP's minimum proven by the dual
+            certificate (:mod:`sosalgo.polyopt.certificate`). "inaccurate": the proven bound
+            if ``certified``, else the solver's unverified value (possibly above the
+            minimum). ``nan`` for "infeasible" and "failed".
+        status: "optimal" (certified, and bound, solver value and primal point agree within
+            ``gap_tol * max(1, |value|)``), "inaccurate" (anything short of that),
+            "infeasible" (the relaxation, hence the POP, is infeasible) or "failed" (solver
+            error, unbounded relaxation, iteration limit).
         order: relaxation order k.
         ranks: numerical ranks of ``M_1(y), ..., M_k(y)``.
-        flat: flat extension detected (``rank M_s == rank M_{s-d}`` for some s, with
-            ``d = max(1, ceil(deg/2))`` over the constraints): the bound is the global
-            minimum (meaningful only when status is "optimal").
-        minimizers: extracted global minimizers (original coordinates) when flat; only
-            points passing the feasibility/objective checks are listed, so it may be
-            empty even when ``flat`` is True (numerical extraction failure).
+        flat: only with status "optimal": flat extension ``rank M_s == rank M_{s-d}``
+            (``d = max(1, ceil(deg/2))`` over the constraints) with both ranks separated by
+            a factor :data:`~sosalgo.polyopt.extraction.RANK_GAP`, and a consistent
+            extraction (exactly ``rank M_s`` feasible points attaining the bound). Then the
+            relaxation is exact: ``bound <= min <= f(minimizer)``.
+        minimizers: the extracted global minimizers (original coordinates); non-empty
+            exactly when ``flat``.
         first_moments: ``y_{e_i}`` in original coordinates (the mean of the optimal
             measure; equals the minimizer when it is unique and the relaxation is exact).
-        seconds: wall time of build, solve and extraction.
+        seconds: wall time of build, solves, certificate and extraction.
         solver: solver name as given to cvxpy.
         solver_status: raw cvxpy status, or the exception text if the solver raised.
         flat_order: the order s at which flatness was detected (None if not flat).
+        certified: ``bound`` is proven by the dual certificate.
+        solver_bound: the solver's own value of the relaxation, in the problem's units.
     """
 
     bound: float
@@ -83,32 +107,117 @@ class RelaxationResult:
     solver: str = ""
     solver_status: str = ""
     flat_order: int | None = None
+    certified: bool = False
+    solver_bound: float = math.nan
 
 
-def _build(compiled: CompiledProblem, order: int) -> tuple[MomentIndex, cp.Problem, cp.Variable]:
+def _build(
+    compiled: CompiledProblem, order: int
+) -> tuple[MomentIndex, cp.Problem, cp.Variable, _Parts]:
     """Assemble the order-``order`` moment relaxation as a cvxpy problem in ``y``."""
     index = MomentIndex(compiled.n, order)
     y = cp.Variable(index.size, name="y")
-    constraints: list[cp.Constraint] = [y[0] == 1]
+    first = y[0] == 1
+    constraints: list[cp.Constraint] = [first]
+    parts = _Parts(c=np.zeros(0), c_error=np.zeros(0), y0=first)
 
-    def psd(S: Any, dim: int) -> None:
+    def psd(S: Any, dim: int, E: Any = None) -> None:
         if dim == 1:
-            constraints.append(S @ y >= 0)
+            con = S @ y >= 0
         else:
-            constraints.append(cp.reshape(S @ y, (dim, dim), order="F") >> 0)
+            con = cp.reshape(S @ y, (dim, dim), order="F") >> 0
+        constraints.append(con)
+        parts.psd.append((S, dim, con, E))
 
     psd(index.moment_map(order), index.basis_size(order))
-    for g in compiled.inequalities:
+    ineq_errs = _errors(compiled.inequality_errors, compiled.inequalities)
+    for g, err in zip(compiled.inequalities, ineq_errs, strict=True):
         t = order - math.ceil(max(sum(e) for e in g) / 2)
-        psd(index.localizing_map(g, t), index.basis_size(t))
-    for G in compiled.matrix_inequalities:
+        E = index.localizing_map(err, t) if err else None
+        psd(index.localizing_map(g, t), index.basis_size(t), E)
+    pmi_errs = _errors(compiled.matrix_inequality_errors, compiled.matrix_inequalities)
+    for G, Gerr in zip(compiled.matrix_inequalities, pmi_errs, strict=True):
         dG = max((sum(e) for row in G for entry in row for e in entry), default=0)
         t = order - math.ceil(dG / 2)
-        psd(index.matrix_localizing_map(G, t), len(G) * index.basis_size(t))
-    for h in compiled.equalities:
-        constraints.append(index.equality_map(h) @ y == 0)
-    objective = cp.Minimize(index.linear_functional(compiled.objective) @ y)
-    return index, cp.Problem(objective, constraints), y
+        E = None
+        if Gerr and any(entry for row in Gerr for entry in row):
+            E = index.matrix_localizing_map(Gerr, t)
+        psd(index.matrix_localizing_map(G, t), len(G) * index.basis_size(t), E)
+    eq_errs = _errors(compiled.equality_errors, compiled.equalities)
+    for h, err in zip(compiled.equalities, eq_errs, strict=True):
+        A = index.equality_map(h)
+        con = A @ y == 0
+        constraints.append(con)
+        E = _equality_error_map(index, h, err) if err else None
+        parts.eq.append((A, con, E))
+    parts.c_error = np.zeros(index.size)
+    for e, u in compiled.objective_error.items():
+        parts.c_error[index.index_of(e)] += u
+    parts.c = index.linear_functional(compiled.objective)
+    objective = cp.Minimize(parts.c @ y)
+    return index, cp.Problem(objective, constraints), y, parts
+
+
+def _errors(errs: list, polys: list) -> list:
+    """Error bounds aligned with ``polys`` (empty ones when the compiled problem has none)."""
+    return errs if len(errs) == len(polys) else [{} for _ in polys]
+
+
+def _equality_error_map(index: MomentIndex, h: PolyDict, err: PolyDict) -> sps.csr_array:
+    """Rows ``L_y(err x^alpha)`` for the same ``alpha`` as ``index.equality_map(h)``."""
+    dh = max(sum(e) for e in h)
+    padded = {**err, **{e: err.get(e, 0.0) for e in h}}
+    padded = {e: u for e, u in padded.items() if sum(e) <= dh}
+    if not padded:
+        return sps.csr_array((index.basis_size(2 * index.order - dh), index.size))
+    top = next(e for e in h if sum(e) == dh)
+    padded.setdefault(top, 0.0)
+    return index.equality_map(padded)
+
+
+@dataclass
+class _Parts:
+    """The relaxation's constraints with their linear maps, to read the dual back.
+
+    ``E`` maps (or None) are the maps of the coefficient error bounds of the same
+    constraint (see :class:`~sosalgo.polyopt.problem.CompiledProblem`).
+    """
+
+    c: np.ndarray
+    c_error: np.ndarray
+    y0: cp.Constraint
+    psd: list[tuple[Any, int, cp.Constraint, Any]] = field(default_factory=list)
+    eq: list[tuple[Any, cp.Constraint, Any]] = field(default_factory=list)
+
+    def dual(self) -> DualData | None:
+        """The solver's dual as :class:`DualData`, or None if some dual is missing."""
+        if self.y0.dual_value is None:
+            return None
+        duals = []
+        for _, dim, con, _ in self.psd:
+            if con.dual_value is None:
+                return None
+            duals.append(np.reshape(np.asarray(con.dual_value, dtype=float), (dim, dim)))
+        eq_map = eq_dual = eq_err = None
+        if self.eq:
+            if any(con.dual_value is None for _, con, _ in self.eq):
+                return None
+            eq_map = sps.vstack([A for A, _, _ in self.eq]).tocsr()
+            eq_dual = np.concatenate([np.ravel(con.dual_value) for _, con, _ in self.eq])
+            eq_err = sps.vstack(
+                [E if E is not None else sps.csr_array(A.shape) for A, _, E in self.eq]
+            ).tocsr()
+        return DualData(
+            c=self.c,
+            psd_maps=[sps.csr_array(S) for S, _, _, _ in self.psd],
+            psd_duals=duals,
+            eq_map=eq_map,
+            eq_dual=eq_dual,
+            y0_dual=float(np.ravel(self.y0.dual_value)[0]),
+            c_error=self.c_error,
+            psd_error_maps=[None if E is None else sps.csr_array(E) for _, _, _, E in self.psd],
+            eq_error_map=eq_err,
+        )
 
 
 def solve_moment_relaxation(
@@ -120,6 +229,7 @@ def solve_moment_relaxation(
     scale: bool = True,
     feas_tol: float = 1e-4,
     seed: int = 0,
+    gap_tol: float = 1e-5,
 ) -> RelaxationResult:
     """Solve the order-``order`` Lasserre moment relaxation of ``problem``.
 
@@ -135,11 +245,17 @@ def solve_moment_relaxation(
         rank_tol: an eigenvalue of ``M_s(y)`` counts towards the rank when it exceeds
             ``rank_tol`` times the largest eigenvalue.
         scale: substitute ``x = (lo + hi)/2 + (hi - lo)/2 * z``, ``z in [-1, 1]``, for
-            every bounded variable (results are mapped back to ``x``).
+            every bounded variable (results are mapped back to ``x``); when a result is
+            "inaccurate" and some variable is unbounded, also re-solve (at most
+            :data:`_REFINE_PASSES` times) centred at the first moments with equilibrated
+            scales (:func:`~sosalgo.polyopt.problem.equilibrating_scale`).
         feas_tol: an extracted point is kept only if its relative constraint violation
             (in the scaled coordinates) is at most ``feas_tol`` and its objective value is
-            within ``10 * feas_tol`` (relative) of the relaxation's value.
+            within ``10 * feas_tol * max(1, |bound|)`` of the bound (problem units).
         seed: seed of the random combination of multiplication matrices.
+        gap_tol: status "optimal" needs the certified bound, the solver's value of the
+            relaxation and the primal point's infeasibility cost to agree within
+            ``gap_tol * max(1, |value|)`` (problem units).
 
     Never raises on solver failure: the status is "failed" and the bound ``nan``.
     """
@@ -157,7 +273,65 @@ def solve_moment_relaxation(
     opts = dict(DEFAULT_SOLVER_OPTIONS.get(name, {}))
     opts.update(solver_options or {})
 
-    index, prob, y = _build(compiled, order)
+    result = _solve_once(compiled, order, (name, opts), rank_tol, feas_tol, seed, gap_tol)
+    if scale and result.status == "inaccurate" and len(problem.bounds) < compiled.n:
+        for _ in range(_REFINE_PASSES):
+            center = np.array([result.first_moments.get(v, math.nan) for v in compiled.variables])
+            if not np.all(np.isfinite(center)):
+                break
+            var_scale = equilibrating_scale(problem, center)
+            again = compile_problem(problem, True, center, var_scale)
+            retry = _solve_once(again, order, (name, opts), rank_tol, feas_tol, seed, gap_tol)
+            if _rank(retry) > _rank(result):
+                result = retry
+            if result.status == "optimal" or not retry.first_moments:
+                break
+    result.seconds = time.perf_counter() - t0
+    return result
+
+
+def _infeasibility_cost(parts: _Parts, yv: np.ndarray) -> float:
+    """Estimated effect of the primal point's infeasibility on its objective value.
+
+    ``sum_i max(0, -lambda_min(M_i(y))) tr(Z_i) + |A y| . |nu|`` (normalized units): how
+    much ``L_y(f)`` could move when ``y`` is repaired to feasibility, so that the gap
+    between the certified bound and ``L_y(f)`` is only trusted when this is small too.
+    """
+    cost = 0.0
+    for S, dim, con, _ in parts.psd:
+        Z = con.dual_value
+        if Z is None:
+            return math.inf
+        M = np.reshape(S @ yv, (dim, dim), order="F")
+        lam = float(np.linalg.eigvalsh(0.5 * (M + M.T))[0])
+        if lam < 0.0:
+            Zm = np.reshape(np.asarray(Z, dtype=float), (dim, dim))
+            cost += -lam * max(float(np.trace(Zm)), 0.0)
+    for A, con, _ in parts.eq:
+        if con.dual_value is None:
+            return math.inf
+        cost += float(np.abs(A @ yv) @ np.abs(np.ravel(con.dual_value)))
+    cost += abs(yv[0] - 1.0) * abs(float(np.ravel(parts.y0.dual_value)[0]))
+    return cost
+
+
+def _rank(res: RelaxationResult) -> tuple[bool, bool, float]:
+    """Order of preference between two solves of the same relaxation."""
+    return (res.status == "optimal", res.certified, res.bound if res.certified else -math.inf)
+
+
+def _solve_once(
+    compiled: CompiledProblem,
+    order: int,
+    solver: tuple[str, dict[str, Any]],
+    rank_tol: float,
+    feas_tol: float,
+    seed: int,
+    gap_tol: float,
+) -> RelaxationResult:
+    """Build, solve, certify and (when optimal) extract, in ``compiled``'s coordinates."""
+    name, opts = solver
+    index, prob, y, parts = _build(compiled, order)
     result = RelaxationResult(bound=math.nan, status="failed", order=order, solver=name)
     try:
         with warnings.catch_warnings():
@@ -167,7 +341,6 @@ def solve_moment_relaxation(
         result.solver_status = str(prob.status)
     except Exception as exc:  # noqa: BLE001 - solver failures must not raise
         result.solver_status = f"{type(exc).__name__}: {exc}"
-        result.seconds = time.perf_counter() - t0
         return result
     status = _STATUS.get(prob.status, "failed")
     yv = None if y.value is None else np.asarray(y.value, dtype=float)
@@ -175,47 +348,126 @@ def solve_moment_relaxation(
         status = "failed"
     result.status = status
     if status not in ("optimal", "inaccurate"):
-        result.seconds = time.perf_counter() - t0
         return result
 
     value = float(prob.value)
-    result.bound = compiled.objective_constant + compiled.objective_scale * value
+    to_orig = compiled.objective_constant, compiled.objective_scale
+    result.solver_bound = to_orig[0] + to_orig[1] * value
     first = compiled.to_original(yv[1 : compiled.n + 1])
     result.first_moments = dict(zip(compiled.variables, map(float, first), strict=True))
-
-    ranks = [1] + [
+    result.ranks = [
         numerical_rank(index.moment_matrix(yv, s), rank_tol) for s in range(1, order + 1)
     ]
-    result.ranks = ranks[1:]
-    shift = compiled.flatness_shift()
-    flats = flat_orders(ranks, shift)
-    if flats:
-        result.flat = True
-        result.flat_order = flats[-1]
-        rng = np.random.default_rng(seed)
-        best: list[np.ndarray] = []
-        for s in reversed(flats):  # keep the order whose extraction passes most checks
-            atoms = extract_atoms(index, yv, s, shift, ranks[s], rng)
-            if atoms is None:
-                continue
-            good = [z for z in atoms if _acceptable(compiled, z, value, feas_tol)]
-            if len(good) > len(best):
-                best, result.flat_order = good, s
-        result.minimizers = [
-            dict(zip(compiled.variables, map(float, compiled.to_original(z)), strict=True))
-            for z in best
-        ]
-    result.seconds = time.perf_counter() - t0
+
+    allowed = gap_tol * max(1.0, abs(result.solver_bound))
+    target = value - allowed / compiled.objective_scale
+    # the interior dual (extra SDP solves) only when "optimal" is still within reach
+    cert = _certify(index, parts, compiled, value, target, solver, status == "optimal")
+    result.certified = math.isfinite(cert)
+    result.bound = cert if result.certified else result.solver_bound
+    slack = compiled.objective_scale * _infeasibility_cost(parts, yv)
+    accurate = result.certified and abs(result.solver_bound - cert) + slack <= allowed
+    result.status = "optimal" if status == "optimal" and accurate else "inaccurate"
+    if result.status == "optimal":
+        _flat_and_minimizers(result, compiled, index, yv, rank_tol, feas_tol, seed)
     return result
 
 
-def _acceptable(compiled: CompiledProblem, z: np.ndarray, value: float, tol: float) -> bool:
-    """Is ``z`` feasible (relative ``tol``) and is its objective within ``10 tol`` of ``value``?
+def _certify(
+    index: MomentIndex,
+    parts: _Parts,
+    compiled: CompiledProblem,
+    value: float,
+    target: float,
+    solver: tuple[str, dict[str, Any]],
+    interior: bool = True,
+) -> float:
+    """Rigorous lower bound (original units) from the solver's dual; -inf if none.
 
-    A global minimizer attains the relaxation's value exactly when the relaxation is exact,
-    so a point far from it (above *or below*) reveals a wrong rank or an inaccurate solve.
+    See :mod:`sosalgo.polyopt.certificate`. ``value`` is the solver's value and ``target``
+    the level the bound must reach for status "optimal" (both in the relaxation's
+    normalized units). When some variable is unbounded and the solver's own dual falls
+    short (and ``interior`` is set), a second, interior dual is computed a little below
+    ``value`` (fractions :data:`_BACKOFF` of the allowed gap, closest first). The map back
+    ``constant + scale * b`` is rounded down by a few ulps.
+    """
+    data = parts.dual()
+    if data is None:
+        return -math.inf
+    unconstrained = not (
+        compiled.inequalities or compiled.equalities or compiled.matrix_inequalities
+    )
+    support = list(compiled.objective) if unconstrained else None
+    radius = compiled.box_radius()
+    try:
+        # search on for a tighter bound until 1 % of the allowed gap (cheap: no solves)
+        b, _ = certified_bound(index, data, radius, value - 0.01 * (value - target), support)
+        if interior and b < target and radius is None and math.isfinite(target):
+            keep = newton_keep(index, support) if support is not None else None
+            keeps = [keep] if keep is not None else None
+            for frac in _BACKOFF:
+                level = value - frac * (value - target)
+                with warnings.catch_warnings():
+                    warnings.filterwarnings("ignore", message="Solution may be inaccurate")
+                    interior = interior_dual(index, data, level, keep, solver[0], solver[1])
+                if interior is not None:
+                    b = max(b, certified_bound(index, interior, None, target, None, keeps)[0])
+                if b >= target:
+                    break
+    except (np.linalg.LinAlgError, ValueError):
+        return -math.inf
+    if not math.isfinite(b):
+        return -math.inf
+    const, scale = compiled.objective_constant, compiled.objective_scale
+    out = const + scale * b
+    return out - 4.0 * np.finfo(float).eps * (abs(const) + abs(scale * b))
+
+
+def _flat_and_minimizers(
+    result: RelaxationResult,
+    compiled: CompiledProblem,
+    index: MomentIndex,
+    yv: np.ndarray,
+    rank_tol: float,
+    feas_tol: float,
+    seed: int,
+) -> None:
+    """Set ``flat``, ``flat_order`` and ``minimizers`` (only called when status is optimal).
+
+    ``flat`` needs (i) ``rank M_s == rank M_{s-d}`` with both ranks separated from the
+    discarded eigenvalues by a factor :data:`RANK_GAP`, and (ii) a consistent extraction:
+    exactly ``rank M_s`` atoms, each feasible and attaining the bound (``_acceptable``).
+    """
+    ranks = [1] + list(result.ranks)
+    robust = [True] + [
+        rank_gap(index.moment_matrix(yv, s), ranks[s]) >= RANK_GAP
+        for s in range(1, result.order + 1)
+    ]
+    shift = compiled.flatness_shift()
+    flats = [s for s in flat_orders(ranks, shift) if robust[s] and robust[s - shift]]
+    rng = np.random.default_rng(seed)
+    for s in reversed(flats):
+        atoms = extract_atoms(index, yv, s, shift, ranks[s], rng)
+        if atoms is None or len(atoms) != ranks[s]:
+            continue
+        if not all(_acceptable(compiled, z, result.bound, feas_tol) for z in atoms):
+            continue
+        result.flat, result.flat_order = True, s
+        result.minimizers = [
+            dict(zip(compiled.variables, map(float, compiled.to_original(z)), strict=True))
+            for z in atoms
+        ]
+        return
+
+
+def _acceptable(compiled: CompiledProblem, z: np.ndarray, bound: float, tol: float) -> bool:
+    """Is ``z`` feasible (relative ``tol``) and is ``f(z)`` within ``10 tol`` of ``bound``?
+
+    Measured in the problem's own units, relative to ``max(1, |bound|)``: a global
+    minimizer attains the bound when the relaxation is exact, so a point far from it (above
+    *or below*) reveals a wrong rank or an inaccurate solve.
     """
     if constraint_violation(compiled, z) > tol:
         return False
-    gap = abs(evaluate(compiled.objective, z) - value)
-    return gap <= 10.0 * tol * max(1.0, abs(value), abs_evaluate(compiled.objective, z))
+    fz = compiled.objective_constant + compiled.objective_scale * evaluate(compiled.objective, z)
+    return abs(fz - bound) <= 10.0 * tol * max(1.0, abs(bound))
