@@ -17,6 +17,8 @@ import time
 from collections.abc import Callable, Iterator, Sequence
 from typing import TYPE_CHECKING, Any
 
+from sosalgo.errors import InputError
+
 if TYPE_CHECKING:  # pragma: no cover - imported where a pool is started
     from concurrent.futures import Future, ProcessPoolExecutor
 
@@ -29,7 +31,7 @@ CONNECT_TIMEOUT = float(os.environ.get("SOSALGO_CONNECT_TIMEOUT", "20"))  # seco
 NO_WORKER_TIMEOUT = float(os.environ.get("SOSALGO_NO_WORKER_TIMEOUT", "120"))
 
 
-class BatchError(RuntimeError):
+class BatchError(InputError):
     """The execution environment cannot run the batch (Dask missing, scheduler unreachable,
     no workers left): one line, exit code 2."""
 

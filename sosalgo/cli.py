@@ -18,14 +18,10 @@ from typing import Any
 import click
 
 from sosalgo import __version__
-from sosalgo.batch import BatchError
-from sosalgo.rows import OutputError, kappa_label, output_lock
+from sosalgo.errors import InputError
+from sosalgo.rows import kappa_label, output_lock
 
 __all__ = ["main", "cli"]
-
-
-class InputError(Exception):
-    """Bad input discovered by a command (exit code 2)."""
 
 
 def _fail(msg: str, code: int) -> None:
@@ -40,8 +36,10 @@ def handle_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
             return fn(*args, **kwargs)
-        except (InputError, OutputError, BatchError) as exc:
-            _fail(_one_line(str(exc)), 2)
+        except InputError as exc:  # spec, model, options, files, cluster: exit 2
+            src = kwargs.get("spec_path", "")
+            names_file = getattr(exc, "names_file", True)
+            _fail(_one_line(str(exc) if names_file or not src else f"{src}: {exc}"), 2)
         except KeyboardInterrupt:
             click.echo("interrupted: finished rows are saved; rerun to resume", err=True)
             sys.exit(130)
@@ -51,22 +49,11 @@ def handle_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
         except click.exceptions.Exit:
             raise
         except Exception as exc:  # noqa: BLE001 - last line of defence
-            _fail_input(exc, kwargs.get("spec_path", ""))
             if os.environ.get("SOSALGO_DEBUG"):
                 raise
             _fail(_one_line(f"internal error: {type(exc).__name__}: {exc}"), 1)
 
     return wrapper
-
-
-def _fail_input(exc: Exception, src: str) -> None:
-    """Exit 2 for a spec or model error (their modules are imported lazily, so they are
-    looked up only once loaded: an error of theirs implies they are)."""
-    spec_mod, model_mod = sys.modules.get("sosalgo.spec"), sys.modules.get("sosalgo.model")
-    if spec_mod is not None and isinstance(exc, spec_mod.SpecError):
-        _fail(_one_line(str(exc)), 2)
-    if model_mod is not None and isinstance(exc, model_mod.ModelError):
-        _fail(_one_line(f"{src}: {exc}" if src else str(exc)), 2)
 
 
 class Terminated(BaseException):

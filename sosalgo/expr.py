@@ -17,6 +17,8 @@ from collections.abc import Mapping
 
 import sympy as sp
 
+from sosalgo.errors import InputError
+
 __all__ = ["ExprError", "parse_expression", "FUNCTIONS", "MAX_LENGTH"]
 
 MAX_LENGTH = 2000  # characters; longer strings are refused before parsing
@@ -37,7 +39,7 @@ FUNCTIONS: dict[str, object] = {
 CONSTANTS: dict[str, sp.Expr] = {"pi": sp.pi}
 
 
-class ExprError(ValueError):
+class ExprError(InputError):
     """An expression string that is not a valid, safe arithmetic expression."""
 
 

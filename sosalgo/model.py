@@ -13,16 +13,19 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from sosalgo.errors import InputError
 from sosalgo.numeric import NumericError, compile_expression, compile_matrix
-from sosalgo.spec import BASE_SYMBOLS, MATRIX_NAMES, Spec, _value_order
+from sosalgo.spec.types import BASE_SYMBOLS, MATRIX_NAMES, Spec, value_order
 
 __all__ = ["Algorithm", "ModelError", "bind", "evaluate_algorithm", "fixed_point"]
 
 FIXED_POINT_TOL = 1e-8
 
 
-class ModelError(ValueError):
+class ModelError(InputError):
     """The spec cannot be evaluated at this point (domain error, no fixed point, ...)."""
+
+    names_file = False
 
     def __init__(self, field_: str, message: str):
         self.field = field_
@@ -91,7 +94,7 @@ class _Compiled:
     def __init__(self, spec: Spec):
         self.names = list(spec.parameters)
         syms = list(BASE_SYMBOLS.values()) + [spec.symbols[p] for p in self.names]
-        self.order = _value_order(spec.parameters, spec.source)
+        self.order = value_order(spec.parameters, spec.source)
         self.param_fns = {}
         for p, par in spec.parameters.items():
             field_ = f"parameters.{p}" + ("" if par.is_tied else ".value")

@@ -12,12 +12,14 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import sympy as sp
 
+from sosalgo.errors import InputError
+
 __all__ = ["NumericError", "compile_expression", "compile_matrix"]
 
 Fn = Callable[[Sequence[float]], float]
 
 
-class NumericError(ValueError):
+class NumericError(InputError):
     """An expression cannot be evaluated to a finite real number at the given point."""
 
 

@@ -28,7 +28,7 @@ __all__ = ["format_table", "grid_figure", "plot_grid", "plot_rates", "rate_figur
            "save_figure"]
 
 
-def _fmt(v: Any, digits: int = 7) -> str:
+def fmt(v: Any, digits: int = 7) -> str:
     if v is None or v == "":
         return "-"
     if isinstance(v, bool):
@@ -46,7 +46,7 @@ def format_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[str],
                  headers: Sequence[str] | None = None) -> str:
     """A plain aligned text table."""
     headers = list(headers or columns)
-    cells = [[_fmt(r.get(c)) for c in columns] for r in rows]
+    cells = [[fmt(r.get(c)) for c in columns] for r in rows]
     widths = [max([len(h)] + [len(row[i]) for row in cells]) for i, h in enumerate(headers)]
     line = "  ".join(h.rjust(w) for h, w in zip(headers, widths, strict=True))
     out = [line, "  ".join("-" * w for w in widths)]

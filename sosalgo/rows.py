@@ -42,6 +42,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+from sosalgo.errors import InputError
+
 __all__ = [
     "OutputError",
     "ResumableCSV",
@@ -57,7 +59,7 @@ MAX_SETTINGS_BYTES = 4_000_000
 FSYNC_SECONDS = 1.0  # a per-row fsync costs milliseconds on a busy disk: as much as a rate
 
 
-class OutputError(RuntimeError):
+class OutputError(InputError):
     """An output path cannot be used (not a regular file, not writable, ...): exit code 2."""
 
 

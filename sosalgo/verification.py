@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from sosalgo.errors import InputError
 from sosalgo.model import bind
 from sosalgo.rows import kappa_label
 from sosalgo.spec import Spec
@@ -29,7 +30,7 @@ __all__ = [
 ]
 
 
-class ResultError(ValueError):
+class ResultError(InputError):
     """A result document is malformed (names the row and field): exit code 2."""
 
 

@@ -158,7 +158,7 @@ def test_one_kappa_analyze_imports_no_plotting_cvxpy_or_dask(tmp_path):
 
 
 def test_kappa_numbers_are_parsed_as_numbers(monkeypatch):
-    import sosalgo.spec as spec_mod
+    import sosalgo.spec.loading as spec_mod
 
     def boom(*a, **k):
         raise AssertionError("symbolic parsing of a plain number")

@@ -4,12 +4,14 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 import sympy as sp
 
-from sosalgo.model import Algorithm
+if TYPE_CHECKING:  # only for annotations: families do not depend on the model at run time
+    from sosalgo.model import Algorithm
+
 
 __all__ = ["AffineBlock", "LMIProblem", "CertificateFamily"]
 

@@ -31,13 +31,15 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from fractions import Fraction
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import sympy as sp
 
 from sosalgo.certificates.base import AffineBlock, LMIProblem
-from sosalgo.model import Algorithm
+
+if TYPE_CHECKING:  # only for annotations: families do not depend on the model at run time
+    from sosalgo.model import Algorithm
 
 __all__ = ["INTERPOLATION", "Interpolation", "Structure", "structure", "evaluate"]
 

@@ -13,13 +13,15 @@ what ``sosalgo lmi`` prints is what the solver sees.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import sympy as sp
 
 from sosalgo.certificates.base import AffineBlock, LMIProblem
-from sosalgo.model import Algorithm
+
+if TYPE_CHECKING:  # only for annotations: families do not depend on the model at run time
+    from sosalgo.model import Algorithm
 
 __all__ = ["THEOREM1", "Theorem1", "theorem1_terms"]
 

@@ -46,7 +46,7 @@ import sympy as sp
 from mpmath import libmp
 
 from sosalgo.model import bind, fixed_point
-from sosalgo.spec import BASE_SYMBOLS, MATRIX_NAMES, Spec, _value_order
+from sosalgo.spec.types import BASE_SYMBOLS, MATRIX_NAMES, Spec, value_order
 
 __all__ = [
     "Ball",
@@ -70,7 +70,7 @@ MINORS_MAX_N = 8  # principal-minor fallback up to this size, pivoted LDL^T beyo
 Matrix = list[list[Fraction]]
 
 
-def _fmt(x: Fraction) -> str:
+def fraction_str(x: Fraction) -> str:
     return f"{x.numerator}/{x.denominator}" if x.denominator != 1 else str(x.numerator)
 
 
@@ -440,12 +440,12 @@ class ExactAlgorithm:
     def enclosures(self) -> dict[str, list[list[list[str]]]]:
         """[lo, hi] of every entry as exact decimal/rational strings (lo == hi if exact)."""
         return {
-            k: [[[_fmt(b.lo), _fmt(b.hi)] for b in row] for row in mat]
+            k: [[[fraction_str(b.lo), fraction_str(b.hi)] for b in row] for row in mat]
             for k, mat in self.balls.items()
         }
 
 
-def _rational(x: Any) -> Fraction:
+def rational(x: Any) -> Fraction:
     """Exact rational value of a float (its binary value) / int / Fraction / "p/q" string."""
     if _is_exact(x):
         return Fraction(x if not isinstance(x, numbers.Integral) else int(x))
@@ -465,10 +465,10 @@ def exact_algorithm(
     digits: int = DEFAULT_DIGITS,
 ) -> ExactAlgorithm:
     """Exact templates A, B, C, E (eq. 10) at rational kappa, m = spec.m, L = kappa m."""
-    kq = _rational(kappa)
+    kq = rational(kappa)
     if not kq > 1:
         raise ValueError(f"condition number must be > 1, got {kappa}")
-    mq = _rational(spec.m)
+    mq = rational(spec.m)
     Lq = kq * mq
     base = {
         BASE_SYMBOLS["m"]: sp.Rational(mq.numerator, mq.denominator),
@@ -481,10 +481,10 @@ def exact_algorithm(
             raise ValueError(f"unknown parameter {p!r}")
         if spec.parameters[p].is_tied:
             raise ValueError(f"parameter {p!r} is tied to other parameters; it cannot be set")
-        theta_q[p] = _rational(v)
+        theta_q[p] = rational(v)
     values: dict[sp.Symbol, sp.Expr] = dict(base)
     params: dict[str, sp.Expr] = {}
-    for p in _value_order(spec.parameters, spec.source):
+    for p in value_order(spec.parameters, spec.source):
         par = spec.parameters[p]
         if p in theta_q:
             val: sp.Expr = sp.Rational(theta_q[p].numerator, theta_q[p].denominator)
@@ -506,7 +506,7 @@ def exact_algorithm(
     return ExactAlgorithm(spec.name, kq, mq, Lq, params, mats, balls, theta_q)
 
 
-def _is_zero(expr: sp.Expr) -> bool:
+def is_zero(expr: sp.Expr) -> bool:
     """True only when ``expr == 0`` is proven (automatic or exact algebraic simplification)."""
     expr = sp.sympify(expr)
     if expr == 0 or expr.is_zero is True:
@@ -520,7 +520,7 @@ def _is_zero(expr: sp.Expr) -> bool:
         return False
 
 
-def _exact_fixed_point(ex: ExactAlgorithm, u_float: np.ndarray | None) -> list[sp.Expr] | None:
+def exact_fixed_point(ex: ExactAlgorithm, u_float: np.ndarray | None) -> list[sp.Expr] | None:
     """u of eq. (11) with (I - A)u = 0, C u = 1, E u = 1 proven exactly, or None."""
     if u_float is None:
         return None
@@ -528,7 +528,7 @@ def _exact_fixed_point(ex: ExactAlgorithm, u_float: np.ndarray | None) -> list[s
     uv = sp.Matrix(u)
     A, C, E = ex.matrices["A"], ex.matrices["C"], ex.matrices["E"]
     res = list((sp.eye(A.shape[0]) - A) * uv) + [(C * uv)[0] - 1, (E * uv)[0] - 1]
-    return u if all(_is_zero(r) for r in res) else None
+    return u if all(is_zero(r) for r in res) else None
 
 
 # --------------------------------------------------------------------------- rationals
@@ -546,11 +546,11 @@ def rational_at_least(x: float | Fraction, max_den: int = DEFAULT_MAX_DEN) -> Fr
     return g if g >= f else Fraction(math.ceil(f * max_den), max_den)
 
 
-def _rho_candidates(rho: Fraction, steps: Sequence[float], max_den: int) -> list[Fraction]:
+def rho_candidates(rho: Fraction, steps: Sequence[float], max_den: int) -> list[Fraction]:
     r = rho
     out: list[Fraction] = []
     for s in steps:
-        c = rational_at_least(r * (1 + _rational(s)), max_den)
+        c = rational_at_least(r * (1 + rational(s)), max_den)
         if c > 1 >= r:
             c = Fraction(1)
         if c not in out:
@@ -570,7 +570,7 @@ def _p_candidates(P: np.ndarray, max_den: int) -> list[tuple[str, Matrix]]:
     out = [(f"limit_denominator({max_den})", lim)]
     if exact != lim:
         out.append(("exact binary value", exact))
-    out.append((f"limit_denominator({max_den}) + {_fmt(eps)} I", shifted))
+    out.append((f"limit_denominator({max_den}) + {fraction_str(eps)} I", shifted))
     return out
 
 
@@ -585,7 +585,7 @@ def _upper_sqrt(s: Fraction, sig: int = 8) -> Fraction:
     return Fraction(math.ceil(t * scale)) / scale
 
 
-def _round_down(x: Fraction, sig: int = 8) -> Fraction:
+def round_down(x: Fraction, sig: int = 8) -> Fraction:
     """A rational <= x with about ``sig`` significant digits (x itself if x <= 0)."""
     if x <= 0:
         return x
@@ -594,7 +594,7 @@ def _round_down(x: Fraction, sig: int = 8) -> Fraction:
     return Fraction(math.floor(x * scale)) / scale
 
 
-def _frobenius_bound(M: BallMatrix) -> Fraction:
+def frobenius_bound(M: BallMatrix) -> Fraction:
     return _upper_sqrt(sum((b.r * b.r for row in M for b in row), Fraction(0)))
 
 
@@ -687,7 +687,7 @@ def _prove_M(
         ex.balls["A"], ex.balls["B"], ex.balls["C"], ex.balls["E"], ex.m, ex.L, P,
         rho * rho, lam,
     )
-    eta = _frobenius_bound(M)
+    eta = frobenius_bound(M)
     Mc = [[b.c for b in row] for row in M]
     s = len(Mc)
     # a margin to aim for (heuristic only: the proof below is exact)
@@ -746,9 +746,10 @@ def verify_exact(
                            reason=f"the exact method cannot be built: {exc}",
                            seconds=time.perf_counter() - start)
     result = ExactResult(
-        spec=spec.name, verified="failed", rho_requested=float(rho), kappa=_fmt(ex.kappa),
-        m=_fmt(ex.m), L=_fmt(ex.L), params={k: str(v) for k, v in ex.params.items()},
-        theta={k: _fmt(v) for k, v in ex.theta.items()},
+        spec=spec.name, verified="failed", rho_requested=float(rho),
+        kappa=fraction_str(ex.kappa), m=fraction_str(ex.m), L=fraction_str(ex.L),
+        params={k: str(v) for k, v in ex.params.items()},
+        theta={k: fraction_str(v) for k, v in ex.theta.items()},
         matrices={k: [[str(v) for v in mat.row(i)] for i in range(mat.shape[0])]
                   for k, mat in ex.matrices.items()},
         enclosures=ex.enclosures(),
@@ -771,7 +772,7 @@ def verify_exact(
     result.model_max_abs_diff = diff
     if not diff <= 1e-9 * (1 + max(float(np.max(np.abs(getattr(alg, k)))) for k in MATRIX_NAMES)):
         return done(f"exact matrices differ from sosalgo.model.bind by {diff:.3g}")
-    u = _exact_fixed_point(ex, fixed_point(alg))
+    u = exact_fixed_point(ex, fixed_point(alg))
     if u is None:
         return done("fixed point of eq. (11) (u with (I - A)u = 0, Cu = 1, Eu = 1) not proven")
     result.fixed_point = [str(v) for v in u]
@@ -781,15 +782,15 @@ def verify_exact(
     if P_raw.shape != (n, n):
         return done(f"P has shape {P_raw.shape}, expected {(n, n)}")
     try:
-        rho_q = _rational(rho)
+        rho_q = rational(rho)
         if _is_exact(lam):
-            lam_opts = [_rational(lam)]
+            lam_opts = [rational(lam)]
         else:
-            lam_exact = _rational(float(lam))
+            lam_exact = rational(float(lam))
             lam_q = lam_exact.limit_denominator(max_den)
             lam_opts = [lam_q] + ([lam_exact] if lam_exact != lam_q else [])
         if all(_is_exact(v) for v in P_raw.flat):
-            Pq = [[_rational(P_raw[i, j]) for j in range(n)] for i in range(n)]
+            Pq = [[rational(P_raw[i, j]) for j in range(n)] for i in range(n)]
             if any(Pq[i][j] != Pq[j][i] for i in range(n) for j in range(i)):
                 return done("P is not symmetric")
             p_cands = [("as given (exact)", Pq)]
@@ -819,7 +820,7 @@ def verify_exact(
         return done(first_p_reason)
 
     first_fail: str | None = None
-    cands = _rho_candidates(rho_q, list(rho_steps), max_den)
+    cands = rho_candidates(rho_q, list(rho_steps), max_den)
     for rq in cands:
         for label, Pq, pp in P_opts:
             for lq in lam_opts:
@@ -828,16 +829,16 @@ def verify_exact(
                 if ok:
                     t, eta, proof = info["t"], info["eta"], info["proof"]
                     result.verified = "exact"
-                    result.rho_proven = _fmt(rq)
+                    result.rho_proven = fraction_str(rq)
                     result.rho_proven_float = float(rq)
                     result.rho_step = float(rq / rho_q - 1)
-                    result.P_rational = [[_fmt(v) for v in row] for row in Pq]
+                    result.P_rational = [[fraction_str(v) for v in row] for row in Pq]
                     result.P_rounding = label
-                    result.lambda_rational = _fmt(lq)
-                    margin = _round_down(t - eta)
-                    result.delta = _fmt(margin)
+                    result.lambda_rational = fraction_str(lq)
+                    margin = round_down(t - eta)
+                    result.delta = fraction_str(margin)
                     result.delta_float = float(margin)
-                    result.perturbation = _fmt(eta)
+                    result.perturbation = fraction_str(eta)
                     result.M_proof = (f"-M(centre) - {_float_str(t)} I ⪰ 0: {proof.kind} "
                                       f"({proof.method})")
                     result.P_proof = f"{pp.kind} ({pp.method})"
@@ -848,7 +849,7 @@ def verify_exact(
                         if info["disproved"] else "M ⪯ 0 not proven"
                     )
                     first_fail = (
-                        f"{verdict} at rho = {_fmt(rq)} with P rounded by {label}; "
+                        f"{verdict} at rho = {fraction_str(rq)} with P rounded by {label}; "
                         f"estimated max eig of M = {info['est']:.3g}; {info['detail']}"
                     )
                 if info["disproved"] and info["est"] > 1e-6 * info["scale"]:

@@ -39,15 +39,15 @@ from sosalgo.verify.exact import (
     DEFAULT_MAX_DEN,
     DEFAULT_RHO_STEPS,
     Ball,
-    _exact_fixed_point,
-    _fmt,
-    _frobenius_bound,
-    _is_zero,
-    _rational,
-    _rho_candidates,
-    _round_down,
     exact_algorithm,
+    exact_fixed_point,
+    fraction_str,
+    frobenius_bound,
+    is_zero,
     prove_psd,
+    rational,
+    rho_candidates,
+    round_down,
 )
 
 __all__ = ["InterpolationExactResult", "verify_exact_interpolation"]
@@ -92,7 +92,7 @@ class InterpolationExactResult:
 
 
 def _q(x: Any, max_den: int) -> Fraction:
-    f = _rational(x)
+    f = rational(x)
     return f.limit_denominator(max_den) if not isinstance(x, Fraction | str) else f
 
 
@@ -118,7 +118,7 @@ def _symmetrize(M: np.ndarray) -> list[list[Ball]]:
 
 def _definite(M: list[list[Ball]], sign: int) -> tuple[bool, Fraction, str]:
     """Prove sign * M ⪰ delta I for every matrix in the ball matrix M; (ok, delta, detail)."""
-    eta = _frobenius_bound(M)
+    eta = frobenius_bound(M)
     S = [[sign * b.c for b in row] for row in M]
     s = len(S)
     try:
@@ -133,7 +133,7 @@ def _definite(M: list[list[Ball]], sign: int) -> tuple[bool, Fraction, str]:
     for t in targets:
         proof = prove_psd([[S[i][j] - (t if i == j else 0) for j in range(s)] for i in range(s)])
         if proof.psd:
-            return True, _round_down(t - eta), f"{proof.kind} ({proof.method})"
+            return True, round_down(t - eta), f"{proof.kind} ({proof.method})"
         detail = proof.detail
     return False, Fraction(0), f"not proven (min eig estimate {est:.3g}): {detail}"
 
@@ -157,7 +157,7 @@ def verify_exact_interpolation(
         ex = exact_algorithm(spec, kappa, theta, digits)
     except ValueError as exc:
         return done(f"the exact method cannot be built: {exc}")
-    res.kappa, res.m, res.L = _fmt(ex.kappa), _fmt(ex.m), _fmt(ex.L)
+    res.kappa, res.m, res.L = fraction_str(ex.kappa), fraction_str(ex.m), fraction_str(ex.L)
     res.params = {k: str(v) for k, v in ex.params.items()}
     res.enclosures = ex.enclosures()
     try:
@@ -168,13 +168,13 @@ def verify_exact_interpolation(
         cen = np.array([[float(b.c) for b in row] for row in ex.balls[k]])
         if not np.allclose(cen, getattr(alg, k), rtol=1e-9, atol=1e-9):
             return done(f"exact matrix {k} differs from sosalgo.model.bind")
-    if _exact_fixed_point(ex, fixed_point(alg)) is None:
+    if exact_fixed_point(ex, fixed_point(alg)) is None:
         return done("fixed point (u with (I - A)u = 0, Cu = 1, Eu = 1) not proven")
     try:
         lag = int(cert["lag"])
         n = alg.n
         has_x = cert.get("c") is not None
-        if not has_x and not all(_is_zero(v) for v in (ex.matrices["E"] - ex.matrices["C"])):
+        if not has_x and not all(is_zero(v) for v in (ex.matrices["E"] - ex.matrices["C"])):
             return done("certificate has no c term but x_k != y_k (E != C)")
         nz = n + lag + 1
         P_raw = np.asarray(cert["P"], dtype=object)
@@ -199,7 +199,7 @@ def verify_exact_interpolation(
         lam = [max(Fraction(0), _q(m_pos[k], max_den)) for k in st.pos.labels]
     except KeyError as exc:
         return done(f"multiplier of pair {exc} missing")
-    if not np.isfinite(float(rho)) or not 0 < _rational(rho) <= 1:
+    if not np.isfinite(float(rho)) or not 0 < rational(rho) <= 1:
         return done(f"rho = {rho!r} is not in (0, 1]")
     # raise p_j / c so that the positivity function-value rows hold exactly
     Fp = st.pos.F[lag]
@@ -209,13 +209,15 @@ def verify_exact_interpolation(
             (lv * Fraction(mv[q]) for lv, mv in zip(lam, st.pos.mq, strict=True)), Fraction(0))
         pi[j] = max(pi[j], need)
     res.certificate = {
-        "lag": lag, "P": [[_fmt(P[i, j]) for j in range(nz)] for i in range(nz)],
-        "p": [_fmt(v) for v in pi[: lag + 1]], "c": _fmt(pi[-1]) if has_x else None,
-        "multipliers": {"decrease": dict(zip(st.dec.labels, map(_fmt, eta), strict=True)),
-                        "positivity": dict(zip(st.pos.labels, map(_fmt, lam), strict=True))},
+        "lag": lag, "P": [[fraction_str(P[i, j]) for j in range(nz)] for i in range(nz)],
+        "p": [fraction_str(v) for v in pi[: lag + 1]],
+        "c": fraction_str(pi[-1]) if has_x else None,
+        "multipliers": {
+            "decrease": dict(zip(st.dec.labels, map(fraction_str, eta), strict=True)),
+            "positivity": dict(zip(st.pos.labels, map(fraction_str, lam), strict=True))},
     }
     first_fail = None
-    for rq in _rho_candidates(_rational(rho), list(rho_steps), max_den):
+    for rq in rho_candidates(rational(rho), list(rho_steps), max_den):
         res.attempts += 1
         parts = evaluate(st, rq * rq, P, np.array(pi, dtype=object), eta, lam)
         df = [Ball.of(v) for v in parts["Df"]]
@@ -226,10 +228,10 @@ def verify_exact_interpolation(
         ok_p, delta_p, det_p = _definite(_symmetrize(parts["Pq"]), +1)
         if not bad_df and not bad_pf and ok_d and ok_p:
             res.verified = "exact"
-            res.rho_proven, res.rho_proven_float = _fmt(rq), float(rq)
-            res.delta = _fmt(min(delta_d, delta_p))
-            res.proofs = {"decrease": f"-D ⪰ {_fmt(delta_d)} I: {det_d}",
-                          "positivity": f"Pq ⪰ {_fmt(delta_p)} I: {det_p}",
+            res.rho_proven, res.rho_proven_float = fraction_str(rq), float(rq)
+            res.delta = fraction_str(min(delta_d, delta_p))
+            res.proofs = {"decrease": f"-D ⪰ {fraction_str(delta_d)} I: {det_d}",
+                          "positivity": f"Pq ⪰ {fraction_str(delta_p)} I: {det_p}",
                           "function values": "all rows exact (<= 0 / >= 0)"}
             return done(None)
         if first_fail is None:
@@ -238,5 +240,5 @@ def verify_exact_interpolation(
                 + ([f"positivity function-value rows {bad_pf} < 0"] if bad_pf else [])
                 + ([f"decrease matrix: {det_d}"] if not ok_d else [])
                 + ([f"positivity matrix: {det_p}"] if not ok_p else [])
-            ) + f" at rho = {_fmt(rq)}"
+            ) + f" at rho = {fraction_str(rq)}"
     return done(first_fail)

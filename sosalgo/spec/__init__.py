@@ -1,0 +1,24 @@
+"""Algorithm specs: YAML in, validated symbolic templates out.
+
+A spec describes a first-order method in the state-space form of eq. (10) of the paper,
+
+    xi_{k+1} = A xi_k + B grad f(y_k),   y_k = C xi_k,   x_k = E xi_k,
+
+through the reduced templates A (n x n), B (n x 1), C and E (1 x n) of Remark 1. Modules:
+:mod:`~sosalgo.spec.types` (Spec, Parameter, SpecError, parameter dependency graph) and
+:mod:`~sosalgo.spec.loading` (strict YAML, validation, kappa parsing).
+"""
+
+from sosalgo.spec.loading import (
+    load_spec,
+    parse_kappa,
+    read_spec_text,
+    spec_from_dict,
+    spec_from_text,
+)
+from sosalgo.spec.types import BASE_SYMBOLS, MATRIX_NAMES, Parameter, Spec, SpecError
+
+__all__ = [
+    "SpecError", "Parameter", "Spec", "load_spec", "read_spec_text", "spec_from_dict",
+    "spec_from_text", "parse_kappa", "BASE_SYMBOLS", "MATRIX_NAMES",
+]

@@ -1,0 +1,132 @@
+"""The package's import structure: no cycles between sosalgo's modules (deferred imports
+inside functions included; imports only for type annotations excluded), no private names
+imported across modules, and one error base for everything raised on purpose."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+PKG = Path(__file__).resolve().parents[1] / "sosalgo"
+
+
+def _modules() -> dict[str, Path]:
+    out = {}
+    for f in PKG.rglob("*.py"):
+        parts = f.relative_to(PKG.parent).with_suffix("").parts
+        name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+        out[name] = f
+    return out
+
+
+def _type_checking_nodes(tree: ast.AST) -> set[int]:
+    """ids of import nodes under ``if TYPE_CHECKING:`` (annotation-only dependencies)."""
+    skip: set[int] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+            for sub in node.body:
+                for inner in ast.walk(sub):
+                    skip.add(id(inner))
+    return skip
+
+
+def _imports(mods: dict[str, Path]) -> tuple[dict[str, set[str]], list[tuple[str, str, str]]]:
+    edges: dict[str, set[str]] = {m: set() for m in mods}
+    private = []
+    for mod, path in mods.items():
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        skip = _type_checking_nodes(tree)
+        is_pkg = path.name == "__init__.py"
+        for node in ast.walk(tree):
+            if id(node) in skip or not isinstance(node, ast.Import | ast.ImportFrom):
+                continue
+            targets = []
+            if isinstance(node, ast.Import):
+                targets = [a.name for a in node.names]
+            else:
+                if node.level:
+                    base = mod.split(".") if is_pkg else mod.split(".")[:-1]
+                    base = base[: len(base) - node.level + 1]
+                    target = ".".join(base + ([node.module] if node.module else []))
+                else:
+                    target = node.module or ""
+                targets = [target] + [f"{target}.{a.name}" for a in node.names]
+                if target.startswith("sosalgo"):
+                    private += [(mod, target, a.name) for a in node.names
+                                if a.name.startswith("_") and not a.name.startswith("__")]
+            for t in targets:
+                while t not in mods and "." in t:
+                    t = t.rsplit(".", 1)[0]
+                if t in mods and t != mod and t.startswith("sosalgo"):
+                    edges[mod].add(t)
+    return edges, private
+
+
+def _cycles(edges: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components with more than one module (Tarjan)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on: set[str] = set()
+    out: list[list[str]] = []
+    counter = [0]
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on.add(v)
+        for w in sorted(edges[v]):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(edges):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def test_no_import_cycles():
+    edges, _ = _imports(_modules())
+    assert _cycles(edges) == []
+
+
+def test_the_check_finds_a_cycle():
+    """The checker itself: a two-module cycle is reported."""
+    assert _cycles({"a": {"b"}, "b": {"a"}, "c": set()}) == [["a", "b"]]
+
+
+def test_no_private_names_across_modules():
+    _, private = _imports(_modules())
+    assert private == []
+
+
+@pytest.mark.parametrize("name", [
+    "sosalgo.spec.SpecError", "sosalgo.model.ModelError", "sosalgo.expr.ExprError",
+    "sosalgo.numeric.NumericError", "sosalgo.rows.OutputError", "sosalgo.rows.SettingsMismatch",
+    "sosalgo.batch.BatchError", "sosalgo.verification.ResultError",
+])
+def test_input_errors_share_one_base(name):
+    import importlib
+
+    from sosalgo.errors import InputError, SosalgoError
+
+    mod, cls = name.rsplit(".", 1)
+    err = getattr(importlib.import_module(mod), cls)
+    assert issubclass(err, InputError) and issubclass(err, SosalgoError)
+    assert issubclass(err, ValueError)  # callers that caught ValueError still do
