@@ -1,0 +1,54 @@
+"""The numeric model: binding kappa and parameters, the fixed point of eq. (11)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sosalgo.model import Algorithm, ModelError, bind, evaluate_algorithm, fixed_point
+from sosalgo.spec import load_spec, spec_from_text
+
+from .conftest import SPECS
+
+
+def test_nesterov_templates_at_10_match_the_formulas():
+    alg = bind(load_spec(SPECS / "nesterov.yaml"), 10.0)
+    beta = (np.sqrt(10) - 1) / (np.sqrt(10) + 1)
+    assert alg.m == pytest.approx(1.0) and alg.L == pytest.approx(10.0)
+    np.testing.assert_allclose(alg.A, [[0, 1], [-beta, 1 + beta]], rtol=1e-14)
+    np.testing.assert_allclose(alg.B, [[0], [-0.1]], rtol=1e-14)
+    np.testing.assert_allclose(alg.C, [[-beta, 1 + beta]], rtol=1e-14)
+    np.testing.assert_allclose(fixed_point(alg), [1.0, 1.0], atol=1e-12)
+
+
+def test_theta_overrides_and_tied_parameters_follow():
+    spec = load_spec(SPECS / "nesterov.yaml")
+    alg = bind(spec, 10.0, {"beta": 0.25})
+    assert alg.params["beta"] == pytest.approx(0.25) and alg.params["gamma"] == pytest.approx(
+        0.25)
+    with pytest.raises(ModelError, match="tied"):
+        bind(spec, 10.0, {"gamma": 0.1})
+
+
+def test_no_fixed_point_is_refused_by_bind_not_by_evaluation():
+    text = ("name: drift\nparameters:\n  h: {value: 1/L, range: [0, 2/L]}\nmatrices:\n"
+            "  A: [[1, 1], [0, 1]]\n  B: [[0], [-h]]\n  C: [[0, 1]]\n  E: [[0, 1]]\n"
+            "kappa: 10\n")
+    with pytest.raises(Exception, match="fixed point"):
+        spec_from_text(text)  # the loader refuses it at every kappa of the spec
+
+
+def test_algorithm_accepts_lists_and_refuses_no_fixed_point():
+    alg = Algorithm([[1.0]], [[-0.1]], [[1.0]], [[1.0]], 1.0, 10.0)
+    assert alg.n == 1 and alg.kappa == pytest.approx(10.0)
+    with pytest.raises(ValueError):
+        Algorithm([[0.5]], [[-0.1]], [[1.0]], [[1.0]], 1.0, 10.0)  # (1 - A) u = 0 forces u = 0
+
+
+def test_evaluate_algorithm_skips_only_the_fixed_point_check():
+    spec = load_spec(SPECS / "gradient.yaml")
+    a, b = bind(spec, 7.0, {"h": 0.1}), evaluate_algorithm(spec, 7.0, {"h": 0.1})
+    for x, y in ((a.A, b.A), (a.B, b.B), (a.C, b.C), (a.E, b.E)):
+        np.testing.assert_allclose(x, y, rtol=0, atol=0)
+    with pytest.raises(ModelError):
+        bind(spec, 1.0)  # kappa must be > 1
