@@ -17,6 +17,13 @@ FAMILIES: dict[str, CertificateFamily] = {
 FAMILY_OPTIONS: dict[str, tuple[str, ...]] = {THEOREM1.name: (), INTERPOLATION.name: ("lag",)}
 
 
+def register_family(family: CertificateFamily, options: tuple[str, ...] = ()) -> None:
+    """Make ``family`` available under ``family.name`` (specs' ``certificate:`` field,
+    ``--certificate``); ``options`` are the keyword options its ``with_options`` takes."""
+    FAMILIES[family.name] = family
+    FAMILY_OPTIONS[family.name] = tuple(options)
+
+
 def get_family(name: str, options: dict | None = None) -> CertificateFamily:
     """The certificate family registered under ``name``, with its options (e.g. lag)."""
     try:
@@ -32,4 +39,5 @@ def get_family(name: str, options: dict | None = None) -> CertificateFamily:
 
 __all__ = [
     "AffineBlock", "CertificateFamily", "LMIProblem", "FAMILIES", "FAMILY_OPTIONS", "get_family",
+    "register_family",
 ]

@@ -1,0 +1,60 @@
+"""A test certificate family: Theorem 1 with a diagonal P (a strict subset of Theorem 1).
+
+It exists to show that a family plugs in through one module and one registry line
+(``register_family(DIAGONAL)``) and then runs through analyze, design, verify and the
+CSV/JSON writers. P ⪰ 0 is stated as n scalar cones p_i >= 0.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from sosalgo.certificates.base import AffineBlock, LMIProblem
+from sosalgo.certificates.theorem1 import THEOREM1, theorem1_terms
+
+
+class DiagonalTheorem1:
+    name = "theorem1-diagonal"
+    description = "Theorem 1 with a diagonal P (test family)"
+
+    def problem(self, alg) -> LMIProblem:
+        n, s_ = alg.n, alg.L
+        A, B, C, E, m, L = alg.A, alg.B * s_, alg.C, alg.E, alg.m / s_, 1.0
+        base = theorem1_terms(A, B, C, E, m, L, np.zeros((n, n)))
+        nvar, s = n + 1, n + 1
+        l0, l1 = np.zeros((nvar, s, s)), np.zeros((nvar, s, s))
+        cones = []
+        for i in range(n):
+            Ei = np.zeros((n, n))
+            Ei[i, i] = 1.0
+            t = theorem1_terms(A, B, C, E, m, L, Ei)
+            l0[i], l1[i] = t["M0P"], -t["PP"]
+            sel = np.zeros((nvar, 1, 1))
+            sel[i, 0, 0] = -1.0
+            cones.append(AffineBlock(f"p{i + 1}", np.zeros((1, 1)), np.zeros((1, 1)), sel,
+                                     np.zeros_like(sel), False))
+        l0[-1] = base["N4"]
+        lam = np.zeros((nvar, 1, 1))
+        lam[-1, 0, 0] = -1.0
+        blocks = (AffineBlock("M", base["N1"] + base["N3"], base["N2"] - base["N3"], l0, l1),
+                  *cones, AffineBlock("lambda", np.zeros((1, 1)), np.zeros((1, 1)), lam,
+                                      np.zeros_like(lam), False))
+
+        def project(x: np.ndarray) -> np.ndarray:
+            return np.maximum(x, 0.0)
+
+        def unpack(x: np.ndarray) -> dict[str, Any]:
+            return {"P": np.diag(x[:n] * s_), "lambda": float(x[-1])}
+
+        return LMIProblem(nvar, blocks, unpack, project)
+
+    def matrix(self, alg, rho: float, cert: dict[str, Any]) -> np.ndarray:
+        return THEOREM1.matrix(alg, rho, cert)
+
+    def symbolic(self, A, B, C, E, m, L):
+        return THEOREM1.symbolic(A, B, C, E, m, L)
+
+
+DIAGONAL = DiagonalTheorem1()

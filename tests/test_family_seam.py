@@ -1,0 +1,68 @@
+"""A certificate family plugs in by one module and one registry line (the seam of
+``sosalgo.certificates``): the diagonal-P test family runs through analyze, design,
+verify and the CSV/JSON writers, and its rates are never below Theorem 1's."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import pytest
+from click.testing import CliRunner
+
+from sosalgo.certificates import FAMILIES, register_family
+from sosalgo.cli import cli
+
+from .conftest import SPECS
+from .diagonal_family import DIAGONAL
+
+
+@pytest.fixture(autouse=True)
+def registered():
+    register_family(DIAGONAL)  # the one registry line
+    yield
+    FAMILIES.pop(DIAGONAL.name, None)
+
+
+def _spec(tmp_path, name="gradient-optimal"):
+    text = (SPECS / f"{name}.yaml").read_text() + "\ncertificate: theorem1-diagonal\n"
+    path = tmp_path / f"{name}-diag.yaml"
+    path.write_text(text.replace(f"name: {name}", f"name: {name}-diag"))
+    return path
+
+
+def test_analyze_json_csv_and_verify(tmp_path):
+    spec = _spec(tmp_path)
+    out = tmp_path / "o"
+    res = CliRunner().invoke(cli, ["analyze", str(spec), "--kappa", "2", "--kappa", "10",
+                                   "--json", "--quiet", "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    rows = doc["rows"]
+    for r in rows:  # gradient, h = 2/(m+L): (kappa-1)/(kappa+1), also with a diagonal P
+        assert r["rho"] == pytest.approx((r["kappa"] - 1) / (r["kappa"] + 1), abs=1e-5)
+        assert r["family"] == "theorem1-diagonal"
+    table = list(csv.DictReader(open(doc["csv"], encoding="utf-8")))
+    assert doc["csv"].endswith("gradient-optimal-diag-analysis-theorem1-diagonal.csv")
+    assert len(table) == 2 and all(t["certified"] == "true" for t in table)
+    result = tmp_path / "result.json"
+    result.write_text(res.stdout)
+    ver = CliRunner().invoke(cli, ["verify", str(result), "--no-simulate", "--json",
+                                   "--out", str(tmp_path / "v")])
+    assert ver.exit_code == 0, ver.output
+
+
+def test_never_below_theorem1_and_design_bound(tmp_path):
+    from sosalgo.analysis import analyze_spec
+    from sosalgo.design import design
+    from sosalgo.spec import load_spec
+
+    spec = load_spec(_spec(tmp_path, "nesterov"))
+    full = analyze_spec(spec, 10.0, family="theorem1")
+    diag = analyze_spec(spec, 10.0)
+    assert diag.family == "theorem1-diagonal"
+    assert diag.rho is None or diag.rho >= full.rho - 1e-7  # a subset of Theorem 1
+    res = design(load_spec(_spec(tmp_path, "gradient")), 10.0, free=["h"])
+    assert res.family == "theorem1-diagonal"
+    assert res.lower_bound is not None and res.lower_bound <= res.rho_certified
+    assert res.rho_certified == pytest.approx(9 / 11, abs=1e-5)
