@@ -7,7 +7,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from sosalgo.jobs import run_grid
+from sosalgo.batch.sweeps import run_grid
 from sosalgo.model import parameter_box
 from sosalgo.spec import load_spec
 

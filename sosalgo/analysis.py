@@ -18,7 +18,14 @@ import numpy as np
 from sosalgo.certificates import get_family
 from sosalgo.certificates.base import CertificateFamily, LMIProblem
 from sosalgo.model import Algorithm, bind
-from sosalgo.solvers import DEFAULT_SOLVERS, Outcome, check_point, solve_lmi, solve_margin
+from sosalgo.solvers import (
+    DEFAULT_SOLVERS,
+    Feasibility,
+    Outcome,
+    check_point,
+    solve_lmi,
+    solve_margin,
+)
 from sosalgo.spec import Spec
 
 __all__ = [
@@ -104,7 +111,7 @@ class _Search:
             if out.feasible:
                 return out, mg.t
             return self.plain(rho), mg.t  # a rescaled point too close to call: ask plainly
-        return Outcome("infeasible", None, "clarabel-margin", f"margin {mg.t:.3g}"), mg.t
+        return Outcome(Feasibility.INFEASIBLE, None, "clarabel-margin", f"margin {mg.t:.3g}"), mg.t
 
 
 def _bisect(search: _Search, lo: float, hi: float, best: Outcome, tol: float):

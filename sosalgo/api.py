@@ -82,7 +82,7 @@ def verify(spec: Spec | str | Path, result: Any, simulate: bool = True,
     """Exact proof (and simulation) of the certificate in ``result``: an AnalysisResult,
     a DesignResult or a row/document dict of ``--json`` output. None when the result
     claims no certificate; ``verified == "exact"`` when proven."""
-    from sosalgo.verification import verify_document_rows
+    from sosalgo.verify.results import verify_document_rows
 
     s = as_spec(spec)
     row = result.to_dict() if hasattr(result, "to_dict") else dict(result)

@@ -18,8 +18,8 @@ from typing import Any
 import click
 
 from sosalgo import __version__
+from sosalgo.batch.store import kappa_label, output_lock
 from sosalgo.errors import InputError
-from sosalgo.rows import kappa_label, output_lock
 
 __all__ = ["main", "cli"]
 
@@ -119,7 +119,7 @@ def _load(spec_path: str):
 def _check_scheduler(scheduler: str | None) -> None:
     """Fail early (exit 2, nothing written) on a missing Dask or an unusable scheduler."""
     if scheduler:
-        from sosalgo.batch import check_scheduler
+        from sosalgo.batch.executor import check_scheduler
 
         check_scheduler(scheduler)
 
@@ -260,7 +260,7 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
             workers: int | None, scheduler: str | None, restart: bool, quiet: bool,
             no_plot: bool, verify_: bool, certificate: str | None, lag: int | None) -> None:
     """Best rate certified at each kappa, with its certificate (Theorem 1: P, lambda)."""
-    from sosalgo.jobs import csv_row_to_json, run_analysis_sweep
+    from sosalgo.batch.sweeps import csv_row_to_json, run_analysis_sweep
     from sosalgo.report import format_table
 
     spec, spec_text = _load(spec_path)
@@ -293,7 +293,7 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
     cols = ["kappa", "rho", "certified", "lambda", "max_eig_M", "min_eig_P", "solves",
             "seconds"]
     if verify_:
-        from sosalgo.verification import verify_document_rows
+        from sosalgo.verify.results import verify_document_rows
 
         checks = verify_document_rows(spec, jrows, out_dir / "certificates")
         for r, v in zip(jrows, checks, strict=True):
@@ -316,7 +316,7 @@ def _exit_if_unverified(checks: list[Any]) -> None:
     """Exit code 3 when some certificate failed its check (as ``sosalgo verify`` does)."""
     if all(c is None for c in checks):
         return  # nothing was verified (no --verify): nothing to import or report
-    from sosalgo.verification import check_failed
+    from sosalgo.verify.results import check_failed
 
     if any(check_failed(c) for c in checks):
         click.echo("error: some certificate failed verification (exit code 3)", err=True)
@@ -330,7 +330,7 @@ def _figures(stem: Path) -> list[Path]:
 
 def _plot_analysis(spec, jrows: list[dict[str, Any]], stem: Path) -> list[Path]:
     """Certified rate vs kappa with the spec's references (figure of ``analyze``)."""
-    from sosalgo.jobs import reference_curves
+    from sosalgo.batch.sweeps import reference_curves
     from sosalgo.report import plot_rates
 
     return plot_rates(
@@ -377,7 +377,7 @@ def _analyze_families(spec, runs: list, out_dir: Path, tol: float, as_json: bool
         for r in rows:
             r["family"] = fam.name
         if verify_:
-            from sosalgo.verification import verify_document_rows
+            from sosalgo.verify.results import verify_document_rows
 
             checks = verify_document_rows(spec, rows, out_dir / "certificates", family=fam)
             for r, v in zip(rows, checks, strict=True):
@@ -431,7 +431,7 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
            as_json: bool, workers: int | None, scheduler: str | None, restart: bool,
            quiet: bool, verify_: bool, certificate: str | None, lag: int | None) -> None:
     """Design parameters: certified design, proven lower bound, gap between them."""
-    from sosalgo.jobs import design_csv_to_json, run_design_sweep
+    from sosalgo.batch.sweeps import design_csv_to_json, run_design_sweep
     from sosalgo.report import format_table
 
     spec, spec_text = _load(spec_path)
@@ -449,12 +449,12 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
         raise InputError(f"--time-limit {time_limit}: must be finite")
     _check_points(spec, kappas)
     _boxes(spec, kappas, names)
-    from sosalgo.polymodel import check_polynomial
+    from sosalgo.design.polymodel import check_polynomial
 
     check_polynomial(spec, names)  # before anything is written
     out_dir = _out_dir(out)
     _check_scheduler(scheduler)
-    from sosalgo.jobs import family_options
+    from sosalgo.batch.sweeps import family_options
 
     options = {"free": names, "scalarize": scalarize, "order": order, "gap": gap,
                "time_limit": time_limit, "method": method,
@@ -480,7 +480,7 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
                                 "dual certificates" if method == "dual"
                                 else f"moment relaxation, {scalarize}")
     if verify_:
-        from sosalgo.verification import verify_document_rows
+        from sosalgo.verify.results import verify_document_rows
 
         checks = verify_document_rows(spec, docs, out_dir / "certificates")
         for d, v in zip(docs, checks, strict=True):
@@ -552,7 +552,7 @@ def _verdict(doc: dict, gap: float) -> str:
 def fig4(kappa: tuple[str, ...], time_limit: float, out: str, as_json: bool,
          workers: int | None, scheduler: str | None, restart: bool, quiet: bool) -> None:
     """Figure 4: the three-parameter family designed with tight certificates vs kappa."""
-    from sosalgo.figures import fig4 as run_fig4
+    from sosalgo.report.fig4 import fig4 as run_fig4
 
     values = kappa or ("{from: 1.5, to: 1000, points: 20, scale: log}",)
     kappas = sorted({k for v in values for k in _kappa_option(v)})
@@ -578,7 +578,7 @@ def fig4(kappa: tuple[str, ...], time_limit: float, out: str, as_json: bool,
 
 def _plot_design(spec, names, rows, docs, stem: Path, fam, how: str) -> list[Path]:
     """Designed rate, lower bound and spec-value rate vs kappa (figure of ``design``)."""
-    from sosalgo.jobs import design_csv_to_json, reference_curves
+    from sosalgo.batch.sweeps import design_csv_to_json, reference_curves
     from sosalgo.report import plot_rates
 
     refs = {name: [r.get("references", {}).get(name) for r in
@@ -620,7 +620,7 @@ def grid(spec_path: str, kappa: tuple[str, ...], points: int, free: str | None, 
     """Exhaustive search: certified rate on a grid over the free parameters (Figure 3)."""
     import numpy as np
 
-    from sosalgo.jobs import run_grid
+    from sosalgo.batch.sweeps import run_grid
     from sosalgo.model import parameter_values
     from sosalgo.report import plot_grid
 
@@ -690,7 +690,7 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
     Exit code 3 when some certificate fails to verify.
     """
     from sosalgo.spec import load_spec, spec_from_text
-    from sosalgo.verification import ResultError, check_failed, verify_document_rows
+    from sosalgo.verify.results import ResultError, check_failed, verify_document_rows
 
     doc = _read_result(result_path)
     rows = doc.get("rows", [doc] if "rho_certified" in doc else None)
@@ -799,9 +799,9 @@ def table1(spec_paths: tuple[str, ...], kappa: tuple[str, ...], tol: float, out:
     further family adds rho_<family>, certified_<family> and difference_<family>.
     """
     from sosalgo.analysis import analyze_spec
-    from sosalgo.jobs import reference_values
+    from sosalgo.batch.store import format_value
+    from sosalgo.batch.sweeps import reference_values
     from sosalgo.report import format_table
-    from sosalgo.rows import format_value
     from sosalgo.spec import load_spec, spec_from_text
 
     _check_tol(tol)

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sosalgo.errors import InputError
-from sosalgo.numeric import NumericError, compile_expression, compile_matrix
+from sosalgo.expr.compile import NumericError, compile_expression, compile_matrix
 from sosalgo.spec.types import BASE_SYMBOLS, MATRIX_NAMES, Spec, value_order
 
 __all__ = ["Algorithm", "ModelError", "bind", "evaluate_algorithm", "fixed_point"]

@@ -21,6 +21,7 @@ import sys
 import weakref
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from enum import StrEnum
 from typing import Any
 
 import numpy as np
@@ -29,7 +30,7 @@ import scipy.sparse as sps
 from sosalgo.certificates.base import LMIProblem
 
 __all__ = [
-    "Outcome", "solve_lmi", "solve_margin", "check_point", "Margin", "SOLVERS",
+    "Feasibility", "Outcome", "solve_lmi", "solve_margin", "check_point", "Margin", "SOLVERS",
     "DEFAULT_SOLVERS", "margin_for",
 ]
 
@@ -37,11 +38,19 @@ SQRT2 = math.sqrt(2.0)
 RELATIVE_MARGIN = 1e-9
 
 
+class Feasibility(StrEnum):
+    """Trusted verdict of one feasibility test (a str: compares and serializes as one)."""
+
+    FEASIBLE = "feasible"  # solver said solved AND the point passed the float check
+    INFEASIBLE = "infeasible"  # the solver proved infeasibility
+    FAILED = "failed"  # anything else: inaccurate, iteration limit, crash, failed check
+
+
 @dataclass(frozen=True)
 class Outcome:
     """Trusted answer of one feasibility test."""
 
-    status: str  # "feasible" | "infeasible" | "failed"
+    status: Feasibility
     x: np.ndarray | None
     solver: str
     detail: str = ""
@@ -49,7 +58,7 @@ class Outcome:
 
     @property
     def feasible(self) -> bool:
-        return self.status == "feasible"
+        return self.status == Feasibility.FEASIBLE
 
 
 @functools.cache
@@ -351,17 +360,17 @@ def solve_margin(problem: LMIProblem, rho: float) -> Margin:
 def check_point(problem: LMIProblem, rho: float, x: np.ndarray, solver: str) -> Outcome:
     """Trusted verdict on a candidate x: feasible only if every block passes in floats."""
     if x.shape != (problem.nvar,) or not np.all(np.isfinite(x)):
-        return Outcome("failed", None, solver, "malformed point")
+        return Outcome(Feasibility.FAILED, None, solver, "malformed point")
     x = problem.project(x)
     try:
         with np.errstate(all="ignore"):
             worst = max(problem.max_eigs(x, rho).values())
     except (np.linalg.LinAlgError, ValueError, OverflowError) as exc:
-        return Outcome("failed", None, solver, f"certificate check failed ({exc})"[:200])
+        return Outcome(Feasibility.FAILED, None, solver, f"certificate check failed ({exc})"[:200])
     if not worst <= 0.0:  # NaN fails: a check that cannot be evaluated never passes
         msg = f"certificate check failed (max eig {worst:.3g})"
-        return Outcome("failed", None, solver, msg, near_boundary=True)
-    return Outcome("feasible", x, solver, "checked")
+        return Outcome(Feasibility.FAILED, None, solver, msg, near_boundary=True)
+    return Outcome(Feasibility.FEASIBLE, x, solver, "checked")
 
 
 RawSolver = Callable[[LMIProblem, float, float], tuple[str, "np.ndarray | None", str]]
@@ -378,13 +387,14 @@ def _checked(problem: LMIProblem, rho: float, name: str) -> Outcome:
     try:
         status, x, detail = SOLVERS[name](problem, rho, margin)
     except Exception as exc:  # noqa: BLE001 - any solver crash is a failed step
-        return Outcome("failed", None, name, f"exception: {type(exc).__name__}: {exc}"[:200])
+        msg = f"exception: {type(exc).__name__}: {exc}"[:200]
+        return Outcome(Feasibility.FAILED, None, name, msg)
     if status == "infeasible":
-        return Outcome("infeasible", None, name, detail)
+        return Outcome(Feasibility.INFEASIBLE, None, name, detail)
     if status != "solved" or x is None:
-        return Outcome("failed", None, name, detail, near_boundary=status == "near")
+        return Outcome(Feasibility.FAILED, None, name, detail, near_boundary=status == "near")
     out = check_point(problem, rho, x, name)
-    return out if not out.feasible else Outcome("feasible", out.x, name, detail)
+    return out if not out.feasible else Outcome(Feasibility.FEASIBLE, out.x, name, detail)
 
 
 def solve_lmi(
@@ -397,9 +407,9 @@ def solve_lmi(
     eigenvalue check) ends the chain as ``failed``: the LMI is then feasible at best by
     a hair and a slower solver does not change that; hard errors go on to the next.
     """
-    out = Outcome("failed", None, "", "no solver")
+    out = Outcome(Feasibility.FAILED, None, "", "no solver")
     for i, name in enumerate(solvers):
         out = _checked(problem, rho, name)
-        if out.status != "failed" or (out.near_boundary and i >= 1):
+        if out.status != Feasibility.FAILED or (out.near_boundary and i >= 1):
             return out
     return out

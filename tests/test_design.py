@@ -299,7 +299,7 @@ def test_moment_method_is_guarded_and_consistent():
     res = design(spec, 10.0, free=["h"], method="moment", time_limit=60)
     assert res.method == "moment"
     assert res.lower_bound is None or res.lower_bound <= res.rho_certified
-    from sosalgo.design_moment import relaxation_bound
+    from sosalgo.design.moment import relaxation_bound
 
     box = parameter_box(spec, 10.0, ["h", "beta"])
     b = relaxation_bound(spec, 10.0, ["h", "beta"], box, order=8, scalarize="pmi")

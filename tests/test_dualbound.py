@@ -10,9 +10,9 @@ import pytest
 
 from sosalgo.analysis import analyze_algorithm
 from sosalgo.certificates import get_family
-from sosalgo.dualbound import BoundSearch, QuadraticTest, dual_structure
+from sosalgo.design.dualbound import BoundSearch, QuadraticTest, dual_structure
+from sosalgo.design.polymodel import fit_poly_lmi
 from sosalgo.model import evaluate_algorithm, parameter_box
-from sosalgo.polymodel import fit_poly_lmi
 from sosalgo.spec import load_spec
 
 from .conftest import SPECS

@@ -6,7 +6,7 @@ import pytest
 import sympy as sp
 
 from sosalgo.expr import ExprError, parse_expression
-from sosalgo.numeric import NumericError, compile_expression
+from sosalgo.expr.compile import NumericError, compile_expression
 
 K, H = sp.symbols("kappa h")
 NAMES = {"kappa": K, "h": H}

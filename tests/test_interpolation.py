@@ -15,9 +15,9 @@ from sosalgo.certificates import get_family
 from sosalgo.certificates.interpolation import Interpolation
 from sosalgo.model import Algorithm, bind
 from sosalgo.spec import SpecError, load_spec, spec_from_text
-from sosalgo.verification import verify_interpolation_certificate
 from sosalgo.verify import lrp_counterexample, simulate_check
 from sosalgo.verify.exact_interpolation import verify_exact_interpolation
+from sosalgo.verify.results import verify_interpolation_certificate
 
 from .conftest import SPECS
 

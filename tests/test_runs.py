@@ -14,8 +14,8 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
+from sosalgo.batch.store import ResumableCSV, kappa_label
 from sosalgo.cli import cli
-from sosalgo.rows import ResumableCSV, kappa_label
 
 from .conftest import SPECS
 
@@ -224,7 +224,7 @@ def _slow_chunk(spec_text, source, options, chunk):
 
 def test_cluster_losing_its_last_worker_fails_instead_of_hanging(monkeypatch):
     distributed = pytest.importorskip("distributed")
-    from sosalgo.batch import BatchError, run_batch
+    from sosalgo.batch.executor import BatchError, run_batch
 
     monkeypatch.setattr("sosalgo.batch.NO_WORKER_TIMEOUT", 1.0)
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
@@ -321,10 +321,10 @@ def _fake_design_chunk(spec_text, source, options, chunk):
 
 
 def test_design_with_another_free_set_keeps_the_first_aside(tmp_path, monkeypatch, capsys):
-    from sosalgo.jobs import run_design_sweep
+    from sosalgo.batch.sweeps import run_design_sweep
     from sosalgo.spec import load_spec
 
-    monkeypatch.setattr("sosalgo.jobs.design_chunk", _fake_design_chunk)
+    monkeypatch.setattr("sosalgo.batch.sweeps.design_chunk", _fake_design_chunk)
     spec, text = load_spec(NESTEROV), NESTEROV.read_text()
     out = tmp_path / "nesterov-design.csv"
     base = {"scalarize": "pmi", "order": None, "gap": 1e-4, "time_limit": 10.0}

@@ -125,7 +125,7 @@ def test_large_kappa_certificate_passes_both_commands_alike(tmp_path):
 
 
 def test_analyze_verify_exits_3_like_verify_on_a_failing_check(tmp_path, monkeypatch):
-    import sosalgo.verification as verification
+    import sosalgo.verify.results as verification
 
     def fake(*a, **k):
         return {"kappa": 10.0, "rho": 0.5, "verified": "failed", "rho_proven": None,

@@ -7,8 +7,8 @@ import json
 import numpy as np
 from click.testing import CliRunner
 
+from sosalgo.batch.sweeps import run_analysis_sweep
 from sosalgo.cli import cli
-from sosalgo.jobs import run_analysis_sweep
 from sosalgo.solvers import SOLVERS
 from sosalgo.spec import load_spec
 

@@ -25,7 +25,7 @@ import sympy as sp
 import yaml
 
 from sosalgo.expr import ExprError, parse_expression
-from sosalgo.numeric import NumericError, compile_expression
+from sosalgo.expr.compile import NumericError, compile_expression
 from sosalgo.spec.types import (
     BASE_SYMBOLS,
     MATRIX_NAMES,

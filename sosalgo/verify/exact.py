@@ -602,14 +602,31 @@ def frobenius_bound(M: BallMatrix) -> Fraction:
 
 
 @dataclass
-class ExactResult:
-    """Outcome of :func:`verify_exact`; ``to_dict`` has everything needed to re-check."""
+class ProofResult:
+    """What every exact check reports: the verdict and the rate it proves."""
 
     spec: str
     verified: str  # "exact" or "failed"
     rho_requested: float
     rho_proven: str | None = None
     rho_proven_float: float | None = None
+    reason: str | None = None
+    attempts: int = 0
+    seconds: float = 0.0
+    kappa: str = ""
+    m: str = ""
+    L: str = ""
+    params: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return self.verified == "exact"
+
+
+@dataclass
+class ExactResult(ProofResult):
+    """Outcome of :func:`verify_exact`; ``to_dict`` has everything needed to re-check."""
+
     rho_step: float | None = None  # relative increase of rho that was needed
     P_rational: list[list[str]] | None = None
     P_rounding: str | None = None
@@ -620,21 +637,10 @@ class ExactResult:
     M_proof: str | None = None
     P_proof: str | None = None
     fixed_point: list[str] | None = None
-    reason: str | None = None
-    attempts: int = 0
-    seconds: float = 0.0
-    kappa: str = ""
-    m: str = ""
-    L: str = ""
-    params: dict[str, str] = field(default_factory=dict)
     theta: dict[str, str] = field(default_factory=dict)
     matrices: dict[str, list[list[str]]] = field(default_factory=dict)
     enclosures: dict[str, list[list[list[str]]]] = field(default_factory=dict)
     model_max_abs_diff: float | None = None
-
-    @property
-    def ok(self) -> bool:
-        return self.verified == "exact"
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict: the exact method, m, L, rho, P, lambda and the proof outcome."""

@@ -39,6 +39,7 @@ from sosalgo.verify.exact import (
     DEFAULT_MAX_DEN,
     DEFAULT_RHO_STEPS,
     Ball,
+    ProofResult,
     exact_algorithm,
     exact_fixed_point,
     fraction_str,
@@ -54,29 +55,13 @@ __all__ = ["InterpolationExactResult", "verify_exact_interpolation"]
 
 
 @dataclass
-class InterpolationExactResult:
+class InterpolationExactResult(ProofResult):
     """Outcome of :func:`verify_exact_interpolation` (``to_dict`` has what a re-check needs)."""
 
-    spec: str
-    verified: str  # "exact" or "failed"
-    rho_requested: float
-    rho_proven: str | None = None
-    rho_proven_float: float | None = None
     delta: str | None = None  # D ⪯ -delta I and Pq ⪰ delta I (delta may be 0 for exact data)
     certificate: dict[str, Any] = field(default_factory=dict)  # rational parts
-    reason: str | None = None
-    attempts: int = 0
-    seconds: float = 0.0
-    kappa: str = ""
-    m: str = ""
-    L: str = ""
-    params: dict[str, str] = field(default_factory=dict)
     enclosures: dict[str, Any] = field(default_factory=dict)
     proofs: dict[str, str] = field(default_factory=dict)
-
-    @property
-    def ok(self) -> bool:
-        return self.verified == "exact"
 
     def to_dict(self) -> dict[str, Any]:
         return {

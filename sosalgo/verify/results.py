@@ -18,9 +18,9 @@ from typing import Any
 
 import numpy as np
 
+from sosalgo.batch.store import kappa_label
 from sosalgo.errors import InputError
 from sosalgo.model import bind
-from sosalgo.rows import kappa_label
 from sosalgo.spec import Spec
 from sosalgo.verify import simulate_check, verify_exact
 
@@ -64,14 +64,14 @@ def verify_certificate(
         path.write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
         out["certificate_file"] = str(path)
     if simulate:
-        sim = simulate_check(bind(spec, kappa, theta), rho, P_arr, lam)
-        out["simulation"] = {
-            "ok": sim.ok,
-            "worst_ratio": sim.worst_ratio,
-            "trajectories": sim.trajectories,
-            "violations": sim.n_violations,
-        }
+        out["simulation"] = _summary(simulate_check(bind(spec, kappa, theta), rho, P_arr, lam))
     return out
+
+
+def _summary(sim: Any) -> dict[str, Any]:
+    """The JSON summary of a simulation check."""
+    return {"ok": sim.ok, "worst_ratio": sim.worst_ratio, "trajectories": sim.trajectories,
+            "violations": sim.n_violations}
 
 
 def verify_interpolation_certificate(
@@ -101,14 +101,8 @@ def verify_interpolation_certificate(
     if simulate:
         lyap = {"lag": int(cert["lag"]), "p": [float(v) for v in cert["p"]],
                 "c": None if cert.get("c") is None else float(cert["c"])}
-        sim = simulate_check(bind(spec, kappa, theta), rho, np.asarray(cert["P"], dtype=float),
-                             lyapunov=lyap)
-        out["simulation"] = {
-            "ok": sim.ok,
-            "worst_ratio": sim.worst_ratio,
-            "trajectories": sim.trajectories,
-            "violations": sim.n_violations,
-        }
+        out["simulation"] = _summary(simulate_check(
+            bind(spec, kappa, theta), rho, np.asarray(cert["P"], dtype=float), lyapunov=lyap))
     return out
 
 

@@ -13,7 +13,7 @@ center of a box of (θ, r), proves (F) on the whole box when
 
     h(θ, r) = Σ <Z_b, C_b(θ, r)> > 0   and   Z_c(θ, r) ⪰ 0   for all (θ, r) in the box,
 
-which is checked rigorously from the polynomial data of :mod:`sosalgo.polymodel`
+which is checked rigorously from the polynomial data of :mod:`sosalgo.design.polymodel`
 (h and Z_c are polynomials in θ, affine in r: check both ends of the r-interval and bound
 the θ-variation by the sum of the absolute Taylor coefficients around the box center).
 A proven box contains no θ that Theorem 1 certifies at any ρ² in the box's r-range.
@@ -31,18 +31,27 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from enum import StrEnum
 from typing import Any
 
 import numpy as np
 import scipy.sparse as sps
 
-from sosalgo.polymodel import PolyLMI, fit_tensor, shift_tensor
+from sosalgo.design.polymodel import PolyLMI, fit_tensor, shift_tensor
 from sosalgo.solvers import svec
 
-__all__ = ["DualStructure", "BoundSearch", "QuadraticTest", "dual_structure"]
+__all__ = ["BoundStatus", "DualStructure", "BoundSearch", "QuadraticTest", "dual_structure"]
 
 MIN_HALF_WIDTH = 1e-10  # boxes narrower than this (in scaled units) are not split further
 SAFETY = 1e-9  # relative safety margin of every box check
+
+
+class BoundStatus(StrEnum):
+    """What a bound search proved (a str: compares and serializes as one)."""
+
+    PROVED = "proved"  # Θ × [0, T²] covered: nothing in Θ is certified below T
+    PARTIAL = "partial"  # time ran out: the bound is what was covered
+    UNSUPPORTED = "unsupported"  # the family's variables are not all in θ-free cones
 
 
 @dataclass

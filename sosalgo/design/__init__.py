@@ -6,10 +6,10 @@ Two numbers come out, never mixed:
   certificate. θ comes from a global search over Θ (a grid of certified rates, then local
   polishing of the best points, then every point the bound search finds better).
 * ``lower_bound``: a proof that no θ ∈ Θ is certified below it. Default (``method="dual"``,
-  :mod:`sosalgo.dualbound`): Θ × [0, T²] is covered by boxes, each carrying a dual
+  :mod:`sosalgo.design.dualbound`): Θ × [0, T²] is covered by boxes, each carrying a dual
   certificate of infeasibility valid on the whole box, with T = rho_certified - gap/2.
   ``method="moment"`` uses the paper's moment (sum-of-squares) relaxation of the
-  homogenized problem (:mod:`sosalgo.design_moment`).
+  homogenized problem (:mod:`sosalgo.design.moment`).
 
 ``floor`` = 1 - 1/√κ is reported beside them: no first-order method has a smaller
 worst-case rate on F(m, L) (a theorem, not a computed bound).
@@ -31,10 +31,10 @@ import numpy as np
 
 from sosalgo.analysis import AnalysisResult, analyze_spec, jsonable, spec_family
 from sosalgo.certificates import CertificateFamily, get_family
-from sosalgo.design_moment import design_problem, relaxation_bound
-from sosalgo.dualbound import BoundSearch, QuadraticTest, dual_structure
+from sosalgo.design.dualbound import BoundSearch, BoundStatus, QuadraticTest, dual_structure
+from sosalgo.design.moment import design_problem, relaxation_bound
+from sosalgo.design.polymodel import fit_poly_lmi
 from sosalgo.model import ModelError, bind, evaluate_algorithm, parameter_box
-from sosalgo.polymodel import fit_poly_lmi
 from sosalgo.solvers import solve_margin
 from sosalgo.spec import Spec
 
@@ -408,7 +408,7 @@ def _polish(run: _Run, theta: dict[str, float]) -> dict[str, float] | None:
 # --------------------------------------------------------------------------- lower bounds
 def _dual_bound(run: _Run, model, gap: float) -> tuple[float | None, dict[str, Any]]:
     """Cover Θ × [0, T²], T = rho_certified - gap/2, by boxes with dual certificates."""
-    info: dict[str, Any] = {"method": "dual", "status": "unsupported", "scalarize": None,
+    info: dict[str, Any] = {"method": "dual", "status": BoundStatus.UNSUPPORTED, "scalarize": None,
                             "order": None, "flat": None, "ranks": []}
     structure = dual_structure(model)
     if structure is None:
@@ -449,7 +449,7 @@ def _dual_bound(run: _Run, model, gap: float) -> tuple[float | None, dict[str, A
     if state.heap:
         run.out_of_time = run.out_of_time or time.perf_counter() >= run.deadline
     lb = math.sqrt(max(0.0, state.lower_r()))
-    status = "proved" if state.complete else "partial"
+    status = BoundStatus.PROVED if state.complete else BoundStatus.PARTIAL
     info.update({"status": status, "boxes_proven": state.proven,
                  "boxes_quadratic": state.quadratic,
                  "boxes_open": len(state.heap) + len(state.stuck), "solves": state.solves,

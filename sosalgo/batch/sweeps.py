@@ -1,4 +1,4 @@
-"""Batch jobs built on :mod:`sosalgo.batch`: kappa sweeps of the analysis (and grids).
+"""Batch jobs built on :mod:`sosalgo.batch.executor`: kappa sweeps of the analysis (and grids).
 
 Each job has a module-level chunk function (runs in workers), a column list, and a
 driver that writes rows to a resumable CSV as they finish.
@@ -15,11 +15,11 @@ from typing import Any
 import numpy as np
 
 from sosalgo.analysis import AnalysisResult, analyze_spec, spec_family
-from sosalgo.batch import Progress, run_batch
+from sosalgo.batch.executor import Progress, run_batch
+from sosalgo.batch.store import ResumableCSV, kappa_label
 from sosalgo.certificates import CertificateFamily, get_family
+from sosalgo.expr.compile import compile_expression
 from sosalgo.model import ModelError
-from sosalgo.numeric import compile_expression
-from sosalgo.rows import ResumableCSV, kappa_label
 from sosalgo.solvers import DEFAULT_SOLVERS
 from sosalgo.spec import BASE_SYMBOLS, Spec, spec_from_text
 
@@ -164,27 +164,38 @@ def result_row(spec: Spec, res: AnalysisResult,
         "rho_infeasible": res.rho_infeasible,
         "error": None,
     }
-    row.update(p_entries(p_size(spec, family), res.P))
-    row.update(reference_values(spec, res.kappa))
-    fam = _extra(family)
-    if fam is not None:
-        row.update(fam.csv_cells(spec.n, res.certificate))
+    row.update(_certificate_cells(spec, family, res.kappa, res.P, res.certificate))
     return row
 
 
-def analysis_chunk(
-    spec_text: str, source: str, options: dict[str, Any], chunk: list[dict[str, Any]]
-) -> list[dict[str, Any]]:
-    """Worker: analysis at each task's kappa (and parameter overrides in task['theta'])."""
+def _certificate_cells(spec: Spec, family: CertificateFamily | None, kappa: float, P: Any,
+                       cert: dict[str, Any] | None) -> dict[str, Any]:
+    """The cells every row shares: P's entries, the references at kappa, and a family's
+    own parts (families other than Theorem 1)."""
+    cells: dict[str, Any] = p_entries(p_size(spec, family), P)
+    cells.update(reference_values(spec, kappa))
+    fam = _extra(family)
+    if fam is not None:
+        cells.update(fam.csv_cells(spec.n, cert))
+    return cells
+
+
+def _worker_setup(spec_text: str, source: str, options: dict[str, Any]):
+    """(spec, family) in a worker: the spec parsed from its text, the family asked for."""
     spec = _spec(spec_text, source)
-    fam = family_from_options(options.get("certificate")) or spec_family(spec)
+    return spec, family_from_options(options.get("certificate")) or spec_family(spec)
+
+
+def _run_chunk(spec_text: str, source: str, options: dict[str, Any],
+               chunk: list[dict[str, Any]], one: Any) -> list[dict[str, Any]]:
+    """Worker loop shared by the jobs: ``one(spec, fam, kappa, task)`` makes a row; a
+    point the model cannot evaluate gives a row with its error (and the references)."""
+    spec, fam = _worker_setup(spec_text, source, options)
     rows = []
     for task in chunk:
         kappa = float(task["kappa"])
         try:
-            res = analyze_spec(spec, kappa, task.get("theta"), tol=options["tol"],
-                               solvers=options.get("solvers", DEFAULT_SOLVERS), family=fam)
-            row = result_row(spec, res, fam)
+            row = one(spec, fam, kappa, task)
         except ModelError as exc:  # e.g. a grid point outside a function's domain
             row = {"kappa": kappa, "certified": False, "error": str(exc)}
             row.update(reference_values(spec, kappa))
@@ -193,6 +204,19 @@ def analysis_chunk(
         row.update(task.get("extra", {}))
         rows.append(row)
     return rows
+
+
+def analysis_chunk(
+    spec_text: str, source: str, options: dict[str, Any], chunk: list[dict[str, Any]]
+) -> list[dict[str, Any]]:
+    """Worker: analysis at each task's kappa (and parameter overrides in task['theta'])."""
+
+    def one(spec: Spec, fam: CertificateFamily, kappa: float, task: dict) -> dict[str, Any]:
+        res = analyze_spec(spec, kappa, task.get("theta"), tol=options["tol"],
+                           solvers=options.get("solvers", DEFAULT_SOLVERS), family=fam)
+        return result_row(spec, res, fam)
+
+    return _run_chunk(spec_text, source, options, chunk, one)
 
 
 def _run_store(
@@ -327,11 +351,8 @@ def design_row(spec: Spec, res: Any, family: CertificateFamily | None = None) ->
     }
     for p, v in res.theta.items():
         row[f"theta_{p}"] = v
-    row.update(p_entries(p_size(spec, family), res.certificate.get("P")))
-    row.update(reference_values(spec, res.kappa))
-    fam = _extra(family)
-    if fam is not None:
-        row.update(fam.csv_cells(spec.n, res.certificate or None))
+    row.update(_certificate_cells(spec, family, res.kappa, res.certificate.get("P"),
+                                  res.certificate or None))
     return row
 
 
@@ -341,28 +362,18 @@ def design_chunk(
     """Worker: one design per task's kappa."""
     from sosalgo.design import design
 
-    spec = _spec(spec_text, source)
-    fam = family_from_options(options.get("certificate")) or spec_family(spec)
-    rows = []
-    for task in chunk:
-        kappa = float(task["kappa"])
-        try:
-            on_step = None
-            if options.get("progress_steps"):
-                def on_step(msg: str, kappa: float = kappa) -> None:
-                    print(f"  [kappa {kappa:g}] {msg}", file=sys.stderr, flush=True)
-            res = design(spec, kappa, free=options["free"], scalarize=options["scalarize"],
-                         order=options["order"], gap=options["gap"],
-                         time_limit=options["time_limit"],
-                         method=options.get("method", "dual"), on_step=on_step,
-                         family=fam, workers=options.get("inner_workers"))
-            row = design_row(spec, res, fam)
-            row["_result"] = res.to_dict()
-        except ModelError as exc:
-            row = {"kappa": kappa, "error": str(exc)}
-            row.update(reference_values(spec, kappa))
-        rows.append(row)
-    return rows
+    def one(spec: Spec, fam: CertificateFamily, kappa: float, task: dict) -> dict[str, Any]:
+        on_step = None
+        if options.get("progress_steps"):
+            def on_step(msg: str) -> None:
+                print(f"  [kappa {kappa:g}] {msg}", file=sys.stderr, flush=True)
+        res = design(spec, kappa, free=options["free"], scalarize=options["scalarize"],
+                     order=options["order"], gap=options["gap"],
+                     time_limit=options["time_limit"], method=options.get("method", "dual"),
+                     on_step=on_step, family=fam, workers=options.get("inner_workers"))
+        return {**design_row(spec, res, fam), "_result": res.to_dict()}
+
+    return _run_chunk(spec_text, source, options, chunk, one)
 
 
 def run_design_sweep(
@@ -464,8 +475,7 @@ def grid_chunk(
 ) -> list[dict[str, Any]]:
     """Worker: analysis at each grid point (task: kappa and theta)."""
     rows = analysis_chunk(spec_text, source, options, chunk)
-    spec = _spec(spec_text, source)
-    fam = family_from_options(options.get("certificate")) or spec_family(spec)
+    spec, fam = _worker_setup(spec_text, source, options)
     cols = set(grid_columns(spec, options["free"], fam))
     return [{k: v for k, v in r.items() if k in cols} for r in rows]
 

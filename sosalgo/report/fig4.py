@@ -15,14 +15,14 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.certificates import get_family
-from sosalgo.jobs import (
+from sosalgo.batch.sweeps import (
     csv_row_to_json,
     design_csv_to_json,
     family_options,
     run_analysis_sweep,
     run_design_sweep,
 )
+from sosalgo.certificates import get_family
 from sosalgo.spec import spec_from_text
 
 __all__ = ["fig4", "tmm_parameters"]
