@@ -202,7 +202,7 @@ def test_unwritable_out_is_exit_2_and_nothing_written(tmp_path):
 @pytest.mark.parametrize("address", ["not an address", "tcp://127.0.0.1:1", "tcp://[::"])
 def test_bad_scheduler_is_exit_2_and_nothing_written(tmp_path, address, monkeypatch):
     pytest.importorskip("distributed")
-    monkeypatch.setattr("sosalgo.batch.CONNECT_TIMEOUT", 2.0)
+    monkeypatch.setattr("sosalgo.batch.executor.CONNECT_TIMEOUT", 2.0)
     res = run(["analyze", GRADIENT, "--kappa", "4", "--out", tmp_path / "o", "--quiet",
                "--scheduler", address])
     _one_line_exit_2(res, "--scheduler")
@@ -226,7 +226,7 @@ def test_cluster_losing_its_last_worker_fails_instead_of_hanging(monkeypatch):
     distributed = pytest.importorskip("distributed")
     from sosalgo.batch.executor import BatchError, run_batch
 
-    monkeypatch.setattr("sosalgo.batch.NO_WORKER_TIMEOUT", 1.0)
+    monkeypatch.setattr("sosalgo.batch.executor.NO_WORKER_TIMEOUT", 1.0)
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
                                   dashboard_address=None) as cluster:
         def lose_worker():
