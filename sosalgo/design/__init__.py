@@ -283,24 +283,31 @@ def _search(run: _Run) -> None:
             + (f", best {scored[0][0]:.6f}" if good else ""))
     starts: list[dict[str, float]] = []
     widths = np.array([max(hi - lo, 1e-300) for lo, hi in run.box])
-    for theta in good:  # the best points that are not neighbours of a better one
+    wanted = 1 if k == 1 else 2
+    # the best certified point so far (e.g. the spec's own values) and the best grid
+    # points that are not neighbours of a better one
+    candidates = ([run.best_theta] if run.best_theta and k > 1 else []) + good
+    for theta in candidates:
         x = np.array([theta[p] for p in run.free])
         if all(np.max(np.abs(x - np.array([s[p] for p in run.free])) / widths) > 1.5 / (pts - 1)
                for s in starts):
             starts.append(theta)
-        if len(starts) == (1 if k == 1 else 2):
+        if len(starts) == wanted:
             break
-    run.phase_end = time.perf_counter() + 0.4 * max(run.left(), 0.0)  # polishing
+    run.phase_end = time.perf_counter() + 0.5 * max(run.left(), 0.0)  # polishing
     if run.workers > 1 and len(starts) > 1:
         run.log(f"polishing locally from {len(starts)} points in parallel", record=False)
         for theta in _parallel(run, _polish_task, starts):
-            run.consider(theta, "grid point polished")
-        return
-    for theta in starts:
-        if not run.can_afford(10 * run.analysis_seconds):
-            break
-        run.log("polishing locally", record=False)
-        run.consider(_polish(run, theta), "grid point polished")
+            run.consider(theta, "polished locally")
+    else:
+        for theta in starts:
+            if not run.can_afford(10 * run.analysis_seconds):
+                break
+            run.log("polishing locally", record=False)
+            run.consider(_polish(run, theta), "polished locally")
+    if k > 1 and run.best_theta is not None and run.can_afford(40 * run.analysis_seconds):
+        run.log("polishing the best point again", record=False)  # a restart from the best
+        run.consider(_polish(run, run.best_theta), "polished again")
 
 
 def _usable_workers(workers: int | None) -> int:
