@@ -348,12 +348,28 @@ def _start_near(search: _Search, guess: float, tol: float):
             continue
         if t is None or not t < 0 or search.slope is None or not search.slope > 0:
             break
-        down = (x, t, search.slope)
-        est = x - t / search.slope
+        prev, down = down, (x, t, search.slope)
+        est = _climb_estimate(prev, down)
         if not x < est < 1:
             break
         x = min(est + 0.25 * tol, 1.0)
     return lo, 1.0, None, [], down
+
+
+def _climb_estimate(prev: tuple | None, cur: tuple) -> float:
+    """Root estimate from below: the root of the quadratic through the previous uncertified
+    point (value) and the current one (value and slope) when it bends down (below the
+    threshold t is concave, so a Newton step falls short), else a Newton step."""
+    x2, t2, d2 = cur
+    est = x2 - t2 / d2
+    if prev is None or prev[0] >= x2:
+        return est
+    x1, t1, _ = prev
+    a = (t1 - t2 - d2 * (x1 - x2)) / (x1 - x2) ** 2  # t ~ t2 + d2 s + a s^2, s = x - x2
+    disc = d2 * d2 - 4 * a * t2
+    if not (a < 0 and disc > 0):
+        return est
+    return x2 - 2 * t2 / (d2 + float(np.sqrt(disc)))
 
 
 def _result(alg: Algorithm, fam: CertificateFamily, problem: LMIProblem, search: _Search,
