@@ -202,7 +202,7 @@ def _secant(search: _Search, t_one: float, best: Outcome, tol: float):
 
 
 def _newton(search: _Search, ups: list, down: tuple | None, lo: float, hi: float,
-            best: Outcome, tol: float):
+            best: Outcome, tol: float, skip_stale: bool = False):
     """Bracketed Newton-type iteration on the margin t(rho), slopes from the dual solution.
 
     Above the threshold t is smooth and convex-like; the estimate from the certified side is
@@ -212,7 +212,9 @@ def _newton(search: _Search, ups: list, down: tuple | None, lo: float, hi: float
     short (< 20 tol), which is then accurate. A step is tested a quarter tolerance above
     its estimate; once the next step from a certified point is shorter than half a
     tolerance, one test just below closes the bracket. Estimates outside the bracket fall
-    back to bisection. Invariant: hi is certified by a checked point, lo is not certified.
+    back to bisection. With ``skip_stale`` (the search started near a tight family's rate),
+    a step from below that lands within half a tolerance of hi (the point already tested)
+    is dropped. Invariant: hi is certified by a checked point, lo is not certified.
     """
     def inside(est: float | None) -> float | None:
         return float(est) if est is not None and np.isfinite(est) and lo < est < hi else None
@@ -250,6 +252,8 @@ def _newton(search: _Search, ups: list, down: tuple | None, lo: float, hi: float
                 down = (below, t, search.slope) if t is not None and t < 0 else down
             continue
         est_u, est_l = from_above(), newton(down) if down else None
+        if skip_stale and est_l is not None and est_l > hi - 0.5 * tol:
+            est_l = None  # already tested (it gave hi): a step there barely narrows the bracket
         ests = [e for e in (est_u, est_l) if e is not None]
         if est_u is not None and hi - est_u < 20 * tol:
             est = est_u  # a short step from a certified point is accurate
@@ -298,7 +302,7 @@ def analyze_algorithm(
     if quad is not None and quad < 1 - tol:
         lo, hi, best_near, ups, down0 = _start_near(search, quad, tol)
         if best_near is not None:
-            lo, hi, best = _newton(search, ups, down0, lo, hi, best_near, tol)
+            lo, hi, best = _newton(search, ups, down0, lo, hi, best_near, tol, skip_stale=True)
             return _result(alg, fam, problem, search, lo, hi, best, start)
         lo0 = lo
     best, t_one = search.test(1.0)
@@ -348,12 +352,28 @@ def _start_near(search: _Search, guess: float, tol: float):
             continue
         if t is None or not t < 0 or search.slope is None or not search.slope > 0:
             break
-        down = (x, t, search.slope)
-        est = x - t / search.slope
+        prev, down = down, (x, t, search.slope)
+        est = _climb_estimate(prev, down)
         if not x < est < 1:
             break
         x = min(est + 0.25 * tol, 1.0)
     return lo, 1.0, None, [], down
+
+
+def _climb_estimate(prev: tuple | None, cur: tuple) -> float:
+    """Root estimate from below: the root of the quadratic through the previous uncertified
+    point (value) and the current one (value and slope) when it bends down (below the
+    threshold t is concave, so a Newton step falls short), else a Newton step."""
+    x2, t2, d2 = cur
+    est = x2 - t2 / d2
+    if prev is None or prev[0] >= x2:
+        return est
+    x1, t1, _ = prev
+    a = (t1 - t2 - d2 * (x1 - x2)) / (x1 - x2) ** 2  # t ~ t2 + d2 s + a s^2, s = x - x2
+    disc = d2 * d2 - 4 * a * t2
+    if not (a < 0 and disc > 0):
+        return est
+    return x2 - 2 * t2 / (d2 + float(np.sqrt(disc)))
 
 
 def _result(alg: Algorithm, fam: CertificateFamily, problem: LMIProblem, search: _Search,

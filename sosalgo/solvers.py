@@ -227,6 +227,9 @@ def c_stdout_to_stderr():
         os.close(saved)
 
 
+_ONE, _ZERO = np.ones(1), np.zeros(1)
+
+
 class _MarginForm:
     """Homogenized margin problem: max t s.t. G_h(x, c) + t I ⪯ 0 on strict blocks,
     the other blocks ⪯ 0, c >= 0 and c + sum of tr(-G_b(x)) over non-strict blocks = 1
@@ -245,13 +248,9 @@ class _MarginForm:
         for blk in problem.blocks:
             s = blk.size
             if s == 1:  # scalar rows (many in some families): no svec needed
-                row0 = np.empty((1, nv + 1))
-                row0[0, :nv], row0[0, nv] = blk.l0[:, 0, 0], blk.c0[0, 0]
-                row1 = np.empty((1, nv + 1))
-                row1[0, :nv], row1[0, nv] = blk.l1[:, 0, 0], blk.c1[0, 0]
-                a0.append(row0)
-                a1.append(row1)
-                eye.append(np.ones(1) if blk.strict else np.zeros(1))
+                a0.append(np.concatenate((blk.l0[:, 0, 0], blk.c0[0]))[None, :])
+                a1.append(np.concatenate((blk.l1[:, 0, 0], blk.c1[0]))[None, :])
+                eye.append(_ONE if blk.strict else _ZERO)
                 if not blk.strict:
                     w -= blk.l0[:, 0, 0]
                 sizes.append(1)
@@ -275,12 +274,9 @@ class _MarginForm:
         self.q = np.zeros(self.nz)
         self.q[-1] = -1.0
         self.sizes = sizes
-        self.A = sps.csc_matrix((np.abs(self.dense0) + np.abs(self.dense1)) > 0, dtype=float)
-        self.A.sort_indices()
-        cols = np.repeat(np.arange(self.A.shape[1]), np.diff(self.A.indptr))
-        self.v0 = self.dense0[self.A.indices, cols]
-        self.v1 = self.dense1[self.A.indices, cols]
-        self.zero_P = sps.csc_matrix((self.nz, self.nz))
+        self.A, self.v0, self.v1 = _csc_pattern(self.dense0, self.dense1)
+        self.zero_P = sps.csc_matrix((np.zeros(0), np.zeros(0, np.int32),
+                                      np.zeros(self.nz + 1, np.int32)), shape=(self.nz, self.nz))
         self._cones: list | None = None
         self.solver: Any = None  # a Clarabel solver kept for data updates (same sparsity)
 
@@ -306,6 +302,16 @@ class _MarginForm:
     def data(self, rho: float) -> sps.csc_matrix:
         self.A.data = self.v0 + rho * rho * self.v1
         return self.A
+
+
+def _csc_pattern(dense0: np.ndarray, dense1: np.ndarray):
+    """CSC matrix on the union of the nonzeros of two dense matrices (indices sorted), and
+    the values of each at those positions (column-major order)."""
+    cols, rows = np.nonzero((dense0 != 0).T | (dense1 != 0).T)
+    indptr = np.zeros(dense0.shape[1] + 1, dtype=np.int32)
+    np.cumsum(np.bincount(cols, minlength=dense0.shape[1]), out=indptr[1:])
+    A = sps.csc_matrix((np.ones(len(rows)), rows.astype(np.int32), indptr), shape=dense0.shape)
+    return A, dense0[rows, cols], dense1[rows, cols]
 
 
 _MARGINS: weakref.WeakKeyDictionary[LMIProblem, _MarginForm] = weakref.WeakKeyDictionary()

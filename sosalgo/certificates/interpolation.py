@@ -113,7 +113,10 @@ def _window(A, B, C, E, m, L, lag: int, steps: int, has_x: bool, obj: bool) -> W
     pts.append(("*", _zeros((1, width), obj), _zeros((1, width), obj), None))
     MM = np.array([[-m * L, m * L, m, -L], [m * L, -m * L, -m, L], [m, -m, -1, 1],
                    [-L, L, 1, -1]], dtype=object if obj else float)
-    half = Fraction(1, 2) if obj else 0.5
+    if not obj:
+        labels, Mq, mq = _pairs_float(pts, MM, L - m, nphi)
+        return Window(width, nphi, Z, F, labels, Mq, mq)
+    half = Fraction(1, 2)
     labels, Mq, mq = [], [], []
     for ni, xi, gi, fi in pts:
         for nj, xj, gj, fj in pts:
@@ -130,6 +133,25 @@ def _window(A, B, C, E, m, L, lag: int, steps: int, has_x: bool, obj: bool) -> W
             mq.append(lin)
             labels.append(f"{ni}>{nj}")
     return Window(width, nphi, Z, F, labels, Mq, mq)
+
+
+def _pairs_float(pts: list, MM: np.ndarray, gap: float, nphi: int) -> tuple[list, list, list]:
+    """The float case of the pair loop of :func:`_window`, all ordered pairs at once:
+    labels, quadratic parts 1/2 X' MM X (X = [x_i; x_j; g_i; g_j]) and linear parts."""
+    idx = [(i, j) for i in range(len(pts)) for j in range(len(pts)) if i != j]
+    xs = np.vstack([p[1] for p in pts])
+    gs = np.vstack([p[2] for p in pts])
+    ii, jj = np.array([i for i, _ in idx]), np.array([j for _, j in idx])
+    X = np.stack([xs[ii], xs[jj], gs[ii], gs[jj]], axis=1)  # (pairs, 4, width)
+    Mq = 0.5 * (X.transpose(0, 2, 1) @ MM @ X)
+    lin = np.zeros((len(idx), nphi))
+    for k, (i, j) in enumerate(idx):
+        if pts[i][3] is not None:
+            lin[k, pts[i][3]] += gap
+        if pts[j][3] is not None:
+            lin[k, pts[j][3]] -= gap
+    labels = [f"{pts[i][0]}>{pts[j][0]}" for i, j in idx]
+    return labels, list(Mq), list(lin)
 
 
 def _scale(M: np.ndarray, half: Any) -> np.ndarray:
@@ -247,6 +269,8 @@ class Interpolation:
                         np.zeros_like(P0)),
         ]
         one = np.zeros((1, 1))
+        zero = np.zeros((nvar, 1, 1))  # shared (read-only) rho^2 part of the rho-free rows
+        zero.flags.writeable = False
         for q in range(d.nphi):
             l0, l1 = np.zeros((nvar, 1, 1)), np.zeros((nvar, 1, 1))
             l0[lay["pi"], 0, 0] = d.F[lag + 1][:, q]
@@ -258,13 +282,12 @@ class Interpolation:
             l0[lay["pi"], 0, 0] = -p.F[lag][:, q]
             l0[lay["lam"], 0, 0] = [mv[q] for mv in p.mq]
             blocks.append(AffineBlock(f"positivity-f[{q}]", np.full((1, 1), st.norm[q]), one,
-                                      l0, np.zeros_like(l0), strict=False))
+                                      l0, zero, strict=False))
         for k in range(lay["eta"].start, nvar):
             l0 = np.zeros((nvar, 1, 1))
             l0[k, 0, 0] = -1.0
-            blocks.append(AffineBlock(f"mult[{k - lay['eta'].start}]", one, one, l0,
-                                      np.zeros_like(l0), strict=False))
-        zero = np.zeros((nvar, 1, 1))
+            blocks.append(AffineBlock(f"mult[{k - lay['eta'].start}]", one, one, l0, zero,
+                                      strict=False))
         blocks.append(AffineBlock("normalization", -np.ones((1, 1)), one, zero, zero))
         Fp = p.F[lag]
         mpos = np.array(p.mq) if p.mq else np.zeros((0, p.nphi))
