@@ -4,14 +4,13 @@ rebuilds the problem at every bisection step. Both run in this process, pinned t
 
 from __future__ import annotations
 
-import os
 import statistics
-import time
 from pathlib import Path
 
 import cvxpy as cp
 import numpy as np
 
+from bench.common import bisect_rate, one_core, timed
 from sosalgo.analysis import analyze_spec
 from sosalgo.model import Algorithm, bind
 from sosalgo.spec import load_spec
@@ -46,39 +45,12 @@ def naive_feasible(alg: Algorithm, rho: float) -> bool:
 
 
 def naive_rate(alg: Algorithm, tol: float = TOL) -> float | None:
-    if not naive_feasible(alg, 1.0):
-        return None
-    lo, hi = 0.0, 1.0
-    while hi - lo > tol:
-        mid = 0.5 * (lo + hi)
-        if naive_feasible(alg, mid):
-            hi = mid
-        else:
-            lo = mid
-    return hi
-
-
-def _time(fn, repeats: int) -> tuple[float, object]:
-    times, out = [], None
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times), out
+    return bisect_rate(lambda rho: naive_feasible(alg, rho), tol)
 
 
 def run(quick: bool = False) -> None:
-    try:
-        saved = os.sched_getaffinity(0)
-        os.sched_setaffinity(0, {sorted(saved)[0]})
-        core = "one core (pinned)"
-    except (AttributeError, OSError):
-        saved, core = None, "unpinned"
-    try:
+    with one_core() as core:
         _run(quick, core)
-    finally:
-        if saved is not None:
-            os.sched_setaffinity(0, saved)
 
 
 def _run(quick: bool, core: str) -> None:
@@ -92,9 +64,9 @@ def _run(quick: bool, core: str) -> None:
         ours_all, naive_all = [], []
         for k in KAPPAS:
             analyze_spec(spec, k, tol=TOL)  # warm caches (compiled templates)
-            t_ours, res = _time(lambda s=spec, k=k: analyze_spec(s, k, tol=TOL), repeats)
+            t_ours, res, _ = timed(lambda s=spec, k=k: analyze_spec(s, k, tol=TOL), repeats)
             alg = bind(spec, k)
-            t_naive, rho_naive = _time(lambda a=alg: naive_rate(a), naive_repeats)
+            t_naive, rho_naive, _ = timed(lambda a=alg: naive_rate(a), naive_repeats)
             ours_all.append(t_ours)
             naive_all.append(t_naive)
             rn = "-" if rho_naive is None else f"{rho_naive:.6f}"

@@ -13,6 +13,7 @@ from pathlib import Path
 import cvxpy as cp
 import numpy as np
 
+from bench.common import bisect_rate, one_core, timed
 from sosalgo.analysis import analyze_algorithm
 from sosalgo.certificates.interpolation import Interpolation, has_output_point, structure
 from sosalgo.model import Algorithm, bind
@@ -47,41 +48,13 @@ def naive_feasible(alg: Algorithm, rho: float, lag: int) -> bool:
 
 
 def naive_rate(alg: Algorithm, lag: int, tol: float = TOL) -> float | None:
-    if not naive_feasible(alg, 1.0, lag):
-        return None
-    lo, hi = 0.0, 1.0
-    while hi - lo > tol:
-        mid = 0.5 * (lo + hi)
-        if naive_feasible(alg, mid, lag):
-            hi = mid
-        else:
-            lo = mid
-    return hi
-
-
-def _time(fn, repeats: int) -> tuple[float, object, float]:
-    """(median seconds, last result, minimum seconds)."""
-    times, out = [], None
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times), out, min(times)
+    return bisect_rate(lambda rho: naive_feasible(alg, rho, lag), tol)
 
 
 def run(quick: bool = False) -> None:
-    try:
-        saved = os.sched_getaffinity(0)
-        os.sched_setaffinity(0, {sorted(saved)[0]})
-        core = "one core (pinned)"
-    except (AttributeError, OSError):
-        saved, core = None, "unpinned"
-    try:
+    with one_core() as core:
         _speed(quick, core)
         _rates(quick)
-    finally:
-        if saved is not None:
-            os.sched_setaffinity(0, saved)
 
 
 def _speed(quick: bool, core: str) -> None:
@@ -99,9 +72,9 @@ def _speed(quick: bool, core: str) -> None:
         for lag in (1, 0):
             fam = Interpolation(lag)
             analyze_algorithm(alg, tol=TOL, family=fam)  # warm imports
-            t_ours, res, t_min = _time(
+            t_ours, res, t_min = timed(
                 lambda a=alg, f=fam: analyze_algorithm(a, tol=TOL, family=f), repeats)
-            t_naive, rho_naive, _ = _time(lambda a=alg, g=lag: naive_rate(a, g), naive_repeats)
+            t_naive, rho_naive, _ = timed(lambda a=alg, g=lag: naive_rate(a, g), naive_repeats)
             ours_all[lag].append(t_ours)
             naive_all[lag].append(t_naive)
             rn = "-" if rho_naive is None else f"{rho_naive:.6f}"
