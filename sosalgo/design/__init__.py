@@ -125,9 +125,10 @@ class _Run:
     def left(self) -> float:
         return self.deadline - time.perf_counter()
 
-    def can_afford(self, seconds: float) -> bool:
+    def can_afford(self, seconds: float, phase: bool = True) -> bool:
+        """Whether ``seconds`` fit before the phase's end (``phase=False``: the deadline)."""
         now = time.perf_counter()
-        if now + seconds < min(self.deadline, self.phase_end):
+        if now + seconds < (min(self.deadline, self.phase_end) if phase else self.deadline):
             return True
         if now + seconds >= self.deadline:
             self.out_of_time = True
@@ -137,9 +138,11 @@ class _Run:
         return {p: float(min(max(theta[p], lo), hi))
                 for p, (lo, hi) in zip(self.free, self.box, strict=True) if p in theta}
 
-    def certify(self, theta: dict[str, float], tol: float = CERT_TOL) -> AnalysisResult | None:
-        """Analysis at θ (None if out of time or the point cannot be evaluated)."""
-        if not self.can_afford(2 * self.analysis_seconds):
+    def certify(self, theta: dict[str, float], tol: float = CERT_TOL,
+                phase: bool = True) -> AnalysisResult | None:
+        """Analysis at θ (None if out of time or the point cannot be evaluated);
+        ``phase=False`` lets it run past the current phase's end (not past the deadline)."""
+        if not self.can_afford(2 * self.analysis_seconds, phase):
             return None
         t = time.perf_counter()
         try:
@@ -157,7 +160,7 @@ class _Run:
         if theta is None:
             return False
         theta = self.clip(theta)
-        res = self.certify(theta)
+        res = self.certify(theta, phase=False)  # a found point is always worth certifying
         if _rate(res) < _rate(self.best):
             self.best, self.best_theta = res, theta
             self.log(f"{why}: certified {res.rho:.8f}")
@@ -218,7 +221,10 @@ def design(
         run.consider({p: values_res.params[p] for p in free}, "spec values")
     total = run.deadline - time.perf_counter()
     run.phase_end = time.perf_counter() + 0.3 * total  # grid
-    _search(run)
+    # without a bound phase to come (a family the dual bound does not cover), the search
+    # may use all the time
+    bound_phase = method == "moment" or dual_structure(model) is not None
+    _search(run, polish_share=0.5 if bound_phase else 0.95)
     run.phase_end = run.deadline
     relax: dict[str, Any]
     lb: float | None
@@ -256,7 +262,7 @@ def design(
 
 
 # --------------------------------------------------------------------------- upper bound
-def _search(run: _Run) -> None:
+def _search(run: _Run, polish_share: float = 0.5) -> None:
     """Grid of certified rates over Θ, then polish the best few points locally."""
     k = len(run.free)
     pts = GRID_POINTS.get(k, 5)
@@ -294,20 +300,26 @@ def _search(run: _Run) -> None:
             starts.append(theta)
         if len(starts) == wanted:
             break
-    run.phase_end = time.perf_counter() + 0.5 * max(run.left(), 0.0)  # polishing
+    run.phase_end = time.perf_counter() + polish_share * max(run.left(), 0.0)  # polishing
     if run.workers > 1 and len(starts) > 1:
         run.log(f"polishing locally from {len(starts)} points in parallel", record=False)
         for theta in _parallel(run, _polish_task, starts):
             run.consider(theta, "polished locally")
     else:
-        for theta in starts:
+        polish_end = run.phase_end
+        for i, theta in enumerate(starts):  # each start gets its share of the phase
+            run.phase_end = time.perf_counter() + (polish_end - time.perf_counter()) / (
+                len(starts) - i)
             if not run.can_afford(10 * run.analysis_seconds):
-                break
+                continue
             run.log("polishing locally", record=False)
             run.consider(_polish(run, theta), "polished locally")
-    if k > 1 and run.best_theta is not None and run.can_afford(40 * run.analysis_seconds):
-        run.log("polishing the best point again", record=False)  # a restart from the best
-        run.consider(_polish(run, run.best_theta), "polished again")
+        run.phase_end = polish_end
+    while (k > 1 and run.best_theta is not None  # restarts from the best while they help
+           and run.can_afford(40 * run.analysis_seconds)):
+        run.log("polishing the best point again", record=False)
+        if not run.consider(_polish(run, run.best_theta), "polished again"):
+            break
 
 
 def _usable_workers(workers: int | None) -> int:
