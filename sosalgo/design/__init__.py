@@ -318,7 +318,9 @@ def _search(run: _Run, polish_share: float = 0.5) -> None:
     while (k > 1 and run.best_theta is not None  # restarts from the best while they help
            and run.can_afford(40 * run.analysis_seconds)):
         run.log("polishing the best point again", record=False)
-        if not run.consider(_polish(run, run.best_theta), "polished again"):
+        before = run.upper
+        run.consider(_polish(run, run.best_theta), "polished again")
+        if not run.upper < before - CERT_TOL:  # no real progress: stop
             break
 
 
