@@ -40,6 +40,10 @@ def handle_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
             src = kwargs.get("spec_path", "")
             names_file = getattr(exc, "names_file", True)
             _fail(_one_line(str(exc) if names_file or not src else f"{src}: {exc}"), 2)
+        except BrokenPipeError:  # stdout closed early (`sosalgo ... | head`): quiet exit
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())  # no second error at interpreter exit
+            sys.exit(141)  # 128 + SIGPIPE, as a shell reports a broken pipe
         except KeyboardInterrupt:
             click.echo("interrupted: finished rows are saved; rerun to resume", err=True)
             sys.exit(130)

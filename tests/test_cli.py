@@ -134,3 +134,18 @@ def test_bad_kappa_and_tol_options(tmp_path):
     assert not (tmp_path / "o").exists()
     res = CliRunner().invoke(cli, ["analyze", str(tmp_path / "missing.yaml")])
     assert res.exit_code == 2 and "no such file" in res.stderr
+
+
+def test_closed_stdout_is_a_quiet_exit(tmp_path):
+    """`sosalgo ... | head`: no traceback and no 'internal error' when the reader leaves."""
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "sosalgo.cli", "analyze", str(SPECS / "nesterov.yaml"),
+         "--kappa", "2", "--kappa", "10", "--no-plot", "--quiet", "--out", str(tmp_path)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc.stdout.close()  # the reader is gone before anything is printed
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) in (0, 141)
+    assert "internal error" not in err and "Traceback" not in err
