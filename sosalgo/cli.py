@@ -19,7 +19,7 @@ import click
 
 from sosalgo import __version__
 from sosalgo.batch.store import kappa_label, output_lock
-from sosalgo.errors import InputError
+from sosalgo.errors import InputError, VerificationError
 
 __all__ = ["main", "cli"]
 
@@ -40,6 +40,8 @@ def handle_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
             src = kwargs.get("spec_path", "")
             names_file = getattr(exc, "names_file", True)
             _fail(_one_line(str(exc) if names_file or not src else f"{src}: {exc}"), 2)
+        except VerificationError as exc:  # results are written; a check failed: exit 3
+            _fail(_one_line(str(exc)), 3)
         except BrokenPipeError:  # stdout closed early (`sosalgo ... | head`): quiet exit
             devnull = os.open(os.devnull, os.O_WRONLY)
             os.dup2(devnull, sys.stdout.fileno())  # no second error at interpreter exit
@@ -323,8 +325,7 @@ def _exit_if_unverified(checks: list[Any]) -> None:
     from sosalgo.verify.results import check_failed
 
     if any(check_failed(c) for c in checks):
-        click.echo("error: some certificate failed verification (exit code 3)", err=True)
-        sys.exit(3)
+        raise VerificationError("some certificate failed verification (exit code 3)")
 
 
 def _figures(stem: Path) -> list[Path]:
@@ -739,7 +740,7 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
                                         "reason"]))
         click.echo(f"rational certificates in {out_dir / 'certificates'}")
     if failed:
-        sys.exit(3)
+        raise VerificationError(f"{len(failed)} certificate(s) failed verification")
 
 
 def _read_result(result_path: str) -> dict[str, Any]:

@@ -2,14 +2,12 @@
 purpose is a :class:`SosalgoError`; the CLI maps the kind to an exit code.
 
 * :class:`InputError` — bad input or environment (spec, options, files, cluster): exit 2.
-* :class:`SolverError` — a solver could not be used at all: exit 1 (a failed step during a
-  search is a status, never an exception).
 * :class:`VerificationError` — a certificate does not pass its check: exit 3.
 """
 
 from __future__ import annotations
 
-__all__ = ["SosalgoError", "InputError", "SolverError", "VerificationError"]
+__all__ = ["SosalgoError", "InputError", "VerificationError"]
 
 
 class SosalgoError(Exception):
@@ -23,10 +21,6 @@ class InputError(SosalgoError, ValueError):
     model): the CLI then puts the spec's path in front."""
 
     names_file = True
-
-
-class SolverError(SosalgoError, RuntimeError):
-    """A conic solver is missing or unusable."""
 
 
 class VerificationError(SosalgoError):

@@ -118,10 +118,6 @@ class PolyLMI:
         th = self.mid + self.half * np.asarray(z, dtype=float)
         return dict(zip(self.free, map(float, th), strict=True))
 
-    def z_of(self, theta: dict[str, float]) -> np.ndarray:
-        t = np.array([theta[p] for p in self.free], dtype=float)
-        return np.where(self.half > 0, (t - self.mid) / np.where(self.half > 0, self.half, 1), 0)
-
     def depends_on_theta(self, b: int) -> bool:
         for arr in self.coef[b].values():
             flat = arr.reshape(int(np.prod(arr.shape[: self.k])), -1)
@@ -131,17 +127,13 @@ class PolyLMI:
 
     def shifted(self, b: int, name: str, center: np.ndarray, half: np.ndarray) -> np.ndarray:
         """Coefficients of block ``b``'s ``name`` in local coordinates u of a sub-box."""
-        mats = [shift_matrices(c, h, d)
-                for c, h, d in zip(center, half, self.degrees, strict=True)]
-        return _apply_axes(self.coef[b][name], mats)
+        return shift_tensor(self.coef[b][name], self.degrees, center, half)
 
     def at(self, z: Sequence[float]) -> LMIProblem:
         """The numeric problem at scaled point z (evaluated from the polynomials)."""
-        pows = [np.asarray(zi) ** np.arange(d + 1) for zi, d in
-                zip(np.asarray(z, dtype=float), self.degrees, strict=True)]
         blocks = []
         for b, name in enumerate(self.names):
-            data = {key: _apply_axes(arr, [p[None, :] for p in pows]).reshape(arr.shape[self.k:])
+            data = {key: evaluate_tensor(arr, self.degrees, z)
                     for key, arr in self.coef[b].items()}
             blocks.append(AffineBlock(name, data["c0"], data["c1"], data["l0"], data["l1"],
                                       self.strict[b]))
