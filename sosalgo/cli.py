@@ -804,20 +804,21 @@ def table1(spec_paths: tuple[str, ...], kappa: tuple[str, ...], tol: float, out:
     further family adds rho_<family>, certified_<family> and difference_<family>.
     """
     from sosalgo.analysis import analyze_spec
-    from sosalgo.batch.store import format_value
+    from sosalgo.batch.store import write_table
     from sosalgo.batch.sweeps import reference_values
     from sosalgo.report import format_table
-    from sosalgo.spec import load_spec, spec_from_text
+    from sosalgo.spec import read_spec_text, spec_from_text
 
     _check_tol(tol)
     paths = list(spec_paths) or sorted(str(p) for p in Path("specs").glob("*.yaml"))
     if paths:
-        specs = [load_spec(p) for p in paths]
+        texts = {p: read_spec_text(p) for p in paths}
     else:  # outside a checkout: the example specs shipped with sosalgo
         from sosalgo.resources import example_specs
 
-        specs = [spec_from_text(f.read_text(encoding="utf-8"), source=f"examples/{name}.yaml")
-                 for name, f in example_specs().items()]
+        texts = {f"examples/{name}.yaml": f.read_text(encoding="utf-8")
+                 for name, f in example_specs().items()}
+    specs = [spec_from_text(text, source=src) for src, text in texts.items()]
     if not specs:
         raise InputError("--specs: no spec files given and none in specs/")
     kappas = [k for v in kappa for k in _kappa_option(v)] or [2.0, 10.0, 100.0]
@@ -847,17 +848,10 @@ def table1(spec_paths: tuple[str, ...], kappa: tuple[str, ...], tol: float, out:
             "difference"]
     cols += [c for c in extra_cols if c not in cols]
     out_dir = _out_dir(out)
-    out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / "table1.csv"
-    tmp = path.with_name(".table1.csv.tmp")
-    import csv
-
-    with open(tmp, "w", newline="", encoding="utf-8") as fh:
-        w = csv.writer(fh, lineterminator="\n")
-        w.writerow(cols)
-        for r in rows:
-            w.writerow([format_value(r.get(c)) for c in cols])
-    os.replace(tmp, path)
+    settings = {"job": "table1", "specs": texts, "kappa": kappas,
+                "tol": tol, "certificate": certificate, "lag": lag}
+    write_table(path, cols, rows, settings)
     click.echo(format_table(rows, cols))
     click.echo(f"wrote {path}")
 

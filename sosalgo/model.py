@@ -15,7 +15,7 @@ import numpy as np
 
 from sosalgo.errors import InputError
 from sosalgo.expr.compile import NumericError, compile_expression, compile_matrix
-from sosalgo.spec.types import BASE_SYMBOLS, MATRIX_NAMES, Spec, value_order
+from sosalgo.spec.types import BASE_NAMES, MATRIX_NAMES, Spec, value_order
 
 __all__ = ["Algorithm", "ModelError", "bind", "evaluate_algorithm", "fixed_point"]
 
@@ -93,7 +93,7 @@ class _Compiled:
 
     def __init__(self, spec: Spec):
         self.names = list(spec.parameters)
-        syms = list(BASE_SYMBOLS.values()) + [spec.symbols[p] for p in self.names]
+        syms = list(BASE_NAMES) + self.names
         self.order = value_order(spec.parameters, spec.source)
         self.param_fns = {}
         for p, par in spec.parameters.items():
@@ -106,7 +106,7 @@ class _Compiled:
                 self.matrix_fns[k] = compile_matrix(spec.matrices[k], syms)
             except NumericError as exc:
                 raise ModelError(f"matrices.{k}", str(exc)) from None
-        base = list(BASE_SYMBOLS.values())
+        base = list(BASE_NAMES)
         self.range_fns = {
             p: (
                 _compile(par.range[0], base, f"parameters.{p}.range"),

@@ -144,12 +144,12 @@ def test_algorithm_accepts_lists_and_refuses_no_fixed_point():
         Algorithm([[1.0]], [[-0.1, 0.0]], [[1.0]], [[1.0]], 1.0, 10.0)
 
 
-def test_one_kappa_analyze_imports_no_plotting_cvxpy_or_dask(tmp_path):
+def test_one_kappa_analyze_imports_no_plotting_cvxpy_dask_or_sympy(tmp_path):
     code = ("import sys\nfrom sosalgo.cli import cli\n"
             "try:\n    cli(['analyze', sys.argv[1], '--kappa', '10', '--out', sys.argv[2],"
             " '--quiet'])\nexcept SystemExit as e:\n    assert not e.code, e.code\n"
             "print('MODULES:' + ' '.join(m for m in ('matplotlib', 'cvxpy', 'dask', 'distributed',"
-            " 'sosalgo.verify', 'sosalgo.design', 'sosalgo.polyopt')"
+            " 'sympy', 'sosalgo.verify', 'sosalgo.design', 'sosalgo.polyopt')"
             " if m in sys.modules))")
     res = subprocess.run([sys.executable, "-c", code, str(SPECS / "nesterov.yaml"),
                           str(tmp_path)], capture_output=True, text=True, timeout=300)
@@ -161,9 +161,9 @@ def test_kappa_numbers_are_parsed_as_numbers(monkeypatch):
     import sosalgo.spec.loading as spec_mod
 
     def boom(*a, **k):
-        raise AssertionError("symbolic parsing of a plain number")
+        raise AssertionError("expression parsing of a plain number")
 
-    monkeypatch.setattr(spec_mod, "parse_expression", boom)
+    monkeypatch.setattr(spec_mod, "parse_tree", boom)
     values = [f"{1.5 + 0.25 * i:g}" for i in range(241)]
     out = spec_mod.parse_kappa(values + [7, 2.5, "1e6"], "x", "kappa")
     assert out[:241] == tuple(float(v) for v in values) and out[-1] == 1e6

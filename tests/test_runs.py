@@ -373,3 +373,35 @@ def test_quoted_multiline_cells_survive_a_resume(tmp_path):
                       notify=lambda m: None) as s:
         assert s.is_done({"kappa": 2.0})
         assert s.rows()[0]["error"] == "line one\nline two, with a comma"
+
+
+def test_table1_reruns_keep_other_settings_aside_and_concurrent_runs_do_not_mix(tmp_path):
+    out = tmp_path / "out"
+    base = ["table1", "--specs", GRADIENT, "--out", out]
+    first = run([*base, "--kappa", "4"])
+    assert first.exit_code == 0, first.output
+    rows = rows_of(out / "table1.csv")
+    assert [float(r["kappa"]) for r in rows] == pytest.approx([4.0])
+    assert float(rows[0]["rho_certified"]) == pytest.approx(1 - 1 / 4, abs=1e-5)  # h = 1/L
+    # identical settings: replaced by the same table, no note
+    again = run([*base, "--kappa", "4"])
+    assert again.exit_code == 0 and "kept it aside" not in again.stderr
+    assert not list(out.glob("table1-*.csv"))
+    # other settings: the old table is kept aside, the message says what differs
+    other = run([*base, "--kappa", "10"])
+    assert other.exit_code == 0, other.output
+    assert "kept it aside" in other.stderr and "kappa" in other.stderr
+    (aside,) = out.glob("table1-*.csv")
+    assert [float(r["kappa"]) for r in rows_of(aside)] == pytest.approx([4.0])
+    assert [float(r["kappa"]) for r in rows_of(out / "table1.csv")] == pytest.approx([10.0])
+    # two runs at once into one folder: each table is whole (never interleaved lines)
+    procs = [subprocess.Popen([sys.executable, "-m", "sosalgo.cli", "table1", "--specs",
+                               str(GRADIENT), "--kappa", k, "--out", str(out)], env=ENV,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+             for k in ("2", "3")]
+    assert all(p.wait(timeout=300) == 0 for p in procs)
+    for path in out.glob("table1*.csv"):
+        got = rows_of(path)
+        assert len(got) == 1 and got[0]["spec"] == "gradient", path
+    kappas = {float(rows_of(p)[0]["kappa"]) for p in out.glob("table1*.csv")}
+    assert {2.0, 3.0, 4.0} <= kappas

@@ -53,6 +53,7 @@ __all__ = [
     "kappa_label",
     "output_lock",
     "settings_hash",
+    "write_table",
 ]
 
 MAX_SETTINGS_BYTES = 4_000_000
@@ -223,6 +224,33 @@ def _aside_name(path: Path, digest: str) -> Path:
         if name.endswith(suffix):
             return path.with_name(f"{name[: -len(suffix)]}-{digest}{suffix}")
     return path.with_name(f"{name}-{digest}")
+
+
+def write_table(path: Path, columns: Sequence[str], rows: Iterable[dict[str, Any]],
+                settings: dict[str, Any], notify: Callable[[str], None] = _note) -> None:
+    """Write a small table computed in one go (``table1``) under the run model: the whole
+    file is replaced atomically under the output lock; a file written with other settings is
+    kept aside first (``DIR/<name>-<hash8>.csv``), with a note saying what differs."""
+    path = Path(path)
+    settings = json.loads(json.dumps(settings, sort_keys=True))
+    settings_path = path.with_name(path.name + ".settings.json")
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(columns)
+    writer.writerows([format_value(r.get(c)) for c in columns] for r in rows)
+    with output_lock(path, notify):
+        if _regular_or_missing(path):
+            old = _read_settings(settings_path)
+            if old != settings:
+                digest = settings_hash(old) if isinstance(old, dict) else _content_hash(path)
+                for p in (path, settings_path):
+                    if p.exists():
+                        os.replace(p, _aside_name(p, digest))
+                notify(f"{path} was written with other settings "
+                       f"({describe_difference(old, settings)}); kept it aside as "
+                       f"{_aside_name(path, digest).name}")
+        _atomic_write(path, buf.getvalue())
+        _atomic_write(settings_path, json.dumps(settings, indent=2, sort_keys=True) + "\n")
 
 
 class ResumableCSV:

@@ -21,7 +21,7 @@ from sosalgo.certificates import CertificateFamily, get_family
 from sosalgo.expr.compile import compile_expression
 from sosalgo.model import ModelError
 from sosalgo.solvers import DEFAULT_SOLVERS
-from sosalgo.spec import BASE_SYMBOLS, Spec, spec_from_text
+from sosalgo.spec import BASE_NAMES, Spec, spec_from_text
 
 __all__ = [
     "analysis_columns",
@@ -111,7 +111,7 @@ def _reference_fns(spec: Spec) -> dict[str, Any]:
         fns = {}
         for name, expr in spec.references.items():
             try:
-                fns[name] = compile_expression(expr, list(BASE_SYMBOLS.values()))
+                fns[name] = compile_expression(expr, BASE_NAMES)
             except ValueError:
                 fns[name] = None
         _REFERENCES[spec] = fns

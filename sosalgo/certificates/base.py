@@ -7,9 +7,10 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
-import sympy as sp
 
 if TYPE_CHECKING:  # only for annotations: families do not depend on the model at run time
+    import sympy as sp
+
     from sosalgo.model import Algorithm
 
 

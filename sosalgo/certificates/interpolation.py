@@ -34,11 +34,12 @@ from fractions import Fraction
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import sympy as sp
 
 from sosalgo.certificates.base import AffineBlock, LMIProblem
 
 if TYPE_CHECKING:  # only for annotations: families do not depend on the model at run time
+    import sympy as sp
+
     from sosalgo.model import Algorithm
 
 __all__ = ["INTERPOLATION", "Interpolation", "Structure", "structure", "evaluate"]
@@ -166,6 +167,8 @@ def has_output_point(C: np.ndarray, E: np.ndarray) -> bool:
     try:
         return not np.array_equal(np.asarray(C, float), np.asarray(E, float))
     except TypeError:
+        import sympy as sp
+
         return any(sp.simplify(a - b) != 0 for a, b in zip(np.ravel(C), np.ravel(E), strict=True))
 
 
@@ -401,6 +404,8 @@ class Interpolation:
                 "multipliers": json.loads(row["multipliers"])}
 
     def symbolic(self, A, B, C, E, m, L) -> tuple[sp.Matrix, dict[str, Any]]:
+        import sympy as sp
+
         """Symbolic row maps and interpolation pairs; the returned matrix is the decrease
         block (D) with symbolic P, p, c and multipliers (large: printed on request)."""
         n = A.shape[0]

@@ -16,11 +16,12 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import sympy as sp
 
 from sosalgo.certificates.base import AffineBlock, LMIProblem
 
 if TYPE_CHECKING:  # only for annotations: families do not depend on the model at run time
+    import sympy as sp
+
     from sosalgo.model import Algorithm
 
 __all__ = ["THEOREM1", "Theorem1", "theorem1_terms"]
@@ -30,6 +31,8 @@ PSD_FLOOR = 1e-13  # relative floor for P's eigenvalues after projection
 
 def _blocks(rows: list[list[Any]], symbolic: bool) -> Any:
     if symbolic:
+        import sympy as sp
+
         return sp.Matrix(sp.BlockMatrix(rows).as_explicit())
     return np.block(rows)
 
@@ -42,6 +45,8 @@ def theorem1_terms(A, B, C, E, m, L, P, symbolic: bool = False) -> dict[str, Any
     """
     n = A.shape[0]
     if symbolic:
+        import sympy as sp
+
         zeros, eye, half = sp.zeros, sp.eye, sp.Rational(1, 2)
     else:
         zeros, eye, half = (lambda r, c=None: np.zeros((r, c if c is not None else r))), np.eye, 0.5
@@ -152,6 +157,8 @@ class Theorem1:
         )
 
     def symbolic(self, A, B, C, E, m, L) -> tuple[sp.Matrix, dict[str, Any]]:
+        import sympy as sp
+
         """Symbolic M(theta, rho, lambda, P) of eq. (15) with P = [p_ij] symmetric."""
         n = A.shape[0]
         P = sp.zeros(n, n)

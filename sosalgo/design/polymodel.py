@@ -25,6 +25,7 @@ import numpy as np
 import sympy as sp
 
 from sosalgo.certificates.base import AffineBlock, CertificateFamily, LMIProblem
+from sosalgo.expr.parse import to_sympy
 from sosalgo.model import Algorithm, ModelError, evaluate_algorithm
 from sosalgo.spec import Spec
 
@@ -46,8 +47,9 @@ def check_polynomial(spec: Spec, free: Sequence[str]) -> None:
         if expr.free_symbols & symset and not expr.is_polynomial(*syms):
             raise ModelError(
                 f"parameters.{name}",
-                f"{name} = {_show(spec.parameters[name].tied)} is not polynomial in the free "
-                f"parameter(s) {_names(free, syms, expr)}; design needs polynomial dependence",
+                f"{name} = {_show(to_sympy(spec.parameters[name].tied))} is not polynomial "
+                f"in the free parameter(s) {_names(free, syms, expr)}; design needs "
+                "polynomial dependence",
             )
     for key, mat in spec.templates(free).items():
         for (i, j), entry in np.ndenumerate(np.array(mat.tolist(), dtype=object)):

@@ -1,8 +1,20 @@
-"""Expressions of specs: parsed safely into sympy (:mod:`~sosalgo.expr.parse`, never
-``eval``) and compiled for fast numeric evaluation (:mod:`~sosalgo.expr.compile`)."""
+"""Expressions of specs: parsed safely into small trees (:mod:`~sosalgo.expr.tree`, never
+``eval``), compiled for fast numeric evaluation (:mod:`~sosalgo.expr.compile`) and turned
+into sympy only for symbolic work (:mod:`~sosalgo.expr.parse`, imported on first use so
+numeric analysis never loads sympy)."""
+
+from typing import Any
 
 from sosalgo.expr.compile import NumericError, compile_expression, compile_matrix
-from sosalgo.expr.parse import ExprError, parse_expression
+from sosalgo.expr.tree import Expr, ExprError, constant_value, parse_tree
 
-__all__ = ["ExprError", "NumericError", "compile_expression", "compile_matrix",
-           "parse_expression"]
+__all__ = ["Expr", "ExprError", "NumericError", "compile_expression", "compile_matrix",
+           "constant_value", "parse_expression", "parse_tree", "to_sympy"]
+
+
+def __getattr__(name: str) -> Any:
+    if name in ("parse_expression", "to_sympy"):
+        from sosalgo.expr import parse
+
+        return getattr(parse, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

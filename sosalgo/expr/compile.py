@@ -1,7 +1,8 @@
-"""Fast, safe numeric evaluation of the sympy expressions built by :mod:`sosalgo.expr`.
+"""Fast, safe numeric evaluation of the expression trees of :mod:`sosalgo.expr.tree`.
 
 An expression is compiled once into nested Python closures (no code generation, no
-``eval``) and then evaluated at many points (kappa values, grid points).
+``eval``, no computer algebra) and then evaluated at many points (kappa values, grid
+points). Constant subexpressions are folded once.
 """
 
 from __future__ import annotations
@@ -10,9 +11,9 @@ import math
 from collections.abc import Callable, Sequence
 
 import numpy as np
-import sympy as sp
 
 from sosalgo.errors import InputError
+from sosalgo.expr.tree import Expr, apply, evaluate, power
 
 __all__ = ["NumericError", "compile_expression", "compile_matrix"]
 
@@ -23,12 +24,12 @@ class NumericError(InputError):
     """An expression cannot be evaluated to a finite real number at the given point."""
 
 
-def compile_expression(expr: sp.Expr, symbols: Sequence[sp.Symbol]) -> Fn:
-    """Return ``f(values) -> float`` evaluating ``expr`` with ``symbols[i] = values[i]``."""
-    index = {s: i for i, s in enumerate(symbols)}
-    inner = _compile(sp.sympify(expr), index)
+def compile_expression(expr: Expr, names: Sequence[str]) -> Fn:
+    """Return ``f(values) -> float`` evaluating ``expr`` with ``names[i] = values[i]``."""
+    index = {s: i for i, s in enumerate(names)}
+    inner = _compile(expr, index)
 
-    def evaluate(values: Sequence[float]) -> float:
+    def evaluate_at(values: Sequence[float]) -> float:
         try:
             out = inner(values)
         except (ValueError, ZeroDivisionError, OverflowError, TypeError) as exc:
@@ -37,20 +38,20 @@ def compile_expression(expr: sp.Expr, symbols: Sequence[sp.Symbol]) -> Fn:
             raise NumericError("value is not a finite real number")
         return float(out)
 
-    return evaluate
+    return evaluate_at
 
 
 def compile_matrix(
-    mat: sp.Matrix, symbols: Sequence[sp.Symbol]
+    rows: Sequence[Sequence[Expr]], names: Sequence[str]
 ) -> Callable[[Sequence[float]], np.ndarray]:
-    """Compile every entry of ``mat``; returns ``f(values) -> ndarray``."""
-    rows, cols = mat.shape
-    fns = [compile_expression(mat[i, j], symbols) for i in range(rows) for j in range(cols)]
+    """Compile every entry of a matrix given as rows of trees; ``f(values) -> ndarray``."""
+    shape = (len(rows), len(rows[0]))
+    fns = [compile_expression(e, names) for row in rows for e in row]
 
-    def evaluate(values: Sequence[float]) -> np.ndarray:
-        return np.array([f(values) for f in fns], dtype=float).reshape(rows, cols)
+    def evaluate_at(values: Sequence[float]) -> np.ndarray:
+        return np.array([f(values) for f in fns], dtype=float).reshape(shape)
 
-    return evaluate
+    return evaluate_at
 
 
 def _reason(exc: Exception) -> str:
@@ -61,68 +62,52 @@ def _reason(exc: Exception) -> str:
     return "outside the domain of a function (sqrt/log of a negative number?)"
 
 
-def _pow(a: float, b: float) -> float:
-    if a == 0 and b < 0:
-        raise ZeroDivisionError
-    return math.pow(a, b)
-
-
-def _short(expr: sp.Basic, n: int = 60) -> str:
+def _short(expr: Expr, n: int = 60) -> str:
     text = str(expr)
     return text if len(text) <= n else text[: n - 3] + "..."
 
 
-def _compile(expr: sp.Basic, index: dict[sp.Symbol, int]) -> Callable[[Sequence[float]], float]:
-    if isinstance(expr, sp.Symbol):
-        if expr not in index:
-            raise NumericError(f"unbound symbol '{expr}'")
-        i = index[expr]
+def _compile(expr: Expr, index: dict[str, int]) -> Fn:
+    if expr.op == "name":
+        name = expr.args[0]
+        if name not in index:
+            raise NumericError(f"unbound symbol '{name}'")
+        i = index[name]
         return lambda v: float(v[i])
-    if isinstance(expr, sp.Number | sp.NumberSymbol):
+    if expr.is_constant:
         try:
-            value = float(expr)
-        except (TypeError, ValueError, OverflowError):
+            value = evaluate(expr, {})
+        except (ValueError, ZeroDivisionError, OverflowError):
             value = math.nan
         if not math.isfinite(value):
             raise NumericError(f"constant {_short(expr)} is not a finite real number")
         return lambda v: value
-    if expr.is_number:
-        # Other constants (sqrt(2), exp(3), ...) are folded in floating point through the
-        # closures below: sympy's arbitrary-precision evalf can take unbounded time.
-        fn = _compile_operation(expr, index)
-        try:
-            value = fn(())
-        except (ValueError, ZeroDivisionError, OverflowError, TypeError):
-            value = math.nan
-        if isinstance(value, complex) or not math.isfinite(value):
-            raise NumericError(f"constant {_short(expr)} is not a finite real number")
-        return lambda v: value
-    return _compile_operation(expr, index)
-
-
-def _compile_operation(
-    expr: sp.Basic, index: dict[sp.Symbol, int]
-) -> Callable[[Sequence[float]], float]:
     args = [_compile(a, index) for a in expr.args]
-    if isinstance(expr, sp.Add):
-        return lambda v: math.fsum(f(v) for f in args)
-    if isinstance(expr, sp.Mul):
-        def mul(v: Sequence[float]) -> float:
-            out = 1.0
-            for f in args:
-                out *= f(v)
-            return out
-        return mul
-    if isinstance(expr, sp.Pow):
-        base, ex = args
-        return lambda v: _pow(base(v), ex(v))
-    unary = {sp.exp: math.exp, sp.log: math.log, sp.Abs: abs}
-    for cls, fn in unary.items():
-        if isinstance(expr, cls):
-            (a,) = args
-            return lambda v, fn=fn: fn(a(v))
-    if isinstance(expr, sp.Min):
-        return lambda v: min(f(v) for f in args)
-    if isinstance(expr, sp.Max):
-        return lambda v: max(f(v) for f in args)
-    raise NumericError(f"unsupported operation {type(expr).__name__}")
+    op = expr.op
+    if op == "+":
+        a, b = args
+        return lambda v: a(v) + b(v)
+    if op == "-":
+        a, b = args
+        return lambda v: a(v) - b(v)
+    if op == "*":
+        a, b = args
+        return lambda v: a(v) * b(v)
+    if op == "/":
+        a, b = args
+        return lambda v: a(v) / b(v)
+    if op == "**":
+        a, b = args
+        return lambda v: power(a(v), b(v))
+    if op == "neg":
+        (a,) = args
+        return lambda v: -a(v)
+    if op in ("min", "max"):
+        pick = min if op == "min" else max
+        return lambda v: pick(f(v) for f in args)
+    unary = {"sqrt": math.sqrt, "exp": math.exp, "log": math.log, "abs": abs}
+    if op in unary:
+        fn = unary[op]
+        (a,) = args
+        return lambda v: fn(a(v))
+    return lambda v: apply(op, [f(v) for f in args])

@@ -1,46 +1,29 @@
-"""Safe arithmetic expressions for spec templates.
+"""Symbolic form of spec expressions: :class:`~sosalgo.expr.tree.Expr` trees to sympy.
 
-An expression such as ``(sqrt(kappa) - 1)/(sqrt(kappa) + 1)`` is *parsed* with Python's
-``ast`` module and converted node by node into a sympy expression. Only numbers, the
-names the caller allows, ``+ - * / **``, unary signs, parentheses and the functions
-``sqrt exp log abs min max`` (and the constant ``pi``) are accepted. Nothing is ever
-``eval``-ed: an attribute access, a call of anything else, a subscript, a lambda, a
-string literal ... is a parse error. (sympy's own ``parse_expr`` calls ``eval`` on the
-transformed text, so it is deliberately not used here.)
+Only symbolic work imports this module (design's polynomial model, the ``lmi`` display,
+exact verification, polyopt's string input); numeric analysis works on the tree itself.
+A float such as ``0.1`` becomes the rational ``1/10`` here, so exact checks see the number
+the user wrote.
 """
 
 from __future__ import annotations
 
-import ast
-import math
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 
 import sympy as sp
 
-from sosalgo.errors import InputError
+from sosalgo.expr.tree import Expr, ExprError, parse_tree
 
-__all__ = ["ExprError", "parse_expression", "FUNCTIONS", "MAX_LENGTH"]
+__all__ = ["parse_expression", "sympy_symbol", "to_sympy"]
 
-MAX_LENGTH = 2000  # characters; longer strings are refused before parsing
-MAX_DEPTH = 60  # nesting depth of the syntax tree
-MAX_MAGNITUDE_LOG10 = 300  # numeric constants must stay below 1e300 in magnitude
-# exp() of a constant beyond this would leave the float range (and sympy's arbitrary-precision
-# evalf of exp(exp(exp(100))) never finishes), so such constants are refused while parsing.
-MAX_EXP_ARGUMENT = MAX_MAGNITUDE_LOG10 * math.log(10)
+BASE_NAMES = ("m", "L", "kappa")
 
-FUNCTIONS: dict[str, object] = {
-    "sqrt": sp.sqrt,
-    "exp": sp.exp,
-    "log": sp.log,
-    "abs": sp.Abs,
-    "min": sp.Min,
-    "max": sp.Max,
-}
-CONSTANTS: dict[str, sp.Expr] = {"pi": sp.pi}
+_FUNCTIONS = {"sqrt": sp.sqrt, "exp": sp.exp, "log": sp.log, "abs": sp.Abs}
 
 
-class ExprError(InputError):
-    """An expression string that is not a valid, safe arithmetic expression."""
+def sympy_symbol(name: str) -> sp.Symbol:
+    """The symbol of a spec name: m, L, kappa are positive, parameters real."""
+    return sp.Symbol(name, positive=True) if name in BASE_NAMES else sp.Symbol(name, real=True)
 
 
 def parse_expression(text: object, names: Mapping[str, sp.Symbol]) -> sp.Expr:
@@ -48,147 +31,56 @@ def parse_expression(text: object, names: Mapping[str, sp.Symbol]) -> sp.Expr:
 
     Raises :class:`ExprError` with a one-line message for anything outside the grammar.
     """
-    if isinstance(text, bool):
-        raise ExprError("expected a number or an expression, got a boolean")
-    if isinstance(text, int):
-        return _number(text)
-    if isinstance(text, float):
-        if not math.isfinite(text):
-            raise ExprError(f"number {text} is not finite")
-        return _number(text)
-    if not isinstance(text, str):
-        raise ExprError(f"expected a number or an expression, got {type(text).__name__}")
-    src = text.strip()
-    if not src:
-        raise ExprError("empty expression")
-    if len(src) > MAX_LENGTH:
-        raise ExprError(f"expression longer than {MAX_LENGTH} characters")
-    if "^" in src:
-        raise ExprError("'^' is not a power operator here; write '**'")
-    try:
-        tree = ast.parse(src, mode="eval")
-    except (SyntaxError, ValueError, MemoryError, RecursionError) as exc:
-        msg = exc.msg if isinstance(exc, SyntaxError) else type(exc).__name__
-        raise ExprError(f"cannot parse {_short(src)!r}: {msg}") from None
-    try:
-        return _Converter(names).convert(tree.body, 0)
-    except RecursionError:
-        raise ExprError("expression nested too deeply") from None
+    return to_sympy(parse_tree(text, names), names)
 
 
-def _short(src: str, n: int = 60) -> str:
-    return src if len(src) <= n else src[: n - 3] + "..."
+def to_sympy(expr: Expr, symbols: Mapping[str, sp.Symbol] | Collection[str] = ()) -> sp.Expr:
+    """The sympy expression of a tree. Names map through ``symbols`` when given there, else
+    to :func:`sympy_symbol`. Raises :class:`ExprError` when sympy's simplification shows an
+    expression is not a finite real (``1/(kappa - kappa)``, ``sqrt(-kappa)``)."""
+    table = symbols if isinstance(symbols, Mapping) else {}
+    return _convert(expr, table)
+
+
+def _convert(e: Expr, symbols: Mapping[str, sp.Symbol]) -> sp.Expr:
+    if e.op == "num":
+        return _number(e.args[0])
+    if e.op == "name":
+        name = e.args[0]
+        return symbols[name] if name in symbols else sympy_symbol(name)
+    if e.op == "pi":
+        return sp.pi
+    args = [_convert(a, symbols) for a in e.args]
+    if e.op == "+":
+        out = args[0] + args[1]
+    elif e.op == "-":
+        out = args[0] - args[1]
+    elif e.op == "*":
+        out = args[0] * args[1]
+    elif e.op == "/":
+        if args[1].is_zero:
+            raise ExprError("division by zero")
+        out = args[0] / args[1]
+    elif e.op == "**":
+        out = args[0] ** args[1]
+    elif e.op == "neg":
+        out = -args[0]
+    elif e.op in ("min", "max"):
+        # Kept as written: sympy's evaluation of Min/Max compares every pair of arguments
+        # through the assumptions system, which takes seconds for a few dozen arguments.
+        fn = sp.Min if e.op == "min" else sp.Max
+        out = fn(*args, evaluate=False)
+    else:
+        if e.op == "log" and args[0].is_zero:
+            raise ExprError("log(0)")
+        out = _FUNCTIONS[e.op](args[0])
+    return _check_finite(out)
 
 
 def _number(value: int | float) -> sp.Expr:
-    if value != 0 and math.log10(abs(value)) > MAX_MAGNITUDE_LOG10:
-        raise ExprError("number too large")
     if isinstance(value, int):
         return sp.Integer(value)
     return sp.nsimplify(value, rational=True) if abs(value) >= 1e-300 or value == 0 else sp.Float(0)
-
-
-class _Converter:
-    """Walks a Python syntax tree, accepting only the whitelisted grammar."""
-
-    def __init__(self, names: Mapping[str, sp.Symbol]):
-        self.names = names
-
-    def convert(self, node: ast.AST, depth: int) -> sp.Expr:
-        if depth > MAX_DEPTH:
-            raise ExprError("expression nested too deeply")
-        d = depth + 1
-        if isinstance(node, ast.Constant):
-            if isinstance(node.value, bool) or not isinstance(node.value, int | float):
-                raise ExprError(f"unsupported literal {node.value!r}")
-            return _number(node.value)
-        if isinstance(node, ast.Name):
-            if node.id in self.names:
-                return self.names[node.id]
-            if node.id in CONSTANTS:
-                return CONSTANTS[node.id]
-            if node.id in FUNCTIONS:
-                raise ExprError(f"function '{node.id}' used without arguments")
-            raise ExprError(f"unknown name '{node.id}'")
-        if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub | ast.UAdd):
-            operand = self.convert(node.operand, d)
-            return -operand if isinstance(node.op, ast.USub) else operand
-        if isinstance(node, ast.BinOp):
-            left = self.convert(node.left, d)
-            right = self.convert(node.right, d)
-            return self._binop(node.op, left, right)
-        if isinstance(node, ast.Call):
-            return self._call(node, d)
-        raise ExprError(f"unsupported syntax ({type(node).__name__})")
-
-    def _binop(self, op: ast.operator, left: sp.Expr, right: sp.Expr) -> sp.Expr:
-        if isinstance(op, ast.Add):
-            out = left + right
-        elif isinstance(op, ast.Sub):
-            out = left - right
-        elif isinstance(op, ast.Mult):
-            out = left * right
-        elif isinstance(op, ast.Div):
-            if right.is_zero:
-                raise ExprError("division by zero")
-            out = left / right
-        elif isinstance(op, ast.Pow):
-            _check_power(left, right)
-            out = left**right
-        else:
-            raise ExprError(f"unsupported operator {type(op).__name__}")
-        return _check_finite(out)
-
-    def _call(self, node: ast.Call, depth: int) -> sp.Expr:
-        if not isinstance(node.func, ast.Name) or node.func.id not in FUNCTIONS:
-            what = node.func.id if isinstance(node.func, ast.Name) else "this expression"
-            raise ExprError(f"call of '{what}' is not allowed")
-        if node.keywords:
-            raise ExprError("keyword arguments are not allowed")
-        name = node.func.id
-        args = [self.convert(a, depth) for a in node.args]
-        if name in ("min", "max"):
-            if len(args) < 2:
-                raise ExprError(f"{name}() needs at least two arguments")
-        elif len(args) != 1:
-            raise ExprError(f"{name}() takes exactly one argument")
-        if name == "log" and args[0].is_zero:
-            raise ExprError("log(0)")
-        if name == "exp" and args[0].is_number and _magnitude(args[0]) > MAX_EXP_ARGUMENT:
-            raise ExprError("argument of exp() too large in magnitude")
-        if name in ("min", "max"):
-            # Kept as written: sympy's evaluation of Min/Max compares every pair of arguments
-            # through the assumptions system, which takes seconds for a few dozen arguments.
-            return _check_finite(FUNCTIONS[name](*args, evaluate=False))  # type: ignore[operator]
-        return _check_finite(FUNCTIONS[name](*args))  # type: ignore[operator]
-
-
-def _check_power(base: sp.Expr, exponent: sp.Expr) -> None:
-    """Refuse powers whose value could explode (e.g. 10**10**10)."""
-    if exponent.is_number:
-        e = _magnitude(exponent)
-        if e > 64:
-            raise ExprError("exponent larger than 64 in magnitude")
-        e = _real(exponent)
-        if base.is_number:
-            b = _magnitude(base)
-            if b == 0 and e < 0:
-                raise ExprError("division by zero")
-            if b > 0 and abs(e * math.log10(b)) > MAX_MAGNITUDE_LOG10:
-                raise ExprError("number too large")
-
-
-def _magnitude(value: sp.Expr) -> float:
-    """|value| of a constant (inf when it leaves the float range or cannot be evaluated)."""
-    try:
-        return abs(complex(value.evalf(20)))
-    except (OverflowError, TypeError, ValueError):
-        return math.inf
-
-
-def _real(value: sp.Expr) -> float:
-    """Real part of a constant whose magnitude is known to be small."""
-    return complex(value.evalf(20)).real
 
 
 def _check_finite(expr: sp.Expr) -> sp.Expr:

@@ -9,6 +9,8 @@ through the reduced templates A (n x n), B (n x 1), C and E (1 x n) of Remark 1.
 :mod:`~sosalgo.spec.loading` (strict YAML, validation, kappa parsing).
 """
 
+from typing import Any
+
 from sosalgo.spec.loading import (
     load_spec,
     parse_kappa,
@@ -17,7 +19,7 @@ from sosalgo.spec.loading import (
     spec_from_text,
 )
 from sosalgo.spec.types import (
-    BASE_SYMBOLS,
+    BASE_NAMES,
     MATRIX_NAMES,
     MAX_FILE_BYTES,
     MAX_KAPPA_POINTS,
@@ -31,6 +33,14 @@ from sosalgo.spec.types import (
 
 __all__ = [
     "SpecError", "Parameter", "Spec", "load_spec", "read_spec_text", "spec_from_dict",
-    "spec_from_text", "parse_kappa", "BASE_SYMBOLS", "MATRIX_NAMES", "MAX_FILE_BYTES",
+    "spec_from_text", "parse_kappa", "BASE_NAMES", "BASE_SYMBOLS", "MATRIX_NAMES", "MAX_FILE_BYTES",
     "MAX_KAPPA_POINTS", "MAX_PARAMETERS", "MAX_REFERENCES", "MAX_STATE",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    if name == "BASE_SYMBOLS":  # sympy symbols: built on first use (see spec.types)
+        from sosalgo.spec import types
+
+        return types.BASE_SYMBOLS
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

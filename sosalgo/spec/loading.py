@@ -16,18 +16,17 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import sympy as sp
 import yaml
 
-from sosalgo.expr import ExprError, parse_expression
+from sosalgo.expr import Expr, ExprError, constant_value, parse_tree
 from sosalgo.expr.compile import NumericError, compile_expression
 from sosalgo.spec.types import (
-    BASE_SYMBOLS,
+    BASE_NAMES,
     MATRIX_NAMES,
     MAX_FILE_BYTES,
     MAX_KAPPA_POINTS,
@@ -39,6 +38,7 @@ from sosalgo.spec.types import (
     RESERVED,
     RESERVED_COLUMNS,
     TOP_KEYS,
+    ExprMatrix,
     Parameter,
     Spec,
     SpecError,
@@ -48,7 +48,7 @@ from sosalgo.spec.types import (
 
 __all__ = [
     "SpecError", "Parameter", "Spec", "load_spec", "read_spec_text", "spec_from_dict",
-    "spec_from_text", "BASE_SYMBOLS",
+    "spec_from_text",
 ]
 
 # --------------------------------------------------------------------------- loading
@@ -191,14 +191,14 @@ class _Builder:
             raise self.fail("parameters", "must be a mapping of parameter names")
         if len(raw_params) > MAX_PARAMETERS:
             raise self.fail("parameters", f"more than {MAX_PARAMETERS} parameters")
-        symbols: dict[str, sp.Symbol] = {}
+        symbols: list[str] = []
         for pname in raw_params:
             if not isinstance(pname, str) or not PARAM_RE.fullmatch(pname):
                 raise self.fail(f"parameters.{str(pname)[:40]}", "not a valid parameter name")
             if pname in RESERVED:
                 raise self.fail(f"parameters.{pname}", "name is reserved")
-            symbols[pname] = sp.Symbol(pname, real=True)
-        names = {**BASE_SYMBOLS, **symbols}
+            symbols.append(pname)
+        names = frozenset(BASE_NAMES) | frozenset(symbols)
         params = {p: self.parameter(p, raw, names) for p, raw in raw_params.items()}
         tied_order(params, self.source)  # detects cycles
         value_order(params, self.source)
@@ -209,7 +209,7 @@ class _Builder:
         spec = Spec(
             name=name, description=description, source=self.source, parameters=params,
             matrices=matrices, references=references, kappa=kappa, m=m,
-            certificate=certificate, symbols=symbols, certificate_options=cert_options,
+            certificate=certificate, certificate_options=cert_options,
         )
         self.check_values(spec)
         return spec
@@ -250,16 +250,15 @@ class _Builder:
 
     def m_value(self, raw: object) -> float:
         try:
-            expr = parse_expression(raw, {})
-            val = float(expr)
-        except (ExprError, TypeError) as exc:
+            val = constant_value(parse_tree(raw, ()))
+        except ExprError as exc:
             raise self.fail("m", str(exc)) from None
         if not (math.isfinite(val) and val > 0):
             raise self.fail("m", "must be a positive finite number")
         return val
 
     # -- parameters ------------------------------------------------------------------
-    def parameter(self, pname: str, raw: object, names: dict[str, sp.Symbol]) -> Parameter:
+    def parameter(self, pname: str, raw: object, names: frozenset[str]) -> Parameter:
         where = f"parameters.{pname}"
         if isinstance(raw, dict):
             for key in raw:
@@ -268,7 +267,7 @@ class _Builder:
             if "value" not in raw:
                 raise self.fail(f"{where}.value", "missing (analysis needs a value)")
             value = self.expr(raw["value"], names, f"{where}.value")
-            if names[pname] in value.free_symbols:
+            if pname in value.names():
                 raise self.fail(f"{where}.value", "refers to itself")
             rng = None
             if "range" in raw:
@@ -279,25 +278,25 @@ class _Builder:
         tied = self.expr(raw, names, where)
         return Parameter(pname, tied=tied)
 
-    def range(self, raw: object, where: str) -> tuple[sp.Expr, sp.Expr]:
+    def range(self, raw: object, where: str) -> tuple[Expr, Expr]:
         if not isinstance(raw, list) or len(raw) != 2:
             raise self.fail(where, "must be a list [lo, hi]")
-        lo = self.expr(raw[0], BASE_SYMBOLS, f"{where}[0]")
-        hi = self.expr(raw[1], BASE_SYMBOLS, f"{where}[1]")
-        # ranges may depend on m, L, kappa; check lo <= hi where the assumptions decide it
-        # (no sp.simplify: it can take minutes). check_values compares them at every kappa.
-        if (hi - lo).is_negative:
+        lo = self.expr(raw[0], BASE_NAMES, f"{where}[0]")
+        hi = self.expr(raw[1], BASE_NAMES, f"{where}[1]")
+        # ranges may depend on m, L, kappa: constant ones are compared here, the others by
+        # check_values at every kappa of the spec.
+        if lo.is_constant and hi.is_constant and constant_value(lo) > constant_value(hi):
             raise self.fail(where, f"lower bound {raw[0]} exceeds upper bound {raw[1]}")
         return lo, hi
 
-    def expr(self, raw: object, names: Mapping[str, sp.Symbol], where: str) -> sp.Expr:
+    def expr(self, raw: object, names: Collection[str], where: str) -> Expr:
         try:
-            return parse_expression(raw, names)
+            return parse_tree(raw, names)
         except ExprError as exc:
             raise self.fail(where, str(exc)) from None
 
     # -- matrices --------------------------------------------------------------------
-    def matrices(self, raw: object, names: dict[str, sp.Symbol]) -> dict[str, sp.Matrix]:
+    def matrices(self, raw: object, names: frozenset[str]) -> dict[str, ExprMatrix]:
         if raw is None:
             raise self.fail("matrices", "missing (A, B, C, E)")
         if not isinstance(raw, dict):
@@ -305,38 +304,39 @@ class _Builder:
         for key in raw:
             if key not in MATRIX_NAMES:
                 raise self.fail(f"matrices.{str(key)[:40]}", "unknown matrix (use A, B, C, E)")
-        out: dict[str, sp.Matrix] = {}
+        out: dict[str, ExprMatrix] = {}
         for key in MATRIX_NAMES:
             if key not in raw:
                 raise self.fail(f"matrices.{key}", "missing")
             out[key] = self.matrix(raw[key], names, f"matrices.{key}")
-        n = out["A"].shape[0]
-        if out["A"].shape != (n, n):
+        n = len(out["A"])
+        if _dims(out["A"]) != (n, n):
             raise self.fail("matrices.A", f"must be square, got {_shape(out['A'])}")
         if n > MAX_STATE:
             raise self.fail("matrices.A", f"state dimension {n} exceeds {MAX_STATE}")
-        if out["B"].shape != (n, 1):
+        if _dims(out["B"]) != (n, 1):
             raise self.fail("matrices.B", f"must be {n}x1 (A is {n}x{n}), got {_shape(out['B'])}")
         for key in ("C", "E"):
-            if out[key].shape != (1, n):
+            if _dims(out[key]) != (1, n):
                 raise self.fail(f"matrices.{key}", f"must be 1x{n}, got {_shape(out[key])}")
         return out
 
-    def matrix(self, raw: object, names: dict[str, sp.Symbol], where: str) -> sp.Matrix:
+    def matrix(self, raw: object, names: frozenset[str], where: str) -> ExprMatrix:
         if not isinstance(raw, list) or not raw:
             raise self.fail(where, "must be a non-empty list of rows, e.g. [[0, 1], [1, 0]]")
         rows = []
         for i, row in enumerate(raw):
             if not isinstance(row, list) or not row:
                 raise self.fail(f"{where}[{i}]", "each row must be a non-empty list")
-            rows.append([self.expr(v, names, f"{where}[{i}][{j}]") for j, v in enumerate(row)])
+            rows.append(tuple(self.expr(v, names, f"{where}[{i}][{j}]")
+                              for j, v in enumerate(row)))
         widths = {len(r) for r in rows}
         if len(widths) != 1:
             raise self.fail(where, "rows have different lengths")
-        return sp.Matrix(rows)
+        return tuple(rows)
 
     # -- references and kappa --------------------------------------------------------
-    def references(self, raw: object) -> dict[str, sp.Expr]:
+    def references(self, raw: object) -> dict[str, Expr]:
         if raw is None:
             return {}
         if not isinstance(raw, dict):
@@ -351,7 +351,7 @@ class _Builder:
                 raise self.fail(f"references.{key[:40]}", "name has non-printable characters")
             if key in RESERVED_COLUMNS or re.fullmatch(r"P\d+", key):
                 raise self.fail(f"references.{key}", "name clashes with an output column")
-            out[key] = self.expr(val, BASE_SYMBOLS, f"references.{key}")
+            out[key] = self.expr(val, BASE_NAMES, f"references.{key}")
         return out
 
     def kappa(self, raw: object) -> tuple[float, ...]:
@@ -421,8 +421,8 @@ def parse_kappa(raw: object, source: str, where: str) -> tuple[float, ...]:
             elif isinstance(v, str) and _PLAIN_NUMBER.fullmatch(v.strip()):
                 val = float(v)
             else:
-                val = float(parse_expression(v, {}))
-        except (ExprError, TypeError, OverflowError) as exc:
+                val = constant_value(parse_tree(v, ()))
+        except (ExprError, OverflowError) as exc:
             raise fail(str(exc), sub) from None
         if not math.isfinite(val):
             raise fail("must be finite", sub)
@@ -465,10 +465,10 @@ def parse_kappa(raw: object, source: str, where: str) -> tuple[float, ...]:
     raise fail("must be a number, a list or {from, to, points, scale}")
 
 
-def _compile_or_fail(expr: sp.Expr, b: _Builder, where: str) -> Callable[[Sequence[float]], float]:
+def _compile_or_fail(expr: Expr, b: _Builder, where: str) -> Callable[[Sequence[float]], float]:
     """``expr`` (over m, L, kappa) compiled once for evaluation at every kappa."""
     try:
-        return compile_expression(expr, list(BASE_SYMBOLS.values()))
+        return compile_expression(expr, BASE_NAMES)
     except NumericError as exc:
         raise b.fail(where, str(exc)) from None
 
@@ -492,7 +492,11 @@ def _is_unicode(text: str) -> bool:
     return True
 
 
-def _shape(mat: sp.Matrix) -> str:
-    return f"{mat.shape[0]}x{mat.shape[1]}"
+def _dims(mat: ExprMatrix) -> tuple[int, int]:
+    return len(mat), len(mat[0])
+
+
+def _shape(mat: ExprMatrix) -> str:
+    return "{}x{}".format(*_dims(mat))
 
 

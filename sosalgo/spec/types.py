@@ -10,26 +10,27 @@ from __future__ import annotations
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
-
-import sympy as sp
+from typing import TYPE_CHECKING, Any
 
 from sosalgo.errors import InputError
+from sosalgo.expr.tree import Expr
+
+if TYPE_CHECKING:
+    import sympy as sp
 
 __all__ = [
-    "BASE_SYMBOLS", "MATRIX_NAMES", "Parameter", "Spec", "SpecError", "deps", "tied_order",
-    "value_order",
+    "BASE_NAMES", "MATRIX_NAMES", "ExprMatrix", "Parameter", "Spec", "SpecError", "deps",
+    "tied_order", "value_order",
 ]
 
-M_SYM, L_SYM, KAPPA_SYM = sp.symbols("m L kappa", positive=True)
-BASE_SYMBOLS: dict[str, sp.Symbol] = {"m": M_SYM, "L": L_SYM, "kappa": KAPPA_SYM}
+BASE_NAMES = ("m", "L", "kappa")
 MATRIX_NAMES = ("A", "B", "C", "E")
 TOP_KEYS = {
     "name", "description", "parameters", "matrices", "references", "kappa", "m", "certificate",
 }
 NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,79}$")
 PARAM_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,31}$")
-RESERVED = set(BASE_SYMBOLS) | {"sqrt", "exp", "log", "abs", "min", "max", "pi", "rho", "lambda"}
+RESERVED = set(BASE_NAMES) | {"sqrt", "exp", "log", "abs", "min", "max", "pi", "rho", "lambda"}
 RESERVED_COLUMNS = {
     "kappa", "rho", "certified", "lambda", "max_eig_M", "min_eig_P", "solves", "seconds",
     "solver", "rho_infeasible", "error", "spec", "lower_bound", "rho_certified", "gap",
@@ -42,6 +43,19 @@ MAX_PARAMETERS = 100
 MAX_REFERENCES = 100
 MAX_KAPPA_POINTS = 10_000
 MAX_MESSAGE = 300  # characters of a SpecError's field or message (the rest is cut)
+
+
+ExprMatrix = tuple[tuple[Expr, ...], ...]  # rows of expression trees
+
+
+def __getattr__(name: str) -> Any:
+    """``BASE_SYMBOLS`` (sympy symbols of m, L, kappa) is built on first use, so that numeric
+    work never imports sympy."""
+    if name == "BASE_SYMBOLS":
+        from sosalgo.expr.parse import sympy_symbol
+
+        return {k: sympy_symbol(k) for k in BASE_NAMES}
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def _printable(text: str, limit: int | None = None) -> str:
@@ -73,9 +87,9 @@ class Parameter:
     """A tunable parameter (``value`` and optional ``range``) or a tied one (``tied``)."""
 
     name: str
-    value: sp.Expr | None = None
-    range: tuple[sp.Expr, sp.Expr] | None = None
-    tied: sp.Expr | None = None
+    value: Expr | None = None
+    range: tuple[Expr, Expr] | None = None
+    tied: Expr | None = None
 
     @property
     def is_tied(self) -> bool:
@@ -84,24 +98,46 @@ class Parameter:
 
 @dataclass(frozen=True, eq=False)
 class Spec:
-    """A validated spec. Expressions are sympy objects over parameters and m, L, kappa."""
+    """A validated spec. Expressions are :class:`~sosalgo.expr.tree.Expr` trees over the
+    parameters and m, L, kappa; :meth:`sympy_matrices`, :meth:`templates` and
+    :meth:`tied_closure` give their sympy form (built on first use)."""
 
     name: str
     description: str
     source: str
     parameters: dict[str, Parameter]
-    matrices: dict[str, sp.Matrix]
-    references: dict[str, sp.Expr]
+    matrices: dict[str, ExprMatrix]
+    references: dict[str, Expr]
     kappa: tuple[float, ...]
     m: float = 1.0
     certificate: str = "theorem1"
-    symbols: dict[str, sp.Symbol] = field(default_factory=dict, repr=False)
     certificate_options: dict[str, Any] = field(default_factory=dict)
+    _sympy: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def n(self) -> int:
         """State dimension (rows of A)."""
-        return int(self.matrices["A"].shape[0])
+        return len(self.matrices["A"])
+
+    @property
+    def symbols(self) -> dict[str, sp.Symbol]:
+        """The sympy symbol of each parameter."""
+        from sosalgo.expr.parse import sympy_symbol
+
+        return {p: sympy_symbol(p) for p in self.parameters}
+
+    def sympy_matrices(self) -> dict[str, sp.Matrix]:
+        """A, B, C, E as sympy matrices over the parameters and m, L, kappa."""
+        if "matrices" not in self._sympy:
+            import sympy as sp
+
+            from sosalgo.expr.parse import to_sympy
+
+            self._sympy["matrices"] = {
+                k: sp.Matrix([[to_sympy(e) for e in row] for row in rows])
+                for k, rows in self.matrices.items()
+            }
+        return self._sympy["matrices"]
 
     @property
     def inputs(self) -> list[str]:
@@ -118,13 +154,17 @@ class Spec:
         return self.m, kappa * self.m
 
     def tied_closure(self) -> dict[str, sp.Expr]:
-        """Every tied parameter written in terms of input parameters and m, L, kappa."""
+        """Every tied parameter written (in sympy) in terms of input parameters and m, L,
+        kappa."""
+        from sosalgo.expr.parse import to_sympy
+
         order = tied_order(self.parameters, self.source)
+        symbols = self.symbols
         out: dict[str, sp.Expr] = {}
         for name in order:
             expr = self.parameters[name].tied
             assert expr is not None
-            out[name] = expr.xreplace({self.symbols[k]: v for k, v in out.items()})
+            out[name] = to_sympy(expr).xreplace({symbols[k]: v for k, v in out.items()})
         return out
 
     def templates(self, free: Sequence[str] | None = None) -> dict[str, sp.Matrix]:
@@ -134,14 +174,17 @@ class Spec:
         ``value`` expressions when ``free`` is given (``free=None`` keeps every input
         parameter symbolic).
         """
+        from sosalgo.expr.parse import to_sympy
+
+        symbols = self.symbols
         sub: dict[sp.Symbol, sp.Expr] = {}
         tied = self.tied_closure()
         for name, expr in tied.items():
-            sub[self.symbols[name]] = expr
-        out = {k: mat.xreplace(sub) for k, mat in self.matrices.items()}
+            sub[symbols[name]] = expr
+        out = {k: mat.xreplace(sub) for k, mat in self.sympy_matrices().items()}
         if free is not None:
             fixed = {
-                self.symbols[p]: self.parameters[p].value
+                symbols[p]: to_sympy(self.parameters[p].value)
                 for p in self.inputs
                 if p not in free
             }
@@ -163,10 +206,11 @@ class Spec:
 
 
 
-def deps(expr: sp.Expr | None, params: Mapping[str, Parameter]) -> set[str]:
+def deps(expr: Expr | None, params: Mapping[str, Parameter]) -> set[str]:
+    """The parameters an expression refers to."""
     if expr is None:
         return set()
-    return {s.name for s in expr.free_symbols if s.name in params}
+    return {name for name in expr.names() if name in params}
 
 
 def topo(graph: dict[str, set[str]], source: str, what: str) -> list[str]:

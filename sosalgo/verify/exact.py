@@ -45,6 +45,7 @@ import numpy as np
 import sympy as sp
 from mpmath import libmp
 
+from sosalgo.expr.parse import to_sympy
 from sosalgo.model import bind, fixed_point
 from sosalgo.spec.types import BASE_SYMBOLS, MATRIX_NAMES, Spec, value_order
 
@@ -491,7 +492,7 @@ def exact_algorithm(
         else:
             expr = par.tied if par.is_tied else par.value
             assert expr is not None
-            val = expr.xreplace(values)
+            val = to_sympy(expr).xreplace(values)
         if val.free_symbols:
             raise ValueError(f"parameter {p} did not evaluate to a number: {val}")
         params[p] = val
@@ -499,7 +500,7 @@ def exact_algorithm(
     mats: dict[str, sp.Matrix] = {}
     balls: dict[str, BallMatrix] = {}
     for k in MATRIX_NAMES:
-        mat = spec.matrices[k].xreplace(values)
+        mat = spec.sympy_matrices()[k].xreplace(values)
         mats[k] = mat
         balls[k] = [[enclose(mat[i, j], digits) for j in range(mat.shape[1])]
                     for i in range(mat.shape[0])]
