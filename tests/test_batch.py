@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import gc
 import json
 import os
 import signal
@@ -57,6 +58,7 @@ def test_workers_and_dask_give_the_same_rows(tmp_path):
     local = _values(_grid(tmp_path / "b", workers=2))
     assert serial == local
     distributed = pytest.importorskip("distributed")
+    gc.collect()  # a Client left by an earlier test must not close inside this loop's start
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                   host="127.0.0.1", dashboard_address=None) as cluster:
         dask_rows = _values(_grid(tmp_path / "c", scheduler=cluster.scheduler_address))

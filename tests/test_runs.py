@@ -4,6 +4,7 @@ runs are safe, bad output paths and environments fail with one line and exit cod
 from __future__ import annotations
 
 import csv
+import gc
 import os
 import signal
 import subprocess
@@ -227,6 +228,7 @@ def test_cluster_losing_its_last_worker_fails_instead_of_hanging(monkeypatch):
     from sosalgo.batch.executor import BatchError, run_batch
 
     monkeypatch.setattr("sosalgo.batch.executor.NO_WORKER_TIMEOUT", 1.0)
+    gc.collect()  # a Client left by an earlier test must not close inside this loop's start
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
                                   dashboard_address=None) as cluster:
         def lose_worker():

@@ -10,6 +10,7 @@ append them to a resumable CSV at once.
 
 from __future__ import annotations
 
+import gc
 import math
 import os
 import sys
@@ -209,7 +210,11 @@ def _connect(address: str):
         return distributed.Client(address, timeout=CONNECT_TIMEOUT)
     except (OSError, TimeoutError, ValueError, TypeError) as exc:
         msg = " ".join(str(exc).split())[:200] or type(exc).__name__
-        raise BatchError(f"--scheduler {address}: cannot connect ({msg})") from None
+    # The half-built Client closes itself when it is garbage collected. Collect it now: left
+    # to chance, that can happen while another Dask event loop is starting in this thread,
+    # and distributed then deadlocks on its own loop lock.
+    gc.collect()
+    raise BatchError(f"--scheduler {address}: cannot connect ({msg})")
 
 
 def check_scheduler(address: str) -> None:
