@@ -515,11 +515,8 @@ def grid(spec_path: str, kappa: tuple[str, ...], points: int, free: str | None, 
          out: str, as_json: bool, workers: int | None, scheduler: str | None, restart: bool,
          quiet: bool, certificate: str | None, lag: int | None) -> None:
     """Exhaustive search: certified rate on a grid over the free parameters (Figure 3)."""
-    import numpy as np
-
     from sosalgo.batch.sweeps import run_grid
-    from sosalgo.model import parameter_values
-    from sosalgo.report import plot_grid
+    from sosalgo.report import grid as rep
 
     spec, spec_text = _load(spec_path)
     kappas = _kappas(spec, kappa)
@@ -540,33 +537,16 @@ def grid(spec_path: str, kappa: tuple[str, ...], points: int, free: str | None, 
             rows = run_grid(spec, spec_text, k, names, boxes[k], points, csv_path, tol,
                             workers=workers, scheduler=scheduler, restart=restart,
                             progress=not quiet, companions=_figures(stem), family=fam)
-            rho = np.array([float(r["rho"]) if r["rho"] else np.nan for r in rows])
-            figs = []
-            if len(names) <= 2:
-                axes = [np.linspace(lo, hi, points) for lo, hi in boxes[k]]
-                vals = parameter_values(spec, k)
-                figs = plot_grid(f"{spec.name}: certified rate, kappa = {k:.10g}", names, axes,
-                                 rho.reshape([points] * len(names)), stem,
-                                 value_point=[vals[p] for p in names])
-        finite = np.isfinite(rho)
-        best = None
-        if finite.any():
-            i = int(np.nanargmin(np.where(finite, rho, np.nan)))
-            best = {"rho": float(rho[i]), "theta": {p: float(rows[i][p]) for p in names}}
-        docs.append({"kappa": k, "csv": str(csv_path),
-                     "figures": [str(f) for f in figs], "points": len(rows),
-                     "certified": int(finite.sum()), "minimum": best})
+            rho = rep.grid_rates(rows)
+            figs = [] if len(names) > 2 else rep.grid_plot(spec, k, names, boxes[k], points,
+                                                           rho, stem)
+        docs.append(rep.grid_document(k, csv_path, figs, rows, rho, names))
     if as_json:
         click.echo(json.dumps({"spec": spec.name, "free": names, "grids": docs}, indent=2))
         return
     for d in docs:
-        m = d["minimum"]
-        where = "none certified" if m is None else (
-            f"minimum rho {m['rho']:.6f} at "
-            + ", ".join(f"{p} = {v:.6g}" for p, v in m["theta"].items()))
-        click.echo(f"{spec.name} kappa={kappa_label(d['kappa'])}: {d['certified']}/"
-                   f"{d['points']} points certified; {where}")
-        click.echo(f"wrote {d['csv']}" + "".join(f", {p}" for p in d["figures"]))
+        for line in rep.grid_lines(spec.name, d):
+            click.echo(line)
 
 
 # --------------------------------------------------------------------------- verify
@@ -619,17 +599,9 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
     if as_json:
         click.echo(json.dumps({"spec": spec.name, "source": src, "results": checks}, indent=2))
     else:
-        from sosalgo.report import format_table
+        from sosalgo.report.checks import checks_table
 
-        table = [{"kappa": r["kappa"], "rho": (c or {}).get("rho"),
-                  "verified": "no certificate" if c is None else c["verified"],
-                  "rho_proven": None if c is None else c["rho_proven_float"],
-                  "simulation": None if c is None or "simulation" not in c
-                  else ("ok" if c["simulation"]["ok"] else "VIOLATION"),
-                  "reason": None if c is None else c["reason"]} for r, c in zip(rows, checks,
-                                                                             strict=True)]
-        click.echo(format_table(table, ["kappa", "rho", "verified", "rho_proven", "simulation",
-                                        "reason"]))
+        click.echo(checks_table(rows, checks))
         click.echo(f"rational certificates in {out_dir / 'certificates'}")
     if failed:
         raise VerificationError(f"{len(failed)} certificate(s) failed verification")
