@@ -656,7 +656,7 @@ class ExactResult(ProofResult):
         return {
             "certificate": "Theorem 1 (eq. 15), reduced d = 1 templates (Remark 1)",
             "spec": self.spec,
-            "verified": self.verified,
+            "verified": str(self.verified),
             "rho_requested": self.rho_requested,
             "rho_proven": self.rho_proven,
             "rho_proven_float": self.rho_proven_float,

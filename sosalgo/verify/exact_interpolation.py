@@ -67,7 +67,7 @@ class InterpolationExactResult(ProofResult):
         return {
             "certificate_family": "interpolation (Lyapunov function with function values, "
                                   "F(m, L) interpolation inequalities)",
-            "spec": self.spec, "verified": self.verified, "rho_requested": self.rho_requested,
+            "spec": self.spec, "verified": str(self.verified), "rho_requested": self.rho_requested,
             "rho_proven": self.rho_proven, "rho_proven_float": self.rho_proven_float,
             "delta": self.delta, "certificate": self.certificate, "proofs": self.proofs,
             "reason": self.reason, "attempts": self.attempts, "seconds": self.seconds,

@@ -47,12 +47,13 @@ def verify_family_certificate(
     simulate: bool = True,
 ) -> dict[str, Any]:
     """Exact check (``family.exact_check``) and simulation along the family's Lyapunov
-    function (``family.lyapunov``) of one certificate; writes the rational certificate."""
+    function (``family.lyapunov``) of one certificate; writes the rational certificate.
+    The returned document holds plain values (the verdict as its string)."""
     ex = family.exact_check(spec, kappa, rho, cert, theta)
     out: dict[str, Any] = {"kappa": kappa, "rho": rho}
     if not family.is_default:
         out["family"] = family.name
-    out.update({"verified": ex.verified, "rho_proven": ex.rho_proven,
+    out.update({"verified": str(ex.verified), "rho_proven": ex.rho_proven,
                 "rho_proven_float": ex.rho_proven_float, "delta": ex.delta,
                 "reason": ex.reason})
     if out_dir is not None:
@@ -179,8 +180,8 @@ def _claim(spec: Spec, fam: CertificateFamily, row: Any, i: int) -> dict[str, An
 
 
 def _unverifiable(c: dict[str, Any], reason: str) -> dict[str, Any]:
-    return {"kappa": c["kappa"], "rho": c["rho"], "verified": Verdict.FAILED, "rho_proven": None,
-            "rho_proven_float": None, "delta": None, "reason": reason}
+    return {"kappa": c["kappa"], "rho": c["rho"], "verified": str(Verdict.FAILED),
+            "rho_proven": None, "rho_proven_float": None, "delta": None, "reason": reason}
 
 
 def verify_document_rows(
