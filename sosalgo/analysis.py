@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.certificates import get_family
+from sosalgo.certificates import FAMILIES, get_family
 from sosalgo.certificates.base import CertificateFamily, LMIProblem
 from sosalgo.model import Algorithm, bind
 from sosalgo.solvers import (
@@ -71,7 +71,13 @@ class AnalysisResult:
             "rho_infeasible": self.rho_infeasible,
             "params": dict(self.params),
             "family": self.family,
-        } | ({} if self.family == "theorem1" else {"certificate": jsonable(self.certificate)})
+        } | ({} if _is_default(self.family) else {"certificate": jsonable(self.certificate)})
+
+
+def _is_default(family: str) -> bool:
+    """Rows of the default family (Theorem 1) carry P and lambda only, no ``certificate``."""
+    fam = FAMILIES.get(family)
+    return fam is not None and fam.is_default
 
 
 def jsonable(v: Any) -> Any:

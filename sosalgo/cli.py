@@ -206,8 +206,9 @@ def _families(spec, value: str | None, lag: int | None, single: bool = False) ->
 
 
 def _family_suffix(fam) -> str:
-    """'' for Theorem 1, '-<family>' otherwise, '-<family>-lag<l>' for an explicit lag."""
-    if fam.name == "theorem1":
+    """'' for the default family (Theorem 1), '-<family>' otherwise, '-<family>-lag<l>' for an
+    explicit lag."""
+    if fam.is_default:
         return ""
     lag = getattr(fam, "lag", None)
     return f"-{fam.name}" + ("" if lag is None else f"-lag{lag}")
@@ -267,7 +268,7 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
             no_plot: bool, verify_: bool, certificate: str | None, lag: int | None) -> None:
     """Best rate certified at each kappa, with its certificate (Theorem 1: P, lambda)."""
     from sosalgo.batch.sweeps import csv_row_to_json, run_analysis_sweep
-    from sosalgo.report import format_table
+    from sosalgo.report import analysis as rep
 
     spec, spec_text = _load(spec_path)
     kappas = _kappas(spec, kappa)
@@ -276,7 +277,7 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
     _check_points(spec, kappas)
     out_dir = _out_dir(out)
     _check_scheduler(scheduler)
-    if len(fams) > 1 or fams[0].name != "theorem1":
+    if len(fams) > 1 or not fams[0].is_default:
         runs = []
         for fam in fams:
             path = _analysis_csv(out_dir, spec, fam)
@@ -295,25 +296,17 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
                                   companions=_figures(fig_stem))
         jrows = [csv_row_to_json(spec, r) for r in rows]
         # a rate-vs-kappa figure needs two kappas or more (one point is not a curve)
-        figs = [] if no_plot or len(jrows) < 2 else _plot_analysis(spec, jrows, fig_stem)
-    cols = ["kappa", "rho", "certified", "lambda", "max_eig_M", "min_eig_P", "solves",
-            "seconds"]
+        figs = [] if no_plot or len(jrows) < 2 else rep.analysis_figure(spec, jrows, fig_stem)
     if verify_:
-        from sosalgo.verify.results import verify_document_rows
-
-        checks = verify_document_rows(spec, jrows, out_dir / "certificates")
-        for r, v in zip(jrows, checks, strict=True):
-            r["verification"] = v
-            r["verified"] = None if v is None else v["verified"]
-        cols.append("verified")
+        rep.attach_checks(spec, jrows, out_dir / "certificates")
     if as_json:
         doc = {"spec": spec.name, "source": spec.source, "spec_text": spec_text, "tol": tol,
                "csv": str(csv_path), "figures": [str(p) for p in figs], "rows": jrows}
         click.echo(json.dumps(doc, indent=2))
     else:
-        table_rows = [{**r, **r["references"]} for r in jrows]
         click.echo(f"{spec.name}: {spec.description}".rstrip(": "))
-        click.echo(format_table(table_rows, cols + list(spec.references)))
+        click.echo(rep.analysis_table(spec, jrows, rep.ANALYSIS_COLUMNS
+                                      + (["verified"] if verify_ else [])))
         click.echo(f"wrote {csv_path}" + "".join(f", {p}" for p in figs))
     _exit_if_unverified([r.get("verification") for r in jrows])
 
@@ -333,63 +326,18 @@ def _figures(stem: Path) -> list[Path]:
     return [stem.with_name(f"{stem.name}.{ext}") for ext in ("png", "pdf")]
 
 
-def _plot_analysis(spec, jrows: list[dict[str, Any]], stem: Path) -> list[Path]:
-    """Certified rate vs kappa with the spec's references (figure of ``analyze``)."""
-    from sosalgo.batch.sweeps import reference_curves
-    from sosalgo.report import plot_rates
-
-    return plot_rates(
-        f"{spec.name}: certified rate (Theorem 1)",
-        [r["kappa"] for r in jrows],
-        {"certified rate": [r["rho"] for r in jrows]},
-        {name: [r["references"][name] for r in jrows] for name in spec.references},
-        stem,
-        uncertified=[r["kappa"] for r in jrows if not r["certified"]],
-        reference_curves=reference_curves(spec, [r["kappa"] for r in jrows]),
-    )
-
-
-FAMILY_LABELS = {"theorem1": "Theorem 1", "interpolation": "interpolation"}
-
-
 def _analyze_families(spec, runs: list, out_dir: Path, tol: float, as_json: bool,
                       no_plot: bool, verify_: bool, spec_text: str) -> None:
-    """Output of ``analyze`` for a family other than Theorem 1 or several families: one CSV
-    per family, one figure with every family, 1 - 1/sqrt(kappa) and the quadratic bound."""
-    from sosalgo.analysis import quadratic_rate
-    from sosalgo.model import bind
-    from sosalgo.report import format_table, plot_rates
+    """Output of ``analyze`` for a family other than the default or several families: one
+    CSV per family, one figure with every family (:func:`families_figure`)."""
+    from sosalgo.report import analysis as rep
 
-    kap = [r["kappa"] for r in runs[0][2]]
-    figs = []
-    if not no_plot:
-        series = {f"certified rate ({FAMILY_LABELS.get(f.name, f.name)})":
-                  [r["rho"] for r in rows] for f, _, rows in runs}
-        refs = {name: [r["references"][name] for r in runs[0][2]] for name in spec.references}
-        extra = {"1 - 1/sqrt(kappa)": [1 - k ** -0.5 for k in kap],
-                 "quadratic bound max_q rho(A + qBC)": [quadratic_rate(bind(spec, k))
-                                                         for k in kap]}
-        for label, vals in extra.items():  # unless the spec already draws the same curve
-            if not any(all(v is not None and abs(v - w) < 1e-6 for v, w in
-                           zip(ref, vals, strict=True)) for ref in refs.values()):
-                refs[label] = vals
-        none = [k for i, k in enumerate(kap) if all(rows[i]["rho"] is None for _, _, rows in runs)]
-        title = " vs ".join(FAMILY_LABELS.get(f.name, f.name) for f, _, _ in runs)
-        figs = plot_rates(f"{spec.name}: certified rate ({title})", kap, series, refs,
-                          out_dir / f"{spec.name}-rate", uncertified=none)
-    cols = ["kappa", "rho", "certified", "max_eig_M", "min_eig_P", "solves", "seconds"]
+    figs = [] if no_plot else rep.families_figure(spec, runs, out_dir / f"{spec.name}-rate")
     for fam, _, rows in runs:
         for r in rows:
             r["family"] = fam.name
         if verify_:
-            from sosalgo.verify.results import verify_document_rows
-
-            checks = verify_document_rows(spec, rows, out_dir / "certificates", family=fam)
-            for r, v in zip(rows, checks, strict=True):
-                r["verification"] = v
-                r["verified"] = None if v is None else v["verified"]
-    if verify_:
-        cols.append("verified")
+            rep.attach_checks(spec, rows, out_dir / "certificates", family=fam)
     if as_json:
         doc = {"spec": spec.name, "source": spec.source, "spec_text": spec_text, "tol": tol,
                "csv": str(runs[0][1]), "csvs": {f.name: str(p) for f, p, _ in runs},
@@ -397,10 +345,10 @@ def _analyze_families(spec, runs: list, out_dir: Path, tol: float, as_json: bool
         click.echo(json.dumps(doc, indent=2))
     else:
         click.echo(f"{spec.name}: {spec.description}".rstrip(": "))
+        cols = rep.FAMILY_COLUMNS + (["verified"] if verify_ else [])
         for fam, _, rows in runs:
             click.echo(f"certificate family: {fam.description}")
-            table_rows = [{**r, **r["references"]} for r in rows]
-            click.echo(format_table(table_rows, cols + list(spec.references)))
+            click.echo(rep.analysis_table(spec, rows, cols))
         click.echo("wrote " + ", ".join([str(p) for _, p, _ in runs] + [str(p) for p in figs]))
     _exit_if_unverified([r.get("verification") for _, _, rows in runs for r in rows])
 
@@ -437,11 +385,11 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
            quiet: bool, verify_: bool, certificate: str | None, lag: int | None) -> None:
     """Design parameters: certified design, proven lower bound, gap between them."""
     from sosalgo.batch.sweeps import design_csv_to_json, run_design_sweep
-    from sosalgo.report import format_table
+    from sosalgo.report import design as rep
 
     spec, spec_text = _load(spec_path)
     fam = _families(spec, certificate, lag, single=True)[0]
-    if method == "moment" and fam.name != "theorem1":
+    if method == "moment" and not fam.supports_moment:
         raise InputError(f"--method moment: the moment relaxation is built on Theorem 1, "
                          f"not {fam.name} (use --method dual)")
     kappas = _kappas(spec, kappa)
@@ -481,9 +429,9 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
             d["spec_text"] = spec_text
         figs = []
         if len(docs) > 1:
-            figs = _plot_design(spec, names, rows, docs, fig_stem, fam,
-                                "dual certificates" if method == "dual"
-                                else f"moment relaxation, {scalarize}")
+            figs = rep.design_figure(spec, names, rows, docs, fig_stem, fam,
+                                     "dual certificates" if method == "dual"
+                                     else f"moment relaxation, {scalarize}")
     if verify_:
         from sosalgo.verify.results import verify_document_rows
 
@@ -499,50 +447,18 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
                                    "figures": [str(p) for p in figs], "rows": docs}, indent=2))
         _exit_if_unverified([d.get("verification") for d in docs])
         return
-    table = []
-    for d in docs:
-        row = {"kappa": d["kappa"], "lower_bound": d["lower_bound"],
-               "rho_certified": d["rho_certified"], "gap": d["gap"],
-               "verdict": _verdict(d, gap), "rho_at_values": d["rho_at_values"],
-               "floor": d.get("floor"), "seconds": d["seconds"]}
-        if method == "moment":
-            row.update(order=d["relaxation"].get("order"), flat=d["relaxation"].get("flat"))
-        row.update({p: d["theta"].get(p) for p in names})
-        table.append(row)
-    cols = ["kappa", *names, "lower_bound", "rho_certified", "gap", "verdict",
-            "rho_at_values", "floor"] + (["order", "flat"] if method == "moment" else []) + [
-            "seconds"]
     how = ("box-wide dual certificates" if method == "dual"
            else f"moment relaxation ({scalarize})")
     click.echo(f"{spec.name}: design of {', '.join(names)} certified by {fam.name}; "
                f"lower bound by {how}")
-    click.echo(format_table(table, cols))
+    click.echo(rep.design_table(docs, names, gap, method))
     if len(docs) == 1:
         for step in docs[0]["steps"]:
             click.echo(f"  - {step}")
-    for d in docs:
-        v = d.get("verification")
-        if v is not None:
-            sim = v.get("simulation")
-            note = "" if sim is None else (", simulation ok" if sim["ok"] else
-                                           ", SIMULATION VIOLATION")
-            click.echo(f"  kappa {d['kappa']:g}: verified {v['verified']} "
-                       f"(rho proven {v['rho_proven_float']:.10g}{note})")
-    click.echo("rho_certified: analysis at the designed theta (with its certificate); "
-               "lower_bound: proven, no theta in the box is certified below it; "
-               "floor: 1 - 1/sqrt(kappa), no first-order method is faster on F(m, L)")
+    for line in rep.verification_notes(docs):
+        click.echo(line)
+    click.echo(rep.LEGEND)
     click.echo(f"wrote {csv_path}" + "".join(f", {p}" for p in figs))
-
-
-def _verdict(doc: dict, gap: float) -> str:
-    """What the numbers prove: optimal within the gap only when the gap proves it."""
-    if doc.get("rho_certified") is None:
-        return "no certified design"
-    if doc.get("lower_bound") is None or doc.get("gap") is None:
-        return "no bound" + (" (time limit)" if doc.get("time_limited") else "")
-    if doc.get("gap_met"):
-        return f"optimal (gap <= {gap:g})"
-    return f"gap {doc['gap']:.1e}" + (" (time limit)" if doc.get("time_limited") else "")
 
 
 # --------------------------------------------------------------------------- fig4
@@ -568,37 +484,13 @@ def fig4(kappa: tuple[str, ...], time_limit: float, out: str, as_json: bool,
     if as_json:
         click.echo(json.dumps({"figures": [str(p) for p in figs], **data}, indent=2))
         return
-    rows = [{"kappa": k, "designed (interpolation)": a, "designed (Theorem 1)": b,
-             "Nesterov (interpolation)": c, "Nesterov (Theorem 1)": d,
-             "1 - 1/sqrt(kappa)": 1 - 1 / math.sqrt(k)}
-            for k, a, b, c, d in zip(data["kappa"], data["designed (interpolation)"],
-                                     data["designed (Theorem 1)"],
-                                     data["Nesterov's tuning (interpolation)"],
-                                     data["Nesterov's tuning (Theorem 1)"], strict=True)]
     from sosalgo.report import format_table
+    from sosalgo.report.fig4 import fig4_rows
+
+    rows = fig4_rows(data)
 
     click.echo(format_table(rows, list(rows[0]) if rows else []))
     click.echo("wrote " + ", ".join(str(p) for p in figs))
-
-
-def _plot_design(spec, names, rows, docs, stem: Path, fam, how: str) -> list[Path]:
-    """Designed rate, lower bound and spec-value rate vs kappa (figure of ``design``)."""
-    from sosalgo.batch.sweeps import design_csv_to_json, reference_curves
-    from sosalgo.report import plot_rates
-
-    refs = {name: [r.get("references", {}).get(name) for r in
-                   (design_csv_to_json(spec, names, x, fam) for x in rows)]
-            for name in spec.references}
-    return plot_rates(
-        f"{spec.name}: designed {', '.join(names)} ({fam.name}; bound: {how})",
-        [d["kappa"] for d in docs],
-        {"designed (certified)": [d["rho_certified"] for d in docs],
-         "lower bound (proven)": [d["lower_bound"] for d in docs],
-         "spec values (certified)": [d["rho_at_values"] for d in docs]},
-        refs, stem,
-        uncertified=[d["kappa"] for d in docs if d["rho_certified"] is None],
-        reference_curves=reference_curves(spec, [d["kappa"] for d in docs]),
-    )
 
 
 # --------------------------------------------------------------------------- grid
@@ -623,11 +515,8 @@ def grid(spec_path: str, kappa: tuple[str, ...], points: int, free: str | None, 
          out: str, as_json: bool, workers: int | None, scheduler: str | None, restart: bool,
          quiet: bool, certificate: str | None, lag: int | None) -> None:
     """Exhaustive search: certified rate on a grid over the free parameters (Figure 3)."""
-    import numpy as np
-
     from sosalgo.batch.sweeps import run_grid
-    from sosalgo.model import parameter_values
-    from sosalgo.report import plot_grid
+    from sosalgo.report import grid as rep
 
     spec, spec_text = _load(spec_path)
     kappas = _kappas(spec, kappa)
@@ -648,33 +537,16 @@ def grid(spec_path: str, kappa: tuple[str, ...], points: int, free: str | None, 
             rows = run_grid(spec, spec_text, k, names, boxes[k], points, csv_path, tol,
                             workers=workers, scheduler=scheduler, restart=restart,
                             progress=not quiet, companions=_figures(stem), family=fam)
-            rho = np.array([float(r["rho"]) if r["rho"] else np.nan for r in rows])
-            figs = []
-            if len(names) <= 2:
-                axes = [np.linspace(lo, hi, points) for lo, hi in boxes[k]]
-                vals = parameter_values(spec, k)
-                figs = plot_grid(f"{spec.name}: certified rate, kappa = {k:.10g}", names, axes,
-                                 rho.reshape([points] * len(names)), stem,
-                                 value_point=[vals[p] for p in names])
-        finite = np.isfinite(rho)
-        best = None
-        if finite.any():
-            i = int(np.nanargmin(np.where(finite, rho, np.nan)))
-            best = {"rho": float(rho[i]), "theta": {p: float(rows[i][p]) for p in names}}
-        docs.append({"kappa": k, "csv": str(csv_path),
-                     "figures": [str(f) for f in figs], "points": len(rows),
-                     "certified": int(finite.sum()), "minimum": best})
+            rho = rep.grid_rates(rows)
+            figs = [] if len(names) > 2 else rep.grid_plot(spec, k, names, boxes[k], points,
+                                                           rho, stem)
+        docs.append(rep.grid_document(k, csv_path, figs, rows, rho, names))
     if as_json:
         click.echo(json.dumps({"spec": spec.name, "free": names, "grids": docs}, indent=2))
         return
     for d in docs:
-        m = d["minimum"]
-        where = "none certified" if m is None else (
-            f"minimum rho {m['rho']:.6f} at "
-            + ", ".join(f"{p} = {v:.6g}" for p, v in m["theta"].items()))
-        click.echo(f"{spec.name} kappa={kappa_label(d['kappa'])}: {d['certified']}/"
-                   f"{d['points']} points certified; {where}")
-        click.echo(f"wrote {d['csv']}" + "".join(f", {p}" for p in d["figures"]))
+        for line in rep.grid_lines(spec.name, d):
+            click.echo(line)
 
 
 # --------------------------------------------------------------------------- verify
@@ -727,17 +599,9 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
     if as_json:
         click.echo(json.dumps({"spec": spec.name, "source": src, "results": checks}, indent=2))
     else:
-        from sosalgo.report import format_table
+        from sosalgo.report.checks import checks_table
 
-        table = [{"kappa": r["kappa"], "rho": (c or {}).get("rho"),
-                  "verified": "no certificate" if c is None else c["verified"],
-                  "rho_proven": None if c is None else c["rho_proven_float"],
-                  "simulation": None if c is None or "simulation" not in c
-                  else ("ok" if c["simulation"]["ok"] else "VIOLATION"),
-                  "reason": None if c is None else c["reason"]} for r, c in zip(rows, checks,
-                                                                             strict=True)]
-        click.echo(format_table(table, ["kappa", "rho", "verified", "rho_proven", "simulation",
-                                        "reason"]))
+        click.echo(checks_table(rows, checks))
         click.echo(f"rational certificates in {out_dir / 'certificates'}")
     if failed:
         raise VerificationError(f"{len(failed)} certificate(s) failed verification")
@@ -803,10 +667,8 @@ def table1(spec_paths: tuple[str, ...], kappa: tuple[str, ...], tol: float, out:
     families (--certificate theorem1,interpolation) the first fills rho_certified and every
     further family adds rho_<family>, certified_<family> and difference_<family>.
     """
-    from sosalgo.analysis import analyze_spec
-    from sosalgo.batch.store import write_table
-    from sosalgo.batch.sweeps import reference_values
     from sosalgo.report import format_table
+    from sosalgo.report.table1 import table1_rows, write_table1
     from sosalgo.spec import read_spec_text, spec_from_text
 
     _check_tol(tol)
@@ -822,36 +684,12 @@ def table1(spec_paths: tuple[str, ...], kappa: tuple[str, ...], tol: float, out:
     if not specs:
         raise InputError("--specs: no spec files given and none in specs/")
     kappas = [k for v in kappa for k in _kappa_option(v)] or [2.0, 10.0, 100.0]
-    rows = []
-    extra_cols: list[str] = []
-    for spec in specs:
-        fams = _families(spec, certificate, lag) if certificate or lag is not None else [None]
-        for k in kappas:
-            refs = reference_values(spec, k)
-            name, val = next(iter(refs.items()), ("", None))
-            row: dict[str, Any] = {"spec": spec.name, "kappa": float(k)}
-            for i, fam in enumerate(fams):
-                res = analyze_spec(spec, k, tol=tol, family=fam)
-                diff = None if (res.rho is None or val is None) else res.rho - val
-                if i == 0:
-                    row.update({"rho_certified": res.rho, "certified": res.certified,
-                                "closed_form": name, "closed_form_rate": val,
-                                "difference": diff})
-                    if fam is not None and fam.name != "theorem1":
-                        row["family"] = fam.name
-                else:
-                    row.update({f"rho_{fam.name}": res.rho, f"certified_{fam.name}":
-                                res.certified, f"difference_{fam.name}": diff})
-            extra_cols += [c for c in row if c not in extra_cols]
-            rows.append(row)
-    cols = ["spec", "kappa", "rho_certified", "certified", "closed_form", "closed_form_rate",
-            "difference"]
-    cols += [c for c in extra_cols if c not in cols]
-    out_dir = _out_dir(out)
-    path = out_dir / "table1.csv"
-    settings = {"job": "table1", "specs": texts, "kappa": kappas,
-                "tol": tol, "certificate": certificate, "lag": lag}
-    write_table(path, cols, rows, settings)
+    fams = [_families(spec, certificate, lag) if certificate or lag is not None else [None]
+            for spec in specs]
+    rows, cols = table1_rows(specs, kappas, tol, fams)
+    settings = {"job": "table1", "specs": texts, "kappa": kappas, "tol": tol,
+                "certificate": certificate, "lag": lag}
+    path = write_table1(_out_dir(out), rows, cols, settings)
     click.echo(format_table(rows, cols))
     click.echo(f"wrote {path}")
 

@@ -2,11 +2,14 @@
 
 It exists to show that a family plugs in through one module and one registry line
 (``register_family(DIAGONAL)``) and then runs through analyze, design, verify and the
-CSV/JSON writers. P ⪰ 0 is stated as n scalar cones p_i >= 0.
+CSV/JSON writers. P ⪰ 0 is stated as n scalar cones p_i >= 0. A diagonal-P certificate is a
+Theorem 1 certificate, so its exact check and its Lyapunov function are Theorem 1's; only
+reading a certificate adds a check of its own (P must be diagonal).
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -18,6 +21,10 @@ from sosalgo.certificates.theorem1 import THEOREM1, theorem1_terms
 class DiagonalTheorem1:
     name = "theorem1-diagonal"
     description = "Theorem 1 with a diagonal P (test family)"
+    label = "Theorem 1, diagonal P"
+    is_default = False
+    supports_moment = False
+    certificate_parts = ("P", "lambda")
 
     def problem(self, alg) -> LMIProblem:
         n, s_ = alg.n, alg.L
@@ -55,6 +62,19 @@ class DiagonalTheorem1:
 
     def symbolic(self, A, B, C, E, m, L):
         return THEOREM1.symbolic(A, B, C, E, m, L)
+
+    def parse_certificate(self, parts: Mapping[str, Any], n: int) -> dict[str, Any]:
+        cert = THEOREM1.parse_certificate(parts, n)
+        P = cert["P"]
+        if P is not None and any(P[i][j] != 0 for i in range(n) for j in range(n) if i != j):
+            raise ValueError("P: expected a diagonal matrix")
+        return cert
+
+    def exact_check(self, spec, kappa, rho, cert, theta=None):
+        return THEOREM1.exact_check(spec, kappa, rho, cert, theta)
+
+    def lyapunov(self, cert: Mapping[str, Any]) -> dict[str, Any]:
+        return THEOREM1.lyapunov(cert)
 
 
 DIAGONAL = DiagonalTheorem1()

@@ -47,9 +47,49 @@ def test_analyze_json_csv_and_verify(tmp_path):
     assert len(table) == 2 and all(t["certified"] == "true" for t in table)
     result = tmp_path / "result.json"
     result.write_text(res.stdout)
-    ver = CliRunner().invoke(cli, ["verify", str(result), "--no-simulate", "--json",
-                                   "--out", str(tmp_path / "v")])
+    ver = CliRunner().invoke(cli, ["verify", str(result), "--json", "--out", str(tmp_path / "v")])
     assert ver.exit_code == 0, ver.output
+    checks = json.loads(ver.stdout)["results"]
+    for c in checks:  # the family's exact check and its Lyapunov function, by its name
+        assert c["family"] == "theorem1-diagonal" and c["verified"] == "exact"
+        assert c["rho_proven_float"] >= c["rho"] and c["simulation"]["ok"]
+        assert c["certificate_file"].endswith("-theorem1-diagonal-certificate.json")
+
+
+def test_verify_reads_rows_with_the_family_parser(tmp_path):
+    """The family reads its own certificates: a full P is not a diagonal-P certificate."""
+    spec = _spec(tmp_path, "nesterov")
+    row = {"kappa": 10.0, "rho": 0.9, "certified": True, "P": [[1.0, 0.1], [0.1, 1.0]],
+           "lambda": 1.0, "family": "theorem1-diagonal"}
+    result = tmp_path / "r.json"
+    result.write_text(json.dumps({"spec": "nesterov-diag", "source": str(spec), "rows": [row]}))
+    bad = CliRunner().invoke(cli, ["verify", str(result), "--no-simulate", "--out",
+                                   str(tmp_path)])
+    assert bad.exit_code == 2
+    assert "rows[0].P: expected a diagonal matrix" in bad.output
+    assert not (tmp_path / "certificates").exists()
+
+
+def test_design_cli_csv_json_and_verify(tmp_path):
+    spec = _spec(tmp_path, "gradient")
+    out = tmp_path / "o"
+    res = CliRunner().invoke(cli, ["design", str(spec), "--kappa", "10", "--free", "h",
+                                   "--json", "--quiet", "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    assert doc["family"] == "theorem1-diagonal"
+    assert doc["rho_certified"] == pytest.approx(9 / 11, abs=1e-5)  # (kappa-1)/(kappa+1)
+    assert doc["theta"]["h"] == pytest.approx(2 / 11, abs=1e-3)  # h = 2/(m+L), m=1, L=10
+    table = list(csv.DictReader(open(out / "gradient-diag-design-theorem1-diagonal.csv",
+                                     encoding="utf-8")))
+    assert len(table) == 1 and float(table[0]["rho_certified"]) == pytest.approx(9 / 11,
+                                                                               abs=1e-5)
+    result = tmp_path / "design.json"
+    result.write_text(res.stdout)
+    ver = CliRunner().invoke(cli, ["verify", str(result), "--json", "--out", str(tmp_path)])
+    assert ver.exit_code == 0, ver.output
+    check = json.loads(ver.stdout)["results"][0]
+    assert check["family"] == "theorem1-diagonal" and check["simulation"]["ok"]
 
 
 def test_never_below_theorem1_and_design_bound(tmp_path):

@@ -131,3 +131,25 @@ def test_input_errors_share_one_base(name):
     err = getattr(importlib.import_module(mod), cls)
     assert issubclass(err, InputError) and issubclass(err, SosalgoError)
     assert issubclass(err, ValueError)  # callers that caught ValueError still do
+
+
+@pytest.mark.parametrize("name, values", [
+    ("sosalgo.solvers.Feasibility", {"feasible", "infeasible", "failed"}),
+    ("sosalgo.design.dualbound.BoundStatus", {"proved", "partial", "unsupported"}),
+    ("sosalgo.verify.Verdict", {"exact", "failed"}),
+    ("sosalgo.polyopt.RelaxationStatus",
+     {"optimal", "inaccurate", "infeasible", "failed", "skipped", "inconsistent"}),
+])
+def test_status_enums_write_their_strings(name, values):
+    """One status enum per concept, each member written to CSV/JSON as its plain string."""
+    import importlib
+    import json
+
+    from sosalgo.batch.store import format_value
+
+    mod, cls = name.rsplit(".", 1)
+    enum = getattr(importlib.import_module(mod), cls)
+    assert {m.value for m in enum} == values
+    for m in enum:
+        assert m == m.value and format_value(m) == m.value and f"{m}" == m.value
+        assert json.loads(json.dumps({"status": m})) == {"status": m.value}

@@ -16,8 +16,7 @@ from sosalgo.certificates.interpolation import Interpolation
 from sosalgo.model import Algorithm, bind
 from sosalgo.spec import SpecError, load_spec, spec_from_text
 from sosalgo.verify import lrp_counterexample, simulate_check
-from sosalgo.verify.exact_interpolation import verify_exact_interpolation
-from sosalgo.verify.results import verify_interpolation_certificate
+from sosalgo.verify.results import verify_family_certificate
 
 from .conftest import SPECS
 
@@ -174,7 +173,7 @@ def nesterov_cert():
 
 def test_certificates_verify_exactly(nesterov_cert):
     spec, res = nesterov_cert
-    ex = verify_exact_interpolation(spec, 10.0, res.rho, res.certificate)
+    ex = TIGHT.exact_check(spec, 10.0, res.rho, res.certificate)
     assert ex.verified == "exact", ex.reason
     assert res.rho <= ex.rho_proven_float <= res.rho * (1 + 1e-7)
     # exact rational P and multipliers, and a method with irrational entries (sqrt(10))
@@ -182,7 +181,7 @@ def test_certificates_verify_exactly(nesterov_cert):
     for name, kappa in (("triple-momentum", 10.0), ("gradient", 10.0)):
         sp_ = _spec(name)
         r = analyze_spec(sp_, kappa, family=TIGHT)
-        out = verify_interpolation_certificate(sp_, kappa, r.rho, r.certificate)
+        out = verify_family_certificate(sp_, TIGHT, kappa, r.rho, r.certificate)
         assert out["verified"] == "exact", out["reason"]
         assert out["simulation"]["ok"], out["simulation"]
 
@@ -190,8 +189,7 @@ def test_certificates_verify_exactly(nesterov_cert):
 def test_simulation_accepts_certificate(nesterov_cert):
     spec, res = nesterov_cert
     cert = res.certificate
-    sim = simulate_check(bind(spec, 10.0), res.rho, cert["P"],
-                         lyapunov={"lag": cert["lag"], "p": cert["p"], "c": cert["c"]})
+    sim = simulate_check(bind(spec, 10.0), res.rho, **TIGHT.lyapunov(cert))
     assert sim.ok and sim.n_violations == 0 and sim.worst_ratio <= 1 + 1e-9
 
 
@@ -206,7 +204,7 @@ def test_tampered_certificates_fail(nesterov_cert):
         return c
 
     # a faster rate than the tight one cannot be proven with this certificate
-    assert verify_exact_interpolation(spec, 10.0, res.rho - 1e-3, cert,
+    assert TIGHT.exact_check(spec, 10.0, res.rho - 1e-3, cert,
                                       rho_steps=(0.0,)).verified == "failed"
     # nor with a changed P, a dropped multiplier or a wrong weight
     big = max(cert["multipliers"]["decrease"], key=cert["multipliers"]["decrease"].get)
@@ -214,11 +212,10 @@ def test_tampered_certificates_fail(nesterov_cert):
                lambda c: c["multipliers"]["decrease"].__setitem__(big, 0.0),
                lambda c: c["p"].__setitem__(0, c["p"][0] + 1.0),
                lambda c: c.__setitem__("c", None)):
-        ex = verify_exact_interpolation(spec, 10.0, res.rho, tampered(fn), rho_steps=(0.0,))
+        ex = TIGHT.exact_check(spec, 10.0, res.rho, tampered(fn), rho_steps=(0.0,))
         assert ex.verified == "failed"
     # the simulation check also sees a tampered decrease (V grows along some trajectory)
-    sim = simulate_check(bind(spec, 10.0), res.rho - 0.05, cert["P"],
-                         lyapunov={"lag": cert["lag"], "p": cert["p"], "c": cert["c"]})
+    sim = simulate_check(bind(spec, 10.0), res.rho - 0.05, **TIGHT.lyapunov(cert))
     assert not sim.ok
 
 
@@ -226,7 +223,7 @@ def test_exact_rationals_are_accepted(nesterov_cert):
     spec, res = nesterov_cert
     cert = copy.deepcopy(res.certificate)
     cert["P"] = [[Fraction(v).limit_denominator(10**12) for v in row] for row in cert["P"]]
-    assert verify_exact_interpolation(spec, 10.0, res.rho, cert).verified == "exact"
+    assert TIGHT.exact_check(spec, 10.0, res.rho, cert).verified == "exact"
 
 
 # --------------------------------------------------------------------------- spec and options

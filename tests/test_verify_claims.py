@@ -131,7 +131,7 @@ def test_analyze_verify_exits_3_like_verify_on_a_failing_check(tmp_path, monkeyp
         return {"kappa": 10.0, "rho": 0.5, "verified": "failed", "rho_proven": None,
                 "rho_proven_float": None, "delta": None, "reason": "test"}
 
-    monkeypatch.setattr(verification, "verify_certificate", fake)
+    monkeypatch.setattr(verification, "verify_family_certificate", fake)
     res = run(["analyze", GRADIENT, "--kappa", "10", "--out", tmp_path, "--quiet",
                "--no-plot", "--verify"])
     assert res.exit_code == 3

@@ -260,7 +260,7 @@ def run_analysis_sweep(
     settings = {"job": "analyze", "spec": spec_text, "tol": tol,
                 "solvers": list(solvers) if solvers else None,
                 "kappa": [float(k) for k in kappas]}
-    if fam.name != "theorem1":
+    if not fam.is_default:
         settings["certificate"] = family_options(fam)
     store = ResumableCSV(out_csv, analysis_columns(spec, fam), ["kappa"], settings,
                          restart=restart, companions=companions)
@@ -492,7 +492,7 @@ def run_grid(
     options = {"tol": tol, "free": list(free), "certificate": family_options(fam)}
     settings = {"job": "grid", "spec": spec_text, "tol": tol, "kappa": float(kappa),
                 "free": list(free), "points": points, "box": [list(b) for b in box]}
-    if fam.name != "theorem1":
+    if not fam.is_default:
         settings["certificate"] = family_options(fam)
     store = ResumableCSV(out_csv, grid_columns(spec, free, fam), ["kappa", *free], settings,
                          restart=restart, companions=companions)

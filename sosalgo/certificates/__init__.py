@@ -24,6 +24,11 @@ def register_family(family: CertificateFamily, options: tuple[str, ...] = ()) ->
     FAMILY_OPTIONS[family.name] = tuple(options)
 
 
+def default_family() -> CertificateFamily:
+    """The family of specs without a ``certificate:`` field (``is_default``)."""
+    return next(f for f in FAMILIES.values() if f.is_default)
+
+
 def get_family(name: str, options: dict | None = None) -> CertificateFamily:
     """The certificate family registered under ``name``, with its options (e.g. lag)."""
     try:
@@ -38,6 +43,6 @@ def get_family(name: str, options: dict | None = None) -> CertificateFamily:
 
 
 __all__ = [
-    "AffineBlock", "CertificateFamily", "LMIProblem", "FAMILIES", "FAMILY_OPTIONS", "get_family",
-    "register_family",
+    "AffineBlock", "CertificateFamily", "LMIProblem", "FAMILIES", "FAMILY_OPTIONS",
+    "default_family", "get_family", "register_family",
 ]

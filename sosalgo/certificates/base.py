@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol
 
@@ -12,9 +12,10 @@ if TYPE_CHECKING:  # only for annotations: families do not depend on the model a
     import sympy as sp
 
     from sosalgo.model import Algorithm
+    from sosalgo.spec.types import Spec
 
 
-__all__ = ["AffineBlock", "LMIProblem", "CertificateFamily"]
+__all__ = ["AffineBlock", "LMIProblem", "CertificateFamily", "check_matrix", "check_number"]
 
 
 @dataclass(frozen=True)
@@ -73,10 +74,26 @@ class LMIProblem:
 
 
 class CertificateFamily(Protocol):
-    """A family of Lyapunov certificates for linear rates on F(m, L)."""
+    """A family of Lyapunov certificates for linear rates on F(m, L).
+
+    Beside the LMI data (``problem``), a family says how it is shown and checked:
+
+    - ``label``: its name in tables and figure legends;
+    - ``is_default``: the family of specs without a ``certificate:`` field (its outputs carry
+      no family suffix, its JSON rows no ``certificate`` object);
+    - ``supports_moment``: the paper's moment relaxation (``design --method moment``) is
+      built on its symbolic form;
+    - ``certificate_parts``: the named parts a result must carry to claim a certificate;
+    - ``parse_certificate``, ``exact_check`` and ``lyapunov``: how ``sosalgo verify`` reads,
+      proves and simulates one of its certificates.
+    """
 
     name: str
     description: str
+    label: str
+    is_default: bool
+    supports_moment: bool
+    certificate_parts: tuple[str, ...]
 
     def problem(self, alg: Algorithm) -> LMIProblem:
         """Assemble the feasibility data for a numeric algorithm."""
@@ -91,3 +108,39 @@ class CertificateFamily(Protocol):
     def matrix(self, alg: Algorithm, rho: float, cert: dict[str, Any]) -> np.ndarray:
         """The main matrix M at a numeric certificate (for reporting and checks)."""
         ...
+
+    def parse_certificate(self, parts: Mapping[str, Any], n: int) -> dict[str, Any]:
+        """The certificate named by ``parts`` (from a result row), its values checked;
+        missing parts are None. Raises ValueError('<part>: what is wrong') when malformed."""
+        ...
+
+    def exact_check(self, spec: Spec, kappa: float, rho: float, cert: Mapping[str, Any],
+                    theta: Mapping[str, float] | None = None) -> Any:
+        """Proof in exact arithmetic that ``cert`` certifies ``rho`` (an object with
+        ``verified``, ``rho_proven``, ``rho_proven_float``, ``delta``, ``reason`` and
+        ``to_dict()``; see :mod:`sosalgo.verify`)."""
+        ...
+
+    def lyapunov(self, cert: Mapping[str, Any]) -> dict[str, Any]:
+        """The keyword arguments of :func:`sosalgo.verify.simulate_check` that make it follow
+        this certificate's Lyapunov function (``P`` and, when it has more, ``lyapunov``)."""
+        ...
+
+
+def check_number(value: Any, part: str, allow_none: bool = True) -> float | None:
+    """``value`` as a float (None passes when allowed); ValueError naming ``part`` else."""
+    if value is None and allow_none:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ValueError(f"{part}: expected a number, got {type(value).__name__}")
+    return float(value)
+
+
+def check_matrix(value: Any, n: int, part: str) -> list[list[float]] | None:
+    """``value`` as an n x n list of lists of floats (None passes); ValueError else."""
+    if value is None:
+        return None
+    if not (isinstance(value, list) and len(value) == n
+            and all(isinstance(r, list) and len(r) == n for r in value)):
+        raise ValueError(f"{part}: expected a {n}x{n} list of lists of numbers")
+    return [[check_number(v, part, allow_none=False) for v in row] for row in value]

@@ -29,6 +29,7 @@ verifier) and sympy (``sosalgo lmi``): it only uses sums, products and stacking.
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 from dataclasses import dataclass
 from fractions import Fraction
 from typing import TYPE_CHECKING, Any
@@ -41,6 +42,7 @@ if TYPE_CHECKING:  # only for annotations: families do not depend on the model a
     import sympy as sp
 
     from sosalgo.model import Algorithm
+    from sosalgo.spec.types import Spec
 
 __all__ = ["INTERPOLATION", "Interpolation", "Structure", "structure", "evaluate"]
 
@@ -213,6 +215,10 @@ class Interpolation:
     """Lyapunov functions with interpolation conditions (lag l; default l = n - 1)."""
 
     name = "interpolation"
+    label = "interpolation"
+    is_default = False
+    supports_moment = False  # the moment relaxation is built on Theorem 1's M
+    certificate_parts = ("P", "p", "lag")
     tight = True  # its rate is often the rate on quadratics: the search starts there
     # points the margin search cannot check sit on a degenerate boundary (tight rates),
     # where SCS only runs into its iteration limit: Clarabel alone is asked
@@ -420,6 +426,34 @@ class Interpolation:
         return sp.Matrix(st.dec.Z[lag + 1]), {
             "P": P, "rho": rho, "structure": st, "lag": lag, "has_x": hx,
         }
+
+    # -- verification (sosalgo verify) ---------------------------------------------------
+    def parse_certificate(self, parts: Mapping[str, Any], n: int) -> dict[str, Any]:
+        """The parts as given: the exact check itself fails a malformed certificate."""
+        return dict(parts)
+
+    def exact_structure(self, A, B, C, E, m, L, lag: int, has_x: bool) -> Structure:
+        """The windows of the method on exact numbers (object arrays: rationals, balls)."""
+        return structure(A, B, C, E, m, L, lag, has_x, obj=True)
+
+    def exact_parts(self, st: Structure, r: Any, P: Any, pi: Any, eta: Any,
+                    lam: Any) -> dict[str, Any]:
+        """(D, Df, Pq, Pf) at a certificate on exact numbers (see :func:`evaluate`)."""
+        return evaluate(st, r, P, pi, eta, lam)
+
+    def exact_check(self, spec: Spec, kappa: float, rho: float, cert: Mapping[str, Any],
+                    theta: Mapping[str, float] | None = None, **options: Any) -> Any:
+        """Exact rational proof of (D) and (P), the certificate's own lag
+        (:func:`sosalgo.verify.exact_interpolation.verify_exact_interpolation`)."""
+        from sosalgo.verify.exact_interpolation import verify_exact_interpolation
+
+        return verify_exact_interpolation(spec, kappa, rho, cert, theta, family=self, **options)
+
+    def lyapunov(self, cert: Mapping[str, Any]) -> dict[str, Any]:
+        """V = z'Pz + sum p_j (f(y_{k-j}) - f*) + c (f(x_k) - f*) on z = (xi, u_k..u_{k-l})."""
+        return {"P": np.asarray(cert["P"], dtype=float),
+                "lyapunov": {"lag": int(cert["lag"]), "p": [float(v) for v in cert["p"]],
+                             "c": None if cert.get("c") is None else float(cert["c"])}}
 
 
 def _unit_quad(Z: np.ndarray, a: int, b: int) -> np.ndarray:

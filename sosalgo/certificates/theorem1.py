@@ -13,16 +13,18 @@ what ``sosalgo lmi`` prints is what the solver sees.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from sosalgo.certificates.base import AffineBlock, LMIProblem
+from sosalgo.certificates.base import AffineBlock, LMIProblem, check_matrix, check_number
 
 if TYPE_CHECKING:  # only for annotations: families do not depend on the model at run time
     import sympy as sp
 
     from sosalgo.model import Algorithm
+    from sosalgo.spec.types import Spec
 
 __all__ = ["THEOREM1", "Theorem1", "theorem1_terms"]
 
@@ -85,6 +87,10 @@ class Theorem1:
 
     name = "theorem1"
     description = "Theorem 1: V = f(x) - f* + (xi - xi*)' P (xi - xi*), one S-procedure multiplier"
+    label = "Theorem 1"
+    is_default = True
+    supports_moment = True  # the moment relaxation of eq. (17) is built on M of eq. (15)
+    certificate_parts = ("P", "lambda")
 
     def problem(self, alg: Algorithm) -> LMIProblem:
         """x = (P_ij for i <= j, lambda); blocks: M ⪯ 0, -P ⪯ 0, -lambda <= 0.
@@ -174,6 +180,24 @@ class Theorem1:
         )
         M = M.applyfunc(lambda e: sp.factor_terms(sp.expand(e)))
         return M, {"P": P, "rho": rho, "lambda": lam, "terms": t}
+
+    # -- verification (sosalgo verify) ---------------------------------------------------
+    def parse_certificate(self, parts: Mapping[str, Any], n: int) -> dict[str, Any]:
+        """(P, lambda) of a result row: P an n x n matrix of numbers, lambda a number."""
+        return {"P": check_matrix(parts.get("P"), n, "P"),
+                "lambda": check_number(parts.get("lambda"), "lambda")}
+
+    def exact_check(self, spec: Spec, kappa: float, rho: float, cert: Mapping[str, Any],
+                    theta: Mapping[str, float] | None = None) -> Any:
+        """Exact rational proof of eq. (15) (:func:`sosalgo.verify.exact.verify_exact`)."""
+        from sosalgo.verify.exact import verify_exact
+
+        return verify_exact(spec, kappa, rho, np.asarray(cert["P"], dtype=float),
+                            cert["lambda"], theta)
+
+    def lyapunov(self, cert: Mapping[str, Any]) -> dict[str, Any]:
+        """V = f(x) - f* + (xi - xi*)' P (xi - xi*) of eq. (12): P is all it needs."""
+        return {"P": np.asarray(cert["P"], dtype=float)}
 
 
 THEOREM1 = Theorem1()

@@ -35,6 +35,7 @@ from sosalgo.design.dualbound import BoundSearch, BoundStatus, QuadraticTest, du
 from sosalgo.design.moment import design_problem, relaxation_bound
 from sosalgo.design.polymodel import fit_poly_lmi
 from sosalgo.model import ModelError, bind, evaluate_algorithm, parameter_box
+from sosalgo.polyopt import RelaxationStatus
 from sosalgo.solvers import solve_margin
 from sosalgo.spec import Spec
 
@@ -210,7 +211,7 @@ def design(
         family = spec_family(spec)
     elif isinstance(family, str):
         family = get_family(family)
-    if method == "moment" and family.name != "theorem1":
+    if method == "moment" and not family.supports_moment:
         raise ModelError("certificate", "--method moment is built on Theorem 1 only")
     model = fit_poly_lmi(spec, kappa, free, box, family)  # refuses non-polynomial θ
     run = _Run(spec, kappa, free, box, t0 + time_limit, on_step, family)
@@ -239,10 +240,7 @@ def design(
     g = None if (lb is None or rho_c is None) else rho_c - lb
     best = run.best
     cert: dict[str, Any] = {}
-    if best is not None and family.name == "theorem1":
-        cert = {"P": best.P.tolist(), "lambda": best.lam,
-                "max_eig_M": best.max_eig_M, "min_eig_P": best.min_eig_P}
-    elif best is not None:  # the family's named parts
+    if best is not None:  # the family's named parts (P and lambda for Theorem 1)
         cert = {**jsonable(best.certificate or {}), "max_eig_M": best.max_eig_M,
                 "min_eig_P": best.min_eig_P}
     gap_met = g is not None and g <= gap
@@ -496,7 +494,7 @@ def _moment_bound(run: _Run, scalarize: str, order: int | None, max_order: int |
         st = b.info["status"]
         run.log(f"relaxation order {b.info['order']} ({scalarize}): status {st}, "
                 f"flat {b.info['flat']}, bound {'-' if b.rho is None else f'{b.rho:.8f}'}"
-                + (f" ({b.info['why']})" if st == "skipped" else ""))
+                + (f" ({b.info['why']})" if st == RelaxationStatus.SKIPPED else ""))
         if b.rho is not None and (lb is None or b.rho > lb):
             lb, info = b.rho, {"method": "moment", **b.info}
         elif lb is None:
@@ -505,12 +503,13 @@ def _moment_bound(run: _Run, scalarize: str, order: int | None, max_order: int |
             run.consider(cand, f"theta from {b.source}")
         cur = b.info["order"]
         top = max_order if max_order is not None else (top or cur + 1)
-        if (lb is not None and run.upper - lb <= gap) or cur >= top or st == "skipped":
+        skipped = st == RelaxationStatus.SKIPPED
+        if (lb is not None and run.upper - lb <= gap) or cur >= top or skipped:
             break
         cur += 1
     if lb is not None and lb > run.upper + 1e-7:
         run.log(f"relaxation bound {lb:.8f} exceeds a certified rate: discarded as "
                 "numerically invalid")
         lb = None
-        info["status"] = "inconsistent"
+        info["status"] = RelaxationStatus.INCONSISTENT
     return lb, info

@@ -21,7 +21,7 @@ from typing import Any
 import sympy as sp
 
 from sosalgo.certificates.theorem1 import theorem1_terms
-from sosalgo.polyopt import PolyProblem, solve_moment_relaxation
+from sosalgo.polyopt import PolyProblem, RelaxationStatus, solve_moment_relaxation
 from sosalgo.solvers import c_stdout_to_stderr
 from sosalgo.spec import BASE_SYMBOLS, Spec
 
@@ -153,20 +153,21 @@ def relaxation_bound(
     if moments > MAX_MOMENTS or est > seconds:
         why = (f"{moments} moments > {MAX_MOMENTS}" if moments > MAX_MOMENTS else
                f"estimated {est:.0f} s > {seconds:.0f} s left")
-        return MomentBound(None, None, "skipped", {**base, "status": "skipped", "why": why})
+        return MomentBound(None, None, "skipped",
+                           {**base, "status": RelaxationStatus.SKIPPED, "why": why})
     with c_stdout_to_stderr():
         res = solve_moment_relaxation(prob, order=k, solver=first,
                                       solver_options=_options(first, seconds))
-    if (res.status != "optimal" and second is not None and len(prob.variables) <= 5
+    if (res.status != RelaxationStatus.OPTIMAL and second is not None and len(prob.variables) <= 5
             and _seconds_estimate(second, side) < seconds - res.seconds):
         with c_stdout_to_stderr():
             res = solve_moment_relaxation(prob, order=k, solver=second,
                                           solver_options=_options(second, seconds - res.seconds))
     info = {**base, "order": res.order, "status": res.status, "solver": res.solver,
             "ranks": list(res.ranks), "flat": bool(res.flat), "seconds": res.seconds}
-    if res.status == "infeasible":
+    if res.status == RelaxationStatus.INFEASIBLE:
         return MomentBound(1.0, None, "infeasible", info)  # no certificate in the box
-    if res.status != "optimal" or not math.isfinite(res.bound):
+    if res.status != RelaxationStatus.OPTIMAL or not math.isfinite(res.bound):
         return MomentBound(None, _first(res, v, free), "first moments", info)
     rho = math.sqrt(min(1.0, max(0.0, res.bound)))
     if res.minimizers:

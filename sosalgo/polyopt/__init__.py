@@ -6,11 +6,17 @@ relaxation, detects exactness (flat extension) and extracts global minimizers
 """
 
 from .problem import PolyProblem
-from .relaxation import DEFAULT_SOLVER_OPTIONS, RelaxationResult, solve_moment_relaxation
+from .relaxation import (
+    DEFAULT_SOLVER_OPTIONS,
+    RelaxationResult,
+    RelaxationStatus,
+    solve_moment_relaxation,
+)
 
 __all__ = [
     "PolyProblem",
     "RelaxationResult",
+    "RelaxationStatus",
     "solve_moment_relaxation",
     "DEFAULT_SOLVER_OPTIONS",
 ]

@@ -21,6 +21,7 @@ import math
 import time
 import warnings
 from dataclasses import dataclass, field
+from enum import StrEnum
 from typing import Any
 
 import cvxpy as cp
@@ -40,7 +41,8 @@ from .problem import (
     equilibrating_scale,
 )
 
-__all__ = ["RelaxationResult", "solve_moment_relaxation", "DEFAULT_SOLVER_OPTIONS"]
+__all__ = ["RelaxationResult", "RelaxationStatus", "solve_moment_relaxation",
+           "DEFAULT_SOLVER_OPTIONS"]
 
 #: Solver settings used unless overridden by ``solver_options``. Clarabel's default
 #: regularization fails with NumericalError on many moment relaxations; 1e-7 fixes it.
@@ -56,11 +58,27 @@ _REFINE_PASSES = 2
 #: Back-off levels of the interior dual, as fractions of the allowed gap below the value.
 _BACKOFF = (0.05, 0.5)
 
+
+
+class RelaxationStatus(StrEnum):
+    """Outcome of a moment relaxation (a str: compares and serializes as one).
+
+    The first four are :func:`solve_moment_relaxation`'s (see :class:`RelaxationResult`);
+    the design's moment bound adds the last two."""
+
+    OPTIMAL = "optimal"
+    INACCURATE = "inaccurate"
+    INFEASIBLE = "infeasible"
+    FAILED = "failed"
+    SKIPPED = "skipped"  # not solved: too large for the memory or the time left
+    INCONSISTENT = "inconsistent"  # its bound exceeds a certified rate: discarded
+
+
 _STATUS = {
-    cp.OPTIMAL: "optimal",
-    cp.OPTIMAL_INACCURATE: "inaccurate",
-    cp.INFEASIBLE: "infeasible",
-    cp.INFEASIBLE_INACCURATE: "infeasible",
+    cp.OPTIMAL: RelaxationStatus.OPTIMAL,
+    cp.OPTIMAL_INACCURATE: RelaxationStatus.INACCURATE,
+    cp.INFEASIBLE: RelaxationStatus.INFEASIBLE,
+    cp.INFEASIBLE_INACCURATE: RelaxationStatus.INFEASIBLE,
 }
 
 
@@ -97,7 +115,7 @@ class RelaxationResult:
     """
 
     bound: float
-    status: str
+    status: RelaxationStatus
     order: int
     ranks: list[int] = field(default_factory=list)
     flat: bool = False
@@ -274,7 +292,7 @@ def solve_moment_relaxation(
     opts.update(solver_options or {})
 
     result = _solve_once(compiled, order, (name, opts), rank_tol, feas_tol, seed, gap_tol)
-    if scale and result.status == "inaccurate" and len(problem.bounds) < compiled.n:
+    if scale and result.status == RelaxationStatus.INACCURATE and len(problem.bounds) < compiled.n:
         for _ in range(_REFINE_PASSES):
             center = np.array([result.first_moments.get(v, math.nan) for v in compiled.variables])
             if not np.all(np.isfinite(center)):
@@ -284,7 +302,7 @@ def solve_moment_relaxation(
             retry = _solve_once(again, order, (name, opts), rank_tol, feas_tol, seed, gap_tol)
             if _rank(retry) > _rank(result):
                 result = retry
-            if result.status == "optimal" or not retry.first_moments:
+            if result.status == RelaxationStatus.OPTIMAL or not retry.first_moments:
                 break
     result.seconds = time.perf_counter() - t0
     return result
@@ -317,7 +335,8 @@ def _infeasibility_cost(parts: _Parts, yv: np.ndarray) -> float:
 
 def _rank(res: RelaxationResult) -> tuple[bool, bool, float]:
     """Order of preference between two solves of the same relaxation."""
-    return (res.status == "optimal", res.certified, res.bound if res.certified else -math.inf)
+    return (res.status == RelaxationStatus.OPTIMAL, res.certified,
+            res.bound if res.certified else -math.inf)
 
 
 def _solve_once(
@@ -332,7 +351,8 @@ def _solve_once(
     """Build, solve, certify and (when optimal) extract, in ``compiled``'s coordinates."""
     name, opts = solver
     index, prob, y, parts = _build(compiled, order)
-    result = RelaxationResult(bound=math.nan, status="failed", order=order, solver=name)
+    result = RelaxationResult(bound=math.nan, status=RelaxationStatus.FAILED, order=order,
+                              solver=name)
     try:
         with warnings.catch_warnings():
             # cvxpy warns on inaccurate solutions; the status field reports that instead.
@@ -342,12 +362,13 @@ def _solve_once(
     except Exception as exc:  # noqa: BLE001 - solver failures must not raise
         result.solver_status = f"{type(exc).__name__}: {exc}"
         return result
-    status = _STATUS.get(prob.status, "failed")
+    status = _STATUS.get(prob.status, RelaxationStatus.FAILED)
     yv = None if y.value is None else np.asarray(y.value, dtype=float)
-    if status in ("optimal", "inaccurate") and (yv is None or not np.all(np.isfinite(yv))):
-        status = "failed"
+    solved = (RelaxationStatus.OPTIMAL, RelaxationStatus.INACCURATE)
+    if status in solved and (yv is None or not np.all(np.isfinite(yv))):
+        status = RelaxationStatus.FAILED
     result.status = status
-    if status not in ("optimal", "inaccurate"):
+    if status not in solved:
         return result
 
     value = float(prob.value)
@@ -362,13 +383,15 @@ def _solve_once(
     allowed = gap_tol * max(1.0, abs(result.solver_bound))
     target = value - allowed / compiled.objective_scale
     # the interior dual (extra SDP solves) only when "optimal" is still within reach
-    cert = _certify(index, parts, compiled, value, target, solver, status == "optimal")
+    cert = _certify(index, parts, compiled, value, target, solver,
+                    status == RelaxationStatus.OPTIMAL)
     result.certified = math.isfinite(cert)
     result.bound = cert if result.certified else result.solver_bound
     slack = compiled.objective_scale * _infeasibility_cost(parts, yv)
     accurate = result.certified and abs(result.solver_bound - cert) + slack <= allowed
-    result.status = "optimal" if status == "optimal" and accurate else "inaccurate"
-    if result.status == "optimal":
+    result.status = (RelaxationStatus.OPTIMAL if status == RelaxationStatus.OPTIMAL and accurate
+                     else RelaxationStatus.INACCURATE)
+    if result.status == RelaxationStatus.OPTIMAL:
         _flat_and_minimizers(result, compiled, index, yv, rank_tol, feas_tol, seed)
     return result
 

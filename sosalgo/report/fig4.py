@@ -9,6 +9,7 @@ Every run goes through the resumable batch layer, so an interrupted ``fig4`` res
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -25,7 +26,7 @@ from sosalgo.batch.sweeps import (
 from sosalgo.certificates import get_family
 from sosalgo.spec import spec_from_text
 
-__all__ = ["fig4", "tmm_parameters"]
+__all__ = ["fig4", "fig4_rows", "tmm_parameters"]
 
 
 def spec_text_and_path(name: str) -> tuple[str, str]:
@@ -93,6 +94,17 @@ def fig4(out_dir: Path, kappas: Sequence[float], workers: int | None = None,
         "theta": [d["theta"] for d in tight],
     }
     return _draw(out_dir / "fig4-tight-design", data), data
+
+
+def fig4_rows(data: dict[str, list]) -> list[dict[str, Any]]:
+    """The printed table of Figure 4: one row per kappa, the four curves and the floor."""
+    return [{"kappa": k, "designed (interpolation)": a, "designed (Theorem 1)": b,
+             "Nesterov (interpolation)": c, "Nesterov (Theorem 1)": d,
+             "1 - 1/sqrt(kappa)": 1 - 1 / math.sqrt(k)}
+            for k, a, b, c, d in zip(data["kappa"], data["designed (interpolation)"],
+                                     data["designed (Theorem 1)"],
+                                     data["Nesterov's tuning (interpolation)"],
+                                     data["Nesterov's tuning (Theorem 1)"], strict=True)]
 
 
 def _draw(stem: Path, data: dict[str, list]) -> list[Path]:

@@ -36,6 +36,7 @@ import numbers
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from enum import StrEnum
 from fractions import Fraction
 from pathlib import Path
 from typing import Any
@@ -54,6 +55,7 @@ __all__ = [
     "ExactAlgorithm",
     "ExactResult",
     "PSDProof",
+    "Verdict",
     "exact_algorithm",
     "prove_psd",
     "psd_by_minors",
@@ -602,12 +604,19 @@ def frobenius_bound(M: BallMatrix) -> Fraction:
 # --------------------------------------------------------------------------- result
 
 
+class Verdict(StrEnum):
+    """Verdict of a verification (a str: compares and serializes as one)."""
+
+    EXACT = "exact"  # proven in exact arithmetic (rational numbers and enclosures)
+    FAILED = "failed"  # not proven, or nothing to prove it with (``reason`` says why)
+
+
 @dataclass
 class ProofResult:
     """What every exact check reports: the verdict and the rate it proves."""
 
     spec: str
-    verified: str  # "exact" or "failed"
+    verified: Verdict
     rho_requested: float
     rho_proven: str | None = None
     rho_proven_float: float | None = None
@@ -621,7 +630,7 @@ class ProofResult:
 
     @property
     def ok(self) -> bool:
-        return self.verified == "exact"
+        return self.verified == Verdict.EXACT
 
 
 @dataclass
@@ -648,7 +657,7 @@ class ExactResult(ProofResult):
         return {
             "certificate": "Theorem 1 (eq. 15), reduced d = 1 templates (Remark 1)",
             "spec": self.spec,
-            "verified": self.verified,
+            "verified": str(self.verified),
             "rho_requested": self.rho_requested,
             "rho_proven": self.rho_proven,
             "rho_proven_float": self.rho_proven_float,
@@ -749,11 +758,30 @@ def verify_exact(
     try:
         ex = exact_algorithm(spec, kappa, theta, digits)
     except ValueError as exc:
-        return ExactResult(spec=spec.name, verified="failed", rho_requested=float(rho),
+        return ExactResult(spec=spec.name, verified=Verdict.FAILED, rho_requested=float(rho),
                            reason=f"the exact method cannot be built: {exc}",
                            seconds=time.perf_counter() - start)
-    result = ExactResult(
-        spec=spec.name, verified="failed", rho_requested=float(rho),
+    result = _new_result(spec, ex, rho)
+    reason = _check_method(spec, kappa, theta, ex, result)
+    if reason is None:
+        inputs = _rational_inputs(P, lam, rho, len(ex.balls["A"]), max_den)
+        if isinstance(inputs, str):
+            reason = inputs
+        else:
+            rho_q, lam_opts, p_cands = inputs
+            P_opts, reason = _psd_roundings(p_cands)
+            if P_opts:
+                reason = _search_proof(ex, result, rho_q, P_opts, lam_opts,
+                                       rho_candidates(rho_q, list(rho_steps), max_den))
+    result.reason = reason
+    result.seconds = time.perf_counter() - start
+    return result
+
+
+def _new_result(spec: Spec, ex: ExactAlgorithm, rho: float) -> ExactResult:
+    """A failed result that records the exact method (filled in as the proof proceeds)."""
+    return ExactResult(
+        spec=spec.name, verified=Verdict.FAILED, rho_requested=float(rho),
         kappa=fraction_str(ex.kappa), m=fraction_str(ex.m), L=fraction_str(ex.L),
         params={k: str(v) for k, v in ex.params.items()},
         theta={k: fraction_str(v) for k, v in ex.theta.items()},
@@ -762,15 +790,15 @@ def verify_exact(
         enclosures=ex.enclosures(),
     )
 
-    def done(reason: str | None) -> ExactResult:
-        result.reason = reason
-        result.seconds = time.perf_counter() - start
-        return result
 
+def _check_method(spec: Spec, kappa: float, theta: Mapping[str, float] | None,
+                  ex: ExactAlgorithm, result: ExactResult) -> str | None:
+    """The exact method agrees with the float model and has the fixed point of eq. (11);
+    the reason when not."""
     try:
         alg = bind(spec, float(kappa), theta)
     except ValueError as exc:
-        return done(f"the method cannot be evaluated: {exc}")
+        return f"the method cannot be evaluated: {exc}"
     diff = max(
         float(np.max(np.abs(np.array(getattr(alg, k), float)
                             - np.array([[float(b.c) for b in row] for row in ex.balls[k]]))))
@@ -778,16 +806,24 @@ def verify_exact(
     )
     result.model_max_abs_diff = diff
     if not diff <= 1e-9 * (1 + max(float(np.max(np.abs(getattr(alg, k)))) for k in MATRIX_NAMES)):
-        return done(f"exact matrices differ from sosalgo.model.bind by {diff:.3g}")
+        return f"exact matrices differ from sosalgo.model.bind by {diff:.3g}"
     u = exact_fixed_point(ex, fixed_point(alg))
     if u is None:
-        return done("fixed point of eq. (11) (u with (I - A)u = 0, Cu = 1, Eu = 1) not proven")
+        return "fixed point of eq. (11) (u with (I - A)u = 0, Cu = 1, Eu = 1) not proven"
     result.fixed_point = [str(v) for v in u]
+    return None
 
-    n = len(ex.balls["A"])
+
+RationalInputs = tuple[Fraction, list[Fraction], list[tuple[str, Matrix]]]
+
+
+def _rational_inputs(P: Any, lam: Any, rho: Any, n: int,
+                     max_den: int) -> RationalInputs | str:
+    """(rho, lambda candidates, (label, P) candidates) as rationals, or the reason the
+    inputs cannot be used (shape, symmetry, finiteness, signs)."""
     P_raw = np.atleast_2d(np.asarray(P, dtype=object))
     if P_raw.shape != (n, n):
-        return done(f"P has shape {P_raw.shape}, expected {(n, n)}")
+        return f"P has shape {P_raw.shape}, expected {(n, n)}"
     try:
         rho_q = rational(rho)
         if _is_exact(lam):
@@ -799,22 +835,26 @@ def verify_exact(
         if all(_is_exact(v) for v in P_raw.flat):
             Pq = [[rational(P_raw[i, j]) for j in range(n)] for i in range(n)]
             if any(Pq[i][j] != Pq[j][i] for i in range(n) for j in range(i)):
-                return done("P is not symmetric")
+                return "P is not symmetric"
             p_cands = [("as given (exact)", Pq)]
         else:
             P_float = P_raw.astype(float)
             if not np.all(np.isfinite(P_float)):
-                return done("P has entries that are not finite")
+                return "P has entries that are not finite"
             if not np.array_equal(P_float, P_float.T):
-                return done("P is not symmetric (refused, never symmetrized)")
+                return "P is not symmetric (refused, never symmetrized)"
             p_cands = _p_candidates(P_float, max_den)
     except (ValueError, TypeError, OverflowError) as exc:
-        return done(f"P, lambda and rho must be finite numbers: {exc}")
+        return f"P, lambda and rho must be finite numbers: {exc}"
     if lam_opts[0] < 0:
-        return done(f"lambda = {float(lam_opts[0]):.6g} < 0")
+        return f"lambda = {float(lam_opts[0]):.6g} < 0"
     if not 0 < rho_q <= 1:
-        return done(f"rho = {float(rho_q)!r} is not in (0, 1] (Theorem 1)")
+        return f"rho = {float(rho_q)!r} is not in (0, 1] (Theorem 1)"
+    return rho_q, lam_opts, p_cands
 
+
+def _psd_roundings(p_cands: list[tuple[str, Matrix]]) -> tuple[list, str | None]:
+    """The roundings of P proven ⪰ 0 (label, P, proof), and the first failure's reason."""
     P_opts = []
     first_p_reason = None
     for label, Pq in p_cands:
@@ -823,33 +863,22 @@ def verify_exact(
             P_opts.append((label, Pq, pp))
         elif first_p_reason is None:
             first_p_reason = f"P ⪰ 0 fails for P {label}: {pp.detail}"
-    if not P_opts:
-        return done(first_p_reason)
+    return P_opts, first_p_reason
 
+
+def _search_proof(ex: ExactAlgorithm, result: ExactResult, rho_q: Fraction, P_opts: list,
+                  lam_opts: list[Fraction], cands: list[Fraction]) -> str | None:
+    """Try M ⪯ 0 for each rational rho (in order), rounding of P and lambda; record the
+    first proof in ``result`` (None), else return the first failure's reason."""
     first_fail: str | None = None
-    cands = rho_candidates(rho_q, list(rho_steps), max_den)
     for rq in cands:
         for label, Pq, pp in P_opts:
             for lq in lam_opts:
                 result.attempts += 1
                 ok, info = _prove_M(ex, Pq, rq, lq)
                 if ok:
-                    t, eta, proof = info["t"], info["eta"], info["proof"]
-                    result.verified = "exact"
-                    result.rho_proven = fraction_str(rq)
-                    result.rho_proven_float = float(rq)
-                    result.rho_step = float(rq / rho_q - 1)
-                    result.P_rational = [[fraction_str(v) for v in row] for row in Pq]
-                    result.P_rounding = label
-                    result.lambda_rational = fraction_str(lq)
-                    margin = round_down(t - eta)
-                    result.delta = fraction_str(margin)
-                    result.delta_float = float(margin)
-                    result.perturbation = fraction_str(eta)
-                    result.M_proof = (f"-M(centre) - {_float_str(t)} I ⪰ 0: {proof.kind} "
-                                      f"({proof.method})")
-                    result.P_proof = f"{pp.kind} ({pp.method})"
-                    return done(None)
+                    _record_proof(result, info, rq, rho_q, label, Pq, pp, lq)
+                    return None
                 if first_fail is None:
                     verdict = (
                         "M ⪯ 0 is false (disproved exactly: -M(centre) + eta I is not PSD)"
@@ -865,4 +894,24 @@ def verify_exact(
                 continue
             break
     assert first_fail is not None
-    return done(first_fail + f" (tried {len(cands)} rho values up to {float(cands[-1])!r})")
+    return first_fail + f" (tried {len(cands)} rho values up to {float(cands[-1])!r})"
+
+
+def _record_proof(result: ExactResult, info: dict[str, Any], rq: Fraction, rho_q: Fraction,
+                  label: str, Pq: Matrix, pp: PSDProof, lq: Fraction) -> None:
+    """Fill ``result`` with a proof of M(rq, Pq, lq) ⪯ -delta I and P ⪰ 0."""
+    t, eta, proof = info["t"], info["eta"], info["proof"]
+    result.verified = Verdict.EXACT
+    result.rho_proven = fraction_str(rq)
+    result.rho_proven_float = float(rq)
+    result.rho_step = float(rq / rho_q - 1)
+    result.P_rational = [[fraction_str(v) for v in row] for row in Pq]
+    result.P_rounding = label
+    result.lambda_rational = fraction_str(lq)
+    margin = round_down(t - eta)
+    result.delta = fraction_str(margin)
+    result.delta_float = float(margin)
+    result.perturbation = fraction_str(eta)
+    result.M_proof = (f"-M(centre) - {_float_str(t)} I ⪰ 0: {proof.kind} "
+                      f"({proof.method})")
+    result.P_proof = f"{pp.kind} ({pp.method})"

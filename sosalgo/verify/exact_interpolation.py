@@ -15,7 +15,7 @@ The certificate (rho, P, p, c, multipliers eta, lambda) is checked in original u
    D ⪯ 0 and Pq ⪰ 0 for every method inside the enclosures.
 
 The window algebra (row maps, interpolation pairs) is the family's own builder run on
-exact numbers (:func:`sosalgo.certificates.interpolation.structure`); the simulation check
+exact numbers (the family's ``exact_structure``/``exact_parts``); the simulation check
 (:mod:`sosalgo.verify.simulate`) evaluates the Lyapunov function independently along
 trajectories of actual functions.
 """
@@ -31,15 +31,15 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.certificates.interpolation import evaluate, structure
 from sosalgo.model import bind, fixed_point
-from sosalgo.spec import MATRIX_NAMES, Spec
+from sosalgo.spec.types import MATRIX_NAMES, Spec
 from sosalgo.verify.exact import (
     DEFAULT_DIGITS,
     DEFAULT_MAX_DEN,
     DEFAULT_RHO_STEPS,
     Ball,
     ProofResult,
+    Verdict,
     exact_algorithm,
     exact_fixed_point,
     fraction_str,
@@ -67,7 +67,7 @@ class InterpolationExactResult(ProofResult):
         return {
             "certificate_family": "interpolation (Lyapunov function with function values, "
                                   "F(m, L) interpolation inequalities)",
-            "spec": self.spec, "verified": self.verified, "rho_requested": self.rho_requested,
+            "spec": self.spec, "verified": str(self.verified), "rho_requested": self.rho_requested,
             "rho_proven": self.rho_proven, "rho_proven_float": self.rho_proven_float,
             "delta": self.delta, "certificate": self.certificate, "proofs": self.proofs,
             "reason": self.reason, "attempts": self.attempts, "seconds": self.seconds,
@@ -125,13 +125,17 @@ def _definite(M: list[list[Ball]], sign: int) -> tuple[bool, Fraction, str]:
 
 def verify_exact_interpolation(
     spec: Spec, kappa: float, rho: float, cert: Mapping[str, Any],
-    theta: Mapping[str, float] | None = None, *, max_den: int = DEFAULT_MAX_DEN,
+    theta: Mapping[str, float] | None = None, *, family: Any, max_den: int = DEFAULT_MAX_DEN,
     rho_steps: tuple[float, ...] = DEFAULT_RHO_STEPS, digits: int = DEFAULT_DIGITS,
 ) -> InterpolationExactResult:
     """Prove in exact arithmetic that ``cert`` certifies ``rho`` (or a rational rho slightly
-    above it, from ``rho_steps``) for the exact method of ``spec`` at ``kappa``."""
+    above it, from ``rho_steps``) for the exact method of ``spec`` at ``kappa``.
+
+    ``family`` (the interpolation family, which calls this as its ``exact_check``) builds
+    the windows and evaluates the inequality parts on exact numbers."""
     start = time.perf_counter()
-    res = InterpolationExactResult(spec=spec.name, verified="failed", rho_requested=float(rho))
+    res = InterpolationExactResult(spec=spec.name, verified=Verdict.FAILED,
+                                   rho_requested=float(rho))
 
     def done(reason: str | None) -> InterpolationExactResult:
         res.reason = reason
@@ -177,8 +181,8 @@ def verify_exact_interpolation(
         m_dec, m_pos = cert["multipliers"]["decrease"], cert["multipliers"]["positivity"]
     except (KeyError, TypeError, ValueError, OverflowError) as exc:
         return done(f"malformed certificate: {type(exc).__name__}: {exc}")
-    st = structure(_obj(ex.balls["A"]), _obj(ex.balls["B"]), _obj(ex.balls["C"]),
-                   _obj(ex.balls["E"]), ex.m, ex.L, lag, has_x, obj=True)
+    st = family.exact_structure(_obj(ex.balls["A"]), _obj(ex.balls["B"]), _obj(ex.balls["C"]),
+                                _obj(ex.balls["E"]), ex.m, ex.L, lag, has_x)
     try:
         eta = [max(Fraction(0), _q(m_dec[k], max_den)) for k in st.dec.labels]
         lam = [max(Fraction(0), _q(m_pos[k], max_den)) for k in st.pos.labels]
@@ -204,7 +208,7 @@ def verify_exact_interpolation(
     first_fail = None
     for rq in rho_candidates(rational(rho), list(rho_steps), max_den):
         res.attempts += 1
-        parts = evaluate(st, rq * rq, P, np.array(pi, dtype=object), eta, lam)
+        parts = family.exact_parts(st, rq * rq, P, np.array(pi, dtype=object), eta, lam)
         df = [Ball.of(v) for v in parts["Df"]]
         pf = [Ball.of(v) for v in parts["Pf"]]
         bad_df = [i for i, b in enumerate(df) if b.hi > 0]
@@ -212,7 +216,7 @@ def verify_exact_interpolation(
         ok_d, delta_d, det_d = _definite(_symmetrize(parts["D"]), -1)
         ok_p, delta_p, det_p = _definite(_symmetrize(parts["Pq"]), +1)
         if not bad_df and not bad_pf and ok_d and ok_p:
-            res.verified = "exact"
+            res.verified = Verdict.EXACT
             res.rho_proven, res.rho_proven_float = fraction_str(rq), float(rq)
             res.delta = fraction_str(min(delta_d, delta_p))
             res.proofs = {"decrease": f"-D ⪰ {fraction_str(delta_d)} I: {det_d}",

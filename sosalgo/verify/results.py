@@ -19,19 +19,59 @@ from typing import Any
 import numpy as np
 
 from sosalgo.batch.store import kappa_label
+from sosalgo.certificates import FAMILIES, default_family, get_family
+from sosalgo.certificates.base import CertificateFamily, check_number
 from sosalgo.errors import InputError
 from sosalgo.model import bind
 from sosalgo.spec import Spec
-from sosalgo.verify import simulate_check, verify_exact
+from sosalgo.verify import Verdict, simulate_check
 
 __all__ = [
     "ResultError", "check_failed", "verify_certificate", "verify_document_rows",
-    "verify_interpolation_certificate",
+    "verify_family_certificate",
 ]
 
 
 class ResultError(InputError):
     """A result document is malformed (names the row and field): exit code 2."""
+
+
+def verify_family_certificate(
+    spec: Spec,
+    family: CertificateFamily,
+    kappa: float,
+    rho: float,
+    cert: Mapping[str, Any],
+    theta: Mapping[str, float] | None = None,
+    out_dir: Path | None = None,
+    simulate: bool = True,
+) -> dict[str, Any]:
+    """Exact check (``family.exact_check``) and simulation along the family's Lyapunov
+    function (``family.lyapunov``) of one certificate; writes the rational certificate.
+    The returned document holds plain values (the verdict as its string)."""
+    ex = family.exact_check(spec, kappa, rho, cert, theta)
+    out: dict[str, Any] = {"kappa": kappa, "rho": rho}
+    if not family.is_default:
+        out["family"] = family.name
+    out.update({"verified": str(ex.verified), "rho_proven": ex.rho_proven,
+                "rho_proven_float": ex.rho_proven_float, "delta": ex.delta,
+                "reason": ex.reason})
+    if out_dir is not None:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        doc = ex.to_dict()
+        if family.is_default:
+            path, doc["inputs_hash"] = _certificate_path(
+                out_dir, spec, kappa, rho, np.asarray(cert["P"], dtype=float),
+                cert["lambda"], theta)
+        else:
+            path = out_dir / f"{spec.name}-k{kappa_label(kappa)}-{family.name}-certificate.json"
+        path.write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
+        out["certificate_file"] = str(path)
+    if simulate:
+        sim = simulate_check(bind(spec, kappa, theta), rho, **family.lyapunov(cert))
+        out["simulation"] = {"ok": sim.ok, "worst_ratio": sim.worst_ratio,
+                             "trajectories": sim.trajectories, "violations": sim.n_violations}
+    return out
 
 
 def verify_certificate(
@@ -44,66 +84,10 @@ def verify_certificate(
     out_dir: Path | None = None,
     simulate: bool = True,
 ) -> dict[str, Any]:
-    """Exact check (and simulation) of one certificate; writes the rational certificate."""
-    P_arr = np.asarray(P, dtype=float)
-    ex = verify_exact(spec, kappa, rho, P_arr, lam, theta)
-    out: dict[str, Any] = {
-        "kappa": kappa,
-        "rho": rho,
-        "verified": ex.verified,
-        "rho_proven": ex.rho_proven,
-        "rho_proven_float": ex.rho_proven_float,
-        "delta": ex.delta,
-        "reason": ex.reason,
-    }
-    if out_dir is not None:
-        out_dir.mkdir(parents=True, exist_ok=True)
-        path, digest = _certificate_path(out_dir, spec, kappa, rho, P_arr, lam, theta)
-        doc = ex.to_dict()
-        doc["inputs_hash"] = digest
-        path.write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
-        out["certificate_file"] = str(path)
-    if simulate:
-        out["simulation"] = _summary(simulate_check(bind(spec, kappa, theta), rho, P_arr, lam))
-    return out
-
-
-def _summary(sim: Any) -> dict[str, Any]:
-    """The JSON summary of a simulation check."""
-    return {"ok": sim.ok, "worst_ratio": sim.worst_ratio, "trajectories": sim.trajectories,
-            "violations": sim.n_violations}
-
-
-def verify_interpolation_certificate(
-    spec: Spec,
-    kappa: float,
-    rho: float,
-    cert: Mapping[str, Any],
-    theta: Mapping[str, float] | None = None,
-    out_dir: Path | None = None,
-    simulate: bool = True,
-) -> dict[str, Any]:
-    """Exact check and simulation of an interpolation-family certificate (P, p, c,
-    multipliers); the simulation follows its Lyapunov function with function values."""
-    from sosalgo.verify.exact_interpolation import verify_exact_interpolation
-
-    ex = verify_exact_interpolation(spec, kappa, rho, cert, theta)
-    out: dict[str, Any] = {
-        "kappa": kappa, "rho": rho, "family": "interpolation", "verified": ex.verified,
-        "rho_proven": ex.rho_proven, "rho_proven_float": ex.rho_proven_float,
-        "delta": ex.delta, "reason": ex.reason,
-    }
-    if out_dir is not None:
-        out_dir.mkdir(parents=True, exist_ok=True)
-        path = out_dir / f"{spec.name}-k{kappa_label(kappa)}-interpolation-certificate.json"
-        path.write_text(json.dumps(ex.to_dict(), indent=2) + "\n", encoding="utf-8")
-        out["certificate_file"] = str(path)
-    if simulate:
-        lyap = {"lag": int(cert["lag"]), "p": [float(v) for v in cert["p"]],
-                "c": None if cert.get("c") is None else float(cert["c"])}
-        out["simulation"] = _summary(simulate_check(
-            bind(spec, kappa, theta), rho, np.asarray(cert["P"], dtype=float), lyapunov=lyap))
-    return out
+    """:func:`verify_family_certificate` for a certificate (P, lambda) of the default family
+    (Theorem 1)."""
+    return verify_family_certificate(spec, default_family(), kappa, rho,
+                                     {"P": P, "lambda": lam}, theta, out_dir, simulate)
 
 
 def _certificate_path(out_dir: Path, spec: Spec, kappa: float, rho: float, P: np.ndarray,
@@ -130,92 +114,100 @@ def _certificate_path(out_dir: Path, spec: Spec, kappa: float, rho: float, P: np
 
 
 def _number(value: Any, where: str, allow_none: bool = True) -> float | None:
-    if value is None and allow_none:
+    try:
+        return check_number(value, where, allow_none)
+    except ValueError as exc:
+        raise ResultError(str(exc)) from None
+
+
+def _row_family(row: Mapping[str, Any], i: int, family: CertificateFamily | None,
+                ) -> CertificateFamily:
+    """The family a row names (``family``), else ``family``, else the default one."""
+    name = row.get("family")
+    if name is None:
+        return family or default_family()
+    if family is not None and name == family.name:
+        return family
+    if not isinstance(name, str) or name not in FAMILIES:
+        raise ResultError(f"rows[{i}].family: unknown certificate family {name!r} "
+                          f"(known: {', '.join(FAMILIES)})")
+    return get_family(name)
+
+
+def _theta(row: Mapping[str, Any], where: str) -> dict[str, float] | None:
+    """A design document's theta (None when absent or empty)."""
+    theta = row.get("theta") or None
+    if theta is None:
         return None
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ResultError(f"{where}: expected a number, got {type(value).__name__}")
-    return float(value)
+    if not isinstance(theta, Mapping) or not all(isinstance(k, str) for k in theta):
+        raise ResultError(f"{where}.theta: expected an object of numbers")
+    return {k: _number(v, f"{where}.theta.{k}", allow_none=False) for k, v in theta.items()}
 
 
-def _matrix(value: Any, n: int, where: str) -> list[list[float]] | None:
-    if value is None:
-        return None
-    if not (isinstance(value, list) and len(value) == n
-            and all(isinstance(r, list) and len(r) == n for r in value)):
-        raise ResultError(f"{where}: expected a {n}x{n} list of lists of numbers")
-    return [[_number(v, where, allow_none=False) for v in row] for row in value]
-
-
-def _claim(spec: Spec, row: Any, i: int) -> dict[str, Any] | None:
-    """What row ``i`` claims: None when it claims no certificate; else its numbers (P or
-    lambda may be None: the check then fails)."""
+def _claim(spec: Spec, fam: CertificateFamily, row: Any, i: int) -> dict[str, Any] | None:
+    """What row ``i`` claims: None when it claims no certificate; else its numbers and the
+    certificate's parts (read by ``fam.parse_certificate``; a missing part is None and the
+    check then fails). Analysis rows claim with ``rho``/``certified`` and carry the parts
+    in ``certificate`` or, for the default family, beside ``rho``; design documents claim
+    with ``rho_certified`` and carry them in ``certificate`` with their ``theta``."""
     where = f"rows[{i}]"
-    if not isinstance(row, Mapping):
-        raise ResultError(f"{where}: expected an object")
     kappa = _number(row.get("kappa"), f"{where}.kappa", allow_none=False)
     if not (math.isfinite(kappa) and kappa > 1):
         raise ResultError(f"{where}.kappa: must be a finite number > 1")
     if "rho_certified" in row:
         rho = _number(row.get("rho_certified"), f"{where}.rho_certified")
-        cert = row.get("certificate")
-        if cert is None:
-            cert = {}
-        if not isinstance(cert, Mapping):
-            raise ResultError(f"{where}.certificate: expected an object")
-        P, lam = cert.get("P"), cert.get("lambda")
-        theta = row.get("theta") or None
+        parts, field, theta = row.get("certificate"), f"{where}.certificate", _theta(row, where)
+        parts = {} if parts is None else parts
         claimed = rho is not None
-        field = f"{where}.certificate"
     else:
         rho = _number(row.get("rho"), f"{where}.rho")
-        P, lam, theta = row.get("P"), row.get("lambda"), None
+        parts, field, theta = row.get("certificate"), f"{where}.certificate", None
+        if parts is None:
+            parts, field = row, where
         certified = row.get("certified", rho is not None)
         if not isinstance(certified, bool):
             raise ResultError(f"{where}.certified: expected true or false")
         claimed = certified or rho is not None
-        field = where
-    if theta is not None:
-        if not isinstance(theta, Mapping) or not all(isinstance(k, str) for k in theta):
-            raise ResultError(f"{where}.theta: expected an object of numbers")
-        theta = {k: _number(v, f"{where}.theta.{k}", allow_none=False) for k, v in theta.items()}
-    P = _matrix(P, spec.n, f"{field}.P")
-    lam = _number(lam, f"{field}.lambda")
+    if not isinstance(parts, Mapping):
+        raise ResultError(f"{field}: expected an object")
+    try:
+        cert = fam.parse_certificate(parts, spec.n)
+    except ValueError as exc:
+        raise ResultError(f"{field}.{exc}") from None
     if not claimed:
         return None
-    return {"kappa": kappa, "rho": rho, "P": P, "lambda": lam, "theta": theta}
+    return {"kappa": kappa, "rho": rho, "cert": cert, "theta": theta, "field": field}
 
 
 def _unverifiable(c: dict[str, Any], reason: str) -> dict[str, Any]:
-    return {"kappa": c["kappa"], "rho": c["rho"], "verified": "failed", "rho_proven": None,
-            "rho_proven_float": None, "delta": None, "reason": reason}
+    return {"kappa": c["kappa"], "rho": c["rho"], "verified": str(Verdict.FAILED),
+            "rho_proven": None, "rho_proven_float": None, "delta": None, "reason": reason}
 
 
 def verify_document_rows(
     spec: Spec, rows: Sequence[Mapping[str, Any]], out_dir: Path | None, simulate: bool = True,
-    family: Any = None,
+    family: CertificateFamily | None = None,
 ) -> list[dict[str, Any] | None]:
-    """Verify analysis rows (``rho``, ``P``, ``lambda``) or design documents
+    """Verify analysis rows (``rho`` and a certificate) or design documents
     (``rho_certified``, ``certificate``, ``theta``); None for rows claiming no certificate.
-    A claimed certificate without rho, P or lambda fails; malformed rows raise ResultError.
+    A claimed certificate without rho or one of its family's ``certificate_parts`` fails;
+    malformed rows raise ResultError, before anything is verified or written.
 
-    Rows of the interpolation family (``family: interpolation`` with a ``certificate`` of
-    P, p, c, multipliers; or every row when ``family`` is that family) are checked by
-    :func:`verify_interpolation_certificate`."""
-    results: list[dict[str, Any] | None] = []
-    plain = []
+    Each row is checked by the family it names (``family``), else by ``family``, else by
+    the default family, through the family's ``exact_check`` and ``lyapunov``."""
+    claims = []
     for i, row in enumerate(rows):
-        name = (row.get("family") if isinstance(row, Mapping) else None) or (
-            None if family is None else family.name)
-        plain.append(None if name == "interpolation" else _claim(spec, row, i))
-    for i, (row, c) in enumerate(zip(rows, plain, strict=True)):
-        name = row.get("family") or (None if family is None else family.name)
-        if name == "interpolation":
-            results.append(_interpolation_row(spec, row, i, out_dir, simulate))
-            continue
+        if not isinstance(row, Mapping):
+            raise ResultError(f"rows[{i}]: expected an object")
+        fam = _row_family(row, i, family)
+        claims.append((fam, _claim(spec, fam, row, i)))
+    results: list[dict[str, Any] | None] = []
+    for fam, c in claims:
         if c is None:
             results.append(None)
             continue
-        missing = [k for k in ("rho", "P", "lambda") if c[k] is None]
+        missing = [k for k in ("rho", *fam.certificate_parts)
+                   if (c["rho"] if k == "rho" else c["cert"].get(k)) is None]
         if missing:
             results.append(_unverifiable(
                 c, f"claims a certificate but {', '.join(missing)} missing or null"))
@@ -225,38 +217,12 @@ def verify_document_rows(
         except ValueError as exc:
             results.append(_unverifiable(c, f"the method cannot be evaluated: {exc}"))
             continue
-        results.append(verify_certificate(spec, c["kappa"], c["rho"], c["P"], c["lambda"],
-                                          c["theta"], out_dir, simulate))
+        try:
+            results.append(verify_family_certificate(spec, fam, c["kappa"], c["rho"],
+                                                     c["cert"], c["theta"], out_dir, simulate))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ResultError(f"{c['field']}: malformed ({exc})") from None
     return results
-
-
-def _interpolation_row(spec: Spec, row: Mapping[str, Any], i: int, out_dir: Path | None,
-                       simulate: bool) -> dict[str, Any] | None:
-    """One interpolation-family row (analysis row or design document)."""
-    where = f"rows[{i}]"
-    kappa = _number(row.get("kappa"), f"{where}.kappa", allow_none=False)
-    design_doc = "rho_certified" in row
-    rho = _number(row.get("rho_certified" if design_doc else "rho"), f"{where}.rho")
-    cert = row.get("certificate")
-    theta = row.get("theta") or None if design_doc else None
-    if theta is not None:
-        if not isinstance(theta, Mapping):
-            raise ResultError(f"{where}.theta: expected an object of numbers")
-        theta = {str(k): _number(v, f"{where}.theta.{k}", allow_none=False)
-                 for k, v in theta.items()}
-    claimed = rho is not None or row.get("certified") is True
-    if not claimed:
-        return None
-    c = {"kappa": kappa, "rho": rho}
-    if rho is None or not isinstance(cert, Mapping) or any(
-            cert.get(k) is None for k in ("P", "p", "lag")):
-        return _unverifiable(c, "claims a certificate but rho or its parts (P, p, lag) are "
-                                "missing or null")
-    try:
-        return verify_interpolation_certificate(spec, kappa, rho, cert, theta, out_dir,
-                                                simulate)
-    except (KeyError, TypeError, ValueError) as exc:
-        raise ResultError(f"{where}.certificate: malformed ({exc})") from None
 
 
 def check_failed(check: Mapping[str, Any] | None) -> bool:
@@ -264,4 +230,4 @@ def check_failed(check: Mapping[str, Any] | None) -> bool:
     if check is None:
         return False
     sim = check.get("simulation")
-    return check.get("verified") != "exact" or (sim is not None and not sim.get("ok", False))
+    return check.get("verified") != Verdict.EXACT or (sim is not None and not sim.get("ok", False))

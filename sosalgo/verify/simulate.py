@@ -215,9 +215,26 @@ def simulate_check(
     u = fixed_point(alg)
     if u is None:
         raise ValueError("the method has no fixed point (eq. 11)")
-    A, B, C, E = alg.A, alg.B[:, 0], alg.C[0], alg.E[0]
-    r2 = float(rho) ** 2
+    groups = _function_groups(alg, functions, dims, rng)
+    run = _Run(alg, P, float(rho) ** 2, lyapunov)
+    with np.errstate(all="ignore"):
+        for d, fns in groups:
+            for f in fns:
+                run.follow(f, d, _initial_errors(u, n, d, starts, f.starts, rng), u, iters)
+    t = run.tally
+    return SimulationResult(
+        rho=float(rho), ok=t.n_viol == 0 and t.consistency <= CONSISTENCY_TOL,
+        trajectories=t.traj, steps_checked=t.steps,
+        worst_ratio=t.worst_ratio, worst=t.worst, n_violations=t.n_viol,
+        violations=t.violations, violations_by_function=t.per_fn,
+        functions=t.names, dims=tuple(d for d, _ in groups), consistency=t.consistency,
+        seconds=time.perf_counter() - start_t,
+    )
 
+
+def _function_groups(alg: Algorithm, functions: FunctionSource | None, dims: Sequence[int],
+                     rng: np.random.Generator) -> list[tuple[int, list[Objective]]]:
+    """(d, functions of dimension d) to run, each checked to lie in F(m, L)."""
     if functions is None or callable(functions):
         source = functions or function_suite
         groups = [(d, source(alg.m, alg.L, d, rng)) for d in dims]
@@ -232,81 +249,96 @@ def simulate_check(
                 raise ValueError(
                     f"{f.name} is in F({f.m:g}, {f.L:g}), not in F(m, L) = F({alg.m:g}, {alg.L:g})"
                 )
+    return groups
 
-    violations: list[Violation] = []
-    n_viol = 0
-    worst_ratio = 0.0
+
+@dataclass
+class _Tally:
+    """What the trajectories found so far (see :class:`SimulationResult`)."""
+
+    violations: list[Violation] = field(default_factory=list)
+    n_viol: int = 0
+    worst_ratio: float = 0.0
     worst: dict[str, Any] | None = None
-    steps = 0
-    traj = 0
-    consistency = 0.0
-    names: list[str] = []
-    per_fn: dict[str, int] = {}
-    with np.errstate(all="ignore"):
-        for d, fns in groups:
-            for f in fns:
-                key = f"{f.name} (d={d})"
-                names.append(key)
-                e = _initial_errors(u, n, d, starts, f.starts, rng)
-                consistency = max(consistency, _consistency(alg, f, u, e[: min(4, len(e))]))
-                batch = e.shape[0]
-                traj += batch
-                if lyapunov is not None:
-                    e, hist = _history_start(alg, f, e, lag)
-                    V, gap = _lyapunov_hist(f, E, P, e, hist[0], hist[1], lyapunov["p"],
-                                            lyapunov["c"])
-                else:
-                    V, gap = _lyapunov(f, E, P, e)
-                V0 = V.copy()
-                active = np.isfinite(V) & (V >= UNDERFLOW)
-                bound_scale = np.ones(batch)
-                for k in range(iters):
-                    # eq. (16) at step k: f(x_k) - f* <= rho^(2k) V_0
-                    limit = bound_scale * V0
-                    bad = active & ~(gap <= limit * (1 + REL_TOL) + ABS_FLOOR)
-                    for b in np.flatnonzero(bad):
-                        n_viol += 1
-                        per_fn[key] = per_fn.get(key, 0) + 1
-                        if len(violations) < MAX_RECORDED:
-                            violations.append(Violation(f.name, d, int(b), k, "bound",
-                                                        float(gap[b] / limit[b])))
-                    y = np.einsum("j,bjd->bd", C, e)
-                    g = hist[0][0] if lyapunov is not None else f.grad_z(y)
-                    e = np.einsum("ij,bjd->bid", A, e) + B[None, :, None] * g[:, None, :]
-                    if lyapunov is not None:
-                        hist = _push(f, C, e, hist, lag)
-                        Vn, gapn = _lyapunov_hist(f, E, P, e, hist[0], hist[1], lyapunov["p"],
-                                                  lyapunov["c"])
-                    else:
-                        Vn, gapn = _lyapunov(f, E, P, e)
-                    ok = Vn <= r2 * V + REL_TOL * V + ABS_FLOOR
-                    checked = active
-                    steps += int(checked.sum())
-                    ratio = np.where(checked, Vn / (r2 * V), 0.0)
-                    ratio = np.where(np.isnan(ratio), np.inf, ratio)
-                    if checked.any():
-                        i = int(np.argmax(ratio))
-                        if ratio[i] > worst_ratio:
-                            worst_ratio = float(ratio[i])
-                            worst = {"function": f.name, "dim": d, "start": i, "k": k}
-                    bad = checked & ~ok
-                    for b in np.flatnonzero(bad):
-                        n_viol += 1
-                        per_fn[key] = per_fn.get(key, 0) + 1
-                        if len(violations) < MAX_RECORDED:
-                            violations.append(Violation(f.name, d, int(b), k, "decrease",
-                                                        float(ratio[b])))
-                    # keep following violating trajectories (each step is its own claim)
-                    active = active & np.isfinite(Vn) & (Vn >= UNDERFLOW)
-                    V, gap = Vn, gapn
-                    bound_scale = bound_scale * r2
-                    if not active.any():
-                        break
-    return SimulationResult(
-        rho=float(rho), ok=n_viol == 0 and consistency <= CONSISTENCY_TOL, trajectories=traj,
-        steps_checked=steps,
-        worst_ratio=worst_ratio, worst=worst, n_violations=n_viol, violations=violations,
-        violations_by_function=per_fn,
-        functions=names, dims=tuple(d for d, _ in groups), consistency=consistency,
-        seconds=time.perf_counter() - start_t,
-    )
+    steps: int = 0
+    traj: int = 0
+    consistency: float = 0.0
+    names: list[str] = field(default_factory=list)
+    per_fn: dict[str, int] = field(default_factory=dict)
+
+    def violate(self, key: str, v: Violation) -> None:
+        self.n_viol += 1
+        self.per_fn[key] = self.per_fn.get(key, 0) + 1
+        if len(self.violations) < MAX_RECORDED:
+            self.violations.append(v)
+
+
+class _Run:
+    """Follows the Lyapunov function of one certificate along trajectories of the method."""
+
+    def __init__(self, alg: Algorithm, P: np.ndarray, r2: float,
+                 lyapunov: dict[str, Any] | None):
+        self.alg, self.P, self.r2, self.lyap = alg, P, r2, lyapunov
+        self.lag = -1 if lyapunov is None else int(lyapunov["lag"])
+        self.tally = _Tally()
+
+    def _value(self, f: Objective, e: np.ndarray,
+               hist: tuple[list, list] | None) -> tuple[np.ndarray, np.ndarray]:
+        """(V, f(x) - f*) at the errors e (and the history, for the extended form)."""
+        E = self.alg.E[0]
+        if self.lyap is None:
+            return _lyapunov(f, E, self.P, e)
+        assert hist is not None
+        return _lyapunov_hist(f, E, self.P, e, hist[0], hist[1], self.lyap["p"], self.lyap["c"])
+
+    def follow(self, f: Objective, d: int, e: np.ndarray, u: np.ndarray, iters: int) -> None:
+        """Check eq. (13) and (16) along the trajectories from the errors e (batch, n, d)."""
+        alg, t, r2 = self.alg, self.tally, self.r2
+        A, B, C = alg.A, alg.B[:, 0], alg.C[0]
+        key = f"{f.name} (d={d})"
+        t.names.append(key)
+        t.consistency = max(t.consistency, _consistency(alg, f, u, e[: min(4, len(e))]))
+        batch = e.shape[0]
+        t.traj += batch
+        hist = None
+        if self.lyap is not None:
+            e, hist = _history_start(alg, f, e, self.lag)
+        V, gap = self._value(f, e, hist)
+        V0 = V.copy()
+        active = np.isfinite(V) & (V >= UNDERFLOW)
+        bound_scale = np.ones(batch)
+        for k in range(iters):
+            # eq. (16) at step k: f(x_k) - f* <= rho^(2k) V_0
+            limit = bound_scale * V0
+            bad = active & ~(gap <= limit * (1 + REL_TOL) + ABS_FLOOR)
+            for b in np.flatnonzero(bad):
+                t.violate(key, Violation(f.name, d, int(b), k, "bound",
+                                         float(gap[b] / limit[b])))
+            g = hist[0][0] if hist is not None else f.grad_z(np.einsum("j,bjd->bd", C, e))
+            e = np.einsum("ij,bjd->bid", A, e) + B[None, :, None] * g[:, None, :]
+            if hist is not None:
+                hist = _push(f, C, e, hist, self.lag)
+            Vn, gapn = self._value(f, e, hist)
+            self._decrease(f, d, key, k, active, V, Vn)
+            # keep following violating trajectories (each step is its own claim)
+            active = active & np.isfinite(Vn) & (Vn >= UNDERFLOW)
+            V, gap = Vn, gapn
+            bound_scale = bound_scale * r2
+            if not active.any():
+                break
+
+    def _decrease(self, f: Objective, d: int, key: str, k: int, checked: np.ndarray,
+                  V: np.ndarray, Vn: np.ndarray) -> None:
+        """Eq. (13) at step k on the checked trajectories: V_{k+1} <= rho^2 V_k."""
+        t, r2 = self.tally, self.r2
+        ok = Vn <= r2 * V + REL_TOL * V + ABS_FLOOR
+        t.steps += int(checked.sum())
+        ratio = np.where(checked, Vn / (r2 * V), 0.0)
+        ratio = np.where(np.isnan(ratio), np.inf, ratio)
+        if checked.any():
+            i = int(np.argmax(ratio))
+            if ratio[i] > t.worst_ratio:
+                t.worst_ratio = float(ratio[i])
+                t.worst = {"function": f.name, "dim": d, "start": i, "k": k}
+        for b in np.flatnonzero(checked & ~ok):
+            t.violate(key, Violation(f.name, d, int(b), k, "decrease", float(ratio[b])))

@@ -1,0 +1,79 @@
+"""What ``sosalgo analyze`` shows: rate-vs-kappa figures, result tables, attached checks.
+
+The command runs the sweeps (:mod:`sosalgo.batch.sweeps`) and prints; the figures and
+tables of its rows (the JSON form of the CSV rows) are assembled here.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from sosalgo.batch.sweeps import reference_curves
+from sosalgo.certificates import CertificateFamily
+from sosalgo.model import bind
+from sosalgo.report import format_table, plot_rates
+from sosalgo.spec import Spec
+
+__all__ = ["ANALYSIS_COLUMNS", "FAMILY_COLUMNS", "analysis_figure", "analysis_table",
+           "attach_checks", "families_figure"]
+
+# printed columns (the CSV has more): the default family's table shows lambda as well
+ANALYSIS_COLUMNS = ["kappa", "rho", "certified", "lambda", "max_eig_M", "min_eig_P", "solves",
+                    "seconds"]
+FAMILY_COLUMNS = ["kappa", "rho", "certified", "max_eig_M", "min_eig_P", "solves", "seconds"]
+
+Run = tuple[CertificateFamily, Path, list[dict[str, Any]]]  # family, its CSV, its JSON rows
+
+
+def analysis_figure(spec: Spec, rows: list[dict[str, Any]], stem: Path) -> list[Path]:
+    """Certified rate vs kappa with the spec's references (Theorem 1, the default)."""
+    kappas = [r["kappa"] for r in rows]
+    return plot_rates(
+        f"{spec.name}: certified rate (Theorem 1)",
+        kappas,
+        {"certified rate": [r["rho"] for r in rows]},
+        {name: [r["references"][name] for r in rows] for name in spec.references},
+        stem,
+        uncertified=[r["kappa"] for r in rows if not r["certified"]],
+        reference_curves=reference_curves(spec, kappas),
+    )
+
+
+def families_figure(spec: Spec, runs: Sequence[Run], stem: Path) -> list[Path]:
+    """Every family's certified rate vs kappa, with the spec's references,
+    1 - 1/sqrt(kappa) and the rate on quadratics (unless a reference already draws them)."""
+    from sosalgo.analysis import quadratic_rate
+
+    kap = [r["kappa"] for r in runs[0][2]]
+    series = {f"certified rate ({f.label})": [r["rho"] for r in rows] for f, _, rows in runs}
+    refs = {name: [r["references"][name] for r in runs[0][2]] for name in spec.references}
+    extra = {"1 - 1/sqrt(kappa)": [1 - k ** -0.5 for k in kap],
+             "quadratic bound max_q rho(A + qBC)": [quadratic_rate(bind(spec, k)) for k in kap]}
+    for label, vals in extra.items():  # unless the spec already draws the same curve
+        if not any(all(v is not None and abs(v - w) < 1e-6 for v, w in
+                       zip(ref, vals, strict=True)) for ref in refs.values()):
+            refs[label] = vals
+    none = [k for i, k in enumerate(kap) if all(rows[i]["rho"] is None for _, _, rows in runs)]
+    title = " vs ".join(f.label for f, _, _ in runs)
+    return plot_rates(f"{spec.name}: certified rate ({title})", kap, series, refs, stem,
+                      uncertified=none)
+
+
+def attach_checks(spec: Spec, rows: list[dict[str, Any]], out_dir: Path,
+                  family: CertificateFamily | None = None) -> None:
+    """Verify every row (exact proof and simulation, :mod:`sosalgo.verify.results`) and
+    store the check in ``verification`` and its verdict in ``verified``."""
+    from sosalgo.verify.results import verify_document_rows
+
+    checks = verify_document_rows(spec, rows, out_dir, family=family)
+    for r, v in zip(rows, checks, strict=True):
+        r["verification"] = v
+        r["verified"] = None if v is None else v["verified"]
+
+
+def analysis_table(spec: Spec, rows: list[dict[str, Any]], columns: list[str]) -> str:
+    """The printed table of analysis rows: ``columns`` and the spec's references."""
+    return format_table([{**r, **r["references"]} for r in rows],
+                        columns + list(spec.references))

@@ -1,0 +1,26 @@
+"""What ``sosalgo verify`` shows: one line per result row and its check."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from sosalgo.report import format_table
+
+__all__ = ["CHECK_COLUMNS", "checks_table"]
+
+CHECK_COLUMNS = ["kappa", "rho", "verified", "rho_proven", "simulation", "reason"]
+
+
+def checks_table(rows: Sequence[Mapping[str, Any]],
+                 checks: Sequence[Mapping[str, Any] | None]) -> str:
+    """kappa, rho, verdict ("no certificate" for rows that claim none), proven rate,
+    simulation outcome and the reason of a failure."""
+    table = [{"kappa": r["kappa"], "rho": (c or {}).get("rho"),
+              "verified": "no certificate" if c is None else c["verified"],
+              "rho_proven": None if c is None else c["rho_proven_float"],
+              "simulation": None if c is None or "simulation" not in c
+              else ("ok" if c["simulation"]["ok"] else "VIOLATION"),
+              "reason": None if c is None else c["reason"]}
+             for r, c in zip(rows, checks, strict=True)]
+    return format_table(table, CHECK_COLUMNS)

@@ -1,0 +1,86 @@
+"""What ``sosalgo design`` shows: the verdict of each design, its table and its figure.
+
+The command runs the design sweep (:mod:`sosalgo.batch.sweeps`) and prints; the documents
+(the ``design --json`` form) are turned into tables, notes and figures here.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from sosalgo.batch.sweeps import design_csv_to_json, reference_curves
+from sosalgo.certificates import CertificateFamily
+from sosalgo.report import format_table, plot_rates
+from sosalgo.spec import Spec
+
+__all__ = ["LEGEND", "design_figure", "design_table", "verdict", "verification_notes"]
+
+LEGEND = ("rho_certified: analysis at the designed theta (with its certificate); "
+          "lower_bound: proven, no theta in the box is certified below it; "
+          "floor: 1 - 1/sqrt(kappa), no first-order method is faster on F(m, L)")
+
+
+def verdict(doc: dict[str, Any], gap: float) -> str:
+    """What the numbers prove: optimal within the gap only when the gap proves it."""
+    if doc.get("rho_certified") is None:
+        return "no certified design"
+    if doc.get("lower_bound") is None or doc.get("gap") is None:
+        return "no bound" + (" (time limit)" if doc.get("time_limited") else "")
+    if doc.get("gap_met"):
+        return f"optimal (gap <= {gap:g})"
+    return f"gap {doc['gap']:.1e}" + (" (time limit)" if doc.get("time_limited") else "")
+
+
+def design_table(docs: Sequence[dict[str, Any]], names: Sequence[str], gap: float,
+                 method: str) -> str:
+    """One row per kappa: designed parameters, lower bound, certified rate, gap, verdict
+    (and the relaxation's order and flatness for the moment method)."""
+    table = []
+    for d in docs:
+        row = {"kappa": d["kappa"], "lower_bound": d["lower_bound"],
+               "rho_certified": d["rho_certified"], "gap": d["gap"],
+               "verdict": verdict(d, gap), "rho_at_values": d["rho_at_values"],
+               "floor": d.get("floor"), "seconds": d["seconds"]}
+        if method == "moment":
+            row.update(order=d["relaxation"].get("order"), flat=d["relaxation"].get("flat"))
+        row.update({p: d["theta"].get(p) for p in names})
+        table.append(row)
+    cols = ["kappa", *names, "lower_bound", "rho_certified", "gap", "verdict",
+            "rho_at_values", "floor"] + (["order", "flat"] if method == "moment" else []) + [
+            "seconds"]
+    return format_table(table, cols)
+
+
+def verification_notes(docs: Sequence[dict[str, Any]]) -> list[str]:
+    """One line per verified document: verdict, proven rate, simulation outcome."""
+    lines = []
+    for d in docs:
+        v = d.get("verification")
+        if v is not None:
+            sim = v.get("simulation")
+            note = "" if sim is None else (", simulation ok" if sim["ok"] else
+                                           ", SIMULATION VIOLATION")
+            lines.append(f"  kappa {d['kappa']:g}: verified {v['verified']} "
+                         f"(rho proven {v['rho_proven_float']:.10g}{note})")
+    return lines
+
+
+def design_figure(spec: Spec, names: Sequence[str], rows: Sequence[dict[str, str]],
+                  docs: Sequence[dict[str, Any]], stem: Path, fam: CertificateFamily,
+                  how: str) -> list[Path]:
+    """Designed rate, lower bound and spec-value rate vs kappa (figure of ``design``)."""
+    refs = {name: [r.get("references", {}).get(name) for r in
+                   (design_csv_to_json(spec, names, x, fam) for x in rows)]
+            for name in spec.references}
+    return plot_rates(
+        f"{spec.name}: designed {', '.join(names)} ({fam.name}; bound: {how})",
+        [d["kappa"] for d in docs],
+        {"designed (certified)": [d["rho_certified"] for d in docs],
+         "lower bound (proven)": [d["lower_bound"] for d in docs],
+         "spec values (certified)": [d["rho_at_values"] for d in docs]},
+        refs, stem,
+        uncertified=[d["kappa"] for d in docs if d["rho_certified"] is None],
+        reference_curves=reference_curves(spec, [d["kappa"] for d in docs]),
+    )
