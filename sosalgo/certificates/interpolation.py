@@ -236,9 +236,9 @@ class Interpolation:
         return {"P": slice(0, nP), "pi": slice(nP, k1), "eta": slice(k1, k2),
                 "lam": slice(k2, k2 + len(st.pos.labels))}
 
-    def _structure(self, alg: Algorithm, normalized: bool) -> Structure:
+    def _structure(self, alg: Algorithm, normalized: bool, has_x: bool | None = None) -> Structure:
         lag = self.lag_for(alg.n)
-        hx = has_output_point(alg.C, alg.E)
+        hx = has_output_point(alg.C, alg.E) if has_x is None else has_x
         if normalized:
             return structure(alg.A, alg.B * alg.L, alg.C, alg.E, alg.m / alg.L, 1.0, lag, hx)
         return structure(alg.A, alg.B, alg.C, alg.E, alg.m, alg.L, lag, hx)
@@ -246,7 +246,24 @@ class Interpolation:
     def problem(self, alg: Algorithm) -> LMIProblem:
         """Affine blocks in x = (P_ab (a <= b), p_0..p_l, c, eta, lambda), built for the
         normalized class F(m/L, 1) with B scaled by L; ``unpack`` returns original units."""
-        st = self._structure(alg, normalized=True)
+        return self._problem(alg, None)
+
+    def guess_problem(self, alg: Algorithm) -> LMIProblem | None:
+        """The cheapest member of the family, lag 0 without the output point (as if E = C:
+        no x-points, no c), or None when that is :meth:`problem` itself. The analysis uses
+        its margin only to guess where the rate is; every certified rate and bracket end
+        comes from :meth:`problem`. Its rate is usually the family's up to the search
+        tolerance (the tight rate does not depend on E: a certificate with V positive
+        definite dominates a multiple of f(x_k) - f* for any E; lag 0 and lag 1 agree on
+        gradient descent, Nesterov and triple momentum), and it is 3-5x cheaper to solve
+        (blocks 4x4 and 3x3, 15 variables, instead of 7x7 and 5x5, 55 variables, for
+        n = 2, l = 1). Where the rates differ (heavy ball, lag 1), the search goes on."""
+        if self.lag_for(alg.n) == 0 and not has_output_point(alg.C, alg.E):
+            return None
+        return Interpolation(0)._problem(alg, False)
+
+    def _problem(self, alg: Algorithm, has_x: bool | None) -> LMIProblem:
+        st = self._structure(alg, normalized=True, has_x=has_x)
         lay = self._layout(st)
         pairs = _sym_basis(st.nz)
         nvar = lay["lam"].stop
