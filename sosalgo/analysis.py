@@ -381,10 +381,10 @@ def _proxy_root(search: _Search, proxy: LMIProblem, x: float, tol: float,
     a step is shorter than a quarter of ``tol``. Only a guess: nothing is certified here.
     Returns ``x`` when the proxy is already feasible there, None when a solve fails, an
     estimate >= 1 when the proxy's root seems to be there (no rate below 1)."""
-    lo, hi, prev, est = 0.0, 1.0, None, None
+    start, lo, hi, prev, est = x, 0.0, 1.0, None, None
     for _ in range(limit):
         search.solves += 1
-        mg = solve_margin(proxy, x)
+        mg = solve_margin(proxy, x, rough=True)
         if not mg.ok or mg.t is None or mg.slope is None or not mg.slope > 0:
             return est
         if mg.t >= 0:
@@ -396,6 +396,8 @@ def _proxy_root(search: _Search, proxy: LMIProblem, x: float, tol: float,
             lo, est, prev = x, _climb_estimate(prev, cur), cur
             if est >= 1.0 and hi == 1.0:
                 return est
+            if x == start and est - x < tol:
+                return x  # on the boundary where the search starts (a tight rate there)
         if not lo < est < hi:
             est = 0.5 * (lo + hi)
         if abs(est - x) < 0.25 * tol:

@@ -288,22 +288,26 @@ class Interpolation:
         one = np.zeros((1, 1))
         zero = np.zeros((nvar, 1, 1))  # shared (read-only) rho^2 part of the rho-free rows
         zero.flags.writeable = False
+        # the scalar rows, all at once: row q of S0 (S1) is l0 (l1) of one 1x1 block
+        npos, nmult = p.nphi, nvar - lay["eta"].start
+        S0 = np.zeros((d.nphi + npos + nmult, nvar))
+        S1 = np.zeros((d.nphi, nvar))
+        S0[: d.nphi, lay["pi"]] = d.F[lag + 1].T
+        S1[:, lay["pi"]] = -d.F[lag].T
+        if d.mq:
+            S0[: d.nphi, lay["eta"]] = np.array(d.mq).T
+        S0[d.nphi: d.nphi + npos, lay["pi"]] = -p.F[lag].T
+        if p.mq:
+            S0[d.nphi: d.nphi + npos, lay["lam"]] = np.array(p.mq).T
+        S0[d.nphi + npos + np.arange(nmult), lay["eta"].start + np.arange(nmult)] = -1.0
+        col0, col1 = S0[:, :, None, None], S1[:, :, None, None]
         for q in range(d.nphi):
-            l0, l1 = np.zeros((nvar, 1, 1)), np.zeros((nvar, 1, 1))
-            l0[lay["pi"], 0, 0] = d.F[lag + 1][:, q]
-            l1[lay["pi"], 0, 0] = -d.F[lag][:, q]
-            l0[lay["eta"], 0, 0] = [mv[q] for mv in d.mq]
-            blocks.append(AffineBlock(f"decrease-f[{q}]", one, one, l0, l1))
-        for q in range(p.nphi):
-            l0 = np.zeros((nvar, 1, 1))
-            l0[lay["pi"], 0, 0] = -p.F[lag][:, q]
-            l0[lay["lam"], 0, 0] = [mv[q] for mv in p.mq]
+            blocks.append(AffineBlock(f"decrease-f[{q}]", one, one, col0[q], col1[q]))
+        for q in range(npos):
             blocks.append(AffineBlock(f"positivity-f[{q}]", np.full((1, 1), st.norm[q]), one,
-                                      l0, zero, strict=False))
-        for k in range(lay["eta"].start, nvar):
-            l0 = np.zeros((nvar, 1, 1))
-            l0[k, 0, 0] = -1.0
-            blocks.append(AffineBlock(f"mult[{k - lay['eta'].start}]", one, one, l0, zero,
+                                      col0[d.nphi + q], zero, strict=False))
+        for k in range(nmult):
+            blocks.append(AffineBlock(f"mult[{k}]", one, one, col0[d.nphi + npos + k], zero,
                                       strict=False))
         blocks.append(AffineBlock("normalization", -np.ones((1, 1)), one, zero, zero))
         Fp = p.F[lag]
