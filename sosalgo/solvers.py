@@ -253,14 +253,15 @@ class _MarginForm:
                 while j < len(blocks) and blocks[j].size == 1:
                     j += 1
                 run = blocks[i:j]
-                l0 = np.array([b.l0[:, 0, 0] for b in run]).reshape(len(run), nv)
-                a0.append(np.column_stack([l0, [b.c0[0, 0] for b in run]]))
-                a1.append(np.column_stack([np.array([b.l1[:, 0, 0] for b in run]).reshape(
-                    len(run), nv), [b.c1[0, 0] for b in run]]))
-                eye.append(np.array([1.0 if b.strict else 0.0 for b in run]))
-                for row, b in zip(l0, run, strict=True):
+                r0, r1 = np.empty((len(run), nv + 1)), np.empty((len(run), nv + 1))
+                for k, b in enumerate(run):
+                    r0[k, :nv], r0[k, nv] = b.l0[:, 0, 0], b.c0[0, 0]
+                    r1[k, :nv], r1[k, nv] = b.l1[:, 0, 0], b.c1[0, 0]
                     if not b.strict:
-                        w -= row
+                        w -= r0[k, :nv]
+                a0.append(r0)
+                a1.append(r1)
+                eye.append(np.array([1.0 if b.strict else 0.0 for b in run]))
                 sizes += [1] * len(run)
                 i = j
                 continue
@@ -394,15 +395,23 @@ class _Evaluator:
 
     def worst(self, x: np.ndarray, rho: float) -> float:
         """Largest eigenvalue over all blocks at (x, rho) (NaN when not evaluable)."""
-        r2 = rho**2
-        tops = [float(np.linalg.eigvalsh(b.value(x, rho))[-1]) for b in self.mats]
+        worst = -math.inf
+        for b in self.mats:
+            top = float(np.linalg.eigvalsh(b.value(x, rho))[-1])
+            if top != top:
+                return math.nan
+            worst = top if top > worst else worst
         if len(self.c0):
+            r2 = rho**2
             lin = self.s0 @ x
             if self.has_s1:
                 lin = lin + r2 * (self.s1 @ x)
             vals = (self.c0 + r2 * self.c1) + lin
-            tops.append(float(vals.max()))
-        return float(np.max(tops)) if tops else -np.inf  # np.max keeps a NaN
+            top = float(vals.max())  # NaN when any entry is NaN
+            if top != top:
+                return math.nan
+            worst = top if top > worst else worst
+        return worst
 
 
 _EVALUATORS: weakref.WeakKeyDictionary[LMIProblem, _Evaluator] = weakref.WeakKeyDictionary()
