@@ -394,8 +394,12 @@ def _proxy_root(search: _Search, proxy: LMIProblem, x: float, tol: float,
         else:
             cur = (x, mg.t, mg.slope)
             lo, est, prev = x, _climb_estimate(prev, cur), cur
-            if est >= 1.0 and hi == 1.0:
-                return est
+            if est >= 1.0 and hi == 1.0:  # the step leaves [0, 1]: is there a root at all?
+                search.solves += 1
+                top = solve_margin(proxy, 1.0, rough=True)
+                if not top.ok or top.t is None or top.t < 0 or not (top.slope or 0) > 0:
+                    return est
+                hi, est = 1.0, 1.0 - top.t / top.slope
             if x == start and est - x < tol:
                 return x  # on the boundary where the search starts (a tight rate there)
         if not lo < est < hi:
