@@ -272,10 +272,10 @@ class Interpolation:
         sD, sP = d.width, p.width
         D0, D1 = np.zeros((nvar, sD, sD)), np.zeros((nvar, sD, sD))
         P0 = np.zeros((nvar, sP, sP))
-        for k, (a, b) in enumerate(pairs):
-            D0[k] = _unit_quad(Z1, a, b)
-            D1[k] = -_unit_quad(Z0, a, b)
-            P0[k] = -_unit_quad(Zp, a, b)
+        nP = len(pairs)
+        D0[:nP] = _unit_quads(Z1, pairs)
+        D1[:nP] = -_unit_quads(Z0, pairs)
+        P0[:nP] = -_unit_quads(Zp, pairs)
         for k, M in enumerate(d.Mq):
             D0[lay["eta"].start + k] = M
         for k, M in enumerate(p.Mq):
@@ -438,10 +438,14 @@ class Interpolation:
         }
 
 
-def _unit_quad(Z: np.ndarray, a: int, b: int) -> np.ndarray:
-    """Z' E_ab Z for the symmetric unit matrix E_ab (1 at (a, b) and (b, a))."""
-    out = np.outer(Z[a], Z[b])
-    return out if a == b else out + out.T
+def _unit_quads(Z: np.ndarray, pairs: list[tuple[int, int]]) -> np.ndarray:
+    """Z' E_ab Z for every pair (a, b), E_ab the symmetric unit matrix (1 at (a, b) and
+    (b, a))."""
+    ia, ib = np.array(pairs).T
+    out = Z[ia][:, :, None] * Z[ib][:, None, :]
+    off = ia != ib
+    out[off] = out[off] + out[off].transpose(0, 2, 1)
+    return out
 
 
 INTERPOLATION = Interpolation()
