@@ -8,6 +8,7 @@ solver reports *solved* and whose point passes the eigenvalue check counts as fe
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -378,10 +379,13 @@ def _proxy_root(search: _Search, proxy: LMIProblem, x: float, tol: float,
     """Estimate of the root of the margin t(rho) of ``proxy`` (a cheaper problem with the
     same rate), from ``x`` = the rate on quadratics (a lower bound) up: Newton-type steps
     (:func:`_climb_estimate` from below, Newton from above) kept inside the bracket, until
-    a step is shorter than a quarter of ``tol``. Only a guess: nothing is certified here.
+    a step is shorter than 10 ``tol`` (at most sqrt(tol) / 100): the steps converge
+    superlinearly, so the estimate after such a step is much closer than the step. Only a
+    guess: nothing is certified here.
     Returns ``x`` when the proxy is already feasible there, None when a solve fails, an
     estimate >= 1 when the proxy's root seems to be there (no rate below 1)."""
     start, lo, hi, prev, est = x, 0.0, 1.0, None, None
+    stop = max(0.25 * tol, min(10 * tol, 0.01 * math.sqrt(tol)))
     for _ in range(limit):
         search.solves += 1
         mg = solve_margin(proxy, x, rough=True)
@@ -404,7 +408,7 @@ def _proxy_root(search: _Search, proxy: LMIProblem, x: float, tol: float,
                 return x  # on the boundary where the search starts (a tight rate there)
         if not lo < est < hi:
             est = 0.5 * (lo + hi)
-        if abs(est - x) < 0.25 * tol:
+        if abs(est - x) < stop:
             return est
         x = est
     return est
