@@ -286,8 +286,7 @@ class _MarginForm:
         self.q[-1] = -1.0
         self.sizes = sizes
         self.A, self.v0, self.v1 = _csc_pattern(self.dense0, self.dense1)
-        self.zero_P = sps.csc_matrix((np.zeros(0), np.zeros(0, np.int32),
-                                      np.zeros(self.nz + 1, np.int32)), shape=(self.nz, self.nz))
+        self.zero_P = _zero_csc(self.nz)
         self._cones: list | None = None
         self.solvers: dict[bool, Any] = {}  # Clarabel solvers kept for data updates (by rough)
 
@@ -313,6 +312,13 @@ class _MarginForm:
     def data(self, rho: float) -> sps.csc_matrix:
         self.A.data = self.v0 + rho * rho * self.v1
         return self.A
+
+
+@functools.lru_cache(maxsize=32)
+def _zero_csc(n: int) -> sps.csc_matrix:
+    """The n x n zero matrix in CSC form (shared: Clarabel copies its data, nobody writes)."""
+    return sps.csc_matrix((np.zeros(0), np.zeros(0, np.int32), np.zeros(n + 1, np.int32)),
+                          shape=(n, n))
 
 
 def _csc_pattern(dense0: np.ndarray, dense1: np.ndarray):
