@@ -8,6 +8,7 @@ solver reports *solved* and whose point passes the eigenvalue check counts as fe
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -306,7 +307,9 @@ def analyze_algorithm(
     quad = quadratic_rate(alg, 201) if use_margin and getattr(fam, "tight", False) else None
     lo0, down0 = 0.0, None
     if quad is not None and quad < 1 - tol:
-        lo, hi, best_near, ups, down0 = _start_near(search, quad, tol)
+        cheap = getattr(fam, "guess_problem", None)
+        proxy = cheap(alg) if cheap is not None else None
+        lo, hi, best_near, ups, down0 = _start_near(search, quad, tol, proxy)
         if best_near is not None:
             lo, hi, best = _newton(search, ups, down0, lo, hi, best_near, tol, skip_stale=True)
             return _result(alg, fam, problem, search, lo, hi, best, start)
@@ -328,16 +331,24 @@ def analyze_algorithm(
     return _result(alg, fam, problem, search, lo, hi, best, start)
 
 
-def _start_near(search: _Search, guess: float, tol: float):
+def _start_near(search: _Search, guess: float, tol: float, proxy: LMIProblem | None = None):
     """For families expected to be tight: test just above ``guess`` (the method's rate on
     quadratics, where gradient descent and triple momentum are certified) and close the
-    bracket below it, or climb with Newton steps from below until a certified point.
+    bracket below it, or climb with Newton steps from below until a certified point. With
+    a ``proxy`` (a cheaper problem of the family, usually with the same rate), the first
+    climb goes to the proxy's root (:func:`_proxy_root`), so that only its end is tested
+    on the problem itself.
 
     Returns (lo, hi, best, certified points, last uncertified point); ``best`` is None when
     no certified point turned up (lo and the last point below then seed the usual search).
     """
     x = min(guess + 0.25 * tol, 1.0)
     lo, down = 0.0, None
+    est = _proxy_root(search, proxy, x, tol) if proxy is not None else None
+    if est is not None and est > x:  # the proxy climbed: start at its root
+        if est >= 1.0:
+            return lo, 1.0, None, [], down
+        x = min(est + 0.25 * tol, 1.0)
     for _ in range(8):
         out, t = search.test(x)
         if out.feasible:
@@ -347,6 +358,9 @@ def _start_near(search: _Search, guess: float, tol: float):
             if lo == 0.0 and x - tol > 0:  # certified at the first guess: close below it
                 below = x - 0.999 * tol
                 out2, t2 = search.test(below)
+                if out2.feasible and t2 is not None and t2 > 0 and est is not None:
+                    # the proxy's root is above the rate: go on down from there
+                    return 0.0, below, out2, ups + [(below, t2, search.slope)], None
                 if out2.feasible:
                     return 0.0, 1.0, None, [], None  # not a bound here: search anew
                 lo = below
@@ -364,6 +378,46 @@ def _start_near(search: _Search, guess: float, tol: float):
             break
         x = min(est + 0.25 * tol, 1.0)
     return lo, 1.0, None, [], down
+
+
+def _proxy_root(search: _Search, proxy: LMIProblem, x: float, tol: float,
+                limit: int = 8) -> float | None:
+    """Estimate of the root of the margin t(rho) of ``proxy`` (a cheaper problem with the
+    same rate), from ``x`` = the rate on quadratics (a lower bound) up: Newton-type steps
+    (:func:`_climb_estimate` from below, Newton from above) kept inside the bracket, until
+    a step is shorter than 10 ``tol`` (at most sqrt(tol) / 100): the steps converge
+    superlinearly, so the estimate after such a step is much closer than the step. Only a
+    guess: nothing is certified here.
+    Returns ``x`` when the proxy is already feasible there, None when a solve fails, an
+    estimate >= 1 when the proxy's root seems to be there (no rate below 1)."""
+    start, lo, hi, prev, est = x, 0.0, 1.0, None, None
+    stop = max(0.25 * tol, min(10 * tol, 0.01 * math.sqrt(tol)))
+    for _ in range(limit):
+        search.solves += 1
+        mg = solve_margin(proxy, x, rough=True)
+        if not mg.ok or mg.t is None or mg.slope is None or not mg.slope > 0:
+            return est
+        if mg.t >= 0:
+            if est is None:
+                return x  # feasible where the search starts
+            hi, est = x, x - mg.t / mg.slope
+        else:
+            cur = (x, mg.t, mg.slope)
+            lo, est, prev = x, _climb_estimate(prev, cur), cur
+            if est >= 1.0 and hi == 1.0:  # the step leaves [0, 1]: is there a root at all?
+                search.solves += 1
+                top = solve_margin(proxy, 1.0, rough=True)
+                if not top.ok or top.t is None or top.t < 0 or not (top.slope or 0) > 0:
+                    return est
+                hi, est = 1.0, 1.0 - top.t / top.slope
+            if x == start and est - x < tol:
+                return x  # on the boundary where the search starts (a tight rate there)
+        if not lo < est < hi:
+            est = 0.5 * (lo + hi)
+        if abs(est - x) < stop:
+            return est
+        x = est
+    return est
 
 
 def _climb_estimate(prev: tuple | None, cur: tuple) -> float:

@@ -245,9 +245,9 @@ class Interpolation:
         return {"P": slice(0, nP), "pi": slice(nP, k1), "eta": slice(k1, k2),
                 "lam": slice(k2, k2 + len(st.pos.labels))}
 
-    def _structure(self, alg: Algorithm, normalized: bool) -> Structure:
+    def _structure(self, alg: Algorithm, normalized: bool, has_x: bool | None = None) -> Structure:
         lag = self.lag_for(alg.n)
-        hx = has_output_point(alg.C, alg.E)
+        hx = has_output_point(alg.C, alg.E) if has_x is None else has_x
         if normalized:
             return structure(alg.A, alg.B * alg.L, alg.C, alg.E, alg.m / alg.L, 1.0, lag, hx)
         return structure(alg.A, alg.B, alg.C, alg.E, alg.m, alg.L, lag, hx)
@@ -255,7 +255,24 @@ class Interpolation:
     def problem(self, alg: Algorithm) -> LMIProblem:
         """Affine blocks in x = (P_ab (a <= b), p_0..p_l, c, eta, lambda), built for the
         normalized class F(m/L, 1) with B scaled by L; ``unpack`` returns original units."""
-        st = self._structure(alg, normalized=True)
+        return self._problem(alg, None)
+
+    def guess_problem(self, alg: Algorithm) -> LMIProblem | None:
+        """The cheapest member of the family, lag 0 without the output point (as if E = C:
+        no x-points, no c), or None when that is :meth:`problem` itself. The analysis uses
+        its margin only to guess where the rate is; every certified rate and bracket end
+        comes from :meth:`problem`. Its rate is usually the family's up to the search
+        tolerance (the tight rate does not depend on E: a certificate with V positive
+        definite dominates a multiple of f(x_k) - f* for any E; lag 0 and lag 1 agree on
+        gradient descent, Nesterov and triple momentum), and it is 3-5x cheaper to solve
+        (blocks 4x4 and 3x3, 15 variables, instead of 7x7 and 5x5, 55 variables, for
+        n = 2, l = 1). Where the rates differ (heavy ball, lag 1), the search goes on."""
+        if self.lag_for(alg.n) == 0 and not has_output_point(alg.C, alg.E):
+            return None
+        return Interpolation(0)._problem(alg, False)
+
+    def _problem(self, alg: Algorithm, has_x: bool | None) -> LMIProblem:
+        st = self._structure(alg, normalized=True, has_x=has_x)
         lay = self._layout(st)
         pairs = _sym_basis(st.nz)
         nvar = lay["lam"].stop
@@ -264,10 +281,10 @@ class Interpolation:
         sD, sP = d.width, p.width
         D0, D1 = np.zeros((nvar, sD, sD)), np.zeros((nvar, sD, sD))
         P0 = np.zeros((nvar, sP, sP))
-        for k, (a, b) in enumerate(pairs):
-            D0[k] = _unit_quad(Z1, a, b)
-            D1[k] = -_unit_quad(Z0, a, b)
-            P0[k] = -_unit_quad(Zp, a, b)
+        nP = len(pairs)
+        D0[:nP] = _unit_quads(Z1, pairs)
+        D1[:nP] = -_unit_quads(Z0, pairs)
+        P0[:nP] = -_unit_quads(Zp, pairs)
         for k, M in enumerate(d.Mq):
             D0[lay["eta"].start + k] = M
         for k, M in enumerate(p.Mq):
@@ -280,22 +297,26 @@ class Interpolation:
         one = np.zeros((1, 1))
         zero = np.zeros((nvar, 1, 1))  # shared (read-only) rho^2 part of the rho-free rows
         zero.flags.writeable = False
+        # the scalar rows, all at once: row q of S0 (S1) is l0 (l1) of one 1x1 block
+        npos, nmult = p.nphi, nvar - lay["eta"].start
+        S0 = np.zeros((d.nphi + npos + nmult, nvar))
+        S1 = np.zeros((d.nphi, nvar))
+        S0[: d.nphi, lay["pi"]] = d.F[lag + 1].T
+        S1[:, lay["pi"]] = -d.F[lag].T
+        if d.mq:
+            S0[: d.nphi, lay["eta"]] = np.array(d.mq).T
+        S0[d.nphi: d.nphi + npos, lay["pi"]] = -p.F[lag].T
+        if p.mq:
+            S0[d.nphi: d.nphi + npos, lay["lam"]] = np.array(p.mq).T
+        S0[d.nphi + npos + np.arange(nmult), lay["eta"].start + np.arange(nmult)] = -1.0
+        col0, col1 = S0[:, :, None, None], S1[:, :, None, None]
         for q in range(d.nphi):
-            l0, l1 = np.zeros((nvar, 1, 1)), np.zeros((nvar, 1, 1))
-            l0[lay["pi"], 0, 0] = d.F[lag + 1][:, q]
-            l1[lay["pi"], 0, 0] = -d.F[lag][:, q]
-            l0[lay["eta"], 0, 0] = [mv[q] for mv in d.mq]
-            blocks.append(AffineBlock(f"decrease-f[{q}]", one, one, l0, l1))
-        for q in range(p.nphi):
-            l0 = np.zeros((nvar, 1, 1))
-            l0[lay["pi"], 0, 0] = -p.F[lag][:, q]
-            l0[lay["lam"], 0, 0] = [mv[q] for mv in p.mq]
+            blocks.append(AffineBlock(f"decrease-f[{q}]", one, one, col0[q], col1[q]))
+        for q in range(npos):
             blocks.append(AffineBlock(f"positivity-f[{q}]", np.full((1, 1), st.norm[q]), one,
-                                      l0, zero, strict=False))
-        for k in range(lay["eta"].start, nvar):
-            l0 = np.zeros((nvar, 1, 1))
-            l0[k, 0, 0] = -1.0
-            blocks.append(AffineBlock(f"mult[{k - lay['eta'].start}]", one, one, l0, zero,
+                                      col0[d.nphi + q], zero, strict=False))
+        for k in range(nmult):
+            blocks.append(AffineBlock(f"mult[{k}]", one, one, col0[d.nphi + npos + k], zero,
                                       strict=False))
         blocks.append(AffineBlock("normalization", -np.ones((1, 1)), one, zero, zero))
         Fp = p.F[lag]
@@ -456,10 +477,14 @@ class Interpolation:
                              "c": None if cert.get("c") is None else float(cert["c"])}}
 
 
-def _unit_quad(Z: np.ndarray, a: int, b: int) -> np.ndarray:
-    """Z' E_ab Z for the symmetric unit matrix E_ab (1 at (a, b) and (b, a))."""
-    out = np.outer(Z[a], Z[b])
-    return out if a == b else out + out.T
+def _unit_quads(Z: np.ndarray, pairs: list[tuple[int, int]]) -> np.ndarray:
+    """Z' E_ab Z for every pair (a, b), E_ab the symmetric unit matrix (1 at (a, b) and
+    (b, a))."""
+    ia, ib = np.array(pairs).T
+    out = Z[ia][:, :, None] * Z[ib][:, None, :]
+    off = ia != ib
+    out[off] = out[off] + out[off].transpose(0, 2, 1)
+    return out
 
 
 INTERPOLATION = Interpolation()
