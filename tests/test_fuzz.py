@@ -33,14 +33,13 @@ from hypothesis import strategies as st
 
 from sosalgo.model import Algorithm, ModelError, bind
 from sosalgo.spec import (
-    MAX_FILE_BYTES,
-    MAX_PARAMETERS,
     Spec,
     SpecError,
     load_spec,
     spec_from_dict,
     spec_from_text,
 )
+from sosalgo.spec.types import MAX_FILE_BYTES, MAX_PARAMETERS
 
 from .conftest import SPECS
 

@@ -217,6 +217,22 @@ def _content_hash(path: Path) -> str:
     return h.hexdigest()[:8]
 
 
+def _old_digest(old_settings: Any, path: Path) -> str:
+    """The kept-aside name's hash for an existing file: of its settings, else its content."""
+    return settings_hash(old_settings) if isinstance(old_settings, dict) else _content_hash(path)
+
+
+def _move_aside(files: Sequence[Path], digest: str, back: bool = False) -> None:
+    """Rename ``files`` to their kept-aside names (``back``: the other way round)."""
+    for p in files:
+        aside = _aside_name(p, digest)
+        src, dst = (aside, p) if back else (p, aside)
+        if src.exists() or src.is_symlink():
+            os.replace(src, dst)
+        elif back:
+            dst.unlink(missing_ok=True)
+
+
 def _aside_name(path: Path, digest: str) -> Path:
     """``DIR/stem-<digest>.ext`` (``.csv.settings.json`` keeps its double suffix)."""
     name = path.name
@@ -242,10 +258,8 @@ def write_table(path: Path, columns: Sequence[str], rows: Iterable[dict[str, Any
         if _regular_or_missing(path):
             old = _read_settings(settings_path)
             if old != settings:
-                digest = settings_hash(old) if isinstance(old, dict) else _content_hash(path)
-                for p in (path, settings_path):
-                    if p.exists():
-                        os.replace(p, _aside_name(p, digest))
+                digest = _old_digest(old, path)
+                _move_aside([path, settings_path], digest)
                 notify(f"{path} was written with other settings "
                        f"({describe_difference(old, settings)}); kept it aside as "
                        f"{_aside_name(path, digest).name}")
@@ -291,15 +305,6 @@ class ResumableCSV:
     def _files(self) -> list[Path]:
         return [self.path, self.settings_path, *self.companions]
 
-    def _move_all(self, digest: str, back: bool = False) -> None:
-        for p in self._files():
-            aside = _aside_name(p, digest)
-            src, dst = (aside, p) if back else (p, aside)
-            if src.exists() or src.is_symlink():
-                os.replace(src, dst)
-            elif back:
-                dst.unlink(missing_ok=True)
-
     def _reconcile(self) -> None:
         """Under the lock: resume, keep aside, replace or reuse a kept-aside file."""
         self.done = {}
@@ -313,13 +318,13 @@ class ResumableCSV:
             old = _read_settings(self.settings_path)
             why = None
             if old != self.settings:
-                digest = settings_hash(old) if isinstance(old, dict) else _content_hash(self.path)
+                digest = _old_digest(old, self.path)
                 why = describe_difference(old, self.settings)
             elif not self._header_ok(self.path):
                 digest = _content_hash(self.path)
                 why = "its columns differ: written by another version of sosalgo"
             if why is not None:
-                self._move_all(digest)
+                _move_aside(self._files(), digest)
                 self.notify(f"{self.path} was written with other settings ({why}); "
                             f"kept it aside as {_aside_name(self.path, digest).name}; "
                             "computing anew")
@@ -328,7 +333,7 @@ class ResumableCSV:
             aside = _aside_name(self.path, self.digest)
             if (_regular_or_missing(aside) and self._header_ok(aside) and _read_settings(
                     _aside_name(self.settings_path, self.digest)) == self.settings):
-                self._move_all(self.digest, back=True)
+                _move_aside(self._files(), self.digest, back=True)
                 self.notify(f"resuming the results of these settings kept in {aside.name}")
                 exists = True
         if exists:

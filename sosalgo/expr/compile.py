@@ -102,12 +102,4 @@ def _compile(expr: Expr, index: dict[str, int]) -> Fn:
     if op == "neg":
         (a,) = args
         return lambda v: -a(v)
-    if op in ("min", "max"):
-        pick = min if op == "min" else max
-        return lambda v: pick(f(v) for f in args)
-    unary = {"sqrt": math.sqrt, "exp": math.exp, "log": math.log, "abs": abs}
-    if op in unary:
-        fn = unary[op]
-        (a,) = args
-        return lambda v: fn(a(v))
-    return lambda v: apply(op, [f(v) for f in args])
+    return lambda v: apply(op, [f(v) for f in args])  # functions: sqrt, exp, ..., max

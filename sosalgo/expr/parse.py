@@ -8,7 +8,7 @@ the user wrote.
 
 from __future__ import annotations
 
-from collections.abc import Collection, Mapping
+from collections.abc import Mapping
 
 import sympy as sp
 
@@ -34,12 +34,11 @@ def parse_expression(text: object, names: Mapping[str, sp.Symbol]) -> sp.Expr:
     return to_sympy(parse_tree(text, names), names)
 
 
-def to_sympy(expr: Expr, symbols: Mapping[str, sp.Symbol] | Collection[str] = ()) -> sp.Expr:
+def to_sympy(expr: Expr, symbols: Mapping[str, sp.Symbol] | None = None) -> sp.Expr:
     """The sympy expression of a tree. Names map through ``symbols`` when given there, else
     to :func:`sympy_symbol`. Raises :class:`ExprError` when sympy's simplification shows an
     expression is not a finite real (``1/(kappa - kappa)``, ``sqrt(-kappa)``)."""
-    table = symbols if isinstance(symbols, Mapping) else {}
-    return _convert(expr, table)
+    return _convert(expr, symbols or {})
 
 
 def _convert(e: Expr, symbols: Mapping[str, sp.Symbol]) -> sp.Expr:

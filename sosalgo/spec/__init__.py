@@ -18,23 +18,12 @@ from sosalgo.spec.loading import (
     spec_from_dict,
     spec_from_text,
 )
-from sosalgo.spec.types import (
-    BASE_NAMES,
-    MATRIX_NAMES,
-    MAX_FILE_BYTES,
-    MAX_KAPPA_POINTS,
-    MAX_PARAMETERS,
-    MAX_REFERENCES,
-    MAX_STATE,
-    Parameter,
-    Spec,
-    SpecError,
-)
+from sosalgo.spec.types import BASE_NAMES, MATRIX_NAMES, Parameter, Spec, SpecError
 
+# The input limits (MAX_FILE_BYTES, MAX_STATE, ...) live in sosalgo.spec.types.
 __all__ = [
     "SpecError", "Parameter", "Spec", "load_spec", "read_spec_text", "spec_from_dict",
-    "spec_from_text", "parse_kappa", "BASE_NAMES", "BASE_SYMBOLS", "MATRIX_NAMES", "MAX_FILE_BYTES",
-    "MAX_KAPPA_POINTS", "MAX_PARAMETERS", "MAX_REFERENCES", "MAX_STATE",
+    "spec_from_text", "parse_kappa", "BASE_NAMES", "BASE_SYMBOLS", "MATRIX_NAMES",
 ]
 
 
