@@ -157,6 +157,18 @@ def test_one_kappa_analyze_imports_no_plotting_cvxpy_dask_or_sympy(tmp_path):
     assert res.stdout.strip().splitlines()[-1] == "MODULES:", res.stdout
 
 
+def test_default_design_does_not_import_cvxpy(tmp_path):
+    """cvxpy (about 2 s of imports) is for the paper's relaxation (--method moment) only."""
+    code = ("import sys\nfrom sosalgo.cli import cli\n"
+            "try:\n    cli(['design', sys.argv[1], '--kappa', '10', '--free', 'beta', '--out',"
+            " sys.argv[2], '--quiet'])\nexcept SystemExit as e:\n"
+            "    assert not e.code, e.code\nprint('CVXPY:', 'cvxpy' in sys.modules)")
+    res = subprocess.run([sys.executable, "-c", code, str(SPECS / "nesterov.yaml"),
+                          str(tmp_path)], capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.strip().splitlines()[-1] == "CVXPY: False", res.stdout
+
+
 def test_kappa_numbers_are_parsed_as_numbers(monkeypatch):
     import sosalgo.spec.loading as spec_mod
 

@@ -32,14 +32,22 @@ import numpy as np
 from sosalgo.analysis import AnalysisResult, analyze_spec, jsonable, spec_family
 from sosalgo.certificates import CertificateFamily, get_family
 from sosalgo.design.dualbound import BoundSearch, BoundStatus, QuadraticTest, dual_structure
-from sosalgo.design.moment import design_problem, relaxation_bound
 from sosalgo.design.polymodel import fit_poly_lmi
 from sosalgo.model import ModelError, bind, evaluate_algorithm, parameter_box
-from sosalgo.polyopt import RelaxationStatus
 from sosalgo.solvers import solve_margin
 from sosalgo.spec import Spec
 
 __all__ = ["DesignResult", "design", "design_problem", "relaxation_bound", "METHODS"]
+
+
+def __getattr__(name: str) -> Any:
+    """``design_problem`` and ``relaxation_bound`` (the paper's relaxation, which imports
+    cvxpy) load on first use."""
+    if name in ("design_problem", "relaxation_bound"):
+        from sosalgo.design import moment
+
+        return getattr(moment, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 CERT_TOL = 1e-7  # tolerance of the certifying analyses
 GRID_TOL = 1e-5  # tolerance of the screening grid
@@ -481,6 +489,10 @@ def _dual_bound(run: _Run, model, gap: float) -> tuple[float | None, dict[str, A
 def _moment_bound(run: _Run, scalarize: str, order: int | None, max_order: int | None,
                   gap: float) -> tuple[float | None, dict[str, Any]]:
     """The paper's moment relaxation over Θ (order raised once if the gap is not met)."""
+    # imported here: the relaxation needs cvxpy (about 2 s to import), the default bound not
+    from sosalgo.design.moment import relaxation_bound
+    from sosalgo.polyopt import RelaxationStatus
+
     lb: float | None = None
     info: dict[str, Any] = {"method": "moment"}
     cur = order
