@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.certificates.base import AffineBlock, LMIProblem
+from sosalgo.certificates.base import AffineBlock, ExactBlock, LMIProblem
 from sosalgo.certificates.theorem1 import THEOREM1, theorem1_terms
 
 
@@ -56,6 +56,31 @@ class DiagonalTheorem1:
             return {"P": np.diag(x[:n] * s_), "lambda": float(x[-1])}
 
         return LMIProblem(nvar, blocks, unpack, project)
+
+    def exact_problem(self, A, B, C, E, m, L) -> list[ExactBlock]:
+        """The blocks of ``problem`` with sympy entries (design's proven bound)."""
+        import sympy as sp
+
+        n = A.shape[0]
+        B, m, L = B * L, m / L, sp.Integer(1)
+        base = theorem1_terms(A, B, C, E, m, L, sp.zeros(n, n), symbolic=True)
+        nvar, z1 = n + 1, sp.zeros(1, 1)
+        l0, l1 = [], []
+        for i in range(n):
+            Ei = sp.zeros(n, n)
+            Ei[i, i] = 1
+            t = theorem1_terms(A, B, C, E, m, L, Ei, symbolic=True)
+            l0.append(t["M0P"])
+            l1.append(-t["PP"])
+        l0.append(base["N4"])
+        l1.append(sp.zeros(n + 1, n + 1))
+
+        def scalar(j: int, name: str) -> ExactBlock:
+            sel = [-sp.ones(1, 1) if v == j else z1 for v in range(nvar)]
+            return ExactBlock(name, z1, z1, sel, [z1] * nvar, False)
+
+        return [ExactBlock("M", base["N1"] + base["N3"], base["N2"] - base["N3"], l0, l1),
+                *(scalar(i, f"p{i + 1}") for i in range(n)), scalar(n, "lambda")]
 
     def matrix(self, alg, rho: float, cert: dict[str, Any]) -> np.ndarray:
         return THEOREM1.matrix(alg, rho, cert)

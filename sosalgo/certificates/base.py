@@ -15,7 +15,8 @@ if TYPE_CHECKING:  # only for annotations: families do not depend on the model a
     from sosalgo.spec.types import Spec
 
 
-__all__ = ["AffineBlock", "LMIProblem", "CertificateFamily", "check_matrix", "check_number"]
+__all__ = ["AffineBlock", "ExactBlock", "LMIProblem", "CertificateFamily", "check_matrix",
+           "check_number"]
 
 
 @dataclass(frozen=True)
@@ -47,6 +48,19 @@ class AffineBlock:
         s = self.size
         lin = (x @ self.l0.reshape(len(x), -1) + rho**2 * (x @ self.l1.reshape(len(x), -1)))
         return self.constant(rho) + lin.reshape(s, s)
+
+
+@dataclass(frozen=True)
+class ExactBlock:
+    """An :class:`AffineBlock` in exact arithmetic: sympy matrices (entries may be
+    polynomials in the design parameters), ``l0``/``l1`` one matrix per variable."""
+
+    name: str
+    c0: Any
+    c1: Any
+    l0: list[Any]
+    l1: list[Any]
+    strict: bool = True
 
 
 @dataclass(frozen=True, eq=False)
@@ -97,6 +111,14 @@ class CertificateFamily(Protocol):
 
     def problem(self, alg: Algorithm) -> LMIProblem:
         """Assemble the feasibility data for a numeric algorithm."""
+        ...
+
+    def exact_problem(
+        self, A: sp.Matrix, B: sp.Matrix, C: sp.Matrix, E: sp.Matrix, m: sp.Expr, L: sp.Expr
+    ) -> list[ExactBlock] | None:
+        """The data of :meth:`problem` in exact arithmetic (sympy; A..E may hold the design
+        parameters), same variables and blocks; None when the family offers none (then
+        design proves no lower bound for it)."""
         ...
 
     def symbolic(

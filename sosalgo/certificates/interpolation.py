@@ -448,6 +448,11 @@ class Interpolation:
             "P": P, "rho": rho, "structure": st, "lag": lag, "has_x": hx,
         }
 
+    def exact_problem(self, A, B, C, E, m, L) -> None:
+        """None: P is not sign-constrained here (its positivity comes from the S-procedure),
+        so design has no box-wide dual bound for this family (see ``design``)."""
+        return None
+
     # -- verification (sosalgo verify) ---------------------------------------------------
     def parse_certificate(self, parts: Mapping[str, Any], n: int) -> dict[str, Any]:
         """The parts as given: the exact check itself fails a malformed certificate."""

@@ -18,7 +18,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from sosalgo.certificates.base import AffineBlock, LMIProblem, check_matrix, check_number
+from sosalgo.certificates.base import (
+    AffineBlock,
+    ExactBlock,
+    LMIProblem,
+    check_matrix,
+    check_number,
+)
 
 if TYPE_CHECKING:  # only for annotations: families do not depend on the model at run time
     import sympy as sp
@@ -146,6 +152,36 @@ class Theorem1:
             return {"P": P, "lambda": float(x[-1])}
 
         return LMIProblem(nvar, blocks, unpack, project)
+
+    def exact_problem(self, A, B, C, E, m, L) -> list[ExactBlock]:
+        """The blocks of :meth:`problem` with sympy entries (A..E may hold symbols): the
+        same variables, normalization (F(m/L, 1), B scaled by L) and block order."""
+        import sympy as sp
+
+        n = A.shape[0]
+        pairs = _sym_basis(n)
+        nvar = len(pairs) + 1
+        A, B, m, L = A, B * L, m / L, sp.Integer(1)
+        base = theorem1_terms(A, B, C, E, m, L, sp.zeros(n, n), symbolic=True)
+        zs, z1 = sp.zeros(n + 1, n + 1), sp.zeros(1, 1)
+        l0, l1, lp, lam = [], [], [], []
+        for i, j in pairs:
+            Eij = sp.zeros(n, n)
+            Eij[i, j] = Eij[j, i] = 1
+            t = theorem1_terms(A, B, C, E, m, L, Eij, symbolic=True)
+            l0.append(t["M0P"])
+            l1.append(-t["PP"])
+            lp.append(-Eij)
+            lam.append(z1)
+        l0.append(base["N4"])
+        l1.append(zs)
+        lp.append(sp.zeros(n, n))
+        lam.append(-sp.ones(1, 1))
+        assert len(l0) == nvar
+        return [ExactBlock("M", base["N1"] + base["N3"], base["N2"] - base["N3"], l0, l1),
+                ExactBlock("P", sp.zeros(n, n), sp.zeros(n, n), lp, [sp.zeros(n, n)] * nvar,
+                           False),
+                ExactBlock("lambda", z1, z1, lam, [z1] * nvar, False)]
 
     def pack(self, alg: Algorithm, cert: dict[str, Any]) -> np.ndarray:
         """Inverse of ``unpack``: the (normalized) decision vector of a certificate."""

@@ -31,13 +31,14 @@ import numpy as np
 
 from sosalgo.analysis import AnalysisResult, analyze_spec, jsonable, spec_family
 from sosalgo.certificates import CertificateFamily, get_family
-from sosalgo.design.dualbound import BoundSearch, BoundStatus, QuadraticTest, dual_structure
-from sosalgo.design.polymodel import fit_poly_lmi
-from sosalgo.model import ModelError, bind, evaluate_algorithm, parameter_box
+from sosalgo.design.dualbound import ARITHMETIC, BoundSearch, BoundStatus, dual_structure
+from sosalgo.design.polymodel import check_polynomial
+from sosalgo.model import ModelError, bind, parameter_box
 from sosalgo.solvers import solve_margin
 from sosalgo.spec import Spec
 
-__all__ = ["DesignResult", "design", "design_problem", "relaxation_bound", "METHODS"]
+__all__ = ["BoundResult", "DesignResult", "design", "design_problem", "prove_bound",
+           "relaxation_bound", "METHODS"]
 
 
 def __getattr__(name: str) -> Any:
@@ -221,7 +222,8 @@ def design(
         family = get_family(family)
     if method == "moment" and not family.supports_moment:
         raise ModelError("certificate", "--method moment is built on Theorem 1 only")
-    model = fit_poly_lmi(spec, kappa, free, box, family)  # refuses non-polynomial θ
+    check_polynomial(spec, free)  # refuses non-polynomial θ
+    model = _bound_model(spec, kappa, free, family) if method == "dual" else None
     run = _Run(spec, kappa, free, box, t0 + time_limit, on_step, family)
     run.workers = _usable_workers(workers)
     run.log("certifying the spec's values", record=False)
@@ -232,7 +234,7 @@ def design(
     run.phase_end = time.perf_counter() + 0.3 * total  # grid
     # without a bound phase to come (a family the dual bound does not cover), the search
     # may use all the time
-    bound_phase = method == "moment" or dual_structure(model) is not None
+    bound_phase = method == "moment" or model is not None
     _search(run, polish_share=0.5 if bound_phase else 0.95)
     run.phase_end = run.deadline
     relax: dict[str, Any]
@@ -433,31 +435,67 @@ def _polish(run: _Run, theta: dict[str, float]) -> dict[str, float] | None:
 
 
 # --------------------------------------------------------------------------- lower bounds
-def _dual_bound(run: _Run, model, gap: float) -> tuple[float | None, dict[str, Any]]:
-    """Cover Θ × [0, T²], T = rho_certified - gap/2, by boxes with dual certificates."""
-    info: dict[str, Any] = {"method": "dual", "status": BoundStatus.UNSUPPORTED, "scalarize": None,
-                            "order": None, "flat": None, "ranks": []}
-    structure = dual_structure(model)
+@dataclass
+class BoundModel:
+    """What the dual bound needs at one κ: the exact polynomial data, their dual
+    structure and the mode argument."""
+
+    poly: Any  # polymodel.PolyLMI
+    structure: Any  # dualbound.DualStructure
+    modes: Any  # modes.ModeTest
+
+    def search(self, target_r: float, record: bool = False) -> BoundSearch:
+        return BoundSearch(self.poly, self.structure, target_r, self.modes, record=record)
+
+
+def _bound_model(spec: Spec, kappa: float, free: list[str],
+                 family: CertificateFamily) -> BoundModel | None:
+    """The exact data of the family over Θ, or None when the family has no dual bound
+    (no exact form, or variables outside θ-free cones)."""
+    from sosalgo.design.modes import ModeTest
+    from sosalgo.design.polymodel import exact_method, numeric_template, poly_lmi
+
+    method = exact_method(spec, kappa, free)
+    poly = poly_lmi(method, family, numeric_template(spec, kappa, method, family))
+    structure = None if poly is None else dual_structure(poly)
     if structure is None:
+        return None
+    return BoundModel(poly, structure, ModeTest(method))
+
+
+def _bound_info(state, status: BoundStatus, seconds: float) -> dict[str, Any]:
+    """The ``relaxation`` fields of a dual bound (a contract: extend, never rename)."""
+    return {"method": "dual", "status": status, "scalarize": None, "order": None,
+            "flat": None, "ranks": [], "boxes_proven": state.proven,
+            "boxes_dual": state.dual, "boxes_mode": state.quadratic,
+            "boxes_quadratic": state.quadratic,
+            "boxes_inherited": state.proven - state.dual - state.quadratic,
+            "boxes_open": len(state.heap) + len(state.stuck), "solves": state.solves,
+            "boxes_refuted": state.refuted, "target": math.sqrt(state.target),
+            "arithmetic": ARITHMETIC, "seconds": seconds}
+
+
+def _dual_bound(run: _Run, model: BoundModel | None, gap: float
+                ) -> tuple[float | None, dict[str, Any]]:
+    """Cover Θ × [0, T²], T = rho_certified - gap/2, by proven boxes."""
+    if model is None:
         run.log(f"no proven lower bound for the {run.family.name} family (its Lyapunov "
                 "variables are not all sign-constrained); see floor")
-        return None, info
+        return None, {"method": "dual", "status": BoundStatus.UNSUPPORTED, "scalarize": None,
+                      "order": None, "flat": None, "ranks": []}
 
     def target() -> float:
         u = run.upper
         return (1.0 if not math.isfinite(u) else max(0.0, u - 0.5 * gap)) ** 2
 
-    def eval_alg(z: np.ndarray):
-        return evaluate_algorithm(run.spec, run.kappa, model.theta(z))
-
-    search = BoundSearch(model, structure, target(), QuadraticTest(eval_alg, model.half))
-    spec, kappa = run.spec, run.kappa
+    search = model.search(target())
+    spec, kappa, poly = run.spec, run.kappa, model.poly
 
     def on_open(z: np.ndarray, r: float) -> float | None:
         """No dual certificate at this center: certify it if it is feasible below T."""
-        theta = model.theta(z)
+        theta = poly.theta(z)
         try:
-            problem = run.family.problem(bind(spec, kappa, theta))
+            problem = run.family.problem(bind(spec, kappa, run.clip(theta)))
         except ModelError:
             return None
         mg = solve_margin(problem, math.sqrt(r))
@@ -475,15 +513,56 @@ def _dual_bound(run: _Run, model, gap: float) -> tuple[float | None, dict[str, A
     state = search.run(run.deadline, on_open)
     if state.heap:
         run.out_of_time = run.out_of_time or time.perf_counter() >= run.deadline
-    lb = math.sqrt(max(0.0, state.lower_r()))
+    lb = state.lower_bound()
     status = BoundStatus.PROVED if state.complete else BoundStatus.PARTIAL
-    info.update({"status": status, "boxes_proven": state.proven,
-                 "boxes_quadratic": state.quadratic,
-                 "boxes_open": len(state.heap) + len(state.stuck), "solves": state.solves,
-                 "target": math.sqrt(state.target), "seconds": time.perf_counter() - t})
-    run.log(f"dual bound ({status}): {state.proven} boxes proven, "
-            f"{len(state.heap) + len(state.stuck)} open, bound {lb:.8f}")
+    info = _bound_info(state, status, time.perf_counter() - t)
+    run.log(f"dual bound ({status}): {state.dual} boxes by dual certificates, "
+            f"{state.quadratic} by the mode argument, {info['boxes_open']} open, "
+            f"bound {lb:.8f}")
     return lb, info
+
+
+@dataclass
+class BoundResult:
+    """:func:`prove_bound`'s answer: no θ in Θ is certified by the family below
+    ``lower_bound`` (None: no bound for this family)."""
+
+    spec: str
+    kappa: float
+    free: list[str]
+    target: float
+    lower_bound: float | None
+    status: str
+    info: dict[str, Any]
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"spec": self.spec, "kappa": self.kappa, "free": list(self.free),
+                "target": self.target, "lower_bound": self.lower_bound,
+                "status": str(self.status), **{k: v for k, v in self.info.items()
+                                               if k not in ("status", "target")}}
+
+
+def prove_bound(spec: Spec, kappa: float, target: float, free: Sequence[str] | None = None,
+                time_limit: float = 60.0, family: CertificateFamily | str | None = None
+                ) -> BoundResult:
+    """Try to prove that no θ in Θ is certified by the family below ``target`` (a rate):
+    the dual bound of :func:`design` without the search. ``lower_bound`` is what was
+    proven within ``time_limit`` seconds (``status`` "proved" when it is ``target``)."""
+    t0 = time.perf_counter()
+    if not 0 < target <= 1:
+        raise ValueError("target must be in (0, 1]")
+    free = list(spec.ranged if free is None else free)
+    spec.check_free(free)
+    fam = spec_family(spec) if family is None else (
+        get_family(family) if isinstance(family, str) else family)
+    model = _bound_model(spec, kappa, free, fam)
+    if model is None:
+        return BoundResult(spec.name, float(kappa), free, target, None,
+                           BoundStatus.UNSUPPORTED, {})
+    state = model.search(target**2).run(t0 + time_limit, None)
+    status = BoundStatus.PROVED if state.complete else BoundStatus.PARTIAL
+    return BoundResult(spec.name, float(kappa), free, target, state.lower_bound(), status,
+                       _bound_info(state, status, time.perf_counter() - t0))
 
 
 def _moment_bound(run: _Run, scalarize: str, order: int | None, max_order: int | None,

@@ -8,15 +8,17 @@ eq. 15, -P ⪯ 0, -λ ≤ 0) have no solution x when there are Z_b ⪰ 0 with
 (Farkas: Σ_b <Z_b, G_b(x)> would be both <= 0 and > 0). Blocks that are plain cones on the
 variables and do not depend on θ or r ("cone blocks": P ⪰ 0 and λ >= 0) absorb the first
 condition: their Z is *determined* by the others, Z_c(θ, r) = -Φ_c^{-1}(g(θ, r)), and only
-has to stay ⪰ 0. So one dual point Z of the remaining blocks, computed by a tiny SDP at the
-center of a box of (θ, r), proves (F) on the whole box when
+has to stay ⪰ 0. So one dual point Z of the remaining blocks, affine in θ and computed by a
+small SDP for a box of (θ, r), proves (F) on the whole box when
 
-    h(θ, r) = Σ <Z_b, C_b(θ, r)> > 0   and   Z_c(θ, r) ⪰ 0   for all (θ, r) in the box,
+    h(θ, r) = Σ <Z_b, C_b(θ, r)> > 0   and   Z_c(θ, r) ⪰ 0   for all (θ, r) in the box.
 
-which is checked rigorously from the polynomial data of :mod:`sosalgo.design.polymodel`
-(h and Z_c are polynomials in θ, affine in r: check both ends of the r-interval and bound
-the θ-variation by the sum of the absolute Taylor coefficients around the box center).
-A proven box contains no θ that Theorem 1 certifies at any ρ² in the box's r-range.
+A float check screens candidates; the proof is :mod:`sosalgo.design.boxproof`: the exact
+polynomial data (:mod:`sosalgo.design.polymodel`) shifted to the box in ball arithmetic,
+both ends of the r-interval (the conditions are affine in r), the θ-variation bounded by
+the box's Taylor coefficients. Boxes near degenerate faces are proven instead by the mode
+argument of :mod:`sosalgo.design.modes` (a visible mode slower than T on a quadratic).
+A proven box contains no θ that the family certifies at any ρ² in the box's r-range.
 
 Branch and bound covers Θ × [0, T²] by proven boxes, which proves that no θ ∈ Θ is
 certified below T. Unlike the homogenized moment relaxation, the f - f* term keeps its
@@ -32,25 +34,27 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from enum import StrEnum
-from typing import Any
 
 import numpy as np
 import scipy.sparse as sps
 
-from sosalgo.design.polymodel import PolyLMI, fit_tensor, shift_tensor
+from sosalgo.design.boxproof import BoxProver
+from sosalgo.design.modes import ModeTest
+from sosalgo.design.polymodel import PolyLMI
 from sosalgo.solvers import svec
 
-__all__ = ["BoundStatus", "DualStructure", "BoundSearch", "QuadraticTest", "dual_structure"]
+__all__ = ["BoundStatus", "DualStructure", "BoundSearch", "dual_structure"]
 
 MIN_HALF_WIDTH = 1e-10  # boxes narrower than this (in scaled units) are not split further
-SAFETY = 1e-9  # relative safety margin of every box check
+SAFETY = 1e-9  # relative margin of the float screening (the proofs need none)
+ARITHMETIC = "ball arithmetic (python-flint arb, outward rounded) on exact polynomial data"
 
 
 class BoundStatus(StrEnum):
     """What a bound search proved (a str: compares and serializes as one)."""
 
-    PROVED = "proved"  # Θ × [0, T²] covered: nothing in Θ is certified below T
-    PARTIAL = "partial"  # time ran out: the bound is what was covered
+    PROVED = "proved"  # Θ × [0, T²] covered by proven boxes: nothing in Θ certified below T
+    PARTIAL = "partial"  # boxes left open (time, or no proof near them): what was covered
     UNSUPPORTED = "unsupported"  # the family's variables are not all in θ-free cones
 
 
@@ -97,78 +101,6 @@ def dual_structure(model: PolyLMI) -> DualStructure | None:
     return DualStructure(dep, cone)
 
 
-class QuadraticTest:
-    """Boxes where the method is provably slower than T on a quadratic.
-
-    On f(x) = q x²/2 (q = m or L, both in F(m, L)) the method is ξ+ = X_q ξ with
-    X_q = A + q B C. If X_q has an eigenvalue μ with |μ| > T whose eigenvector v is seen by
-    the output (E v ≠ 0), the trajectory from v has |x_k| ~ |μ|^k, so no certificate of any
-    family proves a rate below |μ| there. Over a box of θ this is shown by polynomial sign
-    tests: some necessary condition for all roots of det(λI - X_q) inside |λ| < T fails
-    (det(T I - X_q) < 0, (-1)^n det(-T I - X_q) < 0, or |det X_q| > T^n), and no eigenvector
-    in ker E has |μ| >= T (||K' X_q K||_2 < T, K an orthonormal basis of ker E).
-
-    This settles the boxes near degenerate faces (e.g. h -> 0, where the method hardly
-    moves and dual certificates fade), which no finite set of dual boxes can cover.
-    """
-
-    def __init__(self, eval_alg: Callable[[np.ndarray], Any], half: np.ndarray):
-        self.eval_alg, self.half = eval_alg, half
-        alg0 = eval_alg(np.zeros(len(half)))
-        self.n = alg0.n
-        self.qs = (alg0.m, alg0.L)
-        _, Ecoef, _ = fit_tensor(lambda z: np.asarray(eval_alg(z).E, float).ravel(), half)
-        flat = Ecoef.reshape(-1, Ecoef.shape[-1])
-        self.ok = not np.any(flat[1:])  # K is fixed only when E does not depend on θ
-        E = np.asarray(alg0.E, float).reshape(1, -1)
-        _, _, Vt = np.linalg.svd(E)
-        self.K = Vt[1:].T  # orthonormal basis of ker E
-        self._cache: dict[float, tuple] = {}
-
-    def _fits(self, T: float):
-        if T not in self._cache:
-            n, K = self.n, self.K
-
-            def fn(z: np.ndarray) -> np.ndarray:
-                alg = self.eval_alg(z)
-                out = []
-                for q in self.qs:
-                    X = alg.A + q * alg.B @ alg.C
-                    out += [np.linalg.det(T * np.eye(n) - X),
-                            (-1) ** n * np.linalg.det(-T * np.eye(n) - X),
-                            np.linalg.det(X)]
-                    out += list((K.T @ X @ K).ravel()) if K.size else []
-                return np.array(out, dtype=float)
-
-            self._cache = {T: fit_tensor(fn, self.half)}
-        return self._cache[T]
-
-    def proves(self, zc: np.ndarray, w: np.ndarray, T: float) -> bool:
-        """True when every θ of the box has a visible mode slower than T (see above)."""
-        if not self.ok or not 0 < T < 1:
-            return False
-        degrees, coef, _ = self._fits(T)
-        c = shift_tensor(coef, degrees, zc, w)
-        c = c.reshape(-1, c.shape[-1])
-        nk = self.K.shape[1]
-        per = 3 + nk * nk
-        for j in range(len(self.qs)):
-            blk = c[:, j * per:(j + 1) * per]
-            if nk:
-                N = blk[:, 3:].reshape(-1, nk, nk)
-                norm = float(np.linalg.norm(N[0], 2)) + float(
-                    sum(np.linalg.norm(a, 2) for a in N[1:] if np.any(a)))
-                if not norm < T * (1 - SAFETY):
-                    continue
-            p_T, p_mT, det = blk[:, 0], blk[:, 1], blk[:, 2]
-            tn = np.zeros_like(det)
-            tn[0] = T**self.n  # the constant T^n enters the constant coefficient only
-            if (_positive_lower(-p_T, 0) or _positive_lower(-p_mT, 0)
-                    or _positive_lower(det - tn, 0) or _positive_lower(-det - tn, 0)):
-                return True
-        return False
-
-
 @dataclass
 class _Box:
     zc: np.ndarray  # center and half-widths in scaled coordinates z
@@ -185,16 +117,19 @@ class BoundState:
 
     target: float  # r = ρ² up to which boxes are being proven empty
     proven: int = 0
-    quadratic: int = 0  # of which proven by the quadratic test
+    quadratic: int = 0  # of which proven by the mode argument
+    dual: int = 0  # of which proven by a dual certificate
+    refuted: int = 0  # float screening passed, the ball-arithmetic proof did not
     solves: int = 0
     stuck: list[_Box] = field(default_factory=list)
     heap: list[tuple[tuple[float, float], int, _Box]] = field(default_factory=list)
     record: list[tuple[np.ndarray, np.ndarray, float, str]] | None = None  # proven boxes
 
     def done(self, box: _Box, r: float, how: str) -> None:
-        """Count a box proven empty for ρ² < r (``how``: dual / quadratic / inherited)."""
+        """Count a box proven empty for ρ² < r (``how``: dual / mode / inherited)."""
         self.proven += 1
-        self.quadratic += how == "quadratic"
+        self.quadratic += how == "mode"
+        self.dual += how == "dual"
         if self.record is not None:
             self.record.append((box.zc.copy(), box.w.copy(), r, how))
 
@@ -203,6 +138,11 @@ class BoundState:
         opens = [b.lb for b in self.stuck] + [item[2].lb for item in self.heap]
         return min([self.target, *opens])
 
+    def lower_bound(self) -> float:
+        """The proven bound on ρ: a float <= sqrt(lower_r()) (rounded down)."""
+        r = max(0.0, self.lower_r())
+        return float(np.nextafter(math.sqrt(r), 0.0)) if r > 0 else 0.0
+
     @property
     def complete(self) -> bool:
         return not self.stuck and not self.heap
@@ -210,11 +150,15 @@ class BoundState:
 
 class BoundSearch:
     """Best-first branch and bound over Θ: each box needs one dual point Z valid on the
-    whole box for every r in [0, T²] (found by a robust SDP, then checked in floats)."""
+    whole box for every r in [0, T²] (found by a robust SDP, screened in floats, proven in
+    ball arithmetic by :class:`~sosalgo.design.boxproof.BoxProver`), or the mode argument
+    (``modes``)."""
 
     def __init__(self, model: PolyLMI, structure: DualStructure, target_r: float,
-                 quadratic: QuadraticTest | None = None, record: bool = False):
-        self.model, self.st, self.quad = model, structure, quadratic
+                 modes: ModeTest | None = None, record: bool = False):
+        self.model, self.st, self.modes = model, structure, modes
+        self.prover = BoxProver(model, structure.dep,
+                                [(b, vars_) for b, vars_, _ in structure.cone])
         k = model.k
         self.state = BoundState(target=target_r, record=[] if record else None)
         self._count = 0
@@ -282,17 +226,21 @@ class BoundSearch:
                 return False
         return True
 
-    def _proven_up_to(self, data, Zs, r_hi: float) -> float:
-        """Largest r in [0, r_hi] with (F) on the box for all of [0, r] (0 if none)."""
+    def _proven_up_to(self, box: _Box, data, Zs, r_hi: float, covers=None) -> float:
+        """Largest r in [0, r_hi] with (F) proven on the box for all of [0, r] (0 if none):
+        bisection on the float screening, then the proof at the r found."""
         if not self._holds(data, Zs, 0.0):
             return 0.0
-        if self._holds(data, Zs, r_hi):
-            return r_hi
         lo, hi = 0.0, r_hi  # the set of good r is an interval (concave conditions)
-        for _ in range(12):
-            mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if self._holds(data, Zs, mid) else (lo, mid)
-        return lo
+        if self._holds(data, Zs, r_hi):
+            lo = r_hi
+        else:
+            for _ in range(12):
+                mid = 0.5 * (lo + hi)
+                lo, hi = (mid, hi) if self._holds(data, Zs, mid) else (lo, mid)
+        if lo > 0 and self.prover.proves(box.zc, box.w, Zs, (None, None), (0.0, lo), covers):
+            return lo
+        return 0.0
 
     # ------------------------------------------------------------------ robust dual SDP
     def _dual(self, data, r_ends: tuple[float, ...], affine: bool = True):
@@ -437,7 +385,7 @@ class BoundSearch:
         y = np.array(sol.x)
         if not y[t_col] > 0:
             return None
-        Zs = []
+        Zs, covers = [], []
         soff = nzcols + 1
         for qq, s in enumerate(sizes):
             terms = [_unsvec(y[zoff[qq][j]:zoff[qq][j] + tri[qq]], s) for j in range(nz_terms)]
@@ -446,7 +394,9 @@ class BoundSearch:
             soff += (nz_terms - 1) * tri[qq]
             terms += [np.zeros((s, s))] * (k + 1 - nz_terms)
             Ss += [np.zeros((s, s))] * (k + 1 - nz_terms)
-            Zs.append(_repair(terms, Ss))
+            terms, Ss = _repair(terms, Ss)
+            Zs.append(terms)
+            covers.append(Ss)
         bounds: list[dict] = []
         for e in range(len(r_ends)):
             base = s_base + e * (len(live) - 1) * per_alpha
@@ -458,18 +408,19 @@ class BoundSearch:
                     bd[(c, live[pos])] = _unsvec(y[c0:c0 + ct], R.shape[0])
                 off_c += ct
             bounds.append(bd)
-        return Zs, bounds
+        return Zs, bounds, covers
 
     # ------------------------------------------------------------------ driver
     def run(
-        self, deadline: float, on_open: Callable[[np.ndarray, float], float | None],
+        self, deadline: float, on_open: Callable[[np.ndarray, float], float | None] | None,
         max_boxes: int = 1_000_000,
     ) -> BoundState:
         """Prove boxes until none is left, time runs out or ``max_boxes`` were handled.
 
         ``on_open(z, r)`` is called when not even the box center has a dual certificate at
         r = T²: the point may be certifiable below the target. It returns a new (lower)
-        target r when it certified a better design there, else None.
+        target r when it certified a better design there, else None (``on_open=None``:
+        the target stays, the box is split).
         """
         st = self.state
         handled = 0
@@ -480,22 +431,26 @@ class BoundSearch:
             if box.lb >= T2:
                 st.done(box, box.lb, "inherited")
                 continue
-            if self.quad is not None and self.quad.proves(box.zc, box.w, math.sqrt(T2)):
-                st.done(box, T2, "quadratic")
+            if self.modes is not None and self.modes.proves(box.zc, box.w, T2):
+                st.done(box, T2, "mode")
                 continue
             data = self._box_data(box, box.w)
             out = self._dual(data, (0.0, T2))
             Zs = None
+            cov = None
             if out is not None:
-                Zs, bd = out
+                Zs, bd, cov = out
                 if self._holds(data, Zs, 0.0, bd[0]) and self._holds(data, Zs, T2, bd[1]):
-                    st.done(box, T2, "dual")
-                    continue
+                    if self.prover.proves(box.zc, box.w, Zs, bd, (0.0, T2), cov):
+                        st.done(box, T2, "dual")
+                        continue
+                    st.refuted += 1
             if Zs is None:  # is the center itself certifiable below T?
                 center = self._box_data(box, np.zeros_like(box.w))
                 outc = self._dual(center, (T2,), affine=False)
                 Zc = None if outc is None else outc[0]
-                if Zc is None:
+                cov = None if outc is None else outc[2]
+                if Zc is None and on_open is not None:
                     new = on_open(box.zc, T2)
                     if new is not None and new < T2:
                         self.lower_target(new)
@@ -504,7 +459,7 @@ class BoundSearch:
                 else:
                     Zs = Zc
             if Zs is not None:
-                box.lb = max(box.lb, self._proven_up_to(data, Zs, T2))
+                box.lb = max(box.lb, self._proven_up_to(box, data, Zs, T2, cov))
             self._split(box)
         return st
 
@@ -532,20 +487,24 @@ def _unsvec(v: np.ndarray, s: int) -> np.ndarray:
     return Z
 
 
-def _repair(terms: list[np.ndarray], Ss: list[np.ndarray]) -> list[np.ndarray]:
-    """Make Z(u) = Z_0 + Σ_j u_j Z_j ⪰ 0 on the box exactly (up to rounding): raise each
-    S_j until S_j ± Z_j ⪰ 0, then raise Z_0 until Z_0 - Σ_j S_j ⪰ 0, with margins."""
+def _repair(terms: list[np.ndarray], Ss: list[np.ndarray]
+            ) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Make Z(u) = Z_0 + Σ_j u_j Z_j ⪰ 0 on the box (in floats, with margins; the proof
+    re-checks it): raise each S_j until S_j ± Z_j ⪰ 0, then raise Z_0 until
+    Z_0 - Σ_j S_j ⪰ 0. Returns the terms and the S_j."""
     terms = [0.5 * (t + t.T) for t in terms]
     low = terms[0].copy()
     size = float(np.abs(low).max())
+    covers = []
     for t, S in zip(terms[1:], Ss, strict=True):
         S = _cover(t, 0.5 * (S + S.T), even=False)
+        covers.append(S)
         low -= S
         size += float(np.abs(S).max())
     deficiency = -float(np.linalg.eigvalsh(low)[0])
     bump = max(deficiency, 0.0) + 4 * SAFETY * (1.0 + size)
     terms[0] = terms[0] + bump * np.eye(terms[0].shape[0])
-    return terms
+    return terms, covers
 
 
 def _cover(A: np.ndarray, S: np.ndarray | None, even: bool) -> np.ndarray:

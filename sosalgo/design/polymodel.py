@@ -6,33 +6,39 @@ products such as A'PA, eq. 14). This module
 
 * decides, symbolically, that the templates are polynomial in the free parameters (a
   parameter entering through ``min``, ``sqrt``, ... is refused with its expression);
-* recovers the polynomial of every data entry by interpolation on a tensor Chebyshev grid
-  in scaled coordinates z ∈ [-1, 1]^k (θ = mid + half·z), with the degree found along each
-  axis and the fit verified at random points;
-* re-expands the polynomial around any sub-box (a Taylor shift), so that ranges over the
-  sub-box can be bounded: for u ∈ [-1, 1]^k, |p(u) - a_0| <= Σ_{α≠0} |a_α|.
-
-Everything goes through the family's numeric ``problem``, so any family plugs in.
+* writes the method exactly: κ and m are the rationals of their binary values, fixed
+  parameters keep their exact values (e.g. (√κ − 1)/(√κ + 1)), and Θ is enclosed in a
+  box with float (dyadic) ends, rounded outwards;
+* builds the family's blocks from its exact form (``exact_problem``) in scaled
+  coordinates z ∈ [-1, 1]^k (θ = mid + half·z) and expands every entry (sympy), so the
+  degrees and coefficients are exact; each coefficient is then enclosed in a ball
+  (:mod:`sosalgo.design.enclosure`). The SDPs use the balls' midpoints; proofs use the
+  balls.
+* re-expands the polynomial around any sub-box (a Taylor shift), in floats for the SDP
+  and in ball arithmetic for proofs.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
-from math import comb
+from fractions import Fraction
 
 import numpy as np
 import sympy as sp
+from flint import arb, arb_mat
 
-from sosalgo.certificates.base import AffineBlock, CertificateFamily, LMIProblem
+from sosalgo.certificates.base import CertificateFamily, ExactBlock, LMIProblem
+from sosalgo.design import enclosure as enc
 from sosalgo.expr.parse import to_sympy
-from sosalgo.model import Algorithm, ModelError, evaluate_algorithm
+from sosalgo.model import ModelError, evaluate_algorithm
 from sosalgo.spec import Spec
 
-__all__ = ["PolyLMI", "check_polynomial", "fit_poly_lmi", "shift_matrices"]
+__all__ = ["ExactMethod", "PolyLMI", "check_polynomial", "exact_method", "poly_lmi",
+           "shift_tensor"]
 
 MAX_DEGREE = 12  # per free parameter; templates of higher degree are refused
-FIT_RTOL = 1e-11  # relative to the data scale; measured errors are ~1e-15
+KEYS = ("c0", "c1", "l0", "l1")
 
 
 def check_polynomial(spec: Spec, free: Sequence[str]) -> None:
@@ -74,33 +80,91 @@ def _show(expr: sp.Basic, n: int = 80) -> str:
     return text if len(text) <= n else text[: n - 3] + "..."
 
 
-def _cheb_nodes(d: int) -> np.ndarray:
-    j = np.arange(d + 1)
-    return np.cos(np.pi * (j + 0.5) / (d + 1))
+# --------------------------------------------------------------------------- exact method
+@dataclass
+class ExactMethod:
+    """The method with exact entries, polynomial in z ∈ [-1, 1]^k (θ = mid + half·z).
+
+    ``mid``/``half`` are exact (dyadic) and the box mid ± half contains Θ; ``m``, ``L``
+    are exact rationals; ``matrices`` maps A, B, C, E to sympy matrices in ``zs``.
+    """
+
+    free: list[str]
+    zs: list[sp.Symbol]
+    mid: list[Fraction]
+    half: list[Fraction]
+    m: sp.Rational
+    L: sp.Rational
+    matrices: dict[str, sp.Matrix]
+
+    @property
+    def k(self) -> int:
+        return len(self.free)
+
+    def theta(self, z: Sequence[float]) -> dict[str, float]:
+        return {p: float(mi + hi * Fraction(float(zi)))
+                for p, mi, hi, zi in zip(self.free, self.mid, self.half, z, strict=True)}
 
 
-def shift_matrices(center: float, half: float, degree: int) -> np.ndarray:
-    """S with p(center + half·u) = Σ_i u^i (S @ a)_i for p(z) = Σ_j a_j z^j."""
-    S = np.zeros((degree + 1, degree + 1))
-    for j in range(degree + 1):
-        for i in range(j + 1):
-            S[i, j] = comb(j, i) * center ** (j - i) * half**i
-    return S
+def _rat(x: float | Fraction) -> sp.Rational:
+    q = Fraction(x)
+    return sp.Rational(q.numerator, q.denominator)
 
 
-def _apply_axes(T: np.ndarray, mats: Sequence[np.ndarray]) -> np.ndarray:
-    """Apply mats[i] along axis i of T (the leading k axes)."""
-    for i, M in enumerate(mats):
-        T = np.moveaxis(np.tensordot(M, T, axes=([1], [i])), 0, i)
-    return T
+def _outward(lo: sp.Expr, hi: sp.Expr) -> tuple[Fraction, Fraction]:
+    """Float ends lo_f <= lo and hi_f >= hi of an exact interval."""
+    from sosalgo.verify.exact import enclose
+
+    a, b = enclose(lo), enclose(hi)
+    lo_f, hi_f = float(a.lo), float(b.hi)
+    if Fraction(lo_f) > a.lo:
+        lo_f = float(np.nextafter(lo_f, -np.inf))
+    if Fraction(hi_f) < b.hi:
+        hi_f = float(np.nextafter(hi_f, np.inf))
+    return Fraction(lo_f), Fraction(hi_f)
 
 
+def exact_method(spec: Spec, kappa: float, free: Sequence[str]) -> ExactMethod:
+    """The spec at ``kappa`` with the free parameters as scaled symbols (see class)."""
+    from sosalgo.spec.types import BASE_SYMBOLS, MATRIX_NAMES, value_order
+
+    check_polynomial(spec, free)
+    free = list(free)
+    kq = Fraction(float(kappa))
+    mq = Fraction(float(spec.m))
+    base = {BASE_SYMBOLS["m"]: _rat(mq), BASE_SYMBOLS["L"]: _rat(kq * mq),
+            BASE_SYMBOLS["kappa"]: _rat(kq)}
+    sym = spec.symbols
+    values: dict[sp.Symbol, sp.Expr] = dict(base)
+    for p in value_order(spec.parameters, spec.source):
+        par = spec.parameters[p]
+        if p in free:
+            values[sym[p]] = sym[p]
+            continue
+        values[sym[p]] = to_sympy(par.tied if par.is_tied else par.value).xreplace(values)
+    zs = [sp.Symbol(f"z{i}", real=True) for i in range(len(free))]
+    mid, half = [], []
+    for p in free:
+        lo_e, hi_e = (to_sympy(e).xreplace(values) for e in spec.parameters[p].range)
+        lo, hi = _outward(lo_e, hi_e)
+        mid.append((lo + hi) / 2)
+        half.append((hi - lo) / 2)
+    scaled = {sym[p]: _rat(mi) + _rat(hi) * z
+              for p, mi, hi, z in zip(free, mid, half, zs, strict=True)}
+    mats = {k: spec.sympy_matrices()[k].xreplace(values).xreplace(scaled)
+            for k in MATRIX_NAMES}
+    return ExactMethod(free, zs, mid, half, _rat(mq), _rat(kq * mq), mats)
+
+
+# --------------------------------------------------------------------------- LMI data
 @dataclass
 class PolyLMI:
     """Block data of a family as polynomials in z ∈ [-1, 1]^k (θ = mid + half·z).
 
-    ``coef[b][name]`` has shape (D_1+1, ..., D_k+1, *data shape) with monomial
-    coefficients; ``name`` is one of ``c0, c1, l0, l1``.
+    ``coef[b][name]`` (floats: the balls' midpoints) has shape (D_1+1, ..., D_k+1, *data
+    shape) with monomial coefficients; ``name`` is one of ``c0, c1, l0, l1``.
+    ``balls`` holds every coefficient as a ball: an arb matrix with one row per monomial
+    (row-major over the degree grid) and the columns ``cols[b][name]`` (start, shape).
     """
 
     free: list[str]
@@ -111,12 +175,17 @@ class PolyLMI:
     strict: list[bool]
     coef: list[dict[str, np.ndarray]]
     template: LMIProblem  # a problem at some θ: unpack/project do not depend on θ
+    balls: arb_mat | None = None
+    cols: list[dict[str, tuple[int, tuple[int, ...]]]] | None = None
+    method: ExactMethod | None = None
 
     @property
     def k(self) -> int:
         return len(self.free)
 
     def theta(self, z: Sequence[float]) -> dict[str, float]:
+        if self.method is not None:
+            return self.method.theta(z)
         th = self.mid + self.half * np.asarray(z, dtype=float)
         return dict(zip(self.free, map(float, th), strict=True))
 
@@ -131,56 +200,79 @@ class PolyLMI:
         """Coefficients of block ``b``'s ``name`` in local coordinates u of a sub-box."""
         return shift_tensor(self.coef[b][name], self.degrees, center, half)
 
-    def at(self, z: Sequence[float]) -> LMIProblem:
-        """The numeric problem at scaled point z (evaluated from the polynomials)."""
-        blocks = []
-        for b, name in enumerate(self.names):
-            data = {key: evaluate_tensor(arr, self.degrees, z)
-                    for key, arr in self.coef[b].items()}
-            blocks.append(AffineBlock(name, data["c0"], data["c1"], data["l0"], data["l1"],
-                                      self.strict[b]))
-        return LMIProblem(self.template.nvar, tuple(blocks), self.template.unpack,
-                          self.template.project)
+    def shifted_balls(self, center: np.ndarray, half: np.ndarray) -> arb_mat:
+        """All ball coefficients in local coordinates u of the sub-box center + half·u."""
+        assert self.balls is not None
+        S = arb_mat([[1]])
+        for c, h, d in zip(center, half, self.degrees, strict=True):
+            S = enc.kron(S, enc.shift_matrix(float(c), float(h), d))
+        return S * self.balls
 
 
-def fit_tensor(
-    fn: Callable[[np.ndarray], np.ndarray], half: np.ndarray
-) -> tuple[tuple[int, ...], np.ndarray, float]:
-    """Monomial coefficients (in z ∈ [-1, 1]^k) of a vector-valued polynomial ``fn(z)``.
-
-    The degree along each axis comes from a high-degree 1-D fit through the center
-    (trailing coefficients below 1e-9 of the data scale dropped), then one tensor
-    Chebyshev grid of those degrees is interpolated. Returns (degrees, coef, scale) with
-    coef of shape (D_1+1, ..., D_k+1, len(fn(z))).
-    """
-    k = len(half)
-    base = np.asarray(fn(np.zeros(k)), dtype=float)
-    scale = max(1.0, float(np.abs(base).max()))
-    degrees = []
-    for i in range(k):
-        if half[i] == 0:
-            degrees.append(0)
-            continue
-        nodes = _cheb_nodes(MAX_DEGREE)
-        vals = []
-        for t in nodes:
-            z = np.zeros(k)
-            z[i] = t
-            vals.append(fn(z))
-        V = np.vander(nodes, MAX_DEGREE + 1, increasing=True)
-        c = np.linalg.solve(V, np.array(vals))
-        mags = np.abs(c).max(axis=1)
-        nz = np.nonzero(mags > 1e-9 * scale)[0]
-        degrees.append(int(nz[-1]) if nz.size else 0)
-    grids = [_cheb_nodes(d) for d in degrees]
+def poly_lmi(method: ExactMethod, family: CertificateFamily, template: LMIProblem
+             ) -> PolyLMI | None:
+    """The family's exact blocks at ``method`` as polynomial data (None: no exact form)."""
+    A, B, C, E = (method.matrices[k] for k in ("A", "B", "C", "E"))
+    blocks = family.exact_problem(A, B, C, E, method.m, method.L)
+    if blocks is None:
+        return None
+    entries: list[sp.Expr] = []
+    layout = []
+    for blk in blocks:
+        pos = {}
+        for key in KEYS:
+            mats = _key_mats(blk, key)
+            shape = (len(mats), *mats[0].shape) if key in ("l0", "l1") else mats[0].shape
+            pos[key] = (len(entries), tuple(shape))
+            for M in mats:
+                entries.extend(M)  # row-major
+        layout.append(pos)
+    polys = [sp.Poly(sp.expand(e), *method.zs) if method.zs else None for e in entries]
+    degrees = tuple(max((p.degree(z) for p in polys), default=0) if polys else 0
+                    for z in method.zs)
+    if any(d > MAX_DEGREE for d in degrees):
+        raise ModelError("parameters", f"the certificate data have degree {max(degrees)} "
+                         f"> {MAX_DEGREE} in a free parameter; design refuses it")
+    nmono = int(np.prod([d + 1 for d in degrees]))
+    cols = [[arb(0)] * len(entries) for _ in range(nmono)]
+    for j, (e, p) in enumerate(zip(entries, polys, strict=True)):
+        terms = p.terms() if p is not None else [((), e)]
+        for monom, c in terms:
+            row = int(np.ravel_multi_index(monom, [d + 1 for d in degrees])) if monom else 0
+            cols[row][j] = enc.sympy_ball(sp.sympify(c))
+    balls = arb_mat(cols)
+    mids = np.array([[float(x.mid()) for x in row] for row in cols])
     shape = tuple(d + 1 for d in degrees)
-    data = np.empty(shape + base.shape)
-    for idx in np.ndindex(*shape):
-        data[idx] = fn(np.array([grids[i][j] for i, j in enumerate(idx)]))
-    inv = [np.linalg.inv(np.vander(g, len(g), increasing=True)) for g in grids]
-    coef = _apply_axes(data, inv)
-    coef[np.abs(coef) < 1e-13 * scale] = 0.0
-    return tuple(degrees), coef, scale
+    coef = [{key: mids[:, s:s + int(np.prod(sh))].reshape(shape + sh)
+             for key, (s, sh) in pos.items()} for pos in layout]
+    return PolyLMI(list(method.free), np.array([float(x) for x in method.mid]),
+                   np.array([float(x) for x in method.half]), degrees,
+                   [b.name for b in blocks], [b.strict for b in blocks], coef, template,
+                   balls, layout, method)
+
+
+def _key_mats(blk: ExactBlock, key: str) -> list[sp.Matrix]:
+    val = getattr(blk, key)
+    return list(val) if key in ("l0", "l1") else [val]
+
+
+# --------------------------------------------------------------------------- floats
+def shift_matrices(center: float, half: float, degree: int) -> np.ndarray:
+    """S with p(center + half·u) = Σ_i u^i (S @ a)_i for p(z) = Σ_j a_j z^j."""
+    from math import comb
+
+    S = np.zeros((degree + 1, degree + 1))
+    for j in range(degree + 1):
+        for i in range(j + 1):
+            S[i, j] = comb(j, i) * center ** (j - i) * half**i
+    return S
+
+
+def _apply_axes(T: np.ndarray, mats: Sequence[np.ndarray]) -> np.ndarray:
+    """Apply mats[i] along axis i of T (the leading k axes)."""
+    for i, M in enumerate(mats):
+        T = np.moveaxis(np.tensordot(M, T, axes=([1], [i])), 0, i)
+    return T
 
 
 def evaluate_tensor(coef: np.ndarray, degrees: Sequence[int], z: Sequence[float]) -> np.ndarray:
@@ -198,51 +290,7 @@ def shift_tensor(coef: np.ndarray, degrees: Sequence[int], center: np.ndarray,
     return _apply_axes(coef, mats)
 
 
-def _flatten(problem: LMIProblem) -> np.ndarray:
-    return np.concatenate([np.concatenate([b.c0.ravel(), b.c1.ravel(), b.l0.ravel(),
-                                           b.l1.ravel()]) for b in problem.blocks])
-
-
-def fit_poly_lmi(
-    spec: Spec, kappa: float, free: Sequence[str], box: Sequence[tuple[float, float]],
-    family: CertificateFamily, seed: int = 0,
-) -> PolyLMI:
-    """Interpolate the family's data over ``box`` (see module docstring)."""
-    check_polynomial(spec, free)
-    free = list(free)
-    lo = np.array([b[0] for b in box], dtype=float)
-    hi = np.array([b[1] for b in box], dtype=float)
-    mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
-
-    def problem_at(z: np.ndarray) -> LMIProblem:
-        th = dict(zip(free, map(float, mid + half * z), strict=True))
-        alg: Algorithm = evaluate_algorithm(spec, kappa, th)
-        return family.problem(alg)
-
-    k = len(free)
-    template = problem_at(np.zeros(k))
-    degrees, coef, scale = fit_tensor(lambda z: _flatten(problem_at(z)), half)
-    shape = tuple(d + 1 for d in degrees)
-    # unflatten into blocks
-    out: list[dict[str, np.ndarray]] = []
-    pos = 0
-    for blk in template.blocks:
-        entry = {}
-        for key, arr in (("c0", blk.c0), ("c1", blk.c1), ("l0", blk.l0), ("l1", blk.l1)):
-            size = arr.size
-            entry[key] = coef[..., pos:pos + size].reshape(shape + arr.shape)
-            pos += size
-        out.append(entry)
-    model = PolyLMI(free, mid, half, tuple(degrees), [b.name for b in template.blocks],
-                    [b.strict for b in template.blocks], out, template)
-    rng = np.random.default_rng(seed)
-    for _ in range(3):  # the fit must reproduce the family at points off the grid
-        z = rng.uniform(-1, 1, size=k)
-        direct, fitted = _flatten(problem_at(z)), _flatten(model.at(z))
-        if np.abs(direct - fitted).max() > FIT_RTOL * scale:
-            raise ModelError(
-                "parameters",
-                f"the certificate data are not polynomial in {', '.join(free)} of degree "
-                f"<= {MAX_DEGREE}; design needs polynomial dependence",
-            )
-    return model
+def numeric_template(spec: Spec, kappa: float, method: ExactMethod,
+                     family: CertificateFamily) -> LMIProblem:
+    """The family's numeric problem at the box center (its unpack/project, sizes)."""
+    return family.problem(evaluate_algorithm(spec, kappa, method.theta(np.zeros(method.k))))
