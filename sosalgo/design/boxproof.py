@@ -22,7 +22,7 @@ from collections.abc import Sequence
 import numpy as np
 from flint import arb, arb_mat
 
-from sosalgo.design import enclosure as enc
+import sosalgo.design.enclosure as enc
 from sosalgo.design.polymodel import PolyLMI
 
 __all__ = ["BoxProver"]

@@ -460,8 +460,23 @@ class BoundSearch:
                     Zs = Zc
             if Zs is not None:
                 box.lb = max(box.lb, self._proven_up_to(box, data, Zs, T2, cov))
+            if box.lb < T2:
+                box.lb = max(box.lb, self._prove_part(box, data, T2))
             self._split(box)
         return st
+
+    def _prove_part(self, box: _Box, data, T2: float) -> float:
+        """A box that resists at T²: prove it for ρ² up to halfway between what it inherited
+        and T² (so a partial bound grows with every split); returns the r proven, or 0."""
+        r = box.lb + 0.5 * (T2 - box.lb)
+        out = self._dual(data, (0.0, r))
+        if out is None:
+            return 0.0
+        Zs, bd, cov = out
+        ok = self._holds(data, Zs, 0.0, bd[0]) and self._holds(data, Zs, r, bd[1])
+        if ok and self.prover.proves(box.zc, box.w, Zs, bd, (0.0, r), cov):
+            return r
+        return 0.0
 
     def _split(self, box: _Box) -> None:
         if box.w.size == 0 or box.w.max() < MIN_HALF_WIDTH:

@@ -27,7 +27,7 @@ import numpy as np
 import sympy as sp
 from flint import arb, arb_mat
 
-from sosalgo.design import enclosure as enc
+import sosalgo.design.enclosure as enc
 from sosalgo.design.polymodel import ExactMethod
 
 __all__ = ["ModeTest"]

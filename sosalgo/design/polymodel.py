@@ -28,8 +28,8 @@ import numpy as np
 import sympy as sp
 from flint import arb, arb_mat
 
+import sosalgo.design.enclosure as enc
 from sosalgo.certificates.base import CertificateFamily, ExactBlock, LMIProblem
-from sosalgo.design import enclosure as enc
 from sosalgo.expr.parse import to_sympy
 from sosalgo.model import ModelError, evaluate_algorithm
 from sosalgo.spec import Spec
