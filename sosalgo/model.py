@@ -186,22 +186,16 @@ def bind(spec: Spec, kappa: float, theta: Mapping[str, float] | None = None) -> 
     """Numeric Algorithm at condition number ``kappa`` (m = spec.m, L = kappa m).
 
     ``theta`` sets input parameters (others keep their ``value``; tied ones follow).
-    The fixed-point conditions of eq. (11) are checked.
+    The fixed-point conditions of eq. (11) are checked (by :class:`Algorithm`).
     """
-    alg = evaluate_algorithm(spec, kappa, theta)
-    if fixed_point(alg) is None:
-        raise ModelError(
-            "matrices",
-            "no fixed point: eq. (11) needs u with (I - A) u = 0, C u = 1, E u = 1",
-        )
-    return alg
+    return evaluate_algorithm(spec, kappa, theta)
 
 
 def evaluate_algorithm(
     spec: Spec, kappa: float, theta: Mapping[str, float] | None = None
 ) -> Algorithm:
-    """The numeric templates at ``kappa`` and ``theta`` without the fixed-point check
-    (design evaluates them at interpolation nodes, where only the data matter)."""
+    """The numeric templates at ``kappa`` and ``theta`` as an :class:`Algorithm` (which
+    refuses a method without the fixed point of eq. (11), :class:`ModelError`)."""
     if not (np.isfinite(kappa) and kappa > 1):
         raise ModelError("kappa", f"condition number must be > 1, got {kappa:g}")
     comp = _compiled(spec)

@@ -30,7 +30,7 @@ def test_theta_overrides_and_tied_parameters_follow():
         bind(spec, 10.0, {"gamma": 0.1})
 
 
-def test_no_fixed_point_is_refused_by_bind_not_by_evaluation():
+def test_loader_refuses_a_spec_without_fixed_point():
     text = ("name: drift\nparameters:\n  h: {value: 1/L, range: [0, 2/L]}\nmatrices:\n"
             "  A: [[1, 1], [0, 1]]\n  B: [[0], [-h]]\n  C: [[0, 1]]\n  E: [[0, 1]]\n"
             "kappa: 10\n")
@@ -45,10 +45,15 @@ def test_algorithm_accepts_lists_and_refuses_no_fixed_point():
         Algorithm([[0.5]], [[-0.1]], [[1.0]], [[1.0]], 1.0, 10.0)  # (1 - A) u = 0 forces u = 0
 
 
-def test_evaluate_algorithm_skips_only_the_fixed_point_check():
+def test_bind_refuses_kappa_at_most_one_and_a_parameter_without_fixed_point():
     spec = load_spec(SPECS / "gradient.yaml")
-    a, b = bind(spec, 7.0, {"h": 0.1}), evaluate_algorithm(spec, 7.0, {"h": 0.1})
-    for x, y in ((a.A, b.A), (a.B, b.B), (a.C, b.C), (a.E, b.E)):
-        np.testing.assert_allclose(x, y, rtol=0, atol=0)
-    with pytest.raises(ModelError):
+    with pytest.raises(ModelError, match="kappa"):
         bind(spec, 1.0)  # kappa must be > 1
+    drift = spec_from_text("name: d\nparameters:\n  a: {value: 1, range: [0.5, 1]}\n"
+                           "matrices:\n  A: [[a]]\n  B: [[-1/L]]\n  C: [[1]]\n  E: [[1]]\n"
+                           "kappa: 10\n")
+    assert bind(drift, 10.0).n == 1
+    with pytest.raises(ModelError, match="fixed point"):
+        bind(drift, 10.0, {"a": 0.75})  # (1 - a) u = 0 forces u = 0: no fixed point
+    with pytest.raises(ModelError, match="fixed point"):
+        evaluate_algorithm(drift, 10.0, {"a": 0.75})  # the same check, one place
