@@ -1,27 +1,35 @@
 """Analysis: the best rate a certificate family certifies for fixed parameters (eq. 16).
 
-For fixed rho the inequality of Theorem 1 is an LMI in (P, lambda); bisection on rho in
-[0, 1] returns the smallest rho found feasible, with its certificate. Only a step the
-solver reports *solved* and whose point passes the eigenvalue check counts as feasible
-(see :mod:`sosalgo.solvers`), so a reported rate always comes with a checked certificate.
+For fixed rho the inequality of Theorem 1 is an LMI in (P, lambda); a bracketed search on
+rho in [0, 1] (Newton-type steps on a continuous feasibility margin, else bisection)
+returns the smallest rho found feasible, with its certificate. Only a step the solver
+reports *solved* and whose point passes the eigenvalue check counts as feasible (see
+:mod:`sosalgo.solvers`), so a reported rate always comes with a checked certificate.
+
+The bracket is closed to ``tol`` and to ``REL_TOL`` (1 - rho), so that 1 - rho keeps three
+significant digits however close to 1 the rate is (large kappa); where the solver's
+default accuracy cannot tell the margin's sign at the needed resolution, the point is
+solved again at a hundred times tighter tolerances.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from sosalgo import solvers as _solvers
 from sosalgo.certificates import FAMILIES, get_family
 from sosalgo.certificates.base import CertificateFamily, LMIProblem
 from sosalgo.model import Algorithm, bind
 from sosalgo.solvers import (
     DEFAULT_SOLVERS,
     Feasibility,
+    Margin,
     Outcome,
     check_point,
     solve_lmi,
@@ -35,6 +43,19 @@ __all__ = [
 ]
 
 DEFAULT_TOL = 1e-6
+REL_TOL = 1e-3  # the bracket is also closed to REL_TOL * (1 - rho)
+FLOOR_TOL = 1e-13  # ... but not below this width (rates within ~1e-12 of 1 are not resolved)
+Tolerance = Callable[[float], float]  # bracket width needed when its lower end is at rho
+UNDECIDED_AT_ONE = ("not decided at rho = 1: the feasibility margin there is below the "
+                    "solver's accuracy (kappa too large; see README, 'How large κ can be')")
+UNRESOLVED = ("1 - rho not resolved: the rate is too close to 1 for the solver's accuracy "
+              "(kappa too large; see README, 'How large κ can be')")
+
+
+def _tolerance(tol: float) -> Tolerance:
+    """The width a bracket [lo, hi] must reach: ``tol``, and at most ``REL_TOL`` (1 - lo)
+    (not below ``FLOOR_TOL``), so that 1 - rho is resolved to three digits at any kappa."""
+    return lambda lo: min(tol, max(REL_TOL * (1.0 - lo), FLOOR_TOL))
 
 
 @dataclass(frozen=True)
@@ -55,6 +76,7 @@ class AnalysisResult:
     params: dict[str, float] = field(default_factory=dict)
     family: str = "theorem1"
     certificate: dict[str, Any] | None = None  # the family's named parts (unpack)
+    warning: str | None = None  # a limit of the solver's accuracy met (large kappa)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict (the `rows` entries of ``sosalgo analyze --json``)."""
@@ -72,7 +94,8 @@ class AnalysisResult:
             "rho_infeasible": self.rho_infeasible,
             "params": dict(self.params),
             "family": self.family,
-        } | ({} if _is_default(self.family) else {"certificate": jsonable(self.certificate)})
+        } | ({} if _is_default(self.family) else {"certificate": jsonable(self.certificate)}) | (
+            {} if self.warning is None else {"warning": self.warning})
 
 
 def _is_default(family: str) -> bool:
@@ -95,34 +118,89 @@ def jsonable(v: Any) -> Any:
 class _Search:
     """Counts solves and classifies one rho: certified (with a checked point) or not."""
 
-    def __init__(self, problem: LMIProblem, solvers: Sequence[str], use_margin: bool):
+    def __init__(self, problem: LMIProblem, solvers: Sequence[str], use_margin: bool,
+                 tol: Tolerance):
         self.problem, self.solvers, self.use_margin = problem, solvers, use_margin
+        self.tol = tol
         self.solves = 0
         self.slope: float | None = None  # dt/drho of the last margin solve
+        self.undecided = False  # the last margin's sign was within the solver's accuracy
+        # rho -> how far the margin's root may be from where t and the slope put it (the
+        # duality gap over the slope, or above an uncertified rho with t > 0)
+        self.spread: dict[float, float] = {}
 
     def plain(self, rho: float) -> Outcome:
         self.solves += 1
         return solve_lmi(self.problem, rho, self.solvers)
 
+    @staticmethod
+    def tiny(rho: float) -> bool:
+        """Whether t(rho) may be below the solver's tolerance, so that its duality gap does
+        not show all of its error: at rho = 1 and near it (1 - rho < REL_TOL)."""
+        return rho >= 1.0 - REL_TOL
+
+    def margin(self, rho: float) -> Margin:
+        """t(rho), solved again precisely when its sign is within the default accuracy and
+        that uncertainty would move the root by more than a quarter tolerance."""
+        self.solves += 1
+        mg = solve_margin(self.problem, rho)
+        floor = self.tiny(rho)
+        if mg.undecided(floor):
+            d = mg.slope
+            if d is None or not d > 0 or mg.noise(floor) / d > 0.25 * self.tol(rho):
+                return self.precise(rho, mg)
+        self.undecided = mg.undecided(floor)
+        return mg
+
+    def precise(self, rho: float, mg: Margin) -> Margin:
+        """t(rho) at the solver's tighter tolerances (``mg`` if that fails)."""
+        self.solves += 1
+        again = _solvers.solve_margin(self.problem, rho, precise=True)
+        mg = again if again.ok else mg
+        self.undecided = mg.undecided(self.tiny(rho))
+        return mg
+
+    def checked(self, rho: float, mg: Margin) -> Outcome | None:
+        """The checked certificate of a margin t > 0 (None when there is none)."""
+        if mg.ok and mg.t is not None and mg.t > 0 and mg.x is not None:
+            out = check_point(self.problem, rho, mg.x, "clarabel-margin")
+            return out if out.feasible else None
+        return None
+
     def test(self, rho: float) -> tuple[Outcome, float | None]:
         """(outcome, margin t); the margin is None when not computed or not trusted."""
         if not self.use_margin:
             return self.plain(rho), None
-        self.solves += 1
-        mg = solve_margin(self.problem, rho)
+        mg = self.margin(rho)
+        out = self.checked(rho, mg)
+        if out is None and mg.t is not None and mg.t > 0 and not mg.precise and (
+                self.tiny(rho) or _spread(mg, False) > 0.25 * self.tol(rho)):
+            mg = self.precise(rho, mg)  # a rescaled point too close to call: solve precisely
+            out = self.checked(rho, mg)
         self.slope = mg.slope if mg.ok else None
         if not mg.ok or mg.t is None:
             return self.plain(rho), None
-        if mg.t > 0 and mg.x is not None:
-            out = check_point(self.problem, rho, mg.x, "clarabel-margin")
-            if out.feasible:
-                return out, mg.t
-            return self.plain(rho), mg.t  # a rescaled point too close to call: ask plainly
-        return Outcome(Feasibility.INFEASIBLE, None, "clarabel-margin", f"margin {mg.t:.3g}"), mg.t
+        if out is None and mg.t > 0:
+            out = self.plain(rho)  # still too close to call: ask plainly
+        elif out is None:
+            out = Outcome(Feasibility.INFEASIBLE, None, "clarabel-margin", f"margin {mg.t:.3g}")
+        self.spread[rho] = _spread(mg, out.feasible)
+        return out, mg.t
 
 
-def _bisect(search: _Search, lo: float, hi: float, best: Outcome, tol: float):
-    while hi - lo > tol:
+def _spread(mg: Margin, certified: bool) -> float:
+    """How far the margin's root may be from where t and its slope put it: the duality gap
+    over the slope at a certified rho; at an uncertified one, how far below rho the root
+    may be (t > 0 that could not be checked, or a gap that reaches above 0)."""
+    d = mg.slope
+    if d is None or not d > 0:
+        return math.inf if certified else 0.0
+    gap = 0.0 if mg.t_upper is None else max(mg.t_upper - mg.t, 0.0)
+    return gap / d if certified else max(mg.t if mg.t > 0 else mg.t + gap, 0.0) / d
+
+
+def _bisect(search: _Search, lo: float, hi: float, best: Outcome, tol: Tolerance):
+    while hi - lo > tol(lo):
         mid = 0.5 * (lo + hi)
         out, _ = search.test(mid)
         if out.feasible:
@@ -156,7 +234,7 @@ def _estimate(lo: float, hi: float, upper: list, lower: list) -> float:
     return 0.5 * (lo + hi)
 
 
-def _secant(search: _Search, t_one: float, best: Outcome, tol: float):
+def _secant(search: _Search, t_one: float, best: Outcome, tol: Tolerance):
     """Bracketed root-finding on the margin t(rho).
 
     Near the threshold t is close to piecewise linear with a kink at the root, so the
@@ -188,20 +266,20 @@ def _secant(search: _Search, t_one: float, best: Outcome, tol: float):
         if out0.feasible:
             return 0.0, 0.0, out0
         record(0.0, out0, t0)
-    while hi - lo > tol:
+    while hi - lo > (tl := tol(lo)):
         width = hi - lo
         est = _estimate(lo, hi, upper, lower)
-        x = min(max(est + 0.25 * tol, lo + 0.25 * tol), hi - 0.25 * tol)
+        x = min(max(est + 0.25 * tl, lo + 0.25 * tl), hi - 0.25 * tl)
         out, t = search.test(x)
         record(x, out, t)
-        if out.feasible and hi - lo > tol and len(upper) >= 2:
+        if out.feasible and hi - lo > tl and len(upper) >= 2:
             again = _line_root(upper[-2], upper[-1])
-            if again is not None and abs(again - est) < 0.25 * tol and lo < est - 0.25 * tol:
-                below = est - 0.25 * tol  # the estimate is confirmed: close from below
+            if again is not None and abs(again - est) < 0.25 * tl and lo < est - 0.25 * tl:
+                below = est - 0.25 * tl  # the estimate is confirmed: close from below
                 out, t = search.test(below)
                 record(below, out, t)
                 continue
-        if hi - lo > 0.5 * width and hi - lo > tol:
+        if hi - lo > 0.5 * width and hi - lo > tol(lo):
             mid = 0.5 * (lo + hi)  # poor progress: one bisection step
             out, t = search.test(mid)
             record(mid, out, t)
@@ -209,7 +287,7 @@ def _secant(search: _Search, t_one: float, best: Outcome, tol: float):
 
 
 def _newton(search: _Search, ups: list, down: tuple | None, lo: float, hi: float,
-            best: Outcome, tol: float, skip_stale: bool = False):
+            best: Outcome, tol: Tolerance, skip_stale: bool = False):
     """Bracketed Newton-type iteration on the margin t(rho), slopes from the dual solution.
 
     Above the threshold t is smooth and convex-like; the estimate from the certified side is
@@ -243,12 +321,13 @@ def _newton(search: _Search, ups: list, down: tuple | None, lo: float, hi: float
 
     confirmed_at = None
     for step in range(200):
-        if hi - lo <= tol:
+        tl = tol(lo)
+        if hi - lo <= tl:
             break
         nxt = newton(ups[-1]) if ups and ups[-1][0] == hi else None
-        if nxt is not None and hi - nxt < 0.5 * tol and confirmed_at != hi:
+        if nxt is not None and hi - nxt < 0.5 * tl and confirmed_at != hi:
             confirmed_at = hi  # the estimate is confirmed: close from below, once per hi
-            below = max(hi - 0.999 * tol, lo + 0.5 * tol)
+            below = max(hi - 0.999 * tl, lo + 0.5 * tl)
             out, t = search.test(below)
             if out.feasible:
                 hi, best = below, out
@@ -259,14 +338,14 @@ def _newton(search: _Search, ups: list, down: tuple | None, lo: float, hi: float
                 down = (below, t, search.slope) if t is not None and t < 0 else down
             continue
         est_u, est_l = from_above(), newton(down) if down else None
-        if skip_stale and est_l is not None and est_l > hi - 0.5 * tol:
+        if skip_stale and est_l is not None and est_l > hi - 0.5 * tl:
             est_l = None  # already tested (it gave hi): a step there barely narrows the bracket
         ests = [e for e in (est_u, est_l) if e is not None]
-        if est_u is not None and hi - est_u < 20 * tol:
+        if est_u is not None and hi - est_u < 20 * tl:
             est = est_u  # a short step from a certified point is accurate
         else:
             est = max(ests) if ests and step < 60 else 0.5 * (lo + hi)
-        x = min(max(est + 0.25 * tol, lo + 0.25 * tol), hi - 0.25 * tol)
+        x = min(max(est + 0.25 * tl, lo + 0.25 * tl), hi - 0.25 * tl)
         out, t = search.test(x)
         if not out.feasible:
             lo = x
@@ -285,12 +364,13 @@ def analyze_algorithm(
     solvers: Sequence[str] = DEFAULT_SOLVERS,
     method: str = "secant",
 ) -> AnalysisResult:
-    """Smallest certified rho in [0, 1] to width ``tol`` (eq. 16).
+    """Smallest certified rho in [0, 1] to width ``tol`` and ``REL_TOL`` (1 - rho) (eq. 16).
 
     ``method="secant"`` (default) root-finds on the continuous margin of
     :func:`sosalgo.solvers.solve_margin`; ``"bisection"`` (also used whenever ``solvers``
     is not the default chain) tests plain feasibility only.
-    Both keep a bracket [lo, hi] with hi certified by a checked certificate.
+    Both keep a bracket [lo, hi] with hi certified by a checked certificate. ``warning``
+    says when the solver's accuracy decided the outcome (a rate too close to 1).
     """
     if not tol > 0:
         raise ValueError("tol must be positive")
@@ -303,15 +383,17 @@ def analyze_algorithm(
     use_margin = method == "secant" and tuple(solvers) == DEFAULT_SOLVERS
     # a family may name a shorter fallback chain for points the margin path cannot check
     fallback = getattr(fam, "fallback_solvers", None) if use_margin else None
-    search = _Search(problem, fallback or solvers, use_margin=use_margin)
+    width = _tolerance(tol)
+    search = _Search(problem, fallback or solvers, use_margin, width)
     quad = quadratic_rate(alg, 201) if use_margin and getattr(fam, "tight", False) else None
     lo0, down0 = 0.0, None
-    if quad is not None and quad < 1 - tol:
+    if quad is not None and quad < 1 - width(quad):
         cheap = getattr(fam, "guess_problem", None)
         proxy = cheap(alg) if cheap is not None else None
-        lo, hi, best_near, ups, down0 = _start_near(search, quad, tol, proxy)
+        lo, hi, best_near, ups, down0 = _start_near(search, quad, width(quad), proxy)
         if best_near is not None:
-            lo, hi, best = _newton(search, ups, down0, lo, hi, best_near, tol, skip_stale=True)
+            lo, hi, best = _newton(search, ups, down0, lo, hi, best_near, width,
+                                   skip_stale=True)
             return _result(alg, fam, problem, search, lo, hi, best, start)
         lo0 = lo
     best, t_one = search.test(1.0)
@@ -321,13 +403,16 @@ def analyze_algorithm(
             kappa=alg.kappa, rho=None, certified=False, P=None, lam=None, max_eig_M=None,
             min_eig_P=None, solves=search.solves, seconds=time.perf_counter() - start,
             solver=None, rho_infeasible=1.0, params=dict(alg.params), family=fam.name,
+            # the margin's sign within the solver's accuracy, or a positive margin whose
+            # point is too close to 0 to check: the solver cannot decide this kappa
+            warning=UNDECIDED_AT_ONE if search.undecided or (t_one or 0) > 0 else None,
         )
     if method == "secant" and t_one is not None and slope_one is not None:
-        lo, hi, best = _newton(search, [(1.0, t_one, slope_one)], down0, lo0, 1.0, best, tol)
+        lo, hi, best = _newton(search, [(1.0, t_one, slope_one)], down0, lo0, 1.0, best, width)
     elif method == "secant" and t_one is not None:
-        lo, hi, best = _secant(search, t_one, best, tol)
+        lo, hi, best = _secant(search, t_one, best, width)
     else:
-        lo, hi, best = _bisect(search, 0.0, 1.0, best, tol)
+        lo, hi, best = _bisect(search, 0.0, 1.0, best, width)
     return _result(alg, fam, problem, search, lo, hi, best, start)
 
 
@@ -439,6 +524,11 @@ def _climb_estimate(prev: tuple | None, cur: tuple) -> float:
 def _result(alg: Algorithm, fam: CertificateFamily, problem: LMIProblem, search: _Search,
             lo: float, hi: float, best: Outcome, start: float) -> AnalysisResult:
     solves = search.solves
+    # the bracket closes to REL_TOL (1 - lo) (> REL_TOL (1 - hi)) unless the floor stopped
+    # it; and the margins at its ends must place the root that well
+    spread = max(search.spread.get(hi, 0.0), search.spread.get(lo, 0.0))
+    unresolved = max(hi - lo, spread) > 2 * REL_TOL * (1 - hi)
+    warning = UNRESOLVED if unresolved else None
     assert best.x is not None
     cert = problem.unpack(best.x)
     P = np.asarray(cert["P"])
@@ -455,6 +545,7 @@ def _result(alg: Algorithm, fam: CertificateFamily, problem: LMIProblem, search:
         lam=None if lam is None else float(lam), max_eig_M=eigs[0], min_eig_P=eigs[1],
         solves=solves, seconds=time.perf_counter() - start, solver=best.solver,
         rho_infeasible=lo, params=dict(alg.params), family=fam.name, certificate=cert,
+        warning=warning,
     )
 
 

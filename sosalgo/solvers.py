@@ -36,6 +36,8 @@ __all__ = [
 
 SQRT2 = math.sqrt(2.0)
 RELATIVE_MARGIN = 1e-9
+DEFAULT_TOL = 1e-8  # Clarabel's default tolerances (gap, feasibility)
+PRECISE_TOL = 1e-10  # ... and those of a precise margin
 
 
 class Feasibility(StrEnum):
@@ -138,7 +140,7 @@ def margin_for(problem: LMIProblem, rho: float) -> float:
 
 
 @functools.cache
-def _clarabel_settings(equilibrate: bool, refine: bool = True):
+def _clarabel_settings(equilibrate: bool, refine: bool = True, precise: bool = False):
     import clarabel
 
     settings = clarabel.DefaultSettings()
@@ -147,6 +149,10 @@ def _clarabel_settings(equilibrate: bool, refine: bool = True):
     settings.presolve_enable = False
     settings.equilibrate_enable = equilibrate
     settings.iterative_refinement_enable = refine
+    if precise:  # a hundred times tighter: two or three more iterations
+        settings.tol_gap_abs = settings.tol_gap_rel = settings.tol_feas = PRECISE_TOL
+        settings.tol_ktratio = PRECISE_TOL
+        settings.max_iter = 400
     return settings
 
 
@@ -288,7 +294,8 @@ class _MarginForm:
         self.A, self.v0, self.v1 = _csc_pattern(self.dense0, self.dense1)
         self.zero_P = _zero_csc(self.nz)
         self._cones: list | None = None
-        self.solvers: dict[bool, Any] = {}  # Clarabel solvers kept for data updates (by rough)
+        # Clarabel solvers kept for data updates, by (rough, precise)
+        self.solvers: dict[tuple[bool, bool], Any] = {}
 
     def cones(self) -> list:
         """Clarabel cones (built once): runs of scalar rows become one nonnegative cone."""
@@ -339,37 +346,40 @@ class Margin:
     """Feasibility margin t(rho) and, when t > 0 and c > 0, the rescaled certificate x/c."""
 
     ok: bool  # the solver reported solved
-    t: float | None
+    t: float | None  # the solver's (primal) t: t(rho) >= t when ok
     x: np.ndarray | None
     detail: str = ""
     slope: float | None = None  # dt/drho from the dual solution (envelope theorem)
+    t_upper: float | None = None  # the dual objective's bound: t(rho) <= t_upper (about)
+    precise: bool = False  # solved at PRECISE_TOL
+
+    def noise(self, floor: bool = True) -> float:
+        """How far t(rho) may be above t: the duality gap and, with ``floor``, at least the
+        solver's tolerance (where t is tiny the dual bound itself is only that accurate)."""
+        gap = 0.0 if self.t is None or self.t_upper is None else max(self.t_upper - self.t, 0.0)
+        return max(gap, PRECISE_TOL if self.precise else DEFAULT_TOL) if floor else gap
+
+    def undecided(self, floor: bool = True) -> bool:
+        """Whether a t <= 0 is within the solver's accuracy: t(rho) may still be > 0."""
+        return self.ok and self.t is not None and self.t <= 0 < self.t + self.noise(floor)
 
 
-def solve_margin(problem: LMIProblem, rho: float, rough: bool = False) -> Margin:
+def solve_margin(problem: LMIProblem, rho: float, rough: bool = False,
+                 precise: bool = False) -> Margin:
     """t(rho) of the homogenized margin problem (Clarabel without, then with equilibration).
 
     ``rough``: without Clarabel's iterative refinement of the linear solves (about 25 %
-    faster, t differs in the 11th digit): for guesses only, never for a certificate."""
-    import clarabel
-
+    faster, t differs in the 11th digit): for guesses only, never for a certificate.
+    ``precise``: Clarabel's tolerances at ``PRECISE_TOL`` instead of 1e-8, for a t whose
+    sign the default leaves open (near the rate at large kappa, where t is tiny)."""
     form = _MARGINS.get(problem)
     if form is None:
         form = _MARGINS[problem] = _MarginForm(problem)
     A = form.data(rho)
     detail = ""
     for equilibrate in (False, True):
-        cones = form.cones()
         try:
-            kept = form.solvers.get(rough)
-            if not equilibrate and kept is not None:  # same pattern: update numbers
-                kept.update(A=A.data.copy())
-                sol = kept.solve()
-            else:
-                solver = clarabel.DefaultSolver(form.zero_P, form.q, A, form.b, cones,
-                                                _clarabel_settings(equilibrate, not rough))
-                if not equilibrate and solver.is_data_update_allowed():
-                    form.solvers[rough] = solver
-                sol = solver.solve()
+            sol = _margin_solve(form, A, equilibrate, rough, precise)
         except Exception as exc:  # noqa: BLE001 - a crash is just "no answer"
             detail = f"exception: {type(exc).__name__}"
             continue
@@ -380,8 +390,27 @@ def solve_margin(problem: LMIProblem, rho: float, rough: bool = False) -> Margin
             x = z[:-2] / c if (t > 0 and c > 0) else None
             # optimal value -t of min q'z s.t. A(r) z + s = b: d(-t)/dr = y' A1 z (y dual)
             slope = -float(np.asarray(sol.z) @ (form.dense1 @ z)) * 2.0 * rho
-            return Margin(True, t, x, detail, slope if np.isfinite(slope) else None)
-    return Margin(False, None, None, detail)
+            upper = -float(sol.obj_val_dual)
+            return Margin(True, t, x, detail, slope if np.isfinite(slope) else None,
+                          upper if np.isfinite(upper) else None, precise)
+    return Margin(False, None, None, detail, precise=precise)
+
+
+def _margin_solve(form: _MarginForm, A: sps.csc_matrix, equilibrate: bool, rough: bool,
+                  precise: bool) -> Any:
+    """One Clarabel solve of the margin problem (a kept solver gets the new numbers)."""
+    import clarabel
+
+    key = (rough, precise)
+    kept = form.solvers.get(key)
+    if not equilibrate and kept is not None:  # same pattern: update numbers
+        kept.update(A=A.data.copy())
+        return kept.solve()
+    solver = clarabel.DefaultSolver(form.zero_P, form.q, A, form.b, form.cones(),
+                                    _clarabel_settings(equilibrate, not rough, precise))
+    if not equilibrate and solver.is_data_update_allowed():
+        form.solvers[key] = solver
+    return solver.solve()
 
 
 class _Evaluator:

@@ -161,3 +161,120 @@ def test_quiet_and_different_settings(tmp_path):
     assert res.exit_code == 0 and res.stderr == ""
     res = CliRunner().invoke(cli, [*args, "--tol", "1e-3"])
     assert res.exit_code == 0 and "tol: 1e-06 -> 0.001" in res.stderr
+
+
+def _padded_heavy_ball(n: int) -> str:
+    """Heavy ball with n - 2 shift states x_{k-2}, x_{k-3}, ... that do not act on it: a
+    method whose solves are large enough for Clarabel's solver threads."""
+    rows = [[0] * n for _ in range(n)]
+    rows[0][1], rows[1][0], rows[1][1] = 1, "-beta", "1 + beta"
+    for j in range(2, n):
+        rows[j][0 if j == 2 else j - 1] = 1
+    out = [[0] * n]
+    out[0][1] = 1
+    return json.dumps({  # JSON is YAML (without aliases)
+        "name": f"heavy-ball-{n}",
+        "parameters": {"h": {"value": "4/(sqrt(L) + sqrt(m))**2", "range": [0, "4/L"]},
+                       "beta": {"value": "((sqrt(kappa) - 1)/(sqrt(kappa) + 1))**2",
+                                "range": [0, 1]}},
+        "matrices": {"A": rows, "B": [[0], ["-h"]] + [[0]] * (n - 2), "C": out, "E": out},
+        "kappa": [10]})
+
+
+POOL_AFTER_SOLVE = """
+import sys
+from pathlib import Path
+from sosalgo.analysis import analyze_spec
+from sosalgo.batch.executor import run_batch
+from sosalgo.batch.sweeps import analysis_chunk
+from sosalgo.spec import load_spec
+
+if __name__ == "__main__":
+    path = Path(sys.argv[1])
+    analyze_spec(load_spec(path), 2.0)  # the solver's threads start in this process
+    rows = []
+    run_batch(analysis_chunk, path.read_text(), str(path), {"tol": 1e-4, "certificate": None},
+              [{"kappa": 1.5 + i} for i in range(8)], rows.append, workers=2)
+    print(len(rows))
+"""
+
+
+def test_a_pool_started_after_a_solve_does_not_deadlock(tmp_path):
+    """A worker forked from a process whose solver threads run hangs in its first large
+    solve (it happened with 12 states): pools never fork the caller."""
+    spec = tmp_path / "hb12.yaml"
+    spec.write_text(_padded_heavy_ball(12))
+    script = tmp_path / "run.py"
+    script.write_text(POOL_AFTER_SOLVE)
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    done = subprocess.run([sys.executable, str(script), str(spec)], env=env, timeout=300,
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["8"]
+
+
+def test_a_design_on_workers_keeps_its_time_limit(tmp_path):
+    """The grid and the local searches run on a pool; a limit reached there stops the
+    pool's work, and no worker outlives the design."""
+    import multiprocessing
+
+    from sosalgo.design import design
+
+    spec = load_spec(SPECS / "three-parameter.yaml")
+    limit = 6.0
+    t0 = time.perf_counter()
+    res = design(spec, 10.0, free=["h", "beta", "gamma"], time_limit=limit, workers=2)
+    wall = time.perf_counter() - t0
+    assert wall <= limit + 10.0, wall  # a wide margin: a loaded machine, a last solve
+    assert res.rho_certified is not None and (res.time_limited or res.gap_met)
+    grid = next(s for s in res.steps if s.startswith("grid:"))
+    if not grid.startswith("grid: 343 points"):  # a cut grid says so
+        assert any("cut short" in s or "parallel tasks" in s for s in res.steps), res.steps
+    assert not multiprocessing.active_children()
+
+
+def _descendants(pid: int) -> set[int]:
+    out: set[int] = set()
+    todo = [pid]
+    while todo:
+        p = todo.pop()
+        try:
+            tasks = list(Path(f"/proc/{p}/task").iterdir())
+        except FileNotFoundError:
+            continue
+        for task in tasks:
+            try:
+                kids = [int(c) for c in (task / "children").read_text().split()]
+            except FileNotFoundError:
+                continue
+            out.update(kids)
+            todo += kids
+    return out
+
+
+def _running(pid: int) -> bool:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").exists(), reason="needs Linux /proc")
+def test_sigkill_of_a_pool_run_leaves_no_process_behind(tmp_path):
+    """Pool workers are not children of the run (a fork server starts them): they still
+    end when the run is killed, busy or idle, and so does the server."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    proc = subprocess.Popen(_grid_cmd(tmp_path, 40) + ["--quiet"], env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 120
+    family: set[int] = set()
+    while time.time() < deadline and len(family) < 4:  # tracker, server, two workers
+        time.sleep(0.2)
+        family = {p for p in _descendants(proc.pid) if _running(p)}
+    assert len(family) >= 4, "no pool started"
+    proc.kill()
+    proc.wait()
+    deadline = time.time() + 15
+    while time.time() < deadline and any(_running(p) for p in family):
+        time.sleep(0.1)
+    assert not any(_running(p) for p in family)

@@ -21,13 +21,13 @@ from sosalgo.spec import load_spec
 from .conftest import SPECS
 
 
-def _search(name, free, kappa, T, record=True, modes=True):
+def _search(name, free, kappa, T, record=True, modes=True, seconds=15.0):
     spec = load_spec(SPECS / f"{name}.yaml")
     bm = _bound_model(spec, kappa, free, get_family("theorem1"))
     if not modes:
         bm.modes = None
     search = bm.search(T**2, record=record)
-    state = search.run(time.perf_counter() + 15, lambda z, r: None)
+    state = search.run(time.perf_counter() + seconds, lambda z, r: None)
     return spec, bm.poly, state
 
 
@@ -86,7 +86,7 @@ def test_known_optimum_is_not_excluded():
     """With a target above the true optimum (gradient: (κ-1)/(κ+1)), the search must not
     prove Θ empty: the box with h = 2/(m+L) stays open."""
     kappa = 10.0
-    _, model, state = _search("gradient", ["h"], kappa, 9 / 11 + 1e-3, record=True)
+    _, model, state = _search("gradient", ["h"], kappa, 9 / 11 + 1e-3, seconds=3.0)
     assert not state.complete
     assert state.lower_bound() <= 9 / 11 + 1e-7
     for zc, w, r, _ in state.record:

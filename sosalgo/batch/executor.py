@@ -6,6 +6,11 @@ options, chunk)`` is a module-level function that returns one row dict per task.
 re-load the spec from its YAML text (cached per process), so nothing unpicklable travels.
 Results are handed to ``on_row`` in the parent as each chunk finishes, so the caller can
 append them to a resumable CSV at once.
+
+Local pools (:func:`worker_pool`, also used by ``design``) never fork the calling process:
+a process that has run a solve holds Clarabel's solver threads, and a forked copy of it
+deadlocks in the solver. Workers come from a fork server (started fresh, with sosalgo's
+modules preloaded) or are spawned, and die with their parent.
 """
 
 from __future__ import annotations
@@ -23,13 +28,16 @@ from sosalgo.errors import InputError
 if TYPE_CHECKING:  # pragma: no cover - imported where a pool is started
     from concurrent.futures import Future, ProcessPoolExecutor
 
-__all__ = ["BatchError", "Progress", "check_scheduler", "default_workers", "run_batch"]
+__all__ = ["BatchError", "Progress", "check_scheduler", "default_workers", "kill_pool",
+           "pool_context", "run_batch", "start_pool_server", "worker_pool"]
 
 Row = dict[str, Any]
 ChunkFn = Callable[[str, str, dict[str, Any], list[dict[str, Any]]], list[Row]]
 SERIAL_BELOW = 8  # fewer tasks than this run in-process: pool start-up would dominate
 CONNECT_TIMEOUT = float(os.environ.get("SOSALGO_CONNECT_TIMEOUT", "20"))  # seconds
 NO_WORKER_TIMEOUT = float(os.environ.get("SOSALGO_NO_WORKER_TIMEOUT", "120"))
+# imported once by the fork server, so that a worker starts in milliseconds
+PRELOAD = ("sosalgo.batch.sweeps", "clarabel")
 
 
 class BatchError(InputError):
@@ -138,10 +146,10 @@ def run_batch(
         for task in tasks:
             deliver(fn(spec_text, source, options, [task]))
         return
-    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    from concurrent.futures import FIRST_COMPLETED, wait
 
     size = chunk_size(len(tasks), workers)
-    pool = ProcessPoolExecutor(max_workers=workers, initializer=_die_with_parent)
+    pool = worker_pool(workers)
     try:
         pending: set[Future] = set()
         chunks = _chunks(tasks, size)
@@ -158,30 +166,98 @@ def run_batch(
                 if len(pending) >= workers * 2:
                     break
     except BaseException:
-        _kill_pool(pool)  # interrupted or failed: do not wait for (or leave) running workers
+        kill_pool(pool)  # interrupted or failed: do not wait for (or leave) running workers
         raise
     pool.shutdown(wait=True)
 
 
+def pool_context(preload: Sequence[str] = PRELOAD):
+    """The multiprocessing context of every local pool: a fork server (a fresh process with
+    ``preload`` imported, forked for each worker) where available, else spawn. Never a
+    fork of the caller, whose solver threads (Clarabel's thread pool, started by the first
+    solve) a forked worker would inherit without the threads: it deadlocks in the solver."""
+    import multiprocessing as mp
+
+    _start_tracker_quietly()
+    if "forkserver" in mp.get_all_start_methods():
+        ctx = mp.get_context("forkserver")
+        ctx.set_forkserver_preload(list(preload))  # read when the server starts (once)
+        return ctx
+    return mp.get_context("spawn")  # pragma: no cover - platforms without a fork server
+
+
+def _start_tracker_quietly() -> None:
+    """Start multiprocessing's resource tracker (it unlinks a pool's named semaphores when
+    the run is killed) with its stderr on /dev/null: its note about them is no error."""
+    from multiprocessing import resource_tracker
+
+    if getattr(resource_tracker._resource_tracker, "_fd", None) is not None:
+        return  # already running
+    sys.stderr.flush()
+    saved = os.dup(2)
+    try:
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, 2)
+        os.close(null)
+        resource_tracker.ensure_running()
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
+def start_pool_server(preload: Sequence[str] = PRELOAD) -> None:
+    """Start the fork server now (once per process): it imports ``preload`` while the
+    caller goes on, so that a pool started later has its workers at once."""
+    import multiprocessing.forkserver as fs
+
+    if pool_context(preload).get_start_method() == "forkserver":
+        fs.ensure_running()
+
+
+def worker_pool(workers: int) -> ProcessPoolExecutor:
+    """A process pool of ``workers`` safely started workers that die with their parent.
+    Stop it with ``shutdown`` when its work is done, else with :func:`kill_pool`."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    return ProcessPoolExecutor(max_workers=workers, mp_context=pool_context(),
+                               initializer=_die_with_parent)
+
+
 def _die_with_parent() -> None:
-    """Pool initializer: SIGTERM (which then simply ends this worker) when the parent dies,
-    even by SIGKILL (Linux prctl PR_SET_PDEATHSIG); Ctrl-C is left to the parent."""
+    """Pool initializer: the worker ends when the process that started the pool is gone,
+    even by SIGKILL, busy or idle (a thread waits on its multiprocessing sentinel; a fork
+    server's worker is not that process's child, so a parent-death signal alone would wait
+    for the server); Ctrl-C is left to that process."""
+    import multiprocessing
     import signal
+    import threading
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # not the parent's handler (inherited by fork)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # ends the worker (kill_pool)
     try:
         import ctypes
 
         ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
     except (OSError, AttributeError):  # pragma: no cover - not Linux/glibc
         pass
+    parent = multiprocessing.parent_process()
+    if parent is not None and parent.sentinel is not None:
+        threading.Thread(target=_exit_when_gone, args=(parent.sentinel,), daemon=True).start()
     if os.getppid() == 1:  # the parent died before prctl took effect
         os._exit(1)
 
 
-def _kill_pool(pool: ProcessPoolExecutor) -> None:
-    """Terminate the pool's worker processes and drop queued work."""
+def _exit_when_gone(sentinel: int) -> None:
+    """End this worker at once when ``sentinel`` (the pool owner's) shows it has exited."""
+    from multiprocessing.connection import wait
+
+    wait([sentinel])
+    os._exit(1)
+
+
+def kill_pool(pool: ProcessPoolExecutor) -> None:
+    """Terminate the pool's worker processes and drop queued work (running tasks are
+    lost): for an interrupted run or a time limit, never waiting for a busy worker."""
     procs = list(getattr(pool, "_processes", {}).values())
     for proc in procs:
         if proc.is_alive():

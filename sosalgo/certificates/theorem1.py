@@ -41,7 +41,7 @@ def _blocks(rows: list[list[Any]], symbolic: bool) -> Any:
     if symbolic:
         import sympy as sp
 
-        return sp.Matrix(sp.BlockMatrix(rows).as_explicit())
+        return sp.Matrix.vstack(*[sp.Matrix.hstack(*row) for row in rows])
     return np.block(rows)
 
 
@@ -161,16 +161,19 @@ class Theorem1:
         n = A.shape[0]
         pairs = _sym_basis(n)
         nvar = len(pairs) + 1
-        A, B, m, L = A, B * L, m / L, sp.Integer(1)
+        B, m, L = B * L, m / L, sp.Integer(1)
         base = theorem1_terms(A, B, C, E, m, L, sp.zeros(n, n), symbolic=True)
         zs, z1 = sp.zeros(n + 1, n + 1), sp.zeros(1, 1)
+        G = sp.Matrix.hstack(A, B)  # M0P(P) = G' P G for P = E_ij: rows i and j of G
         l0, l1, lp, lam = [], [], [], []
         for i, j in pairs:
             Eij = sp.zeros(n, n)
             Eij[i, j] = Eij[j, i] = 1
-            t = theorem1_terms(A, B, C, E, m, L, Eij, symbolic=True)
-            l0.append(t["M0P"])
-            l1.append(-t["PP"])
+            gi, gj = G[i, :], G[j, :]
+            l0.append(gi.T * gi if i == j else gi.T * gj + gj.T * gi)
+            pp = sp.zeros(n + 1, n + 1)
+            pp[i, j] = pp[j, i] = -1
+            l1.append(pp)
             lp.append(-Eij)
             lam.append(z1)
         l0.append(base["N4"])

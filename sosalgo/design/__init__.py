@@ -333,25 +333,32 @@ def _search(run: _Run, polish_share: float = 0.5) -> None:
 
 
 def _usable_workers(workers: int | None) -> int:
-    """Processes for one design: 1 inside daemonic workers (they cannot have children)."""
+    """Processes for one design: 1 inside a pool's worker (no pools within pools). With
+    more, the pool's fork server starts now and loads its modules in the background."""
     import multiprocessing as mp
 
-    if not workers or workers <= 1 or mp.current_process().daemon:
+    if (not workers or workers <= 1 or mp.parent_process() is not None
+            or mp.current_process().daemon):
         return 1
+    from sosalgo.batch.executor import start_pool_server
+
+    start_pool_server(("sosalgo.design", "clarabel", "scipy.optimize"))
     return int(workers)
 
 
 def _worker_run(run: _Run) -> tuple:
-    """What a worker needs to rebuild the run (no callbacks), with the phase's seconds."""
-    seconds = min(run.deadline, run.phase_end) - time.perf_counter()
-    return (run.spec, run.kappa, run.family, run.free, run.box, seconds)
+    """What a worker needs to rebuild the run (no callbacks), with the phase's end as a
+    wall-clock time (the same instant in every process, however late a worker starts)."""
+    end = time.time() + min(run.deadline, run.phase_end) - time.perf_counter()
+    return (run.spec, run.kappa, run.family, run.free, run.box, end)
 
 
-def _rebuild(spec, kappa, family, free, box, seconds) -> _Run:
-    return _Run(spec, kappa, free, box, time.perf_counter() + seconds, None, family)
+def _rebuild(spec, kappa, family, free, box, end) -> _Run:
+    return _Run(spec, kappa, free, box, time.perf_counter() + end - time.time(), None, family)
 
 
 def _grid_task(args: tuple) -> list[float]:
+    """Certified rates of a list of grid points, as many as the phase's end allows."""
     *base, thetas = args
     run = _rebuild(*base)
     out = []
@@ -369,26 +376,44 @@ def _polish_task(args: tuple) -> dict[str, float] | None:
 
 
 def _parallel(run: _Run, fn: Callable, items: list) -> list:
-    """fn((*worker_run, item)) for every item on run.workers processes, within the phase;
-    an item not finished in time gives None."""
-    import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor, TimeoutError, wait
+    """fn((*worker_run, item)) for every item on run.workers processes, within the phase.
+
+    The tasks stop themselves at the phase's end; a task not finished a second later
+    gives None and the pool is then killed (a busy worker is never waited for). Unfinished
+    or failed tasks are logged, so a cut phase never passes for a complete one. A phase
+    shorter than a pool's start-up (about a second) runs here, one task after the other."""
+    from concurrent.futures import wait
+
+    from sosalgo.batch.executor import kill_pool, worker_pool
 
     base = _worker_run(run)
-    ctx = mp.get_context("fork") if "fork" in mp.get_all_start_methods() else None
-    pool = ProcessPoolExecutor(max_workers=run.workers, mp_context=ctx)
+    if base[-1] - time.time() < 2.0:
+        return [fn((*base, item)) for item in items]
+    out: list = [None] * len(items)
+    errors: list[BaseException] = []
+    pool = worker_pool(run.workers)
+    finished = False
     try:
         futs = [pool.submit(fn, (*base, item)) for item in items]
-        wait(futs, timeout=max(0.0, base[-1]) + 1.0)
-        out = []
-        for f in futs:
-            try:
-                out.append(f.result(timeout=0) if f.done() else None)
-            except (TimeoutError, Exception):  # noqa: BLE001 - a lost item is just missing
-                out.append(None)
-        return out
+        done, rest = wait(futs, timeout=max(0.0, base[-1] - time.time()) + 1.0)
+        for i, f in enumerate(futs):
+            if f in done and f.exception() is None:
+                out[i] = f.result()
+            elif f in done:
+                errors.append(f.exception())
+        finished = not rest
     finally:
-        pool.shutdown(wait=False, cancel_futures=True)
+        if finished:
+            pool.shutdown(wait=True)
+        else:
+            kill_pool(pool)  # interrupted, or tasks running past the phase's end
+    run.can_afford(0.0, phase=False)  # marks the run out of time past its deadline
+    lost = sum(o is None for o in out)
+    if lost:
+        why = (f"failed: {type(errors[0]).__name__}: {errors[0]}"[:200] if errors
+               else "not finished by the phase's end")
+        run.log(f"{lost} of {len(items)} parallel tasks {why}")
+    return out
 
 
 def _polish(run: _Run, theta: dict[str, float]) -> dict[str, float] | None:

@@ -37,8 +37,8 @@ class BoxProver:
         self.model, self.dep = model, dep
         self.k = model.k
         self.nvar = model.template.nvar
-        self.ncols = model.balls.ncols()
-        base = model.balls.tolist()[0]  # cone blocks are θ-free: the constant row
+        rows = model.balls.tolist()
+        base = rows[0]  # cone blocks are θ-free: the constant row
         self.cones = []
         for b, vars_ in cones:
             start, (_, s, _) = model.cols[b]["l0"]
@@ -58,6 +58,19 @@ class BoxProver:
                 tuple(a + (1 if i == j - 1 else 0) for i, a in enumerate(alpha)), ext))
                 if alpha else 0 for alpha in grid])
         self.next = int(np.prod(ext)) if ext else 1
+        self.data = [self._block_data(rows, d) for d in dep]
+
+    def _block_data(self, rows: list[list[arb]], d: int) -> arb_mat:
+        """Block d's coefficients as a ((2 + 2 nvar) M) x s² ball matrix: rows (o, β) for
+        the outputs o = c0, c1, l0 per variable, l1 per variable and monomials β."""
+        cols = self.model.cols[d]
+        s2 = int(np.prod(cols["c0"][1]))
+        nv, M = self.nvar, len(rows)
+        starts = [cols["c0"][0], cols["c1"][0]]
+        starts += [cols["l0"][0] + i * s2 for i in range(nv)]
+        starts += [cols["l1"][0] + i * s2 for i in range(nv)]
+        return arb_mat([[rows[b][st + e] for e in range(s2)] for st in starts
+                        for b in range(M)])
 
     def proves(self, zc: np.ndarray, w: np.ndarray, Zs: list[list[np.ndarray]],
                bounds: Sequence[dict | None], rs: Sequence[float],
@@ -93,32 +106,29 @@ class BoxProver:
 
     def _contract(self, zc: np.ndarray, w: np.ndarray,
                   Zs: list[list[np.ndarray]]) -> list[list[arb]]:
-        """Rows (extended monomials) of [h_c0, h_c1, g_l0 (nvar), g_l1 (nvar)]."""
-        nv = self.nvar
-        nout = 2 + 2 * nv
-        W = np.zeros((self.ncols, (self.k + 1) * nout))
-        for d, terms in zip(self.dep, Zs, strict=True):
-            cols = self.model.cols[d]
-            for j, Z in enumerate(terms):
-                z = (0.5 * (Z + Z.T)).ravel()
-                off = j * nout
-                for o, key in ((0, "c0"), (1, "c1")):
-                    st = cols[key][0]
-                    W[st:st + z.size, off + o] = z
-                for o, key in ((2, "l0"), (2 + nv, "l1")):
-                    st = cols[key][0]
-                    for i in range(nv):
-                        W[st + i * z.size:st + (i + 1) * z.size, off + o + i] = z
-        used = np.nonzero(np.any(W != 0, axis=0))[0]
-        Wb = enc.ball_matrix(W[:, used]) if used.size else None
-        T = self.model.shifted_balls(zc, w)
-        prod = (T * Wb).tolist() if Wb is not None else []
+        """Rows (extended monomials u^α of the box) of [h_c0, h_c1, g_l0 (nvar), g_l1
+        (nvar)]: the data contracted with each term Z_dj first (exact floats), then shifted
+        to the box (the shift acts on monomials only, so the two commute)."""
+        nout, K = 2 + 2 * self.nvar, self.k + 1
+        R = None
+        for D, terms in zip(self.data, Zs, strict=True):
+            Zm = np.array([(0.5 * (Z + Z.T)).ravel() for Z in terms]).T  # s² x (k+1)
+            part = D * enc.ball_matrix(Zm)
+            R = part if R is None else R + part
+        M = len(self.place[0])
+        flat = R.tolist()  # rows (o, β), columns j
+        Q = arb_mat([[flat[o * M + b][j] for j in range(K) for o in range(nout)]
+                     for b in range(M)])
+        S = arb_mat([[1]])
+        for c, h, d in zip(zc, w, self.model.degrees, strict=True):
+            S = enc.kron(S, enc.shift_matrix(float(c), float(h), d))
+        Y = (S * Q).tolist()
         out = [[arb(0)] * nout for _ in range(self.next)]
-        for a, row in enumerate(prod):
-            for col, v in zip(used, row, strict=True):
-                j, o = divmod(int(col), nout)
-                e = self.place[j][a]
-                out[e][o] = out[e][o] + v
+        for b in range(M):
+            for j in range(K):
+                e = self.place[j][b]
+                for o in range(nout):
+                    out[e][o] += Y[b][j * nout + o]
         return out
 
     @staticmethod

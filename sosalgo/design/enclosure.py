@@ -48,6 +48,8 @@ def sympy_ball(expr) -> arb:
     """A ball containing a real constant sympy expression (exact for rationals)."""
     from sosalgo.verify.exact import enclose
 
+    if expr.is_Rational:
+        return arb(fmpq(int(expr.p), int(expr.q)))
     b = enclose(expr)
     out = ball(b.c)
     if b.r:

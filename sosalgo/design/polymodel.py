@@ -227,19 +227,24 @@ def poly_lmi(method: ExactMethod, family: CertificateFamily, template: LMIProble
             for M in mats:
                 entries.extend(M)  # row-major
         layout.append(pos)
-    polys = [sp.Poly(sp.expand(e), *method.zs) if method.zs else None for e in entries]
-    degrees = tuple(max((p.degree(z) for p in polys), default=0) if polys else 0
-                    for z in method.zs)
+    zset = set(method.zs)
+    polys = [sp.Poly(e, *method.zs) if e.free_symbols & zset else None for e in entries]
+    dlists = [p.degree_list() for p in polys if p is not None]
+    degrees = tuple(max((d[i] for d in dlists), default=0) for i in range(method.k))
     if any(d > MAX_DEGREE for d in degrees):
         raise ModelError("parameters", f"the certificate data have degree {max(degrees)} "
                          f"> {MAX_DEGREE} in a free parameter; design refuses it")
-    nmono = int(np.prod([d + 1 for d in degrees]))
-    cols = [[arb(0)] * len(entries) for _ in range(nmono)]
+    dims = [d + 1 for d in degrees]
+    nmono = int(np.prod(dims))
+    zero = arb(0)
+    cols = [[zero] * len(entries) for _ in range(nmono)]
     for j, (e, p) in enumerate(zip(entries, polys, strict=True)):
-        terms = p.terms() if p is not None else [((), e)]
-        for monom, c in terms:
-            row = int(np.ravel_multi_index(monom, [d + 1 for d in degrees])) if monom else 0
-            cols[row][j] = enc.sympy_ball(sp.sympify(c))
+        if p is None:
+            if e != 0:
+                cols[0][j] = enc.sympy_ball(e)
+            continue
+        for monom, c in p.terms():
+            cols[int(np.ravel_multi_index(monom, dims))][j] = enc.sympy_ball(c)
     balls = arb_mat(cols)
     mids = np.array([[float(x.mid()) for x in row] for row in cols])
     shape = tuple(d + 1 for d in degrees)

@@ -33,6 +33,7 @@ import itertools
 import json
 import math
 import numbers
+import os
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -685,10 +686,20 @@ class ExactResult(ProofResult):
         }
 
 
-def write_certificate(result: ExactResult, path: str | Path) -> Path:
-    """Write ``result.to_dict()`` as JSON (exact strings: any CAS can re-check it)."""
+def write_certificate(result: ProofResult | Mapping[str, Any], path: str | Path) -> Path:
+    """Write ``result.to_dict()`` (or a certificate document) as JSON (exact strings: any
+    CAS can re-check it). Atomic: the file is whole or untouched, never half-written."""
     p = Path(path)
-    p.write_text(json.dumps(result.to_dict(), indent=2) + "\n", encoding="utf-8")
+    doc = result if isinstance(result, Mapping) else result.to_dict()
+    tmp = p.with_name(f".{p.name}.{os.getpid()}.tmp")
+    try:
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(json.dumps(doc, indent=2) + "\n")
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, p)
+    finally:
+        tmp.unlink(missing_ok=True)
     return p
 
 

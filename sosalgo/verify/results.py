@@ -18,13 +18,14 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.batch.store import kappa_label
+from sosalgo.batch.store import kappa_label, output_lock
 from sosalgo.certificates import FAMILIES, default_family, get_family
 from sosalgo.certificates.base import CertificateFamily, check_number
 from sosalgo.errors import InputError
 from sosalgo.model import bind
 from sosalgo.spec import Spec
 from sosalgo.verify import Verdict, simulate_check
+from sosalgo.verify.exact import write_certificate
 
 __all__ = [
     "ResultError", "check_failed", "verify_certificate", "verify_document_rows",
@@ -57,16 +58,8 @@ def verify_family_certificate(
                 "rho_proven_float": ex.rho_proven_float, "delta": ex.delta,
                 "reason": ex.reason})
     if out_dir is not None:
-        out_dir.mkdir(parents=True, exist_ok=True)
-        doc = ex.to_dict()
-        if family.is_default:
-            path, doc["inputs_hash"] = _certificate_path(
-                out_dir, spec, kappa, rho, np.asarray(cert["P"], dtype=float),
-                cert["lambda"], theta)
-        else:
-            path = out_dir / f"{spec.name}-k{kappa_label(kappa)}-{family.name}-certificate.json"
-        path.write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
-        out["certificate_file"] = str(path)
+        out["certificate_file"] = str(_write_certificate_file(
+            out_dir, spec, family, kappa, rho, cert, theta, ex.to_dict()))
     if simulate:
         sim = simulate_check(bind(spec, kappa, theta), rho, **family.lyapunov(cert))
         out["simulation"] = {"ok": sim.ok, "worst_ratio": sim.worst_ratio,
@@ -90,27 +83,56 @@ def verify_certificate(
                                      {"P": P, "lambda": lam}, theta, out_dir, simulate)
 
 
-def _certificate_path(out_dir: Path, spec: Spec, kappa: float, rho: float, P: np.ndarray,
-                      lam: float, theta: Mapping[str, float] | None) -> tuple[Path, str]:
-    """``<name>-k<kappa>-certificate.json`` (exact kappa); when that file already holds
-    another certificate (other spec text, theta, rho, P or lambda), a short hash of the
-    certificate is added so two different certificates never share a file."""
-    inputs = json.dumps({"name": spec.name, "m": spec.m, "family": spec.certificate,
-                         "matrices": {k: str(v) for k, v in spec.matrices.items()},
-                         "params": {k: str(v) for k, v in spec.parameters.items()},
-                         "kappa": kappa, "rho": rho, "P": P.tolist(), "lambda": lam,
-                         "theta": dict(theta or {})}, sort_keys=True)
-    digest = hashlib.sha256(inputs.encode()).hexdigest()[:8]
-    plain = out_dir / f"{spec.name}-k{kappa_label(kappa)}-certificate.json"
-    try:
-        old = json.loads(plain.read_text(encoding="utf-8")).get("inputs_hash")
-    except (OSError, ValueError, AttributeError):
-        old = None
-    if not plain.exists() or old == digest:
-        path = plain
+def _certificate_inputs(spec: Spec, family: CertificateFamily, kappa: float, rho: float,
+                        cert: Mapping[str, Any], theta: Mapping[str, float] | None) -> str:
+    """What identifies a certificate: the spec, kappa, rho, the certificate's parts, theta
+    (for Theorem 1 exactly as before, so that files written earlier keep their hash)."""
+    inputs: dict[str, Any] = {
+        "name": spec.name, "m": spec.m, "family": spec.certificate,
+        "matrices": {k: str(v) for k, v in spec.matrices.items()},
+        "params": {k: str(v) for k, v in spec.parameters.items()},
+        "kappa": kappa, "rho": rho, "theta": dict(theta or {})}
+    if family.is_default:
+        inputs |= {"P": np.asarray(cert["P"], dtype=float).tolist(), "lambda": cert["lambda"]}
     else:
-        path = out_dir / f"{spec.name}-k{kappa_label(kappa)}-{digest}-certificate.json"
-    return path, digest
+        inputs |= {"family": family.name, "certificate": dict(cert)}
+    return json.dumps(inputs, sort_keys=True, default=_plain)
+
+
+def _plain(value: Any) -> Any:
+    """numpy values as JSON values (for hashing)."""
+    if isinstance(value, np.ndarray | np.generic):
+        return value.tolist()
+    raise TypeError(f"not JSON serializable: {type(value).__name__}")
+
+
+def _write_certificate_file(out_dir: Path, spec: Spec, family: CertificateFamily,
+                            kappa: float, rho: float, cert: Mapping[str, Any],
+                            theta: Mapping[str, float] | None, doc: dict[str, Any]) -> Path:
+    """Write a verification's certificate document, never over another certificate.
+
+    ``<name>-k<kappa>[-<family>]-certificate.json`` (exact kappa; the family named unless it
+    is the default one) holds the first certificate written there; a different certificate
+    (other spec text, theta, rho or parts, e.g. a tampered or a design's result) gets its
+    own file with a short hash of its inputs added, and the same certificate rewrites its
+    own file. So a verified certificate is never overwritten or lost, whatever is verified
+    after it into the same folder. The choice and the write happen under the output lock
+    (concurrent runs), and the write is atomic."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    digest = hashlib.sha256(_certificate_inputs(spec, family, kappa, rho, cert, theta)
+                            .encode()).hexdigest()[:8]
+    stem = f"{spec.name}-k{kappa_label(kappa)}" + ("" if family.is_default
+                                                   else f"-{family.name}")
+    plain = out_dir / f"{stem}-certificate.json"
+    with output_lock(out_dir):  # one lock for the folder (beside it: DIR/.certificates.lock)
+        try:
+            old = json.loads(plain.read_text(encoding="utf-8")).get("inputs_hash")
+        except (OSError, ValueError, AttributeError):
+            old = None
+        exists = plain.exists() or plain.is_symlink()
+        path = (plain if not exists or old == digest
+                else out_dir / f"{stem}-{digest}-certificate.json")
+        return write_certificate({**doc, "inputs_hash": digest}, path)
 
 
 def _number(value: Any, where: str, allow_none: bool = True) -> float | None:
