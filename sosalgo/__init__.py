@@ -49,6 +49,8 @@ _EXPORTS = {
     "ModelError": "sosalgo.model",
     "bind": "sosalgo.model",
     "analyze": "sosalgo.api",
+    "example": "sosalgo.api",
+    "prove_bound": "sosalgo.design",
     "design": "sosalgo.design",  # the module, callable (see _CallableModule)
     "verify": "sosalgo.verify",
     "AnalysisResult": "sosalgo.analysis",

@@ -23,7 +23,19 @@ if TYPE_CHECKING:  # pragma: no cover
     from sosalgo.analysis import AnalysisResult
     from sosalgo.design import DesignResult
 
-__all__ = ["analyze", "design", "verify", "as_spec"]
+__all__ = ["analyze", "design", "example", "verify", "as_spec"]
+
+
+def example(name: str) -> Spec:
+    """A shipped example spec by name (``sosalgo examples`` lists them), from the
+    installed package: no checkout needed. ValueError names the available ones."""
+    from sosalgo.resources import example_specs
+    from sosalgo.spec import spec_from_text
+
+    specs = example_specs()
+    if name not in specs:
+        raise ValueError(f"no example {name!r}; shipped: {', '.join(specs)}")
+    return spec_from_text(specs[name].read_text(), source=f"{name}.yaml")
 
 
 def as_spec(spec: Spec | str | Path) -> Spec:
