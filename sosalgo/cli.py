@@ -307,6 +307,9 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
         click.echo(f"{spec.name}: {spec.description}".rstrip(": "))
         click.echo(rep.analysis_table(spec, jrows, rep.ANALYSIS_COLUMNS
                                       + (["verified"] if verify_ else [])))
+        for r in jrows:
+            if r.get("warning"):
+                click.echo(f"warning at kappa {r['kappa']:g}: {r['warning']}", err=True)
         click.echo(f"wrote {csv_path}" + "".join(f", {p}" for p in figs))
     _exit_if_unverified([r.get("verification") for r in jrows])
 

@@ -72,3 +72,25 @@ def test_beyond_the_solver_accuracy_the_result_says_so(name):
     assert res.warning is not None
     if res.certified:
         assert res.max_eig_M <= 0 and res.min_eig_P >= 0
+
+
+def test_warning_reaches_the_csv_json_and_terminal(tmp_path):
+    """The accuracy warning is a column of the CSV, a field of the JSON rows and a line on
+    stderr after the table."""
+    import csv
+    import json
+
+    from click.testing import CliRunner
+
+    from sosalgo.cli import cli
+
+    spec = str(SPECS / "gradient-optimal.yaml")
+    res = CliRunner().invoke(cli, ["analyze", spec, "--kappa", "1e12", "--json", "--quiet",
+                                   "--out", str(tmp_path / "a")])
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.stdout)["rows"][0]["warning"]
+    with open(tmp_path / "a" / "gradient-optimal-analysis.csv") as fh:
+        assert next(csv.DictReader(fh))["warning"]
+    res = CliRunner().invoke(cli, ["analyze", spec, "--kappa", "1e12", "--out",
+                                   str(tmp_path / "b")])
+    assert res.exit_code == 0 and "warning at kappa 1e+12" in res.stderr

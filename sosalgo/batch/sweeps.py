@@ -81,7 +81,8 @@ def analysis_columns(spec: Spec, family: CertificateFamily | None = None) -> lis
     return (
         ["kappa", "rho", "certified", "lambda"]
         + p_columns(p_size(spec, family))
-        + ["max_eig_M", "min_eig_P", "solves", "seconds", "solver", "rho_infeasible", "error"]
+        + ["max_eig_M", "min_eig_P", "solves", "seconds", "solver", "rho_infeasible", "error",
+           "warning"]
         + list(spec.references)
         + ([] if fam is None else fam.csv_columns(spec.n))
     )
@@ -163,6 +164,7 @@ def result_row(spec: Spec, res: AnalysisResult,
         "solver": res.solver,
         "rho_infeasible": res.rho_infeasible,
         "error": None,
+        "warning": res.warning,
     }
     row.update(_certificate_cells(spec, family, res.kappa, res.P, res.certificate))
     return row
@@ -302,6 +304,7 @@ def csv_row_to_json(spec: Spec, row: dict[str, str],
         "solver": row.get("solver") or None,
         "rho_infeasible": _num(row.get("rho_infeasible", "")),
         "error": row.get("error") or None,
+        "warning": row.get("warning") or None,
         "references": {name: _num(row[name]) for name in spec.references},
     } | _family_json(spec, row, family, P)
 
@@ -438,6 +441,7 @@ def design_csv_to_json(spec: Spec, free: Sequence[str], row: dict[str, str],
         "gap_met": row["gap_met"] == "true",
         "rho_at_values": _num(row["rho_at_values"]),
         "error": row.get("error") or None,
+        "warning": row.get("warning") or None,
         "references": {name: _num(row[name]) for name in spec.references},
         "family": (family or spec_family(spec)).name,
     }
