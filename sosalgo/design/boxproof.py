@@ -119,9 +119,7 @@ class BoxProver:
         flat = R.tolist()  # rows (o, β), columns j
         Q = arb_mat([[flat[o * M + b][j] for j in range(K) for o in range(nout)]
                      for b in range(M)])
-        S = arb_mat([[1]])
-        for c, h, d in zip(zc, w, self.model.degrees, strict=True):
-            S = enc.kron(S, enc.shift_matrix(float(c), float(h), d))
+        S = enc.box_shift(zc, w, self.model.degrees)
         Y = (S * Q).tolist()
         out = [[arb(0)] * nout for _ in range(self.next)]
         for b in range(M):

@@ -26,8 +26,8 @@ from math import comb
 import numpy as np
 from flint import arb, arb_mat, fmpq
 
-__all__ = ["ball", "ball_matrix", "shift_matrix", "poly_positive", "psd_on_box", "is_pd",
-           "even_mask", "sympy_ball", "upper"]
+__all__ = ["ball", "ball_matrix", "box_shift", "shift_matrix", "poly_positive", "psd_on_box",
+           "is_pd", "even_mask", "sympy_ball", "upper"]
 
 
 def ball(x: float | int | Fraction) -> arb:
@@ -79,6 +79,16 @@ def shift_matrix(center: float, half: float, degree: int) -> arb_mat:
         for i in range(j + 1):
             rows[i][j] = comb(j, i) * c ** (j - i) * h**i
     return arb_mat(rows)
+
+
+def box_shift(center: Sequence[float], half: Sequence[float], degrees: Sequence[int]
+              ) -> arb_mat:
+    """The shift to the sub-box center + half·u of coefficient rows on a tensor grid
+    (row-major): the Kronecker product of the per-axis :func:`shift_matrix`."""
+    S = arb_mat([[1]])
+    for c, h, d in zip(center, half, degrees, strict=True):
+        S = kron(S, shift_matrix(float(c), float(h), d))
+    return S
 
 
 def kron(a: arb_mat, b: arb_mat) -> arb_mat:

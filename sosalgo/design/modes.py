@@ -28,7 +28,7 @@ import sympy as sp
 from flint import arb, arb_mat
 
 import sosalgo.design.enclosure as enc
-from sosalgo.design.polymodel import ExactMethod
+from sosalgo.design.polymodel import ExactMethod, ball_coefficients
 
 __all__ = ["ModeTest"]
 
@@ -55,7 +55,8 @@ class ModeTest:
             if self.nk:
                 polys += list(KL * X * K)
         self.per = n + 1 + self.nk * self.nk
-        self.degrees, self.balls = _ball_polys(polys, zs)
+        self.degrees, rows = ball_coefficients([sp.sympify(p) for p in polys], zs)
+        self.balls = arb_mat(rows)
         self.even = enc.even_mask(self.degrees)
 
     def proves(self, zc: np.ndarray, w: np.ndarray, T2: float) -> bool:
@@ -63,9 +64,7 @@ class ModeTest:
         if not self.ok or not 0 < T2 < 1:
             return False
         T = arb(enc.upper(arb(T2).sqrt()))  # T >= sqrt(T2), a float
-        S = arb_mat([[1]])
-        for c, h, d in zip(zc, w, self.degrees, strict=True):
-            S = enc.kron(S, enc.shift_matrix(float(c), float(h), d))
+        S = enc.box_shift(zc, w, self.degrees)
         data = (S * self.balls).tolist() if self.balls.nrows() else []
         cols = list(zip(*data, strict=True)) if data else []
         for j in range(2):  # q = m, q = L
@@ -115,17 +114,3 @@ def _kernel(E: sp.Matrix, n: int) -> tuple[sp.Matrix, sp.Matrix]:
         K[j, c] = -E[0, i] / E[0, j]
         KL[c, i] = 1
     return K, KL
-
-
-def _ball_polys(polys: list[sp.Expr], zs: list[sp.Symbol]) -> tuple[tuple[int, ...], arb_mat]:
-    """Coefficient balls of polynomials in zs on a common degree grid (rows: monomials,
-    row-major; columns: the polynomials)."""
-    ps = [sp.Poly(sp.expand(p), *zs) if zs else None for p in polys]
-    degrees = tuple(max(p.degree(z) for p in ps) for z in zs) if zs else ()
-    nmono = int(np.prod([d + 1 for d in degrees]))
-    rows = [[arb(0)] * len(polys) for _ in range(nmono)]
-    for j, (e, p) in enumerate(zip(polys, ps, strict=True)):
-        for monom, c in (p.terms() if p is not None else [((), e)]):
-            r = int(np.ravel_multi_index(monom, [d + 1 for d in degrees])) if monom else 0
-            rows[r][j] = enc.sympy_ball(sp.sympify(c))
-    return degrees, arb_mat(rows)

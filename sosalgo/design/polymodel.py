@@ -200,14 +200,6 @@ class PolyLMI:
         """Coefficients of block ``b``'s ``name`` in local coordinates u of a sub-box."""
         return shift_tensor(self.coef[b][name], self.degrees, center, half)
 
-    def shifted_balls(self, center: np.ndarray, half: np.ndarray) -> arb_mat:
-        """All ball coefficients in local coordinates u of the sub-box center + half·u."""
-        assert self.balls is not None
-        S = arb_mat([[1]])
-        for c, h, d in zip(center, half, self.degrees, strict=True):
-            S = enc.kron(S, enc.shift_matrix(float(c), float(h), d))
-        return S * self.balls
-
 
 def poly_lmi(method: ExactMethod, family: CertificateFamily, template: LMIProblem
              ) -> PolyLMI | None:
@@ -227,24 +219,7 @@ def poly_lmi(method: ExactMethod, family: CertificateFamily, template: LMIProble
             for M in mats:
                 entries.extend(M)  # row-major
         layout.append(pos)
-    zset = set(method.zs)
-    polys = [sp.Poly(e, *method.zs) if e.free_symbols & zset else None for e in entries]
-    dlists = [p.degree_list() for p in polys if p is not None]
-    degrees = tuple(max((d[i] for d in dlists), default=0) for i in range(method.k))
-    if any(d > MAX_DEGREE for d in degrees):
-        raise ModelError("parameters", f"the certificate data have degree {max(degrees)} "
-                         f"> {MAX_DEGREE} in a free parameter; design refuses it")
-    dims = [d + 1 for d in degrees]
-    nmono = int(np.prod(dims))
-    zero = arb(0)
-    cols = [[zero] * len(entries) for _ in range(nmono)]
-    for j, (e, p) in enumerate(zip(entries, polys, strict=True)):
-        if p is None:
-            if e != 0:
-                cols[0][j] = enc.sympy_ball(e)
-            continue
-        for monom, c in p.terms():
-            cols[int(np.ravel_multi_index(monom, dims))][j] = enc.sympy_ball(c)
+    degrees, cols = ball_coefficients(entries, method.zs)
     balls = arb_mat(cols)
     mids = np.array([[float(x.mid()) for x in row] for row in cols])
     shape = tuple(d + 1 for d in degrees)
@@ -254,6 +229,30 @@ def poly_lmi(method: ExactMethod, family: CertificateFamily, template: LMIProble
                    np.array([float(x) for x in method.half]), degrees,
                    [b.name for b in blocks], [b.strict for b in blocks], coef, template,
                    balls, layout, method)
+
+
+def ball_coefficients(exprs: list[sp.Expr], zs: list[sp.Symbol]
+                      ) -> tuple[tuple[int, ...], list[list[arb]]]:
+    """Monomial coefficients of polynomials in ``zs`` as balls, on a common degree grid:
+    (degrees, rows), one row per monomial (row-major), one column per expression."""
+    zset = set(zs)
+    polys = [sp.Poly(e, *zs) if e.free_symbols & zset else None for e in exprs]
+    dlists = [p.degree_list() for p in polys if p is not None]
+    degrees = tuple(max((d[i] for d in dlists), default=0) for i in range(len(zs)))
+    if any(d > MAX_DEGREE for d in degrees):
+        raise ModelError("parameters", f"the certificate data have degree {max(degrees)} "
+                         f"> {MAX_DEGREE} in a free parameter; design refuses it")
+    dims = [d + 1 for d in degrees]
+    zero = arb(0)
+    rows = [[zero] * len(exprs) for _ in range(int(np.prod(dims)))]
+    for j, (e, p) in enumerate(zip(exprs, polys, strict=True)):
+        if p is None:
+            if e != 0:
+                rows[0][j] = enc.sympy_ball(e)
+            continue
+        for monom, c in p.terms():
+            rows[int(np.ravel_multi_index(monom, dims))][j] = enc.sympy_ball(c)
+    return degrees, rows
 
 
 def _key_mats(blk: ExactBlock, key: str) -> list[sp.Matrix]:
