@@ -1,7 +1,9 @@
 """sosalgo: certify and design first-order methods for L-smooth, m-strongly convex functions.
 
 The Python API (see the README, "Python API"): :func:`load_spec`, :func:`analyze`,
-:func:`design`, :func:`verify`, and the result types :class:`AnalysisResult`,
+:func:`design`, :func:`verify`, the twins of the commands (:func:`analyze_run`,
+:func:`design_run`, :func:`grid_run`, :func:`verify_document`, :func:`lmi`,
+:func:`table1_run`, :func:`copy_examples`), and the result types :class:`AnalysisResult`,
 :class:`DesignResult`, :class:`ExactResult`, plus :class:`Spec` and :class:`Algorithm`.
 Everything is imported on first use, so ``import sosalgo`` stays fast.
 """
@@ -50,6 +52,15 @@ _EXPORTS = {
     "bind": "sosalgo.model",
     "analyze": "sosalgo.api",
     "example": "sosalgo.api",
+    "copy_examples": "sosalgo.api",
+    "lmi": "sosalgo.api",
+    "analyze_run": "sosalgo.runs",
+    "design_run": "sosalgo.runs",
+    "grid_run": "sosalgo.runs",
+    "table1_run": "sosalgo.runs",
+    "verify_document": "sosalgo.documents",
+    "read_result": "sosalgo.documents",
+    "InputError": "sosalgo.errors",
     "prove_bound": "sosalgo.design",
     "design": "sosalgo.design",  # the module, callable (see _CallableModule)
     "verify": "sosalgo.verify",

@@ -1,10 +1,15 @@
 """Analysis: the best rate a certificate family certifies for fixed parameters (eq. 16).
 
-For fixed rho the inequality of Theorem 1 is an LMI in (P, lambda); a bracketed search on
-rho in [0, 1] (Newton-type steps on a continuous feasibility margin, else bisection)
-returns the smallest rho found feasible, with its certificate. Only a step the solver
-reports *solved* and whose point passes the eigenvalue check counts as feasible (see
-:mod:`sosalgo.solvers`), so a reported rate always comes with a checked certificate.
+For fixed rho a family's inequalities are an LMI (Theorem 1: in (P, lambda)); a bracketed
+search on rho in [0, 1] (Newton-type steps on a continuous feasibility margin, secant steps
+without its slope, bisection with a custom solver chain) returns the smallest rho found
+feasible, with its certificate. Only a step the solver reports *solved* and whose point
+passes the eigenvalue check counts as feasible (see :mod:`sosalgo.solvers`), so a reported
+rate always comes with a checked certificate.
+
+A family with several members to choose from (the interpolation family without a given
+lag: ``auto_lags``) is searched member by member (:func:`_choose_lag`); the result is the
+best certified rate over the members tried, with that member's certificate.
 
 The bracket is closed to ``tol`` and to ``REL_TOL`` (1 - rho), so that 1 - rho keeps three
 significant digits however close to 1 the rate is (large kappa); where the solver's
@@ -14,6 +19,7 @@ solved again at a hundred times tighter tolerances.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -45,6 +51,8 @@ __all__ = [
 DEFAULT_TOL = 1e-6
 REL_TOL = 1e-3  # the bracket is also closed to REL_TOL * (1 - rho)
 FLOOR_TOL = 1e-13  # ... but not below this width (rates within ~1e-12 of 1 are not resolved)
+LAG_PATIENCE = 2  # auto lag: stop after this many lags in a row that do not improve the rate
+LAG_SECONDS = 60.0  # auto lag: no further lag is tried once the analysis took this long
 Tolerance = Callable[[float], float]  # bracket width needed when its lower end is at rho
 UNDECIDED_AT_ONE = ("not decided at rho = 1: the feasibility margin there is below the "
                     "solver's accuracy (kappa too large; see README, 'How large κ can be')")
@@ -60,7 +68,8 @@ def _tolerance(tol: float) -> Tolerance:
 
 @dataclass(frozen=True)
 class AnalysisResult:
-    """Best certified rate and its certificate (P, lambda) for one algorithm."""
+    """Best certified rate and its certificate (P, lambda, or the family's parts) for one
+    algorithm; ``lag`` is the interpolation family's lag of that certificate."""
 
     kappa: float
     rho: float | None  # None when not even rho = 1 is certified
@@ -77,6 +86,7 @@ class AnalysisResult:
     family: str = "theorem1"
     certificate: dict[str, Any] | None = None  # the family's named parts (unpack)
     warning: str | None = None  # a limit of the solver's accuracy met (large kappa)
+    lag: int | None = None  # the certificate's lag (interpolation family), else None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict (the `rows` entries of ``sosalgo analyze --json``)."""
@@ -95,7 +105,8 @@ class AnalysisResult:
             "params": dict(self.params),
             "family": self.family,
         } | ({} if _is_default(self.family) else {"certificate": jsonable(self.certificate)}) | (
-            {} if self.warning is None else {"warning": self.warning})
+            {} if self.warning is None else {"warning": self.warning}) | (
+            {} if self.lag is None else {"lag": self.lag})
 
 
 def _is_default(family: str) -> bool:
@@ -367,16 +378,28 @@ def analyze_algorithm(
     """Smallest certified rho in [0, 1] to width ``tol`` and ``REL_TOL`` (1 - rho) (eq. 16).
 
     ``method="secant"`` (default) root-finds on the continuous margin of
-    :func:`sosalgo.solvers.solve_margin`; ``"bisection"`` (also used whenever ``solvers``
-    is not the default chain) tests plain feasibility only.
+    :func:`sosalgo.solvers.solve_margin` (Newton-type steps with its slope from the dual
+    solution, secant steps without); ``"bisection"`` (also used whenever ``solvers`` is not
+    the default chain) bisects on plain feasibility.
     Both keep a bracket [lo, hi] with hi certified by a checked certificate. ``warning``
-    says when the solver's accuracy decided the outcome (a rate too close to 1).
+    says when the solver's accuracy decided the outcome (a rate too close to 1). A family
+    whose ``auto_lags`` names several lags (the interpolation family without a given lag)
+    gets the best rate over the lags tried (:func:`_choose_lag`).
     """
     if not tol > 0:
         raise ValueError("tol must be positive")
     if method not in ("secant", "bisection"):
         raise ValueError("method must be 'secant' or 'bisection'")
     fam = get_family(family) if isinstance(family, str) else family
+    lags = fam.auto_lags(alg.n) if hasattr(fam, "auto_lags") else ()
+    if len(lags) > 1:
+        return _choose_lag(alg, tol, fam, solvers, method, lags)
+    return _analyze_one(alg, tol, fam, solvers, method)
+
+
+def _analyze_one(alg: Algorithm, tol: float, fam: CertificateFamily,
+                 solvers: Sequence[str], method: str) -> AnalysisResult:
+    """:func:`analyze_algorithm` for one member of a family (its problem as it is)."""
     start = time.perf_counter()
     problem = fam.problem(alg)
     # The margin problem is solved by Clarabel; a custom solver chain means plain bisection.
@@ -406,6 +429,7 @@ def analyze_algorithm(
             # the margin's sign within the solver's accuracy, or a positive margin whose
             # point is too close to 0 to check: the solver cannot decide this kappa
             warning=UNDECIDED_AT_ONE if search.undecided or (t_one or 0) > 0 else None,
+            lag=getattr(fam, "lag", None),
         )
     if method == "secant" and t_one is not None and slope_one is not None:
         lo, hi, best = _newton(search, [(1.0, t_one, slope_one)], down0, lo0, 1.0, best, width)
@@ -414,6 +438,63 @@ def analyze_algorithm(
     else:
         lo, hi, best = _bisect(search, 0.0, 1.0, best, width)
     return _result(alg, fam, problem, search, lo, hi, best, start)
+
+
+def _choose_lag(alg: Algorithm, tol: float, fam: CertificateFamily, solvers: Sequence[str],
+                method: str, lags: Sequence[int]) -> AnalysisResult:
+    """The best certified rate over the lags tried, in the order of ``lags``: the first is
+    searched in full; each further lag only has to beat the best rate so far by the
+    tolerance (:func:`_improve`: one test there, a search below it when it does).
+    Lags are raised until ``LAG_PATIENCE`` in a row do not improve, the last of ``lags``
+    or ``LAG_SECONDS``. Larger lags never certify less in exact arithmetic, but their
+    solves are less accurate on degenerate (tight) certificates, so the best is kept,
+    never the last. The result carries that lag's certificate and bracket (``lag`` None
+    when no lag certifies a rate), and the solves and seconds of the whole choice."""
+    start = time.perf_counter()
+    members = [fam.with_options(lag=lag) for lag in lags]  # type: ignore[call-arg]
+    best = _analyze_one(alg, tol, members[0], solvers, method)
+    # no valid certificate goes below the rate on quadratics (a grid max, not above it)
+    floor = quadratic_rate(alg, 201)
+    solves, misses = best.solves, 0
+    for member in members[1:]:
+        if misses >= LAG_PATIENCE or time.perf_counter() - start > LAG_SECONDS:
+            break
+        res, spent = _improve(alg, tol, member, solvers, method, best, floor)
+        solves += spent
+        if res is None:
+            misses += 1
+        else:
+            best, misses = res, 0
+    return dataclasses.replace(best, solves=solves, seconds=time.perf_counter() - start,
+                               lag=best.lag if best.certified else None)
+
+
+def _improve(alg: Algorithm, tol: float, fam: CertificateFamily, solvers: Sequence[str],
+             method: str, best: AnalysisResult, floor: float = 0.0
+             ) -> tuple[AnalysisResult | None, int]:
+    """(result of ``fam``, solves) when ``fam`` certifies a rate below ``best.rho`` by at
+    least the tolerance there (any rate <= 1 when ``best`` has none), else (None, solves):
+    one test at that point, and a search below it only when it is certified. Nothing is
+    tested when that point is at or below ``floor``, a lower bound of every rate."""
+    width = _tolerance(tol)
+    x = 1.0 if best.rho is None else best.rho - width(best.rho)
+    if x <= floor:
+        return None, 0
+    start = time.perf_counter()
+    problem = fam.problem(alg)
+    use_margin = method == "secant" and tuple(solvers) == DEFAULT_SOLVERS
+    fallback = getattr(fam, "fallback_solvers", None) if use_margin else None
+    search = _Search(problem, fallback or solvers, use_margin, width)
+    out, t = search.test(x)
+    if not out.feasible:
+        return None, search.solves
+    if t is not None and t > 0 and search.slope is not None:
+        lo, hi, out = _newton(search, [(x, t, search.slope)], None, 0.0, x, out, width)
+    else:
+        lo, hi, out = _bisect(search, 0.0, x, out, width)
+    res = _result(alg, fam, problem, search, lo, hi, out, start)
+    better = res.certified and res.rho is not None and (best.rho is None or res.rho < best.rho)
+    return (res if better else None), search.solves
 
 
 def _start_near(search: _Search, guess: float, tol: float, proxy: LMIProblem | None = None):
@@ -538,6 +619,7 @@ def _result(alg: Algorithm, fam: CertificateFamily, problem: LMIProblem, search:
             kappa=alg.kappa, rho=None, certified=False, P=None, lam=None, max_eig_M=None,
             min_eig_P=None, solves=solves, seconds=time.perf_counter() - start,
             solver=best.solver, rho_infeasible=lo, params=dict(alg.params), family=fam.name,
+            lag=getattr(fam, "lag", None),
         )
     lam = cert.get("lambda")
     return AnalysisResult(
@@ -545,7 +627,7 @@ def _result(alg: Algorithm, fam: CertificateFamily, problem: LMIProblem, search:
         lam=None if lam is None else float(lam), max_eig_M=eigs[0], min_eig_P=eigs[1],
         solves=solves, seconds=time.perf_counter() - start, solver=best.solver,
         rho_infeasible=lo, params=dict(alg.params), family=fam.name, certificate=cert,
-        warning=warning,
+        warning=warning, lag=cert.get("lag"),
     )
 
 

@@ -7,7 +7,10 @@
     >>> check = sosalgo.verify(spec, res)              # exact proof + simulation
 
 Specs may be given as a :class:`~sosalgo.spec.Spec` or a path. Heavy modules (the design
-code, the exact verifier) are imported only when used.
+code, the exact verifier) are imported only when used. Every command has a twin here
+(``analyze_run``, ``design_run``, ``grid_run``, ``verify_document``, ``lmi``,
+``table1_run``, ``example``/``copy_examples``): the command line only parses and prints.
+Bad input raises ValueError (:class:`~sosalgo.errors.InputError`) naming the field.
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from sosalgo.analysis import AnalysisResult
     from sosalgo.design import DesignResult
 
-__all__ = ["analyze", "design", "example", "verify", "as_spec"]
+__all__ = ["analyze", "as_spec", "copy_examples", "design", "example", "lmi", "verify"]
 
 
 def example(name: str) -> Spec:
@@ -62,17 +65,24 @@ def analyze(
     kappa: float | Sequence[float] | None = None,
     theta: Mapping[str, float] | None = None,
     tol: float = 1e-6,
+    certificate: str | None = None,
+    options: Mapping[str, Any] | None = None,
 ) -> AnalysisResult | list[AnalysisResult]:
-    """Best rate certified by the spec's certificate family (Theorem 1, eq. 15-16).
+    """Best rate certified by the spec's certificate family (Theorem 1, eq. 15-16), or by
+    ``certificate`` (a family name) with ``options`` (e.g. ``{"lag": 0}``).
 
     ``kappa``: a number (one :class:`AnalysisResult`), a list (a list of results, in
     order) or None (the spec's own kappa list). ``theta`` overrides parameter values.
     """
     from sosalgo.analysis import analyze_spec
+    from sosalgo.inputs import check_kappa_points, check_tol, select_families
 
     s = as_spec(spec)
     kappas, single = _kappas(s, kappa)
-    results = [analyze_spec(s, k, theta, tol=tol) for k in kappas]
+    check_tol(tol)
+    fam = select_families(s, certificate, options, single=True)[0]
+    check_kappa_points(s, kappas, theta)
+    results = [analyze_spec(s, k, theta, tol=tol, family=fam) for k in kappas]
     return results[0] if single else results
 
 
@@ -80,11 +90,13 @@ def design(
     spec: Spec | str | Path, kappa: float | Sequence[float] | None = None, **options: Any
 ) -> DesignResult | list[DesignResult]:
     """Design the free parameters by sum-of-squares (eq. 17) at each kappa; ``options``
-    are those of :func:`sosalgo.design.design` (free, scalarize, order, gap, time_limit)."""
+    are those of :func:`sosalgo.design.design` (free, scalarize, order, gap, time_limit,
+    method, family), checked as ``sosalgo design`` checks them (ValueError)."""
     from sosalgo.design import design as design_one
 
     s = as_spec(spec)
     kappas, single = _kappas(s, kappa)
+    _check_design(s, options)
     results = [design_one(s, k, **options) for k in kappas]
     return results[0] if single else results
 
@@ -100,3 +112,53 @@ def verify(spec: Spec | str | Path, result: Any, simulate: bool = True,
     row = result.to_dict() if hasattr(result, "to_dict") else dict(result)
     out = None if out_dir is None else Path(out_dir)
     return verify_document_rows(s, [row], out, simulate)[0]
+
+
+def _check_design(spec: Spec, options: Mapping[str, Any]) -> None:
+    """The checks of ``sosalgo design`` on :func:`design`'s options."""
+    from sosalgo import inputs
+    from sosalgo.certificates import get_family
+
+    fam = options.get("family")
+    fam = get_family(spec.certificate, spec.certificate_options) if fam is None else (
+        get_family(fam) if isinstance(fam, str) else fam)
+    inputs.check_method(options.get("method", "dual"), options.get("scalarize", "pmi"), fam)
+    if options.get("free") is not None:
+        inputs.free_names(spec, options["free"])
+    inputs.check_gap(options.get("gap", 1e-4))
+    inputs.check_time_limit(options.get("time_limit", 120.0))
+
+
+def lmi(spec: Spec | str | Path, free: str | Sequence[str] | None = None, latex: bool = False,
+        certificate: str | None = None, options: Mapping[str, Any] | None = None) -> str:
+    """The symbolic certificate inequality (``sosalgo lmi``): plain text, or a LaTeX
+    snippet ready to paste (``latex``); ``free`` parameters stay symbols."""
+    from sosalgo.inputs import free_names, select_families
+    from sosalgo.symbolic import symbolic_lmi
+
+    s = as_spec(spec)
+    names = None if free is None else free_names(s, free, need_range=False)
+    fam = select_families(s, certificate, options, single=True)[0]
+    return symbolic_lmi(s, free=names, latex=latex, family=fam)
+
+
+def copy_examples(names: Sequence[str] = (), out_dir: str | Path = ".") -> dict[str, bool]:
+    """Copy shipped example specs (default: all) into ``out_dir`` as ``NAME.yaml``; returns
+    each target path and whether it was written (a different existing file is kept)."""
+    from sosalgo.inputs import out_dir as checked_dir
+    from sosalgo.resources import example_specs
+
+    found = example_specs()
+    unknown = [n for n in names if n not in found]
+    if unknown:
+        raise ValueError(f"{unknown[0]}: no such example (known: {', '.join(found)})")
+    out = checked_dir(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    written = {}
+    for name in names or found:
+        target, text = out / f"{name}.yaml", found[name].read_text(encoding="utf-8")
+        keep = target.exists() and target.read_text(encoding="utf-8") != text
+        if not keep:
+            target.write_text(text, encoding="utf-8")
+        written[str(target)] = not keep
+    return written

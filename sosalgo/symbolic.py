@@ -13,6 +13,7 @@ from typing import Any
 import sympy as sp
 
 from sosalgo.certificates import get_family
+from sosalgo.certificates.listing import latex_block
 from sosalgo.spec import BASE_SYMBOLS, Spec
 
 __all__ = ["symbolic_matrix", "symbolic_lmi"]
@@ -30,65 +31,28 @@ def symbolic_matrix(spec: Spec, free: Sequence[str] | None = None,
 
 def symbolic_lmi(spec: Spec, free: Sequence[str] | None = None, latex: bool = False,
                  family: Any = None) -> str:
-    """Human-readable (or LaTeX) listing of M's entries and the certificate's unknowns."""
-    M, syms = symbolic_matrix(spec, free, family)
-    if "structure" in syms:
-        return _interpolation_listing(spec, syms, latex)
-    P = syms["P"]
-    size = M.shape[0]
-    lines: list[str] = []
+    """Human-readable (or LaTeX) listing of M's entries and the certificate's unknowns; a
+    family with its own listing (``listing``) gives its text."""
+    fam = family or get_family(spec.certificate, spec.certificate_options)
+    M, syms = symbolic_matrix(spec, free, fam)
+    own = fam.listing(spec, syms, latex)
+    if own is not None:
+        return own
+    entries = [(f"M_{{{i + 1}{j + 1}}}", M[i, j]) for i in range(M.shape[0])
+               for j in range(i, M.shape[0])]
     if latex:
-        lines.append(f"% {spec.name}: M = M^0 + rho^2 M^1 + (1-rho^2) M^2 + lambda M^3 <= 0")
-        lines.append(r"P = " + sp.latex(P) + r", \quad P \succeq 0,\ \lambda \ge 0")
-        lines.append(r"\begin{aligned}")
-        for i in range(size):
-            for j in range(i, size):
-                lines.append(f"M_{{{i + 1}{j + 1}}} &= {sp.latex(M[i, j])} \\\\")
-        lines.append(r"\end{aligned}")
-        return "\n".join(lines)
-    lines.append(
-        f"{spec.name}: M = M0 + rho^2 M1 + (1 - rho^2) M2 + lambda M3 <= 0  "
-        f"({size}x{size}, Theorem 1, eq. 15)"
-    )
-    lines.append(f"P = {_plain(P)} >= 0, lambda >= 0")
-    for i in range(size):
-        for j in range(i, size):
-            lines.append(f"M{i + 1}{j + 1} = {_plain(M[i, j])}")
+        head = [f"% sosalgo lmi {spec.name}: Theorem 1 (eq. 15), M = M^0 + rho^2 M^1"
+                " + (1 - rho^2) M^2 + lambda M^3 <= 0"]
+        first = (r"P &= " + sp.latex(syms["P"], mat_delim="", mat_str="bmatrix")
+                 + r" \succeq 0, \qquad \lambda \ge 0")
+        return latex_block(head, [first] + [f"{k} &= {sp.latex(v)}" for k, v in entries])
+    size = M.shape[0]
+    lines = [f"{spec.name}: M = M0 + rho^2 M1 + (1 - rho^2) M2 + lambda M3 <= 0  "
+             f"({size}x{size}, Theorem 1, eq. 15)",
+             f"P = {_plain(syms['P'])} >= 0, lambda >= 0"]
+    lines += [f"{k.replace('_{', '').replace('}', '')} = {_plain(v)}" for k, v in entries]
     return "\n".join(lines)
 
 
 def _plain(expr: Any) -> str:
     return sp.sstr(expr)
-
-
-def _interpolation_listing(spec: Spec, syms: dict, latex: bool) -> str:
-    """The interpolation family in symbols: row maps of the windows, the Lyapunov function
-    and the interpolation pairs (the blocks themselves are sums of these pieces)."""
-    st = syms["structure"]
-    lag = st.lag
-    fmt = sp.latex if latex else _plain
-    d, p = st.dec, st.pos
-    zs = ", ".join(["xi_0"] + [f"u_{t}" for t in range(lag + 2)]
-                   + ([f"v_{lag}", f"v_{lag + 1}"] if st.has_x else []))
-    xterm = " + c (f(x_k) - f*)" if st.has_x else ""
-    lines = [
-        f"{spec.name}: interpolation certificate, lag l = {lag}",
-        f"V_k = z_k' P z_k + sum_(j=0..{lag}) p_j (f(y_(k-j)) - f*){xterm},  "
-        f"z_k = (xi_k - xi*, u_k, ..., u_(k-{lag})),  P = {fmt(syms['P'])}",
-        f"decrease window w = ({zs})  [{d.width} entries]",
-        f"  Z_{lag} = {fmt(sp.Matrix(d.Z[lag]))}",
-        f"  Z_{lag + 1} = {fmt(sp.Matrix(d.Z[lag + 1]))}",
-        f"  (D)  Z_{lag + 1}' P Z_{lag + 1} - rho^2 Z_{lag}' P Z_{lag} + sum eta_ij M_ij <= 0"
-        f"  ({d.width}x{d.width}), and the function-value rows ({d.nphi}) <= 0",
-        f"  pairs ({len(d.labels)}): {' '.join(d.labels)}",
-        f"positivity window [{p.width} entries]: Z+ = {fmt(sp.Matrix(p.Z[lag]))}",
-        f"  (P)  Z+' P Z+ - sum lambda_ij M+_ij >= 0 ({p.width}x{p.width}), "
-        f"function-value rows ({p.nphi}) >= 0 with V >= f(x) - f*",
-        f"  pairs ({len(p.labels)}): {' '.join(p.labels)}",
-        "q_ij = (L - m)(f_i - f_j) + 1/2 [x_i; x_j; g_i; g_j]' MM [x_i; x_j; g_i; g_j] >= 0,"
-        " MM = [[-mL, mL, m, -L], [mL, -mL, -m, L], [m, -m, -1, 1], [-L, L, 1, -1]]",
-    ]
-    ex = d.Mq[d.labels.index("y0>*")] if "y0>*" in d.labels else None
-    if ex is not None:
-        lines.append(f"example M_(y0>*) = {fmt(sp.Matrix(ex).applyfunc(sp.factor))}")
-    return "\n".join(lines)

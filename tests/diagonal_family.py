@@ -5,6 +5,10 @@ It exists to show that a family plugs in through one module and one registry lin
 CSV/JSON writers. P ⪰ 0 is stated as n scalar cones p_i >= 0. A diagonal-P certificate is a
 Theorem 1 certificate, so its exact check and its Lyapunov function are Theorem 1's; only
 reading a certificate adds a check of its own (P must be diagonal).
+
+Its one option, ``uniform`` (``certificate: {family: theorem1-diagonal, uniform: true}``),
+asks for P = p I (one unknown for the whole diagonal): it shows that a family's options
+reach the workers, the settings and the file names of batch runs.
 """
 
 from __future__ import annotations
@@ -14,28 +18,41 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.certificates.base import AffineBlock, ExactBlock, LMIProblem
+from sosalgo.certificates.base import AffineBlock, CertificateFamily, ExactBlock, LMIProblem
 from sosalgo.certificates.theorem1 import THEOREM1, theorem1_terms
 
 
-class DiagonalTheorem1:
+class DiagonalTheorem1(CertificateFamily):
     name = "theorem1-diagonal"
     description = "Theorem 1 with a diagonal P (test family)"
     label = "Theorem 1, diagonal P"
     is_default = False
     supports_moment = False
     certificate_parts = ("P", "lambda")
+    option_names = ("uniform",)
+    uniform: bool | None = None  # P = p I (None: the default, False)
+
+    def with_options(self, uniform: bool | None = None) -> DiagonalTheorem1:
+        if uniform is not None and not isinstance(uniform, bool):
+            raise ValueError("uniform: must be true or false")
+        fam = DiagonalTheorem1()
+        fam.uniform = uniform
+        return fam
+
+    def _groups(self, n: int) -> list[list[int]]:
+        """The diagonal entries each unknown of P stands for."""
+        return [list(range(n))] if self.uniform else [[i] for i in range(n)]
 
     def problem(self, alg) -> LMIProblem:
         n, s_ = alg.n, alg.L
         A, B, C, E, m, L = alg.A, alg.B * s_, alg.C, alg.E, alg.m / s_, 1.0
         base = theorem1_terms(A, B, C, E, m, L, np.zeros((n, n)))
-        nvar, s = n + 1, n + 1
+        groups = self._groups(n)
+        nvar, s = len(groups) + 1, n + 1
         l0, l1 = np.zeros((nvar, s, s)), np.zeros((nvar, s, s))
         cones = []
-        for i in range(n):
-            Ei = np.zeros((n, n))
-            Ei[i, i] = 1.0
+        for i, group in enumerate(groups):
+            Ei = np.diag([1.0 if k in group else 0.0 for k in range(n)])
             t = theorem1_terms(A, B, C, E, m, L, Ei)
             l0[i], l1[i] = t["M0P"], -t["PP"]
             sel = np.zeros((nvar, 1, 1))
@@ -53,7 +70,8 @@ class DiagonalTheorem1:
             return np.maximum(x, 0.0)
 
         def unpack(x: np.ndarray) -> dict[str, Any]:
-            return {"P": np.diag(x[:n] * s_), "lambda": float(x[-1])}
+            diag = [x[i] * s_ for i, group in enumerate(groups) for _ in group]
+            return {"P": np.diag(diag), "lambda": float(x[-1])}
 
         return LMIProblem(nvar, blocks, unpack, project)
 
@@ -64,11 +82,11 @@ class DiagonalTheorem1:
         n = A.shape[0]
         B, m, L = B * L, m / L, sp.Integer(1)
         base = theorem1_terms(A, B, C, E, m, L, sp.zeros(n, n), symbolic=True)
-        nvar, z1 = n + 1, sp.zeros(1, 1)
+        groups = self._groups(n)
+        nvar, z1 = len(groups) + 1, sp.zeros(1, 1)
         l0, l1 = [], []
-        for i in range(n):
-            Ei = sp.zeros(n, n)
-            Ei[i, i] = 1
+        for group in groups:
+            Ei = sp.diag(*[1 if k in group else 0 for k in range(n)])
             t = theorem1_terms(A, B, C, E, m, L, Ei, symbolic=True)
             l0.append(t["M0P"])
             l1.append(-t["PP"])
@@ -80,7 +98,8 @@ class DiagonalTheorem1:
             return ExactBlock(name, z1, z1, sel, [z1] * nvar, False)
 
         return [ExactBlock("M", base["N1"] + base["N3"], base["N2"] - base["N3"], l0, l1),
-                *(scalar(i, f"p{i + 1}") for i in range(n)), scalar(n, "lambda")]
+                *(scalar(i, f"p{i + 1}") for i in range(len(groups))),
+                scalar(len(groups), "lambda")]
 
     def matrix(self, alg, rho: float, cert: dict[str, Any]) -> np.ndarray:
         return THEOREM1.matrix(alg, rho, cert)
@@ -93,6 +112,8 @@ class DiagonalTheorem1:
         P = cert["P"]
         if P is not None and any(P[i][j] != 0 for i in range(n) for j in range(n) if i != j):
             raise ValueError("P: expected a diagonal matrix")
+        if P is not None and self.uniform and len({P[i][i] for i in range(n)}) > 1:
+            raise ValueError("P: expected a multiple of the identity (uniform)")
         return cert
 
     def exact_check(self, spec, kappa, rho, cert, theta=None):

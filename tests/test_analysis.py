@@ -155,3 +155,17 @@ def test_lying_and_crashing_solvers_never_certify(monkeypatch):
     honest = analyze_algorithm(alg)
     assert res.certified and res.rho == pytest.approx(honest.rho, abs=2e-6)
     assert res.solver == "clarabel"
+
+
+def test_lag_field_of_results():
+    """JSON rows of the interpolation family carry the certificate's lag (chosen here);
+    Theorem 1 rows have no lag; an uncertified chosen-lag result has none either."""
+    from sosalgo.certificates.interpolation import Interpolation
+
+    spec = load_spec(SPECS / "heavy-ball.yaml")
+    tight = analyze_spec(spec, 10.0, family=Interpolation()).to_dict()
+    assert tight["lag"] == tight["certificate"]["lag"] >= 2
+    assert len(tight["certificate"]["p"]) == tight["lag"] + 1
+    assert "lag" not in analyze_spec(spec, 10.0).to_dict()
+    none = analyze_spec(spec, 25.0, family=Interpolation())
+    assert not none.certified and none.lag is None

@@ -107,3 +107,52 @@ def test_never_below_theorem1_and_design_bound(tmp_path):
     assert res.relaxation["status"] == "proved"  # the family's exact form gives a bound
     assert res.lower_bound is not None and res.lower_bound <= 9 / 11  # the closed form
     assert res.rho_certified == pytest.approx(9 / 11, abs=1e-5)
+
+
+def _uniform_spec(tmp_path, uniform: bool | None):
+    """nesterov with the diagonal family, its ``uniform`` option set (or not)."""
+    flag = str(uniform).lower()
+    fam = ("theorem1-diagonal" if uniform is None
+           else "{family: theorem1-diagonal, uniform: " + flag + "}")
+    text = (SPECS / "nesterov.yaml").read_text() + f"\ncertificate: {fam}\n"
+    path = tmp_path / f"nesterov-{uniform}.yaml"
+    path.write_text(text.replace("name: nesterov", "name: nesterov-diag"))
+    return path
+
+
+def test_a_family_option_reaches_workers_settings_file_names_and_resume(tmp_path):
+    """A family option other than lag goes through the loader, the workers, the settings
+    file and the file name, and a rerun resumes (nothing recomputed, nothing kept aside)."""
+    out = tmp_path / "o"
+    args = ["--kappa", "1.5", "--kappa", "2", "--json", "--quiet", "--no-plot", "--out",
+            str(out)]
+    first = CliRunner().invoke(cli, ["analyze", str(_uniform_spec(tmp_path, True)), *args])
+    assert first.exit_code == 0, first.output
+    doc = json.loads(first.stdout)
+    assert doc["csv"].endswith("nesterov-diag-analysis-theorem1-diagonal-uniform.csv")
+    settings = json.loads(open(doc["csv"] + ".settings.json").read())
+    assert settings["certificate"] == {"family": "theorem1-diagonal", "uniform": True}
+    plain = CliRunner().invoke(cli, ["analyze", str(_uniform_spec(tmp_path, None)), *args])
+    assert plain.exit_code == 0, plain.output
+    pdoc = json.loads(plain.stdout)
+    assert pdoc["csv"].endswith("nesterov-diag-analysis-theorem1-diagonal.csv")
+    for u, p in zip(doc["rows"], pdoc["rows"], strict=True):
+        P = u["P"]  # the option reached the worker: P = p I
+        assert P[0][1] == 0 and P[0][0] == pytest.approx(P[1][1], rel=1e-12)
+        assert p["P"][0][0] != pytest.approx(p["P"][1][1], rel=1e-3)  # plain: not p I
+        assert u["rho"] >= p["rho"] - 1e-7  # P = p I is a subset of diagonal P
+        assert u["rho"] > p["rho"] + 0.05  # ... and a strict one here (kappa 2: 0.93, 0.71)
+    before = open(doc["csv"], encoding="utf-8").read()
+    again = CliRunner().invoke(cli, ["analyze", str(_uniform_spec(tmp_path, True)), *args])
+    assert again.exit_code == 0 and "kept it aside" not in again.stderr
+    assert open(doc["csv"], encoding="utf-8").read() == before  # resumed, not recomputed
+    assert json.loads(again.stdout)["rows"] == doc["rows"]
+
+
+def test_family_options_are_checked_by_the_family(tmp_path):
+    spec = tmp_path / "bad.yaml"
+    spec.write_text((SPECS / "nesterov.yaml").read_text()
+                    + "\ncertificate: {family: theorem1-diagonal, uniform: 3}\n")
+    res = CliRunner().invoke(cli, ["analyze", str(spec), "--out", str(tmp_path)])
+    assert res.exit_code == 2
+    assert "certificate.uniform: must be true or false" in res.stderr

@@ -119,7 +119,7 @@ def test_no_private_names_across_modules():
 @pytest.mark.parametrize("name", [
     "sosalgo.spec.SpecError", "sosalgo.model.ModelError", "sosalgo.expr.ExprError",
     "sosalgo.expr.NumericError", "sosalgo.batch.store.OutputError",
-    "sosalgo.batch.store.SettingsMismatch", "sosalgo.batch.executor.BatchError",
+    "sosalgo.batch.executor.BatchError",
     "sosalgo.verify.results.ResultError",
 ])
 def test_input_errors_share_one_base(name):

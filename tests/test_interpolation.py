@@ -282,7 +282,7 @@ def test_cli_compare_families_and_table1(tmp_path):
     import csv
 
     res = _run(["analyze", SPECS / "nesterov.yaml", "--certificate", "theorem1,interpolation",
-                "--kappa", "10", "--out", tmp_path, "--quiet"])
+                "--kappa", "2", "--kappa", "10", "--out", tmp_path, "--quiet"])  # a figure
     assert res.exit_code == 0, res.output
     t1 = list(csv.DictReader(open(tmp_path / "nesterov-analysis.csv")))
     ti = list(csv.DictReader(open(tmp_path / "nesterov-analysis-interpolation.csv")))
@@ -298,3 +298,85 @@ def test_cli_compare_families_and_table1(tmp_path):
     assert res.exit_code == 2 and "--certificate tight" in res.output
     res = _run(["lmi", SPECS / "nesterov.yaml", "--certificate", "interpolation", "--lag", "0"])
     assert res.exit_code == 0 and "lag l = 0" in res.output and "*>y0" in res.output
+
+
+# --------------------------------------------------------------------------- lag chosen
+# Independent values (another SDP tool, same family): heavy ball at kappa = 10 is 0.8602212
+# with lag 1, 0.8459062 with lag 2 and 0.8458462 with lag 4; at kappa = 2, 0.3361077 with
+# lag 1 and 0.3310540 with larger lags.
+HB_LAG1 = {10.0: 0.8602212, 2.0: 0.3361077}
+HB_TIGHT = {10.0: (0.8458462, 0.8459062), 2.0: (0.3310540, 0.3310540)}
+
+
+@pytest.mark.parametrize("kappa", [10.0, 2.0])
+def test_heavy_ball_default_lag_is_tight(kappa):
+    spec = _spec("heavy-ball")
+    res = analyze_spec(spec, kappa, family=TIGHT)
+    lo, hi = HB_TIGHT[kappa]
+    assert res.certified and lo - 2e-4 <= res.rho <= hi + 2e-4
+    assert res.rho < HB_LAG1[kappa] - 3e-3  # clearly below the lag-1 rate
+    assert res.lag >= 2 and res.certificate["lag"] == res.lag
+    assert np.shape(res.certificate["P"]) == (spec.n + res.lag + 1,) * 2
+    assert res.rho >= _quadratic_rate(bind(spec, kappa)) - 1e-6
+    ex = TIGHT.exact_check(spec, kappa, res.rho, res.certificate)
+    assert ex.verified == "exact", ex.reason
+
+
+def test_explicit_lag_is_used_as_given():
+    spec = _spec("heavy-ball")
+    res = analyze_spec(spec, 10.0, family=Interpolation(1))
+    assert res.lag == 1 and res.certificate["lag"] == 1
+    assert abs(res.rho - HB_LAG1[10.0]) <= 2e-4
+    text = (SPECS / "heavy-ball.yaml").read_text()
+    s1 = spec_from_text(text + "certificate: {family: interpolation, lag: 1}\n", "t.yaml")
+    assert analyze_spec(s1, 10.0).lag == 1
+    s0 = spec_from_text(text + "certificate: interpolation\n", "t.yaml")
+    assert analyze_spec(s0, 10.0).lag >= 2  # no lag in the spec: chosen
+
+
+@pytest.mark.parametrize(("name", "kappa"), [
+    ("nesterov", 10.0), ("nesterov-quadratic", 2.0), ("triple-momentum", 2.0),
+    ("gradient", 10.0), ("heavy-ball", 25.0),
+])
+def test_default_lag_never_worse_than_n_minus_1(name, kappa):
+    spec = _spec(name)
+    auto = analyze_spec(spec, kappa, family=TIGHT)
+    fixed = analyze_spec(spec, kappa, family=Interpolation(spec.n - 1))
+    assert auto.certified == fixed.certified or auto.certified
+    if fixed.certified:
+        assert auto.rho <= fixed.rho + 1e-12 and auto.lag >= spec.n - 1
+        assert auto.max_eig_M <= 0 and auto.min_eig_P >= 0
+
+
+def test_cli_reports_the_chosen_lag_and_verify_proves_it(tmp_path):
+    import csv
+    import json
+
+    res = _run(["analyze", SPECS / "heavy-ball.yaml", "--certificate", "interpolation",
+                "--kappa", "10", "--out", tmp_path, "--quiet", "--json"])
+    assert res.exit_code == 0, res.output
+    row = json.loads(res.stdout)["rows"][0]
+    cert = row["certificate"]
+    assert cert["lag"] >= 2 and abs(row["rho"] - 0.8459) <= 2e-4
+    assert np.shape(cert["P"]) == (2 + cert["lag"] + 1,) * 2 and len(cert["p"]) == cert["lag"] + 1
+    rows = list(csv.DictReader(open(tmp_path / "heavy-ball-analysis-interpolation.csv")))
+    assert int(rows[0]["lag"]) == cert["lag"]
+    (tmp_path / "hb.json").write_text(res.stdout)
+    out = _run(["verify", tmp_path / "hb.json", "--out", tmp_path, "--json"])
+    assert out.exit_code == 0, out.output
+    checked = json.loads(out.stdout)["results"][0]
+    assert checked["verified"] == "exact" and checked["simulation"]["ok"], checked
+    res = _run(["analyze", SPECS / "heavy-ball.yaml", "--certificate", "interpolation",
+                "--lag", "1", "--kappa", "10", "--out", tmp_path, "--quiet"])
+    assert res.exit_code == 0, res.output
+    rows = list(csv.DictReader(open(tmp_path / "heavy-ball-analysis-interpolation-lag1.csv")))
+    assert rows[0]["lag"] == "1" and abs(float(rows[0]["rho"]) - HB_LAG1[10.0]) <= 2e-4
+
+
+def test_design_keeps_lag_n_minus_1_and_reports_it():
+    from sosalgo.design import design
+
+    spec = _spec("gradient-optimal")  # n = 1: lag 0; its best rate is (kappa-1)/(kappa+1)
+    res = design(spec, 10.0, family=TIGHT, time_limit=60)
+    assert res.lag == 0 and res.certificate["lag"] == 0 and res.to_dict()["lag"] == 0
+    assert abs(res.rho_certified - 9 / 11) <= 1e-5

@@ -9,6 +9,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -218,8 +219,11 @@ def test_missing_dask_is_exit_2(tmp_path, monkeypatch):
     assert not (tmp_path / "o").exists()
 
 
+_RELEASE = threading.Event()  # the in-process worker's task waits on it (not a fixed sleep)
+
+
 def _slow_chunk(spec_text, source, options, chunk):
-    time.sleep(60)
+    _RELEASE.wait(60)
     return [{"kappa": t["kappa"]} for t in chunk]
 
 
@@ -235,14 +239,16 @@ def test_cluster_losing_its_last_worker_fails_instead_of_hanging(monkeypatch):
             time.sleep(1.0)
             cluster.scale(0)
 
-        import threading
-
+        _RELEASE.clear()
         threading.Thread(target=lose_worker, daemon=True).start()
         t0 = time.monotonic()
-        with pytest.raises(BatchError, match="no workers"):
-            run_batch(_slow_chunk, "", "", {}, [{"kappa": 2.0}], lambda r: None,
-                      scheduler=cluster.scheduler_address)
-        assert time.monotonic() - t0 < 40
+        try:
+            with pytest.raises(BatchError, match="no workers"):
+                run_batch(_slow_chunk, "", "", {}, [{"kappa": 2.0}], lambda r: None,
+                          scheduler=cluster.scheduler_address)
+            assert time.monotonic() - t0 < 40
+        finally:
+            _RELEASE.set()  # lets the orphaned task end, so the cluster closes at once
 
 
 def _children(pid: int) -> list[int]:
@@ -304,7 +310,14 @@ def test_scheduler_going_away_is_one_line_exit_2(tmp_path):
                                  "--kappa", "10", "--points", "120", "--out", str(tmp_path),
                                  "--scheduler", address, "--quiet"], env=env,
                                 stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-        time.sleep(25)
+        from distributed import Client
+
+        with Client(address, timeout=30) as watcher:  # until the run's task is on the worker
+            deadline = time.time() + 90
+            while time.time() < deadline and run_.poll() is None and not any(
+                    watcher.processing().values()):
+                time.sleep(0.5)
+        time.sleep(1.0)
         assert run_.poll() is None, run_.stderr.read()
         sched.terminate()
         err = run_.communicate(timeout=120)[1]

@@ -43,11 +43,11 @@ from pathlib import Path
 from typing import Any
 
 from sosalgo.errors import InputError
+from sosalgo.schema import kappa_label  # file names are the schema's; re-exported here
 
 __all__ = [
     "OutputError",
     "ResumableCSV",
-    "SettingsMismatch",
     "describe_difference",
     "format_value",
     "kappa_label",
@@ -64,10 +64,6 @@ class OutputError(InputError):
     """An output path cannot be used (not a regular file, not writable, ...): exit code 2."""
 
 
-class SettingsMismatch(OutputError):
-    """Kept for compatibility: existing output with other settings that cannot be moved."""
-
-
 def format_value(v: Any) -> str:
     """CSV text of a value: repr-exact floats, empty for None."""
     if v is None:
@@ -77,15 +73,6 @@ def format_value(v: Any) -> str:
     if isinstance(v, float):
         return repr(v)
     return str(v)
-
-
-def kappa_label(kappa: float) -> str:
-    """Exact file-name text of a condition number: ``10`` for 10.0, else the shortest
-    round-trip repr (``10.000001``, ``1e+20``), so distinct kappas never share a name."""
-    k = float(kappa)
-    if math.isfinite(k) and k.is_integer() and abs(k) < 1e16:
-        return str(int(k))
-    return repr(k)
 
 
 def settings_hash(settings: Any) -> str:

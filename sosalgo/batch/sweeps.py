@@ -6,7 +6,6 @@ driver that writes rows to a resumable CSV as they finish.
 
 from __future__ import annotations
 
-import sys
 import weakref
 from collections.abc import Sequence
 from pathlib import Path
@@ -15,16 +14,27 @@ from typing import Any
 import numpy as np
 
 from sosalgo.analysis import AnalysisResult, analyze_spec, spec_family
-from sosalgo.batch.executor import Progress, run_batch
-from sosalgo.batch.store import ResumableCSV, kappa_label
-from sosalgo.certificates import CertificateFamily, get_family
+from sosalgo.batch.executor import Progress, note, run_batch
+from sosalgo.batch.store import ResumableCSV
+from sosalgo.certificates import CertificateFamily, describe_family, family_from_description
 from sosalgo.expr.compile import compile_expression
-from sosalgo.model import ModelError
+from sosalgo.model import ModelError, parameter_values
+from sosalgo.schema import (
+    analysis_columns,
+    design_columns,
+    grid_columns,
+    grid_fixed,
+    kappa_label,
+    p_columns,
+)
 from sosalgo.solvers import DEFAULT_SOLVERS
 from sosalgo.spec import BASE_NAMES, Spec, spec_from_text
 
 __all__ = [
     "analysis_columns",
+    "design_columns",
+    "grid_columns",
+    "p_columns",
     "analysis_chunk",
     "run_analysis_sweep",
     "reference_values",
@@ -49,11 +59,6 @@ def _spec(text: str, source: str) -> Spec:
     return _SPECS[key]
 
 
-def p_columns(n: int) -> list[str]:
-    """Column names of P's upper triangle: P11, P12, ..., Pnn (1-based)."""
-    return [f"P{i + 1}{j + 1}" for i in range(n) for j in range(i, n)]
-
-
 def p_entries(n: int, P: Any) -> dict[str, float | None]:
     """CSV cells P11, P12, ... of a certificate matrix (None when there is none)."""
     pairs = [(i, j) for i in range(n) for j in range(i, n)]
@@ -61,45 +66,21 @@ def p_entries(n: int, P: Any) -> dict[str, float | None]:
             for c, (i, j) in zip(p_columns(n), pairs, strict=True)}
 
 
-def _extra(fam: CertificateFamily | None) -> Any:
-    """The family when it has its own table columns (not Theorem 1), else None."""
-    return fam if fam is not None and hasattr(fam, "csv_columns") else None
-
-
 def p_size(spec: Spec, fam: CertificateFamily | None) -> int:
-    """Side of the family's P (n for Theorem 1)."""
-    fam = _extra(fam)
+    """Side of the family's P (n for Theorem 1, and when no family is given)."""
     return spec.n if fam is None else fam.p_size(spec.n)
 
 
-def analysis_columns(spec: Spec, family: CertificateFamily | None = None) -> list[str]:
-    """CSV columns of ``sosalgo analyze`` (a contract: extend, never rename).
-
-    Theorem 1 (the default) has exactly the historical columns; another family has P's
-    entries of its own size and its extra parts at the end (see its ``csv_columns``)."""
-    fam = _extra(family)
-    return (
-        ["kappa", "rho", "certified", "lambda"]
-        + p_columns(p_size(spec, family))
-        + ["max_eig_M", "min_eig_P", "solves", "seconds", "solver", "rho_infeasible", "error",
-           "warning"]
-        + list(spec.references)
-        + ([] if fam is None else fam.csv_columns(spec.n))
-    )
+# a family as plain data for workers and settings files (its name and set options)
+family_options = describe_family
+family_from_options = family_from_description
 
 
-def family_options(fam: CertificateFamily) -> dict[str, Any]:
-    """Picklable description of a family for workers and settings files."""
-    out: dict[str, Any] = {"family": fam.name}
-    if getattr(fam, "lag", None) is not None:
-        out["lag"] = fam.lag  # type: ignore[attr-defined]
-    return out
-
-
-def family_from_options(options: dict[str, Any] | None) -> CertificateFamily | None:
-    if not options:
-        return None
-    return get_family(options["family"], {k: v for k, v in options.items() if k != "family"})
+def _family_settings(fam: CertificateFamily) -> dict[str, Any] | None:
+    """The family's entry in a run's settings: None for the default family without options
+    (so that Theorem 1 runs keep their settings files)."""
+    desc = describe_family(fam)
+    return None if fam.is_default and desc == {"family": fam.name} else desc
 
 
 _REFERENCES: weakref.WeakKeyDictionary[Spec, dict[str, Any]] = weakref.WeakKeyDictionary()
@@ -176,9 +157,8 @@ def _certificate_cells(spec: Spec, family: CertificateFamily | None, kappa: floa
     own parts (families other than Theorem 1)."""
     cells: dict[str, Any] = p_entries(p_size(spec, family), P)
     cells.update(reference_values(spec, kappa))
-    fam = _extra(family)
-    if fam is not None:
-        cells.update(fam.csv_cells(spec.n, cert))
+    if family is not None:
+        cells.update(family.csv_cells(spec.n, cert))
     return cells
 
 
@@ -201,8 +181,7 @@ def _run_chunk(spec_text: str, source: str, options: dict[str, Any],
         except ModelError as exc:  # e.g. a grid point outside a function's domain
             row = {"kappa": kappa, "certified": False, "error": str(exc)}
             row.update(reference_values(spec, kappa))
-            if _extra(fam) is not None:
-                row.update(_extra(fam).csv_cells(spec.n, None))
+            row.update(fam.csv_cells(spec.n, None))
         row.update(task.get("extra", {}))
         rows.append(row)
     return rows
@@ -229,7 +208,8 @@ def _run_store(
     """Open (lock, reconcile) the store, then run the tasks not done yet into it."""
     with store:
         todo = [t for t in tasks if not store.is_done(t)]
-        bar = Progress(len(tasks), label, progress, done=len(tasks) - len(todo))
+        bar = Progress(len(tasks), label, progress, done=len(tasks) - len(todo),
+                       resumed_from=store.path)
         try:
             run_batch(fn, spec_text, source, options, todo, on_row or store.write,
                       workers=workers, scheduler=scheduler, progress=bar)
@@ -262,8 +242,8 @@ def run_analysis_sweep(
     settings = {"job": "analyze", "spec": spec_text, "tol": tol,
                 "solvers": list(solvers) if solvers else None,
                 "kappa": [float(k) for k in kappas]}
-    if not fam.is_default:
-        settings["certificate"] = family_options(fam)
+    if _family_settings(fam) is not None:
+        settings["certificate"] = _family_settings(fam)
     store = ResumableCSV(out_csv, analysis_columns(spec, fam), ["kappa"], settings,
                          restart=restart, companions=companions)
     tasks = [{"kappa": float(k)} for k in kappas]
@@ -311,33 +291,15 @@ def csv_row_to_json(spec: Spec, row: dict[str, str],
 
 def _family_json(spec: Spec, row: dict[str, str], family: CertificateFamily | None,
                  P: Any) -> dict[str, Any]:
-    fam = _extra(family)
-    if fam is None:
+    """``family`` and ``certificate`` of a row of a family with its own columns."""
+    if family is None or not family.csv_columns(spec.n):
         return {}
-    return {"family": fam.name,
-            "certificate": fam.cert_from_csv(spec.n, row, None if P is None else P.tolist())}
+    return {"family": family.name, "certificate": family.cert_from_csv(
+        spec.n, row, None if P is None else P.tolist())}
 
 
 # --------------------------------------------------------------------------- design sweeps
 RUNTIME_OPTIONS = ("progress_steps", "inner_workers")  # how to run, not what: not settings
-
-
-def design_columns(spec: Spec, free: Sequence[str],
-                   family: CertificateFamily | None = None) -> list[str]:
-    """CSV columns of ``sosalgo design`` over kappa (a contract: extend, never rename).
-
-    Another family than Theorem 1 has P's entries of its own size and its extra parts at
-    the end (see its ``csv_columns``)."""
-    fam = _extra(family)
-    return (
-        ["kappa", "lower_bound", "rho_certified", "gap", "gap_met"]
-        + [f"theta_{p}" for p in free]
-        + ["rho_at_values", "lambda"] + p_columns(p_size(spec, family))
-        + ["scalarize", "order", "status", "flat", "ranks", "seconds", "steps", "error",
-           "method", "floor", "time_limited"]
-        + list(spec.references)
-        + ([] if fam is None else fam.csv_columns(spec.n))
-    )
 
 
 def design_row(spec: Spec, res: Any, family: CertificateFamily | None = None) -> dict[str, Any]:
@@ -369,7 +331,7 @@ def design_chunk(
         on_step = None
         if options.get("progress_steps"):
             def on_step(msg: str) -> None:
-                print(f"  [kappa {kappa:g}] {msg}", file=sys.stderr, flush=True)
+                note(f"  [kappa {kappa:g}] {msg}")
         res = design(spec, kappa, free=options["free"], scalarize=options["scalarize"],
                      order=options["order"], gap=options["gap"],
                      time_limit=options["time_limit"], method=options.get("method", "dual"),
@@ -449,24 +411,13 @@ def design_csv_to_json(spec: Spec, free: Sequence[str], row: dict[str, str],
 
 def _design_certificate(spec: Spec, row: dict[str, str], family: CertificateFamily | None,
                         P: Any) -> dict[str, Any]:
-    fam = _extra(family)
-    if fam is None:
+    """The certificate of a design row: the family's parts (P and lambda by default)."""
+    if family is None or not family.csv_columns(spec.n):
         return {"P": P, "lambda": _num(row["lambda"])}
-    return fam.cert_from_csv(spec.n, row, P) or {}
+    return family.cert_from_csv(spec.n, row, P) or {}
 
 
 # --------------------------------------------------------------------------- grids
-def grid_columns(spec: Spec, free: Sequence[str],
-                 family: CertificateFamily | None = None) -> list[str]:
-    """CSV columns of ``sosalgo grid`` (a contract: extend, never rename)."""
-    fam = _extra(family)
-    return (
-        ["kappa", *free, "rho", "certified", "lambda"] + p_columns(p_size(spec, family))
-        + ["max_eig_M", "min_eig_P", "solves", "seconds", "solver", "error"]
-        + ([] if fam is None else fam.csv_columns(spec.n))
-    )
-
-
 def grid_points(box: Sequence[tuple[float, float]], points: int) -> list[tuple[float, ...]]:
     """Cartesian grid with ``points`` values per axis, endpoints included."""
     axes = [np.linspace(lo, hi, points) for lo, hi in box]
@@ -496,14 +447,17 @@ def run_grid(
     options = {"tol": tol, "free": list(free), "certificate": family_options(fam)}
     settings = {"job": "grid", "spec": spec_text, "tol": tol, "kappa": float(kappa),
                 "free": list(free), "points": points, "box": [list(b) for b in box]}
-    if not fam.is_default:
-        settings["certificate"] = family_options(fam)
+    if _family_settings(fam) is not None:
+        settings["certificate"] = _family_settings(fam)
+    values = parameter_values(spec, kappa)
+    fixed = {p: values[p] for p in grid_fixed(spec, free)}
     store = ResumableCSV(out_csv, grid_columns(spec, free, fam), ["kappa", *free], settings,
                          restart=restart, companions=companions)
     tasks = []
     for vals in grid_points(box, points):
         theta = dict(zip(free, vals, strict=True))
-        tasks.append({"kappa": float(kappa), "theta": theta, "extra": theta, **theta})
+        tasks.append({"kappa": float(kappa), "theta": theta, "extra": {**theta, **fixed},
+                      **theta})
     _seed(spec, spec_text)
     _run_store(store, tasks, f"grid {spec.name} k={kappa_label(kappa)}", progress, grid_chunk,
                spec_text, spec.source, options, None, workers, scheduler)

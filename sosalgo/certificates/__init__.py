@@ -7,6 +7,9 @@ family (e.g. Lyapunov functions with interpolation conditions) plugs in beside
 Theorem 1 by adding a module and an entry in :data:`FAMILIES`.
 """
 
+from collections.abc import Mapping
+from typing import Any
+
 from sosalgo.certificates.base import AffineBlock, CertificateFamily, LMIProblem
 from sosalgo.certificates.interpolation import INTERPOLATION
 from sosalgo.certificates.theorem1 import THEOREM1
@@ -14,14 +17,17 @@ from sosalgo.certificates.theorem1 import THEOREM1
 FAMILIES: dict[str, CertificateFamily] = {
     THEOREM1.name: THEOREM1, INTERPOLATION.name: INTERPOLATION,
 }
-FAMILY_OPTIONS: dict[str, tuple[str, ...]] = {THEOREM1.name: (), INTERPOLATION.name: ("lag",)}
+# the option names of each family (its ``option_names``; kept as a table for old callers)
+FAMILY_OPTIONS: dict[str, tuple[str, ...]] = {n: tuple(f.option_names)
+                                               for n, f in FAMILIES.items()}
 
 
-def register_family(family: CertificateFamily, options: tuple[str, ...] = ()) -> None:
+def register_family(family: CertificateFamily, options: tuple[str, ...] | None = None) -> None:
     """Make ``family`` available under ``family.name`` (specs' ``certificate:`` field,
-    ``--certificate``); ``options`` are the keyword options its ``with_options`` takes."""
+    ``--certificate``); its options are its ``option_names`` (or ``options``)."""
     FAMILIES[family.name] = family
-    FAMILY_OPTIONS[family.name] = tuple(options)
+    names = getattr(family, "option_names", ()) if options is None else options
+    FAMILY_OPTIONS[family.name] = tuple(names)
 
 
 def default_family() -> CertificateFamily:
@@ -29,20 +35,36 @@ def default_family() -> CertificateFamily:
     return next(f for f in FAMILIES.values() if f.is_default)
 
 
-def get_family(name: str, options: dict | None = None) -> CertificateFamily:
-    """The certificate family registered under ``name``, with its options (e.g. lag)."""
+def get_family(name: str, options: Mapping[str, Any] | None = None) -> CertificateFamily:
+    """The certificate family registered under ``name``, with its options (e.g. lag): the
+    one place options are checked (ValueError '<option>: what is wrong')."""
     try:
         fam = FAMILIES[name]
     except KeyError:
-        raise ValueError(f"unknown certificate family {name!r}") from None
+        raise ValueError(f"unknown certificate family {name!r} "
+                         f"(known: {', '.join(FAMILIES)})") from None
     opts = {k: v for k, v in (options or {}).items() if v is not None}
-    unknown = set(opts) - set(FAMILY_OPTIONS[name])
+    unknown = sorted(set(opts) - set(FAMILY_OPTIONS[name]), key=str)
     if unknown:
-        raise ValueError(f"family {name!r} has no option {sorted(unknown)[0]!r}")
-    return fam.with_options(**opts) if opts else fam  # type: ignore[attr-defined]
+        raise ValueError(f"{str(unknown[0])[:40]}: unknown option of family {name}")
+    return fam.with_options(**opts) if opts else fam
+
+
+def describe_family(fam: CertificateFamily) -> dict[str, Any]:
+    """A family as plain data (workers, settings files): its name and set options."""
+    return {"family": fam.name,
+            **{k: v for k, v in fam.options().items() if v is not None}}
+
+
+def family_from_description(desc: Mapping[str, Any] | None) -> CertificateFamily | None:
+    """Inverse of :func:`describe_family` (None for None or an empty description)."""
+    if not desc:
+        return None
+    return get_family(desc["family"], {k: v for k, v in desc.items() if k != "family"})
 
 
 __all__ = [
     "AffineBlock", "CertificateFamily", "LMIProblem", "FAMILIES", "FAMILY_OPTIONS",
-    "default_family", "get_family", "register_family",
+    "default_family", "describe_family", "family_from_description", "get_family",
+    "register_family",
 ]

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import copy
+import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol
@@ -76,16 +78,6 @@ class LMIProblem:
     unpack: Callable[[np.ndarray], dict[str, Any]]
     project: Callable[[np.ndarray], np.ndarray] = lambda x: x
 
-    def max_eigs(self, x: np.ndarray, rho: float) -> dict[str, float]:
-        """Largest eigenvalue of each block at (x, rho): all must be <= 0."""
-        out = {}
-        for b in self.blocks:
-            if b.size == 1:  # a scalar row: its value is its eigenvalue
-                out[b.name] = float(b.value(x, rho)[0, 0])
-            else:
-                out[b.name] = float(np.linalg.eigvalsh(b.value(x, rho))[-1])
-        return out
-
 
 class CertificateFamily(Protocol):
     """A family of Lyapunov certificates for linear rates on F(m, L).
@@ -100,6 +92,13 @@ class CertificateFamily(Protocol):
     - ``certificate_parts``: the named parts a result must carry to claim a certificate;
     - ``parse_certificate``, ``exact_check`` and ``lyapunov``: how ``sosalgo verify`` reads,
       proves and simulates one of its certificates.
+
+    The members after ``lyapunov`` have defaults (Theorem 1's behaviour): a family that
+    subclasses this class explicitly inherits them. ``option_names`` and ``options()`` name
+    its keyword options (e.g. the interpolation family's ``lag``): they go into output file
+    names and run settings; ``csv_columns``/``csv_cells``/``cert_from_csv``/``p_size`` give
+    its own CSV columns; ``summary`` the two eigenvalues of its results; ``listing`` its
+    text for ``sosalgo lmi`` (None: the entries of its main matrix).
     """
 
     name: str
@@ -108,6 +107,7 @@ class CertificateFamily(Protocol):
     is_default: bool
     supports_moment: bool
     certificate_parts: tuple[str, ...]
+    option_names: tuple[str, ...] = ()
 
     def problem(self, alg: Algorithm) -> LMIProblem:
         """Assemble the feasibility data for a numeric algorithm."""
@@ -147,6 +147,58 @@ class CertificateFamily(Protocol):
         """The keyword arguments of :func:`sosalgo.verify.simulate_check` that make it follow
         this certificate's Lyapunov function (``P`` and, when it has more, ``lyapunov``)."""
         ...
+
+    # -- members with defaults -----------------------------------------------------------
+    def options(self) -> dict[str, Any]:
+        """The family's options and their values (None: the family's default)."""
+        return {k: getattr(self, k, None) for k in self.option_names}
+
+    def with_options(self, **options: Any) -> CertificateFamily:
+        """A copy with ``options`` set; ValueError names an unknown or invalid one."""
+        unknown = sorted(set(options) - set(self.option_names))
+        if unknown:
+            raise ValueError(f"{unknown[0]}: unknown option of family {self.name}")
+        if not options:
+            return self
+        fam = copy.copy(self)
+        for k, v in options.items():
+            setattr(fam, k, v)
+        return fam
+
+    def p_size(self, n: int) -> int:
+        """Side of the certificate's matrix P (its CSV columns P11..): n by default."""
+        return n
+
+    def csv_columns(self, n: int) -> list[str]:
+        """Its own CSV columns after the common ones (none by default)."""
+        return []
+
+    def csv_cells(self, n: int, cert: Mapping[str, Any] | None) -> dict[str, Any]:
+        """The cells of :meth:`csv_columns` for a certificate (None: no certificate)."""
+        return {}
+
+    def cert_from_csv(self, n: int, row: Mapping[str, str], P: Any) -> dict[str, Any] | None:
+        """The certificate of a CSV row (inverse of :meth:`csv_cells`): P and lambda by
+        default (None when the row has no P)."""
+        if P is None:
+            return None
+        lam = row.get("lambda") or None
+        return {"P": P, "lambda": None if lam is None else float(lam)}
+
+    def summary(self, alg: Algorithm, rho: float, cert: dict[str, Any]) -> dict[str, float]:
+        """``max_eig_M`` (of :meth:`matrix`, <= 0) and ``min_eig_P`` (>= 0) at a certificate;
+        NaN when they cannot be evaluated."""
+        M = np.asarray(self.matrix(alg, rho, cert), dtype=float)
+        P = np.asarray(cert["P"], dtype=float)
+        if not (np.all(np.isfinite(M)) and np.all(np.isfinite(P))):
+            return {"max_eig_M": math.nan, "min_eig_P": math.nan}
+        return {"max_eig_M": float(np.linalg.eigvalsh(M)[-1]),
+                "min_eig_P": float(np.linalg.eigvalsh(P)[0])}
+
+    def listing(self, spec: Spec, symbols: dict[str, Any], latex: bool) -> str | None:
+        """Its own text for ``sosalgo lmi`` from the symbols of :meth:`symbolic`; None (the
+        default) prints the entries of the main matrix."""
+        return None
 
 
 def check_number(value: Any, part: str, allow_none: bool = True) -> float | None:

@@ -22,6 +22,12 @@ The quadratic parts are matrix inequalities, the function-value parts hold coeff
 family never certifies a worse rate. When E = C the x-points coincide with the y-points and
 are dropped (c merges into p_0).
 
+A certificate of lag l is one of lag l + 1 (P padded with zeros, p_{l+1} = 0, the
+multipliers of the window's older points 0), so larger lags never certify less in exact
+arithmetic, and sometimes much more (heavy ball). Without a given lag the analysis tries
+the lags of :meth:`Interpolation.auto_lags` and keeps the best rate
+(:func:`sosalgo.analysis.analyze_algorithm`); a certificate always names its own lag.
+
 The same structure builder works on floats (the LMI data), rationals/balls (the exact
 verifier) and sympy (``sosalgo lmi``): it only uses sums, products and stacking.
 """
@@ -36,7 +42,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from sosalgo.certificates.base import AffineBlock, LMIProblem
+from sosalgo.certificates.base import AffineBlock, CertificateFamily, LMIProblem
 
 if TYPE_CHECKING:  # only for annotations: families do not depend on the model at run time
     import sympy as sp
@@ -211,14 +217,19 @@ def evaluate(st: Structure, r: Any, P: Any, pi: Any, eta: Any, lam: Any) -> dict
     return {"D": D, "Df": Df, "Pq": Pq, "Pf": Pf}
 
 
-class Interpolation:
-    """Lyapunov functions with interpolation conditions (lag l; default l = n - 1)."""
+AUTO_LAG_EXTRA = 3  # without a given lag, the analysis tries the lags n - 1 .. n + 3 (<= 8)
+
+
+class Interpolation(CertificateFamily):
+    """Lyapunov functions with interpolation conditions, lag l given or (``lag=None``)
+    chosen by the analysis among :meth:`auto_lags` (its problem is then that of l = n - 1)."""
 
     name = "interpolation"
     label = "interpolation"
     is_default = False
     supports_moment = False  # the moment relaxation is built on Theorem 1's M
     certificate_parts = ("P", "p", "lag")
+    option_names = ("lag",)
     tight = True  # its rate is often the rate on quadratics: the search starts there
     # points the margin search cannot check sit on a degenerate boundary (tight rates),
     # where SCS only runs into its iteration limit: Clarabel alone is asked
@@ -227,12 +238,26 @@ class Interpolation:
                    "F(m, L) interpolation inequalities (tight)")
 
     def __init__(self, lag: int | None = None):
-        if lag is not None and (not isinstance(lag, int) or isinstance(lag, bool) or lag < 0):
-            raise ValueError("lag must be a non-negative integer")
+        if lag is not None and (not isinstance(lag, int) or isinstance(lag, bool)
+                                or not 0 <= lag <= 8):
+            raise ValueError("lag: must be an integer in 0..8")
         self.lag = lag
 
     def lag_for(self, n: int) -> int:
+        """The lag of :meth:`problem`: the given one, else n - 1 (the first auto lag)."""
         return n - 1 if self.lag is None else self.lag
+
+    def auto_lags(self, n: int) -> tuple[int, ...]:
+        """The lags the analysis tries, in order, when none is given: n - 1 .. n + 3 (at
+        most 8; see :func:`sosalgo.analysis.analyze_algorithm`); () for a given lag."""
+        if self.lag is not None:
+            return ()
+        return tuple(range(max(n - 1, 0), min(n + AUTO_LAG_EXTRA, 8) + 1))
+
+    def max_lag(self, n: int) -> int:
+        """The largest lag a certificate of this family can have (sizes the CSV columns)."""
+        lags = self.auto_lags(n)
+        return lags[-1] if lags else self.lag_for(n)
 
     def with_options(self, lag: int | None = None) -> Interpolation:
         return Interpolation(lag)
@@ -245,8 +270,9 @@ class Interpolation:
         return {"P": slice(0, nP), "pi": slice(nP, k1), "eta": slice(k1, k2),
                 "lam": slice(k2, k2 + len(st.pos.labels))}
 
-    def _structure(self, alg: Algorithm, normalized: bool, has_x: bool | None = None) -> Structure:
-        lag = self.lag_for(alg.n)
+    def _structure(self, alg: Algorithm, normalized: bool, has_x: bool | None = None,
+                   lag: int | None = None) -> Structure:
+        lag = self.lag_for(alg.n) if lag is None else lag
         hx = has_output_point(alg.C, alg.E) if has_x is None else has_x
         if normalized:
             return structure(alg.A, alg.B * alg.L, alg.C, alg.E, alg.m / alg.L, 1.0, lag, hx)
@@ -366,24 +392,10 @@ class Interpolation:
             },
         }
 
-    def pack(self, alg: Algorithm, cert: dict[str, Any]) -> np.ndarray:
-        """Inverse of ``unpack``: the normalized decision vector of a certificate."""
-        st = self._structure(alg, normalized=True)
-        lay = self._layout(st)
-        L = alg.L
-        d = np.concatenate([np.ones(st.n), np.full(st.lag + 1, L)])
-        Pn = (d[:, None] * np.asarray(cert["P"], float) * d[None, :]) / L
-        x = np.zeros(lay["lam"].stop)
-        x[lay["P"]] = [Pn[a, b] for a, b in _sym_basis(st.nz)]
-        x[lay["pi"]] = list(cert["p"]) + ([cert["c"]] if st.has_x else [])
-        mult = cert["multipliers"]
-        x[lay["eta"]] = [L * mult["decrease"][k] for k in st.dec.labels]
-        x[lay["lam"]] = [L * mult["positivity"][k] for k in st.pos.labels]
-        return x
-
     def parts(self, alg: Algorithm, rho: float, cert: dict[str, Any]) -> dict[str, Any]:
-        """The inequality parts (D, Df, Pq, Pf) at a certificate, original units (floats)."""
-        st = self._structure(alg, normalized=False)
+        """The inequality parts (D, Df, Pq, Pf) at a certificate (at its own lag), original
+        units (floats)."""
+        st = self._structure(alg, normalized=False, lag=int(cert["lag"]))
         pi = np.array(list(cert["p"]) + ([cert["c"]] if st.has_x else []), float)
         mult = cert["multipliers"]
         eta = [mult["decrease"][k] for k in st.dec.labels]
@@ -402,39 +414,59 @@ class Interpolation:
 
     # -- tables ------------------------------------------------------------------------------
     def p_size(self, n: int) -> int:
-        """Side of P (z = (xi, u_k, ..., u_{k-l}))."""
+        """Side of the P of the leading CSV columns P11...: that of :meth:`problem`'s lag
+        (a larger auto lag's further entries have columns of their own, see
+        :meth:`csv_columns`)."""
         return n + self.lag_for(n) + 1
 
-    def csv_columns(self, n: int) -> list[str]:
-        """Extra CSV columns (after the common ones): family, lag, p0..pl, c, multipliers."""
-        return ["family", "lag"] + [f"p{j}" for j in range(self.lag_for(n) + 1)] + [
-            "c", "multipliers"]
+    def _extra_entries(self, n: int, side: int) -> list[tuple[str, int, int]]:
+        """(column, i, j) of the entries of a side x side P beyond the leading columns."""
+        k = self.p_size(n)
+        return [(f"P{i + 1}{j + 1}", i, j) for i in range(side) for j in range(max(i, k), side)]
 
-    def csv_cells(self, n: int, cert: dict[str, Any] | None) -> dict[str, Any]:
-        """CSV cells of a certificate (multipliers as one JSON object: pair -> value)."""
-        out: dict[str, Any] = {"family": self.name, "lag": self.lag_for(n)}
+    def csv_columns(self, n: int) -> list[str]:
+        """Extra CSV columns (after the common ones): family, lag, p0..pl, c, multipliers,
+        then (auto lag) the entries of P beyond the leading ones, up to the largest lag."""
+        top = self.max_lag(n)
+        return (["family", "lag"] + [f"p{j}" for j in range(top + 1)] + ["c", "multipliers"]
+                + [name for name, _, _ in self._extra_entries(n, n + top + 1)])
+
+    def csv_cells(self, n: int, cert: Mapping[str, Any] | None) -> dict[str, Any]:
+        """CSV cells of a certificate (multipliers as one JSON object: pair -> value); the
+        lag is the certificate's (empty without one when the lag is chosen)."""
+        out: dict[str, Any] = {"family": self.name, "lag": self.lag}
         if cert is None:
             return out
+        out["lag"] = int(cert["lag"])
         out.update({f"p{j}": float(v) for j, v in enumerate(cert["p"])})
         out["c"] = cert["c"]
         out["multipliers"] = json.dumps(cert["multipliers"], separators=(",", ":"))
+        P = np.asarray(cert["P"], dtype=float)
+        out.update({name: float(P[i, j]) for name, i, j in self._extra_entries(n, len(P))})
         return out
 
-    def cert_from_csv(self, n: int, row: dict[str, str], P: Any) -> dict[str, Any] | None:
-        """Inverse of :meth:`csv_cells` (None when the row has no certificate)."""
+    def cert_from_csv(self, n: int, row: Mapping[str, str], P: Any) -> dict[str, Any] | None:
+        """Inverse of :meth:`csv_cells` (None when the row has no certificate); ``P`` is the
+        matrix of the leading columns, completed from the further ones to the row's lag."""
         if P is None or not row.get("multipliers"):
             return None
         lag = int(row["lag"])
-        return {"family": self.name, "lag": lag, "P": P,
+        side = n + lag + 1
+        full = np.zeros((side, side))
+        lead = np.asarray(P, dtype=float)[:side, :side]
+        full[: len(lead), : len(lead)] = lead
+        for name, i, j in self._extra_entries(n, side):
+            full[i, j] = full[j, i] = float(row[name])
+        return {"family": self.name, "lag": lag, "P": full.tolist(),
                 "p": [float(row[f"p{j}"]) for j in range(lag + 1)],
                 "c": float(row["c"]) if row.get("c") else None,
                 "multipliers": json.loads(row["multipliers"])}
 
     def symbolic(self, A, B, C, E, m, L) -> tuple[sp.Matrix, dict[str, Any]]:
-        import sympy as sp
-
         """Symbolic row maps and interpolation pairs; the returned matrix is the decrease
         block (D) with symbolic P, p, c and multipliers (large: printed on request)."""
+        import sympy as sp
+
         n = A.shape[0]
         lag = self.lag_for(n)
         hx = any(sp.simplify(C[0, j] - E[0, j]) != 0 for j in range(n))
@@ -447,6 +479,12 @@ class Interpolation:
         return sp.Matrix(st.dec.Z[lag + 1]), {
             "P": P, "rho": rho, "structure": st, "lag": lag, "has_x": hx,
         }
+
+    def listing(self, spec: Spec, symbols: dict[str, Any], latex: bool) -> str:
+        """Its ``sosalgo lmi`` text: windows, Lyapunov function, interpolation pairs."""
+        from sosalgo.certificates.listing import interpolation_listing
+
+        return interpolation_listing(spec, symbols, latex)
 
     def exact_problem(self, A, B, C, E, m, L) -> None:
         """None: P is not sign-constrained here (its positivity comes from the S-procedure),

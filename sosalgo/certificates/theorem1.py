@@ -20,6 +20,7 @@ import numpy as np
 
 from sosalgo.certificates.base import (
     AffineBlock,
+    CertificateFamily,
     ExactBlock,
     LMIProblem,
     check_matrix,
@@ -88,7 +89,7 @@ def _sym_basis(n: int) -> list[tuple[int, int]]:
     return [(i, j) for i in range(n) for j in range(i, n)]
 
 
-class Theorem1:
+class Theorem1(CertificateFamily):
     """The certificate family of Theorem 1 (eq. 15)."""
 
     name = "theorem1"
@@ -202,9 +203,9 @@ class Theorem1:
         )
 
     def symbolic(self, A, B, C, E, m, L) -> tuple[sp.Matrix, dict[str, Any]]:
+        """Symbolic M(theta, rho, lambda, P) of eq. (15) with P = [p_ij] symmetric."""
         import sympy as sp
 
-        """Symbolic M(theta, rho, lambda, P) of eq. (15) with P = [p_ij] symmetric."""
         n = A.shape[0]
         P = sp.zeros(n, n)
         for i, j in _sym_basis(n):

@@ -96,25 +96,20 @@ def rate_figure(
     first, e.g. the designed rate, stays visible where it meets a bound), references
     dashed (smooth ``reference_curves`` = (fine kappa grid, values) when given, else at
     the data kappas). Kappas where a series has no value are marked along the bottom
-    ("<series>: missing"); ``uncertified`` kappas along the top, never as rho = 1 data."""
+    ("<series>: missing"; a series without any value gets only those marks, no legend
+    line); ``uncertified`` kappas along the top, never as rho = 1 data. The legend lists
+    exactly what is drawn."""
     fig, ax = _pyplot().subplots(figsize=(6.4, 4.4))
     k = np.asarray(kappa, dtype=float)
-    markers = "os^Dv<>"
-    styles = [dict(ms=5, lw=1.8), dict(ms=7, lw=1.2, mfc="none"), dict(ms=4, lw=1.0)]
-    n = len(series)
+    unc = np.isin(k, np.asarray(uncertified, dtype=float))
     for i, (label, vals) in enumerate(series.items()):
-        y = np.array([np.nan if v is None else v for v in vals], dtype=float)
-        ax.plot(k, y, marker=markers[i % len(markers)], label=label, zorder=3 + n - i,
-                **styles[min(i, len(styles) - 1)])
-        missing = ~np.isfinite(y) & ~np.isin(k, np.asarray(uncertified, dtype=float))
-        if missing.any() and (~missing).any():  # gaps not already marked "no certificate"
-            ax.plot(k[missing], np.zeros(missing.sum()), ls="none", marker="v", ms=7,
-                    color=ax.lines[-1].get_color(), label=f"{label}: missing",
-                    transform=ax.get_xaxis_transform(), clip_on=False, zorder=6)
+        _series(ax, k, _floats(vals), label, i, len(series), unc)
     ref_k, ref_vals = (k, references) if reference_curves is None else reference_curves
-    for label, vals in ref_vals.items():
-        y = np.array([np.nan if v is None else v for v in vals], dtype=float)
-        ax.plot(np.asarray(ref_k, dtype=float), y, ls="--", lw=1.2, label=label, zorder=2)
+    for j, (label, vals) in enumerate(ref_vals.items(), start=len(series)):
+        y = _floats(vals)
+        if np.isfinite(y).any():
+            ax.plot(np.asarray(ref_k, dtype=float), y, ls="--", lw=1.2, label=label, zorder=2,
+                    color=f"C{j % 10}")
     if len(uncertified):
         ax.plot(uncertified, np.ones(len(uncertified)), ls="none", marker="x", color="red",
                 ms=7, label="no certificate", clip_on=False)
@@ -123,26 +118,74 @@ def rate_figure(
     ax.set_ylabel(ylabel)
     ax.set_title(title)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8, loc="lower right")
+    ax.legend(fontsize=8, loc="best")  # "best" also keeps clear of the bottom marks
     return fig
 
 
+_MARKERS = "os^Dv<>"
+_STYLES = [dict(ms=5, lw=1.8), dict(ms=7, lw=1.2, mfc="none"), dict(ms=4, lw=1.0)]
+
+
+def _floats(vals: Sequence[float | None]) -> np.ndarray:
+    return np.array([np.nan if v is None else v for v in vals], dtype=float)
+
+
+def _series(ax: Any, k: np.ndarray, y: np.ndarray, label: str, i: int, n: int,
+            uncertified: np.ndarray) -> None:
+    """One series (the i-th of n) and, in its colour, triangles on the bottom edge where
+    it has no value (except where "no certificate" already marks the kappa)."""
+    color = f"C{i % 10}"
+    if np.isfinite(y).any():
+        ax.plot(k, y, marker=_MARKERS[i % len(_MARKERS)], label=label, zorder=3 + n - i,
+                color=color, **_STYLES[min(i, len(_STYLES) - 1)])
+    missing = ~np.isfinite(y) & ~uncertified
+    if missing.any():
+        ax.plot(k[missing], np.zeros(missing.sum()), ls="none", marker="v", ms=7,
+                color=color, label=f"{label}: missing", transform=ax.get_xaxis_transform(),
+                clip_on=False, zorder=6)
+
+
 def _kappa_axis(ax: Any, k: np.ndarray) -> None:
-    """Log kappa axis over a decade or more; over shorter spans a linear axis with a few
-    plain ticks (a log axis would label its minor ticks and the labels overlap)."""
-    from matplotlib.ticker import MaxNLocator, NullFormatter, ScalarFormatter
+    """Log kappa axis over a decade or more (:func:`log_ticks`); over shorter spans a
+    linear axis with a few plain ticks (a log axis would label its minor ticks and the
+    labels overlap)."""
+    from matplotlib.ticker import MaxNLocator, ScalarFormatter
 
     finite = k[np.isfinite(k) & (k > 0)]
     lo, hi = (finite.min(), finite.max()) if finite.size else (1.0, 10.0)
     if hi >= 10 * lo:
         ax.set_xscale("log")
-        ax.xaxis.set_minor_formatter(NullFormatter())
+        log_ticks(ax.xaxis, lo, hi)
         return
     ax.set_xscale("linear")
     ax.xaxis.set_major_locator(MaxNLocator(nbins=5, min_n_ticks=2))
     fmt = ScalarFormatter(useOffset=True, useMathText=True)
     fmt.set_powerlimits((-3, 4))
     ax.xaxis.set_major_formatter(fmt)
+
+
+def log_ticks(axis: Any, lo: float, hi: float) -> None:
+    """Label a log axis (already log-scaled) at 1, 2 and 5 times the powers of ten as plain
+    numbers (2, 5, 10, 20, ...), or at the powers of ten only over more than four decades
+    (the labels would crowd); the other minor ticks stay unlabelled."""
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+    decades = math.log10(hi / lo) if hi > 0 and lo > 0 else 1.0
+    subs = (1.0, 2.0, 5.0) if decades <= 4 else (1.0,)
+    axis.set_major_locator(LogLocator(base=10.0, subs=subs, numticks=30))
+    axis.set_major_formatter(FuncFormatter(_plain_tick))
+    axis.set_minor_locator(LogLocator(base=10.0, subs=np.arange(2, 10), numticks=30))
+    axis.set_minor_formatter(NullFormatter())
+
+
+def _plain_tick(v: float, _pos: Any = None) -> str:
+    """2, 50, 1000 as plain numbers; very small or large values as powers of ten."""
+    if v <= 0:
+        return ""
+    if 1e-3 <= v < 1e6:
+        return f"{v:g}"
+    exp = math.log10(v)
+    return f"$10^{{{round(exp)}}}$" if abs(exp - round(exp)) < 1e-9 else f"{v:.0e}"
 
 
 def plot_grid(
@@ -220,7 +263,7 @@ def _grid_2d(fig: Any, ax: Any, axes: Sequence[np.ndarray], rho: np.ndarray,
             levels[0], levels[-1] = min(levels[0], lo), max(levels[-1], hi)
             cf = ax.contourf(X, Y, Z, levels=levels, cmap="viridis", zorder=1)
             cs = ax.contour(X, Y, Z, levels=levels, colors="k", linewidths=0.6, zorder=2)
-            ax.clabel(cs, fmt="%.3f", fontsize=7)
+            _label_contours(ax, cs, (x0, x1, y0, y1))
             fig.colorbar(cf, ax=ax, label=r"certified rate $\rho$")
         i = np.unravel_index(int(np.nanargmin(Z)), Z.shape)
         ax.plot(X[i], Y[i], "*", ms=14, color="red", label=f"grid minimum {Z[i]:.4f}",
@@ -229,3 +272,35 @@ def _grid_2d(fig: Any, ax: Any, axes: Sequence[np.ndarray], rho: np.ndarray,
         ax.plot(*value_point, "o", ms=8, mfc="white", mec="k", label="spec value", zorder=4)
     ax.set_xlim(x0, x1)
     ax.set_ylim(y0, y1)
+
+
+def _label_contours(ax: Any, cs: Any, extent: tuple[float, float, float, float],
+                    most: int = 6) -> None:
+    """Label at most ``most`` contour levels (every other one, or sparser), each where it
+    lies farthest from the labels placed so far and from the frame, so the labels spread
+    over the plot instead of crowding where the contours bunch up."""
+    x0, x1, y0, y1 = extent
+    span = np.array([max(x1 - x0, 1e-300), max(y1 - y0, 1e-300)])
+    lows = np.array([x0, y0])
+    n = len(cs.levels)
+    step = max(2, math.ceil(n / most))
+    placed: list[np.ndarray] = []  # in units of the axes (0..1)
+    levels, manual = [], []
+    for i in range(step // 2, n, step):
+        segs = [sg for sg in cs.allsegs[i] if len(sg)]
+        if not segs:
+            continue
+        u = (np.vstack(segs) - lows) / span
+        inside = np.all((u > 0.06) & (u < 0.94), axis=1)
+        if not inside.any():
+            continue
+        u = u[inside]
+        room = np.min(np.stack([u[:, 0], 1 - u[:, 0], u[:, 1], 1 - u[:, 1]]), axis=0)
+        for q in placed:
+            room = np.minimum(room, np.hypot(*(u - q).T))
+        best = u[int(np.argmax(room))]
+        placed.append(best)
+        levels.append(cs.levels[i])
+        manual.append(tuple(lows + best * span))
+    if levels:
+        ax.clabel(cs, levels=levels, manual=manual, fmt="%.3f", fontsize=7, inline=True)

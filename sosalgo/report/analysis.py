@@ -14,22 +14,21 @@ from sosalgo.batch.sweeps import reference_curves
 from sosalgo.certificates import CertificateFamily
 from sosalgo.model import bind
 from sosalgo.report import format_table, plot_rates
+from sosalgo.schema import ANALYSIS_COLUMNS, FAMILY_COLUMNS
 from sosalgo.spec import Spec
 
 __all__ = ["ANALYSIS_COLUMNS", "FAMILY_COLUMNS", "analysis_figure", "analysis_table",
            "attach_checks", "families_figure"]
 
-# printed columns (the CSV has more): the default family's table shows lambda as well
-ANALYSIS_COLUMNS = ["kappa", "rho", "certified", "lambda", "max_eig_M", "min_eig_P", "solves",
-                    "seconds"]
-FAMILY_COLUMNS = ["kappa", "rho", "certified", "max_eig_M", "min_eig_P", "solves", "seconds"]
-
 Run = tuple[CertificateFamily, Path, list[dict[str, Any]]]  # family, its CSV, its JSON rows
 
 
 def analysis_figure(spec: Spec, rows: list[dict[str, Any]], stem: Path) -> list[Path]:
-    """Certified rate vs kappa with the spec's references (Theorem 1, the default)."""
+    """Certified rate vs kappa with the spec's references (Theorem 1, the default); no
+    figure for fewer than two kappas (one point is no curve)."""
     kappas = [r["kappa"] for r in rows]
+    if len(kappas) < 2:
+        return []
     return plot_rates(
         f"{spec.name}: certified rate (Theorem 1)",
         kappas,
@@ -43,10 +42,13 @@ def analysis_figure(spec: Spec, rows: list[dict[str, Any]], stem: Path) -> list[
 
 def families_figure(spec: Spec, runs: Sequence[Run], stem: Path) -> list[Path]:
     """Every family's certified rate vs kappa, with the spec's references,
-    1 - 1/sqrt(kappa) and the rate on quadratics (unless a reference already draws them)."""
+    1 - 1/sqrt(kappa) and the rate on quadratics (unless a reference already draws them);
+    no figure for fewer than two kappas, as for one family."""
     from sosalgo.analysis import quadratic_rate
 
     kap = [r["kappa"] for r in runs[0][2]]
+    if len(kap) < 2:
+        return []
     series = {f"certified rate ({f.label})": [r["rho"] for r in rows] for f, _, rows in runs}
     refs = {name: [r["references"][name] for r in runs[0][2]] for name in spec.references}
     extra = {"1 - 1/sqrt(kappa)": [1 - k ** -0.5 for k in kap],

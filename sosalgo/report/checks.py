@@ -6,10 +6,9 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from sosalgo.report import format_table
+from sosalgo.schema import CHECK_COLUMNS
 
 __all__ = ["CHECK_COLUMNS", "checks_table"]
-
-CHECK_COLUMNS = ["kappa", "rho", "verified", "rho_proven", "simulation", "reason"]
 
 
 def checks_table(rows: Sequence[Mapping[str, Any]],
@@ -19,8 +18,17 @@ def checks_table(rows: Sequence[Mapping[str, Any]],
     table = [{"kappa": r["kappa"], "rho": (c or {}).get("rho"),
               "verified": "no certificate" if c is None else c["verified"],
               "rho_proven": None if c is None else c["rho_proven_float"],
-              "simulation": None if c is None or "simulation" not in c
-              else ("ok" if c["simulation"]["ok"] else "VIOLATION"),
+              "simulation": _simulation(c),
               "reason": None if c is None else c["reason"]}
              for r, c in zip(rows, checks, strict=True)]
     return format_table(table, CHECK_COLUMNS)
+
+
+def _simulation(check: Mapping[str, Any] | None) -> str | None:
+    """ok, VIOLATION or skipped (the test functions could not be built)."""
+    sim = None if check is None else check.get("simulation")
+    if sim is None:
+        return None
+    if "skipped" in sim:
+        return "skipped"
+    return "ok" if sim["ok"] else "VIOLATION"

@@ -15,7 +15,8 @@ from sosalgo.certificates import CertificateFamily
 from sosalgo.report import format_table, plot_rates
 from sosalgo.spec import Spec
 
-__all__ = ["LEGEND", "design_figure", "design_table", "verdict", "verification_notes"]
+__all__ = ["LEGEND", "design_figure", "design_table", "proven_bound", "verdict",
+           "verification_notes"]
 
 LEGEND = ("rho_certified: analysis at the designed theta (with its certificate); "
           "lower_bound: proven, no theta in the box is certified below it; "
@@ -26,7 +27,7 @@ def verdict(doc: dict[str, Any], gap: float) -> str:
     """What the numbers prove: optimal within the gap only when the gap proves it."""
     if doc.get("rho_certified") is None:
         return "no certified design"
-    if doc.get("lower_bound") is None or doc.get("gap") is None:
+    if proven_bound(doc) is None or doc.get("gap") is None:  # None, or 0: nothing proven
         return "no bound" + (" (time limit)" if doc.get("time_limited") else "")
     if doc.get("gap_met"):
         return f"optimal (gap <= {gap:g})"
@@ -39,7 +40,7 @@ def design_table(docs: Sequence[dict[str, Any]], names: Sequence[str], gap: floa
     (and the relaxation's order and flatness for the moment method)."""
     table = []
     for d in docs:
-        row = {"kappa": d["kappa"], "lower_bound": d["lower_bound"],
+        row = {"kappa": d["kappa"], "lower_bound": proven_bound(d) or "none proven",
                "rho_certified": d["rho_certified"], "gap": d["gap"],
                "verdict": verdict(d, gap), "rho_at_values": d["rho_at_values"],
                "floor": d.get("floor"), "seconds": d["seconds"]}
@@ -60,8 +61,9 @@ def verification_notes(docs: Sequence[dict[str, Any]]) -> list[str]:
         v = d.get("verification")
         if v is not None:
             sim = v.get("simulation")
-            note = "" if sim is None else (", simulation ok" if sim["ok"] else
-                                           ", SIMULATION VIOLATION")
+            note = "" if sim is None else (
+                ", simulation skipped" if "skipped" in sim else
+                ", simulation ok" if sim["ok"] else ", SIMULATION VIOLATION")
             lines.append(f"  kappa {d['kappa']:g}: verified {v['verified']} "
                          f"(rho proven {v['rho_proven_float']:.10g}{note})")
     return lines
@@ -70,17 +72,29 @@ def verification_notes(docs: Sequence[dict[str, Any]]) -> list[str]:
 def design_figure(spec: Spec, names: Sequence[str], rows: Sequence[dict[str, str]],
                   docs: Sequence[dict[str, Any]], stem: Path, fam: CertificateFamily,
                   how: str) -> list[Path]:
-    """Designed rate, lower bound and spec-value rate vs kappa (figure of ``design``)."""
+    """Designed rate, lower bound and spec-value rate vs kappa (figure of ``design``).
+
+    A bound of 0 proves nothing and is drawn as missing; without any bound the figure
+    has no bound curve and its title says "no lower bound" (``how`` names the method
+    otherwise)."""
     refs = {name: [r.get("references", {}).get(name) for r in
                    (design_csv_to_json(spec, names, x, fam) for x in rows)]
             for name in spec.references}
+    bounds = [proven_bound(d) for d in docs]
+    series = {"designed (certified)": [d["rho_certified"] for d in docs]}
+    if any(b is not None for b in bounds):
+        series["lower bound (proven)"] = bounds
+    series["spec values (certified)"] = [d["rho_at_values"] for d in docs]
+    bound = f"bound: {how}" if "lower bound (proven)" in series else "no lower bound"
     return plot_rates(
-        f"{spec.name}: designed {', '.join(names)} ({fam.name}; bound: {how})",
-        [d["kappa"] for d in docs],
-        {"designed (certified)": [d["rho_certified"] for d in docs],
-         "lower bound (proven)": [d["lower_bound"] for d in docs],
-         "spec values (certified)": [d["rho_at_values"] for d in docs]},
-        refs, stem,
+        f"{spec.name}: designed {', '.join(names)} ({fam.name}; {bound})",
+        [d["kappa"] for d in docs], series, refs, stem,
         uncertified=[d["kappa"] for d in docs if d["rho_certified"] is None],
         reference_curves=reference_curves(spec, [d["kappa"] for d in docs]),
     )
+
+
+def proven_bound(doc: dict[str, Any]) -> float | None:
+    """The document's lower bound when it proves something (> 0), else None."""
+    lb = doc.get("lower_bound")
+    return lb if lb is not None and lb > 0 else None

@@ -8,9 +8,9 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.batch.store import kappa_label
 from sosalgo.model import parameter_values
 from sosalgo.report import plot_grid
+from sosalgo.schema import kappa_label
 from sosalgo.spec import Spec
 
 __all__ = ["grid_document", "grid_lines", "grid_plot", "grid_rates"]

@@ -10,12 +10,10 @@ from sosalgo.analysis import analyze_spec
 from sosalgo.batch.store import write_table
 from sosalgo.batch.sweeps import reference_values
 from sosalgo.certificates import CertificateFamily
+from sosalgo.schema import TABLE1_COLUMNS, TABLE1_FILE
 from sosalgo.spec import Spec
 
 __all__ = ["TABLE1_COLUMNS", "table1_rows", "write_table1"]
-
-TABLE1_COLUMNS = ["spec", "kappa", "rho_certified", "certified", "closed_form",
-                  "closed_form_rate", "difference"]
 
 
 def table1_rows(specs: Sequence[Spec], kappas: Sequence[float], tol: float,
@@ -59,6 +57,6 @@ def write_table1(out_dir: Path, rows: Sequence[Mapping[str, Any]], cols: Sequenc
                  settings: dict[str, Any]) -> Path:
     """``out_dir/table1.csv``, replaced whole under the run model
     (:func:`sosalgo.batch.store.write_table`: a table of other settings is kept aside)."""
-    path = out_dir / "table1.csv"
+    path = out_dir / TABLE1_FILE
     write_table(path, cols, rows, settings)
     return path

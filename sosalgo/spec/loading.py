@@ -224,25 +224,22 @@ class _Builder:
         return raw
 
     def certificate(self, raw: object) -> tuple[str, dict[str, Any]]:
-        """``certificate: NAME`` or ``certificate: {family: NAME, lag: L}``."""
-        from sosalgo.certificates import FAMILIES, FAMILY_OPTIONS
+        """``certificate: NAME`` or ``certificate: {family: NAME, <option>: value}``; the
+        options are checked by the family (:func:`sosalgo.certificates.get_family`)."""
+        from sosalgo.certificates import FAMILIES, get_family
 
         known = ", ".join(FAMILIES)
         if isinstance(raw, dict):
             name = raw.get("family")
             if not isinstance(name, str) or name not in FAMILIES:
                 raise self.fail("certificate.family", f"missing or unknown family (known: {known})")
-            options: dict[str, Any] = {}
-            for key, val in raw.items():
-                if key == "family":
-                    continue
-                if not isinstance(key, str) or key not in FAMILY_OPTIONS[name]:
-                    raise self.fail(f"certificate.{str(key)[:40]}",
-                                    f"unknown option of family {name}")
-                if key == "lag":
-                    if isinstance(val, bool) or not isinstance(val, int) or not 0 <= val <= 8:
-                        raise self.fail("certificate.lag", "must be an integer in 0..8")
-                options[key] = val
+            options = {k: v for k, v in raw.items() if k != "family"}
+            for key, val in options.items():
+                try:
+                    get_family(name, {key: val})
+                except ValueError as exc:
+                    what = str(exc).split(": ", 1)[-1]
+                    raise self.fail(f"certificate.{str(key)[:40]}", what) from None
             return name, options
         if not isinstance(raw, str) or raw not in FAMILIES:
             raise self.fail("certificate", f"unknown family (known: {known})")

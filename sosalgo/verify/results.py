@@ -18,18 +18,18 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.batch.store import kappa_label, output_lock
+from sosalgo.batch.store import output_lock
 from sosalgo.certificates import FAMILIES, default_family, get_family
 from sosalgo.certificates.base import CertificateFamily, check_number
 from sosalgo.errors import InputError
 from sosalgo.model import bind
+from sosalgo.schema import certificate_name
 from sosalgo.spec import Spec
 from sosalgo.verify import Verdict, simulate_check
 from sosalgo.verify.exact import write_certificate
 
 __all__ = [
-    "ResultError", "check_failed", "verify_certificate", "verify_document_rows",
-    "verify_family_certificate",
+    "ResultError", "check_failed", "verify_document_rows", "verify_family_certificate",
 ]
 
 
@@ -61,26 +61,20 @@ def verify_family_certificate(
         out["certificate_file"] = str(_write_certificate_file(
             out_dir, spec, family, kappa, rho, cert, theta, ex.to_dict()))
     if simulate:
-        sim = simulate_check(bind(spec, kappa, theta), rho, **family.lyapunov(cert))
-        out["simulation"] = {"ok": sim.ok, "worst_ratio": sim.worst_ratio,
-                             "trajectories": sim.trajectories, "violations": sim.n_violations}
+        out["simulation"] = _simulation(spec, family, kappa, rho, cert, theta)
     return out
 
 
-def verify_certificate(
-    spec: Spec,
-    kappa: float,
-    rho: float,
-    P: Sequence[Sequence[float]],
-    lam: float,
-    theta: Mapping[str, float] | None = None,
-    out_dir: Path | None = None,
-    simulate: bool = True,
-) -> dict[str, Any]:
-    """:func:`verify_family_certificate` for a certificate (P, lambda) of the default family
-    (Theorem 1)."""
-    return verify_family_certificate(spec, default_family(), kappa, rho,
-                                     {"P": P, "lambda": lam}, theta, out_dir, simulate)
+def _simulation(spec: Spec, family: CertificateFamily, kappa: float, rho: float,
+                cert: Mapping[str, Any], theta: Mapping[str, float] | None) -> dict[str, Any]:
+    """The simulation check as plain values; ``skipped`` (with ``ok`` None) when its test
+    functions cannot be built in floating point (e.g. m = 1e-300: m L underflows)."""
+    try:
+        sim = simulate_check(bind(spec, kappa, theta), rho, **family.lyapunov(cert))
+    except (ValueError, FloatingPointError, OverflowError, np.linalg.LinAlgError) as exc:
+        return {"ok": None, "skipped": f"not run: {exc}"}
+    return {"ok": sim.ok, "worst_ratio": sim.worst_ratio, "trajectories": sim.trajectories,
+            "violations": sim.n_violations}
 
 
 def _certificate_inputs(spec: Spec, family: CertificateFamily, kappa: float, rho: float,
@@ -121,9 +115,7 @@ def _write_certificate_file(out_dir: Path, spec: Spec, family: CertificateFamily
     out_dir.mkdir(parents=True, exist_ok=True)
     digest = hashlib.sha256(_certificate_inputs(spec, family, kappa, rho, cert, theta)
                             .encode()).hexdigest()[:8]
-    stem = f"{spec.name}-k{kappa_label(kappa)}" + ("" if family.is_default
-                                                   else f"-{family.name}")
-    plain = out_dir / f"{stem}-certificate.json"
+    plain = out_dir / certificate_name(spec.name, kappa, family)
     with output_lock(out_dir):  # one lock for the folder (beside it: DIR/.certificates.lock)
         try:
             old = json.loads(plain.read_text(encoding="utf-8")).get("inputs_hash")
@@ -131,7 +123,7 @@ def _write_certificate_file(out_dir: Path, spec: Spec, family: CertificateFamily
             old = None
         exists = plain.exists() or plain.is_symlink()
         path = (plain if not exists or old == digest
-                else out_dir / f"{stem}-{digest}-certificate.json")
+                else out_dir / certificate_name(spec.name, kappa, family, digest))
         return write_certificate({**doc, "inputs_hash": digest}, path)
 
 
@@ -248,8 +240,11 @@ def verify_document_rows(
 
 
 def check_failed(check: Mapping[str, Any] | None) -> bool:
-    """True when a verification result does not prove its certificate (exit code 3)."""
+    """True when a verification result does not prove its certificate (exit code 3): not
+    proven exactly, or a simulation that ran and found a violation (a skipped simulation,
+    ``ok`` None, is no evidence either way and leaves the exact proof standing)."""
     if check is None:
         return False
     sim = check.get("simulation")
-    return check.get("verified") != Verdict.EXACT or (sim is not None and not sim.get("ok", False))
+    failed_sim = sim is not None and "skipped" not in sim and not sim.get("ok", False)
+    return check.get("verified") != Verdict.EXACT or failed_sim

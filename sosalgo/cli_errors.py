@@ -1,0 +1,88 @@
+"""How the command line fails: one line on stderr, an exit code, never a traceback.
+
+Exit codes: 0 success, 2 bad input or usage (our :class:`~sosalgo.errors.InputError` and
+click's usage errors alike), 3 a certificate failed its check, 1 internal error (set
+SOSALGO_DEBUG=1 for the traceback), 130/143 interrupted, 141 broken pipe.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import sys
+from collections.abc import Callable
+from typing import Any
+
+import click
+
+from sosalgo.errors import InputError, VerificationError
+
+__all__ = ["OneLineErrors", "Terminated", "handle_errors", "on_sigterm"]
+
+
+def _fail(msg: str, code: int) -> None:
+    click.echo(f"error: {msg}", err=True)
+    sys.exit(code)
+
+
+def _one_line(msg: str) -> str:
+    return " ".join(msg.split())[:500]
+
+
+class Terminated(BaseException):
+    """SIGTERM received: unwinds like KeyboardInterrupt, so worker pools are shut down."""
+
+
+def on_sigterm(signum: int, frame: Any) -> None:
+    raise Terminated()
+
+
+def handle_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """Map our exceptions to one-line messages and exit codes."""
+
+    @functools.wraps(fn)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return fn(*args, **kwargs)
+        except InputError as exc:  # spec, model, options, files, cluster: exit 2
+            src = kwargs.get("spec_path", "")
+            names_file = getattr(exc, "names_file", True)
+            _fail(_one_line(str(exc) if names_file or not src else f"{src}: {exc}"), 2)
+        except VerificationError as exc:  # results are written; a check failed: exit 3
+            _fail(_one_line(str(exc)), 3)
+        except BrokenPipeError:  # stdout closed early (`sosalgo ... | head`): quiet exit
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())  # no second error at interpreter exit
+            sys.exit(141)  # 128 + SIGPIPE, as a shell reports a broken pipe
+        except KeyboardInterrupt:
+            click.echo("interrupted: finished rows are saved; rerun to resume", err=True)
+            sys.exit(130)
+        except Terminated:
+            click.echo("terminated: finished rows are saved; rerun to resume", err=True)
+            sys.exit(143)
+        except click.exceptions.Exit:
+            raise
+        except Exception as exc:  # noqa: BLE001 - last line of defence
+            if os.environ.get("SOSALGO_DEBUG"):
+                raise
+            _fail(_one_line(f"internal error: {type(exc).__name__}: {exc}"), 1)
+
+    return wrapper
+
+
+class OneLineErrors(click.Group):
+    """A group whose usage errors (a bad option value, a missing argument) are one line on
+    stderr, exit code 2, like every other input error."""
+
+    def main(self, *args: Any, standalone_mode: bool = True, **kwargs: Any) -> Any:
+        if not standalone_mode:
+            return super().main(*args, standalone_mode=False, **kwargs)
+        try:
+            code = super().main(*args, standalone_mode=False, **kwargs)
+        except click.exceptions.Abort:
+            _fail("aborted", 1)
+        except click.ClickException as exc:
+            ctx = getattr(exc, "ctx", None)
+            where = f" (see {ctx.command_path} --help)" if ctx is not None else ""
+            _fail(_one_line(exc.format_message()) + where, exc.exit_code)
+        sys.exit(code if isinstance(code, int) else 0)

@@ -1,0 +1,115 @@
+"""Result documents (``analyze --json``, ``design --json``): reading them, choosing the
+spec they are checked against, and verifying every certificate they hold
+(:func:`verify_document`, the Python twin of ``sosalgo verify``)."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from sosalgo.errors import InputError
+from sosalgo.spec import Spec
+
+__all__ = ["MAX_RESULT_BYTES", "read_result", "result_rows", "result_spec", "verify_document"]
+
+MAX_RESULT_BYTES = 200_000_000
+
+
+def read_result(path: str | Path) -> dict[str, Any]:
+    """A result JSON document (bounded in size), or a one-line InputError naming ``path``."""
+    try:
+        with open(path, "rb") as fh:
+            raw = fh.read(MAX_RESULT_BYTES + 1)
+        if len(raw) > MAX_RESULT_BYTES:
+            raise InputError(f"{path}: larger than {MAX_RESULT_BYTES} bytes")
+        doc = json.loads(raw.decode("utf-8"))
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such file") from None
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as exc:
+        raise InputError(f"{path}: not a JSON result ({type(exc).__name__})") from None
+    if not isinstance(doc, dict):
+        raise InputError(f"{path}: not a sosalgo result document")
+    return doc
+
+
+def result_rows(doc: Mapping[str, Any], where: str = "result") -> list[dict[str, Any]]:
+    """The rows of a document: its ``rows``, or the document itself (one design)."""
+    rows = doc.get("rows", [doc] if "rho_certified" in doc else None)
+    if not isinstance(rows, list) or not all(isinstance(r, dict) and "kappa" in r for r in rows):
+        raise InputError(f"{where}: rows: expected analyze or design results")
+    return rows
+
+
+def result_spec(doc: Mapping[str, Any], where: str = "result",
+                spec: Spec | str | Path | None = None) -> tuple[Spec, str | None, str | None]:
+    """(spec, its source, a note): ``spec`` when given, else the spec text embedded in the
+    result (``spec_text``), else its ``source`` path. The note says when a given spec differs
+    from the embedded one (a failed check may then be the edit, not the certificate)."""
+    from sosalgo.spec import load_spec, read_spec_text, spec_from_text
+
+    rows = doc.get("rows")
+    first = rows[0] if isinstance(rows, list) and rows and isinstance(rows[0], dict) else {}
+    embedded = doc.get("spec_text") or first.get("spec_text")
+    if embedded is not None and not isinstance(embedded, str):
+        raise InputError(f"{where}: spec_text: expected the spec's YAML text")
+    note = None
+    if spec is not None:
+        if isinstance(spec, Spec):
+            chosen, src, text = spec, spec.source, None
+        else:
+            text = read_spec_text(spec)
+            chosen, src = spec_from_text(text, source=str(spec)), str(spec)
+        if embedded is not None and text is not None and text != embedded:
+            note = _difference_note(src, where, embedded, text)
+    elif embedded is not None:
+        src = doc.get("source") or first.get("source")
+        chosen = spec_from_text(embedded, source=f"{where}: spec_text")
+    else:
+        src = doc.get("source") or first.get("source")
+        if not src or not isinstance(src, str):
+            raise InputError(f"{where}: source: unknown spec file; pass --spec")
+        chosen = load_spec(src)
+    if doc.get("spec") not in (None, chosen.name):
+        raise InputError(f"{where}: spec: result is for '{doc.get('spec')}', "
+                         f"{src} is '{chosen.name}'")
+    return chosen, src if isinstance(src, str) else None, note
+
+
+def _difference_note(src: str, where: str, embedded: str, text: str) -> str:
+    from sosalgo.batch.store import describe_difference
+
+    what = describe_difference({"spec": embedded}, {"spec": text})
+    return (f"{src} differs from the spec embedded in {where} ({what}); the certificates "
+            f"are checked against {src}")
+
+
+def verify_document(result: str | Path | Mapping[str, Any], spec: Spec | str | Path | None = None,
+                    out_dir: str | Path | None = None, simulate: bool = True,
+                    certificate: str | None = None, options: Mapping[str, Any] | None = None,
+                    name: str | None = None) -> dict[str, Any]:
+    """Verify every certificate of a result document (a path or the parsed dict).
+
+    Returns ``{"spec", "source", "results"}`` (one check per row, None for a row that claims
+    no certificate) and ``notes`` (e.g. that ``spec`` differs from the embedded one).
+    Rational certificates go to ``out_dir`` when given (nothing is written otherwise).
+    A malformed document raises InputError naming it (its path, or ``name``); failed
+    checks are results, not errors (:func:`sosalgo.verify.results.check_failed`)."""
+    from sosalgo.inputs import select_families
+    from sosalgo.verify.results import ResultError, verify_document_rows
+
+    where = name or (str(result) if isinstance(result, str | Path) else "result")
+    doc = read_result(result) if isinstance(result, str | Path) else dict(result)
+    rows = result_rows(doc, where)
+    chosen, src, note = result_spec(doc, where, spec)
+    fam = None
+    if certificate is not None or any(v is not None for v in (options or {}).values()):
+        fam = select_families(chosen, certificate, options, single=True)[0]
+    try:
+        checks = verify_document_rows(chosen, rows, None if out_dir is None else Path(out_dir),
+                                      simulate, family=fam)
+    except ResultError as exc:
+        raise InputError(f"{where}: {exc}") from None
+    return {"spec": chosen.name, "source": src, "results": checks,
+            "notes": [] if note is None else [note]}

@@ -1,0 +1,191 @@
+"""Checks of user input shared by the Python API and the command line.
+
+Each check raises :class:`~sosalgo.errors.InputError` (a ValueError) with one line naming
+the option or field, before anything is computed or written; the CLI prints it (exit 2),
+the API raises it. ``label`` is how the caller names the option (``--gap`` on the command
+line, ``gap`` in Python).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from sosalgo.errors import InputError
+from sosalgo.spec import Spec
+
+__all__ = [
+    "check_gap", "check_kappa_points", "check_method", "check_scheduler", "check_time_limit",
+    "check_tol", "free_names", "kappa_option", "out_dir", "parameter_boxes", "select_families",
+    "writable",
+]
+
+
+def check_tol(tol: Any, label: str = "tol") -> float:
+    """The bisection tolerance, in (0, 0.5)."""
+    if isinstance(tol, bool) or not isinstance(tol, int | float) or not 0 < tol < 0.5:
+        raise InputError(f"{label} {tol}: must be in (0, 0.5)")
+    return float(tol)
+
+
+def check_gap(gap: Any, label: str = "gap") -> float:
+    """The target gap of a design: positive."""
+    if isinstance(gap, bool) or not isinstance(gap, int | float) or not gap > 0:
+        raise InputError(f"{label} {gap}: must be positive")
+    return float(gap)
+
+
+def check_time_limit(seconds: Any, label: str = "time_limit") -> float:
+    """A wall-clock limit: positive and finite."""
+    if isinstance(seconds, bool) or not isinstance(seconds, int | float) or not seconds > 0:
+        raise InputError(f"{label} {seconds}: must be positive")
+    if not math.isfinite(seconds):
+        raise InputError(f"{label} {seconds}: must be finite")
+    return float(seconds)
+
+
+def check_method(method: str, scalarize: str, family: Any, label: str = "method") -> None:
+    """The design's lower-bound method and scalarization, and that the family supports it."""
+    if method not in ("dual", "moment"):
+        raise InputError(f"{label} {method}: must be dual or moment")
+    if scalarize not in ("pmi", "minors"):
+        raise InputError(f"scalarize {scalarize}: must be pmi or minors")
+    if method == "moment" and not family.supports_moment:
+        raise InputError(f"{label} moment: the moment relaxation is built on Theorem 1, "
+                         f"not {family.name} (use {label} dual)")
+
+
+def kappa_option(value: str, label: str = "--kappa") -> tuple[float, ...]:
+    """One --kappa value: a number, or a YAML list/range like '{from: 2, to: 100, points: 9}'."""
+    import yaml
+
+    from sosalgo.spec import parse_kappa
+
+    raw: object = value
+    if "," in value and value.strip()[:1] not in "[{":
+        raise InputError(f"{label} {value}: one value per {label}; write {label} "
+                         + f" {label} ".join(v.strip() for v in value.split(","))
+                         + f" or a list {label} '[{value}]'")
+    if value.strip()[:1] in "[{":
+        try:
+            raw = yaml.safe_load(value)
+        except yaml.YAMLError:
+            raise InputError(f"{label} {value}: not a number, list or range") from None
+    return parse_kappa(raw, label, "value")
+
+
+def free_names(spec: Spec, free: str | Sequence[str] | None,
+               need_range: bool = True) -> list[str]:
+    """The free parameters (a comma-separated string or a list; default: those with a
+    range), checked against the spec."""
+    if free is None:
+        names = list(spec.ranged)
+    elif isinstance(free, str):
+        names = [p.strip() for p in free.split(",") if p.strip()]
+    else:
+        names = list(free)
+    if not names and need_range:
+        raise InputError(f"{spec.source}: parameters: no parameter has a range (use --free)")
+    spec.check_free(names, need_range=need_range)
+    return names
+
+
+def check_kappa_points(spec: Spec, kappas: Sequence[float],
+                       theta: Mapping[str, float] | None = None) -> None:
+    """Evaluate the spec at every kappa (a value outside its range, a pole) up front."""
+    from sosalgo.model import ModelError, bind
+
+    for k in kappas:
+        try:
+            bind(spec, k, theta)
+        except ModelError as exc:
+            raise InputError(f"{spec.source}: {exc.field}: at kappa={k:g}: {exc.message}") from None
+
+
+def parameter_boxes(spec: Spec, kappas: Sequence[float],
+                    names: Sequence[str]) -> dict[float, list[tuple[float, float]]]:
+    """The box of the free parameters at every kappa."""
+    from sosalgo.model import ModelError, parameter_box
+
+    boxes = {}
+    for k in kappas:
+        try:
+            boxes[k] = parameter_box(spec, k, names)
+        except ModelError as exc:
+            raise InputError(f"{spec.source}: {exc.field}: at kappa={k:g}: {exc.message}") from None
+    return boxes
+
+
+def _probe(path: Path) -> Path:
+    """The nearest existing folder at or above ``path`` (where new files would go)."""
+    probe = path
+    while not probe.exists() and probe.parent != probe:
+        probe = probe.parent
+    return probe
+
+
+def writable(out: str | Path) -> bool:
+    """Whether files can be written into ``out`` (created if missing)."""
+    path = Path(out)
+    if path.exists() and not path.is_dir():
+        return False
+    probe = _probe(path)
+    return probe.is_dir() and os.access(probe, os.W_OK | os.X_OK)
+
+
+def out_dir(out: str | Path, label: str = "--out") -> Path:
+    """The output folder, checked writable (nothing is created yet)."""
+    path = Path(out)
+    if path.exists() and not path.is_dir():
+        raise InputError(f"{label} {out}: exists and is not a directory")
+    if not writable(path):
+        raise InputError(f"{label} {out}: not writable ({_probe(path)} does not accept new "
+                         "files)")
+    return path
+
+
+def check_scheduler(scheduler: str | None) -> None:
+    """A missing Dask or an unusable scheduler address, before anything is written."""
+    if scheduler:
+        from sosalgo.batch.executor import check_scheduler as check
+
+        check(scheduler)
+
+
+def select_families(spec: Spec, certificate: str | Sequence[str] | None = None,
+                    options: Mapping[str, Any] | None = None, single: bool = False,
+                    label: str = "--certificate") -> list[Any]:
+    """The certificate families asked for (default: the spec's own, with its options);
+    ``options`` (e.g. ``{"lag": 0}``; None values are unset) go to every family that has
+    them, and at least one family must have each."""
+    from sosalgo.certificates import FAMILIES, FAMILY_OPTIONS, get_family
+
+    if certificate is None:
+        names = [spec.certificate]
+    else:
+        names = ([v.strip() for v in certificate.split(",") if v.strip()]
+                 if isinstance(certificate, str) else list(certificate))
+        if not names or len(set(names)) != len(names):
+            raise InputError(f"{label} {certificate}: expected distinct family names")
+        for nm in names:
+            if nm not in FAMILIES:
+                raise InputError(f"{label} {nm}: unknown family (known: {', '.join(FAMILIES)})")
+    if single and len(names) > 1:
+        raise InputError(f"{label} {certificate}: this command takes one family")
+    opts = {k: v for k, v in (options or {}).items() if v is not None}
+    for key in opts:
+        if not any(key in FAMILY_OPTIONS[nm] for nm in names):
+            raise InputError(f"--{key}: no family asked for has this option "
+                             f"({', '.join(names)})")
+    fams = []
+    for nm in names:
+        own = spec.certificate_options if nm == spec.certificate else {}
+        mine = {**own, **{k: v for k, v in opts.items() if k in FAMILY_OPTIONS[nm]}}
+        try:
+            fams.append(get_family(nm, mine))
+        except ValueError as exc:
+            raise InputError(f"--{exc}") from None
+    return fams

@@ -1,0 +1,241 @@
+"""Batch runs that write files (the Python twins of ``sosalgo analyze|design|grid|table1``).
+
+Each function checks its input (:mod:`sosalgo.inputs`: InputError, a ValueError, before
+anything is written), runs the resumable sweep into ``out_dir`` under the run model
+(:mod:`sosalgo.batch.store`), draws the figures and returns the document that the
+command prints with ``--json``. File names come from :mod:`sosalgo.schema`.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from sosalgo import inputs
+from sosalgo.batch.store import output_lock
+from sosalgo.errors import InputError
+from sosalgo.schema import analysis_csv, design_stem, grid_stem, rate_stem
+from sosalgo.spec import Spec
+
+__all__ = ["analyze_run", "design_run", "grid_run", "spec_with_text", "table1_run"]
+
+Kappas = float | Sequence[float] | None
+
+
+def spec_with_text(spec: Spec | str | Path, spec_text: str | None = None) -> tuple[Spec, str]:
+    """(spec, its YAML text): batch runs send the text to workers and settings files. A
+    path is read once (a pipe works); a Spec needs its ``spec_text``."""
+    from sosalgo.spec import read_spec_text, spec_from_text
+
+    if isinstance(spec, Spec):
+        if spec_text is None:
+            raise InputError(f"{spec.source}: a batch run needs the spec's text: pass a path "
+                             "or spec_text")
+        return spec, spec_text
+    text = read_spec_text(spec) if spec_text is None else spec_text
+    return spec_from_text(text, source=str(spec)), text
+
+
+def _kappa_list(spec: Spec, kappa: Kappas) -> list[float]:
+    if kappa is None:
+        return list(spec.kappa)
+    if isinstance(kappa, int | float) and not isinstance(kappa, bool):
+        return [float(kappa)]
+    return [float(k) for k in kappa]  # type: ignore[union-attr]
+
+
+def _figures(stem: Path) -> list[Path]:
+    """The PNG and PDF written for a figure stem (they move with their CSV)."""
+    return [stem.with_name(f"{stem.name}.{ext}") for ext in ("png", "pdf")]
+
+
+def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Path = "outputs",
+                tol: float = 1e-6, certificate: str | Sequence[str] | None = None,
+                options: Mapping[str, Any] | None = None, workers: int | None = None,
+                scheduler: str | None = None, restart: bool = False, progress: bool = True,
+                plot: bool = True, verify: bool = False,
+                spec_text: str | None = None) -> dict[str, Any]:
+    """``sosalgo analyze``: one CSV per family, the rate figure, optional checks; returns
+    the ``--json`` document (rows of the default family alone carry no ``family``)."""
+    from sosalgo.batch.sweeps import csv_row_to_json, run_analysis_sweep
+    from sosalgo.report import analysis as rep
+
+    spec, text = spec_with_text(spec, spec_text)
+    kappas = _kappa_list(spec, kappa)
+    inputs.check_tol(tol, "--tol")
+    fams = inputs.select_families(spec, certificate, options)
+    inputs.check_kappa_points(spec, kappas)
+    out = inputs.out_dir(out_dir)
+    inputs.check_scheduler(scheduler)
+    plain = len(fams) == 1 and fams[0].is_default  # Theorem 1 alone: the historical output
+    runs, figs = [], []
+    for fam in fams:
+        path = analysis_csv(out, spec.name, fam)
+        with output_lock(path):
+            rows = run_analysis_sweep(spec, text, kappas, path, tol, workers=workers,
+                                      scheduler=scheduler, restart=restart, progress=progress,
+                                      family=fam,
+                                      companions=_figures(rate_stem(out, spec.name)) if plain
+                                      else ())
+            jrows = [csv_row_to_json(spec, r, None if plain else fam) for r in rows]
+            if plain and plot and len(jrows) >= 2:  # one point is not a curve
+                figs = rep.analysis_figure(spec, jrows, rate_stem(out, spec.name))
+        runs.append((fam, path, jrows))
+    if not plain:
+        figs = rep.families_figure(spec, runs, rate_stem(out, spec.name)) if plot else []
+    for fam, _, jrows in runs:
+        if not plain:
+            for r in jrows:
+                r["family"] = fam.name
+        if verify:
+            rep.attach_checks(spec, jrows, out / "certificates", family=None if plain else fam)
+    doc = {"spec": spec.name, "source": spec.source, "spec_text": text, "tol": tol,
+           "csv": str(runs[0][1])}
+    if not plain:
+        doc["csvs"] = {f.name: str(p) for f, p, _ in runs}
+    return doc | {"figures": [str(p) for p in figs],
+                  "rows": [r for _, _, jrows in runs for r in jrows]}
+
+
+def _design_options(spec: Spec, kappas: list[float], free: str | Sequence[str] | None,
+                    fam: Any, settings: Mapping[str, Any]) -> dict[str, Any]:
+    """The design options checked (free names, gap, time limit, method), as the sweep
+    takes them; nothing is computed or written."""
+    from sosalgo.batch.sweeps import family_options
+    from sosalgo.design.polymodel import check_polynomial
+
+    inputs.check_method(settings["method"], settings["scalarize"], fam, "--method")
+    names = inputs.free_names(spec, free)
+    inputs.check_gap(settings["gap"], "--gap")
+    inputs.check_time_limit(settings["time_limit"], "--time-limit")
+    inputs.check_kappa_points(spec, kappas)
+    inputs.parameter_boxes(spec, kappas, names)
+    check_polynomial(spec, names)
+    return {"free": names, **settings, "certificate": family_options(fam)}
+
+
+def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Path = "outputs",
+               free: str | Sequence[str] | None = None, scalarize: str = "pmi",
+               order: int | None = None, gap: float = 1e-4, time_limit: float = 120.0,
+               method: str = "dual", certificate: str | None = None,
+               options: Mapping[str, Any] | None = None, workers: int | None = None,
+               scheduler: str | None = None, restart: bool = False, progress: bool = True,
+               verify: bool = False, progress_steps: bool = False,
+               spec_text: str | None = None) -> dict[str, Any]:
+    """``sosalgo design``: the design sweep over kappa into ``<name>-design[...].csv``;
+    returns ``{"spec", "source", "spec_text", "csv", "figures", "rows"}``, one design
+    document per kappa (``--json`` prints the single document for one kappa)."""
+    from sosalgo.batch.sweeps import design_csv_to_json, run_design_sweep
+    from sosalgo.report import design as rep
+
+    spec, text = spec_with_text(spec, spec_text)
+    fam = inputs.select_families(spec, certificate, options, single=True)[0]
+    kappas = _kappa_list(spec, kappa)
+    opts = _design_options(spec, kappas, free, fam, {
+        "scalarize": scalarize, "order": order, "gap": gap, "time_limit": time_limit,
+        "method": method})
+    out = inputs.out_dir(out_dir)
+    inputs.check_scheduler(scheduler)
+    one = len(kappas) == 1
+    opts |= {"progress_steps": one and progress_steps,  # one kappa: workers go inside
+             "inner_workers": (workers or os.cpu_count() or 1) if one and scheduler is None
+             else 1}
+    stem = design_stem(out, spec.name, fam)
+    csv_path = stem.with_name(stem.name + ".csv")
+    with output_lock(csv_path):
+        rows, fresh = run_design_sweep(spec, text, kappas, csv_path, opts, workers=workers,
+                                       scheduler=scheduler, restart=restart,
+                                       progress=progress, companions=_figures(stem))
+        docs = [fresh.get(float(r["kappa"])) or design_csv_to_json(spec, opts["free"], r, fam)
+                for r in rows]
+        for d in docs:
+            d["source"], d["spec_text"] = spec.source, text
+        how = ("dual certificates" if method == "dual" else f"moment relaxation, {scalarize}")
+        figs = (rep.design_figure(spec, opts["free"], rows, docs, stem, fam, how)
+                if len(docs) > 1 else [])
+    if verify:
+        from sosalgo.verify.results import verify_document_rows
+
+        checks = verify_document_rows(spec, docs, out / "certificates")
+        for d, v in zip(docs, checks, strict=True):
+            d["verification"] = v
+    return {"spec": spec.name, "source": spec.source, "spec_text": text, "csv": str(csv_path),
+            "figures": [str(p) for p in figs], "rows": docs}
+
+
+def grid_run(spec: Spec | str | Path, kappa: Kappas, out_dir: str | Path = "outputs",
+             points: int = 60, free: str | Sequence[str] | None = None, tol: float = 1e-6,
+             certificate: str | None = None, options: Mapping[str, Any] | None = None,
+             workers: int | None = None, scheduler: str | None = None, restart: bool = False,
+             progress: bool = True, spec_text: str | None = None) -> dict[str, Any]:
+    """``sosalgo grid``: one CSV (and figure, for one or two free parameters) per kappa;
+    returns ``{"spec", "free", "fixed", "grids"}`` (``fixed``: the parameters that are not
+    free, with their values at each kappa in the grid entries)."""
+    from sosalgo.batch.sweeps import run_grid
+    from sosalgo.model import parameter_values
+    from sosalgo.report import grid as rep
+    from sosalgo.schema import GRID_COLUMNS, grid_fixed
+
+    spec, text = spec_with_text(spec, spec_text)
+    kappas = _kappa_list(spec, kappa)
+    names = inputs.free_names(spec, free)
+    if isinstance(points, bool) or not isinstance(points, int) or not 2 <= points <= 2000:
+        raise InputError(f"--points {points}: must be an integer in 2..2000")
+    for p in names + grid_fixed(spec, names):
+        if p in GRID_COLUMNS:
+            raise InputError(f"{spec.source}: parameters.{p}: name clashes with a grid column")
+    inputs.check_tol(tol, "--tol")
+    fam = inputs.select_families(spec, certificate, options, single=True)[0]
+    boxes = inputs.parameter_boxes(spec, kappas, names)
+    out = inputs.out_dir(out_dir)
+    inputs.check_scheduler(scheduler)
+    docs = []
+    for k in dict.fromkeys(kappas):
+        stem = grid_stem(out, spec.name, k, fam)
+        csv_path = stem.with_name(stem.name + ".csv")
+        with output_lock(csv_path):
+            rows = run_grid(spec, text, k, names, boxes[k], points, csv_path, tol,
+                            workers=workers, scheduler=scheduler, restart=restart,
+                            progress=progress, companions=_figures(stem), family=fam)
+            rho = rep.grid_rates(rows)
+            figs = ([] if len(names) > 2 else
+                    rep.grid_plot(spec, k, names, boxes[k], points, rho, stem))
+        values = parameter_values(spec, k)
+        docs.append(rep.grid_document(k, csv_path, figs, rows, rho, names)
+                    | {"fixed": {p: values[p] for p in grid_fixed(spec, names)}})
+    return {"spec": spec.name, "free": names, "fixed": grid_fixed(spec, names), "grids": docs}
+
+
+def table1_run(specs: Sequence[str | Path] = (), kappa: Sequence[float] = (),
+               tol: float = 1e-6, out_dir: str | Path = "outputs",
+               certificate: str | None = None,
+               options: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """``sosalgo table1``: each spec's certified rate beside its closed form, written to
+    ``table1.csv``; returns ``{"rows", "columns", "csv"}``. Default specs: ``specs/*.yaml``,
+    else the shipped examples."""
+    from sosalgo.report.table1 import table1_rows, write_table1
+    from sosalgo.spec import read_spec_text, spec_from_text
+
+    inputs.check_tol(tol, "--tol")
+    paths = [str(p) for p in specs] or sorted(str(p) for p in Path("specs").glob("*.yaml"))
+    if paths:
+        texts = {p: read_spec_text(p) for p in paths}
+    else:  # outside a checkout: the example specs shipped with sosalgo
+        from sosalgo.resources import example_specs
+
+        texts = {f"examples/{name}.yaml": f.read_text(encoding="utf-8")
+                 for name, f in example_specs().items()}
+    parsed = [spec_from_text(t, source=src) for src, t in texts.items()]
+    if not parsed:
+        raise InputError("--specs: no spec files given and none in specs/")
+    kappas = [float(k) for k in kappa] or [2.0, 10.0, 100.0]
+    chosen = certificate is not None or any(v is not None for v in (options or {}).values())
+    fams = [inputs.select_families(s, certificate, options) if chosen else [None]
+            for s in parsed]
+    rows, cols = table1_rows(parsed, kappas, tol, fams)
+    settings = {"job": "table1", "specs": texts, "kappa": kappas, "tol": tol,
+                "certificate": certificate, "lag": None, **dict(options or {})}  # lag: as ever
+    path = write_table1(inputs.out_dir(out_dir), rows, cols, settings)
+    return {"rows": rows, "columns": cols, "csv": str(path)}
