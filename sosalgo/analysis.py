@@ -391,7 +391,7 @@ def analyze_algorithm(
     if method not in ("secant", "bisection"):
         raise ValueError("method must be 'secant' or 'bisection'")
     fam = get_family(family) if isinstance(family, str) else family
-    lags = fam.auto_lags(alg.n) if hasattr(fam, "auto_lags") else ()
+    lags = fam.auto_lags(alg.n)
     if len(lags) > 1:
         return _choose_lag(alg, tol, fam, solvers, method, lags)
     return _analyze_one(alg, tol, fam, solvers, method)
@@ -405,14 +405,13 @@ def _analyze_one(alg: Algorithm, tol: float, fam: CertificateFamily,
     # The margin problem is solved by Clarabel; a custom solver chain means plain bisection.
     use_margin = method == "secant" and tuple(solvers) == DEFAULT_SOLVERS
     # a family may name a shorter fallback chain for points the margin path cannot check
-    fallback = getattr(fam, "fallback_solvers", None) if use_margin else None
+    fallback = fam.fallback_solvers if use_margin else None
     width = _tolerance(tol)
     search = _Search(problem, fallback or solvers, use_margin, width)
-    quad = quadratic_rate(alg, 201) if use_margin and getattr(fam, "tight", False) else None
+    quad = quadratic_rate(alg, 201) if use_margin and fam.tight else None
     lo0, down0 = 0.0, None
     if quad is not None and quad < 1 - width(quad):
-        cheap = getattr(fam, "guess_problem", None)
-        proxy = cheap(alg) if cheap is not None else None
+        proxy = fam.guess_problem(alg)
         lo, hi, best_near, ups, down0 = _start_near(search, quad, width(quad), proxy)
         if best_near is not None:
             lo, hi, best = _newton(search, ups, down0, lo, hi, best_near, width,
@@ -429,7 +428,7 @@ def _analyze_one(alg: Algorithm, tol: float, fam: CertificateFamily,
             # the margin's sign within the solver's accuracy, or a positive margin whose
             # point is too close to 0 to check: the solver cannot decide this kappa
             warning=UNDECIDED_AT_ONE if search.undecided or (t_one or 0) > 0 else None,
-            lag=getattr(fam, "lag", None),
+            lag=fam.options().get("lag"),
         )
     if method == "secant" and t_one is not None and slope_one is not None:
         lo, hi, best = _newton(search, [(1.0, t_one, slope_one)], down0, lo0, 1.0, best, width)
@@ -483,7 +482,7 @@ def _improve(alg: Algorithm, tol: float, fam: CertificateFamily, solvers: Sequen
     start = time.perf_counter()
     problem = fam.problem(alg)
     use_margin = method == "secant" and tuple(solvers) == DEFAULT_SOLVERS
-    fallback = getattr(fam, "fallback_solvers", None) if use_margin else None
+    fallback = fam.fallback_solvers if use_margin else None
     search = _Search(problem, fallback or solvers, use_margin, width)
     out, t = search.test(x)
     if not out.feasible:
@@ -619,7 +618,7 @@ def _result(alg: Algorithm, fam: CertificateFamily, problem: LMIProblem, search:
             kappa=alg.kappa, rho=None, certified=False, P=None, lam=None, max_eig_M=None,
             min_eig_P=None, solves=solves, seconds=time.perf_counter() - start,
             solver=best.solver, rho_infeasible=lo, params=dict(alg.params), family=fam.name,
-            lag=getattr(fam, "lag", None),
+            lag=fam.options().get("lag"),
         )
     lam = cert.get("lambda")
     return AnalysisResult(
@@ -633,19 +632,12 @@ def _result(alg: Algorithm, fam: CertificateFamily, problem: LMIProblem, search:
 
 def _final_check(fam: CertificateFamily, alg: Algorithm, rho: float, cert: dict[str, Any],
                  P: np.ndarray) -> tuple[float, float] | None:
-    """(max eig of the main inequality, min eig of P) in floats, or None when not finite.
-
-    Families whose P need not be PSD report their own pair (``summary``)."""
+    """(max eig of the main inequality, min eig of P) in floats (the family's ``summary``),
+    or None when not finite."""
     try:
         with np.errstate(all="ignore"):
-            if hasattr(fam, "summary"):
-                eigs = fam.summary(alg, rho, cert)
-                top, low = float(eigs["max_eig_M"]), float(eigs["min_eig_P"])
-            else:
-                M = fam.matrix(alg, rho, cert)
-                if not (np.all(np.isfinite(M)) and np.all(np.isfinite(P))):
-                    return None
-                top, low = float(np.linalg.eigvalsh(M)[-1]), float(np.linalg.eigvalsh(P)[0])
+            eigs = fam.summary(alg, rho, cert)
+            top, low = float(eigs["max_eig_M"]), float(eigs["min_eig_P"])
     except (np.linalg.LinAlgError, ValueError, OverflowError, TypeError):
         return None
     lam = cert.get("lambda", 0.0)
@@ -673,7 +665,7 @@ def analyze_spec(
 
 def spec_family(spec: Spec) -> CertificateFamily:
     """The certificate family a spec asks for, with its options."""
-    return get_family(spec.certificate, getattr(spec, "certificate_options", None))
+    return get_family(spec.certificate, spec.certificate_options)
 
 
 def quadratic_rate(alg: Algorithm, points: int = 2001) -> float:

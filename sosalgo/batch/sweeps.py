@@ -291,11 +291,18 @@ def csv_row_to_json(spec: Spec, row: dict[str, str],
 
 def _family_json(spec: Spec, row: dict[str, str], family: CertificateFamily | None,
                  P: Any) -> dict[str, Any]:
-    """``family`` and ``certificate`` of a row of a family with its own columns."""
+    """``family``, ``certificate`` and ``lag`` of a row of a family with its own columns;
+    the top-level ``P`` is the certificate's whole P (as in ``AnalysisResult.to_dict``),
+    not only the leading block the common columns hold."""
     if family is None or not family.csv_columns(spec.n):
         return {}
-    return {"family": family.name, "certificate": family.cert_from_csv(
-        spec.n, row, None if P is None else P.tolist())}
+    cert = family.cert_from_csv(spec.n, row, None if P is None else P.tolist())
+    out: dict[str, Any] = {"family": family.name, "certificate": cert}
+    if cert is not None and cert.get("P") is not None:
+        out["P"] = np.asarray(cert["P"], dtype=float).tolist()
+    if row.get("lag", "") != "":
+        out["lag"] = int(row["lag"])
+    return out
 
 
 # --------------------------------------------------------------------------- design sweeps

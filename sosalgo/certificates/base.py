@@ -97,8 +97,9 @@ class CertificateFamily(Protocol):
     subclasses this class explicitly inherits them. ``option_names`` and ``options()`` name
     its keyword options (e.g. the interpolation family's ``lag``): they go into output file
     names and run settings; ``csv_columns``/``csv_cells``/``cert_from_csv``/``p_size`` give
-    its own CSV columns; ``summary`` the two eigenvalues of its results; ``listing`` its
-    text for ``sosalgo lmi`` (None: the entries of its main matrix).
+    its own CSV columns; ``summary`` the two eigenvalues of its results; ``auto_lags`` and
+    ``guess_problem`` steer the rate search; ``listing`` its text for ``sosalgo lmi``
+    (None: the entries of its main matrix).
     """
 
     name: str
@@ -108,6 +109,11 @@ class CertificateFamily(Protocol):
     supports_moment: bool
     certificate_parts: tuple[str, ...]
     option_names: tuple[str, ...] = ()
+    # how the rate search treats it (analysis.py): ``tight`` starts the search at the rate
+    # on quadratics; ``fallback_solvers`` replaces the solver chain where the margin path
+    # cannot check a point (None: the default chain)
+    tight: bool = False
+    fallback_solvers: tuple[str, ...] | None = None
 
     def problem(self, alg: Algorithm) -> LMIProblem:
         """Assemble the feasibility data for a numeric algorithm."""
@@ -194,6 +200,16 @@ class CertificateFamily(Protocol):
             return {"max_eig_M": math.nan, "min_eig_P": math.nan}
         return {"max_eig_M": float(np.linalg.eigvalsh(M)[-1]),
                 "min_eig_P": float(np.linalg.eigvalsh(P)[0])}
+
+    def auto_lags(self, n: int) -> tuple[int, ...]:
+        """The members the analysis tries, best rate kept, when the user chose none (the
+        interpolation family's lags); () by default: the family is used as it is."""
+        return ()
+
+    def guess_problem(self, alg: Algorithm) -> LMIProblem | None:
+        """A cheaper member whose rate tells the search where to look (never certifies);
+        None by default."""
+        return None
 
     def listing(self, spec: Spec, symbols: dict[str, Any], latex: bool) -> str | None:
         """Its own text for ``sosalgo lmi`` from the symbols of :meth:`symbolic`; None (the

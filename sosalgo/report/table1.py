@@ -22,8 +22,8 @@ def table1_rows(specs: Sequence[Spec], kappas: Sequence[float], tol: float,
     """(rows, columns): one row per spec and kappa. The closed-form rate of a spec is the
     first entry of its ``references``. ``families[i]`` lists the families to run on spec i
     (None: the spec's own); the first fills ``rho_certified`` (and ``family`` when it is not
-    the default), every further one adds rho_<family>, certified_<family> and
-    difference_<family>."""
+    the default, and ``lag`` when its certificate has one), every further one adds
+    rho_<family>, certified_<family>, difference_<family> (and lag_<family>)."""
     rows = []
     extra_cols: list[str] = []
     for spec, fams in zip(specs, families, strict=True):
@@ -47,9 +47,13 @@ def _row(spec: Spec, kappa: float, tol: float,
                         "closed_form": name, "closed_form_rate": val, "difference": diff})
             if fam is not None and not fam.is_default:
                 row["family"] = fam.name
+                if res.lag is not None:
+                    row["lag"] = res.lag
         else:
             row.update({f"rho_{fam.name}": res.rho, f"certified_{fam.name}": res.certified,
                         f"difference_{fam.name}": diff})
+            if res.lag is not None:
+                row[f"lag_{fam.name}"] = res.lag
     return row
 
 
