@@ -17,9 +17,11 @@ from sosalgo.errors import InputError
 from sosalgo.expr.compile import NumericError, compile_expression, compile_matrix
 from sosalgo.spec.types import BASE_NAMES, MATRIX_NAMES, Spec, value_order
 
-__all__ = ["Algorithm", "ModelError", "bind", "evaluate_algorithm", "fixed_point"]
+__all__ = ["Algorithm", "ModelError", "bind", "design_box", "evaluate_algorithm",
+           "fixed_point"]
 
 FIXED_POINT_TOL = 1e-8
+MAX_DESIGN_ENTRY = 1e50  # largest parameter value or matrix entry a design box may reach
 
 
 class ModelError(InputError):
@@ -182,6 +184,45 @@ def parameter_box(spec: Spec, kappa: float, names: list[str]) -> list[tuple[floa
     return out
 
 
+def design_box(spec: Spec, kappa: float, names: list[str]) -> list[tuple[float, float]]:
+    """:func:`parameter_box`, refused with a :class:`ModelError` naming the parameter when a
+    range is too large for design: an end beyond ``MAX_DESIGN_ENTRY`` in size, or one (the
+    other parameters at their box centres) where the method's matrices have an entry
+    that large or not finite. The grid, the solvers and the bound would then work on
+    overflowing numbers; ends where the method cannot be evaluated otherwise (a domain
+    error) are left to the search, which skips such points."""
+    box = parameter_box(spec, kappa, names)
+    centre = {p: 0.5 * lo + 0.5 * hi for p, (lo, hi) in zip(names, box, strict=True)}
+    for p, (lo, hi) in zip(names, box, strict=True):
+        for end in (lo, hi):
+            size = abs(end) if abs(end) > MAX_DESIGN_ENTRY else _matrix_size(
+                spec, kappa, {**centre, p: end})
+            if size is not None and not size <= MAX_DESIGN_ENTRY:
+                raise ModelError(
+                    f"parameters.{p}.range",
+                    f"[{lo:g}, {hi:g}] is too large for design: at {p} = {end:g} the "
+                    f"method's numbers reach {size:.3g} (design needs them below "
+                    f"{MAX_DESIGN_ENTRY:g}); narrow the range")
+    return box
+
+
+def _matrix_size(spec: Spec, kappa: float, theta: Mapping[str, float]) -> float | None:
+    """Largest |entry| of A, B, C, E at ``theta`` (inf when one overflows; None when the
+    point cannot be evaluated for another reason)."""
+    comp = _compiled(spec)
+    m, L = spec.mL(kappa)
+    try:
+        params = parameter_values(spec, kappa, theta)
+        values = [m, L, kappa] + [params[p] for p in comp.names]
+        with np.errstate(all="ignore"):
+            return max(float(np.max(np.abs(comp.matrix_fns[k](values))))
+                       for k in MATRIX_NAMES)
+    except OverflowError:
+        return float("inf")
+    except (NumericError, ModelError) as exc:
+        return float("inf") if "finite" in str(exc) else None
+
+
 def bind(spec: Spec, kappa: float, theta: Mapping[str, float] | None = None) -> Algorithm:
     """Numeric Algorithm at condition number ``kappa`` (m = spec.m, L = kappa m).
 
@@ -218,7 +259,8 @@ def fixed_point(alg: Algorithm, tol: float = FIXED_POINT_TOL) -> np.ndarray | No
     n = alg.n
     lhs = np.vstack([np.eye(n) - alg.A, alg.C, alg.E])
     rhs = np.concatenate([np.zeros(n), [1.0, 1.0]])
-    u, *_ = np.linalg.lstsq(lhs, rhs, rcond=None)
-    resid = np.linalg.norm(lhs @ u - rhs)
-    scale = 1.0 + np.linalg.norm(lhs) * np.linalg.norm(u)
+    with np.errstate(all="ignore"):  # huge entries: NaN below fails the test, no warning
+        u, *_ = np.linalg.lstsq(lhs, rhs, rcond=None)
+        resid = np.linalg.norm(lhs @ u - rhs)
+        scale = 1.0 + np.linalg.norm(lhs) * np.linalg.norm(u)
     return u if resid <= tol * scale else None

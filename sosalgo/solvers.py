@@ -31,7 +31,7 @@ from sosalgo.certificates.base import LMIProblem
 
 __all__ = [
     "Feasibility", "Outcome", "solve_lmi", "solve_margin", "check_point", "Margin", "SOLVERS",
-    "DEFAULT_SOLVERS", "margin_for",
+    "DEFAULT_SOLVERS", "margin_for", "SolverStatus", "solver_status",
 ]
 
 SQRT2 = math.sqrt(2.0)
@@ -46,6 +46,42 @@ class Feasibility(StrEnum):
     FEASIBLE = "feasible"  # solver said solved AND the point passed the float check
     INFEASIBLE = "infeasible"  # the solver proved infeasibility
     FAILED = "failed"  # anything else: inaccurate, iteration limit, crash, failed check
+
+
+class SolverStatus(StrEnum):
+    """A raw Clarabel or SCS status, classified once (:func:`solver_status`)."""
+
+    SOLVED = "solved"  # full accuracy
+    ALMOST_SOLVED = "almost solved"  # a point at reduced accuracy
+    INFEASIBLE = "infeasible"  # a certificate of primal infeasibility
+    INACCURATE = "inaccurate"  # another reduced-accuracy end (almost infeasible, ...)
+    FAILED = "failed"  # iteration or time limit, numerical error, invalid data
+
+    @property
+    def near(self) -> bool:
+        """A reduced-accuracy end: the problem is (in)feasible by a hair at best."""
+        return self in (SolverStatus.ALMOST_SOLVED, SolverStatus.INACCURATE)
+
+
+_STATUSES = {
+    "Solved": SolverStatus.SOLVED, "solved": SolverStatus.SOLVED,  # Clarabel, SCS
+    "AlmostSolved": SolverStatus.ALMOST_SOLVED, "solved_inaccurate": SolverStatus.ALMOST_SOLVED,
+    "PrimalInfeasible": SolverStatus.INFEASIBLE, "infeasible": SolverStatus.INFEASIBLE,
+}
+
+
+def solver_status(raw: object) -> SolverStatus:
+    """The one mapping of Clarabel's and SCS's status names (anything else is failed)."""
+    name = str(raw)
+    if name in _STATUSES:
+        return _STATUSES[name]
+    return (SolverStatus.INACCURATE if name.startswith("Almost") or "inaccurate" in name
+            else SolverStatus.FAILED)
+
+
+def finite_data(*arrays: Any) -> bool:
+    """Whether every entry is finite (solvers print errors on NaN/inf data: never sent)."""
+    return all(np.all(np.isfinite(getattr(a, "data", a))) for a in arrays)
 
 
 @dataclass(frozen=True)
@@ -133,9 +169,8 @@ def _form(problem: LMIProblem, upper: bool) -> _ConicForm:
     return forms[upper]
 
 
-def margin_for(problem: LMIProblem, rho: float) -> float:
+def margin_for(problem: LMIProblem) -> float:
     """Strictness margin for the strict blocks, relative to the size of the data."""
-    del rho
     return RELATIVE_MARGIN * _form(problem, True).scale
 
 
@@ -160,7 +195,10 @@ def _clarabel_run(problem: LMIProblem, rho: float, margin: float, equilibrate: b
     import clarabel
 
     form = _form(problem, upper=True)
-    A, b = form.data(rho, margin)
+    with np.errstate(all="ignore"):
+        A, b = form.data(rho, margin)
+    if not finite_data(A, b):
+        return "failed", None, "non-finite problem data"
     cones = [
         clarabel.NonnegativeConeT(1) if s == 1 else clarabel.PSDTriangleConeT(s)
         for s in form.sizes
@@ -169,12 +207,17 @@ def _clarabel_run(problem: LMIProblem, rho: float, margin: float, equilibrate: b
         form.zero_P, form.q, A, b, cones, _clarabel_settings(equilibrate)
     )
     sol = solver.solve()
-    status = str(sol.status)
-    if status == "Solved":
-        return "solved", np.array(sol.x), status
-    if status == "PrimalInfeasible":
+    return _raw_answer(str(sol.status), sol.x)
+
+
+def _raw_answer(status: str, x: Any) -> tuple[str, np.ndarray | None, str]:
+    """(solved | infeasible | near | failed, x when solved, the solver's own status)."""
+    st = solver_status(status)
+    if st == SolverStatus.SOLVED:
+        return "solved", np.array(x), status
+    if st == SolverStatus.INFEASIBLE:
         return "infeasible", None, status
-    return ("near" if status.startswith("Almost") else "failed"), None, status
+    return ("near" if st.near else "failed"), None, status
 
 
 def _clarabel_fast(problem: LMIProblem, rho: float, margin: float):
@@ -192,7 +235,10 @@ def _scs(problem: LMIProblem, rho: float, margin: float):
     import scs
 
     form = _form(problem, upper=False)
-    A, b = form.data(rho, margin)
+    with np.errstate(all="ignore"):
+        A, b = form.data(rho, margin)
+    if not finite_data(A, b):
+        return "failed", None, "non-finite problem data"
     sizes = form.sizes
     n = problem.nvar
     # SCS wants the nonnegative rows first, then the PSD cones: reorder rows.
@@ -205,12 +251,7 @@ def _scs(problem: LMIProblem, rho: float, margin: float):
         solver = scs.SCS(data, cone, verbose=False, eps_abs=1e-9, eps_rel=1e-9,
                          max_iters=5000)
         sol = solver.solve()
-    status = str(sol["info"]["status"])
-    if status == "solved":
-        return "solved", np.array(sol["x"]), status
-    if status == "infeasible":
-        return "infeasible", None, status
-    return ("near" if "inaccurate" in status else "failed"), None, status
+    return _raw_answer(str(sol["info"]["status"]), sol["x"])
 
 
 @contextlib.contextmanager
@@ -375,7 +416,10 @@ def solve_margin(problem: LMIProblem, rho: float, rough: bool = False,
     form = _MARGINS.get(problem)
     if form is None:
         form = _MARGINS[problem] = _MarginForm(problem)
-    A = form.data(rho)
+    with np.errstate(all="ignore"):
+        A = form.data(rho)
+    if not finite_data(A):
+        return Margin(False, None, None, "non-finite problem data", precise=precise)
     detail = ""
     for equilibrate in (False, True):
         try:
@@ -384,7 +428,7 @@ def solve_margin(problem: LMIProblem, rho: float, rough: bool = False,
             detail = f"exception: {type(exc).__name__}"
             continue
         detail = str(sol.status)
-        if detail == "Solved":
+        if solver_status(detail) == SolverStatus.SOLVED:
             z = np.array(sol.x)
             t, c = float(z[-1]), float(z[-2])
             x = z[:-2] / c if (t > 0 and c > 0) else None
@@ -481,7 +525,7 @@ DEFAULT_SOLVERS: tuple[str, ...] = ("clarabel-fast", "clarabel", "scs")
 
 
 def _checked(problem: LMIProblem, rho: float, name: str) -> Outcome:
-    margin = margin_for(problem, rho)
+    margin = margin_for(problem)
     try:
         status, x, detail = SOLVERS[name](problem, rho, margin)
     except Exception as exc:  # noqa: BLE001 - any solver crash is a failed step

@@ -320,3 +320,64 @@ def test_moment_method_is_guarded_and_consistent():
     box = parameter_box(spec, 10.0, ["h", "beta"])
     b = relaxation_bound(spec, 10.0, ["h", "beta"], box, order=8, scalarize="pmi")
     assert b.info["status"] == "skipped" and b.rho is None  # too large: refused, not run
+
+
+# --------------------------------------------------------------------------- messages, progress
+def test_a_range_too_large_for_design_is_refused_by_name():
+    from sosalgo.model import ModelError
+    from sosalgo.spec import spec_from_text
+
+    spec = spec_from_text("name: g\nparameters:\n  h: {value: 1/L, range: [0, 1e300]}\n"
+                          "matrices:\n  A: [[1]]\n  B: [[-h]]\n  C: [[1]]\n  E: [[1]]\n"
+                          "kappa: 10\n")
+    with pytest.raises(ModelError, match="too large for design") as err:
+        design(spec, 10.0, time_limit=5)
+    assert err.value.field == "parameters.h.range"
+
+
+def test_grid_cut_short_never_blames_a_bound_that_does_not_run():
+    """The interpolation family has no lower bound: a grid cut short (169 points in 0.3 s
+    of a 1 s limit) says so without naming a bound."""
+    res = design(load_spec(SPECS / "nesterov.yaml"), 10.0, free=["h", "beta"],
+                 time_limit=1.0, family="interpolation")
+    cut = [s for s in res.steps if s.startswith("grid cut short")]
+    assert cut and not any("bound" in s for s in cut), res.steps
+    assert res.lower_bound is None and res.relaxation["status"] == "unsupported"
+
+
+def test_progress_bar_shows_the_phases_of_a_design(capsys):
+    from sosalgo.batch.executor import Progress
+
+    bar = Progress(1, "design gradient")
+    try:
+        design(load_spec(SPECS / "gradient.yaml"), 10.0, time_limit=30)
+    finally:
+        bar.close()
+    err = capsys.readouterr().err
+    for phase in ("| spec values", "| grid", "| polish", "| bound"):
+        assert phase in err, err
+
+
+def test_pool_start_and_resumed_rows_are_announced(tmp_path, capsys):
+    from sosalgo.batch.sweeps import run_analysis_sweep
+    from sosalgo.spec import read_spec_text
+
+    path = SPECS / "gradient.yaml"
+    spec, text = load_spec(path), read_spec_text(path)
+    kappas = [2.0, 3.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0]
+    csv = tmp_path / "g.csv"
+    run_analysis_sweep(spec, text, kappas, csv, 1e-4, workers=2)
+    assert "| starting 2 workers" in capsys.readouterr().err
+    run_analysis_sweep(spec, text, kappas, csv, 1e-4, workers=2)
+    assert f"resumed: 8 of 8 rows read from {csv}" in capsys.readouterr().err
+
+
+def test_a_bound_of_zero_is_printed_as_none_proven():
+    from sosalgo.report.design import design_table, verdict
+
+    doc = {"kappa": 10.0, "lower_bound": 0.0, "rho_certified": 0.9, "gap": 0.9,
+           "gap_met": False, "rho_at_values": 0.9, "floor": 0.68, "seconds": 1.0,
+           "theta": {"h": 0.1}, "relaxation": {}}
+    assert verdict(doc, 1e-4) == "no bound"
+    row = design_table([doc], ["h"], 1e-4, "dual").splitlines()[2]
+    assert "none proven" in row

@@ -2,10 +2,19 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
-from sosalgo.model import Algorithm, ModelError, bind, evaluate_algorithm, fixed_point
+from sosalgo.model import (
+    Algorithm,
+    ModelError,
+    bind,
+    design_box,
+    evaluate_algorithm,
+    fixed_point,
+)
 from sosalgo.spec import load_spec, spec_from_text
 
 from .conftest import SPECS
@@ -57,3 +66,34 @@ def test_bind_refuses_kappa_at_most_one_and_a_parameter_without_fixed_point():
         bind(drift, 10.0, {"a": 0.75})  # (1 - a) u = 0 forces u = 0: no fixed point
     with pytest.raises(ModelError, match="fixed point"):
         evaluate_algorithm(drift, 10.0, {"a": 0.75})  # the same check, one place
+
+
+def _gradient_with_range(hi: str):
+    return spec_from_text("name: g\nparameters:\n  h: {value: 1/L, range: [0, " + hi + "]}\n"
+                          "matrices:\n  A: [[1]]\n  B: [[-h]]\n  C: [[1]]\n  E: [[1]]\n"
+                          "kappa: 10\n")
+
+
+def test_design_box_refuses_a_range_too_large_and_names_the_parameter():
+    with pytest.raises(ModelError, match="too large for design") as err:
+        design_box(_gradient_with_range("1e300"), 10.0, ["h"])
+    assert err.value.field == "parameters.h.range" and "h = 1e+300" in err.value.message
+    # an ordinary range is the parameter box itself: [0, 2/L] at L = 10
+    assert design_box(_gradient_with_range("2/L"), 10.0, ["h"]) == [(0.0, 0.2)]
+
+
+def test_design_box_blames_an_entry_that_overflows_not_the_parameter_value():
+    # h = 1e30 is a modest number, but B = -h*h reaches 1e60: too large for design
+    spec = spec_from_text("name: g\nparameters:\n  h: {value: 1/L, range: [0, 1e30]}\n"
+                          "matrices:\n  A: [[1]]\n  B: [[-h*h]]\n  C: [[1]]\n  E: [[1]]\n"
+                          "kappa: 10\n")
+    with pytest.raises(ModelError, match=r"reach 1e\+60"):
+        design_box(spec, 10.0, ["h"])
+
+
+def test_fixed_point_of_overflowing_matrices_is_none_without_a_warning():
+    alg = Algorithm([[1e300, 1e300], [1e300, 1e300]], [[1.0], [1.0]], [[1e300, 1.0]],
+                    [[1.0, 1e300]], 1.0, 10.0, require_fixed_point=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a RuntimeWarning would fail the test
+        assert fixed_point(alg) is None

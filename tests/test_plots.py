@@ -105,3 +105,113 @@ def test_uncertified_kappas_are_not_marked_twice():
                       uncertified=[10.0])
     labels = [ln.get_label() for ln in fig.axes[0].lines]
     assert "no certificate" in labels and "certified rate: missing" not in labels
+
+
+def _drawn_labels(ax) -> set[str]:
+    return {ln.get_label() for ln in ax.lines if not ln.get_label().startswith("_")
+            and len(ln.get_xdata())}
+
+
+def _legend_labels(ax) -> set[str]:
+    return {t.get_text() for t in ax.get_legend().get_texts()}
+
+
+def test_log_kappa_axis_labels_one_two_five_as_plain_numbers():
+    fig = rate_figure("t", [1.5, 10.0, 1000.0], {"rate": [0.3, 0.8, 0.99]}, {})
+    ax = fig.axes[0]
+    fig.canvas.draw()
+    lo, hi = ax.get_xlim()
+    shown = [t.get_text() for t in ax.get_xticklabels()
+             if t.get_text() and lo <= t.get_position()[0] <= hi]
+    assert shown == ["2", "5", "10", "20", "50", "100", "200", "500", "1000"]
+    assert not _labels_overlap(fig, ax)
+
+
+def test_legend_lists_exactly_what_is_drawn():
+    k = [2.0, 10.0, 100.0]
+    fig = rate_figure("t", k, {"designed": [0.3, 0.8, 0.95], "bound": [None] * 3},
+                      {"ref": [0.5, 0.9, 0.99], "empty ref": [None] * 3})
+    ax = fig.axes[0]
+    assert _legend_labels(ax) == _drawn_labels(ax) == {"designed", "bound: missing", "ref"}
+    marks = [ln for ln in ax.lines if ln.get_label() == "bound: missing"][0]
+    assert list(marks.get_xdata()) == k  # a series without values: marks at every kappa
+
+
+def _captured_design_figure(monkeypatch, tmp_path, bounds):
+    """The figure ``design_figure`` would write, for documents with these lower bounds."""
+    import sosalgo.report as report
+    from sosalgo.certificates import get_family
+    from sosalgo.report.design import design_figure
+
+    figs = []
+    monkeypatch.setattr(report, "save_figure", lambda fig, stem: figs.append(fig) or [])
+    spec = load_spec(SPECS / "gradient.yaml")
+    kappas = [2.0, 10.0, 100.0, 1000.0][:len(bounds)]
+    docs = [{"kappa": k, "rho_certified": (k - 1) / (k + 1), "lower_bound": b,
+             "rho_at_values": 1 - 1 / k} for k, b in zip(kappas, bounds, strict=True)]
+    design_figure(spec, ["h"], [], docs, tmp_path / "d", get_family("theorem1"),
+                  "dual certificates")
+    return figs[0].axes[0]
+
+
+def test_design_figure_without_a_bound_says_so(monkeypatch, tmp_path):
+    ax = _captured_design_figure(monkeypatch, tmp_path, [None, None, None])
+    assert "no lower bound" in ax.get_title() and "dual certificates" not in ax.get_title()
+    assert not any("lower bound" in s for s in _legend_labels(ax))
+    assert _legend_labels(ax) == _drawn_labels(ax)
+
+
+def test_design_figure_marks_missing_and_zero_bounds(monkeypatch, tmp_path):
+    ax = _captured_design_figure(monkeypatch, tmp_path, [0.3, 0.0, None, 0.99])
+    assert "bound: dual certificates" in ax.get_title()
+    lines = {ln.get_label(): ln for ln in ax.lines}
+    bound = np.asarray(lines["lower bound (proven)"].get_ydata(), dtype=float)
+    assert np.isfinite(bound).tolist() == [True, False, False, True]  # 0 proves nothing
+    assert list(lines["lower bound (proven): missing"].get_xdata()) == [10.0, 100.0]
+    assert _legend_labels(ax) == _drawn_labels(ax)
+
+
+def test_one_kappa_gives_no_figure_for_any_family(tmp_path):
+    from sosalgo.certificates import get_family
+    from sosalgo.report.analysis import analysis_figure, families_figure
+
+    spec = load_spec(SPECS / "nesterov.yaml")
+    row = {"kappa": 10.0, "rho": 0.82, "certified": True,
+           "references": {name: 0.5 for name in spec.references}}
+    for fam in ("theorem1", "interpolation"):
+        assert families_figure(spec, [(get_family(fam), tmp_path, [row])], tmp_path / "f") == []
+    assert analysis_figure(spec, [row], tmp_path / "a") == []
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_contour_labels_are_few_and_spread():
+    h = np.linspace(0.0, 0.2, 40)
+    b = np.linspace(0.0, 1.0, 40)
+    H, B = np.meshgrid(h, b, indexing="ij")
+    rho = 0.6 + 2.0 * (H - 0.15) ** 2 + 0.3 * (B - 0.8) ** 2  # minimum near a corner
+    fig = grid_figure("t", ["h", "beta"], [h, b], rho)
+    ax = fig.axes[0]
+    fig.canvas.draw()
+    to_axes = ax.transAxes.inverted()
+    pos = np.array([to_axes.transform(ax.transData.transform(t.get_position()))
+                    for t in ax.texts])
+    assert 2 <= len(pos) <= 6
+    dist = [np.hypot(*(p - q)) for p, q in itertools.combinations(pos, 2)]
+    assert min(dist) > 0.12  # no two labels on top of each other
+    assert np.ptp(pos[:, 0]) > 0.3 or np.ptp(pos[:, 1]) > 0.3  # not all in one corner
+
+
+def test_fig4_curve_without_values_is_only_marked_missing():
+    from sosalgo.report.fig4 import _draw_rates
+
+    fig, ax = plt.subplots()
+    k = np.array([2.0, 10.0, 100.0])
+    data = {"designed (interpolation)": [None] * 3, "designed (Theorem 1)": [0.3, 0.8, 0.95],
+            "Nesterov's tuning (interpolation)": [0.4, 0.8, None],
+            "Nesterov's tuning (Theorem 1)": [0.4, 0.85, 0.96]}
+    _draw_rates(ax, k, np.geomspace(2, 100, 50), data)
+    labels = _legend_labels(ax)
+    assert "designed (interpolation)" not in labels
+    assert {"designed (interpolation): missing",
+            "Nesterov's tuning (interpolation): missing"} <= labels
+    assert labels == _drawn_labels(ax)

@@ -2,10 +2,19 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from sosalgo.certificates.base import AffineBlock, LMIProblem
-from sosalgo.solvers import check_point, solve_lmi, solve_margin
+from sosalgo.solvers import (
+    Feasibility,
+    SolverStatus,
+    check_point,
+    solve_lmi,
+    solve_margin,
+    solver_status,
+)
 
 
 def _interval(lo: float, hi: float) -> LMIProblem:
@@ -38,3 +47,42 @@ def test_check_point_refuses_violations_and_nan():
 def test_margin_sign_tells_feasibility():
     assert solve_margin(_interval(1.0, 2.0), 0.5).t > 0
     assert solve_margin(_interval(2.0, 1.0), 0.5).t < 0
+
+
+# Every status the solvers document (Clarabel's SolverStatus, SCS's info["status"]), with
+# the class it must fall in: only a full-accuracy solve is a solution, only a certificate
+# of primal infeasibility is infeasible.
+DOCUMENTED = {
+    "Solved": "solved", "AlmostSolved": "almost solved", "PrimalInfeasible": "infeasible",
+    "AlmostPrimalInfeasible": "inaccurate", "AlmostDualInfeasible": "inaccurate",
+    "DualInfeasible": "failed", "MaxIterations": "failed", "MaxTime": "failed",
+    "NumericalError": "failed", "InsufficientProgress": "failed", "Unsolved": "failed",
+    "CallbackTerminated": "failed",
+    "solved": "solved", "solved_inaccurate": "almost solved", "infeasible": "infeasible",
+    "infeasible_inaccurate": "inaccurate", "unbounded": "failed",
+    "unbounded_inaccurate": "inaccurate", "failed": "failed", "indeterminate": "failed",
+    "interrupted": "failed", "sigint": "failed",
+}
+
+
+def test_one_status_mapping_covers_both_solvers():
+    import clarabel
+
+    clarabel_names = {n for n in dir(clarabel.SolverStatus) if n[0].isupper()}
+    assert clarabel_names <= set(DOCUMENTED)  # every status this Clarabel can return
+    for raw, want in DOCUMENTED.items():
+        assert solver_status(raw) == want, raw
+    assert solver_status(clarabel.SolverStatus.AlmostSolved) == SolverStatus.ALMOST_SOLVED
+    assert SolverStatus.ALMOST_SOLVED.near and not SolverStatus.SOLVED.near
+
+
+def test_non_finite_data_fail_quietly(capfd):
+    bad = _interval(1.0, np.inf)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        out = solve_lmi(bad, 0.5)
+        mg = solve_margin(bad, 0.5)
+    assert out.status == Feasibility.FAILED and not mg.ok
+    assert "non-finite" in out.detail and "non-finite" in mg.detail
+    captured = capfd.readouterr()
+    assert captured.err == "" and captured.out == ""  # the solvers printed nothing

@@ -29,7 +29,8 @@ if TYPE_CHECKING:  # pragma: no cover - imported where a pool is started
     from concurrent.futures import Future, ProcessPoolExecutor
 
 __all__ = ["BatchError", "Progress", "check_scheduler", "default_workers", "kill_pool",
-           "pool_context", "run_batch", "start_pool_server", "worker_pool"]
+           "map_until", "note", "pool_context", "quietly", "run_batch", "show_phase",
+           "start_pool_server", "worker_pool"]
 
 Row = dict[str, Any]
 ChunkFn = Callable[[str, str, dict[str, Any], list[dict[str, Any]]], list[Row]]
@@ -54,20 +55,54 @@ def default_workers() -> int:
 
 
 class Progress:
-    """A one-line progress bar on stderr: count, rate and ETA (silent when disabled)."""
+    """A one-line progress bar on stderr: count, rate, ETA and what the running task is
+    doing (:func:`show_phase`); silent when disabled. ``done`` rows were read back from
+    ``resumed_from`` (a saved file): said once, on its own line."""
 
-    def __init__(self, total: int, label: str, enabled: bool = True, done: int = 0):
+    def __init__(self, total: int, label: str, enabled: bool = True, done: int = 0,
+                 resumed_from: str | os.PathLike | None = None):
+        global _ACTIVE
         self.total, self.label, self.enabled = total, label, enabled
         self.count = done
         self.start_count = done
         self.t0 = time.perf_counter()
         self.last = 0.0
         self.tty = sys.stderr.isatty()
+        self.phase_name: str | None = None
+        self.phase_detail = ""
+        self.width = 0  # length of the line on screen (a tty line is overwritten)
+        if enabled:
+            _ACTIVE = self
+            if done:
+                where = f" from {resumed_from}" if resumed_from is not None else ""
+                sys.stderr.write(f"resumed: {done} of {total} rows read{where}\n")
         self._draw(force=True)
 
     def update(self, n: int = 1) -> None:
         self.count += n
         self._draw()
+
+    def phase(self, name: str | None, detail: str = "") -> None:
+        """Show what is running now (``name``, e.g. "grid") and how far it is (``detail``):
+        a new name is drawn at once, a new detail at the bar's usual pace."""
+        changed = name != self.phase_name
+        self.phase_name, self.phase_detail = name, detail
+        self._draw(force=changed)
+
+    def _line(self) -> str:
+        elapsed = time.perf_counter() - self.t0
+        rate = (self.count - self.start_count) / elapsed if elapsed > 0 else 0.0
+        left = self.total - self.count
+        eta = 0.0 if left <= 0 else left / rate if rate > 0 else math.inf
+        frac = self.count / self.total if self.total else 1.0
+        width = 24
+        bar = "#" * int(frac * width) + "-" * (width - int(frac * width))
+        eta_s = "?" if not math.isfinite(eta) else _fmt_time(eta)
+        line = f"{self.label} [{bar}] {self.count}/{self.total} {rate:.1f}/s ETA {eta_s}"
+        if self.phase_name and self.count < self.total:
+            detail = f" {self.phase_detail}" if self.phase_detail else ""
+            line += f" | {self.phase_name}{detail} ({_fmt_time(elapsed)} elapsed)"
+        return line
 
     def _draw(self, force: bool = False) -> None:
         if not self.enabled:
@@ -76,26 +111,41 @@ class Progress:
         if not force and now - self.last < (0.2 if self.tty else 5.0) and self.count < self.total:
             return
         self.last = now
-        elapsed = now - self.t0
-        done_here = self.count - self.start_count
-        rate = done_here / elapsed if elapsed > 0 else 0.0
-        left = self.total - self.count
-        eta = left / rate if rate > 0 else math.inf
-        frac = self.count / self.total if self.total else 1.0
-        width = 24
-        bar = "#" * int(frac * width) + "-" * (width - int(frac * width))
-        eta_s = "?" if not math.isfinite(eta) else _fmt_time(eta)
-        line = (
-            f"{self.label} [{bar}] {self.count}/{self.total} "
-            f"{rate:.1f}/s ETA {eta_s}"
-        )
+        line = self._line()
         end = "\r" if self.tty and self.count < self.total else "\n"
-        sys.stderr.write(line + end)
+        pad = " " * max(0, self.width - len(line)) if self.tty else ""
+        self.width = len(line) if end == "\r" else 0
+        sys.stderr.write(line + pad + end)
         sys.stderr.flush()
 
     def close(self) -> None:
+        global _ACTIVE
+        if _ACTIVE is self:
+            _ACTIVE = None
         if self.enabled and self.tty and self.count < self.total:
             sys.stderr.write("\n")
+
+
+_ACTIVE: Progress | None = None  # this process's bar, which :func:`show_phase` reaches
+
+
+def note(msg: str) -> None:
+    """Print ``msg`` on its own line of stderr; on a terminal, this process's progress bar
+    is cleared first and drawn again below it (a message never runs into the bar)."""
+    bar = _ACTIVE
+    clear = bar is not None and bar.enabled and bar.tty and bar.width
+    sys.stderr.write(("\r" + " " * bar.width + "\r" if clear else "") + msg + "\n")
+    sys.stderr.flush()
+    if clear:
+        bar.width = 0
+        bar._draw(force=True)
+
+
+def show_phase(name: str | None, detail: str = "") -> None:
+    """Tell this process's progress bar what the running task is doing (a no-op without
+    a bar, e.g. in a pool's worker: only a task run in the bar's process shows phases)."""
+    if _ACTIVE is not None:
+        _ACTIVE.phase(name, detail)
 
 
 def _fmt_time(sec: float) -> str:
@@ -144,31 +194,48 @@ def run_batch(
         return
     if workers == 1 or len(tasks) < SERIAL_BELOW:
         for task in tasks:
-            deliver(fn(spec_text, source, options, [task]))
+            deliver(quietly(fn, spec_text, source, options, [task]))
         return
     from concurrent.futures import FIRST_COMPLETED, wait
 
     size = chunk_size(len(tasks), workers)
+    if progress is not None:
+        progress.phase(f"starting {workers} workers")
     pool = worker_pool(workers)
     try:
         pending: set[Future] = set()
         chunks = _chunks(tasks, size)
         for chunk in chunks:
-            pending.add(pool.submit(fn, spec_text, source, options, chunk))
+            pending.add(pool.submit(quietly, fn, spec_text, source, options, chunk))
             if len(pending) >= workers * 2:
                 break
         while pending:
             finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+            if progress is not None and progress.phase_name:
+                progress.phase(None)  # the workers run: the count says it from now on
             for fut in finished:
                 deliver(fut.result())
             for chunk in chunks:
-                pending.add(pool.submit(fn, spec_text, source, options, chunk))
+                pending.add(pool.submit(quietly, fn, spec_text, source, options, chunk))
                 if len(pending) >= workers * 2:
                     break
     except BaseException:
         kill_pool(pool)  # interrupted or failed: do not wait for (or leave) running workers
         raise
     pool.shutdown(wait=True)
+
+
+def quietly(fn: Callable[..., Any], *args: Any) -> Any:
+    """``fn(*args)`` with numpy's floating-point warnings off: an overflow or a NaN shows in
+    the results (a point with non-finite data is not certified, the solvers are never given
+    such data), not as stray lines on stderr."""
+    import warnings
+
+    import numpy as np
+
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return fn(*args)
 
 
 def pool_context(preload: Sequence[str] = PRELOAD):
@@ -255,6 +322,35 @@ def _exit_when_gone(sentinel: int) -> None:
     os._exit(1)
 
 
+def map_until(fn: Callable[[Any], Any], items: Sequence[Any], workers: int,
+              deadline: float, grace: float = 1.0) -> tuple[list[Any], list[BaseException]]:
+    """``fn(item)`` for every item on a pool of ``workers`` processes, waited for until the
+    wall-clock time ``deadline`` (``time.time()``) plus ``grace`` seconds. Returns the
+    results (None for an item not finished or failed) and the exceptions raised; a pool
+    with tasks still running is killed, never waited for."""
+    from concurrent.futures import wait
+
+    out: list[Any] = [None] * len(items)
+    errors: list[BaseException] = []
+    pool = worker_pool(workers)
+    finished = False
+    try:
+        futs = [pool.submit(fn, item) for item in items]
+        done, rest = wait(futs, timeout=max(0.0, deadline - time.time()) + grace)
+        for i, f in enumerate(futs):
+            if f in done and f.exception() is None:
+                out[i] = f.result()
+            elif f in done:
+                errors.append(f.exception())
+        finished = not rest
+    finally:
+        if finished:
+            pool.shutdown(wait=True)
+        else:
+            kill_pool(pool)  # interrupted, or tasks running past the deadline
+    return out, errors
+
+
 def kill_pool(pool: ProcessPoolExecutor) -> None:
     """Terminate the pool's worker processes and drop queued work (running tasks are
     lost): for an interrupted run or a time limit, never waiting for a busy worker."""
@@ -326,7 +422,7 @@ def _run_dask(fn, spec_text, source, options, tasks, deliver, address: str) -> N
         nworkers = max(1, len(client.scheduler_info().get("workers", {})))
         size = chunk_size(len(tasks), nworkers)
         pending = {
-            client.submit(fn, spec_text, source, options, chunk, pure=False)
+            client.submit(quietly, fn, spec_text, source, options, chunk, pure=False)
             for chunk in _chunks(tasks, size)
         }
         idle_since: float | None = None

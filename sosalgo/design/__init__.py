@@ -2,9 +2,10 @@
 
 Two numbers come out, never mixed:
 
-* ``rho_certified``: an ordinary analysis (eq. 16) at the designed θ, with its checked
-  certificate. θ comes from a global search over Θ (a grid of certified rates, then local
-  polishing of the best points, then every point the bound search finds better).
+* ``rho_certified``: an ordinary analysis (eq. 16) at the designed θ, with its
+  certificate checked in floating point (``sosalgo verify`` proves it exactly). θ comes
+  from a global search over Θ (a grid of certified rates, then local polishing of the
+  best points, then every point the bound search finds better).
 * ``lower_bound``: a proof that no θ ∈ Θ is certified below it. Default (``method="dual"``,
   :mod:`sosalgo.design.dualbound`): Θ × [0, T²] is covered by boxes, each carrying a dual
   certificate of infeasibility valid on the whole box, with T = rho_certified - gap/2.
@@ -22,6 +23,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from itertools import product
@@ -30,10 +32,11 @@ from typing import Any
 import numpy as np
 
 from sosalgo.analysis import AnalysisResult, analyze_spec, jsonable, spec_family
+from sosalgo.batch.executor import show_phase
 from sosalgo.certificates import CertificateFamily, get_family
 from sosalgo.design.dualbound import ARITHMETIC, BoundSearch, BoundStatus, dual_structure
 from sosalgo.design.polymodel import check_polynomial
-from sosalgo.model import ModelError, bind, parameter_box
+from sosalgo.model import ModelError, bind, design_box
 from sosalgo.solvers import solve_margin
 from sosalgo.spec import Spec
 
@@ -113,7 +116,8 @@ class _Run:
     """State of one design at one κ: the best certified point, the clock, the log."""
 
     def __init__(self, spec: Spec, kappa: float, free: list[str], box, deadline: float,
-                 on_step: Callable[[str], None] | None, family: CertificateFamily):
+                 on_step: Callable[[str], None] | None, family: CertificateFamily,
+                 bound: bool = True):
         self.spec, self.kappa, self.free, self.box = spec, kappa, free, box
         self.family = family
         self.deadline = deadline
@@ -125,12 +129,21 @@ class _Run:
         self.out_of_time = False
         self.phase_end = deadline  # the search phases stop earlier to leave time for bounds
         self.workers = 1  # processes for the grid and the local searches
+        self.bound = bound  # a lower-bound phase follows the search
+        self.live_phase: str | None = None  # a phase whose bar counts analyses
+        self.live_count = 0
 
     def log(self, msg: str, record: bool = True) -> None:
         if record:
             self.steps.append(msg)
         if self.on_step is not None:
             self.on_step(msg)
+
+    def show(self, name: str, detail: str = "", per_analysis: bool = False) -> None:
+        """Put the phase in the progress bar (when this process draws one);
+        ``per_analysis``: refresh it at each analysis (count, best rate) until the next."""
+        self.live_phase, self.live_count = (name if per_analysis else None), 0
+        show_phase(name, detail)
 
     def left(self) -> float:
         return self.deadline - time.perf_counter()
@@ -163,6 +176,10 @@ class _Run:
         finally:
             dt = time.perf_counter() - t
             self.analysis_seconds = 0.8 * self.analysis_seconds + 0.2 * dt
+            if self.live_phase is not None:
+                self.live_count += 1
+                best = f", best {self.upper:.6f}" if math.isfinite(self.upper) else ""
+                show_phase(self.live_phase, f"{self.live_count} analyses{best}")
         return res
 
     def consider(self, theta: dict[str, float] | None, why: str) -> bool:
@@ -203,46 +220,73 @@ def design(
     ``method`` ("dual": box-wide dual certificates, which also certifies every better
     point it meets; "moment": the paper's moment relaxation, order ``order``, raised up to
     ``max_order``). ``time_limit`` is a wall-clock limit for all of it; ``on_step``
-    receives progress messages. ``family`` overrides the spec's certificate family.
-    ``workers`` > 1 evaluates the grid and the local searches on that many processes.
-    ``steps`` in the result records what happened.
+    receives progress messages (the phases also go to this process's progress bar, if
+    any). ``family`` overrides the spec's certificate family. ``workers`` > 1 evaluates
+    the grid and the local searches on that many processes. A range too large for design
+    (:func:`sosalgo.model.design_box`) is a :class:`ModelError`. ``steps`` in the result
+    records what happened.
     """
     t0 = time.perf_counter()
+    free, box, family = _setup(spec, kappa, free, method, family)
+    model = _bound_model(spec, kappa, free, family) if method == "dual" else None
+    run = _Run(spec, kappa, free, box, t0 + time_limit, on_step, family,
+               bound=method == "moment" or model is not None)
+    run.workers = _usable_workers(workers)
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        # overflow and NaN are handled (a point that cannot be certified is no point)
+        warnings.simplefilter("ignore", RuntimeWarning)
+        values_res = _certify_values(run)
+        # without a bound phase to come (a family the dual bound does not cover), the
+        # search may use all the time
+        _search(run, polish_share=0.5 if run.bound else 0.95)
+        run.phase_end = run.deadline
+        if method == "dual":
+            lb, relax = _dual_bound(run, model, gap)
+        else:
+            lb, relax = _moment_bound(run, scalarize, order, max_order, gap)
+    return _result(run, values_res, lb, relax, gap, method, time.perf_counter() - t0,
+                   time_limit)
+
+
+def _setup(spec: Spec, kappa: float, free: Sequence[str] | None, method: str,
+           family: CertificateFamily | str | None
+           ) -> tuple[list[str], list[tuple[float, float]], CertificateFamily]:
+    """The free parameters, the box Θ and the family, or the input error that stops it."""
     if method not in METHODS:
         raise ValueError(f"method must be one of {', '.join(METHODS)}")
     free = list(spec.ranged if free is None else free)
     if not free:
         raise ModelError("parameters", "nothing to design: no parameter has a range")
     spec.check_free(free)
-    box = parameter_box(spec, kappa, free)
+    box = design_box(spec, kappa, free)
     bind(spec, kappa)  # the spec's own values must make sense here
     if family is None:
         family = spec_family(spec)
     elif isinstance(family, str):
         family = get_family(family)
+    if getattr(family, "auto_lags", None) and family.auto_lags(spec.n):
+        # designs keep the first auto lag (n - 1): choosing it at every θ is ~5x slower
+        family = family.with_options(lag=family.lag_for(spec.n))
     if method == "moment" and not family.supports_moment:
         raise ModelError("certificate", "--method moment is built on Theorem 1 only")
     check_polynomial(spec, free)  # refuses non-polynomial θ
-    model = _bound_model(spec, kappa, free, family) if method == "dual" else None
-    run = _Run(spec, kappa, free, box, t0 + time_limit, on_step, family)
-    run.workers = _usable_workers(workers)
+    return free, box, family
+
+
+def _certify_values(run: _Run) -> AnalysisResult | None:
+    """The analysis at the spec's own values (the first design, when certified)."""
     run.log("certifying the spec's values", record=False)
-    values_res = run.certify({})
-    if values_res is not None and values_res.certified:
-        run.consider({p: values_res.params[p] for p in free}, "spec values")
-    total = run.deadline - time.perf_counter()
-    run.phase_end = time.perf_counter() + 0.3 * total  # grid
-    # without a bound phase to come (a family the dual bound does not cover), the search
-    # may use all the time
-    bound_phase = method == "moment" or model is not None
-    _search(run, polish_share=0.5 if bound_phase else 0.95)
-    run.phase_end = run.deadline
-    relax: dict[str, Any]
-    lb: float | None
-    if method == "dual":
-        lb, relax = _dual_bound(run, model, gap)
-    else:
-        lb, relax = _moment_bound(run, scalarize, order, max_order, gap)
+    run.show("spec values")
+    res = run.certify({})
+    if res is not None and res.certified:
+        run.consider({p: res.params[p] for p in run.free}, "spec values")
+    return res
+
+
+def _result(run: _Run, values_res: AnalysisResult | None, lb: float | None,
+            relax: dict[str, Any], gap: float, method: str, seconds: float,
+            time_limit: float) -> DesignResult:
+    """The design's numbers: a bound above the certified rate is clipped to it."""
     rho_c = None if run.best is None else run.best.rho
     if lb is not None and rho_c is not None and lb > rho_c:
         run.log(f"bound {lb:.10f} above the certified rate {rho_c:.10f}: clipped to it")
@@ -257,49 +301,73 @@ def design(
     if run.out_of_time and not gap_met:
         run.log(f"time limit {time_limit:g} s reached")
     return DesignResult(
-        spec=spec.name, kappa=float(kappa), free=free, lower_bound=lb,
+        spec=run.spec.name, kappa=float(run.kappa), free=run.free, lower_bound=lb,
         theta=dict(run.best_theta or {}), rho_certified=rho_c, gap=g, certificate=cert,
-        relaxation=relax, seconds=time.perf_counter() - t0, steps=run.steps,
-        gap_met=gap_met,
+        relaxation=relax, seconds=seconds, steps=run.steps, gap_met=gap_met,
         rho_at_values=None if values_res is None or not values_res.certified
         else values_res.rho,
-        method=method, floor=1.0 - 1.0 / math.sqrt(kappa), family=family.name,
-        lag=getattr(family, "lag", None),
-        time_limited=run.out_of_time and not gap_met,
+        method=method, floor=1.0 - 1.0 / math.sqrt(run.kappa), family=run.family.name,
+        lag=getattr(run.family, "lag", None), time_limited=run.out_of_time and not gap_met,
     )
 
 
 # --------------------------------------------------------------------------- upper bound
 def _search(run: _Run, polish_share: float = 0.5) -> None:
-    """Grid of certified rates over Θ, then polish the best few points locally."""
+    """Grid of certified rates over Θ (the first 30 % of the time), then polish the best
+    few points locally (``polish_share`` of what is left), then restart from the best."""
+    run.phase_end = time.perf_counter() + 0.3 * (run.deadline - time.perf_counter())
+    pts = GRID_POINTS.get(len(run.free), 5)
+    scored = _grid(run, pts)
+    good = [th for r, th in scored if math.isfinite(r)]
+    run.log(f"grid: {len(scored)} points, {len(good)} certified"
+            + (f", best {scored[0][0]:.6f}" if good else ""))
+    starts = _starts(run, good, pts)
+    run.phase_end = time.perf_counter() + polish_share * max(run.left(), 0.0)  # polishing
+    _polish_starts(run, starts)
+    while (len(run.free) > 1 and run.best_theta is not None  # restarts while they help
+           and run.can_afford(40 * run.analysis_seconds)):
+        run.log("polishing the best point again", record=False)
+        run.show("polish again", per_analysis=True)
+        before = run.upper
+        run.consider(_polish(run, run.best_theta), "polished again")
+        if not run.upper < before - CERT_TOL:  # no real progress: stop
+            break
+
+
+def _grid(run: _Run, pts: int) -> list[tuple[float, dict[str, float]]]:
+    """(certified rate, θ) on the grid, best first, as far as the grid phase allows."""
     k = len(run.free)
-    pts = GRID_POINTS.get(k, 5)
     axes = [np.linspace(lo, hi, pts) if hi > lo else np.array([lo]) for lo, hi in run.box]
     run.log(f"grid search: {pts}^{k} points", record=False)
     thetas = [dict(zip(run.free, map(float, pt), strict=True)) for pt in product(*axes)]
     if run.workers > 1:
-        rates = _parallel(run, _grid_task, [thetas[i::4 * run.workers]
-                                             for i in range(4 * run.workers)])
-        scored = [(r, th) for i in range(4 * run.workers)
-                  for r, th in zip(rates[i] or [], thetas[i::4 * run.workers], strict=False)]
-        if len(scored) < len(thetas):
-            run.log("grid cut short to leave time for the bound")
+        run.show("grid", f"{len(thetas)} points on {run.workers} processes")
+        n = 4 * run.workers
+        rates = _parallel(run, _grid_task, [thetas[i::n] for i in range(n)])
+        scored = [(r, th) for i in range(n)
+                  for r, th in zip(rates[i] or [], thetas[i::n], strict=False)]
     else:
         scored = []
-        for theta in thetas:
+        for i, theta in enumerate(thetas):
+            run.show("grid", f"{i}/{len(thetas)} points")
             if not run.can_afford(2 * run.analysis_seconds):
-                run.log("grid cut short to leave time for the bound")
                 break
             scored.append((_rate(run.certify(theta, tol=GRID_TOL)), theta))
+    if len(scored) < len(thetas):
+        run.log("grid cut short by the time limit" if run.out_of_time else
+                "grid cut short to leave time for polishing"
+                + (" and the bound" if run.bound else ""))
     scored.sort(key=lambda item: item[0])
-    good = [th for r, th in scored if math.isfinite(r)]
-    run.log(f"grid: {len(scored)} points, {len(good)} certified"
-            + (f", best {scored[0][0]:.6f}" if good else ""))
-    starts: list[dict[str, float]] = []
+    return scored
+
+
+def _starts(run: _Run, good: list[dict[str, float]], pts: int) -> list[dict[str, float]]:
+    """Where to polish: the best certified point so far (e.g. the spec's own values) and
+    the best grid points that are not neighbours of a better one."""
+    k = len(run.free)
     widths = np.array([max(hi - lo, 1e-300) for lo, hi in run.box])
     wanted = 1 if k == 1 else 2
-    # the best certified point so far (e.g. the spec's own values) and the best grid
-    # points that are not neighbours of a better one
+    starts: list[dict[str, float]] = []
     candidates = ([run.best_theta] if run.best_theta and k > 1 else []) + good
     for theta in candidates:
         x = np.array([theta[p] for p in run.free])
@@ -308,28 +376,28 @@ def _search(run: _Run, polish_share: float = 0.5) -> None:
             starts.append(theta)
         if len(starts) == wanted:
             break
-    run.phase_end = time.perf_counter() + polish_share * max(run.left(), 0.0)  # polishing
+    return starts
+
+
+def _polish_starts(run: _Run, starts: list[dict[str, float]]) -> None:
+    """Polish from each start, in parallel when there are workers and several starts;
+    one after the other, each start gets its share of the phase."""
     if run.workers > 1 and len(starts) > 1:
         run.log(f"polishing locally from {len(starts)} points in parallel", record=False)
+        run.show("polish", f"{len(starts)} starts on {run.workers} processes")
         for theta in _parallel(run, _polish_task, starts):
             run.consider(theta, "polished locally")
-    else:
-        polish_end = run.phase_end
-        for i, theta in enumerate(starts):  # each start gets its share of the phase
-            run.phase_end = time.perf_counter() + (polish_end - time.perf_counter()) / (
-                len(starts) - i)
-            if not run.can_afford(10 * run.analysis_seconds):
-                continue
-            run.log("polishing locally", record=False)
-            run.consider(_polish(run, theta), "polished locally")
-        run.phase_end = polish_end
-    while (k > 1 and run.best_theta is not None  # restarts from the best while they help
-           and run.can_afford(40 * run.analysis_seconds)):
-        run.log("polishing the best point again", record=False)
-        before = run.upper
-        run.consider(_polish(run, run.best_theta), "polished again")
-        if not run.upper < before - CERT_TOL:  # no real progress: stop
-            break
+        return
+    polish_end = run.phase_end
+    for i, theta in enumerate(starts):
+        run.phase_end = time.perf_counter() + (polish_end - time.perf_counter()) / (
+            len(starts) - i)
+        if not run.can_afford(10 * run.analysis_seconds):
+            continue
+        run.log("polishing locally", record=False)
+        run.show(f"polish {i + 1}/{len(starts)}", per_analysis=True)
+        run.consider(_polish(run, theta), "polished locally")
+    run.phase_end = polish_end
 
 
 def _usable_workers(workers: int | None) -> int:
@@ -376,37 +444,19 @@ def _polish_task(args: tuple) -> dict[str, float] | None:
 
 
 def _parallel(run: _Run, fn: Callable, items: list) -> list:
-    """fn((*worker_run, item)) for every item on run.workers processes, within the phase.
+    """fn((*worker_run, item)) for every item on run.workers processes, within the phase
+    (:func:`sosalgo.batch.executor.map_until`).
 
     The tasks stop themselves at the phase's end; a task not finished a second later
-    gives None and the pool is then killed (a busy worker is never waited for). Unfinished
-    or failed tasks are logged, so a cut phase never passes for a complete one. A phase
+    gives None (its pool is killed, a busy worker is never waited for). Unfinished or
+    failed tasks are logged, so a cut phase never passes for a complete one. A phase
     shorter than a pool's start-up (about a second) runs here, one task after the other."""
-    from concurrent.futures import wait
-
-    from sosalgo.batch.executor import kill_pool, worker_pool
+    from sosalgo.batch.executor import map_until
 
     base = _worker_run(run)
     if base[-1] - time.time() < 2.0:
         return [fn((*base, item)) for item in items]
-    out: list = [None] * len(items)
-    errors: list[BaseException] = []
-    pool = worker_pool(run.workers)
-    finished = False
-    try:
-        futs = [pool.submit(fn, (*base, item)) for item in items]
-        done, rest = wait(futs, timeout=max(0.0, base[-1] - time.time()) + 1.0)
-        for i, f in enumerate(futs):
-            if f in done and f.exception() is None:
-                out[i] = f.result()
-            elif f in done:
-                errors.append(f.exception())
-        finished = not rest
-    finally:
-        if finished:
-            pool.shutdown(wait=True)
-        else:
-            kill_pool(pool)  # interrupted, or tasks running past the phase's end
+    out, errors = map_until(fn, [(*base, item) for item in items], run.workers, base[-1])
     run.can_afford(0.0, phase=False)  # marks the run out of time past its deadline
     lost = sum(o is None for o in out)
     if lost:
@@ -535,7 +585,9 @@ def _dual_bound(run: _Run, model: BoundModel | None, gap: float
 
     run.log(f"bound: proving no certificate below {math.sqrt(target()):.8f}", record=False)
     t = time.perf_counter()
-    state = search.run(run.deadline, on_open)
+    state = search.run(run.deadline, on_open, on_box=lambda st: show_phase(
+        "bound", f"{st.proven} boxes proven, {len(st.heap) + len(st.stuck)} open, "
+                 f"below {math.sqrt(st.target):.6f}"))
     if state.heap:
         run.out_of_time = run.out_of_time or time.perf_counter() >= run.deadline
     lb = state.lower_bound()
@@ -543,7 +595,7 @@ def _dual_bound(run: _Run, model: BoundModel | None, gap: float
     info = _bound_info(state, status, time.perf_counter() - t)
     run.log(f"dual bound ({status}): {state.dual} boxes by dual certificates, "
             f"{state.quadratic} by the mode argument, {info['boxes_open']} open, "
-            f"bound {lb:.8f}")
+            + (f"bound {lb:.8f}" if lb > 0 else "no bound above 0 proven"))
     return lb, info
 
 
@@ -605,6 +657,7 @@ def _moment_bound(run: _Run, scalarize: str, order: int | None, max_order: int |
         if not run.can_afford(1.0):
             break
         run.log(f"moment relaxation (order {cur or 'default'})", record=False)
+        run.show("bound", f"moment relaxation, order {cur or 'default'}")
         b = relaxation_bound(run.spec, run.kappa, run.free, run.box, cur, scalarize,
                              seconds=run.left())
         st = b.info["status"]

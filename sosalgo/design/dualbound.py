@@ -13,11 +13,19 @@ small SDP for a box of (θ, r), proves (F) on the whole box when
 
     h(θ, r) = Σ <Z_b, C_b(θ, r)> > 0   and   Z_c(θ, r) ⪰ 0   for all (θ, r) in the box.
 
-A float check screens candidates; the proof is :mod:`sosalgo.design.boxproof`: the exact
-polynomial data (:mod:`sosalgo.design.polymodel`) shifted to the box in ball arithmetic,
-both ends of the r-interval (the conditions are affine in r), the θ-variation bounded by
-the box's Taylor coefficients. Boxes near degenerate faces are proven instead by the mode
-argument of :mod:`sosalgo.design.modes` (a visible mode slower than T on a quadratic).
+What is floating point and what is proven:
+
+* floating point (it proposes or rejects, it never makes a box proven): the SDP that finds
+  Z (Clarabel), the repair of Z and of its covers S, the screening of (F) with a safety
+  margin (``_holds``) and the bisection on r that picks the r to prove;
+* proven in ball arithmetic (python-flint ``arb``, outward rounding) on the exact
+  polynomial data (:mod:`sosalgo.design.polymodel`): every box counted as proven, by
+  :mod:`sosalgo.design.boxproof` (the data shifted to the box, both ends of the r-interval
+  since the conditions are affine in r, the θ-variation bounded by the box's Taylor
+  coefficients) or, near degenerate faces, by the mode argument of
+  :mod:`sosalgo.design.modes` (a visible mode slower than T on a quadratic);
+* the reported bound is the square root of the smallest proven r, rounded down.
+
 A proven box contains no θ that the family certifies at any ρ² in the box's r-range.
 
 Branch and bound covers Θ × [0, T²] by proven boxes, which proves that no θ ∈ Θ is
@@ -41,7 +49,7 @@ import scipy.sparse as sps
 from sosalgo.design.boxproof import BoxProver
 from sosalgo.design.modes import ModeTest
 from sosalgo.design.polymodel import PolyLMI
-from sosalgo.solvers import svec
+from sosalgo.solvers import SolverStatus, finite_data, solver_status, svec
 
 __all__ = ["BoundStatus", "DualStructure", "BoundSearch", "dual_structure"]
 
@@ -246,185 +254,106 @@ class BoundSearch:
     def _dual(self, data, r_ends: tuple[float, ...], affine: bool = True):
         """Affine dual matrices Z_d(u) = Z_d0 + Σ_j u_j Z_dj (⪰ 0 on the box) maximizing the
         worst margin of (F) over the box (|u^α| <= 1, u^α ∈ [0, 1] for even α) at each r
-        in ``r_ends``; None unless the margin is > 0. ``affine=False``: constant Z."""
+        in ``r_ends``; None unless the margin is > 0. ``affine=False``: constant Z.
+        Returns (Zs, bounds per r of the cone matrices' coefficients, covers S_dj)."""
+        lay = _Layout.build([d["c0"].shape[-1] for d in data], self.model.k, affine,
+                            [R.shape[0] for _, _, R in self.st.cone], len(r_ends))
+        maps = [self._r_map(data, r, lay) for r in r_ends]
+        lay.live = [a for a in range(self._even().size) if a == 0 or any(
+            np.any(H[a]) or np.any(Gm[a]) for H, Gm in maps)]
+        rows = _Rows(lay.ny)
+        _z_constraints(rows, lay)
+        even = self._even()
+        for e, (H, Gm) in enumerate(maps):
+            _h_constraints(rows, lay, e, H, even)
+            self._cone_constraints(rows, lay, e, Gm, even)
+        y = self._solve_dual(rows, lay)
+        return None if y is None else _read_dual(y, lay, self.model.k)
+
+    def _r_map(self, data, r: float, lay: _Layout) -> tuple[np.ndarray, np.ndarray]:
+        """The linear maps y -> h_α (H) and y -> g_α,i (Gm) at r, α over the monomials."""
+        nmono = self._even().size
+        H = np.zeros((nmono, lay.nzcols))
+        Gm = np.zeros((nmono, self.model.template.nvar, lay.nzcols))
+        for q, d in enumerate(data):
+            sC = svec(d["c0"] + r * d["c1"], True)
+            sL = svec(d["l0"] + r * d["l1"], True)
+            for j in range(lay.nz_terms):
+                c0 = lay.zoff[q][j]
+                H[:, c0:c0 + lay.tri[q]] = self._place(sC, j)
+                Gm[:, :, c0:c0 + lay.tri[q]] = self._place(sL, j)
+        return H, Gm
+
+    def _cone_constraints(self, rows: _Rows, lay: _Layout, e: int, Gm: np.ndarray,
+                          even: np.ndarray) -> None:
+        """Z_c,0 - Σ S_α - t I ⪰ 0 and S_α ∓ Z_c,α ⪰ 0 for each cone block at the e-th r
+        (even α, u^α ∈ [0, 1]: S_α + Z_c,α ⪰ 0 and S_α ⪰ 0)."""
+        off_c = 1
+        for (_, vars_, R), ct in zip(self.st.cone, lay.ctri, strict=True):
+            s = R.shape[0]
+            Zmap = -np.tensordot(R, Gm[lay.live][:, vars_, :], axes=([2], [1]))  # s,s,α,y
+            Mv = np.moveaxis(svec(np.moveaxis(Zmap, (2, 3), (0, 1)), True), 2, 1)
+            A = np.zeros((ct, lay.ny))
+            A[:, :lay.nzcols] = -Mv[0]
+            A[:, lay.t_col] += svec(np.eye(s), True)
+            for pos in range(1, len(lay.live)):
+                c0 = lay.s_col(e, pos) + off_c
+                A[:, c0:c0 + ct] += np.eye(ct)
+            rows.add(A, _psd(s))
+            for pos, a in enumerate(lay.live[1:], start=1):
+                c0 = lay.s_col(e, pos) + off_c
+                for sign in ((-1.0,) if even[a] else (1.0, -1.0)):
+                    A = np.zeros((ct, lay.ny))
+                    A[:, :lay.nzcols] = sign * Mv[pos]
+                    A[:, c0:c0 + ct] -= np.eye(ct)
+                    rows.add(A, _psd(s))
+                if even[a]:
+                    A = np.zeros((ct, lay.ny))
+                    A[:, c0:c0 + ct] = -np.eye(ct)
+                    rows.add(A, _psd(s))
+            off_c += ct
+
+    def _solve_dual(self, rows: _Rows, lay: _Layout) -> np.ndarray | None:
+        """Clarabel on the assembled SDP (maximize t): y, or None unless t > 0 was found
+        (solved, or almost solved: the float screening and the proof come after)."""
         import clarabel
 
-        k = self.model.k
-        nz_terms = k + 1 if affine else 1
-        sizes = [d["c0"].shape[-1] for d in data]
-        tri = [s * (s + 1) // 2 for s in sizes]
-        zoff = []  # column offset of Z_dj
-        col = 0
-        for t_ in tri:
-            zoff.append([col + j * t_ for j in range(nz_terms)])
-            col += nz_terms * t_
-        nzcols = col
-        even = self._even()
-        nmono = even.size
-        cones_ = self.st.cone
-        ctri = [R.shape[0] * (R.shape[0] + 1) // 2 for _, _, R in cones_]
-        nvar = self.model.template.nvar
-        # linear maps y -> h_β, g_β,i for each r
-        maps = []
-        for r in r_ends:
-            H = np.zeros((nmono, nzcols))
-            Gm = np.zeros((nmono, nvar, nzcols))
-            for q, d in enumerate(data):
-                C = d["c0"] + r * d["c1"]
-                Lm = d["l0"] + r * d["l1"]
-                sC, sL = svec(C, True), svec(Lm, True)
-                for j in range(nz_terms):
-                    c0 = zoff[q][j]
-                    H[:, c0:c0 + tri[q]] = self._place(sC, j)
-                    Gm[:, :, c0:c0 + tri[q]] = self._place(sL, j)
-            maps.append((H, Gm))
-        live = [a for a in range(nmono) if a == 0 or any(
-            np.any(H[a]) or np.any(Gm[a]) for H, Gm in maps)]
-        per_alpha = 1 + sum(ctri)
-        nS = (sum(tri) * k) if affine else 0  # S_dj bounding Z_dj
-        t_col = nzcols
-        s_base = nzcols + 1 + nS
-        ny = s_base + len(r_ends) * (len(live) - 1) * per_alpha
-        rows: list[np.ndarray] = []
-        cones: list = []
-        b: list[float] = []
-
-        def add(A: np.ndarray, cone, rhs=None) -> None:
-            A = np.atleast_2d(A)
-            rows.append(A)
-            cones.append(cone)
-            b.extend([0.0] * A.shape[0] if rhs is None else rhs)
-
-        def psd(s: int):
-            return clarabel.NonnegativeConeT(1) if s == 1 else clarabel.PSDTriangleConeT(s)
-
-        tr = np.zeros(ny)
-        soff = nzcols + 1
-        for q, s in enumerate(sizes):
-            tr[zoff[q][0]:zoff[q][0] + tri[q]] = svec(np.eye(s), True)
-            A = np.zeros((tri[q], ny))
-            A[:, zoff[q][0]:zoff[q][0] + tri[q]] = -np.eye(tri[q])
-            for j in range(1, nz_terms):  # Z_d0 - Σ_j S_dj ⪰ 0, S_dj ∓ Z_dj ⪰ 0
-                sc = soff + (j - 1) * tri[q]
-                A[:, sc:sc + tri[q]] += np.eye(tri[q])
-                for sign in (1.0, -1.0):
-                    B = np.zeros((tri[q], ny))
-                    B[:, sc:sc + tri[q]] = -np.eye(tri[q])
-                    B[:, zoff[q][j]:zoff[q][j] + tri[q]] = sign * np.eye(tri[q])
-                    add(B, psd(s))
-            soff += (nz_terms - 1) * tri[q]
-            add(A, psd(s))
-        add(tr[None, :], clarabel.ZeroConeT(1), [1.0])  # Σ tr Z_d0 = 1
-        for e, (H, Gm) in enumerate(maps):
-            base = s_base + e * (len(live) - 1) * per_alpha
-
-            def s_col(a_pos: int, base: int = base) -> int:
-                return base + (a_pos - 1) * per_alpha
-
-            A = np.zeros(ny)  # h_0 - Σ s_α - t >= 0
-            A[:nzcols] = -H[0]
-            A[t_col] += 1.0
-            for pos in range(1, len(live)):
-                A[s_col(pos)] += 1.0
-            add(A[None, :], clarabel.NonnegativeConeT(1))
-            for pos, a in enumerate(live):
-                if pos == 0:
-                    continue
-                signs = (-1.0,) if even[a] else (1.0, -1.0)
-                for sign in signs:  # s_α ∓ h_α >= 0 (even α: s_α >= -h_α, s_α >= 0)
-                    A = np.zeros(ny)
-                    A[:nzcols] = sign * H[a]
-                    A[s_col(pos)] -= 1.0
-                    add(A[None, :], clarabel.NonnegativeConeT(1))
-                if even[a]:
-                    A = np.zeros(ny)
-                    A[s_col(pos)] = -1.0
-                    add(A[None, :], clarabel.NonnegativeConeT(1))
-            off_c = 1
-            for (_, vars_, R), ct in zip(cones_, ctri, strict=True):
-                s = R.shape[0]
-                Zmap = -np.tensordot(R, Gm[live][:, vars_, :], axes=([2], [1]))  # s,s,α,y
-                Mv = np.moveaxis(svec(np.moveaxis(Zmap, (2, 3), (0, 1)), True), 2, 1)
-                eye = svec(np.eye(s), True)
-                A = np.zeros((ct, ny))  # Z_c,0 - Σ S_α - t I ⪰ 0
-                A[:, :nzcols] = -Mv[0]
-                A[:, t_col] += eye
-                for pos in range(1, len(live)):
-                    c0 = s_col(pos) + off_c
-                    A[:, c0:c0 + ct] += np.eye(ct)
-                add(A, psd(s))
-                for pos, a in enumerate(live):
-                    if pos == 0:
-                        continue
-                    c0 = s_col(pos) + off_c
-                    signs = (-1.0,) if even[a] else (1.0, -1.0)
-                    for sign in signs:  # S_α ∓ Z_c,α ⪰ 0 (even α: S_α + Z_c,α, S_α ⪰ 0)
-                        A = np.zeros((ct, ny))
-                        A[:, :nzcols] = sign * Mv[pos]
-                        A[:, c0:c0 + ct] -= np.eye(ct)
-                        add(A, psd(s))
-                    if even[a]:
-                        A = np.zeros((ct, ny))
-                        A[:, c0:c0 + ct] = -np.eye(ct)
-                        add(A, psd(s))
-                off_c += ct
-        q = np.zeros(ny)
-        q[t_col] = -1.0
+        q = np.zeros(lay.ny)
+        q[lay.t_col] = -1.0
+        A, b = np.vstack(rows.rows), np.array(rows.b)
+        if not finite_data(A, b):
+            return None
         settings = clarabel.DefaultSettings()
         settings.verbose = False
         settings.max_iter = 100
         try:
-            sol = clarabel.DefaultSolver(sps.csc_matrix((ny, ny)), q,
-                                         sps.csc_matrix(np.vstack(rows)), np.array(b), cones,
-                                         settings).solve()
+            sol = clarabel.DefaultSolver(sps.csc_matrix((lay.ny, lay.ny)), q,
+                                         sps.csc_matrix(A), b, rows.cones, settings).solve()
         except Exception:  # noqa: BLE001 - a crash is just "no dual point"
             return None
         self.state.solves += 1
-        if str(sol.status) not in ("Solved", "AlmostSolved"):
+        if solver_status(sol.status) not in (SolverStatus.SOLVED, SolverStatus.ALMOST_SOLVED):
             return None
         y = np.array(sol.x)
-        if not y[t_col] > 0:
-            return None
-        Zs, covers = [], []
-        soff = nzcols + 1
-        for qq, s in enumerate(sizes):
-            terms = [_unsvec(y[zoff[qq][j]:zoff[qq][j] + tri[qq]], s) for j in range(nz_terms)]
-            Ss = [_unsvec(y[soff + j * tri[qq]:soff + (j + 1) * tri[qq]], s)
-                  for j in range(nz_terms - 1)]
-            soff += (nz_terms - 1) * tri[qq]
-            terms += [np.zeros((s, s))] * (k + 1 - nz_terms)
-            Ss += [np.zeros((s, s))] * (k + 1 - nz_terms)
-            terms, Ss = _repair(terms, Ss)
-            Zs.append(terms)
-            covers.append(Ss)
-        bounds: list[dict] = []
-        for e in range(len(r_ends)):
-            base = s_base + e * (len(live) - 1) * per_alpha
-            bd: dict = {}
-            off_c = 1
-            for c, ((_, _, R), ct) in enumerate(zip(cones_, ctri, strict=True)):
-                for pos in range(1, len(live)):
-                    c0 = base + (pos - 1) * per_alpha + off_c
-                    bd[(c, live[pos])] = _unsvec(y[c0:c0 + ct], R.shape[0])
-                off_c += ct
-            bounds.append(bd)
-        return Zs, bounds, covers
+        return y if y[lay.t_col] > 0 else None
 
     # ------------------------------------------------------------------ driver
     def run(
         self, deadline: float, on_open: Callable[[np.ndarray, float], float | None] | None,
-        max_boxes: int = 1_000_000,
+        max_boxes: int = 1_000_000, on_box: Callable[[BoundState], None] | None = None,
     ) -> BoundState:
         """Prove boxes until none is left, time runs out or ``max_boxes`` were handled.
 
         ``on_open(z, r)`` is called when not even the box center has a dual certificate at
         r = T²: the point may be certifiable below the target. It returns a new (lower)
         target r when it certified a better design there, else None (``on_open=None``:
-        the target stays, the box is split).
+        the target stays, the box is split). ``on_box(state)`` is told before each box.
         """
         st = self.state
         handled = 0
         while st.heap and time.perf_counter() < deadline and handled < max_boxes:
+            if on_box is not None:
+                on_box(st)
             _, _, box = heapq.heappop(st.heap)
             handled += 1
             T2 = st.target
@@ -489,6 +418,157 @@ class BoundSearch:
             zc = box.zc.copy()
             zc[i] += sign * w[i]
             self._push(_Box(zc, w, box.lb))
+
+
+@dataclass
+class _Layout:
+    """Columns of the robust dual SDP: Z_dj (dep block d, term j), t, the S_dj bounding
+    Z_dj, then for each r and each live monomial α ≠ 0 a scalar s_α and one matrix S_α per
+    cone block (svec'd, Clarabel's upper-triangular order)."""
+
+    sizes: list[int]  # dep block sizes
+    tri: list[int]  # their svec lengths
+    zoff: list[list[int]]  # column of Z_dj
+    nz_terms: int  # k + 1 (affine Z) or 1 (constant Z)
+    csizes: list[int]  # cone block sizes
+    ctri: list[int]
+    n_r: int  # number of r values
+    live: list[int] = field(default_factory=list)  # monomials any map reaches (0 first)
+
+    @classmethod
+    def build(cls, sizes: list[int], k: int, affine: bool, csizes: list[int],
+              n_r: int) -> _Layout:
+        nz_terms = k + 1 if affine else 1
+        tri = [s * (s + 1) // 2 for s in sizes]
+        zoff, col = [], 0
+        for t_ in tri:
+            zoff.append([col + j * t_ for j in range(nz_terms)])
+            col += nz_terms * t_
+        return cls(sizes, tri, zoff, nz_terms, csizes, [s * (s + 1) // 2 for s in csizes], n_r)
+
+    @property
+    def nzcols(self) -> int:
+        return self.zoff[-1][0] + self.nz_terms * self.tri[-1] if self.tri else 0
+
+    @property
+    def t_col(self) -> int:
+        return self.nzcols
+
+    @property
+    def per_alpha(self) -> int:
+        return 1 + sum(self.ctri)
+
+    @property
+    def s_base(self) -> int:
+        return self.nzcols + 1 + sum(self.tri) * (self.nz_terms - 1)
+
+    @property
+    def ny(self) -> int:
+        return self.s_base + self.n_r * (len(self.live) - 1) * self.per_alpha
+
+    def s_col(self, e: int, pos: int) -> int:
+        """Column of s_α (then the S_α) for the e-th r and the pos-th live monomial."""
+        return self.s_base + (e * (len(self.live) - 1) + pos - 1) * self.per_alpha
+
+
+class _Rows:
+    """Constraint rows A y + s = b, s in the cones, collected for Clarabel."""
+
+    def __init__(self, ny: int):
+        self.ny = ny
+        self.rows: list[np.ndarray] = []
+        self.cones: list = []
+        self.b: list[float] = []
+
+    def add(self, A: np.ndarray, cone, rhs: list[float] | None = None) -> None:
+        A = np.atleast_2d(A)
+        self.rows.append(A)
+        self.cones.append(cone)
+        self.b.extend([0.0] * A.shape[0] if rhs is None else rhs)
+
+
+def _psd(s: int):
+    import clarabel
+
+    return clarabel.NonnegativeConeT(1) if s == 1 else clarabel.PSDTriangleConeT(s)
+
+
+def _z_constraints(rows: _Rows, lay: _Layout) -> None:
+    """Z_d(u) ⪰ 0 on the box: Z_d0 - Σ_j S_dj ⪰ 0 and S_dj ∓ Z_dj ⪰ 0; Σ_d tr Z_d0 = 1."""
+    import clarabel
+
+    tr = np.zeros(lay.ny)
+    soff = lay.t_col + 1
+    for q, s in enumerate(lay.sizes):
+        t_, z0 = lay.tri[q], lay.zoff[q][0]
+        tr[z0:z0 + t_] = svec(np.eye(s), True)
+        A = np.zeros((t_, lay.ny))
+        A[:, z0:z0 + t_] = -np.eye(t_)
+        for j in range(1, lay.nz_terms):
+            sc = soff + (j - 1) * t_
+            A[:, sc:sc + t_] += np.eye(t_)
+            for sign in (1.0, -1.0):
+                B = np.zeros((t_, lay.ny))
+                B[:, sc:sc + t_] = -np.eye(t_)
+                B[:, lay.zoff[q][j]:lay.zoff[q][j] + t_] = sign * np.eye(t_)
+                rows.add(B, _psd(s))
+        soff += (lay.nz_terms - 1) * t_
+        rows.add(A, _psd(s))
+    rows.add(tr[None, :], clarabel.ZeroConeT(1), [1.0])
+
+
+def _h_constraints(rows: _Rows, lay: _Layout, e: int, H: np.ndarray,
+                   even: np.ndarray) -> None:
+    """h_0 - Σ s_α - t >= 0 with s_α >= |h_α| (even α, u^α ∈ [0, 1]: s_α >= -h_α, s_α >= 0)
+    at the e-th r: the worst value of h over the box is at least t."""
+    import clarabel
+
+    nonneg = clarabel.NonnegativeConeT(1)
+    A = np.zeros(lay.ny)
+    A[:lay.nzcols] = -H[0]
+    A[lay.t_col] += 1.0
+    for pos in range(1, len(lay.live)):
+        A[lay.s_col(e, pos)] += 1.0
+    rows.add(A[None, :], nonneg)
+    for pos, a in enumerate(lay.live[1:], start=1):
+        for sign in ((-1.0,) if even[a] else (1.0, -1.0)):
+            A = np.zeros(lay.ny)
+            A[:lay.nzcols] = sign * H[a]
+            A[lay.s_col(e, pos)] -= 1.0
+            rows.add(A[None, :], nonneg)
+        if even[a]:
+            A = np.zeros(lay.ny)
+            A[lay.s_col(e, pos)] = -1.0
+            rows.add(A[None, :], nonneg)
+
+
+def _read_dual(y: np.ndarray, lay: _Layout, k: int):
+    """(Zs, bounds, covers) from the SDP's solution: the affine terms of each Z_d with
+    their covers S_dj (repaired in floats), and per r the cone matrices' bounds S_α."""
+    Zs, covers = [], []
+    soff = lay.t_col + 1
+    pad = k + 1 - lay.nz_terms
+    for q, s in enumerate(lay.sizes):
+        t_ = lay.tri[q]
+        terms = [_unsvec(y[lay.zoff[q][j]:lay.zoff[q][j] + t_], s)
+                 for j in range(lay.nz_terms)] + [np.zeros((s, s))] * pad
+        Ss = [_unsvec(y[soff + j * t_:soff + (j + 1) * t_], s)
+              for j in range(lay.nz_terms - 1)] + [np.zeros((s, s))] * pad
+        soff += (lay.nz_terms - 1) * t_
+        terms, Ss = _repair(terms, Ss)
+        Zs.append(terms)
+        covers.append(Ss)
+    bounds: list[dict] = []
+    for e in range(lay.n_r):
+        bd: dict = {}
+        off_c = 1
+        for c, (s, ct) in enumerate(zip(lay.csizes, lay.ctri, strict=True)):
+            for pos in range(1, len(lay.live)):
+                c0 = lay.s_col(e, pos) + off_c
+                bd[(c, lay.live[pos])] = _unsvec(y[c0:c0 + ct], s)
+            off_c += ct
+        bounds.append(bd)
+    return Zs, bounds, covers
 
 
 def _unsvec(v: np.ndarray, s: int) -> np.ndarray:

@@ -123,6 +123,22 @@ def _definite(M: list[list[Ball]], sign: int) -> tuple[bool, Fraction, str]:
     return False, Fraction(0), f"not proven (min eig estimate {est:.3g}): {detail}"
 
 
+class _Refused(Exception):
+    """Why the certificate cannot be proven (it becomes the result's ``reason``)."""
+
+
+@dataclass
+class _Cert:
+    """The certificate's parts read as rationals (before the multipliers)."""
+
+    lag: int
+    has_x: bool  # a c term (x_k != y_k)
+    P: np.ndarray  # object array of Fractions
+    pi: list[Fraction]  # the weights p_0..p_lag, then c when has_x
+    m_dec: Mapping[str, Any]
+    m_pos: Mapping[str, Any]
+
+
 def verify_exact_interpolation(
     spec: Spec, kappa: float, rho: float, cert: Mapping[str, Any],
     theta: Mapping[str, float] | None = None, *, family: Any, max_den: int = DEFAULT_MAX_DEN,
@@ -136,39 +152,58 @@ def verify_exact_interpolation(
     start = time.perf_counter()
     res = InterpolationExactResult(spec=spec.name, verified=Verdict.FAILED,
                                    rho_requested=float(rho))
+    try:
+        ex, n = _exact_method(spec, kappa, theta, digits, res)
+        c = _read_certificate(cert, ex, n, max_den)
+        st = family.exact_structure(*(_obj(ex.balls[k]) for k in MATRIX_NAMES), ex.m, ex.L,
+                                    c.lag, c.has_x)
+        eta, lam = _multipliers(c, st, max_den)
+        if not np.isfinite(float(rho)) or not 0 < rational(rho) <= 1:
+            raise _Refused(f"rho = {rho!r} is not in (0, 1]")
+        _raise_weights(st, c, lam)
+        res.certificate = _rational_certificate(c, st, eta, lam)
+        res.reason = _prove(res, family, st, c, eta, lam, rational(rho), rho_steps, max_den)
+    except _Refused as exc:
+        res.reason = str(exc)
+    res.seconds = time.perf_counter() - start
+    return res
 
-    def done(reason: str | None) -> InterpolationExactResult:
-        res.reason = reason
-        res.seconds = time.perf_counter() - start
-        return res
 
+def _exact_method(spec: Spec, kappa: float, theta: Mapping[str, float] | None, digits: int,
+                  res: InterpolationExactResult) -> tuple[Any, int]:
+    """The exact method (its numbers recorded in ``res``), checked against the float one
+    and with a proven fixed point; returns it and its number of states."""
     try:
         ex = exact_algorithm(spec, kappa, theta, digits)
     except ValueError as exc:
-        return done(f"the exact method cannot be built: {exc}")
+        raise _Refused(f"the exact method cannot be built: {exc}") from None
     res.kappa, res.m, res.L = fraction_str(ex.kappa), fraction_str(ex.m), fraction_str(ex.L)
     res.params = {k: str(v) for k, v in ex.params.items()}
     res.enclosures = ex.enclosures()
     try:
         alg = bind(spec, float(kappa), theta)
     except ValueError as exc:
-        return done(f"the method cannot be evaluated: {exc}")
+        raise _Refused(f"the method cannot be evaluated: {exc}") from None
     for k in MATRIX_NAMES:
         cen = np.array([[float(b.c) for b in row] for row in ex.balls[k]])
         if not np.allclose(cen, getattr(alg, k), rtol=1e-9, atol=1e-9):
-            return done(f"exact matrix {k} differs from sosalgo.model.bind")
+            raise _Refused(f"exact matrix {k} differs from sosalgo.model.bind")
     if exact_fixed_point(ex, fixed_point(alg)) is None:
-        return done("fixed point (u with (I - A)u = 0, Cu = 1, Eu = 1) not proven")
+        raise _Refused("fixed point (u with (I - A)u = 0, Cu = 1, Eu = 1) not proven")
+    return ex, alg.n
+
+
+def _read_certificate(cert: Mapping[str, Any], ex: Any, n: int, max_den: int) -> _Cert:
+    """lag, P (symmetrized, rational), the weights p (and c) and the multiplier tables."""
     try:
         lag = int(cert["lag"])
-        n = alg.n
         has_x = cert.get("c") is not None
         if not has_x and not all(is_zero(v) for v in (ex.matrices["E"] - ex.matrices["C"])):
-            return done("certificate has no c term but x_k != y_k (E != C)")
+            raise _Refused("certificate has no c term but x_k != y_k (E != C)")
         nz = n + lag + 1
         P_raw = np.asarray(cert["P"], dtype=object)
         if P_raw.shape != (nz, nz):
-            return done(f"P has shape {P_raw.shape}, expected {(nz, nz)}")
+            raise _Refused(f"P has shape {P_raw.shape}, expected {(nz, nz)}")
         P = np.empty((nz, nz), dtype=object)
         for i in range(nz):
             for j in range(i, nz):
@@ -177,42 +212,59 @@ def verify_exact_interpolation(
                                        else P_raw[i, j], max_den)
         pi = [_q(v, max_den) for v in list(cert["p"]) + ([cert["c"]] if has_x else [])]
         if len(pi) != lag + 1 + has_x:
-            return done(f"p has {len(cert['p'])} weights, expected {lag + 1}")
-        m_dec, m_pos = cert["multipliers"]["decrease"], cert["multipliers"]["positivity"]
+            raise _Refused(f"p has {len(cert['p'])} weights, expected {lag + 1}")
+        mult = cert["multipliers"]
+        return _Cert(lag, has_x, P, pi, mult["decrease"], mult["positivity"])
     except (KeyError, TypeError, ValueError, OverflowError) as exc:
-        return done(f"malformed certificate: {type(exc).__name__}: {exc}")
-    st = family.exact_structure(_obj(ex.balls["A"]), _obj(ex.balls["B"]), _obj(ex.balls["C"]),
-                                _obj(ex.balls["E"]), ex.m, ex.L, lag, has_x)
+        raise _Refused(f"malformed certificate: {type(exc).__name__}: {exc}") from None
+
+
+def _multipliers(c: _Cert, st: Any, max_den: int) -> tuple[list[Fraction], list[Fraction]]:
+    """The decrease (eta) and positivity (lambda) multipliers, rational, negatives as 0."""
     try:
-        eta = [max(Fraction(0), _q(m_dec[k], max_den)) for k in st.dec.labels]
-        lam = [max(Fraction(0), _q(m_pos[k], max_den)) for k in st.pos.labels]
+        eta = [max(Fraction(0), _q(c.m_dec[k], max_den)) for k in st.dec.labels]
+        lam = [max(Fraction(0), _q(c.m_pos[k], max_den)) for k in st.pos.labels]
     except KeyError as exc:
-        return done(f"multiplier of pair {exc} missing")
-    if not np.isfinite(float(rho)) or not 0 < rational(rho) <= 1:
-        return done(f"rho = {rho!r} is not in (0, 1]")
-    # raise p_j / c so that the positivity function-value rows hold exactly
-    Fp = st.pos.F[lag]
+        raise _Refused(f"multiplier of pair {exc} missing") from None
+    return eta, lam
+
+
+def _raise_weights(st: Any, c: _Cert, lam: list[Fraction]) -> None:
+    """Raise p_j (or c) so that the positivity function-value rows hold exactly (a larger
+    weight only increases V)."""
+    Fp = st.pos.F[c.lag]
     for q in range(st.pos.nphi):
         j = next(r for r in range(Fp.shape[0]) if Fp[r, q] == 1)
         need = Fraction(st.norm[q]) + sum(
             (lv * Fraction(mv[q]) for lv, mv in zip(lam, st.pos.mq, strict=True)), Fraction(0))
-        pi[j] = max(pi[j], need)
-    res.certificate = {
-        "lag": lag, "P": [[fraction_str(P[i, j]) for j in range(nz)] for i in range(nz)],
-        "p": [fraction_str(v) for v in pi[: lag + 1]],
-        "c": fraction_str(pi[-1]) if has_x else None,
+        c.pi[j] = max(c.pi[j], need)
+
+
+def _rational_certificate(c: _Cert, st: Any, eta: list[Fraction],
+                          lam: list[Fraction]) -> dict[str, Any]:
+    """The certificate as it is proven (exact strings)."""
+    nz = c.P.shape[0]
+    return {
+        "lag": c.lag, "P": [[fraction_str(c.P[i, j]) for j in range(nz)] for i in range(nz)],
+        "p": [fraction_str(v) for v in c.pi[: c.lag + 1]],
+        "c": fraction_str(c.pi[-1]) if c.has_x else None,
         "multipliers": {
             "decrease": dict(zip(st.dec.labels, map(fraction_str, eta), strict=True)),
             "positivity": dict(zip(st.pos.labels, map(fraction_str, lam), strict=True))},
     }
+
+
+def _prove(res: InterpolationExactResult, family: Any, st: Any, c: _Cert,
+           eta: list[Fraction], lam: list[Fraction], rho: Fraction,
+           rho_steps: tuple[float, ...], max_den: int) -> str | None:
+    """Try rho and the rationals slightly above it: the first proven one goes into ``res``
+    (verified exact, reason None); else the reason the first attempt failed."""
     first_fail = None
-    for rq in rho_candidates(rational(rho), list(rho_steps), max_den):
+    for rq in rho_candidates(rho, list(rho_steps), max_den):
         res.attempts += 1
-        parts = family.exact_parts(st, rq * rq, P, np.array(pi, dtype=object), eta, lam)
-        df = [Ball.of(v) for v in parts["Df"]]
-        pf = [Ball.of(v) for v in parts["Pf"]]
-        bad_df = [i for i, b in enumerate(df) if b.hi > 0]
-        bad_pf = [i for i, b in enumerate(pf) if b.lo < 0]
+        parts = family.exact_parts(st, rq * rq, c.P, np.array(c.pi, dtype=object), eta, lam)
+        bad_df = [i for i, b in enumerate(Ball.of(v) for v in parts["Df"]) if b.hi > 0]
+        bad_pf = [i for i, b in enumerate(Ball.of(v) for v in parts["Pf"]) if b.lo < 0]
         ok_d, delta_d, det_d = _definite(_symmetrize(parts["D"]), -1)
         ok_p, delta_p, det_p = _definite(_symmetrize(parts["Pq"]), +1)
         if not bad_df and not bad_pf and ok_d and ok_p:
@@ -222,7 +274,7 @@ def verify_exact_interpolation(
             res.proofs = {"decrease": f"-D ⪰ {fraction_str(delta_d)} I: {det_d}",
                           "positivity": f"Pq ⪰ {fraction_str(delta_p)} I: {det_p}",
                           "function values": "all rows exact (<= 0 / >= 0)"}
-            return done(None)
+            return None
         if first_fail is None:
             first_fail = "; ".join(
                 ([f"decrease function-value rows {bad_df} > 0"] if bad_df else [])
@@ -230,4 +282,4 @@ def verify_exact_interpolation(
                 + ([f"decrease matrix: {det_d}"] if not ok_d else [])
                 + ([f"positivity matrix: {det_p}"] if not ok_p else [])
             ) + f" at rho = {fraction_str(rq)}"
-    return done(first_fail)
+    return first_fail
