@@ -170,10 +170,12 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
         _exit_if_unverified([d.get("verification") for d in docs], "some certificate")
         return
     names = docs[0]["free"]
-    how = ("box-wide dual certificates" if method == "dual"
-           else f"moment relaxation ({scalarize})")
+    unsupported = all((d.get("relaxation") or {}).get("status") == "unsupported" for d in docs)
+    how = ("no lower bound for this family" if unsupported
+           else "lower bound by box-wide dual certificates" if method == "dual"
+           else f"lower bound by moment relaxation ({scalarize})")
     click.echo(f"{doc['spec']}: design of {', '.join(names)} certified by "
-               f"{docs[0]['family']}; lower bound by {how}")
+               f"{docs[0]['family']}; {how}")
     click.echo(rep.design_table(docs, names, gap, method))
     for step in docs[0]["steps"] if len(docs) == 1 else ():
         click.echo(f"  - {step}")
@@ -181,6 +183,9 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
         click.echo(line)
     click.echo(rep.LEGEND)
     click.echo("wrote " + ", ".join([doc["csv"], *doc["figures"]]))
+    for d in docs:
+        if d.get("error"):
+            click.echo(f"error at kappa {d['kappa']:g}: {d['error']}", err=True)
 
 
 # --------------------------------------------------------------------------- fig4

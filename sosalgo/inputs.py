@@ -105,15 +105,17 @@ def check_kappa_points(spec: Spec, kappas: Sequence[float],
             raise InputError(f"{spec.source}: {exc.field}: at kappa={k:g}: {exc.message}") from None
 
 
-def parameter_boxes(spec: Spec, kappas: Sequence[float],
-                    names: Sequence[str]) -> dict[float, list[tuple[float, float]]]:
-    """The box of the free parameters at every kappa."""
-    from sosalgo.model import ModelError, parameter_box
+def parameter_boxes(spec: Spec, kappas: Sequence[float], names: Sequence[str],
+                    design: bool = False) -> dict[float, list[tuple[float, float]]]:
+    """The box of the free parameters at every kappa; with ``design``, a range too large
+    for design is refused too (:func:`sosalgo.model.design_box`)."""
+    from sosalgo.model import ModelError, design_box, parameter_box
 
+    check = design_box if design else parameter_box
     boxes = {}
     for k in kappas:
         try:
-            boxes[k] = parameter_box(spec, k, names)
+            boxes[k] = check(spec, k, list(names))
         except ModelError as exc:
             raise InputError(f"{spec.source}: {exc.field}: at kappa={k:g}: {exc.message}") from None
     return boxes

@@ -111,7 +111,7 @@ def _design_options(spec: Spec, kappas: list[float], free: str | Sequence[str] |
     inputs.check_gap(settings["gap"], "--gap")
     inputs.check_time_limit(settings["time_limit"], "--time-limit")
     inputs.check_kappa_points(spec, kappas)
-    inputs.parameter_boxes(spec, kappas, names)
+    inputs.parameter_boxes(spec, kappas, names, design=True)
     check_polynomial(spec, names)
     return {"free": names, **settings, "certificate": family_options(fam)}
 

@@ -69,8 +69,8 @@ def _brute_force(spec, kappa, free, points):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("free,points", [(["beta"], 201), (["h", "beta"], 21)])
-@pytest.mark.parametrize("kappa", [10.0, 100.0])
+@pytest.mark.parametrize("free,points,kappa", [(["beta"], 201, 10.0), (["beta"], 201, 100.0),
+                                              (["h", "beta"], 21, 10.0)])
 def test_nesterov_design_matches_brute_force(free, points, kappa):
     spec = load_spec(SPECS / "nesterov.yaml")
     res = design(spec, kappa, free=free)
@@ -220,13 +220,18 @@ def test_every_spec_and_free_subset_at_10(name, free):
             assert res.rho_certified is not None and res.rho_certified <= r.rho + 1e-6
 
 
+# every (spec, free set) once at an extreme kappa, alternating 2 and 100 down the list (the
+# matrix at kappa = 10 is above); the short limit is a contract checked with a margin
+EXTREME = [(n, f, (2.0, 100.0)[i % 2]) for i, (n, f) in enumerate(MATRIX)]
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("kappa", [2.0, 100.0])
-@pytest.mark.parametrize("name,free", MATRIX, ids=[f"{n}-{'+'.join(f)}" for n, f in MATRIX])
+@pytest.mark.parametrize("name,free,kappa", EXTREME,
+                         ids=[f"{n}-{'+'.join(f)}-{k:g}" for n, f, k in EXTREME])
 def test_every_spec_and_free_subset_runs(name, free, kappa, tmp_path):
     """No crash (exit 0) and a consistent result, as a user types it, with a short limit."""
     res = CliRunner().invoke(cli, ["design", str(SPECS / f"{name}.yaml"), "--kappa",
-                                   str(kappa), "--free", ",".join(free), "--time-limit", "8",
+                                   str(kappa), "--free", ",".join(free), "--time-limit", "4",
                                    "--gap", "1e-3", "--json", "--quiet",
                                    "--out", str(tmp_path)])
     assert res.exit_code == 0, res.output
@@ -235,7 +240,7 @@ def test_every_spec_and_free_subset_runs(name, free, kappa, tmp_path):
     if doc["rho_certified"] is not None:
         assert doc["rho_certified"] >= 1 - 1 / np.sqrt(kappa) - 1e-9
         _certificate_holds(load_spec(SPECS / f"{name}.yaml"), doc)
-    assert doc["seconds"] <= 8 * 1.1 + 1
+    assert doc["seconds"] <= 4 * 1.5 + 3  # the limit, with a margin for a loaded machine
 
 
 def test_three_state_spec_with_one_free_entry(tmp_path):

@@ -7,7 +7,7 @@ executes code from the spec (canary payloads would create a file or set an attri
 accepted spec binds at each of its kappas or raises a one-line ModelError.
 
 The number of generated cases is SOSALGO_FUZZ_EXAMPLES (total over the property tests,
-default 1200); ``make fuzz`` runs 20000. Generation is derandomized and database-less, so a
+default 600); ``make fuzz`` runs 20000. Generation is derandomized and database-less, so a
 run is reproducible.
 """
 
@@ -51,7 +51,7 @@ SAFE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.\-]*")
 OUTCOME_FIELDS = {"YAML or file", "name", "description", "parameters", "matrices", "references",
                   "kappa", "m", "certificate"}
 
-TOTAL_EXAMPLES = max(4, int(os.environ.get("SOSALGO_FUZZ_EXAMPLES", "1200")))
+TOTAL_EXAMPLES = max(4, int(os.environ.get("SOSALGO_FUZZ_EXAMPLES", "600")))
 
 
 def _baseline() -> float:

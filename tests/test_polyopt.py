@@ -86,12 +86,42 @@ def test_rosenbrock_2d() -> None:
     assert -1e-5 < res.bound <= 0.0
     assert res.flat and res.ranks[0] == 1
     _assert_same_points(res, [x1, x2], [[1.0, 1.0]])
-    # Without a box the interior-point dual cannot be turned into a proof (the Gram matrix
-    # of (x2 - x1^2)^2 is singular on every SOS certificate): whatever the status, a bound
-    # above the minimum 0 must never come with status "optimal" or certified=True.
+    # Without a box every SOS certificate has a singular Gram matrix (the square
+    # (x2 - x1^2)^2 is forced), so no floating-point check can prove it; the exact one
+    # over p = (1, x1, x1^2 - x2) does (was "inaccurate", 3e-6 above the minimum 0).
     free = solve_moment_relaxation(PolyProblem([x1, x2], f), order=2)
     _assert_honest(free, 0.0)
-    assert abs(free.bound) < 1e-4
+    assert free.status == "optimal" and free.certified and free.flat
+    assert -1e-5 < free.bound <= 0.0
+    _assert_same_points(free, [x1, x2], [[1.0, 1.0]])
+
+
+def test_exact_certificate_proves_only_true_bounds() -> None:
+    # Rosenbrock f = 100 (x2 - x1^2)^2 + (1 - x1)^2 >= 0 with f(1, 1) = 0, so f - G is a
+    # sum of squares for every G <= 0 and nonnegative for no G > 0. The Gram matrix given
+    # is the hand-made one for G = 0 over (1, x1, x2, x1^2, x1 x2, x2^2), perturbed by 1e-7.
+    from fractions import Fraction
+
+    from sosalgo.polyopt.certificate import newton_keep
+    from sosalgo.polyopt.exact import exact_sos_bound
+    from sosalgo.polyopt.moment import MomentIndex
+
+    f = {(0, 0): 1, (1, 0): -2, (2, 0): 1, (0, 2): 100, (2, 1): -200, (4, 0): 100}
+    f = {e: Fraction(c) for e, c in f.items()}
+    index = MomentIndex(2, 2)
+    keep = newton_keep(index, [e for e in f if e != (0, 0)])
+    assert keep.tolist() == [True, True, True, True, False, False]
+    Z = np.zeros((6, 6))
+    Z[:2, :2] = [[1, -1], [-1, 1]]
+    Z[2:4, 2:4] = [[100, -100], [-100, 100]]
+    Z += 1e-7 * np.random.default_rng(0).normal(size=(6, 6))
+    assert exact_sos_bound(index, Z, keep, f, Fraction(0)) == 0
+    assert exact_sos_bound(index, Z, keep, f, Fraction(-1, 10**3)) == Fraction(-1, 10**3)
+    for G in (Fraction(1, 10**9), Fraction(1)):
+        assert exact_sos_bound(index, Z, keep, f, G) is None
+    # bisection from -1e-3 towards 1e-3 stays <= 0 and gets within 2e-3 / 2^8 of it
+    best = exact_sos_bound(index, Z, keep, f, Fraction(-1, 10**3), Fraction(1, 10**3))
+    assert best is not None and -1e-5 < best <= 0
 
 
 def _assert_honest(res: RelaxationResult, true_min: float, rel: float = 1e-9) -> None:
@@ -212,6 +242,35 @@ def test_gloptipoly_constrained_example() -> None:
     assert res.flat
     _assert_same_points(res, [x1, x2, x3], [[0.5, 0, 3], [2, 0, 0]])
 
+    # GloptiPoly's own statement (linear box) at order 4: the implied ranges x1 in [0, 2],
+    # x2 in [0, 2], x3 in [0, 3] rescale the variables and make the box certificate apply
+    # (was "inaccurate", -3.99992, uncertified, 18 s).
+    res = solve_moment_relaxation(linear, order=4)
+    assert res.status == "optimal" and res.certified
+    assert -4.0 - 1e-5 < res.bound <= -4.0
+    assert res.flat
+    _assert_same_points(res, [x1, x2, x3], [[0.5, 0, 3], [2, 0, 0]])
+
+
+@pytest.mark.slow
+def test_floudas_pardalos_2_1() -> None:
+    # Floudas-Pardalos (1990) problem 2.1, solved by [L01] (concave QP):
+    # min 42x1 + 44x2 + 45x3 + 47x4 + 47.5x5 - 50 sum xi^2
+    # s.t. 20x1 + 12x2 + 11x3 + 7x4 + 4x5 <= 40, 0 <= xi <= 1 (stated linearly).
+    # Published optimum -17 at (1, 1, 0, 1, 0): 42 + 44 + 47 - 150 = -17, and the
+    # constraint 20 + 12 + 7 = 39 <= 40 holds. Order 2 gives a lower bound only; order 3
+    # is exact (was "inaccurate", uncertified, 121 s: no box certificate without bounds).
+    xs = sp.symbols("x1:6")
+    c = [42, 44, 45, 47, sp.Rational(95, 2)]
+    f = sum(ci * xi for ci, xi in zip(c, xs, strict=True)) - 50 * sum(xi**2 for xi in xs)
+    budget = 40 - (20 * xs[0] + 12 * xs[1] + 11 * xs[2] + 7 * xs[3] + 4 * xs[4])
+    prob = PolyProblem(list(xs), f, inequalities=[budget, *xs, *(1 - xi for xi in xs)])
+    res = solve_moment_relaxation(prob, order=3)
+    assert res.status == "optimal" and res.certified
+    assert -17.0 - 1e-5 < res.bound <= -17.0
+    assert res.flat
+    _assert_same_points(res, list(xs), [[1, 1, 0, 1, 0]])
+
 
 def test_equality_constraint_sphere() -> None:
     # min -x1 x2 x3 s.t. x1^2 + x2^2 + x3^2 = 1. By AM-GM, (x1 x2 x3)^2 <= (1/3)^3, so the
@@ -281,6 +340,36 @@ def test_unexpected_solver_status_maps_to_failed(monkeypatch: pytest.MonkeyPatch
     monkeypatch.setattr(cp.Problem, "solve", limit_solve)
     res = solve_moment_relaxation(PolyProblem([x1], x1**2 - x1), order=1)
     assert res.status == "failed" and math.isnan(res.bound)
+
+
+def test_reduced_accuracy_solve_is_repeated_cautiously(monkeypatch: pytest.MonkeyPatch) -> None:
+    # A solver that stops at reduced accuracy the first time: the relaxation is solved
+    # once more with CAUTIOUS_OPTIONS, and that (full-accuracy) result is the one kept.
+    # min (x - 1)^2 + 2 = 2 at x = 1 (a box, so no interior duals or re-centring).
+    from sosalgo.polyopt import CAUTIOUS_OPTIONS
+
+    original = cp.Problem.solve
+    calls: list[dict] = []
+
+    def stalling_solve(self, *args, **kwargs):
+        calls.append(kwargs)
+        out = original(self, *args, **kwargs)
+        if len(calls) == 1:
+            self._status = cp.OPTIMAL_INACCURATE
+        return out
+
+    monkeypatch.setattr(cp.Problem, "solve", stalling_solve)
+    prob = PolyProblem([x1], (x1 - 1) ** 2 + 2, bounds={x1: (-3, 3)})
+    res = solve_moment_relaxation(prob, order=1, solver_options={"time_limit": 100.0})
+    assert len(calls) == 2
+    assert calls[1]["max_step_fraction"] == CAUTIOUS_OPTIONS["CLARABEL"]["max_step_fraction"]
+    assert "max_step_fraction" not in calls[0] and calls[1]["time_limit"] < 100.0
+    assert res.status == "optimal" and res.solver_status == "optimal"
+    assert 2.0 - 1e-5 < res.bound <= 2.0
+    # an option the caller set is respected: no second solve
+    calls.clear()
+    res = solve_moment_relaxation(prob, order=1, solver_options={"max_step_fraction": 0.99})
+    assert len(calls) == 1 and res.status == "inaccurate"
 
 
 def test_failed_extraction_means_not_flat(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -412,6 +501,36 @@ def test_random_boxed_problems_bound_is_proven() -> None:
             certified += 1
             assert res.bound <= float(grid.min())
     assert certified >= 6
+
+
+def test_implied_bounds_from_linear_constraints() -> None:
+    # By hand: x >= 0, y >= 0 and x + 2y <= 4 give x in [0, 4], y in [0, 2]; z = 1 - x
+    # (an equality) then gives z in [-3, 1]. w only has w >= 1: no range.
+    from sosalgo.polyopt.problem import compile_problem, implied_bounds
+
+    z, w = sp.symbols("z w")
+    prob = PolyProblem(
+        [x, y, z, w],
+        x + y + z + w,
+        inequalities=[x, y, 4 - x - 2 * y, w - 1],
+        equalities=[z - 1 + x],
+    )
+    got = implied_bounds(prob)
+    assert set(got) == {x, y, z}
+    for v, (lo, hi) in {x: (0, 4), y: (0, 2), z: (-3, 1)}.items():
+        assert got[v][0] <= lo and got[v][0] > lo - 1e-12
+        assert got[v][1] >= hi and got[v][1] < hi + 1e-12
+    assert compile_problem(prob).box_radius() is None  # w is free
+    # stated bounds win over implied ones; a third has no exact float (1/3): not used
+    prob = PolyProblem([x, y], x + y, inequalities=[x, y, 1 - x - sp.Rational(1, 3) * y],
+                       bounds={x: (0, 0.5)})
+    assert implied_bounds(prob) == {}
+    # with every variable ranged, the box certificate applies: min x + y = 0 at (0, 0)
+    prob = PolyProblem([x, y], x + y, inequalities=[x, y, 4 - x - 2 * y])
+    assert np.allclose(compile_problem(prob).box_radius(), 1.0)
+    res = solve_moment_relaxation(prob, order=1)
+    _assert_honest(res, 0.0, rel=0.0)
+    assert res.status == "optimal" and res.certified and -1e-5 < res.bound <= 0.0
 
 
 def test_strings_are_parsed_not_evaluated() -> None:

@@ -8,7 +8,7 @@ soundness bug. First the judge is tested against closed forms and the Lyapunov
 decrease it claims; then generated specs (crossterm-like products of free parameters,
 hidden slow modes, 2- and 3-state momentum methods) are checked.
 
-SOSALGO_SOUNDNESS_CASES sets the number of generated cases (default 30; ``make
+SOSALGO_SOUNDNESS_CASES sets the number of generated cases (default 12; ``make
 soundness`` runs 300). Cases and judge results are deterministic and cached per session;
 the judge runs in SOSALGO_SOUNDNESS_WORKERS background processes (default 1, 0 for none)
 while sosalgo's time-limited calls run in the test process.
@@ -38,7 +38,10 @@ from .independent import (
     theorem1_matrix,
 )
 
-CASES = max(1, int(os.environ.get("SOSALGO_SOUNDNESS_CASES", "30")))
+# under pytest-xdist (make test) every case runs on one worker: the judges are computed once
+pytestmark = pytest.mark.xdist_group("soundness")
+
+CASES = max(1, int(os.environ.get("SOSALGO_SOUNDNESS_CASES", "12")))
 SEEDS = list(range(CASES))
 DESIGN_SEEDS = [s for s in SEEDS if s % 10 == 0]  # design() is the slower call
 SLACK = 1e-6  # a bound may exceed the judge's rate by this (its rates are within ~1e-6)

@@ -2,11 +2,12 @@
 
 ``PolyProblem`` states a POP with sympy; ``solve_moment_relaxation`` solves one moment
 relaxation, detects exactness (flat extension) and extracts global minimizers
-(Henrion-Lasserre). See docs/polyopt.md.
+(Henrion-Lasserre). See README, section "Polynomial optimization module".
 """
 
 from .problem import PolyProblem
 from .relaxation import (
+    CAUTIOUS_OPTIONS,
     DEFAULT_SOLVER_OPTIONS,
     RelaxationResult,
     RelaxationStatus,
@@ -19,4 +20,5 @@ __all__ = [
     "RelaxationStatus",
     "solve_moment_relaxation",
     "DEFAULT_SOLVER_OPTIONS",
+    "CAUTIOUS_OPTIONS",
 ]

@@ -1,7 +1,7 @@
 """Sparse real polynomials as ``{exponent tuple: float coefficient}`` dictionaries.
 
 All inner-loop algebra of the moment relaxation works on these dictionaries; sympy is
-used only once, in :func:`from_sympy`, to expand the user's expressions.
+used only once, in :func:`from_sympy_with_error`, to expand the user's expressions.
 """
 
 from __future__ import annotations
@@ -23,9 +23,9 @@ PolyDict = dict[Exponent, float]
 __all__ = [
     "Exponent",
     "PolyDict",
-    "from_sympy",
     "from_sympy_with_error",
     "exact_affine_substitute",
+    "rational_affine_substitute",
     "degree",
     "evaluate",
     "abs_evaluate",
@@ -36,19 +36,12 @@ __all__ = [
 ]
 
 
-def from_sympy(expr: object, variables: Sequence[sp.Symbol]) -> PolyDict:
-    """Expand a sympy expression into a :data:`PolyDict` over ``variables``.
-
-    Raises ``ValueError`` if ``expr`` is not a polynomial with real numeric coefficients
-    in exactly these variables (other free symbols, ``sin``, ``1/x`` ... are refused).
-    """
-    return from_sympy_with_error(expr, variables)[0]
-
-
 def from_sympy_with_error(
     expr: object, variables: Sequence[sp.Symbol]
 ) -> tuple[PolyDict, PolyDict]:
-    """:func:`from_sympy` and a bound on each coefficient's conversion error.
+    """Expand a sympy expression into a :data:`PolyDict` over ``variables``, with a bound
+    on each coefficient's conversion error. Raises ``ValueError`` if ``expr`` is not a
+    polynomial with real numeric coefficients in exactly these variables.
 
     The error is exactly ``|float(c) - c|`` (rounded up) for rational and floating-point
     sympy coefficients, and ``2 eps |float(c)|`` for others (``sqrt(2)`` ...).
@@ -109,6 +102,23 @@ def exact_affine_substitute(
     (rounded up), so the only error left is one rounding per coefficient (no cancellation
     error, which matters when a large-coefficient polynomial is re-centred near a root).
     """
+    out = rational_affine_substitute(p, offset, width)
+    poly: PolyDict = {}
+    err: PolyDict = {}
+    for e, q in out.items():
+        v = float(q)
+        if v != 0.0:
+            poly[e] = v
+        u = _round_up(abs(Fraction(v) - q))
+        if u > 0.0:
+            err[e] = u
+    return poly, err
+
+
+def rational_affine_substitute(
+    p: PolyDict, offset: Sequence[float], width: Sequence[float]
+) -> dict[Exponent, Fraction]:
+    """:func:`affine_substitute` in exact rational arithmetic, not rounded."""
     out: defaultdict[Exponent, Fraction] = defaultdict(Fraction)
     offs = [Fraction(float(o)) for o in offset]
     wids = [Fraction(float(w)) for w in width]
@@ -123,16 +133,7 @@ def exact_affine_substitute(
             for _, f in combo:
                 coef *= f
             out[tuple(j for j, _ in combo)] += coef
-    poly: PolyDict = {}
-    err: PolyDict = {}
-    for e, q in out.items():
-        v = float(q)
-        if v != 0.0:
-            poly[e] = v
-        u = _round_up(abs(Fraction(v) - q))
-        if u > 0.0:
-            err[e] = u
-    return poly, err
+    return {e: q for e, q in out.items() if q != 0}
 
 
 def degree(p: PolyDict) -> int:

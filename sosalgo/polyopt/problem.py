@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from fractions import Fraction
 
 import numpy as np
 import sympy as sp
@@ -18,6 +19,7 @@ import sympy as sp
 from sosalgo.expr import ExprError, parse_expression
 
 from .polynomial import (
+    Exponent,
     PolyDict,
     abs_evaluate,
     affine_substitute,
@@ -26,10 +28,17 @@ from .polynomial import (
     exact_affine_substitute,
     from_sympy_with_error,
     max_abs_coefficient,
+    rational_affine_substitute,
     scaled,
 )
 
-__all__ = ["PolyProblem", "CompiledProblem", "compile_problem", "constraint_violation"]
+__all__ = [
+    "PolyProblem",
+    "CompiledProblem",
+    "compile_problem",
+    "constraint_violation",
+    "implied_bounds",
+]
 
 _EPS = float(np.finfo(float).eps)
 
@@ -184,7 +193,9 @@ class CompiledProblem:
     polynomials may be from the exact ones (same normalization; the objective's includes
     the constant term, relative to ``objective_scale``). The certificate
     (:mod:`sosalgo.polyopt.certificate`) charges them, so a certified bound holds for the
-    problem as stated, not only for its floating-point image.
+    problem as stated, not only for its floating-point image. ``exact_objective`` is the
+    objective in ``z`` in exact rational arithmetic (constant included, not normalized)
+    when the stated coefficients are exact floats, else None.
     """
 
     variables: list[sp.Symbol]
@@ -202,6 +213,7 @@ class CompiledProblem:
     inequality_errors: list[PolyDict] = field(default_factory=list)
     equality_errors: list[PolyDict] = field(default_factory=list)
     matrix_inequality_errors: list[list[list[PolyDict]]] = field(default_factory=list)
+    exact_objective: dict[Exponent, Fraction] | None = None
 
     @property
     def n(self) -> int:
@@ -227,8 +239,9 @@ class CompiledProblem:
     def box_radius(self) -> np.ndarray | None:
         """``rho`` with ``|z_i| <= rho_i`` on the feasible set, or None if a variable is free.
 
-        Every bounded variable has ``|z| <= 1`` when rescaled, ``|x| <= max(|lo|, |hi|)``
-        otherwise (its box constraint is part of the problem, so this holds on K).
+        Every variable with bounds, stated or implied by the linear constraints
+        (:func:`implied_bounds`), has ``|z| <= 1`` when rescaled, ``|x| <= max(|lo|, |hi|)``
+        otherwise (the constraints implying it are part of the problem, so this holds on K).
         """
         return None if self.radius is None else self.radius.copy()
 
@@ -261,36 +274,204 @@ def compile_problem(
     (``2(1 - z) = (1 - z)^2 + (1 - z^2)``), so it is at least as tight and needs one
     localizing matrix per variable instead of two.
 
+    Variables without ``bounds`` whose range is implied by the linear constraints
+    (:func:`implied_bounds`) are rescaled the same way, but no constraint is added: the
+    relaxation is the stated one, in better-conditioned coordinates, and the box
+    certificate applies (:meth:`CompiledProblem.box_radius`).
+
     ``center`` and ``var_scale`` (arrays over all variables, used only with ``scale=True``
     and only for variables *without* bounds) substitute ``x = center + var_scale * z``: the
     same kind of affine change, used to re-solve an inaccurate relaxation around an
     estimated minimizer with equilibrated coefficients (see :func:`equilibrating_scale`).
     """
+    ranges = _variable_ranges(problem)
+    offset, width = _substitution(problem, ranges, scale, center, var_scale)
+    conv = _Converter(offset, width, scale)
+    data, data_err = problem._polys, problem._errors
+    obj, obj_err, obj_const, obj_scale = _compile_objective(conv, data.objective,
+                                                           data_err.objective)
+    ineqs, ineq_err = _compile_inequalities(problem, conv, scale)
+    eqs, eq_err = _compile_equalities(conv, data.equalities, data_err.equalities)
+    pmis, pmi_err = _compile_matrix_inequalities(
+        conv, data.matrix_inequalities, data_err.matrix_inequalities
+    )
+    return CompiledProblem(
+        exact_objective=_exact_objective(conv, data.objective, data_err.objective),
+        radius=_radius(problem, ranges, scale),
+        variables=list(problem.variables),
+        offset=offset,
+        width=width,
+        objective=obj,
+        objective_constant=obj_const,
+        objective_scale=obj_scale,
+        objective_degree=degree(obj),
+        inequalities=ineqs,
+        equalities=eqs,
+        matrix_inequalities=pmis,
+        objective_error=obj_err,
+        inequality_errors=ineq_err,
+        equality_errors=eq_err,
+        matrix_inequality_errors=pmi_err,
+    )
+
+
+# -- variable ranges and the change of variables -----------------------------------------
+
+
+def implied_bounds(problem: PolyProblem, rounds: int = 8) -> dict[sp.Symbol, tuple[float, float]]:
+    """Ranges of variables *without* ``bounds`` implied by the linear constraints.
+
+    Interval propagation (each linear inequality ``b + a . x >= 0``, and each linear
+    equality as two of them, bounds every variable by the ranges of the others; at most
+    ``rounds`` sweeps) in exact rational arithmetic over the stored coefficients; only
+    constraints whose coefficients are exact (no conversion error) take part, so every
+    range holds on the feasible set. The ranges are rounded outwards to floats; ranges
+    reaching beyond ``1e30`` are ignored. E.g.
+    ``x2 >= 0, x3 >= 0, 6 - 3 x2 - x3 >= 0`` gives ``x2 in [0, 2]``.
+    """
+    rows = _linear_rows(problem)
     variables = list(problem.variables)
-    n = len(variables)
+    box: list[list[Fraction | None]] = [[None, None] for _ in variables]
+    for i, v in enumerate(variables):
+        if v in problem.bounds:
+            box[i] = [Fraction(b) for b in problem.bounds[v]]
+    for _ in range(rounds if rows else 0):
+        if not any([_tighten(b, a, box) for b, a in rows]):  # a list: every row, each sweep
+            break
+    out = {}
+    for i, v in enumerate(variables):
+        lo, hi = box[i]
+        if v in problem.bounds or lo is None or hi is None or not lo < hi:
+            continue
+        if max(abs(lo), abs(hi)) <= _MAX_IMPLIED:
+            out[v] = (_round_down(lo), -_round_down(-hi))
+    return out
+
+
+#: Implied ranges reaching beyond this are ignored (a huge width would overflow the
+#: substituted coefficients).
+_MAX_IMPLIED = Fraction(10) ** 30
+
+
+def _linear_rows(problem: PolyProblem) -> list[tuple[Fraction, list[Fraction]]]:
+    """``(b, a)`` with ``b + a . x >= 0`` for every exact linear constraint (equalities twice)."""
+    n = len(problem.variables)
+    data, errs = problem._polys, problem._errors
+    pairs = [(g, e, 1) for g, e in zip(data.inequalities, errs.inequalities, strict=True)]
+    for h, e in zip(data.equalities, errs.equalities, strict=True):
+        pairs += [(h, e, 1), (h, e, -1)]
+    rows = []
+    for p, err, sign in pairs:
+        if not p or degree(p) > 1 or any(u > 0.0 for u in err.values()):
+            continue
+        a = [Fraction(0)] * n
+        b = Fraction(0)
+        for e, c in p.items():
+            if sum(e) == 0:
+                b = sign * Fraction(c)
+            else:
+                a[e.index(1)] = sign * Fraction(c)
+        rows.append((b, a))
+    return rows
+
+
+def _tighten(b: Fraction, a: list[Fraction], box: list[list[Fraction | None]]) -> bool:
+    """Tighten ``box`` (in place) with ``b + a . x >= 0``; True if some bound moved."""
+    tops: list[Fraction | None] = []  # max of a_k x_k over the box (None: unbounded)
+    for ak, (lo, hi) in zip(a, box, strict=True):
+        if ak == 0:
+            tops.append(Fraction(0))
+        else:
+            end = hi if ak > 0 else lo
+            tops.append(None if end is None else ak * end)
+    missing = [k for k, t in enumerate(tops) if t is None]
+    if len(missing) > 1:
+        return False
+    total = b + sum(t for t in tops if t is not None)
+    moved = False
+    for i, ai in enumerate(a):
+        if ai == 0 or (missing and missing != [i]):
+            continue
+        rest = total - (tops[i] if tops[i] is not None else 0)  # max of b + others
+        limit = -rest / ai  # a_i x_i >= -rest
+        side = 0 if ai > 0 else 1
+        old = box[i][side]
+        if old is None or (limit > old if side == 0 else limit < old):
+            box[i][side] = limit
+            moved = True
+    return moved
+
+
+def _round_down(q: Fraction) -> float:
+    """The largest float <= ``q``."""
+    f = float(q)
+    return f if Fraction(f) <= q else math.nextafter(f, -math.inf)
+
+
+def _variable_ranges(problem: PolyProblem) -> dict[sp.Symbol, tuple[float, float]]:
+    """Stated bounds, completed by :func:`implied_bounds` for the other variables."""
+    return {**implied_bounds(problem), **problem.bounds}
+
+
+def _substitution(
+    problem: PolyProblem,
+    ranges: Mapping[sp.Symbol, tuple[float, float]],
+    scale: bool,
+    center: np.ndarray | None,
+    var_scale: np.ndarray | None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(offset, width)`` of ``x = offset + width z``: ranges onto ``[-1, 1]``, others as given."""
+    n = len(problem.variables)
     offset = np.zeros(n)
     width = np.ones(n)
-    if scale and center is not None:
+    if not scale:
+        return offset, width
+    if center is not None:
         offset = np.array(center, dtype=float)
-    if scale and var_scale is not None:
+    if var_scale is not None:
         width = np.array(var_scale, dtype=float)
-    if scale:
-        for i, v in enumerate(variables):
-            if v in problem.bounds:
-                lo, hi = problem.bounds[v]
-                offset[i] = 0.5 * (lo + hi)
-                # rounded outwards, so that the z-box covers [lo, hi] in exact arithmetic
-                width[i] = 0.5 * (hi - lo) * (1 + 4 * _EPS) + 4 * _EPS * abs(offset[i])
+    for i, v in enumerate(problem.variables):
+        if v in ranges:
+            lo, hi = ranges[v]
+            offset[i] = 0.5 * (lo + hi)
+            # rounded outwards, so that the z-box covers [lo, hi] in exact arithmetic
+            width[i] = 0.5 * (hi - lo) * (1 + 4 * _EPS) + 4 * _EPS * abs(offset[i])
+    return offset, width
 
-    def convert(p: PolyDict, perr: PolyDict) -> tuple[PolyDict, PolyDict]:
+
+def _radius(
+    problem: PolyProblem, ranges: Mapping[sp.Symbol, tuple[float, float]], scale: bool
+) -> np.ndarray | None:
+    """``|z_i| <= radius_i`` on the feasible set, or None if some variable has no range."""
+    variables = list(problem.variables)
+    if not all(v in ranges for v in variables):
+        return None
+    if scale:
+        return np.ones(len(variables))
+    return np.array([max(abs(b) for b in ranges[v]) for v in variables])
+
+
+# -- polynomials in the new variables, normalized, with error bounds ---------------------
+
+
+@dataclass(frozen=True)
+class _Converter:
+    """Substitutes ``x = offset + width z`` and normalizes, tracking coefficient errors."""
+
+    offset: np.ndarray
+    width: np.ndarray
+    scale: bool
+
+    def __call__(self, p: PolyDict, perr: PolyDict) -> tuple[PolyDict, PolyDict]:
         """The substituted polynomial and a bound on its coefficients' errors.
 
         Errors: the rounding of the substitution (exact arithmetic, one rounding per
         coefficient, unless the polynomial is too large) plus the conversion errors
         ``perr`` of the input coefficients carried through the substitution.
         """
-        if not scale:
+        if not self.scale:
             return dict(p), dict(perr)
+        offset, width = self.offset, self.width
         if _combos(p) <= _EXACT_LIMIT:
             q, err = exact_affine_substitute(p, offset, width)
         else:
@@ -302,92 +483,110 @@ def compile_problem(
                 err[e] = err.get(e, 0.0) + u * slack
         return q, err
 
+    @staticmethod
     def normalized(p: PolyDict, err: PolyDict, m: float) -> tuple[PolyDict, PolyDict]:
+        """``p / m`` and its error bounds (the division's rounding included)."""
         out = scaled(p, 1.0 / m)
         return out, {e: (u / m + _EPS * abs(out.get(e, 0.0))) * (1 + _EPS) for e, u in
                      {**{e: 0.0 for e in p}, **err}.items()}
 
-    data, data_err = problem._polys, problem._errors
-    obj, obj_err = convert(data.objective, data_err.objective)
-    zero = (0,) * n
+
+def _compile_objective(
+    conv: _Converter, f: PolyDict, ferr: PolyDict
+) -> tuple[PolyDict, PolyDict, float, float]:
+    """``(objective, error, constant, scale)``: ``f = constant + scale * objective``."""
+    obj, obj_err = conv(f, ferr)
+    zero = (0,) * len(conv.offset)
     obj_const = obj.pop(zero, 0.0)
     obj_scale = max_abs_coefficient(obj)
-    obj_deg = degree(obj)
     obj_scale = obj_scale if obj_scale > 0 else 1.0
-    obj, obj_err = normalized(obj, obj_err, obj_scale)
+    obj, obj_err = conv.normalized(obj, obj_err, obj_scale)
+    return obj, obj_err, obj_const, obj_scale
 
-    # A constant constraint is kept only if it is violated (the solver then reports the
-    # relaxation infeasible); satisfied constants carry no information.
-    inequalities: list[PolyDict] = []
-    ineq_err: list[PolyDict] = []
+
+def _exact_objective(
+    conv: _Converter, f: PolyDict, ferr: PolyDict
+) -> dict[Exponent, Fraction] | None:
+    """``f`` in ``z``, exactly; None if its coefficients are inexact or it is too large."""
+    if ferr or _combos(f) > _EXACT_LIMIT:
+        return None
+    if not conv.scale:
+        return {e: Fraction(c) for e, c in f.items()}
+    return rational_affine_substitute(f, conv.offset, conv.width)
+
+
+def _compile_inequalities(
+    problem: PolyProblem, conv: _Converter, scale: bool
+) -> tuple[list[PolyDict], list[PolyDict]]:
+    """The inequalities, then one box constraint per variable with ``bounds``.
+
+    A constant constraint is kept only if it is violated (the solver then reports the
+    relaxation infeasible); satisfied constants carry no information.
+    """
+    variables = list(problem.variables)
+    n = len(variables)
+    zero = (0,) * n
+    data, data_err = problem._polys, problem._errors
+    out: list[PolyDict] = []
+    errs: list[PolyDict] = []
     for g, gerr in zip(data.inequalities, data_err.inequalities, strict=True):
-        p, err = convert(g, gerr)
+        p, err = conv(g, gerr)
         if p and not (degree(p) == 0 and p[zero] >= 0):
-            q, qe = normalized(p, err, max_abs_coefficient(p))
-            inequalities.append(q)
-            ineq_err.append(qe)
+            q, qe = conv.normalized(p, err, max_abs_coefficient(p))
+            out.append(q)
+            errs.append(qe)
     for i, v in enumerate(variables):
         if v not in problem.bounds:
             continue
         e1 = tuple(1 if j == i else 0 for j in range(n))
         e2 = tuple(2 if j == i else 0 for j in range(n))
         if scale:
-            inequalities.append({zero: 1.0, e2: -1.0})  # 1 - z^2, exact
-            ineq_err.append({})
+            out.append({zero: 1.0, e2: -1.0})  # 1 - z^2, exact
+            errs.append({})
         else:
             lo, hi = problem.bounds[v]
             box = {e2: -1.0, e1: lo + hi, zero: -lo * hi}  # (x - lo)(hi - x)
             box = {e: c for e, c in box.items() if c != 0.0}
-            q, qe = normalized(box, {e: _EPS * abs(c) for e, c in box.items()},
-                               max_abs_coefficient(box))
-            inequalities.append(q)
-            ineq_err.append(qe)
+            q, qe = conv.normalized(box, {e: _EPS * abs(c) for e, c in box.items()},
+                                    max_abs_coefficient(box))
+            out.append(q)
+            errs.append(qe)
+    return out, errs
 
-    equalities: list[PolyDict] = []
-    eq_err: list[PolyDict] = []
-    for h, herr in zip(data.equalities, data_err.equalities, strict=True):
-        p, err = convert(h, herr)
+
+def _compile_equalities(
+    conv: _Converter, hs: list[PolyDict], herrs: list[PolyDict]
+) -> tuple[list[PolyDict], list[PolyDict]]:
+    """The nonzero equalities, normalized."""
+    out: list[PolyDict] = []
+    errs: list[PolyDict] = []
+    for h, herr in zip(hs, herrs, strict=True):
+        p, err = conv(h, herr)
         if p:
-            q, qe = normalized(p, err, max_abs_coefficient(p))
-            equalities.append(q)
-            eq_err.append(qe)
+            q, qe = conv.normalized(p, err, max_abs_coefficient(p))
+            out.append(q)
+            errs.append(qe)
+    return out, errs
 
+
+def _compile_matrix_inequalities(
+    conv: _Converter, Gs: list[list[list[PolyDict]]], Gerrs: list[list[list[PolyDict]]]
+) -> tuple[list[list[list[PolyDict]]], list[list[list[PolyDict]]]]:
+    """The nonzero PMIs, each divided by its entries' largest coefficient."""
     pmis: list[list[list[PolyDict]]] = []
     pmi_err: list[list[list[PolyDict]]] = []
-    for G, Gerr in zip(data.matrix_inequalities, data_err.matrix_inequalities, strict=True):
-        conv = [
-            [convert(e, u) for e, u in zip(row, urow, strict=True)]
+    for G, Gerr in zip(Gs, Gerrs, strict=True):
+        entries = [
+            [conv(e, u) for e, u in zip(row, urow, strict=True)]
             for row, urow in zip(G, Gerr, strict=True)
         ]
-        m = max((max_abs_coefficient(e) for row in conv for e, _ in row), default=0.0)
+        m = max((max_abs_coefficient(e) for row in entries for e, _ in row), default=0.0)
         if m == 0.0:
             continue
-        pairs = [[normalized(e, err, m) for e, err in row] for row in conv]
+        pairs = [[conv.normalized(e, err, m) for e, err in row] for row in entries]
         pmis.append([[q for q, _ in row] for row in pairs])
         pmi_err.append([[qe for _, qe in row] for row in pairs])
-
-    radius: np.ndarray | None = None
-    if all(v in problem.bounds for v in variables):
-        radius = np.ones(n)
-        if not scale:
-            radius = np.array([max(abs(b) for b in problem.bounds[v]) for v in variables])
-    return CompiledProblem(
-        radius=radius,
-        variables=variables,
-        offset=offset,
-        width=width,
-        objective=obj,
-        objective_constant=obj_const,
-        objective_scale=obj_scale,
-        objective_degree=obj_deg,
-        inequalities=inequalities,
-        equalities=equalities,
-        matrix_inequalities=pmis,
-        objective_error=obj_err,
-        inequality_errors=ineq_err,
-        equality_errors=eq_err,
-        matrix_inequality_errors=pmi_err,
-    )
+    return pmis, pmi_err
 
 
 _EXACT_LIMIT = 200_000  # products in a substitution done in exact rational arithmetic
@@ -419,13 +618,14 @@ def equilibrating_scale(problem: PolyProblem, center: np.ndarray) -> np.ndarray:
     After ``x = center + s z`` a coefficient ``c_alpha`` becomes ``c_alpha s^alpha``. The
     exponents ``t = log2 s`` minimize ``sum (log2 |c_alpha| + alpha . t - m_p)^2`` over all
     non-constant terms of the objective and all terms of the constraints, with one free
-    level ``m_p`` per polynomial (least squares, minimum norm; bounded variables keep
-    ``s = 1`` here, they are rescaled by their box). Powers of two keep the substitution
-    exact in floating point.
+    level ``m_p`` per polynomial (least squares, minimum norm; variables with stated or
+    implied bounds keep ``s = 1`` here, they are rescaled by their box). Powers of two
+    keep the substitution exact in floating point.
     """
     variables = list(problem.variables)
     n = len(variables)
-    free = np.array([v not in problem.bounds for v in variables])
+    ranges = _variable_ranges(problem)
+    free = np.array([v not in ranges for v in variables])
     data = problem._polys
     polys = [data.objective, *data.inequalities, *data.equalities]
     polys += [{e: c for row in G for entry in row for e, c in entry.items()}

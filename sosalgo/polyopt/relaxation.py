@@ -22,6 +22,7 @@ import time
 import warnings
 from dataclasses import dataclass, field
 from enum import StrEnum
+from fractions import Fraction
 from typing import Any
 
 import cvxpy as cp
@@ -30,6 +31,7 @@ import scipy.sparse as sps
 import sympy as sp
 
 from .certificate import DualData, certified_bound, interior_dual, newton_keep
+from .exact import exact_sos_bound
 from .extraction import RANK_GAP, extract_atoms, flat_orders, numerical_rank, rank_gap
 from .moment import MomentIndex
 from .polynomial import PolyDict, evaluate
@@ -42,7 +44,7 @@ from .problem import (
 )
 
 __all__ = ["RelaxationResult", "RelaxationStatus", "solve_moment_relaxation",
-           "DEFAULT_SOLVER_OPTIONS"]
+           "DEFAULT_SOLVER_OPTIONS", "CAUTIOUS_OPTIONS"]
 
 #: Solver settings used unless overridden by ``solver_options``. Clarabel's default
 #: regularization fails with NumericalError on many moment relaxations; 1e-7 fixes it.
@@ -50,6 +52,13 @@ DEFAULT_SOLVER_OPTIONS: dict[str, dict[str, Any]] = {
     "CLARABEL": {"static_regularization_constant": 1e-7},
     "SCS": {"eps_abs": 1e-8, "eps_rel": 1e-8, "max_iters": 100_000},
 }
+
+#: Clarabel settings of a second solve when the first stops short of full accuracy
+#: ("AlmostSolved": cvxpy's "optimal_inaccurate"). Shorter steps keep the iterates further
+#: inside the PSD cones; on the moment relaxations measured (GloptiPoly's example with a
+#: box at order 4, Floudas-Pardalos 2.1 with a box at order 3) this turned a stall at
+#: ~2e-8 dual residual into a full-accuracy solve.
+CAUTIOUS_OPTIONS: dict[str, dict[str, Any]] = {"CLARABEL": {"max_step_fraction": 0.9}}
 
 #: Re-solves of an inaccurate relaxation with unbounded variables, each centred at the
 #: previous first moments with equilibrated variable scales.
@@ -84,7 +93,7 @@ _STATUS = {
 
 @dataclass
 class RelaxationResult:
-    """Outcome of :func:`solve_moment_relaxation` (docs/polyopt.md, "Result").
+    """Outcome of :func:`solve_moment_relaxation` (README, polynomial optimization, Result).
 
     Attributes:
         bound: "optimal": a lower bound on the POP's minimum proven by the dual
@@ -259,11 +268,13 @@ def solve_moment_relaxation(
         solver: "clarabel" (default) or "scs" (any other installed cvxpy solver name is
             passed through without default options).
         solver_options: keyword arguments for the solver, overriding
-            :data:`DEFAULT_SOLVER_OPTIONS` (e.g. ``{"verbose": True}``).
+            :data:`DEFAULT_SOLVER_OPTIONS` (e.g. ``{"verbose": True}``). A solve that
+            stops short of full accuracy is repeated once with :data:`CAUTIOUS_OPTIONS`.
         rank_tol: an eigenvalue of ``M_s(y)`` counts towards the rank when it exceeds
             ``rank_tol`` times the largest eigenvalue.
         scale: substitute ``x = (lo + hi)/2 + (hi - lo)/2 * z``, ``z in [-1, 1]``, for
-            every bounded variable (results are mapped back to ``x``); when a result is
+            every variable with bounds, stated or implied by the linear constraints
+            (results are mapped back to ``x``); when a result is
             "inaccurate" and some variable is unbounded, also re-solve (at most
             :data:`_REFINE_PASSES` times) centred at the first moments with equilibrated
             scales (:func:`~sosalgo.polyopt.problem.equilibrating_scale`).
@@ -291,21 +302,62 @@ def solve_moment_relaxation(
     opts = dict(DEFAULT_SOLVER_OPTIONS.get(name, {}))
     opts.update(solver_options or {})
 
-    result = _solve_once(compiled, order, (name, opts), rank_tol, feas_tol, seed, gap_tol)
-    if scale and result.status == RelaxationStatus.INACCURATE and len(problem.bounds) < compiled.n:
-        for _ in range(_REFINE_PASSES):
-            center = np.array([result.first_moments.get(v, math.nan) for v in compiled.variables])
-            if not np.all(np.isfinite(center)):
-                break
-            var_scale = equilibrating_scale(problem, center)
-            again = compile_problem(problem, True, center, var_scale)
-            retry = _solve_once(again, order, (name, opts), rank_tol, feas_tol, seed, gap_tol)
-            if _rank(retry) > _rank(result):
-                result = retry
-            if result.status == RelaxationStatus.OPTIMAL or not retry.first_moments:
-                break
+    args = (rank_tol, feas_tol, seed, gap_tol)
+    result = _solve_accurately(compiled, order, (name, opts), args)
+    if scale and result.status == RelaxationStatus.INACCURATE and compiled.radius is None:
+        result = _recentred(problem, result, order, (name, opts), args)
     result.seconds = time.perf_counter() - t0
     return result
+
+
+def _recentred(
+    problem: PolyProblem,
+    result: RelaxationResult,
+    order: int,
+    solver: tuple[str, dict[str, Any]],
+    args: tuple[float, float, int, float],
+) -> RelaxationResult:
+    """Re-solve up to :data:`_REFINE_PASSES` times centred at the first moments with
+    equilibrated scales (:func:`~sosalgo.polyopt.problem.equilibrating_scale`); the best
+    result is kept."""
+    for _ in range(_REFINE_PASSES):
+        center = np.array([result.first_moments.get(v, math.nan) for v in problem.variables])
+        if not np.all(np.isfinite(center)):
+            break
+        again = compile_problem(problem, True, center, equilibrating_scale(problem, center))
+        retry = _solve_accurately(again, order, solver, args)
+        if _rank(retry) > _rank(result):
+            result = retry
+        if result.status == RelaxationStatus.OPTIMAL or not retry.first_moments:
+            break
+    return result
+
+
+def _solve_accurately(
+    compiled: CompiledProblem,
+    order: int,
+    solver: tuple[str, dict[str, Any]],
+    args: tuple[float, float, int, float],
+) -> RelaxationResult:
+    """:func:`_solve_once`, and once more with :data:`CAUTIOUS_OPTIONS` if the solver
+    stopped short of full accuracy (cvxpy's "optimal_inaccurate"); the better one is kept.
+
+    Skipped when the caller set one of those options itself; a ``time_limit`` is reduced
+    by the time already spent.
+    """
+    t0 = time.perf_counter()
+    result = _solve_once(compiled, order, solver, *args)
+    name, opts = solver
+    cautious = CAUTIOUS_OPTIONS.get(name, {})
+    if result.solver_status != cp.OPTIMAL_INACCURATE or not cautious or cautious.keys() & opts:
+        return result
+    again = {**opts, **cautious}
+    if "time_limit" in opts:
+        again["time_limit"] = float(opts["time_limit"]) - (time.perf_counter() - t0)
+        if again["time_limit"] < 1.0:
+            return result
+    retry = _solve_once(compiled, order, (name, again), *args)
+    return retry if _rank(retry) > _rank(result) else result
 
 
 def _infeasibility_cost(parts: _Parts, yv: np.ndarray) -> float:
@@ -410,9 +462,8 @@ def _certify(
     See :mod:`sosalgo.polyopt.certificate`. ``value`` is the solver's value and ``target``
     the level the bound must reach for status "optimal" (both in the relaxation's
     normalized units). When some variable is unbounded and the solver's own dual falls
-    short (and ``interior`` is set), a second, interior dual is computed a little below
-    ``value`` (fractions :data:`_BACKOFF` of the allowed gap, closest first). The map back
-    ``constant + scale * b`` is rounded down by a few ulps.
+    short (and ``interior`` is set), interior duals are tried (:func:`_interior_bound`).
+    The map back ``constant + scale * b`` is rounded down by a few ulps.
     """
     data = parts.dual()
     if data is None:
@@ -422,28 +473,82 @@ def _certify(
     )
     support = list(compiled.objective) if unconstrained else None
     radius = compiled.box_radius()
+    exact = -math.inf
     try:
         # search on for a tighter bound until 1 % of the allowed gap (cheap: no solves)
         b, _ = certified_bound(index, data, radius, value - 0.01 * (value - target), support)
         if interior and b < target and radius is None and math.isfinite(target):
-            keep = newton_keep(index, support) if support is not None else None
-            keeps = [keep] if keep is not None else None
-            for frac in _BACKOFF:
-                level = value - frac * (value - target)
-                with warnings.catch_warnings():
-                    warnings.filterwarnings("ignore", message="Solution may be inaccurate")
-                    interior = interior_dual(index, data, level, keep, solver[0], solver[1])
-                if interior is not None:
-                    b = max(b, certified_bound(index, interior, None, target, None, keeps)[0])
-                if b >= target:
-                    break
+            b, exact = _interior_bound(index, data, compiled, value, target, solver, b)
     except (np.linalg.LinAlgError, ValueError):
         return -math.inf
     if not math.isfinite(b):
-        return -math.inf
+        return exact
     const, scale = compiled.objective_constant, compiled.objective_scale
-    out = const + scale * b
-    return out - 4.0 * np.finfo(float).eps * (abs(const) + abs(scale * b))
+    out = const + scale * float(b)
+    out -= 4.0 * float(np.finfo(float).eps) * (abs(const) + abs(scale * float(b)))
+    return max(out, exact)
+
+
+def _interior_bound(
+    index: MomentIndex,
+    data: DualData,
+    compiled: CompiledProblem,
+    value: float,
+    target: float,
+    solver: tuple[str, dict[str, Any]],
+    b: float,
+) -> tuple[float, float]:
+    """``(b, exact)``: bounds from interior duals a little below ``value``.
+
+    At the levels ``value - frac (value - target)`` (``frac`` in :data:`_BACKOFF`, closest
+    first) a dual whose Gram matrix is as far inside the PSD cone as possible is computed
+    (:func:`~sosalgo.polyopt.certificate.interior_dual`) and checked in floating point
+    (``b``, normalized units, the best so far). For an unconstrained problem with exact
+    coefficients, a Gram matrix that is singular on every certificate is checked in exact
+    arithmetic instead (:func:`~sosalgo.polyopt.exact.exact_sos_bound`); ``exact`` is
+    that bound in problem units (-inf if none).
+    """
+    unconstrained = not (
+        compiled.inequalities or compiled.equalities or compiled.matrix_inequalities
+    )
+    keep = newton_keep(index, list(compiled.objective)) if unconstrained else None
+    keeps = [keep] if keep is not None else None
+    exact = -math.inf
+    for frac in _BACKOFF:
+        level = value - frac * (value - target)
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message="Solution may be inaccurate")
+            interior = interior_dual(index, data, level, keep, solver[0], solver[1])
+        if interior is not None:
+            b = max(b, certified_bound(index, interior, None, target, None, keeps)[0])
+            if b < target and keep is not None and compiled.exact_objective is not None:
+                top = value + (value - target)  # the solver's value may be low, too
+                exact = max(exact, _exact_bound(index, compiled, interior.psd_duals[0],
+                                                keep, level, top))
+        if b >= target or exact > -math.inf:
+            break
+    return b, exact
+
+
+def _exact_bound(
+    index: MomentIndex, compiled: CompiledProblem, Z: np.ndarray, keep: np.ndarray,
+    level: float, top: float,
+) -> float:
+    """Largest ``G`` (rounded down; problem units) with ``f - G`` proven SOS exactly.
+
+    Tried at ``constant + scale * level`` first (``Z`` is a Gram matrix there), then
+    bisected towards ``top`` (normalized units, like ``level``); -inf if none is proven.
+    """
+    if compiled.exact_objective is None or not np.all(np.isfinite(Z)):
+        return -math.inf
+    const, scale = Fraction(compiled.objective_constant), Fraction(compiled.objective_scale)
+    Zp = compiled.objective_scale * np.asarray(Z, dtype=float)
+    G = exact_sos_bound(index, Zp, keep, compiled.exact_objective,
+                        const + scale * Fraction(level), const + scale * Fraction(top))
+    if G is None:
+        return -math.inf
+    out = float(G)
+    return out if Fraction(out) <= G else math.nextafter(out, -math.inf)
 
 
 def _flat_and_minimizers(

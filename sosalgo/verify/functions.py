@@ -277,7 +277,7 @@ def function_suite(m: float, L: float, d: int, rng: np.random.Generator) -> list
     """The default functions of F(m, L) on R^d used by :func:`simulate_check`."""
     fns: list[Objective] = []
     if d == 1:
-        for q in (m, L, float(np.sqrt(m) * np.sqrt(L)), 0.5 * (m + L)):
+        for q in (m, L, float(np.sqrt(m * L)), 0.5 * (m + L)):
             fns.append(quadratic(np.array([q]), rng, m, L, name=f"quadratic q={q:.6g}"))
     else:
         fns.append(quadratic(np.full(d, m), rng, m, L, name="quadratic q=m"))
