@@ -171,3 +171,20 @@ def test_lmi_latex_is_a_complete_snippet():
     tm = sosalgo.lmi(SPECS / "triple-momentum.yaml", latex=True)
     assert "\\sqrt{" in tm and "\\frac{" in tm and "\\rho" in tm and "\\lambda" in tm
     assert "sqrt(" not in tm and "rho^2 M" not in tm.split("\n", 1)[1]
+
+
+def test_readme_schema_table_matches_the_schema_module():
+    """README's result-schema table names the columns sosalgo.schema builds (nesterov)."""
+    from pathlib import Path
+
+    import sosalgo
+    from sosalgo import schema
+
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    row = next(line for line in readme.splitlines()
+               if line.startswith("| analyze, Theorem 1 |"))
+    listed = [c.strip() for c in row.split("|")[3].split(",")]
+    assert listed == schema.analysis_columns(sosalgo.example("nesterov"))
+    grid = next(line for line in readme.splitlines() if line.startswith("| grid |"))
+    assert "one column per fixed parameter" in grid
+    assert schema.grid_columns(sosalgo.example("nesterov"), ["beta"])[-1] == "h"
