@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sps
@@ -254,6 +255,20 @@ def certified_bound(
     return best, gamma
 
 
+def _cone_variable(dim: int, cons: list) -> Any:
+    """A cvxpy multiplier of side ``dim`` in its cone (>= 0 for a scalar, ⪰ 0 otherwise),
+    its constraint appended to ``cons``."""
+    import cvxpy as cp
+
+    if dim == 1:
+        Zv = cp.Variable((1, 1))
+        cons.append(Zv >= 0)
+    else:
+        Zv = cp.Variable((dim, dim), symmetric=True)
+        cons.append(Zv >> 0)
+    return Zv
+
+
 def interior_dual(
     index: MomentIndex,
     data: DualData,
@@ -284,16 +299,8 @@ def interior_dual(
     eps = cp.Variable()
     expr = S0.T @ cp.vec(Q, order="F")
     cons = [Q - eps * np.eye(nb) >> 0, eps <= 1.0]
-    zs = []
-    for S, Z in zip(data.psd_maps[1:], data.psd_duals[1:], strict=True):
-        dim = Z.shape[0]
-        if dim == 1:
-            Zv = cp.Variable((1, 1))
-            cons.append(Zv >= 0)
-        else:
-            Zv = cp.Variable((dim, dim), symmetric=True)
-            cons.append(Zv >> 0)
-        zs.append(Zv)
+    zs = [_cone_variable(Z.shape[0], cons) for Z in data.psd_duals[1:]]
+    for S, Zv in zip(data.psd_maps[1:], zs, strict=True):
         expr = expr + S.T @ cp.vec(Zv, order="F")
     w = None
     if data.eq_map is not None:

@@ -105,6 +105,15 @@ def extract_atoms(
         if np.any(rows >= n_rows):
             return None
         mult.append(U[rows])  # N_i: (N_i w)(x) = x_i w(x)
+    return _joint_eigenvalues(mult, rank, rng, attempts)
+
+
+def _joint_eigenvalues(mult: list[np.ndarray], rank: int, rng: np.random.Generator,
+                       attempts: int) -> np.ndarray | None:
+    """The atoms from the multiplication matrices ``mult`` (N_i w = x_i w on the atoms):
+    Schur form of a random combination, its eigenvalues separated; None when they are not
+    (after ``attempts`` combinations) or when the atoms are complex."""
+    n = len(mult)
     scale = max(1.0, max(float(np.abs(Ni).max()) for Ni in mult))
     for _ in range(attempts):
         lam = rng.random(n) + 0.1
