@@ -7,17 +7,19 @@ WORKERS ?=
 SCHEDULER ?=
 BATCH_OPTS := $(if $(WORKERS),--workers $(WORKERS)) $(if $(SCHEDULER),--scheduler $(SCHEDULER))
 
-.PHONY: help venv dev demo test lint table1 bench fig1 fig2 fig3 fig4 sweeps figures fuzz soundness clean
+.PHONY: help venv dev demo test test-all lint table1 bench fig1 fig2 fig3 fig4 sweeps figures fuzz soundness clean
 
 help:
 	@echo "make help     - this list"
 	@echo "make venv     - create .venv and install sosalgo (editable)"
 	@echo "make dev      - create .venv with the dev extras (pytest, hypothesis, ruff, dask)"
 	@echo "make demo     - create .venv, install, analyze specs/nesterov.yaml into $(OUT)/"
-	@echo "make test     - create/reuse .venv with dev extras, run ruff and pytest"
+	@echo "make test     - create/reuse .venv with dev extras, run ruff and pytest (TEST_WORKERS processes)"
+	@echo "make test-all - make test plus the deep property checks (marked deep)"
 	@echo "make lint     - ruff check sosalgo tests bench"
 	@echo "make table1   - $(OUT)/table1.csv: shipped specs at kappa 2, 10, 100 vs closed forms (Theorem 1 and interpolation)"
 	@echo "make bench    - benchmarks in bench/ (prints a table)"
+	@echo "make bench-autolyap - the AutoLyap comparison, AutoLyap (GPL) in its own $(AUTOLYAP_VENV)/"
 	@echo "make fig1     - Figure 1: gradient step designed over kappa, with a proven bound"
 	@echo "make fig2     - Figure 2: Nesterov momentum designed over kappa, with a proven bound"
 	@echo "make fig3     - Figure 3: certified rate on an (h, beta) grid at kappa = 10"
@@ -47,8 +49,12 @@ dev: $(VENV)/.installed-dev
 demo: $(VENV)/.installed
 	$(BIN)/sosalgo analyze specs/nesterov.yaml --out $(OUT) $(BATCH_OPTS)
 
-TEST_WORKERS ?= 2
+TEST_WORKERS ?= 3
 test: $(VENV)/.installed-dev
+	$(BIN)/ruff check sosalgo tests bench
+	$(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadgroup -m "not deep"
+
+test-all: $(VENV)/.installed-dev
 	$(BIN)/ruff check sosalgo tests bench
 	$(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadgroup
 
@@ -60,6 +66,17 @@ table1: $(VENV)/.installed
 
 bench: $(VENV)/.installed-dev
 	$(BIN)/python -m bench $(BENCH_OPTS)
+
+# AutoLyap (GPL) in its own venv, never in $(VENV): bench/autolyap.py runs it in a subprocess.
+AUTOLYAP_VENV ?= .venv-autolyap
+AUTOLYAP_PKG ?= autolyap
+.PHONY: bench-autolyap
+$(AUTOLYAP_VENV)/.installed:
+	$(PYTHON) -m venv $(AUTOLYAP_VENV)
+	$(AUTOLYAP_VENV)/bin/python -m pip install --quiet '$(AUTOLYAP_PKG)'
+	touch $@
+bench-autolyap: $(VENV)/.installed-dev $(AUTOLYAP_VENV)/.installed
+	SOSALGO_AUTOLYAP_PYTHON=$(abspath $(AUTOLYAP_VENV))/bin/python $(BIN)/python -m bench --only autolyap $(BENCH_OPTS)
 
 clean:
 	rm -rf $(OUT)/*.csv $(OUT)/*.png $(OUT)/*.pdf $(OUT)/*.json
