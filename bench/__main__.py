@@ -34,6 +34,12 @@ def main() -> None:
         suites["interpolation"] = interpolation.run
     except ImportError:
         pass
+    try:  # AutoLyap itself runs in a subprocess; the suite skips with one line without it
+        from bench import autolyap
+
+        suites["autolyap"] = autolyap.run
+    except ImportError:
+        pass
     for name, fn in suites.items():
         if args.only and name != args.only:
             continue
