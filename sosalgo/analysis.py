@@ -664,13 +664,26 @@ def analyze_spec(
 
 
 def spec_family(spec: Spec) -> CertificateFamily:
-    """The certificate family a spec asks for, with its options."""
-    return get_family(spec.certificate, spec.certificate_options)
+    """The certificate family a spec asks for, with its options (sized for the spec's
+    oracle calls when it has several)."""
+    return for_spec(get_family(spec.certificate, spec.certificate_options), spec)
+
+
+def for_spec(fam: CertificateFamily, spec: Spec) -> CertificateFamily:
+    """``fam`` sized for ``spec``'s oracle calls (families that have ``for_inputs``)."""
+    sized = getattr(fam, "for_inputs", None)
+    return sized(spec.p) if sized is not None and spec.p != 1 else fam
 
 
 def quadratic_rate(alg: Algorithm, points: int = 2001) -> float:
     """max over q in [m, L] of the spectral radius of A + q B C (grid): the method's rate on
-    quadratics, a lower bound for any certificate family (drawn on comparison plots)."""
+    quadratics, a lower bound for any certificate family (drawn on comparison plots). For
+    a method of the oracle model: every function a quadratic of its class
+    (:func:`sosalgo.oracles.composite_quadratic_rate`)."""
+    if hasattr(alg, "oracles"):
+        from sosalgo.oracles import composite_quadratic_rate
+
+        return composite_quadratic_rate(alg, min(points, 201))  # type: ignore[arg-type]
     qs = np.linspace(alg.m, alg.L, points)
     mats = alg.A[None, :, :] + qs[:, None, None] * (alg.B @ alg.C)[None, :, :]
     return float(np.abs(np.linalg.eigvals(mats)).max())

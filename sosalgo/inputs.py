@@ -20,7 +20,7 @@ from sosalgo.spec import Spec
 __all__ = [
     "check_gap", "check_kappa_points", "check_method", "check_scheduler", "check_time_limit",
     "check_tol", "free_names", "kappa_option", "out_dir", "parameter_boxes", "select_families",
-    "writable",
+    "single_oracle", "writable",
 ]
 
 
@@ -149,6 +149,15 @@ def out_dir(out: str | Path, label: str = "--out") -> Path:
     return path
 
 
+def single_oracle(spec: Spec, command: str) -> None:
+    """Refuse a command that does not handle the oracle model yet (several oracles, proximal
+    steps, other classes, ``measure: distance``): one line, before anything is written."""
+    if spec.composite:
+        raise InputError(f"{spec.source}: {command} is not yet supported for specs with "
+                         "several oracles, proximal steps or other function classes "
+                         "(analyze supports them)")
+
+
 def check_scheduler(scheduler: str | None) -> None:
     """A missing Dask or an unusable scheduler address, before anything is written."""
     if scheduler:
@@ -159,10 +168,12 @@ def check_scheduler(scheduler: str | None) -> None:
 
 def select_families(spec: Spec, certificate: str | Sequence[str] | None = None,
                     options: Mapping[str, Any] | None = None, single: bool = False,
-                    label: str = "--certificate") -> list[Any]:
+                    label: str = "--certificate", applicable_only: bool = False) -> list[Any]:
     """The certificate families asked for (default: the spec's own, with its options);
     ``options`` (e.g. ``{"lag": 0}``; None values are unset) go to every family that has
-    them, and at least one family must have each."""
+    them, and at least one family must have each. A family that does not apply to the
+    spec is refused, or with ``applicable_only`` (a table over many specs) left out as
+    long as one applies."""
     from sosalgo.certificates import FAMILIES, FAMILY_OPTIONS, get_family
 
     if certificate is None:
@@ -182,12 +193,20 @@ def select_families(spec: Spec, certificate: str | Sequence[str] | None = None,
         if not any(key in FAMILY_OPTIONS[nm] for nm in names):
             raise InputError(f"--{key}: no family asked for has this option "
                              f"({', '.join(names)})")
+    from sosalgo.analysis import for_spec
+    from sosalgo.spec.loading import family_applies
+
+    if applicable_only and any(not family_applies(spec, nm) for nm in names):
+        names = [nm for nm in names if not family_applies(spec, nm)]
     fams = []
     for nm in names:
+        problem = family_applies(spec, nm)
+        if problem:
+            raise InputError(f"{label} {nm}: {spec.source}: {problem}")
         own = spec.certificate_options if nm == spec.certificate else {}
         mine = {**own, **{k: v for k, v in opts.items() if k in FAMILY_OPTIONS[nm]}}
         try:
-            fams.append(get_family(nm, mine))
+            fams.append(for_spec(get_family(nm, mine), spec))
         except ValueError as exc:
             raise InputError(f"--{exc}") from None
     return fams

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sosalgo.errors import InputError
+from sosalgo.errors import ModelError
 from sosalgo.expr.compile import NumericError, compile_expression, compile_matrix
 from sosalgo.spec.types import BASE_NAMES, MATRIX_NAMES, Spec, value_order
 
@@ -22,17 +22,6 @@ __all__ = ["Algorithm", "ModelError", "bind", "design_box", "evaluate_algorithm"
 
 FIXED_POINT_TOL = 1e-8
 MAX_DESIGN_ENTRY = 1e50  # largest parameter value or matrix entry a design box may reach
-
-
-class ModelError(InputError):
-    """The spec cannot be evaluated at this point (domain error, no fixed point, ...)."""
-
-    names_file = False
-
-    def __init__(self, field_: str, message: str):
-        self.field = field_
-        self.message = message
-        super().__init__(f"{field_}: {message}")
 
 
 @dataclass(frozen=True)
@@ -103,7 +92,7 @@ class _Compiled:
             expr = par.tied if par.is_tied else par.value
             self.param_fns[p] = _compile(expr, syms, field_)
         self.matrix_fns = {}
-        for k in MATRIX_NAMES:
+        for k in spec.matrices:  # A, B, C and E (or the output), D when given
             try:
                 self.matrix_fns[k] = compile_matrix(spec.matrices[k], syms)
             except NumericError as exc:
@@ -215,8 +204,7 @@ def _matrix_size(spec: Spec, kappa: float, theta: Mapping[str, float]) -> float 
         params = parameter_values(spec, kappa, theta)
         values = [m, L, kappa] + [params[p] for p in comp.names]
         with np.errstate(all="ignore"):
-            return max(float(np.max(np.abs(comp.matrix_fns[k](values))))
-                       for k in MATRIX_NAMES)
+            return max(float(np.max(np.abs(fn(values)))) for fn in comp.matrix_fns.values())
     except OverflowError:
         return float("inf")
     except (NumericError, ModelError) as exc:
@@ -227,7 +215,9 @@ def bind(spec: Spec, kappa: float, theta: Mapping[str, float] | None = None) -> 
     """Numeric Algorithm at condition number ``kappa`` (m = spec.m, L = kappa m).
 
     ``theta`` sets input parameters (others keep their ``value``; tied ones follow).
-    The fixed-point conditions of eq. (11) are checked (by :class:`Algorithm`).
+    The fixed-point conditions of eq. (11) are checked (by :class:`Algorithm`). A spec
+    outside the seed's setting (``spec.composite``) gives an
+    :class:`~sosalgo.oracles.OracleMethod` (its own fixed-point check).
     """
     return evaluate_algorithm(spec, kappa, theta)
 
@@ -246,16 +236,27 @@ def evaluate_algorithm(
     params = parameter_values(spec, kappa, theta)
     values = [m, L, kappa] + [params[p] for p in comp.names]
     mats = {}
-    for k in MATRIX_NAMES:
+    for k, fn in comp.matrix_fns.items():
         try:
-            mats[k] = comp.matrix_fns[k](values)
+            mats[k] = fn(values)
         except NumericError as exc:
             raise ModelError(f"matrices.{k}", str(exc)) from None
+    if spec.composite:
+        from sosalgo.oracles import make_method
+
+        return make_method(spec, mats, m, L, kappa, params)  # type: ignore[return-value]
     return Algorithm(mats["A"], mats["B"], mats["C"], mats["E"], m, L, params)
 
 
 def fixed_point(alg: Algorithm, tol: float = FIXED_POINT_TOL) -> np.ndarray | None:
-    """The u of eq. (11) (least-squares solution), or None if the conditions fail."""
+    """The u of eq. (11) (least-squares solution), or None if the conditions fail. For a
+    method of the oracle model: its xi* for x* = 1 with zero optimal subgradients
+    (:func:`sosalgo.oracles.fixed_point_basis`)."""
+    if hasattr(alg, "oracles"):
+        from sosalgo.oracles import fixed_point_basis
+
+        basis = fixed_point_basis(alg, tol)  # type: ignore[arg-type]
+        return None if basis is None else basis[:, 0]
     n = alg.n
     lhs = np.vstack([np.eye(n) - alg.A, alg.C, alg.E])
     rhs = np.concatenate([np.zeros(n), [1.0, 1.0]])

@@ -66,6 +66,8 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
     kappas = _kappa_list(spec, kappa)
     inputs.check_tol(tol, "--tol")
     fams = inputs.select_families(spec, certificate, options)
+    if verify:
+        inputs.single_oracle(spec, "verify")
     inputs.check_kappa_points(spec, kappas)
     out = inputs.out_dir(out_dir)
     inputs.check_scheduler(scheduler)
@@ -131,6 +133,7 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
     from sosalgo.report import design as rep
 
     spec, text = spec_with_text(spec, spec_text)
+    inputs.single_oracle(spec, "design")
     fam = inputs.select_families(spec, certificate, options, single=True)[0]
     kappas = _kappa_list(spec, kappa)
     opts = _design_options(spec, kappas, free, fam, {
@@ -179,6 +182,7 @@ def grid_run(spec: Spec | str | Path, kappa: Kappas, out_dir: str | Path = "outp
     from sosalgo.schema import GRID_COLUMNS, grid_fixed
 
     spec, text = spec_with_text(spec, spec_text)
+    inputs.single_oracle(spec, "grid")
     kappas = _kappa_list(spec, kappa)
     names = inputs.free_names(spec, free)
     if isinstance(points, bool) or not isinstance(points, int) or not 2 <= points <= 2000:
@@ -232,8 +236,8 @@ def table1_run(specs: Sequence[str | Path] = (), kappa: Sequence[float] = (),
         raise InputError("--specs: no spec files given and none in specs/")
     kappas = [float(k) for k in kappa] or [2.0, 10.0, 100.0]
     chosen = certificate is not None or any(v is not None for v in (options or {}).values())
-    fams = [inputs.select_families(s, certificate, options) if chosen else [None]
-            for s in parsed]
+    fams = [inputs.select_families(s, certificate, options, applicable_only=True) if chosen
+            else [None] for s in parsed]
     rows, cols = table1_rows(parsed, kappas, tol, fams)
     settings = {"job": "table1", "specs": texts, "kappa": kappas, "tol": tol,
                 "certificate": certificate, "lag": None, **dict(options or {})}  # lag: as ever

@@ -242,6 +242,15 @@ class Interpolation(CertificateFamily):
                                 or not 0 <= lag <= 8):
             raise ValueError("lag: must be an integer in 0..8")
         self.lag = lag
+        # oracle calls per iteration of the specs it serves (sizes P and the CSV columns;
+        # set by :meth:`for_inputs`, not an option)
+        self.inputs = 1
+
+    def for_inputs(self, p: int) -> Interpolation:
+        """A copy sized for methods with ``p`` oracle calls per iteration."""
+        fam = Interpolation(self.lag)
+        fam.inputs = int(p)
+        return fam
 
     def lag_for(self, n: int) -> int:
         """The lag of :meth:`problem`: the given one, else n - 1 (the first auto lag)."""
@@ -260,7 +269,7 @@ class Interpolation(CertificateFamily):
         return lags[-1] if lags else self.lag_for(n)
 
     def with_options(self, lag: int | None = None) -> Interpolation:
-        return Interpolation(lag)
+        return Interpolation(lag).for_inputs(self.inputs)
 
     # -- layout of the decision vector -----------------------------------------------------
     def _layout(self, st: Structure) -> dict[str, slice]:
@@ -280,7 +289,13 @@ class Interpolation(CertificateFamily):
 
     def problem(self, alg: Algorithm) -> LMIProblem:
         """Affine blocks in x = (P_ab (a <= b), p_0..p_l, c, eta, lambda), built for the
-        normalized class F(m/L, 1) with B scaled by L; ``unpack`` returns original units."""
+        normalized class F(m/L, 1) with B scaled by L; ``unpack`` returns original units.
+        A method of the oracle model (several calls, proximal steps, other classes) gets
+        the generic construction of :mod:`sosalgo.certificates.composite`."""
+        if _is_oracle_method(alg):
+            from sosalgo.certificates.composite import composite_problem
+
+            return composite_problem(alg, self.lag_for(alg.n), self.name)
         return self._problem(alg, None)
 
     def guess_problem(self, alg: Algorithm) -> LMIProblem | None:
@@ -293,6 +308,8 @@ class Interpolation(CertificateFamily):
         gradient descent, Nesterov and triple momentum), and it is 3-5x cheaper to solve
         (blocks 4x4 and 3x3, 15 variables, instead of 7x7 and 5x5, 55 variables, for
         n = 2, l = 1). Where the rates differ (heavy ball, lag 1), the search goes on."""
+        if _is_oracle_method(alg):
+            return None if self.lag_for(alg.n) == 0 else Interpolation(0).problem(alg)
         if self.lag_for(alg.n) == 0 and not has_output_point(alg.C, alg.E):
             return None
         return Interpolation(0)._problem(alg, False)
@@ -395,6 +412,10 @@ class Interpolation(CertificateFamily):
     def parts(self, alg: Algorithm, rho: float, cert: dict[str, Any]) -> dict[str, Any]:
         """The inequality parts (D, Df, Pq, Pf) at a certificate (at its own lag), original
         units (floats)."""
+        if _is_oracle_method(alg):
+            from sosalgo.certificates.composite import composite_parts
+
+            return composite_parts(alg, rho, cert)
         st = self._structure(alg, normalized=False, lag=int(cert["lag"]))
         pi = np.array(list(cert["p"]) + ([cert["c"]] if st.has_x else []), float)
         mult = cert["multipliers"]
@@ -417,7 +438,7 @@ class Interpolation(CertificateFamily):
         """Side of the P of the leading CSV columns P11...: that of :meth:`problem`'s lag
         (a larger auto lag's further entries have columns of their own, see
         :meth:`csv_columns`)."""
-        return n + self.lag_for(n) + 1
+        return n + self.inputs * (self.lag_for(n) + 1)
 
     def _extra_entries(self, n: int, side: int) -> list[tuple[str, int, int]]:
         """(column, i, j) of the entries of a side x side P beyond the leading columns."""
@@ -427,9 +448,10 @@ class Interpolation(CertificateFamily):
     def csv_columns(self, n: int) -> list[str]:
         """Extra CSV columns (after the common ones): family, lag, p0..pl, c, multipliers,
         then (auto lag) the entries of P beyond the leading ones, up to the largest lag."""
-        top = self.max_lag(n)
-        return (["family", "lag"] + [f"p{j}" for j in range(top + 1)] + ["c", "multipliers"]
-                + [name for name, _, _ in self._extra_entries(n, n + top + 1)])
+        top, k = self.max_lag(n), self.inputs
+        return (["family", "lag"] + [f"p{j}" for j in range(k * (top + 1))]
+                + ["c", "multipliers"]
+                + [name for name, _, _ in self._extra_entries(n, n + k * (top + 1))])
 
     def csv_cells(self, n: int, cert: Mapping[str, Any] | None) -> dict[str, Any]:
         """CSV cells of a certificate (multipliers as one JSON object: pair -> value); the
@@ -451,14 +473,15 @@ class Interpolation(CertificateFamily):
         if P is None or not row.get("multipliers"):
             return None
         lag = int(row["lag"])
-        side = n + lag + 1
+        side = n + self.inputs * (lag + 1)
         full = np.zeros((side, side))
         lead = np.asarray(P, dtype=float)[:side, :side]
         full[: len(lead), : len(lead)] = lead
         for name, i, j in self._extra_entries(n, side):
             full[i, j] = full[j, i] = float(row[name])
         return {"family": self.name, "lag": lag, "P": full.tolist(),
-                "p": [float(row[f"p{j}"]) for j in range(lag + 1)],
+                "p": [float(row[f"p{j}"]) for j in range(self.inputs * (lag + 1))
+                      if row.get(f"p{j}") not in (None, "")],
                 "c": float(row["c"]) if row.get("c") else None,
                 "multipliers": json.loads(row["multipliers"])}
 
@@ -518,6 +541,11 @@ class Interpolation(CertificateFamily):
         return {"P": np.asarray(cert["P"], dtype=float),
                 "lyapunov": {"lag": int(cert["lag"]), "p": [float(v) for v in cert["p"]],
                              "c": None if cert.get("c") is None else float(cert["c"])}}
+
+
+def _is_oracle_method(alg: Any) -> bool:
+    """Whether ``alg`` is a :class:`sosalgo.oracles.OracleMethod` (not the seed's form)."""
+    return hasattr(alg, "oracles")
 
 
 def _unit_quads(Z: np.ndarray, pairs: list[tuple[int, int]]) -> np.ndarray:

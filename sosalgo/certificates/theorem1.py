@@ -105,7 +105,13 @@ class Theorem1(CertificateFamily):
         The data are built for the normalized class F(m/L, 1) with B scaled by L: with
         u = L u~, M(P, lambda) = L D^-1 M~(P/L, lambda) D^-1, D = diag(I, L), a congruence,
         so both inequalities hold together. ``unpack`` returns the original (P, lambda).
+        Only in the seed's setting: a method of the oracle model is refused (InputError).
         """
+        if hasattr(alg, "oracles"):
+            from sosalgo.errors import InputError
+
+            raise InputError("certificate theorem1: applies only to one smooth_strongly_convex "
+                             "function queried by its gradient; use interpolation")
         n = alg.n
         pairs = _sym_basis(n)
         nvar = len(pairs) + 1

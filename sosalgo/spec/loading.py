@@ -14,6 +14,7 @@ Every problem is reported as a :class:`SpecError` naming the file and the field.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 from collections.abc import Callable, Collection, Sequence
@@ -27,18 +28,21 @@ from sosalgo.expr import Expr, ExprError, constant_value, parse_tree
 from sosalgo.expr.compile import NumericError, compile_expression
 from sosalgo.spec.types import (
     BASE_NAMES,
-    MATRIX_NAMES,
     MAX_FILE_BYTES,
+    MAX_FUNCTIONS,
     MAX_KAPPA_POINTS,
+    MAX_ORACLES,
     MAX_PARAMETERS,
     MAX_REFERENCES,
     MAX_STATE,
+    MEASURES,
     NAME_RE,
     PARAM_RE,
     RESERVED,
     RESERVED_COLUMNS,
     TOP_KEYS,
     ExprMatrix,
+    FunctionDecl,
     Parameter,
     Spec,
     SpecError,
@@ -181,8 +185,7 @@ class _Builder:
             raise self.fail("description", "must be a string")
         if not _is_unicode(description):
             raise self.fail("description", "contains an invalid (surrogate) character")
-        m = self.m_value(data.get("m", 1))
-        certificate, cert_options = self.certificate(data.get("certificate", "theorem1"))
+        m = self.m_value(data.get("m", 1), "kappa" in data)
 
         raw_params = data.get("parameters", {})
         if raw_params is None:
@@ -203,14 +206,28 @@ class _Builder:
         tied_order(params, self.source)  # detects cycles
         value_order(params, self.source)
 
-        matrices = self.matrices(data.get("matrices"), names)
+        functions = self.functions(data.get("functions"))
+        oracles = self.oracles(data.get("oracles", ["f"]), functions)
+        measure = data.get("measure", "function")
+        if measure not in MEASURES:
+            raise self.fail("measure", f"must be one of {', '.join(MEASURES)}")
+        raw_matrices = data.get("matrices")
+        output = self.output(data, raw_matrices, len(oracles))
+        matrices = self.matrices(raw_matrices, names, len(oracles), output is not None)
         references = self.references(data.get("references", {}))
         kappa = self.kappa(data.get("kappa", [10]))
         spec = Spec(
             name=name, description=description, source=self.source, parameters=params,
             matrices=matrices, references=references, kappa=kappa, m=m,
-            certificate=certificate, certificate_options=cert_options,
+            functions=functions, oracles=oracles, output=output, measure=measure,
         )
+        from sosalgo.oracles import check_oracle_spec
+
+        check_oracle_spec(spec, self.fail)
+        certificate, cert_options = self.certificate(
+            data.get("certificate", "interpolation" if spec.composite else "theorem1"), spec)
+        spec = dataclasses.replace(spec, certificate=certificate,
+                                   certificate_options=cert_options)
         self.check_values(spec)
         return spec
 
@@ -223,9 +240,10 @@ class _Builder:
             )
         return raw
 
-    def certificate(self, raw: object) -> tuple[str, dict[str, Any]]:
+    def certificate(self, raw: object, spec: Spec) -> tuple[str, dict[str, Any]]:
         """``certificate: NAME`` or ``certificate: {family: NAME, <option>: value}``; the
-        options are checked by the family (:func:`sosalgo.certificates.get_family`)."""
+        options are checked by the family (:func:`sosalgo.certificates.get_family`), and
+        the family must apply to the spec's setting (:func:`family_applies`)."""
         from sosalgo.certificates import FAMILIES, get_family
 
         known = ", ".join(FAMILIES)
@@ -240,19 +258,98 @@ class _Builder:
                 except ValueError as exc:
                     what = str(exc).split(": ", 1)[-1]
                     raise self.fail(f"certificate.{str(key)[:40]}", what) from None
-            return name, options
-        if not isinstance(raw, str) or raw not in FAMILIES:
+        elif not isinstance(raw, str) or raw not in FAMILIES:
             raise self.fail("certificate", f"unknown family (known: {known})")
-        return raw, {}
+        else:
+            name, options = raw, {}
+        problem = family_applies(spec, name)
+        if problem:
+            raise self.fail("certificate", problem)
+        return name, options
 
-    def m_value(self, raw: object) -> float:
+    def m_value(self, raw: object, has_kappa: bool) -> float:
         try:
             val = constant_value(parse_tree(raw, ()))
         except ExprError as exc:
             raise self.fail("m", str(exc)) from None
+        if val == 0:
+            raise self.fail("m", "m: 0 with kappa (L = kappa * m would be 0); sublinear rates "
+                            "(m: 0, L given, no kappa) are not supported yet" if has_kappa else
+                            "m: 0 (sublinear rates, L given, no kappa) is not supported yet")
         if not (math.isfinite(val) and val > 0):
             raise self.fail("m", "must be a positive finite number")
         return val
+
+    # -- the oracle model ------------------------------------------------------------
+    def functions(self, raw: object) -> dict[str, FunctionDecl]:
+        """``functions:`` name -> {class: NAME, <parameter>: expr}; default: one f in
+        F(m, L)."""
+        from sosalgo.classes import CLASSES
+
+        if raw is None:
+            raw = {"f": {"class": "smooth_strongly_convex"}}
+        if not isinstance(raw, dict) or not raw:
+            raise self.fail("functions", "must be a non-empty mapping name: {class: ...}")
+        if len(raw) > MAX_FUNCTIONS:
+            raise self.fail("functions", f"more than {MAX_FUNCTIONS} functions")
+        out = {}
+        for fname, body in raw.items():
+            where = f"functions.{str(fname)[:40]}"
+            if not isinstance(fname, str) or not PARAM_RE.fullmatch(fname):
+                raise self.fail(where, "not a valid function name")
+            if not isinstance(body, dict) or "class" not in body:
+                raise self.fail(where, "must be a mapping {class: NAME, ...}")
+            cname = body["class"]
+            if not isinstance(cname, str) or cname not in CLASSES:
+                raise self.fail(f"{where}.class", f"unknown class {str(cname)[:40]!r} (known: "
+                                f"{', '.join(CLASSES)})")
+            cls = CLASSES[cname]
+            params = {}
+            for key, val in body.items():
+                if key == "class":
+                    continue
+                if key not in cls.parameters:
+                    raise self.fail(f"{where}.{str(key)[:40]}", f"not a parameter of {cname} "
+                                    f"(its parameters: {', '.join(cls.parameters) or 'none'})")
+                params[key] = self.expr(val, BASE_NAMES, f"{where}.{key}")
+            given = frozenset(params)
+            for key in cls.parameters:
+                if key not in params:
+                    params[key] = self.expr(cls.defaults[key], BASE_NAMES, f"{where}.{key}")
+            out[fname] = FunctionDecl(fname, cname, params, given)
+        return out
+
+    def oracles(self, raw: object, functions: dict[str, FunctionDecl]) -> tuple[str, ...]:
+        """``oracles:`` the function each call queries (one per column of B)."""
+        if not isinstance(raw, list) or not raw:
+            raise self.fail("oracles", "must be a non-empty list of function names")
+        if len(raw) > MAX_ORACLES:
+            raise self.fail("oracles", f"more than {MAX_ORACLES} oracle calls")
+        for i, name in enumerate(raw):
+            if not isinstance(name, str) or name not in functions:
+                raise self.fail(f"oracles[{i}]", f"{str(name)[:40]!r} names no function "
+                                f"(functions: {', '.join(functions)})")
+        for fname in functions:
+            if fname not in raw:
+                raise self.fail(f"functions.{fname}", "no oracle queries it (list it in "
+                                "oracles)")
+        return tuple(raw)
+
+    def output(self, data: dict, raw_matrices: object, p: int) -> int | None:
+        """``output: y<i>`` (top level or under matrices): the output is the point of oracle
+        call i (1-based); None when absent (x = E xi)."""
+        inner = raw_matrices.get("output") if isinstance(raw_matrices, dict) else None
+        if inner is not None and "output" in data:
+            raise self.fail("output", "given twice (top level and under matrices)")
+        raw = data.get("output", inner)
+        where = "output" if "output" in data else "matrices.output"
+        if raw is None:
+            return None
+        text = str(raw)
+        if not (isinstance(raw, str) and re.fullmatch(r"y[1-9][0-9]?", text)
+                and int(text[1:]) <= p):
+            raise self.fail(where, f"must be y1..y{p} (the point of an oracle call)")
+        return int(text[1:]) - 1
 
     # -- parameters ------------------------------------------------------------------
     def parameter(self, pname: str, raw: object, names: frozenset[str]) -> Parameter:
@@ -293,16 +390,23 @@ class _Builder:
             raise self.fail(where, str(exc)) from None
 
     # -- matrices --------------------------------------------------------------------
-    def matrices(self, raw: object, names: frozenset[str]) -> dict[str, ExprMatrix]:
+    def matrices(self, raw: object, names: frozenset[str], p: int = 1,
+                 has_output: bool = False) -> dict[str, ExprMatrix]:
+        """A (n x n), B (n x p), C (p x n), optional D (p x p) and E (1 x n; absent with
+        ``output``), p the number of oracle calls."""
         if raw is None:
             raise self.fail("matrices", "missing (A, B, C, E)")
         if not isinstance(raw, dict):
             raise self.fail("matrices", "must be a mapping with A, B, C, E")
         for key in raw:
-            if key not in MATRIX_NAMES:
-                raise self.fail(f"matrices.{str(key)[:40]}", "unknown matrix (use A, B, C, E)")
+            if key not in ("A", "B", "C", "D", "E", "output"):
+                raise self.fail(f"matrices.{str(key)[:40]}",
+                                "unknown matrix (use A, B, C, D, E)")
+        if has_output and "E" in raw:
+            raise self.fail("matrices.E", "give E or output, not both")
+        needed = ["A", "B", "C"] + ([] if has_output else ["E"])
         out: dict[str, ExprMatrix] = {}
-        for key in MATRIX_NAMES:
+        for key in needed + (["D"] if "D" in raw else []):
             if key not in raw:
                 raise self.fail(f"matrices.{key}", "missing")
             out[key] = self.matrix(raw[key], names, f"matrices.{key}")
@@ -311,11 +415,13 @@ class _Builder:
             raise self.fail("matrices.A", f"must be square, got {_shape(out['A'])}")
         if n > MAX_STATE:
             raise self.fail("matrices.A", f"state dimension {n} exceeds {MAX_STATE}")
-        if _dims(out["B"]) != (n, 1):
-            raise self.fail("matrices.B", f"must be {n}x1 (A is {n}x{n}), got {_shape(out['B'])}")
-        for key in ("C", "E"):
-            if _dims(out[key]) != (1, n):
-                raise self.fail(f"matrices.{key}", f"must be 1x{n}, got {_shape(out[key])}")
+        calls = "" if p == 1 else f" (one column per oracle call, {p} calls)"
+        shapes = {"B": (n, p), "C": (p, n), "D": (p, p), "E": (1, n)}
+        for key, shape in shapes.items():
+            if key in out and _dims(out[key]) != shape:
+                what = "x".join(map(str, shape))
+                raise self.fail(f"matrices.{key}", f"must be {what}{calls if key != 'E' else ''}"
+                                f", got {_shape(out[key])}")
         return out
 
     def matrix(self, raw: object, names: frozenset[str], where: str) -> ExprMatrix:
@@ -460,6 +566,16 @@ def parse_kappa(raw: object, source: str, where: str) -> tuple[float, ...]:
         vals = np.geomspace(lo, hi, pts) if scale == "log" else np.linspace(lo, hi, pts)
         return tuple(float(v) for v in vals)
     raise fail("must be a number, a list or {from, to, points, scale}")
+
+
+def family_applies(spec: Spec, family: str) -> str | None:
+    """Why certificate family ``family`` does not apply to ``spec`` (None when it does):
+    Theorem 1 holds only in the seed's setting (see :attr:`Spec.composite`)."""
+    if family == "theorem1" and spec.composite:
+        return ("theorem1 applies only to one smooth_strongly_convex function with the "
+                "spec's m and L, queried by its gradient (no D, x = E xi, measure: function); "
+                "use interpolation, the family for this spec")
+    return None
 
 
 def _compile_or_fail(expr: Expr, b: _Builder, where: str) -> Callable[[Sequence[float]], float]:

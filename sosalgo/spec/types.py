@@ -19,14 +19,17 @@ if TYPE_CHECKING:
     import sympy as sp
 
 __all__ = [
-    "BASE_NAMES", "MATRIX_NAMES", "ExprMatrix", "Parameter", "Spec", "SpecError", "deps",
-    "tied_order", "value_order",
+    "BASE_NAMES", "MATRIX_NAMES", "MEASURES", "ExprMatrix", "FunctionDecl", "Parameter",
+    "Spec", "SpecError", "deps", "tied_order", "value_order",
 ]
 
 BASE_NAMES = ("m", "L", "kappa")
 MATRIX_NAMES = ("A", "B", "C", "E")
+ORACLE_MATRIX_NAMES = ("A", "B", "C", "D", "E")  # D optional; E absent with ``output``
+MEASURES = ("function", "distance")
 TOP_KEYS = {
     "name", "description", "parameters", "matrices", "references", "kappa", "m", "certificate",
+    "functions", "oracles", "measure", "output",
 }
 NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,79}$")
 PARAM_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,31}$")
@@ -39,6 +42,8 @@ RESERVED_COLUMNS = {
 # parser needs about 15 us per token, and every parameter is compiled against all the others.
 MAX_FILE_BYTES = 64_000
 MAX_STATE = 12
+MAX_ORACLES = 8  # oracle calls per iteration
+MAX_FUNCTIONS = 8
 MAX_PARAMETERS = 100
 MAX_REFERENCES = 100
 MAX_KAPPA_POINTS = 10_000
@@ -96,6 +101,17 @@ class Parameter:
         return self.tied is not None
 
 
+@dataclass(frozen=True)
+class FunctionDecl:
+    """One entry of ``functions:``: its class and the class's parameters (expressions in m,
+    L, kappa; the class's defaults where not given)."""
+
+    name: str
+    cls: str
+    params: dict[str, Expr]
+    given: frozenset[str] = frozenset()  # the parameters the spec gave explicitly
+
+
 @dataclass(frozen=True, eq=False)
 class Spec:
     """A validated spec. Expressions are :class:`~sosalgo.expr.tree.Expr` trees over the
@@ -112,7 +128,31 @@ class Spec:
     m: float = 1.0
     certificate: str = "theorem1"
     certificate_options: dict[str, Any] = field(default_factory=dict)
+    # the oracle model (README, "Function classes and oracles"); the defaults are the
+    # seed's setting: one smooth strongly convex f queried by its gradient
+    functions: dict[str, FunctionDecl] = field(default_factory=dict)
+    oracles: tuple[str, ...] = ("f",)
+    output: int | None = None  # 0-based oracle index of ``output: y<i>``; None: x = E xi
+    measure: str = "function"
     _sympy: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
+
+    @property
+    def composite(self) -> bool:
+        """False in the seed's setting (one smooth_strongly_convex f with the spec's m and
+        L, one gradient call, no D, x = E xi, ``measure: function``): the only setting of
+        Theorem 1; True for every other spec."""
+        if self.oracles != ("f",) or self.output is not None or self.measure != "function":
+            return True
+        if "D" in self.matrices:
+            return True
+        decl = self.functions.get("f")
+        return len(self.functions) > 1 or (
+            decl is not None and (decl.cls != "smooth_strongly_convex" or bool(decl.given)))
+
+    @property
+    def p(self) -> int:
+        """Number of oracle calls per iteration (columns of B)."""
+        return len(self.oracles)
 
     @property
     def n(self) -> int:

@@ -1,0 +1,340 @@
+"""The interpolation family on the oracle model: several functions, proximal steps, measures.
+
+Written for :class:`sosalgo.oracles.OracleMethod` (xi+ = A xi + B u, y = C xi + D u,
+u_i in ∂f_{j(i)}(y_i), output x = E xi or a call's point y_o). Deviations from a fixed point
+with x* = 0 (every class is invariant under translation) and optimal subgradients s_j*
+(sum 0): each function is replaced by its tilted version
+
+    h_j(z) = f_j(z) - f_j* - <s_j*, z - x*> >= 0,   ∂h_j(z) = ∂f_j(z) - s_j*,
+
+minimal (0) at x* with subgradient 0 there, so that every call sees the seed's setting
+(Taylor, Van Scoy, Lessard 2018): its input deviation u~ = u - s_j* is a subgradient of
+h_j, every function value h_j >= 0, and the dynamics of the deviations are linear
+because the fixed point exists for every x* and s* (:mod:`sosalgo.oracles`). A class
+whose interpolation inequalities are invariant under adding linear functions (smooth,
+convex, strongly convex) gives h_j the same inequalities; a class that is not (indicators)
+gives its ``tilted`` inequalities (:meth:`sosalgo.classes.base.FunctionClass.tilted`).
+The measures are exact in these terms: sum_j f_j(x) - f_j* = sum_j h_j(x) (the s_j* sum to
+0) and |x - x*|^2. The Lyapunov function, lag l,
+
+    V_k = z_k' P z_k + sum_{t=0..l} sum_i p_{t,i} h_{j(i)}(y_{k-t,i}) + c sum_j h_j(x_k),
+
+z_k = (xi_k - xi*, u~_k, ..., u~_{k-l}); c is present only when some function is evaluated
+at the output point beside the calls (``measure: function``, a smooth function there, with
+a free subgradient). Conditions (D), (Df), (P), (Pf) as in
+:mod:`sosalgo.certificates.interpolation`, with the class's inequalities between all
+ordered pairs of points of each function: its calls in the window, its optimal point
+(0, 0, 0) and, for ``measure: function``, the output point. ``measure: function`` puts
+sum_j h_j(x_l) in (Pf), ``measure: distance`` puts |x_l|^2 in (P).
+
+Units: the inputs are scaled by s = L (u = s u~, psi = s psi~) and each inequality by its
+largest coefficient, for the solver; :func:`unpack` returns original units.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from sosalgo.certificates.base import AffineBlock, LMIProblem
+
+__all__ = ["CompositeStructure", "composite_problem", "composite_parts", "composite_structure"]
+
+
+@dataclass
+class _Point:
+    func: int
+    label: str
+    x: np.ndarray  # row on w: the point minus x*
+    g: np.ndarray  # row on w: the subgradient, in units of s
+    psi: int | None  # its psi in phi (None: the optimum or a zero-valued class)
+
+
+@dataclass
+class CWindow:
+    """Row maps, Lyapunov selections, inequalities and measure of one window."""
+
+    width: int
+    nphi: int
+    Z: dict[int, np.ndarray]
+    F: dict[int, np.ndarray]
+    labels: list[str]
+    Mq: np.ndarray  # (k, width, width) quadratic parts of the inequalities
+    mq: np.ndarray  # (k, nphi) their parts on phi
+    sigma: np.ndarray  # (k,) the scale each inequality was divided by
+    meas_lin: np.ndarray  # (nphi,) the measure at time l (positivity window)
+    meas_quad: np.ndarray  # (width, width)
+
+
+@dataclass
+class CompositeStructure:
+    n: int
+    p: int
+    lag: int
+    npi: int
+    has_c: bool
+    dec: CWindow
+    pos: CWindow
+
+    @property
+    def nz(self) -> int:
+        return self.n + self.p * (self.lag + 1)
+
+
+def _layout(om: Any, steps: int, lag: int) -> tuple[list[int], list[int], int]:
+    """(output times, functions evaluated at the output beside the calls, width)."""
+    J = len(om.functions)
+    x_times: list[int] = []
+    extra: list[int] = []
+    if om.measure == "function":
+        x_times = [t for t in (steps - 2, steps - 1) if t >= lag]
+        out_f = None if om.output is None else om.oracles[om.output]
+        extra = [j for j in range(J) if j != out_f]
+    width = om.n + om.p * steps + len(extra) * len(x_times)
+    return x_times, extra, width
+
+
+def _points(om: Any, steps: int, lag: int, s: float):
+    """Rows of the window (Xi, U, Y, output rows, S rows) and the points of each function."""
+    n, p, J = om.n, om.p, len(om.functions)
+    x_times, extra, width = _layout(om, steps, lag)
+    eye = np.eye(width)
+    U = [eye[n + p * t: n + p * (t + 1)] for t in range(steps)]
+    Xi = [eye[:n]]
+    for t in range(steps - 1):
+        Xi.append(om.A @ Xi[t] + (s * om.B) @ U[t])
+    Y = [om.C @ Xi[t] + (s * om.D) @ U[t] for t in range(steps)]
+    out = {t: (Y[t][om.output] if om.output is not None else (om.E @ Xi[t])[0])
+           for t in range(steps)}
+    pts: list[list[_Point]] = [[] for _ in range(J)]
+    npsi = 0
+    for t in range(steps):
+        for i, j in enumerate(om.oracles):
+            pts[j].append(_Point(j, f"y{i + 1}[{t}]", Y[t][i], U[t][i], npsi))
+            npsi += 1
+    k = n + p * steps
+    for t in x_times:
+        for j in extra:
+            pts[j].append(_Point(j, f"x[{t}]", out[t], eye[k], npsi))
+            npsi += 1
+            k += 1
+    for j in range(J):
+        pts[j].append(_Point(j, "*", np.zeros(width), np.zeros(width), None))
+    return {"Xi": Xi, "U": U, "out": out, "x_times": x_times, "width": width}, pts, npsi
+
+
+def _value(pt: _Point, nphi: int, s: float) -> np.ndarray:
+    """h_j(point) on phi: s psi~ (0 at the optimum)."""
+    lin = np.zeros(nphi)
+    if pt.psi is not None:
+        lin[pt.psi] = s
+    return lin
+
+
+def _inequalities(om: Any, pts: list, nphi: int, s: float, rescale: bool):
+    """Labels, quadratic and phi parts, scales of every (tilted) class inequality of every
+    ordered pair of points of one function."""
+    labels, Ms, ms, sig = [], [], [], []
+    gs = np.diag([1.0, 1.0, s, s])
+    width = len(pts[0][0].x)
+    for j, fn in enumerate(om.functions):
+        ineqs = fn.cls.tilted(fn.params)
+        vals = [_value(pt, nphi, s) for pt in pts[j]]
+        for a, pa in enumerate(pts[j]):
+            for b, pb in enumerate(pts[j]):
+                if a == b:
+                    continue
+                X = gs @ np.vstack([pa.x, pb.x, pa.g, pb.g])
+                for r, ineq in enumerate(ineqs):
+                    lin = ineq.alpha * (vals[a] - vals[b])
+                    quad = X.T @ ineq.Q @ X
+                    scale = max(float(np.abs(lin).max(initial=0.0)), float(np.abs(quad).max()))
+                    scale = scale if rescale and scale > 0 else 1.0
+                    tag = "" if len(ineqs) == 1 else f"#{r}"
+                    labels.append(f"{fn.name}:{pa.label}>{pb.label}{tag}")
+                    Ms.append(quad / scale)
+                    ms.append(lin / scale)
+                    sig.append(scale)
+    return (labels, np.array(Ms).reshape(-1, width, width), np.array(ms).reshape(-1, nphi),
+            np.array(sig))
+
+
+def _window(om: Any, lag: int, steps: int, s: float, rescale: bool) -> CWindow:
+    rows, pts, nphi = _points(om, steps, lag, s)
+    Xi, U = rows["Xi"], rows["U"]
+    labels, Mq, mq, sigma = _inequalities(om, pts, nphi, s, rescale)
+    valued = range(om.p)
+    psi_of = {pt.label: pt.psi for fp in pts for pt in fp if pt.psi is not None}
+    Z, F = {}, {}
+    for t in range(lag, steps):
+        Z[t] = np.vstack([Xi[t]] + [U[t - tau] for tau in range(lag + 1)])
+        sel = [[psi_of[f"y{i + 1}[{t - tau}]"]] for tau in range(lag + 1) for i in valued]
+        xs = [pt.psi for fp in pts for pt in fp if pt.label == f"x[{t}]"]
+        if any(pt.label.startswith("x[") for fp in pts for pt in fp):
+            sel.append(xs)
+        Ft = np.zeros((len(sel), nphi))
+        for r, cols in enumerate(sel):
+            Ft[r, cols] = 1.0
+        F[t] = Ft
+    meas_lin, meas_quad = _measure(om, pts, rows, steps - 1, nphi, s)
+    return CWindow(rows["width"], nphi, Z, F, labels, Mq, mq, sigma, meas_lin, meas_quad)
+
+
+def _measure(om: Any, pts: list, rows: dict, t: int, nphi: int,
+             s: float) -> tuple[np.ndarray, np.ndarray]:
+    """The measure at time t, divided by its unit (s for function values)."""
+    if om.measure == "distance":
+        xo = rows["out"][t]
+        return np.zeros(nphi), np.outer(xo, xo)
+    lin = np.zeros(nphi)
+    here = {f"x[{t}]"} | ({f"y{om.output + 1}[{t}]"} if om.output is not None else set())
+    for fp in pts:
+        for pt in fp:
+            if pt.label in here:
+                lin = lin + _value(pt, nphi, s) / s
+    return lin, np.zeros((rows["width"], rows["width"]))
+
+
+def composite_structure(om: Any, lag: int, s: float = 1.0,
+                        rescale: bool = False) -> CompositeStructure:
+    """Both windows of an oracle method for lag ``lag`` (units s; see the module)."""
+    dec = _window(om, lag, lag + 2, s, rescale)
+    pos = _window(om, lag, lag + 1, s, rescale)
+    npi = pos.F[lag].shape[0]
+    has_c = npi > om.p * (lag + 1)
+    return CompositeStructure(om.n, om.p, lag, npi, has_c, dec, pos)
+
+
+def _sym_basis(n: int) -> list[tuple[int, int]]:
+    return [(i, j) for i in range(n) for j in range(i, n)]
+
+
+def _unit_quads(Z: np.ndarray, pairs: list[tuple[int, int]]) -> np.ndarray:
+    ia, ib = np.array(pairs).T
+    out = Z[ia][:, :, None] * Z[ib][:, None, :]
+    off = ia != ib
+    out[off] = out[off] + out[off].transpose(0, 2, 1)
+    return out
+
+
+def _layout_x(st: CompositeStructure) -> dict[str, slice]:
+    nP = st.nz * (st.nz + 1) // 2
+    k1 = nP + st.npi
+    k2 = k1 + len(st.dec.labels)
+    return {"P": slice(0, nP), "pi": slice(nP, k1), "eta": slice(k1, k2),
+            "lam": slice(k2, k2 + len(st.pos.labels))}
+
+
+def _blocks(st: CompositeStructure, lay: dict[str, slice]) -> list[AffineBlock]:
+    """(D), (P) and the scalar rows, as in the seed's interpolation family; the measure is
+    the constant of (P) (distance) or of (Pf) (function values)."""
+    d, p, lag = st.dec, st.pos, st.lag
+    pairs = _sym_basis(st.nz)
+    nvar, nP = lay["lam"].stop, len(pairs)
+    sD, sP = d.width, p.width
+    D0, D1, P0 = np.zeros((nvar, sD, sD)), np.zeros((nvar, sD, sD)), np.zeros((nvar, sP, sP))
+    D0[:nP] = _unit_quads(d.Z[lag + 1], pairs)
+    D1[:nP] = -_unit_quads(d.Z[lag], pairs)
+    P0[:nP] = -_unit_quads(p.Z[lag], pairs)
+    D0[lay["eta"]] = d.Mq
+    P0[lay["lam"]] = p.Mq
+    zero_s = np.zeros((sP, sP))
+    blocks = [AffineBlock("decrease", np.zeros((sD, sD)), np.zeros((sD, sD)), D0, D1),
+              AffineBlock("positivity", p.meas_quad, zero_s, P0, np.zeros_like(P0))]
+    one, zero = np.zeros((1, 1)), np.zeros((nvar, 1, 1))
+    zero.flags.writeable = False
+    nmult = nvar - lay["eta"].start
+    S0 = np.zeros((d.nphi + p.nphi + nmult, nvar))
+    S1 = np.zeros((d.nphi, nvar))
+    S0[: d.nphi, lay["pi"]] = d.F[lag + 1].T
+    S1[:, lay["pi"]] = -d.F[lag].T
+    S0[: d.nphi, lay["eta"]] = d.mq.T
+    S0[d.nphi: d.nphi + p.nphi, lay["pi"]] = -p.F[lag].T
+    S0[d.nphi: d.nphi + p.nphi, lay["lam"]] = p.mq.T
+    S0[d.nphi + p.nphi + np.arange(nmult), lay["eta"].start + np.arange(nmult)] = -1.0
+    col0, col1 = S0[:, :, None, None], S1[:, :, None, None]
+    for q in range(d.nphi):
+        blocks.append(AffineBlock(f"decrease-f[{q}]", one, one, col0[q], col1[q]))
+    for q in range(p.nphi):
+        blocks.append(AffineBlock(f"positivity-f[{q}]", np.full((1, 1), p.meas_lin[q]), one,
+                                  col0[d.nphi + q], zero, strict=False))
+    for k in range(nmult):
+        blocks.append(AffineBlock(f"mult[{k}]", one, one, col0[d.nphi + p.nphi + k], zero,
+                                  strict=False))
+    blocks.append(AffineBlock("normalization", -np.ones((1, 1)), one, zero, zero))
+    return blocks
+
+
+def composite_problem(om: Any, lag: int, family: str = "interpolation") -> LMIProblem:
+    """Affine blocks in x = (P_ab (a <= b), p, c, eta, lambda) for an oracle method, built in
+    units s = L with each inequality scaled; ``unpack`` returns original units."""
+    s = float(om.L)
+    st = composite_structure(om, lag, s, rescale=True)
+    lay = _layout_x(st)
+    blocks = _blocks(st, lay)
+    p = st.pos
+    Fp = p.F[lag]
+
+    def project(x: np.ndarray) -> np.ndarray:
+        x = np.array(x, dtype=float)
+        x[lay["eta"]] = np.maximum(x[lay["eta"]], 0.0)
+        x[lay["lam"]] = np.maximum(x[lay["lam"]], 0.0)
+        lam, pi = x[lay["lam"]], x[lay["pi"]]
+        for q in range(p.nphi):  # raise p (or c) until positivity-f[q] holds exactly
+            owners = np.flatnonzero(Fp[:, q])
+            if not len(owners):
+                continue
+            terms = lam * p.mq[:, q]
+            need = float(p.meas_lin[q]) + float(np.sum(terms))
+            need += 1e-13 * (1.0 + float(np.sum(np.abs(terms))))
+            pi[owners[0]] = max(pi[owners[0]], need)
+        x[lay["pi"]] = pi
+        return x
+
+    def unpack(x: np.ndarray) -> dict[str, Any]:
+        return _unpack(st, lay, s, om.measure, family, x)
+
+    return LMIProblem(lay["lam"].stop, tuple(blocks), unpack, project)
+
+
+def _unpack(st: CompositeStructure, lay: dict[str, slice], s: float, measure: str,
+            family: str, x: np.ndarray) -> dict[str, Any]:
+    """Original units: u = s u~ gives P = v Dz P~ Dz (Dz = diag(I_n, I/s)), p = v p~ / s and
+    multipliers v mult~ / sigma, v = s for function values (V = s V~), 1 for distance."""
+    v = s if measure == "function" else 1.0
+    Pn = np.zeros((st.nz, st.nz))
+    for k, (a, b) in enumerate(_sym_basis(st.nz)):
+        Pn[a, b] = Pn[b, a] = x[lay["P"]][k]
+    dz = np.concatenate([np.ones(st.n), np.full(st.nz - st.n, 1.0 / s)])
+    pi = [float(t) * v / s for t in x[lay["pi"]]]
+    npv = st.npi - (1 if st.has_c else 0)
+
+    def mult(labels: list[str], vals: np.ndarray, sig: np.ndarray) -> dict[str, float]:
+        return {lab: float(t) * v / g for lab, t, g in zip(labels, vals, sig, strict=True)}
+
+    return {
+        "family": family, "lag": st.lag, "measure": measure, "inputs": st.p,
+        "P": v * (dz[:, None] * Pn * dz[None, :]),
+        "p": pi[:npv], "c": pi[npv] if st.has_c else None,
+        "multipliers": {"decrease": mult(st.dec.labels, x[lay["eta"]], st.dec.sigma),
+                        "positivity": mult(st.pos.labels, x[lay["lam"]], st.pos.sigma)},
+    }
+
+
+def composite_parts(om: Any, rho: float, cert: dict[str, Any]) -> dict[str, np.ndarray]:
+    """(D, Df, Pq, Pf) at a certificate in original units: D ⪯ 0, Df <= 0, Pq ⪰ 0, Pf >= 0
+    prove the rate (see the module docstring)."""
+    st = composite_structure(om, int(cert["lag"]))
+    d, p, lag, r = st.dec, st.pos, st.lag, rho ** 2
+    P = np.asarray(cert["P"], dtype=float)
+    pi = np.array(list(cert["p"]) + ([cert["c"]] if st.has_c else []), dtype=float)
+    eta = np.array([cert["multipliers"]["decrease"][k] for k in d.labels])
+    lam = np.array([cert["multipliers"]["positivity"][k] for k in p.labels])
+    Z1, Z0, Zp = d.Z[lag + 1], d.Z[lag], p.Z[lag]
+    D = Z1.T @ P @ Z1 - r * (Z0.T @ P @ Z0) + np.tensordot(eta, d.Mq, axes=1)
+    Df = d.F[lag + 1].T @ pi - r * (d.F[lag].T @ pi) + eta @ d.mq
+    Pq = Zp.T @ P @ Zp - np.tensordot(lam, p.Mq, axes=1) - p.meas_quad
+    Pf = p.F[lag].T @ pi - p.meas_lin - lam @ p.mq
+    return {"D": D, "Df": Df, "Pq": Pq, "Pf": Pf}

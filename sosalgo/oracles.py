@@ -1,0 +1,262 @@
+"""The oracle model: several oracle calls per iteration, the feedthrough D, the output.
+
+A method on the problem min_x sum_j f_j(x) (each f_j in its class, :mod:`sosalgo.classes`)
+is, in reduced d = 1 templates (``⊗ I_d`` implied),
+
+    xi_{k+1} = A xi_k + B u_k,   y_k = C xi_k + D u_k,   u_{k,i} in ∂f_{j(i)}(y_{k,i}),
+
+with p calls per iteration (B n x p, C p x n, D p x p lower triangular). A diagonal entry
+D_ii = -t (t >= 0) makes call i a proximal step: y_i = v_i - t u_i with u_i in ∂f(y_i)
+means y_i = prox_{t f}(v_i), v_i the rest of row i. The output is x_k = E xi_k, or the
+point y_{k,i} of one call (``output: y<i>``).
+
+Optimality: x* minimizes the sum iff 0 = sum_j s_j* with s_j* in ∂f_j(x*). The method must
+have every such point as a fixed point with every y_i* = x*: for all x* and all s* with
+sum_j s_j* = 0 there is xi* with xi* = A xi* + B u*, C xi* + D u* = x*, E xi* = x*, where
+u*_i = s*_{j(i)} (every call to f_j returns s_j*). Everything is linear, so this is checked
+on a basis: x* = 1 with s* = 0, and x* = 0 with each free direction of s* (J - 1 of them for
+J functions; none for one function).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sosalgo.classes import CLASSES, FunctionClass
+from sosalgo.errors import ModelError
+from sosalgo.spec.types import Spec, SpecError
+
+__all__ = ["BoundFunction", "OracleMethod", "check_oracle_spec", "composite_quadratic_rate",
+           "fixed_point_basis"]
+
+FIXED_POINT_TOL = 1e-8
+
+
+@dataclass(frozen=True)
+class BoundFunction:
+    """One function of the problem: its name, class and numeric parameters."""
+
+    name: str
+    cls: FunctionClass
+    params: dict[str, float]
+
+
+@dataclass(frozen=True)
+class OracleMethod:
+    """A numeric method of the oracle model (see the module docstring).
+
+    ``oracles[i]`` is the index in ``functions`` of the function call i queries; ``output``
+    the call whose point is the output (None: x = E xi); ``m``, ``L`` the spec's (they set
+    kappa and the units of the certificate). Checked on creation (:class:`ModelError`).
+    """
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    E: np.ndarray | None
+    m: float
+    L: float
+    functions: tuple[BoundFunction, ...]
+    oracles: tuple[int, ...]
+    output: int | None = None
+    measure: str = "function"
+    params: dict[str, float] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        for k in ("A", "B", "C", "D", "E"):
+            val = getattr(self, k)
+            if val is None:
+                continue
+            arr = np.array(val, dtype=float, ndmin=2)
+            if not np.all(np.isfinite(arr)):
+                raise ModelError(f"matrices.{k}", "entries must be finite")
+            object.__setattr__(self, k, arr)
+        n, p = self.A.shape[0], len(self.oracles)
+        shapes = {"A": (n, n), "B": (n, p), "C": (p, n), "D": (p, p), "E": (1, n)}
+        for k, shape in shapes.items():
+            val = getattr(self, k)
+            if val is not None and val.shape != shape:
+                raise ModelError(f"matrices.{k}", f"must be {shape[0]}x{shape[1]}")
+        if (self.E is None) == (self.output is None):
+            raise ModelError("matrices.E", "give E or output, not both")
+        self._check_calls()
+        for fn in self.functions:
+            try:
+                fn.cls.check(fn.params)
+            except ValueError as exc:
+                raise ModelError(f"functions.{fn.name}.{exc}".split(": ", 1)[0],
+                                   str(exc).split(": ", 1)[-1]) from None
+        if fixed_point_basis(self) is None:
+            raise ModelError("matrices", "the optimal point is not a fixed point: need xi* "
+                               "with xi* = A xi* + B u*, C xi* + D u* = x* (every call at x*), "
+                               "E xi* = x*, for every x* and optimal subgradients s_j* "
+                               "summing to 0 (u*_i = s* of the function call i queries)")
+
+    def _check_calls(self) -> None:
+        D = self.D
+        if np.any(np.triu(D, 1) != 0):
+            i, j = np.argwhere(np.triu(D, 1) != 0)[0]
+            raise ModelError(f"matrices.D[{i}][{j}]", "D must be lower triangular (call "
+                               f"{i + 1} can only use calls 1..{i + 1})")
+        for i, t in enumerate(-np.diag(D)):
+            if t < 0:
+                raise ModelError(f"matrices.D[{i}][{i}]", "a diagonal entry must be -t with "
+                                   f"t >= 0 (a proximal step), got {-t:g}")
+
+    @property
+    def kappa(self) -> float:
+        return self.L / self.m
+
+    @property
+    def n(self) -> int:
+        return int(self.A.shape[0])
+
+    @property
+    def p(self) -> int:
+        return len(self.oracles)
+
+    def optimal_map(self) -> np.ndarray:
+        """S (p x (J - 1)): u* = S s~ for the free optimal subgradients s~ = (s_1*, ...,
+        s_{J-1}*), s_J* = -(s_1* + ... + s_{J-1}*)."""
+        J = len(self.functions)
+        S = np.zeros((self.p, max(J - 1, 0)))
+        for i, j in enumerate(self.oracles):
+            if j < J - 1:
+                S[i, j] = 1.0
+            else:
+                S[i, :] = -1.0
+        return S
+
+    def output_row(self) -> tuple[np.ndarray, np.ndarray]:
+        """(row on xi, row on u) of the output point x = E xi or y_i = C_i xi + D_i u."""
+        if self.output is None:
+            assert self.E is not None
+            return self.E[0], np.zeros(self.p)
+        return self.C[self.output], self.D[self.output]
+
+
+def fixed_point_basis(om: OracleMethod, tol: float = FIXED_POINT_TOL) -> np.ndarray | None:
+    """xi* for x* = 1, s* = 0 and for x* = 0 with each free optimal subgradient (columns),
+    or None when one of them does not exist (least squares, relative residual ``tol``)."""
+    n, p = om.n, om.p
+    S = om.optimal_map()
+    erow, drow = om.output_row()
+    lhs = np.vstack([np.eye(n) - om.A, om.C, erow[None, :]])
+    rhs = np.zeros((n + p + 1, 1 + S.shape[1]))
+    rhs[n:, 0] = 1.0
+    if S.shape[1]:
+        rhs[:n, 1:] = om.B @ S
+        rhs[n: n + p, 1:] = -om.D @ S
+        rhs[n + p, 1:] = -(drow @ S)
+    with np.errstate(all="ignore"):
+        X, *_ = np.linalg.lstsq(lhs, rhs, rcond=None)
+        resid = np.linalg.norm(lhs @ X - rhs)
+        scale = 1.0 + np.linalg.norm(lhs) * np.linalg.norm(X) + np.linalg.norm(rhs)
+    return X if resid <= tol * scale else None
+
+
+def check_oracle_spec(spec: Spec, fail: Callable[[str, str], SpecError]) -> None:
+    """The checks that need no numbers: D lower triangular, each call's kind (a zero
+    diagonal entry of D: (sub)gradient; any other: proximal step) answered by the class of
+    the function it queries, and ``measure: function`` only where every f_j(x_k) exists."""
+    D = spec.matrices.get("D")
+    for i, fname in enumerate(spec.oracles):
+        cls = CLASSES[spec.functions[fname].cls]
+        diag = None if D is None else D[i][i]
+        if D is not None:
+            for j in range(i + 1, spec.p):
+                if not _is_zero(D[i][j]):
+                    raise fail(f"matrices.D[{i}][{j}]", "D must be lower triangular (call "
+                               f"{i + 1} can only use calls 1..{i + 1})")
+        if diag is not None and diag.is_constant and _value(diag) > 0:
+            raise fail(f"matrices.D[{i}][{i}]", "a diagonal entry must be -t with t >= 0 (a "
+                       f"proximal step), got {_value(diag):g}")
+        prox = diag is not None and not _is_zero(diag)
+        if prox and not cls.proximal:
+            raise fail(f"matrices.D[{i}][{i}]", f"a proximal step on {fname}, whose class "
+                       f"{cls.name} has no proximal oracle")
+        if not prox and not cls.explicit:
+            raise fail(f"oracles[{i}]", f"{fname} ({cls.name}) answers proximal steps only: "
+                       f"make D[{i}][{i}] = -t")
+    if spec.measure == "function":
+        _check_measure(spec, fail)
+
+
+def _check_measure(spec: Spec, fail: Callable[[str, str], SpecError]) -> None:
+    at_output = None if spec.output is None else spec.oracles[spec.output]
+    for fname, decl in spec.functions.items():
+        cls = CLASSES[decl.cls]
+        if fname != at_output and not cls.finite_everywhere:
+            where = "E xi" if spec.output is None else f"y{spec.output + 1}"
+            raise fail("measure", f"function: {fname} ({cls.name}) is not evaluated at the "
+                       f"output {where}; use output: y<i> (a call to {fname}) or "
+                       "measure: distance")
+
+
+def _is_zero(e) -> bool:
+    return bool(e.is_constant and _value(e) == 0)
+
+
+def _value(e) -> float:
+    from sosalgo.expr import constant_value
+
+    return constant_value(e)
+
+
+def bind_functions(spec: Spec, values: list[float]) -> tuple[BoundFunction, ...]:
+    """The spec's functions with their parameters at (m, L, kappa) = ``values``."""
+    from sosalgo.expr.compile import NumericError, compile_expression
+    from sosalgo.spec.types import BASE_NAMES
+
+    out = []
+    for fname, decl in spec.functions.items():
+        params = {}
+        for key, expr in decl.params.items():
+            try:
+                params[key] = float(compile_expression(expr, BASE_NAMES)(values))
+            except NumericError as exc:
+                raise ModelError(f"functions.{fname}.{key}", str(exc)) from None
+        out.append(BoundFunction(fname, CLASSES[decl.cls], params))
+    return tuple(out)
+
+
+def make_method(spec: Spec, mats: Mapping[str, np.ndarray], m: float, L: float,
+                kappa: float, params: dict[str, float]) -> OracleMethod:
+    """The :class:`OracleMethod` of a spec from its numeric matrices."""
+    names = list(spec.functions)
+    D = mats.get("D", np.zeros((spec.p, spec.p)))
+    return OracleMethod(mats["A"], mats["B"], mats["C"], D, mats.get("E"), m, L,
+                        bind_functions(spec, [m, L, kappa]),
+                        tuple(names.index(f) for f in spec.oracles), spec.output,
+                        spec.measure, params)
+
+
+def composite_quadratic_rate(om: OracleMethod, points: int = 201) -> float:
+    """A lower bound of every rate: the largest spectral radius of the closed loop when
+    every f_j is a quadratic (q_j/2)|x|^2 of its class (grid over each class's curvature
+    interval; u = Q y, so u = (I - Q D)^-1 Q C xi). 0 when a class has no quadratic."""
+    grids = []
+    for fn in om.functions:
+        cur = fn.cls.curvatures(fn.params)
+        if cur is None:
+            return 0.0
+        lo, hi = cur
+        grids.append(np.linspace(lo, hi, points) if hi > lo else np.array([lo]))
+    if sum(len(g) > 1 for g in grids) > 1:  # several intervals: a coarser product grid
+        grids = [g if len(g) == 1 else np.linspace(g[0], g[-1], 21) for g in grids]
+    best = 0.0
+    eye = np.eye(om.p)
+    for qs in np.array(np.meshgrid(*grids, indexing="ij")).reshape(len(grids), -1).T:
+        Q = np.diag([qs[j] for j in om.oracles])
+        try:
+            K = np.linalg.solve(eye - Q @ om.D, Q @ om.C)
+        except np.linalg.LinAlgError:
+            continue
+        best = max(best, float(np.abs(np.linalg.eigvals(om.A + om.B @ K)).max()))
+    return best
+
+
