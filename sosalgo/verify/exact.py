@@ -49,7 +49,7 @@ from mpmath import libmp
 
 from sosalgo.expr.parse import to_sympy
 from sosalgo.model import bind, fixed_point
-from sosalgo.spec.types import BASE_SYMBOLS, MATRIX_NAMES, Spec, value_order
+from sosalgo.spec.types import BASE_SYMBOLS, MATRIX_NAMES, ORACLE_MATRIX_NAMES, Spec, value_order
 
 __all__ = [
     "Ball",
@@ -468,7 +468,8 @@ def exact_algorithm(
     spec: Spec, kappa: float | Fraction, theta: Mapping[str, float] | None = None,
     digits: int = DEFAULT_DIGITS,
 ) -> ExactAlgorithm:
-    """Exact templates A, B, C, E (eq. 10) at rational kappa, m = spec.m, L = kappa m."""
+    """Exact templates A, B, C, E (eq. 10; and D where the spec has one) at rational kappa,
+    m = spec.m, L = kappa m."""
     kq = rational(kappa)
     if not kq > 1:
         raise ValueError(f"condition number must be > 1, got {kappa}")
@@ -502,7 +503,8 @@ def exact_algorithm(
         values[spec.symbols[p]] = val
     mats: dict[str, sp.Matrix] = {}
     balls: dict[str, BallMatrix] = {}
-    for k in MATRIX_NAMES:
+    # A, B, C, E; on the oracle model also D, and no E with ``output: y<i>``
+    for k in (k for k in ORACLE_MATRIX_NAMES if k in spec.sympy_matrices()):
         mat = spec.sympy_matrices()[k].xreplace(values)
         mats[k] = mat
         balls[k] = [[enclose(mat[i, j], digits) for j in range(mat.shape[1])]
