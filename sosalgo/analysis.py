@@ -44,8 +44,8 @@ from sosalgo.solvers import (
 from sosalgo.spec import Spec
 
 __all__ = [
-    "AnalysisResult", "analyze_algorithm", "analyze_spec", "DEFAULT_TOL", "quadratic_rate",
-    "spec_family",
+    "AnalysisResult", "SublinearResult", "analyze_algorithm", "analyze_spec",
+    "analyze_sublinear", "DEFAULT_TOL", "quadratic_rate", "spec_family",
 ]
 
 DEFAULT_TOL = 1e-6
@@ -91,6 +91,7 @@ class AnalysisResult:
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict (the `rows` entries of ``sosalgo analyze --json``)."""
         return {
+            "rate_type": "linear",
             "kappa": self.kappa,
             "rho": self.rho,
             "certified": self.certified,
@@ -687,3 +688,135 @@ def quadratic_rate(alg: Algorithm, points: int = 2001) -> float:
     qs = np.linspace(alg.m, alg.L, points)
     mats = alg.A[None, :, :] + qs[:, None, None] * (alg.B @ alg.C)[None, :, :]
     return float(np.abs(np.linalg.eigvals(mats)).max())
+
+
+# --------------------------------------------------------------------------- sublinear rates
+SUBLINEAR_SLACK = (1e-6, 1e-5, 1e-4, 1e-3, 1e-2)  # C tried at C*(1 + slack) until checked
+FLOAT_CHECK = "floating-point check"
+
+
+@dataclass(frozen=True)
+class SublinearResult:
+    """Smallest constant c certified in measure(x_k) <= c |x_0 - x*|^2 / k, k >= 1 (None
+    when no certificate passed the check), its certificate and how it was checked."""
+
+    L: float
+    constant: float | None
+    certified: bool
+    solves: int
+    seconds: float
+    solver: str | None
+    constant_estimate: float | None = None  # the solver's optimum (not itself checked)
+    params: dict[str, float] = field(default_factory=dict)
+    certificate: dict[str, Any] | None = None
+    check: dict[str, float] | None = None  # largest eigenvalue of each block, residual
+    measure: str = "function"
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dict (``rate_type: sublinear``)."""
+        return {"rate_type": "sublinear", "constant": self.constant,
+                "certified": self.certified, "L": self.L, "measure": self.measure,
+                "constant_estimate": self.constant_estimate, "solves": self.solves,
+                "seconds": self.seconds, "solver": self.solver, "params": dict(self.params),
+                "check_kind": FLOAT_CHECK if self.certified else None,
+                "check": self.check, "certificate": jsonable(self.certificate),
+                "family": "sublinear"}
+
+
+def _sublinear_sdp(problem: LMIProblem, rho: float | None) -> tuple[str, np.ndarray | None]:
+    """One Clarabel solve of the blocks without margin: minimize r (= rho^2, a variable)
+    when ``rho`` is None, else a feasibility point at rho (the solver's interior point).
+    Returns (status, (y, r)) with y, r only when solved."""
+    import clarabel
+    import scipy.sparse as sps
+
+    form = _solvers._form(problem, True)
+    A, b = form.data(0.0 if rho is None else rho, 0.0)
+    A, b = A.copy(), b.copy()
+    q = np.zeros(problem.nvar)
+    if rho is None:  # b(r) = b0 + r b1: move r into the variables
+        A = sps.hstack([A, sps.csc_matrix(-form.b1[:, None])]).tocsc()
+        q = np.zeros(problem.nvar + 1)
+        q[-1] = 1.0
+    cones = [clarabel.NonnegativeConeT(1) if s == 1 else clarabel.PSDTriangleConeT(s)
+             for s in form.sizes]
+    zero = sps.csc_matrix((len(q), len(q)))
+    try:
+        sol = clarabel.DefaultSolver(zero, q, A, b, cones,
+                                     _solvers._clarabel_settings(True)).solve()
+    except Exception as exc:  # noqa: BLE001 - a crash is no answer
+        return f"exception: {type(exc).__name__}", None
+    status = str(sol.status)
+    if _solvers.solver_status(status) != _solvers.SolverStatus.SOLVED:
+        return status, None
+    return status, np.array(sol.x)
+
+
+def _tight_rows(data: Any, sp: Any, y: np.ndarray) -> frozenset[int]:
+    """Scalar rows (and multipliers) at 0 at the solver's interior point: every
+    certificate has them at 0, so they are solved for as equalities."""
+    x = sp.x0 + sp.N @ y
+    vals = np.array([c + row @ x for _, c, row in data.rows])
+    scale = max(1.0, float(np.abs(x).max()))
+    return frozenset(np.flatnonzero(vals >= -1e-7 * scale).tolist())
+
+
+def _certify_constant(data: Any, r_star: float, solvers: Sequence[str],
+                      count: list[int]) -> tuple[float, Any, Outcome] | None:
+    """(r, problem, checked outcome) at the first r = r*(1 + slack) whose strict problem
+    passes the floating-point check; the rows and block directions at 0 at the solver's
+    interior point (0 for every certificate) are solved for as equalities first."""
+    from sosalgo.certificates.sublinear import block_kernels, sublinear_problem
+
+    for slack in SUBLINEAR_SLACK:
+        r = r_star * (1.0 + slack)
+        tight: frozenset[int] = frozenset()
+        kernels: dict[str, np.ndarray] = {}
+        for _ in range(3):  # each round: the interior point, its zeros, the strict check
+            sp = sublinear_problem(data, tight, kernels, r)
+            status, z = _sublinear_sdp(sp.problem, math.sqrt(r))
+            count[0] += 1
+            if z is None:
+                break
+            x = sp.x0 + sp.N @ z
+            tight, kernels = tight | _tight_rows(data, sp, z), block_kernels(data, x, r)
+            sp = sublinear_problem(data, tight, kernels, r)
+            out = solve_lmi(sp.problem, math.sqrt(r), solvers)
+            count[0] += 1
+            if out.feasible:
+                return r, sp, out
+    return None
+
+
+def analyze_sublinear(spec: Spec, theta: Mapping[str, float] | None = None,
+                      solvers: Sequence[str] = DEFAULT_SOLVERS) -> SublinearResult:
+    """Smallest constant c certified by a potential with weights affine in k
+    (:mod:`sosalgo.certificates.sublinear`) for a sublinear spec (``m: 0``, L given):
+    the SDP minimizes c, then c (1 + slack) is solved with a strict margin and its point
+    checked in floating point; a solver status other than solved certifies nothing."""
+    from sosalgo.certificates.sublinear import (
+        sublinear_data,
+        sublinear_parts,
+        sublinear_problem,
+    )
+    from sosalgo.oracles import bind_sublinear
+
+    start = time.perf_counter()
+    om = bind_sublinear(spec, theta)
+    data = sublinear_data(om)
+    status, z = _sublinear_sdp(sublinear_problem(data).problem, None)
+    count = [1]
+    base = dict(L=float(om.L), params=dict(om.params), measure=om.measure)
+    found = None if z is None or not z[-1] > 0 else _certify_constant(data, float(z[-1]),
+                                                                       solvers, count)
+    estimate = None if z is None else float(z[-1]) * data.s
+    if found is None:
+        return SublinearResult(constant=None, certified=False, solves=count[0],
+                               seconds=time.perf_counter() - start, solver=None,
+                               constant_estimate=estimate, **base)
+    r, sp, out = found
+    assert out.x is not None
+    return SublinearResult(constant=r * data.s, certified=True, solves=count[0],
+                           seconds=time.perf_counter() - start, solver=out.solver,
+                           constant_estimate=estimate, certificate=sp.problem.unpack(out.x),
+                           check=sublinear_parts(sp, out.x, r), **base)

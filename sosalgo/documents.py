@@ -37,6 +37,10 @@ def read_result(path: str | Path) -> dict[str, Any]:
 def result_rows(doc: Mapping[str, Any], where: str = "result") -> list[dict[str, Any]]:
     """The rows of a document: its ``rows``, or the document itself (one design)."""
     rows = doc.get("rows", [doc] if "rho_certified" in doc else None)
+    if isinstance(rows, list) and any(isinstance(r, dict) and r.get("rate_type") == "sublinear"
+                                      for r in rows):
+        raise InputError(f"{where}: rows: sublinear results (m: 0) cannot be verified yet; "
+                         "their certificates carry a floating-point check only")
     if not isinstance(rows, list) or not all(isinstance(r, dict) and "kappa" in r for r in rows):
         raise InputError(f"{where}: rows: expected analyze or design results")
     return rows
@@ -113,3 +117,4 @@ def verify_document(result: str | Path | Mapping[str, Any], spec: Spec | str | P
         raise InputError(f"{where}: {exc}") from None
     return {"spec": chosen.name, "source": src, "results": checks,
             "notes": [] if note is None else [note]}
+

@@ -29,8 +29,8 @@ from sosalgo.classes import CLASSES, FunctionClass
 from sosalgo.errors import ModelError
 from sosalgo.spec.types import Spec, SpecError
 
-__all__ = ["BoundFunction", "OracleMethod", "check_oracle_spec", "composite_quadratic_rate",
-           "fixed_point_basis"]
+__all__ = ["BoundFunction", "OracleMethod", "bind_sublinear", "check_oracle_spec",
+           "composite_quadratic_rate", "fixed_point_basis"]
 
 FIXED_POINT_TOL = 1e-8
 
@@ -109,7 +109,8 @@ class OracleMethod:
 
     @property
     def kappa(self) -> float:
-        return self.L / self.m
+        """L / m (inf when m = 0: a sublinear spec has no condition number)."""
+        return self.L / self.m if self.m > 0 else float("inf")
 
     @property
     def n(self) -> int:
@@ -233,6 +234,27 @@ def make_method(spec: Spec, mats: Mapping[str, np.ndarray], m: float, L: float,
                         bind_functions(spec, [m, L, kappa]),
                         tuple(names.index(f) for f in spec.oracles), spec.output,
                         spec.measure, params)
+
+
+def bind_sublinear(spec: Spec, theta: Mapping[str, float] | None = None) -> OracleMethod:
+    """The :class:`OracleMethod` of a sublinear spec (``m: 0``, L given, no kappa) at its
+    parameter values (``theta`` overrides input parameters); ModelError names the field."""
+    from sosalgo.expr.compile import NumericError
+    from sosalgo.model import _compiled, parameter_values
+
+    if not spec.sublinear or spec.L is None:
+        raise ModelError("m", "not a sublinear spec (m: 0, L given)")
+    comp = _compiled(spec)
+    nan = float("nan")
+    params = parameter_values(spec, nan, theta)
+    values = [0.0, spec.L, nan] + [params[p] for p in comp.names]
+    mats = {}
+    for k, fn in comp.matrix_fns.items():
+        try:
+            mats[k] = fn(values)
+        except NumericError as exc:
+            raise ModelError(f"matrices.{k}", str(exc)) from None
+    return make_method(spec, mats, 0.0, spec.L, nan, params)
 
 
 def composite_quadratic_rate(om: OracleMethod, points: int = 201) -> float:

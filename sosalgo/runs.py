@@ -18,6 +18,7 @@ from sosalgo.batch.store import output_lock
 from sosalgo.errors import InputError
 from sosalgo.schema import analysis_csv, design_stem, grid_stem, rate_stem
 from sosalgo.spec import Spec
+from sosalgo.sublinear_run import refuse_sublinear
 
 __all__ = ["analyze_run", "design_run", "grid_run", "spec_with_text", "table1_run"]
 
@@ -63,11 +64,13 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
     from sosalgo.report import analysis as rep
 
     spec, text = spec_with_text(spec, spec_text)
+    if spec.sublinear:  # m: 0: one constant, no kappa (sosalgo.sublinear_run)
+        from sosalgo.sublinear_run import sublinear_run
+
+        return sublinear_run(spec, text, out_dir, plot, kappa, verify)
     kappas = _kappa_list(spec, kappa)
     inputs.check_tol(tol, "--tol")
     fams = inputs.select_families(spec, certificate, options)
-    if verify:
-        inputs.single_oracle(spec, "verify")
     inputs.check_kappa_points(spec, kappas)
     out = inputs.out_dir(out_dir)
     inputs.check_scheduler(scheduler)
@@ -133,7 +136,7 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
     from sosalgo.report import design as rep
 
     spec, text = spec_with_text(spec, spec_text)
-    inputs.single_oracle(spec, "design")
+    refuse_sublinear(spec, "design")
     fam = inputs.select_families(spec, certificate, options, single=True)[0]
     kappas = _kappa_list(spec, kappa)
     opts = _design_options(spec, kappas, free, fam, {
@@ -182,7 +185,7 @@ def grid_run(spec: Spec | str | Path, kappa: Kappas, out_dir: str | Path = "outp
     from sosalgo.schema import GRID_COLUMNS, grid_fixed
 
     spec, text = spec_with_text(spec, spec_text)
-    inputs.single_oracle(spec, "grid")
+    refuse_sublinear(spec, "grid")
     kappas = _kappa_list(spec, kappa)
     names = inputs.free_names(spec, free)
     if isinstance(points, bool) or not isinstance(points, int) or not 2 <= points <= 2000:
@@ -232,6 +235,7 @@ def table1_run(specs: Sequence[str | Path] = (), kappa: Sequence[float] = (),
         texts = {f"examples/{name}.yaml": f.read_text(encoding="utf-8")
                  for name, f in example_specs().items()}
     parsed = [spec_from_text(t, source=src) for src, t in texts.items()]
+    parsed = [s for s in parsed if not s.sublinear]  # no kappa, no linear rate (m: 0)
     if not parsed:
         raise InputError("--specs: no spec files given and none in specs/")
     kappas = [float(k) for k in kappa] or [2.0, 10.0, 100.0]

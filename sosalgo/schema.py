@@ -21,7 +21,7 @@ __all__ = [
     "ANALYSIS_COLUMNS", "CHECK_COLUMNS", "FAMILY_COLUMNS", "GRID_COLUMNS", "TABLE1_COLUMNS",
     "TABLE1_FILE", "analysis_columns", "analysis_csv", "certificate_name", "design_columns",
     "design_stem", "family_suffix", "grid_columns", "grid_fixed", "grid_stem", "kappa_label",
-    "p_columns", "rate_stem",
+    "p_columns", "rate_stem", "SUBLINEAR_COLUMNS", "sublinear_columns",
 ]
 
 # ---------------------------------------------------------------------------- printed tables
@@ -33,11 +33,16 @@ CHECK_COLUMNS = ["kappa", "rho", "verified", "rho_proven", "simulation", "reason
 TABLE1_COLUMNS = ["spec", "kappa", "rho_certified", "certified", "closed_form",
                   "closed_form_rate", "difference"]
 TABLE1_FILE = "table1.csv"
+# a sublinear spec's (m: 0) printed table and CSV: measure(x_k) <= constant |x_0 - x*|^2 / k
+SUBLINEAR_COLUMNS = ["L", "rate_type", "constant", "certified", "solves", "seconds"]
+_SUBLINEAR_CSV = ["L", "rate_type", "constant", "certified", "constant_estimate", "measure",
+                  "solves", "seconds", "solver", "check_kind", "check", "error",
+                  "certificate"]
 
 # ---------------------------------------------------------------------------- CSV columns
 _ANALYSIS_HEAD = ["kappa", "rho", "certified", "lambda"]
 _ANALYSIS_TAIL = ["max_eig_M", "min_eig_P", "solves", "seconds", "solver", "rho_infeasible",
-                  "error", "warning"]
+                  "error", "warning", "rate_type"]
 _GRID_HEAD = ["rho", "certified", "lambda"]
 _GRID_TAIL = ["max_eig_M", "min_eig_P", "solves", "seconds", "solver", "error"]
 _DESIGN_HEAD = ["kappa", "lower_bound", "rho_certified", "gap", "gap_met"]
@@ -64,6 +69,12 @@ def analysis_columns(spec: Spec, family: CertificateFamily | None = None) -> lis
     size), the spec's references, then the family's own columns."""
     ps, own = _family_parts(spec, family)
     return _ANALYSIS_HEAD + ps + _ANALYSIS_TAIL + list(spec.references) + own
+
+
+def sublinear_columns(spec: Spec) -> list[str]:
+    """CSV columns of ``sosalgo analyze`` on a sublinear spec: the constant and how it was
+    checked, the spec's references, the certificate (one JSON object)."""
+    return _SUBLINEAR_CSV + [f"param_{p}" for p in spec.parameters] + list(spec.references)
 
 
 def design_columns(spec: Spec, free: Sequence[str],

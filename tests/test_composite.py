@@ -130,9 +130,7 @@ def test_bad_oracle_specs_name_file_and_field(changes, field, message, tmp_path)
     assert not out.exists()
 
 
-@pytest.mark.parametrize("args", [["design"], ["grid", "--kappa", "10"],
-                                  ["analyze", "--verify"], ["analyze", "--certificate",
-                                                            "theorem1"]])
+@pytest.mark.parametrize("args", [["analyze", "--certificate", "theorem1"]])
 def test_unsupported_commands_exit_2_with_one_line(args, tmp_path):
     out = tmp_path / "out"
     spec = str(SPECS / "proximal-gradient.yaml")

@@ -146,6 +146,7 @@ def result_row(spec: Spec, res: AnalysisResult,
         "rho_infeasible": res.rho_infeasible,
         "error": None,
         "warning": res.warning,
+        "rate_type": "linear",
     }
     row.update(_certificate_cells(spec, family, res.kappa, res.P, res.certificate))
     return row
@@ -285,6 +286,7 @@ def csv_row_to_json(spec: Spec, row: dict[str, str],
         "rho_infeasible": _num(row.get("rho_infeasible", "")),
         "error": row.get("error") or None,
         "warning": row.get("warning") or None,
+        "rate_type": row.get("rate_type") or "linear",
         "references": {name: _num(row[name]) for name in spec.references},
     } | _family_json(spec, row, family, P)
 

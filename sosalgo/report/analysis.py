@@ -10,15 +10,17 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from sosalgo.batch.sweeps import reference_curves
 from sosalgo.certificates import CertificateFamily
 from sosalgo.model import bind
 from sosalgo.report import format_table, plot_rates
-from sosalgo.schema import ANALYSIS_COLUMNS, FAMILY_COLUMNS
+from sosalgo.schema import ANALYSIS_COLUMNS, FAMILY_COLUMNS, SUBLINEAR_COLUMNS
 from sosalgo.spec import Spec
 
 __all__ = ["ANALYSIS_COLUMNS", "FAMILY_COLUMNS", "analysis_figure", "analysis_table",
-           "attach_checks", "families_figure"]
+           "attach_checks", "families_figure", "sublinear_figure"]
 
 Run = tuple[CertificateFamily, Path, list[dict[str, Any]]]  # family, its CSV, its JSON rows
 
@@ -76,6 +78,33 @@ def attach_checks(spec: Spec, rows: list[dict[str, Any]], out_dir: Path,
 
 
 def analysis_table(spec: Spec, rows: list[dict[str, Any]], columns: list[str]) -> str:
-    """The printed table of analysis rows: ``columns`` and the spec's references."""
+    """The printed table of analysis rows: ``columns`` and the spec's references (a
+    sublinear spec's rows: L, rate_type, constant, ... whatever ``columns`` says)."""
+    if spec.sublinear:
+        columns = SUBLINEAR_COLUMNS + (["verified"] if "verified" in columns else [])
     return format_table([{**r, **r["references"]} for r in rows],
                         columns + list(spec.references))
+
+
+def sublinear_figure(spec: Spec, row: dict[str, Any], stem: Path, steps: int = 50) -> list[Path]:
+    """The certified bound c/k on measure(x_k) / |x_0 - x*|^2 against k (log-log), with
+    each reference constant r drawn as r/k; none without a certified constant."""
+    from sosalgo.report import _pyplot, save_figure
+
+    if row.get("constant") is None:
+        return []
+    plt = _pyplot()
+    k = np.arange(1, steps + 1)
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.loglog(k, row["constant"] / k, "o-", ms=3, label=f"certified c/k, c = {row['constant']:.6g}")
+    for name, val in row.get("references", {}).items():
+        if val is not None:
+            ax.loglog(k, val / k, "--", label=f"{name}: {val:.6g}/k")
+    ax.set_xlabel("k")
+    ax.set_ylabel("bound on measure(x_k) / |x_0 - x*|^2")
+    ax.set_title(f"{spec.name}: sublinear bound (L = {spec.L:g})")
+    ax.legend(fontsize=7)
+    try:
+        return save_figure(fig, stem)
+    finally:
+        plt.close(fig)

@@ -186,6 +186,7 @@ class _Builder:
         if not _is_unicode(description):
             raise self.fail("description", "contains an invalid (surrogate) character")
         m = self.m_value(data.get("m", 1), "kappa" in data)
+        L = self.l_value(data, m)
 
         raw_params = data.get("parameters", {})
         if raw_params is None:
@@ -215,12 +216,14 @@ class _Builder:
         output = self.output(data, raw_matrices, len(oracles))
         matrices = self.matrices(raw_matrices, names, len(oracles), output is not None)
         references = self.references(data.get("references", {}))
-        kappa = self.kappa(data.get("kappa", [10]))
+        kappa = () if m == 0 else self.kappa(data.get("kappa", [10]))
         spec = Spec(
             name=name, description=description, source=self.source, parameters=params,
             matrices=matrices, references=references, kappa=kappa, m=m,
-            functions=functions, oracles=oracles, output=output, measure=measure,
+            functions=functions, oracles=oracles, output=output, measure=measure, L=L,
         )
+        if spec.sublinear:
+            self.check_sublinear(spec)
         from sosalgo.oracles import check_oracle_spec
 
         check_oracle_spec(spec, self.fail)
@@ -272,13 +275,48 @@ class _Builder:
             val = constant_value(parse_tree(raw, ()))
         except ExprError as exc:
             raise self.fail("m", str(exc)) from None
+        if val == 0 and has_kappa:
+            raise self.fail("m", "m: 0 with kappa (kappa = L/m is undefined): for sublinear "
+                            "rates give L and no kappa")
         if val == 0:
-            raise self.fail("m", "m: 0 with kappa (L = kappa * m would be 0); sublinear rates "
-                            "(m: 0, L given, no kappa) are not supported yet" if has_kappa else
-                            "m: 0 (sublinear rates, L given, no kappa) is not supported yet")
+            return 0.0
         if not (math.isfinite(val) and val > 0):
             raise self.fail("m", "must be a positive finite number")
         return val
+
+    def l_value(self, data: dict, m: float) -> float | None:
+        """``L``: given exactly when ``m: 0`` (a positive constant expression)."""
+        if "L" not in data:
+            if m == 0:
+                raise self.fail("L", "missing: m: 0 (sublinear rates) needs L, a positive "
+                                "number")
+            return None
+        if m != 0:
+            raise self.fail("L", "only with m: 0 (otherwise L = kappa * m)")
+        try:
+            val = constant_value(parse_tree(data["L"], ()))
+        except ExprError as exc:
+            raise self.fail("L", str(exc)) from None
+        if not (math.isfinite(val) and val > 0):
+            raise self.fail("L", "must be a positive finite number")
+        return val
+
+    def check_sublinear(self, spec: Spec) -> None:
+        """A sublinear spec: no expression uses kappa (undefined when m = 0), and the
+        measure is a function value (the distance to a minimizer need not decrease)."""
+        if spec.measure != "function":
+            raise self.fail("measure", "distance has no rate when m: 0 (the minimizer need "
+                            "not be unique): use measure: function")
+        found = [(f"parameters.{p}", e) for p, par in spec.parameters.items()
+                 for e in (par.value, par.tied, *(par.range or ()))]
+        found += [(f"matrices.{k}", e) for k, rows in spec.matrices.items()
+                  for row in rows for e in row]
+        found += [(f"references.{k}", e) for k, e in spec.references.items()]
+        found += [(f"functions.{f}.{k}", e) for f, d in spec.functions.items()
+                  for k, e in d.params.items()]
+        for where, expr in found:
+            if expr is not None and "kappa" in expr.names():
+                raise self.fail(where, "uses kappa, undefined when m: 0 (use L)")
 
     # -- the oracle model ------------------------------------------------------------
     def functions(self, raw: object) -> dict[str, FunctionDecl]:
@@ -464,6 +502,9 @@ class _Builder:
     def check_values(self, spec: Spec) -> None:
         from sosalgo.model import ModelError, bind
 
+        if spec.sublinear:
+            self.check_sublinear_values(spec)
+            return
         for k in spec.kappa:
             if not math.isfinite(spec.mL(k)[1]):
                 raise self.fail("kappa", f"L = kappa * m overflows at kappa={k:g}, m={spec.m:g}")
@@ -490,6 +531,27 @@ class _Builder:
             except ModelError as exc:
                 raise self.fail(exc.field, f"at kappa={k:g}: {exc.message}") from None
         self.check_in_range(spec)
+
+    def check_sublinear_values(self, spec: Spec) -> None:
+        """:meth:`check_values` for a sublinear spec: at (m, L) = (0, L), kappa undefined."""
+        from sosalgo.model import ModelError, parameter_box, parameter_values
+        from sosalgo.oracles import bind_sublinear
+
+        nan = math.nan
+        for ref, expr in spec.references.items():
+            _num(_compile_or_fail(expr, self, f"references.{ref}"), spec, nan, self,
+                 f"references.{ref}")
+        try:
+            values = parameter_values(spec, nan)
+            ranged = spec.ranged
+            for pname, (lo, hi) in zip(ranged, parameter_box(spec, nan, ranged), strict=True):
+                slack = 1e-12 * max(1.0, abs(lo), abs(hi))
+                if not lo - slack <= values[pname] <= hi + slack:
+                    raise self.fail(f"parameters.{pname}.value", f"{values[pname]:.6g} is "
+                                    f"outside its range [{lo:.6g}, {hi:.6g}]")
+            bind_sublinear(spec)
+        except ModelError as exc:
+            raise self.fail(exc.field, exc.message) from None
 
     def check_in_range(self, spec: Spec) -> None:
         """Each ranged parameter's value lies in its own range at every kappa of the spec."""
@@ -593,7 +655,8 @@ def _num(
     try:
         return fn([m, L, kappa])
     except NumericError as exc:
-        raise b.fail(where, f"at kappa={kappa:g}: {exc}") from None
+        at = "" if spec.sublinear else f"at kappa={kappa:g}: "
+        raise b.fail(where, f"{at}{exc}") from None
 
 
 def _is_unicode(text: str) -> bool:

@@ -29,7 +29,7 @@ ORACLE_MATRIX_NAMES = ("A", "B", "C", "D", "E")  # D optional; E absent with ``o
 MEASURES = ("function", "distance")
 TOP_KEYS = {
     "name", "description", "parameters", "matrices", "references", "kappa", "m", "certificate",
-    "functions", "oracles", "measure", "output",
+    "functions", "oracles", "measure", "output", "L",
 }
 NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,79}$")
 PARAM_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,31}$")
@@ -134,7 +134,15 @@ class Spec:
     oracles: tuple[str, ...] = ("f",)
     output: int | None = None  # 0-based oracle index of ``output: y<i>``; None: x = E xi
     measure: str = "function"
+    # sublinear specs (``m: 0``, ``L`` given, no kappa): L's value; None otherwise
+    L: float | None = None
     _sympy: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
+
+    @property
+    def sublinear(self) -> bool:
+        """True for ``m: 0`` (L given, no kappa): analysis certifies a constant c in
+        measure(x_k) <= c |x_0 - x*|^2 / k (:mod:`sosalgo.certificates.sublinear`)."""
+        return self.m == 0
 
     @property
     def composite(self) -> bool:
@@ -142,6 +150,8 @@ class Spec:
         L, one gradient call, no D, x = E xi, ``measure: function``): the only setting of
         Theorem 1; True for every other spec."""
         if self.oracles != ("f",) or self.output is not None or self.measure != "function":
+            return True
+        if self.sublinear:  # no kappa: outside Theorem 1's setting
             return True
         if "D" in self.matrices:
             return True
@@ -190,7 +200,10 @@ class Spec:
         return [p for p, par in self.parameters.items() if par.range is not None]
 
     def mL(self, kappa: float) -> tuple[float, float]:
-        """(m, L) for a condition number: L = kappa * m."""
+        """(m, L) for a condition number: L = kappa * m; (0, L) for a sublinear spec (its
+        kappa is undefined and ignored)."""
+        if self.L is not None:
+            return 0.0, self.L
         return self.m, kappa * self.m
 
     def tied_closure(self) -> dict[str, sp.Expr]:

@@ -1,0 +1,134 @@
+"""Sublinear rates (m: 0): the potential certificate against independent closed forms."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import pytest
+import yaml
+from click.testing import CliRunner
+
+from sosalgo.analysis import analyze_spec, analyze_sublinear
+from sosalgo.cli import cli
+from sosalgo.spec import SpecError, load_spec, spec_from_dict
+
+from .conftest import SPECS
+
+GD = yaml.safe_load((SPECS / "gradient-convex.yaml").read_text())
+PG = yaml.safe_load((SPECS / "proximal-gradient.yaml").read_text())
+
+
+def _gd(h: str = "1/L", L: float = 1.0, **changes) -> dict:
+    return {**GD, "L": L, "parameters": {"h": {"value": h, "range": [0, "3/L"]}}, **changes}
+
+
+def _drori_teboulle(k: int, hL: float, L: float) -> float:
+    """Exact worst case of f(x_k) - f* over |x_0 - x*|^2 for gradient descent with step
+    h = hL/L on L-smooth convex f, hL in (0, 2) (Drori, Teboulle 2014; Taylor et al.)."""
+    return L / 2 * max(1 / (2 * k * hL + 1), (1 - hL) ** (2 * k))
+
+
+@pytest.mark.parametrize("L", [1.0, 3.0])
+def test_gradient_step_one_over_L_between_tight_and_potential(L):
+    res = analyze_sublinear(spec_from_dict(_gd(L=L)))
+    assert res.certified and res.constant is not None
+    assert res.constant <= L / 2 * (1 + 1e-4)  # k (f - f*) + L/2 |x - x*|^2 decreases
+    assert res.constant >= L / 4  # never below the tight L/4 ...
+    for k in (1, 2, 3, 5, 10, 100, 1000):  # ... nor below the worst case at any k
+        assert res.constant / k >= L / (4 * k + 2)
+
+
+@pytest.mark.parametrize("hL", [0.5, 1.5, 1.9])
+def test_gradient_other_steps_never_below_exact_worst_case(hL):
+    res = analyze_sublinear(spec_from_dict(_gd(h=f"{hL}/L")))
+    assert res.certified and res.constant is not None
+    for k in range(1, 400):
+        assert res.constant / k >= _drori_teboulle(k, hL, 1.0)
+
+
+def test_constant_scales_linearly_with_L():
+    c1 = analyze_sublinear(spec_from_dict(_gd(L=1.0))).constant
+    c5 = analyze_sublinear(spec_from_dict(_gd(L=5.0))).constant
+    assert c1 is not None and c5 is not None
+    assert c5 / c1 == pytest.approx(5.0, rel=1e-4)
+
+
+def test_proximal_gradient_on_convex_sum_gets_a_finite_constant():
+    data = {**PG, "m": 0, "L": 2, "measure": "function", "output": "y2", "references": {},
+            "matrices": {k: v for k, v in PG["matrices"].items() if k != "E"}}
+    data.pop("kappa")
+    res = analyze_sublinear(spec_from_dict(data))
+    assert res.certified and res.constant is not None
+    assert res.constant <= 2 / 2 * 1.01  # literature: L/2 for F(x_k) - F*
+    for k in (1, 10, 100):  # g = 0 is allowed: gradient descent's worst case is a floor
+        assert res.constant / k >= 2 / (4 * k + 2)
+
+
+def test_divergent_step_gets_no_certificate():
+    res = analyze_sublinear(spec_from_dict(_gd(h="2.5/L")))
+    assert not res.certified and res.constant is None
+    assert res.to_dict()["rate_type"] == "sublinear"
+
+
+BAD = [
+    ({"kappa": [10]}, "m", "m: 0 with kappa"),
+    ({"L": None}, "L", "missing"),
+    ({"parameters": {"h": {"value": "1/(kappa*m)"}}}, "parameters.h", "uses kappa"),
+    ({"measure": "distance"}, "measure", "distance"),
+    ({"m": 1}, "L", "only with m: 0"),
+]
+
+
+@pytest.mark.parametrize("changes,field,message", BAD, ids=[b[1] for b in BAD])
+def test_bad_sublinear_specs_exit_2_naming_the_field(changes, field, message, tmp_path):
+    data = {k: v for k, v in {**GD, **changes}.items() if v is not None}
+    with pytest.raises(SpecError) as err:
+        spec_from_dict(data, source="bad.yaml")
+    assert err.value.field.startswith(field) and message in str(err.value)
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(data))
+    out = tmp_path / "out"
+    res = CliRunner().invoke(cli, ["analyze", str(path), "--out", str(out)])
+    assert res.exit_code == 2 and "Traceback" not in res.output
+    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and str(path) in lines[0] and field in lines[0]
+    assert not out.exists()
+
+
+def test_cli_analyze_writes_rate_type_and_constant(tmp_path):
+    out = tmp_path / "out"
+    res = CliRunner().invoke(cli, ["analyze", str(SPECS / "gradient-convex.yaml"), "--out",
+                                   str(out), "--json", "--no-plot"])
+    assert res.exit_code == 0, res.output
+    row = json.loads(res.output)["rows"][0]
+    assert row["rate_type"] == "sublinear" and row["certified"]
+    assert row["check_kind"] == "floating-point check"
+    with (out / "gradient-convex-analysis.csv").open() as fh:
+        cells = list(csv.DictReader(fh))[0]
+    assert cells["rate_type"] == "sublinear"
+    assert float(cells["constant"]) == pytest.approx(row["constant"], rel=1e-12)
+
+
+@pytest.mark.parametrize("command", [["design"], ["grid", "--free", "h", "--kappa", "10"]])
+def test_commands_without_sublinear_mode_exit_2(command, tmp_path):
+    res = CliRunner().invoke(cli, [command[0], str(SPECS / "gradient-convex.yaml"),
+                                   *command[1:], "--out", str(tmp_path / "o")])
+    assert res.exit_code == 2 and "Traceback" not in res.output and "m: 0" in res.output
+
+
+def test_linear_results_say_rate_type_linear():
+    res = analyze_spec(load_spec(SPECS / "gradient.yaml"), 10.0)
+    assert res.to_dict()["rate_type"] == "linear"
+
+
+def test_verify_of_a_sublinear_result_is_one_line_exit_2(tmp_path):
+    """No exact check exists for sublinear certificates yet: verify says so, exit 2."""
+    res = CliRunner().invoke(cli, ["analyze", str(SPECS / "gradient-convex.yaml"), "--json",
+                                   "--quiet", "--out", str(tmp_path)])
+    assert res.exit_code == 0, res.output
+    doc = tmp_path / "result.json"
+    doc.write_text(res.stdout)
+    ver = CliRunner().invoke(cli, ["verify", str(doc), "--out", str(tmp_path / "v")])
+    assert ver.exit_code == 2 and ver.stderr.count("\n") == 1
+    assert "sublinear" in ver.stderr and not (tmp_path / "v").exists()
