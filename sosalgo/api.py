@@ -119,7 +119,6 @@ def _check_design(spec: Spec, options: Mapping[str, Any]) -> None:
     from sosalgo import inputs
     from sosalgo.certificates import get_family
 
-    inputs.single_oracle(spec, "design")
     fam = options.get("family")
     fam = get_family(spec.certificate, spec.certificate_options) if fam is None else (
         get_family(fam) if isinstance(fam, str) else fam)
@@ -134,11 +133,10 @@ def lmi(spec: Spec | str | Path, free: str | Sequence[str] | None = None, latex:
         certificate: str | None = None, options: Mapping[str, Any] | None = None) -> str:
     """The symbolic certificate inequality (``sosalgo lmi``): plain text, or a LaTeX
     snippet ready to paste (``latex``); ``free`` parameters stay symbols."""
-    from sosalgo.inputs import free_names, select_families, single_oracle
+    from sosalgo.inputs import free_names, select_families
     from sosalgo.symbolic import symbolic_lmi
 
     s = as_spec(spec)
-    single_oracle(s, "lmi")
     names = None if free is None else free_names(s, free, need_range=False)
     fam = select_families(s, certificate, options, single=True)[0]
     return symbolic_lmi(s, free=names, latex=latex, family=fam)

@@ -20,7 +20,7 @@ from sosalgo.spec import Spec
 __all__ = [
     "check_gap", "check_kappa_points", "check_method", "check_scheduler", "check_time_limit",
     "check_tol", "free_names", "kappa_option", "out_dir", "parameter_boxes", "select_families",
-    "single_oracle", "writable",
+    "writable",
 ]
 
 
@@ -147,15 +147,6 @@ def out_dir(out: str | Path, label: str = "--out") -> Path:
         raise InputError(f"{label} {out}: not writable ({_probe(path)} does not accept new "
                          "files)")
     return path
-
-
-def single_oracle(spec: Spec, command: str) -> None:
-    """Refuse a command that does not handle the oracle model yet (several oracles, proximal
-    steps, other classes, ``measure: distance``): one line, before anything is written."""
-    if spec.composite:
-        raise InputError(f"{spec.source}: {command} is not yet supported for specs with "
-                         "several oracles, proximal steps or other function classes "
-                         "(analyze supports them)")
 
 
 def check_scheduler(scheduler: str | None) -> None:

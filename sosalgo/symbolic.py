@@ -34,6 +34,8 @@ def symbolic_lmi(spec: Spec, free: Sequence[str] | None = None, latex: bool = Fa
     """Human-readable (or LaTeX) listing of M's entries and the certificate's unknowns; a
     family with its own listing (``listing``) gives its text."""
     fam = family or get_family(spec.certificate, spec.certificate_options)
+    if spec.composite:
+        return _composite(spec, free, latex, fam)
     M, syms = symbolic_matrix(spec, free, fam)
     own = fam.listing(spec, syms, latex)
     if own is not None:
@@ -56,3 +58,16 @@ def symbolic_lmi(spec: Spec, free: Sequence[str] | None = None, latex: bool = Fa
 
 def _plain(expr: Any) -> str:
     return sp.sstr(expr)
+
+
+def _composite(spec: Spec, free: Sequence[str] | None, latex: bool, fam: Any) -> str:
+    """The listing of a composite spec (:func:`sosalgo.certificates.listing.composite_listing`);
+    the pair lists and sizes come from the numeric structure at the spec's first kappa
+    (they do not depend on kappa or the parameters)."""
+    from sosalgo.certificates.composite import composite_structure
+    from sosalgo.certificates.listing import composite_listing
+    from sosalgo.model import bind
+
+    lag = fam.lag_for(spec.n)
+    om = bind(spec, spec.kappa[0])
+    return composite_listing(spec, free, lag, om, composite_structure(om, lag), latex)

@@ -13,7 +13,8 @@ Two numbers come out, never mixed:
   homogenized problem (:mod:`sosalgo.design.moment`).
 
 ``floor`` = 1 - 1/√κ is reported beside them: no first-order method has a smaller
-worst-case rate on F(m, L) (a theorem, not a computed bound).
+worst-case rate on F(m, L) (a theorem, not a computed bound); on composite specs only
+where it is a theorem for the problem class (:mod:`sosalgo.design.floor`), else None.
 
 Every phase respects ``time_limit`` (wall clock per κ): no step starts that the remaining
 time cannot cover, and the best proven results so far are returned.
@@ -35,6 +36,7 @@ from sosalgo.analysis import AnalysisResult, analyze_spec, jsonable, spec_family
 from sosalgo.batch.executor import show_phase
 from sosalgo.certificates import CertificateFamily, get_family
 from sosalgo.design.dualbound import ARITHMETIC, BoundSearch, BoundStatus, dual_structure
+from sosalgo.design.floor import class_floor
 from sosalgo.design.polymodel import check_polynomial
 from sosalgo.model import ModelError, bind, design_box
 from sosalgo.solvers import solve_margin
@@ -132,6 +134,7 @@ class _Run:
         self.bound = bound  # a lower-bound phase follows the search
         self.live_phase: str | None = None  # a phase whose bar counts analyses
         self.live_count = 0
+        self.floor = class_floor(spec, kappa)  # None: no floor is a theorem here
 
     def log(self, msg: str, record: bool = True) -> None:
         if record:
@@ -306,7 +309,7 @@ def _result(run: _Run, values_res: AnalysisResult | None, lb: float | None,
         relaxation=relax, seconds=seconds, steps=run.steps, gap_met=gap_met,
         rho_at_values=None if values_res is None or not values_res.certified
         else values_res.rho,
-        method=method, floor=1.0 - 1.0 / math.sqrt(run.kappa), family=run.family.name,
+        method=method, floor=run.floor, family=run.family.name,
         lag=getattr(run.family, "lag", None), time_limited=run.out_of_time and not gap_met,
     )
 
@@ -530,6 +533,8 @@ def _bound_model(spec: Spec, kappa: float, free: list[str],
     from sosalgo.design.modes import ModeTest
     from sosalgo.design.polymodel import exact_method, numeric_template, poly_lmi
 
+    if spec.composite:  # the exact form is the seed's (A, B, C, E); no family has one here
+        return None
     method = exact_method(spec, kappa, free)
     poly = poly_lmi(method, family, numeric_template(spec, kappa, method, family))
     structure = None if poly is None else dual_structure(poly)
@@ -554,8 +559,11 @@ def _dual_bound(run: _Run, model: BoundModel | None, gap: float
                 ) -> tuple[float | None, dict[str, Any]]:
     """Cover Θ × [0, T²], T = rho_certified - gap/2, by proven boxes."""
     if model is None:
-        run.log(f"no proven lower bound for the {run.family.name} family (its Lyapunov "
-                "variables are not all sign-constrained); see floor")
+        run.log(f"no proven lower bound for the {run.family.name} family (the box-wide dual "
+                "bound needs Lyapunov variables that are all sign-constrained; this family "
+                "has no exact_problem); "
+                + ("see floor" if run.floor is not None else
+                   "no floor is a theorem for this problem class either"))
         return None, {"method": "dual", "status": BoundStatus.UNSUPPORTED, "scalarize": None,
                       "order": None, "flat": None, "ranks": []}
 

@@ -20,7 +20,8 @@ __all__ = ["LEGEND", "design_figure", "design_table", "proven_bound", "verdict",
 
 LEGEND = ("rho_certified: analysis at the designed theta (with its certificate); "
           "lower_bound: proven, no theta in the box is certified below it; "
-          "floor: 1 - 1/sqrt(kappa), no first-order method is faster on F(m, L)")
+          "floor: 1 - 1/sqrt(kappa), no first-order method is faster on F(m, L) (composite "
+          "specs: only where that is a theorem, see README; empty otherwise)")
 
 
 def verdict(doc: dict[str, Any], gap: float) -> str:
