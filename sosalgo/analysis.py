@@ -179,8 +179,10 @@ class _Search:
             return out if out.feasible else None
         return None
 
-    def test(self, rho: float) -> tuple[Outcome, float | None]:
-        """(outcome, margin t); the margin is None when not computed or not trusted."""
+    def test(self, rho: float, ask_plain: bool = True) -> tuple[Outcome, float | None]:
+        """(outcome, margin t); the margin is None when not computed or not trusted. A
+        positive margin whose point fails the check is asked plainly only with
+        ``ask_plain`` (else it is not certified: the caller tries elsewhere)."""
         if not self.use_margin:
             return self.plain(rho), None
         mg = self.margin(rho)
@@ -192,8 +194,10 @@ class _Search:
         self.slope = mg.slope if mg.ok else None
         if not mg.ok or mg.t is None:
             return self.plain(rho), None
-        if out is None and mg.t > 0:
+        if out is None and mg.t > 0 and ask_plain:
             out = self.plain(rho)  # still too close to call: ask plainly
+        elif out is None and mg.t > 0:
+            out = Outcome(Feasibility.FAILED, None, "clarabel-margin", "point not checkable")
         elif out is None:
             out = Outcome(Feasibility.INFEASIBLE, None, "clarabel-margin", f"margin {mg.t:.3g}")
         self.spread[rho] = _spread(mg, out.feasible)
@@ -399,8 +403,10 @@ def analyze_algorithm(
 
 
 def _analyze_one(alg: Algorithm, tol: float, fam: CertificateFamily,
-                 solvers: Sequence[str], method: str) -> AnalysisResult:
-    """:func:`analyze_algorithm` for one member of a family (its problem as it is)."""
+                 solvers: Sequence[str], method: str,
+                 quad: float | None = None) -> AnalysisResult:
+    """:func:`analyze_algorithm` for one member of a family (its problem as it is);
+    ``quad``: the method's rate on quadratics when already computed."""
     start = time.perf_counter()
     problem = fam.problem(alg)
     # The margin problem is solved by Clarabel; a custom solver chain means plain bisection.
@@ -409,7 +415,9 @@ def _analyze_one(alg: Algorithm, tol: float, fam: CertificateFamily,
     fallback = fam.fallback_solvers if use_margin else None
     width = _tolerance(tol)
     search = _Search(problem, fallback or solvers, use_margin, width)
-    quad = quadratic_rate(alg, 201) if use_margin and fam.tight else None
+    if use_margin and fam.tight and quad is None:
+        quad = quadratic_rate(alg, 201)
+    quad = quad if use_margin and fam.tight else None
     lo0, down0 = 0.0, None
     if quad is not None and quad < 1 - width(quad):
         proxy = fam.guess_problem(alg)
@@ -446,55 +454,93 @@ def _choose_lag(alg: Algorithm, tol: float, fam: CertificateFamily, solvers: Seq
     searched in full; each further lag only has to beat the best rate so far by the
     tolerance (:func:`_improve`: one test there, a search below it when it does).
     Lags are raised until ``LAG_PATIENCE`` in a row do not improve, the last of ``lags``
-    or ``LAG_SECONDS``. Larger lags never certify less in exact arithmetic, but their
-    solves are less accurate on degenerate (tight) certificates, so the best is kept,
-    never the last. The result carries that lag's certificate and bracket (``lag`` None
-    when no lag certifies a rate), and the solves and seconds of the whole choice."""
+    or ``LAG_SECONDS``. The largest lag of those next ``LAG_PATIENCE`` is tested first: a
+    certificate of lag l is one of lag l + 1, so when it does not beat the best rate none
+    of the smaller ones does and the choice stops after that one test. Larger lags never
+    certify less in exact arithmetic, but their solves are less accurate on degenerate
+    (tight) certificates, so the best is kept, never the last. The result carries that
+    lag's certificate and bracket (``lag`` None when no lag certifies a rate), and the
+    solves and seconds of the whole choice."""
     start = time.perf_counter()
     members = [fam.with_options(lag=lag) for lag in lags]  # type: ignore[call-arg]
-    best = _analyze_one(alg, tol, members[0], solvers, method)
     # no valid certificate goes below the rate on quadratics (a grid max, not above it)
     floor = quadratic_rate(alg, 201)
-    solves, misses = best.solves, 0
-    for member in members[1:]:
-        if misses >= LAG_PATIENCE or time.perf_counter() - start > LAG_SECONDS:
+    best = _analyze_one(alg, tol, members[0], solvers, method, floor)
+    solves, misses, i = best.solves, 0, 1
+    ahead: dict[int, _Probe] = {}  # a window's top, tested against the current best
+    while i < len(members) and misses < LAG_PATIENCE:
+        if time.perf_counter() - start > LAG_SECONDS:
             break
-        res, spent = _improve(alg, tol, member, solvers, method, best, floor)
+        top = min(i + LAG_PATIENCE - misses, len(members)) - 1
+        if top > i and top not in ahead:
+            probe = _probe(alg, tol, members[top], solvers, method, best, floor)
+            solves += 0 if probe is None else probe.search.solves
+            if probe is None or not probe.out.feasible:
+                break  # the largest lag of the window does not beat best: none does
+            ahead = {top: probe}
+        res, spent = _improve(alg, tol, members[i], solvers, method, best, floor,
+                              ahead.pop(i, None))
         solves += spent
         if res is None:
             misses += 1
         else:
-            best, misses = res, 0
+            best, misses, ahead = res, 0, {}
+        i += 1
     return dataclasses.replace(best, solves=solves, seconds=time.perf_counter() - start,
                                lag=best.lag if best.certified else None)
 
 
-def _improve(alg: Algorithm, tol: float, fam: CertificateFamily, solvers: Sequence[str],
-             method: str, best: AnalysisResult, floor: float = 0.0
-             ) -> tuple[AnalysisResult | None, int]:
-    """(result of ``fam``, solves) when ``fam`` certifies a rate below ``best.rho`` by at
-    least the tolerance there (any rate <= 1 when ``best`` has none), else (None, solves):
-    one test at that point, and a search below it only when it is certified. Nothing is
-    tested when that point is at or below ``floor``, a lower bound of every rate."""
+@dataclass
+class _Probe:
+    """One test of a member of a family just below the best rate so far."""
+
+    search: _Search
+    problem: LMIProblem
+    x: float
+    out: Outcome
+    t: float | None
+    start: float
+
+
+def _probe(alg: Algorithm, tol: float, fam: CertificateFamily, solvers: Sequence[str],
+           method: str, best: AnalysisResult, floor: float = 0.0) -> _Probe | None:
+    """``fam`` tested at the best rate less the tolerance (at 1 when ``best`` has none);
+    None when that point is at or below ``floor``, a lower bound of every rate."""
     width = _tolerance(tol)
     x = 1.0 if best.rho is None else best.rho - width(best.rho)
     if x <= floor:
-        return None, 0
+        return None
     start = time.perf_counter()
     problem = fam.problem(alg)
     use_margin = method == "secant" and tuple(solvers) == DEFAULT_SOLVERS
     fallback = fam.fallback_solvers if use_margin else None
     search = _Search(problem, fallback or solvers, use_margin, width)
     out, t = search.test(x)
-    if not out.feasible:
-        return None, search.solves
+    return _Probe(search, problem, x, out, t, start)
+
+
+def _improve(alg: Algorithm, tol: float, fam: CertificateFamily, solvers: Sequence[str],
+             method: str, best: AnalysisResult, floor: float = 0.0,
+             probe: _Probe | None = None) -> tuple[AnalysisResult | None, int]:
+    """(result of ``fam``, solves) when ``fam`` certifies a rate below ``best.rho`` by at
+    least the tolerance there (any rate <= 1 when ``best`` has none), else (None, solves):
+    one test at that point (:func:`_probe`, or ``probe`` when already made, whose solves
+    are then not counted again), and a search below it only when it is certified."""
+    spent = 0
+    if probe is None:
+        probe = _probe(alg, tol, fam, solvers, method, best, floor)
+        spent = 0 if probe is None else probe.search.solves
+    if probe is None or not probe.out.feasible:
+        return None, spent
+    search, x, out, t, width = probe.search, probe.x, probe.out, probe.t, _tolerance(tol)
+    before = search.solves
     if t is not None and t > 0 and search.slope is not None:
         lo, hi, out = _newton(search, [(x, t, search.slope)], None, 0.0, x, out, width)
     else:
         lo, hi, out = _bisect(search, 0.0, x, out, width)
-    res = _result(alg, fam, problem, search, lo, hi, out, start)
+    res = _result(alg, fam, probe.problem, search, lo, hi, out, probe.start)
     better = res.certified and res.rho is not None and (best.rho is None or res.rho < best.rho)
-    return (res if better else None), search.solves
+    return (res if better else None), spent + search.solves - before
 
 
 def _start_near(search: _Search, guess: float, tol: float, proxy: LMIProblem | None = None):
@@ -505,10 +551,15 @@ def _start_near(search: _Search, guess: float, tol: float, proxy: LMIProblem | N
     climb goes to the proxy's root (:func:`_proxy_root`), so that only its end is tested
     on the problem itself.
 
+    ``guess`` is a lower bound of every rate: a certificate within ``tol`` above it closes
+    the bracket at once (lo = guess). A positive margin at the first point that cannot be
+    checked (a degenerate certificate: the rate is the bound) goes on to ``guess`` + 0.99
+    ``tol`` without asking the slower solvers there.
+
     Returns (lo, hi, best, certified points, last uncertified point); ``best`` is None when
     no certified point turned up (lo and the last point below then seed the usual search).
     """
-    x = min(guess + 0.25 * tol, 1.0)
+    x = first = min(guess + 0.25 * tol, 1.0)
     lo, down = 0.0, None
     est = _proxy_root(search, proxy, x, tol) if proxy is not None else None
     if est is not None and est > x:  # the proxy climbed: start at its root
@@ -516,11 +567,13 @@ def _start_near(search: _Search, guess: float, tol: float, proxy: LMIProblem | N
             return lo, 1.0, None, [], down
         x = min(est + 0.25 * tol, 1.0)
     for _ in range(8):
-        out, t = search.test(x)
+        out, t = search.test(x, ask_plain=x != first)
         if out.feasible:
             if t is None or not t > 0:
                 return lo, 1.0, None, [], down
             ups = [(x, t, search.slope)]
+            if x - guess < tol:  # within tol of a lower bound: the bracket is closed
+                return max(lo, guess), x, out, ups, down
             if lo == 0.0 and x - tol > 0:  # certified at the first guess: close below it
                 below = x - 0.999 * tol
                 out2, t2 = search.test(below)
@@ -534,7 +587,8 @@ def _start_near(search: _Search, guess: float, tol: float, proxy: LMIProblem | N
             return lo, x, out, ups, down
         lo = x
         if t is not None and t >= 0 and x + tol < 1:  # margin >= 0 but not checkable: the
-            x = x + tol  # certificate degenerates here (a tight rate); try one tol above
+            # certificate degenerates here (a tight rate); try just under a tol above the bound
+            x = guess + 0.99 * tol if x == first else x + tol
             continue
         if t is None or not t < 0 or search.slope is None or not search.slope > 0:
             break
@@ -799,7 +853,7 @@ def analyze_sublinear(spec: Spec, theta: Mapping[str, float] | None = None,
         sublinear_parts,
         sublinear_problem,
     )
-    from sosalgo.oracles import bind_sublinear
+    from sosalgo.model import bind_sublinear
 
     start = time.perf_counter()
     om = bind_sublinear(spec, theta)

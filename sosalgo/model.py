@@ -10,6 +10,7 @@ from __future__ import annotations
 import weakref
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -17,7 +18,7 @@ from sosalgo.errors import ModelError
 from sosalgo.expr.compile import NumericError, compile_expression, compile_matrix
 from sosalgo.spec.types import BASE_NAMES, MATRIX_NAMES, Spec, value_order
 
-__all__ = ["Algorithm", "ModelError", "bind", "design_box", "evaluate_algorithm",
+__all__ = ["Algorithm", "ModelError", "bind", "bind_sublinear", "design_box", "evaluate_algorithm",
            "fixed_point"]
 
 FIXED_POINT_TOL = 1e-8
@@ -265,3 +266,24 @@ def fixed_point(alg: Algorithm, tol: float = FIXED_POINT_TOL) -> np.ndarray | No
         resid = np.linalg.norm(lhs @ u - rhs)
         scale = 1.0 + np.linalg.norm(lhs) * np.linalg.norm(u)
     return u if resid <= tol * scale else None
+
+
+def bind_sublinear(spec: Spec, theta: Mapping[str, float] | None = None) -> Any:
+    """The :class:`OracleMethod` of a sublinear spec (``m: 0``, L given, no kappa) at its
+    parameter values (``theta`` overrides input parameters); ModelError names the field."""
+    from sosalgo.expr.compile import NumericError
+    from sosalgo.oracles import make_method
+
+    if not spec.sublinear or spec.L is None:
+        raise ModelError("m", "not a sublinear spec (m: 0, L given)")
+    comp = _compiled(spec)
+    nan = float("nan")
+    params = parameter_values(spec, nan, theta)
+    values = [0.0, spec.L, nan] + [params[p] for p in comp.names]
+    mats = {}
+    for k, fn in comp.matrix_fns.items():
+        try:
+            mats[k] = fn(values)
+        except NumericError as exc:
+            raise ModelError(f"matrices.{k}", str(exc)) from None
+    return make_method(spec, mats, 0.0, spec.L, nan, params)

@@ -29,7 +29,7 @@ from sosalgo.classes import CLASSES, FunctionClass
 from sosalgo.errors import ModelError
 from sosalgo.spec.types import Spec, SpecError
 
-__all__ = ["BoundFunction", "OracleMethod", "bind_sublinear", "check_oracle_spec",
+__all__ = ["BoundFunction", "OracleMethod", "check_oracle_spec",
            "composite_quadratic_rate", "fixed_point_basis"]
 
 FIXED_POINT_TOL = 1e-8
@@ -236,27 +236,6 @@ def make_method(spec: Spec, mats: Mapping[str, np.ndarray], m: float, L: float,
                         spec.measure, params)
 
 
-def bind_sublinear(spec: Spec, theta: Mapping[str, float] | None = None) -> OracleMethod:
-    """The :class:`OracleMethod` of a sublinear spec (``m: 0``, L given, no kappa) at its
-    parameter values (``theta`` overrides input parameters); ModelError names the field."""
-    from sosalgo.expr.compile import NumericError
-    from sosalgo.model import _compiled, parameter_values
-
-    if not spec.sublinear or spec.L is None:
-        raise ModelError("m", "not a sublinear spec (m: 0, L given)")
-    comp = _compiled(spec)
-    nan = float("nan")
-    params = parameter_values(spec, nan, theta)
-    values = [0.0, spec.L, nan] + [params[p] for p in comp.names]
-    mats = {}
-    for k, fn in comp.matrix_fns.items():
-        try:
-            mats[k] = fn(values)
-        except NumericError as exc:
-            raise ModelError(f"matrices.{k}", str(exc)) from None
-    return make_method(spec, mats, 0.0, spec.L, nan, params)
-
-
 def composite_quadratic_rate(om: OracleMethod, points: int = 201) -> float:
     """A lower bound of every rate: the largest spectral radius of the closed loop when
     every f_j is a quadratic (q_j/2)|x|^2 of its class (grid over each class's curvature
@@ -272,7 +251,14 @@ def composite_quadratic_rate(om: OracleMethod, points: int = 201) -> float:
         grids = [g if len(g) == 1 else np.linspace(g[0], g[-1], 21) for g in grids]
     best = 0.0
     eye = np.eye(om.p)
-    for qs in np.array(np.meshgrid(*grids, indexing="ij")).reshape(len(grids), -1).T:
+    every = np.array(np.meshgrid(*grids, indexing="ij")).reshape(len(grids), -1).T
+    qd = every[:, list(om.oracles)]  # all grid points at once (one loop when one is singular)
+    try:
+        K = np.linalg.solve(eye - qd[:, :, None] * om.D, qd[:, :, None] * om.C)
+        return float(np.abs(np.linalg.eigvals(om.A + om.B @ K)).max(initial=0.0))
+    except np.linalg.LinAlgError:
+        pass
+    for qs in every:
         Q = np.diag([qs[j] for j in om.oracles])
         try:
             K = np.linalg.solve(eye - Q @ om.D, Q @ om.C)

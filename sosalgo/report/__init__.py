@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 
-def _pyplot() -> Any:
+def pyplot() -> Any:
     """matplotlib.pyplot with the Agg backend, imported on first use (tables need none)."""
     import matplotlib
 
@@ -64,7 +64,7 @@ def save_figure(fig: Any, stem: Path) -> list[Path]:
         fig.savefig(tmp, format=ext, dpi=150, bbox_inches="tight")
         os.replace(tmp, final)
         paths.append(final)
-    _pyplot().close(fig)
+    pyplot().close(fig)
     return paths
 
 
@@ -99,7 +99,7 @@ def rate_figure(
     ("<series>: missing"; a series without any value gets only those marks, no legend
     line); ``uncertified`` kappas along the top, never as rho = 1 data. The legend lists
     exactly what is drawn."""
-    fig, ax = _pyplot().subplots(figsize=(6.4, 4.4))
+    fig, ax = pyplot().subplots(figsize=(6.4, 4.4))
     k = np.asarray(kappa, dtype=float)
     unc = np.isin(k, np.asarray(uncertified, dtype=float))
     for i, (label, vals) in enumerate(series.items()):
@@ -212,7 +212,7 @@ def grid_figure(
     found; those parameters are drawn as a hatched grey region (2-D: everything the
     certified contours do not cover, so no white band between the two; 1-D: shaded
     intervals), never as rho = 1. The grid minimum and the spec's own value are marked."""
-    fig, ax = _pyplot().subplots(figsize=(6.4, 4.8))
+    fig, ax = pyplot().subplots(figsize=(6.4, 4.8))
     finite = np.isfinite(rho)
     if len(names) == 1:
         _grid_1d(ax, axes[0], rho, finite, value_point)

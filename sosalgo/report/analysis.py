@@ -89,11 +89,11 @@ def analysis_table(spec: Spec, rows: list[dict[str, Any]], columns: list[str]) -
 def sublinear_figure(spec: Spec, row: dict[str, Any], stem: Path, steps: int = 50) -> list[Path]:
     """The certified bound c/k on measure(x_k) / |x_0 - x*|^2 against k (log-log), with
     each reference constant r drawn as r/k; none without a certified constant."""
-    from sosalgo.report import _pyplot, save_figure
+    from sosalgo.report import pyplot, save_figure
 
     if row.get("constant") is None:
         return []
-    plt = _pyplot()
+    plt = pyplot()
     k = np.arange(1, steps + 1)
     fig, ax = plt.subplots(figsize=(6, 4))
     ax.loglog(k, row["constant"] / k, "o-", ms=3, label=f"certified c/k, c = {row['constant']:.6g}")

@@ -534,8 +534,7 @@ class _Builder:
 
     def check_sublinear_values(self, spec: Spec) -> None:
         """:meth:`check_values` for a sublinear spec: at (m, L) = (0, L), kappa undefined."""
-        from sosalgo.model import ModelError, parameter_box, parameter_values
-        from sosalgo.oracles import bind_sublinear
+        from sosalgo.model import ModelError, bind_sublinear, parameter_box, parameter_values
 
         nan = math.nan
         for ref, expr in spec.references.items():

@@ -54,10 +54,10 @@ from sosalgo.verify.exact import (
 )
 from sosalgo.verify.exact_interpolation import (
     InterpolationExactResult,
-    _definite,
-    _q,
-    _Refused,
-    _symmetrize,
+    Refused,
+    prove_definite,
+    rational_near,
+    symmetrize_balls,
 )
 
 __all__ = ["CompositeExactResult", "ExactOracleMethod", "exact_class_inequalities",
@@ -335,13 +335,13 @@ def verify_exact_composite(
         pos = exact_window(om, lag, lag + 1, list(ineqs))
         c = _read(cert, om, lag, dec, pos, max_den)
         if not np.isfinite(float(rho)) or not 0 < rational(rho) <= 1:
-            raise _Refused(f"rho = {rho!r} is not in (0, 1]")
+            raise Refused(f"rho = {rho!r} is not in (0, 1]")
         _raise_weights(pos, c)
         res.certificate = _rational(c, dec, pos, om.p)
         res.model["classes"] = {f: f"{cls.name}: {src}" for (f, cls, _), src
                                 in zip(om.functions, sources, strict=True)}
         res.reason = _prove(res, dec, pos, c, rational(rho), rho_steps, max_den)
-    except _Refused as exc:
+    except Refused as exc:
         res.reason = str(exc)
     res.seconds = time.perf_counter() - start
     return res
@@ -354,7 +354,7 @@ def _exact_method(spec: Spec, kappa: float, theta: Mapping[str, float] | None, d
         om = exact_oracle_method(spec, kappa, theta, digits)
         alg = bind(spec, float(kappa), theta)
     except ValueError as exc:
-        raise _Refused(f"the exact method cannot be built: {exc}") from None
+        raise Refused(f"the exact method cannot be built: {exc}") from None
     ex = om.ex
     res.kappa, res.m, res.L = fraction_str(ex.kappa), fraction_str(ex.m), fraction_str(ex.L)
     res.params = {k: str(v) for k, v in ex.params.items()}
@@ -366,14 +366,14 @@ def _exact_method(spec: Spec, kappa: float, theta: Mapping[str, float] | None, d
     for k in (k for k in ORACLE_MATRIX_NAMES if k in ex.balls):
         cen = np.array([[float(b.c) for b in row] for row in ex.balls[k]])
         if not np.allclose(cen, getattr(alg, k), rtol=1e-9, atol=1e-9):
-            raise _Refused(f"exact matrix {k} differs from sosalgo.model.bind")
+            raise Refused(f"exact matrix {k} differs from sosalgo.model.bind")
     for i in range(om.p):
         if om.D[i, i].hi > 0 or any(om.D[i, j].lo != 0 or om.D[i, j].hi != 0
                                     for j in range(i + 1, om.p)):
-            raise _Refused(f"D is not lower triangular with diagonal <= 0 (row {i + 1})")
+            raise Refused(f"D is not lower triangular with diagonal <= 0 (row {i + 1})")
     bad = _fixed_point_failure(om, alg)
     if bad:
-        raise _Refused(bad)
+        raise Refused(bad)
     return om
 
 
@@ -409,12 +409,12 @@ def _lag(cert: Mapping[str, Any], spec: Spec) -> int:
     try:
         lag = int(cert["lag"])
     except (KeyError, TypeError, ValueError) as exc:
-        raise _Refused(f"malformed certificate: lag: {exc}") from None
+        raise Refused(f"malformed certificate: lag: {exc}") from None
     if not 0 <= lag <= 8:
-        raise _Refused(f"lag {lag} not in 0..8")
+        raise Refused(f"lag {lag} not in 0..8")
     for key, want in (("measure", spec.measure), ("inputs", spec.p)):
         if cert.get(key) is not None and cert[key] != want:
-            raise _Refused(f"certificate {key} {cert[key]!r} is not the spec's {want!r}")
+            raise Refused(f"certificate {key} {cert[key]!r} is not the spec's {want!r}")
     return lag
 
 
@@ -427,27 +427,27 @@ def _read(cert: Mapping[str, Any], om: ExactOracleMethod, lag: int, dec: ExactWi
     try:
         P_raw = np.asarray(cert["P"], dtype=object)
         if P_raw.shape != (nz, nz):
-            raise _Refused(f"P has shape {P_raw.shape}, expected {(nz, nz)}")
+            raise Refused(f"P has shape {P_raw.shape}, expected {(nz, nz)}")
         P = np.empty((nz, nz), dtype=object)
         for i in range(nz):
             for j in range(i, nz):
                 v = P_raw[i, j]
                 v = v if isinstance(v, Fraction | str) else 0.5 * (float(v) + float(P_raw[j, i]))
-                P[i, j] = P[j, i] = _q(v, max_den)
+                P[i, j] = P[j, i] = rational_near(v, max_den)
         p = list(cert["p"])
         if len(p) != npv:
-            raise _Refused(f"p has {len(p)} weights, expected {npv}")
+            raise Refused(f"p has {len(p)} weights, expected {npv}")
         if has_c != (cert.get("c") is not None):
-            raise _Refused("c " + ("missing: the measure needs f at the output point" if has_c
+            raise Refused("c " + ("missing: the measure needs f at the output point" if has_c
                                    else "given but the method has no output-point term"))
-        pi = [_q(v, max_den) for v in p + ([cert["c"]] if has_c else [])]
+        pi = [rational_near(v, max_den) for v in p + ([cert["c"]] if has_c else [])]
         mult = cert["multipliers"]
-        eta = [max(Fraction(0), _q(mult["decrease"][k], max_den)) for k in dec.labels]
-        lam = [max(Fraction(0), _q(mult["positivity"][k], max_den)) for k in pos.labels]
+        eta = [max(Fraction(0), rational_near(mult["decrease"][k], max_den)) for k in dec.labels]
+        lam = [max(Fraction(0), rational_near(mult["positivity"][k], max_den)) for k in pos.labels]
     except KeyError as exc:
-        raise _Refused(f"malformed certificate: missing {exc}") from None
+        raise Refused(f"malformed certificate: missing {exc}") from None
     except (TypeError, ValueError, OverflowError) as exc:
-        raise _Refused(f"malformed certificate: {type(exc).__name__}: {exc}") from None
+        raise Refused(f"malformed certificate: {type(exc).__name__}: {exc}") from None
     return _CCert(lag, P, pi, eta, lam)
 
 
@@ -509,14 +509,14 @@ def _prove(res: CompositeExactResult, dec: ExactWindow, pos: ExactWindow, c: _CC
     """Try rho and rationals slightly above it; the first proven one goes into ``res``."""
     pt = _parts(dec, pos, c)
     bad_pf = [i for i, b in enumerate(map(Ball.of, pt["Pf"])) if b.lo < 0]
-    ok_p, delta_p, det_p = _definite(_symmetrize(pt["Pq"]), +1)
+    ok_p, delta_p, det_p = prove_definite(symmetrize_balls(pt["Pq"]), +1)
     first_fail = None
     for rq in rho_candidates(rho, list(rho_steps), max_den):
         res.attempts += 1
         r = rq * rq
         D = pt["G1"] - pt["G0"] * r
         bad_df = [i for i, b in enumerate(map(Ball.of, pt["g1"] - pt["g0"] * r)) if b.hi > 0]
-        ok_d, delta_d, det_d = _definite(_symmetrize(D), -1)
+        ok_d, delta_d, det_d = prove_definite(symmetrize_balls(D), -1)
         if not bad_df and not bad_pf and ok_d and ok_p:
             res.verified = Verdict.EXACT
             res.rho_proven, res.rho_proven_float = fraction_str(rq), float(rq)

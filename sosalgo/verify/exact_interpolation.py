@@ -76,7 +76,7 @@ class InterpolationExactResult(ProofResult):
         }
 
 
-def _q(x: Any, max_den: int) -> Fraction:
+def rational_near(x: Any, max_den: int) -> Fraction:
     f = rational(x)
     return f.limit_denominator(max_den) if not isinstance(x, Fraction | str) else f
 
@@ -89,7 +89,7 @@ def _obj(mat: list[list[Ball]]) -> np.ndarray:
     return out
 
 
-def _symmetrize(M: np.ndarray) -> list[list[Ball]]:
+def symmetrize_balls(M: np.ndarray) -> list[list[Ball]]:
     s = M.shape[0]
     out = [[Ball.of(M[i, j]) for j in range(s)] for i in range(s)]
     for i in range(s):
@@ -101,7 +101,7 @@ def _symmetrize(M: np.ndarray) -> list[list[Ball]]:
     return out
 
 
-def _definite(M: list[list[Ball]], sign: int) -> tuple[bool, Fraction, str]:
+def prove_definite(M: list[list[Ball]], sign: int) -> tuple[bool, Fraction, str]:
     """Prove sign * M ⪰ delta I for every matrix in the ball matrix M; (ok, delta, detail)."""
     eta = frobenius_bound(M)
     S = [[sign * b.c for b in row] for row in M]
@@ -123,7 +123,7 @@ def _definite(M: list[list[Ball]], sign: int) -> tuple[bool, Fraction, str]:
     return False, Fraction(0), f"not proven (min eig estimate {est:.3g}): {detail}"
 
 
-class _Refused(Exception):
+class Refused(Exception):
     """Why the certificate cannot be proven (it becomes the result's ``reason``)."""
 
 
@@ -159,11 +159,11 @@ def verify_exact_interpolation(
                                     c.lag, c.has_x)
         eta, lam = _multipliers(c, st, max_den)
         if not np.isfinite(float(rho)) or not 0 < rational(rho) <= 1:
-            raise _Refused(f"rho = {rho!r} is not in (0, 1]")
+            raise Refused(f"rho = {rho!r} is not in (0, 1]")
         _raise_weights(st, c, lam)
         res.certificate = _rational_certificate(c, st, eta, lam)
         res.reason = _prove(res, family, st, c, eta, lam, rational(rho), rho_steps, max_den)
-    except _Refused as exc:
+    except Refused as exc:
         res.reason = str(exc)
     res.seconds = time.perf_counter() - start
     return res
@@ -176,20 +176,20 @@ def _exact_method(spec: Spec, kappa: float, theta: Mapping[str, float] | None, d
     try:
         ex = exact_algorithm(spec, kappa, theta, digits)
     except ValueError as exc:
-        raise _Refused(f"the exact method cannot be built: {exc}") from None
+        raise Refused(f"the exact method cannot be built: {exc}") from None
     res.kappa, res.m, res.L = fraction_str(ex.kappa), fraction_str(ex.m), fraction_str(ex.L)
     res.params = {k: str(v) for k, v in ex.params.items()}
     res.enclosures = ex.enclosures()
     try:
         alg = bind(spec, float(kappa), theta)
     except ValueError as exc:
-        raise _Refused(f"the method cannot be evaluated: {exc}") from None
+        raise Refused(f"the method cannot be evaluated: {exc}") from None
     for k in MATRIX_NAMES:
         cen = np.array([[float(b.c) for b in row] for row in ex.balls[k]])
         if not np.allclose(cen, getattr(alg, k), rtol=1e-9, atol=1e-9):
-            raise _Refused(f"exact matrix {k} differs from sosalgo.model.bind")
+            raise Refused(f"exact matrix {k} differs from sosalgo.model.bind")
     if exact_fixed_point(ex, fixed_point(alg)) is None:
-        raise _Refused("fixed point (u with (I - A)u = 0, Cu = 1, Eu = 1) not proven")
+        raise Refused("fixed point (u with (I - A)u = 0, Cu = 1, Eu = 1) not proven")
     return ex, alg.n
 
 
@@ -199,33 +199,33 @@ def _read_certificate(cert: Mapping[str, Any], ex: Any, n: int, max_den: int) ->
         lag = int(cert["lag"])
         has_x = cert.get("c") is not None
         if not has_x and not all(is_zero(v) for v in (ex.matrices["E"] - ex.matrices["C"])):
-            raise _Refused("certificate has no c term but x_k != y_k (E != C)")
+            raise Refused("certificate has no c term but x_k != y_k (E != C)")
         nz = n + lag + 1
         P_raw = np.asarray(cert["P"], dtype=object)
         if P_raw.shape != (nz, nz):
-            raise _Refused(f"P has shape {P_raw.shape}, expected {(nz, nz)}")
+            raise Refused(f"P has shape {P_raw.shape}, expected {(nz, nz)}")
         P = np.empty((nz, nz), dtype=object)
         for i in range(nz):
             for j in range(i, nz):
-                P[i, j] = P[j, i] = _q(0.5 * (float(P_raw[i, j]) + float(P_raw[j, i]))
+                P[i, j] = P[j, i] = rational_near(0.5 * (float(P_raw[i, j]) + float(P_raw[j, i]))
                                        if not isinstance(P_raw[i, j], Fraction | str)
                                        else P_raw[i, j], max_den)
-        pi = [_q(v, max_den) for v in list(cert["p"]) + ([cert["c"]] if has_x else [])]
+        pi = [rational_near(v, max_den) for v in list(cert["p"]) + ([cert["c"]] if has_x else [])]
         if len(pi) != lag + 1 + has_x:
-            raise _Refused(f"p has {len(cert['p'])} weights, expected {lag + 1}")
+            raise Refused(f"p has {len(cert['p'])} weights, expected {lag + 1}")
         mult = cert["multipliers"]
         return _Cert(lag, has_x, P, pi, mult["decrease"], mult["positivity"])
     except (KeyError, TypeError, ValueError, OverflowError) as exc:
-        raise _Refused(f"malformed certificate: {type(exc).__name__}: {exc}") from None
+        raise Refused(f"malformed certificate: {type(exc).__name__}: {exc}") from None
 
 
 def _multipliers(c: _Cert, st: Any, max_den: int) -> tuple[list[Fraction], list[Fraction]]:
     """The decrease (eta) and positivity (lambda) multipliers, rational, negatives as 0."""
     try:
-        eta = [max(Fraction(0), _q(c.m_dec[k], max_den)) for k in st.dec.labels]
-        lam = [max(Fraction(0), _q(c.m_pos[k], max_den)) for k in st.pos.labels]
+        eta = [max(Fraction(0), rational_near(c.m_dec[k], max_den)) for k in st.dec.labels]
+        lam = [max(Fraction(0), rational_near(c.m_pos[k], max_den)) for k in st.pos.labels]
     except KeyError as exc:
-        raise _Refused(f"multiplier of pair {exc} missing") from None
+        raise Refused(f"multiplier of pair {exc} missing") from None
     return eta, lam
 
 
@@ -265,8 +265,8 @@ def _prove(res: InterpolationExactResult, family: Any, st: Any, c: _Cert,
         parts = family.exact_parts(st, rq * rq, c.P, np.array(c.pi, dtype=object), eta, lam)
         bad_df = [i for i, b in enumerate(Ball.of(v) for v in parts["Df"]) if b.hi > 0]
         bad_pf = [i for i, b in enumerate(Ball.of(v) for v in parts["Pf"]) if b.lo < 0]
-        ok_d, delta_d, det_d = _definite(_symmetrize(parts["D"]), -1)
-        ok_p, delta_p, det_p = _definite(_symmetrize(parts["Pq"]), +1)
+        ok_d, delta_d, det_d = prove_definite(symmetrize_balls(parts["D"]), -1)
+        ok_p, delta_p, det_p = prove_definite(symmetrize_balls(parts["Pq"]), +1)
         if not bad_df and not bad_pf and ok_d and ok_p:
             res.verified = Verdict.EXACT
             res.rho_proven, res.rho_proven_float = fraction_str(rq), float(rq)

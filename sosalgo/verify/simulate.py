@@ -253,7 +253,7 @@ def _function_groups(alg: Algorithm, functions: FunctionSource | None, dims: Seq
 
 
 @dataclass
-class _Tally:
+class Tally:
     """What the trajectories found so far (see :class:`SimulationResult`)."""
 
     violations: list[Violation] = field(default_factory=list)
@@ -280,7 +280,7 @@ class _Run:
                  lyapunov: dict[str, Any] | None):
         self.alg, self.P, self.r2, self.lyap = alg, P, r2, lyapunov
         self.lag = -1 if lyapunov is None else int(lyapunov["lag"])
-        self.tally = _Tally()
+        self.tally = Tally()
 
     def _value(self, f: Objective, e: np.ndarray,
                hist: tuple[list, list] | None) -> tuple[np.ndarray, np.ndarray]:

@@ -30,7 +30,7 @@ import numpy as np
 
 from sosalgo.oracles import fixed_point_basis
 from sosalgo.verify.prox_functions import ProxProblem, composite_problems
-from sosalgo.verify.simulate import SimulationResult, Violation, _Tally
+from sosalgo.verify.simulate import SimulationResult, Tally, Violation
 
 __all__ = ["fixed_point_state", "run_method", "simulate_composite"]
 
@@ -128,7 +128,7 @@ def _starts(xi_s: np.ndarray, starts: int, rng: np.random.Generator) -> np.ndarr
     return xi_s[None] + e
 
 
-def _check(t: _Tally, key: str, name: str, d: int, lag: int, r2: float,
+def _check(t: Tally, key: str, name: str, d: int, lag: int, r2: float,
            V: np.ndarray, S: np.ndarray, M: np.ndarray) -> None:
     """Decrease, positivity and the bound along one batch of trajectories."""
     active = np.isfinite(V[0]) & (V[0] >= FOLLOW * S[0])
@@ -173,7 +173,7 @@ def simulate_composite(om: Any, rho: float, P: Any, lyapunov: dict[str, Any],
         raise ValueError(f"P has shape {P.shape}, expected {(nz, nz)}")
     probs = list(problems) if problems is not None else [
         pr for d in dims for pr in composite_problems(om, d, rng)]
-    t = _Tally()
+    t = Tally()
     with np.errstate(all="ignore"):
         for prob in probs:
             key = f"{prob.name} (d={prob.d})"
