@@ -260,13 +260,19 @@ def _start_tracker_quietly() -> None:
 
     if getattr(resource_tracker._resource_tracker, "_fd", None) is not None:
         return  # already running
+    _without_stderr(resource_tracker.ensure_running)
+
+
+def _without_stderr(start: Callable[[], Any]) -> None:
+    """Run ``start`` (which starts a helper process) with file descriptor 2 on /dev/null,
+    so that the helper and what it forks inherit a silent stderr."""
     sys.stderr.flush()
     saved = os.dup(2)
     try:
         null = os.open(os.devnull, os.O_WRONLY)
         os.dup2(null, 2)
         os.close(null)
-        resource_tracker.ensure_running()
+        start()
     finally:
         os.dup2(saved, 2)
         os.close(saved)
@@ -278,7 +284,10 @@ def start_pool_server(preload: Sequence[str] = PRELOAD) -> None:
     import multiprocessing.forkserver as fs
 
     if pool_context(preload).get_start_method() == "forkserver":
-        fs.ensure_running()
+        # silent stderr: a worker being forked while a killed run exits fails to open the
+        # pool's unlinked semaphore and would print that (task errors travel by futures,
+        # and workers' warnings are silenced anyway)
+        _without_stderr(fs.ensure_running)
 
 
 def worker_pool(workers: int) -> ProcessPoolExecutor:
@@ -286,7 +295,9 @@ def worker_pool(workers: int) -> ProcessPoolExecutor:
     Stop it with ``shutdown`` when its work is done, else with :func:`kill_pool`."""
     from concurrent.futures import ProcessPoolExecutor
 
-    return ProcessPoolExecutor(max_workers=workers, mp_context=pool_context(),
+    ctx = pool_context()
+    start_pool_server()  # started quietly (no-op when it runs already)
+    return ProcessPoolExecutor(max_workers=workers, mp_context=ctx,
                                initializer=_die_with_parent)
 
 
