@@ -235,13 +235,7 @@ def evaluate_algorithm(
     if not np.isfinite(L):
         raise ModelError("kappa", f"L = kappa * m overflows at kappa={kappa:g}")
     params = parameter_values(spec, kappa, theta)
-    values = [m, L, kappa] + [params[p] for p in comp.names]
-    mats = {}
-    for k, fn in comp.matrix_fns.items():
-        try:
-            mats[k] = fn(values)
-        except NumericError as exc:
-            raise ModelError(f"matrices.{k}", str(exc)) from None
+    mats = _matrices(comp, [m, L, kappa] + [params[p] for p in comp.names])
     if spec.composite:
         from sosalgo.oracles import make_method
 
@@ -271,7 +265,6 @@ def fixed_point(alg: Algorithm, tol: float = FIXED_POINT_TOL) -> np.ndarray | No
 def bind_sublinear(spec: Spec, theta: Mapping[str, float] | None = None) -> Any:
     """The :class:`OracleMethod` of a sublinear spec (``m: 0``, L given, no kappa) at its
     parameter values (``theta`` overrides input parameters); ModelError names the field."""
-    from sosalgo.expr.compile import NumericError
     from sosalgo.oracles import make_method
 
     if not spec.sublinear or spec.L is None:
@@ -279,11 +272,17 @@ def bind_sublinear(spec: Spec, theta: Mapping[str, float] | None = None) -> Any:
     comp = _compiled(spec)
     nan = float("nan")
     params = parameter_values(spec, nan, theta)
-    values = [0.0, spec.L, nan] + [params[p] for p in comp.names]
+    mats = _matrices(comp, [0.0, spec.L, nan] + [params[p] for p in comp.names])
+    return make_method(spec, mats, 0.0, spec.L, nan, params)
+
+
+def _matrices(comp: _Compiled, values: list[float]) -> dict[str, np.ndarray]:
+    """The spec's matrices at ``values`` (m, L, kappa, then the parameters); a domain
+    error becomes a ModelError naming the matrix."""
     mats = {}
     for k, fn in comp.matrix_fns.items():
         try:
             mats[k] = fn(values)
         except NumericError as exc:
             raise ModelError(f"matrices.{k}", str(exc)) from None
-    return make_method(spec, mats, 0.0, spec.L, nan, params)
+    return mats

@@ -57,6 +57,7 @@ from sosalgo.verify.exact_interpolation import (
     Refused,
     prove_definite,
     rational_near,
+    settle,
     symmetrize_balls,
 )
 
@@ -517,21 +518,10 @@ def _prove(res: CompositeExactResult, dec: ExactWindow, pos: ExactWindow, c: _CC
         D = pt["G1"] - pt["G0"] * r
         bad_df = [i for i, b in enumerate(map(Ball.of, pt["g1"] - pt["g0"] * r)) if b.hi > 0]
         ok_d, delta_d, det_d = prove_definite(symmetrize_balls(D), -1)
-        if not bad_df and not bad_pf and ok_d and ok_p:
-            res.verified = Verdict.EXACT
-            res.rho_proven, res.rho_proven_float = fraction_str(rq), float(rq)
-            res.delta = fraction_str(min(delta_d, delta_p))
-            res.proofs = {"decrease": f"-D ⪰ {fraction_str(delta_d)} I: {det_d}",
-                          "positivity": f"Pq ⪰ {fraction_str(delta_p)} I: {det_p}",
-                          "function values": "all rows exact (<= 0 / >= 0)",
-                          "classes": "; ".join(f"{k}: {v}" for k, v in
-                                               res.model.get("classes", {}).items())}
+        why = settle(res, rq, bad_df, bad_pf, (ok_d, delta_d, det_d), (ok_p, delta_p, det_p))
+        if why is None:
+            res.proofs["classes"] = "; ".join(f"{k}: {v}" for k, v in
+                                              res.model.get("classes", {}).items())
             return None
-        if first_fail is None:
-            first_fail = "; ".join(
-                ([f"decrease function-value rows {bad_df} > 0"] if bad_df else [])
-                + ([f"positivity function-value rows {bad_pf} < 0"] if bad_pf else [])
-                + ([f"decrease matrix: {det_d}"] if not ok_d else [])
-                + ([f"positivity matrix: {det_p}"] if not ok_p else [])
-            ) + f" at rho = {fraction_str(rq)}"
+        first_fail = first_fail or why
     return first_fail

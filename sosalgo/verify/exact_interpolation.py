@@ -267,19 +267,30 @@ def _prove(res: InterpolationExactResult, family: Any, st: Any, c: _Cert,
         bad_pf = [i for i, b in enumerate(Ball.of(v) for v in parts["Pf"]) if b.lo < 0]
         ok_d, delta_d, det_d = prove_definite(symmetrize_balls(parts["D"]), -1)
         ok_p, delta_p, det_p = prove_definite(symmetrize_balls(parts["Pq"]), +1)
-        if not bad_df and not bad_pf and ok_d and ok_p:
-            res.verified = Verdict.EXACT
-            res.rho_proven, res.rho_proven_float = fraction_str(rq), float(rq)
-            res.delta = fraction_str(min(delta_d, delta_p))
-            res.proofs = {"decrease": f"-D ⪰ {fraction_str(delta_d)} I: {det_d}",
-                          "positivity": f"Pq ⪰ {fraction_str(delta_p)} I: {det_p}",
-                          "function values": "all rows exact (<= 0 / >= 0)"}
+        why = settle(res, rq, bad_df, bad_pf, (ok_d, delta_d, det_d), (ok_p, delta_p, det_p))
+        if why is None:
             return None
-        if first_fail is None:
-            first_fail = "; ".join(
-                ([f"decrease function-value rows {bad_df} > 0"] if bad_df else [])
-                + ([f"positivity function-value rows {bad_pf} < 0"] if bad_pf else [])
-                + ([f"decrease matrix: {det_d}"] if not ok_d else [])
-                + ([f"positivity matrix: {det_p}"] if not ok_p else [])
-            ) + f" at rho = {fraction_str(rq)}"
+        first_fail = first_fail or why
     return first_fail
+
+
+def settle(res: Any, rq: Fraction, bad_df: list[int], bad_pf: list[int],
+           dec: tuple[bool, Fraction, str], pos: tuple[bool, Fraction, str]) -> str | None:
+    """One attempt at ``rq``: when the function-value rows and both matrices (decrease
+    ``dec``, positivity ``pos``: proven, margin, detail) are proven, ``res`` becomes
+    verified exact at ``rq`` and None is returned; else why the attempt failed."""
+    (ok_d, delta_d, det_d), (ok_p, delta_p, det_p) = dec, pos
+    if not bad_df and not bad_pf and ok_d and ok_p:
+        res.verified = Verdict.EXACT
+        res.rho_proven, res.rho_proven_float = fraction_str(rq), float(rq)
+        res.delta = fraction_str(min(delta_d, delta_p))
+        res.proofs = {"decrease": f"-D ⪰ {fraction_str(delta_d)} I: {det_d}",
+                      "positivity": f"Pq ⪰ {fraction_str(delta_p)} I: {det_p}",
+                      "function values": "all rows exact (<= 0 / >= 0)"}
+        return None
+    return "; ".join(
+        ([f"decrease function-value rows {bad_df} > 0"] if bad_df else [])
+        + ([f"positivity function-value rows {bad_pf} < 0"] if bad_pf else [])
+        + ([f"decrease matrix: {det_d}"] if not ok_d else [])
+        + ([f"positivity matrix: {det_p}"] if not ok_p else [])
+    ) + f" at rho = {fraction_str(rq)}"
