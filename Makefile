@@ -113,5 +113,7 @@ fuzz: $(VENV)/.installed-dev
 	SOSALGO_FUZZ_EXAMPLES=$(FUZZ_EXAMPLES) $(BIN)/python -m pytest tests/test_fuzz.py
 
 SOUNDNESS_CASES ?= 300
+COMPOSITE_CASES ?= 200
 soundness: $(VENV)/.installed-dev
-	SOSALGO_SOUNDNESS_CASES=$(SOUNDNESS_CASES) $(BIN)/python -m pytest tests/test_soundness.py
+	SOSALGO_SOUNDNESS_CASES=$(SOUNDNESS_CASES) SOSALGO_COMPOSITE_CASES=$(COMPOSITE_CASES) \
+	  $(BIN)/python -m pytest tests/test_soundness.py tests/test_soundness_composite.py
