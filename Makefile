@@ -27,7 +27,7 @@ help:
 	@echo "make fig4     - Figure 4: three-parameter family designed with tight certificates"
 	@echo "make figures  - table1, fig1, fig2, fig3 and fig4"
 	@echo "make fuzz     - the loader fuzz tests with FUZZ_EXAMPLES (default 20000) cases"
-	@echo "make soundness - design lower bounds vs an independent judge, SOUNDNESS_CASES (default 300) specs"
+	@echo "make soundness - design bounds and composite rates vs independent judges, SOUNDNESS_CASES (300) and COMPOSITE_CASES (200) specs"
 	@echo "make clean    - remove CSV, PNG, PDF and JSON files from $(OUT)/"
 	@echo "Options: WORKERS=N, SCHEDULER=tcp://host:8786 (batch targets), OUT=DIR"
 

@@ -54,6 +54,7 @@ def test_three_parameter_tight_design_rediscovers_tmm(kappa):
 
 
 @pytest.mark.slow
+@pytest.mark.deep  # make test-all (about 10-15 s)
 def test_restriction_to_nesterov_structure_has_a_price():
     """gamma = beta (Nesterov's structure): the best tight rate stays well above the floor,
     and above the three-parameter design."""

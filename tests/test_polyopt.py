@@ -253,6 +253,7 @@ def test_gloptipoly_constrained_example() -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.deep  # make test-all (about 10-15 s)
 def test_floudas_pardalos_2_1() -> None:
     # Floudas-Pardalos (1990) problem 2.1, solved by [L01] (concave QP):
     # min 42x1 + 44x2 + 45x3 + 47x4 + 47.5x5 - 50 sum xi^2

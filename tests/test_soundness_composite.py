@@ -8,7 +8,7 @@ the classes (``tests/independent_composite.py``, no sosalgo code) - 1e-6, the ex
 verification says "exact", and the tail decay of a nonquadratic trajectory (Huber, l1,
 box) is at most rho^2 (with slack). The judge is first tested against closed forms.
 
-SOSALGO_COMPOSITE_CASES sets the number of random cases (default 20; ``make soundness``
+SOSALGO_COMPOSITE_CASES sets the number of random cases (default 10; ``make soundness``
 runs more).
 """
 
@@ -33,7 +33,7 @@ from .independent_composite import (
 
 pytestmark = pytest.mark.xdist_group("soundness-composite")
 
-CASES = max(1, int(os.environ.get("SOSALGO_COMPOSITE_CASES", "20")))
+CASES = max(1, int(os.environ.get("SOSALGO_COMPOSITE_CASES", "10")))
 SLACK = 1e-6  # a certified rho may sit this far below the judge's bound (eigenvalue rounding)
 SIM_SLACK = 5e-3  # on sqrt(observed tail decay) vs rho: a limit, observed over finite steps
 KINDS = ("pgm", "projm", "dr", "pp", "coupled")
