@@ -267,9 +267,9 @@ def _setup(spec: Spec, kappa: float, free: Sequence[str] | None, method: str,
         family = spec_family(spec)
     elif isinstance(family, str):
         family = get_family(family)
-    if getattr(family, "auto_lags", None) and family.auto_lags(spec.n):
-        # designs keep the first auto lag (n - 1): choosing it at every θ is ~5x slower
-        family = family.with_options(lag=family.lag_for(spec.n))
+    lags = family.auto_lags(spec.n)
+    if lags:  # designs keep the first auto lag (n - 1): choosing it at every θ is ~5x slower
+        family = family.with_options(lag=lags[0])
     if method == "moment" and not family.supports_moment:
         raise ModelError("certificate", "--method moment is built on Theorem 1 only")
     check_polynomial(spec, free)  # refuses non-polynomial θ
@@ -310,7 +310,7 @@ def _result(run: _Run, values_res: AnalysisResult | None, lb: float | None,
         rho_at_values=None if values_res is None or not values_res.certified
         else values_res.rho,
         method=method, floor=run.floor, family=run.family.name,
-        lag=getattr(run.family, "lag", None), time_limited=run.out_of_time and not gap_met,
+        lag=run.family.options().get("lag"), time_limited=run.out_of_time and not gap_met,
     )
 
 
