@@ -315,7 +315,7 @@ def test_time_limit_is_a_wall_clock_limit(tmp_path):
     assert proc.returncode == 0, proc.stderr
     doc = json.loads(proc.stdout)
     assert doc["seconds"] <= 5.5
-    assert wall <= 5.5 + 6.0  # plus start-up
+    assert wall <= 5.5 + 10.0  # plus start-up (imports) on a loaded machine
     assert doc["gap_met"] is False and doc["time_limited"] is True
     assert doc["rho_certified"] is not None  # the best certified design so far
     _certificate_holds(load_spec(SPECS / "three-parameter.yaml"), doc)
