@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -29,7 +30,7 @@ from sosalgo.classes import CLASSES, FunctionClass
 from sosalgo.errors import ModelError
 from sosalgo.spec.types import Spec, SpecError
 
-__all__ = ["BoundFunction", "OracleMethod", "check_oracle_spec",
+__all__ = ["BoundFunction", "OracleMethod", "as_oracle_method", "check_oracle_spec",
            "composite_quadratic_rate", "fixed_point_basis"]
 
 FIXED_POINT_TOL = 1e-8
@@ -234,6 +235,17 @@ def make_method(spec: Spec, mats: Mapping[str, np.ndarray], m: float, L: float,
                         bind_functions(spec, [m, L, kappa]),
                         tuple(names.index(f) for f in spec.oracles), spec.output,
                         spec.measure, params)
+
+
+def as_oracle_method(alg: Any) -> OracleMethod:
+    """Any bound method as an :class:`OracleMethod`: itself when it is one; a seed-setting
+    :class:`~sosalgo.model.Algorithm` (one gradient call on f in F(m, L), D = 0, x = E xi)
+    otherwise."""
+    if isinstance(alg, OracleMethod):
+        return alg
+    f = BoundFunction("f", CLASSES["smooth_strongly_convex"], {"m": alg.m, "L": alg.L})
+    return OracleMethod(alg.A, alg.B, alg.C, np.zeros((1, 1)), alg.E, alg.m, alg.L, (f,),
+                        (0,), None, "function", dict(alg.params))
 
 
 def composite_quadratic_rate(om: OracleMethod, points: int = 201) -> float:
