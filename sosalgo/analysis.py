@@ -746,6 +746,7 @@ def quadratic_rate(alg: Algorithm, points: int = 2001) -> float:
 
 # --------------------------------------------------------------------------- sublinear rates
 SUBLINEAR_SLACK = (1e-6, 1e-5, 1e-4, 1e-3, 1e-2)  # C tried at C*(1 + slack) until checked
+SUBLINEAR_DEGREES = (2, 1)  # potentials tried in this order (the first certified is kept)
 FLOAT_CHECK = "floating-point check"
 
 
@@ -777,10 +778,12 @@ class SublinearResult:
                 "family": "sublinear"}
 
 
-def _sublinear_sdp(problem: LMIProblem, rho: float | None) -> tuple[str, np.ndarray | None]:
+def _sublinear_sdp(problem: LMIProblem, rho: float | None,
+                   near: bool = False) -> tuple[str, np.ndarray | None]:
     """One Clarabel solve of the blocks without margin: minimize r (= rho^2, a variable)
     when ``rho`` is None, else a feasibility point at rho (the solver's interior point).
-    Returns (status, (y, r)) with y, r only when solved."""
+    Returns (status, (y, r)) with y, r only when solved (or almost solved with ``near``:
+    an estimate to start from, never a certificate)."""
     import clarabel
     import scipy.sparse as sps
 
@@ -801,7 +804,8 @@ def _sublinear_sdp(problem: LMIProblem, rho: float | None) -> tuple[str, np.ndar
     except Exception as exc:  # noqa: BLE001 - a crash is no answer
         return f"exception: {type(exc).__name__}", None
     status = str(sol.status)
-    if _solvers.solver_status(status) != _solvers.SolverStatus.SOLVED:
+    kind = _solvers.solver_status(status)
+    if kind != _solvers.SolverStatus.SOLVED and not (near and kind.near):
         return status, None
     return status, np.array(sol.x)
 
@@ -844,33 +848,47 @@ def _certify_constant(data: Any, r_star: float, solvers: Sequence[str],
 
 def analyze_sublinear(spec: Spec, theta: Mapping[str, float] | None = None,
                       solvers: Sequence[str] = DEFAULT_SOLVERS) -> SublinearResult:
-    """Smallest constant c certified by a potential with weights affine in k
-    (:mod:`sosalgo.certificates.sublinear`) for a sublinear spec (``m: 0``, L given):
-    the SDP minimizes c, then c (1 + slack) is solved with a strict margin and its point
-    checked in floating point; a solver status other than solved certifies nothing."""
-    from sosalgo.certificates.sublinear import (
-        sublinear_data,
-        sublinear_parts,
-        sublinear_problem,
-    )
+    """Smallest constant c certified by a potential with weights polynomial in k
+    (:mod:`sosalgo.certificates.sublinear`; degree 2, else degree 1) for a sublinear spec
+    (``m: 0``, L given): the SDP minimizes c, then c (1 + slack) is solved with a strict
+    margin and its point checked in floating point; a solver status other than solved
+    certifies nothing (an almost-solved optimum is only where the search starts)."""
     from sosalgo.model import bind_sublinear
 
     start = time.perf_counter()
     om = bind_sublinear(spec, theta)
-    data = sublinear_data(om)
-    status, z = _sublinear_sdp(sublinear_problem(data).problem, None)
-    count = [1]
+    count = [0]
     base = dict(L=float(om.L), params=dict(om.params), measure=om.measure)
-    found = None if z is None or not z[-1] > 0 else _certify_constant(data, float(z[-1]),
-                                                                       solvers, count)
-    estimate = None if z is None else float(z[-1]) * data.s
-    if found is None:
-        return SublinearResult(constant=None, certified=False, solves=count[0],
-                               seconds=time.perf_counter() - start, solver=None,
-                               constant_estimate=estimate, **base)
-    r, sp, out = found
-    assert out.x is not None
-    return SublinearResult(constant=r * data.s, certified=True, solves=count[0],
-                           seconds=time.perf_counter() - start, solver=out.solver,
-                           constant_estimate=estimate, certificate=sp.problem.unpack(out.x),
-                           check=sublinear_parts(sp, out.x, r), **base)
+    estimate = None
+    for deg in SUBLINEAR_DEGREES:
+        est, found = _sublinear_degree(om, deg, solvers, count)
+        estimate = est if estimate is None or (est is not None and est < estimate) else estimate
+        if found is not None:
+            r, sp, out, s = found
+            assert out.x is not None
+            from sosalgo.certificates.sublinear import sublinear_parts
+
+            return SublinearResult(constant=r * s, certified=True, solves=count[0],
+                                   seconds=time.perf_counter() - start, solver=out.solver,
+                                   constant_estimate=est, certificate=sp.problem.unpack(out.x),
+                                   check=sublinear_parts(sp, out.x, r), **base)
+    return SublinearResult(constant=None, certified=False, solves=count[0],
+                           seconds=time.perf_counter() - start, solver=None,
+                           constant_estimate=estimate, **base)
+
+
+def _sublinear_degree(om: Any, deg: int, solvers: Sequence[str],
+                      count: list[int]) -> tuple[float | None, tuple | None]:
+    """(the SDP's optimum c (an estimate), (r, problem, outcome, units) when certified) for
+    the potential of degree ``deg``."""
+    from sosalgo.certificates.sublinear import sublinear_data, sublinear_problem
+
+    data = sublinear_data(om, deg)
+    status, z = _sublinear_sdp(sublinear_problem(data).problem, None, near=True)
+    count[0] += 1
+    if z is None or not z[-1] > 0:
+        return None, None
+    found = _certify_constant(data, float(z[-1]), solvers, count)
+    solved = _solvers.solver_status(status) == _solvers.SolverStatus.SOLVED
+    est = float(z[-1]) * data.s if solved else None
+    return est, None if found is None else (*found, data.s)

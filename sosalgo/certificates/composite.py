@@ -83,6 +83,19 @@ class CompositeStructure:
         return self.n + self.p * (self.lag + 1)
 
 
+def output_call(om: Any) -> int | None:
+    """The call whose point is the output: ``output: y<i>``, or a gradient call i with
+    C_i = E and D_i = 0 (then x = y_i and the output needs no point of its own)."""
+    if om.output is not None or om.E is None:
+        return om.output
+    scale = max(1.0, float(np.abs(om.E).max()))
+    for i in range(om.p):
+        if (np.abs(om.C[i] - om.E[0]).max() <= 1e-14 * scale
+                and not np.any(om.D[i])):
+            return i
+    return None
+
+
 def _layout(om: Any, steps: int, lag: int) -> tuple[list[int], list[int], int]:
     """(output times, functions evaluated at the output beside the calls, width)."""
     J = len(om.functions)
@@ -90,7 +103,8 @@ def _layout(om: Any, steps: int, lag: int) -> tuple[list[int], list[int], int]:
     extra: list[int] = []
     if om.measure == "function":
         x_times = [t for t in (steps - 2, steps - 1) if t >= lag]
-        out_f = None if om.output is None else om.oracles[om.output]
+        oc = output_call(om)
+        out_f = None if oc is None else om.oracles[oc]
         extra = [j for j in range(J) if j != out_f]
     width = om.n + om.p * steps + len(extra) * len(x_times)
     return x_times, extra, width
@@ -189,7 +203,8 @@ def _measure(om: Any, pts: list, rows: dict, t: int, nphi: int,
         xo = rows["out"][t]
         return np.zeros(nphi), np.outer(xo, xo)
     lin = np.zeros(nphi)
-    here = {f"x[{t}]"} | ({f"y{om.output + 1}[{t}]"} if om.output is not None else set())
+    oc = output_call(om)
+    here = {f"x[{t}]"} | ({f"y{oc + 1}[{t}]"} if oc is not None else set())
     for fp in pts:
         for pt in fp:
             if pt.label in here:

@@ -46,9 +46,6 @@ from sosalgo.certificates.composite import CWindow, composite_structure
 __all__ = ["SublinearProblem", "block_kernels", "sublinear_data", "sublinear_parts",
            "sublinear_problem"]
 
-NAMES = ("P", "Q", "p", "q", "b", "eta0", "eta1", "lam0", "lam1", "nu")
-
-
 @dataclass
 class SublinearProblem:
     """The LMI in y (x = N y) with r = C/s the constant in solver units (rho^2 = r)."""
@@ -58,7 +55,7 @@ class SublinearProblem:
     x0: np.ndarray
     lay: dict[str, slice]
     s: float  # units: u = s u~, h = s psi~ (c = s r)
-    equalities: np.ndarray  # E x = e: the v-rows of (D0), (D1), (P1) and the tight rows
+    equalities: np.ndarray  # E x = e: the kernels (known and found) and the tight rows
     rhs: np.ndarray
 
 
@@ -69,16 +66,6 @@ def _unit_quads(Z: np.ndarray) -> np.ndarray:
     out = Z[ia][:, :, None] * Z[ib][:, None, :]
     off = ia != ib
     out[off] = out[off] + out[off].transpose(0, 2, 1)
-    return out
-
-
-def _layout(nz: int, npi: int, nd: int, npos: int) -> dict[str, slice]:
-    sizes = dict(P=nz * (nz + 1) // 2, Q=nz * (nz + 1) // 2, p=npi, q=npi, b=1, eta0=nd,
-                 eta1=nd, lam0=npos, lam1=npos, nu=npos)
-    out, k = {}, 0
-    for name in NAMES:
-        out[name] = slice(k, k + sizes[name])
-        k += sizes[name]
     return out
 
 
@@ -93,38 +80,92 @@ def _fixed_direction(om: Any, width: int) -> np.ndarray:
     return v / np.linalg.norm(v)
 
 
-def _pieces(om: Any, st: Any, lay: dict[str, slice], nvar: int) -> dict[str, tuple]:
-    """Quadratic (nvar, w, w) and scalar (nphi, nvar) parts of each inequality, and their
-    constants, on the full windows: G = c + sum x_i l_i (we need G <= 0)."""
+SCALAR_SOS = False
+DEGREE = 2  # weights polynomial in k of this degree (1: affine, Taylor and Bach's form)
+WEIGHTS = ("P", "Q", "R")  # z' (P + k Q + k^2 R) z
+VALUES = ("p", "q", "r")  # (p + k q + k^2 r)' psi
+
+
+def _tri(n: int) -> int:
+    return n * (n + 1) // 2
+
+
+def _layout(sizes: dict[str, int]) -> dict[str, slice]:
+    out, k = {}, 0
+    for name, size in sizes.items():
+        out[name] = slice(k, k + size)
+        k += size
+    return out
+
+
+def _sizes(st: Any, deg: int) -> dict[str, int]:
+    """Variables: the weights, b, the multipliers' coefficients (eta: decrease, lam:
+    positivity, nu: initial) and, for degree 2, the auxiliaries of each "<= 0 on k >= 0"
+    (S psd and K skew of the matrix blocks, t >= 0 of the scalar ones)."""
+    d, p = st.dec, st.pos
+    nd, npos = len(d.labels), len(p.labels)
+    sizes = {WEIGHTS[j]: _tri(st.nz) for j in range(deg + 1)}
+    sizes |= {VALUES[j]: st.npi for j in range(deg + 1)}
+    sizes["b"] = 1
+    sizes |= {f"eta{j}": nd for j in range(deg + 1)} | {f"lam{j}": npos for j in range(deg + 1)}
+    sizes["nu"] = npos
+    if deg == 2:
+        for tag, w, nphi in (("D", d.width, d.nphi), ("P", p.width, p.nphi)):
+            sizes |= {f"S{tag}": _tri(w), f"K{tag}": w * (w - 1) // 2, f"t{tag}": nphi}
+        sizes |= {"teta": nd, "tlam": npos}
+    return sizes
+
+
+def _skew_units(n: int) -> np.ndarray:
+    """E_ab - E_ba for a < b."""
+    ia, ib = np.triu_indices(n, 1)
+    out = np.zeros((len(ia), n, n))
+    out[np.arange(len(ia)), ia, ib] = 1.0
+    out[np.arange(len(ia)), ib, ia] = -1.0
+    return out
+
+
+@dataclass
+class _Poly:
+    """A constraint ``sum_j k^j (c_j + sum_i x_i q_j[i]) <= 0`` (matrix part) and
+    ``sum_j k^j (cl_j + lin_j x) <= 0`` coefficient-wise (the part on psi >= 0), k >= 0."""
+
+    q: list[np.ndarray]  # (nvar, w, w) per power of k
+    c: list[np.ndarray]  # (w, w)
+    lin: list[np.ndarray]  # (nphi, nvar)
+    cl: list[np.ndarray]  # (nphi,)
+
+
+def _polys(st: Any, lay: dict[str, slice], nvar: int, deg: int) -> dict[str, _Poly]:
+    """(D) phi_{k+1} - phi_k + sum eta(k) q_ab <= 0 and (P) (k + b) measure + sum lam(k)
+    q_ab - phi_k <= 0, as polynomials in k (phi_{k+1}: (k+1)^i = sum_j C(i, j) k^j)."""
+    from math import comb
+
     d, p = st.dec, st.pos
     U0, U1, Up = _unit_quads(d.Z[0]), _unit_quads(d.Z[1]), _unit_quads(p.Z[0])
-    wd, wp = d.width, p.width
-
-    def quad(w: int) -> np.ndarray:
-        return np.zeros((nvar, w, w))
-
-    def lin(k: int) -> np.ndarray:
-        return np.zeros((k, nvar))
-
-    D0q, D1q, P0q, P1q, Iq = quad(wd), quad(wd), quad(wp), quad(wp), quad(wp)
-    D0l, D1l, P0l, P1l, Il = lin(d.nphi), lin(d.nphi), lin(p.nphi), lin(p.nphi), lin(p.nphi)
-    D0q[lay["P"]], D0q[lay["Q"]], D0q[lay["eta0"]] = U1 - U0, U1, d.Mq
-    D1q[lay["Q"]], D1q[lay["eta1"]] = U1 - U0, d.Mq
-    P0q[lay["P"]], P0q[lay["lam0"]], P0q[lay["b"]] = -Up, p.Mq, p.meas_quad
-    P1q[lay["Q"]], P1q[lay["lam1"]] = -Up, p.Mq
-    Iq[lay["P"]], Iq[lay["nu"]] = Up, p.Mq
     F0, F1, Fp = d.F[0].T, d.F[1].T, p.F[0].T  # (nphi, npi)
-    D0l[:, lay["p"]], D0l[:, lay["q"]], D0l[:, lay["eta0"]] = F1 - F0, F1, d.mq.T
-    D1l[:, lay["q"]], D1l[:, lay["eta1"]] = F1 - F0, d.mq.T
-    P0l[:, lay["p"]], P0l[:, lay["lam0"]] = -Fp, p.mq.T
-    P0l[:, lay["b"].start] = p.meas_lin
-    P1l[:, lay["q"]], P1l[:, lay["lam1"]] = -Fp, p.mq.T
-    Il[:, lay["p"]], Il[:, lay["nu"]] = Fp, p.mq.T
-    zq, zl = np.zeros((wp, wp)), np.zeros(p.nphi)
-    return {"D0": (D0q, np.zeros((wd, wd)), D0l, np.zeros(d.nphi)),
-            "D1": (D1q, np.zeros((wd, wd)), D1l, np.zeros(d.nphi)),
-            "P0": (P0q, zq, P0l, zl), "P1": (P1q, p.meas_quad, P1l, p.meas_lin),
-            "I": (Iq, zq, Il, zl)}
+    D = _Poly([np.zeros((nvar, d.width, d.width)) for _ in range(deg + 1)],
+              [np.zeros((d.width, d.width))] * (deg + 1),
+              [np.zeros((d.nphi, nvar)) for _ in range(deg + 1)], [np.zeros(d.nphi)] * (deg + 1))
+    P = _Poly([np.zeros((nvar, p.width, p.width)) for _ in range(deg + 1)],
+              [np.zeros((p.width, p.width))] * (deg + 1),
+              [np.zeros((p.nphi, nvar)) for _ in range(deg + 1)], [np.zeros(p.nphi)] * (deg + 1))
+    for j in range(deg + 1):
+        D.q[j][lay[WEIGHTS[j]]] -= U0
+        D.lin[j][:, lay[VALUES[j]]] -= F0
+        for i in range(j, deg + 1):
+            D.q[j][lay[WEIGHTS[i]]] += comb(i, j) * U1
+            D.lin[j][:, lay[VALUES[i]]] += comb(i, j) * F1
+        D.q[j][lay[f"eta{j}"]] = d.Mq
+        D.lin[j][:, lay[f"eta{j}"]] = d.mq.T
+        P.q[j][lay[WEIGHTS[j]]] = -Up
+        P.lin[j][:, lay[VALUES[j]]] = -Fp
+        P.q[j][lay[f"lam{j}"]] = p.Mq
+        P.lin[j][:, lay[f"lam{j}"]] = p.mq.T
+    P.q[0][lay["b"]] = p.meas_quad
+    P.lin[0][:, lay["b"].start] = p.meas_lin
+    P.c[1], P.cl[1] = p.meas_quad, p.meas_lin
+    return {"D": D, "P": P}
 
 
 def _initial_map(om: Any, pos: CWindow) -> tuple[np.ndarray, np.ndarray]:
@@ -145,52 +186,139 @@ def _initial_map(om: Any, pos: CWindow) -> tuple[np.ndarray, np.ndarray]:
 
 @dataclass
 class _XData:
-    """The inequalities on x (before the equalities are eliminated): matrix blocks
-    (name, c0, c1, l (nvar, s, s)) reduced along v, scalar rows (name, constant, row)."""
+    """The inequalities on x: matrix blocks (name, c0, c1, l (nvar, s, s)) with
+    G = c0 + r c1 + sum x_i l_i <= 0, scalar rows (name, constant, row) <= 0, and the
+    directions every certificate's block is singular along (``known``: the minimizer
+    moving with zero gradients)."""
 
     mats: list[tuple[str, np.ndarray, np.ndarray, np.ndarray]]
     rows: list[tuple[str, float, np.ndarray]]
-    E: np.ndarray  # the v-equalities E x = 0
+    known: dict[str, np.ndarray]
     lay: dict[str, slice]
     st: Any
     s: float
+    deg: int
 
 
-def sublinear_data(om: Any) -> _XData:
+def _halfline(name: str, poly: _Poly, lay: dict[str, slice], tag: str,
+              nvar: int) -> tuple[list, list]:
+    """``poly(k) <= 0`` for all k >= 0 as LMIs. Degree 1: both coefficients <= 0. Degree 2:
+    [[A0, Y], [Y', A2]] <= 0 with Y = (A1 + S)/2 + K, S >= 0, K skew (then -A(k) =
+    [I; kI]' M [I; kI] + k S with M >= 0); coefficient-wise the same with 1 x 1 blocks."""
+    deg = len(poly.q) - 1
+    if deg == 1:
+        mats = [(f"{name}{j}", poly.c[j], np.zeros_like(poly.c[j]), poly.q[j]) for j in (0, 1)]
+        rows = [(f"{name}{j}-f[{i}]", float(poly.cl[j][i]), poly.lin[j][i])
+                for j in (0, 1) for i in range(len(poly.cl[j]))]
+        return mats, rows
+    w = poly.c[0].shape[0]
+    Su, Ku = np.zeros((nvar, w, w)), np.zeros((nvar, w, w))
+    Su[lay[f"S{tag}"]], Ku[lay[f"K{tag}"]] = _unit_quads(np.eye(w)), _skew_units(w)
+    mats = [(name, *_stack2(poly.q, poly.c, Su, Ku)), (f"{name}-S", np.zeros((w, w)),
+                                                          np.zeros((w, w)), -Su)]
+    if SCALAR_SOS:
+        mats += _scalar_blocks(name, poly.lin, poly.cl, lay[f"t{tag}"], nvar)
+        rows = [(f"t{tag}[{i}]", 0.0, -np.eye(nvar)[k])
+                for i, k in enumerate(range(lay[f"t{tag}"].start, lay[f"t{tag}"].stop))]
+    else:
+        rows = [(f"{name}{j}-f[{i}]", float(poly.cl[j][i]), poly.lin[j][i])
+                for j in range(3) for i in range(len(poly.cl[j]))]
+    return mats, rows
+
+
+def _stack2(q: list, c: list, Su: np.ndarray, Ku: np.ndarray) -> tuple:
+    """(c0, c1 = 0, l) of [[A0, Y], [Y', A2]], Y = (A1 + S)/2 + K."""
+    w = c[0].shape[0]
+    nvar = q[0].shape[0]
+    L = np.zeros((nvar, 2 * w, 2 * w))
+    Y = 0.5 * (q[1] + Su) + Ku
+    L[:, :w, :w], L[:, w:, w:] = q[0], q[2]
+    L[:, :w, w:], L[:, w:, :w] = Y, Y.transpose(0, 2, 1)
+    C = np.zeros((2 * w, 2 * w))
+    C[:w, :w], C[w:, w:] = c[0], c[2]
+    C[:w, w:] = C[w:, :w] = 0.5 * c[1]
+    return C, np.zeros_like(C), L
+
+
+def _scalar_blocks(name: str, lin: list, cl: list, tsl: slice, nvar: int) -> list:
+    """[[a0, (a1 + t)/2], [(a1 + t)/2, a2]] <= 0 for each component (t = x[tsl])."""
+    out = []
+    for i in range(len(cl[0])):
+        L = np.zeros((nvar, 2, 2))
+        L[:, 0, 0], L[:, 1, 1] = lin[0][i], lin[2][i]
+        off = 0.5 * lin[1][i]
+        off[tsl.start + i] += 0.5
+        L[:, 0, 1] = L[:, 1, 0] = off
+        C = np.array([[cl[0][i], 0.5 * cl[1][i]], [0.5 * cl[1][i], cl[2][i]]])
+        out.append((f"{name}-f[{i}]", C, np.zeros((2, 2)), L))
+    return out
+
+
+def _nonneg(names: tuple[str, ...], lay: dict[str, slice], nvar: int,
+            tname: str | None) -> tuple[list, list]:
+    """Multiplier polynomials sum_j k^j x[names[j]] >= 0 on k >= 0 (coefficient-wise for
+    degree 1; a 2 x 2 block per multiplier with its t >= 0 for degree 2)."""
+    eye = np.eye(nvar)
+    if tname is None or not SCALAR_SOS:
+        return [], [(f"{nm}[{i - lay[nm].start}]", 0.0, -eye[i]) for nm in names
+                    for i in range(lay[nm].start, lay[nm].stop)]
+    cnt = lay[names[0]].stop - lay[names[0]].start
+    lin = [-eye[lay[nm]] for nm in names]
+    mats = _scalar_blocks(names[0][:-1], lin, [np.zeros(cnt)] * 3, lay[tname], nvar)
+    rows = [(f"{tname}[{i}]", 0.0, -eye[lay[tname].start + i]) for i in range(cnt)]
+    return mats, rows
+
+
+def sublinear_data(om: Any, deg: int = DEGREE) -> _XData:
     """The potential LMI of a method (module docstring) in units s = L, on x."""
     s = float(om.L)
     st = composite_structure(om, 0, s, rescale=True)
-    d, p = st.dec, st.pos
-    lay = _layout(st.nz, st.npi, len(d.labels), len(p.labels))
-    nvar = lay["nu"].stop
-    pc = _pieces(om, st, lay, nvar)
-    vd, vp = _fixed_direction(om, d.width), _fixed_direction(om, p.width)
-    E = np.vstack([np.einsum("kij,j->ik", pc[k][0], v)
-                   for k, v in (("D0", vd), ("D1", vd), ("P1", vp))])
-    T, e0 = _initial_map(om, p)
-    reduce = {"D0": sla.null_space(vd[None, :]), "D1": sla.null_space(vd[None, :]),
-              "P0": np.eye(p.width), "P1": sla.null_space(vp[None, :]), "I": T}
+    p = st.pos
+    sizes = _sizes(st, deg)
+    lay = _layout(sizes)
+    nvar = sum(sizes.values())
+    polys = _polys(st, lay, nvar, deg)
     mats, rows = [], []
-    for name, (q, c, lin, cl) in pc.items():
-        R = reduce[name]
-        c0 = R.T @ c @ R
-        mats.append((name, c0, -e0 if name == "I" else np.zeros_like(c0),
-                     np.einsum("ia,kij,jb->kab", R, q, R)))
-        rows += [(f"{name}-f[{i}]", float(cl[i]), lin[i]) for i in range(lin.shape[0])]
-    for name in ("b", "eta0", "eta1", "lam0", "lam1", "nu"):  # >= 0
-        for i in range(lay[name].start, lay[name].stop):
-            rows.append((f"{name}[{i - lay[name].start}]", 0.0, -np.eye(nvar)[i]))
-    return _XData(mats, rows, E, lay, st, s)
+    for name, tag in (("D", "D"), ("P", "P")):
+        m_, r_ = _halfline(name, polys[name], lay, tag, nvar)
+        mats, rows = mats + m_, rows + r_
+    T, e0 = _initial_map(om, p)
+    Iq = np.zeros((nvar, p.width, p.width))
+    Iq[lay["P"]], Iq[lay["nu"]] = _unit_quads(p.Z[0]), p.Mq
+    mats.append(("I", np.zeros((T.shape[1],) * 2), -e0, np.einsum("ia,kij,jb->kab", T, Iq, T)))
+    Il = np.zeros((p.nphi, nvar))
+    Il[:, lay["p"]], Il[:, lay["nu"]] = p.F[0].T, p.mq.T
+    rows += [(f"I-f[{i}]", 0.0, Il[i]) for i in range(p.nphi)]
+    rows.append(("b[0]", 0.0, -np.eye(nvar)[lay["b"].start]))
+    for group, t in (("eta", "teta"), ("lam", "tlam")):
+        m_, r_ = _nonneg(tuple(f"{group}{j}" for j in range(deg + 1)), lay, nvar,
+                         t if deg == 2 else None)
+        mats, rows = mats + m_, rows + r_
+    m_, r_ = _nonneg(("nu",), lay, nvar, None)
+    mats, rows = mats + m_, rows + r_
+    return _XData(mats, rows, _known(om, st, deg), lay, st, s, deg)
+
+
+def _known(om: Any, st: Any, deg: int) -> dict[str, np.ndarray]:
+    """Block directions singular for every certificate: v = the minimizer moving with zero
+    gradients (xi = u t, every input 0) in every coefficient of (D) and in the growing
+    coefficients of (P)."""
+    vd, vp = _fixed_direction(om, st.dec.width), _fixed_direction(om, st.pos.width)
+    if deg == 1:
+        return {"D0": vd[:, None], "D1": vd[:, None], "P1": vp[:, None]}
+    zd, zp = np.zeros_like(vd), np.zeros_like(vp)
+    return {"D": np.column_stack([np.concatenate([vd, zd]), np.concatenate([zd, vd])]),
+            "D-S": vd[:, None], "P": np.concatenate([zp, vp])[:, None], "P-S": vp[:, None]}
 
 
 def sublinear_problem(data: _XData, tight: frozenset[int] = frozenset(),
                       kernels: dict[str, np.ndarray] | None = None,
                       r: float = 0.0) -> SublinearProblem:
-    """The LMI in y, x = x0 + N y solving as equalities the v-equalities, the scalar rows
+    """The LMI in y, x = x0 + N y solving as equalities the known kernels, the scalar rows
     ``tight`` (indices into ``data.rows``) and G K = 0 for each matrix block's ``kernels``
     K (at r = C/s); each such block is reduced to the complement of K; all strict."""
-    kernels = kernels or {}
-    Erows, rhs = [data.E], [np.zeros(len(data.E))]
+    kernels = data.known | (kernels or {})
+    Erows, rhs = [np.zeros((0, data.mats[0][3].shape[0]))], [np.zeros(0)]
     for name, c0, c1, lq in data.mats:
         K = kernels.get(name)
         if K is not None and K.shape[1]:
@@ -207,6 +335,8 @@ def sublinear_problem(data: _XData, tight: frozenset[int] = frozenset(),
     for name, c0, c1, lq in data.mats:
         K = kernels.get(name)
         R = np.eye(c0.shape[0]) if K is None or not K.shape[1] else sla.null_space(K.T)
+        if not R.shape[1]:  # singular everywhere: the equalities say it all
+            continue
         lr = np.einsum("ia,kij,jb->kab", R, lq, R)
         blocks.append(AffineBlock(name, R.T @ c0 @ R + np.tensordot(x0, lr, axes=1),
                                   R.T @ c1 @ R, np.einsum("kab,ky->yab", lr, N),
@@ -216,23 +346,40 @@ def sublinear_problem(data: _XData, tight: frozenset[int] = frozenset(),
         if i not in tight:
             blocks.append(AffineBlock(name, np.full((1, 1), c + row @ x0), one,
                                       (row @ N)[:, None, None], zero))
-    st, lay, s = data.st, data.lay, data.s
-    problem = LMIProblem(ny, tuple(blocks), lambda y: _unpack(st, lay, s, x0 + N @ y))
+    st, lay, s, deg = data.st, data.lay, data.s, data.deg
+    problem = LMIProblem(ny, tuple(blocks), lambda y: _unpack(st, lay, s, deg, x0 + N @ y))
     return SublinearProblem(problem, N, x0, lay, s, Eall, e)
 
 
 def block_kernels(data: _XData, x: np.ndarray, r: float,
                   tol: float = 1e-7) -> dict[str, np.ndarray]:
-    """The eigenvectors of each matrix block at (x, r) with eigenvalue >= -tol (relative):
-    at an interior point of the solutions, the directions where every certificate's
-    block is singular."""
+    """The known kernels of each matrix block and, on their complement, the eigenvectors at
+    (x, r) with eigenvalue >= -tol (relative): at an interior point of the solutions, the
+    directions where every certificate's block is singular."""
     out = {}
     for name, c0, c1, lq in data.mats:
         G = c0 + r * c1 + np.tensordot(x, lq, axes=1)
-        w, V = np.linalg.eigh(G)
-        scale = max(1.0, float(np.abs(w).max()))
-        out[name] = V[:, w >= -tol * scale]
+        known = data.known.get(name, np.zeros((G.shape[0], 0)))
+        R = sla.null_space(known.T) if known.shape[1] else np.eye(G.shape[0])
+        w, V = np.linalg.eigh(R.T @ G @ R)
+        scale = max(1.0, float(np.abs(w).max(initial=0.0)))
+        out[name] = np.hstack([known, snap_basis(R @ V[:, w >= -tol * scale])])
     return out
+
+
+def snap_basis(K: np.ndarray, tol: float = 1e-3, max_den: int = 16) -> np.ndarray:
+    """A basis of the span of K's columns in reduced echelon form with entries close to
+    small-denominator fractions snapped to them (structural kernels are such spans; the
+    eigenvectors found at a solver's point are only close to them)."""
+    from fractions import Fraction
+
+    q = K.shape[1]
+    if not q:
+        return K
+    _, _, piv = sla.qr(K.T, pivoting=True)
+    E = K @ np.linalg.inv(K[piv[:q], :])
+    snapped = np.vectorize(lambda v: float(Fraction(v).limit_denominator(max_den)))(E)
+    return np.where(np.abs(snapped - E) <= tol, snapped, E)
 
 
 def _sym(vec: np.ndarray, n: int) -> np.ndarray:
@@ -241,10 +388,11 @@ def _sym(vec: np.ndarray, n: int) -> np.ndarray:
     return M + np.triu(M, 1).T
 
 
-def _unpack(st: Any, lay: dict[str, slice], s: float, x: np.ndarray) -> dict[str, Any]:
-    """Original units (as :func:`sosalgo.certificates.composite._unpack`, v = s): P, Q on
-    z = (xi - xi*, u), p, q on the function values, b, multipliers divided by their
-    inequality's scale."""
+def _unpack(st: Any, lay: dict[str, slice], s: float, deg: int,
+            x: np.ndarray) -> dict[str, Any]:
+    """Original units (as :func:`sosalgo.certificates.composite._unpack`, v = s): P, Q (and
+    R for degree 2) on z = (xi - xi*, u), p, q (r) on the function values, b, multipliers
+    divided by their inequality's scale."""
     dz = np.concatenate([np.ones(st.n), np.full(st.nz - st.n, 1.0 / s)])
 
     def mat(name: str) -> list[list[float]]:
@@ -254,12 +402,16 @@ def _unpack(st: Any, lay: dict[str, slice], s: float, x: np.ndarray) -> dict[str
         return {lab: float(t) * s / g for lab, t, g in zip(win.labels, x[lay[name]],
                                                             win.sigma, strict=True)}
 
-    return {"family": "sublinear", "lag": 0, "P": mat("P"), "Q": mat("Q"),
-            "p": [float(t) for t in x[lay["p"]]], "q": [float(t) for t in x[lay["q"]]],
-            "b": float(x[lay["b"]][0]),
-            "multipliers": {"eta0": mult("eta0", st.dec), "eta1": mult("eta1", st.dec),
-                            "lam0": mult("lam0", st.pos), "lam1": mult("lam1", st.pos),
-                            "nu": mult("nu", st.pos)}}
+    out: dict[str, Any] = {"family": "sublinear", "lag": 0, "degree": deg,
+                           "b": float(x[lay["b"]][0])}
+    mults = {"nu": mult("nu", st.pos)}
+    for j in range(deg + 1):
+        out[WEIGHTS[j]] = mat(WEIGHTS[j])
+        out[VALUES[j]] = [float(t) for t in x[lay[VALUES[j]]]]
+        mults[f"eta{j}"] = mult(f"eta{j}", st.dec)
+        mults[f"lam{j}"] = mult(f"lam{j}", st.pos)
+    out["multipliers"] = mults
+    return out
 
 
 def sublinear_parts(sp: SublinearProblem, y: np.ndarray, r: float) -> dict[str, float]:
