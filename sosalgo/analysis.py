@@ -746,6 +746,7 @@ def quadratic_rate(alg: Algorithm, points: int = 2001) -> float:
 
 # --------------------------------------------------------------------------- sublinear rates
 SUBLINEAR_SLACK = (1e-6, 1e-5, 1e-4, 1e-3, 1e-2)  # C tried at C*(1 + slack) until checked
+FULL_TOL = 1e-10  # largest eigenvalue / row allowed on the unreduced blocks (rounding)
 SUBLINEAR_DEGREES = (2, 1)  # potentials tried in this order (the first certified is kept)
 FLOAT_CHECK = "floating-point check"
 
@@ -824,7 +825,7 @@ def _certify_constant(data: Any, r_star: float, solvers: Sequence[str],
     """(r, problem, checked outcome) at the first r = r*(1 + slack) whose strict problem
     passes the floating-point check; the rows and block directions at 0 at the solver's
     interior point (0 for every certificate) are solved for as equalities first."""
-    from sosalgo.certificates.sublinear import block_kernels, sublinear_problem
+    from sosalgo.certificates.sublinear import block_kernels, full_violation, sublinear_problem
 
     for slack in SUBLINEAR_SLACK:
         r = r_star * (1.0 + slack)
@@ -841,7 +842,7 @@ def _certify_constant(data: Any, r_star: float, solvers: Sequence[str],
             sp = sublinear_problem(data, tight, kernels, r)
             out = solve_lmi(sp.problem, math.sqrt(r), solvers)
             count[0] += 1
-            if out.feasible:
+            if out.feasible and full_violation(data, sp.x0 + sp.N @ out.x, r) <= FULL_TOL:
                 return r, sp, out
     return None
 
@@ -864,14 +865,15 @@ def analyze_sublinear(spec: Spec, theta: Mapping[str, float] | None = None,
         est, found = _sublinear_degree(om, deg, solvers, count)
         estimate = est if estimate is None or (est is not None and est < estimate) else estimate
         if found is not None:
-            r, sp, out, s = found
+            r, sp, out, s, full = found
             assert out.x is not None
             from sosalgo.certificates.sublinear import sublinear_parts
 
+            check = sublinear_parts(sp, out.x, r) | {"unreduced": full}
             return SublinearResult(constant=r * s, certified=True, solves=count[0],
                                    seconds=time.perf_counter() - start, solver=out.solver,
                                    constant_estimate=est, certificate=sp.problem.unpack(out.x),
-                                   check=sublinear_parts(sp, out.x, r), **base)
+                                   check=check, **base)
     return SublinearResult(constant=None, certified=False, solves=count[0],
                            seconds=time.perf_counter() - start, solver=None,
                            constant_estimate=estimate, **base)
@@ -881,7 +883,11 @@ def _sublinear_degree(om: Any, deg: int, solvers: Sequence[str],
                       count: list[int]) -> tuple[float | None, tuple | None]:
     """(the SDP's optimum c (an estimate), (r, problem, outcome, units) when certified) for
     the potential of degree ``deg``."""
-    from sosalgo.certificates.sublinear import sublinear_data, sublinear_problem
+    from sosalgo.certificates.sublinear import (
+        full_violation,
+        sublinear_data,
+        sublinear_problem,
+    )
 
     data = sublinear_data(om, deg)
     status, z = _sublinear_sdp(sublinear_problem(data).problem, None, near=True)
@@ -891,4 +897,7 @@ def _sublinear_degree(om: Any, deg: int, solvers: Sequence[str],
     found = _certify_constant(data, float(z[-1]), solvers, count)
     solved = _solvers.solver_status(status) == _solvers.SolverStatus.SOLVED
     est = float(z[-1]) * data.s if solved else None
-    return est, None if found is None else (*found, data.s)
+    if found is None:
+        return est, None
+    r, sp, out = found
+    return est, (r, sp, out, data.s, full_violation(data, sp.x0 + sp.N @ out.x, r))

@@ -169,6 +169,11 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
         click.echo(json.dumps(docs[0] if len(docs) == 1 else doc, indent=2))
         _exit_if_unverified([d.get("verification") for d in docs], "some certificate")
         return
+    if docs[0].get("rate_type") == "sublinear":
+        from sosalgo.sublinear_run import design_lines
+
+        click.echo("\n".join(design_lines(doc)))
+        return
     names = docs[0]["free"]
     unsupported = all((d.get("relaxation") or {}).get("status") == "unsupported" for d in docs)
     how = ("no lower bound for this family" if unsupported
@@ -222,7 +227,7 @@ def fig4(kappa: tuple[str, ...], time_limit: float, out: str, as_json: bool,
 # --------------------------------------------------------------------------- grid
 @cli.command()
 @click.argument("spec_path", metavar="SPEC", type=click.Path(dir_okay=False))
-@click.option("--kappa", "kappa", multiple=True, metavar="K", required=True,
+@click.option("--kappa", "kappa", multiple=True, metavar="K",
               help="Condition number(s); one grid (and one CSV/figure) per value.")
 @click.option("--points", default=60, show_default=True, type=click.IntRange(2, 2000),
               help="Grid points per free parameter.")
@@ -245,6 +250,10 @@ def grid(spec_path: str, kappa: tuple[str, ...], points: int, free: str | None, 
                    {"lag": lag}, workers, scheduler, restart, not quiet)
     if as_json:
         click.echo(json.dumps(doc, indent=2))
+        return
+    if doc.get("rate_type") == "sublinear":
+        click.echo(f"{doc['spec']}: certified constant c on a grid of {', '.join(doc['free'])}"
+                   f"; best c = {doc['best']}; wrote {doc['csv']}")
         return
     for d in doc["grids"]:
         for line in rep.grid_lines(doc["spec"], d):

@@ -136,7 +136,14 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
     from sosalgo.report import design as rep
 
     spec, text = spec_with_text(spec, spec_text)
-    refuse_sublinear(spec, "design")
+    if spec.sublinear:  # m: 0: minimize the certified constant (no kappa)
+        from sosalgo.sublinear_run import sublinear_design_run
+
+        if kappa not in (None, [], ()):
+            raise InputError(f"{spec.source}: --kappa: undefined for a sublinear spec (m: 0)")
+        if verify:
+            refuse_sublinear(spec, "design --verify")
+        return sublinear_design_run(spec, text, out_dir, free, time_limit)
     fam = inputs.select_families(spec, certificate, options, single=True)[0]
     kappas = _kappa_list(spec, kappa)
     opts = _design_options(spec, kappas, free, fam, {
@@ -185,7 +192,14 @@ def grid_run(spec: Spec | str | Path, kappa: Kappas, out_dir: str | Path = "outp
     from sosalgo.schema import GRID_COLUMNS, grid_fixed
 
     spec, text = spec_with_text(spec, spec_text)
-    refuse_sublinear(spec, "grid")
+    if spec.sublinear:  # m: 0: the certified constant on the grid (no kappa)
+        from sosalgo.sublinear_run import sublinear_grid_run
+
+        if kappa not in (None, [], ()):
+            raise InputError(f"{spec.source}: --kappa: undefined for a sublinear spec (m: 0)")
+        return sublinear_grid_run(spec, text, out_dir, points, free)
+    if kappa in (None, [], ()):
+        raise InputError("--kappa: required (one or more condition numbers)")
     kappas = _kappa_list(spec, kappa)
     names = inputs.free_names(spec, free)
     if isinstance(points, bool) or not isinstance(points, int) or not 2 <= points <= 2000:

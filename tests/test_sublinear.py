@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import json
 
+import numpy as np
 import pytest
 import yaml
 from click.testing import CliRunner
@@ -119,11 +120,77 @@ def test_cli_analyze_writes_rate_type_and_constant(tmp_path):
     assert float(cells["constant"]) == pytest.approx(row["constant"], rel=1e-12)
 
 
-@pytest.mark.parametrize("command", [["design"], ["grid", "--free", "h", "--kappa", "10"]])
-def test_commands_without_sublinear_mode_exit_2(command, tmp_path):
+@pytest.mark.parametrize("command", [["design", "--kappa", "10"],
+                                     ["grid", "--free", "h", "--kappa", "10"]])
+def test_kappa_on_a_sublinear_spec_exits_2(command, tmp_path):
     res = CliRunner().invoke(cli, [command[0], str(SPECS / "gradient-convex.yaml"),
                                    *command[1:], "--out", str(tmp_path / "o")])
     assert res.exit_code == 2 and "Traceback" not in res.output and "m: 0" in res.output
+    assert not (tmp_path / "o").exists()
+
+
+def _huber_floor(h: float) -> float:
+    """A lower bound on every valid c at step h (L = 1), by functions written out here:
+    the Huber function with threshold R/(2kh + 1) gives f(x_k) - f* = R^2/(4kh + 2) at
+    every k (so c >= sup_k k/(4kh + 2) = 1/(4h)), the quadratic |x|^2/2 gives
+    (1 - h)^(2k)/2 (so c >= k (1 - h)^(2k)/2 for each k)."""
+    ks = np.arange(1, 5000)
+    return max(1 / (4 * h), float(np.max(ks * (1 - h) ** (2 * ks) / 2)))
+
+
+@pytest.mark.parametrize("h", [0.2, 0.6, 1.0, 1.2, 1.4, 1.4999967575073252, 1.5, 1.55, 1.7,
+                               1.9])
+def test_certified_constant_never_below_the_huber_and_quadratic_floors(h):
+    """Soundness (a regression: a degree-2 certificate with huge entries once passed the
+    reduced check with equalities broken by rounding, certifying 0.1666661 < 1/(4h))."""
+    res = analyze_sublinear(spec_from_dict(_gd(h=str(h))))
+    assert res.certified and res.constant is not None
+    assert res.constant >= _huber_floor(h)
+
+
+def test_simulation_is_sharp_for_gradient_descent():
+    """The simulation passes the certified c and catches 0.9 c (Huber is a worst case)."""
+    from sosalgo.model import bind_sublinear
+    from sosalgo.verify.simulate_sublinear import simulate_sublinear
+
+    spec = spec_from_dict(_gd())
+    c = analyze_sublinear(spec).constant
+    om = bind_sublinear(spec)
+    assert simulate_sublinear(om, c).ok
+    assert not simulate_sublinear(om, 0.9 * c).ok
+
+
+def test_design_minimizes_the_constant_soundly(tmp_path):
+    """The design beats the textbook step h = 1/L (c = L/4), is never below the floor at its
+    step, nor below the best floor over the box; CSV written; simulation passes."""
+    res = CliRunner().invoke(cli, ["design", str(SPECS / "gradient-convex.yaml"), "--out",
+                                   str(tmp_path), "--time-limit", "30", "--json"])
+    assert res.exit_code == 0, res.output
+    row = json.loads(res.output)["rows"][0] if "rows" in json.loads(res.output) else \
+        json.loads(res.output)
+    h = row["theta"]["h"]
+    hs = np.linspace(0.01, 1.99, 2000)
+    assert row["constant"] < 0.25
+    assert row["constant"] >= _huber_floor(h)
+    assert row["constant"] >= min(_huber_floor(x) for x in hs) * (1 - 1e-3)
+    assert row["bound_status"] == "unsupported" and row["simulation"]["ok"]
+    with (tmp_path / "gradient-convex-design.csv").open() as fh:
+        cells = list(csv.DictReader(fh))[0]
+    assert float(cells["constant"]) == pytest.approx(row["constant"], rel=1e-12)
+
+
+def test_grid_writes_the_constant_along_h(tmp_path):
+    res = CliRunner().invoke(cli, ["grid", str(SPECS / "gradient-convex.yaml"), "--points",
+                                   "5", "--out", str(tmp_path)])
+    assert res.exit_code == 0, res.output
+    with (tmp_path / "gradient-convex-grid.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 5
+    for r in rows:
+        if r["certified"] == "True":
+            assert float(r["constant"]) >= _huber_floor(float(r["h"]))
+        else:
+            assert float(r["h"]) in (0.0, 2.0)  # h = 0 does not move, h = 2/L cycles
 
 
 def test_linear_results_say_rate_type_linear():

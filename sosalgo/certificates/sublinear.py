@@ -43,8 +43,8 @@ import scipy.linalg as sla
 from sosalgo.certificates.base import AffineBlock, LMIProblem
 from sosalgo.certificates.composite import CWindow, composite_structure
 
-__all__ = ["SublinearProblem", "block_kernels", "sublinear_data", "sublinear_parts",
-           "sublinear_problem"]
+__all__ = ["SublinearProblem", "block_kernels", "full_violation", "snap_basis",
+           "sublinear_data", "sublinear_parts", "sublinear_problem"]
 
 @dataclass
 class SublinearProblem:
@@ -382,6 +382,17 @@ def snap_basis(K: np.ndarray, tol: float = 1e-3, max_den: int = 16) -> np.ndarra
     return np.where(np.abs(snapped - E) <= tol, snapped, E)
 
 
+def full_violation(data: _XData, x: np.ndarray, r: float) -> float:
+    """The largest eigenvalue of every block and the largest row at (x, r), before any
+    equality is used (each must be <= 0): the reduced check assumes the equalities hold,
+    which rounding can break when x is large."""
+    worst = max(float(c + row @ x) for _, c, row in data.rows) if data.rows else -np.inf
+    for _, c0, c1, lq in data.mats:
+        G = c0 + r * c1 + np.tensordot(x, lq, axes=1)
+        worst = max(worst, float(np.linalg.eigvalsh(G)[-1]))
+    return worst
+
+
 def _sym(vec: np.ndarray, n: int) -> np.ndarray:
     M = np.zeros((n, n))
     M[np.triu_indices(n)] = vec
@@ -415,11 +426,12 @@ def _unpack(st: Any, lay: dict[str, slice], s: float, deg: int,
 
 
 def sublinear_parts(sp: SublinearProblem, y: np.ndarray, r: float) -> dict[str, float]:
-    """Largest eigenvalue of every block at (y, r) (each must be <= 0) and the residual of
-    the equalities relative to the size of x."""
+    """Largest eigenvalue of every reduced block at (y, r) (each must be <= 0), the
+    largest residual of the equalities and the size of x."""
     x = sp.x0 + sp.N @ y
     out = {b.name: float(np.linalg.eigvalsh(b.value(y, np.sqrt(r)))[-1])
            for b in sp.problem.blocks if b.size > 1}
     res = sp.equalities @ x - sp.rhs
-    out["residual"] = float(np.abs(res).max() / max(1.0, np.abs(x).max()))
+    out["residual"] = float(np.abs(res).max())  # absolute: what the blocks see
+    out["size"] = float(np.abs(x).max())
     return out

@@ -1,0 +1,121 @@
+"""``sosalgo design`` on a sublinear spec (``m: 0``): minimize the certified constant c.
+
+The objective at theta is the constant certified by :func:`sosalgo.analysis.analyze_sublinear`
+(inf where none is): a grid over the box of the free parameters, then Nelder–Mead from the
+best points, within the time limit. The reported constant is the certified one at the
+reported theta (an upper bound on the best c over the box); there is no box-wide lower
+bound for sublinear potentials (``bound_status: unsupported``).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import time
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from sosalgo.spec import Spec
+
+__all__ = ["sublinear_design"]
+
+
+class _Objective:
+    """Certified c at theta (cached), counting evaluations, honouring a deadline."""
+
+    def __init__(self, spec: Spec, names: list[str], deadline: float):
+        self.spec, self.names, self.deadline = spec, names, deadline
+        self.cache: dict[tuple[float, ...], Any] = {}
+
+    def result(self, point: Sequence[float]) -> Any:
+        from sosalgo.analysis import analyze_sublinear
+        from sosalgo.model import ModelError
+
+        key = tuple(float(v) for v in point)
+        if key not in self.cache:
+            try:
+                self.cache[key] = analyze_sublinear(self.spec, dict(zip(self.names, key,
+                                                                        strict=True)))
+            except ModelError:
+                self.cache[key] = None  # no fixed point or a domain error there
+        return self.cache[key]
+
+    def __call__(self, point: Sequence[float]) -> float:
+        if time.monotonic() > self.deadline:
+            raise TimeoutError
+        res = self.result(point)
+        return math.inf if res is None or res.constant is None else float(res.constant)
+
+
+def _box(spec: Spec, names: list[str]) -> list[tuple[float, float]]:
+    from sosalgo.model import parameter_box
+
+    return parameter_box(spec, math.nan, names)
+
+
+def _polish(obj: _Objective, start: tuple[float, ...], box: list[tuple[float, float]]) -> None:
+    from scipy.optimize import minimize
+
+    lo, hi = np.array([b[0] for b in box]), np.array([b[1] for b in box])
+
+    def clipped(z: np.ndarray) -> float:
+        return obj(tuple(np.clip(z, lo, hi)))
+
+    try:
+        minimize(clipped, np.array(start), method="Nelder-Mead",
+                 options={"xatol": 1e-6 * max(1.0, float(np.abs(hi - lo).max())),
+                          "fatol": 1e-7, "maxfev": 200,
+                          "initial_simplex": _simplex(start, lo, hi)})
+    except TimeoutError:
+        pass
+
+
+def _simplex(start: tuple[float, ...], lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    x0 = np.array(start)
+    rows = [x0]
+    for i in range(len(x0)):
+        step = 0.05 * (hi[i] - lo[i]) or 0.05
+        e = x0.copy()
+        e[i] = e[i] + step if e[i] + step <= hi[i] else e[i] - step
+        rows.append(e)
+    return np.array(rows)
+
+
+def sublinear_design(spec: Spec, names: list[str], time_limit: float = 120.0,
+                     points: int = 9) -> dict[str, Any]:
+    """Minimize the certified constant over the box of ``names`` (module docstring);
+    returns the design row (``rate_type: sublinear``, ``constant``, ``theta``, ...)."""
+    start = time.monotonic()
+    obj = _Objective(spec, names, start + time_limit)
+    box = _box(spec, names)
+    axes = [np.linspace(lo, hi, points)[1:-1] if hi > lo else np.array([lo])
+            for lo, hi in box]
+    timed_out = False
+    try:
+        for pt in itertools.product(*axes):
+            obj(pt)
+        ranked = sorted((k for k in obj.cache if obj(k) < math.inf), key=obj)
+        for pt in ranked[:2]:
+            _polish(obj, pt, box)
+    except TimeoutError:
+        timed_out = True
+    return _row(spec, names, box, obj, time.monotonic() - start, time_limit, timed_out)
+
+
+def _row(spec: Spec, names: list[str], box: list, obj: _Objective, seconds: float,
+         time_limit: float, timed_out: bool) -> dict[str, Any]:
+    done = {k: r for k, r in obj.cache.items() if r is not None and r.constant is not None}
+    best = min(done, key=lambda k: done[k].constant, default=None)
+    res = None if best is None else done[best]
+    return {"rate_type": "sublinear", "L": float(spec.L), "free": names,
+            "box": [list(b) for b in box], "constant": None if res is None else res.constant,
+            "certified": res is not None,
+            "theta": None if best is None else dict(zip(names, best, strict=True)),
+            "params": {} if res is None else dict(res.params),
+            "lower_bound": None, "bound_status": "unsupported",
+            "evaluations": len(obj.cache), "seconds": seconds, "time_limit": time_limit,
+            "timed_out": timed_out, "check_kind": None if res is None else
+            "floating-point check", "certificate": None if res is None else
+            res.to_dict()["certificate"], "family": "sublinear"}
