@@ -1,0 +1,186 @@
+"""Exact (rational) proof of a noise-sensitivity certificate.
+
+The certificate (P, p, s, c and the multipliers, original units) of
+:func:`sosalgo.sensitivity.sdp.noise_certificate` is checked without floating point in the
+proof path, as the interpolation family's certificates are
+(:mod:`sosalgo.verify.exact_interpolation`):
+
+1. the method is made exact (:func:`sosalgo.verify.exact.exact_algorithm`: rational kappa,
+   m, L, rational balls around irrational entries) and its fixed point proven;
+2. every number of the certificate is read as the exact rational value of its float;
+   negative multipliers become 0;
+3. the windows (:mod:`sosalgo.sensitivity.window`) and the four parts are computed in
+   midpoint-radius arithmetic; the function-value rows are checked exactly (<= 0, >= 0)
+   and -D ⪰ delta I, Pq ⪰ delta I proven by rational LDL^T with delta above the radius
+   of the enclosure (:func:`sosalgo.verify.exact_interpolation.prove_definite`);
+4. the proven bound is gamma <= sqrt(s), a rational rounded upward.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from fractions import Fraction
+from typing import Any
+
+import numpy as np
+
+from sosalgo.sensitivity.sdp import noise_windows
+from sosalgo.sensitivity.window import noise_parts, state_size
+from sosalgo.spec.types import Spec
+from sosalgo.verify.exact import (
+    DEFAULT_DIGITS,
+    Ball,
+    Verdict,
+    exact_algorithm,
+    exact_fixed_point,
+    fraction_str,
+    rational,
+)
+
+__all__ = ["NoiseProof", "verify_noise", "sqrt_upper"]
+
+
+@dataclass
+class NoiseProof:
+    """Outcome of :func:`verify_noise`; ``gamma_proven`` is a float >= the proven bound."""
+
+    spec: str
+    verified: Verdict = Verdict.FAILED
+    gamma_proven: float | None = None
+    gamma_fraction: str | None = None  # a rational >= sqrt(s)
+    reason: str | None = None
+    proofs: dict[str, str] = field(default_factory=dict)
+    certificate: dict[str, Any] = field(default_factory=dict)  # the rationals proven
+    seconds: float = 0.0
+
+    @property
+    def ok(self) -> bool:
+        return self.verified == Verdict.EXACT
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"spec": self.spec, "verified": str(self.verified),
+                "gamma_proven": self.gamma_proven, "gamma_fraction": self.gamma_fraction,
+                "reason": self.reason, "proofs": dict(self.proofs),
+                "certificate": self.certificate, "seconds": self.seconds}
+
+
+class _Refused(Exception):
+    """Why the certificate cannot be proven (becomes the result's ``reason``)."""
+
+
+def sqrt_upper(s: Fraction, digits: int = 10) -> Fraction:
+    """A rational t >= sqrt(s) with about ``digits`` significant digits (s >= 0)."""
+    if s <= 0:
+        return Fraction(0)
+    mag = (len(str(s.numerator)) - len(str(s.denominator))) // 2  # ~ log10 sqrt(s)
+    scale = Fraction(10) ** (digits - mag)
+    x = s * scale * scale  # t = ceil(sqrt(x)) / scale
+    r = math.isqrt(x.numerator // x.denominator)
+    return Fraction(r if r * r == x else r + 1) / scale
+
+
+def _objects(rows: list[list[Ball]]) -> np.ndarray:
+    out = np.empty((len(rows), len(rows[0])), dtype=object)
+    for i, row in enumerate(rows):
+        for j, b in enumerate(row):
+            out[i, j] = b
+    return out
+
+
+def _exact_windows(spec: Spec, kappa: float, theta: Mapping[str, float] | None, lag: int,
+                   digits: int) -> tuple[Any, Any, int]:
+    """(decrease, positivity) windows of the exact method, and its number of states."""
+    from sosalgo.classes import CLASSES
+    from sosalgo.model import bind, fixed_point
+    from sosalgo.verify.exact_composite import exact_class_inequalities
+
+    try:
+        ex = exact_algorithm(spec, kappa, theta, digits)
+        alg = bind(spec, float(kappa), theta)
+    except ValueError as exc:
+        raise _Refused(f"the exact method cannot be built: {exc}") from None
+    if exact_fixed_point(ex, fixed_point(alg)) is None:
+        raise _Refused("fixed point (u with (I - A)u = 0, Cu = 1, Eu = 1) not proven")
+    ineqs, _ = exact_class_inequalities(CLASSES["smooth_strongly_convex"],
+                                        {"m": Ball(ex.m), "L": Ball(ex.L)})
+    alpha, Q = ineqs[0]
+    mats = [_objects(ex.balls[k]) for k in ("A", "B", "C", "E")]
+    dec, pos = noise_windows(*mats, alpha, Q, lag, obj=True)
+    return dec, pos, len(ex.balls["A"])
+
+
+def _read(cert: Mapping[str, Any], dec: Any, pos: Any, n: int) -> dict[str, Any]:
+    """The certificate's numbers as exact rationals (negative multipliers as 0)."""
+    try:
+        lag = int(cert["lag"])
+        N = state_size(n, lag)
+        P_raw = np.asarray(cert["P"], dtype=object)
+        if P_raw.shape != (N, N):
+            raise _Refused(f"P has shape {P_raw.shape}, expected {(N, N)}")
+        P = np.empty((N, N), dtype=object)
+        for i in range(N):
+            for j in range(i, N):
+                P[i, j] = P[j, i] = (rational(P_raw[i, j]) + rational(P_raw[j, i])) / 2
+        p, c = [rational(v) for v in cert["p"]], [rational(v) for v in cert["c"]]
+        if len(p) != lag + 1 or len(c) != len(dec.measurable):
+            raise _Refused("p or c has the wrong length")
+        mult = cert["multipliers"]
+        zero = Fraction(0)
+        eta = [max(zero, rational(mult["decrease"][k])) for k in dec.labels]
+        lam = [max(zero, rational(mult["positivity"][k])) for k in pos.labels]
+        return {"P": P, "p": p, "s": rational(cert["s"]), "c": c, "eta": eta, "lam": lam}
+    except (KeyError, TypeError, ValueError, OverflowError) as exc:
+        raise _Refused(f"malformed certificate: {type(exc).__name__}: {exc}") from None
+
+
+def _prove(res: NoiseProof, dec: Any, pos: Any, num: dict[str, Any]) -> None:
+    """The four parts in exact arithmetic; ``res`` becomes verified when all hold."""
+    from sosalgo.verify.exact_interpolation import prove_definite, symmetrize_balls
+
+    parts = noise_parts(dec, pos, num["P"], num["p"], num["s"], num["c"], num["eta"],
+                        num["lam"], obj=True)
+    bad_df = [i for i, v in enumerate(parts["Df"]) if Ball.of(v).hi > 0]
+    bad_pf = [i for i, v in enumerate(parts["Pf"]) if Ball.of(v).lo < 0]
+    ok_d, delta_d, det_d = prove_definite(symmetrize_balls(parts["D"]), -1)
+    ok_p, delta_p, det_p = prove_definite(symmetrize_balls(parts["Pq"]), +1)
+    if bad_df or bad_pf or not (ok_d and ok_p) or num["s"] <= 0:
+        res.reason = "; ".join(
+            ([f"decrease function-value rows {bad_df} > 0"] if bad_df else [])
+            + ([f"positivity function-value rows {bad_pf} < 0"] if bad_pf else [])
+            + ([f"decrease matrix: {det_d}"] if not ok_d else [])
+            + ([f"positivity matrix: {det_p}"] if not ok_p else [])
+            + (["s <= 0"] if num["s"] <= 0 else []))
+        return
+    t = sqrt_upper(num["s"])
+    res.verified = Verdict.EXACT
+    res.gamma_fraction = fraction_str(t)
+    res.gamma_proven = math.nextafter(float(t), math.inf)
+    res.proofs = {"decrease": f"-D ⪰ {fraction_str(delta_d)} I: {det_d}",
+                  "positivity": f"Pq ⪰ {fraction_str(delta_p)} I: {det_p}",
+                  "function values": "all rows exact (<= 0 / >= 0)",
+                  "bound": f"gamma^2 <= s = {fraction_str(num['s'])}"}
+
+
+def verify_noise(spec: Spec, kappa: float, cert: Mapping[str, Any],
+                 theta: Mapping[str, float] | None = None,
+                 digits: int = DEFAULT_DIGITS) -> NoiseProof:
+    """Prove in exact arithmetic that ``cert`` (a :class:`NoiseCertificate`'s
+    ``certificate``) bounds the sensitivity of the spec's method at ``kappa``."""
+    start = time.perf_counter()
+    res = NoiseProof(spec=spec.name)
+    try:
+        if spec.composite or spec.sublinear:
+            raise _Refused("noise sensitivity needs one gradient call on F(m, L)")
+        dec, pos, n = _exact_windows(spec, kappa, theta, int(cert["lag"]), digits)
+        num = _read(cert, dec, pos, n)
+        res.certificate = {"lag": int(cert["lag"]), "s": fraction_str(num["s"])}
+        _prove(res, dec, pos, num)
+    except _Refused as exc:
+        res.reason = str(exc)
+    except (KeyError, TypeError, ValueError) as exc:
+        res.reason = f"malformed certificate: {type(exc).__name__}: {exc}"
+    res.seconds = time.perf_counter() - start
+    return res

@@ -1,0 +1,143 @@
+"""Noise sensitivity of a spec at one kappa: certified bound, proof, quadratic value.
+
+:func:`analyze_noise` is what ``sosalgo analyze --noise`` computes per kappa (and the
+Python twin ``sosalgo.noise``): the certified bound of :func:`best_noise_certificate`
+(the lag given, or the best of lags 0 .. n + 1), its exact proof, and the exact
+sensitivity on quadratics beside it. Its CSV cells are :data:`NOISE_COLUMNS`.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from sosalgo.errors import InputError
+from sosalgo.schema import NOISE_COLUMNS
+from sosalgo.sensitivity.quadratic import noise_quadratic
+from sosalgo.sensitivity.sdp import MAX_LAG, NoiseCertificate, noise_certificate
+from sosalgo.spec import Spec
+
+__all__ = ["NoiseResult", "analyze_noise", "best_noise_certificate", "check_noise_spec",
+           "noise_cells", "noise_json", "NOISE_COLUMNS", "LAG_GAIN"]
+
+LAG_GAIN = 1e-6  # relative improvement that counts as a gain when the lag is chosen
+
+
+def check_noise_spec(spec: Spec) -> None:
+    """InputError (one line naming the file) unless the spec has one gradient call on
+    F(m, L): a seed spec with m > 0."""
+    if spec.composite or spec.sublinear:
+        raise InputError(f"{spec.source}: --noise: noise sensitivity needs one gradient "
+                         "call on F(m, L) (a spec without functions/oracles/D/output/measure "
+                         "and with m > 0)")
+
+
+def best_noise_certificate(alg: Any, lags: Sequence[int] | None = None,
+                           quadratic: float | None = None) -> NoiseCertificate:
+    """The smallest certified bound over ``lags`` (default 0 .. n + 1, at most MAX_LAG),
+    tried in order; stops once the bound is within LAG_GAIN of ``quadratic`` (a lower
+    bound for every lag) or two lags in a row gain nothing. A failed lag is skipped."""
+    todo = list(lags) if lags is not None else list(range(min(alg.n + 1, MAX_LAG) + 1))
+    best: NoiseCertificate | None = None
+    idle = 0
+    for lag in todo:
+        cert = noise_certificate(alg, lag)
+        if cert.certified and (best is None or not best.certified
+                               or cert.gamma < best.gamma * (1 - LAG_GAIN)):
+            best, idle = cert, 0
+        else:
+            best, idle = best or cert, idle + 1
+        if best.certified and quadratic is not None and \
+                best.gamma <= quadratic * (1 + LAG_GAIN):
+            break
+        if idle >= 2 and best.certified:
+            break
+    assert best is not None
+    return best
+
+
+@dataclass
+class NoiseResult:
+    """The sensitivity of one method: ``noise`` is the certified upper bound (proven in
+    exact arithmetic when ``check_kind`` is "exact", floating-point checked when "float",
+    None when nothing is certified), ``noise_quadratic`` the exact value on quadratics."""
+
+    kappa: float
+    noise: float | None
+    noise_float: float | None  # the bound at the solver's checked point
+    noise_quadratic: float
+    q_worst: float  # the curvature of the worst quadratic
+    lag: int | None
+    check_kind: str  # "exact", "float" or "none"
+    certificate: dict[str, Any] | None
+    proof: dict[str, Any] | None
+    seconds: float
+    detail: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kappa": self.kappa, "noise": self.noise, "noise_float": self.noise_float,
+                "noise_quadratic": self.noise_quadratic
+                if math.isfinite(self.noise_quadratic) else None, "q_worst": self.q_worst,
+                "noise_lag": self.lag, "noise_check": self.check_kind,
+                "noise_certificate": self.certificate, "noise_proof": self.proof,
+                "seconds": self.seconds, "detail": self.detail}
+
+
+def _jsonable(cert: Mapping[str, Any] | None) -> dict[str, Any] | None:
+    if cert is None:
+        return None
+    return {k: (v.tolist() if hasattr(v, "tolist") else v) for k, v in cert.items()}
+
+
+def analyze_noise(spec: Spec, kappa: float, theta: Mapping[str, float] | None = None,
+                  lag: int | None = None, exact: bool = True) -> NoiseResult:
+    """Certified sensitivity (lag ``lag``, or the best of 0 .. n + 1), its exact proof
+    (``exact``) and the sensitivity on quadratics, for the spec's method at ``kappa``."""
+    from sosalgo.model import bind
+
+    check_noise_spec(spec)
+    start = time.perf_counter()
+    alg = bind(spec, kappa, theta)
+    quad = noise_quadratic(alg)
+    cert = best_noise_certificate(alg, None if lag is None else [lag], quad.gamma)
+    noise, kind, proof = cert.gamma, cert.check_kind, None
+    if cert.certified and exact:
+        from sosalgo.sensitivity.exact import verify_noise
+
+        pr = verify_noise(spec, kappa, cert.certificate or {}, theta)
+        proof = pr.to_dict()
+        if pr.ok:
+            noise, kind = pr.gamma_proven, "exact"
+    return NoiseResult(float(kappa), noise, cert.gamma, quad.gamma, quad.q, cert.lag, kind,
+                       _jsonable(cert.certificate), proof, time.perf_counter() - start,
+                       cert.detail)
+
+
+def noise_cells(res: NoiseResult) -> dict[str, Any]:
+    """The CSV cells of :data:`NOISE_COLUMNS` (the certificate as one JSON object; an
+    empty ``noise_quadratic`` means unstable on some quadratic of the class)."""
+    q = res.noise_quadratic
+    return {"noise": res.noise, "noise_quadratic": q if math.isfinite(q) else None,
+            "noise_lag": res.lag if res.noise is not None else None,
+            "noise_check": res.check_kind,
+            "noise_certificate": None if res.certificate is None
+            else json.dumps(res.certificate, separators=(",", ":"))}
+
+
+def noise_json(row: Mapping[str, str]) -> dict[str, Any]:
+    """The JSON fields of a CSV row's noise cells (empty when the row has none)."""
+    if "noise_check" not in row:
+        return {}
+
+    def num(v: str | None) -> float | None:
+        return None if v in (None, "") else float(v)
+
+    return {"noise": num(row.get("noise")), "noise_quadratic": num(row.get("noise_quadratic")),
+            "noise_lag": int(row["noise_lag"]) if row.get("noise_lag") else None,
+            "noise_check": row.get("noise_check") or "none",
+            "noise_certificate": json.loads(row["noise_certificate"])
+            if row.get("noise_certificate") else None}

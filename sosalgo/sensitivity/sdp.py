@@ -1,0 +1,272 @@
+"""The certified noise sensitivity of a bound method: one SDP, solved by Clarabel.
+
+``noise_certificate(alg, lag)`` minimizes s over (P, p, s, c, eta, lambda) subject to the
+parts of :func:`sosalgo.sensitivity.window.noise_parts` (decrease ⪯ 0, positivity ⪰ 0,
+their function-value rows, eta, lambda >= 0), each strict by a small margin so that the
+certificate survives rounding to rationals; gamma = sqrt(s) is then an upper bound on the
+sensitivity over the whole class F(m, L) (README, "Robustness to gradient noise").
+
+The problem is solved for f/L in F(m/L, 1) (same iterates; B scaled by L, noise by 1/L),
+where the data are of order one; the certificate is returned in original units. A
+solution counts only when Clarabel reports *solved* and the point passes a
+floating-point check of every part (``check_kind`` "float"); the exact proof is
+:func:`sosalgo.sensitivity.exact.verify_noise`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sps
+
+from sosalgo.classes import CLASSES
+from sosalgo.sensitivity.quadratic import quadratic_gamma2
+from sosalgo.sensitivity.window import NoiseWindow, noise_parts, noise_window, state_size
+from sosalgo.solvers import SolverStatus, finite_data, solver_status, svec
+
+__all__ = ["NoiseCertificate", "noise_certificate", "noise_windows", "MARGINS", "MAX_LAG"]
+
+MARGINS = (1e-8, 1e-7, 1e-6, 1e-5)  # strictness tried in turn (the SDP data are of order one)
+MAX_LAG = 6
+GAP_TOL = 1e-7
+
+
+@dataclass
+class NoiseCertificate:
+    """A certified upper bound ``gamma`` on the noise sensitivity (None: none found)."""
+
+    gamma: float | None
+    lag: int
+    status: str  # "certified", "infeasible" (no certificate of this lag) or "failed"
+    check_kind: str  # "float" (solver solved + floating-point check) or "none"
+    certificate: dict[str, Any] | None = None  # original units: P, p, s, c, multipliers
+    checks: dict[str, float] = field(default_factory=dict)  # eigenvalues at the point
+    seconds: float = 0.0
+    detail: str = ""
+
+    @property
+    def certified(self) -> bool:
+        return self.gamma is not None
+
+    def to_dict(self) -> dict[str, Any]:
+        cert = None if self.certificate is None else {
+            k: (v.tolist() if isinstance(v, np.ndarray) else v)
+            for k, v in self.certificate.items()}
+        return {"gamma": self.gamma, "lag": self.lag, "status": self.status,
+                "check_kind": self.check_kind, "certificate": cert, "checks": self.checks,
+                "seconds": self.seconds, "detail": self.detail}
+
+
+def noise_windows(A: Any, B: Any, C: Any, E: Any, alpha: Any, Q: Any, lag: int,
+                  obj: bool = False) -> tuple[NoiseWindow, NoiseWindow]:
+    """(decrease window, positivity window) of lag ``lag``."""
+    return (noise_window(A, B, C, E, alpha, Q, lag, lag + 2, obj),
+            noise_window(A, B, C, E, alpha, Q, lag, lag + 1, obj))
+
+
+def _layout(N: int, lag: int, dec: NoiseWindow, pos: NoiseWindow) -> dict[str, slice]:
+    sizes = [("P", N * (N + 1) // 2), ("p", lag + 1), ("s", 1), ("c", len(dec.measurable)),
+             ("eta", len(dec.labels)), ("lam", len(pos.labels))]
+    out, k = {}, 0
+    for name, size in sizes:
+        out[name] = slice(k, k + size)
+        k += size
+    return out
+
+
+def _pair_quads(H: np.ndarray, pairs: list[tuple[int, int]]) -> np.ndarray:
+    """H' S_ab H for the symmetric unit matrices S_ab (a <= b) of P's basis."""
+    ia, ib = np.array(pairs).T
+    prod = np.einsum("ki,kj->kij", H[ia], H[ib])
+    return prod + np.where((ia != ib)[:, None, None], prod.transpose(0, 2, 1), 0.0)
+
+
+def _decrease_maps(dec: NoiseWindow, lay: dict[str, slice], nvar: int,
+                   pairs: list[tuple[int, int]], weight: float,
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(constant, per-variable matrices) of D and the function-value rows Df (x -> Df)."""
+    lag, w, W = dec.lag, dec.noise, dec.width
+    Dl = np.zeros((nvar, W, W))
+    Dl[lay["P"]] = _pair_quads(dec.H[lag + 1], pairs) - _pair_quads(dec.H[lag], pairs)
+    Dl[lay["s"].start, w, w] = -1.0
+    for k, col in enumerate(dec.measurable):
+        Dl[lay["c"].start + k, w, col] = Dl[lay["c"].start + k, col, w] = -1.0
+    Dl[lay["eta"]] = np.array(dec.Mq)
+    rows = np.zeros((dec.steps, nvar))
+    for j in range(lag + 1):  # p_j on f_{l+1-j} in V_{k+1}, on f_{l-j} in V_k
+        rows[lag + 1 - j, lay["p"].start + j] += 1.0
+        rows[lag - j, lay["p"].start + j] -= 1.0
+    rows[:, lay["eta"]] = np.array(dec.mq).T
+    return weight * (dec.x_row.T @ dec.x_row), Dl, rows
+
+
+def _positivity_maps(pos: NoiseWindow, lay: dict[str, slice], nvar: int,
+                     pairs: list[tuple[int, int]]) -> tuple[np.ndarray, np.ndarray]:
+    """Per-variable matrices of -Pq and the rows of -Pf (both must be <= 0)."""
+    W, lag = pos.width, pos.lag
+    Pl = np.zeros((nvar, W, W))
+    Pl[lay["P"]] = -_pair_quads(pos.H[lag], pairs)
+    Pl[lay["lam"]] = np.array(pos.Mq)
+    rows = np.zeros((pos.steps, nvar))
+    for j in range(lag + 1):
+        rows[lag - j, lay["p"].start + j] -= 1.0
+    rows[:, lay["lam"]] = np.array(pos.mq).T
+    return Pl, rows
+
+
+def _conic(dec: NoiseWindow, pos: NoiseWindow, lay: dict[str, slice], nvar: int,
+           N: int, margin: float, weight: float = 1.0,
+           ) -> tuple[sps.csc_matrix, np.ndarray, list[tuple[str, int]]]:
+    """Clarabel's A, b and cone list for: D ⪯ -margin I, Pq ⪰ margin I, Df <= -margin,
+    Pf >= margin, eta, lambda >= 0, with the supply |x_k - x*|^2 weighted by ``weight``."""
+    pairs = [(i, j) for i in range(N) for j in range(i, N)]
+    D0, Dl, dfr = _decrease_maps(dec, lay, nvar, pairs, weight)
+    Pl, pfr = _positivity_maps(pos, lay, nvar, pairs)
+    nmult = lay["lam"].stop - lay["eta"].start
+    mult = np.zeros((nmult, nvar))
+    mult[np.arange(nmult), lay["eta"].start + np.arange(nmult)] = -1.0
+    lin = np.vstack([dfr, pfr, mult])
+    b_lin = np.concatenate([np.full(len(dfr) + len(pfr), -margin), np.zeros(nmult)])
+    blocks = [(D0, Dl), (np.zeros(Pl.shape[1:]), Pl)]
+    A_rows = [lin] + [svec(Gl, True).T for _, Gl in blocks]
+    b = [b_lin] + [svec(-G0 - margin * np.eye(G0.shape[0]), True) for G0, _ in blocks]
+    cones = [("nonneg", len(lin))] + [("psd", G0.shape[0]) for G0, _ in blocks]
+    return sps.csc_matrix(np.vstack(A_rows)), np.concatenate(b), cones
+
+
+def _clarabel(A: sps.csc_matrix, b: np.ndarray, q: np.ndarray,
+              cones: list[tuple[str, int]]) -> tuple[SolverStatus, np.ndarray | None, str]:
+    import clarabel
+
+    settings = clarabel.DefaultSettings()
+    settings.verbose = False
+    settings.presolve_enable = False
+    # optimality to 1e-7 is plenty (the bound is what the checked point gives, and these
+    # degenerate problems often stop at "almost solved" under 1e-8); feasibility keeps
+    # Clarabel's 1e-8, and the floating-point check decides anyway
+    settings.tol_gap_abs = settings.tol_gap_rel = GAP_TOL
+    kinds = [clarabel.NonnegativeConeT(k) if kind == "nonneg" else clarabel.PSDTriangleConeT(k)
+             for kind, k in cones]
+    nv = A.shape[1]
+    P0 = sps.csc_matrix((nv, nv))
+    try:
+        sol = clarabel.DefaultSolver(P0, q, A, b, kinds, settings).solve()
+    except Exception as exc:  # noqa: BLE001 - a crash is just "no answer"
+        return SolverStatus.FAILED, None, f"exception: {type(exc).__name__}"
+    st = solver_status(str(sol.status))
+    return st, (np.array(sol.x) if st == SolverStatus.SOLVED else None), str(sol.status)
+
+
+def _unpack(x: np.ndarray, lay: dict[str, slice], N: int) -> dict[str, Any]:
+    P = np.zeros((N, N))
+    order = [(i, j) for i in range(N) for j in range(i, N)]
+    vals = x[lay["P"]]
+    for k, (i, j) in enumerate(order):
+        P[i, j] = P[j, i] = vals[k]
+    return {"P": P, "p": x[lay["p"]].copy(), "s": float(x[lay["s"]][0]),
+            "c": x[lay["c"]].copy(), "eta": np.maximum(x[lay["eta"]], 0.0),
+            "lam": np.maximum(x[lay["lam"]], 0.0)}
+
+
+def float_check(dec: NoiseWindow, pos: NoiseWindow, parts: dict[str, Any]) -> dict[str, float]:
+    """Floating-point check of the four parts (largest violation of each, <= 0 passes)."""
+    val = noise_parts(dec, pos, parts["P"], parts["p"], parts["s"], parts["c"], parts["eta"],
+                      parts["lam"])
+    return {"max_eig_D": float(np.linalg.eigvalsh(val["D"])[-1]),
+            "max_Df": float(np.max(val["Df"])),
+            "min_eig_Pq": float(np.linalg.eigvalsh(val["Pq"])[0]),
+            "min_Pf": float(np.min(val["Pf"]))}
+
+
+def _original_units(parts: dict[str, Any], n: int, lag: int, L: float, dec: NoiseWindow,
+                    pos: NoiseWindow) -> dict[str, Any]:
+    """From f/L in F(m/L, 1) (gradients and noise divided by L) back to F(m, L): with
+    h~ = S h (S = 1 on xi, 1/L on g and w), P = S P~ S, p = p~/L, s = s~/L^2, the cross
+    terms c by 1/L (xi columns) or 1/L^2, and every multiplier by 1/L^2."""
+    scale = np.concatenate([np.ones(n), np.full(2 * lag + 1, 1.0 / L)])
+    cscale = np.concatenate([np.ones(n), np.full(dec.width - n, 1.0 / L)])[dec.measurable]
+    return {
+        "lag": lag,
+        "P": scale[:, None] * parts["P"] * scale[None, :],
+        "p": [float(v) / L for v in parts["p"]],
+        "s": parts["s"] / L**2,
+        "c": [float(v) * k / L for v, k in zip(parts["c"], cscale, strict=True)],
+        "multipliers": {
+            "decrease": {k: float(v) / L**2 for k, v in zip(dec.labels, parts["eta"],
+                                                             strict=True)},
+            "positivity": {k: float(v) / L**2 for k, v in zip(pos.labels, parts["lam"],
+                                                               strict=True)}},
+    }
+
+
+def _scale(alg: Any) -> float:
+    """The normalized quadratic sensitivity (L gamma_q)^2 on a coarse grid of curvatures:
+    the supply is divided by it so that the SDP's solution is of order one (inf when some
+    quadratic of the class makes the method unstable: then nothing can be certified)."""
+    qs = np.linspace(alg.m, alg.L, 41)
+    g2 = quadratic_gamma2(*(np.asarray(M, dtype=float) for M in (alg.A, alg.B, alg.C, alg.E)),
+                          qs)
+    return float(np.max(g2)) * float(alg.L) ** 2
+
+
+def _attempt(dec: NoiseWindow, pos: NoiseWindow, lay: dict[str, slice], N: int,
+             margin: float, weight: float) -> tuple[str, dict[str, Any] | None,
+                                                    dict[str, float], str]:
+    """One solve at ``margin``: (status, parts scaled back by 1/weight, checks, detail)."""
+    nvar = lay["lam"].stop
+    A, b, cones = _conic(dec, pos, lay, nvar, N, margin, weight)
+    q = np.zeros(nvar)
+    q[lay["s"]] = 1.0
+    if not finite_data(A, b):
+        return "failed", None, {}, "non-finite problem data"
+    st, x, raw = _clarabel(A, b, q, cones)
+    if st != SolverStatus.SOLVED or x is None:
+        return ("infeasible" if st == SolverStatus.INFEASIBLE else "failed"), None, {}, \
+            f"clarabel: {raw}"
+    parts = _unpack(x, lay, N)
+    parts = {k: v / weight for k, v in parts.items()}  # the supply back to weight 1
+    checks = float_check(dec, pos, parts)
+    ok = all(math.isfinite(v) for v in checks.values()) and (
+        checks["max_eig_D"] <= 0 and checks["max_Df"] <= 0 and checks["min_eig_Pq"] >= 0
+        and checks["min_Pf"] >= 0 and parts["s"] > 0)
+    if not ok:
+        return "failed", None, checks, f"clarabel: {raw}; floating-point check failed"
+    return "certified", parts, checks, f"clarabel: {raw}, margin {margin:g}"
+
+
+def noise_certificate(alg: Any, lag: int = 1,
+                      margins: tuple[float, ...] = MARGINS) -> NoiseCertificate:
+    """Certified sensitivity bound of ``alg`` (an :class:`~sosalgo.model.Algorithm`: one
+    gradient call on F(m, L)) with lag ``lag``: gamma with
+    sqrt(long-run mean of E|x_k - x*|^2 / d) / sigma <= gamma for every f in F(m, L).
+
+    The SDP is solved at the strictness ``margins`` in turn (relative to data of order one)
+    until a solution passes the floating-point check."""
+    start = time.perf_counter()
+    if isinstance(lag, bool) or not isinstance(lag, int) or not 0 <= lag <= MAX_LAG:
+        raise ValueError(f"lag: must be an integer in 0..{MAX_LAG}")
+    scale = _scale(alg)
+    if not math.isfinite(scale) or scale <= 0:
+        return NoiseCertificate(None, lag, "infeasible", "none",
+                                detail="unstable on a quadratic of the class",
+                                seconds=time.perf_counter() - start)
+    L = float(alg.L)
+    ineq = CLASSES["smooth_strongly_convex"].inequalities({"m": alg.m / L, "L": 1.0})[0]
+    dec, pos = noise_windows(alg.A, alg.B * L, alg.C, alg.E, ineq.alpha, ineq.Q, lag)
+    N = state_size(alg.n, lag)
+    lay = _layout(N, lag, dec, pos)
+    status, checks, detail = "failed", {}, ""
+    for margin in margins:
+        status, parts, checks, detail = _attempt(dec, pos, lay, N, margin, 1.0 / scale)
+        if parts is not None:
+            cert = _original_units(parts, alg.n, lag, L, dec, pos)
+            return NoiseCertificate(math.sqrt(cert["s"]), lag, "certified", "float", cert,
+                                    checks, time.perf_counter() - start, detail)
+        if status == "infeasible":
+            break
+    return NoiseCertificate(None, lag, status, "none", None, checks,
+                            time.perf_counter() - start, detail)
