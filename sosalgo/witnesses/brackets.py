@@ -1,0 +1,265 @@
+"""Rate brackets: a witnessed lower bound ``rho_lower`` on the worst-case linear rate.
+
+(a) ``quadratic``: every f_j the quadratic (q_j/2)|x|^2 of its class, at a rational
+curvature q picked where the float spectral radius of the closed loop is largest. The
+closed loop M(q) = A + B (I - Q D)^-1 Q C is built on the method's exact matrices (balls),
+its characteristic polynomial by Faddeev–LeVerrier, and the Schur–Cohn test proves that
+it has a root of modulus >= rho_lower (:func:`sosalgo.witnesses.balls.has_root_outside`).
+The observability matrix of the output (x = E xi, or the output call's point) is proven
+nonsingular, so every eigenvalue shows in the output: started on its (real or complex)
+mode, |x_k - x*| decays no faster than rho_lower^k, and the measure (distance, or the
+function values sum_j q_j/2 |x|^2 with some q_j > 0) with it.
+
+(b) ``self-similar``: a trajectory with xi_K = rho^K xi_0 on functions of the classes
+(:mod:`sosalgo.witnesses.trajectory`, checked exactly with every copy scaled by rho^(jK));
+for each N, its first N periods lie on one function of the class, so no rate below rho
+holds with any constant. Searched only when asked (or when no rate is certified): a
+bisection on rational rho above the quadratic bound. ``cycle``: rho_lower = 1 from a
+checked cycle (:mod:`sosalgo.witnesses.cycles`).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from fractions import Fraction
+from typing import Any
+
+import numpy as np
+from flint import arb, arb_mat
+
+from sosalgo.witnesses.method import ArbMethod, arb_fraction, arb_method, arb_of, precision
+
+__all__ = ["BRACKET_KINDS", "Bracketed", "bracketed", "has_root_outside", "quadratic_bracket",
+           "rate_bracket", "self_similar_bracket"]
+
+BRACKET_KINDS = ("quadratic", "self-similar")  # the --brackets choices
+BELOW = (1e-12, 1e-9, 1e-7, 1e-5)  # rho_lower = r (1 - this): the first that is proven
+GRID = 401
+INWARD = (0.0, 1e-9, 1e-7, 1e-5)  # moves of q into its interval, tried in turn
+MAX_K = 8
+SELF_SIMILAR_STEPS = 8  # bisection steps on rho per length K
+
+
+@dataclass
+class Bracketed:
+    """A method at one kappa: floats (``om``, the search) and balls (``am``, the proofs)."""
+
+    spec: Any
+    kappa: float
+    theta: Mapping[str, float] | None
+    om: Any  # OracleMethod
+    am: ArbMethod
+
+
+def bracketed(spec: Any, kappa: float, theta: Mapping[str, float] | None = None
+              ) -> Bracketed:
+    """The method of ``spec`` at ``kappa`` for :func:`rate_bracket`."""
+    from sosalgo.model import evaluate_algorithm
+    from sosalgo.oracles import as_oracle_method
+
+    om = as_oracle_method(evaluate_algorithm(spec, kappa, theta))
+    return Bracketed(spec, kappa, theta, om, arb_method(spec, kappa, theta))
+
+
+def _curvature_box(bk: Bracketed) -> list[tuple[Fraction, Fraction]] | None:
+    """Exact curvature interval [lo, hi] of every function (q with (q/2)|x|^2 in the
+    class, proven from the parameters' enclosures), None when some class has none we
+    know."""
+    out = []
+    for _, cls, params in bk.am.functions:
+        if cls == "smooth_strongly_convex":  # an inner interval: every q in it is in [m, L]
+            lo, hi = arb_fraction(params["m"].upper()), arb_fraction(params["L"].lower())
+        elif cls in ("convex", "indicator"):
+            lo = hi = Fraction(0)  # the zero function (the indicator of the whole space)
+        elif cls == "strongly_convex":
+            lo = hi = arb_fraction(params["m"].upper())  # (q/2)|x|^2 with q >= m
+        else:
+            return None
+        if lo > hi:
+            return None
+        out.append((lo, hi))
+    return out
+
+
+def _loop_float(om: Any, q: np.ndarray) -> np.ndarray:
+    """Closed loop A + B (I - Q D)^-1 Q C for curvatures q (per function; float)."""
+    Qd = np.diag([q[j] for j in om.oracles])
+    return om.A + om.B @ np.linalg.solve(np.eye(om.p) - Qd @ om.D, Qd @ om.C)
+
+
+def _radii(om: Any, qs: np.ndarray) -> np.ndarray:
+    """Spectral radius of the closed loop at each row of curvatures ``qs`` (float)."""
+    qd = qs[:, list(om.oracles)]
+    eye = np.eye(om.p)
+    try:
+        K = np.linalg.solve(eye - qd[:, :, None] * om.D, qd[:, :, None] * om.C)
+        return np.abs(np.linalg.eigvals(om.A + om.B @ K)).max(axis=1)
+    except np.linalg.LinAlgError:
+        return np.array([_radius(om, q) for q in qs])
+
+
+def _radius(om: Any, q: np.ndarray) -> float:
+    try:
+        return float(np.abs(np.linalg.eigvals(_loop_float(om, q))).max())
+    except np.linalg.LinAlgError:
+        return 0.0
+
+
+def _argmax(om: Any, box: Sequence[tuple[Fraction, Fraction]]) -> np.ndarray:
+    """Curvatures where the float spectral radius is largest: a grid (a product grid
+    over several intervals), refined by golden sections around the best point."""
+    axes = [np.linspace(float(lo), float(hi), GRID if len(box) == 1 else 21)
+            if hi > lo else np.array([float(lo)]) for lo, hi in box]
+    grid = np.array(np.meshgrid(*axes, indexing="ij")).reshape(len(box), -1).T
+    best = grid[int(np.argmax(_radii(om, grid)))].copy()
+    g = (5 ** 0.5 - 1) / 2
+    for j, ax in enumerate(axes):
+        if len(ax) < 3:
+            continue
+        step = ax[1] - ax[0]
+        a, b = max(ax[0], best[j] - step), min(ax[-1], best[j] + step)
+        for _ in range(30):
+            pair = np.array([best, best])
+            pair[0, j], pair[1, j] = b - g * (b - a), a + g * (b - a)
+            rc, rd = _radii(om, pair)
+            a, b = (a, pair[1, j]) if rc >= rd else (pair[0, j], b)
+        cand = best.copy()
+        cand[j] = 0.5 * (a + b)
+        if _radius(om, cand) > _radius(om, best):
+            best = cand
+    return best
+
+
+def _rational_q(q: np.ndarray, box: Sequence[tuple[Fraction, Fraction]],
+                inward: float = 0.0) -> list[Fraction]:
+    """Dyadic curvatures near ``q`` inside the exact box, moved ``inward`` (a fraction of
+    each interval's width) towards its middle."""
+    out = []
+    for v, (lo, hi) in zip(q, box, strict=True):
+        r = min(max(Fraction(float(v)), lo), hi)
+        out.append(Fraction(float(r + ((lo + hi) / 2 - r) * Fraction(inward))))
+    return [min(max(r, lo), hi) for r, (lo, hi) in zip(out, box, strict=True)]
+
+
+def _loop_exact(am: ArbMethod, q: Sequence[Fraction]) -> tuple[arb_mat, arb_mat]:
+    """(M(q), output row) in balls."""
+    b, p = am.mats, len(am.oracles)
+    Qd = arb_mat(p, p)
+    for i, j in enumerate(am.oracles):
+        Qd[i, i] = arb_of(q[j])
+    eye = arb_mat([[1 if i == j else 0 for j in range(p)] for i in range(p)])
+    K = (eye - Qd * b["D"]).solve(Qd * b["C"])
+    return b["A"] + b["B"] * K, b["erow"] + b["drow"] * K
+
+
+def _observable(M: arb_mat, row: arb_mat) -> bool:
+    n = M.nrows()
+    rows = [row]
+    for _ in range(n - 1):
+        rows.append(rows[-1] * M)
+    obs = arb_mat([[r[0, j] for j in range(n)] for r in rows])
+    return not obs.det().contains(0)
+
+
+def has_root_outside(coeffs: Sequence[arb], r: Fraction) -> bool:
+    """Proof that the real polynomial sum c_k z^k (balls) has a root of modulus >= r > 0.
+
+    Schur–Cohn on p(z) = sum c_k r^k z^k = sum a_k z^k: if |a_0| >= |a_n| the product of
+    the roots has modulus >= 1; if |a_0| < |a_n| (proved), p and (a_n p - a_0 p*)/z (p*
+    the reversed polynomial) have the same number of roots in the open unit disc less
+    one (Rouché on the unit circle, where |p*| = |p|), so p has all its roots inside iff
+    the reduced polynomial has. False when no proof was found (undecided signs too)."""
+    rr = arb_of(r)
+    a = [c * rr ** k for k, c in enumerate(coeffs)]
+    while len(a) > 1:
+        lead, const = a[-1], a[0]
+        if abs(const) >= abs(lead) and abs(lead) > 0:
+            return True
+        if not abs(const) < abs(lead):
+            return False
+        rev = a[::-1]
+        a = [lead * a[k + 1] - const * rev[k + 1] for k in range(len(a) - 1)]
+    return False
+
+
+def quadratic_bracket(bk: Bracketed) -> tuple[float, dict[str, Any]] | None:
+    """(rho_lower, witness) from the slowest quadratic mode, proven exactly; None when
+    no class has quadratics we know, the measure vanishes or no proof was found. Where
+    the slowest mode does not show in the output (triple momentum at q = m), q moves
+    into the interval until it does."""
+    box = _curvature_box(bk)
+    if box is None:
+        return None
+    q0 = _argmax(bk.om, box)
+    with precision():
+        for inward in INWARD:
+            q = _rational_q(q0, box, inward)
+            if bk.om.measure == "function" and not any(v > 0 for v in q):
+                return None  # every f_j = 0: the function values measure nothing
+            M, row = _loop_exact(bk.am, q)
+            if _observable(M, row):
+                return _prove_radius(bk, q, M)
+    return None
+
+
+def _prove_radius(bk: Bracketed, q: list[Fraction], M: arb_mat
+                  ) -> tuple[float, dict[str, Any]] | None:
+    r = _radius(bk.om, np.array([float(v) for v in q]))
+    coeffs = M.charpoly().coeffs()
+    for below in BELOW:
+        rl = float(r * (1.0 - below))
+        if rl > 0 and has_root_outside(coeffs, Fraction(rl)):
+            names = [name for name, _, _ in bk.am.functions]
+            return rl, {"kind": "quadratic", "rho_lower": str(Fraction(rl)),
+                        "curvatures": {n: str(v) for n, v in zip(names, q, strict=True)},
+                        "check": "Schur-Cohn on the characteristic polynomial in balls; "
+                                 "observability matrix nonsingular"}
+    return None
+
+
+def _rho_grid(x: float) -> Fraction:
+    return Fraction(round(x * 10**6), 10**6)
+
+
+def self_similar_bracket(bk: Bracketed, lo: float, hi: float, seconds: float
+                         ) -> tuple[float, dict[str, Any]] | None:
+    """The largest rho in (lo, hi) with a checked self-similar trajectory found by
+    bisection per length K = 1..8 within ``seconds``, or None."""
+    from sosalgo.witnesses.cycles import context, search_trajectory, trajectory_json
+
+    ctx = context(bk.spec, bk.kappa, bk.theta)
+    deadline = time.perf_counter() + seconds
+    best: tuple[float, dict[str, Any]] | None = None
+    for K in range(1, MAX_K + 1):
+        a, b = max(lo, best[0] if best else lo), hi
+        for _ in range(SELF_SIMILAR_STEPS):
+            rho = _rho_grid(0.5 * (a + b))
+            if not float(rho) > a or time.perf_counter() > deadline:
+                break
+            traj = search_trajectory(ctx, K, rho ** K, deadline)
+            if traj is None:
+                b = float(rho)
+                continue
+            a = float(rho)
+            best = (a, {"kind": "self-similar", "rho_lower": str(rho),
+                        "trajectory": trajectory_json(ctx, traj)})
+        if time.perf_counter() > deadline:
+            break
+    return best
+
+
+def rate_bracket(bk: Bracketed, upper: float | None, self_similar: bool = False,
+                 seconds: float = 5.0) -> tuple[float | None, str | None, dict | None]:
+    """(rho_lower, its kind, its witness): the quadratic bound, beaten by a self-similar
+    trajectory when asked for and one is found below ``upper`` (or 1)."""
+    quad = quadratic_bracket(bk)
+    lo = quad[0] if quad else 0.0
+    out = (quad[0], "quadratic", quad[1]) if quad else (None, None, None)
+    top = 1.0 if upper is None else min(upper, 1.0)
+    if self_similar and top > lo + 1e-6:
+        ss = self_similar_bracket(bk, lo, top, seconds)
+        if ss is not None and ss[0] > lo:
+            return ss[0], "self-similar", ss[1]
+    return out
