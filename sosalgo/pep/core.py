@@ -1,0 +1,170 @@
+"""``sosalgo.pep(spec, kappa, steps)``: the worst case after N steps, its dual certificate
+(checked exactly, :mod:`sosalgo.pep.exact`) and its worst-case trajectory
+(:mod:`sosalgo.pep.witness`). See :mod:`sosalgo.pep.structure` for the problem."""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sosalgo.errors import InputError
+from sosalgo.pep.bind import bound_method
+from sosalgo.pep.sdp import PEPData, SDPAnswer, pep_data, solve_pep, value_residual
+from sosalgo.pep.structure import Method, PEPStructure, build_structure
+from sosalgo.pep.terms import Term, parse_terms
+from sosalgo.spec import Spec
+
+__all__ = ["MAX_STEPS", "PEPResult", "float_method", "pep", "pep_problem"]
+
+MAX_STEPS = 200
+MARGINS = (1e-9, 1e-8, 1e-7, 1e-6)  # relative margins of the certificate solve, in order
+
+
+@dataclass
+class PEPResult:
+    """tau_N (float SDP value), its certificate and the worst case (``to_dict``: the
+    ``pep --json`` document)."""
+
+    spec: str
+    kappa: float | None
+    steps: int
+    measure: str
+    initial: str
+    status: str
+    tau: float | None
+    gap: float | None = None
+    certificate: dict[str, Any] | None = None
+    witness: dict[str, Any] | None = None
+    seconds: float = 0.0
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"spec": self.spec, "kappa": self.kappa, "steps": self.steps,
+                "tau": self.tau, "measure": self.measure, "initial": self.initial,
+                "status": self.status, "gap": self.gap, "certificate": self.certificate,
+                "witness": self.witness, "seconds": self.seconds} | self.extra
+
+
+def _load(spec: Spec | str | Path) -> Spec:
+    if isinstance(spec, Spec):
+        return spec
+    from sosalgo.spec import load_spec
+
+    return load_spec(spec)
+
+
+def float_method(om: Any, kappa: float) -> Method:
+    """The float :class:`Method` of an OracleMethod."""
+    from sosalgo.oracles import fixed_point_basis
+
+    X = fixed_point_basis(om)
+    assert X is not None  # the OracleMethod checked it
+
+    def coef(t: Term) -> float:
+        v = t.value(om.m, om.L, kappa)
+        if not math.isfinite(v):
+            raise InputError(f"coefficient {t.coef} of {t.kind}: not a finite number here "
+                             "(kappa is undefined on an m: 0 spec)")
+        return v
+
+    scale = 1.0 + float(np.abs(X).max(initial=0.0))
+
+    def same(a: np.ndarray, b: np.ndarray) -> bool:
+        return bool(np.abs(a - b).max(initial=0.0) <= 1e-12 * scale * (1 + np.abs(a).max()))
+
+    ineqs = [[(float(i.alpha), np.asarray(i.Q, float)) for i in fn.cls.tilted(fn.params)]
+             for fn in om.functions]
+    return Method(om.A, om.B, om.C, om.D, om.E, om.output,
+                  [(fn.name, fn.cls, fn.params) for fn in om.functions], tuple(om.oracles),
+                  X[:, 0], X[:, 1:], float(om.L), ineqs, coef, same)
+
+
+def _default_measure(spec: Spec) -> str:
+    return "dist" if spec.measure == "distance" else "f"
+
+
+def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None = None,
+                initial: str | None = None) -> tuple[Method, PEPStructure, list[Term],
+                                                     list[Term]]:
+    """The float method and structure (InputError naming the option for bad input)."""
+    if isinstance(steps, bool) or not isinstance(steps, int) or not 1 <= steps <= MAX_STEPS:
+        raise InputError(f"--steps: must be an integer in 1..{MAX_STEPS}, got {steps!r}")
+    om, kq = bound_method(spec, kappa)
+    mterms = parse_terms(measure or _default_measure(spec), "--measure", False, om.p)
+    iterms = parse_terms(initial or "dist", "--initial", True, om.p)
+    mt = float_method(om, kq)
+    try:
+        st = build_structure(mt, steps, mterms, iterms)
+    except InputError as exc:
+        raise InputError(f"{spec.source}: {exc}") from None
+    return mt, st, mterms, iterms
+
+
+def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
+        measure: str | None = None, initial: str | None = None, exact: bool = True,
+        witness: bool = True) -> PEPResult:
+    """The PEP of ``spec`` at ``kappa`` over ``steps`` steps (see the module)."""
+    t0 = time.perf_counter()
+    spec = _load(spec)
+    mt, st, mterms, iterms = pep_problem(spec, kappa, steps, measure, initial)
+    data = pep_data(mt, st)
+    ans = solve_pep(data)
+    res = PEPResult(spec.name, None if spec.sublinear else float(kappa),  # type: ignore[arg-type]
+                    steps, measure or _default_measure(spec), initial or "dist",
+                    ans.status, ans.primal if ans.status == "solved" else None)
+    if ans.status == "unbounded":
+        res.tau = math.inf
+        res.extra["note"] = ("the measure is unbounded for this initial condition (e.g. the "
+                             "start does not control the method's fixed point)")
+    if ans.status == "solved":
+        res.gap = abs(float(ans.primal) - float(ans.dual))  # type: ignore[arg-type]
+        res.certificate = _certificate(spec, kappa, mt, data, ans, exact, mterms, iterms)
+        if witness:
+            from sosalgo.pep.witness import make_witness
+
+            res.witness = make_witness(spec, kappa, mt, data, ans, mterms, iterms, res)
+    res.seconds = time.perf_counter() - t0
+    return res
+
+
+def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
+                 ans: SDPAnswer, exact: bool, mterms: list[Term],
+                 iterms: list[Term]) -> dict[str, Any]:
+    """The dual certificate (multipliers by pair, S, float checks), proven exactly when
+    ``exact`` (the margin ladder of :data:`MARGINS`)."""
+    st = data.st
+    tau = float(ans.primal)  # type: ignore[arg-type]
+    scale = max(1.0, float(np.trace(ans.G)) + float(np.sum(ans.F)))  # type: ignore[arg-type]
+    cert: dict[str, Any] = {"tau": ans.tau, "check_kind": "floating-point check",
+                            "tau_proven": None, "proof": None}
+    best = ans
+    for rel in MARGINS if exact else ():
+        eps = rel / scale  # relative to tau: the measure is divided by tau
+        cand = solve_pep(data, margin=eps, unit=tau if tau > 1e-200 else 1.0)
+        if cand.status != "solved":
+            continue
+        best = cand
+        from sosalgo.pep.exact import prove_certificate
+
+        proof = prove_certificate(spec, kappa, st, mterms, iterms, cand.tau, cand.lam)
+        cert["proof"] = proof
+        if proof["proven"]:
+            cert.update(check_kind="exact (rational and ball arithmetic)",
+                        tau_proven=proof["tau_proven"], tau=cand.tau, margin=eps * tau)
+            break
+    lam = best.lam
+    S = best.S
+    assert lam is not None and S is not None
+    top = float(lam.max(initial=0.0))
+    cert["multipliers"] = {lab: float(v) for lab, v in zip(st.labels, lam, strict=True)
+                           if v > 1e-12 * top}
+    cert["basis"] = st.basis
+    cert["slack"] = S.tolist()
+    cert["min_eig_slack"] = float(np.linalg.eigvalsh(S)[0])
+    cert["min_value_slack"] = float(value_residual(data, float(best.tau), lam).min(initial=0))
+    return cert

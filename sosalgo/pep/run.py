@@ -1,0 +1,174 @@
+"""``sosalgo pep`` as a Python function: :func:`pep_run` (CSV, witness JSON, figure,
+resumable sweeps over kappa and N through the batch layer)."""
+
+from __future__ import annotations
+
+import json
+import re
+from collections.abc import Sequence
+from fractions import Fraction
+from pathlib import Path
+from typing import Any
+
+from sosalgo.errors import InputError
+from sosalgo.spec import Spec
+
+__all__ = ["parse_steps", "pep_chunk", "pep_row", "pep_run"]
+
+
+def parse_steps(text: object) -> list[int]:
+    """``N`` or ``1..N`` (any ``a..b``), 1 <= a <= b <= MAX_STEPS."""
+    from sosalgo.pep.core import MAX_STEPS
+
+    src = str(text).strip()
+    hit = re.fullmatch(r"(\d+)(?:\s*\.\.\s*(\d+))?", src)
+    if hit is None:
+        raise InputError(f"--steps: expected N or a range a..b, got {src!r}")
+    a = int(hit.group(1))
+    b = int(hit.group(2)) if hit.group(2) else a
+    if not 1 <= a <= b <= MAX_STEPS:
+        raise InputError(f"--steps: need 1 <= N <= {MAX_STEPS} (and a <= b), got {src!r}")
+    return list(range(a if hit.group(2) else a, b + 1))
+
+
+def pep_row(res: Any) -> dict[str, Any]:
+    """The CSV row of a result (columns :data:`sosalgo.schema.PEP_COLUMNS`)."""
+    cert = res.certificate or {}
+    chk = (res.witness or {}).get("check") or {}
+    return {"kappa": res.kappa if res.kappa is not None else "", "steps": res.steps,
+            "tau": res.tau, "status": res.status, "gap": res.gap,
+            "tau_proven": cert.get("tau_proven_float") if cert.get("tau_proven") else None,
+            "check_kind": cert.get("check_kind", ""),
+            "witness_verified": chk.get("verified", ""),
+            "tau_lower": chk.get("tau_lower_float"),
+            "witness_dimension": (res.witness or {}).get("dimension"),
+            "measure": res.measure, "initial": res.initial, "seconds": res.seconds,
+            "document": json.dumps(res.to_dict(), default=float)}
+
+
+def pep_chunk(spec_text: str, source: str, options: dict[str, Any],
+              chunk: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Worker: the PEP at each task's (kappa, steps)."""
+    from sosalgo.pep.core import pep
+    from sosalgo.spec import spec_from_text
+
+    spec = spec_from_text(spec_text, source)
+    rows = []
+    for task in chunk:
+        kappa = None if task["kappa"] in ("", None) else float(task["kappa"])
+        res = pep(spec, kappa, int(task["steps"]), options["measure"], options["initial"],
+                  options["exact"], options["witness"])
+        rows.append(pep_row(res))
+    return rows
+
+
+def _check(spec: Spec, kappas: list[float | None], steps: list[int], measure: str | None,
+           initial: str | None) -> None:
+    """Every input error before anything is written (one small problem per kappa)."""
+    from sosalgo.pep.core import pep_problem
+
+    for k in kappas:
+        pep_problem(spec, k, 1, measure, initial)
+
+
+def pep_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = None,
+            steps: int | str = 1, measure: str | None = None, initial: str | None = None,
+            out_dir: str | Path | None = "outputs", workers: int | None = None,
+            scheduler: str | None = None, restart: bool = False, progress: bool = True,
+            plot: bool = True, exact: bool = True, witness: bool = True,
+            spec_text: str | None = None) -> dict[str, Any]:
+    """``sosalgo pep``: one document per (kappa, N) — ``{"spec", "kappa", "steps", "tau",
+    "measure", "initial", "certificate", "witness", ...}`` — alone, or as ``rows`` for a
+    range of steps or several kappas; the CSV, the witness JSON files and the figure
+    (tau_k against k) go to ``out_dir`` (None: nothing written)."""
+    from sosalgo import inputs
+    from sosalgo.batch.executor import Progress, run_batch
+    from sosalgo.batch.store import ResumableCSV, output_lock
+    from sosalgo.runs import spec_with_text
+    from sosalgo.schema import PEP_COLUMNS, pep_csv
+
+    spec, text = spec_with_text(spec, spec_text)
+    ks: list[float | None] = ([None] if kappa is None else
+                              [float(kappa)] if isinstance(kappa, int | float)
+                              else [float(k) for k in kappa])
+    ns = parse_steps(steps)
+    _check(spec, ks, ns, measure, initial)
+    inputs.check_scheduler(scheduler)
+    out = None if out_dir is None else inputs.out_dir(out_dir)
+    options = {"measure": measure, "initial": initial, "exact": exact, "witness": witness}
+    tasks = [{"kappa": "" if k is None else k, "steps": n} for k in ks for n in ns]
+    got: list[dict[str, Any]] = []
+    if out is None:
+        run_batch(pep_chunk, text, spec.source, options, tasks, got.append, workers,
+                  scheduler)
+    else:
+        path = pep_csv(out, spec.name)
+        settings = {"job": "pep", "spec": text, **options}
+        with output_lock(path):
+            store = ResumableCSV(path, PEP_COLUMNS, ["kappa", "steps"], settings,
+                                 restart=restart)
+            with store:
+                todo = [t for t in tasks if not store.is_done(t)]
+                bar = Progress(len(tasks), f"pep {spec.name}", progress,
+                               done=len(tasks) - len(todo))
+                try:
+                    run_batch(pep_chunk, text, spec.source, options, todo, store.write,
+                              workers, scheduler, bar)
+                finally:
+                    bar.close()
+            keys = {store.row_key(t) for t in tasks}
+            got = [r for r in store.rows() if store.row_key(r) in keys]
+    docs = [json.loads(r["document"]) for r in got]
+    docs.sort(key=lambda d: (d["kappa"] or 0.0, d["steps"]))
+    files = _write_files(spec, docs, out, plot) if out is not None else []
+    if len(docs) == 1:
+        return docs[0] | {"files": files}
+    return {"spec": spec.name, "source": spec.source, "measure": measure, "initial": initial,
+            "rows": docs, "files": files}
+
+
+def _write_files(spec: Spec, docs: list[dict[str, Any]], out: Path,
+                 plot: bool) -> list[str]:
+    """Witness JSON files (with the spec's text, so ``sosalgo verify`` needs nothing else)
+    and the figure of tau_k against k for each kappa with two steps or more."""
+    from sosalgo.spec import read_spec_text
+
+    files = []
+    try:
+        text = read_spec_text(spec.source)
+    except (InputError, OSError):
+        text = None
+    for d in docs:
+        if d.get("witness"):
+            k = "" if d["kappa"] is None else f"-k{d['kappa']:g}"
+            path = out / f"{spec.name}-pep{k}-N{d['steps']}-witness.json"
+            path.write_text(json.dumps(d["witness"] | {"spec_text": text}, indent=1))
+            files.append(str(path))
+    if plot:
+        from sosalgo.pep.figure import pep_figure
+
+        files += pep_figure(spec, docs, out)
+    return files
+
+
+def pep_summary(doc: dict[str, Any]) -> str:
+    """The printed table of ``sosalgo pep``."""
+    from sosalgo.report import format_table
+
+    rows = doc.get("rows", [doc])
+    table = []
+    for d in rows:
+        cert = d.get("certificate") or {}
+        chk = (d.get("witness") or {}).get("check") or {}
+        table.append({"kappa": d["kappa"], "N": d["steps"], "tau": d["tau"],
+                      "tau_proven": cert.get("tau_proven") and float(
+                          Fraction(cert["tau_proven"])),
+                      "check": cert.get("check_kind", d.get("status")),
+                      "witness_lower": chk.get("tau_lower_float"),
+                      "witness_dim": (d.get("witness") or {}).get("dimension"),
+                      "seconds": d.get("seconds")})
+    cols = ["kappa", "N", "tau", "tau_proven", "check", "witness_lower", "witness_dim",
+            "seconds"]
+    head = f"{rows[0]['spec']}: worst case of {rows[0]['measure']} / {rows[0]['initial']}"
+    files = doc.get("files") or []
+    return "\n".join([head, format_table(table, cols)] + [f"wrote {f}" for f in files])

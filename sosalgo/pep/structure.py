@@ -1,0 +1,283 @@
+"""The performance estimation problem (PEP) of a method of the oracle model, as data.
+
+Drori and Teboulle (2014); Taylor, Hendrickx and Glineur (2017). The worst case of
+``measure(x_N) / initial(x_0)`` over every f_j in its class and every start is an SDP in
+
+    G = Gram matrix of (x_0 - x*, s~, u~_{k,i}, extra subgradients),   F = function values,
+
+with x* = 0 and every function tilted as in :mod:`sosalgo.certificates.composite`:
+h_j = f_j - f_j* - <s_j*, . - x*> >= 0 (value 0 and subgradient 0 at x*), u~ = u - s_j*,
+s~ = (s_1*, ..., s_{J-1}*) the free optimal subgradients (s_J* = -sum). The deviations
+follow the method exactly: xi~_0 = u (x_0 - x*) - X_s s~ (xi_0 = u ⊗ x_0; X_s the fixed
+points of the optimal subgradients, :func:`sosalgo.oracles.fixed_point_basis`),
+xi~_{k+1} = A xi~_k + B u~_k, y~_k = C xi~_k + D u~_k. Each function's tilted class
+inequalities hold between every ordered pair of its points: its calls, x* and the extra
+points where a term evaluates it (an extra point that coincides with one of its calls is
+that call). Then
+
+    tau_N = max measure(G, F)  s.t.  initial(G, F) <= 1,  alpha (F_a - F_b) + <Q_ab, G> >= 0,
+            F >= 0 (h_j >= 0),  G ⪰ 0.
+
+Units: subgradients are divided by s = L and function values too (gradient rows are u~/s,
+F = h/s), so that every entry is a distance squared. The builder is written once for
+floats and for exact balls (:class:`sosalgo.verify.exact.Ball`, object arrays): the
+exact check rebuilds the same structure on exact numbers.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from sosalgo.errors import InputError
+from sosalgo.pep.terms import Term
+
+__all__ = ["Method", "PEPPoint", "PEPStructure", "build_structure", "pair_label"]
+
+
+@dataclass
+class Method:
+    """A method on some number type: float arrays, or object arrays of exact numbers.
+
+    ``functions``: (name, class, params); ``coef(term)`` the number of a term's c;
+    ``X0``, ``Xs``: the fixed-point direction and the fixed points of the free optimal
+    subgradients (columns); ``same(a, b)``: whether two rows are the same point."""
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    E: np.ndarray | None
+    output: int | None
+    functions: list[tuple[str, Any, Any]]
+    oracles: tuple[int, ...]
+    X0: np.ndarray
+    Xs: np.ndarray
+    s: Any
+    ineqs: list[list[tuple[Any, np.ndarray]]]  # per function: (alpha, Q) tilted
+    coef: Callable[[Term], Any]
+    same: Callable[[np.ndarray, np.ndarray], bool]
+    exact: bool = False
+
+    @property
+    def n(self) -> int:
+        return int(self.A.shape[0])
+
+    @property
+    def p(self) -> int:
+        return len(self.oracles)
+
+
+@dataclass
+class PEPPoint:
+    label: str
+    x: np.ndarray  # row on the Gram basis
+    g: np.ndarray  # row of the tilted subgradient / s
+    f: int | None  # index in F (None: x*, value 0)
+
+
+@dataclass
+class PEPStructure:
+    """Everything the SDP, its exact check and the witness need."""
+
+    steps: int
+    calls: int  # iterations whose calls are points (steps, or steps + 1)
+    basis: list[str]
+    points: list[list[PEPPoint]]  # per function
+    nF: int
+    pairs: list[tuple[int, int, int, int]]  # (function, a, b, inequality index)
+    labels: list[str]
+    meas_q: np.ndarray
+    meas_f: np.ndarray
+    init_q: np.ndarray
+    init_f: np.ndarray
+    rows: dict[str, Any] = field(default_factory=dict)  # xi, y, x rows by time
+    at: dict[tuple[str, int], int] = field(default_factory=dict)  # (term point, j) -> point
+
+    @property
+    def d(self) -> int:
+        return len(self.basis)
+
+    def pair_rows(self, method: Method, k: int) -> tuple[Any, np.ndarray, np.ndarray]:
+        """(alpha, a on F, X (4 x d)) of pair k: alpha (F_a - F_b) + X' Q X >= 0."""
+        j, a, b, r = self.pairs[k]
+        pa, pb = self.points[j][a], self.points[j][b]
+        alpha, _ = method.ineqs[j][r]
+        av = np.zeros(self.nF, dtype=object if method.exact else float)
+        if pa.f is not None:
+            av[pa.f] = av[pa.f] + alpha * method.s
+        if pb.f is not None:
+            av[pb.f] = av[pb.f] - alpha * method.s
+        s = method.s
+        X = np.vstack([pa.x, pb.x, pa.g * s, pb.g * s])
+        return alpha, av, X
+
+
+def pair_label(fname: str, a: str, b: str, r: int, many: bool) -> str:
+    return f"{fname}:{a},{b}" + (f"#{r}" if many else "")
+
+
+def _call_label(i: int, k: int, p: int) -> str:
+    return f"y{k}" if p == 1 else f"y{i + 1}_{k}"
+
+
+def build_structure(mt: Method, steps: int, measure: Sequence[Term],
+                    initial: Sequence[Term], option: tuple[str, str] = ("--measure",
+                                                                       "--initial")
+                    ) -> PEPStructure:
+    """The PEP of ``steps`` steps (see the module docstring)."""
+    p, J = mt.p, len(mt.functions)
+    needs_n = mt.output is not None or any(t.point.startswith("y") for t in measure)
+    calls = steps + 1 if needs_n else steps
+    extra_cap = J * (len(measure) + len(initial)) + J
+    dmax = 1 + (J - 1) + p * calls + extra_cap
+    dt = object if mt.exact else float
+    eye = np.eye(dmax, dtype=dt) if not mt.exact else _obj_eye(dmax)
+    cols = ["x0-x*"] + [f"s*_{mt.functions[j][0]}/s" for j in range(J - 1)]
+    cols += [f"u_{_call_label(i, k, p)}/s" for k in range(calls) for i in range(p)]
+    U = [eye[J + p * k: J + p * (k + 1)] for k in range(calls)]
+    S = eye[1:J]  # the free optimal subgradients / s
+    xi = [np.outer(mt.X0, eye[0]) - mt.s * (mt.Xs @ S) if J > 1 else np.outer(mt.X0, eye[0])]
+    Y = []
+    for k in range(calls):
+        Y.append(mt.C @ xi[k] + mt.s * (mt.D @ U[k]))
+        xi.append(mt.A @ xi[k] + mt.s * (mt.B @ U[k]))
+    out = (mt.E @ xi[steps])[0] if mt.output is None else Y[steps][mt.output]
+    where = {"x": out, "x0": eye[0]}
+    where.update({f"y{i + 1}": Y[steps][i] for i in range(p)} if calls > steps else {})
+    pts: list[list[PEPPoint]] = [[] for _ in range(J)]
+    nF = 0
+    for k in range(calls):
+        for i, j in enumerate(mt.oracles):
+            pts[j].append(PEPPoint(_call_label(i, k, p), Y[k][i], U[k][i], nF))
+            nF += 1
+    zero = eye[0] * 0
+    for j in range(J):
+        pts[j].append(PEPPoint("x*", zero, zero, None))
+    sstar = [S[j] for j in range(J - 1)] + ([-S.sum(axis=0)] if J > 1 else [zero])
+    state = {"nF": nF, "next": len(cols), "cols": cols, "eye": eye, "at": {}}
+    mq, mf, iq, if_ = [], [], [], []
+    for terms, opt, q_acc, f_acc in ((measure, option[0], mq, mf), (initial, option[1], iq,
+                                                                     if_)):
+        for t in terms:
+            if t.point not in where:
+                raise InputError(f"{opt}: {t.point}_N: no such point")
+            q, f = _term(mt, t, where[t.point], pts, sstar, state, opt, steps)
+            q_acc.append(q)
+            f_acc.append(f)
+    d = state["next"]
+    used = _used_columns(pts, mq + iq, J, d)
+    keep = [c for c in range(d) if used[c]]
+    nF = state["nF"]
+
+    def cut(row: np.ndarray) -> np.ndarray:
+        return row[keep]
+
+    for fp in pts:
+        for pt in fp:
+            pt.x, pt.g = cut(pt.x), cut(pt.g)
+    meas_q, meas_f = _sum_forms(mq, mf, keep, nF, dt)
+    init_q, init_f = _sum_forms(iq, if_, keep, nF, dt)
+    pairs, labels = [], []
+    for j, (fname, _, _) in enumerate(mt.functions):
+        many = len(mt.ineqs[j]) > 1
+        for a, pa in enumerate(pts[j]):
+            for b, pb in enumerate(pts[j]):
+                if a != b:
+                    for r in range(len(mt.ineqs[j])):
+                        pairs.append((j, a, b, r))
+                        labels.append(pair_label(fname, pa.label, pb.label, r, many))
+    rows = {"xi": [x[:, keep] for x in xi], "y": [y[:, keep] for y in Y], "x": cut(out)}
+    return PEPStructure(steps, calls, [state["cols"][c] for c in keep], pts, nF, pairs,
+                        labels, meas_q, meas_f, init_q, init_f, rows, state["at"])
+
+
+def _obj_eye(k: int) -> np.ndarray:
+    from fractions import Fraction
+
+    out = np.full((k, k), Fraction(0), dtype=object)
+    for i in range(k):
+        out[i, i] = Fraction(1)
+    return out
+
+
+def _point_at(mt: Method, j: int, row: np.ndarray, pts: list[list[PEPPoint]], label: str,
+              state: dict[str, Any], opt: str, key: str) -> PEPPoint:
+    """Function j's point at ``row``: one of its points there, or a new one (a new
+    subgradient column and value) when the function is finite everywhere."""
+    for a, pt in enumerate(pts[j]):
+        if pt.label != "x*" and (pt.x is row or mt.same(pt.x, row)):
+            state["at"][(key, j)] = a
+            return pt
+    name, cls, _ = mt.functions[j]
+    if not cls.finite_everywhere:
+        raise InputError(f"{opt}: {name} ({cls.name}) is not evaluated at {label}: it may "
+                         "be infinite there; use a point where the method queries it or "
+                         "dist")
+    k = state["next"]
+    state["next"] += 1
+    state["cols"].append(f"g_{name}({label})/s")
+    pt = PEPPoint(label, row, state["eye"][k], state["nF"])
+    state["nF"] += 1
+    pts[j].insert(len(pts[j]) - 1, pt)  # x* stays last
+    state["at"][(key, j)] = len(pts[j]) - 2
+    return pt
+
+
+def _term(mt: Method, t: Term, row: np.ndarray, pts: list[list[PEPPoint]],
+          sstar: list[np.ndarray], state: dict[str, Any], opt: str,
+          steps: int) -> tuple[np.ndarray, dict[int, Any]]:
+    """(quadratic form on the basis, {F index: coefficient}) of one term."""
+    c = mt.coef(t)
+    label = {"x": f"x{steps}", "x0": "x0"}.get(t.point, f"{t.point}_{steps}")
+    if t.kind == "dist":
+        return np.outer(row, row) * c, {}
+    if t.kind == "f":
+        fs: dict[int, Any] = {}
+        for j in range(len(mt.functions)):
+            pt = _point_at(mt, j, row, pts, label, state, opt, t.point)
+            fs[pt.f] = fs.get(pt.f, 0) + c * mt.s
+        return 0 * np.outer(row, row), fs
+    smooth = [j for j, (_, cls, _) in enumerate(mt.functions) if "gradient" in cls.oracles]
+    if not smooth:
+        raise InputError(f"{opt}: grad: no smooth function (a class with a gradient "
+                         "oracle) in this spec")
+    v = 0 * row
+    for j in smooth:
+        pt = _point_at(mt, j, row, pts, label, state, opt, t.point)
+        v = v + pt.g + sstar[j]
+    v = v * mt.s
+    return np.outer(v, v) * c, {}
+
+
+def _used_columns(pts: list[list[PEPPoint]], forms: list[np.ndarray], J: int,
+                  d: int) -> list[bool]:
+    """Columns some point or term uses: the first d, minus optimal subgradients that appear
+    nowhere (they would be free directions of G)."""
+    used = [c < d for c in range(len(pts[0][0].x))]
+    for c in range(1, J):
+        used[c] = (any(_nonzero(pt.x[c]) or _nonzero(pt.g[c]) for fp in pts for pt in fp)
+                   or any(_nonzero(v) for q in forms for v in q[c]))
+    return used
+
+
+def _nonzero(v: Any) -> bool:
+    if hasattr(v, "c"):
+        return bool(v.c != 0 or v.r != 0)
+    return bool(v != 0)
+
+
+def _sum_forms(qs: list[np.ndarray], fs: list[dict[int, Any]], keep: list[int], nF: int,
+               dt: Any) -> tuple[np.ndarray, np.ndarray]:
+    d = len(keep)
+    Q = np.zeros((d, d), dtype=dt)
+    f = np.zeros(nF, dtype=dt)
+    for q in qs:
+        Q = Q + q[np.ix_(keep, keep)]
+    for fd in fs:
+        for k, v in fd.items():
+            f[k] = f[k] + v
+    return Q, f

@@ -1,0 +1,133 @@
+"""sosalgo pep: the worst case after N steps against closed forms (not our own output)."""
+
+from __future__ import annotations
+
+import json
+from fractions import Fraction
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+import sosalgo
+from sosalgo.cli import cli
+
+SPECS = Path(__file__).resolve().parent.parent / "specs"
+
+
+def _run(*args: str):
+    return CliRunner().invoke(cli, list(args), catch_exceptions=False)
+
+
+@pytest.mark.parametrize("N", [1, 2, 3, 4, 5])
+def test_gradient_convex_drori_teboulle(N):
+    """h = 1/L on L-smooth convex f, f(x_N) - f* <= L |x_0 - x*|^2 / (4N + 2), tight."""
+    res = sosalgo.pep(SPECS / "gradient-convex.yaml", None, N, witness=False)
+    L = 1.0
+    assert res.status == "solved"
+    assert res.tau == pytest.approx(L / (4 * N + 2), rel=1e-6)
+    cert = res.certificate
+    assert cert["check_kind"].startswith("exact")
+    proven = Fraction(cert["tau_proven"])
+    assert proven >= Fraction(res.tau)
+    assert float(proven) == pytest.approx(L / (4 * N + 2), rel=1e-5)
+
+
+def _worst_quadratic(m: float, L: float, h: float, N: int) -> float:
+    """max over f = (q/2)|x|^2, q in [m, L], of |x_N|^2/|x_0|^2 = (1 - hq)^(2N)."""
+    q = np.linspace(m, L, 2001)
+    return float(np.max((1 - h * q) ** (2 * N)))
+
+
+@pytest.mark.parametrize("kappa,N", [(10.0, 2), (4.0, 3)])
+def test_gradient_distance(kappa, N):
+    """Gradient descent h = 1/L on F(m, L), |x_N - x*|^2 / |x_0 - x*|^2 =
+    max(|1 - hm|, |1 - hL|)^(2N); at least the worst quadratic; at most rho^(2N) for the
+    rate certified for the same step by the interpolation family (distance measure)."""
+    m, L = 1.0, kappa
+    h = 1 / L
+    res = sosalgo.pep(SPECS / "gradient.yaml", kappa, N, measure="dist", witness=False)
+    closed = max(abs(1 - h * m), abs(1 - h * L)) ** (2 * N)
+    assert res.tau == pytest.approx(closed, rel=1e-6)
+    assert res.tau >= _worst_quadratic(m, L, h, N) - 1e-7
+    rate = sosalgo.analyze(SPECS / "proximal-gradient.yaml", kappa)
+    assert rate.certified
+    assert res.tau <= rate.rho ** (2 * N) * (1 + 1e-6)
+    proven = res.certificate["tau_proven"]
+    assert Fraction(proven) >= Fraction(res.tau)
+    assert float(Fraction(proven)) == pytest.approx(closed, rel=1e-5)
+
+
+def test_proximal_gradient_taylor_hendrickx_glineur():
+    """Proximal gradient, distance: max(|1 - hm|, |1 - hL|)^(2N) (THG 2018)."""
+    res = sosalgo.pep(SPECS / "proximal-gradient.yaml", 10.0, 2, witness=False)
+    assert res.measure == "dist"
+    assert res.tau == pytest.approx(0.9 ** 4, rel=1e-6)
+    assert float(Fraction(res.certificate["tau_proven"])) == pytest.approx(0.9 ** 4, rel=1e-5)
+
+
+def test_witness_verifies_and_tampering_fails(tmp_path):
+    """The witness JSON passes `sosalgo verify` and proves tau_N within 1e-4; one changed
+    gradient makes it fail (exit 3)."""
+    out = tmp_path / "o"
+    r = _run("pep", str(SPECS / "gradient-convex.yaml"), "--steps", "2", "--out", str(out),
+             "--json", "--quiet", "--no-plot")
+    assert r.exit_code == 0, r.output
+    doc = json.loads(r.output)
+    for key in ("spec", "kappa", "steps", "tau", "measure", "initial", "certificate",
+                "witness"):
+        assert key in doc
+    path = out / "gradient-convex-pep-N2-witness.json"
+    r = _run("verify", str(path), "--json")
+    assert r.exit_code == 0, r.output
+    chk = json.loads(r.output)["results"][0]
+    assert chk["verified"]
+    assert abs(chk["tau_lower_float"] - 1 / 10) <= 1e-4
+    assert Fraction(chk["tau_lower"]) <= Fraction(doc["certificate"]["tau_proven"])
+    w = json.loads(path.read_text())
+    g = Fraction(w["calls"][1][0][0])
+    w["calls"][1][0][0] = str(g * Fraction(11, 10) + Fraction(1, 100))
+    bad = tmp_path / "tampered.json"
+    bad.write_text(json.dumps(w))
+    r = _run("verify", str(bad))
+    assert r.exit_code == 3
+    assert "not verified" in r.output
+
+
+def test_steps_range_writes_csv_and_rows(tmp_path):
+    r = _run("pep", str(SPECS / "gradient.yaml"), "--kappa", "10", "--steps", "1..3",
+             "--measure", "dist", "--out", str(tmp_path), "--json", "--quiet",
+             "--no-witness")
+    assert r.exit_code == 0, r.output
+    rows = json.loads(r.output)["rows"]
+    assert [d["steps"] for d in rows] == [1, 2, 3]
+    for d in rows:
+        assert d["tau"] == pytest.approx(0.81 ** d["steps"], rel=1e-6)
+    assert (tmp_path / "gradient-pep.csv").is_file()
+    assert (tmp_path / "gradient-pep-k10.png").is_file()
+
+
+@pytest.mark.parametrize("args,field", [
+    (["gradient.yaml", "--kappa", "10", "--steps", "0"], "--steps"),
+    (["gradient.yaml", "--kappa", "10", "--measure", "f + foo"], "--measure"),
+    (["proximal-point.yaml", "--kappa", "10", "--measure", "grad"], "--measure"),
+    (["gradient-convex.yaml", "--kappa", "10"], "--kappa"),
+])
+def test_bad_input(tmp_path, args, field):
+    out = tmp_path / "o"
+    r = CliRunner().invoke(cli, ["pep", str(SPECS / args[0]), *args[1:], "--out", str(out)])
+    assert r.exit_code == 2
+    lines = [ln for ln in r.output.strip().splitlines() if ln]
+    assert len(lines) == 1 and field in lines[0]
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("spec", sorted(p.name for p in SPECS.glob("*.yaml")))
+def test_every_spec_runs(spec):
+    kappa = None if spec == "gradient-convex.yaml" else 10.0
+    res = sosalgo.pep(SPECS / spec, kappa, 2, exact=False, witness=False)
+    assert res.status in ("solved", "unbounded")
+    if res.status == "solved":
+        assert res.tau >= 0 and res.gap is not None
+        assert res.certificate["multipliers"]
