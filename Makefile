@@ -7,7 +7,7 @@ WORKERS ?=
 SCHEDULER ?=
 BATCH_OPTS := $(if $(WORKERS),--workers $(WORKERS)) $(if $(SCHEDULER),--scheduler $(SCHEDULER))
 
-.PHONY: help venv dev demo test test-all lint table1 bench fig1 fig2 fig3 fig4 sweeps figures fuzz soundness clean
+.PHONY: help venv dev demo test test-all lint table1 bench fig1 fig2 fig3 fig4 fig5 pep sweeps figures fuzz soundness clean
 
 help:
 	@echo "make help     - this list"
@@ -25,6 +25,8 @@ help:
 	@echo "make fig3     - Figure 3: certified rate on an (h, beta) grid at kappa = 10"
 	@echo "make sweeps   - every shipped spec analyzed over 40 kappas (m: 0 specs: no kappa) into $(OUT)/sweeps/"
 	@echo "make fig4     - Figure 4: three-parameter family designed with tight certificates"
+	@echo "make fig5     - Figure 5: front of certified rate vs noise sensitivity, three-parameter family, kappa 10 and 100"
+	@echo "make pep      - worst cases after 1..10 steps (PEP) of gradient descent and Nesterov into $(OUT)/pep"
 	@echo "make figures  - table1, fig1, fig2, fig3 and fig4"
 	@echo "make fuzz     - the loader fuzz tests with FUZZ_EXAMPLES (default 20000) cases"
 	@echo "make soundness - design bounds and composite rates vs independent judges, SOUNDNESS_CASES (300) and COMPOSITE_CASES (200) specs"
@@ -98,6 +100,15 @@ fig3: $(VENV)/.installed
 fig4: $(VENV)/.installed
 	$(BIN)/sosalgo fig4 --kappa '$(KAPPA_SWEEP)' --out $(OUT)/fig4 $(BATCH_OPTS)
 	@echo "Figure 4: $(OUT)/fig4/fig4-tight-design.png"
+
+fig5: $(VENV)/.installed
+	$(BIN)/sosalgo pareto specs/three-parameter.yaml --kappa 10 --kappa 100 --points 20 --certificate interpolation --out $(OUT)/fig5 $(BATCH_OPTS)
+	@echo "Figure 5: $(OUT)/fig5/three-parameter-pareto-k10.png, $(OUT)/fig5/three-parameter-pareto-k100.png"
+
+pep: $(VENV)/.installed
+	$(BIN)/sosalgo pep specs/gradient.yaml --kappa 10 --steps 1..10 --measure dist --out $(OUT)/pep $(BATCH_OPTS)
+	$(BIN)/sosalgo pep specs/nesterov.yaml --kappa 10 --steps 1..10 --out $(OUT)/pep $(BATCH_OPTS)
+	$(BIN)/sosalgo pep specs/gradient-convex.yaml --steps 1..10 --out $(OUT)/pep $(BATCH_OPTS)
 
 SWEEP := {from: 1.5, to: 1000, points: 40, scale: log}
 sweeps: $(VENV)/.installed

@@ -34,6 +34,18 @@ def main() -> None:
         suites["interpolation"] = interpolation.run
     except ImportError:
         pass
+    try:
+        from bench import noise
+
+        suites["noise"] = noise.run
+    except ImportError:
+        pass
+    try:
+        from bench import pep
+
+        suites["pep"] = pep.run
+    except ImportError:
+        pass
     try:  # AutoLyap itself runs in a subprocess; the suite skips with one line without it
         from bench import autolyap
 

@@ -28,7 +28,7 @@ class _CallableModule(types.ModuleType):
         return getattr(api, self.__name__.rsplit(".", 1)[1])(*args, **kwargs)
 
 
-_CALLABLE = ("design", "verify")
+_CALLABLE = ("design", "verify", "pep")
 
 
 class _Package(types.ModuleType):
@@ -64,6 +64,10 @@ _EXPORTS = {
     "prove_bound": "sosalgo.design",
     "design": "sosalgo.design",  # the module, callable (see _CallableModule)
     "verify": "sosalgo.verify",
+    "pep": "sosalgo.pep",  # the package, callable: sosalgo.pep(...) -> PEPResult
+    "pep_run": "sosalgo.pep",
+    "pareto_run": "sosalgo.pareto",
+    "noise": "sosalgo.api",
     "AnalysisResult": "sosalgo.analysis",
     "analyze_algorithm": "sosalgo.analysis",
     "DesignResult": "sosalgo.design",

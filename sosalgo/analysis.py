@@ -87,6 +87,11 @@ class AnalysisResult:
     certificate: dict[str, Any] | None = None  # the family's named parts (unpack)
     warning: str | None = None  # a limit of the solver's accuracy met (large kappa)
     lag: int | None = None  # the certificate's lag (interpolation family), else None
+    # witnessed lower bound on the worst-case rate, checked exactly (sosalgo.witnesses)
+    rho_lower: float | None = None
+    rho_lower_kind: str | None = None  # "quadratic", "self-similar" or "cycle"
+    rho_lower_witness: dict[str, Any] | None = None
+    cycle: dict[str, Any] | None = None  # a checked cycle: the method does not converge
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict (the `rows` entries of ``sosalgo analyze --json``)."""
@@ -107,7 +112,9 @@ class AnalysisResult:
             "family": self.family,
         } | ({} if _is_default(self.family) else {"certificate": jsonable(self.certificate)}) | (
             {} if self.warning is None else {"warning": self.warning}) | (
-            {} if self.lag is None else {"lag": self.lag})
+            {} if self.lag is None else {"lag": self.lag}) | {
+            "rho_lower": self.rho_lower, "rho_lower_kind": self.rho_lower_kind,
+            "rho_lower_witness": self.rho_lower_witness, "cycle": self.cycle}
 
 
 def _is_default(family: str) -> bool:
@@ -843,6 +850,9 @@ def _certify_constant(data: Any, r_star: float, solvers: Sequence[str],
             out = solve_lmi(sp.problem, math.sqrt(r), solvers)
             count[0] += 1
             if out.feasible and full_violation(data, sp.x0 + sp.N @ out.x, r) <= FULL_TOL:
+                from sosalgo.certificates.sublinear import original_kernels
+
+                sp.kernels = original_kernels(data, kernels)  # for the exact verification
                 return r, sp, out
     return None
 
@@ -872,7 +882,9 @@ def analyze_sublinear(spec: Spec, theta: Mapping[str, float] | None = None,
             check = sublinear_parts(sp, out.x, r) | {"unreduced": full}
             return SublinearResult(constant=r * s, certified=True, solves=count[0],
                                    seconds=time.perf_counter() - start, solver=out.solver,
-                                   constant_estimate=est, certificate=sp.problem.unpack(out.x),
+                                   constant_estimate=est,
+                                   certificate=sp.problem.unpack(out.x) | {
+                                       "kernels": sp.kernels},
                                    check=check, **base)
     return SublinearResult(constant=None, certified=False, solves=count[0],
                            seconds=time.perf_counter() - start, solver=None,

@@ -26,7 +26,8 @@ if TYPE_CHECKING:  # pragma: no cover
     from sosalgo.analysis import AnalysisResult
     from sosalgo.design import DesignResult
 
-__all__ = ["analyze", "as_spec", "copy_examples", "design", "example", "lmi", "verify"]
+__all__ = ["analyze", "as_spec", "copy_examples", "design", "example", "lmi", "noise",
+           "pep", "verify"]
 
 
 def example(name: str) -> Spec:
@@ -112,6 +113,34 @@ def verify(spec: Spec | str | Path, result: Any, simulate: bool = True,
     row = result.to_dict() if hasattr(result, "to_dict") else dict(result)
     out = None if out_dir is None else Path(out_dir)
     return verify_document_rows(s, [row], out, simulate)[0]
+
+
+def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
+        measure: str | None = None, initial: str | None = None, exact: bool = True,
+        witness: bool = True) -> Any:
+    """The worst case after ``steps`` steps (:class:`sosalgo.pep.PEPResult`): tau_N, its
+    dual certificate (proven exactly), the worst-case witness (checked exactly)."""
+    from sosalgo.pep.core import pep as run
+
+    return run(as_spec(spec), kappa, steps, measure, initial, exact, witness)
+
+
+def noise(spec: Spec | str | Path, kappa: float | Sequence[float] | None = None,
+          theta: Mapping[str, float] | None = None, lag: int | None = None,
+          exact: bool = True) -> Any:
+    """Certified sensitivity to gradient noise (``sosalgo analyze --noise``; README,
+    "Robustness to gradient noise"): a :class:`sosalgo.sensitivity.run.NoiseResult` per
+    kappa (one for a number), with the bound proven exactly when ``exact``; ``lag`` fixes
+    the certificate's lag (default: the best of 0 .. n + 1)."""
+    from sosalgo.inputs import check_kappa_points
+    from sosalgo.sensitivity.run import analyze_noise, check_noise_spec
+
+    s = as_spec(spec)
+    check_noise_spec(s)
+    kappas, single = _kappas(s, kappa)
+    check_kappa_points(s, kappas, theta)
+    results = [analyze_noise(s, k, theta, lag, exact) for k in kappas]
+    return results[0] if single else results
 
 
 def _check_design(spec: Spec, options: Mapping[str, Any]) -> None:

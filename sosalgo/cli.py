@@ -89,11 +89,22 @@ def cli() -> None:
 @click.option("--no-plot", is_flag=True, help="Skip the figure.")
 @click.option("--verify", "verify_", is_flag=True,
               help="Prove each certificate in exact arithmetic and simulate it.")
+@click.option("--noise", is_flag=True,
+              help="Add the certified sensitivity to gradient noise (noise, noise_quadratic, "
+                   "noise_lag).")
+@click.option("--brackets", type=click.Choice(["quadratic", "self-similar", "none"]),
+              default="quadratic", show_default=True,
+              help="Witnessed lower bound rho_lower beside the certified rate: the slowest "
+                   "quadratic mode, or also a self-similar trajectory (slower to search).")
+@click.option("--cycle-seconds", type=click.FloatRange(0, 600), default=5.0,
+              show_default=True,
+              help="Time per uncertified kappa for the search of a cycle (0: no search).")
 @certificate_options
 @handle_errors
 def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_json: bool,
             workers: int | None, scheduler: str | None, restart: bool, quiet: bool,
-            no_plot: bool, verify_: bool, certificate: str | None, lag: int | None) -> None:
+            no_plot: bool, verify_: bool, noise: bool, brackets: str, cycle_seconds: float,
+            certificate: str | None, lag: int | None) -> None:
     """Best rate certified at each kappa, with its certificate (Theorem 1: P, lambda).
     Python: sosalgo.analyze_run (files) or sosalgo.analyze (results)."""
     from sosalgo.certificates import FAMILIES
@@ -102,7 +113,8 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
     from sosalgo.schema import ANALYSIS_COLUMNS, FAMILY_COLUMNS
 
     doc = analyze_run(spec_path, _kappas(kappa), out, tol, certificate, {"lag": lag},
-                      workers, scheduler, restart, not quiet, not no_plot, verify_)
+                      workers, scheduler, restart, not quiet, not no_plot, verify_,
+                      noise=noise, brackets=brackets, cycle_seconds=cycle_seconds)
     rows = doc["rows"]
     if as_json:
         click.echo(json.dumps(doc, indent=2))
@@ -111,13 +123,18 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
 
         spec = spec_from_text(doc["spec_text"], doc["source"])
         click.echo(f"{spec.name}: {spec.description}".rstrip(": "))
-        extra = ["verified"] if verify_ else []
+        extra = (["verified"] if verify_ else []) + (
+            ["noise", "noise_quadratic", "noise_lag", "noise_check"] if noise else [])
         if "csvs" not in doc:  # the default family alone
             click.echo(rep.analysis_table(spec, rows, ANALYSIS_COLUMNS + extra))
+            for line in rep.verdict_lines(rows):
+                click.echo(line)
         for name in doc.get("csvs", {}):
             click.echo(f"certificate family: {FAMILIES[name].description}")
-            click.echo(rep.analysis_table(spec, [r for r in rows if r["family"] == name],
-                                          FAMILY_COLUMNS + extra))
+            mine = [r for r in rows if r["family"] == name]
+            click.echo(rep.analysis_table(spec, mine, FAMILY_COLUMNS + extra))
+            for line in rep.verdict_lines(mine):
+                click.echo(line)
         for r in rows if "csvs" not in doc else ():
             if r.get("warning"):
                 click.echo(f"warning at kappa {r['kappa']:g}: {r['warning']}", err=True)
@@ -150,12 +167,21 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
 @batch_options
 @click.option("--verify", "verify_", is_flag=True,
               help="Prove each certificate in exact arithmetic and simulate it.")
+@click.option("--objective", type=click.Choice(["rate", "noise"]), default="rate",
+              show_default=True,
+              help="Minimize the certified rate, or the certified noise sensitivity "
+                   "(needs --max-rate).")
+@click.option("--max-rate", type=float, default=None, metavar="R",
+              help="With --objective noise: the certified rate must be <= R.")
+@click.option("--max-noise", type=float, default=None, metavar="G",
+              help="With --objective rate: the certified noise sensitivity must be <= G.")
 @certificate_options
 @handle_errors
 def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: str,
            order: int | None, gap: float, time_limit: float, method: str, out: str,
            as_json: bool, workers: int | None, scheduler: str | None, restart: bool,
-           quiet: bool, verify_: bool, certificate: str | None, lag: int | None) -> None:
+           quiet: bool, verify_: bool, objective: str, max_rate: float | None,
+           max_noise: float | None, certificate: str | None, lag: int | None) -> None:
     """Design parameters: certified design, proven lower bound, gap between them.
     Python: sosalgo.design_run (files) or sosalgo.design (results)."""
     from sosalgo.report import design as rep
@@ -163,16 +189,24 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
 
     doc = design_run(spec_path, _kappas(kappa), out, free, scalarize, order, gap, time_limit,
                      method, certificate, {"lag": lag}, workers, scheduler, restart,
-                     not quiet, verify_, progress_steps=not quiet and not as_json)
+                     not quiet, verify_, progress_steps=not quiet and not as_json,
+                     objective=objective, max_rate=max_rate, max_noise=max_noise)
     docs = doc["rows"]
     if as_json:
         click.echo(json.dumps(docs[0] if len(docs) == 1 else doc, indent=2))
+        _exit_if_unverified([d.get("verification") for d in docs], "some certificate")
+        return
+    if "objective" in docs[0]:  # a design with the noise sensitivity
+        from sosalgo.report.pareto import objective_lines
+
+        click.echo("\n".join(objective_lines(doc)))
         _exit_if_unverified([d.get("verification") for d in docs], "some certificate")
         return
     if docs[0].get("rate_type") == "sublinear":
         from sosalgo.sublinear_run import design_lines
 
         click.echo("\n".join(design_lines(doc)))
+        _exit_if_unverified([d.get("verification") for d in docs])
         return
     names = docs[0]["free"]
     unsupported = all((d.get("relaxation") or {}).get("status") == "unsupported" for d in docs)
@@ -191,6 +225,42 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
     for d in docs:
         if d.get("error"):
             click.echo(f"error at kappa {d['kappa']:g}: {d['error']}", err=True)
+
+
+# --------------------------------------------------------------------------- pareto
+@cli.command()
+@click.argument("spec_path", metavar="SPEC", type=click.Path(dir_okay=False))
+@click.option("--kappa", "kappa", multiple=True, metavar="K",
+              help="Condition number(s); one front (CSV and figure) per value.")
+@click.option("--points", default=20, show_default=True, type=int,
+              help="Rate caps from the fastest certified rate to the slow end (>= 2).")
+@click.option("--time-limit", default=180.0, show_default=True, type=float,
+              help="Wall-clock seconds per kappa (the rate design takes a quarter).")
+@click.option("--free", default=None, metavar="NAMES",
+              help="Comma-separated parameters to design (default: those with a range).")
+@click.option("--out", default="outputs", show_default=True, metavar="DIR",
+              help="Directory for <name>-pareto-k<kappa>.csv/.png/.pdf.")
+@batch_options
+@click.option("--no-plot", is_flag=True, help="Skip the figure.")
+@certificate_options
+@handle_errors
+def pareto(spec_path: str, kappa: tuple[str, ...], points: int, time_limit: float,
+           free: str | None, out: str, as_json: bool, workers: int | None,
+           scheduler: str | None, restart: bool, quiet: bool, no_plot: bool,
+           certificate: str | None, lag: int | None) -> None:
+    """Front of certified rate vs certified noise sensitivity over the parameter box,
+    beside the known tunings. Python: sosalgo.pareto_run."""
+    from sosalgo.pareto import pareto_run
+    from sosalgo.report.pareto import pareto_lines
+
+    doc = pareto_run(spec_path, _kappas(kappa), out, points, time_limit, free, certificate,
+                     {"lag": lag}, workers, scheduler, restart, not quiet, not no_plot)
+    fronts = doc["fronts"]
+    if as_json:
+        click.echo(json.dumps(fronts[0] if len(fronts) == 1 else doc, indent=2))
+        return
+    for d in fronts:
+        click.echo("\n".join(pareto_lines(d)))
 
 
 # --------------------------------------------------------------------------- fig4
@@ -284,6 +354,17 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
     from sosalgo.verify.results import check_failed
 
     doc = read_result(result_path)
+    if doc.get("kind") == "pep-witness":  # a worst case written by `sosalgo pep`
+        res = verify_document(doc, spec_override, name=result_path)
+        chk = res["results"][0]
+        click.echo(json.dumps(res, indent=2) if as_json else
+                   f"{result_path}: {'verified' if chk['verified'] else 'not verified'} "
+                   f"({chk['check_kind']}): {chk.get('detail', '')}"
+                   + (f"; proves tau_N >= {chk['tau_lower_float']:.10g}"
+                      if chk["verified"] else ""))
+        if not chk["verified"]:
+            raise VerificationError(f"{result_path}: the witness is not verified")
+        return
     rows = result_rows(doc, result_path)
     folder = os.path.join(out, "certificates")
     can_write = writable(out)
@@ -306,6 +387,39 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
         edited = " (with a --spec that differs from the result's own spec)" if res[
             "notes"] and spec_override else ""
         raise VerificationError(f"{len(failed)} certificate(s) failed verification{edited}")
+
+
+# --------------------------------------------------------------------------- pep
+@cli.command()
+@click.argument("spec_path", metavar="SPEC", type=click.Path(dir_okay=False))
+@click.option("--kappa", "kappa", multiple=True, metavar="K",
+              help="Condition number(s); none for an m: 0 spec (required otherwise).")
+@click.option("--steps", default="1", show_default=True, metavar="N|a..b",
+              help="Steps N, or a range such as 1..10 (one row per N).")
+@click.option("--measure", default=None, metavar="TERMS",
+              help="Sum of c*f, c*dist, c*grad (points x_N, y_N, y<i>_N); default: the "
+                   "spec's measure (f, or dist for measure: distance).")
+@click.option("--initial", default=None, metavar="TERMS",
+              help="Sum of c*f, c*dist, c*grad at x_0 (default dist).")
+@click.option("--out", default="outputs", show_default=True, metavar="DIR",
+              help="Directory for <name>-pep.csv, witness JSON files and figures.")
+@batch_options
+@click.option("--no-plot", is_flag=True, help="Skip the figures.")
+@click.option("--no-witness", is_flag=True, help="Skip the worst-case witness.")
+@handle_errors
+def pep(spec_path: str, kappa: tuple[str, ...], steps: str, measure: str | None,
+        initial: str | None, out: str, as_json: bool, workers: int | None,
+        scheduler: str | None, restart: bool, quiet: bool, no_plot: bool,
+        no_witness: bool) -> None:
+    """Worst case after N steps (performance estimation), its dual certificate proven
+    exactly and a checked worst-case witness. Python: sosalgo.pep_run or sosalgo.pep."""
+    from sosalgo.pep.run import pep_run, pep_summary
+
+    ks = _kappas(kappa)
+    doc = pep_run(spec_path, ks[0] if ks and len(ks) == 1 else ks, steps, measure, initial,
+                  out, workers, scheduler, restart, not quiet, not no_plot,
+                  witness=not no_witness)
+    click.echo(json.dumps(doc, indent=2) if as_json else pep_summary(doc))
 
 
 # --------------------------------------------------------------------------- lmi

@@ -35,12 +35,14 @@ def read_result(path: str | Path) -> dict[str, Any]:
 
 
 def result_rows(doc: Mapping[str, Any], where: str = "result") -> list[dict[str, Any]]:
-    """The rows of a document: its ``rows``, or the document itself (one design)."""
-    rows = doc.get("rows", [doc] if "rho_certified" in doc else None)
-    if isinstance(rows, list) and any(isinstance(r, dict) and r.get("rate_type") == "sublinear"
-                                      for r in rows):
-        raise InputError(f"{where}: rows: sublinear results (m: 0) cannot be verified yet; "
-                         "their certificates carry a floating-point check only")
+    """The rows of a document: its ``rows``, or the document itself (one design). Rows of
+    a sublinear spec (``rate_type: sublinear``, m: 0) have no kappa: they come back as
+    copies with ``kappa: None`` (the tables of ``sosalgo verify`` have that column)."""
+    lone = "rho_certified" in doc or doc.get("rate_type") == "sublinear"  # one design
+    rows = doc.get("rows", [doc] if lone else None)
+    if isinstance(rows, list) and rows and all(
+            isinstance(r, dict) and r.get("rate_type") == "sublinear" for r in rows):
+        return [{"kappa": None, **r} for r in rows]
     if not isinstance(rows, list) or not all(isinstance(r, dict) and "kappa" in r for r in rows):
         raise InputError(f"{where}: rows: expected analyze or design results")
     return rows
@@ -105,6 +107,12 @@ def verify_document(result: str | Path | Mapping[str, Any], spec: Spec | str | P
 
     where = name or (str(result) if isinstance(result, str | Path) else "result")
     doc = read_result(result) if isinstance(result, str | Path) else dict(result)
+    if doc.get("kind") == "pep-witness":  # a worst case of ``sosalgo pep`` (sosalgo.pep)
+        from sosalgo.pep import check_witness
+
+        chosen, src, note = result_spec(doc, where, spec)
+        return {"spec": chosen.name, "source": src, "results": [check_witness(doc, chosen)],
+                "notes": [] if note is None else [note]}
     rows = result_rows(doc, where)
     chosen, src, note = result_spec(doc, where, spec)
     fam = None

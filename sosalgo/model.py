@@ -265,7 +265,7 @@ def fixed_point(alg: Algorithm, tol: float = FIXED_POINT_TOL) -> np.ndarray | No
 def bind_sublinear(spec: Spec, theta: Mapping[str, float] | None = None) -> Any:
     """The :class:`OracleMethod` of a sublinear spec (``m: 0``, L given, no kappa) at its
     parameter values (``theta`` overrides input parameters); ModelError names the field."""
-    from sosalgo.oracles import make_method
+    from sosalgo.oracles import fixed_point_basis, make_method
 
     if not spec.sublinear or spec.L is None:
         raise ModelError("m", "not a sublinear spec (m: 0, L given)")
@@ -273,7 +273,14 @@ def bind_sublinear(spec: Spec, theta: Mapping[str, float] | None = None) -> Any:
     nan = float("nan")
     params = parameter_values(spec, nan, theta)
     mats = _matrices(comp, [0.0, spec.L, nan] + [params[p] for p in comp.names])
-    return make_method(spec, mats, 0.0, spec.L, nan, params)
+    om = make_method(spec, mats, 0.0, spec.L, nan, params)
+    basis = fixed_point_basis(om)
+    if basis is not None and basis.shape[1] > 1 and np.abs(basis[:, 1:]).max() > 1e-12:
+        raise ModelError("functions", "m: 0 (sublinear rates) needs a state at the optimum "
+                         "that does not depend on the optimal subgradients (the potential "
+                         "starts the method at rest at x_0); this method's does (e.g. "
+                         "Douglas-Rachford): analyze it with a kappa instead")
+    return om
 
 
 def _matrices(comp: _Compiled, values: list[float]) -> dict[str, np.ndarray]:

@@ -18,7 +18,6 @@ from sosalgo.batch.store import output_lock
 from sosalgo.errors import InputError
 from sosalgo.schema import analysis_csv, design_stem, grid_stem, rate_stem
 from sosalgo.spec import Spec
-from sosalgo.sublinear_run import refuse_sublinear
 
 __all__ = ["analyze_run", "design_run", "grid_run", "spec_with_text", "table1_run"]
 
@@ -57,19 +56,30 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
                 options: Mapping[str, Any] | None = None, workers: int | None = None,
                 scheduler: str | None = None, restart: bool = False, progress: bool = True,
                 plot: bool = True, verify: bool = False,
-                spec_text: str | None = None) -> dict[str, Any]:
+                spec_text: str | None = None, noise: bool = False,
+                brackets: str = "quadratic", cycle_seconds: float = 5.0) -> dict[str, Any]:
     """``sosalgo analyze``: one CSV per family, the rate figure, optional checks; returns
-    the ``--json`` document (rows of the default family alone carry no ``family``)."""
+    the ``--json`` document (rows of the default family alone carry no ``family``).
+    ``noise`` (``--noise``) adds the certified noise sensitivity to every row.
+    ``brackets`` (quadratic, self-similar, none) and ``cycle_seconds`` (the cycle search's
+    time per uncertified row, 0: none) choose the witnesses (:mod:`sosalgo.witnesses`)."""
     from sosalgo.batch.sweeps import csv_row_to_json, run_analysis_sweep
     from sosalgo.report import analysis as rep
 
     spec, text = spec_with_text(spec, spec_text)
+    if noise:  # one gradient call on F(m, L) only (sosalgo.sensitivity)
+        from sosalgo.sensitivity.run import check_noise_spec
+
+        check_noise_spec(spec)
     if spec.sublinear:  # m: 0: one constant, no kappa (sosalgo.sublinear_run)
         from sosalgo.sublinear_run import sublinear_run
 
         return sublinear_run(spec, text, out_dir, plot, kappa, verify)
     kappas = _kappa_list(spec, kappa)
     inputs.check_tol(tol, "--tol")
+    from sosalgo.witnesses.rows import check_witness_options
+
+    check_witness_options(brackets, cycle_seconds)
     fams = inputs.select_families(spec, certificate, options)
     inputs.check_kappa_points(spec, kappas)
     out = inputs.out_dir(out_dir)
@@ -83,7 +93,8 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
                                       scheduler=scheduler, restart=restart, progress=progress,
                                       family=fam,
                                       companions=_figures(rate_stem(out, spec.name)) if plain
-                                      else ())
+                                      else (), noise=noise, brackets=brackets,
+                                      cycle_seconds=cycle_seconds)
             jrows = [csv_row_to_json(spec, r, None if plain else fam) for r in rows]
             if plain and plot and len(jrows) >= 2:  # one point is not a curve
                 figs = rep.analysis_figure(spec, jrows, rate_stem(out, spec.name))
@@ -128,22 +139,29 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
                options: Mapping[str, Any] | None = None, workers: int | None = None,
                scheduler: str | None = None, restart: bool = False, progress: bool = True,
                verify: bool = False, progress_steps: bool = False,
-               spec_text: str | None = None) -> dict[str, Any]:
+               spec_text: str | None = None, objective: str = "rate",
+               max_rate: float | None = None, max_noise: float | None = None
+               ) -> dict[str, Any]:
     """``sosalgo design``: the design sweep over kappa into ``<name>-design[...].csv``;
     returns ``{"spec", "source", "spec_text", "csv", "figures", "rows"}``, one design
-    document per kappa (``--json`` prints the single document for one kappa)."""
+    document per kappa (``--json`` prints the single document for one kappa).
+    ``objective="noise"`` with ``max_rate`` (or ``max_noise`` with the default objective)
+    designs with the noise sensitivity (:mod:`sosalgo.design.objectives`) into
+    ``<name>-design[...]-min-noise.csv`` (``-min-rate.csv``)."""
     from sosalgo.batch.sweeps import design_csv_to_json, run_design_sweep
+    from sosalgo.design.objectives import check_objective
     from sosalgo.report import design as rep
 
     spec, text = spec_with_text(spec, spec_text)
+    check_objective(spec, [] if spec.sublinear else _kappa_list(spec, kappa), objective,
+                    max_rate, max_noise)
+    two = objective != "rate" or max_noise is not None  # a noise objective or cap
     if spec.sublinear:  # m: 0: minimize the certified constant (no kappa)
         from sosalgo.sublinear_run import sublinear_design_run
 
         if kappa not in (None, [], ()):
             raise InputError(f"{spec.source}: --kappa: undefined for a sublinear spec (m: 0)")
-        if verify:
-            refuse_sublinear(spec, "design --verify")
-        return sublinear_design_run(spec, text, out_dir, free, time_limit)
+        return sublinear_design_run(spec, text, out_dir, free, time_limit, verify)
     fam = inputs.select_families(spec, certificate, options, single=True)[0]
     kappas = _kappa_list(spec, kappa)
     opts = _design_options(spec, kappas, free, fam, {
@@ -156,6 +174,10 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
              "inner_workers": (workers or os.cpu_count() or 1) if one and scheduler is None
              else 1}
     stem = design_stem(out, spec.name, fam)
+    if two:  # only then: today's designs keep their settings (and files) exactly
+        opts |= {"objective": objective, "max_rate": max_rate, "max_noise": max_noise}
+        stem = stem.with_name(stem.name + ("-min-noise" if objective == "noise"
+                                           else "-min-rate"))
     csv_path = stem.with_name(stem.name + ".csv")
     with output_lock(csv_path):
         rows, fresh = run_design_sweep(spec, text, kappas, csv_path, opts, workers=workers,

@@ -21,7 +21,8 @@ __all__ = [
     "ANALYSIS_COLUMNS", "CHECK_COLUMNS", "FAMILY_COLUMNS", "GRID_COLUMNS", "TABLE1_COLUMNS",
     "TABLE1_FILE", "analysis_columns", "analysis_csv", "certificate_name", "design_columns",
     "design_stem", "family_suffix", "grid_columns", "grid_fixed", "grid_stem", "kappa_label",
-    "p_columns", "rate_stem", "SUBLINEAR_COLUMNS", "sublinear_columns",
+    "p_columns", "rate_stem", "SUBLINEAR_COLUMNS", "sublinear_columns", "NOISE_COLUMNS",
+    "PEP_COLUMNS", "pep_csv", "OBJECTIVE_COLUMNS", "PARETO_COLUMNS", "pareto_stem",
 ]
 
 # ---------------------------------------------------------------------------- printed tables
@@ -42,7 +43,23 @@ _SUBLINEAR_CSV = ["L", "rate_type", "constant", "certified", "constant_estimate"
 # ---------------------------------------------------------------------------- CSV columns
 _ANALYSIS_HEAD = ["kappa", "rho", "certified", "lambda"]
 _ANALYSIS_TAIL = ["max_eig_M", "min_eig_P", "solves", "seconds", "solver", "rho_infeasible",
-                  "error", "warning", "rate_type"]
+                  "error", "warning", "rate_type", "rho_lower", "rho_lower_kind",
+                  "cycle_length", "cycle", "rho_lower_witness"]  # sosalgo.witnesses
+# ``analyze --noise``: certified noise sensitivity, its value on quadratics, the lag of its
+# certificate, how it was checked (exact / float / none), the certificate (one JSON object)
+NOISE_COLUMNS = ["noise", "noise_quadratic", "noise_lag", "noise_check", "noise_certificate"]
+# ``sosalgo pep``: one row per (kappa, N); ``document`` is the row's --json document
+PEP_COLUMNS = ["kappa", "steps", "tau", "status", "gap", "tau_proven", "check_kind",
+               "witness_verified", "tau_lower", "witness_dimension", "measure", "initial",
+               "seconds", "document"]
+# ``design --objective noise --max-rate R`` / ``--objective rate --max-noise G``: appended to
+# the design columns (only then: today's design files keep their columns)
+OBJECTIVE_COLUMNS = ["objective", "max_rate", "max_noise", "noise", "noise_quadratic",
+                     "noise_lag", "noise_check", "objective_status", "bound_status"]
+# ``sosalgo pareto``: one row per front point (kind "front", index 0 = the rate design),
+# known tuning ("tuning") and robust momentum member ("robust momentum"); theta as JSON
+PARETO_COLUMNS = ["index", "kind", "name", "cap", "rho", "noise", "noise_quadratic",
+                  "noise_lag", "noise_check", "rho_check", "theta", "seconds", "error"]
 _GRID_HEAD = ["rho", "certified", "lambda"]
 _GRID_TAIL = ["max_eig_M", "min_eig_P", "solves", "seconds", "solver", "error"]
 _DESIGN_HEAD = ["kappa", "lower_bound", "rho_certified", "gap", "gap_met"]
@@ -64,11 +81,14 @@ def _family_parts(spec: Spec, family: CertificateFamily | None) -> tuple[list[st
     return p_columns(family.p_size(spec.n)), list(family.csv_columns(spec.n))
 
 
-def analysis_columns(spec: Spec, family: CertificateFamily | None = None) -> list[str]:
+def analysis_columns(spec: Spec, family: CertificateFamily | None = None,
+                     noise: bool = False) -> list[str]:
     """CSV columns of ``sosalgo analyze``: the common ones, P's entries (of the family's
-    size), the spec's references, then the family's own columns."""
+    size), the spec's references, then the family's own columns (and with ``noise``, those
+    of ``--noise``: NOISE_COLUMNS)."""
     ps, own = _family_parts(spec, family)
-    return _ANALYSIS_HEAD + ps + _ANALYSIS_TAIL + list(spec.references) + own
+    return (_ANALYSIS_HEAD + ps + _ANALYSIS_TAIL + list(spec.references) + own
+            + (NOISE_COLUMNS if noise else []))
 
 
 def sublinear_columns(spec: Spec) -> list[str]:
@@ -78,11 +98,14 @@ def sublinear_columns(spec: Spec) -> list[str]:
 
 
 def design_columns(spec: Spec, free: Sequence[str],
-                   family: CertificateFamily | None = None) -> list[str]:
-    """CSV columns of ``sosalgo design`` over kappa."""
+                   family: CertificateFamily | None = None,
+                   objective: bool = False) -> list[str]:
+    """CSV columns of ``sosalgo design`` over kappa (with ``objective``: a design with a
+    noise objective or cap, OBJECTIVE_COLUMNS at the end)."""
     ps, own = _family_parts(spec, family)
     return (_DESIGN_HEAD + [f"theta_{p}" for p in free] + ["rho_at_values", "lambda"] + ps
-            + _DESIGN_TAIL + list(spec.references) + own)
+            + _DESIGN_TAIL + list(spec.references) + own
+            + (OBJECTIVE_COLUMNS if objective else []))
 
 
 def grid_fixed(spec: Spec, free: Sequence[str]) -> list[str]:
@@ -127,6 +150,16 @@ def family_suffix(family: CertificateFamily | None) -> str:
 def analysis_csv(out_dir: Path, spec_name: str, family: CertificateFamily | None) -> Path:
     """``<name>-analysis[-<family>...].csv``."""
     return Path(out_dir) / f"{spec_name}-analysis{family_suffix(family)}.csv"
+
+
+def pep_csv(out_dir: Path, spec_name: str) -> Path:
+    """``<name>-pep.csv``: ``sosalgo pep``'s rows."""
+    return Path(out_dir) / f"{spec_name}-pep.csv"
+
+
+def pareto_stem(out_dir: Path, spec_name: str, kappa: float) -> Path:
+    """``<name>-pareto-k<kappa>`` (.csv, .png, .pdf): ``sosalgo pareto``'s front."""
+    return Path(out_dir) / f"{spec_name}-pareto-k{kappa_label(kappa)}"
 
 
 def rate_stem(out_dir: Path, spec_name: str) -> Path:

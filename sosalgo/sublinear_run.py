@@ -14,8 +14,8 @@ from typing import Any
 
 from sosalgo.spec import Spec
 
-__all__ = ["design_lines", "refuse_sublinear", "sublinear_design_run", "sublinear_grid_run",
-           "sublinear_row", "sublinear_run", "sublinear_simulation"]
+__all__ = ["attach_verification", "design_lines", "sublinear_design_run",
+           "sublinear_grid_run", "sublinear_row", "sublinear_run", "sublinear_simulation"]
 
 DESIGN_COLUMNS = ["L", "rate_type", "free", "constant", "certified", "lower_bound",
                   "bound_status", "evaluations", "seconds", "time_limit", "timed_out",
@@ -47,7 +47,7 @@ def sublinear_row(spec: Spec) -> dict[str, Any]:
 
 
 def sublinear_design_run(spec: Spec, text: str, out_dir: str | Path, free: Any = None,
-                         time_limit: float = 120.0) -> dict[str, Any]:
+                         time_limit: float = 120.0, verify: bool = False) -> dict[str, Any]:
     """``sosalgo design`` on a sublinear spec: minimize the certified constant over the box
     (:func:`sosalgo.sublinear_design.sublinear_design`), simulate the design, write
     ``<name>-design.csv``; returns the document (one row)."""
@@ -60,6 +60,8 @@ def sublinear_design_run(spec: Spec, text: str, out_dir: str | Path, free: Any =
     out.mkdir(parents=True, exist_ok=True)
     row = sublinear_design(spec, names, time_limit)
     row["simulation"] = sublinear_simulation(spec, row["constant"], row["theta"])
+    if verify:
+        attach_verification(spec, row, out)
     path = out / f"{spec.name}-design.csv"
     columns = DESIGN_COLUMNS + [f"param_{p}" for p in spec.parameters] + ["certificate"]
     cells = {k: row.get(k) for k in DESIGN_COLUMNS} | {
@@ -127,8 +129,14 @@ def design_lines(doc: dict[str, Any]) -> list[str]:
             f"c = {row['constant']:.7g} at {theta} ({row['check_kind']}; simulation: "
             f"{'ok' if sim.get('ok') else 'VIOLATED'}, worst ratio "
             f"{sim.get('worst_ratio', float('nan')):.3g})")
-    return [head, f"  {best}", f"  {row['evaluations']} evaluations, {row['seconds']:.1f} s"
-            + (" (time limit reached)" if row["timed_out"] else ""), f"wrote {doc['csv']}"]
+    lines = [head, f"  {best}", f"  {row['evaluations']} evaluations, "
+             f"{row['seconds']:.1f} s" + (" (time limit reached)" if row["timed_out"] else "")]
+    ver = row.get("verification")
+    if ver is not None:
+        lines.append(f"  exact verification: {ver.get('verified')}"
+                     + (f" (c <= {ver['constant_proven_float']:.7g})"
+                        if ver.get("constant_proven_float") is not None else ""))
+    return lines + [f"wrote {doc['csv']}"]
 
 
 def _write_csv(path: Path, columns: list[str], cells: dict[str, Any]) -> None:
@@ -153,10 +161,24 @@ def _csv_cells(spec: Spec, row: dict[str, Any]) -> dict[str, Any]:
     return cells
 
 
+def attach_verification(spec: Spec, row: dict[str, Any], out: Path) -> None:
+    """``verification`` (the exact proof of :mod:`sosalgo.verify.exact_sublinear` and the
+    row's simulation; proof document in ``out/certificates``) and ``verified`` on a row."""
+    from sosalgo.verify.results import verify_sublinear_rows
+
+    check = verify_sublinear_rows(spec, [row], out / "certificates", simulate=False)[0]
+    if check is not None:
+        check["simulation"] = row["simulation"]
+    row["verification"] = check
+    row["verified"] = None if check is None else check["verified"]
+
+
 def sublinear_run(spec: Spec, text: str, out_dir: str | Path, plot: bool = True,
                   kappa: Any = None, verify: bool = False) -> dict:
-    """Analyze, write the CSV (and the figure with ``plot``), return the document; a
-    kappa or ``verify`` (no exact check of these certificates yet) is refused first."""
+    """Analyze, write the CSV (and the figure with ``plot``), return the document (a kappa
+    is refused first). With ``verify`` the row gets ``verification`` (the exact proof of
+    :mod:`sosalgo.verify.exact_sublinear` and the row's simulation; proof document in
+    ``out_dir/certificates``) and ``verified``."""
     from sosalgo import inputs
     from sosalgo.errors import InputError
     from sosalgo.report.analysis import sublinear_figure
@@ -164,25 +186,14 @@ def sublinear_run(spec: Spec, text: str, out_dir: str | Path, plot: bool = True,
 
     if kappa is not None and kappa != () and kappa != []:
         raise InputError(f"{spec.source}: --kappa: undefined for a sublinear spec (m: 0)")
-    if verify:
-        raise InputError(f"{spec.source}: --verify: sublinear certificates have a "
-                         "floating-point check only (no exact verification yet)")
     out = inputs.out_dir(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     row = sublinear_row(spec)
+    if verify:
+        attach_verification(spec, row, out)
     path = analysis_csv(out, spec.name, None)
     columns = sublinear_columns(spec)
     _write_csv(path, columns, _csv_cells(spec, row))
     figs = sublinear_figure(spec, row, rate_stem(out, spec.name)) if plot else []
     return {"spec": spec.name, "source": spec.source, "spec_text": text, "csv": str(path),
             "figures": [str(p) for p in figs], "rows": [row]}
-
-
-def refuse_sublinear(spec: Spec, command: str) -> None:
-    """One line (InputError) for a command that has no sublinear mode yet (design, grid,
-    verify, table1): a sublinear spec (m: 0) has no kappa and no linear rate."""
-    from sosalgo.errors import InputError
-
-    if spec.sublinear:
-        raise InputError(f"{spec.source}: m: 0 (sublinear rates): {command} is not supported "
-                         "yet; use analyze")

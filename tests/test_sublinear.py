@@ -164,7 +164,7 @@ def test_design_minimizes_the_constant_soundly(tmp_path):
     """The design beats the textbook step h = 1/L (c = L/4), is never below the floor at its
     step, nor below the best floor over the box; CSV written; simulation passes."""
     res = CliRunner().invoke(cli, ["design", str(SPECS / "gradient-convex.yaml"), "--out",
-                                   str(tmp_path), "--time-limit", "30", "--json"])
+                                   str(tmp_path), "--time-limit", "10", "--json", "--verify"])
     assert res.exit_code == 0, res.output
     row = json.loads(res.output)["rows"][0] if "rows" in json.loads(res.output) else \
         json.loads(res.output)
@@ -174,6 +174,7 @@ def test_design_minimizes_the_constant_soundly(tmp_path):
     assert row["constant"] >= _huber_floor(h)
     assert row["constant"] >= min(_huber_floor(x) for x in hs) * (1 - 1e-3)
     assert row["bound_status"] == "unsupported" and row["simulation"]["ok"]
+    assert row["verified"] == "exact"  # the designed constant proven in rationals
     with (tmp_path / "gradient-convex-design.csv").open() as fh:
         cells = list(csv.DictReader(fh))[0]
     assert float(cells["constant"]) == pytest.approx(row["constant"], rel=1e-12)
@@ -198,13 +199,15 @@ def test_linear_results_say_rate_type_linear():
     assert res.to_dict()["rate_type"] == "linear"
 
 
-def test_verify_of_a_sublinear_result_is_one_line_exit_2(tmp_path):
-    """No exact check exists for sublinear certificates yet: verify says so, exit 2."""
-    res = CliRunner().invoke(cli, ["analyze", str(SPECS / "gradient-convex.yaml"), "--json",
-                                   "--quiet", "--out", str(tmp_path)])
-    assert res.exit_code == 0, res.output
-    doc = tmp_path / "result.json"
-    doc.write_text(res.stdout)
-    ver = CliRunner().invoke(cli, ["verify", str(doc), "--out", str(tmp_path / "v")])
-    assert ver.exit_code == 2 and ver.stderr.count("\n") == 1
-    assert "sublinear" in ver.stderr and not (tmp_path / "v").exists()
+def test_a_state_depending_on_optimal_subgradients_is_refused(tmp_path):
+    """Douglas-Rachford's state at the optimum is x* + t s_g*: a start at rest at x_0 is not
+    the method started at z_0 = x_0, so the potential's bound would not apply: exit 2."""
+    DR = yaml.safe_load((SPECS / "douglas-rachford.yaml").read_text())
+    data = {**DR, "m": 0, "L": 1, "measure": "function", "references": {}, "output": "y2",
+            "parameters": {"t": {"value": "1/L", "range": [0, "10/L"]}}}
+    data.pop("kappa")
+    path = tmp_path / "dr0.yaml"
+    path.write_text(yaml.safe_dump(data))
+    res = CliRunner().invoke(cli, ["analyze", str(path), "--out", str(tmp_path / "o")])
+    assert res.exit_code == 2 and "Traceback" not in res.output
+    assert "functions" in res.output and "optimal subgradients" in res.output

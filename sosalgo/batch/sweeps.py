@@ -149,7 +149,21 @@ def result_row(spec: Spec, res: AnalysisResult,
         "rate_type": "linear",
     }
     row.update(_certificate_cells(spec, family, res.kappa, res.P, res.certificate))
+    from sosalgo.witnesses.rows import EMPTY, witness_cells
+
+    row.update(witness_cells({k: getattr(res, k, None) for k in EMPTY}))
     return row
+
+
+def _with_witnesses(spec: Spec, kappa: float, theta: Any, res: AnalysisResult,
+                    opts: dict[str, Any]) -> AnalysisResult:
+    """``res`` with its cycle or rate bracket (:mod:`sosalgo.witnesses`)."""
+    import dataclasses
+
+    from sosalgo.witnesses.rows import witness_fields
+
+    return dataclasses.replace(res, **witness_fields(spec, kappa, theta, res.certified,
+                                                     res.rho, **opts))
 
 
 def _certificate_cells(spec: Spec, family: CertificateFamily | None, kappa: float, P: Any,
@@ -196,7 +210,14 @@ def analysis_chunk(
     def one(spec: Spec, fam: CertificateFamily, kappa: float, task: dict) -> dict[str, Any]:
         res = analyze_spec(spec, kappa, task.get("theta"), tol=options["tol"],
                            solvers=options.get("solvers", DEFAULT_SOLVERS), family=fam)
-        return result_row(spec, res, fam)
+        if options.get("witnesses") is not None:  # analyze: cycles, rate brackets
+            res = _with_witnesses(spec, kappa, task.get("theta"), res, options["witnesses"])
+        row = result_row(spec, res, fam)
+        if options.get("noise"):  # analyze --noise: sosalgo.sensitivity
+            from sosalgo.sensitivity.run import analyze_noise, noise_cells
+
+            row.update(noise_cells(analyze_noise(spec, kappa, task.get("theta"))))
+        return row
 
     return _run_chunk(spec_text, source, options, chunk, one)
 
@@ -231,11 +252,17 @@ def run_analysis_sweep(
     solvers: Sequence[str] | None = None,
     family: CertificateFamily | None = None,
     companions: Sequence[Path] = (),
+    noise: bool = False,
+    brackets: str = "quadratic",
+    cycle_seconds: float = 5.0,
 ) -> list[dict[str, str]]:
     """Analysis over kappa, resumable; returns the rows (as CSV strings) in kappa order.
 
     ``family`` overrides the spec's certificate family (recorded in the settings unless it
-    is Theorem 1, so that Theorem 1 runs keep their settings files)."""
+    is Theorem 1, so that Theorem 1 runs keep their settings files); ``noise`` adds the
+    columns of ``--noise`` (recorded in the settings only when on); ``brackets`` (quadratic,
+    self-similar, none) and ``cycle_seconds`` (0: no cycle search) choose the witnesses of
+    :mod:`sosalgo.witnesses` (recorded when not the defaults)."""
     fam = family or spec_family(spec)
     options: dict[str, Any] = {"tol": tol, "certificate": family_options(fam)}
     if solvers:
@@ -245,7 +272,12 @@ def run_analysis_sweep(
                 "kappa": [float(k) for k in kappas]}
     if _family_settings(fam) is not None:
         settings["certificate"] = _family_settings(fam)
-    store = ResumableCSV(out_csv, analysis_columns(spec, fam), ["kappa"], settings,
+    if noise:
+        options["noise"] = settings["noise"] = True
+    options["witnesses"] = {"brackets": brackets, "cycle_seconds": cycle_seconds}
+    if (brackets, cycle_seconds) != ("quadratic", 5.0):  # the defaults keep old settings
+        settings["witnesses"] = options["witnesses"]
+    store = ResumableCSV(out_csv, analysis_columns(spec, fam, noise), ["kappa"], settings,
                          restart=restart, companions=companions)
     tasks = [{"kappa": float(k)} for k in kappas]
     _seed(spec, spec_text)
@@ -288,7 +320,23 @@ def csv_row_to_json(spec: Spec, row: dict[str, str],
         "warning": row.get("warning") or None,
         "rate_type": row.get("rate_type") or "linear",
         "references": {name: _num(row[name]) for name in spec.references},
-    } | _family_json(spec, row, family, P)
+    } | _family_json(spec, row, family, P) | _noise_json(row) | _witness_json(row)
+
+
+def _witness_json(row: dict[str, str]) -> dict[str, Any]:
+    """``rho_lower``, ``rho_lower_kind``, ``rho_lower_witness`` and ``cycle`` of a row."""
+    from sosalgo.witnesses.rows import witness_json
+
+    return witness_json(row)
+
+
+def _noise_json(row: dict[str, str]) -> dict[str, Any]:
+    """The ``--noise`` fields of a row (none when the run had no ``--noise``)."""
+    if "noise_check" not in row:
+        return {}
+    from sosalgo.sensitivity.run import noise_json
+
+    return noise_json(row)
 
 
 def _family_json(spec: Spec, row: dict[str, str], family: CertificateFamily | None,
@@ -341,6 +389,15 @@ def design_chunk(
         if options.get("progress_steps"):
             def on_step(msg: str) -> None:
                 note(f"  [kappa {kappa:g}] {msg}")
+        if "objective" in options:  # --objective noise / --max-noise: design.objectives
+            from sosalgo.design.objectives import objective_design
+
+            res = objective_design(spec, kappa, options["objective"], options["max_rate"],
+                                   options["max_noise"], options["free"], fam,
+                                   options["time_limit"], options.get("inner_workers"),
+                                   on_step)
+            return {**design_row(spec, res, fam), **res.objective_cells(),
+                    "_result": res.to_dict()}
         res = design(spec, kappa, free=options["free"], scalarize=options["scalarize"],
                      order=options["order"], gap=options["gap"],
                      time_limit=options["time_limit"], method=options.get("method", "dual"),
@@ -361,7 +418,8 @@ def run_design_sweep(
                 **{k: v for k, v in options.items() if k not in RUNTIME_OPTIONS},
                 "kappa": [float(k) for k in kappas]}
     fam = family_from_options(options.get("certificate")) or spec_family(spec)
-    store = ResumableCSV(out_csv, design_columns(spec, options["free"], fam), ["kappa"],
+    store = ResumableCSV(out_csv, design_columns(spec, options["free"], fam,
+                                                 "objective" in options), ["kappa"],
                          settings, restart=restart, companions=companions)
     tasks = [{"kappa": float(k)} for k in kappas]
     fresh: dict[float, dict[str, Any]] = {}
@@ -415,7 +473,16 @@ def design_csv_to_json(spec: Spec, free: Sequence[str], row: dict[str, str],
         "warning": row.get("warning") or None,
         "references": {name: _num(row[name]) for name in spec.references},
         "family": (family or spec_family(spec)).name,
-    }
+    } | _objective_json(row)
+
+
+def _objective_json(row: dict[str, str]) -> dict[str, Any]:
+    """The fields of a design with a noise objective or cap (none for other rows)."""
+    if "objective" not in row:
+        return {}
+    from sosalgo.design.objectives import objective_json
+
+    return objective_json(row)
 
 
 def _design_certificate(spec: Spec, row: dict[str, str], family: CertificateFamily | None,

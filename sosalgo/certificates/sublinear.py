@@ -34,7 +34,7 @@ rounding, reported as ``residual``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -43,8 +43,8 @@ import scipy.linalg as sla
 from sosalgo.certificates.base import AffineBlock, LMIProblem
 from sosalgo.certificates.composite import CWindow, composite_structure
 
-__all__ = ["SublinearProblem", "block_kernels", "full_violation", "snap_basis",
-           "sublinear_data", "sublinear_parts", "sublinear_problem"]
+__all__ = ["SublinearProblem", "block_kernels", "full_violation", "original_kernels",
+           "snap_basis", "sublinear_data", "sublinear_parts", "sublinear_problem"]
 
 @dataclass
 class SublinearProblem:
@@ -57,6 +57,8 @@ class SublinearProblem:
     s: float  # units: u = s u~, h = s psi~ (c = s r)
     equalities: np.ndarray  # E x = e: the kernels (known and found) and the tight rows
     rhs: np.ndarray
+    # the kernels imposed, in original units (:func:`original_kernels`; exact verification)
+    kernels: dict[str, list] = field(default_factory=dict)
 
 
 def _unit_quads(Z: np.ndarray) -> np.ndarray:
@@ -393,6 +395,25 @@ def full_violation(data: _XData, x: np.ndarray, r: float) -> float:
     return worst
 
 
+def original_kernels(data: _XData, kernels: dict[str, np.ndarray]) -> dict[str, list]:
+    """The kernels imposed on each block (columns; known ones first) in original units: a
+    block is s Dw M~ Dw with Dw = 1/s on the input columns (u = s u~), so G~ K~ = 0 gives
+    G (Dw^-1 K~) = 0: rows on input columns are multiplied by s. The initial block "I" is
+    on (x_0, the window's input columns)."""
+    n, s = data.st.n, data.s
+    out = {}
+    for name, K in kernels.items():
+        if not K.shape[1]:
+            continue
+        if name == "I":
+            scale = np.concatenate([[1.0], np.full(K.shape[0] - 1, s)])
+        else:
+            w = (data.st.dec if name.startswith("D") else data.st.pos).width
+            scale = np.tile(np.concatenate([np.ones(n), np.full(w - n, s)]), K.shape[0] // w)
+        out[name] = (scale[:, None] * K).tolist()
+    return out
+
+
 def _sym(vec: np.ndarray, n: int) -> np.ndarray:
     M = np.zeros((n, n))
     M[np.triu_indices(n)] = vec
@@ -422,7 +443,23 @@ def _unpack(st: Any, lay: dict[str, slice], s: float, deg: int,
         mults[f"eta{j}"] = mult(f"eta{j}", st.dec)
         mults[f"lam{j}"] = mult(f"lam{j}", st.pos)
     out["multipliers"] = mults
+    if deg == 2:  # the S-procedure auxiliaries of each "<= 0 on k >= 0" (exact verification)
+        for tag, win in (("D", st.dec), ("P", st.pos)):
+            out[f"S_{tag}"], out[f"K_{tag}"] = _halfline_aux(x, lay, tag, win.width, st.n, s)
     return out
+
+
+def _halfline_aux(x: np.ndarray, lay: dict[str, slice], tag: str, w: int, n: int,
+                  s: float) -> tuple[list, list]:
+    """S (psd) and K (skew) of block ``tag`` in original units: the window's input columns
+    carry u = s u~, and the block is s times the solver's, so M = s Dw M~ Dw with
+    Dw = diag(1 (the n state columns), 1/s (the rest))."""
+    dw = np.concatenate([np.ones(n), np.full(w - n, 1.0 / s)])
+    K = np.zeros((w, w))
+    K[np.triu_indices(w, 1)] = x[lay[f"K{tag}"]]
+    K = K - K.T
+    return [(s * dw[:, None] * M * dw[None, :]).tolist()
+            for M in (_sym(x[lay[f"S{tag}"]], w), K)]
 
 
 def sublinear_parts(sp: SublinearProblem, y: np.ndarray, r: float) -> dict[str, float]:

@@ -55,29 +55,61 @@ def unsvec(v: np.ndarray, d: int) -> np.ndarray:
 
 @dataclass
 class PEPData:
-    """The float data: every inequality as (Q_k on G, a_k on F) divided by sigma_k."""
+    """The float data: pair k is alpha_k (F_a - F_b) + tr(Qc_k X_k G X_k') >= 0, divided
+    by sigma_k (its largest coefficient on (svec G, F)); ``active``: the pairs the next
+    solve starts from (grown by :func:`solve_pep`, see the module)."""
 
     st: PEPStructure
-    Q: np.ndarray  # (K, d, d)
-    a: np.ndarray  # (K, nF)
+    X: np.ndarray  # (K, 4, d): rows of (x_a, x_b, g_a, g_b) on the basis
+    Qc: np.ndarray  # (K, 4, 4)
+    a: np.ndarray  # (K, nF), scaled
     sigma: np.ndarray
+    active: np.ndarray
+
+    def q(self, idx: np.ndarray) -> np.ndarray:
+        """The scaled Q_k = X_k' Qc_k X_k / sigma_k of the pairs ``idx`` (len, d, d)."""
+        X = self.X[idx]
+        Q = np.einsum("kai,kab,kbj->kij", X, self.Qc[idx], X, optimize=True)
+        return 0.5 * (Q + Q.transpose(0, 2, 1)) / self.sigma[idx, None, None]
+
+    def values(self, G: np.ndarray, F: np.ndarray) -> np.ndarray:
+        """Every scaled inequality at (G, F), without forming the Q_k."""
+        XG = self.X @ G
+        M = np.einsum("kui,kvi->kuv", XG, self.X)
+        return np.einsum("kuv,kuv->k", self.Qc, M) / self.sigma + self.a @ F
+
+
+CHUNK = 512
 
 
 def pep_data(mt: Method, st: PEPStructure) -> PEPData:
     K, d = len(st.pairs), st.d
-    Xs = np.zeros((K, 4, d))
+    X = np.zeros((K, 4, d))
     a = np.zeros((K, st.nF))
     Qc = np.zeros((K, 4, 4))
     for k in range(K):
-        _, a[k], Xs[k] = st.pair_rows(mt, k)
+        _, a[k], X[k] = st.pair_rows(mt, k)
         j, _, _, r = st.pairs[k]
         Qc[k] = mt.ineqs[j][r][1]
-    Q = np.einsum("kai,kab,kbj->kij", Xs, Qc, Xs, optimize=True)
-    Q = 0.5 * (Q + Q.transpose(0, 2, 1))
-    sig = np.maximum(np.abs(Q).reshape(K, -1).max(axis=1, initial=0.0),
-                     np.abs(a).max(axis=1, initial=0.0))
+    sig = np.abs(a).max(axis=1, initial=0.0)
+    for lo in range(0, K, CHUNK):  # the largest |Q_k| entry, a chunk at a time (memory)
+        Xc = X[lo:lo + CHUNK]
+        Q = np.einsum("kai,kab,kbj->kij", Xc, Qc[lo:lo + CHUNK], Xc, optimize=True)
+        sig[lo:lo + CHUNK] = np.maximum(sig[lo:lo + CHUNK],
+                                        np.abs(Q).reshape(len(Q), -1).max(axis=1, initial=0))
     sig[sig == 0] = 1.0
-    return PEPData(st, Q / sig[:, None, None], a / sig[:, None], sig)
+    return PEPData(st, X, Qc, a / sig[:, None], sig, seed_pairs(st))
+
+
+def seed_pairs(st: PEPStructure) -> np.ndarray:
+    """The pairs every solve starts with: those with x*, with an extra point (a term's),
+    and between calls at most one step apart (the pairs of the known worst cases)."""
+    keep = []
+    for k, (j, a, b, _) in enumerate(st.pairs):
+        ta, tb = st.points[j][a].t, st.points[j][b].t
+        if ta is None or tb is None or abs(ta - tb) <= 1:
+            keep.append(k)
+    return np.array(keep, dtype=int)
 
 
 @dataclass
@@ -133,33 +165,63 @@ def _settings(precise: bool, reg: float) -> Any:
 def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
               floor: float | None = None, slack: float = 0.0,
               unit: float = 1.0) -> SDPAnswer:
-    """One solve. ``objective``: "measure" (the PEP; ``margin`` eps as in the module) or
-    "trace" (minimize tr G with measure >= ``floor`` and every inequality >= ``slack``:
-    the rank reduction of the witness). The measure is divided by ``unit`` for the solver
-    (about tau: the margins and the solver's tolerances are then relative to tau); the
-    answer is in the original units."""
+    """One PEP solve by constraint generation (see the module). ``objective``: "measure"
+    (the PEP; ``margin`` eps as in the module) or "trace" (minimize tr G with measure >=
+    ``floor`` and every inequality >= ``slack``: the rank reduction of the witness). The
+    measure is divided by ``unit`` for the solver (about tau: the margins and the
+    solver's tolerances are then relative to tau); the answer is in the original units."""
+    K = len(data.st.pairs)
+    active = data.active
+    while True:
+        ans = _solve_active(data, active, margin, objective, floor, slack, unit)
+        if len(active) == K or ans.status == "infeasible":  # a relaxation: so is the PEP
+            break
+        if ans.status != "solved":  # unbounded or failed on a relaxation: decide on all
+            active = np.arange(K)
+            continue
+        assert ans.G is not None and ans.F is not None
+        v = data.values(ans.G, ans.F)
+        v[active] = np.inf
+        scale = max(1.0, float(np.abs(ans.G).max()), float(np.abs(ans.F).max(initial=0.0)))
+        bad = np.flatnonzero(v < (0.5 * slack if slack > 0 else -VIOLATION * scale))
+        if not len(bad):
+            break
+        bad = bad[np.argsort(v[bad])][:max(len(active), MIN_ADD)]
+        active = np.union1d(active, bad)
+    data.active = active
+    return ans
+
+
+VIOLATION = 1e-9  # an omitted inequality below -VIOLATION * scale joins the solve
+MIN_ADD = 64  # joins per round: at least this many, or as many as are active
+
+
+def _solve_active(data: PEPData, active: np.ndarray, margin: float, objective: str,
+                  floor: float | None, slack: float, unit: float) -> SDPAnswer:
+    """The SDP on the pairs ``active`` (Clarabel; the attempts of :data:`ATTEMPTS`)."""
     import clarabel
 
     st = data.st
-    d, nF, K = st.d, st.nF, len(st.pairs)
+    d, nF, K = st.d, st.nF, len(active)
     nG = d * (d + 1) // 2
     meas = np.concatenate([svec(st.meas_q.astype(float)), st.meas_f.astype(float)]) / unit
     init = np.concatenate([svec(st.init_q.astype(float)), st.init_f.astype(float)])
     if objective == "measure":
-        eps_g = np.concatenate([svec(np.eye(d)), np.ones(nF)]) * margin
-        q = -(meas + eps_g)
+        q = -(meas + np.concatenate([svec(np.eye(d)), np.ones(nF)]) * margin)
     else:
         q = np.concatenate([svec(np.eye(d)), np.zeros(nF)])
-    ineq = -np.hstack([svec(data.Q), data.a])
-    rows = [init[None, :], ineq, np.hstack([np.zeros((nF, nG)), -np.eye(nF)])]
+    rows = [sps.csr_matrix(init[None, :]),
+            sps.csr_matrix(-np.hstack([svec(data.q(active)), data.a[active]])),
+            sps.hstack([sps.csr_matrix((nF, nG)), -sps.identity(nF)])]
     b = [np.ones(1), np.full(K, -slack), np.zeros(nF)]
     if floor is not None:
-        rows.append(-meas[None, :])
+        rows.append(sps.csr_matrix(-meas[None, :]))
         b.append(np.array([-floor / unit]))
     nn = sum(r.shape[0] for r in rows)
-    rows.append(np.hstack([-np.eye(nG), np.zeros((nG, nF))]))
+    rows.append(sps.hstack([-sps.identity(nG), sps.csr_matrix((nG, nF))]))
     b.append(np.zeros(nG))
-    A = sps.csc_matrix(np.vstack(rows))
+    A = sps.csc_matrix(sps.vstack(rows))
+    A.eliminate_zeros()
     cones = [clarabel.NonnegativeConeT(nn), clarabel.PSDTriangleConeT(d)]
     P = sps.csc_matrix((nG + nF, nG + nF))
     raw, st_ = "no attempt ended", SolverStatus.FAILED
@@ -183,7 +245,8 @@ def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
     if st_ != SolverStatus.SOLVED:
         return SDPAnswer("failed", raw)
     x, z = np.array(sol.x), np.array(sol.z)
-    lam = np.maximum(z[1:1 + K], 0.0) / data.sigma * unit
+    lam = np.zeros(len(data.st.pairs))
+    lam[active] = np.maximum(z[1:1 + K], 0.0) / data.sigma[active] * unit
     ans = SDPAnswer("solved", raw, -float(sol.obj_val) * unit, -float(sol.obj_val_dual) * unit,
                     unsvec(x[:nG], d), x[nG:], float(z[0]) * unit, lam)
     if objective == "measure":
@@ -194,9 +257,9 @@ def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
 def residual(data: PEPData, tau: float, lam: np.ndarray) -> np.ndarray:
     """S = tau I0 - M - sum lambda_k Q_k (unscaled multipliers)."""
     st = data.st
-    w = lam * data.sigma
+    idx = np.flatnonzero(lam)
     S = tau * st.init_q.astype(float) - st.meas_q.astype(float)
-    return S - np.tensordot(w, data.Q, axes=1)
+    return S - np.tensordot(lam[idx] * data.sigma[idx], data.q(idx), axes=1)
 
 
 def value_residual(data: PEPData, tau: float, lam: np.ndarray) -> np.ndarray:

@@ -77,6 +77,7 @@ class PEPPoint:
     x: np.ndarray  # row on the Gram basis
     g: np.ndarray  # row of the tilted subgradient / s
     f: int | None  # index in F (None: x*, value 0)
+    t: int | None = None  # the step of a call (None: x* or a term's extra point)
 
 
 @dataclass
@@ -152,7 +153,7 @@ def build_structure(mt: Method, steps: int, measure: Sequence[Term],
     nF = 0
     for k in range(calls):
         for i, j in enumerate(mt.oracles):
-            pts[j].append(PEPPoint(_call_label(i, k, p), Y[k][i], U[k][i], nF))
+            pts[j].append(PEPPoint(_call_label(i, k, p), Y[k][i], U[k][i], nF, k))
             nF += 1
     zero = eye[0] * 0
     for j in range(J):

@@ -34,12 +34,28 @@ def analysis_figure(spec: Spec, rows: list[dict[str, Any]], stem: Path) -> list[
     return plot_rates(
         f"{spec.name}: certified rate (Theorem 1)",
         kappas,
-        {"certified rate": [r["rho"] for r in rows]},
+        {"certified rate": [r["rho"] for r in rows]} | bracket_series(rows),
         {name: [r["references"][name] for r in rows] for name in spec.references},
         stem,
         uncertified=[r["kappa"] for r in rows if not r["certified"]],
         reference_curves=reference_curves(spec, kappas),
     )
+
+
+def bracket_series(rows: list[dict[str, Any]]) -> dict[str, list[float | None]]:
+    """The witnessed lower bound rho_lower as a series (the bracket's lower end: 1 where
+    a cycle was found); none when no row has one."""
+    lows = [r.get("rho_lower") for r in rows]
+    return {"witnessed lower bound": lows} if any(v is not None for v in lows) else {}
+
+
+def verdict_lines(rows: list[dict[str, Any]]) -> list[str]:
+    """One line per row: "kappa K: worst-case rate in [lower, certified]", "does not
+    converge: cycle of length K", ... (:func:`sosalgo.witnesses.rows.verdict`)."""
+    from sosalgo.witnesses.rows import verdict
+
+    return [f"kappa {r['kappa']:g}: {verdict(r)}" for r in rows if r.get("rate_type") !=
+            "sublinear"]
 
 
 def families_figure(spec: Spec, runs: Sequence[Run], stem: Path) -> list[Path]:
@@ -52,6 +68,9 @@ def families_figure(spec: Spec, runs: Sequence[Run], stem: Path) -> list[Path]:
     if len(kap) < 2:
         return []
     series = {f"certified rate ({f.label})": [r["rho"] for r in rows] for f, _, rows in runs}
+    series |= bracket_series([{"rho_lower": max((r.get("rho_lower") for r in row if
+                                                  r.get("rho_lower") is not None), default=None)}
+                              for row in zip(*(rows for _, _, rows in runs), strict=True)])
     refs = {name: [r["references"][name] for r in runs[0][2]] for name in spec.references}
     extra = {"1 - 1/sqrt(kappa)": [1 - k ** -0.5 for k in kap],
              "quadratic bound max_q rho(A + qBC)": [quadratic_rate(bind(spec, k)) for k in kap]}

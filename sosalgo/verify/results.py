@@ -30,6 +30,7 @@ from sosalgo.verify.exact import write_certificate
 
 __all__ = [
     "ResultError", "check_failed", "verify_document_rows", "verify_family_certificate",
+    "verify_sublinear_rows",
 ]
 
 
@@ -115,18 +116,25 @@ def _write_certificate_file(out_dir: Path, spec: Spec, family: CertificateFamily
     own file. So a verified certificate is never overwritten or lost, whatever is verified
     after it into the same folder. The choice and the write happen under the output lock
     (concurrent runs), and the write is atomic."""
-    out_dir.mkdir(parents=True, exist_ok=True)
     digest = hashlib.sha256(_certificate_inputs(spec, family, kappa, rho, cert, theta)
                             .encode()).hexdigest()[:8]
-    plain = out_dir / certificate_name(spec.name, kappa, family)
+    return _write_once(out_dir, certificate_name(spec.name, kappa, family),
+                       certificate_name(spec.name, kappa, family, digest), digest, doc)
+
+
+def _write_once(out_dir: Path, name: str, hashed: str, digest: str,
+                doc: dict[str, Any]) -> Path:
+    """``name`` when it is free or holds the same inputs (``digest``), else ``hashed``:
+    never over another certificate; under the folder's output lock, atomic."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    plain = out_dir / name
     with output_lock(out_dir):  # one lock for the folder (beside it: DIR/.certificates.lock)
         try:
             old = json.loads(plain.read_text(encoding="utf-8")).get("inputs_hash")
         except (OSError, ValueError, AttributeError):
             old = None
         exists = plain.exists() or plain.is_symlink()
-        path = (plain if not exists or old == digest
-                else out_dir / certificate_name(spec.name, kappa, family, digest))
+        path = plain if not exists or old == digest else out_dir / hashed
         return write_certificate({**doc, "inputs_hash": digest}, path)
 
 
@@ -212,9 +220,8 @@ def verify_document_rows(
 
     Each row is checked by the family it names (``family``), else by ``family``, else by
     the default family, through the family's ``exact_check`` and ``lyapunov``."""
-    if spec.sublinear:
-        raise InputError(f"{spec.source}: m: 0 (sublinear rates): verify is not supported "
-                         "yet; use analyze")
+    if spec.sublinear:  # m: 0: a constant c and its potential certificate
+        return verify_sublinear_rows(spec, rows, out_dir, simulate)
     claims = []
     for i, row in enumerate(rows):
         if not isinstance(row, Mapping):
@@ -243,6 +250,74 @@ def verify_document_rows(
         except (KeyError, TypeError, ValueError) as exc:
             raise ResultError(f"{c['field']}: malformed ({exc})") from None
     return results
+
+
+def verify_sublinear_rows(spec: Spec, rows: Sequence[Mapping[str, Any]],
+                          out_dir: Path | None, simulate: bool = True,
+                          ) -> list[dict[str, Any] | None]:
+    """Rows of a sublinear spec (analysis or design: ``constant``, ``certificate``, a
+    design's ``theta``): the exact proof of
+    :func:`sosalgo.verify.exact_sublinear.verify_exact_sublinear` and the simulation
+    check of the constant; None for a row claiming no constant. Malformed rows raise
+    ResultError before anything is verified or written."""
+    claims = []
+    for i, row in enumerate(rows):
+        where = f"rows[{i}]"
+        if not isinstance(row, Mapping):
+            raise ResultError(f"{where}: expected an object")
+        if row.get("rate_type") != "sublinear":
+            raise ResultError(f"{where}.rate_type: expected sublinear (the spec has m: 0)")
+        C = _number(row.get("constant"), f"{where}.constant")
+        cert = row.get("certificate")
+        if cert is not None and not isinstance(cert, Mapping):
+            raise ResultError(f"{where}.certificate: expected an object")
+        theta = _theta(row, where)
+        claims.append(None if C is None and row.get("certified") is not True
+                      else (C, cert, theta))
+    return [None if c is None else _sublinear_check(spec, *c, out_dir, simulate)
+            for c in claims]
+
+
+def _sublinear_check(spec: Spec, C: float | None, cert: Mapping[str, Any] | None,
+                     theta: dict[str, float] | None, out_dir: Path | None,
+                     simulate: bool) -> dict[str, Any]:
+    """One row's check as plain values (the verdict as its string); the proof document
+    goes to ``out_dir`` as ``<name>-sublinear-certificate.json``."""
+    from sosalgo.verify.exact_sublinear import verify_exact_sublinear
+
+    res = verify_exact_sublinear(spec, cert or {}, theta, constant=C)
+    out: dict[str, Any] = {
+        "rate_type": "sublinear", "constant": C, "rho": None, "verified": str(res.verified),
+        "constant_proven": res.constant_proven,
+        "constant_proven_float": res.constant_proven_float, "rho_proven": None,
+        "rho_proven_float": None, "delta": None, "reason": res.reason,
+        "seconds": res.seconds}
+    if out_dir is not None:
+        inputs = json.dumps({"name": spec.name, "matrices": {k: str(v) for k, v in
+                                                             spec.matrices.items()},
+                             "constant": C, "certificate": cert, "theta": theta},
+                            sort_keys=True, default=_plain)
+        digest = hashlib.sha256(inputs.encode()).hexdigest()[:8]
+        out["certificate_file"] = str(_write_once(
+            out_dir, f"{spec.name}-sublinear-certificate.json",
+            f"{spec.name}-sublinear-{digest}-certificate.json", digest, res.to_dict()))
+    if simulate:
+        out["simulation"] = _sublinear_simulation(spec, C, theta)
+    return out
+
+
+def _sublinear_simulation(spec: Spec, C: float | None,
+                          theta: dict[str, float] | None) -> dict[str, Any] | None:
+    """The simulation check of the constant (:mod:`sosalgo.verify.simulate_sublinear`)."""
+    from sosalgo.model import ModelError, bind_sublinear
+    from sosalgo.verify.simulate_sublinear import simulate_sublinear
+
+    if C is None:
+        return None
+    try:
+        return simulate_sublinear(bind_sublinear(spec, theta), C).to_dict()
+    except (ModelError, ValueError, FloatingPointError, OverflowError) as exc:
+        return {"ok": None, "skipped": f"not run: {exc}"}
 
 
 def check_failed(check: Mapping[str, Any] | None) -> bool:

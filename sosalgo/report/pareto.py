@@ -1,0 +1,112 @@
+"""The figure of ``sosalgo pareto``: certified rate against certified noise sensitivity.
+
+The front (every point certified on both axes, dominated points dropped) as a line, the
+other points the searches returned in grey, the known tunings as labelled markers, the
+robust momentum family as a curve and the floor 1 - 1/sqrt(kappa) as a dashed line.
+Only certified values are drawn; a tuning with no certified rate or sensitivity is named
+in the legend as "not certified".
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from sosalgo.report import pyplot, save_figure
+
+__all__ = ["objective_lines", "pareto_figure", "pareto_lines"]
+
+NOISE_LEGEND = ("noise: certified upper bound on gamma, the root of the long-run average of "
+                "E|x_k - x*|^2/d per sigma^2 (the limsup when E|x_k - x*|^2 converges, e.g. "
+                "on quadratics; exact: proven in rational arithmetic)")
+_MARKERS = {"gradient h=2/(m+L)": "s", "gradient h=1/L": "D", "Nesterov": "^",
+            "heavy ball (Polyak)": "v", "triple momentum": "*"}
+
+
+def _certified(p: Mapping[str, Any]) -> bool:
+    return p.get("rho") is not None and p.get("noise") is not None
+
+
+def pareto_figure(doc: Mapping[str, Any], stem: Path) -> list[Path]:
+    """Draw a ``sosalgo pareto`` document (one kappa) into ``stem``.png/.pdf."""
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(7.5, 5.2))
+    front = doc["front"]
+    on_front = {p["index"] for p in front}
+    rest = [p for p in doc["points"] if _certified(p) and p["index"] not in on_front]
+    if rest:
+        ax.plot([p["rho"] for p in rest], [p["noise"] for p in rest], "x", color="0.6",
+                label="dominated search results")
+    if front:
+        ax.plot([p["rho"] for p in front], [p["noise"] for p in front], "o-", color="C0",
+                lw=2, ms=4, label=f"front over Θ ({doc['family']}, certified)", zorder=3)
+    rm = [p for p in doc["tunings"] if p["kind"] == "robust momentum" and _certified(p)]
+    if rm:
+        ax.plot([p["rho"] for p in rm], [p["noise"] for p in rm], ".--", color="C1",
+                label="robust momentum family (certified)")
+    for i, p in enumerate(t for t in doc["tunings"] if t["kind"] == "tuning"):
+        marker = _MARKERS.get(p["name"], "P")
+        if _certified(p):
+            ax.plot([p["rho"]], [p["noise"]], marker, color=f"C{i + 2}", ms=9,
+                    label=p["name"], zorder=4)
+        else:
+            ax.plot([], [], marker, color=f"C{i + 2}", label=f"{p['name']}: not certified")
+    ax.axvline(doc["floor"], color="k", ls=":", lw=1, label="1 - 1/√κ (no method is faster)")
+    ax.set_yscale("log")
+    ax.set_xlabel("certified rate ρ")
+    ax.set_ylabel("certified noise sensitivity γ (upper bound)")
+    ax.set_title(f"{doc['spec']}: speed vs robustness at κ = {doc['kappa']:g}")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, loc="upper right")
+    return save_figure(fig, stem)
+
+
+def objective_lines(doc: Mapping[str, Any]) -> list[str]:
+    """What ``sosalgo design --objective noise|--max-noise`` prints: one row per kappa."""
+    from sosalgo.report import format_table
+
+    docs = doc["rows"]
+    names = docs[0]["free"]
+    d0 = docs[0]
+    what = (f"least sensitive with certified rate <= {d0['max_rate']:g}"
+            if d0["objective"] == "noise" else
+            f"fastest with certified noise sensitivity <= {d0['max_noise']:g}")
+    rows = [{"kappa": d["kappa"], **{p: d["theta"].get(p) for p in names},
+             "rho_certified": d["rho_certified"], "noise": d["noise"],
+             "noise_quadratic": d["noise_quadratic"], "noise_lag": d["noise_lag"],
+             "noise_check": d["noise_check"], "status": d["objective_status"],
+             "seconds": d["seconds"]} for d in docs]
+    lines = [f"{doc['spec']}: {what}, over {', '.join(names)} ({d0['family']}; a search, "
+             "no lower bound for this objective)",
+             format_table(rows, ["kappa", *names, "rho_certified", "noise", "noise_quadratic",
+                                 "noise_lag", "noise_check", "status", "seconds"])]
+    lines += [f"  - {s}" for s in (d0.get("steps") or [])] if len(docs) == 1 else []
+    lines.append("rho_certified: analysis at theta (floating-point-checked certificate); "
+                 + NOISE_LEGEND + "; status 'none found': no theta found meeting the cap "
+                 "(not a proof that none exists)")
+    lines.append("wrote " + ", ".join([doc["csv"], *doc["figures"]]))
+    return lines
+
+
+def pareto_lines(doc: Mapping[str, Any]) -> list[str]:
+    """What ``sosalgo pareto`` prints for one kappa: the front, then the known tunings."""
+    from sosalgo.report import format_table
+
+    names = doc["free"]
+    front = [{"rho": p["rho"], "noise": p["noise"], "noise_quadratic": p["noise_quadratic"],
+              "noise_lag": p["noise_lag"], "noise_check": p["noise_check"],
+              **{n: p["theta"].get(n) for n in names}} for p in doc["front"]]
+    tun = [{"name": p["name"], "rho": p["rho"], "noise": p["noise"],
+            "noise_quadratic": p["noise_quadratic"], "noise_check": p["noise_check"]}
+           for p in doc["tunings"]]
+    cols = ["rho", "noise", "noise_quadratic", "noise_lag", "noise_check", *names]
+    lost = len(doc["points"]) - len(doc["front"])
+    return [f"{doc['spec']}: front of certified rate vs certified noise sensitivity at "
+            f"kappa {doc['kappa']:g} over {', '.join(names)} ({doc['family']}); "
+            f"{len(doc['front'])} points ({lost} dominated or uncertified dropped)",
+            format_table(front, cols),
+            "known tunings, in the form x+ = x + beta (x - x-) - h grad f(x + gamma (x - x-)):",
+            format_table(tun, ["name", "rho", "noise", "noise_quadratic", "noise_check"]),
+            "rho: certified rate (floating-point-checked certificate); " + NOISE_LEGEND,
+            "wrote " + ", ".join([doc["csv"], *doc["figures"]])]
