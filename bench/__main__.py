@@ -3,10 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import importlib
 import os
 import sys
 
-from bench import analysis, startup
+# Every suite is a module of this package with ``run(quick)``; AutoLyap itself runs in a
+# subprocess (its suite skips with one line when it is not installed).
+SUITES = ("startup", "analysis", "design", "grid", "interpolation", "noise", "pep",
+          "autolyap")
 
 
 def main() -> None:
@@ -15,48 +19,12 @@ def main() -> None:
     parser.add_argument("--only", default=None, help="run only this benchmark")
     args = parser.parse_args()
     os.environ.setdefault("OMP_NUM_THREADS", "1")
-    suites = {"startup": startup.run, "analysis": analysis.run}
-    try:  # later issues add suites; absent modules are skipped, not faked
-        from bench import design
-
-        suites["design"] = design.run
-    except ImportError:
-        pass
-    try:
-        from bench import grid
-
-        suites["grid"] = grid.run
-    except ImportError:
-        pass
-    try:
-        from bench import interpolation
-
-        suites["interpolation"] = interpolation.run
-    except ImportError:
-        pass
-    try:
-        from bench import noise
-
-        suites["noise"] = noise.run
-    except ImportError:
-        pass
-    try:
-        from bench import pep
-
-        suites["pep"] = pep.run
-    except ImportError:
-        pass
-    try:  # AutoLyap itself runs in a subprocess; the suite skips with one line without it
-        from bench import autolyap
-
-        suites["autolyap"] = autolyap.run
-    except ImportError:
-        pass
-    for name, fn in suites.items():
+    for name in SUITES:
         if args.only and name != args.only:
             continue
+        run = importlib.import_module(f"bench.{name}").run
         print(f"\n## {name}\n", flush=True)
-        fn(quick=args.quick)
+        run(quick=args.quick)
     sys.stdout.flush()
 
 
