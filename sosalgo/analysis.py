@@ -807,8 +807,7 @@ def _sublinear_sdp(problem: LMIProblem, rho: float | None,
              for s in form.sizes]
     zero = sps.csc_matrix((len(q), len(q)))
     try:
-        sol = clarabel.DefaultSolver(zero, q, A, b, cones,
-                                     _solvers._clarabel_settings(True)).solve()
+        sol = _solvers.clarabel_solve(zero, q, A, b, cones, _solvers._clarabel_settings(True))
     except Exception as exc:  # noqa: BLE001 - a crash is no answer
         return f"exception: {type(exc).__name__}", None
     status = str(sol.status)

@@ -31,7 +31,8 @@ from sosalgo.certificates.base import LMIProblem
 
 __all__ = [
     "Feasibility", "Outcome", "solve_lmi", "solve_margin", "check_point", "Margin", "SOLVERS",
-    "DEFAULT_SOLVERS", "margin_for", "SolverStatus", "solver_status",
+    "DEFAULT_SOLVERS", "margin_for", "SolverStatus", "solver_status", "SolverPanic",
+    "clarabel_solve", "solve_or_raise",
 ]
 
 SQRT2 = math.sqrt(2.0)
@@ -203,11 +204,36 @@ def _clarabel_run(problem: LMIProblem, rho: float, margin: float, equilibrate: b
         clarabel.NonnegativeConeT(1) if s == 1 else clarabel.PSDTriangleConeT(s)
         for s in form.sizes
     ]
-    solver = clarabel.DefaultSolver(
-        form.zero_P, form.q, A, b, cones, _clarabel_settings(equilibrate)
-    )
-    sol = solver.solve()
+    sol = clarabel_solve(form.zero_P, form.q, A, b, cones, _clarabel_settings(equilibrate))
     return _raw_answer(str(sol.status), sol.x)
+
+
+class SolverPanic(RuntimeError):
+    """A Rust solver (Clarabel, through pyo3) panicked: no answer. pyo3's PanicException
+    derives from BaseException, which ``except Exception`` would let through."""
+
+
+def solve_or_raise(solver: Any) -> Any:
+    """``solver.solve()``, a panic turned into :class:`SolverPanic` (an Exception)."""
+    try:
+        return solver.solve()
+    except BaseException as exc:
+        if type(exc).__name__ == "PanicException":
+            raise SolverPanic(str(exc).splitlines()[0] if str(exc) else "panic") from None
+        raise
+
+
+def clarabel_solve(P: Any, q: Any, A: Any, b: Any, cones: list, settings: Any) -> Any:
+    """One Clarabel solve (a panic in its setup or solve becomes :class:`SolverPanic`)."""
+    import clarabel
+
+    try:
+        solver = clarabel.DefaultSolver(P, q, A, b, cones, settings)
+    except BaseException as exc:
+        if type(exc).__name__ == "PanicException":
+            raise SolverPanic(str(exc).splitlines()[0] if str(exc) else "panic") from None
+        raise
+    return solve_or_raise(solver)
 
 
 def _raw_answer(status: str, x: Any) -> tuple[str, np.ndarray | None, str]:
@@ -449,12 +475,12 @@ def _margin_solve(form: _MarginForm, A: sps.csc_matrix, equilibrate: bool, rough
     kept = form.solvers.get(key)
     if not equilibrate and kept is not None:  # same pattern: update numbers
         kept.update(A=A.data.copy())
-        return kept.solve()
+        return solve_or_raise(kept)
     solver = clarabel.DefaultSolver(form.zero_P, form.q, A, form.b, form.cones(),
                                     _clarabel_settings(equilibrate, not rough, precise))
     if not equilibrate and solver.is_data_update_allowed():
         form.solvers[key] = solver
-    return solver.solve()
+    return solve_or_raise(solver)
 
 
 class _Evaluator:

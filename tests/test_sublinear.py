@@ -211,3 +211,19 @@ def test_a_state_depending_on_optimal_subgradients_is_refused(tmp_path):
     res = CliRunner().invoke(cli, ["analyze", str(path), "--out", str(tmp_path / "o")])
     assert res.exit_code == 2 and "Traceback" not in res.output
     assert "functions" in res.output and "optimal subgradients" in res.output
+
+
+def test_a_solver_panic_is_no_answer_not_a_crash():
+    """Clarabel panics (pyo3's PanicException derives from BaseException) on this momentum
+    method (found by the soundness suite): the analysis goes on and the result stays sound
+    (the constant is >= the worst case on the quadratic (1/2)|x|^2 from rest at k = 1)."""
+    data = {"name": "mom", "m": 0, "L": 1,
+            "functions": {"f": {"class": "smooth_strongly_convex"}},
+            "parameters": {"h": {"value": "(3159/4096)/L"}, "beta": {"value": "1993/4096"},
+                           "eta": {"value": "2939/4096"}},
+            "matrices": {"A": [[0, 1], ["-beta", "1 + beta"]], "B": [[0], ["-h"]],
+                         "C": [["-eta", "1 + eta"]], "E": [[0, 1]]}}
+    res = analyze_sublinear(spec_from_dict(data))
+    if res.certified:
+        x1 = 1 - 3159 / 4096  # one step from rest on (1/2)|x|^2, x_0 = 1
+        assert res.constant >= x1 ** 2 / 2

@@ -49,7 +49,7 @@ import scipy.sparse as sps
 from sosalgo.design.boxproof import BoxProver
 from sosalgo.design.modes import ModeTest
 from sosalgo.design.polymodel import PolyLMI
-from sosalgo.solvers import SolverStatus, finite_data, solver_status, svec
+from sosalgo.solvers import SolverStatus, clarabel_solve, finite_data, solver_status, svec
 
 __all__ = ["BoundStatus", "DualStructure", "BoundSearch", "dual_structure"]
 
@@ -327,8 +327,8 @@ class BoundSearch:
         settings.verbose = False
         settings.max_iter = 100
         try:
-            sol = clarabel.DefaultSolver(sps.csc_matrix((lay.ny, lay.ny)), q,
-                                         sps.csc_matrix(A), b, rows.cones, settings).solve()
+            sol = clarabel_solve(sps.csc_matrix((lay.ny, lay.ny)), q, sps.csc_matrix(A), b,
+                                 rows.cones, settings)
         except Exception:  # noqa: BLE001 - a crash is just "no dual point"
             return None
         self.state.solves += 1

@@ -26,7 +26,7 @@ import scipy.sparse as sps
 from sosalgo.classes import CLASSES
 from sosalgo.sensitivity.quadratic import quadratic_gamma2
 from sosalgo.sensitivity.window import NoiseWindow, noise_parts, noise_window, state_size
-from sosalgo.solvers import SolverStatus, finite_data, solver_status, svec
+from sosalgo.solvers import SolverStatus, clarabel_solve, finite_data, solver_status, svec
 
 __all__ = ["NoiseCertificate", "noise_certificate", "noise_windows", "MARGINS", "MAX_LAG"]
 
@@ -154,7 +154,7 @@ def _clarabel(A: sps.csc_matrix, b: np.ndarray, q: np.ndarray,
     nv = A.shape[1]
     P0 = sps.csc_matrix((nv, nv))
     try:
-        sol = clarabel.DefaultSolver(P0, q, A, b, kinds, settings).solve()
+        sol = clarabel_solve(P0, q, A, b, kinds, settings)
     except Exception as exc:  # noqa: BLE001 - a crash is just "no answer"
         return SolverStatus.FAILED, None, f"exception: {type(exc).__name__}"
     st = solver_status(str(sol.status))

@@ -73,15 +73,14 @@ def _rows(lay: Layout, method: Any, samples: Sequence[float]) -> tuple[list, lis
 def _solve(q: np.ndarray, A: np.ndarray, b: np.ndarray, cones: list) -> np.ndarray | None:
     import clarabel
 
-    from sosalgo.solvers import SolverStatus, solver_status
+    from sosalgo.solvers import SolverStatus, clarabel_solve, solver_status
 
     settings = clarabel.DefaultSettings()
     settings.verbose = False
     settings.max_iter = 200
     n = len(q)
     try:
-        sol = clarabel.DefaultSolver(sps.csc_matrix((n, n)), q, sps.csc_matrix(A), b, cones,
-                                     settings).solve()
+        sol = clarabel_solve(sps.csc_matrix((n, n)), q, sps.csc_matrix(A), b, cones, settings)
     except Exception:  # noqa: BLE001 - a crash is no answer
         return None
     if solver_status(str(sol.status)) != SolverStatus.SOLVED:
