@@ -390,7 +390,8 @@ def test_rate_bracket_below_rates(key):
         assert not certified, f"{case.meth}: a cycle beside certified rates {certified}"
         text = json.dumps([w["cycle"][k] for k in ("points", "gradients", "values", "states")])
         record("cycle", case.name, exact=w["cycle"].get("exact"), balls="+-" in text)
-        if w["cycle"].get("exact") and "+-" not in text:  # balls: not for plain fractions
+        assert not (w["cycle"].get("exact") and "+-" in text), "balls in an exact cycle"
+        if w["cycle"].get("exact"):  # plain fractions: the judge re-checks them
             why = check_cycle(case.meth, w["cycle"])
             assert why is None, f"{case.meth}: cycle fails the judge: {why}"
         return

@@ -148,9 +148,8 @@ def trajectory_json(ctx: Context, traj: dict[str, Any]) -> dict[str, Any]:
     function minimized there, value 0), and how it was checked."""
     om, K = ctx.om, len(traj["u"])
     names = [fn.name for fn in om.functions]
-    ok = ctx.exact
     d = traj["dimension"]
-    return {
+    doc = {
         "length": K,
         "points": [_vec(traj["y"][k][i]) for k in range(K) for i in range(om.p)],
         "gradients": [_vec(traj["u"][k][i]) for k in range(K) for i in range(om.p)],
@@ -162,10 +161,14 @@ def trajectory_json(ctx: Context, traj: dict[str, Any]) -> dict[str, Any]:
         "dimension": d,
         "factor": str(traj["s"]),
         "optimum": {"point": ["0"] * d, "gradient": ["0"] * d, "value": "0"},
-        "exact": ok,
-        "checked": True,
-        "check": (EXACT_NOTE if ok else BALL_NOTE) + f"; class data: {ctx.class_data}",
     }
+    # exact: a rational method and every number a plain rational (no ball left by rounding)
+    numbers = [v for key in ("points", "gradients", "outputs") for row in doc[key] for v in row]
+    numbers += [v for x in doc["states"] for row in x for v in row] + doc["values"]
+    ok = ctx.exact and not any("+-" in v for v in numbers)
+    return doc | {"exact": ok, "checked": True,
+                  "check": (EXACT_NOTE if ok else BALL_NOTE)
+                  + f"; class data: {ctx.class_data}"}
 
 
 def _parse(v: str) -> Ball:
