@@ -29,7 +29,8 @@ help:
 	@echo "make pep      - worst cases after 1..10 steps (PEP) of gradient descent and Nesterov into $(OUT)/pep"
 	@echo "make figures  - table1, fig1, fig2, fig3 and fig4"
 	@echo "make fuzz     - the loader fuzz tests with FUZZ_EXAMPLES (default 20000) cases"
-	@echo "make soundness - design bounds and composite rates vs independent judges, SOUNDNESS_CASES (300) and COMPOSITE_CASES (200) specs"
+	@echo "make soundness - design bounds and composite rates vs independent judges, SOUNDNESS_CASES (300) and COMPOSITE_CASES (200) specs;"
+	@echo "                 sublinear constants, noise bounds, PEP bounds, rate brackets on NEW_CASES (100) random methods each"
 	@echo "make clean    - remove CSV, PNG, PDF and JSON files from $(OUT)/"
 	@echo "Options: WORKERS=N, SCHEDULER=tcp://host:8786 (batch targets), OUT=DIR"
 
@@ -125,6 +126,9 @@ fuzz: $(VENV)/.installed-dev
 
 SOUNDNESS_CASES ?= 300
 COMPOSITE_CASES ?= 200
+NEW_CASES ?= 100
 soundness: $(VENV)/.installed-dev
 	SOSALGO_SOUNDNESS_CASES=$(SOUNDNESS_CASES) SOSALGO_COMPOSITE_CASES=$(COMPOSITE_CASES) \
-	  $(BIN)/python -m pytest tests/test_soundness.py tests/test_soundness_composite.py
+	  SOSALGO_NEW_CASES=$(NEW_CASES) \
+	  $(BIN)/python -m pytest tests/test_soundness.py tests/test_soundness_composite.py \
+	  tests/test_soundness_new.py

@@ -1,6 +1,7 @@
 """``sosalgo pareto``: the front of (certified rate, certified noise sensitivity) over Θ.
 
-At one kappa (README, "Robustness to gradient noise", "The speed–robustness front"):
+At one kappa (README, "Robustness to gradient noise", "Design on the speed–robustness
+front"):
 
 1. the fast end: today's rate design (:func:`sosalgo.design.design`) gives the fastest
    certified rate rho_0 it finds on the box;
@@ -8,8 +9,8 @@ At one kappa (README, "Robustness to gradient noise", "The speed–robustness fr
    log(1 - rho) from rho_0 to the slow end 1 - (1 - rho_0)^2 (1 - 1/kappa when rho_0 is the
    floor 1 - 1/sqrt(kappa): the rate of gradient descent with h = 1/L); for each, the least
    sensitive θ found with certified rate <= R_i (:func:`sosalgo.design.objectives.min_noise`,
-   started from the nearest smaller cap's point, the fast end and the best points of a
-   grid over Θ);
+   started from the points already solved under smaller caps, the fast end and the best
+   points of a grid over Θ);
 3. every point certified on both axes (:func:`sosalgo.design.objectives.certify_point`),
    written to ``<name>-pareto-k<kappa>.csv`` as it is done (resumable, batch layer), and the
    dominated ones dropped from the front (:func:`pareto_filter`);
@@ -37,11 +38,12 @@ __all__ = ["front_caps", "known_tunings", "pareto_chunk", "pareto_filter", "pare
 MAX_POINTS = 200
 DESIGN_SHARE = 0.25  # of the time limit, for the fast end (the rate design)
 CLOUD_SHARE = 0.08  # for the grid over Θ that seeds the searches
+MIN_CAP_SECONDS = 1.0  # each cap's search gets at least this (a short limit may be exceeded)
 TUNING_SECONDS = 0.5  # set aside per known tuning (measured: 0.05 to 0.8 s)
 RM_POINTS = 7  # members of the robust momentum family drawn
 REFERENCE = "three-parameter"  # the spec whose form the known tunings are written in
 
-_WARM: dict[str, list[tuple[float, dict[str, float]]]] = {}  # per run: solved (cap, θ)
+_WARM: dict[str, list[tuple]] = {}  # per run: solved (cap, θ, certified noise)
 _SPECS: dict[tuple[str, str], Spec] = {}
 
 
@@ -55,7 +57,8 @@ def robust_momentum(kappa: float, L: float, rho: float) -> dict[str, float]:
     rho in [1 - 1/sqrt(kappa), 1 - 1/kappa], as (h, beta, gamma) of eq. (9):
     h = kappa (1 - rho)^2 (1 + rho)/L, beta = kappa rho^3/(kappa - 1),
     gamma = rho^3/((kappa - 1)(1 - rho)^2 (1 + rho)). rho = 1 - 1/sqrt(kappa) is the triple
-    momentum method; at rho = 1 - 1/kappa it acts as gradient descent with h = 1/L."""
+    momentum method; at rho = 1 - 1/kappa its rate is gradient descent's with h = 1/L (its
+    noise sensitivity is not)."""
     return {"h": kappa * (1 - rho) ** 2 * (1 + rho) / L, "beta": kappa * rho**3 / (kappa - 1),
             "gamma": rho**3 / ((kappa - 1) * (1 - rho) ** 2 * (1 + rho))}
 
@@ -119,9 +122,10 @@ def _base_family(spec: Spec, options: Mapping[str, Any]) -> Any:
     return family_from_description(options.get("certificate")) or spec_family(spec)
 
 
-def _written(path: str | None) -> list[tuple[float, dict[str, float]]]:
-    """(cap, θ) of the front rows in the run's CSV so far (other workers' results; rows
-    being written, or a file this worker cannot see, are skipped)."""
+def _written(path: str | None) -> list[tuple[float, dict[str, float], float]]:
+    """(cap, θ, certified noise) of the front rows in the run's CSV so far (other
+    workers' results; rows being written, or a file this worker cannot see, are
+    skipped)."""
     import csv
 
     out = []
@@ -129,8 +133,9 @@ def _written(path: str | None) -> list[tuple[float, dict[str, float]]]:
         with open(path or "", encoding="utf-8", newline="") as fh:
             for row in csv.DictReader(fh):
                 try:
-                    if row["kind"] == "front" and row["rho"]:
-                        out.append((float(row["cap"] or row["rho"]), json.loads(row["theta"])))
+                    if row["kind"] == "front" and row["rho"] and row["noise"]:
+                        out.append((float(row["cap"] or row["rho"]), json.loads(row["theta"]),
+                                    float(row["noise"])))
                 except (KeyError, TypeError, ValueError):
                     continue
     except OSError:
@@ -138,37 +143,57 @@ def _written(path: str | None) -> list[tuple[float, dict[str, float]]]:
     return out
 
 
-def _starts(options: Mapping[str, Any], cap: float) -> list[dict[str, float]]:
-    """Where a cap's search starts: the point of the largest smaller cap solved so far
-    (here, by another worker, or read back), the fast end, and the least sensitive grid
-    points under the cap."""
+def _solved_below(options: Mapping[str, Any], cap: float
+                  ) -> list[tuple[dict[str, float], float]]:
+    """(θ, certified noise) of the points solved so far (here, by another worker, or read
+    back) whose cap is <= ``cap`` (so they meet it): the least sensitive, then the one of
+    the largest cap."""
+    solved = (_WARM.get(options["run"], []) + [tuple(w) for w in options.get("warm", [])]
+              + _written(options.get("csv")))
+    below = [s for s in solved if s[0] <= cap]
+    if not below:
+        return []
+    return [(s[1], s[2]) for s in (min(below, key=lambda s: s[2]),
+                                   max(below, key=lambda s: s[0]))]
+
+
+def _starts(options: Mapping[str, Any], cap: float) -> list[tuple[dict[str, float], float]]:
+    """Where a cap's search starts, least sensitive first (noise as known: certified for
+    solved points, screened for the grid): the solved points below it
+    (:func:`_solved_below`), the fast end, and the best grid points under the cap."""
     from sosalgo.design.objectives import CAP_SLACK
 
-    solved = _WARM.get(options["run"], []) + [(c, th) for c, th in options.get("warm", [])]
-    solved += _written(options.get("csv"))
-    below = [(c, th) for c, th in solved if c <= cap]
-    near = [max(below, key=lambda item: item[0])[1]] if below else []
     free = options["free"]
     grid = sorted((s for s in options.get("cloud", []) if s[1] <= cap - CAP_SLACK
                    and math.isfinite(s[2])), key=lambda s: s[2])
-    return near + [options["fast"]] + [dict(zip(free, s[0], strict=True)) for s in grid[:3]]
+    out = (_solved_below(options, cap) + [(options["fast"], options["fast_noise"])]
+           + [(dict(zip(free, s[0], strict=True)), s[2]) for s in grid[:3]])
+    return sorted(out, key=lambda item: item[1])
 
 
 def _cap_point(spec: Spec, options: Mapping[str, Any], task: Mapping[str, Any]) -> Any:
-    """The least sensitive θ found with certified rate <= the task's cap, certified."""
+    """The least sensitive θ found with certified rate <= the task's cap, certified. The
+    search runs in two halves: the second restarts from its own best and from any better
+    point another worker has solved meanwhile under a smaller cap. Out of time, the least
+    sensitive start is certified."""
     from sosalgo.design.objectives import Evaluator, certify_first, design_family, min_noise
 
     fam = design_family(spec, _base_family(spec, options))
     now = time.perf_counter()
-    budget = min(options["task_seconds"], options["deadline"] - time.time())
-    ev = Evaluator(spec, options["kappa"], options["free"], fam, now + 0.8 * max(budget, 0.0))
+    budget = max(min(options["task_seconds"], options["deadline"] - time.time()),
+                 MIN_CAP_SECONDS)
+    ev = Evaluator(spec, options["kappa"], options["free"], fam, now + 0.4 * budget)
     cap = float(task["cap"])
-    starts = [ev.key(th) for th in _starts(options, cap)]
+    starts = [ev.key(th) for th, _ in _starts(options, cap)]
     key, _ = min_noise(ev, cap, starts)
+    ev.deadline = now + 0.8 * budget
+    again = [k for k in [key, *(ev.key(th) for th, _ in _solved_below(options, cap))] if k]
+    if again:
+        key, _ = min_noise(ev, cap, again)
     pt = certify_first(spec, options["kappa"], fam, ev, [key] + starts, "noise", cap,
                        lambda msg: None)
     if pt is not None:
-        _WARM.setdefault(options["run"], []).append((cap, dict(pt.theta)))
+        _WARM.setdefault(options["run"], []).append((cap, dict(pt.theta), pt.noise))
     return pt
 
 
@@ -265,43 +290,60 @@ def _parse(row: Mapping[str, str]) -> dict[str, Any]:
 
 def _tasks(spec: Spec, kappa: float, rho_fast: float | None, points: int
            ) -> list[dict[str, Any]]:
-    """The caps (index 1 .. points - 1) and the known tunings (index points ..)."""
+    """The known tunings (index points ..), then the caps (index 1 .. points - 1) from
+    fast to slow: the tunings go first (they are quick), so that the caps run in order to
+    the end, each warm-started from its neighbours."""
     from sosalgo.model import bind
 
-    caps = [] if rho_fast is None else front_caps(rho_fast, points)[1:]
-    tasks: list[dict[str, Any]] = [{"index": i, "kind": "front", "name": f"cap {i}",
-                                    "cap": c} for i, c in enumerate(caps, 1)]
     ref = bind(_reference(), kappa)
-    for j, (kind, name, theta) in enumerate(known_tunings(kappa, ref.m, ref.L)):
-        tasks.append({"index": points + j, "kind": kind, "name": name, "theta": theta})
-    return tasks
+    tasks: list[dict[str, Any]] = [
+        {"index": points + j, "kind": kind, "name": name, "theta": theta}
+        for j, (kind, name, theta) in enumerate(known_tunings(kappa, ref.m, ref.L))]
+    caps = [] if rho_fast is None else front_caps(rho_fast, points)[1:]
+    return tasks + [{"index": i, "kind": "front", "name": f"cap {i}", "cap": c}
+                    for i, c in enumerate(caps, 1)]
+
+
+def _cap_seconds(tasks: list[dict[str, Any]], todo: list[dict[str, Any]], deadline: float,
+                 time_limit: float, w: int) -> float:
+    """Each cap's search time: its share of what is left, and at most its share of a whole
+    run (what is left after the rate design, the grid and the tunings, over all caps), so
+    that a resumed run takes only the time of what it still has to do."""
+    caps = sum(t["kind"] == "front" for t in tasks)
+    todo_caps = sum(t["kind"] == "front" for t in todo)
+    tunings = TUNING_SECONDS * (len(tasks) - caps) / w  # all of them, on w processes
+    todo_tunings = TUNING_SECONDS * (len(todo) - todo_caps) / w
+    whole = (time_limit * (1 - DESIGN_SHARE - CLOUD_SHARE) - tunings) * w / max(caps, 1)
+    left = (deadline - time.time() - todo_tunings) * w / max(todo_caps, 1)
+    return max(min(whole, left), MIN_CAP_SECONDS)
 
 
 def _search_options(spec: Spec, kappa: float, names: list[str], fam: Any, store: Any,
-                    fast: dict[str, Any], todo: list[dict[str, Any]], deadline: float,
-                    workers: int | None, scheduler: str | None) -> dict[str, Any]:
+                    fast: dict[str, Any], tasks: list[dict[str, Any]], time_limit: float,
+                    deadline: float, run: Mapping[str, Any]) -> dict[str, Any]:
     """What the workers need: the grid over Θ (only when caps remain), the points already
-    solved, and each cap's share of the time left."""
+    solved, and each cap's time (:func:`_cap_seconds`)."""
     from sosalgo.batch.executor import SERIAL_BELOW, default_workers
     from sosalgo.certificates import describe_family
     from sosalgo.design.objectives import Evaluator, cloud, design_family
 
-    caps = [t for t in todo if t["kind"] == "front"]
+    todo = [t for t in tasks if not store.is_done(t)]
     samples = []
-    if caps:
+    if any(t["kind"] == "front" for t in todo):
         ev = Evaluator(spec, kappa, names, design_family(spec, fam),
-                       time.perf_counter() + CLOUD_SHARE * (deadline - time.time()))
+                       time.perf_counter() + CLOUD_SHARE * time_limit)
         samples = [[list(s.key), s.rate, s.noise] for s in cloud(ev)]
     done = [_parse(r) for r in store.rows()]
-    warm = [(p["cap"] if p["cap"] is not None else p["rho"], p["theta"]) for p in done
-            if p["kind"] == "front" and p["rho"] is not None]
-    w = 1 if (workers == 1 or len(todo) < SERIAL_BELOW) and not scheduler else (
-        workers or default_workers())
-    left = deadline - time.time() - TUNING_SECONDS * (len(todo) - len(caps)) / w
+    warm = [(p["cap"] if p["cap"] is not None else p["rho"], p["theta"], p["noise"])
+            for p in done if p["kind"] == "front" and p["rho"] is not None
+            and p["noise"] is not None]
+    serial = (run["workers"] == 1 or len(todo) < SERIAL_BELOW) and not run["scheduler"]
+    w = 1 if serial else (run["workers"] or default_workers())
     return {"run": store.digest, "kappa": kappa, "free": names,
-            "certificate": describe_family(fam), "fast": fast["theta"], "cloud": samples,
-            "warm": warm, "deadline": deadline, "csv": str(store.path),
-            "task_seconds": max(left, 1.0) * w / max(len(caps), 1)}
+            "certificate": describe_family(fam), "fast": fast["theta"],
+            "fast_noise": math.inf if fast["noise"] is None else fast["noise"],
+            "cloud": samples, "warm": warm, "deadline": deadline, "csv": str(store.path),
+            "task_seconds": _cap_seconds(tasks, todo, deadline, time_limit, w)}
 
 
 def _one_kappa(spec: Spec, text: str, kappa: float, names: list[str], fam: Any,
@@ -328,8 +370,8 @@ def _one_kappa(spec: Spec, text: str, kappa: float, names: list[str], fam: Any,
                                     run["workers"]))
             tasks = _tasks(spec, kappa, fast["rho"], points)
             todo = [t for t in tasks if not store.is_done(t)]
-            opts = _search_options(spec, kappa, names, fam, store, fast, todo,
-                                   t0 + time_limit, run["workers"], run["scheduler"])
+            opts = _search_options(spec, kappa, names, fam, store, fast, tasks, time_limit,
+                                   t0 + time_limit, run)
             bar = Progress(len(tasks), f"pareto {spec.name} k={kappa_label(kappa)}",
                            run["progress"], done=len(tasks) - len(todo),
                            resumed_from=store.path)

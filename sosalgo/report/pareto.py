@@ -58,7 +58,7 @@ def pareto_figure(doc: Mapping[str, Any], stem: Path) -> list[Path]:
     ax.set_ylabel("certified noise sensitivity γ (upper bound)")
     ax.set_title(f"{doc['spec']}: speed vs robustness at κ = {doc['kappa']:g}")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7, loc="upper right")
+    ax.legend(fontsize=7, loc="lower left")
     return save_figure(fig, stem)
 
 
