@@ -808,7 +808,7 @@ def test_formerly_slow_inputs_are_fast(case):
 def test_many_kappas_cost_linear_time():
     """Loading and binding 10 000 kappas costs about 20x 500 kappas (linear), not more
     (every reference and range was once recompiled at every kappa): a complexity check in
-    one run, with a factor 2 of margin for a busy machine."""
+    one run, with a factor 4 of margin for a busy machine (quadratic cost would be 400x)."""
     def best(points: int) -> float:
         text = _replace("kappa: [2, 5, 10, 20, 50, 100]",
                         f"kappa: {{from: 1.5, to: 1000, points: {points}}}")
@@ -819,7 +819,7 @@ def test_many_kappas_cost_linear_time():
             times.append(time.perf_counter() - start)
         return min(times)
 
-    assert best(10_000) <= 40 * best(500)
+    assert best(10_000) <= 80 * best(500)
 
 
 def test_min_max_still_evaluate_numerically():
