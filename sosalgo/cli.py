@@ -397,10 +397,13 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
 @click.option("--steps", default="1", show_default=True, metavar="N|a..b",
               help="Steps N, or a range such as 1..10 (one row per N).")
 @click.option("--measure", default=None, metavar="TERMS",
-              help="Sum of c*f, c*dist, c*grad (points x_N, y_N, y<i>_N); default: the "
-                   "spec's measure (f, or dist for measure: distance).")
+              help="Sum of c*f, c*dist, c*grad (points x_N, y_N, y<i>_N), c*sdist "
+                   "(|xi_N - xi*|^2); default: the spec's measure (f, or dist for "
+                   "measure: distance).")
 @click.option("--initial", default=None, metavar="TERMS",
-              help="Sum of c*f, c*dist, c*grad at x_0 (default dist).")
+              help="Sum of c*f, c*dist, c*grad at x_0, c*sdist (|xi_0 - xi*|^2: a free "
+                   "start); default sdist when the fixed point moves with the optimal "
+                   "subgradients (Douglas-Rachford), dist otherwise.")
 @click.option("--out", default="outputs", show_default=True, metavar="DIR",
               help="Directory for <name>-pep.csv, witness JSON files and figures.")
 @batch_options

@@ -125,9 +125,56 @@ def test_bad_input(tmp_path, args, field):
 
 @pytest.mark.parametrize("spec", sorted(p.name for p in SPECS.glob("*.yaml")))
 def test_every_spec_runs(spec):
+    """Every shipped spec has a finite worst case after two steps (Douglas-Rachford
+    through its default free start, ``sdist``)."""
     kappa = None if spec == "gradient-convex.yaml" else 10.0
     res = sosalgo.pep(SPECS / spec, kappa, 2, exact=False, witness=False)
-    assert res.status in ("solved", "unbounded")
-    if res.status == "solved":
-        assert res.tau >= 0 and res.gap is not None
-        assert res.certificate["multipliers"]
+    assert res.status == "solved"
+    assert np.isfinite(res.tau) and res.tau >= 0 and res.gap is not None
+    assert res.certificate["multipliers"]
+
+
+def test_douglas_rachford_free_start():
+    """Douglas-Rachford (t = 1/sqrt(mL)) from a free start, |x_2 - x*|^2 / |z_0 - z*|^2:
+    finite, and at least its value on f = (q/2) x^2, g = 0, where z+ = z / (1 + t q) and
+    x_N = z_N / (1 + t q): max over q in [m, L] of (1 + t q)^(-2(N + 1)) (computed here);
+    the proven upper bound and the checked witness bracket it."""
+    m, L, N = 1.0, 10.0, 2
+    t = 1 / np.sqrt(m * L)
+    quad = float(np.max((1 + t * np.linspace(m, L, 1001)) ** (-2 * (N + 1))))
+    res = sosalgo.pep(SPECS / "douglas-rachford.yaml", L / m, N)
+    assert res.initial == "sdist" and res.status == "solved"
+    assert res.tau >= quad * (1 - 1e-6)
+    proven = Fraction(res.certificate["tau_proven"])
+    assert float(proven) >= quad * (1 - 1e-12)
+    chk = res.witness["check"]
+    assert chk["verified"]
+    assert Fraction(chk["tau_lower"]) <= proven
+    assert chk["tau_lower_float"] >= quad * (1 - 1e-3)
+
+
+def test_sdist_needs_no_free_start_for_one_state():
+    """GD has one state: |xi_0 - xi*|^2 is |x_0 - x*|^2, so sdist and dist agree
+    (0.9^(2N) for h = 1/L, kappa = 10)."""
+    res = sosalgo.pep(SPECS / "gradient.yaml", 10.0, 3, measure="dist", initial="sdist",
+                      witness=False)
+    assert res.tau == pytest.approx(0.81 ** 3, rel=1e-6)
+
+
+def test_long_horizon_closed_forms():
+    """The sparse basis at N = 20: GD on F(1, 10), dist: 0.9^40; h = 1/L on L-smooth
+    convex f: L / (4N + 2)."""
+    res = sosalgo.pep(SPECS / "gradient.yaml", 10.0, 20, measure="dist", witness=False)
+    assert res.tau == pytest.approx(0.81 ** 20, rel=1e-5)
+    assert float(Fraction(res.certificate["tau_proven"])) >= 0.81 ** 20 * (1 - 1e-12)
+    res = sosalgo.pep(SPECS / "gradient-convex.yaml", None, 20, witness=False)
+    assert res.tau == pytest.approx(1 / 82, rel=1e-5)
+
+
+@pytest.mark.deep
+def test_nesterov_thirty_steps():
+    """N = 30 of a two-state method: solved, proven, and below the N = 20 value."""
+    r20 = sosalgo.pep(SPECS / "nesterov.yaml", 10.0, 20, witness=False)
+    r30 = sosalgo.pep(SPECS / "nesterov.yaml", 10.0, 30, witness=False)
+    assert r30.status == "solved" and r30.certificate["check_kind"].startswith("exact")
+    assert 0 < r30.tau < r20.tau

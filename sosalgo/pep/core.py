@@ -15,7 +15,7 @@ import numpy as np
 from sosalgo.errors import InputError
 from sosalgo.pep.bind import bound_method
 from sosalgo.pep.sdp import PEPData, SDPAnswer, pep_data, solve_pep, value_residual
-from sosalgo.pep.structure import Method, PEPStructure, build_structure
+from sosalgo.pep.structure import Method, PEPStructure, build_structure, deadbeat_gain
 from sosalgo.pep.terms import Term, parse_terms
 from sosalgo.spec import Spec
 
@@ -81,28 +81,44 @@ def float_method(om: Any, kappa: float) -> Method:
              for fn in om.functions]
     return Method(om.A, om.B, om.C, om.D, om.E, om.output,
                   [(fn.name, fn.cls, fn.params) for fn in om.functions], tuple(om.oracles),
-                  X[:, 0], X[:, 1:], float(om.L), ineqs, coef, same)
+                  X[:, 0], X[:, 1:], float(om.L), ineqs, coef, same,
+                  deadbeat_gain(om.A, om.B, float(om.L)))
 
 
 def _default_measure(spec: Spec) -> str:
     return "dist" if spec.measure == "distance" else "f"
 
 
+def default_initial(om: Any) -> str:
+    """``sdist`` (a free start, |xi_0 - xi*|^2) when the method's fixed point moves with
+    the optimal subgradients (X_s != 0: from xi_0 = u x_0 the distance |x_0 - x*| cannot
+    bound the measure), ``dist`` otherwise."""
+    from sosalgo.oracles import fixed_point_basis
+
+    X = fixed_point_basis(om)
+    scale = 1.0 + float(np.abs(X).max(initial=0.0)) if X is not None else 1.0
+    moves = X is not None and float(np.abs(X[:, 1:]).max(initial=0.0)) > 1e-12 * scale
+    return "sdist" if moves else "dist"
+
+
 def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None = None,
                 initial: str | None = None) -> tuple[Method, PEPStructure, list[Term],
-                                                     list[Term]]:
-    """The float method and structure (InputError naming the option for bad input)."""
+                                                     list[Term], tuple[str, str]]:
+    """The float method, structure, terms and the (measure, initial) texts, defaults
+    resolved (InputError naming the option for bad input)."""
     if isinstance(steps, bool) or not isinstance(steps, int) or not 1 <= steps <= MAX_STEPS:
         raise InputError(f"--steps: must be an integer in 1..{MAX_STEPS}, got {steps!r}")
     om, kq = bound_method(spec, kappa)
-    mterms = parse_terms(measure or _default_measure(spec), "--measure", False, om.p)
-    iterms = parse_terms(initial or "dist", "--initial", True, om.p)
+    measure = measure or _default_measure(spec)
+    initial = initial or default_initial(om)
+    mterms = parse_terms(measure, "--measure", False, om.p)
+    iterms = parse_terms(initial, "--initial", True, om.p)
     mt = float_method(om, kq)
     try:
         st = build_structure(mt, steps, mterms, iterms)
     except InputError as exc:
         raise InputError(f"{spec.source}: {exc}") from None
-    return mt, st, mterms, iterms
+    return mt, st, mterms, iterms, (measure, initial)
 
 
 def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
@@ -111,12 +127,11 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
     """The PEP of ``spec`` at ``kappa`` over ``steps`` steps (see the module)."""
     t0 = time.perf_counter()
     spec = _load(spec)
-    mt, st, mterms, iterms = pep_problem(spec, kappa, steps, measure, initial)
+    mt, st, mterms, iterms, names = pep_problem(spec, kappa, steps, measure, initial)
     data = pep_data(mt, st)
     ans = solve_pep(data)
     res = PEPResult(spec.name, None if spec.sublinear else float(kappa),  # type: ignore[arg-type]
-                    steps, measure or _default_measure(spec), initial or "dist",
-                    ans.status, ans.primal if ans.status == "solved" else None)
+                    steps, *names, ans.status, ans.primal if ans.status == "solved" else None)
     if ans.status == "unbounded":
         res.tau = math.inf
         res.extra["note"] = ("the measure is unbounded for this initial condition (e.g. the "
@@ -139,7 +154,7 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
     ``exact`` (the margin ladder of :data:`MARGINS`)."""
     st = data.st
     tau = float(ans.primal)  # type: ignore[arg-type]
-    scale = max(1.0, float(np.trace(ans.G)) + float(np.sum(ans.F)))  # type: ignore[arg-type]
+    scale = max(1.0, ans.size)  # tr H + sum F': the margin's units
     cert: dict[str, Any] = {"tau": ans.tau, "check_kind": "floating-point check",
                             "tau_proven": None, "proof": None}
     best = ans
@@ -151,6 +166,11 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
         best = cand
         from sosalgo.pep.exact import prove_certificate
 
+        Sh = cand.S * np.outer(data.w, data.w)  # type: ignore[operator]
+        if np.linalg.eigvalsh(Sh)[0] < -1e-9 * max(1.0, float(np.abs(Sh).max())):
+            cert["proof"] = {"proven": False, "tau_proven": None,
+                             "detail": "floating-point pre-check: S is not PSD (scaled)"}
+            continue  # the exact proof would fail: the next margin
         proof = prove_certificate(spec, kappa, st, mterms, iterms, cand.tau, cand.lam)
         cert["proof"] = proof
         if proof["proven"]:

@@ -7,14 +7,18 @@ enclose`), the classes' tilted inequalities from exact formulas
 (:func:`sosalgo.verify.exact_composite.exact_class_inequalities`), the fixed points
 (u and the optimal-subgradient fixed points) solved exactly with sympy, and the PEP
 structure (:func:`sosalgo.pep.structure.build_structure`) built again on those numbers,
-with the same labels as the float one. The multipliers become rationals (their binary
-values; negative ones 0), tau a rational slightly above the float one, and
+with the same labels and the same basis as the float one (the gain K that defines the
+basis is the float one, read as binary rationals: any K gives the same PEP). The
+multipliers become rationals (their binary values; negative ones 0), tau a rational
+slightly above the float one, and
 
     c_F = tau i_F - m_F - sum lambda_k a_k >= 0   (every entry, ball lower ends)
     S = tau I0 - M - sum lambda_k Q_k ⪰ delta I   (exact LDL^T of the centre, radius bound)
 
 are proven; then measure <= tau for every function of the classes (weak duality,
-:mod:`sosalgo.pep.sdp`).
+:mod:`sosalgo.pep.sdp`). Long horizons: an entry whose denominators grow past a few
+hundred bits is replaced by a ball around a short binary rational that holds it
+(:func:`sosalgo.pep.structure.coarsen`, outward), in the rows and in S.
 """
 
 from __future__ import annotations
@@ -26,7 +30,7 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from sosalgo.pep.structure import Method, PEPStructure, build_structure
+from sosalgo.pep.structure import Method, PEPStructure, build_structure, coarsen, deadbeat_gain
 from sosalgo.pep.terms import Term
 from sosalgo.spec import Spec
 
@@ -115,9 +119,11 @@ def exact_method(spec: Spec, kappa: float | None, om: Any) -> Method:
         return all(Ball.of(v).c == 0 and Ball.of(v).r == 0 for v in a - b)
 
     D = _balls(mats["D"]) if "D" in mats else np.full((p, p), Fraction(0), dtype=object)
+    K = np.array([[Fraction(float(v)) for v in row]
+                  for row in deadbeat_gain(om.A, om.B, float(om.L))], dtype=object)
     return Method(_balls(mats["A"]), _balls(mats["B"]), _balls(mats["C"]), D,
                   _balls(mats["E"]) if "E" in mats else None, om.output, funcs,
-                  tuple(om.oracles), X[:, 0], X[:, 1:], L, ineqs, coef, same, exact=True)
+                  tuple(om.oracles), X[:, 0], X[:, 1:], L, ineqs, coef, same, K, exact=True)
 
 
 def _sym(name: str) -> sp.Symbol:
@@ -195,7 +201,8 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
         if bad:
             detail = f"value residual {bad[0]} is not >= 0"
             continue
-        S = tq * st.init_q - st.meas_q - quad
+        S = np.vectorize(lambda v: coarsen(v, 100), otypes=[object])(
+            tq * st.init_q - st.meas_q - quad)  # outward: balls around short rationals
         ok, delta, why = prove_definite(symmetrize_balls(S), +1)
         if ok:
             return out | {"proven": True, "tau_proven": fraction_str(tq),

@@ -6,10 +6,26 @@ coefficient sigma_k), F >= 0 (dual c_F), G ⪰ 0 (dual S). Weak duality: for tau
 
     S = tau I0 - M - sum_k lambda_k Q_k ⪰ 0,   c_F = tau i_F - m_F - sum_k lambda_k a_k >= 0
 
-imply measure <= tau on every feasible (G, F), hence on every function of the classes.
-``margin`` solves the primal with objective M + eps I, m_F + eps: its dual has
-S ⪰ eps I and c_F >= eps, a certificate that survives rounding (tau grows by eps times
-the trace of the worst case, about eps relative).
+imply measure <= tau on every feasible (G, F), hence on every function of the classes
+(a lambda that is 0 on some pairs is still a certificate).
+
+Scale. The solver sees G = W H W and F = V F' (W, V positive diagonal, powers of two):
+the late gradients and values of a converging method are orders of magnitude below
+x_0 - x*, and the solver's tolerances would swallow them. W, V come from the previous
+solve (W_cc ~ sqrt(G_cc), V_i ~ F_i), re-solving while they move by more than a factor 4.
+
+Constraint generation. A solve keeps only the ``active`` pairs (first those with x*,
+with a term's extra point and between calls at most one step apart,
+:func:`seed_pairs`), checks every omitted inequality at the answer, adds the violated
+ones and solves again until none is violated: then the answer is feasible for the whole
+PEP, so the value is tau_N (up to the solver's tolerance), and the multipliers (0 on the
+omitted pairs) are its certificate. With the basis of :mod:`sosalgo.pep.structure`
+every row is sparse; fewer rows keep the KKT system small (Clarabel's PSD block is
+dense in svec G, so its cost still grows like N^6, with a small constant).
+
+``margin`` solves the primal with objective M + eps W^-1 W^-1, m_F + eps / V (in the
+solver's units: tr H and sum F'): its dual has S ⪰ eps W^-2 and c_F >= eps / V, a
+certificate that survives rounding (tau grows by about eps times tr H + sum F').
 """
 
 from __future__ import annotations
@@ -55,31 +71,33 @@ def unsvec(v: np.ndarray, d: int) -> np.ndarray:
 
 @dataclass
 class PEPData:
-    """The float data: pair k is alpha_k (F_a - F_b) + tr(Qc_k X_k G X_k') >= 0, divided
-    by sigma_k (its largest coefficient on (svec G, F)); ``active``: the pairs the next
-    solve starts from (grown by :func:`solve_pep`, see the module)."""
+    """The float data: pair k is alpha_k (F_a - F_b) + tr(Qc_k X_k G X_k') >= 0 (``a_k``
+    its row on F); ``w``, ``v``: the current scale (see the module); ``active``: the pairs
+    the next solve starts from (grown by :func:`solve_pep`)."""
 
     st: PEPStructure
     X: np.ndarray  # (K, 4, d): rows of (x_a, x_b, g_a, g_b) on the basis
     Qc: np.ndarray  # (K, 4, 4)
-    a: np.ndarray  # (K, nF), scaled
-    sigma: np.ndarray
+    a: np.ndarray  # (K, nF)
     active: np.ndarray
+    w: np.ndarray  # (d,) G = W H W
+    v: np.ndarray  # (nF,) F = V F'
 
-    def q(self, idx: np.ndarray) -> np.ndarray:
-        """The scaled Q_k = X_k' Qc_k X_k / sigma_k of the pairs ``idx`` (len, d, d)."""
-        X = self.X[idx]
+    def q(self, idx: np.ndarray, scaled: bool = False) -> np.ndarray:
+        """Q_k = X_k' Qc_k X_k of the pairs ``idx`` (len, d, d), on H when ``scaled``."""
+        X = self.X[idx] * self.w if scaled else self.X[idx]
         Q = np.einsum("kai,kab,kbj->kij", X, self.Qc[idx], X, optimize=True)
-        return 0.5 * (Q + Q.transpose(0, 2, 1)) / self.sigma[idx, None, None]
+        return 0.5 * (Q + Q.transpose(0, 2, 1))
 
-    def values(self, G: np.ndarray, F: np.ndarray) -> np.ndarray:
-        """Every scaled inequality at (G, F), without forming the Q_k."""
-        XG = self.X @ G
-        M = np.einsum("kui,kvi->kuv", XG, self.X)
-        return np.einsum("kuv,kuv->k", self.Qc, M) / self.sigma + self.a @ F
-
-
-CHUNK = 512
+    def violations(self, G: np.ndarray, F: np.ndarray) -> np.ndarray:
+        """Every inequality at (G, F), relative to a bound on its largest coefficient in
+        the solver's units, without forming the Q_k."""
+        M = np.einsum("kui,kvi->kuv", self.X @ G, self.X)
+        val = np.einsum("kuv,kuv->k", self.Qc, M) + self.a @ F
+        xw = np.abs(self.X * self.w).max(axis=2)
+        size = (np.abs(self.Qc).max(axis=(1, 2)) * xw.max(axis=1) ** 2
+                + np.abs(self.a * self.v).max(axis=1, initial=0.0))
+        return val / np.where(size > 0, size, 1.0)
 
 
 def pep_data(mt: Method, st: PEPStructure) -> PEPData:
@@ -91,14 +109,7 @@ def pep_data(mt: Method, st: PEPStructure) -> PEPData:
         _, a[k], X[k] = st.pair_rows(mt, k)
         j, _, _, r = st.pairs[k]
         Qc[k] = mt.ineqs[j][r][1]
-    sig = np.abs(a).max(axis=1, initial=0.0)
-    for lo in range(0, K, CHUNK):  # the largest |Q_k| entry, a chunk at a time (memory)
-        Xc = X[lo:lo + CHUNK]
-        Q = np.einsum("kai,kab,kbj->kij", Xc, Qc[lo:lo + CHUNK], Xc, optimize=True)
-        sig[lo:lo + CHUNK] = np.maximum(sig[lo:lo + CHUNK],
-                                        np.abs(Q).reshape(len(Q), -1).max(axis=1, initial=0))
-    sig[sig == 0] = 1.0
-    return PEPData(st, X, Qc, a / sig[:, None], sig, seed_pairs(st))
+    return PEPData(st, X, Qc, a, seed_pairs(st), np.ones(d), np.ones(st.nF))
 
 
 def seed_pairs(st: PEPStructure) -> np.ndarray:
@@ -123,11 +134,15 @@ class SDPAnswer:
     tau: float | None = None
     lam: np.ndarray | None = None  # in the units of the unscaled inequalities
     S: np.ndarray | None = None
+    size: float = 1.0  # tr H + sum F' (the solver's units): the margin's scale
+    rounds: int = 0  # solves of the constraint generation
 
 
 # tight tolerances; Clarabel's defaults; then a stronger static regularization, which
 # solves the harder PEPs (long horizons, prox points) that end "almost solved" otherwise
 ATTEMPTS = ((True, 1e-8), (False, 1e-8), (True, 1e-7), (False, 1e-7), (False, 1e-6))
+# the rounds that only set the scale or find violated pairs: Clarabel's defaults first
+QUICK = ((False, 1e-8), (True, 1e-8), (False, 1e-7), (False, 1e-6))
 
 
 @contextlib.contextmanager
@@ -165,53 +180,96 @@ def _settings(precise: bool, reg: float) -> Any:
 def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
               floor: float | None = None, slack: float = 0.0,
               unit: float = 1.0) -> SDPAnswer:
-    """One PEP solve by constraint generation (see the module). ``objective``: "measure"
-    (the PEP; ``margin`` eps as in the module) or "trace" (minimize tr G with measure >=
-    ``floor`` and every inequality >= ``slack``: the rank reduction of the witness). The
-    measure is divided by ``unit`` for the solver (about tau: the margins and the
-    solver's tolerances are then relative to tau); the answer is in the original units."""
+    """The PEP by constraint generation and rescaling (see the module). ``objective``:
+    "measure" (the PEP; ``margin`` eps as in the module) or "trace" (minimize tr H with
+    measure >= ``floor`` and every inequality >= ``slack`` relative to its largest
+    coefficient: the rank reduction of the witness). The measure is divided by ``unit``
+    for the solver (about tau); the answer is in the original units."""
     K = len(data.st.pairs)
-    active = data.active
+    active, rounds, rescales = data.active, 0, 0
     while True:
-        ans = _solve_active(data, active, margin, objective, floor, slack, unit)
+        ans = _solve_active(data, active, margin, objective, floor, slack, unit,
+                            QUICK if rounds == 0 and objective == "measure" else ATTEMPTS)
+        rounds += 1
+        if (objective == "measure" and ans.G is not None and rescales < MAX_RESCALES
+                and np.all(np.isfinite(ans.G))):
+            moved = _rescale(data, ans.G, ans.F)
+            got = measure_value(data.st, ans.G, ans.F)
+            if objective == "measure" and got > 0 and abs(math.log2(got / unit)) > 2:
+                unit, moved = float(_pow2(np.array(got))), True
+            if moved:
+                rescales += 1
+                continue
         if len(active) == K or ans.status == "infeasible":  # a relaxation: so is the PEP
             break
         if ans.status != "solved":  # unbounded or failed on a relaxation: decide on all
             active = np.arange(K)
             continue
         assert ans.G is not None and ans.F is not None
-        v = data.values(ans.G, ans.F)
-        v[active] = np.inf
-        scale = max(1.0, float(np.abs(ans.G).max()), float(np.abs(ans.F).max(initial=0.0)))
-        bad = np.flatnonzero(v < (0.5 * slack if slack > 0 else -VIOLATION * scale))
+        viol = data.violations(ans.G, ans.F)
+        viol[active] = np.inf
+        bad = np.flatnonzero(viol < (0.5 * slack if slack > 0 else -VIOLATION))
         if not len(bad):
             break
-        bad = bad[np.argsort(v[bad])][:max(len(active), MIN_ADD)]
+        bad = bad[np.argsort(viol[bad])][:max(len(active), MIN_ADD)]
         active = np.union1d(active, bad)
     data.active = active
+    ans.rounds = rounds
     return ans
 
 
-VIOLATION = 1e-9  # an omitted inequality below -VIOLATION * scale joins the solve
+VIOLATION = 1e-9  # an omitted inequality below -VIOLATION (relative) joins the solve
 MIN_ADD = 64  # joins per round: at least this many, or as many as are active
+MAX_RESCALES = 3
+FLOOR = 1e-2  # W_cc >= FLOOR sqrt(measure), V_i >= FLOOR^2 measure
+
+
+def measure_value(st: PEPStructure, G: np.ndarray, F: np.ndarray) -> float:
+    """The measure <M, G> + m_F F."""
+    return float(np.sum(st.meas_q.astype(float) * G) + st.meas_f.astype(float) @ F)
+
+
+def _pow2(x: np.ndarray) -> np.ndarray:
+    return np.exp2(np.round(np.log2(x)))
+
+
+def _rescale(data: PEPData, G: np.ndarray, F: np.ndarray) -> bool:
+    """Set W, V from the answer (W_cc ~ sqrt(G_cc), V_i ~ F_i, floored at FLOOR times the
+    measure's own size: a direction the worst case does not use keeps a moderate scale,
+    so that the margin eps I on H stays a small perturbation); False when every factor
+    moves by at most 4."""
+    g = np.sqrt(np.clip(np.diag(G), 0.0, None))
+    top = max(float(g.max(initial=0.0)), 1e-100)
+    size = max(abs(measure_value(data.st, G, F)), 1e-16 * top ** 2, 1e-200)
+    w = _pow2(np.maximum(g, max(1e-8 * top, FLOOR * math.sqrt(size))))
+    v = _pow2(np.maximum(np.clip(F, 0.0, None), FLOOR ** 2 * size))
+    if np.all(np.abs(np.log2(w / data.w)) <= 2) and np.all(np.abs(np.log2(v / data.v)) <= 2):
+        return False
+    data.w, data.v = w, v
+    return True
 
 
 def _solve_active(data: PEPData, active: np.ndarray, margin: float, objective: str,
-                  floor: float | None, slack: float, unit: float) -> SDPAnswer:
-    """The SDP on the pairs ``active`` (Clarabel; the attempts of :data:`ATTEMPTS`)."""
-    import clarabel
+                  floor: float | None, slack: float, unit: float,
+                  attempts: tuple[tuple[bool, float], ...] = ATTEMPTS) -> SDPAnswer:
+    """The SDP on the pairs ``active`` in the solver's units (Clarabel; the attempts of
+    :data:`ATTEMPTS`); G, F, lambda, tau back in the original units."""
 
-    st = data.st
+    st, w, v = data.st, data.w, data.v
     d, nF, K = st.d, st.nF, len(active)
     nG = d * (d + 1) // 2
-    meas = np.concatenate([svec(st.meas_q.astype(float)), st.meas_f.astype(float)]) / unit
-    init = np.concatenate([svec(st.init_q.astype(float)), st.init_f.astype(float)])
+    W = np.outer(w, w)
+    meas = np.concatenate([svec(st.meas_q.astype(float) * W), st.meas_f.astype(float) * v])
+    init = np.concatenate([svec(st.init_q.astype(float) * W), st.init_f.astype(float) * v])
+    meas = meas / unit
     if objective == "measure":
         q = -(meas + np.concatenate([svec(np.eye(d)), np.ones(nF)]) * margin)
     else:
         q = np.concatenate([svec(np.eye(d)), np.zeros(nF)])
-    rows = [sps.csr_matrix(init[None, :]),
-            sps.csr_matrix(-np.hstack([svec(data.q(active)), data.a[active]])),
+    ineq = np.hstack([svec(data.q(active, scaled=True)), data.a[active] * v])
+    sig = np.abs(ineq).max(axis=1, initial=0.0)
+    sig[sig == 0] = 1.0
+    rows = [sps.csr_matrix(init[None, :]), sps.csr_matrix(-ineq / sig[:, None]),
             sps.hstack([sps.csr_matrix((nF, nG)), -sps.identity(nF)])]
     b = [np.ones(1), np.full(K, -slack), np.zeros(nF)]
     if floor is not None:
@@ -222,14 +280,41 @@ def _solve_active(data: PEPData, active: np.ndarray, margin: float, objective: s
     b.append(np.zeros(nG))
     A = sps.csc_matrix(sps.vstack(rows))
     A.eliminate_zeros()
+    sol, raw, st_ = _clarabel(A, q, np.concatenate(b), nn, d, attempts)
+    if raw == "DualInfeasible":
+        return SDPAnswer("unbounded", raw)
+    if st_ == SolverStatus.INFEASIBLE:
+        return SDPAnswer("infeasible", raw)
+    if sol is None:
+        return SDPAnswer("failed", raw)
+    x, z = np.array(sol.x), np.array(sol.z)
+    H, Fs = unsvec(x[:nG], d), x[nG:]
+    G, F = H * W, Fs * v
+    if st_ != SolverStatus.SOLVED:  # G, F of an almost solved problem: a scale only
+        return SDPAnswer("failed", raw, G=G if raw.startswith("Almost") else None, F=F)
+    lam = np.zeros(len(data.st.pairs))
+    lam[active] = np.maximum(z[1:1 + K], 0.0) / sig * unit
+    ans = SDPAnswer("solved", raw, -float(sol.obj_val) * unit, -float(sol.obj_val_dual) * unit,
+                    G, F, float(z[0]) * unit, lam,
+                    size=float(np.trace(H)) + float(np.clip(Fs, 0, None).sum()))
+    if objective == "measure":
+        ans.S = residual(data, ans.tau, lam)
+    return ans
+
+
+def _clarabel(A: Any, q: np.ndarray, b: np.ndarray, nn: int, d: int,
+              attempts: tuple[tuple[bool, float], ...]) -> tuple[Any, str, SolverStatus]:
+    """(solution or None, raw status, status) of the first attempt that ends solved or
+    dual infeasible (else the last)."""
+    import clarabel
+
     cones = [clarabel.NonnegativeConeT(nn), clarabel.PSDTriangleConeT(d)]
-    P = sps.csc_matrix((nG + nF, nG + nF))
-    raw, st_ = "no attempt ended", SolverStatus.FAILED
-    for precise, reg in ATTEMPTS:
+    P = sps.csc_matrix((A.shape[1], A.shape[1]))
+    sol, raw, st_ = None, "no attempt ended", SolverStatus.FAILED
+    for precise, reg in attempts:
         try:
             with _quiet_stderr():
-                sol = clarabel.DefaultSolver(P, q, A, np.concatenate(b), cones,
-                                             _settings(precise, reg)).solve()
+                sol = clarabel.DefaultSolver(P, q, A, b, cones, _settings(precise, reg)).solve()
         except BaseException as exc:  # Clarabel's Rust panics (an eigenvalue failure)
             if isinstance(exc, KeyboardInterrupt | SystemExit | MemoryError):
                 raise
@@ -238,20 +323,7 @@ def _solve_active(data: PEPData, active: np.ndarray, margin: float, objective: s
         st_ = solver_status(raw)
         if st_ == SolverStatus.SOLVED or raw == "DualInfeasible":
             break
-    if raw == "DualInfeasible":
-        return SDPAnswer("unbounded", raw)
-    if st_ == SolverStatus.INFEASIBLE:
-        return SDPAnswer("infeasible", raw)
-    if st_ != SolverStatus.SOLVED:
-        return SDPAnswer("failed", raw)
-    x, z = np.array(sol.x), np.array(sol.z)
-    lam = np.zeros(len(data.st.pairs))
-    lam[active] = np.maximum(z[1:1 + K], 0.0) / data.sigma[active] * unit
-    ans = SDPAnswer("solved", raw, -float(sol.obj_val) * unit, -float(sol.obj_val_dual) * unit,
-                    unsvec(x[:nG], d), x[nG:], float(z[0]) * unit, lam)
-    if objective == "measure":
-        ans.S = residual(data, ans.tau, lam)
-    return ans
+    return sol, raw, st_
 
 
 def residual(data: PEPData, tau: float, lam: np.ndarray) -> np.ndarray:
@@ -259,11 +331,10 @@ def residual(data: PEPData, tau: float, lam: np.ndarray) -> np.ndarray:
     st = data.st
     idx = np.flatnonzero(lam)
     S = tau * st.init_q.astype(float) - st.meas_q.astype(float)
-    return S - np.tensordot(lam[idx] * data.sigma[idx], data.q(idx), axes=1)
+    return S - np.tensordot(lam[idx], data.q(idx), axes=1)
 
 
 def value_residual(data: PEPData, tau: float, lam: np.ndarray) -> np.ndarray:
     """c_F = tau i_F - m_F - sum lambda_k a_k (must be >= 0)."""
     st = data.st
-    return (tau * st.init_f.astype(float) - st.meas_f.astype(float)
-            - (lam * data.sigma) @ data.a)
+    return tau * st.init_f.astype(float) - st.meas_f.astype(float) - lam @ data.a

@@ -3,17 +3,28 @@
 Drori and Teboulle (2014); Taylor, Hendrickx and Glineur (2017). The worst case of
 ``measure(x_N) / initial(x_0)`` over every f_j in its class and every start is an SDP in
 
-    G = Gram matrix of (x_0 - x*, s~, u~_{k,i}, extra subgradients),   F = function values,
+    G = Gram matrix of (x_0 - x*, s~, b_{k,i}, extra subgradients),   F = function values,
 
 with x* = 0 and every function tilted as in :mod:`sosalgo.certificates.composite`:
 h_j = f_j - f_j* - <s_j*, . - x*> >= 0 (value 0 and subgradient 0 at x*), u~ = u - s_j*,
 s~ = (s_1*, ..., s_{J-1}*) the free optimal subgradients (s_J* = -sum). The deviations
 follow the method exactly: xi~_0 = u (x_0 - x*) - X_s s~ (xi_0 = u ⊗ x_0; X_s the fixed
 points of the optimal subgradients, :func:`sosalgo.oracles.fixed_point_basis`),
-xi~_{k+1} = A xi~_k + B u~_k, y~_k = C xi~_k + D u~_k. Each function's tilted class
-inequalities hold between every ordered pair of its points: its calls, x* and the extra
-points where a term evaluates it (an extra point that coincides with one of its calls is
-that call). Then
+xi~_{k+1} = A xi~_k + B u~_k, y~_k = C xi~_k + D u~_k.
+
+Free start: an initial term ``sdist`` (|xi_0 - xi*|^2, every state block) makes xi~_0
+itself the first n basis vectors (xi_0 anywhere; x_0 is then the output at step 0).
+
+Basis. The oracle answers are not basis vectors: u~_k/s = K xi~_k + b_k with b_k the new
+basis vectors and K a deadbeat gain (A + s B K nilpotent, :func:`deadbeat_gain`): an
+invertible, causal change of basis (the same PEP), in which every point and subgradient
+combines the b of the last n steps only. With u~_k itself as basis vector a late iterate
+would combine every earlier gradient: dense inequality rows, and a late iterate (tiny)
+computed as the difference of large numbers.
+
+Each function's tilted class inequalities hold between every ordered pair of its points:
+its calls, x* and the extra points where a term evaluates it (an extra point that
+coincides with one of its calls is that call). Then
 
     tau_N = max measure(G, F)  s.t.  initial(G, F) <= 1,  alpha (F_a - F_b) + <Q_ab, G> >= 0,
             F >= 0 (h_j >= 0),  G ⪰ 0.
@@ -26,8 +37,10 @@ exact check rebuilds the same structure on exact numbers.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from fractions import Fraction
 from typing import Any
 
 import numpy as np
@@ -44,7 +57,8 @@ class Method:
 
     ``functions``: (name, class, params); ``coef(term)`` the number of a term's c;
     ``X0``, ``Xs``: the fixed-point direction and the fixed points of the free optimal
-    subgradients (columns); ``same(a, b)``: whether two rows are the same point."""
+    subgradients (columns); ``same(a, b)``: whether two rows are the same point; ``K``:
+    the gain that defines the basis (the same binary numbers in both number types)."""
 
     A: np.ndarray
     B: np.ndarray
@@ -60,6 +74,7 @@ class Method:
     ineqs: list[list[tuple[Any, np.ndarray]]]  # per function: (alpha, Q) tilted
     coef: Callable[[Term], Any]
     same: Callable[[np.ndarray, np.ndarray], bool]
+    K: np.ndarray  # (p x n) the deadbeat gain of the basis (:func:`deadbeat_gain`)
     exact: bool = False
 
     @property
@@ -125,29 +140,92 @@ def _call_label(i: int, k: int, p: int) -> str:
     return f"y{k}" if p == 1 else f"y{i + 1}_{k}"
 
 
+def deadbeat_gain(A: np.ndarray, B: np.ndarray, s: float) -> np.ndarray:
+    """K (p x n) with A + s B K nilpotent (deadbeat, Ackermann's formula with the desired
+    polynomial z^n, on the input direction g = e_i or the sum of all that gives the best
+    conditioned controllability matrix), or 0 when no direction controls the state."""
+    n, p = B.shape
+    Bt = s * np.asarray(B, float)
+    A = np.asarray(A, float)
+    best, K = np.inf, np.zeros((p, n))
+    for g in [*np.eye(p), np.ones(p)]:
+        b = Bt @ g
+        Cm = np.column_stack([np.linalg.matrix_power(A, j) @ b for j in range(n)])
+        cond = np.linalg.cond(Cm)
+        if not np.isfinite(cond) or cond > 1e8 or cond >= best:
+            continue
+        k = -np.linalg.solve(Cm.T, np.eye(n)[-1]) @ np.linalg.matrix_power(A, n)
+        cand = np.outer(g, k)
+        M = np.linalg.matrix_power(A + Bt @ cand, n)
+        if np.abs(M).max() <= 1e-10 * (1 + np.abs(A).max() ** n):
+            best, K = cond, cand
+    return K
+
+
+def coarsen(v: Any, bits: int = 160) -> Any:
+    """An exact number whose denominators have grown past ``bits`` bits as a ball around
+    a binary rational with about ``bits`` significant bits, the rounding error added to
+    its radius (outward: the ball still holds the number)."""
+    from sosalgo.verify.exact import Ball
+
+    b = Ball.of(v)
+    if max(b.c.denominator.bit_length(), b.r.denominator.bit_length()) <= 2 * bits:
+        return v
+    k = bits - (abs(b.c.numerator).bit_length() - b.c.denominator.bit_length())
+    c = Fraction(round(b.c * 2 ** k), 2 ** k) if k >= 0 else Fraction(round(b.c / 2 ** -k)
+                                                                        * 2 ** -k)
+    err = abs(b.c - c) + b.r
+    kr = max(k, 0) + 8
+    return Ball(c, Fraction(math.ceil(err * 2 ** kr), 2 ** kr))
+
+
+def _trajectory(mt: Method, xi0: np.ndarray, new: list[np.ndarray],
+                calls: int) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
+    """(xi, y, u/s) rows: u~_k/s = K xi~_k + b_k (b_k the new basis vectors ``new[k]``),
+    y~_k = C xi~_k + s D u~_k/s, xi~_{k+1} = A xi~_k + s B u~_k/s. With K deadbeat, every
+    row combines the last n steps' b only (float rows: round-off below 1e-13 dropped)."""
+    xi, Y, U = [xi0], [], []
+    for k in range(calls):
+        u = mt.K @ xi[k] + new[k]
+        U.append(u)
+        Y.append(mt.C @ xi[k] + mt.s * (mt.D @ u))
+        nxt = mt.A @ xi[k] + mt.s * (mt.B @ u)
+        if not mt.exact:
+            nxt[np.abs(nxt) < 1e-13 * (1.0 + np.abs(nxt).max())] = 0.0
+        else:
+            nxt = np.vectorize(coarsen, otypes=[object])(nxt)
+        xi.append(nxt)
+    return xi, Y, U
+
+
 def build_structure(mt: Method, steps: int, measure: Sequence[Term],
                     initial: Sequence[Term], option: tuple[str, str] = ("--measure",
                                                                        "--initial")
                     ) -> PEPStructure:
     """The PEP of ``steps`` steps (see the module docstring)."""
-    p, J = mt.p, len(mt.functions)
+    p, J, n = mt.p, len(mt.functions), mt.n
+    free = any(t.kind == "sdist" for t in initial)
+    n0 = n if free else 1
     needs_n = mt.output is not None or any(t.point.startswith("y") for t in measure)
     calls = steps + 1 if needs_n else steps
     extra_cap = J * (len(measure) + len(initial)) + J
-    dmax = 1 + (J - 1) + p * calls + extra_cap
-    dt = object if mt.exact else float
-    eye = np.eye(dmax, dtype=dt) if not mt.exact else _obj_eye(dmax)
-    cols = ["x0-x*"] + [f"s*_{mt.functions[j][0]}/s" for j in range(J - 1)]
-    cols += [f"u_{_call_label(i, k, p)}/s" for k in range(calls) for i in range(p)]
-    U = [eye[J + p * k: J + p * (k + 1)] for k in range(calls)]
-    S = eye[1:J]  # the free optimal subgradients / s
-    xi = [np.outer(mt.X0, eye[0]) - mt.s * (mt.Xs @ S) if J > 1 else np.outer(mt.X0, eye[0])]
-    Y = []
-    for k in range(calls):
-        Y.append(mt.C @ xi[k] + mt.s * (mt.D @ U[k]))
-        xi.append(mt.A @ xi[k] + mt.s * (mt.B @ U[k]))
+    dmax = n0 + (J - 1) + p * calls + extra_cap
+    eye = np.eye(dmax) if not mt.exact else _obj_eye(dmax)
+    cols = [f"xi0_{a + 1}-xi*" for a in range(n)] if free else ["x0-x*"]
+    cols += [f"s*_{mt.functions[j][0]}/s" for j in range(J - 1)]
+    cols += [f"b_{_call_label(i, k, p)}" for k in range(calls) for i in range(p)]
+    S = eye[n0:n0 + J - 1]  # the free optimal subgradients / s
+    if free:
+        xi0 = eye[:n]
+    else:
+        xi0 = np.outer(mt.X0, eye[0]) - (mt.s * (mt.Xs @ S) if J > 1 else 0)
+    base = n0 + J - 1
+    xi, Y, U = _trajectory(mt, xi0, [eye[base + p * k: base + p * (k + 1)]
+                                     for k in range(calls)], calls)
     out = (mt.E @ xi[steps])[0] if mt.output is None else Y[steps][mt.output]
-    where = {"x": out, "x0": eye[0]}
+    x0 = eye[0] if not free else ((mt.E @ xi[0])[0] if mt.output is None
+                                   else Y[0][mt.output])
+    where = {"x": out, "x0": x0}
     where.update({f"y{i + 1}": Y[steps][i] for i in range(p)} if calls > steps else {})
     pts: list[list[PEPPoint]] = [[] for _ in range(J)]
     nF = 0
@@ -159,29 +237,36 @@ def build_structure(mt: Method, steps: int, measure: Sequence[Term],
     for j in range(J):
         pts[j].append(PEPPoint("x*", zero, zero, None))
     sstar = [S[j] for j in range(J - 1)] + ([-S.sum(axis=0)] if J > 1 else [zero])
-    state = {"nF": nF, "next": len(cols), "cols": cols, "eye": eye, "at": {}}
-    mq, mf, iq, if_ = [], [], [], []
-    for terms, opt, q_acc, f_acc in ((measure, option[0], mq, mf), (initial, option[1], iq,
-                                                                     if_)):
+    state = {"nF": nF, "next": len(cols), "cols": cols, "eye": eye, "at": {},
+             "xi": {"x": xi[steps], "x0": xi[0]}}
+    forms = {}
+    for key, terms, opt in (("m", measure, option[0]), ("i", initial, option[1])):
+        forms[key] = []
         for t in terms:
             if t.point not in where:
                 raise InputError(f"{opt}: {t.point}_N: no such point")
-            q, f = _term(mt, t, where[t.point], pts, sstar, state, opt, steps)
-            q_acc.append(q)
-            f_acc.append(f)
+            forms[key].append(_term(mt, t, where[t.point], pts, sstar, state, opt, steps))
+    return _finish(mt, steps, calls, state, pts, forms, {"xi": xi, "y": Y, "u": U, "x": out})
+
+
+def _finish(mt: Method, steps: int, calls: int, state: dict[str, Any],
+            pts: list[list[PEPPoint]], forms: dict[str, list[Any]],
+            rows: dict[str, Any]) -> PEPStructure:
+    """Drop the unused columns, sum the terms' forms, list the pairs."""
+    J = len(mt.functions)
     d = state["next"]
-    used = _used_columns(pts, mq + iq, J, d)
+    n0 = sum(1 for c in state["cols"] if c.startswith(("xi0_", "x0-")))
+    used = _used_columns(pts, [q for q, _ in forms["m"] + forms["i"]], n0, J, d)
     keep = [c for c in range(d) if used[c]]
     nF = state["nF"]
-
-    def cut(row: np.ndarray) -> np.ndarray:
-        return row[keep]
-
+    dt = object if mt.exact else float
     for fp in pts:
         for pt in fp:
-            pt.x, pt.g = cut(pt.x), cut(pt.g)
-    meas_q, meas_f = _sum_forms(mq, mf, keep, nF, dt)
-    init_q, init_f = _sum_forms(iq, if_, keep, nF, dt)
+            pt.x, pt.g = pt.x[keep], pt.g[keep]
+    meas_q, meas_f = _sum_forms([q for q, _ in forms["m"]], [f for _, f in forms["m"]],
+                                keep, nF, dt)
+    init_q, init_f = _sum_forms([q for q, _ in forms["i"]], [f for _, f in forms["i"]],
+                                keep, nF, dt)
     pairs, labels = [], []
     for j, (fname, _, _) in enumerate(mt.functions):
         many = len(mt.ineqs[j]) > 1
@@ -191,14 +276,13 @@ def build_structure(mt: Method, steps: int, measure: Sequence[Term],
                     for r in range(len(mt.ineqs[j])):
                         pairs.append((j, a, b, r))
                         labels.append(pair_label(fname, pa.label, pb.label, r, many))
-    rows = {"xi": [x[:, keep] for x in xi], "y": [y[:, keep] for y in Y], "x": cut(out)}
+    cut = {"xi": [x[:, keep] for x in rows["xi"]], "y": [y[:, keep] for y in rows["y"]],
+           "u": [u[:, keep] for u in rows["u"]], "x": rows["x"][keep]}
     return PEPStructure(steps, calls, [state["cols"][c] for c in keep], pts, nF, pairs,
-                        labels, meas_q, meas_f, init_q, init_f, rows, state["at"])
+                        labels, meas_q, meas_f, init_q, init_f, cut, state["at"])
 
 
 def _obj_eye(k: int) -> np.ndarray:
-    from fractions import Fraction
-
     out = np.full((k, k), Fraction(0), dtype=object)
     for i in range(k):
         out[i, i] = Fraction(1)
@@ -236,6 +320,9 @@ def _term(mt: Method, t: Term, row: np.ndarray, pts: list[list[PEPPoint]],
     label = {"x": f"x{steps}", "x0": "x0"}.get(t.point, f"{t.point}_{steps}")
     if t.kind == "dist":
         return np.outer(row, row) * c, {}
+    if t.kind == "sdist":
+        X = state["xi"][t.point]
+        return sum(np.outer(r, r) for r in X) * c, {}
     if t.kind == "f":
         fs: dict[int, Any] = {}
         for j in range(len(mt.functions)):
@@ -254,12 +341,12 @@ def _term(mt: Method, t: Term, row: np.ndarray, pts: list[list[PEPPoint]],
     return np.outer(v, v) * c, {}
 
 
-def _used_columns(pts: list[list[PEPPoint]], forms: list[np.ndarray], J: int,
+def _used_columns(pts: list[list[PEPPoint]], forms: list[np.ndarray], n0: int, J: int,
                   d: int) -> list[bool]:
     """Columns some point or term uses: the first d, minus optimal subgradients that appear
     nowhere (they would be free directions of G)."""
     used = [c < d for c in range(len(pts[0][0].x))]
-    for c in range(1, J):
+    for c in range(n0, n0 + J - 1):
         used[c] = (any(_nonzero(pt.x[c]) or _nonzero(pt.g[c]) for fp in pts for pt in fp)
                    or any(_nonzero(v) for q in forms for v in q[c]))
     return used
@@ -271,8 +358,8 @@ def _nonzero(v: Any) -> bool:
     return bool(v != 0)
 
 
-def _sum_forms(qs: list[np.ndarray], fs: list[dict[int, Any]], keep: list[int], nF: int,
-               dt: Any) -> tuple[np.ndarray, np.ndarray]:
+def _sum_forms(qs: Sequence[np.ndarray], fs: Sequence[dict[int, Any]], keep: list[int],
+               nF: int, dt: Any) -> tuple[np.ndarray, np.ndarray]:
     d = len(keep)
     Q = np.zeros((d, d), dtype=dt)
     f = np.zeros(nF, dtype=dt)

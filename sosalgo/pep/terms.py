@@ -19,7 +19,7 @@ from sosalgo.expr.tree import Expr, ExprError, evaluate, parse_tree
 
 __all__ = ["KINDS", "Term", "parse_terms", "describe_terms"]
 
-KINDS = ("f", "dist", "grad")
+KINDS = ("f", "dist", "grad", "sdist")
 _AT = re.compile(r"\b(f|dist|grad)\s*\(\s*([A-Za-z0-9_]+)\s*\)")
 _POINT = re.compile(r"^(x|y(\d*))_(N|0)$")
 
