@@ -1,8 +1,9 @@
 """Measures and initial conditions of the PEP: sums of terms ``c*f``, ``c*dist``, ``c*grad``.
 
 ``f`` = sum_j f_j(x) - f_j*, ``dist`` = |x - x*|^2, ``grad`` = |grad f(x)|^2 of the smooth
-part (the functions of a class with a gradient oracle); ``c`` is an expression in m, L,
-kappa. A measure term may name its point: ``f(x_N)`` (the output, the default),
+part (the functions of a class with a gradient oracle), ``sdist`` = |xi - xi*|^2 over
+every state block (an initial ``sdist`` makes the start free); ``c`` is an expression in
+m, L, kappa. A measure term may name its point: ``f(x_N)`` (the output, the default),
 ``dist(y_N)`` (the point of the single call), ``grad(y2_N)`` (the point of call 2); an
 initial term is at x_0. The string is parsed by :mod:`sosalgo.expr` (never evaluated) and
 split into its linear terms; anything nonlinear in f, dist, grad is refused.

@@ -1,23 +1,27 @@
 """The worst case itself: a low-dimensional trajectory and functions that attain tau_N,
 written as JSON and checked exactly (a theorem: tau_N >= its value).
 
-Construction: the PEP again, minimizing tr G (a rank heuristic) with the measure at least
-(1 - eta) tau_N and every interpolation inequality at least ``SLACK`` (scaled rows), so
-that rounding cannot break them; G = V V' keeps the fewest eigenvalues whose dropped sum
-is below SLACK / 10. Row c of V is basis vector c in R^r: x_0 - x* (x* = 0), the optimal
-subgradients and every oracle answer, all exact binary rationals.
+Construction (:func:`make_witness`): the PEP again, minimizing tr H with the measure at
+least (1 - eta) tau_N and every interpolation inequality at least a slack (the
+:data:`LADDER`); candidates G = V V' in 1, 2, 3 dimensions, the full rank, then G mixed
+with a strictly feasible quadratic trajectory (:func:`quadratic_point`); each rounded to
+binary rationals, the trajectory recomputed exactly and the values fitted exactly
+(:func:`fit_values`: difference constraints, shortest paths); the first that passes the
+check is kept.
 
-Document (``kind: pep-witness``): ``x0``; ``calls`` (the gradient u_{k,i} of every call,
+Document (``kind: pep-witness``): ``x0``; ``xi0`` (a free start: the initial state,
+every block); ``calls`` (the gradient u_{k,i} of every call,
 actual, not tilted); per function its class, optimal subgradient s_j* (summing to 0) and
 points: ``at`` (where: ``y<i>_<k>``, ``x_0``, ``x_N``), the subgradient g there and the
 tilted value h = f_j(x) - f_j(x*) - <s_j*, x - x*>; ``evaluations``: which point of each
 function a term reads. Numbers are exact rationals as strings ("p/q").
 
 The check (:func:`check_witness`) trusts nothing but the spec: it recomputes the
-trajectory from xi_0 = u x_0 with the exact method (balls, :mod:`sosalgo.pep.exact`),
+trajectory from xi_0 = u x_0 (or ``xi0``) with the exact method (balls, :mod:`sosalgo.pep.exact`),
 checks every class inequality of every ordered pair of each function's points (x* with
 g = s_j*, h = 0) on the tilted data (g - s_j*, h) with ball arithmetic (lower end >= 0),
-sum_j s_j* = 0, and evaluates measure and initial exactly: tau_N >= measure / initial.
+sum_j s_j* = 0, and evaluates measure and initial exactly (sdist with xi* = X_s s~ from
+the exact fixed points): tau_N >= measure / initial.
 """
 
 from __future__ import annotations
