@@ -82,14 +82,6 @@ def sqrt_upper(s: Fraction, digits: int = 10) -> Fraction:
     return Fraction(r if r * r == x else r + 1) / scale
 
 
-def _objects(rows: list[list[Ball]]) -> np.ndarray:
-    out = np.empty((len(rows), len(rows[0])), dtype=object)
-    for i, row in enumerate(rows):
-        for j, b in enumerate(row):
-            out[i, j] = b
-    return out
-
-
 def _exact_windows(spec: Spec, kappa: float, theta: Mapping[str, float] | None, lag: int,
                    digits: int) -> tuple[Any, Any, int]:
     """(decrease, positivity) windows of the exact method, and its number of states."""
@@ -107,7 +99,9 @@ def _exact_windows(spec: Spec, kappa: float, theta: Mapping[str, float] | None, 
     ineqs, _ = exact_class_inequalities(CLASSES["smooth_strongly_convex"],
                                         {"m": Ball(ex.m), "L": Ball(ex.L)})
     alpha, Q = ineqs[0]
-    mats = [_objects(ex.balls[k]) for k in ("A", "B", "C", "E")]
+    from sosalgo.verify.exact_interpolation import object_matrix
+
+    mats = [object_matrix(ex.balls[k]) for k in ("A", "B", "C", "E")]
     dec, pos = noise_windows(*mats, alpha, Q, lag, obj=True)
     return dec, pos, len(ex.balls["A"])
 

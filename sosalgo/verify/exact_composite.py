@@ -55,6 +55,7 @@ from sosalgo.verify.exact import (
 from sosalgo.verify.exact_interpolation import (
     InterpolationExactResult,
     Refused,
+    object_matrix,
     prove_definite,
     rational_near,
     settle,
@@ -104,14 +105,6 @@ class ExactOracleMethod:
         return len(self.oracles)
 
 
-def _balls(rows: list[list[Ball]]) -> np.ndarray:
-    out = np.empty((len(rows), len(rows[0]) if rows else 0), dtype=object)
-    for i, row in enumerate(rows):
-        for j, b in enumerate(row):
-            out[i, j] = b
-    return out
-
-
 def exact_oracle_method(spec: Spec, kappa: float, theta: Mapping[str, float] | None = None,
                         digits: int = DEFAULT_DIGITS) -> ExactOracleMethod:
     """The exact method of a composite spec at ``kappa`` and ``theta`` (ValueError when it
@@ -127,11 +120,11 @@ def exact_oracle_method(spec: Spec, kappa: float, theta: Mapping[str, float] | N
         params = {k: enclose(to_sympy(e).xreplace(base), digits) for k, e in decl.params.items()}
         funcs.append((fname, CLASSES[decl.cls], params))
     p = spec.p
-    D = _balls(ex.balls["D"]) if "D" in ex.balls else _balls([[Ball(0)] * p] * p)
+    D = object_matrix(ex.balls["D"]) if "D" in ex.balls else object_matrix([[Ball(0)] * p] * p)
     names = list(spec.functions)
-    return ExactOracleMethod(ex, _balls(ex.balls["A"]), _balls(ex.balls["B"]),
-                             _balls(ex.balls["C"]), D,
-                             _balls(ex.balls["E"]) if "E" in ex.balls else None, funcs,
+    return ExactOracleMethod(ex, object_matrix(ex.balls["A"]), object_matrix(ex.balls["B"]),
+                             object_matrix(ex.balls["C"]), D,
+                             object_matrix(ex.balls["E"]) if "E" in ex.balls else None, funcs,
                              tuple(names.index(f) for f in spec.oracles), spec.output,
                              spec.measure)
 

@@ -51,7 +51,7 @@ from sosalgo.verify.exact import (
     round_down,
 )
 
-__all__ = ["InterpolationExactResult", "verify_exact_interpolation"]
+__all__ = ["InterpolationExactResult", "object_matrix", "verify_exact_interpolation"]
 
 
 @dataclass
@@ -81,8 +81,9 @@ def rational_near(x: Any, max_den: int) -> Fraction:
     return f.limit_denominator(max_den) if not isinstance(x, Fraction | str) else f
 
 
-def _obj(mat: list[list[Ball]]) -> np.ndarray:
-    out = np.empty((len(mat), len(mat[0])), dtype=object)
+def object_matrix(mat: list[list[Ball]]) -> np.ndarray:
+    """Rows of balls as an object array (kept exact: numpy never converts them)."""
+    out = np.empty((len(mat), len(mat[0]) if mat else 0), dtype=object)
     for i, row in enumerate(mat):
         for j, b in enumerate(row):
             out[i, j] = b
@@ -155,7 +156,7 @@ def verify_exact_interpolation(
     try:
         ex, n = _exact_method(spec, kappa, theta, digits, res)
         c = _read_certificate(cert, ex, n, max_den)
-        st = family.exact_structure(*(_obj(ex.balls[k]) for k in MATRIX_NAMES), ex.m, ex.L,
+        st = family.exact_structure(*(object_matrix(ex.balls[k]) for k in MATRIX_NAMES), ex.m, ex.L,
                                     c.lag, c.has_x)
         eta, lam = _multipliers(c, st, max_den)
         if not np.isfinite(float(rho)) or not 0 < rational(rho) <= 1:
