@@ -22,6 +22,9 @@ from sosalgo.pareto import front_caps, pareto_filter, pareto_run, robust_momentu
 from .conftest import spec_path
 from .independent import certify
 
+# one worker for the module, so that the small front (a module fixture) is computed once
+pytestmark = pytest.mark.xdist_group("pareto")
+
 
 def _gd_gamma(h: float, m: float, L: float) -> float:
     """Gradient descent x+ = x - h(qx + w): gamma_q^2 = h/(q(2 - hq)), largest at q = m or

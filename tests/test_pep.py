@@ -161,6 +161,7 @@ def test_sdist_needs_no_free_start_for_one_state():
     assert res.tau == pytest.approx(0.81 ** 3, rel=1e-6)
 
 
+@pytest.mark.deep  # about 5-8 s: N = 20 (the default tests cover N <= 10)
 def test_long_horizon_closed_forms():
     """The sparse basis at N = 20: GD on F(1, 10), dist: 0.9^40; h = 1/L on L-smooth
     convex f: L / (4N + 2)."""

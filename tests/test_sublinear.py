@@ -164,7 +164,7 @@ def test_design_minimizes_the_constant_soundly(tmp_path):
     """The design beats the textbook step h = 1/L (c = L/4), is never below the floor at its
     step, nor below the best floor over the box; CSV written; simulation passes."""
     res = CliRunner().invoke(cli, ["design", str(SPECS / "gradient-convex.yaml"), "--out",
-                                   str(tmp_path), "--time-limit", "10", "--json", "--verify"])
+                                   str(tmp_path), "--time-limit", "4", "--json", "--verify"])
     assert res.exit_code == 0, res.output
     row = json.loads(res.output)["rows"][0] if "rows" in json.loads(res.output) else \
         json.loads(res.output)
