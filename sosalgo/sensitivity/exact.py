@@ -25,8 +25,6 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Any
 
-import numpy as np
-
 from sosalgo.sensitivity.sdp import noise_windows
 from sosalgo.sensitivity.window import noise_parts, state_size
 from sosalgo.spec.types import Spec
@@ -39,6 +37,7 @@ from sosalgo.verify.exact import (
     fraction_str,
     rational,
 )
+from sosalgo.verify.exact_interpolation import Refused, symmetric_matrix
 
 __all__ = ["NoiseProof", "verify_noise", "sqrt_upper"]
 
@@ -67,10 +66,6 @@ class NoiseProof:
                 "certificate": self.certificate, "seconds": self.seconds}
 
 
-class _Refused(Exception):
-    """Why the certificate cannot be proven (becomes the result's ``reason``)."""
-
-
 def sqrt_upper(s: Fraction, digits: int = 10) -> Fraction:
     """A rational t >= sqrt(s) with about ``digits`` significant digits (s >= 0)."""
     if s <= 0:
@@ -93,9 +88,9 @@ def _exact_windows(spec: Spec, kappa: float, theta: Mapping[str, float] | None, 
         ex = exact_algorithm(spec, kappa, theta, digits)
         alg = bind(spec, float(kappa), theta)
     except ValueError as exc:
-        raise _Refused(f"the exact method cannot be built: {exc}") from None
+        raise Refused(f"the exact method cannot be built: {exc}") from None
     if exact_fixed_point(ex, fixed_point(alg)) is None:
-        raise _Refused("fixed point (u with (I - A)u = 0, Cu = 1, Eu = 1) not proven")
+        raise Refused("fixed point (u with (I - A)u = 0, Cu = 1, Eu = 1) not proven")
     ineqs, _ = exact_class_inequalities(CLASSES["smooth_strongly_convex"],
                                         {"m": Ball(ex.m), "L": Ball(ex.L)})
     alpha, Q = ineqs[0]
@@ -111,23 +106,17 @@ def _read(cert: Mapping[str, Any], dec: Any, pos: Any, n: int) -> dict[str, Any]
     try:
         lag = int(cert["lag"])
         N = state_size(n, lag)
-        P_raw = np.asarray(cert["P"], dtype=object)
-        if P_raw.shape != (N, N):
-            raise _Refused(f"P has shape {P_raw.shape}, expected {(N, N)}")
-        P = np.empty((N, N), dtype=object)
-        for i in range(N):
-            for j in range(i, N):
-                P[i, j] = P[j, i] = (rational(P_raw[i, j]) + rational(P_raw[j, i])) / 2
+        P = symmetric_matrix(cert["P"], N, lambda a, b: (rational(a) + rational(b)) / 2)
         p, c = [rational(v) for v in cert["p"]], [rational(v) for v in cert["c"]]
         if len(p) != lag + 1 or len(c) != len(dec.measurable):
-            raise _Refused("p or c has the wrong length")
+            raise Refused("p or c has the wrong length")
         mult = cert["multipliers"]
         zero = Fraction(0)
         eta = [max(zero, rational(mult["decrease"][k])) for k in dec.labels]
         lam = [max(zero, rational(mult["positivity"][k])) for k in pos.labels]
         return {"P": P, "p": p, "s": rational(cert["s"]), "c": c, "eta": eta, "lam": lam}
     except (KeyError, TypeError, ValueError, OverflowError) as exc:
-        raise _Refused(f"malformed certificate: {type(exc).__name__}: {exc}") from None
+        raise Refused(f"malformed certificate: {type(exc).__name__}: {exc}") from None
 
 
 def _prove(res: NoiseProof, dec: Any, pos: Any, num: dict[str, Any]) -> None:
@@ -167,12 +156,12 @@ def verify_noise(spec: Spec, kappa: float, cert: Mapping[str, Any],
     res = NoiseProof(spec=spec.name)
     try:
         if spec.composite or spec.sublinear:
-            raise _Refused("noise sensitivity needs one gradient call on F(m, L)")
+            raise Refused("noise sensitivity needs one gradient call on F(m, L)")
         dec, pos, n = _exact_windows(spec, kappa, theta, int(cert["lag"]), digits)
         num = _read(cert, dec, pos, n)
         res.certificate = {"lag": int(cert["lag"]), "s": fraction_str(num["s"])}
         _prove(res, dec, pos, num)
-    except _Refused as exc:
+    except Refused as exc:
         res.reason = str(exc)
     except (KeyError, TypeError, ValueError) as exc:
         res.reason = f"malformed certificate: {type(exc).__name__}: {exc}"

@@ -55,10 +55,12 @@ from sosalgo.verify.exact import (
 from sosalgo.verify.exact_interpolation import (
     InterpolationExactResult,
     Refused,
+    float_entry,
     object_matrix,
     prove_definite,
     rational_near,
     settle,
+    symmetric_matrix,
     symmetrize_balls,
 )
 
@@ -419,15 +421,7 @@ def _read(cert: Mapping[str, Any], om: ExactOracleMethod, lag: int, dec: ExactWi
     npv = om.p * (lag + 1)
     has_c = pos.F[lag].shape[0] > npv
     try:
-        P_raw = np.asarray(cert["P"], dtype=object)
-        if P_raw.shape != (nz, nz):
-            raise Refused(f"P has shape {P_raw.shape}, expected {(nz, nz)}")
-        P = np.empty((nz, nz), dtype=object)
-        for i in range(nz):
-            for j in range(i, nz):
-                v = P_raw[i, j]
-                v = v if isinstance(v, Fraction | str) else 0.5 * (float(v) + float(P_raw[j, i]))
-                P[i, j] = P[j, i] = rational_near(v, max_den)
+        P = symmetric_matrix(cert["P"], nz, float_entry(max_den))
         p = list(cert["p"])
         if len(p) != npv:
             raise Refused(f"p has {len(p)} weights, expected {npv}")

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Any
@@ -51,7 +51,8 @@ from sosalgo.verify.exact import (
     round_down,
 )
 
-__all__ = ["InterpolationExactResult", "object_matrix", "verify_exact_interpolation"]
+__all__ = ["InterpolationExactResult", "float_entry", "object_matrix", "symmetric_matrix",
+           "verify_exact_interpolation"]
 
 
 @dataclass
@@ -128,6 +129,28 @@ class Refused(Exception):
     """Why the certificate cannot be proven (it becomes the result's ``reason``)."""
 
 
+def symmetric_matrix(raw: Any, n: int, entry: Callable[[Any, Any], Any]) -> np.ndarray:
+    """P (n x n, object) from a certificate's nested list: P[i, j] = P[j, i] =
+    entry(raw[i][j], raw[j][i]); :class:`Refused` on a wrong shape."""
+    P_raw = np.asarray(raw, dtype=object)
+    if P_raw.shape != (n, n):
+        raise Refused(f"P has shape {P_raw.shape}, expected {(n, n)}")
+    P = np.empty((n, n), dtype=object)
+    for i in range(n):
+        for j in range(i, n):
+            P[i, j] = P[j, i] = entry(P_raw[i, j], P_raw[j, i])
+    return P
+
+
+def float_entry(max_den: int) -> Callable[[Any, Any], Fraction]:
+    """A symmetric entry from floats (their average, then a nearby rational with
+    denominator <= ``max_den``) or kept as given when already exact (Fraction, "p/q")."""
+    def entry(a: Any, b: Any) -> Fraction:
+        v = a if isinstance(a, Fraction | str) else 0.5 * (float(a) + float(b))
+        return rational_near(v, max_den)
+    return entry
+
+
 @dataclass
 class _Cert:
     """The certificate's parts read as rationals (before the multipliers)."""
@@ -202,15 +225,7 @@ def _read_certificate(cert: Mapping[str, Any], ex: Any, n: int, max_den: int) ->
         if not has_x and not all(is_zero(v) for v in (ex.matrices["E"] - ex.matrices["C"])):
             raise Refused("certificate has no c term but x_k != y_k (E != C)")
         nz = n + lag + 1
-        P_raw = np.asarray(cert["P"], dtype=object)
-        if P_raw.shape != (nz, nz):
-            raise Refused(f"P has shape {P_raw.shape}, expected {(nz, nz)}")
-        P = np.empty((nz, nz), dtype=object)
-        for i in range(nz):
-            for j in range(i, nz):
-                P[i, j] = P[j, i] = rational_near(0.5 * (float(P_raw[i, j]) + float(P_raw[j, i]))
-                                       if not isinstance(P_raw[i, j], Fraction | str)
-                                       else P_raw[i, j], max_den)
+        P = symmetric_matrix(cert["P"], nz, float_entry(max_den))
         pi = [rational_near(v, max_den) for v in list(cert["p"]) + ([cert["c"]] if has_x else [])]
         if len(pi) != lag + 1 + has_x:
             raise Refused(f"p has {len(cert['p'])} weights, expected {lag + 1}")
