@@ -345,7 +345,8 @@ def grid(spec_path: str, kappa: tuple[str, ...], points: int, free: str | None, 
 @handle_errors
 def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
            no_simulate: bool, certificate: str | None, lag: int | None) -> None:
-    """Verify every certificate of an `analyze --json` or `design --json` result.
+    """Verify every certificate of an `analyze --json`, `design --json` or `pareto --json`
+    result (rates, and noise bounds where the result has them).
 
     Exit code 3 when some certificate fails to verify. Python: sosalgo.verify_document.
     """
@@ -379,8 +380,11 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
         click.echo(json.dumps(res, indent=2))
     else:
         from sosalgo.report.checks import checks_table
+        from sosalgo.report.pareto import noise_check_lines
 
         click.echo(checks_table(rows, res["results"]))
+        for line in noise_check_lines(rows, res["results"]):
+            click.echo(line)
         click.echo(f"rational certificates in {folder}" if can_write
                    else "no certificate files written")
     if failed:

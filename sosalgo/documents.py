@@ -1,5 +1,5 @@
-"""Result documents (``analyze --json``, ``design --json``): reading them, choosing the
-spec they are checked against, and verifying every certificate they hold
+"""Result documents (``analyze --json``, ``design --json``, ``pareto --json``): reading
+them, choosing the spec they are checked against, and verifying every certificate they hold
 (:func:`verify_document`, the Python twin of ``sosalgo verify``)."""
 
 from __future__ import annotations
@@ -38,6 +38,10 @@ def result_rows(doc: Mapping[str, Any], where: str = "result") -> list[dict[str,
     """The rows of a document: its ``rows``, or the document itself (one design). Rows of
     a sublinear spec (``rate_type: sublinear``, m: 0) have no kappa: they come back as
     copies with ``kappa: None`` (the tables of ``sosalgo verify`` have that column)."""
+    from sosalgo.pareto import is_pareto_document, pareto_rows
+
+    if is_pareto_document(doc):  # ``sosalgo pareto --json``: every point and tuning
+        return pareto_rows(doc, where)
     lone = "rho_certified" in doc or doc.get("rate_type") == "sublinear"  # one design
     rows = doc.get("rows", [doc] if lone else None)
     if isinstance(rows, list) and rows and all(
@@ -91,6 +95,26 @@ def _difference_note(src: str, where: str, embedded: str, text: str) -> str:
             f"are checked against {src}")
 
 
+def _verify_rows(spec: Spec, rows: list[dict[str, Any]], out_dir: Path | None,
+                 simulate: bool, fam: Any) -> list[dict[str, Any] | None]:
+    """The rows' checks; the known tunings of a pareto document (``reference``) against
+    the spec they are written in (:func:`sosalgo.pareto.reference_spec`)."""
+    from sosalgo.verify.results import verify_document_rows
+
+    if not any(r.get("reference") for r in rows):
+        return verify_document_rows(spec, rows, out_dir, simulate, family=fam)
+    from sosalgo.pareto import reference_spec
+
+    mine = [i for i, r in enumerate(rows) if not r.get("reference")]
+    ref = [i for i, r in enumerate(rows) if r.get("reference")]
+    out: list[dict[str, Any] | None] = [None] * len(rows)
+    for idx, s in ((mine, spec), (ref, reference_spec())):
+        for i, chk in zip(idx, verify_document_rows(s, [rows[i] for i in idx], out_dir,
+                                                    simulate, family=fam), strict=True):
+            out[i] = chk
+    return out
+
+
 def verify_document(result: str | Path | Mapping[str, Any], spec: Spec | str | Path | None = None,
                     out_dir: str | Path | None = None, simulate: bool = True,
                     certificate: str | None = None, options: Mapping[str, Any] | None = None,
@@ -103,7 +127,7 @@ def verify_document(result: str | Path | Mapping[str, Any], spec: Spec | str | P
     A malformed document raises InputError naming it (its path, or ``name``); failed
     checks are results, not errors (:func:`sosalgo.verify.results.check_failed`)."""
     from sosalgo.inputs import select_families
-    from sosalgo.verify.results import ResultError, verify_document_rows
+    from sosalgo.verify.results import ResultError
 
     where = name or (str(result) if isinstance(result, str | Path) else "result")
     doc = read_result(result) if isinstance(result, str | Path) else dict(result)
@@ -119,8 +143,8 @@ def verify_document(result: str | Path | Mapping[str, Any], spec: Spec | str | P
     if certificate is not None or any(v is not None for v in (options or {}).values()):
         fam = select_families(chosen, certificate, options, single=True)[0]
     try:
-        checks = verify_document_rows(chosen, rows, None if out_dir is None else Path(out_dir),
-                                      simulate, family=fam)
+        checks = _verify_rows(chosen, rows, None if out_dir is None else Path(out_dir),
+                              simulate, fam)
     except ResultError as exc:
         raise InputError(f"{where}: {exc}") from None
     return {"spec": chosen.name, "source": src, "results": checks,

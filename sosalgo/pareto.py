@@ -11,9 +11,13 @@ front"):
    sensitive θ found with certified rate <= R_i (:func:`sosalgo.design.objectives.min_noise`,
    started from the points already solved under smaller caps, the fast end and the best
    points of a grid over Θ);
-3. every point certified on both axes (:func:`sosalgo.design.objectives.certify_point`),
-   written to ``<name>-pareto-k<kappa>.csv`` as it is done (resumable, batch layer), and the
-   dominated ones dropped from the front (:func:`pareto_filter`);
+3. every point certified on both axes and proven in exact arithmetic (the rate by the
+   family's exact verifier, the noise by :mod:`sosalgo.sensitivity.exact`;
+   :func:`sosalgo.design.objectives.certify_point`), written to
+   ``<name>-pareto-k<kappa>.csv`` with its certificates as it is done (resumable, batch
+   layer); the front keeps the points proven on both axes that no other dominates
+   (:func:`pareto_filter`); ``sosalgo verify`` re-checks the ``--json`` document
+   (:func:`pareto_rows`);
 4. the known tunings, certified through the same API in the form of eq. (9)
    (specs/three-parameter.yaml): gradient descent h = 2/(m+L) and 1/L, Nesterov, heavy ball
    (Polyak's tuning), the triple momentum method and the robust momentum family.
@@ -32,8 +36,9 @@ from sosalgo import inputs
 from sosalgo.errors import InputError
 from sosalgo.spec import Spec
 
-__all__ = ["front_caps", "known_tunings", "pareto_chunk", "pareto_filter", "pareto_run",
-           "robust_momentum", "MAX_POINTS"]
+__all__ = ["front_caps", "is_pareto_document", "known_tunings", "pareto_chunk",
+           "pareto_filter", "pareto_rows", "pareto_run", "reference_spec", "robust_momentum",
+           "MAX_POINTS"]
 
 MAX_POINTS = 200
 DESIGN_SHARE = 0.25  # of the time limit, for the fast end (the rate design)
@@ -88,8 +93,11 @@ def known_tunings(kappa: float, m: float, L: float, rm_points: int = RM_POINTS
 
 def pareto_filter(points: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
     """The points (dicts with ``rho`` and ``noise``, both certified) that no other point
-    dominates (no other has rho and noise <= with one <), one per value pair, by rho."""
-    ok = [p for p in points if p.get("rho") is not None and p.get("noise") is not None]
+    dominates (no other has rho and noise <= with one <), one per value pair, by rho. A
+    point whose ``rho_check`` or ``noise_check`` is given and not "exact" (a value only
+    checked in floating point) is left out: every point of the front is proven."""
+    ok = [p for p in points if p.get("rho") is not None and p.get("noise") is not None
+          and all(p.get(k, "exact") == "exact" for k in ("rho_check", "noise_check"))]
     out: list[dict[str, Any]] = []
     best = math.inf
     for p in sorted(ok, key=lambda p: (p["rho"], p["noise"])):
@@ -113,6 +121,41 @@ def _reference() -> Spec:
     from sosalgo.report.fig4 import spec_text_and_path
 
     return _spec(*spec_text_and_path(REFERENCE))
+
+
+def reference_spec() -> Spec:
+    """The spec the known tunings are written in (eq. (9), specs/three-parameter.yaml)."""
+    return _reference()
+
+
+def is_pareto_document(doc: Mapping[str, Any]) -> bool:
+    """Whether ``doc`` is a ``sosalgo pareto`` document (one kappa, or several)."""
+    return doc.get("kind") == "pareto" or "fronts" in doc or (
+        "front" in doc and "points" in doc)
+
+
+def pareto_rows(doc: Mapping[str, Any], where: str = "result") -> list[dict[str, Any]]:
+    """Every computed point of a pareto document (``points``, then ``tunings``; each
+    front of a multi-kappa document in turn) as a design-like row for ``sosalgo verify``:
+    kappa, ``rho_certified`` and its ``certificate``, ``theta``, ``family``, ``noise`` and
+    ``noise_certificate``; ``reference`` is true for the tunings (checked against
+    :func:`reference_spec`). InputError naming the field when the document is malformed."""
+    fronts = doc.get("fronts", [doc])
+    if not isinstance(fronts, list) or not all(isinstance(f, Mapping) for f in fronts):
+        raise InputError(f"{where}: fronts: expected a list of pareto documents")
+    rows = []
+    for i, f in enumerate(fronts):
+        for key in ("points", "tunings"):
+            pts = f.get(key)
+            if not isinstance(pts, list) or not all(isinstance(p, Mapping) for p in pts):
+                raise InputError(f"{where}: fronts[{i}].{key}: expected a list of points")
+            rows += [{"kappa": f.get("kappa"), "rho_certified": p.get("rho"),
+                      "certificate": p.get("certificate"), "theta": p.get("theta"),
+                      "family": f.get("family"), "noise": p.get("noise"),
+                      "noise_check": p.get("noise_check"), "name": p.get("name"),
+                      "noise_certificate": p.get("noise_certificate"),
+                      "reference": key == "tunings"} for p in pts]
+    return rows
 
 
 def _base_family(spec: Spec, options: Mapping[str, Any]) -> Any:
@@ -206,7 +249,9 @@ def _row(task: Mapping[str, Any], pt: Any, seconds: float, error: str | None = N
             "noise_check": cells.get("noise_check", "none"),
             "rho_check": cells.get("rho_check", "none"),
             "theta": json.dumps(cells.get("theta", task.get("theta") or {}), sort_keys=True),
-            "seconds": round(seconds, 4), "error": error}
+            "seconds": round(seconds, 4), "error": error, "rho_proven": cells.get("rho_proven"),
+            **{k: None if cells.get(k) is None else json.dumps(cells[k], separators=(",", ":"))
+               for k in ("certificate", "noise_certificate")}}
 
 
 def pareto_chunk(spec_text: str, source: str, options: dict[str, Any],
@@ -285,7 +330,9 @@ def _parse(row: Mapping[str, str]) -> dict[str, Any]:
             "noise_lag": int(row["noise_lag"]) if row["noise_lag"] else None,
             "noise_check": row["noise_check"] or "none",
             "rho_check": row["rho_check"] or "none", "seconds": _num(row["seconds"]),
-            "error": row["error"] or None}
+            "error": row["error"] or None, "rho_proven": row.get("rho_proven") or None,
+            **{k: json.loads(row[k]) if row.get(k) else None
+               for k in ("certificate", "noise_certificate")}}
 
 
 def _tasks(spec: Spec, kappa: float, rho_fast: float | None, points: int
@@ -382,7 +429,7 @@ def _one_kappa(spec: Spec, text: str, kappa: float, names: list[str], fam: Any,
                 bar.close()
         wanted = {store.row_key(t) for t in [{"index": 0}, *tasks]}
         rows = [r for r in store.rows() if store.row_key(r) in wanted]
-        doc = _document(spec, kappa, fam, names, rows, csv_path)
+        doc = _document(spec, text, kappa, fam, names, rows, csv_path)
         if run["plot"]:
             from sosalgo.report.pareto import pareto_figure
 
@@ -390,7 +437,7 @@ def _one_kappa(spec: Spec, text: str, kappa: float, names: list[str], fam: Any,
     return doc
 
 
-def _document(spec: Spec, kappa: float, fam: Any, names: list[str],
+def _document(spec: Spec, text: str, kappa: float, fam: Any, names: list[str],
               rows: Sequence[Mapping[str, str]], csv_path: Path) -> dict[str, Any]:
     """The ``--json`` document: ``{"spec", "kappa", "front": [{"rho", "noise", "theta",
     ...}]}`` (a contract), with every front point computed (``points``), the known
@@ -398,6 +445,7 @@ def _document(spec: Spec, kappa: float, fam: Any, names: list[str],
     parsed = sorted((_parse(r) for r in rows), key=lambda p: p["index"])
     mine = [p for p in parsed if p["kind"] == "front"]
     return {"spec": spec.name, "kappa": float(kappa), "front": pareto_filter(mine),
+            "source": spec.source, "spec_text": text, "kind": "pareto",
             "points": mine, "tunings": [p for p in parsed if p["kind"] != "front"],
             "family": fam.name, "lag": fam.options().get("lag"), "free": names,
             "floor": 1 - 1 / math.sqrt(kappa), "csv": str(csv_path), "figures": []}
@@ -426,4 +474,5 @@ def pareto_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = 
            "progress": progress, "plot": plot}
     docs = [_one_kappa(spec, text, k, names, fam, points, float(time_limit), out, run)
             for k in kappas]
-    return {"spec": spec.name, "source": spec.source, "fronts": docs}
+    return {"spec": spec.name, "source": spec.source, "spec_text": text, "kind": "pareto",
+            "fronts": docs}

@@ -55,11 +55,13 @@ PEP_COLUMNS = ["kappa", "steps", "tau", "status", "gap", "tau_proven", "check_ki
 # ``design --objective noise --max-rate R`` / ``--objective rate --max-noise G``: appended to
 # the design columns (only then: today's design files keep their columns)
 OBJECTIVE_COLUMNS = ["objective", "max_rate", "max_noise", "noise", "noise_quadratic",
-                     "noise_lag", "noise_check", "objective_status", "bound_status"]
+                     "noise_lag", "noise_check", "objective_status", "bound_status",
+                     "rho_check", "rho_proven", "noise_certificate"]
 # ``sosalgo pareto``: one row per front point (kind "front", index 0 = the rate design),
 # known tuning ("tuning") and robust momentum member ("robust momentum"); theta as JSON
 PARETO_COLUMNS = ["index", "kind", "name", "cap", "rho", "noise", "noise_quadratic",
-                  "noise_lag", "noise_check", "rho_check", "theta", "seconds", "error"]
+                  "noise_lag", "noise_check", "rho_check", "theta", "seconds", "error",
+                  "rho_proven", "certificate", "noise_certificate"]
 _GRID_HEAD = ["rho", "certified", "lambda"]
 _GRID_TAIL = ["max_eig_M", "min_eig_P", "solves", "seconds", "solver", "error"]
 _DESIGN_HEAD = ["kappa", "lower_bound", "rho_certified", "gap", "gap_met"]

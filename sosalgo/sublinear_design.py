@@ -23,11 +23,14 @@ __all__ = ["sublinear_design"]
 
 
 class _Objective:
-    """Certified c at theta (cached), counting evaluations, honouring a deadline."""
+    """Certified c at theta (cached), counting evaluations, honouring a deadline: no
+    evaluation starts unless 1.5 times the slowest one so far (the first, which pays for
+    the imports, excepted) still fits before it."""
 
     def __init__(self, spec: Spec, names: list[str], deadline: float):
         self.spec, self.names, self.deadline = spec, names, deadline
         self.cache: dict[tuple[float, ...], Any] = {}
+        self.slowest = 0.0
 
     def result(self, point: Sequence[float]) -> Any:
         from sosalgo.analysis import analyze_sublinear
@@ -35,11 +38,16 @@ class _Objective:
 
         key = tuple(float(v) for v in point)
         if key not in self.cache:
+            t0 = time.monotonic()
+            if t0 + 1.5 * self.slowest > self.deadline:
+                raise TimeoutError
             try:
                 self.cache[key] = analyze_sublinear(self.spec, dict(zip(self.names, key,
                                                                         strict=True)))
             except ModelError:
                 self.cache[key] = None  # no fixed point or a domain error there
+            if len(self.cache) > 1:
+                self.slowest = max(self.slowest, time.monotonic() - t0)
         return self.cache[key]
 
     def __call__(self, point: Sequence[float]) -> float:

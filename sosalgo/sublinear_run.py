@@ -59,6 +59,7 @@ def sublinear_design_run(spec: Spec, text: str, out_dir: str | Path, free: Any =
     out = inputs.out_dir(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     row = sublinear_design(spec, names, time_limit)
+    row |= {"spec": spec.name, "source": spec.source, "spec_text": text}  # self-contained
     row["simulation"] = sublinear_simulation(spec, row["constant"], row["theta"])
     if verify:
         attach_verification(spec, row, out)

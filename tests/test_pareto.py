@@ -169,7 +169,7 @@ def test_small_front_every_point_certified_and_none_dominated(small_front):
     assert len(front) >= 2
     for p in front:
         assert {"rho", "noise", "theta"} <= set(p)
-        assert p["rho"] < 1 and p["noise_check"] == "exact" and p["rho_check"] == "float"
+        assert p["rho"] < 1 and p["noise_check"] == "exact" and p["rho_check"] == "exact"
     for a in front:
         for b in front:
             assert a is b or not (a["rho"] <= b["rho"] and a["noise"] <= b["noise"])
@@ -187,6 +187,30 @@ def test_small_front_rechecked_independently(small_front):
         assert ok, (p, t)
         q = _quadratic_gamma(A, B, C, E, 1.0, 10.0)
         assert q * (1 - 1e-9) <= p["noise"] <= q * 1.05, (p, q)
+
+
+def test_small_front_rechecked_by_verify(small_front):
+    """``sosalgo verify`` on the --json document: every computed point and every known
+    tuning (against the spec of eq. (9)) proven again on both axes; a lowered rate fails."""
+    out, doc = small_front
+    path = out / "front.json"
+    path.write_text(json.dumps(doc))
+    res = _run("verify", path, "--out", out, "--json", "--no-simulate")
+    assert res.exit_code == 0, res.output
+    checks = json.loads(res.output)["results"]
+    assert len(checks) == len(doc["points"]) + len(doc["tunings"])
+    proven = [c for c in checks if c is not None]
+    assert len(proven) >= len(doc["front"]) + 5
+    for c in proven:  # a tuning with no certified rate has only its noise checked
+        assert c["verified"] in ("exact", "no rate certificate"), c
+        assert c["noise_verified"] == "exact", c
+    assert sum(c["verified"] == "exact" for c in proven) >= len(doc["front"]) + 4
+    bad = json.loads(json.dumps(doc))
+    bad["points"], bad["tunings"] = bad["points"][:1], []
+    bad["points"][0]["rho"] = doc["points"][0]["rho"] - 1e-3
+    path.write_text(json.dumps(bad))
+    res = _run("verify", path, "--out", out, "--no-simulate")
+    assert res.exit_code == 3, res.output
 
 
 def test_small_front_resumes_from_its_csv(small_front):

@@ -18,10 +18,12 @@ values, never on the search's estimates.
 
 from __future__ import annotations
 
+import json
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from fractions import Fraction
 from itertools import product
 from typing import Any
 
@@ -36,8 +38,8 @@ from sosalgo.spec import Spec
 
 __all__ = ["OBJECTIVES", "Evaluator", "ObjectiveDesignResult", "Point", "Sample",
            "certify_first", "certify_point", "check_noise_spec_for", "check_objective",
-           "cloud", "design_family", "min_noise", "min_rate", "objective_design",
-           "objective_json"]
+           "cloud", "design_family", "float_up", "min_noise", "min_rate", "objective_design",
+           "objective_json", "prove_rate"]
 
 OBJECTIVES = ("rate", "noise")
 SEARCH_LAG = 1  # lag of the noise certificates inside the search (the final one is chosen)
@@ -283,8 +285,10 @@ def _minimize(ev: Evaluator, f: Callable[[tuple[float, ...]], float],
 # --------------------------------------------------------------------------- certifying
 @dataclass
 class Point:
-    """A θ certified on both axes: ``rho`` (analysis, floating-point-checked certificate)
-    and ``noise`` (the best lag, proven exactly when ``noise_check`` is "exact")."""
+    """A θ certified on both axes: ``rho`` (proven in exact arithmetic when ``rho_check``
+    is "exact": a float >= the proven rational ``rho_proven``; else the analysis's
+    floating-point-checked rate, "float") and ``noise`` (the best lag, proven exactly when
+    ``noise_check`` is "exact"). ``certificate`` is the rate certificate proven."""
 
     theta: dict[str, float]
     rho: float | None
@@ -295,23 +299,92 @@ class Point:
     analysis: AnalysisResult | None = None
     noise_certificate: dict[str, Any] | None = None
     seconds: float = 0.0
+    rho_check: str = "none"  # "exact", "float" (the proof failed) or "none"
+    rho_proven: str | None = None  # the proven rational rate ("p/q")
+    certificate: dict[str, Any] | None = None  # the rate certificate (family's parts)
 
     @property
     def certified(self) -> bool:
         return self.rho is not None and self.noise is not None
 
+    @property
+    def proven(self) -> bool:
+        """Both axes proven in exact arithmetic."""
+        return self.certified and self.rho_check == "exact" and self.noise_check == "exact"
+
     def to_dict(self) -> dict[str, Any]:
         return {"rho": self.rho, "noise": self.noise, "theta": dict(self.theta),
                 "noise_quadratic": self.noise_quadratic, "noise_lag": self.noise_lag,
-                "noise_check": self.noise_check,
-                "rho_check": "float" if self.rho is not None else "none"}
+                "noise_check": self.noise_check, "rho_check": self.rho_check,
+                "rho_proven": self.rho_proven, "certificate": self.certificate,
+                "noise_certificate": self.noise_certificate}
+
+
+RECERTIFY_STEPS = (1e-6, 1e-5, 1e-4)  # rho + step (1 - rho) tried when the proof fails
+
+
+def float_up(q: Any) -> float:
+    """The smallest float >= the rational ``q`` (a Fraction or "p/q")."""
+    from sosalgo.verify.exact import rational
+
+    x = rational(q)
+    f = float(x)
+    return f if Fraction(f) >= x else math.nextafter(f, math.inf)
+
+
+def _exact_rate(spec: Spec, kappa: float, theta: Mapping[str, float],
+                family: CertificateFamily, rho: float, cert: dict[str, Any]) -> str | None:
+    """The proven rational rate ("p/q") of ``cert`` at ``rho`` (the family's exact
+    verifier, as ``sosalgo analyze --verify`` uses it), or None when not proven."""
+    from sosalgo.verify.exact import Verdict
+
+    try:
+        ex = family.exact_check(spec, kappa, rho, cert, theta)
+    except (KeyError, TypeError, ValueError, ArithmeticError):
+        return None
+    return ex.rho_proven if ex.verified == Verdict.EXACT else None
+
+
+def prove_rate(spec: Spec, kappa: float, theta: Mapping[str, float],
+               family: CertificateFamily, res: AnalysisResult | None
+               ) -> tuple[str | None, dict[str, Any] | None]:
+    """(proven rational rate, its certificate) for the analysis ``res`` at θ: its own
+    certificate proven exactly, else a margin solution of the family's LMI at
+    rho + step (1 - rho) (RECERTIFY_STEPS, floating-point checked, then proven); (None,
+    the analysis's certificate) when nothing is proven."""
+    from sosalgo.solvers import check_point, solve_margin
+
+    if res is None or not res.certified or res.rho is None or res.certificate is None:
+        return None, None
+    cert = jsonable(res.certificate)
+    proven = _exact_rate(spec, kappa, theta, family, res.rho, cert)
+    if proven is not None:
+        return proven, cert
+    try:
+        with np.errstate(all="ignore"):
+            problem = family.problem(bind(spec, kappa, theta))
+    except (ModelError, ValueError, np.linalg.LinAlgError):
+        return None, cert
+    for step in RECERTIFY_STEPS:
+        r = min(res.rho + step * (1 - res.rho), 1.0)
+        with np.errstate(all="ignore"):
+            mg = solve_margin(problem, r)
+            ok = mg.ok and mg.t is not None and mg.t > 0 and mg.x is not None and \
+                check_point(problem, r, mg.x, "clarabel-margin").feasible
+        if ok:
+            again = jsonable(problem.unpack(mg.x))
+            proven = _exact_rate(spec, kappa, theta, family, r, again)
+            if proven is not None:
+                return proven, again
+    return None, cert
 
 
 def certify_point(spec: Spec, kappa: float, theta: Mapping[str, float],
                   family: CertificateFamily, exact: bool = True) -> Point:
     """Both axes at θ through the public analyses: the certified rate (``analyze_spec``,
-    tol 1e-7) and the certified sensitivity (``analyze_noise``: the best lag, proven in
-    exact arithmetic with ``exact``) with the sensitivity on quadratics."""
+    tol 1e-7, then proven exactly by :func:`prove_rate` with ``exact``) and the certified
+    sensitivity (``analyze_noise``: the best lag, proven in exact arithmetic with
+    ``exact``) with the sensitivity on quadratics."""
     from sosalgo.sensitivity.run import analyze_noise
 
     t0 = time.perf_counter()
@@ -323,10 +396,16 @@ def certify_point(spec: Spec, kappa: float, theta: Mapping[str, float],
         nz = analyze_noise(spec, kappa, th, exact=exact)
     except ModelError:
         return Point(th, None, None, None, None, "none", seconds=time.perf_counter() - t0)
+    rho = None if math.isinf(_rate(res)) else _rate(res)
+    proven, cert = prove_rate(spec, kappa, th, family, res) if exact and rho is not None \
+        else (None, None if res is None or res.certificate is None
+              else jsonable(res.certificate))
     q = nz.noise_quadratic
-    return Point(th, None if math.isinf(_rate(res)) else _rate(res), nz.noise,
+    return Point(th, rho if proven is None else float_up(proven), nz.noise,
                  q if math.isfinite(q) else None, nz.lag if nz.noise is not None else None,
-                 nz.check_kind, res, nz.certificate, time.perf_counter() - t0)
+                 nz.check_kind, res, nz.certificate, time.perf_counter() - t0,
+                 "none" if rho is None else "exact" if proven is not None else "float",
+                 proven, cert)
 
 
 # --------------------------------------------------------------------------- the design
@@ -336,6 +415,8 @@ class ObjectiveDesignResult(DesignResult):
     None, ``relaxation.status`` "unsupported") plus the noise axis and the constraint."""
 
     objective: str = "rate"
+    rho_check: str = "none"  # "exact": rho_certified is proven in exact arithmetic
+    rho_proven: str | None = None  # the proven rational rate
     max_rate: float | None = None
     max_noise: float | None = None
     noise: float | None = None
@@ -351,7 +432,10 @@ class ObjectiveDesignResult(DesignResult):
                 "max_noise": self.max_noise, "noise": self.noise,
                 "noise_quadratic": self.noise_quadratic, "noise_lag": self.noise_lag,
                 "noise_check": self.noise_check, "objective_status": self.objective_status,
-                "bound_status": "unsupported"}
+                "bound_status": "unsupported", "rho_check": self.rho_check,
+                "rho_proven": self.rho_proven,
+                "noise_certificate": None if self.noise_certificate is None
+                else json.dumps(self.noise_certificate, separators=(",", ":"))}
 
     def to_dict(self) -> dict[str, Any]:
         return super().to_dict() | self.objective_cells() | {
@@ -407,7 +491,8 @@ def _starts(ev: Evaluator, samples: Sequence[Sample], objective: str, cap: float
 
 
 def _meets(pt: Point, objective: str, cap: float) -> bool:
-    if not pt.certified:
+    """The constraint on the values proven exactly (both axes)."""
+    if not pt.proven:
         return False
     return pt.rho <= cap if objective == "noise" else pt.noise <= cap  # type: ignore[operator]
 
@@ -474,10 +559,12 @@ def certify_first(spec: Spec, kappa: float, fam: CertificateFamily, ev: Evaluato
     for key in list(dict.fromkeys(k for k in keys if k is not None))[:tries]:
         pt = certify_point(spec, kappa, ev.theta(key), fam)
         if _meets(pt, objective, cap):
-            log(f"certified: rate {pt.rho:.8f}, noise {pt.noise:.8f} ({pt.noise_check})")
+            log(f"certified: rate {pt.rho:.8f} ({pt.rho_check}), noise {pt.noise:.8f} "
+                f"({pt.noise_check})")
             return pt
-        log(f"candidate {ev.theta(key)} certified rate {pt.rho}, noise {pt.noise}: "
-            "constraint not met, next candidate")
+        log(f"candidate {ev.theta(key)} certified rate {pt.rho} ({pt.rho_check}), noise "
+            f"{pt.noise} ({pt.noise_check}): constraint not met on proven values, next "
+            "candidate")
     return None
 
 
@@ -489,9 +576,8 @@ def _objective_result(spec: Spec, kappa: float, names: list[str], fam: Certifica
 
     res = None if pt is None else pt.analysis
     cert: dict[str, Any] = {}
-    if res is not None and res.certified:
-        cert = {**jsonable(res.certificate or {}), "max_eig_M": res.max_eig_M,
-                "min_eig_P": res.min_eig_P}
+    if pt is not None and res is not None and pt.certificate is not None:
+        cert = {**pt.certificate, **_summary(spec, kappa, pt, fam)}
     values = _analysis(bind(spec, kappa), fam, CERT_TOL)
     if pt is None:
         steps.append("no θ found whose certified values meet the constraint (not a proof "
@@ -505,13 +591,26 @@ def _objective_result(spec: Spec, kappa: float, names: list[str], fam: Certifica
         seconds=seconds, steps=steps, rho_at_values=None if math.isinf(_rate(values))
         else _rate(values), method="search", floor=class_floor(spec, kappa),
         time_limited=timed_out, family=fam.name, lag=fam.options().get("lag"),
-        objective=objective, max_rate=max_rate, max_noise=max_noise,
-        noise=None if pt is None else pt.noise,
+        objective=objective, rho_check="none" if pt is None else pt.rho_check,
+        rho_proven=None if pt is None else pt.rho_proven, max_rate=max_rate,
+        max_noise=max_noise, noise=None if pt is None else pt.noise,
         noise_quadratic=None if pt is None else pt.noise_quadratic,
         noise_lag=None if pt is None else pt.noise_lag,
         noise_check="none" if pt is None else pt.noise_check,
         objective_status="none found" if pt is None else "met",
         noise_certificate=None if pt is None else pt.noise_certificate)
+
+
+def _summary(spec: Spec, kappa: float, pt: Point, fam: CertificateFamily
+             ) -> dict[str, float | None]:
+    """max_eig_M and min_eig_P of the proven rate certificate at the proven rate."""
+    try:
+        with np.errstate(all="ignore"):
+            eigs = fam.summary(bind(spec, kappa, pt.theta), float(pt.rho),  # type: ignore[arg-type]
+                               pt.certificate)  # type: ignore[arg-type]
+        return {k: float(eigs[k]) for k in ("max_eig_M", "min_eig_P")}
+    except (ModelError, ValueError, TypeError, KeyError, np.linalg.LinAlgError):
+        return {"max_eig_M": None, "min_eig_P": None}
 
 
 def objective_json(row: Mapping[str, str]) -> dict[str, Any]:
@@ -525,4 +624,8 @@ def objective_json(row: Mapping[str, str]) -> dict[str, Any]:
             "noise_lag": int(row["noise_lag"]) if row.get("noise_lag") else None,
             "noise_check": row.get("noise_check") or "none",
             "objective_status": row.get("objective_status") or None,
-            "bound_status": row.get("bound_status") or "unsupported"}
+            "bound_status": row.get("bound_status") or "unsupported",
+            "rho_check": row.get("rho_check") or "none",
+            "rho_proven": row.get("rho_proven") or None,
+            "noise_certificate": json.loads(row["noise_certificate"])
+            if row.get("noise_certificate") else None}

@@ -1,6 +1,6 @@
 """The figure of ``sosalgo pareto``: certified rate against certified noise sensitivity.
 
-The front (every point certified on both axes, dominated points dropped) as a line, the
+The front (every point proven on both axes, dominated points dropped) as a line, the
 other points the searches returned in grey, the known tunings as labelled markers, the
 robust momentum family as a curve and the floor 1 - 1/sqrt(kappa) as a dashed line.
 Only certified values are drawn; a tuning with no certified rate or sensitivity is named
@@ -9,17 +9,20 @@ in the legend as "not certified".
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from sosalgo.report import pyplot, save_figure
 
-__all__ = ["objective_lines", "pareto_figure", "pareto_lines"]
+__all__ = ["noise_check_lines", "objective_lines", "pareto_figure", "pareto_lines"]
 
 NOISE_LEGEND = ("noise: certified upper bound on gamma, the root of the long-run average of "
                 "E|x_k - x*|^2/d per sigma^2 (the limsup when E|x_k - x*|^2 converges, e.g. "
                 "on quadratics; exact: proven in rational arithmetic)")
+RHO_LEGEND = ("rho: certified rate (exact: a float >= the rate proven in rational arithmetic "
+              "from its certificate; float: that proof failed, the certificate is only checked "
+              "in floating point and the point is left off the front)")
 _MARKERS = {"gradient h=2/(m+L)": "s", "gradient h=1/L": "D", "Nesterov": "^",
             "heavy ball (Polyak)": "v", "triple momentum": "*"}
 
@@ -40,7 +43,7 @@ def pareto_figure(doc: Mapping[str, Any], stem: Path) -> list[Path]:
                 label="dominated search results")
     if front:
         ax.plot([p["rho"] for p in front], [p["noise"] for p in front], "o-", color="C0",
-                lw=2, ms=4, label=f"front over Θ ({doc['family']}, certified)", zorder=3)
+                lw=2, ms=4, label=f"front over Θ ({doc['family']}, proven)", zorder=3)
     rm = [p for p in doc["tunings"] if p["kind"] == "robust momentum" and _certified(p)]
     if rm:
         ax.plot([p["rho"] for p in rm], [p["noise"] for p in rm], ".--", color="C1",
@@ -73,16 +76,18 @@ def objective_lines(doc: Mapping[str, Any]) -> list[str]:
             if d0["objective"] == "noise" else
             f"fastest with certified noise sensitivity <= {d0['max_noise']:g}")
     rows = [{"kappa": d["kappa"], **{p: d["theta"].get(p) for p in names},
-             "rho_certified": d["rho_certified"], "noise": d["noise"],
+             "rho_certified": d["rho_certified"], "rho_check": d.get("rho_check"),
+             "noise": d["noise"],
              "noise_quadratic": d["noise_quadratic"], "noise_lag": d["noise_lag"],
              "noise_check": d["noise_check"], "status": d["objective_status"],
              "seconds": d["seconds"]} for d in docs]
     lines = [f"{doc['spec']}: {what}, over {', '.join(names)} ({d0['family']}; a search, "
              "no lower bound for this objective)",
-             format_table(rows, ["kappa", *names, "rho_certified", "noise", "noise_quadratic",
+             format_table(rows, ["kappa", *names, "rho_certified", "rho_check", "noise",
+                                 "noise_quadratic",
                                  "noise_lag", "noise_check", "status", "seconds"])]
     lines += [f"  - {s}" for s in (d0.get("steps") or [])] if len(docs) == 1 else []
-    lines.append("rho_certified: analysis at theta (floating-point-checked certificate); "
+    lines.append(RHO_LEGEND.replace("rho:", "rho_certified:") + "; "
                  + NOISE_LEGEND + "; status 'none found': no theta found meeting the cap "
                  "(not a proof that none exists)")
     lines.append("wrote " + ", ".join([doc["csv"], *doc["figures"]]))
@@ -94,19 +99,39 @@ def pareto_lines(doc: Mapping[str, Any]) -> list[str]:
     from sosalgo.report import format_table
 
     names = doc["free"]
-    front = [{"rho": p["rho"], "noise": p["noise"], "noise_quadratic": p["noise_quadratic"],
-              "noise_lag": p["noise_lag"], "noise_check": p["noise_check"],
+    front = [{"rho": p["rho"], "rho_check": p.get("rho_check"), "noise": p["noise"],
+              "noise_quadratic": p["noise_quadratic"], "noise_lag": p["noise_lag"],
+              "noise_check": p["noise_check"],
               **{n: p["theta"].get(n) for n in names}} for p in doc["front"]]
-    tun = [{"name": p["name"], "rho": p["rho"], "noise": p["noise"],
-            "noise_quadratic": p["noise_quadratic"], "noise_check": p["noise_check"]}
-           for p in doc["tunings"]]
-    cols = ["rho", "noise", "noise_quadratic", "noise_lag", "noise_check", *names]
+    tun = [{"name": p["name"], "rho": p["rho"], "rho_check": p.get("rho_check"),
+            "noise": p["noise"], "noise_quadratic": p["noise_quadratic"],
+            "noise_check": p["noise_check"]} for p in doc["tunings"]]
+    cols = ["rho", "rho_check", "noise", "noise_quadratic", "noise_lag", "noise_check", *names]
     lost = len(doc["points"]) - len(doc["front"])
     return [f"{doc['spec']}: front of certified rate vs certified noise sensitivity at "
             f"kappa {doc['kappa']:g} over {', '.join(names)} ({doc['family']}); "
             f"{len(doc['front'])} points ({lost} dominated or uncertified dropped)",
             format_table(front, cols),
             "known tunings, in the form x+ = x + beta (x - x-) - h grad f(x + gamma (x - x-)):",
-            format_table(tun, ["name", "rho", "noise", "noise_quadratic", "noise_check"]),
-            "rho: certified rate (floating-point-checked certificate); " + NOISE_LEGEND,
+            format_table(tun, ["name", "rho", "rho_check", "noise", "noise_quadratic",
+                               "noise_check"]),
+            RHO_LEGEND + "; " + NOISE_LEGEND,
             "wrote " + ", ".join([doc["csv"], *doc["figures"]])]
+
+
+def noise_check_lines(rows: Sequence[Mapping[str, Any]],
+                      checks: Sequence[Mapping[str, Any] | None]) -> list[str]:
+    """What ``sosalgo verify`` adds for the rows with a noise certificate: one line each,
+    the exact proof's verdict and the proven bound (or why it failed)."""
+    out = []
+    for i, (r, c) in enumerate(zip(rows, checks, strict=True)):
+        if c is None or "noise_verified" not in c:
+            continue
+        what = f"row {i}" + (f" ({r['name']})" if r.get("name") else "") + \
+            f", kappa {r['kappa']:g}"
+        if c["noise_verified"] == "exact":
+            out.append(f"noise {what}: verified exact, gamma <= {c['noise_proven']:.10g} "
+                       f"(claimed {c['noise']})")
+        else:
+            out.append(f"noise {what}: NOT verified: {c['noise_reason']}")
+    return out

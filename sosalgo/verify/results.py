@@ -5,6 +5,12 @@ A result is checked only for what it claims: a row that claims a certificate (``
 true`` or a ``rho_certified``) must carry ``rho``, a symmetric ``P`` of the spec's size and
 ``lambda``; one without them *fails* (never "nothing to verify"). Malformed values (strings
 where numbers belong, wrong shapes, booleans) raise :class:`ResultError` (exit code 2).
+
+A row with a noise bound (``noise`` certified, or a ``noise_certificate``: ``analyze
+--noise``, ``design --objective noise|--max-noise``, the points of ``pareto``) has that
+certificate proven again (:func:`sosalgo.sensitivity.exact.verify_noise`); its check gets
+the ``noise_*`` fields of :func:`_noise_checks` and fails when the bound is not proven or
+is above the claim.
 """
 
 from __future__ import annotations
@@ -228,10 +234,11 @@ def verify_document_rows(
             raise ResultError(f"rows[{i}]: expected an object")
         fam = _row_family(row, i, family)
         claims.append((fam, _claim(spec, fam, row, i)))
+    noise = [_noise_claim(row, i) for i, row in enumerate(rows)]
     results: list[dict[str, Any] | None] = []
-    for fam, c in claims:
+    for (fam, c), nz in zip(claims, noise, strict=True):
         if c is None:
-            results.append(None)
+            results.append(None if nz is None else _noise_only(nz))
             continue
         missing = [k for k in ("rho", *fam.certificate_parts)
                    if (c["rho"] if k == "rho" else c["cert"].get(k)) is None]
@@ -249,7 +256,63 @@ def verify_document_rows(
                                                      c["cert"], c["theta"], out_dir, simulate))
         except (KeyError, TypeError, ValueError) as exc:
             raise ResultError(f"{c['field']}: malformed ({exc})") from None
-    return results
+    return [r if r is None or nz is None else r | nz
+            for r, nz in zip(results, _noise_checks(spec, noise), strict=True)]
+
+
+def _noise_claim(row: Mapping[str, Any], i: int) -> dict[str, Any] | None:
+    """What row ``i`` claims on the noise axis (``noise``, ``noise_check``,
+    ``noise_certificate``; a design's ``theta``), None when it claims nothing. A row whose
+    ``noise`` is certified ("exact" or "float") without its certificate is kept: its
+    check then fails."""
+    where = f"rows[{i}]"
+    cert = row.get("noise_certificate")
+    noise = _number(row.get("noise"), f"{where}.noise")
+    claimed = noise is not None and row.get("noise_check") in ("exact", "float")
+    if cert is None and not claimed:
+        return None
+    if cert is not None and not isinstance(cert, Mapping):
+        raise ResultError(f"{where}.noise_certificate: expected an object")
+    kappa = _number(row.get("kappa"), f"{where}.kappa", allow_none=False)
+    return {"kappa": kappa, "noise": noise, "cert": cert,
+            "theta": _theta(row, where) if "rho_certified" in row else None}
+
+
+def _noise_checks(spec: Spec, claims: Sequence[dict[str, Any] | None]
+                  ) -> list[dict[str, Any] | None]:
+    """The exact proof (:func:`sosalgo.sensitivity.exact.verify_noise`) of each claimed
+    noise certificate, as the fields ``noise_verified`` ("exact" or "failed"),
+    ``noise_proven`` (a float >= the proven bound), ``noise_fraction`` and
+    ``noise_reason``; the claimed ``noise`` must be >= the proven bound."""
+    from sosalgo.sensitivity.exact import verify_noise
+    from sosalgo.verify.exact import rational
+
+    out: list[dict[str, Any] | None] = []
+    for c in claims:
+        if c is None:
+            out.append(None)
+            continue
+        res = {"noise": c["noise"], "noise_verified": str(Verdict.FAILED),
+               "noise_proven": None, "noise_fraction": None,
+               "noise_reason": "claims a noise bound but noise_certificate missing or null"}
+        if c["cert"] is not None:
+            pr = verify_noise(spec, c["kappa"], c["cert"], c["theta"])
+            res |= {"noise_verified": str(pr.verified), "noise_proven": pr.gamma_proven,
+                    "noise_fraction": pr.gamma_fraction, "noise_reason": pr.reason}
+            if pr.ok and c["noise"] is not None and \
+                    rational(c["noise"]) < rational(pr.gamma_fraction):
+                res |= {"noise_verified": str(Verdict.FAILED),
+                        "noise_reason": f"claimed noise {c['noise']!r} is below the proven "
+                                        f"bound {pr.gamma_fraction}"}
+        out.append(res)
+    return out
+
+
+def _noise_only(nz: dict[str, Any]) -> dict[str, Any]:
+    """The check of a row that claims a noise bound but no rate certificate."""
+    return {"kappa": nz["kappa"], "rho": None, "verified": "no rate certificate",
+            "rho_proven": None, "rho_proven_float": None, "delta": None,
+            "reason": None, "noise_only": True}
 
 
 def verify_sublinear_rows(spec: Spec, rows: Sequence[Mapping[str, Any]],
@@ -325,6 +388,10 @@ def check_failed(check: Mapping[str, Any] | None) -> bool:
     proven exactly, or a simulation that ran and found a violation (a skipped simulation,
     ``ok`` None, is no evidence either way and leaves the exact proof standing)."""
     if check is None:
+        return False
+    if check.get("noise_verified", Verdict.EXACT) != Verdict.EXACT:
+        return True  # a noise certificate that is not proven
+    if check.get("noise_only"):
         return False
     sim = check.get("simulation")
     failed_sim = sim is not None and "skipped" not in sim and not sim.get("ok", False)
