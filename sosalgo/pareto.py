@@ -229,12 +229,12 @@ def _cap_point(spec: Spec, options: Mapping[str, Any], task: Mapping[str, Any]) 
     cap = float(task["cap"])
     starts = [ev.key(th) for th, _ in _starts(options, cap)]
     key, _ = min_noise(ev, cap, starts)
-    ev.deadline = now + 0.8 * budget
+    ev.deadline = now + 0.75 * budget
     again = [k for k in [key, *(ev.key(th) for th, _ in _solved_below(options, cap))] if k]
     if again:
         key, _ = min_noise(ev, cap, again)
     pt = certify_first(spec, options["kappa"], fam, ev, [key] + starts, "noise", cap,
-                       lambda msg: None)
+                       lambda msg: None, until=now + 0.9 * budget)
     if pt is not None:
         _WARM.setdefault(options["run"], []).append((cap, dict(pt.theta), pt.noise))
     return pt

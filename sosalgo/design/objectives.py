@@ -553,10 +553,16 @@ def _fast_start(spec: Spec, kappa: float, names: list[str], fam: CertificateFami
 
 def certify_first(spec: Spec, kappa: float, fam: CertificateFamily, ev: Evaluator,
                    keys: Sequence[tuple[float, ...] | None], objective: str, cap: float,
-                   log: Callable[[str], None], tries: int = 3) -> Point | None:
+                   log: Callable[[str], None], tries: int = 3,
+                   until: float | None = None) -> Point | None:
     """Certify the candidates in order; the first whose certified values meet the
-    constraint (None when none of the first ``tries`` does)."""
-    for key in list(dict.fromkeys(k for k in keys if k is not None))[:tries]:
+    constraint (None when none of the first ``tries`` does, or when the time.perf_counter
+    instant ``until`` has passed before the next candidate: the first is always tried)."""
+    keys = list(dict.fromkeys(k for k in keys if k is not None))[:tries]
+    for i, key in enumerate(keys):
+        if i and until is not None and time.perf_counter() > until:
+            log("out of time: no further candidate certified")
+            return None
         pt = certify_point(spec, kappa, ev.theta(key), fam)
         if _meets(pt, objective, cap):
             log(f"certified: rate {pt.rho:.8f} ({pt.rho_check}), noise {pt.noise:.8f} "
