@@ -68,22 +68,33 @@ def analyze(
     tol: float = 1e-6,
     certificate: str | None = None,
     options: Mapping[str, Any] | None = None,
+    brackets: str = "none",
+    cycle_seconds: float = 0.0,
 ) -> AnalysisResult | list[AnalysisResult]:
     """Best rate certified by the spec's certificate family (Theorem 1, eq. 15-16), or by
     ``certificate`` (a family name) with ``options`` (e.g. ``{"lag": 0}``).
 
     ``kappa``: a number (one :class:`AnalysisResult`), a list (a list of results, in
     order) or None (the spec's own kappa list). ``theta`` overrides parameter values.
+    ``brackets`` (quadratic, self-similar, none) and ``cycle_seconds`` (the cycle search
+    per uncertified result, 0: none) fill ``rho_lower``, ``rho_lower_kind``,
+    ``rho_lower_witness`` and ``cycle`` as ``sosalgo analyze`` does (its defaults:
+    ``brackets="quadratic", cycle_seconds=5``); the defaults here compute no witness.
     """
     from sosalgo.analysis import analyze_spec
     from sosalgo.inputs import check_kappa_points, check_tol, select_families
+    from sosalgo.witnesses.rows import check_witness_options, with_witnesses
 
     s = as_spec(spec)
     kappas, single = _kappas(s, kappa)
     check_tol(tol)
+    check_witness_options(brackets, cycle_seconds)
     fam = select_families(s, certificate, options, single=True)[0]
     check_kappa_points(s, kappas, theta)
     results = [analyze_spec(s, k, theta, tol=tol, family=fam) for k in kappas]
+    if brackets != "none" or cycle_seconds > 0:
+        results = [with_witnesses(s, k, theta, r, brackets, cycle_seconds)
+                   for k, r in zip(kappas, results, strict=True)]
     return results[0] if single else results
 
 
@@ -92,11 +103,27 @@ def design(
 ) -> DesignResult | list[DesignResult]:
     """Design the free parameters by sum-of-squares (eq. 17) at each kappa; ``options``
     are those of :func:`sosalgo.design.design` (free, scalarize, order, gap, time_limit,
-    method, family), checked as ``sosalgo design`` checks them (ValueError)."""
+    method, family), checked as ``sosalgo design`` checks them (ValueError).
+    ``objective="noise", max_rate=R`` (or ``max_noise=G``) designs with the noise
+    sensitivity instead (:func:`sosalgo.design.objectives.objective_design`: options free,
+    family, time_limit, workers; an ObjectiveDesignResult per kappa)."""
     from sosalgo.design import design as design_one
 
     s = as_spec(spec)
     kappas, single = _kappas(s, kappa)
+    objective, caps = options.pop("objective", "rate"), {
+        k: options.pop(k) for k in ("max_rate", "max_noise") if k in options}
+    if objective != "rate" or any(v is not None for v in caps.values()):
+        from sosalgo.design.objectives import check_objective, objective_design
+
+        check_objective(s, kappas, objective, caps.get("max_rate"), caps.get("max_noise"))
+        extra = sorted(set(options) - {"free", "family", "time_limit", "workers", "on_step"})
+        if extra:
+            raise ValueError(f"{extra[0]}: not an option of a design with a noise objective "
+                             "or cap (free, family, time_limit, workers)")
+        _check_design(s, options)
+        results = [objective_design(s, k, objective, **caps, **options) for k in kappas]
+        return results[0] if single else results
     _check_design(s, options)
     results = [design_one(s, k, **options) for k in kappas]
     return results[0] if single else results

@@ -179,3 +179,54 @@ def test_nesterov_thirty_steps():
     r30 = sosalgo.pep(SPECS / "nesterov.yaml", 10.0, 30, witness=False)
     assert r30.status == "solved" and r30.certificate["check_kind"].startswith("exact")
     assert 0 < r30.tau < r20.tau
+
+
+def test_ten_step_witnesses_bracket_the_closed_form():
+    """N = 10 (no witness was verified before the interior-point mix): gradient descent,
+    dist/dist, 0.81^10 lies between the verified witness's lower bound (within 1e-3) and
+    the proven upper bound; Nesterov f/dist: witness <= tau_proven, both near tau."""
+    gd = sosalgo.pep(SPECS / "gradient.yaml", 10.0, 10, measure="dist")
+    closed = Fraction(81, 100) ** 10
+    chk = gd.witness["check"]
+    assert chk["verified"]
+    lower, upper = Fraction(chk["tau_lower"]), Fraction(gd.certificate["tau_proven"])
+    assert lower <= closed <= upper
+    assert float(lower) >= float(closed) * (1 - 1e-3)
+    nes = sosalgo.pep(SPECS / "nesterov.yaml", 10.0, 10)
+    chk = nes.witness["check"]
+    assert chk["verified"] and nes.certificate["check_kind"].startswith("exact")
+    lower, upper = Fraction(chk["tau_lower"]), Fraction(nes.certificate["tau_proven"])
+    assert lower <= upper and float(lower) >= nes.tau * (1 - 1e-3)
+
+
+def test_exact_certificate_refuses_a_smaller_tau():
+    """The ball-arithmetic proof of S ⪰ 0, c_F >= 0 fails for tau 0.1% below the SDP's
+    (the true worst case is above it) and for a perturbed largest multiplier."""
+    from sosalgo.pep.core import pep_problem
+    from sosalgo.pep.exact import prove_certificate
+    from sosalgo.pep.sdp import pep_data, solve_pep
+
+    spec = sosalgo.load_spec(SPECS / "gradient.yaml")
+    mt, st, mterms, iterms, _ = pep_problem(spec, 10.0, 3, "dist", None)
+    data = pep_data(mt, st)
+    ans = solve_pep(data)
+    cand = solve_pep(data, margin=1e-8 / max(1.0, ans.size), unit=ans.primal)
+    ok = prove_certificate(spec, 10.0, st, mterms, iterms, cand.tau, cand.lam, data.w)
+    assert ok["proven"] and Fraction(ok["tau_proven"]) >= Fraction(81, 100) ** 3
+    low = prove_certificate(spec, 10.0, st, mterms, iterms, 0.999 * 0.81 ** 3, cand.lam,
+                            data.w)
+    assert not low["proven"]
+    lam = cand.lam.copy()
+    lam[int(np.argmax(lam))] *= 1.05
+    assert not prove_certificate(spec, 10.0, st, mterms, iterms, cand.tau, lam, data.w)["proven"]
+
+
+@pytest.mark.deep  # about 1-2 minutes: the SDP at N = 50 and one margin solve
+def test_nesterov_fifty_steps_proven():
+    """N = 50 of a two-state method: the exact dual certificate holds (margin 1e-5 or
+    1e-4 of tau, ball-arithmetic Cholesky on the scaled S, c_F repaired), within 2e-4."""
+    res = sosalgo.pep(SPECS / "nesterov.yaml", 10.0, 50, witness=False)
+    cert = res.certificate
+    assert res.status == "solved" and cert["check_kind"].startswith("exact")
+    proven = Fraction(cert["tau_proven"])
+    assert Fraction(res.tau) <= proven <= Fraction(res.tau) * (1 + Fraction(2, 10**4))

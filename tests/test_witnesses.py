@@ -233,3 +233,35 @@ def test_self_similar_trajectory_beats_the_quadratic_bound():
     lo, kind, wit = rate_bracket(ctx, upper, self_similar=True, seconds=10.0)
     assert kind == "self-similar" and quad < lo <= upper
     assert Fraction(wit["rho_lower"]) == Fraction(str(lo))
+
+
+@pytest.mark.parametrize("kappa", [2.0, 10.0])
+@pytest.mark.parametrize("hL", [1.0, 1.8])
+def test_two_state_gradient_form_gets_its_bracket(kappa, hL):
+    """three-parameter with beta = gamma = 0 is gradient descent on two states whose first
+    is never read (the observability matrix is singular): the bracket comes from the
+    states that reach the output, max(|1 - hm|, |1 - hL|) (closed form)."""
+    s = spec("three-parameter")
+    m, L = s.m, kappa * s.m
+    h = hL / L
+    lower, wit = quadratic_bracket(bracketed(s, kappa, {"h": h, "beta": 0.0, "gamma": 0.0}))
+    closed = max(abs(1 - h * m), abs(1 - h * L))
+    assert closed - 1e-9 <= lower <= closed
+    assert "reach the output" in wit["check"]
+
+
+def test_api_analyze_fills_the_witness_fields():
+    """`sosalgo.analyze(..., brackets=..., cycle_seconds=...)` gives what `analyze` prints:
+    Nesterov's quadratic bound at kappa 10, 1 - 1/sqrt(kappa) (at q = m the closed loop
+    z^2 - (1 + beta)(1 - 1/kappa) z + beta (1 - 1/kappa) has the double root
+    sqrt(beta (1 - 1/kappa)) = 1 - 1/sqrt(kappa)), and heavy ball's cycle at kappa 25; by
+    default nothing."""
+    res = sosalgo.analyze(spec("nesterov"), kappa=10, brackets="quadratic")
+    closed = 1 - 1 / math.sqrt(10)
+    assert res.rho_lower_kind == "quadratic" and abs(res.rho_lower - closed) <= 1e-9
+    assert res.rho_lower <= res.rho
+    assert sosalgo.analyze(spec("nesterov"), kappa=10).rho_lower is None
+    hb = sosalgo.analyze(spec("heavy-ball"), kappa=25, cycle_seconds=5)
+    assert not hb.certified and hb.rho_lower == 1.0 and hb.cycle["length"] >= 2
+    with pytest.raises(ValueError, match="--brackets"):
+        sosalgo.analyze(spec("nesterov"), kappa=10, brackets="cubic")

@@ -6,10 +6,12 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import numpy as np
+
 from sosalgo.errors import InputError
 from sosalgo.spec import Spec
 
-__all__ = ["bound_method"]
+__all__ = ["bound_method", "initial_gradient"]
 
 
 def bound_method(spec: Spec, kappa: float | None) -> tuple[Any, float]:
@@ -26,3 +28,20 @@ def bound_method(spec: Spec, kappa: float | None) -> tuple[Any, float]:
     if kappa is None:
         raise InputError(f"{spec.source}: --kappa: required (the condition number L/m)")
     return as_oracle_method(evaluate_algorithm(spec, float(kappa))), float(kappa)
+
+
+def initial_gradient(spec: Spec, om: Any, kappa: float) -> tuple[np.ndarray | None, int]:
+    """(b, j) of the spec's ``initial_state`` xi_0 = u x0 + b g0 (g0 the gradient of
+    function j at x0) in floating point; b is None when the field is absent or b = 0."""
+    if spec.initial_state is None:
+        return None, 0
+    from sosalgo.model import parameter_values
+    from sosalgo.spec.initial_state import initial_state_values
+
+    env = {"m": float(om.m), "L": float(om.L), "kappa": kappa,
+           **parameter_values(spec, kappa)}
+    _, b = initial_state_values(spec.initial_state, env)
+    smooth = [j for j, fn in enumerate(om.functions) if "gradient" in fn.cls.oracles]
+    if not np.any(b != 0) or len(smooth) != 1:
+        return None, 0
+    return b, smooth[0]

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from sosalgo.errors import InputError
-from sosalgo.pep.bind import bound_method
+from sosalgo.pep.bind import bound_method, initial_gradient
 from sosalgo.pep.sdp import PEPData, SDPAnswer, pep_data, solve_pep, value_residual
 from sosalgo.pep.structure import Method, PEPStructure, build_structure, deadbeat_gain
 from sosalgo.pep.terms import Term, parse_terms
@@ -23,6 +23,9 @@ __all__ = ["MAX_STEPS", "PEPResult", "float_method", "pep", "pep_problem"]
 
 MAX_STEPS = 200
 MARGINS = (1e-9, 1e-8, 1e-7, 1e-6)  # relative margins of the certificate solve, in order
+# beyond LONG steps the float dual's error (late vectors orders of magnitude below the
+# first) exceeds 1e-6 of tau: a larger margin, tau_proven about 1e-5 above tau
+LONG, LONG_MARGINS = 30, (1e-5, 1e-4)
 
 
 @dataclass
@@ -114,6 +117,7 @@ def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None
     mterms = parse_terms(measure, "--measure", False, om.p)
     iterms = parse_terms(initial, "--initial", True, om.p)
     mt = float_method(om, kq)
+    mt.G0, mt.smooth = initial_gradient(spec, om, kq)
     try:
         st = build_structure(mt, steps, mterms, iterms)
     except InputError as exc:
@@ -138,27 +142,30 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
                              "start does not control the method's fixed point)")
     if ans.status == "solved":
         res.gap = abs(float(ans.primal) - float(ans.dual))  # type: ignore[arg-type]
-        res.certificate = _certificate(spec, kappa, mt, data, ans, exact, mterms, iterms)
+        from sosalgo.pep.exact import exact_or_none
+
+        ex = exact_or_none(spec, kappa) if exact or witness else None  # built once
+        res.certificate = _certificate(spec, kappa, mt, data, ans, exact, mterms, iterms, ex)
         if witness:
             from sosalgo.pep.witness import make_witness
 
-            res.witness = make_witness(spec, kappa, mt, data, ans, mterms, iterms, res)
+            res.witness = make_witness(spec, kappa, mt, data, ans, mterms, iterms, res, ex)
     res.seconds = time.perf_counter() - t0
     return res
 
 
 def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
                  ans: SDPAnswer, exact: bool, mterms: list[Term],
-                 iterms: list[Term]) -> dict[str, Any]:
+                 iterms: list[Term], ex: Method | None = None) -> dict[str, Any]:
     """The dual certificate (multipliers by pair, S, float checks), proven exactly when
-    ``exact`` (the margin ladder of :data:`MARGINS`)."""
+    ``exact`` (the margin ladder of :data:`MARGINS`, :data:`LONG_MARGINS` past LONG)."""
     st = data.st
     tau = float(ans.primal)  # type: ignore[arg-type]
     scale = max(1.0, ans.size)  # tr H + sum F': the margin's units
     cert: dict[str, Any] = {"tau": ans.tau, "check_kind": "floating-point check",
                             "tau_proven": None, "proof": None}
     best = ans
-    for rel in MARGINS if exact else ():
+    for rel in (MARGINS if st.steps <= LONG else LONG_MARGINS) if exact else ():
         eps = rel / scale  # relative to tau: the measure is divided by tau
         cand = solve_pep(data, margin=eps, unit=tau if tau > 1e-200 else 1.0)
         if cand.status != "solved":
@@ -171,7 +178,8 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
             cert["proof"] = {"proven": False, "tau_proven": None,
                              "detail": "floating-point pre-check: S is not PSD (scaled)"}
             continue  # the exact proof would fail: the next margin
-        proof = prove_certificate(spec, kappa, st, mterms, iterms, cand.tau, cand.lam)
+        proof = prove_certificate(spec, kappa, st, mterms, iterms, cand.tau, cand.lam,
+                                  data.w, ex)
         cert["proof"] = proof
         if proof["proven"]:
             cert.update(check_kind="exact (rational and ball arithmetic)",

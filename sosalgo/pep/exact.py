@@ -9,34 +9,39 @@ enclose`), the classes' tilted inequalities from exact formulas
 structure (:func:`sosalgo.pep.structure.build_structure`) built again on those numbers,
 with the same labels and the same basis as the float one (the gain K that defines the
 basis is the float one, read as binary rationals: any K gives the same PEP). The
-multipliers become rationals (their binary values; negative ones 0), tau a rational
-slightly above the float one, and
+multipliers become rationals (their binary values; negative ones 0), tau a decimal
+slightly above the float one, and, in ball arithmetic (python-flint ``arb``, outward
+rounded, :data:`PREC` bits),
 
-    c_F = tau i_F - m_F - sum lambda_k a_k >= 0   (every entry, ball lower ends)
-    S = tau I0 - M - sum lambda_k Q_k ⪰ delta I   (exact LDL^T of the centre, radius bound)
+    c_F = tau i_F - m_F - sum lambda_k a_k >= 0   (every entry; :func:`_repaired`)
+    D S D ⪰ delta I, S = tau I0 - M - sum lambda_k Q_k   (:func:`prove_scaled_psd`)
 
-are proven; then measure <= tau for every function of the classes (weak duality,
-:mod:`sosalgo.pep.sdp`). Long horizons: an entry whose denominators grow past a few
-hundred bits is replaced by a ball around a short binary rational that holds it
-(:func:`sosalgo.pep.structure.coarsen`, outward), in the rows and in S.
+are proven (D = diag(w) > 0, the solver's scale); then measure <= tau for every function
+of the classes (weak duality, :mod:`sosalgo.pep.sdp`). Long horizons: an entry whose
+denominators grow past a few hundred bits is replaced by a ball around a short binary
+rational that holds it (:func:`sosalgo.pep.structure.coarsen`, outward).
 """
 
 from __future__ import annotations
 
+import math
 import time
 from fractions import Fraction
 from typing import Any
 
 import numpy as np
 import sympy as sp
+from flint import arb, arb_mat, fmpq
 
-from sosalgo.pep.structure import Method, PEPStructure, build_structure, coarsen, deadbeat_gain
+from sosalgo.pep.bind import initial_gradient
+from sosalgo.pep.structure import Method, PEPStructure, build_structure, deadbeat_gain
 from sosalgo.pep.terms import Term
 from sosalgo.spec import Spec
 
-__all__ = ["exact_method", "prove_certificate"]
+__all__ = ["ball", "exact_method", "exact_or_none", "prove_certificate", "prove_scaled_psd"]
 
 TAU_STEPS = (1e-12, 1e-9, 1e-7)
+PREC = 320  # bits of the ball arithmetic of the proof
 
 
 def _base(spec: Spec, kappa: float | None) -> dict[sp.Symbol, sp.Expr]:
@@ -52,9 +57,8 @@ def _base(spec: Spec, kappa: float | None) -> dict[sp.Symbol, sp.Expr]:
     return {BASE_SYMBOLS[k]: sp.Rational(v.numerator, v.denominator) for k, v in vals.items()}
 
 
-def _exact_matrices(spec: Spec, base: dict[sp.Symbol, sp.Expr]) -> dict[str, sp.Matrix]:
-    """The spec's matrices at the parameter values (value expressions, tied ones
-    followed), exactly."""
+def _exact_env(spec: Spec, base: dict[sp.Symbol, sp.Expr]) -> dict[sp.Symbol, sp.Expr]:
+    """m, L, kappa and every parameter's value (tied ones followed), exactly."""
     from sosalgo.expr.parse import to_sympy
     from sosalgo.spec.types import value_order
 
@@ -62,6 +66,11 @@ def _exact_matrices(spec: Spec, base: dict[sp.Symbol, sp.Expr]) -> dict[str, sp.
     for p in value_order(spec.parameters, spec.source):
         par = spec.parameters[p]
         env[spec.symbols[p]] = to_sympy(par.tied if par.is_tied else par.value).xreplace(env)
+    return env
+
+
+def _exact_matrices(spec: Spec, env: dict[sp.Symbol, sp.Expr]) -> dict[str, sp.Matrix]:
+    """The spec's matrices at the parameter values ``env``, exactly."""
     return {k: m.xreplace(env) for k, m in spec.sympy_matrices().items()}
 
 
@@ -101,7 +110,8 @@ def exact_method(spec: Spec, kappa: float | None, om: Any) -> Method:
     from sosalgo.verify.exact_composite import exact_class_inequalities
 
     base = _base(spec, kappa)
-    mats = _exact_matrices(spec, base)
+    env = _exact_env(spec, base)
+    mats = _exact_matrices(spec, env)
     X = _balls(_fixed_points(mats, om))
     p = om.p
     funcs, ineqs = [], []
@@ -121,9 +131,39 @@ def exact_method(spec: Spec, kappa: float | None, om: Any) -> Method:
     D = _balls(mats["D"]) if "D" in mats else np.full((p, p), Fraction(0), dtype=object)
     K = np.array([[Fraction(float(v)) for v in row]
                   for row in deadbeat_gain(om.A, om.B, float(om.L))], dtype=object)
-    return Method(_balls(mats["A"]), _balls(mats["B"]), _balls(mats["C"]), D,
-                  _balls(mats["E"]) if "E" in mats else None, om.output, funcs,
-                  tuple(om.oracles), X[:, 0], X[:, 1:], L, ineqs, coef, same, K, exact=True)
+    mt = Method(_balls(mats["A"]), _balls(mats["B"]), _balls(mats["C"]), D,
+                _balls(mats["E"]) if "E" in mats else None, om.output, funcs,
+                tuple(om.oracles), X[:, 0], X[:, 1:], L, ineqs, coef, same, K, exact=True)
+    g0, mt.smooth = initial_gradient(spec, om, float("nan") if kappa is None else kappa)
+    if g0 is not None:  # the same start as the float method, exactly
+        mt.G0 = np.array([enclose(to_sympy(b).xreplace(env))
+                          for _, b in spec.initial_state], dtype=object)
+    return mt
+
+
+def ball(v: Any) -> arb:
+    """The arb enclosure of an exact number (int, Fraction, str ``p/q``, or a rational
+    :class:`~sosalgo.verify.exact.Ball`: centre and radius, the radius rounded up)."""
+    if hasattr(v, "c"):
+        c = ball(v.c)
+        if not v.r:
+            return c
+        r = math.nextafter(float(v.r), math.inf)  # >= v.r: outward
+        return c + arb(0, r)
+    q = Fraction(v)
+    return arb(fmpq(q.numerator, q.denominator))
+
+
+def exact_or_none(spec: Spec, kappa: float | None) -> Method | None:
+    """The exact method (:func:`sosalgo.pep.exact.exact_method`), None when it cannot be
+    built (the proofs then say why)."""
+    from sosalgo.pep.bind import bound_method
+
+    try:
+        return exact_method(spec, kappa, bound_method(spec, None if spec.sublinear
+                                                      else kappa)[0])
+    except (ValueError, ArithmeticError):
+        return None
 
 
 def _sym(name: str) -> sp.Symbol:
@@ -132,57 +172,150 @@ def _sym(name: str) -> sp.Symbol:
     return BASE_SYMBOLS[name]
 
 
-def _residual_parts(mt: Method, st: PEPStructure, lam: list[Fraction]):
-    """(sum lambda_k Q_k on G, sum lambda_k a_k on F), exactly: the pairs' weights are
-    gathered on the points' rows first (W), then S_part = R' W R."""
+def _residual_parts(mt: Method, st: PEPStructure, lam: list[Fraction]
+                    ) -> tuple[arb_mat, list[arb]]:
+    """(sum lambda_k Q_k on G, sum lambda_k a_k on F) in ball arithmetic: the pairs'
+    weights are gathered on the points' rows first (W), then R' W R."""
     rows: list[np.ndarray] = []
     index: dict[int, int] = {}
-
-    def ix(v: np.ndarray) -> int:
-        if id(v) not in index:
-            index[id(v)] = len(rows)
-            rows.append(v)
-        return index[id(v)]
-
     for fp in st.points:
         for pt in fp:
-            ix(pt.x), ix(pt.g)
-    nr = len(rows)
-    W = np.full((nr, nr), Fraction(0), dtype=object)
-    aF = np.full(st.nF, Fraction(0), dtype=object)
+            for v in (pt.x, pt.g):
+                if id(v) not in index:
+                    index[id(v)] = len(rows)
+                    rows.append(v)
+    nr, s, one = len(rows), ball(mt.s), arb(1)
+    W = [[arb(0)] * nr for _ in range(nr)]
+    aF = [arb(0)] * st.nF
+    forms = [[(ball(al), [[ball(v) for v in row] for row in Q]) for al, Q in fi]
+             for fi in mt.ineqs]
     for k, lk in enumerate(lam):
         if lk == 0:
             continue
         j, a, b, r = st.pairs[k]
         pa, pb = st.points[j][a], st.points[j][b]
-        alpha, Q = mt.ineqs[j][r]
+        alpha, Q = forms[j][r]
         idx = [index[id(pa.x)], index[id(pb.x)], index[id(pa.g)], index[id(pb.g)]]
-        sc = [1, 1, mt.s, mt.s]
+        lb = ball(lk)
+        sc = [one, one, s, s]  # s on the subgradient rows
         for u in range(4):
             for v in range(4):
-                W[idx[u], idx[v]] = W[idx[u], idx[v]] + Q[u, v] * (lk * sc[u] * sc[v])
+                if not Q[u][v].is_zero():
+                    W[idx[u]][idx[v]] += Q[u][v] * lb * sc[u] * sc[v]
         if pa.f is not None:
-            aF[pa.f] = aF[pa.f] + alpha * (lk * mt.s)
+            aF[pa.f] += alpha * lb * s
         if pb.f is not None:
-            aF[pb.f] = aF[pb.f] - alpha * (lk * mt.s)
-    R = np.vstack(rows)
-    return R.T @ (W @ R), aF
+            aF[pb.f] -= alpha * lb * s
+    R = arb_mat([[ball(v) for v in row] for row in rows])
+    return R.transpose() * arb_mat(W) * R, aF
+
+
+def _repaired(mt: Method, st: PEPStructure, lam: list[Fraction], tb: arb
+              ) -> tuple[list[Fraction], arb_mat, list[arb]]:
+    """(multipliers, sum lambda_k Q_k, c_F) after repairing c_F: an entry c_F[i] not
+    proven >= 0 (the float dual's round-off) is raised by increasing the multiplier of
+    the pair (x*, point i), whose only value coefficient is -alpha s on F_i, by a binary
+    rational at least the deficit / (alpha s) (S moves by that times the pair's form)."""
+    from sosalgo.witnesses.method import arb_fraction
+
+    def residual(lq: list[Fraction]) -> tuple[arb_mat, list[arb]]:
+        quad, lin = _residual_parts(mt, st, lq)
+        return quad, [tb * ball(st.init_f[k]) - ball(st.meas_f[k]) - lin[k]
+                      for k in range(st.nF)]
+
+    quad, cF = residual(lam)
+    star = {}
+    for k, (j, a, b, r) in enumerate(st.pairs):
+        pb = st.points[j][b]
+        if st.points[j][a].label == "x*" and pb.f is not None and r == 0:
+            star[pb.f] = k
+    new = list(lam)
+    for i, c in enumerate(cF):
+        k = star.get(i)
+        if c >= 0 or k is None:
+            continue
+        alpha = ball(mt.ineqs[st.pairs[k][0]][0][0]) * ball(mt.s)
+        if not alpha > 0:
+            continue
+        need = arb_fraction(((-c) / alpha).upper()) * Fraction(1025, 1024)
+        new[k] = new[k] + rational_up(need)
+    if new == list(lam):
+        return new, quad, cF
+    quad, cF = residual(new)
+    return new, quad, cF
+
+
+def decimal_up(x: Fraction, digits: int = 12) -> Fraction:
+    """A decimal >= x with ``digits`` significant digits (x itself when x <= 0 or it has
+    fewer): relative rounding, so a tiny tau keeps its digits."""
+    if x <= 0:
+        return x
+    e = digits - math.floor(math.log10(x))
+    scale = Fraction(10) ** e
+    return Fraction(math.ceil(x * scale)) / scale
+
+
+def rational_up(x: Fraction, bits: int = 64) -> Fraction:
+    """A binary rational >= x > 0 with about ``bits`` significant bits."""
+    e = x.numerator.bit_length() - x.denominator.bit_length() - bits
+    return Fraction(math.ceil(x / Fraction(2) ** e)) * Fraction(2) ** e
+
+
+def prove_scaled_psd(S: arb_mat, w: np.ndarray) -> tuple[bool, Fraction, str]:
+    """Prove D S D ⪰ delta I (D = diag(w), powers of two; so S ⪰ 0) for every matrix in
+    the balls: a floating-point Cholesky factor L of mid(D S D) - t I, then
+    D S D - t I - L L' = E in ball arithmetic and |E|_F < t, so D S D ⪰ (t - |E|_F) I."""
+    from sosalgo.verify.exact import rational
+    from sosalgo.witnesses.method import arb_fraction
+
+    d = S.nrows()
+    Dm = arb_mat(d, d)
+    for i in range(d):
+        Dm[i, i] = ball(rational(float(w[i])))
+    T = Dm * S * Dm
+    mid = np.array([[float(T[i, j].mid()) for j in range(d)] for i in range(d)])
+    mid = 0.5 * (mid + mid.T)
+    try:
+        est = float(np.linalg.eigvalsh(mid)[0])
+    except np.linalg.LinAlgError:
+        return False, Fraction(0), "eigenvalues of the scaled S failed"
+    if not est > 0:
+        return False, Fraction(0), f"not proven (min eig estimate {est:.3g}, scaled)"
+    t = rational(est / 2)
+    try:
+        Lf = np.linalg.cholesky(mid - float(t) * np.eye(d))
+    except np.linalg.LinAlgError:
+        return False, Fraction(0), "Cholesky of the scaled S failed"
+    Lb = arb_mat([[arb(float(v)) for v in row] for row in Lf])
+    E = T - Lb * Lb.transpose()
+    for i in range(d):
+        E[i, i] -= ball(t)
+    frob = sum((E[i, j] * E[i, j] for i in range(d) for j in range(d)), arb(0)).sqrt()
+    delta = ball(t) - frob
+    if not delta > 0:
+        return False, Fraction(0), (f"not proven: residual {float(frob.upper()):.3g} >= "
+                                    f"{float(t):.3g}")
+    return True, arb_fraction(delta.lower()), "Cholesky with ball residual (scaled)"
 
 
 def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
                       mterms: list[Term], iterms: list[Term], tau: float,
-                      lam: np.ndarray) -> dict[str, Any]:
+                      lam: np.ndarray, w: np.ndarray | None = None,
+                      mt: Method | None = None) -> dict[str, Any]:
     """Prove measure <= tau' for a rational tau' >= tau (see the module); a dict with
-    ``proven``, ``tau_proven`` (p/q), ``tau_proven_float``, ``detail``, ``seconds``."""
+    ``proven``, ``tau_proven`` (p/q), ``tau_proven_float``, ``detail``, ``seconds``.
+    ``w``: the scale of the basis (powers of two, default 1); ``mt``: the exact method
+    (built here when not given)."""
     from sosalgo.pep.bind import bound_method
-    from sosalgo.verify.exact import Ball, fraction_str, rational, rational_at_least
-    from sosalgo.verify.exact_interpolation import prove_definite, symmetrize_balls
+    from sosalgo.verify.exact import fraction_str, rational
+    from sosalgo.witnesses.method import precision
 
     t0 = time.perf_counter()
     out: dict[str, Any] = {"proven": False, "tau_proven": None, "tau_proven_float": None}
     try:
-        om, _ = bound_method(spec, None if spec.sublinear else kappa)
-        mt = exact_method(spec, kappa, om)
+        if mt is None:
+            om, _ = bound_method(spec, None if spec.sublinear else kappa)
+            mt = exact_method(spec, kappa, om)
         st = build_structure(mt, st_float.steps, mterms, iterms)
     except (ValueError, ArithmeticError) as exc:
         return out | {"detail": f"exact method: {exc}", "seconds": time.perf_counter() - t0}
@@ -192,23 +325,26 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
                       "seconds": time.perf_counter() - t0}
     top = float(np.max(lam, initial=0.0))
     lq = [rational(v) if v > 1e-14 * top else Fraction(0) for v in lam]
-    quad, lin = _residual_parts(mt, st, lq)
+    w = np.ones(st.d) if w is None else w
     detail = ""
-    for step in TAU_STEPS:
-        tq = rational_at_least(Fraction(tau) * (1 + Fraction(step)))
-        cF = [Ball.of(tq * st.init_f[k]) - st.meas_f[k] - lin[k] for k in range(st.nF)]
-        bad = [k for k, c in enumerate(cF) if Ball.of(c).lo < 0]
-        if bad:
-            detail = f"value residual {bad[0]} is not >= 0"
-            continue
-        S = np.vectorize(lambda v: coarsen(v, 100), otypes=[object])(
-            tq * st.init_q - st.meas_q - quad)  # outward: balls around short rationals
-        ok, delta, why = prove_definite(symmetrize_balls(S), +1)
-        if ok:
-            return out | {"proven": True, "tau_proven": fraction_str(tq),
-                          "tau_proven_float": float(tq), "delta": fraction_str(delta),
-                          "detail": f"S ⪰ {float(delta):.3g} I: {why}; c_F >= 0",
-                          "multipliers_nonzero": sum(1 for v in lq if v),
-                          "seconds": time.perf_counter() - t0}
-        detail = why
+    with precision(PREC):
+        I0 = arb_mat([[ball(v) for v in row] for row in st.init_q])
+        M = arb_mat([[ball(v) for v in row] for row in st.meas_q])
+        for step in TAU_STEPS:
+            tq = decimal_up(Fraction(tau) * (1 + Fraction(step)))
+            tb = ball(tq)
+            lq2, quad, cF = _repaired(mt, st, lq, tb)
+            bad = [k for k, c in enumerate(cF) if not c >= 0]
+            if bad:
+                detail = f"value residual {bad[0]} is not proven >= 0"
+                continue
+            ok, delta, why = prove_scaled_psd(I0 * tb - M - quad, w)
+            if ok:
+                return out | {"proven": True, "tau_proven": fraction_str(tq),
+                              "tau_proven_float": float(tq), "delta": fraction_str(delta),
+                              "detail": f"diag(w) S diag(w) ⪰ {float(delta):.3g} I: {why}; "
+                                        "c_F >= 0", "multipliers_nonzero": sum(1 for v in lq2 if v),
+                              "repaired": sum(1 for a, b in zip(lq, lq2, strict=True) if a != b),
+                              "seconds": time.perf_counter() - t0}
+            detail = why
     return out | {"detail": detail, "seconds": time.perf_counter() - t0}

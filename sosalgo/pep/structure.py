@@ -76,6 +76,8 @@ class Method:
     same: Callable[[np.ndarray, np.ndarray], bool]
     K: np.ndarray  # (p x n) the deadbeat gain of the basis (:func:`deadbeat_gain`)
     exact: bool = False
+    G0: np.ndarray | None = None  # ``initial_state``: xi_0 = X0 x_0 + G0 g0 (None: G0 = 0)
+    smooth: int = 0  # the function whose gradient g0 is
 
     @property
     def n(self) -> int:
@@ -208,17 +210,23 @@ def build_structure(mt: Method, steps: int, measure: Sequence[Term],
     n0 = n if free else 1
     needs_n = mt.output is not None or any(t.point.startswith("y") for t in measure)
     calls = steps + 1 if needs_n else steps
-    extra_cap = J * (len(measure) + len(initial)) + J
+    extra_cap = J * (len(measure) + len(initial)) + J + 1
+    g0 = mt.G0 is not None and not free
     dmax = n0 + (J - 1) + p * calls + extra_cap
     eye = np.eye(dmax) if not mt.exact else _obj_eye(dmax)
     cols = [f"xi0_{a + 1}-xi*" for a in range(n)] if free else ["x0-x*"]
     cols += [f"s*_{mt.functions[j][0]}/s" for j in range(J - 1)]
     cols += [f"b_{_call_label(i, k, p)}" for k in range(calls) for i in range(p)]
     S = eye[n0:n0 + J - 1]  # the free optimal subgradients / s
+    sstar = [S[j] for j in range(J - 1)] + ([-S.sum(axis=0)] if J > 1 else [eye[0] * 0])
+    if g0:  # g_j(x0) / s: its own column
+        cols.append(f"g_{mt.functions[mt.smooth][0]}(x0)/s")
     if free:
         xi0 = eye[:n]
     else:
         xi0 = np.outer(mt.X0, eye[0]) - (mt.s * (mt.Xs @ S) if J > 1 else 0)
+        if g0:  # + G0 g0, g0 / s = its tilted column + s_j* / s
+            xi0 = xi0 + np.outer(mt.G0, (eye[len(cols) - 1] + sstar[mt.smooth]) * mt.s)
     base = n0 + J - 1
     xi, Y, U = _trajectory(mt, xi0, [eye[base + p * k: base + p * (k + 1)]
                                      for k in range(calls)], calls)
@@ -234,10 +242,14 @@ def build_structure(mt: Method, steps: int, measure: Sequence[Term],
             pts[j].append(PEPPoint(_call_label(i, k, p), Y[k][i], U[k][i], nF, k))
             nF += 1
     zero = eye[0] * 0
+    at = {}
+    if g0:  # the point x0 of the smooth function, with the gradient g0 of the start
+        pts[mt.smooth].append(PEPPoint("x0", eye[0], eye[len(cols) - 1], nF))
+        at[("x0", mt.smooth)] = len(pts[mt.smooth]) - 1
+        nF += 1
     for j in range(J):
         pts[j].append(PEPPoint("x*", zero, zero, None))
-    sstar = [S[j] for j in range(J - 1)] + ([-S.sum(axis=0)] if J > 1 else [zero])
-    state = {"nF": nF, "next": len(cols), "cols": cols, "eye": eye, "at": {},
+    state = {"nF": nF, "next": len(cols), "cols": cols, "eye": eye, "at": at,
              "xi": {"x": xi[steps], "x0": xi[0]}}
     forms = {}
     for key, terms, opt in (("m", measure, option[0]), ("i", initial, option[1])):

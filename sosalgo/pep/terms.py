@@ -17,8 +17,9 @@ from dataclasses import dataclass
 
 from sosalgo.errors import InputError
 from sosalgo.expr.tree import Expr, ExprError, evaluate, parse_tree
+from sosalgo.spec.initial_state import linear_parts
 
-__all__ = ["KINDS", "Term", "parse_terms", "describe_terms"]
+__all__ = ["KINDS", "Term", "describe_terms", "parse_terms"]
 
 KINDS = ("f", "dist", "grad", "sdist")
 _AT = re.compile(r"\b(f|dist|grad)\s*\(\s*([A-Za-z0-9_]+)\s*\)")
@@ -80,7 +81,7 @@ def parse_terms(text: object, option: str, initial: bool, p: int) -> list[Term]:
         tree = parse_tree(src, names)
     except ExprError as exc:
         raise InputError(f"{option}: {exc}") from None
-    parts = _linear(tree, option)
+    parts = linear_parts(tree, frozenset({"m", "L", "kappa"}), option)
     if "1" in parts:
         raise InputError(f"{option}: a constant term; every term multiplies f, dist or grad")
     out = []
@@ -88,35 +89,6 @@ def parse_terms(text: object, option: str, initial: bool, p: int) -> list[Term]:
         kind, _, point = key.partition("__")
         out.append(Term(kind, point or ("x0" if initial else "x"), coef))
     return out
-
-
-def _linear(e: Expr, option: str) -> dict[str, Expr]:
-    """{term key: coefficient}: "1" for the constant part; refuses nonlinear use."""
-    one = Expr("num", (1,))
-    if e.op == "name":
-        name = e.args[0]
-        return {"1": e} if name in ("m", "L", "kappa") else {name: one}
-    if not any(n not in ("m", "L", "kappa") for n in e.names()):
-        return {"1": e}
-    if e.op in ("+", "-"):
-        left, right = _linear(e.args[0], option), _linear(e.args[1], option)
-        out = dict(left)
-        for k, c in right.items():
-            c2 = c if e.op == "+" else Expr("neg", (c,))
-            out[k] = Expr("+", (out[k], c2)) if k in out else c2
-        return out
-    if e.op == "neg":
-        return {k: Expr("neg", (c,)) for k, c in _linear(e.args[0], option).items()}
-    if e.op == "*":
-        a, b = e.args
-        if a.names() <= {"m", "L", "kappa"}:
-            return {k: Expr("*", (a, c)) for k, c in _linear(b, option).items()}
-        if b.names() <= {"m", "L", "kappa"}:
-            return {k: Expr("*", (c, b)) for k, c in _linear(a, option).items()}
-    if e.op == "/" and e.args[1].names() <= {"m", "L", "kappa"}:
-        return {k: Expr("/", (c, e.args[1])) for k, c in _linear(e.args[0], option).items()}
-    raise InputError(f"{option}: not a sum of terms c*f, c*dist, c*grad ({e}); unknown "
-                     "terms and products of terms are refused")
 
 
 def describe_terms(terms: list[Term]) -> str:

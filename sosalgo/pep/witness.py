@@ -3,11 +3,17 @@ written as JSON and checked exactly (a theorem: tau_N >= its value).
 
 Construction (:func:`make_witness`): the PEP again, minimizing tr H with the measure at
 least (1 - eta) tau_N and every interpolation inequality at least a slack (the
-:data:`LADDER`); candidates G = V V' in 1, 2, 3 dimensions, the full rank, then G mixed
-with a strictly feasible quadratic trajectory (:func:`quadratic_point`); each rounded to
-binary rationals, the trajectory recomputed exactly and the values fitted exactly
-(:func:`fit_values`: difference constraints, shortest paths); the first that passes the
-check is kept.
+:data:`LADDER`). Candidates, smallest dimension first: G = V V' in 1, 2, 3 dimensions and
+its full rank; G mixed with a strictly feasible quadratic trajectory
+(:func:`quadratic_point`, one more dimension); G mixed with an interior point G0 of the
+PEP (:func:`interior_point`: every inequality at least a slack of its scale), V_theta =
+[sqrt(1 - theta) V, sqrt(theta) V0] for theta in :data:`MIX` — every inequality is linear
+in (G, F), so the mix has slack theta times G0's, which absorbs the solver's small
+violations and the rounding, for a measure (1 - theta) as large. A floating-point
+pre-check (:func:`plausible`: values exist with a margin, Bellman-Ford on the difference
+constraints) skips hopeless candidates; the others are rounded to binary rationals, the
+trajectory recomputed exactly, the values fitted exactly (:func:`fit_values`), and the
+first that passes the exact check is kept.
 
 Document (``kind: pep-witness``): ``x0``; ``xi0`` (a free start: the initial state,
 every block); ``calls`` (the gradient u_{k,i} of every call,
@@ -16,41 +22,40 @@ points: ``at`` (where: ``y<i>_<k>``, ``x_0``, ``x_N``), the subgradient g there 
 tilted value h = f_j(x) - f_j(x*) - <s_j*, x - x*>; ``evaluations``: which point of each
 function a term reads. Numbers are exact rationals as strings ("p/q").
 
-The check (:func:`check_witness`) trusts nothing but the spec: it recomputes the
-trajectory from xi_0 = u x_0 (or ``xi0``) with the exact method (balls, :mod:`sosalgo.pep.exact`),
-checks every class inequality of every ordered pair of each function's points (x* with
-g = s_j*, h = 0) on the tilted data (g - s_j*, h) with ball arithmetic (lower end >= 0),
-sum_j s_j* = 0, and evaluates measure and initial exactly (sdist with xi* = X_s s~ from
-the exact fixed points): tau_N >= measure / initial.
+The check (:func:`sosalgo.pep.check.check_witness`) trusts nothing but the spec: it
+recomputes the trajectory with the exact method and checks every class inequality in
+ball arithmetic.
 """
 
 from __future__ import annotations
 
 import math
-import time
+from collections.abc import Callable, Iterator
 from fractions import Fraction
 from typing import Any
 
 import numpy as np
 
+from sosalgo.pep.check import ArbView, arb_view, check_witness, fit_values, q_str
 from sosalgo.pep.sdp import PEPData, SDPAnswer, solve_pep
 from sosalgo.pep.structure import Method
 from sosalgo.pep.terms import Term
 from sosalgo.spec import Spec
-from sosalgo.verify.exact import Ball
 
-__all__ = ["WITNESS_KIND", "check_witness", "make_witness"]
+__all__ = ["WITNESS_KIND", "check_witness", "fit_values", "interior_point", "make_witness",
+           "plausible"]
 
 WITNESS_KIND = "pep-witness"
 # (slack, eta) of the reduced solves, in order: every inequality >= slack (scaled rows),
 # the measure kept at (1 - eta) tau_N; a larger eta leaves room for a larger slack
 LADDER = ((1e-9, 1e-6), (1e-8, 1e-5), (1e-7, 1e-4), (1e-6, 1e-3))
 MAX_TRIES = 3  # dimensions tried per reduced solve (then the full rank)
-
-
-def _q(x: float | Fraction) -> str:
-    f = Fraction(x)
-    return f"{f.numerator}/{f.denominator}" if f.denominator != 1 else str(f.numerator)
+THETAS = (1e-6, 1e-4)  # weights of the strictly feasible quadratic mixed in
+MIX = (1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1)  # weights of the interior point mixed in
+INTERIOR = (1e-3, 1e-4, 1e-5, 1e-6)  # slacks tried for the interior point
+ACCEPT = 1e-3  # a verified witness this close to tau (relative) ends the search
+PRECHECK = 1e-9  # margin of the floating-point pre-check (relative to each row's scale)
+_q = q_str
 
 
 def _vec(v: np.ndarray) -> list[str]:
@@ -69,23 +74,21 @@ def _factors(G: np.ndarray, slack: float) -> list[np.ndarray]:
     return out
 
 
-THETAS = (1e-6, 1e-4)  # weights of the strictly feasible quadratic mixed in
-
-
-def _candidates(mt: Method, st: Any, G: np.ndarray, slack: float):
-    """(V, theta): the factors of G (:func:`_factors`), then G mixed with a strictly
-    feasible point: V_theta = [sqrt(1 - theta) V, sqrt(theta) v0] (one more dimension),
-    v0 the trajectory on the quadratics of :func:`quadratic_point` (every interpolation
-    inequality is linear in (G, F) and strict there, so the mix turns the solver's small
-    violations into slack, for a measure (1 - theta) as large)."""
+def _candidates(mt: Method, st: Any, G: np.ndarray, slack: float,
+                interior: Callable[[], np.ndarray | None]) -> Iterator[tuple[np.ndarray, float]]:
+    """(V, theta), smallest dimension first (see the module): the factors of G
+    (:func:`_factors`); G mixed with the quadratic trajectory of :func:`quadratic_point`
+    (theta in THETAS); G (its factors) mixed with the interior point (theta in MIX)."""
     fs = _factors(G, slack)
     for V in fs:
         yield V, 0.0
     v0 = quadratic_point(mt, st)
-    if v0 is None:
-        return
-    for theta in THETAS:
+    for theta in THETAS if v0 is not None else ():
         yield np.hstack([math.sqrt(1 - theta) * fs[-1], math.sqrt(theta) * v0[:, None]]), theta
+    V0 = interior()
+    for theta in MIX if V0 is not None else ():
+        for V in fs:
+            yield np.hstack([math.sqrt(1 - theta) * V, math.sqrt(theta) * V0]), theta
 
 
 def quadratic_point(mt: Method, st: Any) -> np.ndarray | None:
@@ -102,6 +105,10 @@ def quadratic_point(mt: Method, st: Any) -> np.ndarray | None:
     v = np.zeros(st.d)
     xi = np.asarray(mt.X0, float).copy()
     v[0] = 1.0
+    if mt.G0 is not None and "x0-x*" in col:  # initial_state: xi_0 = X0 + G0 q_j (x_0 = 1)
+        j = mt.smooth
+        v[col[f"g_{mt.functions[j][0]}(x0)/s"]] = q[j] / s
+        xi = xi + np.asarray(mt.G0, float) * q[j]
     C, D, A, B, K = (np.asarray(M, float) for M in (mt.C, mt.D, mt.A, mt.B, mt.K))
     for k in range(st.calls):
         try:
@@ -124,38 +131,110 @@ def quadratic_point(mt: Method, st: Any) -> np.ndarray | None:
 
 def make_witness(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
                  ans: SDPAnswer, mterms: list[Term], iterms: list[Term],
-                 res: Any) -> dict[str, Any] | None:
-    """The witness document in the smallest dimension that passes the exact check (its
-    ``check``), else the last one tried (not verified), or None when no reduction solves.
-    Each candidate: V rounded to binary rationals, the trajectory recomputed exactly,
-    then the values fitted exactly (:func:`fit_values`)."""
-    from sosalgo.pep.bind import bound_method
-    from sosalgo.pep.exact import exact_method
+                 res: Any, exact_mt: Method | None = None) -> dict[str, Any] | None:
+    """The witness document in the smallest dimension that passes the exact check with a
+    lower bound within :data:`ACCEPT` of tau (else the best verified one, else the last
+    one tried, not verified), or None when no reduction solves (see the module).
+    ``exact_mt``: the exact method (built here when not given)."""
+    from sosalgo.pep.exact import exact_or_none
 
     tau = float(ans.primal)  # type: ignore[arg-type]
-    try:
-        ex = exact_method(spec, kappa, bound_method(spec, None if spec.sublinear else kappa)[0])
-    except (ValueError, ArithmeticError):
-        ex = None
-    last = None
-    for slack, eta in LADDER:
-        red = solve_pep(data, objective="trace", floor=(1 - eta) * tau, slack=slack,
-                        unit=tau if tau > 1e-200 else 1.0)
-        if red.status != "solved":
-            continue
-        for V, theta in _candidates(mt, data.st, red.G, slack):  # type: ignore[arg-type]
-            doc = _document(spec, mt, data.st, V, red.F, res)  # type: ignore[arg-type]
+    unit = tau if tau > 1e-200 else 1.0
+    exact_mt = exact_mt if exact_mt is not None else exact_or_none(spec, kappa)
+    ex: ArbView | None = None if exact_mt is None else arb_view(exact_mt)
+    coef = np.array([float(mt.ineqs[j][r][0]) * float(mt.s) for j, _, _, r in data.st.pairs])
+    inner: list[np.ndarray | None] = []
+
+    def interior() -> np.ndarray | None:
+        if not inner:
+            inner.append(interior_point(data, unit))
+        return inner[0]
+
+    last: dict[str, Any] | None = None
+    best: dict[str, Any] | None = None
+    for G, F, slack, eta in _sources(data, ans, tau, unit):
+        for V, theta in _candidates(mt, data.st, G, slack, interior):
+            if last is not None and not plausible(data, coef, V):
+                continue  # no values fit this geometry in floating point: skip it
+            doc = _document(spec, mt, data.st, V, F, res)
             doc.update(tau_float=tau, objective_floor=1 - eta, slack=slack, mixed=theta)
-            if ex is not None and not fit_values(doc, ex):
-                last = last or doc
+            last = doc
+            if ex is None or not fit_values(doc, ex):
                 continue  # no values fit this geometry: the check would fail
             doc["check"] = check_witness(doc, spec, ex)
-            last = doc
-            if doc["check"]["verified"]:
+            low = doc["check"]["tau_lower_float"]
+            if low is not None and (best is None or low > best["check"]["tau_lower_float"]):
+                best = doc
+            if low is not None and low >= (1 - ACCEPT) * tau:
                 return _finish(doc)
+    if best is not None:  # verified, but further below tau than ACCEPT
+        return _finish(best)
     if last is not None and "check" not in last:
         last["check"] = check_witness(last, spec, ex)
     return None if last is None else _finish(last)
+
+
+def _sources(data: PEPData, ans: SDPAnswer, tau: float, unit: float
+             ) -> Iterator[tuple[np.ndarray, np.ndarray, float, float]]:
+    """(G, F, slack, eta) to take candidates from: the reduced solves of :data:`LADDER`
+    that solve, and the PEP's own answer (full rank; mixed with the interior point it
+    still gives a witness when a reduced solve fails — then it comes next, before the
+    other rungs, each of which costs several solver attempts)."""
+    own = ans.G is not None and ans.F is not None
+    for slack, eta in LADDER:
+        red = solve_pep(data, objective="trace", floor=(1 - eta) * tau, slack=slack,
+                        unit=unit)
+        if red.status == "solved" and red.G is not None and red.F is not None:
+            yield red.G, red.F, slack, eta
+        elif own:
+            own = False
+            yield ans.G, ans.F, 0.0, 0.0  # type: ignore[misc]
+    if own:
+        yield ans.G, ans.F, 0.0, 0.0  # type: ignore[misc]
+
+
+def interior_point(data: PEPData, unit: float) -> np.ndarray | None:
+    """A factor V0 (d x rank) of a point of the PEP where every inequality holds with a
+    slack of its scale (the first of :data:`INTERIOR` that solves; least trace), or None."""
+    for slack in INTERIOR:
+        ans = solve_pep(data, objective="trace", slack=slack, unit=unit)
+        if ans.status == "solved" and ans.G is not None:
+            return _factors(ans.G, slack)[-1]
+    return None
+
+
+def plausible(data: PEPData, coef: np.ndarray, V: np.ndarray,
+              margin: float = PRECHECK) -> bool:
+    """Floating-point pre-check of a candidate G = V V': values F exist with every
+    inequality c_k (F_a - F_b) + q_k >= margin * (its scale) (c_k = alpha_k s, the row's
+    coefficient on F), i.e. the difference
+    constraints have no negative cycle (Bellman-Ford from the points x*, value 0)."""
+    st = data.st
+    G = V @ V.T
+    q = np.einsum("kuv,kuv->k", data.Qc, np.einsum("kui,kvi->kuv", data.X @ G, data.X))
+    xw = np.abs(data.X * data.w).max(axis=2).max(axis=1)
+    size = (np.abs(data.Qc).max(axis=(1, 2)) * xw ** 2
+            + np.abs(data.a * data.v).max(axis=1, initial=0.0))
+    q = q - margin * size
+    first = np.cumsum([0] + [len(fp) for fp in st.points])
+    na = np.array([first[j] + a for j, a, _, _ in st.pairs])
+    nb = np.array([first[j] + b for j, _, b, _ in st.pairs])
+    if np.any((coef == 0) & (q < 0)):
+        return False
+    on = coef != 0
+    src = np.where(coef[on] > 0, na[on], nb[on])
+    dst = np.where(coef[on] > 0, nb[on], na[on])
+    w = q[on] / np.abs(coef[on])
+    star = first[1:] - 1  # x* is each function's last point
+    dist = np.full(first[-1], np.inf)
+    dist[star] = 0.0
+    for _ in range(first[-1] + 1):
+        new = dist.copy()
+        np.minimum.at(new, dst, dist[src] + w)
+        if np.all(new >= dist):
+            return bool(np.all(dist[star] >= 0))
+        dist = new
+    return False
 
 
 def _finish(doc: dict[str, Any]) -> dict[str, Any]:
@@ -215,253 +294,6 @@ def _out(mt: Method, st: Any, k: int) -> np.ndarray:
     if mt.output is None:
         return (mt.E @ st.rows["xi"][k])[0]
     return st.rows["y"][k][mt.output] if k < len(st.rows["y"]) else st.rows["x"]
-
-
-def _dot(a: list[Any], b: list[Any]) -> Any:
-    return sum((Ball.of(x) * y for x, y in zip(a, b, strict=True)), Ball(0))
-
-
-def _positions(doc: dict[str, Any], mt: Method) -> dict[str, Any]:
-    """Every point of the trajectory, recomputed exactly from the start (xi_0 = u x_0, or
-    ``xi0``: a free start, x_0 then the output at step 0) and the calls; ``xi0``, ``xiN``:
-    the states at steps 0 and N."""
-    r, p, N = int(doc["dimension"]), mt.p, int(doc["steps"])
-    if doc.get("xi0") is not None:
-        xi = [[Fraction(v) for v in row] for row in doc["xi0"]]
-        if len(xi) != mt.n or any(len(row) != r for row in xi):
-            raise ValueError(f"xi0: expected {mt.n} states of {r} coordinates")
-    else:
-        x0 = [Fraction(v) for v in doc["x0"]]
-        if len(x0) != r:
-            raise ValueError(f"x0: expected {r} coordinates")
-        xi = [[mt.X0[a] * x0[c] for c in range(r)] for a in range(mt.n)]
-    pos: dict[str, Any] = {"xi0": xi}
-    for k in range(int(doc["call_steps"])):
-        u = [[Fraction(v) for v in doc["calls"][k][i]] for i in range(p)]
-        if any(len(ui) != r for ui in u):
-            raise ValueError(f"calls[{k}]: expected {r} coordinates")
-        for i in range(p):
-            y = [_dot(list(mt.C[i]), [xi[a][c] for a in range(mt.n)])
-                 + _dot(list(mt.D[i]), [u[b][c] for b in range(p)]) for c in range(r)]
-            pos[f"y{k}" if p == 1 else f"y{i + 1}_{k}"] = y
-        if k == N:
-            continue
-        xi = [[_dot(list(mt.A[a]), [xi[b][c] for b in range(mt.n)])
-               + _dot(list(mt.B[a]), [u[b][c] for b in range(p)]) for c in range(r)]
-              for a in range(mt.n)]
-    pos["xiN"] = xi
-    for k, key in ((N, f"x{N}"), (0, "x0")):
-        if key == "x0" and doc.get("xi0") is None:
-            pos["x0"] = [Fraction(v) for v in doc["x0"]]
-        elif mt.output is None:
-            st = pos["xiN"] if k == N else pos["xi0"]
-            pos[key] = [_dot(list(mt.E[0]), [st[a][c] for a in range(mt.n)])
-                        for c in range(r)]
-        else:
-            pos[key] = pos[f"y{k}" if p == 1 else f"y{mt.output + 1}_{k}"]
-    for i in range(p):
-        pos.setdefault(f"y{i + 1}_{N}", pos.get(f"y{N}" if p == 1 else f"y{i + 1}_{N}"))
-    return pos
-
-
-def _pair_forms(mt: Method, doc: dict[str, Any], pos: dict[str, Any]):
-    """Per function j: (labels, [(a, b, alpha, q)]) with q = X' Q X the quadratic part of
-    each tilted class inequality alpha (h_a - h_b) + q >= 0 of each ordered pair (x* last,
-    g = s_j*, h = 0), in ball arithmetic."""
-    out = []
-    for j, (name, _, _) in enumerate(mt.functions):
-        fd = doc["functions"][name]
-        sj = [Fraction(v) for v in fd["optimal_subgradient"]]
-        pts = [(pos[pt["label"]], [Fraction(g) - s for g, s in zip(pt["g"], sj, strict=True)])
-               for pt in fd["points"]]
-        zero = [Fraction(0)] * len(sj)
-        pts.append((zero, zero))
-        vecs = [v for pt in pts for v in pt]  # x_0, g_0, x_1, g_1, ...
-        gram: dict[tuple[int, int], Any] = {}
-        for u in range(len(vecs)):
-            for v in range(u, len(vecs)):
-                gram[u, v] = gram[v, u] = _dot(vecs[u], vecs[v])
-        rows = []
-        for a in range(len(pts)):
-            for b in range(len(pts)):
-                if a == b:
-                    continue
-                idx = [2 * a, 2 * b, 2 * a + 1, 2 * b + 1]  # x_a, x_b, g_a, g_b
-                for alpha, Q in mt.ineqs[j]:
-                    q = Ball(0)
-                    for u in range(4):
-                        for v in range(4):
-                            if Q[u, v].c != 0 or Q[u, v].r != 0:
-                                q = q + Q[u, v] * gram[idx[u], idx[v]]
-                    rows.append((a, b, Ball.of(alpha), q))
-        out.append(([pt["label"] for pt in fd["points"]] + ["x*"], rows))
-    return out
-
-
-def _pairs_ok(mt: Method, doc: dict[str, Any], pos: dict[str, Any]) -> tuple[int, int]:
-    """(pairs checked, pairs violated): every tilted class inequality, ball lower ends."""
-    checked = bad = 0
-    for (name, _, _), (_, rows) in zip(mt.functions, _pair_forms(mt, doc, pos),
-                                       strict=True):
-        h = [Fraction(pt["h"]) for pt in doc["functions"][name]["points"]] + [Fraction(0)]
-        for a, b, alpha, q in rows:
-            checked += 1
-            bad += (alpha * (h[a] - h[b]) + q).lo < 0
-    return checked, bad
-
-
-def _edge(alpha: Ball, q: Ball) -> tuple[bool, Fraction] | None:
-    """alpha (h_a - h_b) + q >= 0 for every alpha, q in their balls as one difference
-    constraint: (forward, w) meaning h_b <= h_a + w (forward) or h_a <= h_b + w; None
-    when alpha may vanish (then q >= 0 is needed, not a constraint on h)."""
-    if alpha.lo > 0:
-        return True, q.lo / (alpha.hi if q.lo >= 0 else alpha.lo)
-    if alpha.hi < 0:
-        return False, q.lo / (-alpha.lo if q.lo >= 0 else -alpha.hi)
-    return None
-
-
-def _round_down(w: Fraction, bits: int = 64) -> Fraction:
-    """A binary rational <= w with about ``bits`` significant bits."""
-    if w == 0:
-        return w
-    e = w.numerator.bit_length() - w.denominator.bit_length() - bits
-    return Fraction(math.floor(w / Fraction(2) ** e)) * Fraction(2) ** e
-
-
-def fit_values(doc: dict[str, Any], mt: Method) -> bool:
-    """Replace the rounded values h of every function by exact ones that satisfy every
-    class inequality at the exactly recomputed points: the inequalities are difference
-    constraints h_b <= h_a + w_ab (w rounded down), and the shortest paths from x*
-    (h = 0) give the largest such values (Bellman-Ford). False (doc unchanged) when
-    they have no solution (a negative cycle) or a pair needs q >= 0 that fails."""
-    try:
-        pos = _positions(doc, mt)
-        forms = _pair_forms(mt, doc, pos)
-    except (KeyError, ValueError, TypeError, IndexError, ArithmeticError):
-        return False
-    new = []
-    for labels, rows in forms:
-        V, src = len(labels), len(labels) - 1
-        edges = []
-        for a, b, alpha, q in rows:
-            e = _edge(alpha, q)
-            if e is None:
-                if q.lo < 0:
-                    return False
-                continue
-            fwd, w = e
-            edges.append((a, b, _round_down(w)) if fwd else (b, a, _round_down(w)))
-        dist: list[Fraction | None] = [None] * V
-        dist[src] = Fraction(0)
-        for _ in range(V):
-            changed = False
-            for u, v, w in edges:
-                if dist[u] is not None and (dist[v] is None or dist[u] + w < dist[v]):
-                    dist[v] = dist[u] + w
-                    changed = True
-            if not changed:
-                break
-        if changed or dist[src] != 0:
-            return False
-        new.append(dist)
-    for (name, _, _), dist in zip(mt.functions, new, strict=True):
-        for pt, h in zip(doc["functions"][name]["points"], dist, strict=False):
-            if h is not None:
-                pt["h"] = _q(h)
-    return True
-
-
-def _sdist(mt: Method, doc: dict[str, Any], xi: list[list[Any]]) -> Any:
-    """|xi - xi*|^2 over every state block, xi* = u x* + X_s s~ (x* = 0)."""
-    sst = [[Fraction(v) for v in doc["functions"][name]["optimal_subgradient"]]
-           for name, _, _ in mt.functions[:-1]]
-    total = Ball(0)
-    for a in range(mt.n):
-        star = [_dot([mt.Xs[a, j] for j in range(len(sst))], [s[c] for s in sst])
-                for c in range(len(xi[a]))]
-        diff = [x - y for x, y in zip(xi[a], star, strict=True)]
-        total = total + _dot(diff, diff)
-    return total
-
-
-def _terms_value(terms: list[Term], mt: Method, doc: dict[str, Any],
-                 pos: dict[str, Any]) -> Any:
-    N = int(doc["steps"])
-    total = Ball(0)
-    for t in terms:
-        if t.kind == "sdist":
-            total = total + mt.coef(t) * _sdist(mt, doc, pos["xi0" if t.point == "x0"
-                                                           else "xiN"])
-            continue
-        key = {"x": f"x{N}", "x0": "x0"}.get(t.point) or pos_key(t.point, N, mt.p)
-        P = pos[key]
-        if t.kind == "dist":
-            total = total + mt.coef(t) * _dot(P, P)
-            continue
-        funcs = (range(len(mt.functions)) if t.kind == "f" else
-                 [j for j, f in enumerate(mt.functions) if "gradient" in f[1].oracles])
-        acc: Any = Ball(0) if t.kind == "f" else [Ball(0)] * len(P)
-        for j in funcs:
-            name = mt.functions[j][0]
-            label = doc["evaluations"][f"{t.point}|{name}"]
-            pt = next(q for q in doc["functions"][name]["points"] if q["label"] == label)
-            if pos[label] is not P and any(Ball.of(a - b).c != 0 or Ball.of(a - b).r != 0
-                                           for a, b in zip(pos[label], P, strict=True)):
-                raise ValueError(f"{name} at {label} is not provably the point {key}")
-            if t.kind == "f":
-                acc = acc + Fraction(pt["h"])
-            else:
-                acc = [a + Fraction(g) for a, g in zip(acc, pt["g"], strict=True)]
-        total = total + mt.coef(t) * (acc if t.kind == "f" else _dot(acc, acc))
-    return total
-
-
-def pos_key(point: str, N: int, p: int) -> str:
-    """The position key of a term point y<i> at step N."""
-    return f"y{N}" if p == 1 else f"{point}_{N}"
-
-
-def check_witness(doc: dict[str, Any], spec: Spec, mt: Method | None = None) -> dict[str, Any]:
-    """Check a witness exactly against ``spec`` (see the module; ``mt``: its exact method,
-    built here when not given); never raises on a bad witness: ``verified`` False with
-    the reason."""
-    from sosalgo.pep.bind import bound_method
-    from sosalgo.pep.exact import exact_method
-    from sosalgo.pep.terms import parse_terms
-
-    t0 = time.perf_counter()
-    out: dict[str, Any] = {"verified": False, "check_kind": "exact (rational and ball "
-                           "arithmetic)", "tau_lower": None, "tau_lower_float": None}
-    try:
-        kappa = doc.get("kappa")
-        om, _ = bound_method(spec, None if spec.sublinear else kappa)
-        mt = mt if mt is not None else exact_method(spec, kappa, om)
-        mterms = parse_terms(doc["measure"], "measure", False, om.p)
-        iterms = parse_terms(doc["initial"], "initial", True, om.p)
-        if any(t.kind == "sdist" for t in iterms) != (doc.get("xi0") is not None):
-            raise ValueError("an initial sdist needs the free start xi0, and only it")
-        pos = _positions(doc, mt)
-        checked, bad = _pairs_ok(mt, doc, pos)
-        ssum = [sum(Fraction(v[c]) for v in (f["optimal_subgradient"] for f in
-                                              doc["functions"].values()))
-                for c in range(int(doc["dimension"]))]
-        meas = _terms_value(mterms, mt, doc, pos)
-        init = _terms_value(iterms, mt, doc, pos)
-    except (KeyError, ValueError, TypeError, IndexError, ZeroDivisionError, StopIteration,
-            ArithmeticError) as exc:
-        return out | {"detail": f"malformed or inconsistent witness: {type(exc).__name__}: "
-                                f"{exc}", "seconds": time.perf_counter() - t0}
-    out["pairs_checked"] = checked
-    if bad or any(ssum) or init.hi <= 0 or meas.lo < 0:
-        why = (f"{bad} interpolation inequalities not proven" if bad else
-               "the optimal subgradients do not sum to 0" if any(ssum) else
-               "the initial condition is not positive" if init.hi <= 0 else "measure < 0")
-        return out | {"detail": why, "seconds": time.perf_counter() - t0}
-    lower = meas.lo / init.hi
-    return out | {"verified": True, "tau_lower": _q(lower), "tau_lower_float": float(lower),
-                  "detail": f"{checked} inequalities proven; the trajectory recomputed from "
-                            "the start and the calls", "seconds": time.perf_counter() - t0}
 
 
 def interpolant_1d(doc: dict[str, Any]) -> dict[str, Any]:

@@ -217,10 +217,15 @@ class _Builder:
         matrices = self.matrices(raw_matrices, names, len(oracles), output is not None)
         references = self.references(data.get("references", {}))
         kappa = () if m == 0 else self.kappa(data.get("kappa", [10]))
+        from sosalgo.spec.initial_state import parse_initial_state
+
+        initial_state = parse_initial_state(data.get("initial_state"), {*BASE_NAMES, *symbols},
+                                            len(matrices["A"]), functions, self.fail)
         spec = Spec(
             name=name, description=description, source=self.source, parameters=params,
             matrices=matrices, references=references, kappa=kappa, m=m,
             functions=functions, oracles=oracles, output=output, measure=measure, L=L,
+            initial_state=initial_state,
         )
         if spec.sublinear:
             self.check_sublinear(spec)
@@ -531,6 +536,9 @@ class _Builder:
             except ModelError as exc:
                 raise self.fail(exc.field, f"at kappa={k:g}: {exc.message}") from None
         self.check_in_range(spec)
+        from sosalgo.spec.initial_state import check_initial_state
+
+        check_initial_state(spec, spec.kappa, self.fail)
 
     def check_sublinear_values(self, spec: Spec) -> None:
         """:meth:`check_values` for a sublinear spec: at (m, L) = (0, L), kappa undefined."""
@@ -551,6 +559,9 @@ class _Builder:
             bind_sublinear(spec)
         except ModelError as exc:
             raise self.fail(exc.field, exc.message) from None
+        from sosalgo.spec.initial_state import check_initial_state
+
+        check_initial_state(spec, [nan], self.fail)
 
     def check_in_range(self, spec: Spec) -> None:
         """Each ranged parameter's value lies in its own range at every kappa of the spec."""

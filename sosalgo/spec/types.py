@@ -29,7 +29,7 @@ ORACLE_MATRIX_NAMES = ("A", "B", "C", "D", "E")  # D optional; E absent with ``o
 MEASURES = ("function", "distance")
 TOP_KEYS = {
     "name", "description", "parameters", "matrices", "references", "kappa", "m", "certificate",
-    "functions", "oracles", "measure", "output", "L",
+    "functions", "oracles", "measure", "output", "L", "initial_state",
 }
 NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,79}$")
 PARAM_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,31}$")
@@ -136,6 +136,9 @@ class Spec:
     measure: str = "function"
     # sublinear specs (``m: 0``, ``L`` given, no kappa): L's value; None otherwise
     L: float | None = None
+    # ``initial_state:`` the start xi_0 = a x0 + b g0 of ``pep``: (a_i, b_i) per state
+    # (expressions of the parameters, m, L, kappa); None: xi_0 = u x0
+    initial_state: tuple[tuple[Expr, Expr], ...] | None = None
     _sympy: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     @property

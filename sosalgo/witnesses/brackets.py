@@ -31,8 +31,8 @@ from flint import arb, arb_mat
 
 from sosalgo.witnesses.method import ArbMethod, arb_fraction, arb_method, arb_of, precision
 
-__all__ = ["BRACKET_KINDS", "Bracketed", "bracketed", "has_root_outside", "quadratic_bracket",
-           "rate_bracket", "self_similar_bracket"]
+__all__ = ["BRACKET_KINDS", "Bracketed", "bracketed", "has_root_outside", "output_part",
+           "quadratic_bracket", "rate_bracket", "self_similar_bracket"]
 
 BRACKET_KINDS = ("quadratic", "self-similar")  # the --brackets choices
 BELOW = (1e-12, 1e-9, 1e-7, 1e-5)  # rho_lower = r (1 - this): the first that is proven
@@ -199,14 +199,41 @@ def quadratic_bracket(bk: Bracketed) -> tuple[float, dict[str, Any]] | None:
             if bk.om.measure == "function" and not any(v > 0 for v in q):
                 return None  # every f_j = 0: the function values measure nothing
             M, row = _loop_exact(bk.am, q)
+            if not _observable(M, row):  # drop the states that never reach the output
+                M, row = output_part(M, row)
             if _observable(M, row):
                 return _prove_radius(bk, q, M)
     return None
 
 
+def output_part(M: arb_mat, row: arb_mat) -> tuple[arb_mat, arb_mat]:
+    """The closed loop restricted to the states that reach the output: R grows from the
+    states the output row reads (entries not exactly 0) by every state some state of R
+    reads (M[k, i] not exactly 0, k in R). For i outside R, M[k, i] = 0 for every k in R,
+    so the R-subsystem is autonomous and gives the same output sequence, with the
+    eigenvalues of M on R (e.g. the two-state form of gradient descent, whose first state
+    is never read: only its mode 1 - h q remains)."""
+    n = M.nrows()
+    reach = {i for i in range(n) if not row[0, i].is_zero()}
+    grow = True
+    while grow:
+        new = {i for i in range(n) for k in reach if not M[k, i].is_zero()} - reach
+        reach |= new
+        grow = bool(new)
+    keep = sorted(reach)
+    if not keep or len(keep) == n:
+        return M, row
+    Mr = arb_mat([[M[k, i] for i in keep] for k in keep])
+    return Mr, arb_mat([[row[0, i] for i in keep]])
+
+
 def _prove_radius(bk: Bracketed, q: list[Fraction], M: arb_mat
                   ) -> tuple[float, dict[str, Any]] | None:
     r = _radius(bk.om, np.array([float(v) for v in q]))
+    if M.nrows() < bk.om.n:  # a reduced loop: its own radius
+        mid = np.array([[float(M[i, j].mid()) for j in range(M.ncols())]
+                        for i in range(M.nrows())])
+        r = float(np.abs(np.linalg.eigvals(mid)).max())
     coeffs = M.charpoly().coeffs()
     for below in BELOW:
         rl = float(r * (1.0 - below))
@@ -215,7 +242,9 @@ def _prove_radius(bk: Bracketed, q: list[Fraction], M: arb_mat
             return rl, {"kind": "quadratic", "rho_lower": str(Fraction(rl)),
                         "curvatures": {n: str(v) for n, v in zip(names, q, strict=True)},
                         "check": "Schur-Cohn on the characteristic polynomial in balls; "
-                                 "observability matrix nonsingular"}
+                                 "observability matrix nonsingular" + (
+                                     "" if M.nrows() == bk.om.n else
+                                     f" (on the {M.nrows()} states that reach the output)")}
     return None
 
 

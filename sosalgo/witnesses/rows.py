@@ -13,7 +13,7 @@ from sosalgo.errors import InputError, ModelError
 from sosalgo.witnesses.brackets import BRACKET_KINDS, bracketed, rate_bracket
 
 __all__ = ["BRACKET_CHOICES", "DEFAULT_BRACKETS", "EMPTY", "check_witness_options",
-           "verdict", "witness_cells", "witness_fields", "witness_json"]
+           "verdict", "with_witnesses", "witness_cells", "witness_fields", "witness_json"]
 
 DEFAULT_BRACKETS = "quadratic"
 BRACKET_CHOICES = (*BRACKET_KINDS, "none")
@@ -51,6 +51,17 @@ def witness_fields(spec: Any, kappa: float, theta: Mapping[str, float] | None,
         return dict(EMPTY)
     return {"rho_lower": lo, "rho_lower_kind": kind, "rho_lower_witness": wit,
             "cycle": None}
+
+
+def with_witnesses(spec: Any, kappa: float, theta: Mapping[str, float] | None, res: Any,
+                   brackets: str = DEFAULT_BRACKETS,
+                   cycle_seconds: float = CYCLE_SECONDS) -> Any:
+    """An :class:`~sosalgo.analysis.AnalysisResult` with the fields of
+    :func:`witness_fields` filled in (the Python API's ``analyze(..., brackets=...)``)."""
+    import dataclasses
+
+    return dataclasses.replace(res, **witness_fields(spec, kappa, theta, res.certified,
+                                                     res.rho, brackets, cycle_seconds))
 
 
 def check_witness_options(brackets: Any, cycle_seconds: Any) -> None:

@@ -1,0 +1,351 @@
+"""The exact check of a PEP witness (:func:`check_witness`) and the exact fit of its
+function values (:func:`fit_values`), in ball arithmetic: python-flint's ``arb``
+(outward rounded, :data:`PREC` bits) around the exact rationals of the document and the
+exact method of :func:`sosalgo.pep.exact.exact_method` (its rational balls enclosed
+outward). A claim holds only when every ball says so (``x >= 0`` of an ``arb`` is true
+only for the whole ball).
+
+The check trusts nothing but the spec: it recomputes the trajectory from xi_0 = u x_0
+(or ``xi0``) and the calls (xi_{k+1} = A xi_k + B u_k, y_k = C xi_k + D u_k), checks
+every class inequality of every ordered pair of each function's points (x* = 0 with
+g = s_j*, h = 0) on the tilted data (g - s_j*, h), sum_j s_j* = 0, and evaluates measure
+and initial: tau_N >= measure / initial (the lower end over the upper end).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from fractions import Fraction
+from typing import Any
+
+from flint import arb, arb_mat
+
+from sosalgo.pep.exact import ball, exact_method
+from sosalgo.pep.structure import Method
+from sosalgo.pep.terms import Term
+from sosalgo.spec import Spec
+from sosalgo.witnesses.method import arb_fraction, precision
+
+__all__ = ["PREC", "ArbView", "arb_view", "check_witness", "fit_values", "pair_forms",
+           "positions", "q_str"]
+
+PREC = 384  # bits: far below every slack a witness keeps, and cheap
+
+
+def q_str(x: float | Fraction) -> str:
+    """An exact rational as ``p/q`` (an integer alone)."""
+    f = Fraction(x)
+    return f"{f.numerator}/{f.denominator}" if f.denominator != 1 else str(f.numerator)
+
+
+def _mat(rows: Any) -> arb_mat:
+    rows = [[ball(v) for v in row] for row in rows]
+    return arb_mat(len(rows), len(rows[0]) if rows else 0, [v for r in rows for v in r])
+
+
+@dataclass
+class ArbView:
+    """An exact :class:`Method` as arb matrices (A, B, C, D, E; X0 (n x 1), Xs (n x J-1))
+    and its class inequalities (alpha, 4 x 4 Q) per function."""
+
+    mt: Method
+    A: arb_mat
+    B: arb_mat
+    C: arb_mat
+    D: arb_mat
+    E: arb_mat | None
+    X0: arb_mat
+    Xs: list[list[arb]]
+    ineqs: list[list[tuple[arb, list[list[arb]]]]]
+    G0: arb_mat | None = None  # ``initial_state``: xi_0 = X0 x_0 + G0 g0
+
+    def coef(self, t: Term) -> arb:
+        return ball(self.mt.coef(t))
+
+
+def arb_view(mt: Method) -> ArbView:
+    """The arb form of an exact method (at :data:`PREC` bits)."""
+    with precision(PREC):
+        ineqs = [[(ball(a), [[ball(v) for v in row] for row in Q]) for a, Q in fi]
+                 for fi in mt.ineqs]
+        return ArbView(mt, _mat(mt.A), _mat(mt.B), _mat(mt.C), _mat(mt.D),
+                       None if mt.E is None else _mat(mt.E), _mat([[v] for v in mt.X0]),
+                       [[ball(v) for v in row] for row in mt.Xs], ineqs,
+                       None if mt.G0 is None else _mat([[v] for v in mt.G0]))
+
+
+def _label(i: int, k: int, p: int) -> str:
+    return f"y{k}" if p == 1 else f"y{i + 1}_{k}"
+
+
+def _start(doc: dict[str, Any], av: ArbView, r: int) -> arb_mat:
+    n = av.mt.n
+    if doc.get("xi0") is not None:
+        xi = doc["xi0"]
+        if len(xi) != n or any(len(row) != r for row in xi):
+            raise ValueError(f"xi0: expected {n} states of {r} coordinates")
+        return _mat(xi)
+    if len(doc["x0"]) != r:
+        raise ValueError(f"x0: expected {r} coordinates")
+    xi = av.X0 * _mat([doc["x0"]])
+    if av.G0 is None:
+        return xi
+    name = av.mt.functions[av.mt.smooth][0]  # initial_state: + G0 g0, g0 its gradient at x0
+    g0 = next(pt["g"] for pt in doc["functions"][name]["points"] if pt["label"] == "x0")
+    if len(g0) != r:
+        raise ValueError(f"{name} at x0: expected {r} coordinates")
+    return xi + av.G0 * _mat([g0])
+
+
+def positions(doc: dict[str, Any], av: ArbView) -> dict[str, Any]:
+    """Every point of the trajectory (a list of r balls), recomputed from the start and
+    the calls; ``xi0``, ``xiN``: the states (arb_mat, n x r) at steps 0 and N."""
+    mt = av.mt
+    r, p, N = int(doc["dimension"]), mt.p, int(doc["steps"])
+    xi = _start(doc, av, r)
+    pos: dict[str, Any] = {"xi0": xi}
+    for k in range(int(doc["call_steps"])):
+        rows = doc["calls"][k]
+        if len(rows) != p or any(len(ui) != r for ui in rows):
+            raise ValueError(f"calls[{k}]: expected {p} gradients of {r} coordinates")
+        u = _mat(rows)
+        y = av.C * xi + av.D * u
+        for i in range(p):
+            pos[_label(i, k, p)] = [y[i, c] for c in range(r)]
+        if k < N:
+            xi = av.A * xi + av.B * u
+    pos["xiN"] = xi
+    for k, key in ((N, f"x{N}"), (0, "x0")):
+        if key == "x0" and doc.get("xi0") is None:
+            pos["x0"] = [ball(v) for v in doc["x0"]]
+        elif mt.output is None:
+            row = av.E * (pos["xiN"] if k == N else pos["xi0"])  # type: ignore[operator]
+            pos[key] = [row[0, c] for c in range(r)]
+        else:
+            pos[key] = pos[_label(mt.output, k, p)]
+    for i in range(p):
+        pos.setdefault(f"y{i + 1}_{N}", pos.get(_label(i, N, p)))
+    return pos
+
+
+def pair_forms(doc: dict[str, Any], av: ArbView, pos: dict[str, Any]
+               ) -> list[tuple[list[str], list[tuple[int, int, arb, arb]]]]:
+    """Per function: (labels, [(a, b, alpha, q)]) with q = X' Q X the quadratic part of
+    each tilted class inequality alpha (h_a - h_b) + q >= 0 of each ordered pair (x*
+    last, g = s_j*, h = 0)."""
+    out = []
+    for j, (name, _, _) in enumerate(av.mt.functions):
+        fd = doc["functions"][name]
+        sj = [ball(v) for v in fd["optimal_subgradient"]]
+        r = len(sj)
+        vecs = []
+        for pt in fd["points"]:
+            x = pos[pt["label"]]
+            if len(x) != r or len(pt["g"]) != r:
+                raise ValueError(f"{name} at {pt['label']}: expected {r} coordinates")
+            vecs += [x, [ball(g) - s for g, s in zip(pt["g"], sj, strict=True)]]
+        vecs += [[arb(0)] * r, [arb(0)] * r]  # x*: point 0, tilted subgradient 0
+        Vm = arb_mat(len(vecs), r, [v for row in vecs for v in row])
+        gram = Vm * Vm.transpose()
+        npts = len(vecs) // 2
+        rows = []
+        for a in range(npts):
+            for b in range(npts):
+                if a == b:
+                    continue
+                idx = (2 * a, 2 * b, 2 * a + 1, 2 * b + 1)  # x_a, x_b, g_a, g_b
+                for alpha, Q in av.ineqs[j]:
+                    q = arb(0)
+                    for u in range(4):
+                        for v in range(4):
+                            if not Q[u][v].is_zero():
+                                q += Q[u][v] * gram[idx[u], idx[v]]
+                    rows.append((a, b, alpha, q))
+        out.append(([pt["label"] for pt in fd["points"]] + ["x*"], rows))
+    return out
+
+
+def _round_down(w: Fraction, bits: int = 64) -> Fraction:
+    """A binary rational <= w with about ``bits`` significant bits."""
+    if w == 0:
+        return w
+    e = w.numerator.bit_length() - w.denominator.bit_length() - bits
+    return Fraction(math.floor(w / Fraction(2) ** e)) * Fraction(2) ** e
+
+
+def _edges(rows: list[tuple[int, int, arb, arb]]) -> list[tuple[int, int, Fraction]] | None:
+    """Each inequality alpha (h_a - h_b) + q >= 0 (for every alpha, q of the balls) as a
+    difference constraint h_b <= h_a + w (alpha > 0: w <= q / alpha) or h_a <= h_b + w
+    (alpha < 0); None when some alpha may vanish and its q >= 0 is not proven."""
+    edges = []
+    for a, b, alpha, q in rows:
+        if alpha > 0:
+            edges.append((a, b, _round_down(arb_fraction((q / alpha).lower()))))
+        elif alpha < 0:
+            edges.append((b, a, _round_down(arb_fraction((q / -alpha).lower()))))
+        elif not q >= 0:
+            return None
+    return edges
+
+
+def _shortest(n: int, src: int, edges: list[tuple[int, int, Fraction]]
+              ) -> list[Fraction | None] | None:
+    """Bellman-Ford from ``src`` (exact); None on a negative cycle."""
+    dist: list[Fraction | None] = [None] * n
+    dist[src] = Fraction(0)
+    for _ in range(n + 1):
+        changed = False
+        for u, v, w in edges:
+            du = dist[u]
+            if du is not None and (dist[v] is None or du + w < dist[v]):  # type: ignore[operator]
+                dist[v] = du + w
+                changed = True
+        if not changed:
+            return dist if dist[src] == 0 else None
+    return None
+
+
+def fit_values(doc: dict[str, Any], mt: Method | ArbView) -> bool:
+    """Replace the values h of every function by exact ones that satisfy every class
+    inequality at the exactly recomputed points: the largest solution of the difference
+    constraints (:func:`_edges`), shortest paths from x* (h = 0). False (doc unchanged)
+    when none exists (a negative cycle: no function of the class has that geometry)."""
+    av = mt if isinstance(mt, ArbView) else arb_view(mt)
+    try:
+        with precision(PREC):
+            forms = pair_forms(doc, av, positions(doc, av))
+            new = []
+            for labels, rows in forms:
+                edges = _edges(rows)
+                dist = None if edges is None else _shortest(len(labels), len(labels) - 1,
+                                                            edges)
+                if dist is None:
+                    return False
+                new.append(dist)
+    except (KeyError, ValueError, TypeError, IndexError, ArithmeticError, StopIteration):
+        return False
+    for (name, _, _), dist in zip(av.mt.functions, new, strict=True):
+        for pt, h in zip(doc["functions"][name]["points"], dist, strict=False):
+            if h is not None:
+                pt["h"] = q_str(h)
+    return True
+
+
+def _pairs_ok(doc: dict[str, Any], av: ArbView, pos: dict[str, Any]) -> tuple[int, int]:
+    """(pairs checked, pairs not proven): every tilted class inequality."""
+    checked = bad = 0
+    for (name, _, _), (_, rows) in zip(av.mt.functions, pair_forms(doc, av, pos),
+                                       strict=True):
+        h = [ball(pt["h"]) for pt in doc["functions"][name]["points"]] + [arb(0)]
+        for a, b, alpha, q in rows:
+            checked += 1
+            bad += not (alpha * (h[a] - h[b]) + q >= 0)
+    return checked, bad
+
+
+def _dot(a: list[arb], b: list[arb]) -> arb:
+    return sum((x * y for x, y in zip(a, b, strict=True)), arb(0))
+
+
+def _sdist(doc: dict[str, Any], av: ArbView, xi: arb_mat) -> arb:
+    """|xi - xi*|^2 over every state block, xi* = X_s s~ (x* = 0)."""
+    sst = [[ball(v) for v in doc["functions"][name]["optimal_subgradient"]]
+           for name, _, _ in av.mt.functions[:-1]]
+    total = arb(0)
+    for a in range(av.mt.n):
+        for c in range(xi.ncols()):
+            d = xi[a, c] - sum((av.Xs[a][j] * s[c] for j, s in enumerate(sst)), arb(0))
+            total += d * d
+    return total
+
+
+def pos_key(point: str, N: int, p: int) -> str:
+    """The position key of a term point y<i> at step N."""
+    return f"y{N}" if p == 1 else f"{point}_{N}"
+
+
+def _terms_value(terms: list[Term], doc: dict[str, Any], av: ArbView,
+                 pos: dict[str, Any]) -> arb:
+    mt, N = av.mt, int(doc["steps"])
+    total = arb(0)
+    for t in terms:
+        c = av.coef(t)
+        if t.kind == "sdist":
+            total += c * _sdist(doc, av, pos["xi0" if t.point == "x0" else "xiN"])
+            continue
+        key = {"x": f"x{N}", "x0": "x0"}.get(t.point) or pos_key(t.point, N, mt.p)
+        P = pos[key]
+        if t.kind == "dist":
+            total += c * _dot(P, P)
+            continue
+        funcs = (range(len(mt.functions)) if t.kind == "f" else
+                 [j for j, f in enumerate(mt.functions) if "gradient" in f[1].oracles])
+        acc: Any = arb(0) if t.kind == "f" else [arb(0)] * len(P)
+        for j in funcs:
+            name = mt.functions[j][0]
+            label = doc["evaluations"][f"{t.point}|{name}"]
+            pt = next(q for q in doc["functions"][name]["points"] if q["label"] == label)
+            if pos[label] is not P and not all((a - b).is_zero()
+                                               for a, b in zip(pos[label], P, strict=True)):
+                raise ValueError(f"{name} at {label} is not provably the point {key}")
+            if t.kind == "f":
+                acc = acc + ball(pt["h"])
+            else:
+                acc = [a + ball(g) for a, g in zip(acc, pt["g"], strict=True)]
+        total += c * (acc if t.kind == "f" else _dot(acc, acc))
+    return total
+
+
+def _measure_initial(doc: dict[str, Any], spec: Spec, av: ArbView
+                     ) -> tuple[int, int, bool, arb, arb]:
+    """(pairs checked, not proven, optimal subgradients sum to 0, measure, initial)."""
+    from sosalgo.pep.terms import parse_terms
+
+    p = av.mt.p
+    mterms = parse_terms(doc["measure"], "measure", False, p)
+    iterms = parse_terms(doc["initial"], "initial", True, p)
+    if any(t.kind == "sdist" for t in iterms) != (doc.get("xi0") is not None):
+        raise ValueError("an initial sdist needs the free start xi0, and only it")
+    pos = positions(doc, av)
+    checked, bad = _pairs_ok(doc, av, pos)
+    ssum = [sum(Fraction(v[c]) for v in (f["optimal_subgradient"] for f in
+                                          doc["functions"].values()))
+            for c in range(int(doc["dimension"]))]
+    return (checked, bad, not any(ssum), _terms_value(mterms, doc, av, pos),
+            _terms_value(iterms, doc, av, pos))
+
+
+def check_witness(doc: dict[str, Any], spec: Spec, mt: Method | ArbView | None = None
+                  ) -> dict[str, Any]:
+    """Check a witness against ``spec`` (see the module; ``mt``: its exact method, built
+    here when not given); never raises on a bad witness: ``verified`` False with the
+    reason."""
+    from sosalgo.pep.bind import bound_method
+
+    t0 = time.perf_counter()
+    out: dict[str, Any] = {"verified": False, "check_kind": "exact (rational and ball "
+                           "arithmetic)", "tau_lower": None, "tau_lower_float": None}
+    try:
+        if mt is None:
+            kappa = doc.get("kappa")
+            om, _ = bound_method(spec, None if spec.sublinear else kappa)
+            mt = exact_method(spec, kappa, om)
+        av = mt if isinstance(mt, ArbView) else arb_view(mt)
+        with precision(PREC):
+            checked, bad, zero_sum, meas, init = _measure_initial(doc, spec, av)
+    except (KeyError, ValueError, TypeError, IndexError, ZeroDivisionError, StopIteration,
+            ArithmeticError) as exc:
+        return out | {"detail": f"malformed or inconsistent witness: {type(exc).__name__}: "
+                                f"{exc}", "seconds": time.perf_counter() - t0}
+    out["pairs_checked"] = checked
+    if bad or not zero_sum or not init > 0 or not meas >= 0:
+        why = (f"{bad} interpolation inequalities not proven" if bad else
+               "the optimal subgradients do not sum to 0" if not zero_sum else
+               "the initial condition is not positive" if not init > 0 else "measure < 0")
+        return out | {"detail": why, "seconds": time.perf_counter() - t0}
+    lower = arb_fraction(meas.lower()) / arb_fraction(init.upper())
+    return out | {"verified": True, "tau_lower": q_str(lower), "tau_lower_float": float(lower),
+                  "detail": f"{checked} inequalities proven; the trajectory recomputed from "
+                            "the start and the calls", "seconds": time.perf_counter() - t0}
