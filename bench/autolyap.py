@@ -21,8 +21,10 @@ from __future__ import annotations
 import importlib.util
 import json
 import os
+import statistics
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 from bench.common import one_core, timed
@@ -83,17 +85,18 @@ def one_rate(job):
 
 def measure(job):
     one_rate(job)  # warm-up: imports, cvxpy's first canonicalization
-    times, solves, solver = [], [], []
+    times, cpus, solves, solver = [], [], [], []
     for _ in range(job["repeats"]):
         STATS.update(solves=0, solver=0.0)
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         res = one_rate(job)
         times.append(time.perf_counter() - t0)
+        cpus.append(time.process_time() - c0)
         solves.append(STATS["solves"])
         solver.append(STATS["solver"])
     return {"status": res["status"], "rho2": res["rho"], "median": statistics.median(times),
             "min": min(times), "solves": statistics.median(solves),
-            "solver": statistics.median(solver)}
+            "solver": statistics.median(solver), "cpu": statistics.median(cpus)}
 
 jobs = json.load(sys.stdin)
 print(json.dumps({"version": version("autolyap"), "results": [measure(j) for j in jobs],
@@ -164,10 +167,13 @@ def _table(python: str, origin: str, repeats: int, core: str, quick: bool) -> No
           f"certified rate over {repeats} repeats, tol {TOL:g}, {core} "
           f"(AutoLyap's subprocess on cores {theirs[0]['cores']})")
     print(f"(load average at start: {os.getloadavg()[0]:.1f}; ρ AutoLyap = √(its rho))")
+    print("(CPU: median processor time of one rate, both tools; the CPU ratios are the ones "
+          "that hold on a loaded machine)")
     print("| method | κ | ρ sosalgo (lag) | ρ AutoLyap | AutoLyap − sosalgo | solves sosalgo | "
           "solves AutoLyap | sosalgo ms | lag 0 ms | AutoLyap ms | in solver | "
-          "ratio | ratio lag 0 |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "ratio | ratio lag 0 | CPU ms sosalgo / lag 0 / AutoLyap | CPU ratio | "
+          "CPU ratio lag 0 |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     ratios: dict[tuple[str, str], list[float]] = {}
     for (name, k, _), mine, res in zip(algs, ours, theirs, strict=True):
         _row(name, k, mine, res["results"][0], ratios)
@@ -178,18 +184,27 @@ def _table(python: str, origin: str, repeats: int, core: str, quick: bool) -> No
 
 
 def _ours(alg: Algorithm, repeats: int) -> dict:
-    """sosalgo's default (lag chosen) and lag 0: median seconds, result, solves."""
+    """sosalgo's default (lag chosen) and lag 0: (median seconds, result, median processor
+    seconds of this thread)."""
     out = {}
     for key, fam in (("auto", Interpolation()), ("lag0", Interpolation(0))):
         analyze_algorithm(alg, tol=TOL, family=fam)  # warm-up
-        t, res, _ = timed(lambda f=fam: analyze_algorithm(alg, tol=TOL, family=f), repeats)
-        out[key] = (t, res)
+        cpu: list[float] = []
+
+        def one(f: Interpolation = fam, cpu: list[float] = cpu) -> object:
+            c0 = time.thread_time()
+            res = analyze_algorithm(alg, tol=TOL, family=f)
+            cpu.append(time.thread_time() - c0)
+            return res
+
+        t, res, _ = timed(one, repeats)
+        out[key] = (t, res, statistics.median(cpu))
     return out
 
 
 def _row(name: str, k: float, mine: dict, res: dict, ratios: dict) -> None:
-    t, ours = mine["auto"]
-    t0, _ = mine["lag0"]
+    t, ours, c = mine["auto"]
+    t0, _, c0 = mine["lag0"]
     rho = "-" if ours.rho is None else f"{ours.rho:.7f} ({ours.lag})"
     if res["status"] == "feasible":
         theirs = res["rho2"] ** 0.5
@@ -203,7 +218,11 @@ def _row(name: str, k: float, mine: dict, res: dict, ratios: dict) -> None:
     ratios.setdefault((name, "lag 0"), []).append(ratio0)
     print(f"| {name} | {k:g} | {rho} | {rt} | {diff} | {ours.solves} | {res['solves']:g} | "
           f"{t * 1e3:.1f} | {t0 * 1e3:.1f} | {res['median'] * 1e3:.0f} | {share:.0%} | "
-          f"{ratio:.1f}x | {ratio0:.1f}x |", flush=True)
+          f"{ratio:.1f}x | {ratio0:.1f}x | {c * 1e3:.1f} / {c0 * 1e3:.1f} / "
+          f"{res['cpu'] * 1e3:.0f} | {res['cpu'] / c:.1f}x | {res['cpu'] / c0:.1f}x |",
+          flush=True)
+    ratios.setdefault((name, "lag chosen, CPU"), []).append(res["cpu"] / c)
+    ratios.setdefault((name, "lag 0, CPU"), []).append(res["cpu"] / c0)
 
 
 if __name__ == "__main__":

@@ -54,15 +54,17 @@ def naive_rate(alg: Algorithm, lag: int, tol: float = TOL) -> float | None:
 
 def proxy_solves(alg: Algorithm, fam: Interpolation) -> int:
     """How many of an analysis's solves were on the family's cheap proxy (an untimed run
-    that counts the rough margin solves, which only the proxy climb makes)."""
+    that counts the margin solves of a problem of the proxy's size)."""
     import sosalgo.analysis as an
 
+    guess = fam.guess_problem(alg)
+    size = None if guess is None else guess.nvar
     orig, count = an.solve_margin, 0
 
-    def counting(problem, rho, rough=False):
+    def counting(problem, rho, **options):
         nonlocal count
-        count += bool(rough)
-        return orig(problem, rho, rough)
+        count += problem.nvar == size
+        return orig(problem, rho, **options)
 
     an.solve_margin = counting
     try:

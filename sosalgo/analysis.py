@@ -147,6 +147,9 @@ class _Search:
         # rho -> how far the margin's root may be from where t and the slope put it (the
         # duality gap over the slope, or above an uncertified rho with t > 0)
         self.spread: dict[float, float] = {}
+        # below this rho (a tolerance above a tight family's lower bound) the certificate
+        # degenerates: refined solves, equilibrated first (set by _start_near)
+        self.degenerate_below = -math.inf
 
     def plain(self, rho: float) -> Outcome:
         self.solves += 1
@@ -158,11 +161,16 @@ class _Search:
         not show all of its error: at rho = 1 and near it (1 - rho < REL_TOL)."""
         return rho >= 1.0 - REL_TOL
 
-    def margin(self, rho: float) -> Margin:
+    def margin(self, rho: float, rough: bool = True) -> Margin:
         """t(rho), solved again precisely when its sign is within the default accuracy and
-        that uncertainty would move the root by more than a quarter tolerance."""
+        that uncertainty would move the root by more than a quarter tolerance; ``rough``:
+        without iterative refinement (:func:`sosalgo.solvers.solve_margin`), except where
+        the certificate degenerates (below ``degenerate_below``: :meth:`degenerate`)."""
         self.solves += 1
-        mg = solve_margin(self.problem, rho)
+        if rho < self.degenerate_below:
+            mg = self.degenerate(rho)
+        else:
+            mg = solve_margin(self.problem, rho, rough=rough)
         floor = self.tiny(rho)
         if mg.undecided(floor):
             d = mg.slope
@@ -170,6 +178,16 @@ class _Search:
                 return self.precise(rho, mg)
         self.undecided = mg.undecided(floor)
         return mg
+
+    def degenerate(self, rho: float) -> Margin:
+        """t(rho) where the certificate degenerates: the equilibrated solve first, kept
+        when its point passes the check, else the unequilibrated one (and the
+        equilibrated one only when that fails), as :func:`solve_margin` orders them."""
+        first = solve_margin(self.problem, rho, equilibrate=True)
+        if self.checked(rho, first) is not None:
+            return first
+        plain = solve_margin(self.problem, rho, equilibrate=False)
+        return plain if plain.ok else first
 
     def precise(self, rho: float, mg: Margin) -> Margin:
         """t(rho) at the solver's tighter tolerances (``mg`` if that fails)."""
@@ -189,11 +207,18 @@ class _Search:
     def test(self, rho: float, ask_plain: bool = True) -> tuple[Outcome, float | None]:
         """(outcome, margin t); the margin is None when not computed or not trusted. A
         positive margin whose point fails the check is asked plainly only with
-        ``ask_plain`` (else it is not certified: the caller tries elsewhere)."""
+        ``ask_plain`` (else it is not certified: the caller tries elsewhere). The first
+        solve is rough (see :meth:`margin`); with ``ask_plain``, a rough answer that
+        certifies nothing although t > 0 (or a failed one) is solved again with
+        refinement."""
         if not self.use_margin:
             return self.plain(rho), None
         mg = self.margin(rho)
         out = self.checked(rho, mg)
+        if out is None and ask_plain and rho >= self.degenerate_below and not mg.precise and (
+                not mg.ok or (mg.t is not None and mg.t > 0)):
+            mg = self.margin(rho, rough=False)
+            out = self.checked(rho, mg)
         if out is None and mg.t is not None and mg.t > 0 and not mg.precise and (
                 self.tiny(rho) or _spread(mg, False) > 0.25 * self.tol(rho)):
             mg = self.precise(rho, mg)  # a rescaled point too close to call: solve precisely
@@ -310,7 +335,8 @@ def _secant(search: _Search, t_one: float, best: Outcome, tol: Tolerance):
 
 
 def _newton(search: _Search, ups: list, down: tuple | None, lo: float, hi: float,
-            best: Outcome, tol: Tolerance, skip_stale: bool = False):
+            best: Outcome, tol: Tolerance, skip_stale: bool = False,
+            pause: _Pending | None = None):
     """Bracketed Newton-type iteration on the margin t(rho), slopes from the dual solution.
 
     Above the threshold t is smooth and convex-like; the estimate from the certified side is
@@ -322,7 +348,9 @@ def _newton(search: _Search, ups: list, down: tuple | None, lo: float, hi: float
     tolerance, one test just below closes the bracket. Estimates outside the bracket fall
     back to bisection. With ``skip_stale`` (the search started near a tight family's rate),
     a step from below that lands within half a tolerance of hi (the point already tested)
-    is dropped. Invariant: hi is certified by a checked point, lo is not certified.
+    is dropped. With ``pause``, the search stops instead of that test just below, its state
+    kept in ``pause`` (:func:`_choose_lag` tests a larger lag there, which also decides this
+    one). Invariant: hi is certified by a checked point, lo is not certified.
     """
     def inside(est: float | None) -> float | None:
         return float(est) if est is not None and np.isfinite(est) and lo < est < hi else None
@@ -349,6 +377,9 @@ def _newton(search: _Search, ups: list, down: tuple | None, lo: float, hi: float
             break
         nxt = newton(ups[-1]) if ups and ups[-1][0] == hi else None
         if nxt is not None and hi - nxt < 0.5 * tl and confirmed_at != hi:
+            if pause is not None:
+                pause.keep(ups, down, lo, hi, best)
+                return lo, hi, best
             confirmed_at = hi  # the estimate is confirmed: close from below, once per hi
             below = max(hi - 0.999 * tl, lo + 0.5 * tl)
             out, t = search.test(below)
@@ -411,9 +442,10 @@ def analyze_algorithm(
 
 def _analyze_one(alg: Algorithm, tol: float, fam: CertificateFamily,
                  solvers: Sequence[str], method: str,
-                 quad: float | None = None) -> AnalysisResult:
+                 quad: float | None = None, pause: _Pending | None = None) -> AnalysisResult:
     """:func:`analyze_algorithm` for one member of a family (its problem as it is);
-    ``quad``: the method's rate on quadratics when already computed."""
+    ``quad``: the method's rate on quadratics when already computed; ``pause``: leave the
+    last test below the rate to a larger lag (:func:`_newton`), the state kept there."""
     start = time.perf_counter()
     problem = fam.problem(alg)
     # The margin problem is solved by Clarabel; a custom solver chain means plain bisection.
@@ -422,17 +454,20 @@ def _analyze_one(alg: Algorithm, tol: float, fam: CertificateFamily,
     fallback = fam.fallback_solvers if use_margin else None
     width = _tolerance(tol)
     search = _Search(problem, fallback or solvers, use_margin, width)
+    if pause is not None:
+        pause.search, pause.problem, pause.fam, pause.start = search, problem, fam, start
     if use_margin and fam.tight and quad is None:
         quad = quadratic_rate(alg, 201)
     quad = quad if use_margin and fam.tight else None
     lo0, down0 = 0.0, None
     if quad is not None and quad < 1 - width(quad):
         proxy = fam.guess_problem(alg)
-        lo, hi, best_near, ups, down0 = _start_near(search, quad, width(quad), proxy)
+        lo, hi, best_near, ups, down0 = _start_near(search, quad, width(quad), proxy,
+                                                    defer=pause is not None)
         if best_near is not None:
             lo, hi, best = _newton(search, ups, down0, lo, hi, best_near, width,
-                                   skip_stale=True)
-            return _result(alg, fam, problem, search, lo, hi, best, start)
+                                   skip_stale=True, pause=pause)
+            return _paused(pause, _result(alg, fam, problem, search, lo, hi, best, start))
         lo0 = lo
     best, t_one = search.test(1.0)
     slope_one = search.slope
@@ -447,12 +482,13 @@ def _analyze_one(alg: Algorithm, tol: float, fam: CertificateFamily,
             lag=fam.options().get("lag"),
         )
     if method == "secant" and t_one is not None and slope_one is not None:
-        lo, hi, best = _newton(search, [(1.0, t_one, slope_one)], down0, lo0, 1.0, best, width)
+        lo, hi, best = _newton(search, [(1.0, t_one, slope_one)], down0, lo0, 1.0, best, width,
+                               pause=pause)
     elif method == "secant" and t_one is not None:
         lo, hi, best = _secant(search, t_one, best, width)
     else:
         lo, hi, best = _bisect(search, 0.0, 1.0, best, width)
-    return _result(alg, fam, problem, search, lo, hi, best, start)
+    return _paused(pause, _result(alg, fam, problem, search, lo, hi, best, start))
 
 
 def _choose_lag(alg: Algorithm, tol: float, fam: CertificateFamily, solvers: Sequence[str],
@@ -465,14 +501,18 @@ def _choose_lag(alg: Algorithm, tol: float, fam: CertificateFamily, solvers: Seq
     certificate of lag l is one of lag l + 1, so when it does not beat the best rate none
     of the smaller ones does and the choice stops after that one test. Larger lags never
     certify less in exact arithmetic, but their solves are less accurate on degenerate
-    (tight) certificates, so the best is kept, never the last. The result carries that
-    lag's certificate and bracket (``lag`` None when no lag certifies a rate), and the
-    solves and seconds of the whole choice."""
+    (tight) certificates, so the best is kept, never the last. For the same reason the
+    best's search pauses before its last test below its rate (:func:`_newton`): a larger
+    lag found infeasible at that point (the next test of the choice) closes its bracket
+    (:func:`_close`), else the test is made at the end (:func:`_resume`). The result
+    carries that lag's certificate and bracket (``lag`` None when no lag certifies a
+    rate), and the solves and seconds of the whole choice."""
     start = time.perf_counter()
     members = [fam.with_options(lag=lag) for lag in lags]  # type: ignore[call-arg]
     # no valid certificate goes below the rate on quadratics (a grid max, not above it)
     floor = quadratic_rate(alg, 201)
-    best = _analyze_one(alg, tol, members[0], solvers, method, floor)
+    pend = _Pending()  # best's search, paused before its last test below (see _close)
+    best = _analyze_one(alg, tol, members[0], solvers, method, floor, pend)
     solves, misses, i = best.solves, 0, 1
     ahead: dict[int, _Probe] = {}  # a window's top, tested against the current best
     while i < len(members) and misses < LAG_PATIENCE:
@@ -482,17 +522,27 @@ def _choose_lag(alg: Algorithm, tol: float, fam: CertificateFamily, solvers: Seq
         if top > i and top not in ahead:
             probe = _probe(alg, tol, members[top], solvers, method, best, floor)
             solves += 0 if probe is None else probe.search.solves
+            best = _close(best, pend, probe)
             if probe is None or not probe.out.feasible:
                 break  # the largest lag of the window does not beat best: none does
             ahead = {top: probe}
-        res, spent = _improve(alg, tol, members[i], solvers, method, best, floor,
-                              ahead.pop(i, None))
+        probe = ahead.pop(i, None)
+        if probe is None:
+            probe = _probe(alg, tol, members[i], solvers, method, best, floor)
+            solves += 0 if probe is None else probe.search.solves
+            best = _close(best, pend, probe)
+        nxt = _Pending()
+        res, spent = _improve(alg, tol, members[i], solvers, method, best, floor, probe,
+                              nxt if i + 1 < len(members) else None)
         solves += spent
         if res is None:
             misses += 1
         else:
-            best, misses, ahead = res, 0, {}
+            best, misses, ahead, pend = res, 0, {}, nxt
         i += 1
+    if pend.result is not None and pend.result is best:  # no larger lag closed it
+        best, spent = _resume(alg, pend, tol)
+        solves += spent
     return dataclasses.replace(best, solves=solves, seconds=time.perf_counter() - start,
                                lag=best.lag if best.certified else None)
 
@@ -507,6 +557,58 @@ class _Probe:
     out: Outcome
     t: float | None
     start: float
+
+
+@dataclass
+class _Pending:
+    """A search paused before its last test below the rate (:func:`_newton`): its state,
+    and the result it gave so far (bracket not closed)."""
+
+    search: Any = None
+    problem: Any = None
+    fam: Any = None
+    start: float = 0.0
+    state: tuple | None = None  # (ups, down, lo, hi, best outcome) where it paused
+    result: AnalysisResult | None = None
+
+    def keep(self, ups: list, down: tuple | None, lo: float, hi: float, best: Outcome) -> None:
+        self.state = (ups, down, lo, hi, best)
+
+
+def _paused(pause: _Pending | None, res: AnalysisResult) -> AnalysisResult:
+    """``res``, remembered in ``pause`` when its search paused with a certified rate."""
+    if pause is not None:
+        pause.result = res if pause.state is not None and res.certified else None
+    return res
+
+
+def _close(best: AnalysisResult, pend: _Pending, probe: _Probe | None) -> AnalysisResult:
+    """``best`` with its bracket closed by ``probe``, a larger lag found infeasible at
+    best.rho less the tolerance: a certificate of a smaller lag is one of the larger lag
+    (module docstring of :mod:`sosalgo.certificates.interpolation`), so ``best``'s own
+    member is infeasible there too. Unchanged unless ``best`` is ``pend``'s paused result
+    and the probe's verdict is a solver's infeasible (not a failure)."""
+    if (pend.result is not best or probe is None or best.rho is None
+            or probe.out.status != Feasibility.INFEASIBLE or best.rho_infeasible is None
+            or not best.rho_infeasible < probe.x):
+        return best
+    spread = max(pend.search.spread.get(best.rho, 0.0), probe.search.spread.get(probe.x, 0.0))
+    unresolved = max(best.rho - probe.x, spread) > 2 * REL_TOL * (1 - best.rho)
+    pend.result = None
+    return dataclasses.replace(best, rho_infeasible=probe.x,
+                               warning=UNRESOLVED if unresolved else None)
+
+
+def _resume(alg: Algorithm, pend: _Pending, tol: float) -> tuple[AnalysisResult, int]:
+    """(pend's result with its search finished, the solves that took) when it is still
+    paused: the test below the rate that no larger lag made."""
+    assert pend.result is not None and pend.state is not None
+    ups, down, lo, hi, out = pend.state
+    before = pend.search.solves
+    lo, hi, out = _newton(pend.search, ups, down, lo, hi, out, _tolerance(tol))
+    res = _result(alg, pend.fam, pend.problem, pend.search, lo, hi, out, pend.start)
+    pend.result = None
+    return res, pend.search.solves - before
 
 
 def _probe(alg: Algorithm, tol: float, fam: CertificateFamily, solvers: Sequence[str],
@@ -528,11 +630,13 @@ def _probe(alg: Algorithm, tol: float, fam: CertificateFamily, solvers: Sequence
 
 def _improve(alg: Algorithm, tol: float, fam: CertificateFamily, solvers: Sequence[str],
              method: str, best: AnalysisResult, floor: float = 0.0,
-             probe: _Probe | None = None) -> tuple[AnalysisResult | None, int]:
+             probe: _Probe | None = None,
+             pause: _Pending | None = None) -> tuple[AnalysisResult | None, int]:
     """(result of ``fam``, solves) when ``fam`` certifies a rate below ``best.rho`` by at
     least the tolerance there (any rate <= 1 when ``best`` has none), else (None, solves):
     one test at that point (:func:`_probe`, or ``probe`` when already made, whose solves
-    are then not counted again), and a search below it only when it is certified."""
+    are then not counted again), and a search below it only when it is certified
+    (paused before its last test with ``pause``, see :func:`_newton`)."""
     spent = 0
     if probe is None:
         probe = _probe(alg, tol, fam, solvers, method, best, floor)
@@ -541,16 +645,21 @@ def _improve(alg: Algorithm, tol: float, fam: CertificateFamily, solvers: Sequen
         return None, spent
     search, x, out, t, width = probe.search, probe.x, probe.out, probe.t, _tolerance(tol)
     before = search.solves
+    if pause is not None:
+        pause.search, pause.problem, pause.fam, pause.start = (search, probe.problem, fam,
+                                                               probe.start)
     if t is not None and t > 0 and search.slope is not None:
-        lo, hi, out = _newton(search, [(x, t, search.slope)], None, 0.0, x, out, width)
+        lo, hi, out = _newton(search, [(x, t, search.slope)], None, 0.0, x, out, width,
+                              pause=pause)
     else:
         lo, hi, out = _bisect(search, 0.0, x, out, width)
-    res = _result(alg, fam, probe.problem, search, lo, hi, out, probe.start)
+    res = _paused(pause, _result(alg, fam, probe.problem, search, lo, hi, out, probe.start))
     better = res.certified and res.rho is not None and (best.rho is None or res.rho < best.rho)
     return (res if better else None), spent + search.solves - before
 
 
-def _start_near(search: _Search, guess: float, tol: float, proxy: LMIProblem | None = None):
+def _start_near(search: _Search, guess: float, tol: float, proxy: LMIProblem | None = None,
+                defer: bool = False):
     """For families expected to be tight: test just above ``guess`` (the method's rate on
     quadratics, where gradient descent and triple momentum are certified) and close the
     bracket below it, or climb with Newton steps from below until a certified point. With
@@ -561,13 +670,15 @@ def _start_near(search: _Search, guess: float, tol: float, proxy: LMIProblem | N
     ``guess`` is a lower bound of every rate: a certificate within ``tol`` above it closes
     the bracket at once (lo = guess). A positive margin at the first point that cannot be
     checked (a degenerate certificate: the rate is the bound) goes on to ``guess`` + 0.99
-    ``tol`` without asking the slower solvers there.
+    ``tol`` without asking the slower solvers there. With ``defer``, a certified first point
+    is not closed from below here (the caller's search pauses there instead).
 
     Returns (lo, hi, best, certified points, last uncertified point); ``best`` is None when
     no certified point turned up (lo and the last point below then seed the usual search).
     """
     x = first = min(guess + 0.25 * tol, 1.0)
     lo, down = 0.0, None
+    search.degenerate_below = guess + tol
     est = _proxy_root(search, proxy, x, tol) if proxy is not None else None
     if est is not None and est > x:  # the proxy climbed: start at its root
         if est >= 1.0:
@@ -581,7 +692,8 @@ def _start_near(search: _Search, guess: float, tol: float, proxy: LMIProblem | N
             ups = [(x, t, search.slope)]
             if x - guess < tol:  # within tol of a lower bound: the bracket is closed
                 return max(lo, guess), x, out, ups, down
-            if lo == 0.0 and x - tol > 0:  # certified at the first guess: close below it
+            if lo == 0.0 and x - tol > 0 and not defer:  # certified at the first guess:
+                # close below it
                 below = x - 0.999 * tol
                 out2, t2 = search.test(below)
                 if out2.feasible and t2 is not None and t2 > 0 and est is not None:

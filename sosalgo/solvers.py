@@ -18,7 +18,9 @@ import functools
 import math
 import os
 import sys
+import threading
 import weakref
+from collections import OrderedDict
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
@@ -326,15 +328,15 @@ class _MarginForm:
                 while j < len(blocks) and blocks[j].size == 1:
                     j += 1
                 run = blocks[i:j]
-                r0, r1 = np.empty((len(run), nv + 1)), np.empty((len(run), nv + 1))
-                for k, b in enumerate(run):
-                    r0[k, :nv], r0[k, nv] = b.l0[:, 0, 0], b.c0[0, 0]
-                    r1[k, :nv], r1[k, nv] = b.l1[:, 0, 0], b.c1[0, 0]
-                    if not b.strict:
-                        w -= r0[k, :nv]
+                r0 = np.column_stack([np.array([b.l0[:, 0, 0] for b in run]),
+                                      [b.c0[0, 0] for b in run]])
+                r1 = np.column_stack([np.array([b.l1[:, 0, 0] for b in run]),
+                                      [b.c1[0, 0] for b in run]])
+                strict = np.array([b.strict for b in run])
+                w -= r0[~strict, :nv].sum(axis=0)
                 a0.append(r0)
                 a1.append(r1)
-                eye.append(np.array([1.0 if b.strict else 0.0 for b in run]))
+                eye.append(strict.astype(float))
                 sizes += [1] * len(run)
                 i = j
                 continue
@@ -387,6 +389,12 @@ class _MarginForm:
         self.A.data = self.v0 + rho * rho * self.v1
         return self.A
 
+    def pattern(self, key: tuple) -> tuple:
+        """What a kept Clarabel solver depends on besides A's numbers: A's sparsity pattern
+        and cones (b and q follow from the shape), and the settings ``key``."""
+        A = self.A
+        return (key, A.shape, A.indptr.tobytes(), A.indices.tobytes(), tuple(self.sizes))
+
 
 @functools.lru_cache(maxsize=32)
 def _zero_csc(n: int) -> sps.csc_matrix:
@@ -432,13 +440,16 @@ class Margin:
 
 
 def solve_margin(problem: LMIProblem, rho: float, rough: bool = False,
-                 precise: bool = False) -> Margin:
+                 precise: bool = False, equilibrate: bool | None = None) -> Margin:
     """t(rho) of the homogenized margin problem (Clarabel without, then with equilibration).
 
-    ``rough``: without Clarabel's iterative refinement of the linear solves (about 25 %
-    faster, t differs in the 11th digit): for guesses only, never for a certificate.
+    ``rough``: without Clarabel's iterative refinement of the linear solves (about 35 %
+    faster, t differs in the 10th digit). Its status is still judged on residuals of the
+    returned iterate, and a point becomes a certificate only through :func:`check_point`,
+    so the rate search uses it for every test but the precise ones.
     ``precise``: Clarabel's tolerances at ``PRECISE_TOL`` instead of 1e-8, for a t whose
-    sign the default leaves open (near the rate at large kappa, where t is tiny)."""
+    sign the default leaves open (near the rate at large kappa, where t is tiny).
+    ``equilibrate``: that one attempt only (None: without, then with equilibration)."""
     form = _MARGINS.get(problem)
     if form is None:
         form = _MARGINS[problem] = _MarginForm(problem)
@@ -447,9 +458,9 @@ def solve_margin(problem: LMIProblem, rho: float, rough: bool = False,
     if not finite_data(A):
         return Margin(False, None, None, "non-finite problem data", precise=precise)
     detail = ""
-    for equilibrate in (False, True):
+    for eq in (False, True) if equilibrate is None else (equilibrate,):
         try:
-            sol = _margin_solve(form, A, equilibrate, rough, precise)
+            sol = _margin_solve(form, A, eq, rough, precise)
         except Exception as exc:  # noqa: BLE001 - a crash is just "no answer"
             detail = f"exception: {type(exc).__name__}"
             continue
@@ -473,6 +484,8 @@ def _margin_solve(form: _MarginForm, A: sps.csc_matrix, equilibrate: bool, rough
 
     key = (rough, precise)
     kept = form.solvers.get(key)
+    if not equilibrate and kept is None:
+        kept = form.solvers[key] = _shared_solvers().get(form.pattern(key))
     if not equilibrate and kept is not None:  # same pattern: update numbers
         kept.update(A=A.data.copy())
         return solve_or_raise(kept)
@@ -480,7 +493,40 @@ def _margin_solve(form: _MarginForm, A: sps.csc_matrix, equilibrate: bool, rough
                                     _clarabel_settings(equilibrate, not rough, precise))
     if not equilibrate and solver.is_data_update_allowed():
         form.solvers[key] = solver
+        _shared_solvers().put(form.pattern(key), solver)
     return solve_or_raise(solver)
+
+
+class _SolverCache:
+    """Clarabel solvers by sparsity pattern, least recently used dropped: the margin
+    problems of one method at other kappas or parameters (same pattern, other numbers) skip
+    Clarabel's setup and get their numbers by ``update`` (the solve itself starts afresh)."""
+
+    SIZE = 16
+
+    def __init__(self) -> None:
+        self.kept: OrderedDict[tuple, Any] = OrderedDict()
+
+    def get(self, key: tuple) -> Any:
+        solver = self.kept.get(key)
+        if solver is not None:
+            self.kept.move_to_end(key)
+        return solver
+
+    def put(self, key: tuple, solver: Any) -> None:
+        self.kept[key] = solver
+        if len(self.kept) > self.SIZE:
+            self.kept.popitem(last=False)
+
+
+_LOCAL = threading.local()  # one cache per thread: a solver is never shared across threads
+
+
+def _shared_solvers() -> _SolverCache:
+    cache = getattr(_LOCAL, "solvers", None)
+    if cache is None:
+        cache = _LOCAL.solvers = _SolverCache()
+    return cache
 
 
 class _Evaluator:

@@ -154,11 +154,11 @@ def _pairs_float(pts: list, MM: np.ndarray, gap: float, nphi: int) -> tuple[list
     X = np.stack([xs[ii], xs[jj], gs[ii], gs[jj]], axis=1)  # (pairs, 4, width)
     Mq = 0.5 * (X.transpose(0, 2, 1) @ MM @ X)
     lin = np.zeros((len(idx), nphi))
-    for k, (i, j) in enumerate(idx):
-        if pts[i][3] is not None:
-            lin[k, pts[i][3]] += gap
-        if pts[j][3] is not None:
-            lin[k, pts[j][3]] -= gap
+    phi = np.array([-1 if p[3] is None else p[3] for p in pts])  # -1: x* (no value)
+    rows = np.arange(len(idx))
+    fi, fj = phi[ii], phi[jj]  # distinct points have distinct values: no column twice
+    lin[rows[fi >= 0], fi[fi >= 0]] = gap
+    lin[rows[fj >= 0], fj[fj >= 0]] = -gap
     labels = [f"{pts[i][0]}>{pts[j][0]}" for i, j in idx]
     return labels, list(Mq), list(lin)
 
