@@ -30,7 +30,8 @@ help:
 	@echo "make figures  - table1, fig1, fig2, fig3 and fig4"
 	@echo "make fuzz     - the loader fuzz tests with FUZZ_EXAMPLES (default 20000) cases"
 	@echo "make soundness - design bounds and composite rates vs independent judges, SOUNDNESS_CASES (300) and COMPOSITE_CASES (200) specs;"
-	@echo "                 sublinear constants, noise bounds, PEP bounds, rate brackets on NEW_CASES (100) random methods each"
+	@echo "                 sublinear constants, noise bounds, PEP bounds, rate brackets on NEW_CASES (100) random methods each;"
+	@echo "                 PEP from initial states and long horizons, hidden-mode brackets, Pareto and objective designs"
 	@echo "make clean    - remove CSV, PNG, PDF and JSON files from $(OUT)/"
 	@echo "Options: WORKERS=N, SCHEDULER=tcp://host:8786 (batch targets), OUT=DIR"
 

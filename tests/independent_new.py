@@ -5,7 +5,8 @@ The methods judged are gradient methods with momentum on one function f,
 
     y_k = x_k + eta (x_k - x_{k-1}),   x_{k+1} = x_k - h grad f(y_k) + beta (x_k - x_{k-1}),
 
-with state xi_k = (x_{k-1}, x_k), output x_k, started at rest (x_{-1} = x_0), and with
+with state xi_k = (x_{k-1}, x_k), output x_k, started at rest (x_{-1} = x_0) or from a
+linear start (x0 + c g0, x0 + c' g0) (a spec's ``initial_state:``), and with
 exact rational parameters (h L, beta, eta, m, L). Everything here gives LOWER bounds on
 worst cases (a bad instance is a proof that the worst case is at least its value), or
 re-checks a claimed witness from its numbers:
@@ -15,8 +16,11 @@ re-checks a claimed witness from its numbers:
 - :func:`gamma_quadratic`: the noise sensitivity on quadratics (q/2)|x|^2, q in [m, L]
   (discrete Lyapunov equation per q), and :func:`noise_monte_carlo` on a Huber-type f;
 - :func:`pep_floor`: measure(x_N) / |x_0 - x*|^2 on quadratics and Huber-type functions;
-  :func:`gd_tau_convex`, :func:`gd_tau_strong`: gradient descent's exact worst cases;
+  :func:`gd_tau_convex`, :func:`gd_tau_strong`, :func:`gd_tau_steps`: gradient
+  descent's exact worst cases (the last with a different first step);
 - :func:`max_radius`: the largest spectral radius of the closed loop over q in [m, L];
+  :func:`max_visible_radius`: the same over the modes the output sees (Kalman
+  observability, for any (A, B, C, E) with D = 0);
 - :func:`check_cycle`, :func:`check_pep_witness`: a claimed cycle / worst-case trajectory
   re-checked with the recursion and the F(m, L) interpolation inequality in fractions.
 """
@@ -80,12 +84,20 @@ def huber(x: np.ndarray, m: float, L: float, delta: np.ndarray | float,
     return m * x * x / 2 + (L - m) * H, m * x + (L - m) * dH
 
 
+Start = tuple[Fraction, Fraction]  # (c_prev, c_cur): x_{-1} = x0 + c_prev g0, x_0 = x0 + c_cur g0
+
+
 def run(meth: Momentum, grad: Callable[[np.ndarray], np.ndarray], x0: np.ndarray,
-        steps: int) -> np.ndarray:
-    """x_0 .. x_steps (rows) of the method from rest, for a batch of 1-D problems."""
+        steps: int, start: Start | None = None) -> np.ndarray:
+    """x_0 .. x_steps (rows) of the method for a batch of 1-D problems: from rest
+    (x_{-1} = x_0 = x0), or from the linear start (x0 + c_prev g0, x0 + c_cur g0),
+    g0 = grad(x0) (a spec's ``initial_state: [x0 + c_prev*g0, x0 + c_cur*g0]``)."""
     h, b, e = float(meth.h), float(meth.beta), float(meth.eta)
     xs = np.empty((steps + 1, *np.shape(x0)))
     prev = x = np.array(x0, dtype=float)
+    if start is not None:
+        g0 = grad(x)
+        prev, x = x + float(start[0]) * g0, x + float(start[1]) * g0
     xs[0] = x
     with np.errstate(over="ignore", invalid="ignore"):
         for k in range(steps):
@@ -186,18 +198,30 @@ def gd_tau_strong(h: float, m: float, L: float, N: int) -> float:
     return max(abs(1 - h * m), abs(1 - h * L)) ** (2 * N)
 
 
-def pep_floor(meth: Momentum, N: int, measure: str, points: int = 401
-              ) -> tuple[float, str]:
-    """max measure(x_N) / |x_0 - x*|^2 over quadratics (q/2) x^2, q in [m, L], and both
-    Huber-type functions of F(m, L) (kink on a grid), from rest at x_0 = 1, x* = 0;
-    measure "f" (f(x_N) - f*) or "dist" (|x_N - x*|^2)."""
+def gd_tau_steps(hs: Sequence[Fraction], m: Fraction, L: Fraction
+                 ) -> tuple[Fraction, Fraction]:
+    """Gradient descent with steps h_1 .. h_K on F(m, L), dist/dist: (the larger of the
+    quadratics q = m, L, prod_k (1 - h_k q)^2, a bad instance; prod_k max(|1 - h_k m|,
+    |1 - h_k L|)^2, the product of the steps' Lipschitz constants, an upper bound), exact;
+    equal when every step is on the same side of 2/(m + L)."""
+    lo = max(math.prod(((1 - h * q) ** 2 for h in hs), start=Fraction(1)) for q in (m, L))
+    hi = math.prod((max(abs(1 - h * m), abs(1 - h * L)) ** 2 for h in hs), start=Fraction(1))
+    return lo, hi
+
+
+def pep_floor(meth: Momentum, N: int, measure: str, points: int = 401,
+              start: Start | None = None) -> tuple[float, str]:
+    """max measure(x_N) / |x0 - x*|^2 over quadratics (q/2) x^2, q in [m, L], and both
+    Huber-type functions of F(m, L) (kink on a grid), x0 = 1, x* = 0, from rest or from
+    ``start`` (:func:`run`); measure "f" (f(x_N) - f*) or "dist" (|x_N - x*|^2)."""
     m, L = float(meth.m), float(meth.L)
     q = np.linspace(m, L, points)
-    xq = run(meth, lambda y: q * y, np.ones(points), N)[-1]
+    xq = run(meth, lambda y: q * y, np.ones(points), N, start)[-1]
     best = [(q * xq * xq / 2 if measure == "f" else xq * xq, "quadratic q", q)]
     d = np.geomspace(1e-4, 1.0, points)
     for flip in ((False, True) if m > 0 else (False,)):
-        xh = run(meth, lambda y, fl=flip: huber(y, m, L, d, fl)[1], np.ones(points), N)[-1]
+        xh = run(meth, lambda y, fl=flip: huber(y, m, L, d, fl)[1], np.ones(points), N,
+                 start)[-1]
         val = huber(xh, m, L, d, flip)[0] if measure == "f" else xh * xh
         best.append((val, f"Huber (flip {flip}) delta", d))
     v, what, grid = max(best, key=lambda t: float(np.nanmax(t[0])))
@@ -310,21 +334,31 @@ def check_cycle(meth: Momentum, cycle: Mapping) -> str | None:
     return None
 
 
-def check_pep_witness(meth: Momentum, w: Mapping, measure: str) -> tuple[Fraction | None, str]:
+def check_pep_witness(meth: Momentum, w: Mapping, measure: str, start: Start | None = None
+                      ) -> tuple[Fraction | None, str]:
     """Recompute a PEP witness of the method (one function, x* = 0, f* = 0): iterates from
-    its x_0 and gradients in fractions, every inequality between its points (the calls
-    y_k, the evaluation point x_N, x*), and measure(x_N)/|x_0|^2. Returns (the exact
-    ratio, "") when it holds, else (None, the reason)."""
+    its x0 (from rest, or from ``start`` with g0 the subgradient given at the point x0)
+    and gradients in fractions, every inequality between its points (the calls y_k, x0,
+    the evaluation point x_N, x*), and measure(x_N)/|x0|^2. Returns (the exact ratio, "")
+    when it holds, else (None, the reason). The document's own "x" fields are not read."""
     (fn,) = w["functions"].values()
     x0 = vec(w["x0"])
     grads = [vec(c[0]) for c in w["calls"]]
+    given = {p["label"]: vec(p["g"]) for p in fn["points"]}
     N = len(grads)
     prev, x, ys = x0, x0, []
+    if start is not None:
+        g0 = given.get("x0", grads[0])  # no point x0: y_0 must be x0 (checked below)
+        prev = tuple(a + start[0] * g for a, g in zip(x0, g0, strict=True))
+        x = tuple(a + start[1] * g for a, g in zip(x0, g0, strict=True))
     for g in grads:
         ys.append(tuple(xx + meth.eta * (xx - pp) for pp, xx in zip(prev, x, strict=True)))
         x, prev = tuple(xx - meth.h * gg + meth.beta * (xx - pp)
                         for pp, xx, gg in zip(prev, x, g, strict=True)), x
-    where = {f"y{k}": ys[k] for k in range(N)} | {f"x{N}": x}
+    if start is not None and "x0" not in given and ys[0] != x0:
+        return None, "no point x0 with its gradient g0, and y0 != x0"
+    where = {f"y{k}": ys[k] for k in range(N)} | {f"x{N}": x} | (
+        {"x0": x0} if start is not None else {})
     pts, fx = [], None
     for p in fn["points"]:
         if p["label"] not in where:
@@ -332,7 +366,6 @@ def check_pep_witness(meth: Momentum, w: Mapping, measure: str) -> tuple[Fractio
         pts.append((where[p["label"]], vec(p["g"]), frac(p["h"])))
         if p["label"] == f"x{N}":
             fx = pts[-1][2]
-    given = {p["label"]: vec(p["g"]) for p in fn["points"]}
     if any(given.get(f"y{k}") != grads[k] for k in range(N)):
         return None, "the points are not the calls (labels y0 .. y(N-1), their gradients)"
     zero = tuple(Fraction(0) for _ in x0)
@@ -344,3 +377,48 @@ def check_pep_witness(meth: Momentum, w: Mapping, measure: str) -> tuple[Fractio
     if top is None:
         return None, "no value at x_N"
     return top / dot(x0, x0), ""
+
+
+# ------------------------------------------------------------------ observability
+
+
+def visible_radius(A: np.ndarray, B: np.ndarray, C: np.ndarray, E: np.ndarray, q: float,
+                   tol: float = 1e-9) -> tuple[float, float, int]:
+    """(spectral radius of the modes of M = A + q B C that the output E sees, radius of
+    all modes, rank of the observability matrix O = [E; E M; ...; E M^(n-1)]). The seen
+    modes are the eigenvalues of M on the quotient by ker O (A-invariant): with Q an
+    orthonormal basis of the row space of O (M'-invariant), eig(Q' M Q) (Kalman). Rank by
+    singular values > tol * largest: a near-deficient O counts as full (all modes), which
+    only raises this value."""
+    M = A + q * B @ C
+    n = M.shape[0]
+    rows, r = [], E
+    for _ in range(n):
+        rows.append(r)
+        r = r @ M
+    obs = np.vstack(rows)
+    _, s, vt = np.linalg.svd(obs)
+    k = int((s > tol * max(s[0], 1e-300)).sum())
+    full = float(np.abs(np.linalg.eigvals(M)).max())
+    if k == n:
+        return full, full, k
+    if k == 0:
+        return 0.0, full, 0
+    Q = vt[:k].T
+    return float(np.abs(np.linalg.eigvals(Q.T @ M @ Q)).max()), full, k
+
+
+def max_visible_radius(A: np.ndarray, B: np.ndarray, C: np.ndarray, E: np.ndarray,
+                       m: float, L: float, points: int = 4001) -> tuple[float, float]:
+    """(max over q in [m, L] of :func:`visible_radius`, the q): a grid, then bounded
+    searches around the five best grid points."""
+    qs = np.linspace(m, L, points)
+    rs = np.array([visible_radius(A, B, C, E, q)[0] for q in qs])
+    best, qb = float(rs.max()), float(qs[int(rs.argmax())])
+    for i in np.argsort(rs)[-5:]:
+        lo, hi = qs[max(i - 1, 0)], qs[min(i + 1, points - 1)]
+        r = minimize_scalar(lambda q: -visible_radius(A, B, C, E, q)[0], bounds=(lo, hi),
+                            method="bounded", options={"xatol": 1e-13 * max(1.0, L)})
+        if -r.fun > best:
+            best, qb = float(-r.fun), float(r.x)
+    return best, qb

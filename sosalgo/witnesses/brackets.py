@@ -107,13 +107,35 @@ def _radius(om: Any, q: np.ndarray) -> float:
         return 0.0
 
 
-def _argmax(om: Any, box: Sequence[tuple[Fraction, Fraction]]) -> np.ndarray:
-    """Curvatures where the float spectral radius is largest: a grid (a product grid
-    over several intervals), refined by golden sections around the best point."""
+def _seen_radius(om: Any, q: np.ndarray) -> float:
+    """Largest |eigenvalue| of the closed loop among the modes the output row sees
+    (float; |row v| > 1e-9 |row| |v| for the eigenvector v): a search heuristic only,
+    the bracket is then proven exactly."""
+    try:
+        M = _loop_float(om, q)
+        erow, drow = om.output_row()
+        Qd = np.diag([q[j] for j in om.oracles])
+        row = erow + drow @ np.linalg.solve(np.eye(om.p) - Qd @ om.D, Qd @ om.C)
+        lam, V = np.linalg.eig(M)
+    except np.linalg.LinAlgError:
+        return 0.0
+    seen = np.abs(row @ V) > 1e-9 * max(np.linalg.norm(row), 1e-300) * np.linalg.norm(V, axis=0)
+    return float(np.abs(lam[seen]).max()) if seen.any() else 0.0
+
+
+def _seen_radii(om: Any, qs: np.ndarray) -> np.ndarray:
+    return np.array([_seen_radius(om, q) for q in qs])
+
+
+def _argmax(om: Any, box: Sequence[tuple[Fraction, Fraction]],
+            radii: Any = _radii) -> np.ndarray:
+    """Curvatures where the float spectral radius (``radii``: of the whole loop, or of
+    the modes the output sees) is largest: a grid (a product grid over several
+    intervals), refined by golden sections around the best point."""
     axes = [np.linspace(float(lo), float(hi), GRID if len(box) == 1 else 21)
             if hi > lo else np.array([float(lo)]) for lo, hi in box]
     grid = np.array(np.meshgrid(*axes, indexing="ij")).reshape(len(box), -1).T
-    best = grid[int(np.argmax(_radii(om, grid)))].copy()
+    best = grid[int(np.argmax(radii(om, grid)))].copy()
     g = (5 ** 0.5 - 1) / 2
     for j, ax in enumerate(axes):
         if len(ax) < 3:
@@ -123,11 +145,11 @@ def _argmax(om: Any, box: Sequence[tuple[Fraction, Fraction]]) -> np.ndarray:
         for _ in range(30):
             pair = np.array([best, best])
             pair[0, j], pair[1, j] = b - g * (b - a), a + g * (b - a)
-            rc, rd = _radii(om, pair)
+            rc, rd = radii(om, pair)
             a, b = (a, pair[1, j]) if rc >= rd else (pair[0, j], b)
         cand = best.copy()
         cand[j] = 0.5 * (a + b)
-        if _radius(om, cand) > _radius(om, best):
+        if radii(om, cand[None])[0] > radii(om, best[None])[0]:
             best = cand
     return best
 
@@ -193,6 +215,8 @@ def quadratic_bracket(bk: Bracketed) -> tuple[float, dict[str, Any]] | None:
     if box is None:
         return None
     q0 = _argmax(bk.om, box)
+    if _seen_radius(bk.om, q0) < _radius(bk.om, q0) * (1 - 1e-9):  # the slowest mode hides
+        q0 = _argmax(bk.om, box, _seen_radii)
     with precision():
         for inward in INWARD:
             q = _rational_q(q0, box, inward)
