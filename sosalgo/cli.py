@@ -91,7 +91,7 @@ def cli() -> None:
               help="Prove each certificate in exact arithmetic and simulate it.")
 @click.option("--noise", is_flag=True,
               help="Add the certified sensitivity to gradient noise (noise, noise_quadratic, "
-                   "noise_lag).")
+                   "noise_lag; noise_limsup, noise_limsup_rho: the bound on the limsup).")
 @click.option("--brackets", type=click.Choice(["quadratic", "self-similar", "none"]),
               default="quadratic", show_default=True,
               help="Witnessed lower bound rho_lower beside the certified rate: the slowest "
@@ -124,7 +124,8 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
         spec = spec_from_text(doc["spec_text"], doc["source"])
         click.echo(f"{spec.name}: {spec.description}".rstrip(": "))
         extra = (["verified"] if verify_ else []) + (
-            ["noise", "noise_quadratic", "noise_lag", "noise_check"] if noise else [])
+            ["noise", "noise_quadratic", "noise_lag", "noise_check", "noise_limsup",
+             "noise_limsup_rho"] if noise else [])
         if "csvs" not in doc:  # the default family alone
             click.echo(rep.analysis_table(spec, rows, ANALYSIS_COLUMNS + extra))
             for line in rep.verdict_lines(rows):

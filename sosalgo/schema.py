@@ -46,8 +46,11 @@ _ANALYSIS_TAIL = ["max_eig_M", "min_eig_P", "solves", "seconds", "solver", "rho_
                   "error", "warning", "rate_type", "rho_lower", "rho_lower_kind",
                   "cycle_length", "cycle", "rho_lower_witness"]  # sosalgo.witnesses
 # ``analyze --noise``: certified noise sensitivity, its value on quadratics, the lag of its
-# certificate, how it was checked (exact / float / none), the certificate (one JSON object)
-NOISE_COLUMNS = ["noise", "noise_quadratic", "noise_lag", "noise_check", "noise_certificate"]
+# certificate, how it was checked (exact / float / none), the certificate (one JSON object);
+# then the bound on the limsup itself, the rho of its certificate, its check, its certificate
+NOISE_COLUMNS = ["noise", "noise_quadratic", "noise_lag", "noise_check", "noise_certificate",
+                 "noise_limsup", "noise_limsup_rho", "noise_limsup_check",
+                 "noise_limsup_certificate"]
 # ``sosalgo pep``: one row per (kappa, N); ``document`` is the row's --json document
 PEP_COLUMNS = ["kappa", "steps", "tau", "status", "gap", "tau_proven", "check_kind",
                "witness_verified", "tau_lower", "witness_dimension", "measure", "initial",

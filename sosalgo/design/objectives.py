@@ -393,7 +393,7 @@ def certify_point(spec: Spec, kappa: float, theta: Mapping[str, float],
         with np.errstate(all="ignore"):
             res: AnalysisResult | None = analyze_spec(spec, kappa, th, tol=CERT_TOL,
                                                       family=family)
-        nz = analyze_noise(spec, kappa, th, exact=exact)
+        nz = analyze_noise(spec, kappa, th, exact=exact, limsup=False)
     except ModelError:
         return Point(th, None, None, None, None, "none", seconds=time.perf_counter() - t0)
     rho = None if math.isinf(_rate(res)) else _rate(res)

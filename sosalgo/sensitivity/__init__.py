@@ -4,7 +4,10 @@
   on the sensitivity over F(m, L) with its certificate (one SDP, floating-point checked);
 - :func:`noise_quadratic`: the exact sensitivity on the quadratics (q/2)|x|^2, q in [m, L]
   (a discrete Lyapunov equation per q, the largest over q);
-- :func:`verify_noise`: the exact (rational) proof of a certificate;
+- :func:`noise_limsup_certificate`: the certified bound on the limsup itself (a discounted
+  dissipation inequality, rho searched; README, "The limsup itself");
+- :func:`verify_noise`: the exact (rational) proof of a certificate (``limsup=True``: of a
+  ``noise_limsup`` certificate);
 - :func:`analyze_noise`: all three for a spec at one kappa (``sosalgo analyze --noise``).
 """
 
@@ -12,10 +15,12 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["analyze_noise", "noise_certificate", "noise_quadratic", "verify_noise"]
+__all__ = ["analyze_noise", "noise_certificate", "noise_limsup_certificate", "noise_quadratic",
+           "verify_noise"]
 
 _WHERE = {
     "noise_certificate": "sosalgo.sensitivity.sdp",
+    "noise_limsup_certificate": "sosalgo.sensitivity.limsup",
     "noise_quadratic": "sosalgo.sensitivity.quadratic",
     "verify_noise": "sosalgo.sensitivity.exact",
     "analyze_noise": "sosalgo.sensitivity.run",

@@ -14,6 +14,10 @@ proof path, as the interpolation family's certificates are
    and -D ⪰ delta I, Pq ⪰ delta I proven by rational LDL^T with delta above the radius
    of the enclosure (:func:`sosalgo.verify.exact_interpolation.prove_definite`);
 4. the proven bound is gamma <= sqrt(s), a rational rounded upward.
+
+With ``limsup`` the certificate of ``noise_limsup`` (:mod:`sosalgo.sensitivity.limsup`):
+rho is read as the exact rational of its float (0 <= rho < 1), the discounted parts are
+proven the same way, and the bound is sqrt((s + sum sd) / (1 - rho^2) + sum r), s >= 0.
 """
 
 from __future__ import annotations
@@ -25,8 +29,9 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Any
 
+from sosalgo.sensitivity.limsup import limsup_bound
 from sosalgo.sensitivity.sdp import noise_windows
-from sosalgo.sensitivity.window import noise_parts, state_size
+from sosalgo.sensitivity.window import noise_parts, past_noise, state_size
 from sosalgo.spec.types import Spec
 from sosalgo.verify.exact import (
     DEFAULT_DIGITS,
@@ -119,39 +124,67 @@ def _read(cert: Mapping[str, Any], dec: Any, pos: Any, n: int) -> dict[str, Any]
         raise Refused(f"malformed certificate: {type(exc).__name__}: {exc}") from None
 
 
+def _read_limsup(cert: Mapping[str, Any], dec: Any, pos: Any, num: dict[str, Any]) -> None:
+    """The rational rho (0 <= rho < 1) and past-noise terms of a ``noise_limsup``
+    certificate into ``num`` (negative r, sd as 0, like multipliers)."""
+    try:
+        rho = rational(cert["rho"])
+        sizes = {"r": pos.lag, "sd": dec.lag,
+                 "cp": sum(len(k) for _, k in past_noise(pos)),
+                 "cd": sum(len(k) for _, k in past_noise(dec))}
+        for k, size in sizes.items():
+            vals = [rational(v) for v in cert.get(k, [0] * size)]
+            if len(vals) != size:
+                raise Refused(f"{k} has the wrong length")
+            num[k] = [max(Fraction(0), v) for v in vals] if k in ("r", "sd") else vals
+    except (KeyError, TypeError, ValueError, OverflowError) as exc:
+        raise Refused(f"malformed certificate: {type(exc).__name__}: {exc}") from None
+    if not 0 <= rho < 1:
+        raise Refused(f"rho = {fraction_str(rho)} is not in [0, 1)")
+    num["rho2"] = rho * rho
+
+
 def _prove(res: NoiseProof, dec: Any, pos: Any, num: dict[str, Any]) -> None:
-    """The four parts in exact arithmetic; ``res`` becomes verified when all hold."""
+    """The four parts in exact arithmetic; ``res`` becomes verified when all hold (with
+    ``rho2`` in ``num``: the discounted parts and bound of ``noise_limsup``)."""
     from sosalgo.verify.exact_interpolation import prove_definite, symmetrize_balls
 
+    rho2 = num.get("rho2")
     parts = noise_parts(dec, pos, num["P"], num["p"], num["s"], num["c"], num["eta"],
-                        num["lam"], obj=True)
+                        num["lam"], obj=True, rho2=rho2, past=num if rho2 is not None else None)
     bad_df = [i for i, v in enumerate(parts["Df"]) if Ball.of(v).hi > 0]
     bad_pf = [i for i, v in enumerate(parts["Pf"]) if Ball.of(v).lo < 0]
     ok_d, delta_d, det_d = prove_definite(symmetrize_balls(parts["D"]), -1)
     ok_p, delta_p, det_p = prove_definite(symmetrize_balls(parts["Pq"]), +1)
-    if bad_df or bad_pf or not (ok_d and ok_p) or num["s"] <= 0:
+    bad_s = num["s"] <= 0 if rho2 is None else num["s"] < 0  # limsup: s >= 0 is enough
+    if bad_df or bad_pf or not (ok_d and ok_p) or bad_s:
         res.reason = "; ".join(
             ([f"decrease function-value rows {bad_df} > 0"] if bad_df else [])
             + ([f"positivity function-value rows {bad_pf} < 0"] if bad_pf else [])
             + ([f"decrease matrix: {det_d}"] if not ok_d else [])
             + ([f"positivity matrix: {det_p}"] if not ok_p else [])
-            + (["s <= 0"] if num["s"] <= 0 else []))
+            + ([f"s = {fraction_str(num['s'])} out of range"] if bad_s else []))
         return
-    t = sqrt_upper(num["s"])
+    bound = num["s"] if rho2 is None else limsup_bound(num, 1 - rho2)
+    t = sqrt_upper(bound)
     res.verified = Verdict.EXACT
     res.gamma_fraction = fraction_str(t)
     res.gamma_proven = math.nextafter(float(t), math.inf)
     res.proofs = {"decrease": f"-D ⪰ {fraction_str(delta_d)} I: {det_d}",
                   "positivity": f"Pq ⪰ {fraction_str(delta_p)} I: {det_p}",
                   "function values": "all rows exact (<= 0 / >= 0)",
-                  "bound": f"gamma^2 <= s = {fraction_str(num['s'])}"}
+                  "bound": f"gamma^2 <= s = {fraction_str(num['s'])}" if rho2 is None else
+                  f"gamma^2 <= (s + sum sd) / (1 - rho^2) + sum r = {fraction_str(bound)}, "
+                  f"rho^2 = {fraction_str(rho2)}"}
 
 
 def verify_noise(spec: Spec, kappa: float, cert: Mapping[str, Any],
                  theta: Mapping[str, float] | None = None,
-                 digits: int = DEFAULT_DIGITS) -> NoiseProof:
+                 digits: int = DEFAULT_DIGITS, limsup: bool = False) -> NoiseProof:
     """Prove in exact arithmetic that ``cert`` (a :class:`NoiseCertificate`'s
-    ``certificate``) bounds the sensitivity of the spec's method at ``kappa``."""
+    ``certificate``, or with ``limsup`` a
+    :class:`~sosalgo.sensitivity.limsup.LimsupCertificate`'s) bounds the sensitivity
+    (the long-run average, or with ``limsup`` the limsup) of the spec's method at ``kappa``."""
     start = time.perf_counter()
     res = NoiseProof(spec=spec.name)
     try:
@@ -159,7 +192,10 @@ def verify_noise(spec: Spec, kappa: float, cert: Mapping[str, Any],
             raise Refused("noise sensitivity needs one gradient call on F(m, L)")
         dec, pos, n = _exact_windows(spec, kappa, theta, int(cert["lag"]), digits)
         num = _read(cert, dec, pos, n)
-        res.certificate = {"lag": int(cert["lag"]), "s": fraction_str(num["s"])}
+        if limsup:
+            _read_limsup(cert, dec, pos, num)
+        res.certificate = {"lag": int(cert["lag"]), "s": fraction_str(num["s"])} | (
+            {"rho": fraction_str(rational(cert["rho"]))} if limsup else {})
         _prove(res, dec, pos, num)
     except Refused as exc:
         res.reason = str(exc)

@@ -22,7 +22,7 @@ from sosalgo.sensitivity.sdp import MAX_LAG, NoiseCertificate, noise_certificate
 from sosalgo.spec import Spec
 
 __all__ = ["NoiseResult", "analyze_noise", "best_noise_certificate", "check_noise_spec",
-           "noise_cells", "noise_json", "NOISE_COLUMNS", "LAG_GAIN"]
+           "limsup_fields", "noise_cells", "noise_json", "NOISE_COLUMNS", "LAG_GAIN"]
 
 LAG_GAIN = 1e-6  # relative improvement that counts as a gain when the lag is chosen
 
@@ -77,6 +77,12 @@ class NoiseResult:
     proof: dict[str, Any] | None
     seconds: float
     detail: str = ""
+    # noise_limsup: the certified bound on the limsup itself (README, "The limsup itself")
+    noise_limsup: float | None = None
+    noise_limsup_rho: float | None = None
+    noise_limsup_check: str = "none"  # "exact", "float" or "none"
+    noise_limsup_certificate: dict[str, Any] | None = None
+    noise_limsup_proof: dict[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return {"kappa": self.kappa, "noise": self.noise, "noise_float": self.noise_float,
@@ -84,7 +90,7 @@ class NoiseResult:
                 if math.isfinite(self.noise_quadratic) else None, "q_worst": self.q_worst,
                 "noise_lag": self.lag, "noise_check": self.check_kind,
                 "noise_certificate": self.certificate, "noise_proof": self.proof,
-                "seconds": self.seconds, "detail": self.detail}
+                "seconds": self.seconds, "detail": self.detail} | limsup_fields(self)
 
 
 def _jsonable(cert: Mapping[str, Any] | None) -> dict[str, Any] | None:
@@ -93,10 +99,41 @@ def _jsonable(cert: Mapping[str, Any] | None) -> dict[str, Any] | None:
     return {k: (v.tolist() if hasattr(v, "tolist") else v) for k, v in cert.items()}
 
 
+def limsup_fields(res: NoiseResult) -> dict[str, Any]:
+    """The ``noise_limsup*`` fields of a result (JSON)."""
+    return {"noise_limsup": res.noise_limsup, "noise_limsup_rho": res.noise_limsup_rho,
+            "noise_limsup_check": res.noise_limsup_check,
+            "noise_limsup_certificate": res.noise_limsup_certificate,
+            "noise_limsup_proof": res.noise_limsup_proof}
+
+
+def _limsup(res: NoiseResult, spec: Spec, alg: Any, theta: Mapping[str, float] | None,
+            lag: int, exact: bool) -> None:
+    """``noise_limsup`` at ``lag`` (rho searched), proven exactly with ``exact``."""
+    from sosalgo.sensitivity.limsup import noise_limsup_certificate
+
+    cert = noise_limsup_certificate(alg, lag)
+    if not cert.certified:
+        return
+    res.noise_limsup, res.noise_limsup_rho = cert.gamma, cert.rho
+    res.noise_limsup_check = cert.check_kind
+    res.noise_limsup_certificate = _jsonable(cert.certificate)
+    if exact:
+        from sosalgo.sensitivity.exact import verify_noise
+
+        pr = verify_noise(spec, res.kappa, cert.certificate or {}, theta, limsup=True)
+        res.noise_limsup_proof = pr.to_dict()
+        if pr.ok:
+            res.noise_limsup, res.noise_limsup_check = pr.gamma_proven, "exact"
+
+
 def analyze_noise(spec: Spec, kappa: float, theta: Mapping[str, float] | None = None,
-                  lag: int | None = None, exact: bool = True) -> NoiseResult:
+                  lag: int | None = None, exact: bool = True,
+                  limsup: bool = True) -> NoiseResult:
     """Certified sensitivity (lag ``lag``, or the best of 0 .. n + 1), its exact proof
-    (``exact``) and the sensitivity on quadratics, for the spec's method at ``kappa``."""
+    (``exact``) and the sensitivity on quadratics, for the spec's method at ``kappa``;
+    with ``limsup`` also ``noise_limsup`` at lag ``lag`` (default: the lag chosen for
+    ``noise``, at least 1)."""
     from sosalgo.model import bind
 
     check_noise_spec(spec)
@@ -112,9 +149,12 @@ def analyze_noise(spec: Spec, kappa: float, theta: Mapping[str, float] | None = 
         proof = pr.to_dict()
         if pr.ok:
             noise, kind = pr.gamma_proven, "exact"
-    return NoiseResult(float(kappa), noise, cert.gamma, quad.gamma, quad.q, cert.lag, kind,
-                       _jsonable(cert.certificate), proof, time.perf_counter() - start,
-                       cert.detail)
+    res = NoiseResult(float(kappa), noise, cert.gamma, quad.gamma, quad.q, cert.lag, kind,
+                      _jsonable(cert.certificate), proof, 0.0, cert.detail)
+    if limsup and math.isfinite(quad.gamma):
+        _limsup(res, spec, alg, theta, max(1, cert.lag) if lag is None else lag, exact)
+    res.seconds = time.perf_counter() - start
+    return res
 
 
 def noise_cells(res: NoiseResult) -> dict[str, Any]:
@@ -125,7 +165,11 @@ def noise_cells(res: NoiseResult) -> dict[str, Any]:
             "noise_lag": res.lag if res.noise is not None else None,
             "noise_check": res.check_kind,
             "noise_certificate": None if res.certificate is None
-            else json.dumps(res.certificate, separators=(",", ":"))}
+            else json.dumps(res.certificate, separators=(",", ":")),
+            "noise_limsup": res.noise_limsup, "noise_limsup_rho": res.noise_limsup_rho,
+            "noise_limsup_check": res.noise_limsup_check,
+            "noise_limsup_certificate": None if res.noise_limsup_certificate is None
+            else json.dumps(res.noise_limsup_certificate, separators=(",", ":"))}
 
 
 def noise_json(row: Mapping[str, str]) -> dict[str, Any]:
@@ -140,4 +184,14 @@ def noise_json(row: Mapping[str, str]) -> dict[str, Any]:
             "noise_lag": int(row["noise_lag"]) if row.get("noise_lag") else None,
             "noise_check": row.get("noise_check") or "none",
             "noise_certificate": json.loads(row["noise_certificate"])
-            if row.get("noise_certificate") else None}
+            if row.get("noise_certificate") else None} | ({} if "noise_limsup_check" not in row
+                                                          else _limsup_json(row, num))
+
+
+def _limsup_json(row: Mapping[str, str], num: Any) -> dict[str, Any]:
+    """The ``noise_limsup*`` JSON fields of a CSV row."""
+    return {"noise_limsup": num(row.get("noise_limsup")),
+            "noise_limsup_rho": num(row.get("noise_limsup_rho")),
+            "noise_limsup_check": row.get("noise_limsup_check") or "none",
+            "noise_limsup_certificate": json.loads(row["noise_limsup_certificate"])
+            if row.get("noise_limsup_certificate") else None}

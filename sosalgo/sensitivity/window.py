@@ -21,12 +21,14 @@ multiplies and stacks.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-__all__ = ["NoiseWindow", "noise_window", "noise_parts", "state_size"]
+__all__ = ["NoiseWindow", "add_noise_terms", "noise_window", "noise_parts", "past_noise",
+           "state_size"]
 
 
 def state_size(n: int, lag: int) -> int:
@@ -99,6 +101,27 @@ def noise_window(A: Any, B: Any, C: Any, E: Any, alpha: Any, Q: Any, lag: int, s
     return NoiseWindow(n, lag, steps, width, H, E @ Xi[lag], labels, Mq, mq, noise, measurable)
 
 
+def past_noise(win: NoiseWindow) -> list[tuple[int, list[int]]]:
+    """The past noises w_t (t = 0 .. l - 1, not the new one) of a window, each with the
+    columns known before it is drawn (xi_0, g_0 .. g_t, w_0 .. w_{t-1}): (column, known).
+    A term w_t' (c . known) has mean zero; E|w_t|^2 <= sigma^2 d."""
+    n, steps = win.n, win.steps
+    return [(n + steps + t, list(range(n + t + 1)) + list(range(n + steps, n + steps + t)))
+            for t in range(win.lag)]
+
+
+def add_noise_terms(M: Any, win: NoiseWindow, r: Any, cross: Any, sign: int = 1) -> Any:
+    """M + sign (sum r_t e_t e_t' + sum cross (e_t k' + k e_t')) over :func:`past_noise`."""
+    cs = iter(cross)
+    for rt, (col, known) in zip(r, past_noise(win), strict=True):
+        M[col, col] = M[col, col] + sign * rt
+        for k in known:
+            ck = sign * next(cs)
+            M[col, k] = M[col, k] + ck
+            M[k, col] = M[k, col] + ck
+    return M
+
+
 def _values(win: NoiseWindow, t: int, p: Any, obj: bool) -> np.ndarray:
     """The function-value part of V at time t as coefficients on phi: p_j on f_{t-j}."""
     out = _zeros((win.steps,), obj)
@@ -108,17 +131,31 @@ def _values(win: NoiseWindow, t: int, p: Any, obj: bool) -> np.ndarray:
 
 
 def noise_parts(dec: NoiseWindow, pos: NoiseWindow, P: Any, p: Any, s: Any, c: Any, eta: Any,
-                lam: Any, obj: bool = False) -> dict[str, Any]:
+                lam: Any, obj: bool = False, rho2: Any = None,
+                past: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """The four parts of the certificate (README, "Robustness to gradient noise"):
 
     ``D`` ⪯ 0 and ``Df`` <= 0 (decrease: E V_{k+1} - V_k + |x_k - x*|^2 <= s sigma^2 d),
     ``Pq`` ⪰ 0 and ``Pf`` >= 0 (positivity: V_k >= 0), where
     D = H_{l+1}' P H_{l+1} - H_l' P H_l + x_l' x_l + sum eta M - s e_w e_w' - (e_w c' + c e_w'),
-    c the free cross terms of the new noise with the columns known at time k."""
+    c the free cross terms of the new noise with the columns known at time k.
+
+    With ``rho2`` (= rho^2) the discounted form of ``noise_limsup`` (README, "The limsup
+    itself"): D = H_{l+1}' P H_{l+1} - rho2 H_l' P H_l + ... (no output term; the function
+    values likewise discounted: E V_{k+1} <= rho^2 V_k + s sigma^2 d) and the output term
+    moved into the positivity part, Pq = H_l' P H_l - x_l' x_l - ... (V_k >= |x_k - x*|^2),
+    both relaxed by the past noises (:func:`add_noise_terms`; ``past``: ``sd``, ``cd`` in D,
+    ``r``, ``cp`` in Pq) so that they hold in expectation: E V_{k+1} <= rho^2 E V_k +
+    (s + sum sd) sigma^2 d and E V_k >= E|x_k - x*|^2 - sum r sigma^2 d."""
     lag = dec.lag
     H1, H0 = dec.H[lag + 1], dec.H[lag]
-    D = H1.T @ P @ H1 - H0.T @ P @ H0 + dec.x_row.T @ dec.x_row
-    Df = _values(dec, lag + 1, p, obj) - _values(dec, lag, p, obj)
+    xx = dec.x_row.T @ dec.x_row
+    if rho2 is None:
+        D = H1.T @ P @ H1 - H0.T @ P @ H0 + xx
+        Df = _values(dec, lag + 1, p, obj) - _values(dec, lag, p, obj)
+    else:
+        D = H1.T @ P @ H1 - rho2 * (H0.T @ P @ H0)
+        Df = _values(dec, lag + 1, p, obj) - rho2 * _values(dec, lag, p, obj)
     for e, M, mv in zip(eta, dec.Mq, dec.mq, strict=True):
         D = D + e * M
         Df = Df + e * mv
@@ -128,6 +165,11 @@ def noise_parts(dec: NoiseWindow, pos: NoiseWindow, P: Any, p: Any, s: Any, c: A
         D[w, col] = D[w, col] - ci
         D[col, w] = D[col, w] - ci
     Pq = pos.H[lag].T @ P @ pos.H[lag]
+    if rho2 is not None:
+        Pq = Pq - pos.x_row.T @ pos.x_row
+        if past is not None:
+            D = add_noise_terms(D, dec, past["sd"], past["cd"], -1)
+            Pq = add_noise_terms(Pq, pos, past["r"], past["cp"])
     Pf = _values(pos, lag, p, obj)
     for lv, M, mv in zip(lam, pos.Mq, pos.mq, strict=True):
         Pq = Pq - lv * M

@@ -235,10 +235,11 @@ def verify_document_rows(
         fam = _row_family(row, i, family)
         claims.append((fam, _claim(spec, fam, row, i)))
     noise = [_noise_claim(row, i) for i, row in enumerate(rows)]
+    limsup = [_noise_claim(row, i, "noise_limsup") for i, row in enumerate(rows)]
     results: list[dict[str, Any] | None] = []
-    for (fam, c), nz in zip(claims, noise, strict=True):
+    for (fam, c), nz, ls in zip(claims, noise, limsup, strict=True):
         if c is None:
-            results.append(None if nz is None else _noise_only(nz))
+            results.append(None if nz is None and ls is None else _noise_only(nz or ls))
             continue
         missing = [k for k in ("rho", *fam.certificate_parts)
                    if (c["rho"] if k == "rho" else c["cert"].get(k)) is None]
@@ -256,34 +257,36 @@ def verify_document_rows(
                                                      c["cert"], c["theta"], out_dir, simulate))
         except (KeyError, TypeError, ValueError) as exc:
             raise ResultError(f"{c['field']}: malformed ({exc})") from None
-    return [r if r is None or nz is None else r | nz
-            for r, nz in zip(results, _noise_checks(spec, noise), strict=True)]
+    return [r if r is None else r | (nz or {}) | (ls or {})
+            for r, nz, ls in zip(results, _noise_checks(spec, noise),
+                                 _noise_checks(spec, limsup, "noise_limsup"), strict=True)]
 
 
-def _noise_claim(row: Mapping[str, Any], i: int) -> dict[str, Any] | None:
+def _noise_claim(row: Mapping[str, Any], i: int, key: str = "noise") -> dict[str, Any] | None:
     """What row ``i`` claims on the noise axis (``noise``, ``noise_check``,
-    ``noise_certificate``; a design's ``theta``), None when it claims nothing. A row whose
-    ``noise`` is certified ("exact" or "float") without its certificate is kept: its
-    check then fails."""
+    ``noise_certificate``, or with ``key`` "noise_limsup" the ``noise_limsup*`` fields; a
+    design's ``theta``), None when it claims nothing. A row whose bound is certified
+    ("exact" or "float") without its certificate is kept: its check then fails."""
     where = f"rows[{i}]"
-    cert = row.get("noise_certificate")
-    noise = _number(row.get("noise"), f"{where}.noise")
-    claimed = noise is not None and row.get("noise_check") in ("exact", "float")
+    cert = row.get(f"{key}_certificate")
+    noise = _number(row.get(key), f"{where}.{key}")
+    claimed = noise is not None and row.get(f"{key}_check") in ("exact", "float")
     if cert is None and not claimed:
         return None
     if cert is not None and not isinstance(cert, Mapping):
-        raise ResultError(f"{where}.noise_certificate: expected an object")
+        raise ResultError(f"{where}.{key}_certificate: expected an object")
     kappa = _number(row.get("kappa"), f"{where}.kappa", allow_none=False)
     return {"kappa": kappa, "noise": noise, "cert": cert,
             "theta": _theta(row, where) if "rho_certified" in row else None}
 
 
-def _noise_checks(spec: Spec, claims: Sequence[dict[str, Any] | None]
+def _noise_checks(spec: Spec, claims: Sequence[dict[str, Any] | None], key: str = "noise",
                   ) -> list[dict[str, Any] | None]:
     """The exact proof (:func:`sosalgo.sensitivity.exact.verify_noise`) of each claimed
     noise certificate, as the fields ``noise_verified`` ("exact" or "failed"),
     ``noise_proven`` (a float >= the proven bound), ``noise_fraction`` and
-    ``noise_reason``; the claimed ``noise`` must be >= the proven bound."""
+    ``noise_reason``; the claimed ``noise`` must be >= the proven bound. With ``key``
+    "noise_limsup": the same for the bound on the limsup (``noise_limsup_verified``, ...)."""
     from sosalgo.sensitivity.exact import verify_noise
     from sosalgo.verify.exact import rational
 
@@ -292,18 +295,19 @@ def _noise_checks(spec: Spec, claims: Sequence[dict[str, Any] | None]
         if c is None:
             out.append(None)
             continue
-        res = {"noise": c["noise"], "noise_verified": str(Verdict.FAILED),
-               "noise_proven": None, "noise_fraction": None,
-               "noise_reason": "claims a noise bound but noise_certificate missing or null"}
+        res = {key: c["noise"], f"{key}_verified": str(Verdict.FAILED),
+               f"{key}_proven": None, f"{key}_fraction": None,
+               f"{key}_reason": f"claims a noise bound but {key}_certificate missing or null"}
         if c["cert"] is not None:
-            pr = verify_noise(spec, c["kappa"], c["cert"], c["theta"])
-            res |= {"noise_verified": str(pr.verified), "noise_proven": pr.gamma_proven,
-                    "noise_fraction": pr.gamma_fraction, "noise_reason": pr.reason}
+            pr = verify_noise(spec, c["kappa"], c["cert"], c["theta"],
+                              limsup=key == "noise_limsup")
+            res |= {f"{key}_verified": str(pr.verified), f"{key}_proven": pr.gamma_proven,
+                    f"{key}_fraction": pr.gamma_fraction, f"{key}_reason": pr.reason}
             if pr.ok and c["noise"] is not None and \
                     rational(c["noise"]) < rational(pr.gamma_fraction):
-                res |= {"noise_verified": str(Verdict.FAILED),
-                        "noise_reason": f"claimed noise {c['noise']!r} is below the proven "
-                                        f"bound {pr.gamma_fraction}"}
+                res |= {f"{key}_verified": str(Verdict.FAILED),
+                        f"{key}_reason": f"claimed {key} {c['noise']!r} is below the proven "
+                                         f"bound {pr.gamma_fraction}"}
         out.append(res)
     return out
 
@@ -389,7 +393,8 @@ def check_failed(check: Mapping[str, Any] | None) -> bool:
     ``ok`` None, is no evidence either way and leaves the exact proof standing)."""
     if check is None:
         return False
-    if check.get("noise_verified", Verdict.EXACT) != Verdict.EXACT:
+    if any(check.get(f"{k}_verified", Verdict.EXACT) != Verdict.EXACT
+           for k in ("noise", "noise_limsup")):
         return True  # a noise certificate that is not proven
     if check.get("noise_only"):
         return False
