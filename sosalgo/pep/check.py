@@ -117,9 +117,12 @@ def positions(doc: dict[str, Any], av: ArbView) -> dict[str, Any]:
         if k < N:
             xi = av.A * xi + av.B * u
     pos["xiN"] = xi
+    call = mt.output if mt.output is not None else mt.out_call  # x_k is that call's point
     for k, key in ((N, f"x{N}"), (0, "x0")):
         if key == "x0" and doc.get("xi0") is None:
             pos["x0"] = [ball(v) for v in doc["x0"]]
+        elif call is not None and _label(call, k, p) in pos:
+            pos[key] = pos[_label(call, k, p)]
         elif mt.output is None:
             row = av.E * (pos["xiN"] if k == N else pos["xi0"])  # type: ignore[operator]
             pos[key] = [row[0, c] for c in range(r)]

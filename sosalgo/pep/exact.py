@@ -134,11 +134,25 @@ def exact_method(spec: Spec, kappa: float | None, om: Any) -> Method:
     mt = Method(_balls(mats["A"]), _balls(mats["B"]), _balls(mats["C"]), D,
                 _balls(mats["E"]) if "E" in mats else None, om.output, funcs,
                 tuple(om.oracles), X[:, 0], X[:, 1:], L, ineqs, coef, same, K, exact=True)
+    mt.out_call = _exact_output_call(mats, om)
     g0, mt.smooth = initial_gradient(spec, om, float("nan") if kappa is None else kappa)
     if g0 is not None:  # the same start as the float method, exactly
         mt.G0 = np.array([enclose(to_sympy(b).xreplace(env))
                           for _, b in spec.initial_state], dtype=object)
     return mt
+
+
+def _exact_output_call(mats: dict[str, sp.Matrix], om: Any) -> int | None:
+    """:func:`sosalgo.pep.structure.output_call` decided symbolically: the first call i
+    with E - C_i = 0 and D_i = 0 exactly (sympy), None otherwise (or with an output call)."""
+    if om.output is not None or "E" not in mats:
+        return None
+    D = mats.get("D", sp.zeros(om.p, om.p))
+    for i in range(om.p):
+        diff = list(mats["E"][0, :] - mats["C"][i, :]) + list(D[i, :])
+        if all(sp.simplify(v) == 0 for v in diff):
+            return i
+    return None
 
 
 def ball(v: Any) -> arb:

@@ -143,6 +143,15 @@ class SDPAnswer:
 ATTEMPTS = ((True, 1e-8), (False, 1e-8), (True, 1e-7), (False, 1e-7), (False, 1e-6))
 # the rounds that only set the scale or find violated pairs: Clarabel's defaults first
 QUICK = ((False, 1e-8), (True, 1e-8), (False, 1e-7), (False, 1e-6))
+# margin solves only, when the above end "almost solved": a much stronger regularization
+# (GD on L-smooth convex f at N = 20: a degenerate dual, rank-1 worst case); the answer is
+# only a candidate certificate, which the exact check accepts or refuses
+STRONG = ((False, 1e-5), (False, 1e-4))
+# the witness's trace solves: the same attempts, at most TRACE_ITER iterations each
+# (those that solve take 15-60; one that fails ran 400 — 20 s of the 45 s witness search
+# of Nesterov at N = 20); a primal infeasible answer is final there (a slack too large)
+TRACE_ITER = 100
+TRACE = tuple((precise, reg, TRACE_ITER) for precise, reg in ATTEMPTS)
 
 
 @contextlib.contextmanager
@@ -163,12 +172,12 @@ def _quiet_stderr():
 
 
 @functools.cache
-def _settings(precise: bool, reg: float) -> Any:
+def _settings(precise: bool, reg: float, max_iter: int = 400) -> Any:
     import clarabel
 
     s = clarabel.DefaultSettings()
     s.verbose = False
-    s.max_iter = 400
+    s.max_iter = max_iter
     s.static_regularization_constant = reg
     s.direct_solve_method = "faer"  # supernodal LDL: 2-4x faster on these dense rows
     if precise:
@@ -188,8 +197,10 @@ def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
     K = len(data.st.pairs)
     active, rounds, rescales = data.active, 0, 0
     while True:
+        tries = (TRACE if objective == "trace" else
+                 QUICK if rounds == 0 else ATTEMPTS)
         ans = _solve_active(data, active, margin, objective, floor, slack, unit,
-                            QUICK if rounds == 0 and objective == "measure" else ATTEMPTS)
+                            tries + STRONG if margin > 0 else tries)
         rounds += 1
         if (objective == "measure" and ans.G is not None and rescales < MAX_RESCALES
                 and np.all(np.isfinite(ans.G))):
@@ -202,6 +213,8 @@ def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
                 continue
         if len(active) == K or ans.status == "infeasible":  # a relaxation: so is the PEP
             break
+        if ans.status != "solved" and objective == "trace":
+            break  # a failed rank reduction: the witness search goes on without it
         if ans.status != "solved":  # unbounded or failed on a relaxation: decide on all
             active = np.arange(K)
             continue
@@ -251,7 +264,7 @@ def _rescale(data: PEPData, G: np.ndarray, F: np.ndarray) -> bool:
 
 def _solve_active(data: PEPData, active: np.ndarray, margin: float, objective: str,
                   floor: float | None, slack: float, unit: float,
-                  attempts: tuple[tuple[bool, float], ...] = ATTEMPTS) -> SDPAnswer:
+                  attempts: tuple[tuple[Any, ...], ...] = ATTEMPTS) -> SDPAnswer:
     """The SDP on the pairs ``active`` in the solver's units (Clarabel; the attempts of
     :data:`ATTEMPTS`); G, F, lambda, tau back in the original units."""
 
@@ -280,7 +293,8 @@ def _solve_active(data: PEPData, active: np.ndarray, margin: float, objective: s
     b.append(np.zeros(nG))
     A = sps.csc_matrix(sps.vstack(rows))
     A.eliminate_zeros()
-    sol, raw, st_ = _clarabel(A, q, np.concatenate(b), nn, d, attempts)
+    sol, raw, st_ = _clarabel(A, q, np.concatenate(b), nn, d, attempts,
+                              final_infeasible=objective == "trace")
     if raw == "DualInfeasible":
         return SDPAnswer("unbounded", raw)
     if st_ == SolverStatus.INFEASIBLE:
@@ -303,25 +317,30 @@ def _solve_active(data: PEPData, active: np.ndarray, margin: float, objective: s
 
 
 def _clarabel(A: Any, q: np.ndarray, b: np.ndarray, nn: int, d: int,
-              attempts: tuple[tuple[bool, float], ...]) -> tuple[Any, str, SolverStatus]:
+              attempts: tuple[tuple[Any, ...], ...], final_infeasible: bool = False
+              ) -> tuple[Any, str, SolverStatus]:
     """(solution or None, raw status, status) of the first attempt that ends solved or
-    dual infeasible (else the last)."""
+    dual infeasible, or primal infeasible when ``final_infeasible`` (else the last).
+    An attempt is (precise tolerances, static regularization[, max iterations])."""
     import clarabel
 
     cones = [clarabel.NonnegativeConeT(nn), clarabel.PSDTriangleConeT(d)]
     P = sps.csc_matrix((A.shape[1], A.shape[1]))
     sol, raw, st_ = None, "no attempt ended", SolverStatus.FAILED
-    for precise, reg in attempts:
+    for precise, reg, *iters in attempts:
+        settings = _settings(precise, reg, *iters)
         try:
             with _quiet_stderr():
-                sol = clarabel.DefaultSolver(P, q, A, b, cones, _settings(precise, reg)).solve()
+                sol = clarabel.DefaultSolver(P, q, A, b, cones, settings).solve()
         except BaseException as exc:  # Clarabel's Rust panics (an eigenvalue failure)
             if isinstance(exc, KeyboardInterrupt | SystemExit | MemoryError):
                 raise
             continue
         raw = str(sol.status)
         st_ = solver_status(raw)
-        if st_ == SolverStatus.SOLVED or raw == "DualInfeasible":
+        if (st_ == SolverStatus.SOLVED or raw == "DualInfeasible"
+                or (final_infeasible and raw == "PrimalInfeasible")
+                or (iters and sol.iterations >= iters[0])):  # capped: not converging
             break
     return sol, raw, st_
 

@@ -48,7 +48,8 @@ import numpy as np
 from sosalgo.errors import InputError
 from sosalgo.pep.terms import Term
 
-__all__ = ["Method", "PEPPoint", "PEPStructure", "build_structure", "pair_label"]
+__all__ = ["Method", "PEPPoint", "PEPStructure", "build_structure", "output_call",
+           "pair_label"]
 
 
 @dataclass
@@ -78,6 +79,7 @@ class Method:
     exact: bool = False
     G0: np.ndarray | None = None  # ``initial_state``: xi_0 = X0 x_0 + G0 g0 (None: G0 = 0)
     smooth: int = 0  # the function whose gradient g0 is
+    out_call: int | None = None  # output None, E = C_i and D_i = 0: x_k is call i's point
 
     @property
     def n(self) -> int:
@@ -230,16 +232,16 @@ def build_structure(mt: Method, steps: int, measure: Sequence[Term],
     base = n0 + J - 1
     xi, Y, U = _trajectory(mt, xi0, [eye[base + p * k: base + p * (k + 1)]
                                      for k in range(calls)], calls)
-    out = (mt.E @ xi[steps])[0] if mt.output is None else Y[steps][mt.output]
-    x0 = eye[0] if not free else ((mt.E @ xi[0])[0] if mt.output is None
-                                   else Y[0][mt.output])
+    Yr = [[Y[k][i] for i in range(p)] for k in range(calls)]  # one object per call point
+    out = _output_row(mt, xi, Yr, steps)
+    x0 = _output_row(mt, xi, Yr, 0) if free else eye[0]
     where = {"x": out, "x0": x0}
-    where.update({f"y{i + 1}": Y[steps][i] for i in range(p)} if calls > steps else {})
+    where.update({f"y{i + 1}": Yr[steps][i] for i in range(p)} if calls > steps else {})
     pts: list[list[PEPPoint]] = [[] for _ in range(J)]
     nF = 0
     for k in range(calls):
         for i, j in enumerate(mt.oracles):
-            pts[j].append(PEPPoint(_call_label(i, k, p), Y[k][i], U[k][i], nF, k))
+            pts[j].append(PEPPoint(_call_label(i, k, p), Yr[k][i], U[k][i], nF, k))
             nF += 1
     zero = eye[0] * 0
     at = {}
@@ -259,6 +261,30 @@ def build_structure(mt: Method, steps: int, measure: Sequence[Term],
                 raise InputError(f"{opt}: {t.point}_N: no such point")
             forms[key].append(_term(mt, t, where[t.point], pts, sstar, state, opt, steps))
     return _finish(mt, steps, calls, state, pts, forms, {"xi": xi, "y": Y, "u": U, "x": out})
+
+
+def _output_row(mt: Method, xi: list[np.ndarray], Yr: list[list[np.ndarray]],
+                k: int) -> np.ndarray:
+    """The output's row at step k: the very row object of the output call when the
+    output is a call (``output: y<i>``, or E = C_i with D_i = 0: :attr:`Method.out_call`)
+    and that call is made at step k — the same point by construction, so a term there
+    reads the call's subgradient and value, in floats and in exact numbers alike (a
+    numerical comparison of ball rows cannot prove them equal) — else E xi_k."""
+    call = mt.output if mt.output is not None else mt.out_call
+    if call is not None and k < len(Yr):
+        return Yr[k][call]
+    return (mt.E @ xi[k])[0]
+
+
+def output_call(E: Any, C: Any, D: Any, same: Callable[[Any, Any], bool]) -> int | None:
+    """The first call i whose point is the output x = E xi for every state and answer
+    (E = C_i, D_i = 0), by ``same`` on the rows; None when there is none."""
+    if E is None:
+        return None
+    for i in range(C.shape[0]):
+        if same(E[0], C[i]) and same(D[i], 0 * D[i]):
+            return i
+    return None
 
 
 def _finish(mt: Method, steps: int, calls: int, state: dict[str, Any],

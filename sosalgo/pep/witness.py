@@ -13,7 +13,10 @@ violations and the rounding, for a measure (1 - theta) as large. A floating-poin
 pre-check (:func:`plausible`: values exist with a margin, Bellman-Ford on the difference
 constraints) skips hopeless candidates; the others are rounded to binary rationals, the
 trajectory recomputed exactly, the values fitted exactly (:func:`fit_values`), and the
-first that passes the exact check is kept.
+first that passes the exact check is kept. The trace solves are capped
+(:data:`sosalgo.pep.sdp.TRACE_ITER` iterations per attempt, a failed one is not retried
+on every pair): a rank reduction that does not converge costs about a second, and the
+PEP's own answer mixed with the interior point takes over.
 
 Document (``kind: pep-witness``): ``x0``; ``xi0`` (a free start: the initial state,
 every block); ``calls`` (the gradient u_{k,i} of every call,
@@ -53,6 +56,7 @@ MAX_TRIES = 3  # dimensions tried per reduced solve (then the full rank)
 THETAS = (1e-6, 1e-4)  # weights of the strictly feasible quadratic mixed in
 MIX = (1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1)  # weights of the interior point mixed in
 INTERIOR = (1e-3, 1e-4, 1e-5, 1e-6)  # slacks tried for the interior point
+ALL_PAIRS = 2000  # the interior point's solve takes every pair up to this many
 ACCEPT = 1e-3  # a verified witness this close to tau (relative) ends the search
 PRECHECK = 1e-9  # margin of the floating-point pre-check (relative to each row's scale)
 _q = q_str
@@ -195,12 +199,20 @@ def _sources(data: PEPData, ans: SDPAnswer, tau: float, unit: float
 
 def interior_point(data: PEPData, unit: float) -> np.ndarray | None:
     """A factor V0 (d x rank) of a point of the PEP where every inequality holds with a
-    slack of its scale (the first of :data:`INTERIOR` that solves; least trace), or None."""
-    for slack in INTERIOR:
-        ans = solve_pep(data, objective="trace", slack=slack, unit=unit)
-        if ans.status == "solved" and ans.G is not None:
-            return _factors(ans.G, slack)[-1]
-    return None
+    slack of its scale (the first of :data:`INTERIOR` that solves; least trace), or None.
+    Up to :data:`ALL_PAIRS` pairs, every pair is in the solve from the start (one solve,
+    and a lower rank than constraint generation gives)."""
+    saved = data.active
+    if len(data.st.pairs) <= ALL_PAIRS:
+        data.active = np.arange(len(data.st.pairs))
+    try:
+        for slack in INTERIOR:
+            ans = solve_pep(data, objective="trace", slack=slack, unit=unit)
+            if ans.status == "solved" and ans.G is not None:
+                return _factors(ans.G, slack)[-1]
+        return None
+    finally:
+        data.active = saved  # the later rank reductions start lean again
 
 
 def plausible(data: PEPData, coef: np.ndarray, V: np.ndarray,
