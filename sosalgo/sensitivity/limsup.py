@@ -20,12 +20,19 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from sosalgo.sensitivity.sdp import MARGINS, attempt, original_units, scaled_problem, supply_scale
+from sosalgo.sensitivity.sdp import (
+    MARGINS,
+    NoiseCertificate,
+    attempt,
+    original_units,
+    scaled_problem,
+    supply_scale,
+)
 
 __all__ = ["LimsupCertificate", "limsup_bound", "noise_limsup_certificate", "quadratic_radius",
            "SEARCH"]
@@ -36,32 +43,15 @@ SEARCH_MARGINS = (1e-8, 1e-6)  # strictness tried at each rho of the search
 
 
 @dataclass
-class LimsupCertificate:
+class LimsupCertificate(NoiseCertificate):
     """A certified upper bound ``gamma`` on the limsup sensitivity (None: none found), the
-    rho of its certificate and how many SDPs the search solved."""
+    ``rho`` of its certificate and how many SDPs the search solved."""
 
-    gamma: float | None
-    rho: float | None
-    lag: int
-    status: str  # "certified", "infeasible" or "failed"
-    check_kind: str  # "float" (solver solved + floating-point check) or "none"
-    certificate: dict[str, Any] | None = None  # original units: rho, P, p, s, c, multipliers
-    checks: dict[str, float] = field(default_factory=dict)
-    seconds: float = 0.0
+    rho: float | None = None
     solves: int = 0
-    detail: str = ""
-
-    @property
-    def certified(self) -> bool:
-        return self.gamma is not None
 
     def to_dict(self) -> dict[str, Any]:
-        cert = None if self.certificate is None else {
-            k: (v.tolist() if isinstance(v, np.ndarray) else v)
-            for k, v in self.certificate.items()}
-        return {"gamma": self.gamma, "rho": self.rho, "lag": self.lag, "status": self.status,
-                "check_kind": self.check_kind, "certificate": cert, "checks": self.checks,
-                "seconds": self.seconds, "solves": self.solves, "detail": self.detail}
+        return super().to_dict() | {"rho": self.rho, "solves": self.solves}
 
 
 def quadratic_radius(alg: Any, points: int = 41) -> float:
@@ -138,7 +128,7 @@ def noise_limsup_certificate(alg: Any, lag: int = 1, rho: float | None = None,
     start = time.perf_counter()
     scale = supply_scale(alg)
     if not math.isfinite(scale) or scale <= 0:
-        return LimsupCertificate(None, None, lag, "infeasible", "none",
+        return LimsupCertificate(None, lag, "infeasible", "none",
                                  detail="unstable on a quadratic of the class",
                                  seconds=time.perf_counter() - start)
     search = _Search(alg, lag, scale)
@@ -153,8 +143,8 @@ def noise_limsup_certificate(alg: Any, lag: int = 1, rho: float | None = None,
         _golden(search, top - SEARCH["span"], top, int(SEARCH["steps"]))
     seconds = time.perf_counter() - start
     if search.best is None:
-        return LimsupCertificate(None, None, lag, "failed", "none", seconds=seconds,
+        return LimsupCertificate(None, lag, "failed", "none", seconds=seconds,
                                  solves=search.solves, detail=search.last)
     g2, r, cert, checks, detail = search.best
-    return LimsupCertificate(math.sqrt(g2), r, lag, "certified", "float", cert, checks,
-                             seconds, search.solves, detail)
+    return LimsupCertificate(math.sqrt(g2), lag, "certified", "float", cert, checks,
+                             seconds, detail, rho=r, solves=search.solves)
