@@ -162,12 +162,13 @@ def test_analyze_noise_command_and_python_twin(tmp_path):
     assert twin.noise == pytest.approx(row["noise"], rel=1e-6)
 
 
-def test_noise_refuses_composite_specs_in_one_line(tmp_path):
+def test_noise_refuses_specs_without_a_noisy_gradient_in_one_line(tmp_path):
+    """Douglas-Rachford only takes proximal steps: there is no gradient to perturb."""
     out = tmp_path / "never"
-    res = CliRunner().invoke(cli, ["analyze", f"{SPECS}/proximal-gradient.yaml", "--noise",
+    res = CliRunner().invoke(cli, ["analyze", f"{SPECS}/douglas-rachford.yaml", "--noise",
                                    "--out", str(out)])
     assert res.exit_code == 2
     lines = res.output.strip().splitlines()
-    assert len(lines) == 1 and "proximal-gradient.yaml" in lines[0]
+    assert len(lines) == 1 and "douglas-rachford.yaml" in lines[0]
     assert "one gradient call on F(m, L)" in lines[0]
     assert not out.exists()

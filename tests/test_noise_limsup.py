@@ -150,7 +150,7 @@ def test_analyze_verify_and_python_twin(tmp_path):
 
 def test_bad_input_is_one_line(tmp_path):
     never = tmp_path / "never"
-    res = CliRunner().invoke(cli, ["analyze", f"{SPECS}/proximal-gradient.yaml", "--noise",
+    res = CliRunner().invoke(cli, ["analyze", f"{SPECS}/douglas-rachford.yaml", "--noise",
                                    "--out", str(never)])
     assert res.exit_code == 2 and len(res.output.strip().splitlines()) == 1
     assert not never.exists()

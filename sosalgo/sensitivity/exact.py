@@ -44,7 +44,7 @@ from sosalgo.verify.exact import (
 )
 from sosalgo.verify.exact_interpolation import Refused, symmetric_matrix
 
-__all__ = ["NoiseProof", "verify_noise", "sqrt_upper"]
+__all__ = ["NoiseProof", "verify_composite_noise", "verify_noise", "sqrt_upper"]
 
 
 @dataclass
@@ -178,6 +178,66 @@ def _prove(res: NoiseProof, dec: Any, pos: Any, num: dict[str, Any]) -> None:
                   f"rho^2 = {fraction_str(rho2)}"}
 
 
+def _composite_numbers(cert: Mapping[str, Any], st: Any, nz: int,
+                       ncols: tuple[int, int]) -> dict[str, Any]:
+    """The certificate's numbers as exact rationals (negative multipliers as 0)."""
+    P = symmetric_matrix(cert["P"], nz, lambda a, b: (rational(a) + rational(b)) / 2)
+    p, c = [rational(v) for v in cert["p"]], [rational(v) for v in cert["c"]]
+    if (len(p), len(c)) != ncols:
+        raise ValueError("p or c has the wrong length")
+    mult, zero = cert["multipliers"], Fraction(0)
+    return {"P": P, "p": p, "s": rational(cert["s"]), "c": c,
+            "eta": [max(zero, rational(mult["decrease"][k])) for k in st.dec.labels],
+            "lam": [max(zero, rational(mult["positivity"][k])) for k in st.pos.labels]}
+
+
+def verify_composite_noise(spec: Spec, kappa: float, cert: Mapping[str, Any],
+                           theta: Mapping[str, float] | None = None,
+                           digits: int | None = None) -> NoiseProof:
+    """Exact proof of a composite noise certificate
+    (:func:`sosalgo.sensitivity.composite.composite_noise_certificate`): its parts on the
+    exact method, -D ⪰ delta I and Pq ⪰ delta I by rational LDL^T, the value rows exactly;
+    gamma <= sqrt(s) rounded up; the fixed points proven exactly as for the rates
+    (:func:`sosalgo.verify.exact_composite.fixed_point_failure`)."""
+    from sosalgo.sensitivity.composite import composite_noise_parts, exact_noise_structure
+    from sosalgo.sensitivity.sdp import check_lag
+    from sosalgo.verify.exact_interpolation import prove_definite, symmetrize_balls
+
+    start = time.perf_counter()
+    res = NoiseProof(spec=spec.name)
+    try:
+        lag = int(cert["lag"])
+        check_lag(lag)
+        nm, st, known = exact_noise_structure(spec, kappa, theta, lag, digits or DEFAULT_DIGITS)
+        num = _composite_numbers(cert, st, st.dec.Z[lag].shape[0],
+                                 ((lag + 1) * nm.p_real, (nm.p - nm.p_real) * len(known)))
+        res.certificate = {"lag": lag, "s": fraction_str(num["s"])}
+        parts = composite_noise_parts(nm, st, num, known)
+        bad = [i for i, v in enumerate(parts["Df"]) if Ball.of(v).hi > 0] + \
+              [i for i, v in enumerate(parts["Pf"]) if Ball.of(v).lo < 0]
+        ok_d, dd, det_d = prove_definite(symmetrize_balls(parts["D"]), -1)
+        ok_p, dp, det_p = prove_definite(symmetrize_balls(parts["Pq"]), +1)
+        if bad or not (ok_d and ok_p) or num["s"] <= 0:
+            res.reason = "; ".join(([f"function-value rows {bad}"] if bad else [])
+                                   + ([f"decrease matrix: {det_d}"] if not ok_d else [])
+                                   + ([f"positivity matrix: {det_p}"] if not ok_p else [])
+                                   + (["s <= 0"] if num["s"] <= 0 else []))
+        else:
+            t = sqrt_upper(num["s"])
+            res.verified, res.gamma_fraction = Verdict.EXACT, fraction_str(t)
+            res.gamma_proven = math.nextafter(float(t), math.inf)
+            res.proofs = {"decrease": f"-D ⪰ {fraction_str(dd)} I: {det_d}",
+                          "positivity": f"Pq ⪰ {fraction_str(dp)} I: {det_p}",
+                          "function values": "all rows exact (<= 0 / >= 0)",
+                          "bound": f"gamma^2 <= s = {fraction_str(num['s'])}",
+                          "fixed point": "proven exactly (sympy, x* = 1 and each free "
+                                         "optimal subgradient)"}
+    except (KeyError, TypeError, ValueError, AttributeError, Refused) as exc:
+        res.reason = f"malformed certificate or method: {type(exc).__name__}: {exc}"
+    res.seconds = time.perf_counter() - start
+    return res
+
+
 def verify_noise(spec: Spec, kappa: float, cert: Mapping[str, Any],
                  theta: Mapping[str, float] | None = None,
                  digits: int = DEFAULT_DIGITS, limsup: bool = False) -> NoiseProof:
@@ -187,6 +247,8 @@ def verify_noise(spec: Spec, kappa: float, cert: Mapping[str, Any],
     (the long-run average, or with ``limsup`` the limsup) of the spec's method at ``kappa``."""
     start = time.perf_counter()
     res = NoiseProof(spec=spec.name)
+    if spec.composite and not spec.sublinear and not limsup:
+        return verify_composite_noise(spec, kappa, cert, theta, digits)
     try:
         if spec.composite or spec.sublinear:
             raise Refused("noise sensitivity needs one gradient call on F(m, L)")

@@ -11,13 +11,13 @@ from __future__ import annotations
 import json
 import math
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 from sosalgo.errors import InputError
 from sosalgo.schema import NOISE_COLUMNS
-from sosalgo.sensitivity.quadratic import noise_quadratic
+from sosalgo.sensitivity.quadratic import QuadraticNoise, noise_quadratic
 from sosalgo.sensitivity.sdp import MAX_LAG, NoiseCertificate, noise_certificate
 from sosalgo.spec import Spec
 
@@ -29,23 +29,39 @@ LAG_GAIN = 1e-6  # relative improvement that counts as a gain when the lag is ch
 
 def check_noise_spec(spec: Spec) -> None:
     """InputError (one line naming the file) unless the spec has one gradient call on
-    F(m, L): a seed spec with m > 0."""
-    if spec.composite or spec.sublinear:
+    F(m, L) (a seed spec with m > 0), or is a composite spec with m > 0 and a gradient
+    call on a smooth_strongly_convex function (the noisy calls)."""
+    if spec.sublinear or (spec.composite and not _has_noisy_call(spec)):
         raise InputError(f"{spec.source}: --noise: noise sensitivity needs one gradient "
-                         "call on F(m, L) (a spec without functions/oracles/D/output/measure "
-                         "and with m > 0)")
+                         "call on F(m, L) (a seed spec with m > 0, or a composite spec with "
+                         "m > 0 and a gradient call on a smooth_strongly_convex function)")
+
+
+def _has_noisy_call(spec: Spec) -> bool:
+    """Whether a composite spec has a gradient call on a smooth_strongly_convex function
+    (decided on the method bound at the spec's first kappa)."""
+    from sosalgo.model import bind
+    from sosalgo.sensitivity.composite import noisy_calls
+
+    try:
+        return bool(noisy_calls(bind(spec, float(spec.kappa[0]) if spec.kappa else 10.0)))
+    except (ValueError, ArithmeticError):
+        return False
 
 
 def best_noise_certificate(alg: Any, lags: Sequence[int] | None = None,
-                           quadratic: float | None = None) -> NoiseCertificate:
+                           quadratic: float | None = None,
+                           certify: Callable[[Any, int], NoiseCertificate] | None = None,
+                           ) -> NoiseCertificate:
     """The smallest certified bound over ``lags`` (default 0 .. n + 1, at most MAX_LAG),
     tried in order; stops once the bound is within LAG_GAIN of ``quadratic`` (a lower
-    bound for every lag) or two lags in a row gain nothing. A failed lag is skipped."""
+    bound for every lag) or two lags in a row gain nothing. A failed lag is skipped.
+    ``certify(alg, lag)``: the certificate of one lag (default :func:`noise_certificate`)."""
     todo = list(lags) if lags is not None else list(range(min(alg.n + 1, MAX_LAG) + 1))
     best: NoiseCertificate | None = None
     idle = 0
     for lag in todo:
-        cert = noise_certificate(alg, lag)
+        cert = (certify or noise_certificate)(alg, lag)
         if cert.certified and (best is None or not best.certified
                                or cert.gamma < best.gamma * (1 - LAG_GAIN)):
             best, idle = cert, 0
@@ -127,6 +143,23 @@ def _limsup(res: NoiseResult, spec: Spec, alg: Any, theta: Mapping[str, float] |
             res.noise_limsup, res.noise_limsup_check = pr.gamma_proven, "exact"
 
 
+def _quadratic(spec: Spec, alg: Any) -> tuple[QuadraticNoise, Any]:
+    """(value on quadratics, certify(alg, lag) or None for the seed's): a composite spec
+    gets the composite quadratic value (q: the worst curvature of the first noisy call's
+    function) and :func:`~sosalgo.sensitivity.composite.composite_noise_certificate`."""
+    if not spec.composite:
+        return noise_quadratic(alg), None
+    from sosalgo.sensitivity.composite import (
+        composite_noise_certificate,
+        composite_noise_quadratic,
+        noisy_calls,
+    )
+
+    gamma, worst = composite_noise_quadratic(alg)
+    quad = QuadraticNoise(gamma, worst[alg.oracles[noisy_calls(alg)[0]]])
+    return quad, lambda om, lag: composite_noise_certificate(om, lag, gamma)
+
+
 def analyze_noise(spec: Spec, kappa: float, theta: Mapping[str, float] | None = None,
                   lag: int | None = None, exact: bool = True,
                   limsup: bool = True) -> NoiseResult:
@@ -139,8 +172,8 @@ def analyze_noise(spec: Spec, kappa: float, theta: Mapping[str, float] | None = 
     check_noise_spec(spec)
     start = time.perf_counter()
     alg = bind(spec, kappa, theta)
-    quad = noise_quadratic(alg)
-    cert = best_noise_certificate(alg, None if lag is None else [lag], quad.gamma)
+    quad, certify = _quadratic(spec, alg)
+    cert = best_noise_certificate(alg, None if lag is None else [lag], quad.gamma, certify)
     noise, kind, proof = cert.gamma, cert.check_kind, None
     if cert.certified and exact:
         from sosalgo.sensitivity.exact import verify_noise
@@ -151,7 +184,7 @@ def analyze_noise(spec: Spec, kappa: float, theta: Mapping[str, float] | None = 
             noise, kind = pr.gamma_proven, "exact"
     res = NoiseResult(float(kappa), noise, cert.gamma, quad.gamma, quad.q, cert.lag, kind,
                       _jsonable(cert.certificate), proof, 0.0, cert.detail)
-    if limsup and math.isfinite(quad.gamma):
+    if limsup and math.isfinite(quad.gamma) and not spec.composite:
         _limsup(res, spec, alg, theta, max(1, cert.lag) if lag is None else lag, exact)
     res.seconds = time.perf_counter() - start
     return res

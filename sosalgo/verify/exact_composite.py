@@ -65,7 +65,7 @@ from sosalgo.verify.exact_interpolation import (
 )
 
 __all__ = ["CompositeExactResult", "ExactOracleMethod", "exact_class_inequalities",
-           "exact_oracle_method", "verify_exact_composite"]
+           "exact_oracle_method", "fixed_point_failure", "verify_exact_composite"]
 
 FLOAT_CLASS_RADIUS = Fraction(1, 2**40)  # relative radius of a class's float data
 
@@ -367,13 +367,13 @@ def _exact_method(spec: Spec, kappa: float, theta: Mapping[str, float] | None, d
         if om.D[i, i].hi > 0 or any(om.D[i, j].lo != 0 or om.D[i, j].hi != 0
                                     for j in range(i + 1, om.p)):
             raise Refused(f"D is not lower triangular with diagonal <= 0 (row {i + 1})")
-    bad = _fixed_point_failure(om, alg)
+    bad = fixed_point_failure(om, alg)
     if bad:
         raise Refused(bad)
     return om
 
 
-def _fixed_point_failure(om: ExactOracleMethod, alg: Any) -> str | None:
+def fixed_point_failure(om: ExactOracleMethod, alg: Any) -> str | None:
     """None when xi* exists exactly for x* = 1 (s* = 0) and for x* = 0 with each free
     optimal subgradient (sympy, algebraic entries); else why not."""
     mats = om.ex.matrices
