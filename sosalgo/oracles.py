@@ -30,7 +30,7 @@ from sosalgo.classes import CLASSES, FunctionClass
 from sosalgo.errors import ModelError
 from sosalgo.spec.types import Spec, SpecError
 
-__all__ = ["BoundFunction", "OracleMethod", "as_oracle_method", "check_oracle_spec",
+__all__ = ["BoundFunction", "CallShape", "OracleMethod", "as_oracle_method", "check_oracle_spec",
            "composite_quadratic_rate", "fixed_point_basis"]
 
 FIXED_POINT_TOL = 1e-8
@@ -45,8 +45,21 @@ class BoundFunction:
     params: dict[str, float]
 
 
+class CallShape:
+    """``n`` (states: rows of ``A``) and ``p`` (oracle calls: length of ``oracles``) of a
+    method; a base of the oracle method and of the forms other modules build from it."""
+
+    @property
+    def n(self) -> int:
+        return int(self.A.shape[0])  # type: ignore[attr-defined]
+
+    @property
+    def p(self) -> int:
+        return len(self.oracles)  # type: ignore[attr-defined]
+
+
 @dataclass(frozen=True)
-class OracleMethod:
+class OracleMethod(CallShape):
     """A numeric method of the oracle model (see the module docstring).
 
     ``oracles[i]`` is the index in ``functions`` of the function call i queries; ``output``
@@ -112,14 +125,6 @@ class OracleMethod:
     def kappa(self) -> float:
         """L / m (inf when m = 0: a sublinear spec has no condition number)."""
         return self.L / self.m if self.m > 0 else float("inf")
-
-    @property
-    def n(self) -> int:
-        return int(self.A.shape[0])
-
-    @property
-    def p(self) -> int:
-        return len(self.oracles)
 
     def optimal_map(self) -> np.ndarray:
         """S (p x (J - 1)): u* = S s~ for the free optimal subgradients s~ = (s_1*, ...,

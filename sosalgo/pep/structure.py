@@ -46,6 +46,7 @@ from typing import Any
 import numpy as np
 
 from sosalgo.errors import InputError
+from sosalgo.oracles import CallShape
 from sosalgo.pep.terms import Term
 
 __all__ = ["Method", "PEPPoint", "PEPStructure", "build_structure", "output_call",
@@ -53,7 +54,7 @@ __all__ = ["Method", "PEPPoint", "PEPStructure", "build_structure", "output_call
 
 
 @dataclass
-class Method:
+class Method(CallShape):
     """A method on some number type: float arrays, or object arrays of exact numbers.
 
     ``functions``: (name, class, params); ``coef(term)`` the number of a term's c;
@@ -80,14 +81,6 @@ class Method:
     G0: np.ndarray | None = None  # ``initial_state``: xi_0 = X0 x_0 + G0 g0 (None: G0 = 0)
     smooth: int = 0  # the function whose gradient g0 is
     out_call: int | None = None  # output None, E = C_i and D_i = 0: x_k is call i's point
-
-    @property
-    def n(self) -> int:
-        return int(self.A.shape[0])
-
-    @property
-    def p(self) -> int:
-        return len(self.oracles)
 
 
 @dataclass

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from sosalgo.certificates.composite import composite_structure
+from sosalgo.oracles import CallShape
 from sosalgo.sensitivity.sdp import GAP_TOL, MARGINS, NoiseCertificate, check_lag
 
 __all__ = ["NoisyModel", "noisy_calls", "noisy_model", "composite_noise_certificate",
@@ -48,7 +49,7 @@ NOISE = NoiseInput()
 
 
 @dataclass
-class NoisyModel:
+class NoisyModel(CallShape):
     """An oracle method with the noises as extra calls (A, B, C, D, E augmented)."""
 
     A: Any
@@ -63,14 +64,6 @@ class NoisyModel:
     p_real: int
     noisy: list[int]
     measure: str = "distance"
-
-    @property
-    def n(self) -> int:
-        return int(self.A.shape[0])
-
-    @property
-    def p(self) -> int:
-        return len(self.oracles)
 
 
 def noisy_calls(om: Any) -> list[int]:
