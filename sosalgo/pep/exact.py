@@ -142,6 +142,14 @@ def exact_method(spec: Spec, kappa: float | None, om: Any) -> Method:
     return mt
 
 
+def _proven_zero(v: sp.Expr) -> bool:
+    """``v == 0`` proven (:func:`sosalgo.verify.exact.is_zero`); a number sympy already
+    knows to be nonzero is answered without simplification."""
+    from sosalgo.verify.exact import is_zero
+
+    return v.is_zero is not False and is_zero(v)
+
+
 def _exact_output_call(mats: dict[str, sp.Matrix], om: Any) -> int | None:
     """:func:`sosalgo.pep.structure.output_call` decided symbolically: the first call i
     with E - C_i = 0 and D_i = 0 exactly (sympy), None otherwise (or with an output call)."""
@@ -150,7 +158,7 @@ def _exact_output_call(mats: dict[str, sp.Matrix], om: Any) -> int | None:
     D = mats.get("D", sp.zeros(om.p, om.p))
     for i in range(om.p):
         diff = list(mats["E"][0, :] - mats["C"][i, :]) + list(D[i, :])
-        if all(sp.simplify(v) == 0 for v in diff):
+        if all(_proven_zero(sp.sympify(v)) for v in diff):
             return i
     return None
 
