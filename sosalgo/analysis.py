@@ -497,7 +497,8 @@ def _choose_lag(alg: Algorithm, tol: float, fam: CertificateFamily, solvers: Seq
     searched in full; each further lag only has to beat the best rate so far by the
     tolerance (:func:`_improve`: one test there, a search below it when it does).
     Lags are raised until ``LAG_PATIENCE`` in a row do not improve, the last of ``lags``
-    or ``LAG_SECONDS``. The largest lag of those next ``LAG_PATIENCE`` is tested first: a
+    or ``LAG_SECONDS``, or (families that say so: several oracle calls) once a lag certifies
+    a rate. The largest lag of those next ``LAG_PATIENCE`` is tested first: a
     certificate of lag l is one of lag l + 1, so when it does not beat the best rate none
     of the smaller ones does and the choice stops after that one test. Larger lags never
     certify less in exact arithmetic, but their solves are less accurate on degenerate
@@ -516,7 +517,8 @@ def _choose_lag(alg: Algorithm, tol: float, fam: CertificateFamily, solvers: Seq
     solves, misses, i = best.solves, 0, 1
     ahead: dict[int, _Probe] = {}  # a window's top, tested against the current best
     while i < len(members) and misses < LAG_PATIENCE:
-        if time.perf_counter() - start > LAG_SECONDS:
+        if time.perf_counter() - start > LAG_SECONDS or (
+                best.certified and not fam.searches_past_certified(alg)):
             break
         top = min(i + LAG_PATIENCE - misses, len(members)) - 1
         if top > i and top not in ahead:

@@ -185,6 +185,7 @@ def _clarabel_settings(equilibrate: bool, refine: bool = True, precise: bool = F
     settings.verbose = False
     settings.max_iter = 200
     settings.presolve_enable = False
+    settings.max_threads = 1  # small problems: threads cost more than they give (and vary)
     settings.equilibrate_enable = equilibrate
     settings.iterative_refinement_enable = refine
     if precise:  # a hundred times tighter: two or three more iterations

@@ -206,6 +206,11 @@ class CertificateFamily(Protocol):
         interpolation family's lags); () by default: the family is used as it is."""
         return ()
 
+    def searches_past_certified(self, alg: Algorithm) -> bool:
+        """Whether the choice among :meth:`auto_lags` goes on for ``alg`` once a member
+        certifies a rate (True by default: the best over the members is kept)."""
+        return True
+
     def guess_problem(self, alg: Algorithm) -> LMIProblem | None:
         """A cheaper member whose rate tells the search where to look (never certifies);
         None by default."""
