@@ -49,7 +49,14 @@ import scipy.sparse as sps
 from sosalgo.design.boxproof import BoxProver
 from sosalgo.design.modes import ModeTest
 from sosalgo.design.polymodel import PolyLMI
-from sosalgo.solvers import SolverStatus, clarabel_solve, finite_data, solver_status, svec
+from sosalgo.solvers import (
+    SolverStatus,
+    clarabel_solve,
+    finite_data,
+    quiet_settings,
+    solver_status,
+    svec,
+)
 
 __all__ = ["BoundStatus", "DualStructure", "BoundSearch", "dual_structure"]
 
@@ -316,15 +323,12 @@ class BoundSearch:
     def _solve_dual(self, rows: _Rows, lay: _Layout) -> np.ndarray | None:
         """Clarabel on the assembled SDP (maximize t): y, or None unless t > 0 was found
         (solved, or almost solved: the float screening and the proof come after)."""
-        import clarabel
-
         q = np.zeros(lay.ny)
         q[lay.t_col] = -1.0
         A, b = np.vstack(rows.rows), np.array(rows.b)
         if not finite_data(A, b):
             return None
-        settings = clarabel.DefaultSettings()
-        settings.verbose = False
+        settings = quiet_settings()
         settings.max_iter = 100
         try:
             sol = clarabel_solve(sps.csc_matrix((lay.ny, lay.ny)), q, sps.csc_matrix(A), b,

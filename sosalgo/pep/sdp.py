@@ -41,7 +41,7 @@ import numpy as np
 import scipy.sparse as sps
 
 from sosalgo.pep.structure import Method, PEPStructure
-from sosalgo.solvers import SolverStatus, solver_status
+from sosalgo.solvers import SolverStatus, quiet_settings, solver_status
 
 __all__ = ["PEPData", "SDPAnswer", "pep_data", "solve_pep", "svec_index"]
 
@@ -173,10 +173,7 @@ def _quiet_stderr():
 
 @functools.cache
 def _settings(precise: bool, reg: float, max_iter: int = 400) -> Any:
-    import clarabel
-
-    s = clarabel.DefaultSettings()
-    s.verbose = False
+    s = quiet_settings()
     s.max_iter = max_iter
     s.static_regularization_constant = reg
     s.direct_solve_method = "faer"  # supernodal LDL: 2-4x faster on these dense rows

@@ -33,7 +33,14 @@ from sosalgo.sensitivity.window import (
     past_noise,
     state_size,
 )
-from sosalgo.solvers import SolverStatus, clarabel_solve, finite_data, solver_status, svec
+from sosalgo.solvers import (
+    SolverStatus,
+    clarabel_solve,
+    finite_data,
+    quiet_settings,
+    solver_status,
+    svec,
+)
 
 __all__ = ["NoiseCertificate", "noise_certificate", "noise_windows", "MARGINS", "MAX_LAG",
            "attempt", "layout", "original_units", "supply_scale", "float_check", "check_lag",
@@ -176,8 +183,7 @@ def _clarabel(A: sps.csc_matrix, b: np.ndarray, q: np.ndarray,
               cones: list[tuple[str, int]]) -> tuple[SolverStatus, np.ndarray | None, str]:
     import clarabel
 
-    settings = clarabel.DefaultSettings()
-    settings.verbose = False
+    settings = quiet_settings()
     settings.presolve_enable = False
     # optimality to 1e-7 is plenty (the bound is what the checked point gives, and these
     # degenerate problems often stop at "almost solved" under 1e-8); feasibility keeps

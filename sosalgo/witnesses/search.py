@@ -71,12 +71,9 @@ def _rows(lay: Layout, method: Any, samples: Sequence[float]) -> tuple[list, lis
 
 
 def _solve(q: np.ndarray, A: np.ndarray, b: np.ndarray, cones: list) -> np.ndarray | None:
-    import clarabel
+    from sosalgo.solvers import SolverStatus, clarabel_solve, quiet_settings, solver_status
 
-    from sosalgo.solvers import SolverStatus, clarabel_solve, solver_status
-
-    settings = clarabel.DefaultSettings()
-    settings.verbose = False
+    settings = quiet_settings()
     settings.max_iter = 200
     n = len(q)
     try:
