@@ -181,11 +181,13 @@ class _Search:
 
     def degenerate(self, rho: float) -> Margin:
         """t(rho) where the certificate degenerates: the equilibrated solve first, kept
-        when its point passes the check, else the unequilibrated one (and the
-        equilibrated one only when that fails), as :func:`solve_margin` orders them."""
+        when its point passes the check or its t is negative beyond its accuracy, else the
+        unequilibrated one (and the equilibrated one only when that fails), as
+        :func:`solve_margin` orders them."""
         first = solve_margin(self.problem, rho, equilibrate=True)
-        if self.checked(rho, first) is not None:
-            return first
+        if self.checked(rho, first) is not None or (
+                first.ok and first.t is not None and first.t + first.noise() < 0):
+            return first  # certified, or clearly not (t < 0 beyond its accuracy)
         plain = solve_margin(self.problem, rho, equilibrate=False)
         return plain if plain.ok else first
 

@@ -34,6 +34,7 @@ verifier) and sympy (``sosalgo lmi``): it only uses sums, products and stacking.
 
 from __future__ import annotations
 
+import functools
 import json
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -93,6 +94,8 @@ def _zeros(shape: tuple[int, ...], obj: bool) -> np.ndarray:
 def _window(A, B, C, E, m, L, lag: int, steps: int, has_x: bool, obj: bool) -> Window:
     """Window with gradients u_0..u_{steps-1}, x-points at times steps-2, steps-1 (decrease)
     or steps-1 (positivity); ``steps`` = l + 2 (decrease) or l + 1 (positivity)."""
+    if not obj:
+        return _window_float(A, B, C, E, m, L, lag, steps, has_x)
     n = A.shape[0]
     x_times = [t for t in (steps - 2, steps - 1) if t >= lag] if has_x else []
     width = n + steps + len(x_times)
@@ -105,7 +108,7 @@ def _window(A, B, C, E, m, L, lag: int, steps: int, has_x: bool, obj: bool) -> W
 
     U = [unit(n + t) for t in range(steps)]
     V = {t: unit(n + steps + i) for i, t in enumerate(x_times)}
-    Xi = [np.hstack([np.eye(n, dtype=object) if obj else np.eye(n), _zeros((n, width - n), obj)])]
+    Xi = [np.hstack([np.eye(n, dtype=object), _zeros((n, width - n), obj)])]
     for t in range(steps - 1):
         Xi.append(A @ Xi[t] + B @ U[t])
     Z, F = {}, {}
@@ -120,11 +123,7 @@ def _window(A, B, C, E, m, L, lag: int, steps: int, has_x: bool, obj: bool) -> W
     pts = [(f"y{t}", C @ Xi[t], U[t], t) for t in range(steps)]
     pts += [(f"x{t}", E @ Xi[t], V[t], steps + i) for i, t in enumerate(x_times)]
     pts.append(("*", _zeros((1, width), obj), _zeros((1, width), obj), None))
-    MM = np.array([[-m * L, m * L, m, -L], [m * L, -m * L, -m, L], [m, -m, -1, 1],
-                   [-L, L, 1, -1]], dtype=object if obj else float)
-    if not obj:
-        labels, Mq, mq = _pairs_float(pts, MM, L - m, nphi)
-        return Window(width, nphi, Z, F, labels, Mq, mq)
+    MM = _mm(m, L, obj)
     half = Fraction(1, 2)
     labels, Mq, mq = [], [], []
     for ni, xi, gi, fi in pts:
@@ -132,8 +131,7 @@ def _window(A, B, C, E, m, L, lag: int, steps: int, has_x: bool, obj: bool) -> W
             if ni == nj:
                 continue
             X = np.vstack([xi, xj, gi, gj])
-            M = X.T @ MM @ X
-            Mq.append(M * half if not obj else _scale(M, half))
+            Mq.append(_scale(X.T @ MM @ X, half))
             lin = _zeros((nphi,), obj)
             if fi is not None:
                 lin[fi] = lin[fi] + (L - m)
@@ -144,23 +142,76 @@ def _window(A, B, C, E, m, L, lag: int, steps: int, has_x: bool, obj: bool) -> W
     return Window(width, nphi, Z, F, labels, Mq, mq)
 
 
-def _pairs_float(pts: list, MM: np.ndarray, gap: float, nphi: int) -> tuple[list, list, list]:
-    """The float case of the pair loop of :func:`_window`, all ordered pairs at once:
-    labels, quadratic parts 1/2 X' MM X (X = [x_i; x_j; g_i; g_j]) and linear parts."""
-    idx = [(i, j) for i in range(len(pts)) for j in range(len(pts)) if i != j]
-    xs = np.vstack([p[1] for p in pts])
-    gs = np.vstack([p[2] for p in pts])
+def _mm(m: Any, L: Any, obj: bool) -> np.ndarray:
+    """The F(m, L) interpolation form on [x_i; x_j; g_i; g_j] (times 1/2 in q_ij)."""
+    return np.array([[-m * L, m * L, m, -L], [m * L, -m * L, -m, L], [m, -m, -1, 1],
+                     [-L, L, 1, -1]], dtype=object if obj else float)
+
+
+@dataclass(frozen=True)
+class _Shape:
+    """What a float window takes from its shape alone (n, lag, steps, has_x): shared,
+    read-only."""
+
+    x_times: tuple[int, ...]
+    width: int
+    nphi: int
+    F: dict[int, np.ndarray]  # as in Window
+    Zu: dict[int, np.ndarray]  # the gradient rows (u_t, ..., u_{t-l}) of Z_t
+    G: np.ndarray  # gradient row of every point (y_t, x_t, *), on w
+    ii: np.ndarray  # ordered pairs (i, j), i != j, of points
+    jj: np.ndarray
+    sign: np.ndarray  # pairs x nphi: +1 at f_i, -1 at f_j (times L - m in m_ij)
+    labels: tuple[str, ...]
+
+
+@functools.lru_cache(maxsize=128)
+def _shape(n: int, lag: int, steps: int, has_x: bool) -> _Shape:
+    x_times = tuple(t for t in (steps - 2, steps - 1) if t >= lag) if has_x else ()
+    width, nphi = n + steps + len(x_times), steps + len(x_times)
+    eye = np.eye(width)
+    F, Zu = {}, {}
+    for t in range(lag, steps):
+        rows = [t - j for j in range(lag + 1)] + ([steps + x_times.index(t)] if has_x else [])
+        F[t] = np.eye(nphi)[rows]
+        Zu[t] = eye[[n + t - j for j in range(lag + 1)]]
+    npts = steps + len(x_times) + 1
+    G = np.zeros((npts, width))
+    G[:-1] = eye[n: n + nphi]  # u_t of y_t, then the x-points' gradients; x*: 0
+    names = [f"y{t}" for t in range(steps)] + [f"x{t}" for t in x_times] + ["*"]
+    idx = [(i, j) for i in range(npts) for j in range(npts) if i != j]
     ii, jj = np.array([i for i, _ in idx]), np.array([j for _, j in idx])
-    X = np.stack([xs[ii], xs[jj], gs[ii], gs[jj]], axis=1)  # (pairs, 4, width)
-    Mq = 0.5 * (X.transpose(0, 2, 1) @ MM @ X)
-    lin = np.zeros((len(idx), nphi))
-    phi = np.array([-1 if p[3] is None else p[3] for p in pts])  # -1: x* (no value)
-    rows = np.arange(len(idx))
-    fi, fj = phi[ii], phi[jj]  # distinct points have distinct values: no column twice
-    lin[rows[fi >= 0], fi[fi >= 0]] = gap
-    lin[rows[fj >= 0], fj[fj >= 0]] = -gap
-    labels = [f"{pts[i][0]}>{pts[j][0]}" for i, j in idx]
-    return labels, list(Mq), list(lin)
+    sign = np.zeros((len(idx), nphi))
+    for r, (i, j) in enumerate(idx):  # the last point (x*) has no value
+        if i < nphi:
+            sign[r, i] += 1.0
+        if j < nphi:
+            sign[r, j] -= 1.0
+    for a in (G, ii, jj, sign, *F.values(), *Zu.values()):
+        a.flags.writeable = False
+    labels = tuple(f"{names[i]}>{names[j]}" for i, j in idx)
+    return _Shape(x_times, width, nphi, F, Zu, G, ii, jj, sign, labels)
+
+
+def _window_float(A, B, C, E, m, L, lag: int, steps: int, has_x: bool) -> Window:
+    """The float case of :func:`_window` (same rows and pairs; the shape-only parts are
+    cached, the interpolation pairs computed all at once)."""
+    n = A.shape[0]
+    sh = _shape(n, lag, steps, has_x)
+    Xi = np.zeros((steps, n, sh.width))
+    Xi[0, :, :n] = np.eye(n)
+    for t in range(steps - 1):  # xi_{t+1} = A xi_t + B u_t
+        Xi[t + 1] = A @ Xi[t]
+        Xi[t + 1, :, n + t] += B[:, 0]
+    Z = {t: np.vstack([Xi[t], sh.Zu[t]]) for t in range(lag, steps)}
+    xs = np.zeros((len(sh.G), sh.width))
+    xs[:steps] = (C @ Xi)[:, 0, :]  # y_t = C xi_t
+    for i, t in enumerate(sh.x_times):
+        xs[steps + i] = E @ Xi[t]
+    X = np.stack([xs[sh.ii], xs[sh.jj], sh.G[sh.ii], sh.G[sh.jj]], axis=1)  # (pairs, 4, w)
+    Mq = 0.5 * (X.transpose(0, 2, 1) @ _mm(m, L, False) @ X)
+    return Window(sh.width, sh.nphi, Z, sh.F, list(sh.labels), list(Mq),
+                  list((L - m) * sh.sign))
 
 
 def _scale(M: np.ndarray, half: Any) -> np.ndarray:
