@@ -864,6 +864,13 @@ def quadratic_rate(alg: Algorithm, points: int = 2001) -> float:
         return composite_quadratic_rate(alg, min(points, 201))  # type: ignore[arg-type]
     qs = np.linspace(alg.m, alg.L, points)
     mats = alg.A[None, :, :] + qs[:, None, None] * (alg.B @ alg.C)[None, :, :]
+    if alg.n == 2:  # roots of z^2 - 2 half z + det: |half| + sqrt(disc), or sqrt(det)
+        half = 0.5 * (mats[:, 0, 0] + mats[:, 1, 1])  # when complex (|z|^2 = det)
+        det = mats[:, 0, 0] * mats[:, 1, 1] - mats[:, 0, 1] * mats[:, 1, 0]
+        disc = half * half - det
+        radius = np.where(disc >= 0, np.abs(half) + np.sqrt(np.maximum(disc, 0.0)),
+                          np.sqrt(np.maximum(det, 0.0)))
+        return float(radius.max())
     return float(np.abs(np.linalg.eigvals(mats)).max())
 
 
