@@ -33,14 +33,7 @@ from sosalgo.sensitivity.window import (
     past_noise,
     state_size,
 )
-from sosalgo.solvers import (
-    SolverStatus,
-    clarabel_solve,
-    finite_data,
-    quiet_settings,
-    solver_status,
-    svec,
-)
+from sosalgo.solvers import SolverStatus, clarabel_solve, finite_data, solver_status, svec
 
 __all__ = ["NoiseCertificate", "noise_certificate", "noise_windows", "MARGINS", "MAX_LAG",
            "attempt", "layout", "original_units", "supply_scale", "float_check", "check_lag",
@@ -182,6 +175,8 @@ def _conic(dec: NoiseWindow, pos: NoiseWindow, lay: dict[str, slice], nvar: int,
 def _clarabel(A: sps.csc_matrix, b: np.ndarray, q: np.ndarray,
               cones: list[tuple[str, int]]) -> tuple[SolverStatus, np.ndarray | None, str]:
     import clarabel
+
+    from sosalgo.solvers import quiet_settings
 
     settings = quiet_settings()
     settings.presolve_enable = False
