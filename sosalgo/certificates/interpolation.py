@@ -210,7 +210,7 @@ def _window_float(A, B, C, E, m, L, lag: int, steps: int, has_x: bool) -> Window
         xs[steps + i] = E @ Xi[t]
     X = np.stack([xs[sh.ii], xs[sh.jj], sh.G[sh.ii], sh.G[sh.jj]], axis=1)  # (pairs, 4, w)
     Mq = 0.5 * (X.transpose(0, 2, 1) @ _mm(m, L, False) @ X)
-    return Window(sh.width, sh.nphi, Z, sh.F, list(sh.labels), list(Mq),
+    return Window(sh.width, sh.nphi, Z, dict(sh.F), list(sh.labels), list(Mq),
                   list((L - m) * sh.sign))
 
 
