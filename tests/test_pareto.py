@@ -153,9 +153,10 @@ def test_caps_and_robust_momentum_formulas():
         assert v == pytest.approx(tmm[k], rel=1e-12)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def small_front(tmp_path_factory):
-    """A small front: Nesterov's structure (h, beta), Theorem 1, 5 points, one process."""
+    """A small front: Nesterov's structure (h, beta), Theorem 1, 5 points, one process
+    (session scope: a worker that runs other modules between these tests keeps it)."""
     out = tmp_path_factory.mktemp("pareto")
     doc = pareto_run(spec_path("nesterov"), 10, out, points=5, time_limit=12, workers=1,
                      progress=False)
