@@ -843,6 +843,16 @@ def judge_row(name: str, row: dict, meth: Momentum, monte_carlo: bool) -> None:
                 f"{name}: Monte Carlo {mean} +- {se} above certified noise^2 {noise**2}")
 
 
+def _random_design_case(rng, seed: int, three: bool, tmp_path) -> tuple[float, str, object]:
+    """(kappa: dyadic, log-uniform in [2, 100]; spec path; gamma): three-parameter.yaml
+    when ``three``, else a random two-parameter spec."""
+    kappa = float(dyadic(float(np.exp(rng.uniform(math.log(2), math.log(100)))), 64))
+    if three:
+        return kappa, str(SPECS / "three-parameter.yaml"), None
+    path, gamma = two_parameter_spec(tmp_path, seed)
+    return kappa, path, gamma
+
+
 DESIGN_KEYS = [*range(max(1, CASES // 4))]  # about 4 s each
 
 
@@ -854,11 +864,7 @@ def test_objective_design_meets_its_cap(seed, tmp_path):
     import sosalgo
 
     rng = np.random.default_rng(2024 + seed)
-    kappa = float(dyadic(float(np.exp(rng.uniform(math.log(2), math.log(100)))), 64))
-    if seed % 3 == 2:
-        path, gamma = str(SPECS / "three-parameter.yaml"), None
-    else:
-        path, gamma = two_parameter_spec(tmp_path, seed)
+    kappa, path, gamma = _random_design_case(rng, seed, seed % 3 == 2, tmp_path)
     floor, slow = 1 - 1 / math.sqrt(kappa), 1 - 1 / kappa
     if seed % 2 == 0:
         R = float(floor + rng.uniform(0.15, 0.9) * (slow - floor))
@@ -897,11 +903,7 @@ def test_pareto_rows_above_judge(seed, tmp_path):
     import sosalgo
 
     rng = np.random.default_rng(333 + seed)
-    kappa = float(dyadic(float(np.exp(rng.uniform(math.log(2), math.log(100)))), 64))
-    if seed % 2 == 1:
-        path, gamma = str(SPECS / "three-parameter.yaml"), None
-    else:
-        path, gamma = two_parameter_spec(tmp_path, seed)
+    kappa, path, gamma = _random_design_case(rng, seed, seed % 2 == 1, tmp_path)
     doc = sosalgo.pareto_run(path, kappa, tmp_path / "out", points=3, time_limit=3,
                              certificate="interpolation", workers=1, progress=False,
                              plot=False)
