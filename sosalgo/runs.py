@@ -74,7 +74,7 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
     if spec.sublinear:  # m: 0: one constant, no kappa (sosalgo.sublinear_run)
         from sosalgo.sublinear_run import sublinear_run
 
-        return sublinear_run(spec, text, out_dir, plot, kappa, verify)
+        return sublinear_run(spec, text, out_dir, plot, kappa, verify, restart, progress)
     kappas = _kappa_list(spec, kappa)
     inputs.check_tol(tol, "--tol")
     from sosalgo.witnesses.rows import check_witness_options
@@ -161,7 +161,8 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
 
         if kappa not in (None, [], ()):
             raise InputError(f"{spec.source}: --kappa: undefined for a sublinear spec (m: 0)")
-        return sublinear_design_run(spec, text, out_dir, free, time_limit, verify)
+        return sublinear_design_run(spec, text, out_dir, free, time_limit, verify,
+                                    restart, progress)
     fam = inputs.select_families(spec, certificate, options, single=True)[0]
     kappas = _kappa_list(spec, kappa)
     opts = _design_options(spec, kappas, free, fam, {
@@ -219,7 +220,8 @@ def grid_run(spec: Spec | str | Path, kappa: Kappas, out_dir: str | Path = "outp
 
         if kappa not in (None, [], ()):
             raise InputError(f"{spec.source}: --kappa: undefined for a sublinear spec (m: 0)")
-        return sublinear_grid_run(spec, text, out_dir, points, free)
+        return sublinear_grid_run(spec, text, out_dir, points, free, workers, scheduler,
+                                  restart, progress)
     if kappa in (None, [], ()):
         raise InputError("--kappa: required (one or more condition numbers)")
     kappas = _kappa_list(spec, kappa)

@@ -1,25 +1,31 @@
-"""``sosalgo analyze`` on a sublinear spec (``m: 0``, L given, no kappa): one row.
+"""``sosalgo analyze|design|grid`` on a sublinear spec (``m: 0``, L given, no kappa).
 
-Writes ``<name>-analysis.csv`` (columns :func:`sosalgo.schema.sublinear_columns`) and the
-bound figure ``<name>-rate`` (.png, .pdf), and returns the ``--json`` document, whose row
-says ``rate_type: sublinear`` and ``constant: c``.
+``analyze`` writes one row to ``<name>-analysis.csv`` (columns
+:func:`sosalgo.schema.sublinear_columns`) and the bound figure ``<name>-rate`` (.png,
+.pdf); ``design`` one row to ``<name>-design.csv``; ``grid`` one row per point to
+``<name>-grid.csv``. Each returns the ``--json`` document (rows say ``rate_type:
+sublinear`` and ``constant: c``). Every file is written under the run model of
+:mod:`sosalgo.batch.store` (resume, keep other settings' results aside, one output lock):
+a rerun with the same settings reads the finished rows back instead of computing them.
 """
 
 from __future__ import annotations
 
-import csv
 import json
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from sosalgo.spec import Spec
 
 __all__ = ["attach_verification", "design_lines", "sublinear_design_run",
-           "sublinear_grid_run", "sublinear_row", "sublinear_run", "sublinear_simulation"]
+           "sublinear_grid_chunk", "sublinear_grid_run", "sublinear_row", "sublinear_run",
+           "sublinear_simulation"]
 
 DESIGN_COLUMNS = ["L", "rate_type", "free", "constant", "certified", "lower_bound",
                   "bound_status", "evaluations", "seconds", "time_limit", "timed_out",
                   "check_kind", "simulation_ok", "simulation_worst_ratio"]
+GRID_RESULT_COLUMNS = ["constant", "certified", "solves", "seconds"]
 
 
 def sublinear_simulation(spec: Spec, constant: float | None,
@@ -46,78 +52,170 @@ def sublinear_row(spec: Spec) -> dict[str, Any]:
     return row
 
 
+# --------------------------------------------------------------------------- CSV cells
+def _cell(v: Any) -> Any:
+    """A CSV cell as these files have always written it (``True``/``False`` for flags)."""
+    return str(v) if isinstance(v, bool) else v
+
+
+def _num(v: str | None) -> float | None:
+    return None if v in (None, "") else float(v)
+
+
+def _flag(v: str | None) -> bool:
+    return v in ("True", "true")
+
+
+def _json_cell(v: str | None) -> Any:
+    return None if v in (None, "") else json.loads(v)
+
+
+def _store(path: Path, columns: Sequence[str], key: Sequence[str], settings: dict[str, Any],
+           restart: bool, companions: Sequence[Path] = ()) -> Any:
+    """The resumable output of a sublinear run (the run model of the other commands)."""
+    from sosalgo.batch.store import ResumableCSV
+
+    return ResumableCSV(path, columns, key, settings, restart=restart, companions=companions)
+
+
+def _figures(stem: Path) -> list[Path]:
+    return [stem.with_name(f"{stem.name}.{ext}") for ext in ("png", "pdf")]
+
+
+# --------------------------------------------------------------------------- design
 def sublinear_design_run(spec: Spec, text: str, out_dir: str | Path, free: Any = None,
-                         time_limit: float = 120.0, verify: bool = False) -> dict[str, Any]:
+                         time_limit: float = 120.0, verify: bool = False,
+                         restart: bool = False, progress: bool = True) -> dict[str, Any]:
     """``sosalgo design`` on a sublinear spec: minimize the certified constant over the box
     (:func:`sosalgo.sublinear_design.sublinear_design`), simulate the design, write
-    ``<name>-design.csv``; returns the document (one row)."""
+    ``<name>-design.csv``; returns the document (one row). A rerun with the same settings
+    reads the design back from the CSV."""
     from sosalgo import inputs
-    from sosalgo.sublinear_design import sublinear_design
+    from sosalgo.batch.executor import Progress
 
     names = inputs.free_names(spec, free)
     inputs.check_time_limit(time_limit, "--time-limit")
     out = inputs.out_dir(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    row = sublinear_design(spec, names, time_limit)
-    row |= {"spec": spec.name, "source": spec.source, "spec_text": text}  # self-contained
-    row["simulation"] = sublinear_simulation(spec, row["constant"], row["theta"])
-    if verify:
-        attach_verification(spec, row, out)
     path = out / f"{spec.name}-design.csv"
     columns = DESIGN_COLUMNS + [f"param_{p}" for p in spec.parameters] + ["certificate"]
-    cells = {k: row.get(k) for k in DESIGN_COLUMNS} | {
-        "free": ",".join(names), "certificate": json.dumps(row["certificate"]),
-        "simulation_ok": None if row["simulation"] is None else row["simulation"]["ok"],
-        "simulation_worst_ratio": None if row["simulation"] is None
-        else row["simulation"]["worst_ratio"]}
-    cells |= {f"param_{p}": v for p, v in row["params"].items()}
-    _write_csv(path, columns, cells)
+    settings = {"job": "design", "spec": text, "free": names, "time_limit": time_limit}
+    with _store(path, columns, ["L"], settings, restart) as store:
+        if store.rows():
+            Progress(1, f"design {spec.name}", progress, done=1, resumed_from=path).close()
+            row = _design_from_csv(spec, names, store.rows()[0])
+        else:
+            row = _design_row(spec, names, time_limit, progress)
+            store.write(_design_cells(names, row))
+    row |= {"spec": spec.name, "source": spec.source, "spec_text": text}  # self-contained
+    if verify:
+        attach_verification(spec, row, out)
     return {"spec": spec.name, "source": spec.source, "spec_text": text, "csv": str(path),
             "figures": [], "rows": [row]}
 
 
-def sublinear_grid_run(spec: Spec, text: str, out_dir: str | Path, points: int = 60,
-                       free: Any = None) -> dict[str, Any]:
-    """``sosalgo grid`` on a sublinear spec: the certified constant at every point of a
-    grid over the free parameters' box, written row by row to ``<name>-grid.csv``."""
-    import itertools
+def _design_row(spec: Spec, names: list[str], time_limit: float,
+                progress: bool) -> dict[str, Any]:
+    """The design (with its simulation), the progress bar saying so while it runs."""
+    from sosalgo.batch.executor import Progress
+    from sosalgo.sublinear_design import sublinear_design
 
-    import numpy as np
+    bar = Progress(1, f"design {spec.name}", progress)
+    try:
+        bar.phase("search", f"time limit {time_limit:g} s")
+        row = sublinear_design(spec, names, time_limit)
+        row["simulation"] = sublinear_simulation(spec, row["constant"], row["theta"])
+        bar.update()
+    finally:
+        bar.close()
+    return row
 
-    from sosalgo import inputs
+
+def _design_cells(names: list[str], row: dict[str, Any]) -> dict[str, Any]:
+    sim = row["simulation"]
+    cells = {k: row.get(k) for k in DESIGN_COLUMNS} | {
+        "free": ",".join(names), "certificate": json.dumps(row["certificate"]),
+        "simulation_ok": None if sim is None else sim["ok"],
+        "simulation_worst_ratio": None if sim is None else sim["worst_ratio"]}
+    cells |= {f"param_{p}": v for p, v in row["params"].items()}
+    return {k: _cell(v) for k, v in cells.items()}
+
+
+def _design_from_csv(spec: Spec, names: list[str], cells: dict[str, str]) -> dict[str, Any]:
+    """The design row read back from its CSV row (the simulation is run again: it is
+    evidence about the constant, cheap next to the design)."""
+    from sosalgo.sublinear_design import _box
+
+    params = {p: float(cells[f"param_{p}"]) for p in spec.parameters
+              if cells.get(f"param_{p}", "") != ""}
+    constant = _num(cells["constant"])
+    theta = None if constant is None else {p: params[p] for p in names}
+    row = {"rate_type": cells["rate_type"], "L": float(cells["L"]), "free": names,
+           "box": [list(b) for b in _box(spec, names)], "constant": constant,
+           "certified": _flag(cells["certified"]), "theta": theta, "params": params,
+           "lower_bound": _num(cells["lower_bound"]), "bound_status": cells["bound_status"],
+           "evaluations": int(cells["evaluations"]), "seconds": float(cells["seconds"]),
+           "time_limit": float(cells["time_limit"]), "timed_out": _flag(cells["timed_out"]),
+           "check_kind": cells["check_kind"] or None,
+           "certificate": _json_cell(cells["certificate"]), "family": "sublinear"}
+    row["simulation"] = sublinear_simulation(spec, constant, theta)
+    return row
+
+
+# --------------------------------------------------------------------------- grid
+def sublinear_grid_chunk(spec_text: str, source: str, options: dict[str, Any],
+                         chunk: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Worker: the certified constant at each task's point (its free parameters' values)."""
     from sosalgo.analysis import analyze_sublinear
+    from sosalgo.batch.sweeps import _spec
+    from sosalgo.model import ModelError
+
+    spec = _spec(spec_text, source)
+    rows = []
+    for task in chunk:
+        theta = {p: float(task[p]) for p in options["free"]}
+        try:
+            res = analyze_sublinear(spec, theta)
+            cells = {"constant": res.constant, "certified": res.certified,
+                     "solves": res.solves, "seconds": res.seconds}
+        except ModelError:  # no fixed point or a domain error there
+            cells = {"certified": False}
+        rows.append({k: _cell(v) for k, v in (theta | cells).items()})
+    return rows
+
+
+def sublinear_grid_run(spec: Spec, text: str, out_dir: str | Path, points: int = 60,
+                       free: Any = None, workers: int | None = None,
+                       scheduler: str | None = None, restart: bool = False,
+                       progress: bool = True) -> dict[str, Any]:
+    """``sosalgo grid`` on a sublinear spec: the certified constant at every point of a
+    grid over the free parameters' box, written row by row to ``<name>-grid.csv``
+    (resumable, on ``workers`` processes or a Dask ``scheduler`` like every grid)."""
+    from sosalgo import inputs
+    from sosalgo.batch.sweeps import _run_store, _seed, grid_points
     from sosalgo.errors import InputError
-    from sosalgo.model import ModelError, parameter_box
+    from sosalgo.model import parameter_box
 
     names = inputs.free_names(spec, free)
     if isinstance(points, bool) or not isinstance(points, int) or not 2 <= points <= 2000:
         raise InputError(f"--points {points}: must be an integer in 2..2000")
     box = parameter_box(spec, float("nan"), names)
     out = inputs.out_dir(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    if scheduler is not None:
+        inputs.check_scheduler(scheduler)
     path = out / f"{spec.name}-grid.csv"
-    columns = names + ["constant", "certified", "solves", "seconds"]
-    best = None
-    tmp = path.with_name(path.name + ".tmp")
-    with tmp.open("w", newline="") as fh:
-        writer = csv.DictWriter(fh, columns)
-        writer.writeheader()
-        for pt in itertools.product(*[np.linspace(lo, hi, points) for lo, hi in box]):
-            theta = dict(zip(names, map(float, pt), strict=True))
-            try:
-                res = analyze_sublinear(spec, theta)
-                cells = {"constant": res.constant, "certified": res.certified,
-                         "solves": res.solves, "seconds": res.seconds}
-            except ModelError:
-                cells = {"certified": False}
-            if cells.get("constant") is not None and (best is None or cells["constant"] < best):
-                best = cells["constant"]
-            writer.writerow({c: "" if v is None else v for c, v in (theta | cells).items()})
-            fh.flush()
-    tmp.replace(path)
+    settings = {"job": "grid", "spec": text, "free": names, "points": points,
+                "box": [list(b) for b in box]}
+    store = _store(path, names + GRID_RESULT_COLUMNS, names, settings, restart)
+    tasks = [dict(zip(names, pt, strict=True)) for pt in grid_points(box, points)]
+    _seed(spec, text)
+    _run_store(store, tasks, f"grid {spec.name}", progress, sublinear_grid_chunk, text,
+               spec.source, {"free": names}, None, workers, scheduler)
+    order = {store.row_key(t): i for i, t in enumerate(tasks)}
+    rows = sorted((r for r in store.rows() if store.row_key(r) in order),
+                  key=lambda r: order[store.row_key(r)])
+    constants = [float(r["constant"]) for r in rows if r["constant"] != ""]
     return {"spec": spec.name, "rate_type": "sublinear", "free": names, "csv": str(path),
-            "best": best, "grids": []}
-
+            "best": min(constants, default=None), "grids": []}
 
 def design_lines(doc: dict[str, Any]) -> list[str]:
     """What ``sosalgo design`` prints for a sublinear design document."""
@@ -138,16 +236,6 @@ def design_lines(doc: dict[str, Any]) -> list[str]:
                      + (f" (c <= {ver['constant_proven_float']:.7g})"
                         if ver.get("constant_proven_float") is not None else ""))
     return lines + [f"wrote {doc['csv']}"]
-
-
-def _write_csv(path: Path, columns: list[str], cells: dict[str, Any]) -> None:
-    """One row, written to a temporary file and moved into place (never half-written)."""
-    tmp = path.with_name(path.name + ".tmp")
-    with tmp.open("w", newline="") as fh:
-        writer = csv.DictWriter(fh, columns)
-        writer.writeheader()
-        writer.writerow({c: "" if cells.get(c) is None else cells[c] for c in columns})
-    tmp.replace(path)
 
 
 def _csv_cells(spec: Spec, row: dict[str, Any]) -> dict[str, Any]:
@@ -175,12 +263,15 @@ def attach_verification(spec: Spec, row: dict[str, Any], out: Path) -> None:
 
 
 def sublinear_run(spec: Spec, text: str, out_dir: str | Path, plot: bool = True,
-                  kappa: Any = None, verify: bool = False) -> dict:
+                  kappa: Any = None, verify: bool = False, restart: bool = False,
+                  progress: bool = True) -> dict:
     """Analyze, write the CSV (and the figure with ``plot``), return the document (a kappa
     is refused first). With ``verify`` the row gets ``verification`` (the exact proof of
     :mod:`sosalgo.verify.exact_sublinear` and the row's simulation; proof document in
-    ``out_dir/certificates``) and ``verified``."""
+    ``out_dir/certificates``) and ``verified``. A rerun with the same settings reads the
+    row back from the CSV."""
     from sosalgo import inputs
+    from sosalgo.batch.executor import Progress
     from sosalgo.errors import InputError
     from sosalgo.report.analysis import sublinear_figure
     from sosalgo.schema import analysis_csv, rate_stem, sublinear_columns
@@ -188,13 +279,43 @@ def sublinear_run(spec: Spec, text: str, out_dir: str | Path, plot: bool = True,
     if kappa is not None and kappa != () and kappa != []:
         raise InputError(f"{spec.source}: --kappa: undefined for a sublinear spec (m: 0)")
     out = inputs.out_dir(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    row = sublinear_row(spec)
+    path, stem = analysis_csv(out, spec.name, None), rate_stem(out, spec.name)
+    settings = {"job": "analyze", "spec": text}
+    with _store(path, sublinear_columns(spec), ["L"], settings, restart,
+                _figures(stem)) as store:
+        bar = Progress(1, f"analyze {spec.name}", progress, done=len(store.rows()[:1]),
+                       resumed_from=path)
+        try:
+            if store.rows():
+                row = _analysis_from_csv(spec, store.rows()[0])
+            else:
+                row = sublinear_row(spec)
+                store.write({k: _cell(v) for k, v in _csv_cells(spec, row).items()})
+                bar.update()
+        finally:
+            bar.close()
+        figs = sublinear_figure(spec, row, stem) if plot else []
     if verify:
         attach_verification(spec, row, out)
-    path = analysis_csv(out, spec.name, None)
-    columns = sublinear_columns(spec)
-    _write_csv(path, columns, _csv_cells(spec, row))
-    figs = sublinear_figure(spec, row, rate_stem(out, spec.name)) if plot else []
     return {"spec": spec.name, "source": spec.source, "spec_text": text, "csv": str(path),
             "figures": [str(p) for p in figs], "rows": [row]}
+
+
+def _analysis_from_csv(spec: Spec, cells: dict[str, str]) -> dict[str, Any]:
+    """The analysis row read back from its CSV row (references and the simulation of the
+    constant computed again: they are cheap next to the certificate's search)."""
+    from sosalgo.batch.sweeps import reference_values
+
+    constant = _num(cells["constant"])
+    row = {"rate_type": cells["rate_type"], "constant": constant,
+           "certified": _flag(cells["certified"]), "L": float(cells["L"]),
+           "measure": cells["measure"], "constant_estimate": _num(cells["constant_estimate"]),
+           "solves": int(cells["solves"]), "seconds": float(cells["seconds"]),
+           "solver": cells["solver"] or None,
+           "params": {p: float(cells[f"param_{p}"]) for p in spec.parameters
+                      if cells.get(f"param_{p}", "") != ""},
+           "check_kind": cells["check_kind"] or None, "check": _json_cell(cells["check"]),
+           "certificate": _json_cell(cells["certificate"]), "family": "sublinear"}
+    row["references"] = reference_values(spec, float("nan"))
+    row["simulation"] = sublinear_simulation(spec, constant)
+    return row

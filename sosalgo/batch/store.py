@@ -15,7 +15,9 @@ that determine them (job, spec text, kappa list, tolerance, free parameters, ...
   the current file instead (deleted, then recomputed), again with a note.
 - One exclusive lock per output file (``fcntl.flock`` on ``DIR/.<name>.csv.lock``) is held
   from reading the done set to the last row, so two concurrent runs into one folder never
-  write a row twice: the second waits (with a note) and then resumes or keeps aside.
+  write a row twice: the second waits (with a note) and then resumes or keeps aside. The
+  lock file is removed when its run lets go (:func:`output_lock`); a killed run leaves
+  an empty one, which the next run takes over.
 - Nothing is written before the first row is ready (header and settings come with it).
 - Each row is written with a single ``write`` of a complete line followed by a flush (a
   killed process loses nothing written); the file is fsync'ed at most every
@@ -125,26 +127,19 @@ _HELD: dict[str, tuple[int, int]] = {}  # lock path -> (fd, depth): re-entrant p
 
 @contextmanager
 def output_lock(path: Path, notify: Callable[[str], None] = _note) -> Iterator[None]:
-    """Exclusive (re-entrant within a process) lock on output ``path`` across processes."""
-    import fcntl
+    """Exclusive (re-entrant within a process) lock on output ``path`` across processes.
 
+    The lock file ``DIR/.<name>.lock`` exists only while a run holds it: the holder
+    removes it before letting go, and a run that was waiting on the removed file (its
+    lock taken on a name no longer in the folder) opens the new one and waits again, so
+    two runs never hold the lock of one output at once."""
     path = Path(path)
     lock = str(path.with_name(f".{path.name}.lock").absolute())
     if lock in _HELD:
         fd, depth = _HELD[lock]
         _HELD[lock] = (fd, depth + 1)
     else:
-        try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
-        except OSError as exc:
-            raise OutputError(f"{path.parent}: cannot write ({exc.strerror})") from None
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            notify(f"another sosalgo run is writing {path}; waiting for it to finish")
-            fcntl.flock(fd, fcntl.LOCK_EX)
-        _HELD[lock] = (fd, 1)
+        _HELD[lock] = (_acquire(path, lock, notify), 1)
     try:
         yield
     finally:
@@ -153,7 +148,51 @@ def output_lock(path: Path, notify: Callable[[str], None] = _note) -> Iterator[N
             _HELD[lock] = (fd, depth - 1)
         else:
             del _HELD[lock]
-            os.close(fd)  # closing the descriptor releases the flock
+            _release(lock, fd)
+
+
+def _acquire(path: Path, lock: str, notify: Callable[[str], None]) -> int:
+    """A descriptor holding the flock on the file named ``lock`` (created if missing)."""
+    import fcntl
+
+    told = False
+    while True:
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as exc:
+            raise OutputError(f"{path.parent}: cannot write ({exc.strerror})") from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            if not told:
+                notify(f"another sosalgo run is writing {path}; waiting for it to finish")
+                told = True
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        if _same_file(fd, lock):
+            return fd
+        os.close(fd)  # its holder removed it while we waited: lock the new one
+
+
+def _same_file(fd: int, name: str) -> bool:
+    """True when ``name`` still names the file open as ``fd``."""
+    try:
+        st = os.stat(name)
+    except FileNotFoundError:
+        return False
+    own = os.fstat(fd)
+    return (st.st_dev, st.st_ino) == (own.st_dev, own.st_ino)
+
+
+def _release(lock: str, fd: int) -> None:
+    """Remove the lock file (while still holding it), then let go of it."""
+    try:
+        if _same_file(fd, lock):
+            os.unlink(lock)
+    except OSError:  # a read-only folder keeps its lock file; the lock is released anyway
+        pass
+    finally:
+        os.close(fd)  # closing the descriptor releases the flock
 
 
 # --------------------------------------------------------------------------- files
