@@ -281,6 +281,9 @@ def pareto_chunk(spec_text: str, source: str, options: dict[str, Any],
     return rows
 
 
+pareto_chunk.max_chunk = 1  # type: ignore[attr-defined]  # a front point takes seconds
+
+
 # --------------------------------------------------------------------------- parent side
 def _check(spec: Spec, kappa: Any, points: Any, time_limit: Any) -> list[float]:
     """The kappas, after the checks of ``sosalgo pareto`` (InputError naming the option)."""

@@ -183,6 +183,9 @@ def sublinear_grid_chunk(spec_text: str, source: str, options: dict[str, Any],
     return rows
 
 
+sublinear_grid_chunk.max_chunk = 1  # type: ignore[attr-defined]  # a point takes ~0.5 s
+
+
 def sublinear_grid_run(spec: Spec, text: str, out_dir: str | Path, points: int = 60,
                        free: Any = None, workers: int | None = None,
                        scheduler: str | None = None, restart: bool = False,

@@ -160,11 +160,16 @@ def _chunks(tasks: Sequence[dict[str, Any]], size: int) -> Iterator[list[dict[st
         yield list(tasks[i : i + size])
 
 
-def chunk_size(n_tasks: int, workers: int) -> int:
-    """Chunks of a few dozen rates keep per-task overhead small, yet balance the load."""
-    if workers <= 1:
-        return max(1, n_tasks)
-    return max(1, min(64, math.ceil(n_tasks / (workers * 8))))
+def chunk_size(n_tasks: int, workers: int, largest: int = 64) -> int:
+    """Chunks of a few dozen rates keep per-task overhead small, yet balance the load;
+    at least eight chunks per worker (one worker too), so that rows reach the file as
+    chunks finish and a lost worker loses one chunk. ``largest``: the job's own cap
+    (``fn.max_chunk``: 1 for jobs whose tasks take seconds or more)."""
+    return max(1, min(largest, math.ceil(n_tasks / (max(1, workers) * 8))))
+
+
+def _largest_chunk(fn: ChunkFn) -> int:
+    return int(getattr(fn, "max_chunk", 64))
 
 
 def run_batch(
@@ -198,7 +203,7 @@ def run_batch(
         return
     from concurrent.futures import FIRST_COMPLETED, wait
 
-    size = chunk_size(len(tasks), workers)
+    size = chunk_size(len(tasks), workers, _largest_chunk(fn))
     if progress is not None:
         progress.phase(f"starting {workers} workers")
     pool = worker_pool(workers)
@@ -431,7 +436,7 @@ def _run_dask(fn, spec_text, source, options, tasks, deliver, address: str) -> N
 
     try:
         nworkers = max(1, len(client.scheduler_info().get("workers", {})))
-        size = chunk_size(len(tasks), nworkers)
+        size = chunk_size(len(tasks), nworkers, _largest_chunk(fn))
         pending = {
             client.submit(quietly, fn, spec_text, source, options, chunk, pure=False)
             for chunk in _chunks(tasks, size)

@@ -55,6 +55,7 @@ __all__ = [
     "kappa_label",
     "output_lock",
     "settings_hash",
+    "write_atomic",
     "write_table",
 ]
 
@@ -225,13 +226,22 @@ def _read_settings(path: Path) -> Any:
         return None
 
 
-def _atomic_write(path: Path, text: str) -> None:
+def write_atomic(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` whole or not at all (a temporary file of this process,
+    fsync'ed, then renamed over ``path``): a reader never sees half a file."""
+    path = Path(path)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    with open(tmp, "w", encoding="utf-8", newline="") as fh:
-        fh.write(text)
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "w", encoding="utf-8", newline="") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+_atomic_write = write_atomic
 
 
 def _content_hash(path: Path) -> str:
@@ -408,8 +418,9 @@ class ResumableCSV:
             _atomic_write(self.path, buf.getvalue())
 
     def _key_ok(self, row: dict[str, str]) -> bool:
+        """Every key cell a finite number, or empty (``pep`` without a kappa)."""
         try:
-            return all(math.isfinite(float(row[k])) for k in self.key)
+            return all(row[k] == "" or math.isfinite(float(row[k])) for k in self.key)
         except (KeyError, TypeError, ValueError):
             return False
 

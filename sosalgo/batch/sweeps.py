@@ -407,6 +407,9 @@ def design_chunk(
     return _run_chunk(spec_text, source, options, chunk, one)
 
 
+design_chunk.max_chunk = 1  # type: ignore[attr-defined]  # a design takes seconds or more
+
+
 def run_design_sweep(
     spec: Spec, spec_text: str, kappas: Sequence[float], out_csv: Path,
     options: dict[str, Any], workers: int | None = None, scheduler: str | None = None,

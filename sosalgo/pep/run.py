@@ -62,6 +62,9 @@ def pep_chunk(spec_text: str, source: str, options: dict[str, Any],
     return rows
 
 
+pep_chunk.max_chunk = 1  # type: ignore[attr-defined]  # a PEP takes seconds to minutes
+
+
 def _check(spec: Spec, kappas: list[float | None], steps: list[int], measure: str | None,
            initial: str | None) -> None:
     """Every input error before anything is written (one small problem per kappa)."""
@@ -83,7 +86,7 @@ def pep_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = Non
     (tau_k against k) go to ``out_dir`` (None: nothing written)."""
     from sosalgo import inputs
     from sosalgo.batch.executor import Progress, run_batch
-    from sosalgo.batch.store import ResumableCSV, output_lock
+    from sosalgo.batch.store import ResumableCSV
     from sosalgo.runs import spec_with_text
     from sosalgo.schema import PEP_COLUMNS, pep_csv
 
@@ -97,52 +100,75 @@ def pep_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = Non
     out = None if out_dir is None else inputs.out_dir(out_dir)
     options = {"measure": measure, "initial": initial, "exact": exact, "witness": witness}
     tasks = [{"kappa": "" if k is None else k, "steps": n} for k in ks for n in ns]
-    got: list[dict[str, Any]] = []
     if out is None:
+        got: list[dict[str, Any]] = []
         run_batch(pep_chunk, text, spec.source, options, tasks, got.append, workers,
                   scheduler)
-    else:
-        path = pep_csv(out, spec.name)
-        settings = {"job": "pep", "spec": text, **options}
-        with output_lock(path):
-            store = ResumableCSV(path, PEP_COLUMNS, ["kappa", "steps"], settings,
-                                 restart=restart)
-            with store:
-                todo = [t for t in tasks if not store.is_done(t)]
-                bar = Progress(len(tasks), f"pep {spec.name}", progress,
-                               done=len(tasks) - len(todo))
-                try:
-                    run_batch(pep_chunk, text, spec.source, options, todo, store.write,
-                              workers, scheduler, bar)
-                finally:
-                    bar.close()
-            keys = {store.row_key(t) for t in tasks}
-            got = [r for r in store.rows() if store.row_key(r) in keys]
-    docs = [json.loads(r["document"]) for r in got]
-    docs.sort(key=lambda d: (d["kappa"] or 0.0, d["steps"]))
-    files = _write_files(spec, docs, out, plot) if out is not None else []
+        return _pep_document(spec, measure, initial, _docs(got), [])
+    path = pep_csv(out, spec.name)
+    settings = {"job": "pep", "spec": text, **options}
+    store = ResumableCSV(path, PEP_COLUMNS, ["kappa", "steps"], settings, restart=restart,
+                         companions=_companions(spec, ks, ns, out))
+    with store:  # the lock is held until the last witness and figure are written
+        todo = [t for t in tasks if not store.is_done(t)]
+        bar = Progress(len(tasks), f"pep {spec.name}", progress,
+                       done=len(tasks) - len(todo), resumed_from=path)
+        try:
+            run_batch(pep_chunk, text, spec.source, options, todo, store.write,
+                      workers, scheduler, bar)
+        finally:
+            bar.close()
+        keys = {store.row_key(t) for t in tasks}
+        docs = _docs([r for r in store.rows() if store.row_key(r) in keys])
+        files = _write_files(spec, text, docs, out, plot)
+    return _pep_document(spec, measure, initial, docs, files)
+
+
+def _docs(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The documents of the CSV rows, in (kappa, steps) order."""
+    docs = [json.loads(r["document"]) for r in rows]
+    return sorted(docs, key=lambda d: (d["kappa"] or 0.0, d["steps"]))
+
+
+def _pep_document(spec: Spec, measure: str | None, initial: str | None,
+                  docs: list[dict[str, Any]], files: list[str]) -> dict[str, Any]:
     if len(docs) == 1:
         return docs[0] | {"files": files}
     return {"spec": spec.name, "source": spec.source, "measure": measure, "initial": initial,
             "rows": docs, "files": files}
 
 
-def _write_files(spec: Spec, docs: list[dict[str, Any]], out: Path,
+def _tag(kappa: float | None) -> str:
+    return "" if kappa is None else f"-k{kappa:g}"
+
+
+def _witness_path(spec: Spec, out: Path, kappa: float | None, steps: int) -> Path:
+    return out / f"{spec.name}-pep{_tag(kappa)}-N{steps}-witness.json"
+
+
+def _companions(spec: Spec, ks: list[float | None], ns: list[int], out: Path) -> list[Path]:
+    """The files a run writes beside its CSV (witnesses, figures): kept aside with it when
+    a run with other settings replaces it."""
+    files = []
+    for k in ks:
+        files += [_witness_path(spec, out, k, n) for n in ns]
+        for stem in (f"{spec.name}-pep{_tag(k)}", f"{spec.name}-pep{_tag(k)}-N{ns[-1]}-witness"):
+            files += [out / f"{stem}.{ext}" for ext in ("png", "pdf")]
+    return files
+
+
+def _write_files(spec: Spec, text: str, docs: list[dict[str, Any]], out: Path,
                  plot: bool) -> list[str]:
-    """Witness JSON files (with the spec's text, so ``sosalgo verify`` needs nothing else)
-    and the figure of tau_k against k for each kappa with two steps or more."""
-    from sosalgo.spec import read_spec_text
+    """Witness JSON files (with the spec's text as the run read it, so ``sosalgo verify``
+    needs nothing else), each written atomically, and the figure of tau_k against k for
+    each kappa with two steps or more."""
+    from sosalgo.batch.store import write_atomic
 
     files = []
-    try:
-        text = read_spec_text(spec.source)
-    except (InputError, OSError):
-        text = None
     for d in docs:
         if d.get("witness"):
-            k = "" if d["kappa"] is None else f"-k{d['kappa']:g}"
-            path = out / f"{spec.name}-pep{k}-N{d['steps']}-witness.json"
-            path.write_text(json.dumps(d["witness"] | {"spec_text": text}, indent=1))
+            path = _witness_path(spec, out, d["kappa"], d["steps"])
+            write_atomic(path, json.dumps(d["witness"] | {"spec_text": text}, indent=1))
             files.append(str(path))
     if plot:
         from sosalgo.pep.figure import pep_figure

@@ -60,9 +60,12 @@ def save_figure(fig: Any, stem: Path) -> list[Path]:
     paths = []
     for ext in ("png", "pdf"):
         final = stem.with_name(f"{stem.name}.{ext}")
-        tmp = stem.with_name(f".{stem.name}.{ext}.tmp")
-        fig.savefig(tmp, format=ext, dpi=150, bbox_inches="tight")
-        os.replace(tmp, final)
+        tmp = stem.with_name(f".{stem.name}.{ext}.{os.getpid()}.tmp")  # one per process
+        try:
+            fig.savefig(tmp, format=ext, dpi=150, bbox_inches="tight")
+            os.replace(tmp, final)
+        finally:
+            tmp.unlink(missing_ok=True)
         paths.append(final)
     pyplot().close(fig)
     return paths
