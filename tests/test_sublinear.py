@@ -111,7 +111,7 @@ def test_cli_analyze_writes_rate_type_and_constant(tmp_path):
     res = CliRunner().invoke(cli, ["analyze", str(SPECS / "gradient-convex.yaml"), "--out",
                                    str(out), "--json", "--no-plot"])
     assert res.exit_code == 0, res.output
-    row = json.loads(res.output)["rows"][0]
+    row = json.loads(res.stdout)["rows"][0]
     assert row["rate_type"] == "sublinear" and row["certified"]
     assert row["check_kind"] == "floating-point check"
     with (out / "gradient-convex-analysis.csv").open() as fh:
@@ -171,8 +171,8 @@ def test_design_minimizes_the_constant_soundly(tmp_path):
     res = CliRunner().invoke(cli, ["design", str(path), "--out",
                                    str(tmp_path), "--time-limit", "4", "--json", "--verify"])
     assert res.exit_code == 0, res.output
-    row = json.loads(res.output)["rows"][0] if "rows" in json.loads(res.output) else \
-        json.loads(res.output)
+    row = json.loads(res.stdout)["rows"][0] if "rows" in json.loads(res.stdout) else \
+        json.loads(res.stdout)
     h = row["theta"]["h"]
     hs = np.linspace(0.01, 1.99, 2000)
     assert row["constant"] < 0.25
