@@ -143,14 +143,14 @@ def _design_cells(names: list[str], row: dict[str, Any]) -> dict[str, Any]:
 def _design_from_csv(spec: Spec, names: list[str], cells: dict[str, str]) -> dict[str, Any]:
     """The design row read back from its CSV row (the simulation is run again: it is
     evidence about the constant, cheap next to the design)."""
-    from sosalgo.sublinear_design import _box
+    from sosalgo.model import parameter_box
 
     params = {p: float(cells[f"param_{p}"]) for p in spec.parameters
               if cells.get(f"param_{p}", "") != ""}
     constant = _num(cells["constant"])
     theta = None if constant is None else {p: params[p] for p in names}
     row = {"rate_type": cells["rate_type"], "L": float(cells["L"]), "free": names,
-           "box": [list(b) for b in _box(spec, names)], "constant": constant,
+           "box": [list(b) for b in parameter_box(spec, float("nan"), names)], "constant": constant,
            "certified": _flag(cells["certified"]), "theta": theta, "params": params,
            "lower_bound": _num(cells["lower_bound"]), "bound_status": cells["bound_status"],
            "evaluations": int(cells["evaluations"]), "seconds": float(cells["seconds"]),
