@@ -397,3 +397,37 @@ def test_chunks_of_long_tasks_hold_one_task():
         assert chunk_size(400, 1, _largest_chunk(fn)) == 1
     assert chunk_size(400, 1, _largest_chunk(analysis_chunk)) == 50  # eight chunks
     assert chunk_size(10_000, 2, _largest_chunk(analysis_chunk)) == 64
+
+
+@pytest.mark.deep
+def test_killing_the_only_dask_worker_keeps_the_finished_rows(tmp_path):
+    """A grid on a one-worker cluster (worker processes): rows reach the file before the
+    end; SIGKILL of the worker after the first row loses at most its chunk, the nanny's
+    new worker finishes the run, and the rows written before are kept verbatim."""
+    distributed = pytest.importorskip("distributed")
+    import gc
+
+    gc.collect()
+    args = ("grid", _spec("gradient-convex"), "--points", "8")
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                  dashboard_address=":0") as cluster, \
+            distributed.Client(cluster) as client:
+        (pid,) = client.run(os.getpid).values()
+        out = tmp_path / "out"
+        proc = subprocess.Popen([sys.executable, "-m", "sosalgo.cli", *args, "--out", str(out),
+                                 "--quiet", "--scheduler", cluster.scheduler_address], env=ENV,
+                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        path = out / "gradient-convex-grid.csv"
+        deadline = time.monotonic() + RESULT_TIMEOUT
+        while time.monotonic() < deadline and proc.poll() is None and not (
+                path.exists() and len(_complete_lines(path)) >= 2):
+            time.sleep(0.01)
+        written = _complete_lines(path)[1:]
+        assert proc.poll() is None and 1 <= len(written) < 8
+        os.kill(pid, signal.SIGKILL)
+        err = proc.communicate(timeout=RESULT_TIMEOUT)[1]
+    assert proc.returncode == 0, err
+    _, rows = _table(path)
+    assert len(rows) == 8 and len({r["h"] for r in rows}) == 8
+    text = path.read_text()
+    assert all(line in text for line in written)
