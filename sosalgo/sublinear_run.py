@@ -98,7 +98,7 @@ def sublinear_design_run(spec: Spec, text: str, out_dir: str | Path, free: Any =
     out = inputs.out_dir(out_dir)
     path = out / f"{spec.name}-design.csv"
     columns = DESIGN_COLUMNS + [f"param_{p}" for p in spec.parameters] + ["certificate"]
-    settings = {"job": "design", "spec": text, "free": names, "time_limit": time_limit}
+    settings = {"job": "design", "spec": text, "free": names, "time_limit": float(time_limit)}
     with _store(path, columns, ["L"], settings, restart) as store:
         if store.rows():
             Progress(1, f"design {spec.name}", progress, done=1, resumed_from=path).close()
