@@ -194,7 +194,7 @@ def sublinear_grid_run(spec: Spec, text: str, out_dir: str | Path, points: int =
     grid over the free parameters' box, written row by row to ``<name>-grid.csv``
     (resumable, on ``workers`` processes or a Dask ``scheduler`` like every grid)."""
     from sosalgo import inputs
-    from sosalgo.batch.sweeps import _run_store, _seed, grid_points
+    from sosalgo.batch.sweeps import _seed, grid_points, run_store
     from sosalgo.errors import InputError
     from sosalgo.model import parameter_box
 
@@ -211,7 +211,7 @@ def sublinear_grid_run(spec: Spec, text: str, out_dir: str | Path, points: int =
     store = _store(path, names + GRID_RESULT_COLUMNS, names, settings, restart)
     tasks = [dict(zip(names, pt, strict=True)) for pt in grid_points(box, points)]
     _seed(spec, text)
-    _run_store(store, tasks, f"grid {spec.name}", progress, sublinear_grid_chunk, text,
+    run_store(store, tasks, f"grid {spec.name}", progress, sublinear_grid_chunk, text,
                spec.source, {"free": names}, None, workers, scheduler)
     order = {store.row_key(t): i for i, t in enumerate(tasks)}
     rows = sorted((r for r in store.rows() if store.row_key(r) in order),

@@ -222,7 +222,7 @@ def analysis_chunk(
     return _run_chunk(spec_text, source, options, chunk, one)
 
 
-def _run_store(
+def run_store(
     store: ResumableCSV, tasks: list[dict[str, Any]], label: str, progress: bool,
     fn: Any, spec_text: str, source: str, options: dict[str, Any],
     on_row: Any, workers: int | None, scheduler: str | None,
@@ -281,7 +281,7 @@ def run_analysis_sweep(
                          restart=restart, companions=companions)
     tasks = [{"kappa": float(k)} for k in kappas]
     _seed(spec, spec_text)
-    _run_store(store, tasks, f"analyze {spec.name}", progress, analysis_chunk, spec_text,
+    run_store(store, tasks, f"analyze {spec.name}", progress, analysis_chunk, spec_text,
                spec.source, options, None, workers, scheduler)
     by_key = {store.row_key({"kappa": float(k)}): None for k in kappas}
     rows = [r for r in store.rows() if store.row_key(r) in by_key]
@@ -434,7 +434,7 @@ def run_design_sweep(
         store.write(row)
 
     _seed(spec, spec_text)
-    _run_store(store, tasks, f"design {spec.name}", progress, design_chunk, spec_text,
+    run_store(store, tasks, f"design {spec.name}", progress, design_chunk, spec_text,
                spec.source, options, on_row, workers, scheduler)
     wanted = {store.row_key({"kappa": float(k)}) for k in kappas}
     rows = [r for r in store.rows() if store.row_key(r) in wanted]
@@ -538,7 +538,7 @@ def run_grid(
         tasks.append({"kappa": float(kappa), "theta": theta, "extra": {**theta, **fixed},
                       **theta})
     _seed(spec, spec_text)
-    _run_store(store, tasks, f"grid {spec.name} k={kappa_label(kappa)}", progress, grid_chunk,
+    run_store(store, tasks, f"grid {spec.name} k={kappa_label(kappa)}", progress, grid_chunk,
                spec_text, spec.source, options, None, workers, scheduler)
     order = {store.row_key(t): i for i, t in enumerate(tasks)}
     rows = [r for r in store.rows() if store.row_key(r) in order]
