@@ -44,17 +44,57 @@ TAU_STEPS = (1e-12, 1e-9, 1e-7)
 PREC = 320  # bits of the ball arithmetic of the proof
 
 
-def _base(spec: Spec, kappa: float | None) -> dict[sp.Symbol, sp.Expr]:
+def written_kappa(kappa: float) -> Fraction:
+    """kappa as written: the decimal the float prints as (``10.1`` is 101/10, ``10`` is 10;
+    the shortest decimal that reads back as the same float)."""
+    return Fraction(repr(float(kappa)))
+
+
+def _written(expr: Any, value: float) -> sp.Expr:
+    """A constant of the spec as written (``1/10``, ``sqrt(2)``) exactly; its float's
+    decimal when the spec object has no expression (built by hand)."""
+    from sosalgo.expr.parse import to_sympy
+
+    if expr is not None:
+        return sp.sympify(to_sympy(expr))
+    q = written_kappa(value)
+    return sp.Rational(q.numerator, q.denominator)
+
+
+def exact_base(spec: Spec, kappa: float | None) -> dict[sp.Symbol, sp.Expr]:
+    """m, L (and kappa) of the class as written, exactly: the spec's ``m`` (``L`` for an
+    m: 0 spec) from its expression, kappa the decimal it was given as, L = kappa m."""
     from sosalgo.spec.types import BASE_SYMBOLS
-    from sosalgo.verify.exact import rational
 
     if spec.sublinear:
-        Lq = rational(spec.L)
-        vals = {"m": Fraction(0), "L": Lq}
+        vals = {"m": sp.Integer(0), "L": _written(spec.L_expr, float(spec.L or 0.0))}
     else:
-        kq, mq = rational(kappa), rational(spec.m)
-        vals = {"m": mq, "L": kq * mq, "kappa": kq}
-    return {BASE_SYMBOLS[k]: sp.Rational(v.numerator, v.denominator) for k, v in vals.items()}
+        kq = written_kappa(float(kappa))  # type: ignore[arg-type]
+        mq = _written(spec.m_expr, spec.m)
+        kq_s = sp.Rational(kq.numerator, kq.denominator)
+        vals = {"m": mq, "L": kq_s * mq, "kappa": kq_s}
+    return {BASE_SYMBOLS[k]: v for k, v in vals.items()}
+
+
+def class_description(spec: Spec, kappa: float | None) -> dict[str, Any]:
+    """Which class a proof is about, as exact strings: ``m``, ``L`` (``kappa``) and each
+    function's class and parameters (sympy's exact form: ``1/10``, ``sqrt(2)/10``)."""
+    from sosalgo.expr.parse import to_sympy
+
+    base = exact_base(spec, kappa)
+    out: dict[str, Any] = {str(k): str(v) for k, v in base.items()}
+    out["functions"] = {name: {"class": decl.cls, "params": {
+        k: str(to_sympy(e).xreplace(base)) for k, e in decl.params.items()}}
+        for name, decl in spec.functions.items()}
+    return out
+
+
+def _scale(L: sp.Expr) -> Fraction:
+    """The unit s of the exact structure: L when it is rational, else a binary rational
+    near it (any s > 0 gives the same PEP in another basis)."""
+    if L.is_Rational:
+        return Fraction(int(L.p), int(L.q))
+    return Fraction(float(L))
 
 
 def _exact_env(spec: Spec, base: dict[sp.Symbol, sp.Expr]) -> dict[sp.Symbol, sp.Expr]:
@@ -109,10 +149,11 @@ def exact_method(spec: Spec, kappa: float | None, om: Any) -> Method:
     from sosalgo.verify.exact import Ball, enclose
     from sosalgo.verify.exact_composite import exact_class_inequalities
 
-    base = _base(spec, kappa)
+    base = exact_base(spec, kappa)
     env = _exact_env(spec, base)
     mats = _exact_matrices(spec, env)
-    X = _balls(_fixed_points(mats, om))
+    Xq = _fixed_points(mats, om)
+    X = _balls(Xq)
     p = om.p
     funcs, ineqs = [], []
     for fn in om.functions:
@@ -120,7 +161,7 @@ def exact_method(spec: Spec, kappa: float | None, om: Any) -> Method:
         params = {k: enclose(to_sympy(e).xreplace(base)) for k, e in decl.params.items()}
         funcs.append((fn.name, fn.cls, params))
         ineqs.append(exact_class_inequalities(fn.cls, params)[0])
-    L = Fraction(int(base[_sym("L")].p), int(base[_sym("L")].q))
+    L = _scale(base[_sym("L")])
 
     def coef(t: Term) -> Any:
         return enclose(to_sympy(t.coef).xreplace(base))
@@ -135,6 +176,7 @@ def exact_method(spec: Spec, kappa: float | None, om: Any) -> Method:
                 _balls(mats["E"]) if "E" in mats else None, om.output, funcs,
                 tuple(om.oracles), X[:, 0], X[:, 1:], L, ineqs, coef, same, K, exact=True)
     mt.out_call = _exact_output_call(mats, om)
+    mt.x0_call = _exact_start_call(mats, Xq, om)
     g0, mt.smooth = initial_gradient(spec, om, float("nan") if kappa is None else kappa)
     if g0 is not None:  # the same start as the float method, exactly
         mt.G0 = np.array([enclose(to_sympy(b).xreplace(env))
@@ -158,6 +200,20 @@ def _exact_output_call(mats: dict[str, sp.Matrix], om: Any) -> int | None:
     D = mats.get("D", sp.zeros(om.p, om.p))
     for i in range(om.p):
         diff = list(mats["E"][0, :] - mats["C"][i, :]) + list(D[i, :])
+        if all(_proven_zero(sp.sympify(v)) for v in diff):
+            return i
+    return None
+
+
+def _exact_start_call(mats: dict[str, sp.Matrix], X: sp.Matrix, om: Any) -> int | None:
+    """The first call i whose point at step 0 is x_0 for every start xi_0 = X0 x_0 -
+    Xs s~: D_i = 0 and C_i [X0 Xs] = [1 0], decided symbolically (sympy), as
+    :func:`_exact_output_call` (with beta irrational, y_0 = x_0 holds only symbolically)."""
+    D = mats.get("D", sp.zeros(om.p, om.p))
+    target = [1] + [0] * (X.shape[1] - 1)
+    for i in range(om.p):
+        row = mats["C"][i, :] * X
+        diff = [row[0, c] - target[c] for c in range(X.shape[1])] + list(D[i, :])
         if all(_proven_zero(sp.sympify(v)) for v in diff):
             return i
     return None

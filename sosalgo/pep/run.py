@@ -37,13 +37,19 @@ def pep_row(res: Any) -> dict[str, Any]:
     chk = (res.witness or {}).get("check") or {}
     return {"kappa": res.kappa if res.kappa is not None else "", "steps": res.steps,
             "tau": res.tau, "status": res.status, "gap": res.gap,
-            "tau_proven": cert.get("tau_proven_float") if cert.get("tau_proven") else None,
+            "tau_proven": _proven_float(cert),
             "check_kind": cert.get("check_kind", ""),
             "witness_verified": chk.get("verified", ""),
             "tau_lower": chk.get("tau_lower_float"),
             "witness_dimension": (res.witness or {}).get("dimension"),
             "measure": res.measure, "initial": res.initial, "seconds": res.seconds,
             "document": json.dumps(res.to_dict(), default=float)}
+
+
+def _proven_float(cert: dict[str, Any]) -> float | None:
+    """The float of the proven rational ``tau_proven`` (None without a proof)."""
+    text = cert.get("tau_proven")
+    return float(Fraction(text)) if isinstance(text, str) else None
 
 
 def pep_chunk(spec_text: str, source: str, options: dict[str, Any],
