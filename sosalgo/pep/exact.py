@@ -38,7 +38,8 @@ from sosalgo.pep.structure import Method, PEPStructure, build_structure, deadbea
 from sosalgo.pep.terms import Term
 from sosalgo.spec import Spec
 
-__all__ = ["ball", "exact_method", "exact_or_none", "prove_certificate", "prove_scaled_psd"]
+__all__ = ["ball", "class_description", "exact_base", "exact_method", "exact_or_none",
+           "prove_at", "prove_certificate", "prove_scaled_psd", "reprove_certificate"]
 
 TAU_STEPS = (1e-12, 1e-9, 1e-7)
 PREC = 320  # bits of the ball arithmetic of the proof
@@ -386,7 +387,6 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
     (built here when not given)."""
     from sosalgo.pep.bind import bound_method
     from sosalgo.verify.exact import fraction_str, rational
-    from sosalgo.witnesses.method import precision
 
     t0 = time.perf_counter()
     out: dict[str, Any] = {"proven": False, "tau_proven": None, "tau_proven_float": None}
@@ -405,24 +405,82 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
     lq = [rational(v) if v > 1e-14 * top else Fraction(0) for v in lam]
     w = np.ones(st.d) if w is None else w
     detail = ""
+    for step in TAU_STEPS:
+        tq = decimal_up(Fraction(tau) * (1 + Fraction(step)))
+        ok, lq2, delta, why = prove_at(mt, st, lq, tq, w, repair=True)
+        if ok:
+            return out | {"proven": True, "tau_proven": fraction_str(tq),
+                          "tau_proven_float": float(tq), "delta": fraction_str(delta),
+                          "detail": why, "multipliers_nonzero": sum(1 for v in lq2 if v),
+                          "repaired": sum(1 for a, b in zip(lq, lq2, strict=True) if a != b),
+                          "multipliers_exact": {lab: fraction_str(v) for lab, v in
+                                                zip(st.labels, lq2, strict=True) if v},
+                          "scale": [fraction_str(rational(float(v))) for v in w],
+                          "class": class_description(spec, kappa),
+                          "seconds": time.perf_counter() - t0}
+        detail = why
+    return out | {"detail": detail, "seconds": time.perf_counter() - t0}
+
+
+def prove_at(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
+             w: np.ndarray, repair: bool = True
+             ) -> tuple[bool, list[Fraction], Fraction, str]:
+    """(proven, multipliers, delta, detail) of measure <= tq with the multipliers ``lam``
+    (by pair of ``st``): c_F >= 0 (after :func:`_repaired` when ``repair``) and
+    diag(w) S diag(w) ⪰ delta I (:func:`prove_scaled_psd`), in ball arithmetic."""
+    from sosalgo.witnesses.method import precision
+
     with precision(PREC):
         I0 = arb_mat([[ball(v) for v in row] for row in st.init_q])
         M = arb_mat([[ball(v) for v in row] for row in st.meas_q])
-        for step in TAU_STEPS:
-            tq = decimal_up(Fraction(tau) * (1 + Fraction(step)))
-            tb = ball(tq)
-            lq2, quad, cF = _repaired(mt, st, lq, tb)
-            bad = [k for k, c in enumerate(cF) if not c >= 0]
-            if bad:
-                detail = f"value residual {bad[0]} is not proven >= 0"
-                continue
-            ok, delta, why = prove_scaled_psd(I0 * tb - M - quad, w)
-            if ok:
-                return out | {"proven": True, "tau_proven": fraction_str(tq),
-                              "tau_proven_float": float(tq), "delta": fraction_str(delta),
-                              "detail": f"diag(w) S diag(w) ⪰ {float(delta):.3g} I: {why}; "
-                                        "c_F >= 0", "multipliers_nonzero": sum(1 for v in lq2 if v),
-                              "repaired": sum(1 for a, b in zip(lq, lq2, strict=True) if a != b),
-                              "seconds": time.perf_counter() - t0}
-            detail = why
-    return out | {"detail": detail, "seconds": time.perf_counter() - t0}
+        tb = ball(tq)
+        if repair:
+            lam2, quad, cF = _repaired(mt, st, lam, tb)
+        else:
+            lam2 = list(lam)
+            quad, lin = _residual_parts(mt, st, lam2)
+            cF = [tb * ball(st.init_f[k]) - ball(st.meas_f[k]) - lin[k]
+                  for k in range(st.nF)]
+        bad = [k for k, c in enumerate(cF) if not c >= 0]
+        if bad:
+            return False, lam2, Fraction(0), f"value residual {bad[0]} is not proven >= 0"
+        ok, delta, why = prove_scaled_psd(I0 * tb - M - quad, w)
+    if not ok:
+        return False, lam2, Fraction(0), why
+    return True, lam2, delta, f"diag(w) S diag(w) ⪰ {float(delta):.3g} I: {why}; c_F >= 0"
+
+
+def reprove_certificate(spec: Spec, kappa: float | None, steps: int, measure: str,
+                        initial: str, proof: dict[str, Any]) -> tuple[bool, str]:
+    """(proven, detail): the claim measure <= ``proof["tau_proven"]`` proven again from
+    the proof's own exact multipliers (by pair label) and scale, on the exact PEP of
+    ``spec`` at ``kappa`` rebuilt here; nothing is repaired or solved."""
+    from sosalgo.pep.terms import parse_terms
+
+    lab = proof.get("multipliers_exact")
+    if not isinstance(lab, dict) or not isinstance(proof.get("tau_proven"), str):
+        return False, "the proof carries no exact multipliers (multipliers_exact)"
+    try:
+        tq = Fraction(proof["tau_proven"])
+        mt = exact_or_none(spec, kappa)
+        if mt is None:
+            return False, "the exact method cannot be built"
+        st = build_structure(mt, int(steps), parse_terms(measure, "measure", False, mt.p),
+                             parse_terms(initial, "initial", True, mt.p))
+        index = {name: k for k, name in enumerate(st.labels)}
+        unknown = [k for k in lab if k not in index]
+        if unknown:
+            return False, f"multiplier {unknown[0]!r} is not a pair of this PEP"
+        lam = [Fraction(0)] * len(st.labels)
+        for name, v in lab.items():
+            lam[index[name]] = Fraction(v)
+        if any(v < 0 for v in lam):
+            return False, "a negative multiplier"
+        w = [Fraction(v) for v in proof.get("scale") or [1] * st.d]
+        wf = np.array([float(v) for v in w])
+        if len(w) != st.d or not all(math.isfinite(v) and v > 0 for v in wf):
+            return False, f"scale: expected {st.d} positive numbers"
+    except (ValueError, TypeError, ZeroDivisionError, ArithmeticError, KeyError) as exc:
+        return False, f"malformed proof: {type(exc).__name__}: {exc}"
+    ok, _, _, why = prove_at(mt, st, lam, tq, wf, repair=False)
+    return ok, why

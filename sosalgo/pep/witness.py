@@ -170,12 +170,12 @@ def make_witness(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
             if low is not None and (best is None or low > best["check"]["tau_lower_float"]):
                 best = doc
             if low is not None and low >= (1 - ACCEPT) * tau:
-                return _finish(doc, spec, kappa, exact_mt)
+                return _finish(doc, spec, kappa, exact_mt, res)
     if best is not None:  # verified, but further below tau than ACCEPT
-        return _finish(best, spec, kappa, exact_mt)
+        return _finish(best, spec, kappa, exact_mt, res)
     if last is not None and "check" not in last:
         last["check"] = check_witness(last, spec, ex)
-    return None if last is None else _finish(last, spec, kappa, exact_mt)
+    return None if last is None else _finish(last, spec, kappa, exact_mt, res)
 
 
 def _sources(data: PEPData, ans: SDPAnswer, tau: float, unit: float
@@ -250,12 +250,16 @@ def plausible(data: PEPData, coef: np.ndarray, V: np.ndarray,
 
 
 def _finish(doc: dict[str, Any], spec: Spec, kappa: float | None,
-            exact_mt: Method | None) -> dict[str, Any]:
-    """The chosen witness: the class it is about (exact strings), every point and iterate
-    exactly (:func:`add_exact_points`), the 1-d interpolant."""
+            exact_mt: Method | None, res: Any) -> dict[str, Any]:
+    """The chosen witness: the class it is about (exact strings), the proven upper bound
+    of the same PEP (``upper``: its exact multipliers, re-proven by ``sosalgo verify``),
+    every point and iterate exactly (:func:`add_exact_points`), the 1-d interpolant."""
     from sosalgo.pep.exact import class_description
 
     doc["class"] = class_description(spec, kappa)
+    proof = ((getattr(res, "certificate", None) or {}).get("proof")) or {}
+    if proof.get("proven"):
+        doc["upper"] = {k: proof[k] for k in ("tau_proven", "multipliers_exact", "scale")}
     if exact_mt is not None:
         add_exact_points(doc, exact_mt)
     if doc["dimension"] == 1:
