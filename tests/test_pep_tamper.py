@@ -261,3 +261,26 @@ def test_csv_tau_proven_against_the_closed_form(tmp_path):
         assert exact <= proven <= exact * (1 + 1e-5)
         doc = json.loads(r["document"])
         assert float(Fraction(doc["certificate"]["tau_proven"])) == proven
+
+
+def test_pepit_nesterov_example_gets_a_proof_and_a_witness(tmp_path):
+    """PEPit's accelerated-gradient example (x_0 = y_0, initial f(x_0) - f* + m/2
+    |x_0 - x*|^2): y_0 = x_0 holds only symbolically (beta is irrational), and is carried
+    exactly, so the worst case gets its exact proof and a verified witness; the witness
+    reads f at x_0 from the call y_0, and verify vouches for the document."""
+    from .conftest import spec_path
+
+    res = run(["pep", spec_path("nesterov"), "--kappa", "10", "--steps", "2", "--initial",
+               "f + m/2*dist", "--out", tmp_path, "--json", "--no-plot"])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    proven = Fraction(doc["certificate"]["tau_proven"])
+    wit = doc["witness"]
+    assert wit["check"]["verified"] and wit["evaluations"]["x0|f"] == "y0"
+    lower = Fraction(wit["check"]["tau_lower"])
+    assert lower <= proven <= lower * Fraction(1001, 1000)
+    assert doc["class"]["m"] == "1" and doc["class"]["L"] == "10"
+    path = tmp_path / "doc.json"
+    path.write_text(json.dumps(doc))
+    assert run(["verify", path]).exit_code == 0  # its own source, no --spec
+    assert run(["verify", tmp_path / "nesterov-pep-k10-N2-witness.json"]).exit_code == 0

@@ -176,16 +176,18 @@ def exact_points(doc: dict[str, Any], mt: Method) -> tuple[dict[str, list[Any]],
         if k < N:
             xi = np.vectorize(shorter, otypes=[object])(mt.A.dot(xi) + mt.B.dot(u))
             states.append(xi)
-    call = mt.output if mt.output is not None else mt.out_call
-    its = []
+    x0 = [Fraction(v) for v in doc["x0"]] if doc.get("xi0") is None else None
+    its = []  # x_k as the float ``iterates``: the output call's point, else E xi_k
     for k in range(N + 1):
-        if k == 0 and doc.get("xi0") is None:
-            its.append([Fraction(v) for v in doc["x0"]])
-        elif call is not None and _label(call, k, p) in pts:
-            its.append(pts[_label(call, k, p)])
+        if mt.output is not None:
+            its.append(pts[_label(mt.output, k, p)])
+        elif k == 0 and x0 is not None and mt.G0 is None:
+            its.append(x0)  # E X0 = 1, E Xs = 0 exactly
+        elif mt.out_call is not None and _label(mt.out_call, k, p) in pts:
+            its.append(pts[_label(mt.out_call, k, p)])
         else:
             its.append(list(mt.E.dot(states[k])[0]))
-    pts.setdefault("x0", its[0])
+    pts["x0"] = x0 if x0 is not None else its[0]
     pts[f"x{N}"] = its[N]
     for i in range(p):
         if _label(i, N, p) in pts:
