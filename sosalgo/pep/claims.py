@@ -39,8 +39,8 @@ from typing import Any
 from sosalgo.errors import InputError
 from sosalgo.spec import Spec
 
-__all__ = ["FLOAT_REL", "LOWER_REL", "TAU_REL", "is_pep_document", "pep_check_lines",
-           "verify_pep_document", "verify_witness_file"]
+__all__ = ["FLOAT_REL", "LOWER_REL", "TAU_REL", "is_pep_document", "passed",
+           "pep_check_lines", "verify_pep_document", "verify_witness_file"]
 
 TAU_REL = 1e-6  # a float tau may sit this far (relative) outside the proven bracket
 LOWER_REL = 1e-9  # a claimed tau_lower may sit this far below what its witness proves
@@ -269,8 +269,9 @@ def _verdict(claims: _Claims, ctx: Mapping[str, Any], tau: float | None,
 def verify_witness_file(doc: Mapping[str, Any], spec: Spec, where: str = "witness",
                         own_upper: bool = True) -> dict[str, Any]:
     """The claims of a witness (see the module): the check of :func:`sosalgo.pep.check.
-    check_witness` plus every claim the file makes. ``verified`` "exact" only when all are
-    backed; ``tau_lower`` the proven lower bound (None when the check fails)."""
+    check_witness` plus every claim the file makes. ``verified`` True (``verdict``
+    "exact") only when all are backed; ``tau_lower`` the proven lower bound (None when
+    the check fails)."""
     from sosalgo.pep.check import check_witness
 
     if doc.get("kind") != "pep-witness":
@@ -304,7 +305,7 @@ def verify_witness_file(doc: Mapping[str, Any], spec: Spec, where: str = "witnes
             claims.add(f"{where}.tau_float", "contradicted", f"{tf:.10g} is below the "
                        f"proven lower bound {float(lower):.10g}")
     bad = claims.bad()
-    return {"verified": "failed" if bad else "exact", "check": chk,
+    return {"verified": not bad, "verdict": "failed" if bad else "exact", "check": chk,
             "tau_lower": chk["tau_lower"], "tau_lower_float": chk["tau_lower_float"],
             "tau_proven": None if upper is None else str(upper),
             "reason": None if not bad else f"{bad[0]['field']}: {bad[0]['status']}: "
@@ -451,18 +452,25 @@ def _exact_matches(got: Any, v: Any) -> bool:
     return False
 
 
+def passed(check: Mapping[str, Any]) -> bool:
+    """Whether a check of :func:`verify_pep_document` (``verified`` "exact") or
+    :func:`verify_witness_file` (``verified`` True) backs every claim."""
+    return check.get("verified") in (True, "exact")
+
+
 def pep_check_lines(name: str, checks: list[dict[str, Any]]) -> list[str]:
     """The printed verdicts of ``sosalgo verify`` on a pep document or witness file."""
     lines = []
     for c in checks:
         head = (f"{name}" + (f" kappa {c['kappa']:g}" if c.get("kappa") is not None else "")
                 + (f" N = {c['steps']}" if c.get("steps") is not None else ""))
-        if c["verified"] == "exact":
+        if passed(c):
             bounds = [f"tau_N >= {c['tau_lower_float']:.10g}" if c.get("tau_lower") else "",
                       f"tau_N <= {float(Fraction(c['tau_proven'])):.10g}"
                       if c.get("tau_proven") else ""]
             lines.append(f"{head}: verified (every claim backed; "
                          + ", ".join(b for b in bounds if b) + ")")
         else:
-            lines.append(f"{head}: NOT verified: {c['reason']}")
+            why = str(c["reason"]).replace(f"{name}: ", "").replace(f"{name}.", "")
+            lines.append(f"{head}: NOT verified: {why}")
     return lines
