@@ -284,3 +284,15 @@ def test_pepit_nesterov_example_gets_a_proof_and_a_witness(tmp_path):
     path.write_text(json.dumps(doc))
     assert run(["verify", path]).exit_code == 0  # its own source, no --spec
     assert run(["verify", tmp_path / "nesterov-pep-k10-N2-witness.json"]).exit_code == 0
+
+
+def test_kappa_is_the_decimal_it_was_given_as(tmp_path):
+    """--kappa 10.1 proves about kappa = 101/10 (not the binary float), L = kappa m."""
+    import sosalgo
+    from sosalgo.spec import spec_from_text
+
+    spec = spec_from_text(SPEC, str(tmp_path / "tenth.yaml"))
+    res = sosalgo.pep(spec, 10.1, 1, witness=False)
+    cls = res.certificate["proof"]["class"]
+    assert (cls["kappa"], cls["m"], cls["L"]) == ("101/10", "1/10", "101/100")
+    assert cls["functions"]["f"]["params"] == {"m": "1/10", "L": "101/100"}
