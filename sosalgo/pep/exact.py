@@ -1,9 +1,10 @@
 """Exact check of a PEP dual certificate: a rigorous upper bound tau_N^exact >= tau_N.
 
-The method is rebuilt on exact numbers: kappa, m, L rational (the binary values of the
-floats; an m: 0 spec's L), every parameter and matrix entry from the spec's expressions
-with sympy, irrational entries enclosed in rational balls (:func:`sosalgo.verify.exact.
-enclose`), the classes' tilted inequalities from exact formulas
+The method is rebuilt on exact numbers about the class as written
+(:func:`exact_base`): m (an m: 0 spec's L) from the spec's own expression (``1/10`` is
+1/10), kappa the decimal it was given as, L = kappa m; every parameter and matrix entry
+from the spec's expressions with sympy, irrational entries enclosed in rational balls
+(:func:`sosalgo.verify.exact.enclose`), the classes' tilted inequalities from exact formulas
 (:func:`sosalgo.verify.exact_composite.exact_class_inequalities`), the fixed points
 (u and the optimal-subgradient fixed points) solved exactly with sympy, and the PEP
 structure (:func:`sosalgo.pep.structure.build_structure`) built again on those numbers,
