@@ -256,7 +256,10 @@ def _finish(doc: dict[str, Any], spec: Spec, kappa: float | None,
     every point and iterate exactly (:func:`add_exact_points`), the 1-d interpolant."""
     from sosalgo.pep.exact import class_description
 
-    doc["class"] = class_description(spec, kappa)
+    try:
+        doc["class"] = class_description(spec, kappa)
+    except (ValueError, ArithmeticError):  # no exact class: the check fails and says why
+        pass
     proof = ((getattr(res, "certificate", None) or {}).get("proof")) or {}
     if proof.get("proven"):
         doc["upper"] = {k: proof[k] for k in ("tau_proven", "multipliers_exact", "scale")}
