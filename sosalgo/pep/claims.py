@@ -142,15 +142,25 @@ def _upper(claims: _Claims, spec: Spec, ctx: Mapping[str, Any], proof: Any,
     return q
 
 
+def _spec_class(spec: Spec, kappa: float | None) -> dict[str, Any] | None:
+    """The spec's class at kappa (:func:`sosalgo.pep.exact.class_description`), None
+    when it cannot be written exactly (then no claimed class matches it)."""
+    from sosalgo.pep.exact import class_description
+
+    try:
+        return class_description(spec, kappa)
+    except (ValueError, ArithmeticError):
+        return None
+
+
 def _check_class(claims: _Claims, spec: Spec, kappa: float | None, doc: Mapping[str, Any],
                  where: str) -> None:
     """A claimed ``class`` must be the spec's at kappa, exactly."""
-    from sosalgo.pep.exact import class_description
 
     if "class" not in doc:
         return
-    want = class_description(spec, kappa)
-    if doc["class"] != want:
+    want = _spec_class(spec, kappa)
+    if want is None or doc["class"] != want:
         claims.add(f"{where}.class", "contradicted", f"claims {doc['class']}, the spec "
                    f"at kappa {kappa} is {want}")
     else:
@@ -345,9 +355,9 @@ def _lower_claim(claims: _Claims, said: Mapping[str, Any], lower: Fraction | Non
 def _function_claims(claims: _Claims, spec: Spec, kappa: float | None,
                      doc: Mapping[str, Any], where: str) -> None:
     """Each function's class name and float params are the spec's at kappa."""
-    from sosalgo.pep.exact import class_description
+    import sympy as sp
 
-    want = class_description(spec, kappa)["functions"]
+    want = (_spec_class(spec, kappa) or {}).get("functions", {})
     funcs = doc.get("functions")
     if not isinstance(funcs, dict) or set(funcs) != set(want):
         claims.add(f"{where}.functions", "contradicted",
@@ -364,8 +374,6 @@ def _function_claims(claims: _Claims, spec: Spec, kappa: float | None,
             claims.add(f"{w}.params", "contradicted", f"the spec's are {sorted(exact)}")
             continue
         for k, text in exact.items():
-            import sympy as sp
-
             val = float(sp.sympify(text))
             got = params[k]
             if isinstance(got, bool) or not isinstance(got, int | float) or not (
