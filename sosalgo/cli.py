@@ -347,7 +347,8 @@ def grid(spec_path: str, kappa: tuple[str, ...], points: int, free: str | None, 
 def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
            no_simulate: bool, certificate: str | None, lag: int | None) -> None:
     """Verify every certificate of an `analyze --json`, `design --json` or `pareto --json`
-    result (rates, and noise bounds where the result has them).
+    result (rates, and noise bounds where the result has them), and every claim of a
+    `pep --json` document or a pep witness file (docs/pep.md).
 
     Exit code 3 when some certificate fails to verify. Python: sosalgo.verify_document.
     """
@@ -356,16 +357,18 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
     from sosalgo.verify.results import check_failed
 
     doc = read_result(result_path)
-    if doc.get("kind") == "pep-witness":  # a worst case written by `sosalgo pep`
+    from sosalgo.pep.claims import is_pep_document, passed, pep_check_lines
+
+    if doc.get("kind") == "pep-witness" or is_pep_document(doc):  # from `sosalgo pep`
         res = verify_document(doc, spec_override, name=result_path)
-        chk = res["results"][0]
+        for note in res["notes"]:
+            click.echo(f"note: {note}", err=True)
         click.echo(json.dumps(res, indent=2) if as_json else
-                   f"{result_path}: {'verified' if chk['verified'] else 'not verified'} "
-                   f"({chk['check_kind']}): {chk.get('detail', '')}"
-                   + (f"; proves tau_N >= {chk['tau_lower_float']:.10g}"
-                      if chk["verified"] else ""))
-        if not chk["verified"]:
-            raise VerificationError(f"{result_path}: the witness is not verified")
+                   "\n".join(pep_check_lines(result_path, res["results"])))
+        failed = [c for c in res["results"] if not passed(c)]
+        if failed:
+            raise VerificationError(f"{result_path}: {len(failed)} of "
+                                    f"{len(res['results'])} not verified")
         return
     rows = result_rows(doc, result_path)
     folder = os.path.join(out, "certificates")

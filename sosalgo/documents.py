@@ -131,11 +131,15 @@ def verify_document(result: str | Path | Mapping[str, Any], spec: Spec | str | P
 
     where = name or (str(result) if isinstance(result, str | Path) else "result")
     doc = read_result(result) if isinstance(result, str | Path) else dict(result)
-    if doc.get("kind") == "pep-witness":  # a worst case of ``sosalgo pep`` (sosalgo.pep)
-        from sosalgo.pep import check_witness
+    from sosalgo.pep.claims import is_pep_document
+
+    if doc.get("kind") == "pep-witness" or is_pep_document(doc):  # ``sosalgo pep``
+        from sosalgo.pep.claims import verify_pep_document, verify_witness_file
 
         chosen, src, note = result_spec(doc, where, spec)
-        return {"spec": chosen.name, "source": src, "results": [check_witness(doc, chosen)],
+        checks = ([verify_witness_file(doc, chosen, where)] if doc.get("kind") ==
+                  "pep-witness" else verify_pep_document(doc, chosen, where))
+        return {"spec": chosen.name, "source": src, "results": checks,
                 "notes": [] if note is None else [note]}
     rows = result_rows(doc, where)
     chosen, src, note = result_spec(doc, where, spec)

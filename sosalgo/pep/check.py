@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any
 
+import numpy as np
 from flint import arb, arb_mat
 
 from sosalgo.pep.exact import ball, exact_method
@@ -106,6 +107,10 @@ def positions(doc: dict[str, Any], av: ArbView) -> dict[str, Any]:
     r, p, N = int(doc["dimension"]), mt.p, int(doc["steps"])
     xi = _start(doc, av, r)
     pos: dict[str, Any] = {"xi0": xi}
+    start = None  # the call at x_0 exactly (:attr:`Method.x0_call`): the very same balls
+    if doc.get("xi0") is None and av.G0 is None and mt.x0_call is not None:
+        start = mt.x0_call
+        pos["x0"] = [ball(v) for v in doc["x0"]]
     for k in range(int(doc["call_steps"])):
         rows = doc["calls"][k]
         if len(rows) != p or any(len(ui) != r for ui in rows):
@@ -113,14 +118,15 @@ def positions(doc: dict[str, Any], av: ArbView) -> dict[str, Any]:
         u = _mat(rows)
         y = av.C * xi + av.D * u
         for i in range(p):
-            pos[_label(i, k, p)] = [y[i, c] for c in range(r)]
+            pos[_label(i, k, p)] = (pos["x0"] if k == 0 and i == start
+                                    else [y[i, c] for c in range(r)])
         if k < N:
             xi = av.A * xi + av.B * u
     pos["xiN"] = xi
     call = mt.output if mt.output is not None else mt.out_call  # x_k is that call's point
     for k, key in ((N, f"x{N}"), (0, "x0")):
         if key == "x0" and doc.get("xi0") is None:
-            pos["x0"] = [ball(v) for v in doc["x0"]]
+            pos.setdefault("x0", [ball(v) for v in doc["x0"]])
         elif call is not None and _label(call, k, p) in pos:
             pos[key] = pos[_label(call, k, p)]
         elif mt.output is None:
@@ -131,6 +137,71 @@ def positions(doc: dict[str, Any], av: ArbView) -> dict[str, Any]:
     for i in range(p):
         pos.setdefault(f"y{i + 1}_{N}", pos.get(_label(i, N, p)))
     return pos
+
+
+def _q_mat(rows: Any) -> np.ndarray:
+    return np.array([[Fraction(v) for v in row] for row in rows], dtype=object)
+
+
+def exact_points(doc: dict[str, Any], mt: Method) -> tuple[dict[str, list[Any]],
+                                                            list[list[Any]]]:
+    """(every point by label, the iterates x_0..x_N) as exact rationals (Fraction) or
+    rational balls (:class:`~sosalgo.verify.exact.Ball`, when the method has irrational
+    entries), recomputed from the start and the calls as :func:`positions` does, in
+    exact arithmetic instead of arb."""
+    from sosalgo.pep.structure import coarsen
+
+    def shorter(v: Any) -> Any:  # a ball's long centre rounded outward; rationals stay
+        return coarsen(v) if getattr(v, "r", 0) else v
+
+    p, N = mt.p, int(doc["steps"])
+    if doc.get("xi0") is not None:
+        xi = _q_mat(doc["xi0"])
+    else:
+        xi = np.outer(mt.X0, [Fraction(v) for v in doc["x0"]])
+        if mt.G0 is not None:
+            name = mt.functions[mt.smooth][0]
+            g0 = next(pt["g"] for pt in doc["functions"][name]["points"]
+                      if pt["label"] == "x0")
+            xi = xi + np.outer(mt.G0, [Fraction(v) for v in g0])
+    start = (mt.x0_call if doc.get("xi0") is None and mt.G0 is None else None)
+    pts: dict[str, list[Any]] = {}
+    states = [xi]
+    for k in range(int(doc["call_steps"])):
+        u = _q_mat(doc["calls"][k])
+        y = mt.C.dot(xi) + mt.D.dot(u)
+        for i in range(p):
+            pts[_label(i, k, p)] = ([Fraction(v) for v in doc["x0"]] if k == 0 and i == start
+                                    else list(y[i]))
+        if k < N:
+            xi = np.vectorize(shorter, otypes=[object])(mt.A.dot(xi) + mt.B.dot(u))
+            states.append(xi)
+    x0 = [Fraction(v) for v in doc["x0"]] if doc.get("xi0") is None else None
+    its = []  # x_k as the float ``iterates``: the output call's point, else E xi_k
+    for k in range(N + 1):
+        if mt.output is not None:
+            its.append(pts[_label(mt.output, k, p)])
+        elif k == 0 and x0 is not None and mt.G0 is None:
+            its.append(x0)  # E X0 = 1, E Xs = 0 exactly
+        elif mt.out_call is not None and _label(mt.out_call, k, p) in pts:
+            its.append(pts[_label(mt.out_call, k, p)])
+        else:
+            its.append(list(mt.E.dot(states[k])[0]))
+    pts["x0"] = x0 if x0 is not None else its[0]
+    pts[f"x{N}"] = its[N]
+    for i in range(p):
+        if _label(i, N, p) in pts:
+            pts.setdefault(f"y{i + 1}_{N}", pts[_label(i, N, p)])
+    return pts, its
+
+
+def exact_str(v: Any) -> str | list[str]:
+    """An exact coordinate: ``p/q``, or ``[lo, hi]`` (rational strings) for a ball."""
+    if hasattr(v, "c"):
+        if not v.r:
+            return q_str(v.c)
+        return [q_str(v.c - v.r), q_str(v.c + v.r)]
+    return q_str(v)
 
 
 def pair_forms(doc: dict[str, Any], av: ArbView, pos: dict[str, Any]

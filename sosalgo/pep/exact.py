@@ -1,9 +1,10 @@
 """Exact check of a PEP dual certificate: a rigorous upper bound tau_N^exact >= tau_N.
 
-The method is rebuilt on exact numbers: kappa, m, L rational (the binary values of the
-floats; an m: 0 spec's L), every parameter and matrix entry from the spec's expressions
-with sympy, irrational entries enclosed in rational balls (:func:`sosalgo.verify.exact.
-enclose`), the classes' tilted inequalities from exact formulas
+The method is rebuilt on exact numbers about the class as written
+(:func:`exact_base`): m (an m: 0 spec's L) from the spec's own expression (``1/10`` is
+1/10), kappa the decimal it was given as, L = kappa m; every parameter and matrix entry
+from the spec's expressions with sympy, irrational entries enclosed in rational balls
+(:func:`sosalgo.verify.exact.enclose`), the classes' tilted inequalities from exact formulas
 (:func:`sosalgo.verify.exact_composite.exact_class_inequalities`), the fixed points
 (u and the optimal-subgradient fixed points) solved exactly with sympy, and the PEP
 structure (:func:`sosalgo.pep.structure.build_structure`) built again on those numbers,
@@ -38,23 +39,64 @@ from sosalgo.pep.structure import Method, PEPStructure, build_structure, deadbea
 from sosalgo.pep.terms import Term
 from sosalgo.spec import Spec
 
-__all__ = ["ball", "exact_method", "exact_or_none", "prove_certificate", "prove_scaled_psd"]
+__all__ = ["ball", "class_description", "exact_base", "exact_method", "exact_or_none",
+           "prove_at", "prove_certificate", "prove_scaled_psd", "reprove_certificate"]
 
 TAU_STEPS = (1e-12, 1e-9, 1e-7)
 PREC = 320  # bits of the ball arithmetic of the proof
 
 
-def _base(spec: Spec, kappa: float | None) -> dict[sp.Symbol, sp.Expr]:
+def written_kappa(kappa: float) -> Fraction:
+    """kappa as written: the decimal the float prints as (``10.1`` is 101/10, ``10`` is 10;
+    the shortest decimal that reads back as the same float)."""
+    return Fraction(repr(float(kappa)))
+
+
+def _written(expr: Any, value: float) -> sp.Expr:
+    """A constant of the spec as written (``1/10``, ``sqrt(2)``) exactly; its float's
+    decimal when the spec object has no expression (built by hand)."""
+    from sosalgo.expr.parse import to_sympy
+
+    if expr is not None:
+        return sp.sympify(to_sympy(expr))
+    q = written_kappa(value)
+    return sp.Rational(q.numerator, q.denominator)
+
+
+def exact_base(spec: Spec, kappa: float | None) -> dict[sp.Symbol, sp.Expr]:
+    """m, L (and kappa) of the class as written, exactly: the spec's ``m`` (``L`` for an
+    m: 0 spec) from its expression, kappa the decimal it was given as, L = kappa m."""
     from sosalgo.spec.types import BASE_SYMBOLS
-    from sosalgo.verify.exact import rational
 
     if spec.sublinear:
-        Lq = rational(spec.L)
-        vals = {"m": Fraction(0), "L": Lq}
+        vals = {"m": sp.Integer(0), "L": _written(spec.L_expr, float(spec.L or 0.0))}
     else:
-        kq, mq = rational(kappa), rational(spec.m)
-        vals = {"m": mq, "L": kq * mq, "kappa": kq}
-    return {BASE_SYMBOLS[k]: sp.Rational(v.numerator, v.denominator) for k, v in vals.items()}
+        kq = written_kappa(float(kappa))  # type: ignore[arg-type]
+        mq = _written(spec.m_expr, spec.m)
+        kq_s = sp.Rational(kq.numerator, kq.denominator)
+        vals = {"m": mq, "L": kq_s * mq, "kappa": kq_s}
+    return {BASE_SYMBOLS[k]: v for k, v in vals.items()}
+
+
+def class_description(spec: Spec, kappa: float | None) -> dict[str, Any]:
+    """Which class a proof is about, as exact strings: ``m``, ``L`` (``kappa``) and each
+    function's class and parameters (sympy's exact form: ``1/10``, ``sqrt(2)/10``)."""
+    from sosalgo.expr.parse import to_sympy
+
+    base = exact_base(spec, kappa)
+    out: dict[str, Any] = {str(k): str(v) for k, v in base.items()}
+    out["functions"] = {name: {"class": decl.cls, "params": {
+        k: str(to_sympy(e).xreplace(base)) for k, e in decl.params.items()}}
+        for name, decl in spec.functions.items()}
+    return out
+
+
+def _scale(L: sp.Expr) -> Fraction:
+    """The unit s of the exact structure: L when it is rational, else a binary rational
+    near it (any s > 0 gives the same PEP in another basis)."""
+    if L.is_Rational:
+        return Fraction(int(L.p), int(L.q))
+    return Fraction(float(L))
 
 
 def _exact_env(spec: Spec, base: dict[sp.Symbol, sp.Expr]) -> dict[sp.Symbol, sp.Expr]:
@@ -109,10 +151,11 @@ def exact_method(spec: Spec, kappa: float | None, om: Any) -> Method:
     from sosalgo.verify.exact import Ball, enclose
     from sosalgo.verify.exact_composite import exact_class_inequalities
 
-    base = _base(spec, kappa)
+    base = exact_base(spec, kappa)
     env = _exact_env(spec, base)
     mats = _exact_matrices(spec, env)
-    X = _balls(_fixed_points(mats, om))
+    Xq = _fixed_points(mats, om)
+    X = _balls(Xq)
     p = om.p
     funcs, ineqs = [], []
     for fn in om.functions:
@@ -120,7 +163,7 @@ def exact_method(spec: Spec, kappa: float | None, om: Any) -> Method:
         params = {k: enclose(to_sympy(e).xreplace(base)) for k, e in decl.params.items()}
         funcs.append((fn.name, fn.cls, params))
         ineqs.append(exact_class_inequalities(fn.cls, params)[0])
-    L = Fraction(int(base[_sym("L")].p), int(base[_sym("L")].q))
+    L = _scale(base[_sym("L")])
 
     def coef(t: Term) -> Any:
         return enclose(to_sympy(t.coef).xreplace(base))
@@ -135,6 +178,7 @@ def exact_method(spec: Spec, kappa: float | None, om: Any) -> Method:
                 _balls(mats["E"]) if "E" in mats else None, om.output, funcs,
                 tuple(om.oracles), X[:, 0], X[:, 1:], L, ineqs, coef, same, K, exact=True)
     mt.out_call = _exact_output_call(mats, om)
+    mt.x0_call = _exact_start_call(mats, Xq, om)
     g0, mt.smooth = initial_gradient(spec, om, float("nan") if kappa is None else kappa)
     if g0 is not None:  # the same start as the float method, exactly
         mt.G0 = np.array([enclose(to_sympy(b).xreplace(env))
@@ -158,6 +202,20 @@ def _exact_output_call(mats: dict[str, sp.Matrix], om: Any) -> int | None:
     D = mats.get("D", sp.zeros(om.p, om.p))
     for i in range(om.p):
         diff = list(mats["E"][0, :] - mats["C"][i, :]) + list(D[i, :])
+        if all(_proven_zero(sp.sympify(v)) for v in diff):
+            return i
+    return None
+
+
+def _exact_start_call(mats: dict[str, sp.Matrix], X: sp.Matrix, om: Any) -> int | None:
+    """The first call i whose point at step 0 is x_0 for every start xi_0 = X0 x_0 -
+    Xs s~: D_i = 0 and C_i [X0 Xs] = [1 0], decided symbolically (sympy), as
+    :func:`_exact_output_call` (with beta irrational, y_0 = x_0 holds only symbolically)."""
+    D = mats.get("D", sp.zeros(om.p, om.p))
+    target = [1] + [0] * (X.shape[1] - 1)
+    for i in range(om.p):
+        row = mats["C"][i, :] * X
+        diff = [row[0, c] - target[c] for c in range(X.shape[1])] + list(D[i, :])
         if all(_proven_zero(sp.sympify(v)) for v in diff):
             return i
     return None
@@ -330,7 +388,6 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
     (built here when not given)."""
     from sosalgo.pep.bind import bound_method
     from sosalgo.verify.exact import fraction_str, rational
-    from sosalgo.witnesses.method import precision
 
     t0 = time.perf_counter()
     out: dict[str, Any] = {"proven": False, "tau_proven": None, "tau_proven_float": None}
@@ -349,24 +406,82 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
     lq = [rational(v) if v > 1e-14 * top else Fraction(0) for v in lam]
     w = np.ones(st.d) if w is None else w
     detail = ""
+    for step in TAU_STEPS:
+        tq = decimal_up(Fraction(tau) * (1 + Fraction(step)))
+        ok, lq2, delta, why = prove_at(mt, st, lq, tq, w, repair=True)
+        if ok:
+            return out | {"proven": True, "tau_proven": fraction_str(tq),
+                          "tau_proven_float": float(tq), "delta": fraction_str(delta),
+                          "detail": why, "multipliers_nonzero": sum(1 for v in lq2 if v),
+                          "repaired": sum(1 for a, b in zip(lq, lq2, strict=True) if a != b),
+                          "multipliers_exact": {lab: fraction_str(v) for lab, v in
+                                                zip(st.labels, lq2, strict=True) if v},
+                          "scale": [fraction_str(rational(float(v))) for v in w],
+                          "class": class_description(spec, kappa),
+                          "seconds": time.perf_counter() - t0}
+        detail = why
+    return out | {"detail": detail, "seconds": time.perf_counter() - t0}
+
+
+def prove_at(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
+             w: np.ndarray, repair: bool = True
+             ) -> tuple[bool, list[Fraction], Fraction, str]:
+    """(proven, multipliers, delta, detail) of measure <= tq with the multipliers ``lam``
+    (by pair of ``st``): c_F >= 0 (after :func:`_repaired` when ``repair``) and
+    diag(w) S diag(w) ⪰ delta I (:func:`prove_scaled_psd`), in ball arithmetic."""
+    from sosalgo.witnesses.method import precision
+
     with precision(PREC):
         I0 = arb_mat([[ball(v) for v in row] for row in st.init_q])
         M = arb_mat([[ball(v) for v in row] for row in st.meas_q])
-        for step in TAU_STEPS:
-            tq = decimal_up(Fraction(tau) * (1 + Fraction(step)))
-            tb = ball(tq)
-            lq2, quad, cF = _repaired(mt, st, lq, tb)
-            bad = [k for k, c in enumerate(cF) if not c >= 0]
-            if bad:
-                detail = f"value residual {bad[0]} is not proven >= 0"
-                continue
-            ok, delta, why = prove_scaled_psd(I0 * tb - M - quad, w)
-            if ok:
-                return out | {"proven": True, "tau_proven": fraction_str(tq),
-                              "tau_proven_float": float(tq), "delta": fraction_str(delta),
-                              "detail": f"diag(w) S diag(w) ⪰ {float(delta):.3g} I: {why}; "
-                                        "c_F >= 0", "multipliers_nonzero": sum(1 for v in lq2 if v),
-                              "repaired": sum(1 for a, b in zip(lq, lq2, strict=True) if a != b),
-                              "seconds": time.perf_counter() - t0}
-            detail = why
-    return out | {"detail": detail, "seconds": time.perf_counter() - t0}
+        tb = ball(tq)
+        if repair:
+            lam2, quad, cF = _repaired(mt, st, lam, tb)
+        else:
+            lam2 = list(lam)
+            quad, lin = _residual_parts(mt, st, lam2)
+            cF = [tb * ball(st.init_f[k]) - ball(st.meas_f[k]) - lin[k]
+                  for k in range(st.nF)]
+        bad = [k for k, c in enumerate(cF) if not c >= 0]
+        if bad:
+            return False, lam2, Fraction(0), f"value residual {bad[0]} is not proven >= 0"
+        ok, delta, why = prove_scaled_psd(I0 * tb - M - quad, w)
+    if not ok:
+        return False, lam2, Fraction(0), why
+    return True, lam2, delta, f"diag(w) S diag(w) ⪰ {float(delta):.3g} I: {why}; c_F >= 0"
+
+
+def reprove_certificate(spec: Spec, kappa: float | None, steps: int, measure: str,
+                        initial: str, proof: dict[str, Any]) -> tuple[bool, str]:
+    """(proven, detail): the claim measure <= ``proof["tau_proven"]`` proven again from
+    the proof's own exact multipliers (by pair label) and scale, on the exact PEP of
+    ``spec`` at ``kappa`` rebuilt here; nothing is repaired or solved."""
+    from sosalgo.pep.terms import parse_terms
+
+    lab = proof.get("multipliers_exact")
+    if not isinstance(lab, dict) or not isinstance(proof.get("tau_proven"), str):
+        return False, "the proof carries no exact multipliers (multipliers_exact)"
+    try:
+        tq = Fraction(proof["tau_proven"])
+        mt = exact_or_none(spec, kappa)
+        if mt is None:
+            return False, "the exact method cannot be built"
+        st = build_structure(mt, int(steps), parse_terms(measure, "measure", False, mt.p),
+                             parse_terms(initial, "initial", True, mt.p))
+        index = {name: k for k, name in enumerate(st.labels)}
+        unknown = [k for k in lab if k not in index]
+        if unknown:
+            return False, f"multiplier {unknown[0]!r} is not a pair of this PEP"
+        lam = [Fraction(0)] * len(st.labels)
+        for name, v in lab.items():
+            lam[index[name]] = Fraction(v)
+        if any(v < 0 for v in lam):
+            return False, "a negative multiplier"
+        w = [Fraction(v) for v in proof.get("scale") or [1] * st.d]
+        wf = np.array([float(v) for v in w])
+        if len(w) != st.d or not all(math.isfinite(v) and v > 0 for v in wf):
+            return False, f"scale: expected {st.d} positive numbers"
+    except (ValueError, TypeError, ZeroDivisionError, ArithmeticError, KeyError) as exc:
+        return False, f"malformed proof: {type(exc).__name__}: {exc}"
+    ok, _, _, why = prove_at(mt, st, lam, tq, wf, repair=False)
+    return ok, why

@@ -31,25 +31,35 @@ def parse_steps(text: object) -> list[int]:
     return list(range(a if hit.group(2) else a, b + 1))
 
 
-def pep_row(res: Any) -> dict[str, Any]:
-    """The CSV row of a result (columns :data:`sosalgo.schema.PEP_COLUMNS`)."""
+def pep_row(res: Any, cls: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The CSV row of a result (columns :data:`sosalgo.schema.PEP_COLUMNS`); ``cls``: the
+    class its proofs are about (:func:`sosalgo.pep.exact.class_description`), added to
+    the document as ``class``."""
     cert = res.certificate or {}
     chk = (res.witness or {}).get("check") or {}
     return {"kappa": res.kappa if res.kappa is not None else "", "steps": res.steps,
             "tau": res.tau, "status": res.status, "gap": res.gap,
-            "tau_proven": cert.get("tau_proven_float") if cert.get("tau_proven") else None,
+            "tau_proven": _proven_float(cert),
             "check_kind": cert.get("check_kind", ""),
             "witness_verified": chk.get("verified", ""),
             "tau_lower": chk.get("tau_lower_float"),
             "witness_dimension": (res.witness or {}).get("dimension"),
             "measure": res.measure, "initial": res.initial, "seconds": res.seconds,
-            "document": json.dumps(res.to_dict(), default=float)}
+            "document": json.dumps(res.to_dict() | ({"class": cls} if cls else {}),
+                                   default=float)}
+
+
+def _proven_float(cert: dict[str, Any]) -> float | None:
+    """The float of the proven rational ``tau_proven`` (None without a proof)."""
+    text = cert.get("tau_proven")
+    return float(Fraction(text)) if isinstance(text, str) else None
 
 
 def pep_chunk(spec_text: str, source: str, options: dict[str, Any],
               chunk: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Worker: the PEP at each task's (kappa, steps)."""
     from sosalgo.pep.core import pep
+    from sosalgo.pep.exact import class_description
     from sosalgo.spec import spec_from_text
 
     spec = spec_from_text(spec_text, source)
@@ -58,7 +68,11 @@ def pep_chunk(spec_text: str, source: str, options: dict[str, Any],
         kappa = None if task["kappa"] in ("", None) else float(task["kappa"])
         res = pep(spec, kappa, int(task["steps"]), options["measure"], options["initial"],
                   options["exact"], options["witness"])
-        rows.append(pep_row(res))
+        try:
+            cls = class_description(spec, kappa)
+        except (ValueError, ArithmeticError):  # the proofs say why they failed
+            cls = None
+        rows.append(pep_row(res, cls))
     return rows
 
 
@@ -133,7 +147,7 @@ def _docs(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
 def _pep_document(spec: Spec, measure: str | None, initial: str | None,
                   docs: list[dict[str, Any]], files: list[str]) -> dict[str, Any]:
     if len(docs) == 1:
-        return docs[0] | {"files": files}
+        return docs[0] | {"source": spec.source, "files": files}
     return {"spec": spec.name, "source": spec.source, "measure": measure, "initial": initial,
             "rows": docs, "files": files}
 
@@ -196,5 +210,9 @@ def pep_summary(doc: dict[str, Any]) -> str:
     cols = ["kappa", "N", "tau", "tau_proven", "check", "witness_lower", "witness_dim",
             "seconds"]
     head = f"{rows[0]['spec']}: worst case of {rows[0]['measure']} / {rows[0]['initial']}"
+    cls = rows[0].get("class")
+    if cls:  # the class the proofs are about, exactly
+        many = len({d["kappa"] for d in rows}) > 1
+        head += f" over the class m = {cls['m']}, L = " + ("kappa m" if many else cls["L"])
     files = doc.get("files") or []
     return "\n".join([head, format_table(table, cols)] + [f"wrote {f}" for f in files])

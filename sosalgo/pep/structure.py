@@ -81,6 +81,9 @@ class Method(CallShape):
     G0: np.ndarray | None = None  # ``initial_state``: xi_0 = X0 x_0 + G0 g0 (None: G0 = 0)
     smooth: int = 0  # the function whose gradient g0 is
     out_call: int | None = None  # output None, E = C_i and D_i = 0: x_k is call i's point
+    # D_i = 0 and C_i [X0 Xs] = [1 0] proven exactly: from xi_0 = X0 x_0 - Xs s~ the first
+    # call i is at x_0 (set on exact methods; floats find the coincidence by ``same``)
+    x0_call: int | None = None
 
 
 @dataclass
@@ -228,6 +231,8 @@ def build_structure(mt: Method, steps: int, measure: Sequence[Term],
     Yr = [[Y[k][i] for i in range(p)] for k in range(calls)]  # one object per call point
     out = _output_row(mt, xi, Yr, steps)
     x0 = _output_row(mt, xi, Yr, 0) if free else eye[0]
+    if not free and not g0 and mt.x0_call is not None:  # the same point, proven exactly
+        Yr[0][mt.x0_call] = x0
     where = {"x": out, "x0": x0}
     where.update({f"y{i + 1}": Yr[steps][i] for i in range(p)} if calls > steps else {})
     pts: list[list[PEPPoint]] = [[] for _ in range(J)]

@@ -170,12 +170,12 @@ def make_witness(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
             if low is not None and (best is None or low > best["check"]["tau_lower_float"]):
                 best = doc
             if low is not None and low >= (1 - ACCEPT) * tau:
-                return _finish(doc)
+                return _finish(doc, spec, kappa, exact_mt, res)
     if best is not None:  # verified, but further below tau than ACCEPT
-        return _finish(best)
+        return _finish(best, spec, kappa, exact_mt, res)
     if last is not None and "check" not in last:
         last["check"] = check_witness(last, spec, ex)
-    return None if last is None else _finish(last)
+    return None if last is None else _finish(last, spec, kappa, exact_mt, res)
 
 
 def _sources(data: PEPData, ans: SDPAnswer, tau: float, unit: float
@@ -249,10 +249,43 @@ def plausible(data: PEPData, coef: np.ndarray, V: np.ndarray,
     return False
 
 
-def _finish(doc: dict[str, Any]) -> dict[str, Any]:
+def _finish(doc: dict[str, Any], spec: Spec, kappa: float | None,
+            exact_mt: Method | None, res: Any) -> dict[str, Any]:
+    """The chosen witness: the class it is about (exact strings), the proven upper bound
+    of the same PEP (``upper``: its exact multipliers, re-proven by ``sosalgo verify``),
+    every point and iterate exactly (:func:`add_exact_points`), the 1-d interpolant."""
+    from sosalgo.pep.exact import class_description
+
+    try:
+        doc["class"] = class_description(spec, kappa)
+    except (ValueError, ArithmeticError):  # no exact class: the check fails and says why
+        pass
+    proof = ((getattr(res, "certificate", None) or {}).get("proof")) or {}
+    if proof.get("proven"):
+        doc["upper"] = {k: proof[k] for k in ("tau_proven", "multipliers_exact", "scale")}
+    if exact_mt is not None:
+        add_exact_points(doc, exact_mt)
     if doc["dimension"] == 1:
         doc["interpolant"] = interpolant_1d(doc)
     return doc
+
+
+def add_exact_points(doc: dict[str, Any], exact_mt: Method) -> None:
+    """``x_exact`` on every point and ``iterates_exact``: the coordinates recomputed from
+    the start and the calls in exact arithmetic (rationals ``p/q``; ``[lo, hi]`` where the
+    method's irrational entries leave a ball), so that the class inequalities can be
+    checked on the stored data alone (the float ``x`` and ``iterates`` stay)."""
+    from sosalgo.pep.check import exact_points, exact_str
+
+    try:
+        pts, its = exact_points(doc, exact_mt)
+    except (KeyError, ValueError, TypeError, IndexError, ArithmeticError, StopIteration):
+        return
+    for fd in doc["functions"].values():
+        for pt in fd["points"]:
+            if pt["label"] in pts:
+                pt["x_exact"] = [exact_str(v) for v in pts[pt["label"]]]
+    doc["iterates_exact"] = [[exact_str(v) for v in x] for x in its]
 
 
 def _document(spec: Spec, mt: Method, st: Any, V: np.ndarray, F: np.ndarray,

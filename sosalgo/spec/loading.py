@@ -225,7 +225,8 @@ class _Builder:
             name=name, description=description, source=self.source, parameters=params,
             matrices=matrices, references=references, kappa=kappa, m=m,
             functions=functions, oracles=oracles, output=output, measure=measure, L=L,
-            initial_state=initial_state,
+            initial_state=initial_state, m_expr=parse_tree(data.get("m", 1), ()),
+            L_expr=parse_tree(data["L"], ()) if L is not None else None,
         )
         if spec.sublinear:
             self.check_sublinear(spec)

@@ -139,6 +139,10 @@ class Spec:
     # ``initial_state:`` the start xi_0 = a x0 + b g0 of ``pep``: (a_i, b_i) per state
     # (expressions of the parameters, m, L, kappa); None: xi_0 = u x0
     initial_state: tuple[tuple[Expr, Expr], ...] | None = None
+    # ``m`` and ``L`` as written (constant expressions: ``1/10`` stays 1/10 in exact proofs);
+    # None: the floats above are all there is
+    m_expr: Expr | None = None
+    L_expr: Expr | None = None
     _sympy: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     @property
