@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from sosalgo import solvers as _solvers
-from sosalgo.certificates import FAMILIES, get_family
+from sosalgo.certificates import FAMILIES, default_family_name, get_family
 from sosalgo.certificates.base import CertificateFamily, LMIProblem
 from sosalgo.model import Algorithm, bind
 from sosalgo.solvers import (
@@ -841,10 +841,14 @@ def analyze_spec(
     return analyze_algorithm(bind(spec, kappa, theta), tol, fam, solvers)
 
 
-def spec_family(spec: Spec) -> CertificateFamily:
-    """The certificate family a spec asks for, with its options (sized for the spec's
-    oracle calls when it has several)."""
-    return for_spec(get_family(spec.certificate, spec.certificate_options), spec)
+def spec_family(spec: Spec, command: str | None = None) -> CertificateFamily:
+    """The certificate family ``command`` uses for a spec by default
+    (:func:`sosalgo.certificates.default_family_name`; None: the family the spec declares),
+    with the spec's options when it is the spec's own, sized for the spec's oracle calls
+    when it has several."""
+    name = default_family_name(spec, command)
+    options = spec.certificate_options if name == spec.certificate else {}
+    return for_spec(get_family(name, options), spec)
 
 
 def for_spec(fam: CertificateFamily, spec: Spec) -> CertificateFamily:

@@ -279,6 +279,7 @@ class Interpolation(CertificateFamily):
     label = "interpolation"
     is_default = False
     supports_moment = False  # the moment relaxation is built on Theorem 1's M
+    box_lower_bound = False  # no exact_problem: design proves no box-wide lower bound
     certificate_parts = ("P", "p", "lag")
     option_names = ("lag",)
     tight = True  # its rate is often the rate on quadratics: the search starts there

@@ -97,6 +97,7 @@ class Theorem1(CertificateFamily):
     label = "Theorem 1"
     is_default = True
     supports_moment = True  # the moment relaxation of eq. (17) is built on M of eq. (15)
+    box_lower_bound = True  # exact_problem: design proves a lower bound over the whole box
     certificate_parts = ("P", "lambda")
 
     def problem(self, alg: Algorithm) -> LMIProblem:

@@ -235,7 +235,8 @@ class _Builder:
         certificate, cert_options = self.certificate(
             data.get("certificate", "interpolation" if spec.composite else "theorem1"), spec)
         spec = dataclasses.replace(spec, certificate=certificate,
-                                   certificate_options=cert_options)
+                                   certificate_options=cert_options,
+                                   certificate_given="certificate" in data)
         self.check_values(spec)
         return spec
 
