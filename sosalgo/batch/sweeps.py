@@ -301,10 +301,11 @@ def csv_row_to_json(spec: Spec, row: dict[str, str],
     n = p_size(spec, family)
     P = None
     if row.get("P11", "") != "":
-        P = np.zeros((n, n))
+        P = np.zeros((n, n))  # a certificate of a smaller lag fills only its leading block
         for i in range(n):
             for j in range(i, n):
-                P[i, j] = P[j, i] = float(row[f"P{i + 1}{j + 1}"])
+                cell = row[f"P{i + 1}{j + 1}"]
+                P[i, j] = P[j, i] = float(cell) if cell != "" else 0.0
     return {
         "kappa": float(row["kappa"]),
         "rho": _num(row["rho"]),

@@ -315,6 +315,16 @@ class Interpolation(CertificateFamily):
             return ()
         return tuple(range(max(n - 1, 0), min(n + AUTO_LAG_EXTRA, 8) + 1))
 
+    def fallback_lags(self, n: int) -> tuple[int, ...]:
+        """Lags below :meth:`auto_lags` that the choice of lag also tries, after the others,
+        each only where it beats the best rate by the tolerance: lag 0, the smallest and
+        best-conditioned problem. A certificate of a smaller lag is one of a larger lag in
+        exact arithmetic, but not always for the solver: on a Chambolle-Pock-like method
+        (two proximal calls, kappa 1000, unit steps) lags 1 and 2 certify nothing where
+        lag 0 certifies 0.999. () for a given lag."""
+        lags = self.auto_lags(n)
+        return (0,) if lags and lags[0] > 0 else ()
+
     def searches_past_certified(self, alg: Algorithm) -> bool:
         """With one oracle call per iteration, larger lags are tried (see
         :func:`sosalgo.analysis.analyze_algorithm`). With p >= 2 calls the lifted state grows
