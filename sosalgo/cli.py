@@ -238,6 +238,12 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
            else f"lower bound by moment relaxation ({scalarize})")
     click.echo(f"{doc['spec']}: design of {', '.join(names)} certified by "
                f"{docs[0]['family']}; {how}")
+    from sosalgo.spec import spec_from_text
+
+    note = rep.tighter_family_note(spec_from_text(doc["spec_text"], doc["source"]),
+                                   docs[0]["family"], certificate)
+    if note:
+        click.echo(note)
     click.echo(rep.design_table(docs, names, gap, method))
     for step in docs[0]["steps"] if len(docs) == 1 else ():
         click.echo(f"  - {step}")
