@@ -1,6 +1,6 @@
 """Theorem 1 on 16-state methods: the search with SCS in its fallback chain (as before)
-and without it (Clarabel alone, as the interpolation family), interleaved in the same run,
-beside the interpolation family; the time spent in SCS, and what SCS answered.
+and without it (Clarabel alone, as the interpolation family), interleaved in the same run;
+the time spent in SCS, and what SCS answered.
 
 The points the margin search cannot check go to the fallback chain; there SCS (at 1e-9)
 ran into its iteration limit or repeated an infeasible verdict. Rates must agree (a
@@ -15,7 +15,6 @@ import numpy as np
 
 from sosalgo import solvers
 from sosalgo.analysis import analyze_algorithm
-from sosalgo.certificates.interpolation import Interpolation
 from sosalgo.certificates.theorem1 import Theorem1
 from sosalgo.model import Algorithm, bind
 from sosalgo.spec import load_spec
@@ -116,10 +115,10 @@ def run(quick: bool = False) -> None:
     repeats = 1 if quick else 3
     with one_core() as core:
         print(f"Theorem 1 with / without SCS in the fallback chain ({core}, median of "
-              f"{repeats}), and the interpolation family")
+              f"{repeats})")
         print("| method | rho (SCS) | rho (no SCS) | s with SCS | of which SCS | SCS answers "
-              "| s without | speed-up | s interpolation | rho interpolation |")
-        print("|---|---|---|---|---|---|---|---|---|---|")
+              "| s without | speed-up |")
+        print("|---|---|---|---|---|---|---|---|")
         tot_old = tot_new = 0.0
         for name, alg in _cases():
             with _SCSClock() as clock:
@@ -127,15 +126,12 @@ def run(quick: bool = False) -> None:
                                       repeats)
             t_new, new, _ = timed(lambda a=alg: analyze_algorithm(a, family="theorem1"),
                                   repeats)
-            t_int, tight, _ = timed(lambda a=alg: analyze_algorithm(a, family=Interpolation()),
-                                    repeats)
             tot_old, tot_new = tot_old + t_old, tot_new + t_new
             answers = ", ".join(f"{k} {v}" for k, v in sorted(clock.answers.items())) or "-"
             print(f"| {name} | {_r(old)} | {_r(new)} | {t_old:.2f} | "
                   f"{clock.seconds / repeats:.2f} | {answers} | {t_new:.2f} | "
-                  f"{t_old / t_new:.2f}x | {t_int:.2f} | {_r(tight)} |", flush=True)
-        print(f"| total | | | {tot_old:.2f} | | | {tot_new:.2f} | {tot_old / tot_new:.2f}x "
-              "| | |")
+                  f"{t_old / t_new:.2f}x |", flush=True)
+        print(f"| total | | | {tot_old:.2f} | | | {tot_new:.2f} | {tot_old / tot_new:.2f}x |")
 
 
 def _r(res: object) -> str:

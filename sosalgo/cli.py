@@ -158,7 +158,7 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
             click.echo(rep.analysis_table(spec, mine, FAMILY_COLUMNS + extra))
             for line in rep.verdict_lines(mine):
                 click.echo(line)
-        for r in rows if "csvs" not in doc else ():
+        for r in rows:
             if r.get("warning"):
                 click.echo(f"warning at kappa {r['kappa']:g}: {r['warning']}", err=True)
         csvs = list(doc.get("csvs", {"": doc["csv"]}).values())

@@ -93,8 +93,8 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
             rows = run_analysis_sweep(spec, text, kappas, path, tol, workers=workers,
                                       scheduler=scheduler, restart=restart, progress=progress,
                                       family=fam,
-                                      companions=_figures(rate_stem(out, spec.name)) if plain
-                                      else (), noise=noise, brackets=brackets,
+                                      companions=_figures(rate_stem(out, spec.name))
+                                      if len(fams) == 1 else (), noise=noise, brackets=brackets,
                                       cycle_seconds=cycle_seconds)
             jrows = [csv_row_to_json(spec, r, None if plain else fam) for r in rows]
             if plain and plot and len(jrows) >= 2:  # one point is not a curve

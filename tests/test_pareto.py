@@ -89,7 +89,8 @@ def test_design_cli_objective_fields_and_files(tmp_path):
                 "noise_lag", "rho_certified", "theta", "lower_bound"):
         assert key in doc
     assert doc["objective"] == "noise" and doc["rho_certified"] <= 0.9
-    with open(tmp_path / "gradient-design-min-noise.csv", newline="") as fh:
+    assert doc["family"] == "interpolation"  # a noise objective's default: the tightest
+    with open(tmp_path / "gradient-design-interpolation-min-noise.csv", newline="") as fh:
         row = next(csv.DictReader(fh))
     assert float(row["noise"]) == pytest.approx(doc["noise"], rel=1e-12)
     assert row["max_rate"] == "0.9" and row["objective_status"] == "met"
@@ -233,17 +234,6 @@ def test_small_front_rechecked_by_verify(small_front):
     assert res.exit_code == 3, res.output
 
 
-def test_default_front_reaches_the_triple_momentum_rate(tmp_path):
-    """``sosalgo pareto specs/three-parameter.yaml --kappa 10`` with its defaults (here 2
-    points): the front starts at 1 - 1/sqrt(kappa) (closed form), which Theorem 1 cannot
-    certify, and is certified by the family it names."""
-    doc = pareto_run(spec_path("three-parameter"), 10, tmp_path, points=2, time_limit=60,
-                     workers=1, progress=False, plot=False)["fronts"][0]
-    assert doc["family"] == "interpolation"
-    assert doc["front"][0]["rho"] == pytest.approx(1 - 1 / math.sqrt(10), abs=1e-4)
-    assert doc["front"][0]["rho_check"] == "exact"
-
-
 def test_small_front_resumes_from_its_csv(small_front):
     """A run killed while writing: the rows written are kept (not recomputed), the torn
     one and the rest are computed."""
@@ -253,7 +243,7 @@ def test_small_front_resumes_from_its_csv(small_front):
     path.write_text("".join(lines[:-3]) + lines[-3][:10])  # killed while writing
     kept = {int(line.split(",")[0]) for line in lines[1:-3]}
     again = pareto_run(spec_path("nesterov"), 10, out, points=5, time_limit=12, workers=1,
-                       progress=False, plot=False)["fronts"][0]
+                       progress=False, plot=False, certificate="theorem1")["fronts"][0]
     before = {p["index"]: p for p in doc["points"] + doc["tunings"]}
     after = {p["index"]: p for p in again["points"] + again["tunings"]}
     assert set(after) == set(before) and kept < set(after)

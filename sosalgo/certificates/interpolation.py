@@ -465,7 +465,7 @@ class Interpolation(CertificateFamily):
         for k, (a, b) in enumerate(_sym_basis(st.nz)):
             Pn[a, b] = Pn[b, a] = x[lay["P"]][k]
         dinv = np.concatenate([np.ones(st.n), np.full(st.lag + 1, 1.0 / L)])
-        P = L * (dinv[:, None] * Pn * dinv[None, :])
+        P = (L * dinv)[:, None] * Pn * dinv[None, :]  # L D^-1 first: no overflow at tiny L
         pi = [float(v) for v in x[lay["pi"]]]
         return {
             "family": self.name,
