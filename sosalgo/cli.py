@@ -146,9 +146,10 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
         extra = (["verified"] if verify_ else []) + (
             ["noise", "noise_quadratic", "noise_lag", "noise_check", "noise_limsup",
              "noise_limsup_rho"] if noise else [])
-        if "csvs" not in doc:  # Theorem 1 alone: its historical table (with lambda)
-            click.echo(f"certificate family: {FAMILIES[rows[0]['family']].description}"
-                       if rows else "")
+        if "csvs" not in doc:  # Theorem 1 alone (with lambda), or a sublinear spec
+            named = FAMILIES.get(rows[0].get("family", "")) if rows else None
+            if named is not None:
+                click.echo(f"certificate family: {named.description}")
             click.echo(rep.analysis_table(spec, rows, ANALYSIS_COLUMNS + extra))
             for line in rep.verdict_lines(rows):
                 click.echo(line)

@@ -167,7 +167,13 @@ def select_families(spec: Spec, certificate: str | Sequence[str] | None = None,
     every family that has them, and at least one family must have each. A family that
     does not apply to the spec is refused, or with ``applicable_only`` (a table over many
     specs) left out as long as one applies."""
-    from sosalgo.certificates import FAMILIES, FAMILY_OPTIONS, default_family_name, get_family
+    from sosalgo.certificates import (
+        FAMILIES,
+        FAMILY_OPTIONS,
+        default_family_name,
+        family_applies,
+        get_family,
+    )
 
     if certificate is None:
         names = [default_family_name(spec, command)]
@@ -187,7 +193,6 @@ def select_families(spec: Spec, certificate: str | Sequence[str] | None = None,
             raise InputError(f"--{key}: no family asked for has this option "
                              f"({', '.join(names)})")
     from sosalgo.analysis import for_spec
-    from sosalgo.spec.loading import family_applies
 
     if applicable_only and any(not family_applies(spec, nm) for nm in names):
         names = [nm for nm in names if not family_applies(spec, nm)]

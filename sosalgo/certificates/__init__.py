@@ -49,6 +49,16 @@ LOWER_BOUND_COMMANDS = frozenset({"design"})
 DECLARED_COMMANDS = frozenset({"table1", "lmi", "grid"})
 
 
+def family_applies(spec: "Spec", family: str) -> str | None:
+    """Why certificate family ``family`` does not apply to ``spec`` (None when it does):
+    Theorem 1 holds only in the seed's setting (see :attr:`Spec.composite`)."""
+    if family == "theorem1" and spec.composite:
+        return ("theorem1 applies only to one smooth_strongly_convex function with the "
+                "spec's m and L, queried by its gradient (no D, x = E xi, measure: function); "
+                "use interpolation, the family for this spec")
+    return None
+
+
 def default_family_name(spec: "Spec", command: str | None = "analyze") -> str:
     """The family ``command`` uses when neither the command line nor the spec's
     ``certificate:`` field names one: the one place that default is decided.
@@ -66,8 +76,6 @@ def default_family_name(spec: "Spec", command: str | None = "analyze") -> str:
     """
     if spec.certificate_given or command is None or command in DECLARED_COMMANDS:
         return spec.certificate
-    from sosalgo.spec.loading import family_applies
-
     applicable = [n for n in TIGHTEST_FIRST
                   if n in FAMILIES and family_applies(spec, n) is None]
     if not applicable:
@@ -109,6 +117,7 @@ def family_from_description(desc: Mapping[str, Any] | None) -> CertificateFamily
 __all__ = [
     "AffineBlock", "CertificateFamily", "LMIProblem", "FAMILIES", "FAMILY_OPTIONS",
     "DECLARED_COMMANDS", "LOWER_BOUND_COMMANDS", "TIGHTEST_FIRST", "default_family",
-    "default_family_name", "describe_family", "family_from_description", "get_family",
+    "default_family_name", "describe_family", "family_applies", "family_from_description",
+    "get_family",
     "register_family",
 ]
