@@ -90,6 +90,40 @@ def test_random_methods_never_slower_than_a_lag_tried(seed):
         _check_never_slower(_random_method(rng))
 
 
+def _chambolle_pock(tmp_path, tau: float, sigma: float, theta: float) -> str:
+    """Chambolle-Pock with K = I and steps tau, sigma, extrapolation theta, the dual step
+    by Moreau's identity prox_{sigma g*}(v) = v - sigma prox_{g/sigma}(v/sigma):
+    y1 = prox_{tau f}(x - tau y), w = x + (1/sigma - (1 + theta) tau) y - (1 + theta) tau u1,
+    y2 = prox_{g/sigma}(w), x+ = y1, y+ = sigma (w - y2) = u2."""
+    c2 = 1 / sigma - (1 + theta) * tau
+    path = tmp_path / f"cp-{tau:.6g}-{sigma:.6g}-{theta:.6g}.yaml"
+    path.write_text(CHAMBOLLE_POCK.replace(
+        "A: [[1, -1], [0, 0]]", f"A: [[1, {-tau!r}], [0, 0]]").replace(
+        "B: [[-1, 0], [0, 1]]", f"B: [[{-tau!r}, 0], [0, 1]]").replace(
+        "C: [[1, -1], [1, -1]]", f"C: [[1, {-tau!r}], [1, {c2!r}]]").replace(
+        "D: [[-1, 0], [-2, -1]]", f"D: [[{-tau!r}, 0], [{-(1 + theta) * tau!r}, {-1 / sigma!r}]]"))
+    return str(path)
+
+
+@pytest.mark.parametrize("seed", [3, 4])
+def test_random_chambolle_pock_never_slower_than_a_lag_tried(tmp_path, seed):
+    rng = np.random.default_rng(seed)
+    tau, sigma = float(np.exp(rng.uniform(-1.5, 1))), float(np.exp(rng.uniform(-1.5, 1)))
+    theta = float(rng.uniform(0.5, 1))
+    kappa = float(np.exp(rng.uniform(np.log(2), np.log(1000))))
+    _check_never_slower(bind(load_spec(_chambolle_pock(tmp_path, tau, sigma, theta)), kappa))
+
+
+def test_chambolle_pock_builder_is_the_unit_step_spec(tmp_path):
+    """The general builder at tau = sigma = theta = 1 is the spec above (same matrices)."""
+    ours = load_spec(_chambolle_pock(tmp_path, 1.0, 1.0, 1.0))
+    (tmp_path / "unit.yaml").write_text(CHAMBOLLE_POCK)
+    unit = load_spec(tmp_path / "unit.yaml")
+    a, b = bind(ours, 1000.0), bind(unit, 1000.0)
+    for name in ("A", "B", "C", "D", "E"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+
+
 @pytest.mark.deep
 @pytest.mark.parametrize("seed", range(20, 30))
 def test_random_methods_never_slower_than_a_lag_tried_deep(seed):
