@@ -88,15 +88,15 @@ clean:
 KAPPA_SWEEP := {from: 1.5, to: 1000, points: 20, scale: log}
 
 fig1: $(VENV)/.installed
-	$(BIN)/sosalgo design specs/gradient.yaml --free h --kappa '$(KAPPA_SWEEP)' --time-limit 30 --out $(OUT) $(BATCH_OPTS)
+	$(BIN)/sosalgo design specs/gradient.yaml --certificate theorem1 --free h --kappa '$(KAPPA_SWEEP)' --time-limit 30 --out $(OUT) $(BATCH_OPTS)
 	@echo "Figure 1: $(OUT)/gradient-design.png"
 
 fig2: $(VENV)/.installed
-	$(BIN)/sosalgo design specs/nesterov.yaml --free beta --kappa '$(KAPPA_SWEEP)' --time-limit 30 --out $(OUT) $(BATCH_OPTS)
+	$(BIN)/sosalgo design specs/nesterov.yaml --certificate theorem1 --free beta --kappa '$(KAPPA_SWEEP)' --time-limit 30 --out $(OUT) $(BATCH_OPTS)
 	@echo "Figure 2: $(OUT)/nesterov-design.png"
 
 fig3: $(VENV)/.installed
-	$(BIN)/sosalgo grid specs/nesterov.yaml --kappa 10 --points 60 --free h,beta --out $(OUT) $(BATCH_OPTS)
+	$(BIN)/sosalgo grid specs/nesterov.yaml --certificate theorem1 --kappa 10 --points 60 --free h,beta --out $(OUT) $(BATCH_OPTS)
 	@echo "Figure 3: $(OUT)/nesterov-grid-k10.png"
 
 fig4: $(VENV)/.installed

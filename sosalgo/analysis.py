@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from sosalgo import solvers as _solvers
-from sosalgo.certificates import FAMILIES, get_family
+from sosalgo.certificates import FAMILIES, default_family_name, get_family
 from sosalgo.certificates.base import CertificateFamily, LMIProblem
 from sosalgo.model import Algorithm, bind
 from sosalgo.solvers import (
@@ -92,6 +92,9 @@ class AnalysisResult:
     rho_lower_kind: str | None = None  # "quadratic", "self-similar" or "cycle"
     rho_lower_witness: dict[str, Any] | None = None
     cycle: dict[str, Any] | None = None  # a checked cycle: the method does not converge
+    # the lags a choice of lag tried (:func:`_choose_lag`; () without a choice): the rate is
+    # never slower than one certified at any of them
+    lags_tried: tuple[int, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict (the `rows` entries of ``sosalgo analyze --json``)."""
@@ -500,7 +503,10 @@ def _choose_lag(alg: Algorithm, tol: float, fam: CertificateFamily, solvers: Seq
     tolerance (:func:`_improve`: one test there, a search below it when it does).
     Lags are raised until ``LAG_PATIENCE`` in a row do not improve, the last of ``lags``
     or ``LAG_SECONDS``, or (families that say so: several oracle calls) once a lag certifies
-    a rate. The largest lag of those next ``LAG_PATIENCE`` is tested first: a
+    a rate; then the family's ``fallback_lags`` (lag 0) are tried the same way, each
+    only kept where it beats the best by the tolerance, so the rate returned is never
+    slower than one certified at any lag tried (``lags_tried``), up to the tolerance.
+    The largest lag of those next ``LAG_PATIENCE`` is tested first: a
     certificate of lag l is one of lag l + 1, so when it does not beat the best rate none
     of the smaller ones does and the choice stops after that one test. Larger lags never
     certify less in exact arithmetic, but their solves are less accurate on degenerate
@@ -517,6 +523,7 @@ def _choose_lag(alg: Algorithm, tol: float, fam: CertificateFamily, solvers: Seq
     pend = _Pending()  # best's search, paused before its last test below (see _close)
     best = _analyze_one(alg, tol, members[0], solvers, method, floor, pend)
     solves, misses, i = best.solves, 0, 1
+    tried = [lags[0]]
     ahead: dict[int, _Probe] = {}  # a window's top, tested against the current best
     while i < len(members) and misses < LAG_PATIENCE:
         if time.perf_counter() - start > LAG_SECONDS or (
@@ -526,6 +533,7 @@ def _choose_lag(alg: Algorithm, tol: float, fam: CertificateFamily, solvers: Seq
         if top > i and top not in ahead:
             probe = _probe(alg, tol, members[top], solvers, method, best, floor)
             solves += 0 if probe is None else probe.search.solves
+            tried.append(lags[top])
             best = _close(best, pend, probe)
             if probe is None or not probe.out.feasible:
                 break  # the largest lag of the window does not beat best: none does
@@ -535,6 +543,7 @@ def _choose_lag(alg: Algorithm, tol: float, fam: CertificateFamily, solvers: Seq
             probe = _probe(alg, tol, members[i], solvers, method, best, floor)
             solves += 0 if probe is None else probe.search.solves
             best = _close(best, pend, probe)
+        tried.append(lags[i])
         nxt = _Pending()
         res, spent = _improve(alg, tol, members[i], solvers, method, best, floor, probe,
                               nxt if i + 1 < len(members) else None)
@@ -547,8 +556,27 @@ def _choose_lag(alg: Algorithm, tol: float, fam: CertificateFamily, solvers: Seq
     if pend.result is not None and pend.result is best:  # no larger lag closed it
         best, spent = _resume(alg, pend, tol)
         solves += spent
+    for lag in getattr(fam, "fallback_lags", lambda n: ())(alg.n):
+        res, spent = _fallback(alg, tol, fam.with_options(lag=lag),  # type: ignore[call-arg]
+                               solvers, method, best, floor)
+        solves += spent
+        tried.append(lag)
+        best = best if res is None else res
     return dataclasses.replace(best, solves=solves, seconds=time.perf_counter() - start,
-                               lag=best.lag if best.certified else None)
+                               lag=best.lag if best.certified else None,
+                               lags_tried=tuple(sorted(set(tried))))
+
+
+def _fallback(alg: Algorithm, tol: float, fam: CertificateFamily, solvers: Sequence[str],
+              method: str, best: AnalysisResult,
+              floor: float) -> tuple[AnalysisResult | None, int]:
+    """(result of ``fam``, solves) when it beats ``best`` (:func:`_improve`); a full
+    search (:func:`_analyze_one`, from the rate on quadratics) when ``best`` certifies
+    nothing."""
+    if best.rho is not None:
+        return _improve(alg, tol, fam, solvers, method, best, floor)
+    res = _analyze_one(alg, tol, fam, solvers, method, floor)
+    return (res if res.certified else None), res.solves
 
 
 @dataclass
@@ -841,10 +869,14 @@ def analyze_spec(
     return analyze_algorithm(bind(spec, kappa, theta), tol, fam, solvers)
 
 
-def spec_family(spec: Spec) -> CertificateFamily:
-    """The certificate family a spec asks for, with its options (sized for the spec's
-    oracle calls when it has several)."""
-    return for_spec(get_family(spec.certificate, spec.certificate_options), spec)
+def spec_family(spec: Spec, command: str | None = None) -> CertificateFamily:
+    """The certificate family ``command`` uses for a spec by default
+    (:func:`sosalgo.certificates.default_family_name`; None: the family the spec declares),
+    with the spec's options when it is the spec's own, sized for the spec's oracle calls
+    when it has several."""
+    name = default_family_name(spec, command)
+    options = spec.certificate_options if name == spec.certificate else {}
+    return for_spec(get_family(name, options), spec)
 
 
 def for_spec(fam: CertificateFamily, spec: Spec) -> CertificateFamily:

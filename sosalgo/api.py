@@ -89,7 +89,7 @@ def analyze(
     kappas, single = _kappas(s, kappa)
     check_tol(tol)
     check_witness_options(brackets, cycle_seconds)
-    fam = select_families(s, certificate, options, single=True)[0]
+    fam = select_families(s, certificate, options, single=True, command="analyze")[0]
     check_kappa_points(s, kappas, theta)
     results = [analyze_spec(s, k, theta, tol=tol, family=fam) for k in kappas]
     if brackets != "none" or cycle_seconds > 0:
@@ -194,7 +194,7 @@ def lmi(spec: Spec | str | Path, free: str | Sequence[str] | None = None, latex:
 
     s = as_spec(spec)
     names = None if free is None else free_names(s, free, need_range=False)
-    fam = select_families(s, certificate, options, single=True)[0]
+    fam = select_families(s, certificate, options, single=True, command="lmi")[0]
     return symbolic_lmi(s, free=names, latex=latex, family=fam)
 
 

@@ -28,13 +28,32 @@ def _kappas(values: tuple[str, ...]) -> list[float] | None:
     return [k for v in values for k in kappa_option(v)] or None
 
 
-def certificate_options(fn: Callable[..., Any]) -> Callable[..., Any]:
-    """--certificate NAME[,NAME...] and --lag L (the interpolation family's lag)."""
-    fn = click.option("--lag", type=int, default=None,
-                      help="Lag of the interpolation family, 0..8 (default: states - 1).")(fn)
-    return click.option("--certificate", "certificate", default=None, metavar="FAMILY",
-                        help="Certificate family: theorem1 (default) or interpolation; "
-                             "comma-separated to compare several.")(fn)
+CERTIFICATE_DEFAULTS = {  # what each command uses without --certificate (and the spec's
+    # certificate: field): sosalgo.certificates.default_family_name
+    "tightest": "default: the tightest that applies, interpolation",
+    "design": ("default: theorem1, the family with a box-wide lower bound; the tightest, "
+               "interpolation, for composite specs and with --objective noise or --max-noise"),
+    "declared": "default: the spec's certificate: field, else theorem1 (interpolation for "
+                "composite specs)",
+    "verify": "for rows that name none; default: theorem1, the family of rows written "
+              "before rows named their family",
+}
+
+
+def certificate_options(fn: Callable[..., Any] | None = None, default: str = "declared",
+                        several: bool = False) -> Any:
+    """--certificate NAME[,NAME...] and --lag L (the interpolation family's lag);
+    ``default`` names the command's default (:data:`CERTIFICATE_DEFAULTS`)."""
+    def add(fn: Callable[..., Any]) -> Callable[..., Any]:
+        fn = click.option("--lag", type=int, default=None,
+                          help="Lag of the interpolation family, 0..8 (default: analyze "
+                               "keeps the best of the lags it tries; else states - 1).")(fn)
+        return click.option(
+            "--certificate", "certificate", default=None, metavar="FAMILY",
+            help=f"Certificate family: theorem1 or interpolation "
+                 f"({CERTIFICATE_DEFAULTS[default]})"
+                 + ("; comma-separated to compare several." if several else "."))(fn)
+    return add if fn is None else add(fn)
 
 
 def batch_options(fn: Callable[..., Any]) -> Callable[..., Any]:
@@ -99,14 +118,15 @@ def cli() -> None:
 @click.option("--cycle-seconds", type=click.FloatRange(0, 600), default=5.0,
               show_default=True,
               help="Time per uncertified kappa for the search of a cycle (0: no search).")
-@certificate_options
+@certificate_options(default="tightest", several=True)
 @handle_errors
 def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_json: bool,
             workers: int | None, scheduler: str | None, restart: bool, quiet: bool,
             no_plot: bool, verify_: bool, noise: bool, brackets: str, cycle_seconds: float,
             certificate: str | None, lag: int | None) -> None:
-    """Best rate certified at each kappa, with its certificate (Theorem 1: P, lambda).
-    Python: sosalgo.analyze_run (files) or sosalgo.analyze (results)."""
+    """Best rate certified at each kappa, with its certificate; by default by the
+    tightest certificate family that applies (interpolation; --certificate theorem1 for
+    the paper's Theorem 1). Python: sosalgo.analyze_run (files) or sosalgo.analyze."""
     from sosalgo.certificates import FAMILIES
     from sosalgo.report import analysis as rep
     from sosalgo.runs import analyze_run
@@ -126,7 +146,10 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
         extra = (["verified"] if verify_ else []) + (
             ["noise", "noise_quadratic", "noise_lag", "noise_check", "noise_limsup",
              "noise_limsup_rho"] if noise else [])
-        if "csvs" not in doc:  # the default family alone
+        if "csvs" not in doc:  # Theorem 1 alone (with lambda), or a sublinear spec
+            named = FAMILIES.get(rows[0].get("family", "")) if rows else None
+            if named is not None:
+                click.echo(f"certificate family: {named.description}")
             click.echo(rep.analysis_table(spec, rows, ANALYSIS_COLUMNS + extra))
             for line in rep.verdict_lines(rows):
                 click.echo(line)
@@ -136,7 +159,7 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
             click.echo(rep.analysis_table(spec, mine, FAMILY_COLUMNS + extra))
             for line in rep.verdict_lines(mine):
                 click.echo(line)
-        for r in rows if "csvs" not in doc else ():
+        for r in rows:
             if r.get("warning"):
                 click.echo(f"warning at kappa {r['kappa']:g}: {r['warning']}", err=True)
         csvs = list(doc.get("csvs", {"": doc["csv"]}).values())
@@ -176,7 +199,7 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
               help="With --objective noise: the certified rate must be <= R.")
 @click.option("--max-noise", type=float, default=None, metavar="G",
               help="With --objective rate: the certified noise sensitivity must be <= G.")
-@certificate_options
+@certificate_options(default="design")
 @handle_errors
 def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: str,
            order: int | None, gap: float, time_limit: float, method: str, out: str,
@@ -216,6 +239,12 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
            else f"lower bound by moment relaxation ({scalarize})")
     click.echo(f"{doc['spec']}: design of {', '.join(names)} certified by "
                f"{docs[0]['family']}; {how}")
+    from sosalgo.spec import spec_from_text
+
+    note = rep.tighter_family_note(spec_from_text(doc["spec_text"], doc["source"]),
+                                   docs[0]["family"], certificate)
+    if note:
+        click.echo(note)
     click.echo(rep.design_table(docs, names, gap, method))
     for step in docs[0]["steps"] if len(docs) == 1 else ():
         click.echo(f"  - {step}")
@@ -243,7 +272,7 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
               help="Directory for <name>-pareto-k<kappa>.csv/.png/.pdf.")
 @batch_options
 @click.option("--no-plot", is_flag=True, help="Skip the figure.")
-@certificate_options
+@certificate_options(default="tightest")
 @handle_errors
 def pareto(spec_path: str, kappa: tuple[str, ...], points: int, time_limit: float,
            free: str | None, out: str, as_json: bool, workers: int | None,
@@ -342,7 +371,7 @@ def grid(spec_path: str, kappa: tuple[str, ...], points: int, free: str | None, 
                    "otherwise the certificates are only checked).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document on stdout.")
 @click.option("--no-simulate", is_flag=True, help="Skip the simulation check.")
-@certificate_options
+@certificate_options(default="verify")
 @handle_errors
 def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
            no_simulate: bool, certificate: str | None, lag: int | None) -> None:
@@ -458,7 +487,7 @@ def lmi(spec_path: str, latex: bool, free: str | None, certificate: str | None,
 @click.option("--kappa", "kappa", multiple=True, metavar="K", help="Default: 2, 10, 100.")
 @click.option("--tol", default=1e-6, show_default=True, type=float)
 @click.option("--out", default="outputs", show_default=True, metavar="DIR")
-@certificate_options
+@certificate_options(several=True)
 @handle_errors
 def table1(spec_paths: tuple[str, ...], kappa: tuple[str, ...], tol: float, out: str,
            certificate: str | None, lag: int | None) -> None:

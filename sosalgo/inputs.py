@@ -159,16 +159,24 @@ def check_scheduler(scheduler: str | None) -> None:
 
 def select_families(spec: Spec, certificate: str | Sequence[str] | None = None,
                     options: Mapping[str, Any] | None = None, single: bool = False,
-                    label: str = "--certificate", applicable_only: bool = False) -> list[Any]:
-    """The certificate families asked for (default: the spec's own, with its options);
-    ``options`` (e.g. ``{"lag": 0}``; None values are unset) go to every family that has
-    them, and at least one family must have each. A family that does not apply to the
-    spec is refused, or with ``applicable_only`` (a table over many specs) left out as
-    long as one applies."""
-    from sosalgo.certificates import FAMILIES, FAMILY_OPTIONS, get_family
+                    label: str = "--certificate", applicable_only: bool = False,
+                    command: str | None = None) -> list[Any]:
+    """The certificate families asked for (default: ``command``'s default for the spec,
+    :func:`sosalgo.certificates.default_family_name`), with the spec's options when it is
+    the spec's family; ``options`` (e.g. ``{"lag": 0}``; None values are unset) go to
+    every family that has them, and at least one family must have each. A family that
+    does not apply to the spec is refused, or with ``applicable_only`` (a table over many
+    specs) left out as long as one applies."""
+    from sosalgo.certificates import (
+        FAMILIES,
+        FAMILY_OPTIONS,
+        default_family_name,
+        family_applies,
+        get_family,
+    )
 
     if certificate is None:
-        names = [spec.certificate]
+        names = [default_family_name(spec, command)]
     else:
         names = ([v.strip() for v in certificate.split(",") if v.strip()]
                  if isinstance(certificate, str) else list(certificate))
@@ -185,7 +193,6 @@ def select_families(spec: Spec, certificate: str | Sequence[str] | None = None,
             raise InputError(f"--{key}: no family asked for has this option "
                              f"({', '.join(names)})")
     from sosalgo.analysis import for_spec
-    from sosalgo.spec.loading import family_applies
 
     if applicable_only and any(not family_applies(spec, nm) for nm in names):
         names = [nm for nm in names if not family_applies(spec, nm)]

@@ -162,7 +162,7 @@ def _base_family(spec: Spec, options: Mapping[str, Any]) -> Any:
     from sosalgo.analysis import spec_family
     from sosalgo.certificates import family_from_description
 
-    return family_from_description(options.get("certificate")) or spec_family(spec)
+    return family_from_description(options.get("certificate")) or spec_family(spec, "pareto")
 
 
 def _written(path: str | None) -> list[tuple[float, dict[str, float], float]]:
@@ -469,7 +469,7 @@ def pareto_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = 
     spec, text = spec_with_text(spec, spec_text)
     kappas = _check(spec, kappa, points, time_limit)
     names = inputs.free_names(spec, free)
-    fam = inputs.select_families(spec, certificate, options, single=True)[0]
+    fam = inputs.select_families(spec, certificate, options, single=True, command="pareto")[0]
     inputs.parameter_boxes(spec, kappas, names, design=True)
     out = inputs.out_dir(out_dir)
     inputs.check_scheduler(scheduler)

@@ -59,7 +59,8 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
                 spec_text: str | None = None, noise: bool = False,
                 brackets: str = "quadratic", cycle_seconds: float = 5.0) -> dict[str, Any]:
     """``sosalgo analyze``: one CSV per family, the rate figure, optional checks; returns
-    the ``--json`` document (rows of the default family alone carry no ``family``).
+    the ``--json`` document (every row names its ``family``; Theorem 1's rows carry P and
+    lambda beside rho, no ``certificate`` object).
     ``noise`` (``--noise``) adds the certified noise sensitivity to every row.
     ``brackets`` (quadratic, self-similar, none) and ``cycle_seconds`` (the cycle search's
     time per uncertified row, 0: none) choose the witnesses (:mod:`sosalgo.witnesses`)."""
@@ -80,7 +81,7 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
     from sosalgo.witnesses.rows import check_witness_options
 
     check_witness_options(brackets, cycle_seconds)
-    fams = inputs.select_families(spec, certificate, options)
+    fams = inputs.select_families(spec, certificate, options, command="analyze")
     inputs.check_kappa_points(spec, kappas)
     out = inputs.out_dir(out_dir)
     inputs.check_scheduler(scheduler)
@@ -92,8 +93,8 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
             rows = run_analysis_sweep(spec, text, kappas, path, tol, workers=workers,
                                       scheduler=scheduler, restart=restart, progress=progress,
                                       family=fam,
-                                      companions=_figures(rate_stem(out, spec.name)) if plain
-                                      else (), noise=noise, brackets=brackets,
+                                      companions=_figures(rate_stem(out, spec.name))
+                                      if len(fams) == 1 else (), noise=noise, brackets=brackets,
                                       cycle_seconds=cycle_seconds)
             jrows = [csv_row_to_json(spec, r, None if plain else fam) for r in rows]
             if plain and plot and len(jrows) >= 2:  # one point is not a curve
@@ -102,9 +103,8 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
     if not plain:
         figs = rep.families_figure(spec, runs, rate_stem(out, spec.name)) if plot else []
     for fam, _, jrows in runs:
-        if not plain:
-            for r in jrows:
-                r["family"] = fam.name
+        for r in jrows:  # every row names its family (Theorem 1's too)
+            r["family"] = fam.name
         if verify:
             rep.attach_checks(spec, jrows, out / "certificates", family=None if plain else fam)
     doc = {"spec": spec.name, "source": spec.source, "spec_text": text, "tol": tol,
@@ -163,7 +163,8 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
             raise InputError(f"{spec.source}: --kappa: undefined for a sublinear spec (m: 0)")
         return sublinear_design_run(spec, text, out_dir, free, time_limit, verify,
                                     restart, progress)
-    fam = inputs.select_families(spec, certificate, options, single=True)[0]
+    fam = inputs.select_families(spec, certificate, options, single=True,
+                                 command="noise" if two else "design")[0]
     kappas = _kappa_list(spec, kappa)
     opts = _design_options(spec, kappas, free, fam, {
         "scalarize": scalarize, "order": order, "gap": gap, "time_limit": time_limit,
@@ -232,7 +233,7 @@ def grid_run(spec: Spec | str | Path, kappa: Kappas, out_dir: str | Path = "outp
         if p in GRID_COLUMNS:
             raise InputError(f"{spec.source}: parameters.{p}: name clashes with a grid column")
     inputs.check_tol(tol, "--tol")
-    fam = inputs.select_families(spec, certificate, options, single=True)[0]
+    fam = inputs.select_families(spec, certificate, options, single=True, command="grid")[0]
     boxes = inputs.parameter_boxes(spec, kappas, names)
     out = inputs.out_dir(out_dir)
     inputs.check_scheduler(scheduler)

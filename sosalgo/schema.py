@@ -92,7 +92,8 @@ def analysis_columns(spec: Spec, family: CertificateFamily | None = None,
     size), the spec's references, then the family's own columns (and with ``noise``, those
     of ``--noise``: NOISE_COLUMNS)."""
     ps, own = _family_parts(spec, family)
-    return (_ANALYSIS_HEAD + ps + _ANALYSIS_TAIL + list(spec.references) + own
+    named = [] if "family" in own else ["family"]  # every analysis row names its family
+    return (_ANALYSIS_HEAD + ps + _ANALYSIS_TAIL + list(spec.references) + own + named
             + (NOISE_COLUMNS if noise else []))
 
 

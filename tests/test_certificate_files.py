@@ -21,7 +21,7 @@ def _run(args):
 
 def _analysis(tmp_path, *extra):
     res = _run(["analyze", GRADIENT, "--kappa", "10", "--out", tmp_path / "a", "--json",
-                "--quiet", "--no-plot", *extra])
+                "--quiet", "--no-plot", *(extra or ("--certificate", "theorem1"))])
     assert res.exit_code == 0, res.output
     return json.loads(res.stdout)
 

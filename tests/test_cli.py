@@ -25,7 +25,7 @@ def run(args, **kw):
 
 def test_analyze_writes_csv_plot_and_prints_table(tmp_path):
     res = run(["analyze", SPECS / "nesterov.yaml", "--kappa", "10", "--kappa", "100",
-               "--out", tmp_path, "--quiet"])
+               "--out", tmp_path, "--quiet", "--certificate", "theorem1"])
     assert res.exit_code == 0, res.output
     assert "Nesterov's bound" in res.stdout and "rho" in res.stdout
     rows = list(csv.DictReader(open(tmp_path / "nesterov-analysis.csv")))
@@ -34,8 +34,32 @@ def test_analyze_writes_csv_plot_and_prints_table(tmp_path):
                 "solves", "seconds", "Nesterov's bound", "quadratic lower bound"):
         assert col in rows[0]
     assert float(rows[0]["rho"]) < float(rows[0]["Nesterov's bound"])
+    assert {r["family"] for r in rows} == {"theorem1"}
+    assert "certificate family: Theorem 1" in res.stdout
     for ext in ("png", "pdf"):
         assert (tmp_path / f"nesterov-rate.{ext}").stat().st_size > 1000
+
+
+def test_analyze_defaults_to_the_tightest_family_and_names_it(tmp_path):
+    """Nesterov at kappa 10: the default is the interpolation family, whose rate matches
+    AutoLyap's 0.7518212 (an independent tool, same family) within 1e-6; the printed
+    line, the CSV column and the JSON rows name it. Theorem 1 is one flag away and gives
+    a slower rate (its certificates are a special case)."""
+    res = run(["analyze", SPECS / "nesterov.yaml", "--kappa", "10", "--out", tmp_path,
+               "--quiet", "--json"])
+    assert res.exit_code == 0, res.output
+    (row,) = json.loads(res.stdout)["rows"]
+    assert row["family"] == "interpolation" and row["certified"]
+    assert row["rho"] == pytest.approx(0.7518212, abs=1e-6)
+    (csv_row,) = csv.DictReader(open(tmp_path / "nesterov-analysis-interpolation.csv"))
+    assert csv_row["family"] == "interpolation"
+    text = run(["analyze", SPECS / "nesterov.yaml", "--kappa", "10", "--out", tmp_path,
+                "--quiet"]).stdout
+    assert "certificate family: interpolation" in text
+    t1 = run(["analyze", SPECS / "nesterov.yaml", "--kappa", "10", "--out", tmp_path,
+              "--quiet", "--json", "--certificate", "theorem1"])
+    (t1_row,) = json.loads(t1.stdout)["rows"]
+    assert t1_row["family"] == "theorem1" and t1_row["rho"] > row["rho"] + 0.05
 
 
 def test_analyze_json_is_the_only_stdout(tmp_path):
@@ -61,7 +85,7 @@ def test_uncertified_is_a_result_not_an_error(tmp_path):
 
 def test_rerun_resumes_and_recomputes_other_settings(tmp_path):
     args = ["analyze", SPECS / "gradient.yaml", "--kappa", "2", "--kappa", "10", "--out", tmp_path,
-            "--quiet", "--no-plot"]
+            "--quiet", "--no-plot", "--certificate", "theorem1"]
     assert run(args).exit_code == 0
     before = (tmp_path / "gradient-analysis.csv").read_text()
     assert run(args).exit_code == 0

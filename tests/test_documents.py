@@ -72,7 +72,8 @@ def test_a_tiny_m_analyzes_and_verifies_its_own_result(tmp_path):
     text = (SPECS / "gradient.yaml").read_text() + "m: 1e-300\n"
     spec = tmp_path / "tiny.yaml"
     spec.write_text(text.replace("kappa: [2, 5, 10, 20, 50, 100]", "kappa: [10]"))
-    res = run(["analyze", spec, "--json", "--quiet", "--no-plot", "--out", tmp_path])
+    res = run(["analyze", spec, "--json", "--quiet", "--no-plot", "--out", tmp_path,
+               "--certificate", "theorem1"])
     assert res.exit_code == 0, res.output
     doc = tmp_path / "tiny.json"
     doc.write_text(res.stdout)

@@ -86,11 +86,11 @@ def test_warning_reaches_the_csv_json_and_terminal(tmp_path):
 
     spec = str(SPECS / "gradient-optimal.yaml")
     res = CliRunner().invoke(cli, ["analyze", spec, "--kappa", "1e12", "--json", "--quiet",
-                                   "--out", str(tmp_path / "a")])
+                                   "--out", str(tmp_path / "a"), "--certificate", "theorem1"])
     assert res.exit_code == 0, res.output
     assert json.loads(res.stdout)["rows"][0]["warning"]
     with open(tmp_path / "a" / "gradient-optimal-analysis.csv") as fh:
         assert next(csv.DictReader(fh))["warning"]
     res = CliRunner().invoke(cli, ["analyze", spec, "--kappa", "1e12", "--out",
-                                   str(tmp_path / "b")])
+                                   str(tmp_path / "b"), "--certificate", "theorem1"])
     assert res.exit_code == 0 and "warning at kappa 1e+12" in res.stderr

@@ -156,7 +156,7 @@ def test_analyze_noise_command_and_python_twin(tmp_path):
     assert row["noise_quadratic"] == pytest.approx(closed, rel=1e-10)
     assert closed <= row["noise"] <= closed * (1 + 1e-5)
     assert row["noise_lag"] == 0 and row["noise_check"] == "exact"
-    header = (out / "gradient-analysis.csv").read_text().splitlines()[0].split(",")
+    header = (out / "gradient-analysis-interpolation.csv").read_text().splitlines()[0].split(",")
     assert {"noise", "noise_quadratic", "noise_lag"} <= set(header)
     twin = sosalgo.noise(f"{SPECS}/gradient.yaml", 10)
     assert twin.noise == pytest.approx(row["noise"], rel=1e-6)

@@ -45,7 +45,7 @@ def edited_gradient(tmp_path: Path) -> Path:
 
 def test_edited_copy_keeps_the_original_aside_and_both_resume(tmp_path):
     out = tmp_path / "out"
-    args = ["--kappa", "4", "--out", out, "--no-plot", "--quiet"]
+    args = ["--kappa", "4", "--out", out, "--no-plot", "--quiet", "--certificate", "theorem1"]
     first = run(["analyze", GRADIENT, *args])
     assert first.exit_code == 0, first.output
     original = (out / "gradient-analysis.csv").read_text()
@@ -68,7 +68,8 @@ def test_edited_copy_keeps_the_original_aside_and_both_resume(tmp_path):
 
 
 def test_restart_says_it_replaces(tmp_path):
-    args = ["analyze", GRADIENT, "--kappa", "4", "--out", tmp_path, "--no-plot", "--quiet"]
+    args = ["analyze", GRADIENT, "--kappa", "4", "--out", tmp_path, "--no-plot", "--quiet",
+            "--certificate", "theorem1"]
     assert run(args).exit_code == 0
     res = run([*args, "--restart"])
     assert res.exit_code == 0 and "replaced" in res.stderr
@@ -76,7 +77,7 @@ def test_restart_says_it_replaces(tmp_path):
 
 
 def test_another_kappa_is_another_run_not_an_append(tmp_path):
-    base = ["analyze", GRADIENT, "--out", tmp_path, "--quiet"]
+    base = ["analyze", GRADIENT, "--out", tmp_path, "--quiet", "--certificate", "theorem1"]
     assert run([*base, "--kappa", "4", "--kappa", "8"]).exit_code == 0
     res = run([*base, "--kappa", "16"])
     assert res.exit_code == 0, res.output
@@ -87,7 +88,8 @@ def test_another_kappa_is_another_run_not_an_append(tmp_path):
 
 
 def test_identical_rerun_resumes_without_notes(tmp_path):
-    args = ["analyze", GRADIENT, "--kappa", "4", "--out", tmp_path, "--no-plot", "--quiet"]
+    args = ["analyze", GRADIENT, "--kappa", "4", "--out", tmp_path, "--no-plot", "--quiet",
+            "--certificate", "theorem1"]
     assert run(args).exit_code == 0
     before = (tmp_path / "gradient-analysis.csv").read_text()
     res = run(args)
@@ -119,7 +121,7 @@ def test_distinct_kappas_get_distinct_grid_files(tmp_path):
 def test_two_concurrent_runs_write_each_row_once(tmp_path):
     cmd = [sys.executable, "-m", "sosalgo.cli", "analyze", str(GRADIENT), "--kappa",
            "{from: 2, to: 50, points: 300}", "--out", str(tmp_path), "--no-plot", "--quiet",
-           "--workers", "1"]
+           "--workers", "1", "--certificate", "theorem1"]
     procs = [subprocess.Popen(cmd, env=ENV, stdout=subprocess.DEVNULL,
                               stderr=subprocess.PIPE) for _ in range(2)]
     for p in procs:
@@ -130,7 +132,7 @@ def test_two_concurrent_runs_write_each_row_once(tmp_path):
 
 def test_spec_from_a_pipe_is_read_once(tmp_path):
     cmd = [sys.executable, "-m", "sosalgo.cli", "analyze", "/dev/stdin", "--kappa", "4",
-           "--out", str(tmp_path), "--no-plot", "--quiet"]
+           "--out", str(tmp_path), "--no-plot", "--quiet", "--certificate", "theorem1"]
     for _ in range(2):  # the second run resumes
         res = subprocess.run(cmd, input=GRADIENT.read_text(), text=True, env=ENV,
                              capture_output=True, timeout=120)
@@ -143,7 +145,8 @@ def test_symlink_to_a_device_is_refused(tmp_path):
     (tmp_path / "gradient-analysis.csv").symlink_to("/dev/full")
     (tmp_path / "gradient-analysis.csv.settings.json").write_text("{}")
     res = subprocess.run([sys.executable, "-m", "sosalgo.cli", "analyze", str(GRADIENT),
-                          "--kappa", "4", "--out", str(tmp_path), "--no-plot", "--quiet"],
+                          "--kappa", "4", "--out", str(tmp_path), "--no-plot", "--quiet",
+                          "--certificate", "theorem1"],
                          env=ENV, capture_output=True, text=True, timeout=60)
     assert res.returncode == 2
     assert res.stderr.count("\n") == 1 and "not a regular file" in res.stderr
@@ -151,7 +154,7 @@ def test_symlink_to_a_device_is_refused(tmp_path):
 
 def test_short_and_malformed_rows_are_dropped_with_a_warning(tmp_path):
     args = ["analyze", GRADIENT, "--kappa", "4", "--kappa", "8", "--out", tmp_path,
-            "--no-plot", "--quiet"]
+            "--no-plot", "--quiet", "--certificate", "theorem1"]
     assert run(args).exit_code == 0
     path = tmp_path / "gradient-analysis.csv"
     lines = path.read_text().splitlines(keepends=True)

@@ -30,7 +30,7 @@ def run(args):
 def result(tmp_path_factory):
     out = tmp_path_factory.mktemp("res")
     res = run(["analyze", GRADIENT, "--kappa", "10", "--out", out, "--json", "--quiet",
-               "--no-plot"])
+               "--no-plot", "--certificate", "theorem1"])
     assert res.exit_code == 0, res.output
     return json.loads(res.stdout)
 
@@ -57,7 +57,7 @@ def test_certified_row_without_p_or_lambda_fails(tmp_path, result, field, how):
 def test_non_symmetric_p_is_refused_not_symmetrized(tmp_path):
     spec_text = (SPECS / "nesterov.yaml").read_text()
     res = run(["analyze", SPECS / "nesterov.yaml", "--kappa", "10", "--out", tmp_path,
-               "--json", "--quiet", "--no-plot"])
+               "--json", "--quiet", "--no-plot", "--certificate", "theorem1"])
     doc = json.loads(res.stdout)
     P = np.array(doc["rows"][0]["P"])
     P[0, 1] += 1e-3 * abs(P[0, 1]) + 1e-6  # P12 != P21
@@ -157,7 +157,7 @@ def test_verify_after_moving_the_result_and_editing_the_spec(tmp_path):
 def test_certificate_files_never_collide(tmp_path):
     for k in ("100", "100.00001"):
         res = run(["analyze", GRADIENT, "--kappa", k, "--out", tmp_path / k, "--json",
-                   "--quiet", "--no-plot"])
+                   "--quiet", "--no-plot", "--certificate", "theorem1"])
         (tmp_path / f"{k}.json").write_text(res.stdout)
         assert run(["verify", tmp_path / f"{k}.json", "--out", tmp_path,
                     "--no-simulate"]).exit_code == 0
@@ -168,7 +168,7 @@ def test_certificate_files_never_collide(tmp_path):
     edited = tmp_path / "e.yaml"
     edited.write_text(GRADIENT.read_text().replace("kappa: [", "kappa: [3, "))
     res = run(["analyze", edited, "--kappa", "100", "--out", tmp_path / "e", "--json",
-               "--quiet", "--no-plot", "--tol", "1e-4"])
+               "--quiet", "--no-plot", "--tol", "1e-4", "--certificate", "theorem1"])
     (tmp_path / "e.json").write_text(res.stdout)
     assert run(["verify", tmp_path / "e.json", "--out", tmp_path, "--no-simulate"]).exit_code == 0
     assert len(list((tmp_path / "certificates").iterdir())) == 3

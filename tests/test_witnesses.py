@@ -201,13 +201,14 @@ def test_rate_bracket_below_a_cycle_is_one(hb25):
 
 def test_analyze_says_does_not_converge(tmp_path):
     res = CliRunner().invoke(cli, ["analyze", str(SPECS / "heavy-ball.yaml"), "--kappa", "2",
-                                   "--kappa", "25", "--quiet", "--out", str(tmp_path)])
+                                   "--kappa", "25", "--quiet", "--out", str(tmp_path),
+                                   "--certificate", "theorem1"])
     assert res.exit_code == 0, res.output
     assert "kappa 25: does not converge: cycle of length" in res.output
     assert "kappa 2: worst-case rate in [0.171573, 0.414214]" in res.output
     res = CliRunner().invoke(cli, ["analyze", str(SPECS / "heavy-ball.yaml"), "--kappa", "2",
                                    "--kappa", "25", "--quiet", "--out", str(tmp_path),
-                                   "--json", "--no-plot"])
+                                   "--json", "--no-plot", "--certificate", "theorem1"])
     rows = json.loads(res.stdout)["rows"]
     assert rows[0]["cycle"] is None and rows[0]["rho_lower_kind"] == "quadratic"
     cyc = rows[1]["cycle"]

@@ -147,6 +147,7 @@ def result_row(spec: Spec, res: AnalysisResult,
         "error": None,
         "warning": res.warning,
         "rate_type": "linear",
+        "family": res.family,
     }
     row.update(_certificate_cells(spec, family, res.kappa, res.P, res.certificate))
     from sosalgo.witnesses.rows import EMPTY, witness_cells
@@ -194,7 +195,7 @@ def _run_chunk(spec_text: str, source: str, options: dict[str, Any],
         try:
             row = one(spec, fam, kappa, task)
         except ModelError as exc:  # e.g. a grid point outside a function's domain
-            row = {"kappa": kappa, "certified": False, "error": str(exc)}
+            row = {"kappa": kappa, "certified": False, "error": str(exc), "family": fam.name}
             row.update(reference_values(spec, kappa))
             row.update(fam.csv_cells(spec.n, None))
         row.update(task.get("extra", {}))
@@ -300,10 +301,11 @@ def csv_row_to_json(spec: Spec, row: dict[str, str],
     n = p_size(spec, family)
     P = None
     if row.get("P11", "") != "":
-        P = np.zeros((n, n))
+        P = np.zeros((n, n))  # a certificate of a smaller lag fills only its leading block
         for i in range(n):
             for j in range(i, n):
-                P[i, j] = P[j, i] = float(row[f"P{i + 1}{j + 1}"])
+                cell = row[f"P{i + 1}{j + 1}"]
+                P[i, j] = P[j, i] = float(cell) if cell != "" else 0.0
     return {
         "kappa": float(row["kappa"]),
         "rho": _num(row["rho"]),

@@ -8,11 +8,14 @@ Theorem 1 by adding a module and an entry in :data:`FAMILIES`.
 """
 
 from collections.abc import Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from sosalgo.certificates.base import AffineBlock, CertificateFamily, LMIProblem
 from sosalgo.certificates.interpolation import INTERPOLATION
 from sosalgo.certificates.theorem1 import THEOREM1
+
+if TYPE_CHECKING:  # only for annotations
+    from sosalgo.spec.types import Spec
 
 FAMILIES: dict[str, CertificateFamily] = {
     THEOREM1.name: THEOREM1, INTERPOLATION.name: INTERPOLATION,
@@ -31,8 +34,56 @@ def register_family(family: CertificateFamily, options: tuple[str, ...] | None =
 
 
 def default_family() -> CertificateFamily:
-    """The family of specs without a ``certificate:`` field (``is_default``)."""
+    """The family of result rows and files that name none (``is_default``: Theorem 1, the
+    family of every document written before rows named their family)."""
     return next(f for f in FAMILIES.values() if f.is_default)
+
+
+# the families from the tightest: each certifies every rate a later one certifies (the
+# interpolation family contains Theorem 1 as a special case)
+TIGHTEST_FIRST: tuple[str, ...] = ("interpolation", "theorem1")
+# commands whose default is the family with a box-wide lower bound (design over a box)
+LOWER_BOUND_COMMANDS = frozenset({"design"})
+# commands that keep the spec's declared family (Theorem 1 for a seed spec naming none):
+# the paper's table and figures, symbolic listings, grids
+DECLARED_COMMANDS = frozenset({"table1", "lmi", "grid"})
+
+
+def family_applies(spec: "Spec", family: str) -> str | None:
+    """Why certificate family ``family`` does not apply to ``spec`` (None when it does):
+    Theorem 1 holds only in the seed's setting (see :attr:`Spec.composite`)."""
+    if family == "theorem1" and spec.composite:
+        return ("theorem1 applies only to one smooth_strongly_convex function with the "
+                "spec's m and L, queried by its gradient (no D, x = E xi, measure: function); "
+                "use interpolation, the family for this spec")
+    return None
+
+
+def default_family_name(spec: "Spec", command: str | None = "analyze") -> str:
+    """The family ``command`` uses when neither the command line nor the spec's
+    ``certificate:`` field names one: the one place that default is decided.
+
+    - ``analyze``, ``pareto``, ``noise`` (design with a noise objective or cap) and any
+      other command: the tightest family that applies to the spec (:data:`TIGHTEST_FIRST`);
+    - ``design``: the tightest family with a box-wide lower bound (``box_lower_bound``:
+      Theorem 1) when one applies, else the tightest;
+    - :data:`DECLARED_COMMANDS` (``table1``, ``lmi``, ``grid``) and ``None`` (library
+      functions given no family): the spec's declared family (Theorem 1 for a seed spec,
+      interpolation for a composite one).
+
+    (``verify`` takes no default: a row names its family, and a row that names none is
+    Theorem 1's, :func:`default_family`.)
+    """
+    if spec.certificate_given or command is None or command in DECLARED_COMMANDS:
+        return spec.certificate
+    applicable = [n for n in TIGHTEST_FIRST
+                  if n in FAMILIES and family_applies(spec, n) is None]
+    if not applicable:
+        return spec.certificate
+    if command in LOWER_BOUND_COMMANDS:
+        bounded = [n for n in applicable if getattr(FAMILIES[n], "box_lower_bound", False)]
+        return (bounded or applicable)[0]
+    return applicable[0]
 
 
 def get_family(name: str, options: Mapping[str, Any] | None = None) -> CertificateFamily:
@@ -65,6 +116,8 @@ def family_from_description(desc: Mapping[str, Any] | None) -> CertificateFamily
 
 __all__ = [
     "AffineBlock", "CertificateFamily", "LMIProblem", "FAMILIES", "FAMILY_OPTIONS",
-    "default_family", "describe_family", "family_from_description", "get_family",
+    "DECLARED_COMMANDS", "LOWER_BOUND_COMMANDS", "TIGHTEST_FIRST", "default_family",
+    "default_family_name", "describe_family", "family_applies", "family_from_description",
+    "get_family",
     "register_family",
 ]

@@ -113,6 +113,8 @@ class CertificateFamily(Protocol):
     # on quadratics; ``fallback_solvers`` replaces the solver chain where the margin path
     # cannot check a point (None: the default chain)
     tight: bool = False
+    # design proves a lower bound over the whole parameter box (``exact_problem``)
+    box_lower_bound: bool = False
     fallback_solvers: tuple[str, ...] | None = None
 
     def problem(self, alg: Algorithm) -> LMIProblem:

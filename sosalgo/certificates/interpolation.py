@@ -279,6 +279,7 @@ class Interpolation(CertificateFamily):
     label = "interpolation"
     is_default = False
     supports_moment = False  # the moment relaxation is built on Theorem 1's M
+    box_lower_bound = False  # no exact_problem: design proves no box-wide lower bound
     certificate_parts = ("P", "p", "lag")
     option_names = ("lag",)
     tight = True  # its rate is often the rate on quadratics: the search starts there
@@ -313,6 +314,16 @@ class Interpolation(CertificateFamily):
         if self.lag is not None:
             return ()
         return tuple(range(max(n - 1, 0), min(n + AUTO_LAG_EXTRA, 8) + 1))
+
+    def fallback_lags(self, n: int) -> tuple[int, ...]:
+        """Lags below :meth:`auto_lags` that the choice of lag also tries, after the others,
+        each only where it beats the best rate by the tolerance: lag 0, the smallest and
+        best-conditioned problem. A certificate of a smaller lag is one of a larger lag in
+        exact arithmetic, but not always for the solver: on a Chambolle-Pock-like method
+        (two proximal calls, kappa 1000, unit steps) lags 1 and 2 certify nothing where
+        lag 0 certifies 0.999. () for a given lag."""
+        lags = self.auto_lags(n)
+        return (0,) if lags and lags[0] > 0 else ()
 
     def searches_past_certified(self, alg: Algorithm) -> bool:
         """With one oracle call per iteration, larger lags are tried (see
@@ -454,7 +465,7 @@ class Interpolation(CertificateFamily):
         for k, (a, b) in enumerate(_sym_basis(st.nz)):
             Pn[a, b] = Pn[b, a] = x[lay["P"]][k]
         dinv = np.concatenate([np.ones(st.n), np.full(st.lag + 1, 1.0 / L)])
-        P = L * (dinv[:, None] * Pn * dinv[None, :])
+        P = (L * dinv)[:, None] * Pn * dinv[None, :]  # L D^-1 first: no overflow at tiny L
         pi = [float(v) for v in x[lay["pi"]]]
         return {
             "family": self.name,

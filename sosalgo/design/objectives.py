@@ -52,9 +52,11 @@ PENALTY = 1e3  # objective value of a point that breaks the constraint
 
 
 def design_family(spec: Spec, family: CertificateFamily | str | None) -> CertificateFamily:
-    """The family as ``design`` uses it: the spec's (or the one named), at its first
-    automatic lag when it has several (choosing the lag at every θ is ~5x slower)."""
-    fam = spec_family(spec) if family is None else (
+    """The family as a design with the noise sensitivity uses it: the one named, else the
+    tightest that applies (:func:`sosalgo.certificates.default_family_name`, ``noise``), at
+    its first automatic lag when it has several (choosing the lag at every θ is ~5x
+    slower)."""
+    fam = spec_family(spec, "noise") if family is None else (
         get_family(family) if isinstance(family, str) else family)
     lags = fam.auto_lags(spec.n)
     return fam.with_options(lag=lags[0]) if lags else fam

@@ -24,6 +24,20 @@ LEGEND = ("rho_certified: analysis at the designed theta (with its certificate);
           "specs: only where that is a theorem, see README; empty otherwise)")
 
 
+def tighter_family_note(spec: Spec, family: str, certificate: str | None) -> str | None:
+    """One line when ``design`` took Theorem 1 by default (it alone proves a lower bound
+    over the whole box) although the tighter interpolation family applies; None otherwise
+    (a family asked for, named by the spec, or no tighter one)."""
+    from sosalgo.certificates import default_family_name
+
+    tight = default_family_name(spec, "analyze")
+    if certificate is not None or spec.certificate_given or family == tight:
+        return None
+    return (f"note: the tighter {tight} family certifies a design at least as fast "
+            f"(--certificate {tight}: every rate {family} certifies, often faster ones) but "
+            "proves no box-wide lower bound, only the floor where that is a theorem")
+
+
 def verdict(doc: dict[str, Any], gap: float) -> str:
     """What the numbers prove: optimal within the gap only when the gap proves it."""
     if doc.get("rho_certified") is None:

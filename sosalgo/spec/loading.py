@@ -236,7 +236,8 @@ class _Builder:
         certificate, cert_options = self.certificate(
             data.get("certificate", "interpolation" if spec.composite else "theorem1"), spec)
         spec = dataclasses.replace(spec, certificate=certificate,
-                                   certificate_options=cert_options)
+                                   certificate_options=cert_options,
+                                   certificate_given="certificate" in data)
         self.check_values(spec)
         return spec
 
@@ -252,8 +253,9 @@ class _Builder:
     def certificate(self, raw: object, spec: Spec) -> tuple[str, dict[str, Any]]:
         """``certificate: NAME`` or ``certificate: {family: NAME, <option>: value}``; the
         options are checked by the family (:func:`sosalgo.certificates.get_family`), and
-        the family must apply to the spec's setting (:func:`family_applies`)."""
-        from sosalgo.certificates import FAMILIES, get_family
+        the family must apply to the spec's setting
+        (:func:`sosalgo.certificates.family_applies`)."""
+        from sosalgo.certificates import FAMILIES, family_applies, get_family
 
         known = ", ".join(FAMILIES)
         if isinstance(raw, dict):
@@ -639,16 +641,6 @@ def parse_kappa(raw: object, source: str, where: str) -> tuple[float, ...]:
         vals = np.geomspace(lo, hi, pts) if scale == "log" else np.linspace(lo, hi, pts)
         return tuple(float(v) for v in vals)
     raise fail("must be a number, a list or {from, to, points, scale}")
-
-
-def family_applies(spec: Spec, family: str) -> str | None:
-    """Why certificate family ``family`` does not apply to ``spec`` (None when it does):
-    Theorem 1 holds only in the seed's setting (see :attr:`Spec.composite`)."""
-    if family == "theorem1" and spec.composite:
-        return ("theorem1 applies only to one smooth_strongly_convex function with the "
-                "spec's m and L, queried by its gradient (no D, x = E xi, measure: function); "
-                "use interpolation, the family for this spec")
-    return None
 
 
 def _compile_or_fail(expr: Expr, b: _Builder, where: str) -> Callable[[Sequence[float]], float]:

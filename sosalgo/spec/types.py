@@ -128,6 +128,9 @@ class Spec:
     m: float = 1.0
     certificate: str = "theorem1"
     certificate_options: dict[str, Any] = field(default_factory=dict)
+    # whether the spec names its family (``certificate:``); when not, each command takes
+    # its own default (:func:`sosalgo.certificates.default_family_name`)
+    certificate_given: bool = False
     # the oracle model (README, "Function classes and oracles"); the defaults are the
     # seed's setting: one smooth strongly convex f queried by its gradient
     functions: dict[str, FunctionDecl] = field(default_factory=dict)
