@@ -17,7 +17,9 @@ import click
 
 from sosalgo.errors import InputError, VerificationError
 
-__all__ = ["OneLineErrors", "Terminated", "handle_errors", "on_sigterm"]
+__all__ = ["INTERRUPTED", "OneLineErrors", "Terminated", "handle_errors", "on_sigterm"]
+
+INTERRUPTED = (130, 143)  # the exit codes of Ctrl-C and SIGTERM
 
 
 def _fail(msg: str, code: int) -> None:

@@ -177,11 +177,17 @@ def run_batch(
     workers: int | None = None,
     scheduler: str | None = None,
     progress: Progress | None = None,
+    isolate: bool = False,
 ) -> None:
-    """Run ``fn`` over ``tasks`` and hand each resulting row to ``on_row`` as it finishes."""
+    """Run ``fn`` over ``tasks`` and hand each resulting row to ``on_row`` as it finishes.
+    ``isolate``: every task runs in a worker process, one task per chunk, even a single
+    one (a long native solve then never delays SIGTERM or Ctrl-C in this process: the
+    worker is killed, the finished rows are kept)."""
     if not tasks:
         return
-    workers = default_workers() if workers is None else max(1, workers)
+    from sosalgo.budget import usable_workers
+
+    workers = usable_workers(workers)
 
     def deliver(rows: list[Row]) -> None:
         for row in rows:
@@ -192,13 +198,14 @@ def run_batch(
     if scheduler:
         _run_dask(fn, spec_text, source, options, tasks, deliver, scheduler)
         return
-    if workers == 1 or len(tasks) < SERIAL_BELOW:
+    if not isolate and (workers == 1 or len(tasks) < SERIAL_BELOW):
         for task in tasks:
             deliver(quietly(fn, spec_text, source, options, [task]))
         return
     from concurrent.futures import FIRST_COMPLETED, wait
 
-    size = chunk_size(len(tasks), workers)
+    workers = min(workers, len(tasks)) if isolate else workers
+    size = 1 if isolate else chunk_size(len(tasks), workers)
     if progress is not None:
         progress.phase(f"starting {workers} workers")
     pool = worker_pool(workers)
@@ -295,9 +302,11 @@ def worker_pool(workers: int) -> ProcessPoolExecutor:
     Stop it with ``shutdown`` when its work is done, else with :func:`kill_pool`."""
     from concurrent.futures import ProcessPoolExecutor
 
+    from sosalgo.budget import usable_workers
+
     ctx = pool_context()
     start_pool_server()  # started quietly (no-op when it runs already)
-    return ProcessPoolExecutor(max_workers=workers, mp_context=ctx,
+    return ProcessPoolExecutor(max_workers=usable_workers(workers), mp_context=ctx,
                                initializer=_die_with_parent)
 
 
