@@ -7,10 +7,10 @@ in one line on stderr; ``--json`` documents carry it as ``estimate``. Local work
 never more than the cores this process may use, nor more than the budget holds.
 
 The estimates are models whose constants were measured on this code (peak RSS of a child
-process by ``resource.getrusage``, wall seconds on an idle 2-core machine; rerun
-``python -m bench budget`` to measure them again and update the constants below). They aim
-at a factor of two, enough to refuse a run that cannot fit and to say how long a large one
-takes; nothing is enforced while the run goes.
+process by ``resource.getrusage``, wall seconds on a 2-core machine; rerun ``python -m
+bench --only budget`` to measure them again and update the constants below). Memory aims at
+a factor of two, enough to refuse a run that cannot fit; time is an indication of how
+long a large run takes. Nothing is enforced while the run goes.
 """
 
 from __future__ import annotations
@@ -39,11 +39,14 @@ BASE_BYTES = 130 * MiB
 WORKER_BYTES = 160 * MiB
 # PEP with K interpolation pairs and a Gram matrix of size d: the dense constraint data
 # and Clarabel's factorization grow with K * d^2 ("units"); bytes above BASE_BYTES per
-# unit (gradient descent and Nesterov, N = 20, 30: 26-62 MiB above 93 MiB, 57-128 B/unit).
+# unit (gradient descent and Nesterov, N = 20, 30, 40: 26, 62 and 130 MiB above 93 MiB;
+# 128, 64 and 44 B/unit; the first 18 MiB are the solver's, in BASE_BYTES).
 PEP_BYTES_PER_UNIT = 64.0
 # PEP wall seconds (SDP rounds, exact proof, witness) = PEP_SECONDS * units ** PEP_EXPONENT
-# (N = 20: 5.6-8.7 s, N = 30: 56-57 s).
-PEP_SECONDS = 2.0e-7
+# (gradient descent and Nesterov at load 3 to 5: N = 20 5.6-8.7 s, N = 30 56-57 s; N = 40
+# 688 s at load 11, about 130 s idle; Douglas-Rachford N = 10 14 s at load 11). The time is
+# an indication; only the memory is held against the budget.
+PEP_SECONDS = 4.6e-7
 PEP_EXPONENT = 1.3
 # A grid point held by the parent: its task, its CSV row and its JSON entry (a grid of
 # 8000 and of 64000 points on three parameters: 3270 and 3173 bytes per point).
