@@ -17,7 +17,7 @@ from typing import Any
 import click
 
 from sosalgo import __version__
-from sosalgo.cli_errors import INTERRUPTED, OneLineErrors, handle_errors, on_sigterm
+from sosalgo.cli_errors import INTERRUPTED, OneLineErrors, handle_errors, on_sigint, on_sigterm
 from sosalgo.errors import InputError, VerificationError
 
 __all__ = ["main", "cli"]
@@ -529,6 +529,8 @@ def main() -> None:
     import signal
 
     signal.signal(signal.SIGTERM, on_sigterm)
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:  # not ignored (nohup)
+        signal.signal(signal.SIGINT, on_sigint)
     try:
         cli(prog_name="sosalgo")
     except SystemExit as exc:

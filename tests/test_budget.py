@@ -261,3 +261,58 @@ def test_a_signal_ends_a_long_solve_at_once_and_keeps_finished_rows(tmp_path, ho
     _, err = again.communicate(timeout=300)
     assert again.returncode == 0 and "resumed: 1 of 1" in err, err  # read back, not redone
 
+
+
+def test_an_interruption_inside_a_native_solve_waits_for_it_to_stop():
+    from sosalgo import interrupts
+
+    with pytest.raises(KeyboardInterrupt):
+        interrupts.request(KeyboardInterrupt())  # outside a solve: at once
+    assert not interrupts.stop_requested()
+    reached = []
+    with pytest.raises(KeyboardInterrupt):
+        with interrupts.native_solve():
+            interrupts.request(KeyboardInterrupt())  # recorded, not raised
+            reached.append(interrupts.stop_requested())  # the solver's callback: stop
+    assert reached == [True] and not interrupts.stop_requested()
+
+
+SLOW_SOLVE = """
+import os, signal, sys, threading, time
+import numpy as np, scipy.sparse as sps, clarabel
+from sosalgo.cli_errors import Terminated, on_sigterm
+from sosalgo.solvers import clarabel_solve, quiet_settings
+signal.signal(signal.SIGTERM, on_sigterm)
+n = 90  # one SDP of tens of seconds (7 iterations of seconds each)
+d = n * (n + 1) // 2
+rng = np.random.default_rng(0)
+M = rng.standard_normal((n, n))
+C = M @ M.T
+iu = [(i, j) for j in range(n) for i in range(j + 1)]
+q = np.array([C[i, j] * (1 if i == j else 2 ** 0.5) for i, j in iu])
+tr = np.array([1.0 if i == j else 0.0 for i, j in iu])
+A = sps.vstack([sps.csc_matrix(tr[None, :]), -sps.identity(d)]).tocsc()
+b = np.concatenate([[1.0], np.zeros(d)])
+sent = []
+def kill():
+    sent.append(time.monotonic())
+    os.kill(os.getpid(), signal.SIGTERM)
+threading.Timer(2.0, kill).start()
+try:
+    clarabel_solve(sps.csc_matrix((d, d)), q, A, b,
+                   [clarabel.ZeroConeT(1), clarabel.PSDTriangleConeT(n)], quiet_settings())
+    print("solved")
+except Terminated:
+    print("terminated", time.monotonic() - sent[0])
+"""
+
+
+def test_sigterm_stops_a_long_solve_in_this_process():
+    """A solve through the solver door stops at its next iteration (Clarabel's termination
+    callback), not when it would have converged."""
+    proc = subprocess.run([sys.executable, "-c", SLOW_SOLVE], env=ENV, capture_output=True,
+                          text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    word, *rest = proc.stdout.split()
+    assert word == "terminated", proc.stdout
+    assert float(rest[0]) <= SIGNAL_MARGIN, proc.stdout
