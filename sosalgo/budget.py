@@ -90,10 +90,10 @@ def _cgroup_limit() -> int | None:
 
 
 def default_max_memory() -> int:
-    """Half the machine's memory (or of its cgroup limit), and never more than what is
-    available now: a run leaves room for everything else."""
-    info = _meminfo()
-    total = info.get("MemTotal")
+    """Half the machine's memory (or of its cgroup's limit): a run leaves room for
+    everything else. Fixed for the machine, so that the same command behaves the same
+    whatever else runs beside it."""
+    total = _meminfo().get("MemTotal")
     if total is None:
         try:
             total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
@@ -101,8 +101,7 @@ def default_max_memory() -> int:
             total = 8 * GiB
     limit = _cgroup_limit()
     total = min(total, limit) if limit else total
-    available = info.get("MemAvailable", total)
-    return max(256 * MiB, min(total // 2, available))
+    return max(256 * MiB, total // 2)
 
 
 _UNITS = {"b": 1, "": GiB, "k": 2**10, "m": MiB, "g": GiB, "t": 2**40}

@@ -57,8 +57,8 @@ def batch_options(fn: Callable[..., Any]) -> Callable[..., Any]:
         click.option("--quiet", is_flag=True, help="No progress bar."),
         click.option("--max-memory", "max_memory", default=None, metavar="SIZE",
                      help="Memory budget of the run, e.g. 8G or 512M (default: half the "
-                          "machine's memory, at most what is free). A run estimated above "
-                          "it is refused; workers are capped to fit it."),
+                          "machine's memory). A run estimated above it is refused; workers "
+                          "are capped to fit it."),
     ]
     for opt in reversed(options):
         fn = opt(fn)
