@@ -48,10 +48,9 @@ class BatchError(InputError):
 
 def default_workers() -> int:
     """All cores this process may use."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # pragma: no cover - non-Linux
-        return max(1, os.cpu_count() or 1)
+    from sosalgo.budget import cores
+
+    return cores()
 
 
 class Progress:
@@ -298,7 +297,8 @@ def start_pool_server(preload: Sequence[str] = PRELOAD) -> None:
 
 
 def worker_pool(workers: int) -> ProcessPoolExecutor:
-    """A process pool of ``workers`` safely started workers that die with their parent.
+    """A process pool of ``workers`` safely started workers that die with their parent
+    (never more than the cores and the memory budget allow: :mod:`sosalgo.budget`).
     Stop it with ``shutdown`` when its work is done, else with :func:`kill_pool`."""
     from concurrent.futures import ProcessPoolExecutor
 
