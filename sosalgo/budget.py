@@ -194,8 +194,8 @@ class Estimate:
     def line(self) -> str:
         """One line for stderr."""
         on = f" on {self.workers} workers" if self.workers > 1 else ""
-        return (f"estimate: {self.what}: about {size_text(self.peak_bytes)} of memory "
-                f"(--max-memory {size_text(max_memory())}), {_time_text(self.seconds)}{on}")
+        return (f"note: {self.what}: estimated {size_text(self.peak_bytes)} of memory "
+                f"(--max-memory {size_text(max_memory())}) and {_time_text(self.seconds)}{on}")
 
     def to_dict(self) -> dict[str, Any]:
         """The ``estimate`` entry of a ``--json`` document."""
