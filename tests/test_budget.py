@@ -126,7 +126,7 @@ def test_workers_fit_the_memory_budget(monkeypatch):
 
 
 def test_an_explicit_workers_above_the_cores_is_capped_in_one_line(tmp_path):
-    res = _cli("grid", SPECS / "gradient.yaml", "--kappa", "10", "--points", "9",
+    res = _cli("grid", SPECS / "gradient.yaml", "--kappa", "10", "--points", "3",
                "--workers", "4096", "--out", tmp_path / "out", "--quiet")
     assert res.exit_code == 0, res.output
     notes = [ln for ln in res.stderr.splitlines() if "capped" in ln]
