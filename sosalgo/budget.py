@@ -234,7 +234,7 @@ def pep_estimate(what: str, option: str, sizes: Sequence[tuple[int, int]],
     it may use (each holds the largest task at once)."""
     tasks = sorted((pep_task(k, d) for k, d in sizes), reverse=True)
     biggest = tasks[0][0] if tasks else BASE_BYTES
-    w = min(usable_workers(workers, biggest), max(1, len(tasks)))
+    w = min(announce_workers(workers, biggest), max(1, len(tasks)))
     peak = BASE_BYTES + sum(b for b, _ in tasks[:w])
     total = sum(s for _, s in tasks)
     seconds = max(total / w, max((s for _, s in tasks), default=0.0))
