@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -24,9 +25,10 @@ from typing import Any
 
 from sosalgo.errors import InputError
 
-__all__ = ["Estimate", "check", "default_max_memory", "design_estimate", "grid_estimate",
-           "max_memory", "parse_memory", "pep_estimate", "plan_workers", "set_max_memory",
-           "sweep_estimate", "usable_workers"]
+__all__ = ["Estimate", "announce_workers", "check", "cores", "default_max_memory",
+           "design_estimate", "grid_estimate", "max_memory", "parse_memory", "pep_estimate",
+           "pep_task", "plan_workers", "set_max_memory", "size_text", "sweep_estimate",
+           "usable_workers"]
 
 MiB = 2**20
 GiB = 2**30
@@ -104,24 +106,24 @@ def default_max_memory() -> int:
     return max(256 * MiB, total // 2)
 
 
-_UNITS = {"b": 1, "": GiB, "k": 2**10, "m": MiB, "g": GiB, "t": 2**40}
+_UNITS = {"": 1, "k": 2**10, "m": MiB, "g": GiB, "t": 2**40}
+_SIZE = re.compile(r"([0-9]*\.?[0-9]+(?:e[+-]?[0-9]+)?)\s*([kmgt]?)(i?b)?")
 
 
 def parse_memory(value: Any, label: str = "--max-memory") -> int:
-    """Bytes of a size: a text such as ``8G``, ``512M``, ``1.5GiB`` or ``8`` (GiB; units
-    are powers of 1024), or a number of bytes."""
+    """Bytes of a size: a text such as ``8G``, ``512M``, ``1.5GiB``, ``4096B`` or ``8``
+    (a bare number is GiB; units are powers of 1024), or a number of bytes."""
     if isinstance(value, int | float) and not isinstance(value, bool):
-        num, unit = float(value), "b"
+        num, scale = float(value), 1
     else:
-        text = str(value).strip().lower().removesuffix("b").removesuffix("i")
-        unit = text[-1:] if text[-1:] in "kmgt" and text[-1:] else ""
-        try:
-            num = float(text[: len(text) - len(unit)])
-        except ValueError:
-            raise InputError(f"{label} {value}: expected a size such as 8G or 512M") from None
-    if not math.isfinite(num) or num <= 0:
+        hit = _SIZE.fullmatch(str(value).strip().lower())
+        if hit is None:
+            raise InputError(f"{label} {value}: expected a size such as 8G or 512M")
+        unit, suffix = hit.group(2), hit.group(3)
+        num, scale = float(hit.group(1)), _UNITS[unit] if unit or suffix else GiB
+    if not math.isfinite(num) or num <= 0 or num * scale < 1:
         raise InputError(f"{label} {value}: must be a positive size such as 8G or 512M")
-    return int(num * _UNITS[unit])
+    return int(num * scale)
 
 
 def set_max_memory(value: Any | None, label: str = "--max-memory") -> int:

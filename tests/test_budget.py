@@ -90,12 +90,14 @@ def test_raising_the_budget_lets_the_same_run_start(tmp_path):
 @pytest.mark.parametrize("text, expected", [
     ("8G", 8 * GIB), ("8GiB", 8 * GIB), ("8gb", 8 * GIB), ("512M", 512 * 2**20),
     ("1.5G", int(1.5 * GIB)), ("2", 2 * GIB), ("64k", 64 * 1024), (3 * GIB, 3 * GIB),
+    ("4096B", 4096), ("0.5 GiB", GIB // 2),
 ])
 def test_memory_sizes(text, expected):
     assert budget.parse_memory(text) == expected
 
 
-@pytest.mark.parametrize("text", ["abc", "0", "-1G", "nan", "inf", "G", ""])
+@pytest.mark.parametrize("text", ["abc", "0", "-1G", "nan", "inf", "G", "", "8X", "1e999",
+                                  "0.1B"])
 def test_bad_memory_sizes_name_the_option(text):
     with pytest.raises(InputError, match="--max-memory"):
         budget.parse_memory(text)
