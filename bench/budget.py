@@ -65,8 +65,7 @@ def _pep_rows(cases) -> list[dict]:
             model_bytes, model_s = budget.pep_task(got["pairs"], got["d"])
             rows.append({"spec": spec, "N": n, "units": units, "MiB": got["bytes"] / 2**20,
                          "model MiB": model_bytes / 2**20, "s": got["seconds"],
-                         "model s": model_s,
-                         "B/unit": (got["bytes"] - budget.BASE_BYTES) / units})
+                         "model s": model_s, "model/measured": model_bytes / got["bytes"]})
     return rows
 
 
@@ -92,8 +91,8 @@ def run(quick: bool = False) -> None:
         coef, expo = _fit(big)
         print(f"fitted: PEP_SECONDS = {coef:.2g}, PEP_EXPONENT = {expo:.2f} "
               f"(now {budget.PEP_SECONDS:g}, {budget.PEP_EXPONENT:g})")
-        print(f"largest B/unit measured: {max(r['B/unit'] for r in big):.0f} "
-              f"(PEP_BYTES_PER_UNIT now {budget.PEP_BYTES_PER_UNIT:g})")
+        print("memory: the model should stay within 0.5x..2x of the measured peak "
+              "(model/measured); if not, refit PEP_BYTES_PER_UNIT and PEP_BYTES_PER_KD")
     sizes = (10, 20) if quick else (20, 40)
     peaks = []
     for p in sizes:

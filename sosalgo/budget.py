@@ -39,11 +39,13 @@ GiB = 2**30
 BASE_BYTES = 130 * MiB
 # A worker process of an analysis, grid or design sweep at its peak (fork-server child).
 WORKER_BYTES = 160 * MiB
-# PEP with K interpolation pairs and a Gram matrix of size d: the dense constraint data
-# and Clarabel's factorization grow with K * d^2 ("units"); bytes above BASE_BYTES per
-# unit (gradient descent and Nesterov, N = 20, 30, 40: 26, 62 and 130 MiB above 93 MiB;
-# 128, 64 and 44 B/unit; the first 18 MiB are the solver's, in BASE_BYTES).
-PEP_BYTES_PER_UNIT = 64.0
+# PEP with K interpolation pairs and a Gram matrix of size d. Clarabel's setup of the
+# first SDP holds about 12 bytes per K * d^2 ("unit"; measured on gradient descent at
+# N = 50, 75, 100, 150: 85, 400, 1120, 5390 MiB above 100 MiB, 10.7-12.4 B/unit), the
+# solve about as much again; the exact proof and the witness add a part growing with
+# K * d. Whole runs (peak RSS above 93 MiB): N = 20, 30, 40, 50: 26, 62, 130, 188 MiB.
+PEP_BYTES_PER_UNIT = 24.0
+PEP_BYTES_PER_KD = 1000.0
 # PEP wall seconds (SDP rounds, exact proof, witness) = PEP_SECONDS * units ** PEP_EXPONENT
 # (gradient descent and Nesterov at load 3 to 5: N = 20 5.6-8.7 s, N = 30 56-57 s; N = 40
 # 688 s at load 11, about 130 s idle; Douglas-Rachford N = 10 14 s at load 11). The time is
@@ -227,7 +229,8 @@ def pep_task(pairs: int, d: int) -> tuple[float, float]:
     """(peak bytes of the worker, seconds) of one PEP with ``pairs`` interpolation pairs
     and a Gram matrix of size ``d``."""
     units = float(pairs) * d * d
-    return BASE_BYTES + PEP_BYTES_PER_UNIT * units, PEP_SECONDS * units**PEP_EXPONENT
+    peak = BASE_BYTES + PEP_BYTES_PER_UNIT * units + PEP_BYTES_PER_KD * pairs * d
+    return peak, PEP_SECONDS * units**PEP_EXPONENT
 
 
 def pep_estimate(what: str, option: str, sizes: Sequence[tuple[int, int]],
