@@ -10,7 +10,7 @@ import sys
 # Every suite is a module of this package with ``run(quick)``; AutoLyap itself runs in a
 # subprocess (its suite skips with one line when it is not installed).
 SUITES = ("startup", "analysis", "design", "grid", "interpolation", "fallback", "noise", "pep",
-          "autolyap")
+          "autolyap", "budget")
 
 
 def main() -> None:

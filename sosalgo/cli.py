@@ -7,15 +7,17 @@ Errors are one line on stderr naming the file and field (:mod:`sosalgo.cli_error
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import sys
 from collections.abc import Callable
 from typing import Any
 
 import click
 
 from sosalgo import __version__
-from sosalgo.cli_errors import OneLineErrors, handle_errors, on_sigterm
+from sosalgo.cli_errors import INTERRUPTED, OneLineErrors, handle_errors, on_sigint, on_sigterm
 from sosalgo.errors import InputError, VerificationError
 
 __all__ = ["main", "cli"]
@@ -58,7 +60,7 @@ def certificate_options(fn: Callable[..., Any] | None = None, default: str = "de
 
 def batch_options(fn: Callable[..., Any]) -> Callable[..., Any]:
     """The options every batch command shares: --json, --workers, --scheduler, --restart,
-    --quiet."""
+    --quiet, --max-memory."""
     options = [
         click.option("--json", "as_json", is_flag=True,
                      help="Print one JSON document on stdout."),
@@ -72,6 +74,10 @@ def batch_options(fn: Callable[..., Any]) -> Callable[..., Any]:
                      help="Replace the results in the output file instead of resuming them "
                           "(results of other settings are kept aside anyway)."),
         click.option("--quiet", is_flag=True, help="No progress bar."),
+        click.option("--max-memory", "max_memory", default=None, metavar="SIZE",
+                     help="Memory budget of the run, e.g. 8G or 512M (default: half the "
+                          "machine's memory). A run estimated above it is refused; workers "
+                          "are capped to fit it."),
     ]
     for opt in reversed(options):
         fn = opt(fn)
@@ -122,8 +128,8 @@ def cli() -> None:
 @handle_errors
 def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_json: bool,
             workers: int | None, scheduler: str | None, restart: bool, quiet: bool,
-            no_plot: bool, verify_: bool, noise: bool, brackets: str, cycle_seconds: float,
-            certificate: str | None, lag: int | None) -> None:
+            max_memory: str | None, no_plot: bool, verify_: bool, noise: bool, brackets: str,
+            cycle_seconds: float, certificate: str | None, lag: int | None) -> None:
     """Best rate certified at each kappa, with its certificate; by default by the
     tightest certificate family that applies (interpolation; --certificate theorem1 for
     the paper's Theorem 1). Python: sosalgo.analyze_run (files) or sosalgo.analyze."""
@@ -134,7 +140,8 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
 
     doc = analyze_run(spec_path, _kappas(kappa), out, tol, certificate, {"lag": lag},
                       workers, scheduler, restart, not quiet, not no_plot, verify_,
-                      noise=noise, brackets=brackets, cycle_seconds=cycle_seconds)
+                      noise=noise, brackets=brackets, cycle_seconds=cycle_seconds,
+                      max_memory=max_memory)
     rows = doc["rows"]
     if as_json:
         click.echo(json.dumps(doc, indent=2))
@@ -204,7 +211,8 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
 def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: str,
            order: int | None, gap: float, time_limit: float, method: str, out: str,
            as_json: bool, workers: int | None, scheduler: str | None, restart: bool,
-           quiet: bool, verify_: bool, objective: str, max_rate: float | None,
+           quiet: bool, max_memory: str | None, verify_: bool, objective: str,
+           max_rate: float | None,
            max_noise: float | None, certificate: str | None, lag: int | None) -> None:
     """Design parameters: certified design, proven lower bound, gap between them.
     Python: sosalgo.design_run (files) or sosalgo.design (results)."""
@@ -214,10 +222,12 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
     doc = design_run(spec_path, _kappas(kappa), out, free, scalarize, order, gap, time_limit,
                      method, certificate, {"lag": lag}, workers, scheduler, restart,
                      not quiet, verify_, progress_steps=not quiet and not as_json,
-                     objective=objective, max_rate=max_rate, max_noise=max_noise)
+                     objective=objective, max_rate=max_rate, max_noise=max_noise,
+                     max_memory=max_memory)
     docs = doc["rows"]
     if as_json:
-        click.echo(json.dumps(docs[0] if len(docs) == 1 else doc, indent=2))
+        one = docs[0] | ({"estimate": doc["estimate"]} if "estimate" in doc else {})
+        click.echo(json.dumps(one if len(docs) == 1 else doc, indent=2))
         _exit_if_unverified([d.get("verification") for d in docs], "some certificate")
         return
     if "objective" in docs[0]:  # a design with the noise sensitivity
@@ -276,18 +286,20 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
 @handle_errors
 def pareto(spec_path: str, kappa: tuple[str, ...], points: int, time_limit: float,
            free: str | None, out: str, as_json: bool, workers: int | None,
-           scheduler: str | None, restart: bool, quiet: bool, no_plot: bool,
-           certificate: str | None, lag: int | None) -> None:
+           scheduler: str | None, restart: bool, quiet: bool, max_memory: str | None,
+           no_plot: bool, certificate: str | None, lag: int | None) -> None:
     """Front of certified rate vs certified noise sensitivity over the parameter box,
     beside the known tunings. Python: sosalgo.pareto_run."""
     from sosalgo.pareto import pareto_run
     from sosalgo.report.pareto import pareto_lines
 
     doc = pareto_run(spec_path, _kappas(kappa), out, points, time_limit, free, certificate,
-                     {"lag": lag}, workers, scheduler, restart, not quiet, not no_plot)
+                     {"lag": lag}, workers, scheduler, restart, not quiet, not no_plot,
+                     max_memory=max_memory)
     fronts = doc["fronts"]
     if as_json:
-        click.echo(json.dumps(fronts[0] if len(fronts) == 1 else doc, indent=2))
+        one = fronts[0] | ({"estimate": doc["estimate"]} if "estimate" in doc else {})
+        click.echo(json.dumps(one if len(fronts) == 1 else doc, indent=2))
         return
     for d in fronts:
         click.echo("\n".join(pareto_lines(d)))
@@ -303,7 +315,8 @@ def pareto(spec_path: str, kappa: tuple[str, ...], points: int, time_limit: floa
 @batch_options
 @handle_errors
 def fig4(kappa: tuple[str, ...], time_limit: float, out: str, as_json: bool,
-         workers: int | None, scheduler: str | None, restart: bool, quiet: bool) -> None:
+         workers: int | None, scheduler: str | None, restart: bool, quiet: bool,
+         max_memory: str | None) -> None:
     """Figure 4: the three-parameter family designed with tight certificates vs kappa.
     Python: sosalgo.report.fig4.fig4."""
     from sosalgo.inputs import check_time_limit, out_dir
@@ -314,6 +327,10 @@ def fig4(kappa: tuple[str, ...], time_limit: float, out: str, as_json: bool,
     kappas = sorted(set(_kappas(kappa or ("{from: 1.5, to: 1000, points: 20, scale: log}",))
                         or []))
     check_time_limit(time_limit, "--time-limit")
+    from sosalgo import budget
+
+    budget.set_max_memory(max_memory)
+    workers = budget.announce_workers(workers)
     figs, data = run_fig4(out_dir(out), kappas, workers=workers, scheduler=scheduler,
                           restart=restart, progress=not quiet, time_limit=time_limit)
     if as_json:
@@ -340,14 +357,16 @@ def fig4(kappa: tuple[str, ...], time_limit: float, out: str, as_json: bool,
 @handle_errors
 def grid(spec_path: str, kappa: tuple[str, ...], points: int, free: str | None, tol: float,
          out: str, as_json: bool, workers: int | None, scheduler: str | None, restart: bool,
-         quiet: bool, certificate: str | None, lag: int | None) -> None:
+         quiet: bool, max_memory: str | None, certificate: str | None, lag: int | None
+         ) -> None:
     """Exhaustive search: certified rate on a grid over the free parameters (Figure 3).
     Python: sosalgo.grid_run."""
     from sosalgo.report import grid as rep
     from sosalgo.runs import grid_run
 
     doc = grid_run(spec_path, _kappas(kappa), out, points, free, tol, certificate,
-                   {"lag": lag}, workers, scheduler, restart, not quiet)
+                   {"lag": lag}, workers, scheduler, restart, not quiet,
+                   max_memory=max_memory)
     if as_json:
         click.echo(json.dumps(doc, indent=2))
         return
@@ -449,8 +468,8 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
 @handle_errors
 def pep(spec_path: str, kappa: tuple[str, ...], steps: str, measure: str | None,
         initial: str | None, out: str, as_json: bool, workers: int | None,
-        scheduler: str | None, restart: bool, quiet: bool, no_plot: bool,
-        no_witness: bool) -> None:
+        scheduler: str | None, restart: bool, quiet: bool, max_memory: str | None,
+        no_plot: bool, no_witness: bool) -> None:
     """Worst case after N steps (performance estimation), its dual certificate proven
     exactly and a checked worst-case witness. Python: sosalgo.pep_run or sosalgo.pep."""
     from sosalgo.pep.run import pep_run, pep_summary
@@ -458,7 +477,7 @@ def pep(spec_path: str, kappa: tuple[str, ...], steps: str, measure: str | None,
     ks = _kappas(kappa)
     doc = pep_run(spec_path, ks[0] if ks and len(ks) == 1 else ks, steps, measure, initial,
                   out, workers, scheduler, restart, not quiet, not no_plot,
-                  witness=not no_witness)
+                  witness=not no_witness, max_memory=max_memory)
     click.echo(json.dumps(doc, indent=2) if as_json else pep_summary(doc))
 
 
@@ -534,11 +553,29 @@ def examples(names: tuple[str, ...], copy_to: str | None) -> None:
 
 
 def main() -> None:
-    """Console-script entry point (SIGTERM unwinds like Ctrl-C: pools are shut down)."""
+    """Console-script entry point (SIGTERM unwinds like Ctrl-C: pools are shut down, the
+    finished rows saved). An interrupted run then ends at once: the interpreter's own
+    teardown (collecting every object, stopping native thread pools) can take seconds on a
+    loaded machine, and everything it would close is closed by the unwinding already. A
+    finished run skips the collection of its objects at exit (files are closed already)."""
     import signal
 
     signal.signal(signal.SIGTERM, on_sigterm)
-    cli(prog_name="sosalgo")
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:  # not ignored (nohup)
+        signal.signal(signal.SIGINT, on_sigint)
+    try:
+        cli(prog_name="sosalgo")
+    except SystemExit as exc:
+        if exc.code not in INTERRUPTED:
+            raise
+        for stream in (sys.stdout, sys.stderr):
+            with contextlib.suppress(OSError, ValueError):
+                stream.flush()
+        os._exit(exc.code)
+    finally:  # a finished run: no collection of its objects at exit (seconds when loaded)
+        import gc
+
+        gc.freeze()
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -17,7 +17,10 @@ import click
 
 from sosalgo.errors import InputError, VerificationError
 
-__all__ = ["OneLineErrors", "Terminated", "handle_errors", "on_sigterm"]
+__all__ = ["INTERRUPTED", "OneLineErrors", "Terminated", "handle_errors", "on_sigint",
+           "on_sigterm"]
+
+INTERRUPTED = (130, 143)  # the exit codes of Ctrl-C and SIGTERM
 
 
 def _fail(msg: str, code: int) -> None:
@@ -34,7 +37,17 @@ class Terminated(BaseException):
 
 
 def on_sigterm(signum: int, frame: Any) -> None:
-    raise Terminated()
+    """SIGTERM: Terminated, at once or when the native solve under way has stopped."""
+    from sosalgo.interrupts import request
+
+    request(Terminated())
+
+
+def on_sigint(signum: int, frame: Any) -> None:
+    """Ctrl-C: KeyboardInterrupt, at once or when the native solve under way has stopped."""
+    from sosalgo.interrupts import request
+
+    request(KeyboardInterrupt())
 
 
 def handle_errors(fn: Callable[..., Any]) -> Callable[..., Any]:

@@ -459,7 +459,8 @@ def pareto_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = 
                free: str | Sequence[str] | None = None, certificate: str | None = None,
                options: Mapping[str, Any] | None = None, workers: int | None = None,
                scheduler: str | None = None, restart: bool = False, progress: bool = True,
-               plot: bool = True, spec_text: str | None = None) -> dict[str, Any]:
+               plot: bool = True, spec_text: str | None = None,
+               max_memory: int | str | None = None) -> dict[str, Any]:
     """``sosalgo pareto``: the front of (certified rate, certified sensitivity) at each
     kappa (module docstring), ``time_limit`` seconds per kappa; returns
     ``{"spec", "source", "fronts": [document per kappa]}`` (``--json`` prints the single
@@ -471,6 +472,14 @@ def pareto_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = 
     names = inputs.free_names(spec, free)
     fam = inputs.select_families(spec, certificate, options, single=True, command="pareto")[0]
     inputs.parameter_boxes(spec, kappas, names, design=True)
+    from sosalgo import budget
+
+    budget.set_max_memory(max_memory)
+    est = budget.check(budget.design_estimate(
+        f"pareto {spec.name} at {len(kappas)} kappa{'s' * (len(kappas) > 1)}",
+        f"--kappa ({len(kappas)} values)", len(kappas), float(time_limit),
+        budget.announce_workers(workers)))
+    workers = est.workers if scheduler is None else workers
     out = inputs.out_dir(out_dir)
     inputs.check_scheduler(scheduler)
     run = {"workers": workers, "scheduler": scheduler, "restart": restart,
@@ -478,4 +487,4 @@ def pareto_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = 
     docs = [_one_kappa(spec, text, k, names, fam, points, float(time_limit), out, run)
             for k in kappas]
     return {"spec": spec.name, "source": spec.source, "spec_text": text, "kind": "pareto",
-            "fronts": docs}
+            "fronts": docs, "estimate": est.to_dict()}

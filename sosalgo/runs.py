@@ -13,7 +13,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from sosalgo import inputs
+from sosalgo import budget, inputs
 from sosalgo.batch.store import output_lock
 from sosalgo.errors import InputError
 from sosalgo.schema import analysis_csv, design_stem, grid_stem, rate_stem
@@ -46,6 +46,13 @@ def _kappa_list(spec: Spec, kappa: Kappas) -> list[float]:
     return [float(k) for k in kappa]  # type: ignore[union-attr]
 
 
+def _budget(max_memory: int | str | None, workers: int | None) -> int:
+    """Set the run's memory budget (:mod:`sosalgo.budget`; None: the machine's default) and
+    return the local workers it allows (a cap of an explicit ``workers`` said in one line)."""
+    budget.set_max_memory(max_memory)
+    return budget.announce_workers(workers)
+
+
 def _figures(stem: Path) -> list[Path]:
     """The PNG and PDF written for a figure stem (they move with their CSV)."""
     return [stem.with_name(f"{stem.name}.{ext}") for ext in ("png", "pdf")]
@@ -57,7 +64,8 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
                 scheduler: str | None = None, restart: bool = False, progress: bool = True,
                 plot: bool = True, verify: bool = False,
                 spec_text: str | None = None, noise: bool = False,
-                brackets: str = "quadratic", cycle_seconds: float = 5.0) -> dict[str, Any]:
+                brackets: str = "quadratic", cycle_seconds: float = 5.0,
+                max_memory: int | str | None = None) -> dict[str, Any]:
     """``sosalgo analyze``: one CSV per family, the rate figure, optional checks; returns
     the ``--json`` document (every row names its ``family``; Theorem 1's rows carry P and
     lambda beside rho, no ``certificate`` object).
@@ -83,6 +91,10 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
     check_witness_options(brackets, cycle_seconds)
     fams = inputs.select_families(spec, certificate, options, command="analyze")
     inputs.check_kappa_points(spec, kappas)
+    est = budget.sweep_estimate(f"analyze {spec.name} at {len(kappas)} kappas",
+                                f"--kappa ({len(kappas)} values)", len(kappas), spec.n,
+                                len(fams), _budget(max_memory, workers))
+    workers = budget.check(est).workers if scheduler is None else workers
     out = inputs.out_dir(out_dir)
     inputs.check_scheduler(scheduler)
     plain = len(fams) == 1 and fams[0].is_default  # Theorem 1 alone: the historical output
@@ -112,7 +124,8 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
     if not plain:
         doc["csvs"] = {f.name: str(p) for f, p, _ in runs}
     return doc | {"figures": [str(p) for p in figs],
-                  "rows": [r for _, _, jrows in runs for r in jrows]}
+                  "rows": [r for _, _, jrows in runs for r in jrows],
+                  "estimate": est.to_dict()}
 
 
 def _design_options(spec: Spec, kappas: list[float], free: str | Sequence[str] | None,
@@ -140,8 +153,8 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
                scheduler: str | None = None, restart: bool = False, progress: bool = True,
                verify: bool = False, progress_steps: bool = False,
                spec_text: str | None = None, objective: str = "rate",
-               max_rate: float | None = None, max_noise: float | None = None
-               ) -> dict[str, Any]:
+               max_rate: float | None = None, max_noise: float | None = None,
+               max_memory: int | str | None = None) -> dict[str, Any]:
     """``sosalgo design``: the design sweep over kappa into ``<name>-design[...].csv``;
     returns ``{"spec", "source", "spec_text", "csv", "figures", "rows"}``, one design
     document per kappa (``--json`` prints the single document for one kappa).
@@ -169,6 +182,11 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
     opts = _design_options(spec, kappas, free, fam, {
         "scalarize": scalarize, "order": order, "gap": gap, "time_limit": time_limit,
         "method": method})
+    est = budget.check(budget.design_estimate(
+        f"design {spec.name} at {len(kappas)} kappa{'s' * (len(kappas) > 1)}",
+        f"--kappa ({len(kappas)} values)", len(kappas), time_limit,
+        _budget(max_memory, workers)))
+    workers = est.workers if scheduler is None else workers
     out = inputs.out_dir(out_dir)
     inputs.check_scheduler(scheduler)
     one = len(kappas) == 1
@@ -199,14 +217,15 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
         for d, v in zip(docs, checks, strict=True):
             d["verification"] = v
     return {"spec": spec.name, "source": spec.source, "spec_text": text, "csv": str(csv_path),
-            "figures": [str(p) for p in figs], "rows": docs}
+            "figures": [str(p) for p in figs], "rows": docs, "estimate": est.to_dict()}
 
 
 def grid_run(spec: Spec | str | Path, kappa: Kappas, out_dir: str | Path = "outputs",
              points: int = 60, free: str | Sequence[str] | None = None, tol: float = 1e-6,
              certificate: str | None = None, options: Mapping[str, Any] | None = None,
              workers: int | None = None, scheduler: str | None = None, restart: bool = False,
-             progress: bool = True, spec_text: str | None = None) -> dict[str, Any]:
+             progress: bool = True, spec_text: str | None = None,
+             max_memory: int | str | None = None) -> dict[str, Any]:
     """``sosalgo grid``: one CSV (and figure, for one or two free parameters) per kappa;
     returns ``{"spec", "free", "fixed", "grids"}`` (``fixed``: the parameters that are not
     free, with their values at each kappa in the grid entries)."""
@@ -235,6 +254,11 @@ def grid_run(spec: Spec | str | Path, kappa: Kappas, out_dir: str | Path = "outp
     inputs.check_tol(tol, "--tol")
     fam = inputs.select_families(spec, certificate, options, single=True, command="grid")[0]
     boxes = inputs.parameter_boxes(spec, kappas, names)
+    total = points ** len(names) * len(dict.fromkeys(kappas))
+    est = budget.check(budget.grid_estimate(
+        f"grid {spec.name} of {total} points", f"--points {points}", total, spec.n,
+        _budget(max_memory, workers)))
+    workers = est.workers if scheduler is None else workers
     out = inputs.out_dir(out_dir)
     inputs.check_scheduler(scheduler)
     docs = []
@@ -251,7 +275,8 @@ def grid_run(spec: Spec | str | Path, kappa: Kappas, out_dir: str | Path = "outp
         values = parameter_values(spec, k)
         docs.append(rep.grid_document(k, csv_path, figs, rows, rho, names)
                     | {"fixed": {p: values[p] for p in grid_fixed(spec, names)}})
-    return {"spec": spec.name, "free": names, "fixed": grid_fixed(spec, names), "grids": docs}
+    return {"spec": spec.name, "free": names, "fixed": grid_fixed(spec, names), "grids": docs,
+            "estimate": est.to_dict()}
 
 
 def table1_run(specs: Sequence[str | Path] = (), kappa: Sequence[float] = (),

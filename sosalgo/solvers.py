@@ -226,9 +226,14 @@ class SolverPanic(RuntimeError):
 
 
 def solve_or_raise(solver: Any) -> Any:
-    """``solver.solve()``, a panic turned into :class:`SolverPanic` (an Exception)."""
+    """``solver.solve()``, a panic turned into :class:`SolverPanic` (an Exception). Ctrl-C
+    or SIGTERM meanwhile stops the solve at its next iteration and is raised when it
+    returns (:mod:`sosalgo.interrupts`)."""
+    from sosalgo.interrupts import native_solve, watch
+
     try:
-        return solver.solve()
+        with native_solve():
+            return watch(solver).solve()
     except BaseException as exc:
         if type(exc).__name__ == "PanicException":
             raise SolverPanic(str(exc).splitlines()[0] if str(exc) else "panic") from None

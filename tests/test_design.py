@@ -299,9 +299,7 @@ def test_non_polynomial_free_parameter_is_refused(tmp_path, tied):
     assert not out.exists() or not any(out.iterdir())
 
 
-def test_time_limit_is_a_wall_clock_limit(tmp_path):
-    """A deliberately heavy design (three parameters, a tiny gap) ends within the limit
-    with a well-formed partial result."""
+def _timed_design(out, limit: float):
     import subprocess
     import sys
     import time
@@ -309,13 +307,31 @@ def test_time_limit_is_a_wall_clock_limit(tmp_path):
     t = time.perf_counter()
     proc = subprocess.run(
         [sys.executable, "-m", "sosalgo.cli", "design", str(SPECS / "three-parameter.yaml"),
-         "--kappa", "1000", "--gap", "1e-9", "--time-limit", "5", "--json", "--quiet",
-         "--out", str(tmp_path)], capture_output=True, text=True, timeout=120)
-    wall = time.perf_counter() - t
+         "--kappa", "1000", "--gap", "1e-9", "--time-limit", str(limit), "--json", "--quiet",
+         "--out", str(out)], capture_output=True, text=True, timeout=300)
+    return time.perf_counter() - t, proc
+
+
+def test_time_limit_is_a_wall_clock_limit(tmp_path):
+    """A deliberately heavy design (three parameters, a tiny gap) ends within the limit
+    with a well-formed partial result.
+
+    The limit counts from the start of the design; the command adds what any run of it
+    costs here and now (interpreter start, imports, checks, exit): under a second idle,
+    several on a loaded machine (load 8 on 2 cores). That cost is measured by the same
+    command with a limit of 0.1 s, so that the margin follows the machine's load. The
+    design's own clock may pass the limit by the step under way (a solve: a tenth of a
+    second idle, 0.64 s measured at load 20 on 2 cores): 1.5 s of margin. The limit, 8 s,
+    leaves a certified design even at load 20 (5 s left none there)."""
+    limit = 8.0
+    fixed, short = _timed_design(tmp_path / "short", 0.1)
+    assert short.returncode == 0, short.stderr
+    wall, proc = _timed_design(tmp_path / "long", limit)
     assert proc.returncode == 0, proc.stderr
     doc = json.loads(proc.stdout)
-    assert doc["seconds"] <= 5.5
-    assert wall <= 5.5 + 10.0  # plus start-up (imports) on a loaded machine
+    print(f"start-up and exit {fixed:.1f} s, run with a {limit:g} s limit {wall:.1f} s")
+    assert doc["seconds"] <= limit + 1.5  # the design's own clock keeps the limit
+    assert wall <= limit + 1.5 + 2 * fixed + 5.0, (wall, fixed)
     assert doc["gap_met"] is False and doc["time_limited"] is True
     assert doc["rho_certified"] is not None  # the best certified design so far
     _certificate_holds(load_spec(SPECS / "three-parameter.yaml"), doc)

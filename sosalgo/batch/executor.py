@@ -48,10 +48,9 @@ class BatchError(InputError):
 
 def default_workers() -> int:
     """All cores this process may use."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # pragma: no cover - non-Linux
-        return max(1, os.cpu_count() or 1)
+    from sosalgo.budget import cores
+
+    return cores()
 
 
 class Progress:
@@ -182,11 +181,17 @@ def run_batch(
     workers: int | None = None,
     scheduler: str | None = None,
     progress: Progress | None = None,
+    isolate: bool = False,
 ) -> None:
-    """Run ``fn`` over ``tasks`` and hand each resulting row to ``on_row`` as it finishes."""
+    """Run ``fn`` over ``tasks`` and hand each resulting row to ``on_row`` as it finishes.
+    ``isolate``: every task runs in a worker process, one task per chunk, even a single
+    one (a long native solve then never delays SIGTERM or Ctrl-C in this process: the
+    worker is killed, the finished rows are kept)."""
     if not tasks:
         return
-    workers = default_workers() if workers is None else max(1, workers)
+    from sosalgo.budget import usable_workers
+
+    workers = usable_workers(workers)
 
     def deliver(rows: list[Row]) -> None:
         for row in rows:
@@ -197,13 +202,14 @@ def run_batch(
     if scheduler:
         _run_dask(fn, spec_text, source, options, tasks, deliver, scheduler)
         return
-    if workers == 1 or len(tasks) < SERIAL_BELOW:
+    if not isolate and (workers == 1 or len(tasks) < SERIAL_BELOW):
         for task in tasks:
             deliver(quietly(fn, spec_text, source, options, [task]))
         return
     from concurrent.futures import FIRST_COMPLETED, wait
 
-    size = chunk_size(len(tasks), workers, _largest_chunk(fn))
+    workers = min(workers, len(tasks)) if isolate else workers
+    size = 1 if isolate else chunk_size(len(tasks), workers, _largest_chunk(fn))
     if progress is not None:
         progress.phase(f"starting {workers} workers")
     pool = worker_pool(workers)
@@ -296,13 +302,16 @@ def start_pool_server(preload: Sequence[str] = PRELOAD) -> None:
 
 
 def worker_pool(workers: int) -> ProcessPoolExecutor:
-    """A process pool of ``workers`` safely started workers that die with their parent.
+    """A process pool of ``workers`` safely started workers that die with their parent
+    (never more than the cores and the memory budget allow: :mod:`sosalgo.budget`).
     Stop it with ``shutdown`` when its work is done, else with :func:`kill_pool`."""
     from concurrent.futures import ProcessPoolExecutor
 
+    from sosalgo.budget import usable_workers
+
     ctx = pool_context()
     start_pool_server()  # started quietly (no-op when it runs already)
-    return ProcessPoolExecutor(max_workers=workers, mp_context=ctx,
+    return ProcessPoolExecutor(max_workers=usable_workers(workers), mp_context=ctx,
                                initializer=_die_with_parent)
 
 

@@ -15,6 +15,10 @@ from sosalgo.spec import Spec
 
 __all__ = ["parse_steps", "pep_chunk", "pep_row", "pep_run"]
 
+# a PEP estimated (sosalgo.budget) longer than this runs in a worker process that a signal
+# can end at once; a shorter one runs here, where a signal waits at most for its solve
+ISOLATE_SECONDS = 0.5
+
 
 def parse_steps(text: object) -> list[int]:
     """``N`` or ``1..N`` (any ``a..b``), 1 <= a <= b <= MAX_STEPS."""
@@ -80,12 +84,25 @@ pep_chunk.max_chunk = 1  # type: ignore[attr-defined]  # a PEP takes seconds to 
 
 
 def _check(spec: Spec, kappas: list[float | None], steps: list[int], measure: str | None,
-           initial: str | None) -> None:
-    """Every input error before anything is written (one small problem per kappa)."""
+           initial: str | None, workers: int | None) -> tuple[Any, int, bool]:
+    """Every input error before anything is written (one small problem per kappa), then
+    the run's estimate against the memory budget (:mod:`sosalgo.budget`): (estimate,
+    workers allowed, whether each PEP runs in a worker process: one that may take longer
+    than :data:`ISOLATE_SECONDS`, so that SIGTERM or Ctrl-C need not wait for its solve)."""
+    from sosalgo import budget
     from sosalgo.pep.core import pep_problem
 
     for k in kappas:
         pep_problem(spec, k, 1, measure, initial)
+    top = max(steps)
+    _, st, *_ = pep_problem(spec, kappas[0], top, measure, initial)
+    sizes = [(round(len(st.pairs) * ((n + 1) / (top + 1)) ** 2),
+              max(1, round(st.d * (n + 1) / (top + 1)))) for n in steps] * len(kappas)
+    span = f"N={steps[0]}" if len(steps) == 1 else f"N={steps[0]}..{top}"
+    what = f"pep {spec.name} {span}" + (f" at {len(kappas)} kappas" if len(kappas) > 1 else "")
+    est, w = budget.pep_estimate(what, f"--steps {top}", sizes, workers)
+    longest = budget.pep_task(*sizes[steps.index(top)])[1]
+    return budget.check(est), w, longest > ISOLATE_SECONDS
 
 
 def pep_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = None,
@@ -93,7 +110,8 @@ def pep_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = Non
             out_dir: str | Path | None = "outputs", workers: int | None = None,
             scheduler: str | None = None, restart: bool = False, progress: bool = True,
             plot: bool = True, exact: bool = True, witness: bool = True,
-            spec_text: str | None = None) -> dict[str, Any]:
+            spec_text: str | None = None, max_memory: int | str | None = None
+            ) -> dict[str, Any]:
     """``sosalgo pep``: one document per (kappa, N) — ``{"spec", "kappa", "steps", "tau",
     "measure", "initial", "certificate", "witness", ...}`` — alone, or as ``rows`` for a
     range of steps or several kappas; the CSV, the witness JSON files and the figure
@@ -109,7 +127,10 @@ def pep_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = Non
                               [float(kappa)] if isinstance(kappa, int | float)
                               else [float(k) for k in kappa])
     ns = parse_steps(steps)
-    _check(spec, ks, ns, measure, initial)
+    from sosalgo.budget import set_max_memory
+
+    set_max_memory(max_memory)  # None: the machine's default
+    est, workers, isolate = _check(spec, ks, ns, measure, initial, workers)
     inputs.check_scheduler(scheduler)
     out = None if out_dir is None else inputs.out_dir(out_dir)
     options = {"measure": measure, "initial": initial, "exact": exact, "witness": witness}
@@ -117,8 +138,8 @@ def pep_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = Non
     if out is None:
         got: list[dict[str, Any]] = []
         run_batch(pep_chunk, text, spec.source, options, tasks, got.append, workers,
-                  scheduler)
-        return _pep_document(spec, measure, initial, _docs(got), [])
+                  scheduler, isolate=isolate)
+        return _pep_document(spec, measure, initial, _docs(got), [], est)
     path = pep_csv(out, spec.name)
     settings = {"job": "pep", "spec": text, **options}
     store = ResumableCSV(path, PEP_COLUMNS, ["kappa", "steps"], settings, restart=restart,
@@ -129,13 +150,13 @@ def pep_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = Non
                        done=len(tasks) - len(todo), resumed_from=path)
         try:
             run_batch(pep_chunk, text, spec.source, options, todo, store.write,
-                      workers, scheduler, bar)
+                      workers, scheduler, bar, isolate=isolate)
         finally:
             bar.close()
         keys = {store.row_key(t) for t in tasks}
         docs = _docs([r for r in store.rows() if store.row_key(r) in keys])
         files = _write_files(spec, text, docs, out, plot)
-    return _pep_document(spec, measure, initial, docs, files)
+    return _pep_document(spec, measure, initial, docs, files, est)
 
 
 def _docs(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -145,11 +166,11 @@ def _docs(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
 
 
 def _pep_document(spec: Spec, measure: str | None, initial: str | None,
-                  docs: list[dict[str, Any]], files: list[str]) -> dict[str, Any]:
+                  docs: list[dict[str, Any]], files: list[str], est: Any) -> dict[str, Any]:
     if len(docs) == 1:
-        return docs[0] | {"source": spec.source, "files": files}
+        return docs[0] | {"source": spec.source, "files": files, "estimate": est.to_dict()}
     return {"spec": spec.name, "source": spec.source, "measure": measure, "initial": initial,
-            "rows": docs, "files": files}
+            "rows": docs, "files": files, "estimate": est.to_dict()}
 
 
 def _tag(kappa: float | None) -> str:

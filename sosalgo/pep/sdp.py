@@ -321,17 +321,20 @@ def _clarabel(A: Any, q: np.ndarray, b: np.ndarray, nn: int, d: int,
     An attempt is (precise tolerances, static regularization[, max iterations])."""
     import clarabel
 
+    from sosalgo.interrupts import native_solve, watch
+
     cones = [clarabel.NonnegativeConeT(nn), clarabel.PSDTriangleConeT(d)]
     P = sps.csc_matrix((A.shape[1], A.shape[1]))
     sol, raw, st_ = None, "no attempt ended", SolverStatus.FAILED
     for precise, reg, *iters in attempts:
         settings = _settings(precise, reg, *iters)
         try:
-            with _quiet_stderr():
-                sol = clarabel.DefaultSolver(P, q, A, b, cones, settings).solve()
+            with _quiet_stderr(), native_solve():  # Ctrl-C, SIGTERM stop the solve
+                sol = watch(clarabel.DefaultSolver(P, q, A, b, cones, settings)).solve()
         except BaseException as exc:  # Clarabel's Rust panics (an eigenvalue failure)
-            if isinstance(exc, KeyboardInterrupt | SystemExit | MemoryError):
-                raise
+            if isinstance(exc, MemoryError) or not (isinstance(exc, Exception) or type(
+                    exc).__name__ == "PanicException"):
+                raise  # an interruption (Ctrl-C, SIGTERM), an exit, no memory
             continue
         raw = str(sol.status)
         st_ = solver_status(raw)
