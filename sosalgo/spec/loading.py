@@ -25,6 +25,7 @@ import numpy as np
 import yaml
 
 from sosalgo.expr import Expr, ExprError, constant_value, parse_tree
+from sosalgo.expr.tree import Measure, check_measure, measure
 from sosalgo.expr.compile import NumericError, compile_expression
 from sosalgo.spec.types import (
     BASE_NAMES,
@@ -215,12 +216,16 @@ class _Builder:
         raw_matrices = data.get("matrices")
         output = self.output(data, raw_matrices, len(oracles))
         matrices = self.matrices(raw_matrices, names, len(oracles), output is not None)
+        named = self.check_sizes(params, matrices)
         references = self.references(data.get("references", {}))
         kappa = () if m == 0 else self.kappa(data.get("kappa", [10]))
         from sosalgo.spec.initial_state import parse_initial_state
 
         initial_state = parse_initial_state(data.get("initial_state"), {*BASE_NAMES, *symbols},
                                             len(matrices["A"]), functions, self.fail)
+        for i, pair in enumerate(initial_state or ()):
+            for e in pair:
+                self.check_size(e, named, f"initial_state[{i}]")
         spec = Spec(
             name=name, description=description, source=self.source, parameters=params,
             matrices=matrices, references=references, kappa=kappa, m=m,
@@ -425,6 +430,34 @@ class _Builder:
         if lo.is_constant and hi.is_constant and constant_value(lo) > constant_value(hi):
             raise self.fail(where, f"lower bound {raw[0]} exceeds upper bound {raw[1]}")
         return lo, hi
+
+    def check_sizes(self, params: dict[str, Parameter], matrices: dict[str, ExprMatrix]
+                    ) -> dict[str, Measure]:
+        """Bound every parameter and matrix entry with tied parameters written out (see
+        :func:`sosalgo.expr.tree.measure`); the measure of each parameter is returned. A
+        parameter kept symbolic (an input) has degree at least 1."""
+        named: dict[str, Measure] = {}
+        for pname in value_order(params, self.source):
+            par = params[pname]
+            expr = par.tied if par.is_tied else par.value
+            where = f"parameters.{pname}" + ("" if par.is_tied else ".value")
+            size = self.check_size(expr, named, where)
+            if not par.is_tied:
+                size = dataclasses.replace(size, degree=max(1.0, size.degree))
+            named[pname] = size
+        for key, rows in matrices.items():
+            for i, row in enumerate(rows):
+                for j, e in enumerate(row):
+                    self.check_size(e, named, f"matrices.{key}[{i}][{j}]")
+        return named
+
+    def check_size(self, expr: Expr, named: dict[str, Measure], where: str) -> Measure:
+        try:
+            size = measure(expr, named)
+            check_measure(size)
+        except ExprError as exc:
+            raise self.fail(where, str(exc)) from None
+        return size
 
     def expr(self, raw: object, names: Collection[str], where: str) -> Expr:
         try:
