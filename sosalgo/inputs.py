@@ -18,10 +18,30 @@ from sosalgo.errors import InputError
 from sosalgo.spec import Spec
 
 __all__ = [
-    "check_gap", "check_kappa_points", "check_method", "check_scheduler", "check_time_limit",
-    "check_tol", "free_names", "kappa_option", "out_dir", "parameter_boxes", "select_families",
-    "writable",
+    "MAX_GRID_POINTS", "MAX_POINTS_PER_AXIS", "check_gap", "check_grid_points",
+    "check_kappa_points", "check_method", "check_scheduler", "check_time_limit", "check_tol",
+    "free_names", "kappa_option", "out_dir", "parameter_boxes", "select_families", "writable",
 ]
+
+
+MAX_POINTS_PER_AXIS = 2000
+# All the points of a grid are listed before the first is computed (and each is a bisection
+# of SDPs, ~0.1 s): a million points is ~28 CPU hours and ~1 GB of task list.
+MAX_GRID_POINTS = 1_000_000
+
+
+def check_grid_points(points: Any, n_free: int, label: str = "--points") -> int:
+    """Grid points per free parameter, in 2..MAX_POINTS_PER_AXIS, with ``points ** n_free``
+    at most :data:`MAX_GRID_POINTS` (checked before anything is allocated); the total."""
+    if isinstance(points, bool) or not isinstance(points, int) or \
+            not 2 <= points <= MAX_POINTS_PER_AXIS:
+        raise InputError(f"{label} {points}: must be an integer in 2..{MAX_POINTS_PER_AXIS}")
+    total = points ** max(n_free, 1)
+    if total > MAX_GRID_POINTS:
+        raise InputError(f"{label} {points}: {points}^{n_free} = {total:,} grid points exceed "
+                         f"{MAX_GRID_POINTS:,}; use fewer points per axis or fewer free "
+                         "parameters (--free)")
+    return total
 
 
 def check_tol(tol: Any, label: str = "tol") -> float:

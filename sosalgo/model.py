@@ -15,8 +15,8 @@ from typing import Any
 import numpy as np
 
 from sosalgo.errors import ModelError
-from sosalgo.oracles import check_magnitudes
 from sosalgo.expr.compile import NumericError, compile_expression, compile_matrix
+from sosalgo.oracles import check_magnitudes
 from sosalgo.spec.types import BASE_NAMES, MATRIX_NAMES, Spec, value_order
 
 __all__ = ["Algorithm", "ModelError", "bind", "bind_sublinear", "design_box", "evaluate_algorithm",

@@ -86,12 +86,10 @@ def sublinear_grid_run(spec: Spec, text: str, out_dir: str | Path, points: int =
 
     from sosalgo import inputs
     from sosalgo.analysis import analyze_sublinear
-    from sosalgo.errors import InputError
     from sosalgo.model import ModelError, parameter_box
 
     names = inputs.free_names(spec, free)
-    if isinstance(points, bool) or not isinstance(points, int) or not 2 <= points <= 2000:
-        raise InputError(f"--points {points}: must be an integer in 2..2000")
+    inputs.check_grid_points(points, len(names))
     box = parameter_box(spec, float("nan"), names)
     out = inputs.out_dir(out_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -25,8 +25,8 @@ import numpy as np
 import yaml
 
 from sosalgo.expr import Expr, ExprError, constant_value, parse_tree
-from sosalgo.expr.tree import Measure, check_measure, measure
 from sosalgo.expr.compile import NumericError, compile_expression
+from sosalgo.expr.tree import Measure, check_measure, measure
 from sosalgo.spec.types import (
     BASE_NAMES,
     MAX_FILE_BYTES,
