@@ -16,7 +16,11 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import re
+import select
+import stat
+import time
 from collections.abc import Callable, Collection, Sequence
 from pathlib import Path
 from typing import Any
@@ -36,6 +40,7 @@ from sosalgo.spec.types import (
     MAX_PARAMETERS,
     MAX_REFERENCES,
     MAX_STATE,
+    MAX_WAIT_SECONDS,
     MEASURES,
     NAME_RE,
     PARAM_RE,
@@ -114,13 +119,24 @@ _StrictLoader.construct_object = _construct_object  # type: ignore[method-assign
 
 
 def read_spec_text(path: str | Path) -> str:
-    """The text of a spec file, read once (pipes and ``/dev/stdin`` work), bounded in size."""
-    p = Path(path)
+    """The text of a spec file, read once and bounded in size (:data:`MAX_FILE_BYTES`).
+
+    A regular file or a terminal is read as it is. A pipe (``/dev/stdin`` fed by a pipe,
+    ``<(...)``, a named FIFO) is read as it arrives, but the whole text must have arrived
+    within :data:`MAX_WAIT_SECONDS`: a FIFO nobody writes to is refused, not waited on
+    forever. A directory, a block device or a socket is refused."""
     source = str(path)
     try:
-        # a bounded read: the size of /dev/zero, a pipe or a growing file is not known upfront
-        with p.open("rb") as fh:
-            raw = fh.read(MAX_FILE_BYTES + 1)
+        mode = os.stat(path).st_mode
+        if stat.S_ISDIR(mode):
+            raise SpecError(source, "", "is a directory, not a spec file")
+        if stat.S_ISFIFO(mode):
+            raw = _read_pipe(source)
+        elif stat.S_ISREG(mode) or stat.S_ISCHR(mode):
+            with open(path, "rb") as fh:  # bounded: /dev/zero or a growing file never ends
+                raw = fh.read(MAX_FILE_BYTES + 1)
+        else:
+            raise SpecError(source, "", "not a regular file, a pipe or a terminal")
         if len(raw) > MAX_FILE_BYTES:
             raise SpecError(source, "", f"file larger than {MAX_FILE_BYTES} bytes")
         return raw.decode("utf-8")
@@ -132,8 +148,42 @@ def read_spec_text(path: str | Path) -> str:
         raise SpecError(source, "", "is a directory, not a spec file") from None
     except UnicodeDecodeError:
         raise SpecError(source, "", "not UTF-8 text") from None
-    except OSError as exc:
-        raise SpecError(source, "", f"cannot read ({exc.strerror})") from None
+    except (OSError, ValueError) as exc:  # ValueError: a NUL byte in the path
+        reason = getattr(exc, "strerror", None) or str(exc)
+        raise SpecError(source, "", f"cannot read ({reason})") from None
+
+
+def _read_pipe(source: str) -> bytes:
+    """A pipe's bytes up to its end (or one more than MAX_FILE_BYTES), all within
+    MAX_WAIT_SECONDS; opened without blocking, so a FIFO without a writer times out."""
+    deadline = time.monotonic() + MAX_WAIT_SECONDS
+    fd = os.open(source, os.O_RDONLY | os.O_NONBLOCK)
+    try:
+        poller = select.poll()
+        poller.register(fd, select.POLLIN | select.POLLHUP)
+        chunks: list[bytes] = []
+        size = 0
+        while size <= MAX_FILE_BYTES:
+            left = deadline - time.monotonic()
+            events = poller.poll(max(0, int(left * 1000))) if left > 0 else []
+            if not events:
+                what = "incomplete" if size else "nothing to read"
+                raise SpecError(source, "", f"{what} after {MAX_WAIT_SECONDS:g} s (a pipe or "
+                                "FIFO whose writer never finishes?)")
+            try:
+                data = os.read(fd, MAX_FILE_BYTES + 1 - size)
+            except BlockingIOError:
+                continue
+            if not data:
+                if any(ev & select.POLLHUP for _, ev in events):
+                    break  # the writer closed its end: the text is complete
+                time.sleep(0.05)  # no writer yet (Linux reports no event for that)
+                continue
+            chunks.append(data)
+            size += len(data)
+        return b"".join(chunks)
+    finally:
+        os.close(fd)
 
 
 def load_spec(path: str | Path) -> Spec:
