@@ -107,6 +107,11 @@ def free_names(spec: Spec, free: str | Sequence[str] | None,
         names = [p.strip() for p in free.split(",") if p.strip()]
     else:
         names = list(free)
+    if free is not None and not names:
+        raise InputError(f"--free {free!s:.40}: no parameter names given")
+    twice = sorted({p for p in names if names.count(p) > 1})
+    if twice:
+        raise InputError(f"--free: {', '.join(twice)[:80]} given more than once")
     if not names and need_range:
         raise InputError(f"{spec.source}: parameters: no parameter has a range (use --free)")
     spec.check_free(names, need_range=need_range)
@@ -161,11 +166,15 @@ def writable(out: str | Path) -> bool:
 def out_dir(out: str | Path, label: str = "--out") -> Path:
     """The output folder, checked writable (nothing is created yet)."""
     path = Path(out)
-    if path.exists() and not path.is_dir():
-        raise InputError(f"{label} {out}: exists and is not a directory")
-    if not writable(path):
-        raise InputError(f"{label} {out}: not writable ({_probe(path)} does not accept new "
-                         "files)")
+    try:
+        if path.exists() and not path.is_dir():
+            raise InputError(f"{label} {out}: exists and is not a directory")
+        if not writable(path):
+            raise InputError(f"{label} {out}: not writable ({_probe(path)} does not accept "
+                             "new files)")
+    except (OSError, ValueError) as exc:  # a name too long, a NUL byte, ...
+        reason = getattr(exc, "strerror", None) or str(exc)
+        raise InputError(f"{label} {str(out)[:80]}: {reason}") from None
     return path
 
 
