@@ -25,8 +25,9 @@ __all__ = [
 
 
 MAX_POINTS_PER_AXIS = 2000
-# All the points of a grid are listed before the first is computed (and each is a bisection
-# of SDPs, ~0.1 s): a million points is ~28 CPU hours and ~1 GB of task list.
+# All the points of a grid are listed before the first is computed, and each is a bisection
+# of SDPs: a million points is many CPU hours, and their task list alone ~0.7 GB (two free
+# parameters).
 MAX_GRID_POINTS = 1_000_000
 
 
