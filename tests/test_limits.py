@@ -474,3 +474,43 @@ def test_binary_and_non_utf8_specs_are_one_line(tmp_path):
         path = tmp_path / name
         path.write_bytes(raw)
         one_line_exit_2(run(["lmi", path]), name)
+
+
+COMMANDS = {
+    "analyze": ["--kappa", "10", "--verify"],
+    "design": ["--kappa", "10", "--time-limit", "5"],
+    "pep": ["--kappa", "10", "--steps", "2"],
+    "grid": ["--kappa", "10", "--points", "3"],
+    "lmi": [],
+}
+
+
+@pytest.mark.deep
+@pytest.mark.parametrize("command", COMMANDS)
+@pytest.mark.parametrize("case", ["nested power", "tied squares", "D 1e200", "D -1e-200",
+                                  "bom", "deep list"])
+def test_every_command_on_hostile_specs(tmp_path, command, case):
+    """Each command in its own process: exit 0, 2 or 3 with at most one error line, within a
+    guard far above the normal time (the nested power used to run for minutes)."""
+    texts = {
+        "nested power": nesterov_with(B=[[0], [NESTED_POWER]]),
+        "tied squares": nesterov_with(
+            params={"q0": "h", **{f"q{i + 1}": f"q{i}*q{i}" for i in range(30)}},
+            B=[[0], ["-h - 1e-9*q30"]]),
+        "D 1e200": PROX_GRADIENT.read_text().replace("D: [[0, 0], [-h, -h]]",
+                                                     "D: [[0, 0], [-h, -1e200]]"),
+        "D -1e-200": PROX_GRADIENT.read_text().replace("D: [[0, 0], [-h, -h]]",
+                                                       "D: [[0, 0], [-h, -1e-200]]"),
+        "bom": "\ufeff" + GRADIENT.read_text(),
+        "deep list": HOSTILE_TEXTS["deep matrix"],
+    }
+    spec = tmp_path / "spec.yaml"
+    spec.write_text(texts[case], encoding="utf-8")
+    out = [] if command == "lmi" else ["--out", str(tmp_path / "o"), "--quiet"]
+    argv = [sys.executable, "-m", "sosalgo.cli", command, str(spec), *COMMANDS[command], *out]
+    proc = subprocess.run(argv, capture_output=True, text=True, env=ENV, timeout=300)
+    errors = [line for line in proc.stderr.splitlines() if line.startswith("error")]
+    assert proc.returncode in (0, 2, 3) and "Traceback" not in proc.stderr, proc.stderr
+    assert len(errors) <= 1, proc.stderr
+    if case != "bom":
+        assert proc.returncode == 2, proc.stderr
