@@ -18,10 +18,31 @@ from sosalgo.errors import InputError
 from sosalgo.spec import Spec
 
 __all__ = [
-    "check_gap", "check_kappa_points", "check_method", "check_scheduler", "check_time_limit",
-    "check_tol", "free_names", "kappa_option", "out_dir", "parameter_boxes", "select_families",
-    "writable",
+    "MAX_GRID_POINTS", "MAX_POINTS_PER_AXIS", "check_gap", "check_grid_points",
+    "check_kappa_points", "check_method", "check_scheduler", "check_time_limit", "check_tol",
+    "free_names", "kappa_option", "out_dir", "parameter_boxes", "select_families", "writable",
 ]
+
+
+MAX_POINTS_PER_AXIS = 2000
+# All the points of a grid are listed before the first is computed, and each is a bisection
+# of SDPs: a million points is many CPU hours, and their task list alone ~0.7 GB (two free
+# parameters).
+MAX_GRID_POINTS = 1_000_000
+
+
+def check_grid_points(points: Any, n_free: int, label: str = "--points") -> int:
+    """Grid points per free parameter, in 2..MAX_POINTS_PER_AXIS, with ``points ** n_free``
+    at most :data:`MAX_GRID_POINTS` (checked before anything is allocated); the total."""
+    if isinstance(points, bool) or not isinstance(points, int) or \
+            not 2 <= points <= MAX_POINTS_PER_AXIS:
+        raise InputError(f"{label} {points}: must be an integer in 2..{MAX_POINTS_PER_AXIS}")
+    total = points ** max(n_free, 1)
+    if total > MAX_GRID_POINTS:
+        raise InputError(f"{label} {points}: {points}^{n_free} = {total:,} grid points exceed "
+                         f"{MAX_GRID_POINTS:,}; use fewer points per axis or fewer free "
+                         "parameters (--free)")
+    return total
 
 
 def check_tol(tol: Any, label: str = "tol") -> float:
@@ -87,6 +108,11 @@ def free_names(spec: Spec, free: str | Sequence[str] | None,
         names = [p.strip() for p in free.split(",") if p.strip()]
     else:
         names = list(free)
+    if free is not None and not names:
+        raise InputError(f"--free {free!s:.40}: no parameter names given")
+    twice = sorted({p for p in names if names.count(p) > 1})
+    if twice:
+        raise InputError(f"--free: {', '.join(twice)[:80]} given more than once")
     if not names and need_range:
         raise InputError(f"{spec.source}: parameters: no parameter has a range (use --free)")
     spec.check_free(names, need_range=need_range)
@@ -141,11 +167,15 @@ def writable(out: str | Path) -> bool:
 def out_dir(out: str | Path, label: str = "--out") -> Path:
     """The output folder, checked writable (nothing is created yet)."""
     path = Path(out)
-    if path.exists() and not path.is_dir():
-        raise InputError(f"{label} {out}: exists and is not a directory")
-    if not writable(path):
-        raise InputError(f"{label} {out}: not writable ({_probe(path)} does not accept new "
-                         "files)")
+    try:
+        if path.exists() and not path.is_dir():
+            raise InputError(f"{label} {out}: exists and is not a directory")
+        if not writable(path):
+            raise InputError(f"{label} {out}: not writable ({_probe(path)} does not accept "
+                             "new files)")
+    except (OSError, ValueError) as exc:  # a name too long, a NUL byte, ...
+        reason = getattr(exc, "strerror", None) or str(exc)
+        raise InputError(f"{label} {str(out)[:80]}: {reason}") from None
     return path
 
 

@@ -16,6 +16,7 @@ import numpy as np
 
 from sosalgo.errors import ModelError
 from sosalgo.expr.compile import NumericError, compile_expression, compile_matrix
+from sosalgo.oracles import check_magnitudes
 from sosalgo.spec.types import BASE_NAMES, MATRIX_NAMES, Spec, value_order
 
 __all__ = ["Algorithm", "ModelError", "bind", "bind_sublinear", "design_box", "evaluate_algorithm",
@@ -51,8 +52,7 @@ class Algorithm:
                 mats[k] = np.array(getattr(self, k), dtype=float, ndmin=2)
             except (TypeError, ValueError):
                 raise ModelError(f"matrices.{k}", "must be a matrix of numbers") from None
-            if not np.all(np.isfinite(mats[k])):
-                raise ModelError(f"matrices.{k}", "entries must be finite")
+            check_magnitudes(k, mats[k])
             object.__setattr__(self, k, mats[k])
         n = mats["A"].shape[0]
         shapes = {"A": (n, n), "B": (n, 1), "C": (1, n), "E": (1, n)}
@@ -252,14 +252,13 @@ def fixed_point(alg: Algorithm, tol: float = FIXED_POINT_TOL) -> np.ndarray | No
 
         basis = fixed_point_basis(alg, tol)  # type: ignore[arg-type]
         return None if basis is None else basis[:, 0]
+    from sosalgo.oracles import consistent_solution
+
     n = alg.n
     lhs = np.vstack([np.eye(n) - alg.A, alg.C, alg.E])
-    rhs = np.concatenate([np.zeros(n), [1.0, 1.0]])
-    with np.errstate(all="ignore"):  # huge entries: NaN below fails the test, no warning
-        u, *_ = np.linalg.lstsq(lhs, rhs, rcond=None)
-        resid = np.linalg.norm(lhs @ u - rhs)
-        scale = 1.0 + np.linalg.norm(lhs) * np.linalg.norm(u)
-    return u if resid <= tol * scale else None
+    rhs = np.concatenate([np.zeros(n), [1.0, 1.0]])[:, None]
+    u = consistent_solution(lhs, rhs, tol)
+    return None if u is None else u[:, 0]
 
 
 def bind_sublinear(spec: Spec, theta: Mapping[str, float] | None = None) -> Any:

@@ -31,9 +31,14 @@ from sosalgo.errors import ModelError
 from sosalgo.spec.types import Spec, SpecError
 
 __all__ = ["BoundFunction", "CallShape", "OracleMethod", "as_oracle_method", "check_oracle_spec",
-           "composite_quadratic_rate", "fixed_point_basis"]
+           "check_magnitudes", "composite_quadratic_rate", "consistent_solution",
+           "fixed_point_basis"]
 
 FIXED_POINT_TOL = 1e-8
+# Nonzero matrix entries must lie in [1/MAX_MAGNITUDE, MAX_MAGNITUDE] in magnitude: beyond,
+# the squares and products the certificates and PEPs form leave the floating-point range
+# (1e200 squared overflows, 1e-200 squared underflows to 0) and checks become blind.
+MAX_MAGNITUDE = 1e100
 
 
 @dataclass(frozen=True)
@@ -86,8 +91,7 @@ class OracleMethod(CallShape):
             if val is None:
                 continue
             arr = np.array(val, dtype=float, ndmin=2)
-            if not np.all(np.isfinite(arr)):
-                raise ModelError(f"matrices.{k}", "entries must be finite")
+            check_magnitudes(k, arr)
             object.__setattr__(self, k, arr)
         n, p = self.A.shape[0], len(self.oracles)
         shapes = {"A": (n, n), "B": (n, p), "C": (p, n), "D": (p, p), "E": (1, n)}
@@ -156,14 +160,46 @@ def fixed_point_basis(om: OracleMethod, tol: float = FIXED_POINT_TOL) -> np.ndar
     rhs = np.zeros((n + p + 1, 1 + S.shape[1]))
     rhs[n:, 0] = 1.0
     if S.shape[1]:
-        rhs[:n, 1:] = om.B @ S
-        rhs[n: n + p, 1:] = -om.D @ S
-        rhs[n + p, 1:] = -(drow @ S)
+        with np.errstate(all="ignore"):
+            rhs[:n, 1:] = om.B @ S
+            rhs[n: n + p, 1:] = -om.D @ S
+            rhs[n + p, 1:] = -(drow @ S)
+    return consistent_solution(lhs, rhs, tol)
+
+
+def consistent_solution(lhs: np.ndarray, rhs: np.ndarray, tol: float = FIXED_POINT_TOL
+                        ) -> np.ndarray | None:
+    """A solution X of ``lhs X = rhs`` (least squares), or None when the system is not
+    consistent. Each row, scaled so that its largest entry in ``[lhs | rhs]`` is 1 (so no
+    norm overflows), must hold to ``tol`` relative to its own terms ``|lhs_i| |X| +
+    |rhs_i|`` (a huge entry in one row cannot hide a violated row), up to the accuracy of
+    least squares (a small multiple of machine epsilon times ``|lhs| |X|``)."""
+    if not (np.all(np.isfinite(lhs)) and np.all(np.isfinite(rhs))):
+        return None
+    row = np.maximum(np.abs(lhs).max(axis=1, initial=0.0), np.abs(rhs).max(axis=1, initial=0.0))
+    row[row == 0] = 1.0
+    a, b = lhs / row[:, None], rhs / row[:, None]
     with np.errstate(all="ignore"):
-        X, *_ = np.linalg.lstsq(lhs, rhs, rcond=None)
-        resid = np.linalg.norm(lhs @ X - rhs)
-        scale = 1.0 + np.linalg.norm(lhs) * np.linalg.norm(X) + np.linalg.norm(rhs)
-    return X if resid <= tol * scale else None
+        X, *_ = np.linalg.lstsq(a, b, rcond=None)
+        if not np.all(np.isfinite(X)):
+            return None
+        terms = np.abs(a) @ np.abs(X) + np.abs(b)
+        floor = 1e3 * np.finfo(float).eps * np.abs(a).sum() * np.abs(X).max(initial=0.0)
+        ok = np.abs(a @ X - b) <= tol * terms + floor
+    return X if np.all(ok) else None
+
+
+def check_magnitudes(name: str, arr: np.ndarray) -> None:
+    """ModelError unless every entry of matrix ``name`` is finite and every nonzero one
+    within [1/MAX_MAGNITUDE, MAX_MAGNITUDE] in magnitude (see :data:`MAX_MAGNITUDE`)."""
+    if not np.all(np.isfinite(arr)):
+        raise ModelError(f"matrices.{name}", "entries must be finite")
+    mag = np.abs(arr)
+    bad = (mag > MAX_MAGNITUDE) | ((mag > 0) & (mag < 1 / MAX_MAGNITUDE))
+    if np.any(bad):
+        i, j = np.argwhere(bad)[0]
+        raise ModelError(f"matrices.{name}[{i}][{j}]", f"{arr[i, j]:.3g} is outside the "
+                         f"magnitudes [1e-100, 1e100] floating-point checks can handle")
 
 
 def check_oracle_spec(spec: Spec, fail: Callable[[str, str], SpecError]) -> None:

@@ -246,8 +246,7 @@ def grid_run(spec: Spec | str | Path, kappa: Kappas, out_dir: str | Path = "outp
         raise InputError("--kappa: required (one or more condition numbers)")
     kappas = _kappa_list(spec, kappa)
     names = inputs.free_names(spec, free)
-    if isinstance(points, bool) or not isinstance(points, int) or not 2 <= points <= 2000:
-        raise InputError(f"--points {points}: must be an integer in 2..2000")
+    inputs.check_grid_points(points, len(names))
     for p in names + grid_fixed(spec, names):
         if p in GRID_COLUMNS:
             raise InputError(f"{spec.source}: parameters.{p}: name clashes with a grid column")

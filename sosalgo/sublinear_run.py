@@ -195,12 +195,10 @@ def sublinear_grid_run(spec: Spec, text: str, out_dir: str | Path, points: int =
     (resumable, on ``workers`` processes or a Dask ``scheduler`` like every grid)."""
     from sosalgo import inputs
     from sosalgo.batch.sweeps import _seed, grid_points, run_store
-    from sosalgo.errors import InputError
     from sosalgo.model import parameter_box
 
     names = inputs.free_names(spec, free)
-    if isinstance(points, bool) or not isinstance(points, int) or not 2 <= points <= 2000:
-        raise InputError(f"--points {points}: must be an integer in 2..2000")
+    inputs.check_grid_points(points, len(names))
     box = parameter_box(spec, float("nan"), names)
     out = inputs.out_dir(out_dir)
     if scheduler is not None:

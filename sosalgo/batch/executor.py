@@ -403,15 +403,59 @@ def _connect(address: str):
     if not isinstance(address, str) or "://" not in address and ":" not in address:
         raise BatchError(f"--scheduler {address}: not a scheduler address "
                          "(e.g. tcp://host:8786)")
+    _probe_scheduler(address)
     try:
         return distributed.Client(address, timeout=CONNECT_TIMEOUT)
-    except (OSError, TimeoutError, ValueError, TypeError) as exc:
+    except (OSError, TimeoutError, ValueError, TypeError, MemoryError) as exc:
         msg = " ".join(str(exc).split())[:200] or type(exc).__name__
     # The half-built Client closes itself when it is garbage collected. Collect it now: left
     # to chance, that can happen while another Dask event loop is starting in this thread,
     # and distributed then deadlocks on its own loop lock.
     gc.collect()
     raise BatchError(f"--scheduler {address}: cannot connect ({msg})")
+
+
+HANDSHAKE_TIMEOUT = min(CONNECT_TIMEOUT, 5.0)  # seconds for the scheduler's first bytes
+MAX_HANDSHAKE_BYTES = 1 << 20  # a scheduler's handshake is a few hundred bytes
+
+
+def _probe_scheduler(address: str) -> None:
+    """For a TCP address: BatchError unless the server there greets like a Dask scheduler.
+
+    A Dask listener writes its handshake as soon as a connection is accepted, prefixed by
+    its length (8 bytes). Another server (HTTP, SSH, ...) sends nothing or text, which Dask
+    would read as a length in the exabytes and try to allocate; so the first 8 bytes are
+    read here, with a timeout, and must announce a small message."""
+    import socket
+    import struct
+
+    scheme, _, rest = address.rpartition("://")
+    if scheme not in ("", "tcp"):
+        return  # tls://, ws://, ...: left to Dask
+    host, _, port = rest.rpartition(":")
+    host = host.strip("[]")
+    if not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise BatchError(f"--scheduler {address}: not a scheduler address "
+                         "(e.g. tcp://host:8786)")
+    try:
+        with socket.create_connection((host, int(port)), timeout=CONNECT_TIMEOUT) as sock:
+            sock.settimeout(HANDSHAKE_TIMEOUT)
+            head = b""
+            while len(head) < 8:
+                chunk = sock.recv(8 - len(head))
+                if not chunk:
+                    break
+                head += chunk
+    except TimeoutError:
+        raise BatchError(f"--scheduler {address}: no Dask handshake within "
+                         f"{HANDSHAKE_TIMEOUT:g} s (is this a Dask scheduler's address?)") from None
+    except (OSError, UnicodeError, ValueError) as exc:
+        msg = " ".join(str(exc).split())[:200] or type(exc).__name__
+        raise BatchError(f"--scheduler {address}: cannot connect ({msg})") from None
+    size = struct.unpack("Q", head)[0] if len(head) == 8 else 0
+    if not 0 < size <= MAX_HANDSHAKE_BYTES:
+        raise BatchError(f"--scheduler {address}: the server there does not speak the Dask "
+                         f"protocol (its first bytes: {head[:8]!r})")
 
 
 def check_scheduler(address: str) -> None:

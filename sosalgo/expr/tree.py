@@ -24,7 +24,8 @@ from functools import cached_property
 from sosalgo.errors import InputError
 
 __all__ = [
-    "Expr", "ExprError", "parse_tree", "constant_value", "evaluate", "FUNCTIONS", "MAX_LENGTH",
+    "Expr", "ExprError", "Measure", "parse_tree", "check_measure", "constant_value", "evaluate",
+    "measure", "FUNCTIONS", "MAX_LENGTH",
 ]
 
 MAX_LENGTH = 2000  # characters; longer strings are refused before parsing
@@ -33,7 +34,14 @@ MAX_MAGNITUDE_LOG10 = 300  # numeric constants must stay below 1e300 in magnitud
 # exp() of a constant beyond this would leave the float range (and an arbitrary-precision
 # evaluation of exp(exp(exp(100))) never finishes), so such constants are refused.
 MAX_EXP_ARGUMENT = MAX_MAGNITUDE_LOG10 * math.log(10)
-MAX_EXPONENT = 64
+MAX_EXPONENT = 64  # of one power, and of the product of nested powers (2**8)**8 (see measure)
+# Whole-expression bounds (see :func:`measure`), with tied parameters written out as their
+# expressions, as symbolic work (``lmi``, ``design``, exact checks) sees them: the degree of
+# a polynomial grows the cost of expanding it steeply, a tree written out through a chain of
+# parameters can double with every link.
+MAX_DEGREE = 32
+MAX_NODES = 10_000
+MAX_INLINED_DEPTH = 150
 
 FUNCTIONS = ("sqrt", "exp", "log", "abs", "min", "max")
 CONSTANTS = {"pi": math.pi}
@@ -122,9 +130,11 @@ def parse_tree(text: object, names: Collection[str]) -> Expr:
         msg = exc.msg if isinstance(exc, SyntaxError) else type(exc).__name__
         raise ExprError(f"cannot parse {_short(src)!r}: {msg}") from None
     try:
-        return _Converter(names).convert(tree.body, 0)
+        expr = _Converter(names).convert(tree.body, 0)
     except RecursionError:
         raise ExprError("expression nested too deeply") from None
+    check_measure(measure(expr))
+    return expr
 
 
 def constant_value(expr: Expr) -> float:
@@ -184,6 +194,66 @@ def power(a: float, b: float) -> float:
     if a == 0 and b < 0:
         raise ZeroDivisionError
     return math.pow(a, b)
+
+
+@dataclass(frozen=True)
+class Measure:
+    """How big an expression is for symbolic work: ``degree`` (its total degree as a
+    polynomial, every name counting 1 and a power ``x**c`` multiplying by ``|c|``),
+    ``exponent`` (the product of the constant exponents of nested powers, 1 without one),
+    ``nodes`` (tree size) and ``depth`` (tree height), names written out as their
+    expressions when the caller gives those measures."""
+
+    degree: float = 0.0
+    exponent: float = 1.0
+    nodes: int = 1
+    depth: int = 1
+
+
+NAME = Measure(degree=1.0)
+
+
+def measure(expr: Expr, named: Mapping[str, Measure] | None = None) -> Measure:
+    """The :class:`Measure` of ``expr``; a name has ``named[name]`` (default: degree 1,
+    a leaf). Sums, min and max take the largest degree of their terms, products and
+    quotients the sum, functions keep their argument's (sqrt, exp, log, abs)."""
+    named = named or {}
+    op, args = expr.op, expr.args
+    if op == "name":
+        return named.get(args[0], NAME)
+    if op in ("num", "pi"):
+        return Measure()
+    parts = [measure(a, named) for a in args]
+    nodes = 1 + sum(p.nodes for p in parts)
+    depth = 1 + max(p.depth for p in parts)
+    exponent = max(p.exponent for p in parts)
+    if op in ("*", "/"):
+        degree = parts[0].degree + parts[1].degree
+    elif op == "**" and args[1].is_constant:
+        k = max(1.0, abs(evaluate(args[1], {})))
+        degree, exponent = parts[0].degree * k, parts[0].exponent * k
+    elif op == "**":  # x**y, y not constant: kept as a power by symbolic work
+        degree = parts[0].degree + parts[1].degree
+    else:
+        degree = max(p.degree for p in parts)
+    return Measure(degree, exponent, nodes, depth)
+
+
+def check_measure(size: Measure) -> None:
+    """Raise :class:`ExprError` when ``size`` exceeds a bound (:data:`MAX_DEGREE`,
+    :data:`MAX_EXPONENT` for nested powers, :data:`MAX_NODES`, :data:`MAX_INLINED_DEPTH`)."""
+    if size.exponent > MAX_EXPONENT:
+        raise ExprError(f"nested powers raise to the power {size.exponent:.4g}, more than "
+                        f"{MAX_EXPONENT} (the product of the exponents counts)")
+    if size.degree > MAX_DEGREE:
+        raise ExprError(f"degree {size.degree:.4g} exceeds {MAX_DEGREE} (every name counts "
+                        "1, a power multiplies, tied parameters count as written out)")
+    if size.nodes > MAX_NODES:
+        raise ExprError(f"{size.nodes} operations exceed {MAX_NODES} with tied parameters "
+                        "written out")
+    if size.depth > MAX_INLINED_DEPTH:
+        raise ExprError(f"nesting depth {size.depth} exceeds {MAX_INLINED_DEPTH} with tied "
+                        "parameters written out")
 
 
 def _short(src: str, n: int = 60) -> str:

@@ -16,7 +16,11 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import re
+import select
+import stat
+import time
 from collections.abc import Callable, Collection, Sequence
 from pathlib import Path
 from typing import Any
@@ -26,6 +30,7 @@ import yaml
 
 from sosalgo.expr import Expr, ExprError, constant_value, parse_tree
 from sosalgo.expr.compile import NumericError, compile_expression
+from sosalgo.expr.tree import Measure, check_measure, measure
 from sosalgo.spec.types import (
     BASE_NAMES,
     MAX_FILE_BYTES,
@@ -35,6 +40,7 @@ from sosalgo.spec.types import (
     MAX_PARAMETERS,
     MAX_REFERENCES,
     MAX_STATE,
+    MAX_WAIT_SECONDS,
     MEASURES,
     NAME_RE,
     PARAM_RE,
@@ -113,13 +119,24 @@ _StrictLoader.construct_object = _construct_object  # type: ignore[method-assign
 
 
 def read_spec_text(path: str | Path) -> str:
-    """The text of a spec file, read once (pipes and ``/dev/stdin`` work), bounded in size."""
-    p = Path(path)
+    """The text of a spec file, read once and bounded in size (:data:`MAX_FILE_BYTES`).
+
+    A regular file or a terminal is read as it is. A pipe (``/dev/stdin`` fed by a pipe,
+    ``<(...)``, a named FIFO) is read as it arrives, but the whole text must have arrived
+    within :data:`MAX_WAIT_SECONDS`: a FIFO nobody writes to is refused, not waited on
+    forever. A directory, a block device or a socket is refused."""
     source = str(path)
     try:
-        # a bounded read: the size of /dev/zero, a pipe or a growing file is not known upfront
-        with p.open("rb") as fh:
-            raw = fh.read(MAX_FILE_BYTES + 1)
+        mode = os.stat(path).st_mode
+        if stat.S_ISDIR(mode):
+            raise SpecError(source, "", "is a directory, not a spec file")
+        if stat.S_ISFIFO(mode):
+            raw = _read_pipe(source)
+        elif stat.S_ISREG(mode) or stat.S_ISCHR(mode):
+            with open(path, "rb") as fh:  # bounded: /dev/zero or a growing file never ends
+                raw = fh.read(MAX_FILE_BYTES + 1)
+        else:
+            raise SpecError(source, "", "not a regular file, a pipe or a terminal")
         if len(raw) > MAX_FILE_BYTES:
             raise SpecError(source, "", f"file larger than {MAX_FILE_BYTES} bytes")
         return raw.decode("utf-8")
@@ -131,8 +148,42 @@ def read_spec_text(path: str | Path) -> str:
         raise SpecError(source, "", "is a directory, not a spec file") from None
     except UnicodeDecodeError:
         raise SpecError(source, "", "not UTF-8 text") from None
-    except OSError as exc:
-        raise SpecError(source, "", f"cannot read ({exc.strerror})") from None
+    except (OSError, ValueError) as exc:  # ValueError: a NUL byte in the path
+        reason = getattr(exc, "strerror", None) or str(exc)
+        raise SpecError(source, "", f"cannot read ({reason})") from None
+
+
+def _read_pipe(source: str) -> bytes:
+    """A pipe's bytes up to its end (or one more than MAX_FILE_BYTES), all within
+    MAX_WAIT_SECONDS; opened without blocking, so a FIFO without a writer times out."""
+    deadline = time.monotonic() + MAX_WAIT_SECONDS
+    fd = os.open(source, os.O_RDONLY | os.O_NONBLOCK)
+    try:
+        poller = select.poll()
+        poller.register(fd, select.POLLIN | select.POLLHUP)
+        chunks: list[bytes] = []
+        size = 0
+        while size <= MAX_FILE_BYTES:
+            left = deadline - time.monotonic()
+            events = poller.poll(max(0, int(left * 1000))) if left > 0 else []
+            if not events:
+                what = "incomplete" if size else "nothing to read"
+                raise SpecError(source, "", f"{what} after {MAX_WAIT_SECONDS:g} s (a pipe or "
+                                "FIFO whose writer never finishes?)")
+            try:
+                data = os.read(fd, MAX_FILE_BYTES + 1 - size)
+            except BlockingIOError:
+                continue
+            if not data:
+                if any(ev & select.POLLHUP for _, ev in events):
+                    break  # the writer closed its end: the text is complete
+                time.sleep(0.05)  # no writer yet (Linux reports no event for that)
+                continue
+            chunks.append(data)
+            size += len(data)
+        return b"".join(chunks)
+    finally:
+        os.close(fd)
 
 
 def load_spec(path: str | Path) -> Spec:
@@ -215,12 +266,16 @@ class _Builder:
         raw_matrices = data.get("matrices")
         output = self.output(data, raw_matrices, len(oracles))
         matrices = self.matrices(raw_matrices, names, len(oracles), output is not None)
+        named = self.check_sizes(params, matrices)
         references = self.references(data.get("references", {}))
         kappa = () if m == 0 else self.kappa(data.get("kappa", [10]))
         from sosalgo.spec.initial_state import parse_initial_state
 
         initial_state = parse_initial_state(data.get("initial_state"), {*BASE_NAMES, *symbols},
                                             len(matrices["A"]), functions, self.fail)
+        for i, pair in enumerate(initial_state or ()):
+            for e in pair:
+                self.check_size(e, named, f"initial_state[{i}]")
         spec = Spec(
             name=name, description=description, source=self.source, parameters=params,
             matrices=matrices, references=references, kappa=kappa, m=m,
@@ -428,6 +483,34 @@ class _Builder:
         if lo.is_constant and hi.is_constant and constant_value(lo) > constant_value(hi):
             raise self.fail(where, f"lower bound {raw[0]} exceeds upper bound {raw[1]}")
         return lo, hi
+
+    def check_sizes(self, params: dict[str, Parameter], matrices: dict[str, ExprMatrix]
+                    ) -> dict[str, Measure]:
+        """Bound every parameter and matrix entry with tied parameters written out (see
+        :func:`sosalgo.expr.tree.measure`); the measure of each parameter is returned. A
+        parameter kept symbolic (an input) has degree at least 1."""
+        named: dict[str, Measure] = {}
+        for pname in value_order(params, self.source):
+            par = params[pname]
+            expr = par.tied if par.is_tied else par.value
+            where = f"parameters.{pname}" + ("" if par.is_tied else ".value")
+            size = self.check_size(expr, named, where)
+            if not par.is_tied:
+                size = dataclasses.replace(size, degree=max(1.0, size.degree))
+            named[pname] = size
+        for key, rows in matrices.items():
+            for i, row in enumerate(rows):
+                for j, e in enumerate(row):
+                    self.check_size(e, named, f"matrices.{key}[{i}][{j}]")
+        return named
+
+    def check_size(self, expr: Expr, named: dict[str, Measure], where: str) -> Measure:
+        try:
+            size = measure(expr, named)
+            check_measure(size)
+        except ExprError as exc:
+            raise self.fail(where, str(exc)) from None
+        return size
 
     def expr(self, raw: object, names: Collection[str], where: str) -> Expr:
         try:

@@ -41,6 +41,7 @@ RESERVED_COLUMNS = {
 # Size limits keep loading well under a second or two whatever the input: PyYAML's pure-Python
 # parser needs about 15 us per token, and every parameter is compiled against all the others.
 MAX_FILE_BYTES = 64_000
+MAX_WAIT_SECONDS = 60.0  # for the whole text of a spec read from a pipe or FIFO
 MAX_STATE = 12
 MAX_ORACLES = 8  # oracle calls per iteration
 MAX_FUNCTIONS = 8
