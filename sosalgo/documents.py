@@ -96,12 +96,14 @@ def _difference_note(src: str, where: str, embedded: str, text: str) -> str:
 
 
 def _verify_rows(spec: Spec, rows: list[dict[str, Any]], out_dir: Path | None,
-                 simulate: bool, fam: Any) -> list[dict[str, Any] | None]:
+                 simulate: bool, fam: Any, pareto: bool = False) -> list[dict[str, Any] | None]:
     """The rows' checks; the known tunings of a pareto document (``reference``) against
-    the spec they are written in (:func:`sosalgo.pareto.reference_spec`)."""
+    the spec they are written in (:func:`sosalgo.pareto.reference_spec`). Only a pareto
+    document has such rows: elsewhere ``reference`` is ignored (the row is checked
+    against the document's spec, and the ledger refuses the field)."""
     from sosalgo.verify.results import verify_document_rows
 
-    if not any(r.get("reference") for r in rows):
+    if not pareto or not any(r.get("reference") for r in rows):
         return verify_document_rows(spec, rows, out_dir, simulate, family=fam)
     from sosalgo.pareto import reference_spec
 
@@ -137,6 +139,10 @@ def verify_document(result: str | Path | Mapping[str, Any], spec: Spec | str | P
         chosen, src, note = result_spec(doc, where, spec)
         return {"spec": chosen.name, "source": src, "results": [check_witness(doc, chosen)],
                 "notes": [] if note is None else [note]}
+    from sosalgo.pareto import is_pareto_document
+    from sosalgo.verify.documents import document_ledger
+    from sosalgo.verify.ledger import ledger_counts, vouched
+
     rows = result_rows(doc, where)
     chosen, src, note = result_spec(doc, where, spec)
     fam = None
@@ -144,9 +150,11 @@ def verify_document(result: str | Path | Mapping[str, Any], spec: Spec | str | P
         fam = select_families(chosen, certificate, options, single=True)[0]
     try:
         checks = _verify_rows(chosen, rows, None if out_dir is None else Path(out_dir),
-                              simulate, fam)
+                              simulate, fam, is_pareto_document(doc))
     except ResultError as exc:
         raise InputError(f"{where}: {exc}") from None
+    ledger = document_ledger(chosen, doc, rows, checks)
     return {"spec": chosen.name, "source": src, "results": checks,
-            "notes": [] if note is None else [note]}
+            "notes": [] if note is None else [note], "ledger": ledger,
+            "claims": ledger_counts(ledger), "vouched": vouched(ledger)}
 
