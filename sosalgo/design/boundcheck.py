@@ -4,7 +4,8 @@ A dual bound (:mod:`sosalgo.design.dualbound`) is a cover of Θ × [0, T²] by b
 proven to hold no certificate of the family for ρ² in [0, r_box]. Its certificate lists
 every proof made: the box (centre and half-widths in the scaled coordinates z ∈ [-1, 1]^k
 of :mod:`sosalgo.design.polymodel`), its r, and how it was proven — ``dual`` with the
-dual matrices Z (and the SDP's covers, only hints for the enclosures) or ``mode``.
+dual matrices Z (and the SDP's covers and bounds, only hints for the enclosures) or
+``mode``. Matrices are stored as their exact binary64 values (:func:`encode`).
 
 :func:`check_bound_certificate` trusts none of it: it rebuilds the exact polynomial data
 from the spec, re-runs every box proof in ball arithmetic
@@ -18,6 +19,8 @@ cover of its two halves. The root's cover r proves that no θ ∈ Θ is certifie
 
 from __future__ import annotations
 
+import base64
+import binascii
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -32,16 +35,40 @@ BOUND_CERTIFICATE_KIND = "dual-boxes"
 MAX_PROOFS = 200_000
 
 
+def encode(a: Any) -> dict[str, Any]:
+    """A float array as its exact binary64 values: shape and the little-endian bytes in
+    base64 (compact, and unchanged by JSON indentation)."""
+    arr = np.ascontiguousarray(np.asarray(a, dtype=float), dtype="<f8")
+    return {"shape": list(arr.shape), "f64": base64.b64encode(arr.tobytes()).decode()}
+
+
+def decode(o: Any) -> np.ndarray:
+    """Inverse of :func:`encode`; ValueError when malformed or not finite."""
+    if not isinstance(o, Mapping) or not isinstance(o.get("f64"), str):
+        raise ValueError("expected {shape, f64}")
+    shape = o.get("shape")
+    if not isinstance(shape, list) or not all(isinstance(n, int) and 0 <= n <= 4096
+                                              for n in shape) or len(shape) > 4:
+        raise ValueError("shape: expected at most 4 sizes")
+    size = 8 * int(np.prod(shape))
+    try:
+        raw = base64.b64decode(o["f64"], validate=True)
+    except binascii.Error as exc:
+        raise ValueError(f"f64: not base64 ({exc})") from None
+    if len(raw) != size:
+        raise ValueError("f64: size does not match the shape")
+    return _finite(np.frombuffer(raw, dtype="<f8").reshape(shape).astype(float))
+
+
 def _mats(terms: Any) -> Any:
-    return None if terms is None else [[np.asarray(t, float).tolist() for t in blk]
-                                       for blk in terms]
+    return None if terms is None else [encode(np.stack(blk)) for blk in terms]
 
 
 def _bounds(bounds: Any) -> Any:
     if bounds is None:
         return None
-    return [None if bd is None else [[int(c), int(a), np.asarray(v, float).tolist()]
-                                     for (c, a), v in bd.items()] for bd in bounds]
+    return [None if bd is None else [[int(c), int(a), encode(v)] for (c, a), v in bd.items()]
+            for bd in bounds]
 
 
 def bound_certificate(state: Any, free: Sequence[str]) -> dict[str, Any]:
@@ -70,14 +97,14 @@ class BoundCheck:
 
 
 def _decode_mats(terms: Any) -> list[list[np.ndarray]]:
-    return [[_finite(np.asarray(t, dtype=float)) for t in blk] for blk in terms]
+    return [list(decode(blk)) for blk in terms]
 
 
 def _decode_bounds(bounds: Any) -> tuple:
     if bounds is None:
         return (None, None)
-    return tuple(None if bd is None else {(int(c), int(a)): _finite(np.asarray(v, float))
-                                          for c, a, v in bd} for bd in bounds)
+    return tuple(None if bd is None else {(int(c), int(a)): decode(v) for c, a, v in bd}
+                 for bd in bounds)
 
 
 def _finite(a: np.ndarray) -> np.ndarray:

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from fractions import Fraction
 from typing import Any
 
 from sosalgo.verify.ledger import (
@@ -57,18 +58,48 @@ def rate(L: RowLedger, field: str) -> None:
 
 
 def rho_proven(L: RowLedger, field: str) -> None:
+    """A proven rational rate ("p/q"): the certificate proven exactly at it (or at a
+    smaller rational by the row's check)."""
     v = frac(L.row.get(field))
     if L.row.get(field) is None:
         L.add(field, CONTEXT, "claims no proven rate")
     elif v is None:
         L.add(field, CONTRADICTED, "not a number")
-    elif not L.rate_ok():
-        L.add(field, CONTRADICTED, _why(L.check))
-    elif frac(L.check.get("rho_proven")) <= v:
+    elif L.rate_ok() and frac(L.check.get("rho_proven")) <= v:
         L.add(field, BACKED, "the exact proof's rate <= the claim", L.check["rho_proven"])
+    elif exact_at(L, v):
+        L.add(field, BACKED, "the certificate proven exactly at this rational", str(v))
     else:
-        L.add(field, CONTRADICTED, "below the rate the certificate proves",
-              L.check.get("rho_proven"))
+        L.add(field, CONTRADICTED, "the certificate is not proven at this rate",
+              (L.check or {}).get("rho_proven"))
+
+
+def exact_at(L: RowLedger, rho: Fraction) -> bool:
+    """The row's certificate proven exactly at the rational ``rho`` (cached)."""
+    from sosalgo.certificates import get_family
+
+    cache = L.__dict__.setdefault("_exact_at", {})
+    if rho not in cache:
+        row = L.row
+        try:
+            fam = get_family(str(row.get("family") or L.spec.certificate))
+            parts = row.get("certificate") if row.get("certificate") is not None else row
+            cert = fam.parse_certificate(parts, L.spec.n)
+            ex = fam.exact_check(L.spec, float(row["kappa"]), rho, cert,
+                                 row.get("theta") or None)
+            cache[rho] = ex.verified == "exact" and frac(ex.rho_proven) <= rho
+        except Exception:  # noqa: BLE001 - a certificate that cannot be checked proves nothing
+            cache[rho] = False
+    return cache[rho]
+
+
+def proven_rate(L: RowLedger) -> Fraction | None:
+    """The best rate proven for the row: its claimed ``rho_proven`` when that is proven,
+    else the row check's."""
+    claimed = frac(L.row.get("rho_proven"))
+    if claimed is not None and exact_at(L, claimed):
+        return claimed
+    return frac((L.check or {}).get("rho_proven")) if L.rate_ok() else None
 
 
 def check_kind(key: str) -> Any:
@@ -131,24 +162,26 @@ def cap(L: RowLedger, field: str) -> None:
     if frac(c) is None:
         L.add(field, CONTRADICTED, "not a number")
         return
-    proven = (L.check or {}).get("noise_fraction" if key == "noise" else "rho_proven")
-    ok = _noise_ok(L, "noise") if key == "noise" else L.rate_ok()
-    if not ok or proven is None:
-        claimed = L.row.get("noise" if key == "noise" else "rho",
-                            L.row.get("rho_certified"))
+    if key == "noise":
+        proven = frac((L.check or {}).get("noise_fraction")) if _noise_ok(L, "noise") \
+            else None
+    else:
+        proven = proven_rate(L)
+    claimed = L.row.get("noise" if key == "noise" else "rho", L.row.get("rho_certified"))
+    if proven is None:
         L.add(field, CONTEXT if claimed is None else CONTRADICTED,
               f"no {key} was found under the cap" if claimed is None else
               f"the {key} under the cap is not proven")
-    elif frac(proven) <= frac(c):
-        L.add(field, BACKED, f"the proven {key} is <= the cap", proven)
+    elif proven <= frac(c):
+        L.add(field, BACKED, f"the proven {key} is <= the cap", str(proven))
     else:
-        L.add(field, CONTRADICTED, f"the proven {key} is above the cap", proven)
+        L.add(field, CONTRADICTED, f"the proven {key} is above the cap", str(proven))
 
 
 def noise_quadratic(L: RowLedger, field: str) -> None:
     """The sensitivity on the quadratics: recomputed in floating point."""
     from sosalgo.model import bind
-    from sosalgo.sensitivity.quadratic import noise_quadratic as nq
+    from sosalgo.sensitivity.run import _quadratic
 
     v = L.row.get(field)
     if v is None:
@@ -156,7 +189,7 @@ def noise_quadratic(L: RowLedger, field: str) -> None:
         return
     try:
         theta = L.row.get("theta") or None
-        got = nq(bind(L.spec, float(L.row["kappa"]), theta)).noise
+        got = _quadratic(L.spec, bind(L.spec, float(L.row["kappa"]), theta))[0].gamma
     except Exception as exc:  # noqa: BLE001 - a value that cannot be recomputed
         L.add(field, UNSUPPORTED, f"cannot be recomputed: {type(exc).__name__}")
         return

@@ -114,7 +114,8 @@ def theta(L: RowLedger, field: str) -> None:
         return
     try:
         names = list(th)
-        box = parameter_box(L.spec, float(L.row["kappa"]), names)
+        kappa = L.row.get("kappa")
+        box = parameter_box(L.spec, float("nan") if kappa is None else float(kappa), names)
         inside = all(frac(lo) <= frac(th[p]) <= frac(hi)
                      for p, (lo, hi) in zip(names, box, strict=True))
     except Exception as exc:  # noqa: BLE001 - a θ that cannot be placed in Θ

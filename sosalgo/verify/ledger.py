@@ -42,7 +42,7 @@ RUN_FIELDS = frozenset({
     "spec", "time_limited", "time_limit", "timed_out", "evaluations", "check_kind",
     "check", "simulation", "constant_estimate", "verification", "index", "kind",
     "method", "rate_type", "gap_met", "objective", "objective_status", "description",
-    "free", "box", "measure_note", "note", "notes", "tuning"})
+    "free", "box", "name", "note", "notes"})
 CONDITION_FIELDS = frozenset({"kappa", "family", "lag", "reference"})
 
 
