@@ -142,6 +142,19 @@ def noise(key: str) -> Any:
     return handler
 
 
+def limsup_rho(L: RowLedger, field: str) -> None:
+    """The rate of the limsup certificate: its own ``rho``, proven with it."""
+    v, cert = L.row.get(field), L.row.get("noise_limsup_certificate")
+    if v is None:
+        L.add(field, CONTEXT, "none")
+    elif not _noise_ok(L, "noise_limsup") or not isinstance(cert, Mapping):
+        L.add(field, CONTRADICTED, _noise_why(L, "noise_limsup"))
+    elif frac(cert.get("rho")) is not None and frac(cert.get("rho")) <= frac(v):
+        L.add(field, BACKED, "the rate of the proven limsup certificate", cert.get("rho"))
+    else:
+        L.add(field, CONTRADICTED, "not the rate of the limsup certificate", cert.get("rho"))
+
+
 def constant(L: RowLedger, field: str) -> None:
     """A sublinear row's ``constant`` (and ``certified``, ``certificate``)."""
     if L.row.get("constant") is None and L.row.get("certified") is not True:
@@ -311,10 +324,12 @@ def certificate_of(what: str) -> Any:
 HANDLERS: dict[str, Any] = {
     "rho": rate, "rho_certified": rate, "certified": rate, "P": rate, "lambda": rate,
     "certificate": rate, "rho_proven": rho_proven, "rho_check": check_kind("rho"),
-    "noise_check": check_kind("noise"), "noise": noise("noise"),
+    "noise_check": check_kind("noise"), "verified": check_kind("rho"),
+    "noise": noise("noise"),
     "noise_certificate": noise("noise"), "noise_lag": noise("noise"),
     "noise_limsup": noise("noise_limsup"), "noise_limsup_certificate": noise("noise_limsup"),
     "noise_limsup_check": noise("noise_limsup"), "noise_limsup_lag": noise("noise_limsup"),
+    "noise_limsup_rho": limsup_rho,
     "noise_quadratic": noise_quadratic, "references": references, "max_rate": cap,
     "max_noise": cap, "cap": cap, "floor": floor, "rho_lower": witness,
     "rho_lower_kind": witness_part, "rho_lower_witness": witness_part, "cycle": cycle,
