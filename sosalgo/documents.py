@@ -5,6 +5,7 @@ them, choosing the spec they are checked against, and verifying every certificat
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -15,6 +16,7 @@ from sosalgo.spec import Spec
 __all__ = ["MAX_RESULT_BYTES", "read_result", "result_rows", "result_spec", "verify_document"]
 
 MAX_RESULT_BYTES = 200_000_000
+MAX_INTEGER = 2**1023  # larger integers have no float value
 
 
 def read_result(path: str | Path) -> dict[str, Any]:
@@ -87,6 +89,23 @@ def result_spec(doc: Mapping[str, Any], where: str = "result",
     return chosen, src if isinstance(src, str) else None, note
 
 
+def check_numbers(doc: Any, where: str) -> None:
+    """InputError naming the first field that holds NaN, an infinity or an integer beyond
+    the float range (sosalgo never writes one; every check works on floats or their exact
+    values)."""
+    stack: list[tuple[str, Any]] = [("", doc)]
+    while stack:
+        path, v = stack.pop()
+        if isinstance(v, dict):
+            stack += [(f"{path}.{k}" if path else str(k), x) for k, x in v.items()]
+        elif isinstance(v, list):
+            stack += [(f"{path}[{i}]", x) for i, x in enumerate(v)]
+        elif isinstance(v, float) and not math.isfinite(v) or (
+                isinstance(v, int) and not isinstance(v, bool) and abs(v) > MAX_INTEGER):
+            shown = repr(v) if isinstance(v, float) else f"an integer of {len(str(v))} digits"
+            raise InputError(f"{where}: {path}: {shown} is not a finite number")
+
+
 def _difference_note(src: str, where: str, embedded: str, text: str) -> str:
     from sosalgo.batch.store import describe_difference
 
@@ -143,6 +162,7 @@ def verify_document(result: str | Path | Mapping[str, Any], spec: Spec | str | P
     from sosalgo.verify.documents import document_ledger
     from sosalgo.verify.ledger import ledger_counts, vouched
 
+    check_numbers(doc, where)
     rows = result_rows(doc, where)
     chosen, src, note = result_spec(doc, where, spec)
     fam = None
