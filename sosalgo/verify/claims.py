@@ -45,8 +45,11 @@ def _claims_rate(L: RowLedger) -> bool:
 
 def rate(L: RowLedger, field: str) -> None:
     """``rho`` / ``rho_certified`` / ``certified`` / the certificate's parts."""
-    v = L.row.get(field)
-    if field == "certified" and v is False or not _claims_rate(L):
+    v, cert = L.row.get(field), L.row.get("certificate")
+    if field in ("P", "lambda") and isinstance(cert, Mapping) and field in cert \
+            and cert[field] != v:
+        L.add(field, CONTRADICTED, f"not the {field} of the row's certificate")
+    elif field == "certified" and v is False or not _claims_rate(L):
         L.add(field, CONTEXT, "claims no certified rate")
     elif L.rate_ok():
         what = "the certificate" if field not in ("rho", "rho_certified", "certified") \
@@ -153,6 +156,21 @@ def limsup_rho(L: RowLedger, field: str) -> None:
         L.add(field, BACKED, "the rate of the proven limsup certificate", cert.get("rho"))
     else:
         L.add(field, CONTRADICTED, "not the rate of the limsup certificate", cert.get("rho"))
+
+
+def lag_of(cert_key: str) -> Any:
+    """A lag: the lag of the certificate it names (whose check backs the claim)."""
+    def handler(L: RowLedger, field: str) -> None:
+        v, cert = L.row.get(field), L.row.get(cert_key)
+        if v is None:
+            L.add(field, CONTEXT, "none")
+        elif not isinstance(cert, Mapping) or "lag" not in cert:
+            L.add(field, CONTEXT, "the family's option (no certificate names a lag)")
+        elif cert["lag"] == v and not isinstance(v, bool):
+            L.add(field, CONTEXT, f"the lag of {cert_key} (checked there)")
+        else:
+            L.add(field, CONTRADICTED, f"not the lag of {cert_key} ({cert['lag']!r})")
+    return handler
 
 
 def constant(L: RowLedger, field: str) -> None:
@@ -326,9 +344,10 @@ HANDLERS: dict[str, Any] = {
     "certificate": rate, "rho_proven": rho_proven, "rho_check": check_kind("rho"),
     "noise_check": check_kind("noise"), "verified": check_kind("rho"),
     "noise": noise("noise"),
-    "noise_certificate": noise("noise"), "noise_lag": noise("noise"),
+    "noise_certificate": noise("noise"), "noise_lag": lag_of("noise_certificate"),
+    "lag": lag_of("certificate"),
     "noise_limsup": noise("noise_limsup"), "noise_limsup_certificate": noise("noise_limsup"),
-    "noise_limsup_check": noise("noise_limsup"), "noise_limsup_lag": noise("noise_limsup"),
+    "noise_limsup_check": noise("noise_limsup"), "noise_limsup_lag": lag_of("noise_limsup_certificate"),
     "noise_limsup_rho": limsup_rho,
     "noise_quadratic": noise_quadratic, "references": references, "max_rate": cap,
     "max_noise": cap, "cap": cap, "floor": floor, "rho_lower": witness,
