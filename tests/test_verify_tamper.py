@@ -37,7 +37,7 @@ SPEC_VALUES = {"L", "references", "params", "theta", "noise_quadratic", "lag", "
 RUN = {"seconds", "solves", "max_eig_M", "min_eig_P", "rho_infeasible", "tol", "index",
        "time_limit", "evaluations", "gap_met", "time_limited", "timed_out", "kappa",
        "boxes_proven", "boxes_dual", "boxes_mode", "boxes_quadratic", "boxes_inherited",
-       "boxes_open", "solves", "boxes_refuted", "order", "flat", "ranks", "box",
+       "boxes_open", "boxes_refuted", "order", "flat", "ranks", "box",
        "constant_estimate", "simulation", "check"}
 # certificates and witnesses: evidence, not claims (deleted and swapped below)
 EVIDENCE = {"P", "lambda", "certificate", "noise_certificate", "noise_limsup_certificate",

@@ -28,7 +28,6 @@ from sosalgo.verify.ledger import (
     RECOMPUTED,
     UNSUPPORTED,
     RowLedger,
-    _ok,
     _why,
     frac,
 )
@@ -347,7 +346,8 @@ HANDLERS: dict[str, Any] = {
     "noise_certificate": noise("noise"), "noise_lag": lag_of("noise_certificate"),
     "lag": lag_of("certificate"),
     "noise_limsup": noise("noise_limsup"), "noise_limsup_certificate": noise("noise_limsup"),
-    "noise_limsup_check": noise("noise_limsup"), "noise_limsup_lag": lag_of("noise_limsup_certificate"),
+    "noise_limsup_check": noise("noise_limsup"),
+    "noise_limsup_lag": lag_of("noise_limsup_certificate"),
     "noise_limsup_rho": limsup_rho,
     "noise_quadratic": noise_quadratic, "references": references, "max_rate": cap,
     "max_noise": cap, "cap": cap, "floor": floor, "rho_lower": witness,

@@ -80,11 +80,12 @@ def relaxation(L: RowLedger, field: str) -> None:
         L.add(field, CONTEXT, f"status {status!r}: claims no complete proof")
         return
     b = _bound(L)
-    t = frac(rel.get("target"))
+    # the target proven (a design read back from its CSV has none: then its lower bound)
+    t = frac(rel.get("target", L.row.get("lower_bound")))
     if isinstance(b, str):
         L.add(field, UNSUPPORTED, f"status proved: {b}")
     elif t is None:
-        L.add(field, CONTRADICTED, "status proved without a target")
+        L.add(field, CONTRADICTED, "status proved without a target or a lower bound")
     elif t * t <= Fraction(b.r) * (1 + ROUNDING):
         L.add(field, BACKED, f"status proved: the boxes cover Θ up to the target "
                              f"({b.reason})", b.rho)
