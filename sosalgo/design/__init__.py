@@ -43,8 +43,8 @@ from sosalgo.model import ModelError, bind, design_box
 from sosalgo.solvers import solve_margin
 from sosalgo.spec import Spec
 
-__all__ = ["BoundResult", "DesignResult", "design", "design_problem", "prove_bound",
-           "relaxation_bound", "METHODS"]
+__all__ = ["BoundModel", "BoundResult", "DesignResult", "bound_model", "design",
+           "design_problem", "prove_bound", "relaxation_bound", "METHODS"]
 
 
 def __getattr__(name: str) -> Any:
@@ -237,7 +237,7 @@ def design(
     """
     t0 = time.perf_counter()
     free, box, family = _setup(spec, kappa, free, method, family)
-    model = _bound_model(spec, kappa, free, family) if method == "dual" else None
+    model = bound_model(spec, kappa, free, family) if method == "dual" else None
     run = _Run(spec, kappa, free, box, t0 + time_limit, on_step, family,
                bound=method == "moment" or model is not None)
     run.workers = _usable_workers(workers)
@@ -537,7 +537,7 @@ class BoundModel:
         return BoundSearch(self.poly, self.structure, target_r, self.modes, record=record)
 
 
-def _bound_model(spec: Spec, kappa: float, free: list[str],
+def bound_model(spec: Spec, kappa: float, free: list[str],
                  family: CertificateFamily) -> BoundModel | None:
     """The exact data of the family over Θ, or None when the family has no dual bound
     (no exact form, or variables outside θ-free cones)."""
@@ -652,7 +652,7 @@ def prove_bound(spec: Spec, kappa: float, target: float, free: Sequence[str] | N
     spec.check_free(free)
     fam = spec_family(spec) if family is None else (
         get_family(family) if isinstance(family, str) else family)
-    model = _bound_model(spec, kappa, free, fam)
+    model = bound_model(spec, kappa, free, fam)
     if model is None:
         return BoundResult(spec.name, float(kappa), free, target, None,
                            BoundStatus.UNSUPPORTED, {})

@@ -28,8 +28,8 @@ from sosalgo.verify.ledger import (
     RECOMPUTED,
     UNSUPPORTED,
     RowLedger,
-    _why,
     frac,
+    why_not,
 )
 
 __all__ = ["HANDLERS"]
@@ -56,7 +56,7 @@ def rate(L: RowLedger, field: str) -> None:
         L.add(field, BACKED, f"{what}: rate <= rho_proven (exact check)",
               L.check.get("rho_proven"))
     else:
-        L.add(field, CONTRADICTED, _why(L.check))
+        L.add(field, CONTRADICTED, why_not(L.check))
 
 
 def rho_proven(L: RowLedger, field: str) -> None:
@@ -80,7 +80,7 @@ def exact_at(L: RowLedger, rho: Fraction) -> bool:
     """The row's certificate proven exactly at the rational ``rho`` (cached)."""
     from sosalgo.certificates import get_family
 
-    cache = L.__dict__.setdefault("_exact_at", {})
+    cache = L.cache.setdefault("exact_at", {})
     if rho not in cache:
         row = L.row
         try:
@@ -105,18 +105,20 @@ def proven_rate(L: RowLedger) -> Fraction | None:
 
 
 def check_kind(key: str) -> Any:
-    """``rho_check`` / ``noise_check``: "exact" must be proven; "float" is unsupported."""
+    """``rho_check`` / ``noise_check`` / ``verified``: "exact" must be proven; "float"
+    is unsupported (only exact proofs are vouched for)."""
     def handler(L: RowLedger, field: str) -> None:
         v = L.row.get(field)
-        ok = L.rate_ok() if key == "rho" else _noise_ok(L, "noise")
+        ok = L.rate_ok() if key == "rho" else _noise_ok(L, key)
         if v in (None, "none"):
             L.add(field, CONTEXT, "claims no check")
-        elif v == "exact":
-            L.add(field, BACKED if ok else CONTRADICTED,
-                  "proven exactly" if ok else f"claims exact, but {_noise_why(L, 'noise')}"
-                  if key == "noise" else _why(L.check))
-        else:
+        elif v != "exact":
             L.add(field, UNSUPPORTED, f"{v!r}: only exact proofs are vouched for")
+        elif ok:
+            L.add(field, BACKED, "proven exactly")
+        else:
+            L.add(field, CONTRADICTED, "claims exact, but " + (
+                why_not(L.check) if key == "rho" else _noisewhy_not(L, key)))
     return handler
 
 
@@ -124,7 +126,7 @@ def _noise_ok(L: RowLedger, key: str) -> bool:
     return bool(L.check) and L.check.get(f"{key}_verified") == "exact"
 
 
-def _noise_why(L: RowLedger, key: str) -> str:
+def _noisewhy_not(L: RowLedger, key: str) -> str:
     if not L.check or f"{key}_verified" not in L.check:
         return f"no {key} certificate was checked"
     return str(L.check.get(f"{key}_reason") or "not proven")
@@ -140,7 +142,7 @@ def noise(key: str) -> Any:
             L.add(field, BACKED, f"proven exactly: {key} >= the proven bound",
                   L.check.get(f"{key}_fraction"))
         else:
-            L.add(field, CONTRADICTED, _noise_why(L, key))
+            L.add(field, CONTRADICTED, _noisewhy_not(L, key))
     return handler
 
 
@@ -150,7 +152,7 @@ def limsup_rho(L: RowLedger, field: str) -> None:
     if v is None:
         L.add(field, CONTEXT, "none")
     elif not _noise_ok(L, "noise_limsup") or not isinstance(cert, Mapping):
-        L.add(field, CONTRADICTED, _noise_why(L, "noise_limsup"))
+        L.add(field, CONTRADICTED, _noisewhy_not(L, "noise_limsup"))
     elif frac(cert.get("rho")) is not None and frac(cert.get("rho")) <= frac(v):
         L.add(field, BACKED, "the rate of the proven limsup certificate", cert.get("rho"))
     else:
@@ -180,7 +182,7 @@ def constant(L: RowLedger, field: str) -> None:
         L.add(field, BACKED, "proven exactly: constant >= the proven constant",
               L.check.get("constant_proven"))
     else:
-        L.add(field, CONTRADICTED, _why(L.check, "constant"))
+        L.add(field, CONTRADICTED, why_not(L.check, "constant"))
 
 
 def cap(L: RowLedger, field: str) -> None:
@@ -211,7 +213,6 @@ def cap(L: RowLedger, field: str) -> None:
 def noise_quadratic(L: RowLedger, field: str) -> None:
     """The sensitivity on the quadratics: recomputed in floating point."""
     from sosalgo.model import bind
-    from sosalgo.sensitivity.run import _quadratic
 
     v = L.row.get(field)
     if v is None:
@@ -219,7 +220,7 @@ def noise_quadratic(L: RowLedger, field: str) -> None:
         return
     try:
         theta = L.row.get("theta") or None
-        got = _quadratic(L.spec, bind(L.spec, float(L.row["kappa"]), theta))[0].gamma
+        got = quadratic_noise(L.spec, bind(L.spec, float(L.row["kappa"]), theta))
     except Exception as exc:  # noqa: BLE001 - a value that cannot be recomputed
         L.add(field, UNSUPPORTED, f"cannot be recomputed: {type(exc).__name__}")
         return
@@ -227,6 +228,17 @@ def noise_quadratic(L: RowLedger, field: str) -> None:
     L.add(field, RECOMPUTED if ok else CONTRADICTED,
           "recomputed in floating point (a sampled value, not a proof)"
           if ok else "differs from its recomputation", got)
+
+
+def quadratic_noise(spec: Any, alg: Any) -> float:
+    """The sensitivity on the quadratics, as ``analyze --noise`` computes it."""
+    if spec.composite:
+        from sosalgo.sensitivity.composite import composite_noise_quadratic
+
+        return composite_noise_quadratic(alg)[0]
+    from sosalgo.sensitivity.quadratic import noise_quadratic as on_quadratics
+
+    return on_quadratics(alg).gamma
 
 
 def references(L: RowLedger, field: str) -> None:
@@ -346,7 +358,7 @@ HANDLERS: dict[str, Any] = {
     "noise_certificate": noise("noise"), "noise_lag": lag_of("noise_certificate"),
     "lag": lag_of("certificate"),
     "noise_limsup": noise("noise_limsup"), "noise_limsup_certificate": noise("noise_limsup"),
-    "noise_limsup_check": noise("noise_limsup"),
+    "noise_limsup_check": check_kind("noise_limsup"),
     "noise_limsup_lag": lag_of("noise_limsup_certificate"),
     "noise_limsup_rho": limsup_rho,
     "noise_quadratic": noise_quadratic, "references": references, "max_rate": cap,

@@ -26,13 +26,14 @@ ROUNDING = Fraction(1, 2**52)  # the relative rounding of a reported float targe
 
 def _bound(L: RowLedger) -> Any:
     """The re-proof of the row's bound certificate (cached on the ledger), or a reason."""
-    if not hasattr(L, "_bound"):
-        L._bound = _reprove(L)
-    return L._bound
+    if "bound" not in L.cache:
+        L.cache["bound"] = _reprove(L)
+    return L.cache["bound"]
 
 
 def _reprove(L: RowLedger) -> Any:
     from sosalgo.certificates import get_family
+    from sosalgo.design import bound_model
     from sosalgo.design.boundcheck import check_bound_certificate
 
     row = L.row
@@ -44,8 +45,10 @@ def _reprove(L: RowLedger) -> Any:
     try:
         fam = get_family(str(row.get("family") or L.spec.certificate),
                          {"lag": row.get("lag")} if row.get("lag") is not None else None)
-        return check_bound_certificate(L.spec, float(row["kappa"]), list(row["free"]), fam,
-                                       cert)
+        model = bound_model(L.spec, float(row["kappa"]), list(row["free"]), fam)
+        if model is None:
+            return f"the {fam.name} family has no box-wide dual bound"
+        return check_bound_certificate(model, cert)
     except (KeyError, TypeError, ValueError) as exc:
         return f"the bound certificate cannot be re-proven: {exc}"
 

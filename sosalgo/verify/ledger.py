@@ -29,7 +29,8 @@ from typing import Any
 
 from sosalgo.spec import Spec
 
-__all__ = ["BAD", "ledger_counts", "row_ledger", "vouched"]
+__all__ = ["BAD", "RowLedger", "entry", "frac", "ledger_counts", "rate_ok", "row_ledger",
+           "vouched", "why_not"]
 
 BACKED, RECOMPUTED, CONTRADICTED = "backed", "recomputed", "contradicted"
 UNSUPPORTED, CONTEXT = "unsupported", "context"
@@ -89,7 +90,7 @@ def frac(x: Any) -> Fraction | None:
         return None
 
 
-def _ok(check: Mapping[str, Any] | None) -> bool:
+def rate_ok(check: Mapping[str, Any] | None) -> bool:
     """The rate (or constant) check proved its certificate exactly and no simulation
     found a violation."""
     if not check or check.get("noise_only"):
@@ -99,7 +100,7 @@ def _ok(check: Mapping[str, Any] | None) -> bool:
     return check.get("verified") == "exact" and not bad_sim
 
 
-def _why(check: Mapping[str, Any] | None, what: str = "rate") -> str:
+def why_not(check: Mapping[str, Any] | None, what: str = "rate") -> str:
     if not check or check.get("noise_only"):
         return f"no {what} certificate was checked"
     sim = check.get("simulation")
@@ -113,24 +114,23 @@ class RowLedger:
     """The entries of one row: a handler per field, the rest unknown (unsupported)."""
 
     def __init__(self, spec: Spec, i: int | None, row: Mapping[str, Any],
-                 check: Mapping[str, Any] | None, extra: Mapping[str, Callable] | None = None):
+                 check: Mapping[str, Any] | None,
+                 handlers: Mapping[str, Callable] | None = None):
         self.spec, self.i, self.row, self.check = spec, i, row, check
         self.out: list[dict[str, Any]] = []
-        self.extra = dict(extra or {})
+        self.handlers = dict(handlers or {})
+        self.cache: dict[str, Any] = {}  # proofs shared by several fields of the row
 
     def add(self, field: str, status: str, reason: str, proven: Any = None) -> None:
         self.out.append(entry(self.i, field, self.row.get(field), status, reason, proven))
 
     def rate_ok(self) -> bool:
-        return _ok(self.check)
+        return rate_ok(self.check)
 
     def run(self) -> list[dict[str, Any]]:
-        from sosalgo.verify.claims import HANDLERS
-
-        handlers = {**HANDLERS, **self.extra}
         for field in self.row:
-            if field in handlers:
-                handlers[field](self, field)
+            if field in self.handlers:
+                self.handlers[field](self, field)
             elif field in RUN_FIELDS:
                 self.add(field, CONTEXT, "how the result was computed, not a claim")
             elif field in CONDITION_FIELDS:
@@ -143,5 +143,7 @@ class RowLedger:
 
 def row_ledger(spec: Spec, i: int | None, row: Mapping[str, Any],
                check: Mapping[str, Any] | None,
-               extra: Mapping[str, Callable] | None = None) -> list[dict[str, Any]]:
-    return RowLedger(spec, i, row, check, extra).run()
+               handlers: Mapping[str, Callable] | None = None) -> list[dict[str, Any]]:
+    """The entries of one row: ``handlers`` (field -> function(ledger, field)) for the
+    claims, the rest context (known run fields) or unsupported (unknown fields)."""
+    return RowLedger(spec, i, row, check, handlers).run()

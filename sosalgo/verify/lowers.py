@@ -64,33 +64,14 @@ def _cycle(spec: Any, kappa: float, theta: Any, cyc: Any, c: Fraction) -> tuple:
 
 def _quadratic(spec: Any, kappa: float, theta: Any, wit: Mapping[str, Any],
                c: Fraction) -> tuple:
-    from sosalgo.witnesses.brackets import (
-        _curvature_box,
-        _loop_exact,
-        _observable,
-        bracketed,
-        has_root_outside,
-        output_part,
-    )
-    from sosalgo.witnesses.method import precision
+    from sosalgo.witnesses.brackets import bracketed, quadratic_witness_fails
 
-    bk = bracketed(spec, kappa, theta)
-    box = _curvature_box(bk)
-    names = [name for name, _, _ in bk.am.functions]
     curv = wit.get("curvatures")
-    if box is None or not isinstance(curv, Mapping) or set(curv) != set(names):
-        return CONTRADICTED, "the curvatures do not match the spec's functions", None
-    q = [Fraction(str(curv[n])) for n in names]
-    if not all(lo <= v <= hi for v, (lo, hi) in zip(q, box, strict=True)):
-        return CONTRADICTED, "a curvature outside its function's class", None
-    with precision():
-        M, out = _loop_exact(bk.am, q)
-        if not _observable(M, out):
-            M, out = output_part(M, out)
-        if not _observable(M, out):
-            return CONTRADICTED, "the slow mode is not seen by the output", None
-        if not has_root_outside(M.charpoly().coeffs(), c):
-            return CONTRADICTED, "no root of the quadratic's loop is proven outside it", None
+    if not isinstance(curv, Mapping):
+        return CONTRADICTED, "the witness names no curvatures", None
+    why = quadratic_witness_fails(bracketed(spec, kappa, theta), curv, c)
+    if why is not None:
+        return CONTRADICTED, why, None
     return BACKED, ("re-proven: a mode of the loop on quadratics with these curvatures "
                     "is slower (Schur-Cohn in balls)"), str(c)
 
