@@ -1,6 +1,6 @@
 """Result documents (``analyze --json``, ``design --json``, ``pareto --json``): reading
-them, choosing the spec they are checked against, and verifying every certificate they hold
-(:func:`verify_document`, the Python twin of ``sosalgo verify``)."""
+them, choosing the spec they are checked against, verifying every certificate they hold and
+every claim they make (:func:`verify_document`, the Python twin of ``sosalgo verify``)."""
 
 from __future__ import annotations
 
@@ -143,7 +143,11 @@ def verify_document(result: str | Path | Mapping[str, Any], spec: Spec | str | P
     """Verify every certificate of a result document (a path or the parsed dict).
 
     Returns ``{"spec", "source", "results"}`` (one check per row, None for a row that claims
-    no certificate) and ``notes`` (e.g. that ``spec`` differs from the embedded one).
+    no certificate), ``notes`` (e.g. that ``spec`` differs from the embedded one), and the
+    claim ledger: ``ledger`` (every field of every row: backed, recomputed, contradicted,
+    unsupported or context, :mod:`sosalgo.verify.ledger`), ``claims`` (the count per
+    status) and ``vouched`` (True only when every claim is backed; ``sosalgo verify``
+    exits 3 otherwise).
     Rational certificates go to ``out_dir`` when given (nothing is written otherwise).
     A malformed document raises InputError naming it (its path, or ``name``); failed
     checks are results, not errors (:func:`sosalgo.verify.results.check_failed`)."""
