@@ -229,11 +229,12 @@ def test_every_certificate_deleted_is_refused_deep(tmp_path, docs, kind):
 
 # --------------------------------------------------------------------------- design
 def test_design_claims_made_stronger(tmp_path, docs):
-    """The issue's cases: the lower bound raised (above the certified rate), the floor
+    """The lower bound raised (above the certified rate), the floor
     raised, a relaxation marked proved at a higher target, rho at values lowered."""
     doc = docs["design"]
     kappa = doc["kappa"]
-    assert doc["lower_bound"] <= doc["rho_certified"]
+    # gradient descent's best rate over h is (kappa - 1)/(kappa + 1) (h = 2/(m + L))
+    assert doc["lower_bound"] <= (kappa - 1) / (kappa + 1) <= doc["rho_certified"] + 1e-7
     assert math.isclose(doc["floor"], 1 - 1 / math.sqrt(kappa), rel_tol=1e-15)
     cases = []
     for field, value in [("lower_bound", doc["rho_certified"] + 1e-6),
@@ -339,3 +340,18 @@ def test_non_finite_numbers_are_one_line_errors(tmp_path, docs, value):
     assert res.exit_code == 2, res.output
     err = res.stderr.strip().splitlines()
     assert len(err) == 1 and "bad.json" in err[0] and "rows[0].P[0][0]" in err[0]
+
+
+def test_bound_certificate_with_forged_matrices_is_refused(tmp_path, docs):
+    """Every dual proof's matrices replaced by zeros (valid encoding, no proof left)."""
+    import base64
+
+    doc = copy.deepcopy(docs["design"])
+    proofs = doc["bound_certificate"]["proofs"]
+    dual = [p for p in proofs if p["how"] == "dual"]
+    assert dual and doc["lower_bound"] > 0
+    for p in dual:
+        for z in p["Z"]:
+            n = math.prod(z["shape"])
+            z["f64"] = base64.b64encode(bytes(8 * n)).decode()
+    assert refused(verify(tmp_path, doc))

@@ -33,6 +33,7 @@ __all__ = ["BOUND_CERTIFICATE_KIND", "BoundCheck", "bound_certificate",
 
 BOUND_CERTIFICATE_KIND = "dual-boxes"
 MAX_PROOFS = 200_000
+MAX_SPLITS = 64  # halvings per side (the search stops below 1e-10 ~ 2^-33)
 
 
 def encode(a: Any) -> dict[str, Any]:
@@ -120,7 +121,7 @@ def _one_proof(model: Any, prover: Any, modes: Any, p: Mapping[str, Any]
     z, w = _finite(np.asarray(p["z"], float)), _finite(np.asarray(p["w"], float))
     r = float(p["r"])
     if z.shape != (k,) or w.shape != (k,) or not 0 <= r <= 1 or np.any(w < 0) or \
-            np.any(np.abs(z) + w > 1):
+            np.any(np.abs(z) + w > 1) or not all(map(_dyadic, w)):
         return None
     if p["how"] == "mode":
         ok = modes.proves(z, w, r)
@@ -131,6 +132,13 @@ def _one_proof(model: Any, prover: Any, modes: Any, p: Mapping[str, Any]
     else:
         return None
     return ((*z.tolist(), *w.tolist()), r) if ok else None
+
+
+def _dyadic(w: float) -> bool:
+    """A half-width of the search's boxes: 0 or 2^-j, j <= MAX_SPLITS (so the walk of
+    :func:`_cover` stays shallow whatever the certificate says)."""
+    mant, exp = math.frexp(float(w))
+    return w == 0 or (mant == 0.5 and -MAX_SPLITS <= exp - 1 <= 0)
 
 
 def _cover(best: dict[tuple, float], boxes: np.ndarray, z: np.ndarray, w: np.ndarray
