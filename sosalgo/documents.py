@@ -163,7 +163,7 @@ def verify_document(result: str | Path | Mapping[str, Any], spec: Spec | str | P
         return {"spec": chosen.name, "source": src, "results": [check_witness(doc, chosen)],
                 "notes": [] if note is None else [note]}
     from sosalgo.pareto import is_pareto_document
-    from sosalgo.verify.documents import document_ledger
+    from sosalgo.verify.document_ledger import document_ledger
     from sosalgo.verify.ledger import ledger_counts, vouched
 
     check_numbers(doc, where)
