@@ -12,9 +12,11 @@ rows emptied, fields added.
 
 from __future__ import annotations
 
+import base64
 import copy
 import json
 import math
+import zlib
 from fractions import Fraction
 
 import pytest
@@ -255,14 +257,27 @@ def test_design_claims_made_stronger(tmp_path, docs):
     _walk(tmp_path, doc, "design", cases)
 
 
+def unpack(cert):
+    """The proofs of a bound certificate (the documented json+zlib+base64 encoding)."""
+    assert cert["encoding"] == "json+zlib+base64"
+    return json.loads(zlib.decompress(base64.b64decode(cert["data"])))
+
+
+def pack(cert, proofs):
+    raw = json.dumps(proofs, separators=(",", ":")).encode()
+    return {**cert, "proofs": len(proofs), "data": base64.b64encode(zlib.compress(raw)).decode()}
+
+
 def test_partial_bound_marked_proved_is_refused(tmp_path, docs):
     """A bound certificate cut to its first proofs no longer covers Θ: the document
     still claiming status proved (and its bound) is refused."""
     doc = copy.deepcopy(docs["design"])
-    proofs = doc["bound_certificate"]["proofs"]
-    assert len(proofs) > 1
-    doc["bound_certificate"]["proofs"] = proofs[:1]
+    proofs = unpack(doc["bound_certificate"])
+    assert len(proofs) > 1 and doc["bound_certificate"]["proofs"] == len(proofs)
+    doc["bound_certificate"] = pack(doc["bound_certificate"], proofs[:1])
     assert refused(verify(tmp_path, doc))
+    assert verify(tmp_path, {**doc, "bound_certificate": pack(
+        doc["bound_certificate"], proofs)}).exit_code == 0  # repacked whole: backed again
 
 
 def test_objective_design_claims_made_stronger(tmp_path, docs):
@@ -352,14 +367,13 @@ def test_non_finite_numbers_are_one_line_errors(tmp_path, docs, value):
 
 def test_bound_certificate_with_forged_matrices_is_refused(tmp_path, docs):
     """Every dual proof's matrices replaced by zeros (valid encoding, no proof left)."""
-    import base64
-
     doc = copy.deepcopy(docs["design"])
-    proofs = doc["bound_certificate"]["proofs"]
+    proofs = unpack(doc["bound_certificate"])
     dual = [p for p in proofs if p["how"] == "dual"]
     assert dual and doc["lower_bound"] > 0
     for p in dual:
         for z in p["Z"]:
             n = math.prod(z["shape"])
             z["f64"] = base64.b64encode(bytes(8 * n)).decode()
+    doc["bound_certificate"] = pack(doc["bound_certificate"], proofs)
     assert refused(verify(tmp_path, doc))

@@ -21,7 +21,9 @@ from __future__ import annotations
 
 import base64
 import binascii
+import json
 import math
+import zlib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -33,6 +35,8 @@ __all__ = ["BOUND_CERTIFICATE_KIND", "BoundCheck", "bound_certificate",
 
 BOUND_CERTIFICATE_KIND = "dual-boxes"
 MAX_PROOFS = 200_000
+MAX_BYTES = 256 * 2**20  # inflated size of a certificate's proofs
+ENCODING = "json+zlib+base64"
 MAX_SPLITS = 64  # halvings per side (the search stops below 1e-10 ~ 2^-33)
 
 
@@ -73,12 +77,33 @@ def _bounds(bounds: Any) -> Any:
 
 
 def bound_certificate(state: Any, free: Sequence[str]) -> dict[str, Any]:
-    """The JSON certificate of a bound search's state (every proof it made)."""
+    """The JSON certificate of a bound search's state: every proof it made, as the
+    compact JSON list of proofs deflated and base64-encoded (``data``; one string keeps
+    the document small whatever its indentation)."""
+    proofs = [{"z": p["z"].tolist(), "w": p["w"].tolist(), "r": p["r"], "how": p["how"],
+               "Z": _mats(p["Z"]), "bounds": _bounds(p["bounds"]),
+               "covers": _mats(p["covers"])} for p in state.proofs]
+    raw = json.dumps(proofs, separators=(",", ":")).encode()
     return {"kind": BOUND_CERTIFICATE_KIND, "free": list(free), "target_r": state.target,
-            "proofs": [{"z": p["z"].tolist(), "w": p["w"].tolist(), "r": p["r"],
-                        "how": p["how"], "Z": _mats(p["Z"]),
-                        "bounds": _bounds(p["bounds"]), "covers": _mats(p["covers"])}
-                       for p in state.proofs]}
+            "proofs": len(proofs), "encoding": ENCODING,
+            "data": base64.b64encode(zlib.compress(raw, 9)).decode()}
+
+
+def _proofs(cert: Mapping[str, Any]) -> list[Any]:
+    """The list of proofs of a certificate (ValueError when malformed or too large)."""
+    if cert.get("encoding") != ENCODING or not isinstance(cert.get("data"), str):
+        raise ValueError(f"encoding: expected {ENCODING!r} with its data")
+    try:
+        inflate = zlib.decompressobj()
+        raw = inflate.decompress(base64.b64decode(cert["data"], validate=True), MAX_BYTES)
+        if inflate.unconsumed_tail:
+            raise ValueError(f"data: more than {MAX_BYTES} bytes")
+        proofs = json.loads(raw)
+    except (zlib.error, binascii.Error, UnicodeDecodeError, RecursionError) as exc:
+        raise ValueError(f"data: not {ENCODING} ({type(exc).__name__})") from None
+    if not isinstance(proofs, list) or len(proofs) > MAX_PROOFS:
+        raise ValueError(f"data: expected a list of at most {MAX_PROOFS} proofs")
+    return proofs
 
 
 @dataclass
@@ -169,9 +194,7 @@ def check_bound_certificate(model: Any, cert: Mapping[str, Any]) -> BoundCheck:
 
     if not isinstance(cert, Mapping) or cert.get("kind") != BOUND_CERTIFICATE_KIND:
         raise ValueError(f"kind: expected {BOUND_CERTIFICATE_KIND!r}")
-    proofs = cert.get("proofs")
-    if not isinstance(proofs, list) or len(proofs) > MAX_PROOFS:
-        raise ValueError(f"proofs: expected a list of at most {MAX_PROOFS} proofs")
+    proofs = _proofs(cert)
     prover = BoxProver(model.poly, model.structure.dep,
                        [(b, vars_) for b, vars_, _ in model.structure.cone])
     best: dict[tuple, float] = {}
