@@ -394,11 +394,13 @@ def grid(spec_path: str, kappa: tuple[str, ...], points: int, free: str | None, 
 @handle_errors
 def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
            no_simulate: bool, certificate: str | None, lag: int | None) -> None:
-    """Verify every certificate of an `analyze --json`, `design --json` or `pareto --json`
-    result (rates, and noise bounds where the result has them), and every claim of a
-    `pep --json` document or a pep witness file (docs/pep.md).
+    """Verify every claim of an `analyze --json`, `design --json` or `pareto --json`
+    result (rates, bounds, noise bounds, constants): a ledger of each claim, backed,
+    contradicted or unsupported (docs/verify.md); and every claim of a `pep --json`
+    document or a pep witness file (docs/pep.md).
 
-    Exit code 3 when some certificate fails to verify. Python: sosalgo.verify_document.
+    Exit code 3 when some claim is not backed, or nothing is claimed. Python:
+    sosalgo.verify_document.
     """
     from sosalgo.documents import read_result, result_rows, verify_document
     from sosalgo.inputs import writable
@@ -431,7 +433,7 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
     if as_json:
         click.echo(json.dumps(res, indent=2))
     else:
-        from sosalgo.report.checks import checks_table
+        from sosalgo.report.checks import checks_table, ledger_lines
         from sosalgo.report.pareto import noise_check_lines
 
         click.echo(checks_table(rows, res["results"]))
@@ -439,10 +441,17 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
             click.echo(line)
         click.echo(f"rational certificates in {folder}" if can_write
                    else "no certificate files written")
+        for line in ledger_lines(res["ledger"], res["claims"]):
+            click.echo(line)
+    edited = " (with a --spec that differs from the result's own spec)" if res[
+        "notes"] and spec_override else ""
     if failed:
-        edited = " (with a --spec that differs from the result's own spec)" if res[
-            "notes"] and spec_override else ""
         raise VerificationError(f"{len(failed)} certificate(s) failed verification{edited}")
+    if not res["vouched"]:
+        bad = res["claims"]["contradicted"] + res["claims"]["unsupported"]
+        raise VerificationError(f"{bad} claim(s) not backed{edited}" if bad else
+                                "nothing to vouch for: the document claims nothing verify "
+                                "can back")
 
 
 # --------------------------------------------------------------------------- pep

@@ -1,10 +1,11 @@
 """Result documents (``analyze --json``, ``design --json``, ``pareto --json``): reading
-them, choosing the spec they are checked against, and verifying every certificate they hold
-(:func:`verify_document`, the Python twin of ``sosalgo verify``)."""
+them, choosing the spec they are checked against, verifying every certificate they hold and
+every claim they make (:func:`verify_document`, the Python twin of ``sosalgo verify``)."""
 
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -15,6 +16,7 @@ from sosalgo.spec import Spec
 __all__ = ["MAX_RESULT_BYTES", "read_result", "result_rows", "result_spec", "verify_document"]
 
 MAX_RESULT_BYTES = 200_000_000
+MAX_INTEGER = 2**1023  # larger integers have no float value
 
 
 def read_result(path: str | Path) -> dict[str, Any]:
@@ -87,6 +89,23 @@ def result_spec(doc: Mapping[str, Any], where: str = "result",
     return chosen, src if isinstance(src, str) else None, note
 
 
+def check_numbers(doc: Any, where: str) -> None:
+    """InputError naming the first field that holds NaN, an infinity or an integer beyond
+    the float range (sosalgo never writes one; every check works on floats or their exact
+    values)."""
+    stack: list[tuple[str, Any]] = [("", doc)]
+    while stack:
+        path, v = stack.pop()
+        if isinstance(v, dict):
+            stack += [(f"{path}.{k}" if path else str(k), x) for k, x in v.items()]
+        elif isinstance(v, list):
+            stack += [(f"{path}[{i}]", x) for i, x in enumerate(v)]
+        elif isinstance(v, float) and not math.isfinite(v) or (
+                isinstance(v, int) and not isinstance(v, bool) and abs(v) > MAX_INTEGER):
+            shown = repr(v) if isinstance(v, float) else f"an integer of {len(str(v))} digits"
+            raise InputError(f"{where}: {path}: {shown} is not a finite number")
+
+
 def _difference_note(src: str, where: str, embedded: str, text: str) -> str:
     from sosalgo.batch.store import describe_difference
 
@@ -96,12 +115,14 @@ def _difference_note(src: str, where: str, embedded: str, text: str) -> str:
 
 
 def _verify_rows(spec: Spec, rows: list[dict[str, Any]], out_dir: Path | None,
-                 simulate: bool, fam: Any) -> list[dict[str, Any] | None]:
+                 simulate: bool, fam: Any, pareto: bool = False) -> list[dict[str, Any] | None]:
     """The rows' checks; the known tunings of a pareto document (``reference``) against
-    the spec they are written in (:func:`sosalgo.pareto.reference_spec`)."""
+    the spec they are written in (:func:`sosalgo.pareto.reference_spec`). Only a pareto
+    document has such rows: elsewhere ``reference`` is ignored (the row is checked
+    against the document's spec, and the ledger refuses the field)."""
     from sosalgo.verify.results import verify_document_rows
 
-    if not any(r.get("reference") for r in rows):
+    if not pareto or not any(r.get("reference") for r in rows):
         return verify_document_rows(spec, rows, out_dir, simulate, family=fam)
     from sosalgo.pareto import reference_spec
 
@@ -122,7 +143,11 @@ def verify_document(result: str | Path | Mapping[str, Any], spec: Spec | str | P
     """Verify every certificate of a result document (a path or the parsed dict).
 
     Returns ``{"spec", "source", "results"}`` (one check per row, None for a row that claims
-    no certificate) and ``notes`` (e.g. that ``spec`` differs from the embedded one).
+    no certificate), ``notes`` (e.g. that ``spec`` differs from the embedded one), and the
+    claim ledger: ``ledger`` (every field of every row: backed, recomputed, contradicted,
+    unsupported or context, :mod:`sosalgo.verify.ledger`), ``claims`` (the count per
+    status) and ``vouched`` (True only when every claim is backed; ``sosalgo verify``
+    exits 3 otherwise).
     Rational certificates go to ``out_dir`` when given (nothing is written otherwise).
     A malformed document raises InputError naming it (its path, or ``name``); failed
     checks are results, not errors (:func:`sosalgo.verify.results.check_failed`)."""
@@ -141,6 +166,11 @@ def verify_document(result: str | Path | Mapping[str, Any], spec: Spec | str | P
                   "pep-witness" else verify_pep_document(doc, chosen, where))
         return {"spec": chosen.name, "source": src, "results": checks,
                 "notes": [] if note is None else [note]}
+    from sosalgo.pareto import is_pareto_document
+    from sosalgo.verify.document_ledger import document_ledger
+    from sosalgo.verify.ledger import ledger_counts, vouched
+
+    check_numbers(doc, where)
     rows = result_rows(doc, where)
     chosen, src, note = result_spec(doc, where, spec)
     fam = None
@@ -148,9 +178,11 @@ def verify_document(result: str | Path | Mapping[str, Any], spec: Spec | str | P
         fam = select_families(chosen, certificate, options, single=True)[0]
     try:
         checks = _verify_rows(chosen, rows, None if out_dir is None else Path(out_dir),
-                              simulate, fam)
+                              simulate, fam, is_pareto_document(doc))
     except ResultError as exc:
         raise InputError(f"{where}: {exc}") from None
+    ledger = document_ledger(chosen, doc, rows, checks)
     return {"spec": chosen.name, "source": src, "results": checks,
-            "notes": [] if note is None else [note]}
+            "notes": [] if note is None else [note], "ledger": ledger,
+            "claims": ledger_counts(ledger), "vouched": vouched(ledger)}
 

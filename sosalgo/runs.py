@@ -8,6 +8,7 @@ command prints with ``--json``. File names come from :mod:`sosalgo.schema`.
 
 from __future__ import annotations
 
+import json
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -206,6 +207,8 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
         docs = [fresh.get(float(r["kappa"])) or design_csv_to_json(spec, opts["free"], r, fam)
                 for r in rows]
         for d in docs:
+            _design_certificates(csv_path, d)
+        for d in docs:
             d["source"], d["spec_text"] = spec.source, text
         how = ("dual certificates" if method == "dual" else f"moment relaxation, {scalarize}")
         figs = (rep.design_figure(spec, opts["free"], rows, docs, stem, fam, how)
@@ -218,6 +221,32 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
             d["verification"] = v
     return {"spec": spec.name, "source": spec.source, "spec_text": text, "csv": str(csv_path),
             "figures": [str(p) for p in figs], "rows": docs, "estimate": est.to_dict()}
+
+
+DESIGN_CERTIFICATES = ("bound_certificate", "values_certificate")
+
+
+def _design_certificates(csv_path: Path, doc: dict[str, Any]) -> None:
+    """The certificates a design row's CSV cells have no room for (the proofs of its
+    lower bound, the certificate of its rate at the spec's values) kept beside the CSV,
+    ``<csv stem>-k<kappa>-certificates.json``: written with a fresh result, attached
+    again to a result read back from the CSV when they are for its numbers (``sosalgo
+    verify`` re-proves them either way). Called under the CSV's output lock."""
+    from sosalgo.schema import kappa_label
+    from sosalgo.verify.exact import write_certificate
+
+    path = csv_path.with_name(f"{csv_path.stem}-k{kappa_label(doc['kappa'])}"
+                              "-certificates.json")
+    key = {k: doc.get(k) for k in ("lower_bound", "rho_at_values", "theta", "free")}
+    if any(k in doc for k in DESIGN_CERTIFICATES):
+        write_certificate({"for": key, **{k: doc.get(k) for k in DESIGN_CERTIFICATES}}, path)
+        return
+    try:
+        kept = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return
+    if isinstance(kept, dict) and kept.get("for") == json.loads(json.dumps(key)):
+        doc.update({k: kept[k] for k in DESIGN_CERTIFICATES if kept.get(k) is not None})
 
 
 def grid_run(spec: Spec | str | Path, kappa: Kappas, out_dir: str | Path = "outputs",

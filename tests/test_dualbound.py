@@ -12,7 +12,7 @@ import pytest
 
 from sosalgo.analysis import analyze_algorithm
 from sosalgo.certificates import get_family
-from sosalgo.design import _bound_model, prove_bound
+from sosalgo.design import bound_model, prove_bound
 from sosalgo.design.dualbound import _Box, dual_structure
 from sosalgo.design.polymodel import evaluate_tensor
 from sosalgo.model import evaluate_algorithm
@@ -23,7 +23,7 @@ from .conftest import SPECS
 
 def _search(name, free, kappa, T, record=True, modes=True, seconds=15.0):
     spec = load_spec(SPECS / f"{name}.yaml")
-    bm = _bound_model(spec, kappa, free, get_family("theorem1"))
+    bm = bound_model(spec, kappa, free, get_family("theorem1"))
     if not modes:
         bm.modes = None
     search = bm.search(T**2, record=record)
@@ -48,7 +48,7 @@ def test_exact_data_match_the_family_numeric_data(name, free, kappa):
     equal the numeric blocks the analysis builds there (a second, float, builder)."""
     spec = load_spec(SPECS / f"{name}.yaml")
     fam = get_family("theorem1")
-    poly = _bound_model(spec, kappa, free, fam).poly
+    poly = bound_model(spec, kappa, free, fam).poly
     rng = np.random.default_rng(0)
     for _ in range(4):
         z = rng.uniform(-1, 1, size=len(free))
@@ -119,7 +119,7 @@ def test_tampered_dual_certificate_is_not_proven():
     """The ball-arithmetic proof rejects a certificate whose margin was removed: the
     float screening's own Z with its constant term lowered until h(u) <= 0 somewhere."""
     spec = load_spec(SPECS / "gradient.yaml")
-    bm = _bound_model(spec, 10.0, ["h"], get_family("theorem1"))
+    bm = bound_model(spec, 10.0, ["h"], get_family("theorem1"))
     search = bm.search((9 / 11 - 1e-3) ** 2)
     box = _Box(np.array([0.5]), np.array([0.05]))
     T2 = search.state.target
@@ -133,7 +133,7 @@ def test_tampered_dual_certificate_is_not_proven():
 def test_unsupported_family_structure_gives_no_bound():
     """A family whose variables are not all in θ-independent cones has no box bound."""
     spec = load_spec(SPECS / "gradient.yaml")
-    poly = _bound_model(spec, 10.0, ["h"], get_family("theorem1")).poly
+    poly = bound_model(spec, 10.0, ["h"], get_family("theorem1")).poly
     poly.coef = [poly.coef[0]]  # drop the P and lambda cone blocks
     poly.names, poly.strict = poly.names[:1], poly.strict[:1]
     assert dual_structure(poly) is None

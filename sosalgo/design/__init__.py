@@ -35,6 +35,7 @@ import numpy as np
 from sosalgo.analysis import AnalysisResult, analyze_spec, jsonable, spec_family
 from sosalgo.batch.executor import show_phase
 from sosalgo.certificates import CertificateFamily, get_family
+from sosalgo.design.boundcheck import bound_certificate
 from sosalgo.design.dualbound import ARITHMETIC, BoundSearch, BoundStatus, dual_structure
 from sosalgo.design.floor import class_floor
 from sosalgo.design.polymodel import check_polynomial
@@ -42,8 +43,8 @@ from sosalgo.model import ModelError, bind, design_box
 from sosalgo.solvers import solve_margin
 from sosalgo.spec import Spec
 
-__all__ = ["BoundResult", "DesignResult", "design", "design_problem", "prove_bound",
-           "relaxation_bound", "METHODS"]
+__all__ = ["BoundModel", "BoundResult", "DesignResult", "bound_model", "design",
+           "design_problem", "prove_bound", "relaxation_bound", "METHODS"]
 
 
 def __getattr__(name: str) -> Any:
@@ -84,6 +85,8 @@ class DesignResult:
     time_limited: bool = False
     family: str = "theorem1"
     lag: int | None = None
+    bound_certificate: dict[str, Any] | None = None  # the proofs of a dual lower bound
+    values_certificate: dict[str, Any] | None = None  # the certificate of rho_at_values
 
     def to_dict(self) -> dict[str, Any]:
         """JSON document of ``sosalgo design --json`` (a contract: extend, never rename)."""
@@ -107,7 +110,10 @@ class DesignResult:
                              else self.rho_certified - self.floor),
             "time_limited": self.time_limited,
             "family": self.family,
-        } | ({} if self.lag is None else {"lag": self.lag})
+        } | ({} if self.lag is None else {"lag": self.lag}) | {
+            k: v for k, v in (("bound_certificate", self.bound_certificate),
+                              ("values_certificate", self.values_certificate))
+            if v is not None}
 
 
 def _rate(res: AnalysisResult | None) -> float:
@@ -231,7 +237,7 @@ def design(
     """
     t0 = time.perf_counter()
     free, box, family = _setup(spec, kappa, free, method, family)
-    model = _bound_model(spec, kappa, free, family) if method == "dual" else None
+    model = bound_model(spec, kappa, free, family) if method == "dual" else None
     run = _Run(spec, kappa, free, box, t0 + time_limit, on_step, family,
                bound=method == "moment" or model is not None)
     run.workers = _usable_workers(workers)
@@ -290,6 +296,8 @@ def _result(run: _Run, values_res: AnalysisResult | None, lb: float | None,
             relax: dict[str, Any], gap: float, method: str, seconds: float,
             time_limit: float) -> DesignResult:
     """The design's numbers: a bound above the certified rate is clipped to it."""
+    relax = dict(relax)
+    bound_cert = relax.pop("_certificate", None)
     rho_c = None if run.best is None else run.best.rho
     if lb is not None and rho_c is not None and lb > rho_c:
         run.log(f"bound {lb:.10f} above the certified rate {rho_c:.10f}: clipped to it")
@@ -311,6 +319,9 @@ def _result(run: _Run, values_res: AnalysisResult | None, lb: float | None,
         else values_res.rho,
         method=method, floor=run.floor, family=run.family.name,
         lag=run.family.options().get("lag"), time_limited=run.out_of_time and not gap_met,
+        bound_certificate=bound_cert,
+        values_certificate=None if values_res is None or not values_res.certified
+        else jsonable(values_res.certificate or {}),
     )
 
 
@@ -526,7 +537,7 @@ class BoundModel:
         return BoundSearch(self.poly, self.structure, target_r, self.modes, record=record)
 
 
-def _bound_model(spec: Spec, kappa: float, free: list[str],
+def bound_model(spec: Spec, kappa: float, free: list[str],
                  family: CertificateFamily) -> BoundModel | None:
     """The exact data of the family over Θ, or None when the family has no dual bound
     (no exact form, or variables outside θ-free cones)."""
@@ -601,6 +612,7 @@ def _dual_bound(run: _Run, model: BoundModel | None, gap: float
     lb = state.lower_bound()
     status = BoundStatus.PROVED if state.complete else BoundStatus.PARTIAL
     info = _bound_info(state, status, time.perf_counter() - t)
+    info["_certificate"] = bound_certificate(state, run.free)  # the document's, not info's
     run.log(f"dual bound ({status}): {state.dual} boxes by dual certificates, "
             f"{state.quadratic} by the mode argument, {info['boxes_open']} open, "
             + (f"bound {lb:.8f}" if lb > 0 else "no bound above 0 proven"))
@@ -640,7 +652,7 @@ def prove_bound(spec: Spec, kappa: float, target: float, free: Sequence[str] | N
     spec.check_free(free)
     fam = spec_family(spec) if family is None else (
         get_family(family) if isinstance(family, str) else family)
-    model = _bound_model(spec, kappa, free, fam)
+    model = bound_model(spec, kappa, free, fam)
     if model is None:
         return BoundResult(spec.name, float(kappa), free, target, None,
                            BoundStatus.UNSUPPORTED, {})

@@ -139,6 +139,7 @@ class BoundState:
     stuck: list[_Box] = field(default_factory=list)
     heap: list[tuple[tuple[float, float], int, _Box]] = field(default_factory=list)
     record: list[tuple[np.ndarray, np.ndarray, float, str]] | None = None  # proven boxes
+    proofs: list[dict] = field(default_factory=list)  # every proof made: the certificate
 
     def done(self, box: _Box, r: float, how: str) -> None:
         """Count a box proven empty for ρ² < r (``how``: dual / mode / inherited)."""
@@ -147,6 +148,14 @@ class BoundState:
         self.dual += how == "dual"
         if self.record is not None:
             self.record.append((box.zc.copy(), box.w.copy(), r, how))
+
+    def proved(self, box: _Box, r: float, how: str, Zs=None, bounds=None,
+               covers=None) -> None:
+        """Keep a proof that the box holds no certificate for ρ² in [0, r] (``how``:
+        dual, with its dual matrices and covers, or mode): the bound's certificate
+        (:func:`sosalgo.design.boundcheck.bound_certificate`)."""
+        self.proofs.append({"z": box.zc.copy(), "w": box.w.copy(), "r": float(r),
+                            "how": how, "Z": Zs, "bounds": bounds, "covers": covers})
 
     def lower_r(self) -> float:
         """Largest r proven: no θ of Θ is certified with ρ² below it."""
@@ -254,6 +263,7 @@ class BoundSearch:
                 mid = 0.5 * (lo + hi)
                 lo, hi = (mid, hi) if self._holds(data, Zs, mid) else (lo, mid)
         if lo > 0 and self.prover.proves(box.zc, box.w, Zs, (None, None), (0.0, lo), covers):
+            self.state.proved(box, lo, "dual", Zs, None, covers)
             return lo
         return 0.0
 
@@ -365,6 +375,7 @@ class BoundSearch:
                 st.done(box, box.lb, "inherited")
                 continue
             if self.modes is not None and self.modes.proves(box.zc, box.w, T2):
+                st.proved(box, T2, "mode")
                 st.done(box, T2, "mode")
                 continue
             data = self._box_data(box, box.w)
@@ -375,6 +386,7 @@ class BoundSearch:
                 Zs, bd, cov = out
                 if self._holds(data, Zs, 0.0, bd[0]) and self._holds(data, Zs, T2, bd[1]):
                     if self.prover.proves(box.zc, box.w, Zs, bd, (0.0, T2), cov):
+                        st.proved(box, T2, "dual", Zs, bd, cov)
                         st.done(box, T2, "dual")
                         continue
                     st.refuted += 1
@@ -408,6 +420,7 @@ class BoundSearch:
         Zs, bd, cov = out
         ok = self._holds(data, Zs, 0.0, bd[0]) and self._holds(data, Zs, r, bd[1])
         if ok and self.prover.proves(box.zc, box.w, Zs, bd, (0.0, r), cov):
+            self.state.proved(box, r, "dual", Zs, bd, cov)
             return r
         return 0.0
 

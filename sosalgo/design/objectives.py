@@ -598,6 +598,8 @@ def _objective_result(spec: Spec, kappa: float, names: list[str], fam: Certifica
                     "order": None, "flat": None, "ranks": []},
         seconds=seconds, steps=steps, rho_at_values=None if math.isinf(_rate(values))
         else _rate(values), method="search", floor=class_floor(spec, kappa),
+        values_certificate=None if math.isinf(_rate(values))
+        else jsonable(values.certificate or {}),
         time_limited=timed_out, family=fam.name, lag=fam.options().get("lag"),
         objective=objective, rho_check="none" if pt is None else pt.rho_check,
         rho_proven=None if pt is None else pt.rho_proven, max_rate=max_rate,

@@ -32,3 +32,20 @@ def _simulation(check: Mapping[str, Any] | None) -> str | None:
     if "skipped" in sim:
         return "skipped"
     return "ok" if sim["ok"] else "VIOLATION"
+
+
+def ledger_lines(ledger: Sequence[Mapping[str, Any]], counts: Mapping[str, int]
+                 ) -> list[str]:
+    """The claim ledger of ``sosalgo verify``: one line per claim that is backed,
+    recomputed, contradicted or unsupported (the context fields are only counted)."""
+    lines = ["claims:"]
+    for e in ledger:
+        if e["status"] == "context":
+            continue
+        where = "document" if e["row"] is None else f"row {e['row']}"
+        claimed = e["claimed"]
+        shown = f"{claimed:.10g}" if isinstance(claimed, float) else str(claimed)
+        lines.append(f"  {e['status']:<12} {where}: {e['field']} = {shown[:40]}"
+                     f" -- {e['reason']}")
+    lines.append("  " + ", ".join(f"{v} {k}" for k, v in counts.items()))
+    return lines

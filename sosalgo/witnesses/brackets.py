@@ -32,7 +32,8 @@ from flint import arb, arb_mat
 from sosalgo.witnesses.method import ArbMethod, arb_fraction, arb_method, arb_of, precision
 
 __all__ = ["BRACKET_KINDS", "Bracketed", "bracketed", "has_root_outside", "output_part",
-           "quadratic_bracket", "rate_bracket", "self_similar_bracket"]
+           "quadratic_bracket", "quadratic_witness_fails", "rate_bracket",
+           "self_similar_bracket"]
 
 BRACKET_KINDS = ("quadratic", "self-similar")  # the --brackets choices
 BELOW = (1e-12, 1e-9, 1e-7, 1e-5)  # rho_lower = r (1 - this): the first that is proven
@@ -227,6 +228,30 @@ def quadratic_bracket(bk: Bracketed) -> tuple[float, dict[str, Any]] | None:
                 M, row = output_part(M, row)
             if _observable(M, row):
                 return _prove_radius(bk, q, M)
+    return None
+
+
+def quadratic_witness_fails(bk: Bracketed, curvatures: Mapping[str, Any],
+                            rho: Fraction) -> str | None:
+    """Re-check a quadratic witness (``rho_lower_witness`` of kind "quadratic") from
+    scratch: None when ``rho`` is proven below the modulus of a mode of the loop on the
+    quadratics with these ``curvatures`` (each inside its function's curvature interval,
+    the mode seen by the output), else why not."""
+    box = _curvature_box(bk)
+    names = [name for name, _, _ in bk.am.functions]
+    if box is None or set(curvatures) != set(names):
+        return "the curvatures do not match the spec's functions"
+    q = [Fraction(str(curvatures[n])) for n in names]
+    if not all(lo <= v <= hi for v, (lo, hi) in zip(q, box, strict=True)):
+        return "a curvature outside its function's class"
+    with precision():
+        M, row = _loop_exact(bk.am, q)
+        if not _observable(M, row):
+            M, row = output_part(M, row)
+        if not _observable(M, row):
+            return "the slow mode is not seen by the output"
+        if not has_root_outside(M.charpoly().coeffs(), rho):
+            return "no root of the loop on these quadratics is proven outside it"
     return None
 
 
