@@ -43,7 +43,7 @@ RUN_FIELDS = frozenset({
     "spec", "time_limited", "time_limit", "timed_out", "evaluations", "check_kind",
     "check", "simulation", "constant_estimate", "verification", "index", "kind",
     "method", "rate_type", "gap_met", "objective", "objective_status", "description",
-    "free", "box", "name", "note", "notes"})
+    "free", "box", "name", "note", "notes", "estimate"})
 CONDITION_FIELDS = frozenset({"kappa", "family", "lag", "reference"})
 
 
