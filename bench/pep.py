@@ -1,9 +1,14 @@
-"""PEP timings and memory: N = 10, 20, 50 steps of Nesterov's method (two states, f/dist)
-and gradient descent (dist/dist) at kappa = 10, gradient descent on L-smooth convex f
-(m = 0, f/dist) and accelerated proximal gradient (output at the prox point) at N = 10,
-20; the SDP alone, with the exact certificate, and with the witness (``python -m bench
---only pep``). Each case runs in a fresh process so that its peak resident memory is its
-own."""
+"""PEP timings and memory (``python -m bench --only pep``), each case in a fresh process so
+that its peak resident memory is its own.
+
+1. N = 10, 20, 50 steps of Nesterov's method (two states, f/dist) and gradient descent
+   (dist/dist) at kappa = 10, gradient descent on L-smooth convex f (m = 0, f/dist) and
+   accelerated proximal gradient (output at the prox point) at N = 10, 20: the SDP
+   alone, with the exact certificate, and with the witness.
+2. Scaling: gradient descent and Nesterov at kappa = 10 against N (1..100; ``--quick``: a
+   few N): seconds and peak memory of the SDP with the exact proof (no witness), and the
+   Clarabel solves of the run by status (a spy on ``clarabel.DefaultSolver``).
+"""
 
 from __future__ import annotations
 
@@ -15,28 +20,52 @@ import sys
 CASES = (("nesterov", None, 10, (10, 20, 50)), ("gradient", "dist", 10, (10, 20, 50)),
          ("gradient-convex", None, None, (10, 20)),
          ("accelerated-proximal-gradient", None, 10, (10, 20)))
+SCALING = (("gradient", "dist"), ("nesterov", None))
+SCALING_STEPS = (1, 2, 5, 10, 20, 30, 50, 70, 100)
+QUICK_SCALING_STEPS = (5, 10, 20)
 
-CHILD = """
-import json, resource, sys, time
+# One case: spec, kappa, N, measure, exact, witness -> one JSON line (time, peak MB,
+# the proven bound, the Clarabel solves by status).
+SOSALGO_CHILD = """
+import collections, json, resource, sys, time
+import clarabel
+solves = collections.Counter()
+Solver = clarabel.DefaultSolver
+class Spy:
+    def __init__(self, *args):
+        self.inner = Solver(*args)
+    def solve(self):
+        sol = self.inner.solve()
+        solves[str(sol.status)] += 1
+        return sol
+clarabel.DefaultSolver = Spy
 from sosalgo.pep import pep
 spec, kappa, N, measure, exact, witness = json.loads(sys.argv[1])
 t0 = time.perf_counter()
 r = pep(f"specs/{spec}.yaml", kappa, N, measure, exact=exact, witness=witness)
 cert = r.certificate or {}
+proof = cert.get("proof") or {}
 chk = (r.witness or {}).get("check") or {}
 print(json.dumps({"tau": r.tau, "seconds": time.perf_counter() - t0,
                   "proven": cert.get("check_kind", "").startswith("exact"),
-                  "witness": chk.get("verified"),
+                  "tau_proven": proof.get("tau_proven_float") if proof.get("proven") else None,
+                  "witness": chk.get("verified"), "solves": dict(solves),
                   "mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
 """
 
 
 def one(spec: str, kappa: float | None, N: int, measure: str | None, exact: bool,
         witness: bool) -> dict:
-    out = subprocess.run([sys.executable, "-c", CHILD,
+    out = subprocess.run([sys.executable, "-c", SOSALGO_CHILD,
                           json.dumps([spec, kappa, N, measure, exact, witness])],
                          capture_output=True, text=True, check=True)
     return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def solves_text(solves: dict) -> str:
+    total = sum(solves.values())
+    parts = [f"{n} {s}" for s, n in sorted(solves.items(), key=lambda kv: -kv[1])]
+    return f"{total} ({', '.join(parts)})" if parts else "0"
 
 
 def run(quick: bool = False) -> None:
@@ -55,6 +84,22 @@ def run(quick: bool = False) -> None:
             print(f"| {spec}, {where} | {N} | {a['tau']:.6g} | {a['seconds']:.2f} | "
                   f"{a['mb']:.0f} | {b['seconds']:.2f} ({proven}) | {wt} | {wv} |",
                   flush=True)
+    scaling(quick)
+
+
+def scaling(quick: bool = False) -> None:
+    """Time, peak memory and solves against N (SDP with the exact proof, no witness)."""
+    print("\nScaling, kappa = 10, SDP + exact proof, no witness\n")
+    print("| method | N | seconds | peak MB | Clarabel solves (by status) | tau_N | "
+          "tau_proven / tau_N - 1 |")
+    print("|---|---:|---:|---:|---|---:|---:|")
+    for spec, measure in SCALING:
+        for N in QUICK_SCALING_STEPS if quick else SCALING_STEPS:
+            r = one(spec, 10, N, measure, True, False)
+            gap = (f"{r['tau_proven'] / r['tau'] - 1:.1e}" if r["tau_proven"] and r["tau"]
+                   else "not proven")
+            print(f"| {spec} | {N} | {r['seconds']:.2f} | {r['mb']:.0f} | "
+                  f"{solves_text(r['solves'])} | {r['tau']:.6g} | {gap} |", flush=True)
 
 
 if __name__ == "__main__":
