@@ -9,6 +9,16 @@ coefficient sigma_k), F >= 0 (dual c_F), G ⪰ 0 (dual S). Weak duality: for tau
 imply measure <= tau on every feasible (G, F), hence on every function of the classes
 (a lambda that is 0 on some pairs is still a certificate).
 
+The measure is solved in this dual form (variables tau, lambda; :func:`_solve_dual`), G
+and F read back as the dual variables of S and c_F. The entries of S that no Q_k, I0 or
+M touches are structurally zero, and with the basis of :mod:`sosalgo.pep.structure` the
+pairs one step apart touch a band only: Clarabel's chordal decomposition then splits the
+PSD cone into small blocks (gradient descent at N = 100: 4 solves, 0.6 s of solver time),
+where the primal form's cone is on every entry of G (a dense KKT block of d^2/2 rows, a
+cost like d^6). Pairs far apart, which accelerated methods need, fill the band in; the
+cost then approaches the dense one. The trace objective of the witness (a floor on the
+measure, a slack on every inequality) is solved in the primal form.
+
 Scale. The solver sees G = W H W and F = V F' (W, V positive diagonal, powers of two):
 the late gradients and values of a converging method are orders of magnitude below
 x_0 - x*, and the solver's tolerances would swallow them. W, V come from the previous
@@ -17,15 +27,19 @@ solve (W_cc ~ sqrt(G_cc), V_i ~ F_i), re-solving while they move by more than a 
 Constraint generation. A solve keeps only the ``active`` pairs (first those with x*,
 with a term's extra point and between calls at most one step apart,
 :func:`seed_pairs`), checks every omitted inequality at the answer, adds the violated
-ones and solves again until none is violated: then the answer is feasible for the whole
-PEP, so the value is tau_N (up to the solver's tolerance), and the multipliers (0 on the
-omitted pairs) are its certificate. With the basis of :mod:`sosalgo.pep.structure`
-every row is sparse; fewer rows keep the KKT system small (Clarabel's PSD block is
-dense in svec G, so its cost still grows like N^6, with a small constant).
+ones (and the nearly tight ones with them) and solves again until none is violated: then
+the answer is feasible for the whole PEP, so the value is tau_N (up to the solver's
+tolerance), and the multipliers (0 on the omitted pairs) are its certificate. The rounds
+that only set the scale or look for violated pairs take an "almost solved" answer as it
+is (``rough``); only the last round, and every certificate, must end solved. Each pair's
+svec Q_k is built once, on the few columns it uses (:meth:`PEPData.svec_rows`): memory
+grows with the pairs, not with the pairs times d^2.
 
 ``margin`` solves the primal with objective M + eps W^-1 W^-1, m_F + eps / V (in the
 solver's units: tr H and sum F'): its dual has S ⪰ eps W^-2 and c_F >= eps / V, a
-certificate that survives rounding (tau grows by about eps times tr H + sum F').
+certificate that survives rounding (tau grows by about eps times tr H + sum F'). A margin
+solve keeps the pairs the measure's own solve ended with (no constraint generation: its
+multipliers are a certificate whatever pairs they omit).
 """
 
 from __future__ import annotations
@@ -178,7 +192,9 @@ class SDPAnswer:
 # tight tolerances; Clarabel's defaults; then a stronger static regularization, which
 # solves the harder PEPs (long horizons, prox points) that end "almost solved" otherwise
 ATTEMPTS = ((True, 1e-8), (False, 1e-8), (True, 1e-7), (False, 1e-7), (False, 1e-6))
-# the rounds that only set the scale or find violated pairs: Clarabel's defaults first
+# the measure's solves (dual form): Clarabel's defaults first (the tight tolerances end
+# "almost solved" there far more often, and the certificate's margin covers the rest;
+# the rounds that only set the scale or find violated pairs stop at "almost solved")
 QUICK = ((False, 1e-8), (True, 1e-8), (False, 1e-7), (False, 1e-6))
 # margin solves only, when the above end "almost solved": a much stronger regularization
 # (GD on L-smooth convex f at N = 20: a degenerate dual, rank-1 worst case); the answer is
@@ -229,10 +245,10 @@ def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
     coefficient: the rank reduction of the witness). The measure is divided by ``unit``
     for the solver (about tau); the answer is in the original units."""
     K = len(data.st.pairs)
-    active, rounds, rescales, exact_next = data.active, 0, 0, objective != "measure"
+    active, rounds, rescales = data.active, 0, 0
+    exact_next = objective != "measure" or margin > 0  # a certificate: never rough
     while True:
-        tries = (TRACE if objective == "trace" else
-                 QUICK if rounds == 0 else ATTEMPTS)
+        tries = TRACE if objective == "trace" else QUICK
         ans = _solve_active(data, active, margin, objective, floor, slack, unit,
                             tries + STRONG if margin > 0 else tries, rough=not exact_next)
         rounds += 1
@@ -263,6 +279,8 @@ def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
                 break
             exact_next = True  # no violated pair at a rough answer: solve this set
             continue
+        if slack == 0:  # with the violated pairs, those nearly tight: the next round's
+            bad = np.flatnonzero(viol < NEAR)  # violated pairs, most often
         bad = bad[np.argsort(viol[bad])][:max(len(active), MIN_ADD)]
         active = np.union1d(active, bad)
         exact_next = objective != "measure"
@@ -272,6 +290,7 @@ def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
 
 
 VIOLATION = 1e-9  # an omitted inequality below -VIOLATION (relative) joins the solve
+NEAR = 1e-6  # and when one does, every omitted one below NEAR (relative) joins too
 MIN_ADD = 64  # joins per round: at least this many, or as many as are active
 MAX_RESCALES = 3
 FLOOR = 1e-2  # W_cc >= FLOOR sqrt(measure), V_i >= FLOOR^2 measure

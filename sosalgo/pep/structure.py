@@ -81,6 +81,9 @@ class Method(CallShape):
     G0: np.ndarray | None = None  # ``initial_state``: xi_0 = X0 x_0 + G0 g0 (None: G0 = 0)
     smooth: int = 0  # the function whose gradient g0 is
     out_call: int | None = None  # output None, E = C_i and D_i = 0: x_k is call i's point
+    # exact methods: the structures built on them (the proof of each margin's certificate
+    # rebuilds the same one; built once, :func:`build_structure`)
+    structures: dict[Any, Any] = field(default_factory=dict, repr=False, compare=False)
 
 
 @dataclass
@@ -222,7 +225,19 @@ def build_structure(mt: Method, steps: int, measure: Sequence[Term],
                     initial: Sequence[Term], option: tuple[str, str] = ("--measure",
                                                                        "--initial")
                     ) -> PEPStructure:
-    """The PEP of ``steps`` steps (see the module docstring)."""
+    """The PEP of ``steps`` steps (see the module docstring); on an exact method, built
+    once per (steps, terms) and kept on the method (nothing downstream changes it)."""
+    key = (steps, repr(list(measure)), repr(list(initial)), option)
+    if mt.exact and key in mt.structures:
+        return mt.structures[key]
+    st = _build_structure(mt, steps, measure, initial, option)
+    if mt.exact:
+        mt.structures[key] = st
+    return st
+
+
+def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
+                     initial: Sequence[Term], option: tuple[str, str]) -> PEPStructure:
     p, J, n = mt.p, len(mt.functions), mt.n
     free = any(t.kind == "sdist" for t in initial)
     n0 = n if free else 1
