@@ -68,7 +68,7 @@ tau = problem.solve(wrapper="cvxpy", verbose=0, **kw)
 seconds = time.perf_counter() - t0
 w = getattr(problem, "wrapper", None)
 print(json.dumps({"tau": tau, "seconds": seconds,
-                  "status": str(getattr(w, "solver_status", None)),
+                  "status": str(getattr(getattr(w, "prob", None), "status", None)),
                   "solver": str(getattr(w, "solver_name", None) or solver),
                   "mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
 '''
@@ -119,7 +119,7 @@ def run(quick: bool = False) -> None:
         return
     print(f"PEPit from {origin}; kappa = {KAPPA:g}; one thread each; same run, same machine\n")
     print("| method | N | sosalgo s (SDP + exact proof) | sosalgo MB | tau proven | "
-          "PEPit SCS s | PEPit SCS tau (rel. to proven) | PEPit Clarabel s | "
+          "PEPit SCS s | PEPit SCS tau (rel. to proven), status | PEPit Clarabel s | "
           "PEPit Clarabel tau (rel.), status | PEPit SCS s / sosalgo s |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for spec, measure in CASES:
@@ -147,8 +147,7 @@ def row(spec: str, N: int, ours: dict, theirs: dict) -> str:
         if "error" in t:
             cells += [t["error"], "—"]
             continue
-        extra = f", {t['status']}" if s != "default" else ""
-        cells += [f"{t['seconds']:.2f}", _rel(t["tau"], ref) + extra]
+        cells += [f"{t['seconds']:.2f}", f"{_rel(t['tau'], ref)}, {t['status']}"]
     scs = theirs["default"]
     cells.append(f"{scs['seconds'] / ours['seconds']:.2f}" if "seconds" in scs else "—")
     return "| " + " | ".join(cells) + " |"

@@ -185,8 +185,9 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
             cert["proof"] = {"proven": False, "tau_proven": None,
                              "detail": "floating-point pre-check: S is not PSD (scaled)"}
             continue  # the exact proof would fail: the next margin
-        proof = prove_certificate(spec, kappa, st, mterms, iterms, cand.tau, cand.lam,
-                                  data.w, ex)
+        # at least the reported tau (its float value, up to the solver's accuracy)
+        proof = prove_certificate(spec, kappa, st, mterms, iterms, max(cand.tau, tau),
+                                  cand.lam, data.w, ex)
         cert["proof"] = proof
         if proof["proven"]:
             cert.update(check_kind="exact (rational and ball arithmetic)",

@@ -230,6 +230,9 @@ def _settings(precise: bool, reg: float, max_iter: int = 400) -> Any:
     s.max_iter = max_iter
     s.static_regularization_constant = reg
     s.direct_solve_method = "faer"  # supernodal LDL: 2-4x faster on these dense rows
+    # the dual form's chordal blocks kept apart with their overlaps as equalities (not
+    # the compact merge): half the iterations (Nesterov N = 40: 24 instead of 44)
+    s.chordal_decomposition_compact = False
     if precise:
         s.tol_gap_abs = s.tol_gap_rel = s.tol_feas = 1e-10
         s.tol_ktratio = 1e-10
