@@ -192,9 +192,9 @@ class SDPAnswer:
 # tight tolerances; Clarabel's defaults; then a stronger static regularization, which
 # solves the harder PEPs (long horizons, prox points) that end "almost solved" otherwise
 ATTEMPTS = ((True, 1e-8), (False, 1e-8), (True, 1e-7), (False, 1e-7), (False, 1e-6))
-# the measure's solves (dual form): Clarabel's defaults first (the tight tolerances end
-# "almost solved" there far more often, and the certificate's margin covers the rest;
-# the rounds that only set the scale or find violated pairs stop at "almost solved")
+# the measure's solves (dual form): Clarabel's defaults first (the rounds that only set
+# the scale or find violated pairs stop at "almost solved"); ATTEMPTS when ``precise``
+# (a certificate the default tolerances left unproven: Nesterov N = 40, margin 1e-5)
 QUICK = ((False, 1e-8), (True, 1e-8), (False, 1e-7), (False, 1e-6))
 # margin solves only, when the above end "almost solved": a much stronger regularization
 # (GD on L-smooth convex f at N = 20: a degenerate dual, rank-1 worst case); the answer is
@@ -241,17 +241,18 @@ def _settings(precise: bool, reg: float, max_iter: int = 400) -> Any:
 
 def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
               floor: float | None = None, slack: float = 0.0,
-              unit: float = 1.0) -> SDPAnswer:
+              unit: float = 1.0, precise: bool = False) -> SDPAnswer:
     """The PEP by constraint generation and rescaling (see the module). ``objective``:
     "measure" (the PEP; ``margin`` eps as in the module) or "trace" (minimize tr H with
     measure >= ``floor`` and every inequality >= ``slack`` relative to its largest
     coefficient: the rank reduction of the witness). The measure is divided by ``unit``
-    for the solver (about tau); the answer is in the original units."""
+    for the solver (about tau); the answer is in the original units. ``precise``: the
+    measure's solves try tight tolerances first (:data:`ATTEMPTS`, not :data:`QUICK`)."""
     K = len(data.st.pairs)
     active, rounds, rescales = data.active, 0, 0
     exact_next = objective != "measure" or margin > 0  # a certificate: never rough
     while True:
-        tries = TRACE if objective == "trace" else QUICK
+        tries = TRACE if objective == "trace" else ATTEMPTS if precise else QUICK
         ans = _solve_active(data, active, margin, objective, floor, slack, unit,
                             tries + STRONG if margin > 0 else tries, rough=not exact_next)
         rounds += 1
