@@ -193,8 +193,11 @@ class SDPAnswer:
 # solves the harder PEPs (long horizons, prox points) that end "almost solved" otherwise
 ATTEMPTS = ((True, 1e-8), (False, 1e-8), (True, 1e-7), (False, 1e-7), (False, 1e-6))
 # the measure's solves (dual form): Clarabel's defaults first (the rounds that only set
-# the scale or find violated pairs stop at "almost solved"); ATTEMPTS when ``precise``
-# (a certificate the default tolerances left unproven: Nesterov N = 40, margin 1e-5)
+# the scale or find violated pairs stop at "almost solved"); PRECISE alone when
+# ``precise``: a certificate the default tolerances left unproven (Nesterov N = 40,
+# margin 1e-5: proven from the tight solve); when that solve is not solved (Nesterov
+# N = 50), the ladder goes on to the next margin
+PRECISE = ((True, 1e-8),)
 QUICK = ((False, 1e-8), (True, 1e-8), (False, 1e-7), (False, 1e-6))
 # margin solves only, when the above end "almost solved": a much stronger regularization
 # (GD on L-smooth convex f at N = 20: a degenerate dual, rank-1 worst case); the answer is
@@ -252,9 +255,10 @@ def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
     active, rounds, rescales = data.active, 0, 0
     exact_next = objective != "measure" or margin > 0  # a certificate: never rough
     while True:
-        tries = TRACE if objective == "trace" else ATTEMPTS if precise else QUICK
+        tries = TRACE if objective == "trace" else PRECISE if precise else QUICK
         ans = _solve_active(data, active, margin, objective, floor, slack, unit,
-                            tries + STRONG if margin > 0 else tries, rough=not exact_next)
+                            tries + STRONG if margin > 0 and not precise else tries,
+                            rough=not exact_next)
         rounds += 1
         if (objective == "measure" and ans.G is not None and rescales < MAX_RESCALES
                 and np.all(np.isfinite(ans.G))):
@@ -267,8 +271,8 @@ def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
                 continue
         if ans.status == "infeasible" or (len(active) == K and ans.status != "almost"):
             break  # an infeasible relaxation: so is the PEP
-        if ans.status not in ("solved", "almost") and objective == "trace":
-            break  # a failed rank reduction: the witness search goes on without it
+        if ans.status not in ("solved", "almost") and (objective == "trace" or margin > 0):
+            break  # a failed rank reduction or certificate: the caller goes on without it
         if ans.status not in ("solved", "almost"):  # unbounded or failed on a relaxation
             active = np.arange(K)  # decide on all
             continue
