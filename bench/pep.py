@@ -1,13 +1,11 @@
 """PEP timings and memory (``python -m bench --only pep``), each case in a fresh process so
 that its peak resident memory is its own.
 
-1. N = 10, 20, 50 steps of Nesterov's method (two states, f/dist) and gradient descent
-   (dist/dist) at kappa = 10, gradient descent on L-smooth convex f (m = 0, f/dist) and
-   accelerated proximal gradient (output at the prox point) at N = 10, 20: the SDP
-   alone, with the exact certificate, and with the witness.
-2. Scaling: gradient descent and Nesterov at kappa = 10 against N (1..100; ``--quick``: a
-   few N): seconds and peak memory of the SDP with the exact proof (no witness), and the
-   Clarabel solves of the run by status (a spy on ``clarabel.DefaultSolver``).
+N = 10, 20, 50 steps of Nesterov's method (two states, f/dist) and gradient descent
+(dist/dist) at kappa = 10, gradient descent on L-smooth convex f (m = 0, f/dist) and
+accelerated proximal gradient (output at the prox point) at N = 10, 20: the SDP alone,
+with the exact certificate, and with the witness.
+The scaling against N (1..100) and the solves of each run: :mod:`bench.pep_scaling`.
 """
 
 from __future__ import annotations
@@ -20,9 +18,6 @@ import sys
 CASES = (("nesterov", None, 10, (10, 20, 50)), ("gradient", "dist", 10, (10, 20, 50)),
          ("gradient-convex", None, None, (10, 20)),
          ("accelerated-proximal-gradient", None, 10, (10, 20)))
-SCALING = (("gradient", "dist"), ("nesterov", None))
-SCALING_STEPS = (1, 2, 5, 10, 20, 30, 50, 70, 100)
-QUICK_SCALING_STEPS = (5, 10, 20)
 
 # One case: spec, kappa, N, measure, exact, witness -> one JSON line (time, peak MB,
 # the proven bound, the Clarabel solves by status).
@@ -62,12 +57,6 @@ def one(spec: str, kappa: float | None, N: int, measure: str | None, exact: bool
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def solves_text(solves: dict) -> str:
-    total = sum(solves.values())
-    parts = [f"{n} {s}" for s, n in sorted(solves.items(), key=lambda kv: -kv[1])]
-    return f"{total} ({', '.join(parts)})" if parts else "0"
-
-
 def run(quick: bool = False) -> None:
     print("| method | N | tau_N | SDP only (s) | peak MB | + exact certificate (s) | "
           "+ witness (s) | witness verified |")
@@ -84,22 +73,6 @@ def run(quick: bool = False) -> None:
             print(f"| {spec}, {where} | {N} | {a['tau']:.6g} | {a['seconds']:.2f} | "
                   f"{a['mb']:.0f} | {b['seconds']:.2f} ({proven}) | {wt} | {wv} |",
                   flush=True)
-    scaling(quick)
-
-
-def scaling(quick: bool = False) -> None:
-    """Time, peak memory and solves against N (SDP with the exact proof, no witness)."""
-    print("\nScaling, kappa = 10, SDP + exact proof, no witness\n")
-    print("| method | N | seconds | peak MB | Clarabel solves (by status) | tau_N | "
-          "tau_proven / tau_N - 1 |")
-    print("|---|---:|---:|---:|---|---:|---:|")
-    for spec, measure in SCALING:
-        for N in QUICK_SCALING_STEPS if quick else SCALING_STEPS:
-            r = one(spec, 10, N, measure, True, False)
-            gap = (f"{r['tau_proven'] / r['tau'] - 1:.1e}" if r["tau_proven"] and r["tau"]
-                   else "not proven")
-            print(f"| {spec} | {N} | {r['seconds']:.2f} | {r['mb']:.0f} | "
-                  f"{solves_text(r['solves'])} | {r['tau']:.6g} | {gap} |", flush=True)
 
 
 if __name__ == "__main__":
