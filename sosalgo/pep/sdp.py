@@ -228,18 +228,27 @@ def _quiet_stderr():
 
 
 @functools.cache
-def _settings(precise: bool, reg: float, max_iter: int = 400) -> Any:
+def _settings(precise: bool, reg: float, max_iter: int = 400, chordal: str = "apart") -> Any:
     s = quiet_settings()
     s.max_iter = max_iter
     s.static_regularization_constant = reg
     s.direct_solve_method = "faer"  # supernodal LDL: 2-4x faster on these dense rows
     # the dual form's chordal blocks kept apart with their overlaps as equalities (not
-    # the compact merge): half the iterations (Nesterov N = 40: 24 instead of 44)
-    s.chordal_decomposition_compact = False
+    # the compact merge): half the iterations (Nesterov N = 40: 24 instead of 44);
+    # :data:`CHORDAL`: the fallbacks when Clarabel panics building the decomposition
+    s.chordal_decomposition_compact = chordal == "compact"
+    if chordal == "unmerged":
+        s.chordal_decomposition_merge_method = "none"
     if precise:
         s.tol_gap_abs = s.tol_gap_rel = s.tol_feas = 1e-10
         s.tol_ktratio = 1e-10
     return s
+
+
+# chordal decompositions in order: blocks apart, then Clarabel's compact merge, then no
+# merging (Clarabel 0.11 panics building the first on some patterns, "index out of
+# bounds": gradient descent at N = 200; the others build)
+CHORDAL = ("apart", "compact", "unmerged")
 
 
 def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
@@ -452,13 +461,8 @@ def _clarabel(A: Any, q: np.ndarray, b: np.ndarray, nn: int, d: int,
     P = sps.csc_matrix((A.shape[1], A.shape[1]))
     sol, raw, st_ = None, "no attempt ended", SolverStatus.FAILED
     for precise, reg, *iters in attempts:
-        settings = _settings(precise, reg, *iters)
-        try:
-            with _quiet_stderr():
-                sol = clarabel.DefaultSolver(P, q, A, b, cones, settings).solve()
-        except BaseException as exc:  # Clarabel's Rust panics (an eigenvalue failure)
-            if isinstance(exc, KeyboardInterrupt | SystemExit | MemoryError):
-                raise
+        sol = _clarabel_attempt(P, q, A, b, cones, precise, reg, iters)
+        if sol is None:
             continue
         raw = str(sol.status)
         st_ = solver_status(raw)
@@ -466,6 +470,31 @@ def _clarabel(A: Any, q: np.ndarray, b: np.ndarray, nn: int, d: int,
                 or (iters and sol.iterations >= iters[0])):  # capped: not converging
             break
     return sol, raw, st_
+
+
+def _clarabel_attempt(P: Any, q: np.ndarray, A: Any, b: np.ndarray, cones: list[Any],
+                      precise: bool, reg: float, iters: list[int]) -> Any:
+    """One attempt's solution, or None when Clarabel panics (Rust panics: an eigenvalue
+    failure while solving; while building, the next chordal decomposition of
+    :data:`CHORDAL` is tried)."""
+    import clarabel
+
+    with _quiet_stderr():
+        for chordal in CHORDAL:
+            settings = _settings(precise, reg, *(iters or [400]), chordal)
+            try:
+                solver = clarabel.DefaultSolver(P, q, A, b, cones, settings)
+            except BaseException as exc:
+                if isinstance(exc, KeyboardInterrupt | SystemExit | MemoryError):
+                    raise
+                continue
+            try:
+                return solver.solve()
+            except BaseException as exc:
+                if isinstance(exc, KeyboardInterrupt | SystemExit | MemoryError):
+                    raise
+                return None
+    return None
 
 
 def residual(data: PEPData, tau: float, lam: np.ndarray) -> np.ndarray:
