@@ -296,9 +296,10 @@ def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
                 break
             exact_next = True  # no violated pair at a rough answer: solve this set
             continue
-        if slack == 0:  # with the violated pairs, those nearly tight: the next round's
-            bad = np.flatnonzero(viol < NEAR)  # violated pairs, most often
         bad = bad[np.argsort(viol[bad])][:max(len(active), MIN_ADD)]
+        if slack == 0:  # with the violated pairs, the most nearly tight ones: the next
+            near = np.flatnonzero((viol >= -VIOLATION) & (viol < NEAR))  # round's
+            bad = np.union1d(bad, near[np.argsort(viol[near])][:MIN_ADD])  # violated
         active = np.union1d(active, bad)
         exact_next = objective != "measure"
     data.active = active
@@ -307,7 +308,7 @@ def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
 
 
 VIOLATION = 1e-9  # an omitted inequality below -VIOLATION (relative) joins the solve
-NEAR = 1e-6  # and when one does, every omitted one below NEAR (relative) joins too
+NEAR = 1e-6  # and when one does, up to MIN_ADD omitted ones below NEAR (relative) too
 MIN_ADD = 64  # joins per round: at least this many, or as many as are active
 MAX_RESCALES = 3
 FLOOR = 1e-2  # W_cc >= FLOOR sqrt(measure), V_i >= FLOOR^2 measure
