@@ -79,3 +79,16 @@ def test_pair_rows_are_sparse_and_match_the_dense_forms(spec, N):
     sample = np.random.default_rng(0).choice(K, size=50, replace=False)
     dense = svec(data.q(sample))
     assert np.allclose(rows[sample].toarray(), dense, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.deep  # about 10 s and 1 GB: 40 000 pairs
+def test_gradient_two_hundred_steps_proven():
+    """N = 200 (the longest horizon allowed): tau = 0.81^200 ~ 5e-19, the multipliers
+    spanning more than 14 orders of magnitude; proven exactly, within 2e-5 above."""
+    N = 200
+    res = sosalgo.pep(SPECS / "gradient.yaml", 10.0, N, "dist", witness=False)
+    cert = res.certificate
+    assert cert["check_kind"].startswith("exact")
+    proven = Fraction(cert["tau_proven"])
+    closed = Fraction(81, 100) ** N
+    assert closed <= proven <= closed * (1 + Fraction(2, 10**5))
