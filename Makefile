@@ -20,6 +20,7 @@ help:
 	@echo "make table1   - $(OUT)/table1.csv: shipped specs at kappa 2, 10, 100 vs closed forms (Theorem 1 and interpolation)"
 	@echo "make bench    - benchmarks in bench/ (prints a table)"
 	@echo "make bench-autolyap - the AutoLyap comparison, AutoLyap (GPL) in its own $(AUTOLYAP_VENV)/"
+	@echo "make bench-pepit - the PEP comparison with PEPit, PEPit in its own $(PEPIT_VENV)/"
 	@echo "make fig1     - Figure 1: gradient step designed over kappa, with a proven bound"
 	@echo "make fig2     - Figure 2: Nesterov momentum designed over kappa, with a proven bound"
 	@echo "make fig3     - Figure 3: certified rate on an (h, beta) grid at kappa = 10"
@@ -81,6 +82,17 @@ $(AUTOLYAP_VENV)/.installed:
 	touch $@
 bench-autolyap: $(VENV)/.installed-dev $(AUTOLYAP_VENV)/.installed
 	SOSALGO_AUTOLYAP_PYTHON=$(abspath $(AUTOLYAP_VENV))/bin/python $(BIN)/python -m bench --only autolyap $(BENCH_OPTS)
+
+# PEPit in its own venv, never in $(VENV): bench/pepit.py runs it in a subprocess.
+PEPIT_VENV ?= .venv-pepit
+PEPIT_PKG ?= pepit
+.PHONY: bench-pepit
+$(PEPIT_VENV)/.installed:
+	$(PYTHON) -m venv $(PEPIT_VENV)
+	$(PEPIT_VENV)/bin/python -m pip install --quiet '$(PEPIT_PKG)'
+	touch $@
+bench-pepit: $(VENV)/.installed-dev $(PEPIT_VENV)/.installed
+	SOSALGO_PEPIT_PYTHON=$(abspath $(PEPIT_VENV))/bin/python $(BIN)/python -m bench --only pepit $(BENCH_OPTS)
 
 clean:
 	rm -rf $(OUT)/*.csv $(OUT)/*.png $(OUT)/*.pdf $(OUT)/*.json

@@ -7,10 +7,10 @@ import importlib
 import os
 import sys
 
-# Every suite is a module of this package with ``run(quick)``; AutoLyap itself runs in a
-# subprocess (its suite skips with one line when it is not installed).
+# Every suite is a module of this package with ``run(quick)``; AutoLyap and PEPit run in a
+# subprocess (their suites skip with one line when they are not installed).
 SUITES = ("startup", "analysis", "design", "grid", "interpolation", "fallback", "noise", "pep",
-          "autolyap", "budget")
+          "pep_scaling", "autolyap", "pepit", "budget")
 
 
 def main() -> None:

@@ -1,9 +1,12 @@
-"""PEP timings and memory: N = 10, 20, 50 steps of Nesterov's method (two states, f/dist)
-and gradient descent (dist/dist) at kappa = 10, gradient descent on L-smooth convex f
-(m = 0, f/dist) and accelerated proximal gradient (output at the prox point) at N = 10,
-20; the SDP alone, with the exact certificate, and with the witness (``python -m bench
---only pep``). Each case runs in a fresh process so that its peak resident memory is its
-own."""
+"""PEP timings and memory (``python -m bench --only pep``), each case in a fresh process so
+that its peak resident memory is its own.
+
+N = 10, 20, 50 steps of Nesterov's method (two states, f/dist) and gradient descent
+(dist/dist) at kappa = 10, gradient descent on L-smooth convex f (m = 0, f/dist) and
+accelerated proximal gradient (output at the prox point) at N = 10, 20: the SDP alone,
+with the exact certificate, and with the witness.
+The scaling against N (1..100) and the solves of each run: :mod:`bench.pep_scaling`.
+"""
 
 from __future__ import annotations
 
@@ -16,24 +19,39 @@ CASES = (("nesterov", None, 10, (10, 20, 50)), ("gradient", "dist", 10, (10, 20,
          ("gradient-convex", None, None, (10, 20)),
          ("accelerated-proximal-gradient", None, 10, (10, 20)))
 
-CHILD = """
-import json, resource, sys, time
+# One case: spec, kappa, N, measure, exact, witness -> one JSON line (time, peak MB,
+# the proven bound, the Clarabel solves by status).
+SOSALGO_CHILD = """
+import collections, json, resource, sys, time
+import clarabel
+solves = collections.Counter()
+Solver = clarabel.DefaultSolver
+class Spy:
+    def __init__(self, *args):
+        self.inner = Solver(*args)
+    def solve(self):
+        sol = self.inner.solve()
+        solves[str(sol.status)] += 1
+        return sol
+clarabel.DefaultSolver = Spy
 from sosalgo.pep import pep
 spec, kappa, N, measure, exact, witness = json.loads(sys.argv[1])
 t0 = time.perf_counter()
 r = pep(f"specs/{spec}.yaml", kappa, N, measure, exact=exact, witness=witness)
 cert = r.certificate or {}
+proof = cert.get("proof") or {}
 chk = (r.witness or {}).get("check") or {}
 print(json.dumps({"tau": r.tau, "seconds": time.perf_counter() - t0,
                   "proven": cert.get("check_kind", "").startswith("exact"),
-                  "witness": chk.get("verified"),
+                  "tau_proven": proof.get("tau_proven_float") if proof.get("proven") else None,
+                  "witness": chk.get("verified"), "solves": dict(solves),
                   "mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
 """
 
 
 def one(spec: str, kappa: float | None, N: int, measure: str | None, exact: bool,
         witness: bool) -> dict:
-    out = subprocess.run([sys.executable, "-c", CHILD,
+    out = subprocess.run([sys.executable, "-c", SOSALGO_CHILD,
                           json.dumps([spec, kappa, N, measure, exact, witness])],
                          capture_output=True, text=True, check=True)
     return json.loads(out.stdout.strip().splitlines()[-1])

@@ -160,21 +160,30 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
     return res
 
 
+def _ladder(steps: int) -> list[tuple[float, bool]]:
+    """(relative margin, tight tolerances) of the certificate solves, in order: the first
+    margin at Clarabel's default tolerances, then again at tight ones (a default solve's
+    dual may miss the proof by its accuracy), then the larger margins."""
+    rels = MARGINS + LONG_MARGINS if steps <= LONG else LONG_MARGINS
+    return [(rels[0], False), (rels[0], True)] + [(r, False) for r in rels[1:]]
+
+
 def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
                  ans: SDPAnswer, exact: bool, mterms: list[Term],
                  iterms: list[Term], ex: Method | None = None) -> dict[str, Any]:
     """The dual certificate (multipliers by pair, S, float checks), proven exactly when
     ``exact`` (the margin ladder :data:`MARGINS` then :data:`LONG_MARGINS`; only the
-    latter past LONG)."""
+    latter past LONG; :func:`_ladder`)."""
     st = data.st
     tau = float(ans.primal)  # type: ignore[arg-type]
     scale = max(1.0, ans.size)  # tr H + sum F': the margin's units
     cert: dict[str, Any] = {"tau": ans.tau, "check_kind": "floating-point check",
                             "tau_proven": None, "proof": None}
     best = ans
-    for rel in (MARGINS + LONG_MARGINS if st.steps <= LONG else LONG_MARGINS) if exact else ():
+    for rel, precise in _ladder(st.steps) if exact else ():
         eps = rel / scale  # relative to tau: the measure is divided by tau
-        cand = solve_pep(data, margin=eps, unit=tau if tau > 1e-200 else 1.0)
+        cand = solve_pep(data, margin=eps, unit=tau if tau > 1e-200 else 1.0,
+                         precise=precise)
         if cand.status != "solved":
             continue
         best = cand
@@ -185,8 +194,9 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
             cert["proof"] = {"proven": False, "tau_proven": None,
                              "detail": "floating-point pre-check: S is not PSD (scaled)"}
             continue  # the exact proof would fail: the next margin
-        proof = prove_certificate(spec, kappa, st, mterms, iterms, cand.tau, cand.lam,
-                                  data.w, ex)
+        # at least the reported tau (its float value, up to the solver's accuracy)
+        proof = prove_certificate(spec, kappa, st, mterms, iterms, max(cand.tau, tau),
+                                  cand.lam, data.w, ex)
         cert["proof"] = proof
         if proof["proven"]:
             cert.update(check_kind="exact (rational and ball arithmetic)",

@@ -9,6 +9,16 @@ coefficient sigma_k), F >= 0 (dual c_F), G ⪰ 0 (dual S). Weak duality: for tau
 imply measure <= tau on every feasible (G, F), hence on every function of the classes
 (a lambda that is 0 on some pairs is still a certificate).
 
+The measure is solved in this dual form (variables tau, lambda; :func:`_solve_dual`), G
+and F read back as the dual variables of S and c_F. The entries of S that no Q_k, I0 or
+M touches are structurally zero, and with the basis of :mod:`sosalgo.pep.structure` the
+pairs one step apart touch a band only: Clarabel's chordal decomposition then splits the
+PSD cone into small blocks (gradient descent at N = 100: 4 solves, 0.6 s of solver time),
+where the primal form's cone is on every entry of G (a dense KKT block of d^2/2 rows, a
+cost like d^6). Pairs far apart, which accelerated methods need, fill the band in; the
+cost then approaches the dense one. The trace objective of the witness (a floor on the
+measure, a slack on every inequality) is solved in the primal form.
+
 Scale. The solver sees G = W H W and F = V F' (W, V positive diagonal, powers of two):
 the late gradients and values of a converging method are orders of magnitude below
 x_0 - x*, and the solver's tolerances would swallow them. W, V come from the previous
@@ -17,15 +27,19 @@ solve (W_cc ~ sqrt(G_cc), V_i ~ F_i), re-solving while they move by more than a 
 Constraint generation. A solve keeps only the ``active`` pairs (first those with x*,
 with a term's extra point and between calls at most one step apart,
 :func:`seed_pairs`), checks every omitted inequality at the answer, adds the violated
-ones and solves again until none is violated: then the answer is feasible for the whole
-PEP, so the value is tau_N (up to the solver's tolerance), and the multipliers (0 on the
-omitted pairs) are its certificate. With the basis of :mod:`sosalgo.pep.structure`
-every row is sparse; fewer rows keep the KKT system small (Clarabel's PSD block is
-dense in svec G, so its cost still grows like N^6, with a small constant).
+ones (and the nearly tight ones with them) and solves again until none is violated: then
+the answer is feasible for the whole PEP, so the value is tau_N (up to the solver's
+tolerance), and the multipliers (0 on the omitted pairs) are its certificate. The rounds
+that only set the scale or look for violated pairs take an "almost solved" answer as it
+is (``rough``); only the last round, and every certificate, must end solved. Each pair's
+svec Q_k is built once, on the few columns it uses (:meth:`PEPData.svec_rows`): memory
+grows with the pairs, not with the pairs times d^2.
 
 ``margin`` solves the primal with objective M + eps W^-1 W^-1, m_F + eps / V (in the
 solver's units: tr H and sum F'): its dual has S ⪰ eps W^-2 and c_F >= eps / V, a
-certificate that survives rounding (tau grows by about eps times tr H + sum F').
+certificate that survives rounding (tau grows by about eps times tr H + sum F'). A margin
+solve keeps the pairs the measure's own solve ended with (no constraint generation: its
+multipliers are a certificate whatever pairs they omit).
 """
 
 from __future__ import annotations
@@ -34,7 +48,7 @@ import contextlib
 import functools
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -82,12 +96,35 @@ class PEPData:
     active: np.ndarray
     w: np.ndarray  # (d,) G = W H W
     v: np.ndarray  # (nF,) F = V F'
+    _svec: dict[int, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
 
     def q(self, idx: np.ndarray, scaled: bool = False) -> np.ndarray:
-        """Q_k = X_k' Qc_k X_k of the pairs ``idx`` (len, d, d), on H when ``scaled``."""
+        """Q_k = X_k' Qc_k X_k of the pairs ``idx`` (len, d, d), on H when ``scaled``
+        (dense: for a few pairs; the solves use :meth:`svec_rows`)."""
         X = self.X[idx] * self.w if scaled else self.X[idx]
         Q = np.einsum("kai,kab,kbj->kij", X, self.Qc[idx], X, optimize=True)
         return 0.5 * (Q + Q.transpose(0, 2, 1))
+
+    def svec_rows(self, idx: np.ndarray, scaled: bool = False) -> sps.csr_matrix:
+        """svec Q_k of the pairs ``idx`` as a sparse (len, d(d+1)/2) matrix, on H when
+        ``scaled``. Each Q_k lives on the few basis columns its four rows use (a point
+        combines the last few steps' b only): built on those columns once per pair and
+        kept, so memory grows with the pairs' supports, not with len * d^2."""
+        pos, val, ptr = [], [], [0]
+        for k in np.asarray(idx, dtype=int):
+            entry = self._svec.get(int(k))
+            if entry is None:
+                entry = self._svec[int(k)] = _pair_svec(self.X[k], self.Qc[k])
+            pos.append(entry[0])
+            val.append(entry[1])
+            ptr.append(ptr[-1] + len(entry[0]))
+        cols = np.concatenate(pos) if pos else np.zeros(0, dtype=np.int64)
+        vals = np.concatenate(val) if val else np.zeros(0)
+        if scaled:
+            r, c, _ = svec_index(self.st.d)
+            vals = vals * (self.w[r] * self.w[c])[cols]
+        nG = self.st.d * (self.st.d + 1) // 2
+        return sps.csr_matrix((vals, cols, np.array(ptr)), shape=(len(ptr) - 1, nG))
 
     def violations(self, G: np.ndarray, F: np.ndarray) -> np.ndarray:
         """Every inequality at (G, F), relative to a bound on its largest coefficient in
@@ -98,6 +135,20 @@ class PEPData:
         size = (np.abs(self.Qc).max(axis=(1, 2)) * xw.max(axis=1) ** 2
                 + np.abs(self.a * self.v).max(axis=1, initial=0.0))
         return val / np.where(size > 0, size, 1.0)
+
+
+def _pair_svec(X: np.ndarray, Qc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(svec positions, values) of the nonzero upper-triangle entries of X' Qc X (one
+    pair), computed on the columns X uses."""
+    cols = np.flatnonzero(np.any(X != 0, axis=0))
+    Xs = X[:, cols]
+    Q = Xs.T @ Qc @ Xs
+    Q = 0.5 * (Q + Q.T)
+    i, j = np.triu_indices(len(cols))
+    vals = Q[i, j] * np.where(i == j, 1.0, SQRT2)
+    keep = vals != 0
+    r, c = cols[i[keep]], cols[j[keep]]
+    return (c * (c + 1) // 2 + r).astype(np.int64), vals[keep]
 
 
 def pep_data(mt: Method, st: PEPStructure) -> PEPData:
@@ -141,7 +192,12 @@ class SDPAnswer:
 # tight tolerances; Clarabel's defaults; then a stronger static regularization, which
 # solves the harder PEPs (long horizons, prox points) that end "almost solved" otherwise
 ATTEMPTS = ((True, 1e-8), (False, 1e-8), (True, 1e-7), (False, 1e-7), (False, 1e-6))
-# the rounds that only set the scale or find violated pairs: Clarabel's defaults first
+# the measure's solves (dual form): Clarabel's defaults first (the rounds that only set
+# the scale or find violated pairs stop at "almost solved"); PRECISE alone when
+# ``precise``: a certificate the default tolerances left unproven (Nesterov N = 40,
+# margin 1e-5: proven from the tight solve); when that solve is not solved (Nesterov
+# N = 50), the ladder goes on to the next margin
+PRECISE = ((True, 1e-8),)
 QUICK = ((False, 1e-8), (True, 1e-8), (False, 1e-7), (False, 1e-6))
 # margin solves only, when the above end "almost solved": a much stronger regularization
 # (GD on L-smooth convex f at N = 20: a degenerate dual, rank-1 worst case); the answer is
@@ -172,63 +228,87 @@ def _quiet_stderr():
 
 
 @functools.cache
-def _settings(precise: bool, reg: float, max_iter: int = 400) -> Any:
+def _settings(precise: bool, reg: float, max_iter: int = 400, chordal: str = "apart") -> Any:
     s = quiet_settings()
     s.max_iter = max_iter
     s.static_regularization_constant = reg
     s.direct_solve_method = "faer"  # supernodal LDL: 2-4x faster on these dense rows
+    # the dual form's chordal blocks kept apart with their overlaps as equalities (not
+    # the compact merge): half the iterations (Nesterov N = 40: 24 instead of 44);
+    # :data:`CHORDAL`: the fallbacks when Clarabel panics building the decomposition
+    s.chordal_decomposition_compact = chordal == "compact"
+    if chordal == "unmerged":
+        s.chordal_decomposition_merge_method = "none"
     if precise:
         s.tol_gap_abs = s.tol_gap_rel = s.tol_feas = 1e-10
         s.tol_ktratio = 1e-10
     return s
 
 
+# chordal decompositions in order: blocks apart, then Clarabel's compact merge, then no
+# merging (Clarabel 0.11 panics building the first on some patterns, "index out of
+# bounds": gradient descent at N = 200; the others build)
+CHORDAL = ("apart", "compact", "unmerged")
+
+
 def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
               floor: float | None = None, slack: float = 0.0,
-              unit: float = 1.0) -> SDPAnswer:
+              unit: float = 1.0, precise: bool = False) -> SDPAnswer:
     """The PEP by constraint generation and rescaling (see the module). ``objective``:
     "measure" (the PEP; ``margin`` eps as in the module) or "trace" (minimize tr H with
     measure >= ``floor`` and every inequality >= ``slack`` relative to its largest
     coefficient: the rank reduction of the witness). The measure is divided by ``unit``
-    for the solver (about tau); the answer is in the original units."""
+    for the solver (about tau); the answer is in the original units. ``precise``: the
+    measure's solves try tight tolerances first (:data:`ATTEMPTS`, not :data:`QUICK`)."""
     K = len(data.st.pairs)
     active, rounds, rescales = data.active, 0, 0
+    exact_next = objective != "measure" or margin > 0  # a certificate: never rough
     while True:
-        tries = (TRACE if objective == "trace" else
-                 QUICK if rounds == 0 else ATTEMPTS)
+        tries = TRACE if objective == "trace" else PRECISE if precise else QUICK
         ans = _solve_active(data, active, margin, objective, floor, slack, unit,
-                            tries + STRONG if margin > 0 else tries)
+                            tries + STRONG if margin > 0 and not precise else tries,
+                            rough=not exact_next)
         rounds += 1
         if (objective == "measure" and ans.G is not None and rescales < MAX_RESCALES
                 and np.all(np.isfinite(ans.G))):
             moved = _rescale(data, ans.G, ans.F)
             got = measure_value(data.st, ans.G, ans.F)
-            if objective == "measure" and got > 0 and abs(math.log2(got / unit)) > 2:
+            if got > 0 and abs(math.log2(got / unit)) > 2:
                 unit, moved = float(_pow2(np.array(got))), True
             if moved:
                 rescales += 1
                 continue
-        if len(active) == K or ans.status == "infeasible":  # a relaxation: so is the PEP
-            break
-        if ans.status != "solved" and objective == "trace":
-            break  # a failed rank reduction: the witness search goes on without it
-        if ans.status != "solved":  # unbounded or failed on a relaxation: decide on all
-            active = np.arange(K)
+        if ans.status == "infeasible" or (len(active) == K and ans.status != "almost"):
+            break  # an infeasible relaxation: so is the PEP
+        if ans.status not in ("solved", "almost") and (objective == "trace" or margin > 0):
+            break  # a failed rank reduction or certificate: the caller goes on without it
+        if ans.status not in ("solved", "almost"):  # unbounded or failed on a relaxation
+            active = np.arange(K)  # decide on all
             continue
+        if margin > 0 and ans.status == "solved":
+            break  # a certificate on the pairs found by the PEP's own solve (0 elsewhere)
         assert ans.G is not None and ans.F is not None
         viol = data.violations(ans.G, ans.F)
         viol[active] = np.inf
         bad = np.flatnonzero(viol < (0.5 * slack if slack > 0 else -VIOLATION))
         if not len(bad):
-            break
+            if ans.status == "solved":
+                break
+            exact_next = True  # no violated pair at a rough answer: solve this set
+            continue
         bad = bad[np.argsort(viol[bad])][:max(len(active), MIN_ADD)]
+        if slack == 0:  # with the violated pairs, the most nearly tight ones: the next
+            near = np.flatnonzero((viol >= -VIOLATION) & (viol < NEAR))  # round's
+            bad = np.union1d(bad, near[np.argsort(viol[near])][:MIN_ADD])  # violated
         active = np.union1d(active, bad)
+        exact_next = objective != "measure"
     data.active = active
     ans.rounds = rounds
     return ans
 
 
 VIOLATION = 1e-9  # an omitted inequality below -VIOLATION (relative) joins the solve
+NEAR = 1e-6  # and when one does, up to MIN_ADD omitted ones below NEAR (relative) too
 MIN_ADD = 64  # joins per round: at least this many, or as many as are active
 MAX_RESCALES = 3
 FLOOR = 1e-2  # W_cc >= FLOOR sqrt(measure), V_i >= FLOOR^2 measure
@@ -261,25 +341,25 @@ def _rescale(data: PEPData, G: np.ndarray, F: np.ndarray) -> bool:
 
 def _solve_active(data: PEPData, active: np.ndarray, margin: float, objective: str,
                   floor: float | None, slack: float, unit: float,
-                  attempts: tuple[tuple[Any, ...], ...] = ATTEMPTS) -> SDPAnswer:
+                  attempts: tuple[tuple[Any, ...], ...] = ATTEMPTS,
+                  rough: bool = False) -> SDPAnswer:
     """The SDP on the pairs ``active`` in the solver's units (Clarabel; the attempts of
-    :data:`ATTEMPTS`); G, F, lambda, tau back in the original units."""
-
+    :data:`ATTEMPTS`); G, F, lambda, tau back in the original units. The measure is
+    solved in its dual form (:func:`_solve_dual`), the trace objective in the primal
+    form. ``rough``: an "almost solved" answer ends the attempts (status "almost": its
+    G, F set a scale or show violated pairs, nothing more)."""
+    if objective == "measure":
+        return _solve_dual(data, active, margin, unit, attempts, rough)
     st, w, v = data.st, data.w, data.v
     d, nF, K = st.d, st.nF, len(active)
     nG = d * (d + 1) // 2
-    W = np.outer(w, w)
-    meas = np.concatenate([svec(st.meas_q.astype(float) * W), st.meas_f.astype(float) * v])
-    init = np.concatenate([svec(st.init_q.astype(float) * W), st.init_f.astype(float) * v])
-    meas = meas / unit
-    if objective == "measure":
-        q = -(meas + np.concatenate([svec(np.eye(d)), np.ones(nF)]) * margin)
-    else:
-        q = np.concatenate([svec(np.eye(d)), np.zeros(nF)])
-    ineq = np.hstack([svec(data.q(active, scaled=True)), data.a[active] * v])
-    sig = np.abs(ineq).max(axis=1, initial=0.0)
-    sig[sig == 0] = 1.0
-    rows = [sps.csr_matrix(init[None, :]), sps.csr_matrix(-ineq / sig[:, None]),
+    meas = _scaled_form(data, st.meas_q, st.meas_f) / unit
+    init = _scaled_form(data, st.init_q, st.init_f)
+    q = np.concatenate([svec(np.eye(d)), np.zeros(nF)])
+    ineq = sps.hstack([data.svec_rows(active, scaled=True),
+                       sps.csr_matrix(data.a[active] * v)]).tocsr()
+    sig = _row_scale(ineq)
+    rows = [sps.csr_matrix(init[None, :]), -sps.diags(1.0 / sig) @ ineq,
             sps.hstack([sps.csr_matrix((nF, nG)), -sps.identity(nF)])]
     b = [np.ones(1), np.full(K, -slack), np.zeros(nF)]
     if floor is not None:
@@ -291,58 +371,141 @@ def _solve_active(data: PEPData, active: np.ndarray, margin: float, objective: s
     A = sps.csc_matrix(sps.vstack(rows))
     A.eliminate_zeros()
     sol, raw, st_ = _clarabel(A, q, np.concatenate(b), nn, d, attempts,
-                              final_infeasible=objective == "trace")
+                              final=("DualInfeasible", "PrimalInfeasible"))
     if raw == "DualInfeasible":
         return SDPAnswer("unbounded", raw)
     if st_ == SolverStatus.INFEASIBLE:
         return SDPAnswer("infeasible", raw)
     if sol is None:
         return SDPAnswer("failed", raw)
-    x, z = np.array(sol.x), np.array(sol.z)
+    x = np.array(sol.x)
     H, Fs = unsvec(x[:nG], d), x[nG:]
-    G, F = H * W, Fs * v
-    if st_ != SolverStatus.SOLVED:  # G, F of an almost solved problem: a scale only
+    G, F = H * np.outer(w, w), Fs * v
+    if st_ != SolverStatus.SOLVED:
         return SDPAnswer("failed", raw, G=G if raw.startswith("Almost") else None, F=F)
-    lam = np.zeros(len(data.st.pairs))
-    lam[active] = np.maximum(z[1:1 + K], 0.0) / sig * unit
-    ans = SDPAnswer("solved", raw, -float(sol.obj_val) * unit, -float(sol.obj_val_dual) * unit,
-                    G, F, float(z[0]) * unit, lam,
+    return SDPAnswer("solved", raw, -float(sol.obj_val) * unit, -float(sol.obj_val_dual) * unit,
+                     G, F, size=float(np.trace(H)) + float(np.clip(Fs, 0, None).sum()))
+
+
+def _scaled_form(data: PEPData, Q: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """(svec of Q on H, f on F') of a quadratic and linear form of (G, F)."""
+    return np.concatenate([svec(Q.astype(float) * np.outer(data.w, data.w)),
+                           f.astype(float) * data.v])
+
+
+def _row_scale(M: sps.csr_matrix) -> np.ndarray:
+    """The largest |entry| of each row (1 for an empty row)."""
+    sig = np.asarray(abs(M).max(axis=1).todense()).ravel() if M.shape[0] else np.ones(0)
+    sig[sig == 0] = 1.0
+    return sig
+
+
+def _solve_dual(data: PEPData, active: np.ndarray, margin: float, unit: float,
+                attempts: tuple[tuple[Any, ...], ...], rough: bool) -> SDPAnswer:
+    """The PEP on the pairs ``active`` in its dual form: minimize tau over (tau, lambda
+    >= 0) with c_F = tau i_F - m_F - eps - sum lambda_k a_k >= 0 and S = tau I0 - M -
+    eps I - sum lambda_k Q_k ⪰ 0 (solver's units, eps = ``margin``). The entries of S
+    that no Q_k, I0 or M touches are structurally zero: Clarabel's chordal decomposition
+    splits the PSD cone into small blocks along the band the basis gives (the primal
+    form's cone is on every entry of G: dense, a cost like d^6). G and F are the dual
+    variables of S and c_F (a PSD completion of the entries the pairs use)."""
+    st = data.st
+    d, nF, K = st.d, st.nF, len(active)
+    nG = d * (d + 1) // 2
+    meas = _scaled_form(data, st.meas_q, st.meas_f) / unit
+    init = _scaled_form(data, st.init_q, st.init_f)
+    ineq = sps.hstack([data.svec_rows(active, scaled=True),
+                       sps.csr_matrix(data.a[active] * data.v)]).tocsr()
+    sig = _row_scale(ineq)
+    cols = (sps.diags(1.0 / sig) @ ineq).T.tocsr()  # (nG + nF) x K: lambda_k's column
+    body = sps.hstack([sps.csr_matrix(-init[:, None]), cols]).tocsr()
+    A = sps.vstack([sps.hstack([sps.csr_matrix((K, 1)), -sps.identity(K)]),
+                    body[nG:], body[:nG]]).tocsc()
+    A.eliminate_zeros()
+    eye = np.concatenate([svec(np.eye(d)), np.ones(nF)]) * margin
+    b = np.concatenate([np.zeros(K), -(meas + eye)[nG:], -(meas + eye)[:nG]])
+    q = np.zeros(1 + K)
+    q[0] = 1.0
+    sol, raw, st_ = _clarabel(A, q, b, K + nF, d, attempts, final=(
+        "PrimalInfeasible", "DualInfeasible") + (("AlmostSolved",) if rough else ()))
+    if raw == "PrimalInfeasible":  # no certificate: the measure is unbounded
+        return SDPAnswer("unbounded", raw)
+    if raw == "DualInfeasible":
+        return SDPAnswer("infeasible", raw)
+    if sol is None:
+        return SDPAnswer("failed", raw)
+    x, z = np.array(sol.x), np.array(sol.z)
+    H, Fs = unsvec(z[K + nF:], d), z[K:K + nF]
+    G, F = H * np.outer(data.w, data.w), Fs * data.v
+    if st_ != SolverStatus.SOLVED:  # G, F of an almost solved problem: a scale only
+        almost = raw.startswith("Almost")
+        return SDPAnswer("almost" if almost and rough else "failed", raw,
+                         G=G if almost else None, F=F)
+    lam = np.zeros(len(st.pairs))
+    lam[active] = np.maximum(x[1:], 0.0) / sig * unit
+    ans = SDPAnswer("solved", raw, float(sol.obj_val_dual) * unit, float(sol.obj_val) * unit,
+                    G, F, float(x[0]) * unit, lam,
                     size=float(np.trace(H)) + float(np.clip(Fs, 0, None).sum()))
-    if objective == "measure":
-        ans.S = residual(data, ans.tau, lam)
+    ans.S = residual(data, ans.tau, lam)
     return ans
 
 
 def _clarabel(A: Any, q: np.ndarray, b: np.ndarray, nn: int, d: int,
-              attempts: tuple[tuple[Any, ...], ...], final_infeasible: bool = False
+              attempts: tuple[tuple[Any, ...], ...], final: tuple[str, ...] = ()
               ) -> tuple[Any, str, SolverStatus]:
     """(solution or None, raw status, status) of the first attempt that ends solved or
-    dual infeasible, or primal infeasible when ``final_infeasible`` (else the last).
-    An attempt is (precise tolerances, static regularization[, max iterations])."""
+    with a raw status in ``final`` (else the last). An attempt is (precise tolerances,
+    static regularization[, max iterations])."""
     import clarabel
 
-    from sosalgo.interrupts import native_solve, watch
 
     cones = [clarabel.NonnegativeConeT(nn), clarabel.PSDTriangleConeT(d)]
     P = sps.csc_matrix((A.shape[1], A.shape[1]))
     sol, raw, st_ = None, "no attempt ended", SolverStatus.FAILED
     for precise, reg, *iters in attempts:
-        settings = _settings(precise, reg, *iters)
-        try:
-            with _quiet_stderr(), native_solve():  # Ctrl-C, SIGTERM stop the solve
-                sol = watch(clarabel.DefaultSolver(P, q, A, b, cones, settings)).solve()
-        except BaseException as exc:  # Clarabel's Rust panics (an eigenvalue failure)
-            if isinstance(exc, MemoryError) or not (isinstance(exc, Exception) or type(
-                    exc).__name__ == "PanicException"):
-                raise  # an interruption (Ctrl-C, SIGTERM), an exit, no memory
+        sol = _clarabel_attempt(P, q, A, b, cones, precise, reg, iters)
+        if sol is None:
             continue
         raw = str(sol.status)
         st_ = solver_status(raw)
-        if (st_ == SolverStatus.SOLVED or raw == "DualInfeasible"
-                or (final_infeasible and raw == "PrimalInfeasible")
+        if (st_ == SolverStatus.SOLVED or raw in final
                 or (iters and sol.iterations >= iters[0])):  # capped: not converging
             break
     return sol, raw, st_
+
+
+def _clarabel_attempt(P: Any, q: np.ndarray, A: Any, b: np.ndarray, cones: list[Any],
+                      precise: bool, reg: float, iters: list[int]) -> Any:
+    """One attempt's solution, or None when Clarabel panics (Rust panics: an eigenvalue
+    failure while solving; while building, the next chordal decomposition of
+    :data:`CHORDAL` is tried). Ctrl-C and SIGTERM stop the solve (:mod:`sosalgo.interrupts`)."""
+    import clarabel
+
+    from sosalgo.interrupts import native_solve, watch
+
+    with _quiet_stderr():
+        for chordal in CHORDAL:
+            settings = _settings(precise, reg, *(iters or [400]), chordal)
+            try:
+                solver = clarabel.DefaultSolver(P, q, A, b, cones, settings)
+            except BaseException as exc:
+                _reraise_interruption(exc)
+                continue
+            try:
+                with native_solve():
+                    return watch(solver).solve()
+            except BaseException as exc:
+                _reraise_interruption(exc)
+                return None
+    return None
+
+
+def _reraise_interruption(exc: BaseException) -> None:
+    """Re-raise what is not a Clarabel failure: an interruption (Ctrl-C, SIGTERM), an exit,
+    no memory. Rust panics surface as ``PanicException`` (a BaseException)."""
+    if isinstance(exc, MemoryError) or not (isinstance(exc, Exception)
+                                            or type(exc).__name__ == "PanicException"):
+        raise exc
 
 
 def residual(data: PEPData, tau: float, lam: np.ndarray) -> np.ndarray:
@@ -350,7 +513,9 @@ def residual(data: PEPData, tau: float, lam: np.ndarray) -> np.ndarray:
     st = data.st
     idx = np.flatnonzero(lam)
     S = tau * st.init_q.astype(float) - st.meas_q.astype(float)
-    return S - np.tensordot(lam[idx], data.q(idx), axes=1)
+    if len(idx):
+        S = S - unsvec(data.svec_rows(idx).T @ lam[idx], st.d)
+    return S
 
 
 def value_residual(data: PEPData, tau: float, lam: np.ndarray) -> np.ndarray:

@@ -84,6 +84,9 @@ class Method(CallShape):
     # D_i = 0 and C_i [X0 Xs] = [1 0] proven exactly: from xi_0 = X0 x_0 - Xs s~ the first
     # call i is at x_0 (set on exact methods; floats find the coincidence by ``same``)
     x0_call: int | None = None
+    # exact methods: the structures built on them (the proof of each margin's certificate
+    # rebuilds the same one; built once, :func:`build_structure`)
+    structures: dict[Any, Any] = field(default_factory=dict, repr=False, compare=False)
 
 
 @dataclass
@@ -184,17 +187,40 @@ def _trajectory(mt: Method, xi0: np.ndarray, new: list[np.ndarray],
     """(xi, y, u/s) rows: u~_k/s = K xi~_k + b_k (b_k the new basis vectors ``new[k]``),
     y~_k = C xi~_k + s D u~_k/s, xi~_{k+1} = A xi~_k + s B u~_k/s. With K deadbeat, every
     row combines the last n steps' b only (float rows: round-off below 1e-13 dropped)."""
+    if mt.exact:
+        return _exact_trajectory(mt, xi0, new, calls)
     xi, Y, U = [xi0], [], []
     for k in range(calls):
         u = mt.K @ xi[k] + new[k]
         U.append(u)
         Y.append(mt.C @ xi[k] + mt.s * (mt.D @ u))
         nxt = mt.A @ xi[k] + mt.s * (mt.B @ u)
-        if not mt.exact:
-            nxt[np.abs(nxt) < 1e-13 * (1.0 + np.abs(nxt).max())] = 0.0
-        else:
-            nxt = np.vectorize(coarsen, otypes=[object])(nxt)
+        nxt[np.abs(nxt) < 1e-13 * (1.0 + np.abs(nxt).max())] = 0.0
         xi.append(nxt)
+    return xi, Y, U
+
+
+def _exact_trajectory(mt: Method, xi0: np.ndarray, new: list[np.ndarray],
+                      calls: int) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
+    """:func:`_trajectory` on exact numbers, computed on the columns in use only (the
+    others are exact zeros, a product of exact zeros included: Ball(c, r) * 0 = 0), so
+    that a step costs the band of the last n steps, not the whole basis."""
+    zero = Fraction(0)
+    xi, Y, U = [xi0], [], []
+    for k in range(calls):
+        cols = np.flatnonzero([any(_nonzero(v) for v in col) for col in
+                               np.vstack([xi[k], new[k]]).T])
+        x, b = xi[k][:, cols], new[k][:, cols]
+        u = mt.K @ x + b
+        nxt = np.vectorize(coarsen, otypes=[object])(mt.A @ x + mt.s * (mt.B @ u))
+        parts = []
+        for rows in (u, mt.C @ x + mt.s * (mt.D @ u), nxt):
+            full = np.full((rows.shape[0], xi0.shape[1]), zero, dtype=object)
+            full[:, cols] = rows
+            parts.append(full)
+        U.append(parts[0])
+        Y.append(parts[1])
+        xi.append(parts[2])
     return xi, Y, U
 
 
@@ -202,7 +228,19 @@ def build_structure(mt: Method, steps: int, measure: Sequence[Term],
                     initial: Sequence[Term], option: tuple[str, str] = ("--measure",
                                                                        "--initial")
                     ) -> PEPStructure:
-    """The PEP of ``steps`` steps (see the module docstring)."""
+    """The PEP of ``steps`` steps (see the module docstring); on an exact method, built
+    once per (steps, terms) and kept on the method (nothing downstream changes it)."""
+    key = (steps, repr(list(measure)), repr(list(initial)), option)
+    if mt.exact and key in mt.structures:
+        return mt.structures[key]
+    st = _build_structure(mt, steps, measure, initial, option)
+    if mt.exact:
+        mt.structures[key] = st
+    return st
+
+
+def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
+                     initial: Sequence[Term], option: tuple[str, str]) -> PEPStructure:
     p, J, n = mt.p, len(mt.functions), mt.n
     free = any(t.kind == "sdist" for t in initial)
     n0 = n if free else 1
