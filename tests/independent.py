@@ -1,4 +1,4 @@
-"""An independent reference for Theorem 1 (issue 16, item 4): no sosalgo code.
+"""An independent reference for Theorem 1: no sosalgo code.
 
 The judge of ``sosalgo design``'s lower bound. It shares nothing with sosalgo (only numpy,
 scipy and clarabel), so a bug in sosalgo's bound cannot hide behind the same bug here.
@@ -711,7 +711,7 @@ def random_case(seed: int) -> Case:
 
 
 def crossterm_case() -> Case:
-    """The crossterm spec of issue 16 (free b, g at kappa 10)."""
+    """The crossterm spec (free b, g at kappa 10)."""
     params: Params = {"h": ("1.9/L", ("0", "2/L")), "a": ("0.8", ("0", "1")),
                       "b": ("1", ("-10", "10")), "g": ("0.5", ("-1", "1"))}
     mats = {"A": [["1", "0"], ["0", "a"]], "B": [["-h"], ["b"]],

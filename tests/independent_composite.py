@@ -1,4 +1,4 @@
-"""An independent judge for composite / proximal rates (issue 18): no sosalgo code.
+"""An independent judge for composite / proximal rates: no sosalgo code.
 
 Given a method as plain matrices, ``xi+ = A xi + B u``, ``y = C xi + D u`` (D lower
 triangular; ``D_ii = -t < 0`` makes call i the proximal step ``y_i = prox_{t f_j}(v_i)``),

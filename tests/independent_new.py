@@ -1,5 +1,5 @@
 """An independent judge for sublinear constants, noise sensitivity, PEP bounds and rate
-brackets (issues 18-20): numpy, scipy and fractions only, no sosalgo code.
+brackets: numpy, scipy and fractions only, no sosalgo code.
 
 The methods judged are gradient methods with momentum on one function f,
 

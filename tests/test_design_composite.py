@@ -1,4 +1,4 @@
-"""design, grid, lmi, sweeps and table1 on composite / proximal specs (issue 18, item 2).
+"""design, grid, lmi, sweeps and table1 on composite / proximal specs.
 
 Designs are judged against closed forms from the literature (Taylor, Hendrickx, Glineur
 2018 for proximal gradient; 1/(1 + t m) for the proximal point method; Giselsson, Boyd

@@ -1,4 +1,4 @@
-"""Hostile input: property-based fuzzing of the spec loader (issue 5, part 3).
+"""Hostile input: property-based fuzzing of the spec loader.
 
 Whatever the text, ``spec_from_text`` returns a Spec or raises SpecError with a one-line
 message; it never raises anything else, never hangs (HANG_GUARD: a guard far above normal

@@ -1,4 +1,4 @@
-"""The faster lag choice and start of the interpolation search (issue 18, speed): the
+"""The faster lag choice and start of the interpolation search: the
 largest lag of a window is tested first, a certificate within the tolerance of the rate
 on quadratics closes the bracket, the quadratic bound is computed once and batched. The
 rates must be those of the plain definitions: every lag searched on its own, and closed

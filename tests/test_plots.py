@@ -1,4 +1,4 @@
-"""Figures a paper can use (issue 9): smooth references, readable kappa ticks, the designed
+"""Figures a paper can use: smooth references, readable kappa ticks, the designed
 curve on top, missing bounds marked, no fake rho = 1 points, no white band in contours."""
 
 from __future__ import annotations

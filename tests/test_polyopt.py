@@ -408,7 +408,7 @@ def test_order_validation_and_bad_input() -> None:
 
 
 # --------------------------------------------------------------------------------------
-# Honest bounds: large coefficients, unbounded problems, flatness (issue 8, item 6).
+# Honest bounds: large coefficients, unbounded problems, flatness.
 # True minima derived by hand in each comment.
 # --------------------------------------------------------------------------------------
 

@@ -1,4 +1,4 @@
-"""A stand-alone project (issue 9): own docs, shipped example specs, version, make help,
+"""A stand-alone project: own docs, shipped example specs, version, make help,
 range checks, and the Python API."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The run model (issue 9): reruns resume or recompute, outputs never collide, concurrent
+"""The run model: reruns resume or recompute, outputs never collide, concurrent
 runs are safe, bad output paths and environments fail with one line and exit code 2."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Soundness of the design lower bound against an independent judge (issue 16, item 4).
+"""Soundness of the design lower bound against an independent judge.
 
 ``design``'s ``lower_bound`` (and ``prove_bound``'s) claims that no theta in the box is
 certified by Theorem 1 below it. The judge (``tests/independent.py``, which shares no

@@ -1,4 +1,4 @@
-"""Soundness of composite / proximal certificates against an independent judge (issue 18).
+"""Soundness of composite / proximal certificates against an independent judge.
 
 Random composite methods (proximal gradient with momentum, projected gradient with
 momentum, Douglas-Rachford with relaxation, proximal point, a coupled two-state method

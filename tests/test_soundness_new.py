@@ -1,4 +1,5 @@
-"""Soundness of the proof-producing features of issues 18-20 against an independent judge.
+"""Soundness of the proof-producing features (sublinear, noise, PEP, brackets) against an
+independent judge.
 
 Random gradient methods with momentum (``tests/independent_new.py``: x+ = x - h grad f(x +
 eta (x - x_prev)) + beta (x - x_prev); random h, beta, eta, near-divergent and degenerate
@@ -16,7 +17,7 @@ adversarial ones are written as specs and judged:
    radius on quadratics + 1e-9, its curvature re-checked; cycles re-checked in fractions
    and never beside a certified rate.
 
-Today's changes (2026-11-24), judged the same way:
+Later additions, judged the same way:
 
 5. PEP with the ball-arithmetic dual proof: ``initial_state:`` starts (the judge runs the
    start x_{-1} = x0 + c g0, x_0 = x0 + c' g0 itself), m = 0, gradient descent after a
@@ -515,7 +516,7 @@ def test_rate_bracket_below_rates(key):
 
 
 def test_heavy_ball_cycle_rechecked():
-    """Heavy ball tuned for quadratics at kappa 25: a cycle is found (issue 19) and the
+    """Heavy ball tuned for quadratics at kappa 25: a cycle is found and the
     judge re-checks it; tampering breaks it."""
     from sosalgo.witnesses.rows import witness_fields
 

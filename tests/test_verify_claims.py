@@ -1,4 +1,4 @@
-"""Verification never passes what it cannot check (issue 9): missing or malformed
+"""Verification never passes what it cannot check: missing or malformed
 certificates, non-symmetric P, NaN checks, large errors in the test functions, results
 that moved or whose spec changed."""
 
