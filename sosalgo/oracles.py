@@ -36,9 +36,11 @@ __all__ = ["BoundFunction", "CallShape", "OracleMethod", "as_oracle_method", "ch
 
 FIXED_POINT_TOL = 1e-8
 # Nonzero matrix entries must lie in [1/MAX_MAGNITUDE, MAX_MAGNITUDE] in magnitude: beyond,
-# the squares and products the certificates and PEPs form leave the floating-point range
-# (1e200 squared overflows, 1e-200 squared underflows to 0) and checks become blind.
-MAX_MAGNITUDE = 1e100
+# an entry is within a few decades of the floating-point range's ends and its sums and
+# products leave it. Inside, a float check that overflows never certifies (it ends in inf or
+# nan) and the fixed-point check is scale-free (:func:`consistent_solution`), so methods
+# written in tiny or huge units (m = 1e-300) keep working.
+MAX_MAGNITUDE = 1e305
 
 
 @dataclass(frozen=True)
@@ -199,7 +201,7 @@ def check_magnitudes(name: str, arr: np.ndarray) -> None:
     if np.any(bad):
         i, j = np.argwhere(bad)[0]
         raise ModelError(f"matrices.{name}[{i}][{j}]", f"{arr[i, j]:.3g} is outside the "
-                         f"magnitudes [1e-100, 1e100] floating-point checks can handle")
+                         f"magnitudes [1e-305, 1e305] floating-point checks can handle")
 
 
 def check_oracle_spec(spec: Spec, fail: Callable[[str, str], SpecError]) -> None:

@@ -166,10 +166,10 @@ def sublinear_grid_chunk(spec_text: str, source: str, options: dict[str, Any],
                          chunk: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Worker: the certified constant at each task's point (its free parameters' values)."""
     from sosalgo.analysis import analyze_sublinear
-    from sosalgo.batch.sweeps import _spec
+    from sosalgo.batch.sweeps import cached_spec
     from sosalgo.model import ModelError
 
-    spec = _spec(spec_text, source)
+    spec = cached_spec(spec_text, source)
     rows = []
     for task in chunk:
         theta = {p: float(task[p]) for p in options["free"]}
@@ -194,7 +194,7 @@ def sublinear_grid_run(spec: Spec, text: str, out_dir: str | Path, points: int =
     grid over the free parameters' box, written row by row to ``<name>-grid.csv``
     (resumable, on ``workers`` processes or a Dask ``scheduler`` like every grid)."""
     from sosalgo import inputs
-    from sosalgo.batch.sweeps import _seed, grid_points, run_store
+    from sosalgo.batch.sweeps import grid_points, run_store, seed_spec
     from sosalgo.model import parameter_box
 
     names = inputs.free_names(spec, free)
@@ -208,7 +208,7 @@ def sublinear_grid_run(spec: Spec, text: str, out_dir: str | Path, points: int =
                 "box": [list(b) for b in box]}
     store = _store(path, names + GRID_RESULT_COLUMNS, names, settings, restart)
     tasks = [dict(zip(names, pt, strict=True)) for pt in grid_points(box, points)]
-    _seed(spec, text)
+    seed_spec(spec, text)
     run_store(store, tasks, f"grid {spec.name}", progress, sublinear_grid_chunk, text,
                spec.source, {"free": names}, None, workers, scheduler)
     order = {store.row_key(t): i for i, t in enumerate(tasks)}

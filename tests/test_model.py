@@ -92,9 +92,14 @@ def test_design_box_blames_an_entry_that_overflows_not_the_parameter_value():
 
 
 def test_fixed_point_of_overflowing_matrices_is_none_without_a_warning():
+    alg = Algorithm([[1e300, 1e300], [1e300, 1e300]], [[1.0], [1.0]], [[1e300, 1.0]],
+                    [[1.0, 1e300]], 1.0, 10.0, require_fixed_point=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a RuntimeWarning would fail the test
+        assert fixed_point(alg) is None
     with pytest.raises(ModelError, match=r"matrices.A\[0\]\[0\].*magnitudes"):
-        Algorithm([[1e300, 1e300], [1e300, 1e300]], [[1.0], [1.0]], [[1e300, 1.0]],
-                  [[1.0, 1e300]], 1.0, 10.0, require_fixed_point=False)
+        Algorithm([[1e306, 1.0], [1.0, 1.0]], [[1.0], [1.0]], [[1.0, 1.0]],
+                  [[1.0, 1.0]], 1.0, 10.0, require_fixed_point=False)
     from sosalgo.oracles import consistent_solution
 
     lhs = np.array([[1 - 1e300, -1e300], [-1e300, 1 - 1e300], [1e300, 1.0], [1.0, 1e300]])

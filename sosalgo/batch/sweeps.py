@@ -32,6 +32,8 @@ from sosalgo.spec import BASE_NAMES, Spec, spec_from_text
 
 __all__ = [
     "analysis_columns",
+    "cached_spec",
+    "seed_spec",
     "design_columns",
     "grid_columns",
     "p_columns",
@@ -44,13 +46,13 @@ __all__ = [
 _SPECS: dict[tuple[str, str], Spec] = {}
 
 
-def _seed(spec: Spec, text: str) -> None:
+def seed_spec(spec: Spec, text: str) -> None:
     """Let in-process chunks reuse the caller's parsed spec (no second parse)."""
     _SPECS.clear()
     _SPECS[(text, spec.source)] = spec
 
 
-def _spec(text: str, source: str) -> Spec:
+def cached_spec(text: str, source: str) -> Spec:
     """Per-process cache of parsed specs (workers get the YAML text, not objects)."""
     key = (text, source)
     if key not in _SPECS:
@@ -180,7 +182,7 @@ def _certificate_cells(spec: Spec, family: CertificateFamily | None, kappa: floa
 
 def _worker_setup(spec_text: str, source: str, options: dict[str, Any]):
     """(spec, family) in a worker: the spec parsed from its text, the family asked for."""
-    spec = _spec(spec_text, source)
+    spec = cached_spec(spec_text, source)
     return spec, family_from_options(options.get("certificate")) or spec_family(spec)
 
 
@@ -281,7 +283,7 @@ def run_analysis_sweep(
     store = ResumableCSV(out_csv, analysis_columns(spec, fam, noise), ["kappa"], settings,
                          restart=restart, companions=companions)
     tasks = [{"kappa": float(k)} for k in kappas]
-    _seed(spec, spec_text)
+    seed_spec(spec, spec_text)
     run_store(store, tasks, f"analyze {spec.name}", progress, analysis_chunk, spec_text,
                spec.source, options, None, workers, scheduler)
     by_key = {store.row_key({"kappa": float(k)}): None for k in kappas}
@@ -435,7 +437,7 @@ def run_design_sweep(
             fresh[float(row["kappa"])] = full
         store.write(row)
 
-    _seed(spec, spec_text)
+    seed_spec(spec, spec_text)
     run_store(store, tasks, f"design {spec.name}", progress, design_chunk, spec_text,
                spec.source, options, on_row, workers, scheduler)
     wanted = {store.row_key({"kappa": float(k)}) for k in kappas}
@@ -539,7 +541,7 @@ def run_grid(
         theta = dict(zip(free, vals, strict=True))
         tasks.append({"kappa": float(kappa), "theta": theta, "extra": {**theta, **fixed},
                       **theta})
-    _seed(spec, spec_text)
+    seed_spec(spec, spec_text)
     run_store(store, tasks, f"grid {spec.name} k={kappa_label(kappa)}", progress, grid_chunk,
                spec_text, spec.source, options, None, workers, scheduler)
     order = {store.row_key(t): i for i, t in enumerate(tasks)}
