@@ -500,7 +500,13 @@ class Interpolation(CertificateFamily):
         return self.parts(alg, rho, cert)["D"]
 
     def summary(self, alg: Algorithm, rho: float, cert: dict[str, Any]) -> dict[str, float]:
-        """max eig of (D) (<= 0) and min eig of the positivity matrix (>= 0)."""
+        """max eig of (D) (<= 0) and min eig of the positivity matrix (>= 0); on the oracle
+        model without the directions where every certificate's matrices vanish
+        (:func:`sosalgo.certificates.composite.restricted_eigenvalues`)."""
+        if _is_oracle_method(alg):
+            from sosalgo.certificates.composite import restricted_eigenvalues
+
+            return restricted_eigenvalues(alg, rho, cert)
         pt = self.parts(alg, rho, cert)
         return {"max_eig_M": float(np.linalg.eigvalsh(pt["D"])[-1]),
                 "min_eig_P": float(np.linalg.eigvalsh(pt["Pq"])[0])}
