@@ -241,3 +241,41 @@ def test_chambolle_pock_every_lag_certifies(tmp_path, lag):
     proof = Interpolation(lag).exact_check(spec, 1000.0, res.rho, res.certificate)
     assert proof.verified == "exact", proof.reason
 
+
+
+DEAD_STATE = """\
+name: gradient-dead-state
+description: gradient descent with a second state that is reset every step and never read
+parameters:
+  h: {value: 1/L, range: [0, 2/L]}
+matrices:
+  A: [[1, 0], [0, 0]]
+  B: [[-h], [0]]
+  C: [[1, 0]]
+  E: [[1, 0]]
+kappa: [10]
+"""
+
+
+@pytest.mark.parametrize("lag", [1, 2])
+def test_a_dead_state_leaves_the_rate_of_gradient_descent(tmp_path, lag):
+    """A state killed by A and never read adds a direction on which every matrix of a
+    lag >= 1 window vanishes; without it the rate is gradient descent's, 1 - 1/kappa with
+    h = 1/L (Taylor, Hendrickx, Glineur 2018), proven exactly at that lag."""
+    path = tmp_path / "dead.yaml"
+    path.write_text(DEAD_STATE)
+    spec = load_spec(path)
+    res = analyze_algorithm(bind(spec, 10.0), tol=TOL, family=Interpolation(lag))
+    assert res.certified and abs(res.rho - 0.9) <= _slack(0.9)
+    assert res.max_eig_M <= 0 <= res.min_eig_P
+    proof = Interpolation(lag).exact_check(spec, 10.0, res.rho, res.certificate)
+    assert proof.verified == "exact", proof.reason
+
+
+def test_chambolle_pock_summary_has_no_sign_noise(tmp_path):
+    """The reported eigenvalues leave out the directions where every certificate's
+    matrices vanish (there they are 0, rounded to either sign)."""
+    path = tmp_path / "cp.yaml"
+    path.write_text(CHAMBOLLE_POCK)
+    res = analyze_algorithm(bind(load_spec(path), 1000.0), tol=TOL, family=Interpolation(1))
+    assert res.max_eig_M < 0 < res.min_eig_P

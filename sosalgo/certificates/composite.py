@@ -38,10 +38,17 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.certificates.base import AffineBlock, LMIProblem
+from sosalgo.certificates.base import (
+    AffineBlock,
+    LMIProblem,
+    complement_basis,
+    compress,
+    null_basis,
+    restricted_eigenvalues,
+)
 
 __all__ = ["CompositeStructure", "composite_problem", "composite_parts", "composite_structure",
-           "facial_reduction", "isotropic_directions", "restricted_eigenvalues"]
+           "facial_reduction", "isotropic_directions", "reduced_summary"]
 
 
 @dataclass
@@ -197,12 +204,12 @@ def _window(om: Any, lag: int, steps: int, s: float, rescale: bool) -> CWindow:
             Ft[r, cols] = 1.0
         F[t] = Ft
     meas_lin, meas_quad = _measure(om, pts, rows, steps - 1, nphi, s)
-    iso = isotropic_directions(om, pts, Z, meas_quad, rows["width"])
+    iso = isotropic_directions(om, pts, Z, meas_quad)
     return CWindow(rows["width"], nphi, Z, F, labels, Mq, mq, sigma, meas_lin, meas_quad, iso)
 
 
-def isotropic_directions(om: Any, pts: list, Z: dict[int, np.ndarray], meas_quad: np.ndarray,
-                         width: int) -> np.ndarray:
+def isotropic_directions(om: Any, pts: list, Z: dict[int, np.ndarray],
+                         meas_quad: np.ndarray) -> np.ndarray:
     """Orthonormal basis (width x k) of the directions w of a window on which every
     quadratic form of the certificate is 0 whatever the certificate: each row map z_t is 0,
     every subgradient is 0, the measure's point does not move, and the only points that move
@@ -219,10 +226,7 @@ def isotropic_directions(om: Any, pts: list, Z: dict[int, np.ndarray], meas_quad
     for j, fn in enumerate(om.functions):
         if any(np.any(ineq.Q[:2, :2] != 0) for ineq in fn.cls.tilted(fn.params)):
             rows.append(np.array([pt.x for pt in pts[j]]))
-    R = np.vstack(rows)
-    _, sv, vt = np.linalg.svd(R)
-    rank = int(np.sum(sv > 1e-10 * max(1.0, float(sv[0]) if len(sv) else 1.0)))
-    return vt[rank:].T.copy()
+    return null_basis(np.vstack(rows))
 
 
 def facial_reduction(win: CWindow) -> tuple[np.ndarray | None, np.ndarray]:
@@ -243,9 +247,7 @@ def facial_reduction(win: CWindow) -> tuple[np.ndarray | None, np.ndarray]:
     MW = np.abs(win.Mq @ W).reshape(k, -1).max(axis=1, initial=0.0)
     size = np.abs(win.Mq).reshape(k, -1).max(axis=1, initial=0.0)
     drop = MW > 1e-9 * np.maximum(size, 1e-300)
-    _, sv, vt = np.linalg.svd(W.T)
-    Q = vt[W.shape[1]:].T.copy()
-    return Q, drop
+    return complement_basis(W), drop
 
 
 def _measure(om: Any, pts: list, rows: dict, t: int, nphi: int,
@@ -304,13 +306,6 @@ def reductions(st: CompositeStructure, lay: dict[str, slice]):
     return Qd, Qp, gone
 
 
-def _compress(Q: np.ndarray | None, *mats: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Q' M Q of every matrix (stacks of them too); the matrices themselves without Q."""
-    if Q is None:
-        return mats
-    return tuple(Q.T @ M @ Q for M in mats)
-
-
 def _blocks(st: CompositeStructure, lay: dict[str, slice]) -> list[AffineBlock]:
     """(D), (P) and the scalar rows, as in the seed's interpolation family; the measure is
     the constant of (P) (distance) or of (Pf) (function values). Both matrix blocks are
@@ -328,8 +323,8 @@ def _blocks(st: CompositeStructure, lay: dict[str, slice]) -> list[AffineBlock]:
     P0[lay["lam"]] = p.Mq
     Qd, Qp, gone = reductions(st, lay)
     D0[gone], D1[gone], P0[gone] = 0.0, 0.0, 0.0
-    D0c, D1c, zd = _compress(Qd, D0, D1, np.zeros((sD, sD)))
-    P0c, mqc = _compress(Qp, P0, p.meas_quad)
+    D0c, D1c, zd = compress(Qd, D0, D1, np.zeros((sD, sD)))
+    P0c, mqc = compress(Qp, P0, p.meas_quad)
     blocks = [AffineBlock("decrease", zd, zd, D0c, D1c),
               AffineBlock("positivity", mqc, np.zeros_like(mqc), P0c, np.zeros_like(P0c))]
     return blocks + _scalar_blocks(st, lay, gone)
@@ -441,18 +436,11 @@ def composite_parts(om: Any, rho: float, cert: dict[str, Any]) -> dict[str, np.n
     return {"D": D, "Df": Df, "Pq": Pq, "Pf": Pf}
 
 
-def restricted_eigenvalues(om: Any, rho: float, cert: dict[str, Any]) -> dict[str, float]:
-    """max eig of (D) and min eig of (P) at a certificate, each on the complement of its
-    window's isotropic directions when the matrix vanishes there (as every certificate of
-    :func:`composite_problem` does: there both are 0 for any certificate), else on the whole
-    window."""
+def reduced_summary(om: Any, rho: float, cert: dict[str, Any]) -> dict[str, float]:
+    """max eig of (D) and min eig of (P) at a certificate, each without its window's
+    isotropic directions when the matrix vanishes there (as every certificate of
+    :func:`composite_problem` does), else on the whole window."""
     pt = composite_parts(om, rho, cert)
     st = composite_structure(om, int(cert["lag"]))
-    out = []
-    for M, win in ((pt["D"], st.dec), (pt["Pq"], st.pos)):
-        Q = facial_reduction(win)[0]
-        scale = max(float(np.abs(M).max(initial=0.0)), 1e-300)
-        if Q is not None and float(np.abs(M @ win.iso).max()) <= 1e-12 * scale:
-            M = Q.T @ M @ Q
-        out.append(np.linalg.eigvalsh(M))
-    return {"max_eig_M": float(out[0][-1]), "min_eig_P": float(out[1][0])}
+    return {"max_eig_M": float(restricted_eigenvalues(pt["D"], st.dec.iso)[-1]),
+            "min_eig_P": float(restricted_eigenvalues(pt["Pq"], st.pos.iso)[0])}

@@ -43,7 +43,15 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from sosalgo.certificates.base import AffineBlock, CertificateFamily, LMIProblem
+from sosalgo.certificates.base import (
+    AffineBlock,
+    CertificateFamily,
+    LMIProblem,
+    complement_basis,
+    compress,
+    null_basis,
+    restricted_eigenvalues,
+)
 
 if TYPE_CHECKING:  # only for annotations: families do not depend on the model at run time
     import sympy as sp
@@ -65,6 +73,7 @@ class Window:
     labels: list[str]  # pair labels "i>j" (q_ij >= 0 for this ordered pair)
     Mq: list[Any]  # quadratic part of q_ij (width x width)
     mq: list[Any]  # linear part of q_ij on phi (nphi)
+    iso: Any = None  # float windows: :func:`null_directions` (width x k)
 
 
 @dataclass
@@ -210,8 +219,19 @@ def _window_float(A, B, C, E, m, L, lag: int, steps: int, has_x: bool) -> Window
         xs[steps + i] = E @ Xi[t]
     X = np.stack([xs[sh.ii], xs[sh.jj], sh.G[sh.ii], sh.G[sh.jj]], axis=1)  # (pairs, 4, w)
     Mq = 0.5 * (X.transpose(0, 2, 1) @ _mm(m, L, False) @ X)
+    iso = null_directions(Z, xs, sh.G)
     return Window(sh.width, sh.nphi, Z, dict(sh.F), list(sh.labels), list(Mq),
-                  list((L - m) * sh.sign))
+                  list((L - m) * sh.sign), iso)
+
+
+def null_directions(Z: dict[int, np.ndarray], xs: np.ndarray, G: np.ndarray) -> np.ndarray:
+    """Orthonormal basis (width x k) of the directions of a window on which every row map
+    z_t, every point and every gradient is 0, so that every matrix of the window's
+    inequality vanishes there, for every certificate. With a lag l >= 1 they exist when a
+    part of xi_0 is killed by A^l and never seen (a state the method resets and never
+    reads): the inequality can then not hold strictly, and the solver, asked for a margin,
+    finds none; the problem is solved without them (:meth:`Interpolation._problem`)."""
+    return null_basis(np.vstack([*Z.values(), xs, G]))
 
 
 def _scale(M: np.ndarray, half: Any) -> np.ndarray:
@@ -404,6 +424,9 @@ class Interpolation(CertificateFamily):
             D0[lay["eta"].start + k] = M
         for k, M in enumerate(p.Mq):
             P0[lay["lam"].start + k] = M
+        D0, D1 = compress(complement_basis(d.iso), D0, D1)
+        (P0,) = compress(complement_basis(p.iso), P0)
+        sD, sP = D0.shape[1], P0.shape[1]
         blocks = [
             AffineBlock("decrease", np.zeros((sD, sD)), np.zeros((sD, sD)), D0, D1),
             AffineBlock("positivity", np.zeros((sP, sP)), np.zeros((sP, sP)), P0,
@@ -502,14 +525,16 @@ class Interpolation(CertificateFamily):
     def summary(self, alg: Algorithm, rho: float, cert: dict[str, Any]) -> dict[str, float]:
         """max eig of (D) (<= 0) and min eig of the positivity matrix (>= 0); on the oracle
         model without the directions where every certificate's matrices vanish
-        (:func:`sosalgo.certificates.composite.restricted_eigenvalues`)."""
+        (:func:`sosalgo.certificates.composite.reduced_summary`); each without the directions
+        where every matrix of its window vanishes (:func:`null_directions`)."""
         if _is_oracle_method(alg):
-            from sosalgo.certificates.composite import restricted_eigenvalues
+            from sosalgo.certificates.composite import reduced_summary
 
-            return restricted_eigenvalues(alg, rho, cert)
+            return reduced_summary(alg, rho, cert)
         pt = self.parts(alg, rho, cert)
-        return {"max_eig_M": float(np.linalg.eigvalsh(pt["D"])[-1]),
-                "min_eig_P": float(np.linalg.eigvalsh(pt["Pq"])[0])}
+        st = self._structure(alg, normalized=False, lag=int(cert["lag"]))
+        return {"max_eig_M": float(restricted_eigenvalues(pt["D"], st.dec.iso)[-1]),
+                "min_eig_P": float(restricted_eigenvalues(pt["Pq"], st.pos.iso)[0])}
 
     # -- tables ------------------------------------------------------------------------------
     def p_size(self, n: int) -> int:
