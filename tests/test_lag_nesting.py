@@ -279,3 +279,43 @@ def test_chambolle_pock_summary_has_no_sign_noise(tmp_path):
     path.write_text(CHAMBOLLE_POCK)
     res = analyze_algorithm(bind(load_spec(path), 1000.0), tol=TOL, family=Interpolation(1))
     assert res.max_eig_M < 0 < res.min_eig_P
+
+
+IRRATIONAL_CP = """\
+name: chambolle-pock-irrational
+description: Chambolle-Pock, tau = 1/sqrt(2), sigma = theta = 1, K = I
+functions:
+  f: {class: smooth_strongly_convex}
+  g: {class: convex}
+parameters:
+  t: {value: 1/sqrt(2), range: [0, 2]}
+matrices:
+  A: [[1, -t], [0, 0]]
+  B: [[-t, 0], [0, 1]]
+  C: [[1, -t], [1, 1 - 2*t]]
+  D: [[-t, 0], [-2*t, -1]]
+  E: [[1, 0]]
+oracles: [f, g]
+measure: distance
+kappa: [10]
+"""
+
+
+def test_irrational_chambolle_pock_default_rate_is_proven(tmp_path):
+    """With tau irrational the removed direction (tau, 1) is irrational: a lag-1
+    certificate has an exact zero eigenvalue there that the enclosures of the exact
+    verifier cannot prove. The choice of lag then keeps lag 0 when its rate is within two
+    tolerances, and the default analysis is proven exactly."""
+    import sosalgo
+
+    path = tmp_path / "cp.yaml"
+    path.write_text(IRRATIONAL_CP)
+    spec = load_spec(path)
+    alg = bind(spec, 10.0)
+    assert Interpolation().has_null_directions(alg, 1)
+    assert not Interpolation().has_null_directions(alg, 0)
+    one = analyze_algorithm(alg, tol=TOL, family=Interpolation(1))
+    res = sosalgo.analyze(spec, 10.0)
+    assert res.certified and res.rho <= one.rho + 2 * _slack(one.rho)
+    check = sosalgo.verify(spec, res, simulate=False)
+    assert check["verified"] == "exact", check

@@ -24,8 +24,11 @@ are dropped (c merges into p_0).
 
 A certificate of lag l is one of lag l + 1 (P padded with zeros, p_{l+1} = 0, the
 multipliers of the window's older points 0), so larger lags never certify less in exact
-arithmetic, and sometimes much more (heavy ball). Without a given lag the analysis tries
-the lags of :meth:`Interpolation.auto_lags` and keeps the best rate
+arithmetic, and sometimes much more (heavy ball). For the solver, which needs a margin,
+the directions of a window on which every matrix vanishes for every certificate (a state
+killed by A^l and never read) are removed first (:func:`null_directions`; on the oracle
+model :func:`sosalgo.certificates.composite.facial_reduction`). Without a given lag the
+analysis tries the lags of :meth:`Interpolation.auto_lags` and keeps the best rate
 (:func:`sosalgo.analysis.analyze_algorithm`); a certificate always names its own lag.
 
 The same structure builder works on floats (the LMI data), rationals/balls (the exact
@@ -338,12 +341,26 @@ class Interpolation(CertificateFamily):
     def fallback_lags(self, n: int) -> tuple[int, ...]:
         """Lags below :meth:`auto_lags` that the choice of lag also tries, after the others,
         each only where it beats the best rate by the tolerance: lag 0, the smallest and
-        best-conditioned problem. A certificate of a smaller lag is one of a larger lag in
-        exact arithmetic, but not always for the solver: on a Chambolle-Pock-like method
-        (two proximal calls, kappa 1000, unit steps) lags 1 and 2 certify nothing where
-        lag 0 certifies 0.999. () for a given lag."""
+        best-conditioned problem. A certificate of a smaller lag is one of a larger lag
+        (the windows' directions where every matrix vanishes removed, see
+        :func:`sosalgo.certificates.composite.facial_reduction`), but near kappa 1000 the
+        solver may still certify a slightly slower rate at a larger lag (Chambolle-Pock
+        with unit steps: 0.9993 at lag 2, 0.9990 at lag 0). () for a given lag."""
         lags = self.auto_lags(n)
         return (0,) if lags and lags[0] > 0 else ()
+
+    def has_null_directions(self, alg: Algorithm, lag: int) -> bool:
+        """Whether a window of lag ``lag`` has directions where every certificate's matrices
+        vanish (:func:`null_directions`, on the oracle model
+        :func:`sosalgo.certificates.composite.isotropic_directions`): its certificates then
+        have exact zero eigenvalues there."""
+        if _is_oracle_method(alg):
+            from sosalgo.certificates.composite import composite_structure
+
+            st = composite_structure(alg, lag)
+        else:
+            st = self._structure(alg, normalized=True, lag=lag)
+        return any(w.iso is not None and w.iso.shape[1] > 0 for w in (st.dec, st.pos))
 
     def searches_past_certified(self, alg: Algorithm) -> bool:
         """With one oracle call per iteration, larger lags are tried (see
