@@ -506,6 +506,8 @@ def _choose_lag(alg: Algorithm, tol: float, fam: CertificateFamily, solvers: Seq
     a rate; then the family's ``fallback_lags`` (lag 0) are tried the same way, each
     only kept where it beats the best by the tolerance, so the rate returned is never
     slower than one certified at any lag tried (``lags_tried``), up to the tolerance.
+    When the best lag's windows were reduced (:func:`_reduced`), lag 0 is searched in full
+    and kept when its rate is within two tolerances of the best.
     The largest lag of those next ``LAG_PATIENCE`` is tested first: a
     certificate of lag l is one of lag l + 1, so when it does not beat the best rate none
     of the smaller ones does and the choice stops after that one test. Larger lags never
@@ -562,9 +564,26 @@ def _choose_lag(alg: Algorithm, tol: float, fam: CertificateFamily, solvers: Seq
         solves += spent
         tried.append(lag)
         best = best if res is None else res
+    if best.certified and best.lag and _reduced(fam, alg, best.lag):
+        res = _analyze_one(alg, tol, fam.with_options(lag=0),  # type: ignore[call-arg]
+                           solvers, method, floor)
+        solves += res.solves
+        tried.append(0)
+        width = _tolerance(tol)(best.rho)
+        best = res if res.certified and res.rho <= best.rho + 2 * width else best
     return dataclasses.replace(best, solves=solves, seconds=time.perf_counter() - start,
                                lag=best.lag if best.certified else None,
                                lags_tried=tuple(sorted(set(tried))))
+
+
+def _reduced(fam: CertificateFamily, alg: Algorithm, lag: int) -> bool:
+    """Whether lag ``lag``'s windows have directions where every certificate's matrices
+    vanish (removed before solving): its certificates then have exact zero eigenvalues,
+    which ``verify`` cannot prove along an irrational direction (a method with irrational
+    entries), so the choice prefers lag 0 (which has none) whenever lag 0's rate is within
+    two tolerances of it (:func:`_choose_lag`)."""
+    has = getattr(fam, "has_null_directions", None)
+    return bool(has is not None and has(alg, lag))
 
 
 def _fallback(alg: Algorithm, tol: float, fam: CertificateFamily, solvers: Sequence[str],

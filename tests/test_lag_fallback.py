@@ -1,9 +1,9 @@
 """The interpolation family's choice of lag never returns a rate slower than one it
-certified at a lag it tried. A certificate of lag l is one of lag l + 1 only in exact
-arithmetic: on a Chambolle-Pock-like method (two proximal calls, unit steps, kappa 1000)
-the solver certifies nothing at the default lags 1 and 2 while lag 0 certifies a rate,
-so the choice also tries lag 0. Each lag tried is searched again on its own here, as an
-independent reference."""
+certified at a lag it tried. A certificate of lag l is one of lag l + 1, but near
+kappa 1000 the solver may certify a slightly slower rate at a larger lag (a
+Chambolle-Pock-like method, two proximal calls, unit steps: lag 2 slower than lag 0), so
+the choice also tries lag 0. Each lag tried is searched again on its own here, as an
+independent reference (the nesting itself: tests/test_lag_nesting.py)."""
 
 from __future__ import annotations
 

@@ -283,3 +283,28 @@ def test_noise_objective_three_parameter_meets_its_cap():
                            time_limit=90)
     assert res.objective_status == "met" and res.rho_certified <= 0.75
     assert res.noise >= res.noise_quadratic * (1 - 1e-9)
+
+
+@pytest.mark.deep
+def test_noise_design_beats_robust_momentum_inside_the_family():
+    """kappa = 10, the default (interpolation) family: at the certified rate of the third
+    robust momentum member that ``sosalgo pareto`` lists (rho = 1 - 1/sqrt(kappa) +
+    (1/sqrt(kappa) - 1/kappa)/3; Cyrus, Hu, Van Scoy, Lessard 2018), the noise design
+    certifies a method at least as fast and at least 1 % less sensitive, both axes
+    certified (measured: 3.8 %). The margin is not the same along the family: 0.9 % at
+    2/5 of the range, and near rho = 0.864 the design (60 s) and robust momentum agree to
+    0.2 %, so only this member is asserted."""
+    from sosalgo.design.objectives import certify_point
+    from sosalgo.pareto import _base_family
+
+    spec = sosalgo.load_spec(spec_path("three-parameter"))
+    fam = _base_family(spec, {})
+    kappa, L = 10.0, 10.0
+    lo, hi = 1 - 1 / math.sqrt(kappa), 1 - 1 / kappa
+    rm = certify_point(spec, kappa, robust_momentum(kappa, L, lo + (hi - lo) / 3), fam)
+    assert rm.rho is not None and rm.noise is not None and rm.noise_check == "exact"
+    res = objective_design(spec, kappa, "noise", max_rate=rm.rho, family=fam.name,
+                           time_limit=60)
+    assert res.objective_status == "met" and res.rho_certified <= rm.rho
+    assert res.noise_check == "exact"
+    assert res.noise <= 0.99 * rm.noise, (res.noise, rm.noise)

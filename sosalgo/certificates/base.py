@@ -18,7 +18,8 @@ if TYPE_CHECKING:  # only for annotations: families do not depend on the model a
 
 
 __all__ = ["AffineBlock", "ExactBlock", "LMIProblem", "CertificateFamily", "check_matrix",
-           "check_number"]
+           "check_number", "complement_basis", "compress", "null_basis",
+           "restricted_eigenvalues"]
 
 
 @dataclass(frozen=True)
@@ -241,3 +242,38 @@ def check_matrix(value: Any, n: int, part: str) -> list[list[float]] | None:
             and all(isinstance(r, list) and len(r) == n for r in value)):
         raise ValueError(f"{part}: expected a {n}x{n} list of lists of numbers")
     return [[check_number(v, part, allow_none=False) for v in row] for row in value]
+
+
+def null_basis(R: np.ndarray, rel: float = 1e-10) -> np.ndarray:
+    """Orthonormal basis (columns) of the null space of the rows R (singular values below
+    ``rel`` times the largest, or 1, count as 0)."""
+    _, sv, vt = np.linalg.svd(R)
+    top = max(1.0, float(sv[0])) if len(sv) else 1.0
+    return vt[int(np.sum(sv > rel * top)):].T.copy()
+
+
+def complement_basis(W: np.ndarray | None) -> np.ndarray | None:
+    """Orthonormal basis of the orthogonal complement of the columns of W (None when W has
+    none: the whole space)."""
+    if W is None or W.shape[1] == 0:
+        return None
+    return null_basis(W.T)
+
+
+def compress(Q: np.ndarray | None, *mats: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Q' M Q of every matrix (stacks of them too); the matrices themselves without Q."""
+    if Q is None:
+        return mats
+    return tuple(Q.T @ M @ Q for M in mats)
+
+
+def restricted_eigenvalues(M: np.ndarray, W: np.ndarray | None) -> np.ndarray:
+    """Eigenvalues of the symmetric M on the complement of the directions W when M vanishes
+    on them (to rounding), else of M itself. Directions where every matrix of a family's
+    block vanishes carry a 0 eigenvalue for every certificate, rounded to either sign."""
+    Q = complement_basis(W)
+    if Q is not None:
+        scale = max(float(np.abs(M).max(initial=0.0)), 1e-300)
+        if float(np.abs(M @ W).max()) <= 1e-12 * scale:
+            M = Q.T @ M @ Q
+    return np.linalg.eigvalsh(M)

@@ -38,9 +38,17 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.certificates.base import AffineBlock, LMIProblem
+from sosalgo.certificates.base import (
+    AffineBlock,
+    LMIProblem,
+    complement_basis,
+    compress,
+    null_basis,
+    restricted_eigenvalues,
+)
 
-__all__ = ["CompositeStructure", "composite_problem", "composite_parts", "composite_structure"]
+__all__ = ["CompositeStructure", "composite_problem", "composite_parts", "composite_structure",
+           "facial_reduction", "isotropic_directions", "reduced_summary"]
 
 
 @dataclass
@@ -66,6 +74,9 @@ class CWindow:
     sigma: np.ndarray  # (k,) the scale each inequality was divided by
     meas_lin: np.ndarray  # (nphi,) the measure at time l (positivity window)
     meas_quad: np.ndarray  # (width, width)
+    # (width, k) orthonormal basis of the window's isotropic directions (see
+    # :func:`isotropic_directions`); (width, 0) when there are none
+    iso: np.ndarray | None = None
 
 
 @dataclass
@@ -193,7 +204,50 @@ def _window(om: Any, lag: int, steps: int, s: float, rescale: bool) -> CWindow:
             Ft[r, cols] = 1.0
         F[t] = Ft
     meas_lin, meas_quad = _measure(om, pts, rows, steps - 1, nphi, s)
-    return CWindow(rows["width"], nphi, Z, F, labels, Mq, mq, sigma, meas_lin, meas_quad)
+    iso = isotropic_directions(om, pts, Z, meas_quad)
+    return CWindow(rows["width"], nphi, Z, F, labels, Mq, mq, sigma, meas_lin, meas_quad, iso)
+
+
+def isotropic_directions(om: Any, pts: list, Z: dict[int, np.ndarray],
+                         meas_quad: np.ndarray) -> np.ndarray:
+    """Orthonormal basis (width x k) of the directions w of a window on which every
+    quadratic form of the certificate is 0 whatever the certificate: each row map z_t is 0,
+    every subgradient is 0, the measure's point does not move, and the only points that move
+    are those of functions whose inequalities have no |x_a - x_b|^2 part (convex,
+    indicators: with zero subgradients their forms vanish). With a lag l >= 1 and a singular
+    A such directions exist (the part of xi_0 that A^l kills but a call still sees:
+    Chambolle-Pock's state in ker A moves only its dual call's point).
+
+    Along such a w, (D) ⪯ 0 and (P) ⪰ 0 force D w = 0 and Pq w = 0: no certificate is
+    strictly feasible, and a solver asked for a margin finds none although lag l - 1's
+    certificate (padded) is feasible. See :func:`facial_reduction`."""
+    rows = [Zt for Zt in Z.values()] + [np.array([pt.g for fp in pts for pt in fp])]
+    rows += [meas_quad]
+    for j, fn in enumerate(om.functions):
+        if any(np.any(ineq.Q[:2, :2] != 0) for ineq in fn.cls.tilted(fn.params)):
+            rows.append(np.array([pt.x for pt in pts[j]]))
+    return null_basis(np.vstack(rows))
+
+
+def facial_reduction(win: CWindow) -> tuple[np.ndarray | None, np.ndarray]:
+    """(Q, drop) for a window's matrix block: the multipliers to fix at 0 (``drop``, a
+    boolean mask over the inequalities: those whose form does not vanish on the isotropic
+    directions W, for G w = 0 on W) and an orthonormal basis Q of the complement of W
+    (None when W = {0}), so that G ⪯ 0 is the same as Q' G Q ⪯ 0 on what is left.
+
+    Sound: it only removes certificates (dropped multipliers are 0), and Q' G Q ⪯ 0 with
+    G W = 0 is G ⪯ 0. Nesting: a certificate of lag l - 1, padded, uses none of the
+    dropped multipliers (its forms vanish on the isotropic directions of lag l, which the
+    shift maps into those of lag l - 1; at lag 0 there are none), so it stays a
+    certificate of the reduced lag-l problem."""
+    W = win.iso
+    k = len(win.Mq)
+    if W is None or W.shape[1] == 0:
+        return None, np.zeros(k, dtype=bool)
+    MW = np.abs(win.Mq @ W).reshape(k, -1).max(axis=1, initial=0.0)
+    size = np.abs(win.Mq).reshape(k, -1).max(axis=1, initial=0.0)
+    drop = MW > 1e-9 * np.maximum(size, 1e-300)
+    return complement_basis(W), drop
 
 
 def _measure(om: Any, pts: list, rows: dict, t: int, nphi: int,
@@ -242,9 +296,21 @@ def _layout_x(st: CompositeStructure) -> dict[str, slice]:
             "lam": slice(k2, k2 + len(st.pos.labels))}
 
 
+def reductions(st: CompositeStructure, lay: dict[str, slice]):
+    """(Q of (D), Q of (P), indices into x of the multipliers fixed at 0) by
+    :func:`facial_reduction` of both windows."""
+    Qd, drop_d = facial_reduction(st.dec)
+    Qp, drop_p = facial_reduction(st.pos)
+    gone = np.concatenate([np.arange(lay["eta"].start, lay["eta"].stop)[drop_d],
+                           np.arange(lay["lam"].start, lay["lam"].stop)[drop_p]])
+    return Qd, Qp, gone
+
+
 def _blocks(st: CompositeStructure, lay: dict[str, slice]) -> list[AffineBlock]:
     """(D), (P) and the scalar rows, as in the seed's interpolation family; the measure is
-    the constant of (P) (distance) or of (Pf) (function values)."""
+    the constant of (P) (distance) or of (Pf) (function values). Both matrix blocks are
+    restricted to the complement of their isotropic directions, the multipliers that do
+    not vanish there fixed at 0 (:func:`facial_reduction`)."""
     d, p, lag = st.dec, st.pos, st.lag
     pairs = _sym_basis(st.nz)
     nvar, nP = lay["lam"].stop, len(pairs)
@@ -255,9 +321,20 @@ def _blocks(st: CompositeStructure, lay: dict[str, slice]) -> list[AffineBlock]:
     P0[:nP] = -_unit_quads(p.Z[lag], pairs)
     D0[lay["eta"]] = d.Mq
     P0[lay["lam"]] = p.Mq
-    zero_s = np.zeros((sP, sP))
-    blocks = [AffineBlock("decrease", np.zeros((sD, sD)), np.zeros((sD, sD)), D0, D1),
-              AffineBlock("positivity", p.meas_quad, zero_s, P0, np.zeros_like(P0))]
+    Qd, Qp, gone = reductions(st, lay)
+    D0[gone], D1[gone], P0[gone] = 0.0, 0.0, 0.0
+    D0c, D1c, zd = compress(Qd, D0, D1, np.zeros((sD, sD)))
+    P0c, mqc = compress(Qp, P0, p.meas_quad)
+    blocks = [AffineBlock("decrease", zd, zd, D0c, D1c),
+              AffineBlock("positivity", mqc, np.zeros_like(mqc), P0c, np.zeros_like(P0c))]
+    return blocks + _scalar_blocks(st, lay, gone)
+
+
+def _scalar_blocks(st: CompositeStructure, lay: dict[str, slice],
+                   gone: np.ndarray) -> list[AffineBlock]:
+    """(Df), (Pf), the multipliers' signs and the normalization, as 1 x 1 blocks."""
+    d, p, lag = st.dec, st.pos, st.lag
+    nvar = lay["lam"].stop
     one, zero = np.zeros((1, 1)), np.zeros((nvar, 1, 1))
     zero.flags.writeable = False
     nmult = nvar - lay["eta"].start
@@ -268,8 +345,10 @@ def _blocks(st: CompositeStructure, lay: dict[str, slice]) -> list[AffineBlock]:
     S0[: d.nphi, lay["eta"]] = d.mq.T
     S0[d.nphi: d.nphi + p.nphi, lay["pi"]] = -p.F[lag].T
     S0[d.nphi: d.nphi + p.nphi, lay["lam"]] = p.mq.T
+    S0[: d.nphi + p.nphi, gone] = 0.0  # a dropped multiplier is only bounded (mult[k])
     S0[d.nphi + p.nphi + np.arange(nmult), lay["eta"].start + np.arange(nmult)] = -1.0
     col0, col1 = S0[:, :, None, None], S1[:, :, None, None]
+    blocks = []
     for q in range(d.nphi):
         blocks.append(AffineBlock(f"decrease-f[{q}]", one, one, col0[q], col1[q]))
     for q in range(p.nphi):
@@ -289,6 +368,7 @@ def composite_problem(om: Any, lag: int, family: str = "interpolation") -> LMIPr
     st = composite_structure(om, lag, s, rescale=True)
     lay = _layout_x(st)
     blocks = _blocks(st, lay)
+    gone = reductions(st, lay)[2]
     p = st.pos
     Fp = p.F[lag]
 
@@ -296,6 +376,7 @@ def composite_problem(om: Any, lag: int, family: str = "interpolation") -> LMIPr
         x = np.array(x, dtype=float)
         x[lay["eta"]] = np.maximum(x[lay["eta"]], 0.0)
         x[lay["lam"]] = np.maximum(x[lay["lam"]], 0.0)
+        x[gone] = 0.0  # fixed at 0 by the facial reduction
         lam, pi = x[lay["lam"]], x[lay["pi"]]
         for q in range(p.nphi):  # raise p (or c) until positivity-f[q] holds exactly
             owners = np.flatnonzero(Fp[:, q])
@@ -353,3 +434,13 @@ def composite_parts(om: Any, rho: float, cert: dict[str, Any]) -> dict[str, np.n
     Pq = Zp.T @ P @ Zp - np.tensordot(lam, p.Mq, axes=1) - p.meas_quad
     Pf = p.F[lag].T @ pi - p.meas_lin - lam @ p.mq
     return {"D": D, "Df": Df, "Pq": Pq, "Pf": Pf}
+
+
+def reduced_summary(om: Any, rho: float, cert: dict[str, Any]) -> dict[str, float]:
+    """max eig of (D) and min eig of (P) at a certificate, each without its window's
+    isotropic directions when the matrix vanishes there (as every certificate of
+    :func:`composite_problem` does), else on the whole window."""
+    pt = composite_parts(om, rho, cert)
+    st = composite_structure(om, int(cert["lag"]))
+    return {"max_eig_M": float(restricted_eigenvalues(pt["D"], st.dec.iso)[-1]),
+            "min_eig_P": float(restricted_eigenvalues(pt["Pq"], st.pos.iso)[0])}

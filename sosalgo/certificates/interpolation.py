@@ -24,8 +24,11 @@ are dropped (c merges into p_0).
 
 A certificate of lag l is one of lag l + 1 (P padded with zeros, p_{l+1} = 0, the
 multipliers of the window's older points 0), so larger lags never certify less in exact
-arithmetic, and sometimes much more (heavy ball). Without a given lag the analysis tries
-the lags of :meth:`Interpolation.auto_lags` and keeps the best rate
+arithmetic, and sometimes much more (heavy ball). For the solver, which needs a margin,
+the directions of a window on which every matrix vanishes for every certificate (a state
+killed by A^l and never read) are removed first (:func:`null_directions`; on the oracle
+model :func:`sosalgo.certificates.composite.facial_reduction`). Without a given lag the
+analysis tries the lags of :meth:`Interpolation.auto_lags` and keeps the best rate
 (:func:`sosalgo.analysis.analyze_algorithm`); a certificate always names its own lag.
 
 The same structure builder works on floats (the LMI data), rationals/balls (the exact
@@ -43,7 +46,15 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from sosalgo.certificates.base import AffineBlock, CertificateFamily, LMIProblem
+from sosalgo.certificates.base import (
+    AffineBlock,
+    CertificateFamily,
+    LMIProblem,
+    complement_basis,
+    compress,
+    null_basis,
+    restricted_eigenvalues,
+)
 
 if TYPE_CHECKING:  # only for annotations: families do not depend on the model at run time
     import sympy as sp
@@ -65,6 +76,7 @@ class Window:
     labels: list[str]  # pair labels "i>j" (q_ij >= 0 for this ordered pair)
     Mq: list[Any]  # quadratic part of q_ij (width x width)
     mq: list[Any]  # linear part of q_ij on phi (nphi)
+    iso: Any = None  # float windows: :func:`null_directions` (width x k)
 
 
 @dataclass
@@ -210,8 +222,19 @@ def _window_float(A, B, C, E, m, L, lag: int, steps: int, has_x: bool) -> Window
         xs[steps + i] = E @ Xi[t]
     X = np.stack([xs[sh.ii], xs[sh.jj], sh.G[sh.ii], sh.G[sh.jj]], axis=1)  # (pairs, 4, w)
     Mq = 0.5 * (X.transpose(0, 2, 1) @ _mm(m, L, False) @ X)
+    iso = null_directions(Z, xs, sh.G)
     return Window(sh.width, sh.nphi, Z, dict(sh.F), list(sh.labels), list(Mq),
-                  list((L - m) * sh.sign))
+                  list((L - m) * sh.sign), iso)
+
+
+def null_directions(Z: dict[int, np.ndarray], xs: np.ndarray, G: np.ndarray) -> np.ndarray:
+    """Orthonormal basis (width x k) of the directions of a window on which every row map
+    z_t, every point and every gradient is 0, so that every matrix of the window's
+    inequality vanishes there, for every certificate. With a lag l >= 1 they exist when a
+    part of xi_0 is killed by A^l and never seen (a state the method resets and never
+    reads): the inequality can then not hold strictly, and the solver, asked for a margin,
+    finds none; the problem is solved without them (:meth:`Interpolation._problem`)."""
+    return null_basis(np.vstack([*Z.values(), xs, G]))
 
 
 def _scale(M: np.ndarray, half: Any) -> np.ndarray:
@@ -318,12 +341,26 @@ class Interpolation(CertificateFamily):
     def fallback_lags(self, n: int) -> tuple[int, ...]:
         """Lags below :meth:`auto_lags` that the choice of lag also tries, after the others,
         each only where it beats the best rate by the tolerance: lag 0, the smallest and
-        best-conditioned problem. A certificate of a smaller lag is one of a larger lag in
-        exact arithmetic, but not always for the solver: on a Chambolle-Pock-like method
-        (two proximal calls, kappa 1000, unit steps) lags 1 and 2 certify nothing where
-        lag 0 certifies 0.999. () for a given lag."""
+        best-conditioned problem. A certificate of a smaller lag is one of a larger lag
+        (the windows' directions where every matrix vanishes removed, see
+        :func:`sosalgo.certificates.composite.facial_reduction`), but near kappa 1000 the
+        solver may still certify a slightly slower rate at a larger lag (Chambolle-Pock
+        with unit steps: 0.9993 at lag 2, 0.9990 at lag 0). () for a given lag."""
         lags = self.auto_lags(n)
         return (0,) if lags and lags[0] > 0 else ()
+
+    def has_null_directions(self, alg: Algorithm, lag: int) -> bool:
+        """Whether a window of lag ``lag`` has directions where every certificate's matrices
+        vanish (:func:`null_directions`, on the oracle model
+        :func:`sosalgo.certificates.composite.isotropic_directions`): its certificates then
+        have exact zero eigenvalues there."""
+        if _is_oracle_method(alg):
+            from sosalgo.certificates.composite import composite_structure
+
+            st = composite_structure(alg, lag)
+        else:
+            st = self._structure(alg, normalized=True, lag=lag)
+        return any(w.iso is not None and w.iso.shape[1] > 0 for w in (st.dec, st.pos))
 
     def searches_past_certified(self, alg: Algorithm) -> bool:
         """With one oracle call per iteration, larger lags are tried (see
@@ -404,6 +441,9 @@ class Interpolation(CertificateFamily):
             D0[lay["eta"].start + k] = M
         for k, M in enumerate(p.Mq):
             P0[lay["lam"].start + k] = M
+        D0, D1 = compress(complement_basis(d.iso), D0, D1)
+        (P0,) = compress(complement_basis(p.iso), P0)
+        sD, sP = D0.shape[1], P0.shape[1]
         blocks = [
             AffineBlock("decrease", np.zeros((sD, sD)), np.zeros((sD, sD)), D0, D1),
             AffineBlock("positivity", np.zeros((sP, sP)), np.zeros((sP, sP)), P0,
@@ -500,10 +540,18 @@ class Interpolation(CertificateFamily):
         return self.parts(alg, rho, cert)["D"]
 
     def summary(self, alg: Algorithm, rho: float, cert: dict[str, Any]) -> dict[str, float]:
-        """max eig of (D) (<= 0) and min eig of the positivity matrix (>= 0)."""
+        """max eig of (D) (<= 0) and min eig of the positivity matrix (>= 0); on the oracle
+        model without the directions where every certificate's matrices vanish
+        (:func:`sosalgo.certificates.composite.reduced_summary`); each without the directions
+        where every matrix of its window vanishes (:func:`null_directions`)."""
+        if _is_oracle_method(alg):
+            from sosalgo.certificates.composite import reduced_summary
+
+            return reduced_summary(alg, rho, cert)
         pt = self.parts(alg, rho, cert)
-        return {"max_eig_M": float(np.linalg.eigvalsh(pt["D"])[-1]),
-                "min_eig_P": float(np.linalg.eigvalsh(pt["Pq"])[0])}
+        st = self._structure(alg, normalized=False, lag=int(cert["lag"]))
+        return {"max_eig_M": float(restricted_eigenvalues(pt["D"], st.dec.iso)[-1]),
+                "min_eig_P": float(restricted_eigenvalues(pt["Pq"], st.pos.iso)[0])}
 
     # -- tables ------------------------------------------------------------------------------
     def p_size(self, n: int) -> int:
