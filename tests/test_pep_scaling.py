@@ -146,6 +146,7 @@ def test_enclosure_precision_grows_with_the_horizon():
                       Kf, 10.0)
     assert 3.2 < g < 3.5
     assert enclosure_digits(g, 1) == 50  # short horizons keep their precision
+    assert enclosure_digits(1e300, 10**12) <= 1000  # a hostile growth or horizon: bounded
     for N in (70, 150):
         digits = enclosure_digits(g, N)
         balls, ref, _ = _nesterov_balls(N, digits)

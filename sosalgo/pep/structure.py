@@ -169,6 +169,7 @@ def deadbeat_gain(A: np.ndarray, B: np.ndarray, s: float) -> np.ndarray:
 
 
 ENCLOSURE_TARGET = 40  # decimals the trajectory's radii keep after the last step
+MAX_DIGITS = 1000  # a hostile spec or document (huge growth or steps) stays bounded
 
 
 def radius_growth(A: np.ndarray, B: np.ndarray, K: np.ndarray, s: float) -> float:
@@ -190,11 +191,12 @@ def enclosure_digits(growth: float, steps: int, base: int = 50,
     """Decimals of the rational enclosures of irrational entries for an exact
     trajectory of ``steps`` steps: radii 10^-digits widened by ``growth`` per step
     (:func:`radius_growth`) end below 10^-target; never fewer than ``base`` (the short
-    horizons' precision), rounded up to a multiple of 10 (methods can be shared)."""
+    horizons' precision), rounded up to a multiple of 10, at most :data:`MAX_DIGITS` (a
+    coarser enclosure can only fail a proof, never pass a false one)."""
     if not math.isfinite(growth) or growth < 1.0:
         growth = 1.0 if math.isfinite(growth) else 10.0
-    need = target + math.ceil(max(0, int(steps)) * math.log10(growth))
-    return max(base, 10 * math.ceil(need / 10))
+    need = target + math.ceil(min(max(0, int(steps)), MAX_DIGITS) * math.log10(growth))
+    return min(MAX_DIGITS, max(base, 10 * math.ceil(need / 10)))
 
 
 def enclosure_bits(digits: int) -> int:
