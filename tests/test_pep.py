@@ -315,3 +315,18 @@ def test_nesterov_fifty_steps_proven():
     assert res.status == "solved" and cert["check_kind"].startswith("exact")
     proven = Fraction(cert["tau_proven"])
     assert Fraction(res.tau) <= proven <= Fraction(res.tau) * (1 + Fraction(2, 10**4))
+
+
+@pytest.mark.deep  # minutes: the SDP at N = 60 and the margin solves
+def test_nesterov_sixty_steps_proven():
+    """N = 60, where beta's enclosure at a fixed 50 decimals widens past what the proof
+    needs (tau ~ 2e-14): with the enclosures' precision grown with N, the certificate is
+    proven exactly, within 2e-4 above the SDP's tau and below Nesterov's bound
+    (1 - 1/sqrt(kappa))^N (L + m)/2 (m = 1, L = 10)."""
+    N = 60
+    res = sosalgo.pep(SPECS / "nesterov.yaml", 10.0, N, witness=False)
+    cert = res.certificate
+    assert res.status == "solved" and cert["check_kind"].startswith("exact")
+    upper = Fraction(cert["tau_proven"])
+    assert Fraction(res.tau) <= upper <= Fraction(res.tau) * (1 + Fraction(2, 10**4))
+    assert float(upper) <= (1 - 10 ** -0.5) ** N * (10 + 1) / 2

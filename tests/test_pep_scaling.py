@@ -92,3 +92,63 @@ def test_gradient_two_hundred_steps_proven():
     proven = Fraction(cert["tau_proven"])
     closed = Fraction(81, 100) ** N
     assert closed <= proven <= closed * (1 + Fraction(2, 10**5))
+
+
+def _nesterov_balls(N: int, digits: int):
+    """Nesterov's recursion at kappa = 10 in the deadbeat basis, xi_{k+1} = A xi_k +
+    s B (K xi_k + b_k), b_k = (-1)^k, in rational balls (beta enclosed to ``digits``
+    decimals, long centres rounded outward as the exact PEP does); with mpmath's value
+    of the same recursion at 400 digits."""
+    import mpmath
+    import sympy as sp
+
+    from sosalgo.pep.structure import coarsen, deadbeat_gain, enclosure_bits
+    from sosalgo.verify.exact import Ball, enclose
+
+    beta_s = (sp.sqrt(10) - 1) / (sp.sqrt(10) + 1)
+    beta = enclose(beta_s, digits)
+    A = [[Ball(0), Ball(1)], [-beta, beta + 1]]
+    sB = [Fraction(0), Fraction(-1)]  # s h with h = 1/L, s = L
+    Kf = deadbeat_gain(np.array([[0, 1], [-float(beta_s), 1 + float(beta_s)]]),
+                       np.array([[0.0], [-0.1]]), 10.0)
+    K = [Fraction(float(v)) for v in Kf[0]]
+    bits = enclosure_bits(digits)
+    xi = [Ball(1), Ball(0)]
+    with mpmath.workdps(400):
+        bm = (mpmath.sqrt(10) - 1) / (mpmath.sqrt(10) + 1)
+        ref = [mpmath.mpf(1), mpmath.mpf(0)]
+        km = [mpmath.mpf(q.numerator) / q.denominator for q in K]  # exact: binary
+        for k in range(N):
+            b = (-1) ** k
+            u = K[0] * xi[0] + K[1] * xi[1] + b
+            xi = [coarsen(A[i][0] * xi[0] + A[i][1] * xi[1] + sB[i] * u, bits)
+                  for i in range(2)]
+            ur = km[0] * ref[0] + km[1] * ref[1] + b
+            ref = [ref[1], -bm * ref[0] + (1 + bm) * ref[1] - ur]
+        ref_q = [Fraction(mpmath.nstr(v, 300, strip_zeros=False)) for v in ref]
+    return [Ball.of(v) for v in xi], ref_q, Kf
+
+
+def test_enclosure_precision_grows_with_the_horizon():
+    """The precision rule: Nesterov's beta is irrational and ball arithmetic widens its
+    enclosure's radius by the Perron root of |A| + s|B||K| (3.35) per step. With the
+    short horizons' 50 decimals the state after 70 steps is wider than the 1e-23 an
+    exact proof at N = 70 needs (tau ~ 2e-17); with :func:`enclosure_digits` it ends
+    below 10^-ENCLOSURE_TARGET at N = 70 and N = 150, and every ball still holds the
+    value computed independently with mpmath at 400 digits."""
+    from sosalgo.pep.structure import ENCLOSURE_TARGET, enclosure_digits, radius_growth
+
+    wide, ref, Kf = _nesterov_balls(70, 50)
+    assert max(b.r for b in wide) > Fraction(1, 10**23)
+    assert all(abs(b.c - v) <= b.r for b, v in zip(wide, ref, strict=True))
+    beta = (10 ** 0.5 - 1) / (10 ** 0.5 + 1)
+    g = radius_growth(np.array([[0, 1], [-beta, 1 + beta]]), np.array([[0.0], [-0.1]]),
+                      Kf, 10.0)
+    assert 3.2 < g < 3.5
+    assert enclosure_digits(g, 1) == 50  # short horizons keep their precision
+    assert enclosure_digits(1e300, 10**12) <= 1000  # a hostile growth or horizon: bounded
+    for N in (70, 150):
+        digits = enclosure_digits(g, N)
+        balls, ref, _ = _nesterov_balls(N, digits)
+        assert max(b.r for b in balls) < Fraction(1, 10 ** ENCLOSURE_TARGET), (N, digits)
+        assert all(abs(b.c - v) <= b.r for b, v in zip(balls, ref, strict=True))

@@ -152,7 +152,7 @@ def exact_points(doc: dict[str, Any], mt: Method) -> tuple[dict[str, list[Any]],
     from sosalgo.pep.structure import coarsen
 
     def shorter(v: Any) -> Any:  # a ball's long centre rounded outward; rationals stay
-        return coarsen(v) if getattr(v, "r", 0) else v
+        return coarsen(v, mt.bits) if getattr(v, "r", 0) else v
 
     p, N = mt.p, int(doc["steps"])
     if doc.get("xi0") is not None:
@@ -405,7 +405,7 @@ def check_witness(doc: dict[str, Any], spec: Spec, mt: Method | ArbView | None =
         if mt is None:
             kappa = doc.get("kappa")
             om, _ = bound_method(spec, None if spec.sublinear else kappa)
-            mt = exact_method(spec, kappa, om)
+            mt = exact_method(spec, kappa, om, int(doc["steps"]))
         av = mt if isinstance(mt, ArbView) else arb_view(mt)
         with precision(PREC):
             checked, bad, zero_sum, meas, init = _measure_initial(doc, spec, av)

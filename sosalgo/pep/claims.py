@@ -389,7 +389,9 @@ def _coordinate_claims(claims: _Claims, spec: Spec, kappa: float | None,
     from sosalgo.pep.check import exact_points
     from sosalgo.pep.exact import exact_or_none
 
-    mt = exact_or_none(spec, kappa)
+    steps = doc.get("steps")
+    mt = exact_or_none(spec, kappa, steps if isinstance(steps, int) and not
+                       isinstance(steps, bool) and 0 <= steps <= 10_000 else 0)
     if mt is None:
         return
     try:

@@ -150,7 +150,7 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
         res.gap = abs(float(ans.primal) - float(ans.dual))  # type: ignore[arg-type]
         from sosalgo.pep.exact import exact_or_none
 
-        ex = exact_or_none(spec, kappa) if exact or witness else None  # built once
+        ex = exact_or_none(spec, kappa, steps) if exact or witness else None  # built once
         res.certificate = _certificate(spec, kappa, mt, data, ans, exact, mterms, iterms, ex)
         if witness:
             from sosalgo.pep.witness import make_witness

@@ -35,7 +35,15 @@ import sympy as sp
 from flint import arb, arb_mat, fmpq
 
 from sosalgo.pep.bind import initial_gradient
-from sosalgo.pep.structure import Method, PEPStructure, build_structure, deadbeat_gain
+from sosalgo.pep.structure import (
+    Method,
+    PEPStructure,
+    build_structure,
+    deadbeat_gain,
+    enclosure_bits,
+    enclosure_digits,
+    radius_growth,
+)
 from sosalgo.pep.terms import Term
 from sosalgo.spec import Spec
 
@@ -116,13 +124,13 @@ def _exact_matrices(spec: Spec, env: dict[sp.Symbol, sp.Expr]) -> dict[str, sp.M
     return {k: m.xreplace(env) for k, m in spec.sympy_matrices().items()}
 
 
-def _balls(M: sp.Matrix) -> np.ndarray:
+def _balls(M: sp.Matrix, digits: int) -> np.ndarray:
     from sosalgo.verify.exact import enclose
 
     out = np.empty(M.shape, dtype=object)
     for i in range(M.shape[0]):
         for j in range(M.shape[1]):
-            out[i, j] = enclose(M[i, j])
+            out[i, j] = enclose(M[i, j], digits)
     return out
 
 
@@ -145,17 +153,27 @@ def _fixed_points(mats: dict[str, sp.Matrix], om: Any) -> sp.Matrix:
     return sol.xreplace({t: 0 for t in free})
 
 
-def exact_method(spec: Spec, kappa: float | None, om: Any) -> Method:
-    """The exact :class:`Method` of ``spec`` (``om``: its float OracleMethod, for shapes)."""
+def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Method:
+    """The exact :class:`Method` of ``spec`` (``om``: its float OracleMethod, for shapes),
+    its irrational entries enclosed precisely enough for a trajectory of ``steps`` steps
+    (:func:`sosalgo.pep.structure.enclosure_digits`)."""
     from sosalgo.expr.parse import to_sympy
-    from sosalgo.verify.exact import Ball, enclose
+    from sosalgo.verify.exact import Ball
+    from sosalgo.verify.exact import enclose as enclose_at
     from sosalgo.verify.exact_composite import exact_class_inequalities
+
+    K = np.array([[Fraction(float(v)) for v in row]
+                  for row in deadbeat_gain(om.A, om.B, float(om.L))], dtype=object)
+    digits = enclosure_digits(radius_growth(om.A, om.B, K.astype(float), float(om.L)), steps)
+
+    def enclose(expr: Any) -> Any:
+        return enclose_at(expr, digits)
 
     base = exact_base(spec, kappa)
     env = _exact_env(spec, base)
     mats = _exact_matrices(spec, env)
     Xq = _fixed_points(mats, om)
-    X = _balls(Xq)
+    X = _balls(Xq, digits)
     p = om.p
     funcs, ineqs = [], []
     for fn in om.functions:
@@ -171,12 +189,13 @@ def exact_method(spec: Spec, kappa: float | None, om: Any) -> Method:
     def same(a: np.ndarray, b: np.ndarray) -> bool:
         return all(Ball.of(v).c == 0 and Ball.of(v).r == 0 for v in a - b)
 
-    D = _balls(mats["D"]) if "D" in mats else np.full((p, p), Fraction(0), dtype=object)
-    K = np.array([[Fraction(float(v)) for v in row]
-                  for row in deadbeat_gain(om.A, om.B, float(om.L))], dtype=object)
-    mt = Method(_balls(mats["A"]), _balls(mats["B"]), _balls(mats["C"]), D,
-                _balls(mats["E"]) if "E" in mats else None, om.output, funcs,
-                tuple(om.oracles), X[:, 0], X[:, 1:], L, ineqs, coef, same, K, exact=True)
+    D = (_balls(mats["D"], digits) if "D" in mats
+         else np.full((p, p), Fraction(0), dtype=object))
+    mt = Method(_balls(mats["A"], digits), _balls(mats["B"], digits),
+                _balls(mats["C"], digits), D,
+                _balls(mats["E"], digits) if "E" in mats else None, om.output, funcs,
+                tuple(om.oracles), X[:, 0], X[:, 1:], L, ineqs, coef, same, K, exact=True,
+                bits=enclosure_bits(digits))
     mt.out_call = _exact_output_call(mats, om)
     mt.x0_call = _exact_start_call(mats, Xq, om)
     g0, mt.smooth = initial_gradient(spec, om, float("nan") if kappa is None else kappa)
@@ -234,14 +253,14 @@ def ball(v: Any) -> arb:
     return arb(fmpq(q.numerator, q.denominator))
 
 
-def exact_or_none(spec: Spec, kappa: float | None) -> Method | None:
-    """The exact method (:func:`sosalgo.pep.exact.exact_method`), None when it cannot be
-    built (the proofs then say why)."""
+def exact_or_none(spec: Spec, kappa: float | None, steps: int = 0) -> Method | None:
+    """The exact method (:func:`sosalgo.pep.exact.exact_method`) for ``steps`` steps, None
+    when it cannot be built (the proofs then say why)."""
     from sosalgo.pep.bind import bound_method
 
     try:
         return exact_method(spec, kappa, bound_method(spec, None if spec.sublinear
-                                                      else kappa)[0])
+                                                      else kappa)[0], steps)
     except (ValueError, ArithmeticError):
         return None
 
@@ -394,7 +413,7 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
     try:
         if mt is None:
             om, _ = bound_method(spec, None if spec.sublinear else kappa)
-            mt = exact_method(spec, kappa, om)
+            mt = exact_method(spec, kappa, om, st_float.steps)
         st = build_structure(mt, st_float.steps, mterms, iterms)
     except (ValueError, ArithmeticError) as exc:
         return out | {"detail": f"exact method: {exc}", "seconds": time.perf_counter() - t0}
@@ -463,7 +482,7 @@ def reprove_certificate(spec: Spec, kappa: float | None, steps: int, measure: st
         return False, "the proof carries no exact multipliers (multipliers_exact)"
     try:
         tq = Fraction(proof["tau_proven"])
-        mt = exact_or_none(spec, kappa)
+        mt = exact_or_none(spec, kappa, int(steps))
         if mt is None:
             return False, "the exact method cannot be built"
         st = build_structure(mt, int(steps), parse_terms(measure, "measure", False, mt.p),

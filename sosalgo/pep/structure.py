@@ -49,8 +49,8 @@ from sosalgo.errors import InputError
 from sosalgo.oracles import CallShape
 from sosalgo.pep.terms import Term
 
-__all__ = ["Method", "PEPPoint", "PEPStructure", "build_structure", "output_call",
-           "pair_label"]
+__all__ = ["Method", "PEPPoint", "PEPStructure", "build_structure", "enclosure_bits",
+           "enclosure_digits", "output_call", "pair_label", "radius_growth"]
 
 
 @dataclass
@@ -87,6 +87,9 @@ class Method(CallShape):
     # exact methods: the structures built on them (the proof of each margin's certificate
     # rebuilds the same one; built once, :func:`build_structure`)
     structures: dict[Any, Any] = field(default_factory=dict, repr=False, compare=False)
+    # exact methods: significant bits kept when a long centre is rounded outward
+    # (:func:`coarsen`), matched to the decimals of the enclosures (:func:`enclosure_digits`)
+    bits: int = 160
 
 
 @dataclass
@@ -165,6 +168,44 @@ def deadbeat_gain(A: np.ndarray, B: np.ndarray, s: float) -> np.ndarray:
     return K
 
 
+ENCLOSURE_TARGET = 40  # decimals the trajectory's radii keep after the last step
+MAX_DIGITS = 1000  # a hostile spec or document (huge growth or steps) stays bounded
+
+
+def radius_growth(A: np.ndarray, B: np.ndarray, K: np.ndarray, s: float) -> float:
+    """The factor by which ball arithmetic widens the radii of the exact trajectory per
+    step, asymptotically: xi_{k+1} = A xi_k + s B (K xi_k + b_k) computed entrywise in
+    balls widens a radius vector r to (|A| + s |B| |K|) r plus new rounding, so by the
+    spectral radius of that nonnegative matrix (its Perron root; at least 1). This is far
+    above the true sensitivity (A + s B K is nilpotent), but it is what interval
+    arithmetic pays (Nesterov at kappa = 10: 3.35 per step, as measured)."""
+    M = np.abs(np.asarray(A, float)) + abs(float(s)) * (np.abs(np.asarray(B, float))
+                                                         @ np.abs(np.asarray(K, float)))
+    if not M.size or not np.isfinite(M).all():
+        return 1.0 if not M.size else math.inf
+    return max(1.0, float(np.abs(np.linalg.eigvals(M)).max()))
+
+
+def enclosure_digits(growth: float, steps: int, base: int = 50,
+                     target: int = ENCLOSURE_TARGET) -> int:
+    """Decimals of the rational enclosures of irrational entries for an exact
+    trajectory of ``steps`` steps: radii 10^-digits widened by ``growth`` per step
+    (:func:`radius_growth`) end below 10^-target; never fewer than ``base`` (the short
+    horizons' precision), rounded up to a multiple of 10, at most :data:`MAX_DIGITS` (a
+    coarser enclosure can only fail a proof, never pass a false one)."""
+    if not math.isfinite(growth) or growth < 1.0:
+        growth = 1.0 if math.isfinite(growth) else 10.0
+    need = target + math.ceil(min(max(0, int(steps)), MAX_DIGITS) * math.log10(growth))
+    return min(MAX_DIGITS, max(base, 10 * math.ceil(need / 10)))
+
+
+def enclosure_bits(digits: int) -> int:
+    """Significant bits :func:`coarsen` keeps for enclosures of ``digits`` decimals (a
+    rounding step as fine as the enclosures: about 3.33 digits' worth of bits, never
+    fewer than the default 160)."""
+    return max(160, math.ceil(digits * math.log2(10)) + 8)
+
+
 def coarsen(v: Any, bits: int = 160) -> Any:
     """An exact number whose denominators have grown past ``bits`` bits as a ball around
     a binary rational with about ``bits`` significant bits, the rounding error added to
@@ -212,7 +253,8 @@ def _exact_trajectory(mt: Method, xi0: np.ndarray, new: list[np.ndarray],
                                np.vstack([xi[k], new[k]]).T])
         x, b = xi[k][:, cols], new[k][:, cols]
         u = mt.K @ x + b
-        nxt = np.vectorize(coarsen, otypes=[object])(mt.A @ x + mt.s * (mt.B @ u))
+        nxt = np.vectorize(lambda v: coarsen(v, mt.bits), otypes=[object])(
+            mt.A @ x + mt.s * (mt.B @ u))
         parts = []
         for rows in (u, mt.C @ x + mt.s * (mt.D @ u), nxt):
             full = np.full((rows.shape[0], xi0.shape[1]), zero, dtype=object)

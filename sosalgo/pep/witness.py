@@ -144,7 +144,8 @@ def make_witness(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
 
     tau = float(ans.primal)  # type: ignore[arg-type]
     unit = tau if tau > 1e-200 else 1.0
-    exact_mt = exact_mt if exact_mt is not None else exact_or_none(spec, kappa)
+    exact_mt = (exact_mt if exact_mt is not None
+                else exact_or_none(spec, kappa, data.st.steps))
     ex: ArbView | None = None if exact_mt is None else arb_view(exact_mt)
     coef = np.array([float(mt.ineqs[j][r][0]) * float(mt.s) for j, _, _, r in data.st.pairs])
     inner: list[np.ndarray | None] = []
