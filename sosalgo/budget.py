@@ -55,10 +55,15 @@ PEP_BASE_BYTES = 110 * MiB
 #   case needs far-apart pairs and its chordal pattern turns dense past N = 40 (N = 50,
 #   70: 219, 461 MB, up to 930 B per K * d; N = 100: 1.0 GB after 27 minutes).
 # The estimate takes the dense case (every pair may become active): PEP_BYTES_PER_KD
-# covers the largest measured B per K * d with a fifth to spare, so it never falls
-# below a measured peak, and over-states a banded run (gradient descent N = 200: 8.3
-# GiB estimated, 0.95 GiB measured) without refusing it under half of a 16 GiB machine.
+# covers the largest measured B per K * d, so it never falls below a measured peak, and
+# over-states a banded run (gradient descent N = 200 without witness: 7.6 GiB estimated,
+# 0.93 GiB measured) without refusing it under half of a 16 GiB machine.
 PEP_BYTES_PER_KD = 1000.0
+# The witness (on by default; --no-witness skips it) solves the PEP again in the primal
+# form, whose PSD cone on the whole Gram matrix makes a dense KKT block of (d (d+1)/2)^2
+# entries: about 13 B per d^4 above the rest (gradient descent, |x_N - x*|^2, N = 100:
+# 1.47 GiB with the witness, 0.21 GiB without; N = 200 passed 9 GB and was stopped).
+PEP_WITNESS_BYTES_PER_D4 = 16.0
 # PEP wall seconds (SDP rounds and the exact proof) = PEP_SECONDS * (K d) ** PEP_EXPONENT,
 # an indication between the banded and the dense case (gradient descent N = 200 30 s,
 # Nesterov N = 70 66 s, N = 100 more than 10 minutes; accelerated proximal gradient
@@ -244,19 +249,23 @@ def check(est: Estimate, announce: bool = True) -> Estimate:
 
 # -- the models --------------------------------------------------------------------------
 
-def pep_task(pairs: int, d: int) -> tuple[float, float]:
+def pep_task(pairs: int, d: int, witness: bool = True) -> tuple[float, float]:
     """(peak bytes of the worker, seconds) of one PEP with ``pairs`` interpolation pairs
     (all the class allows: an upper bound of those that become active) and a Gram matrix
-    of size ``d``."""
+    of size ``d``, with its witness unless ``witness`` is False."""
     units = float(pairs) * d
-    return BASE_BYTES + PEP_BYTES_PER_KD * units, PEP_SECONDS * units**PEP_EXPONENT
+    peak = BASE_BYTES + PEP_BYTES_PER_KD * units
+    if witness:
+        peak += PEP_WITNESS_BYTES_PER_D4 * float(d) ** 4
+    return peak, PEP_SECONDS * units**PEP_EXPONENT
 
 
 def pep_estimate(what: str, option: str, sizes: Sequence[tuple[int, int]],
-                 workers: int | None) -> tuple[Estimate, int]:
-    """The estimate of a PEP run whose tasks have these (pairs, d) sizes, and the workers
-    it may use (each holds the largest task at once)."""
-    tasks = sorted((pep_task(k, d) for k, d in sizes), reverse=True)
+                 workers: int | None, witness: bool = True) -> tuple[Estimate, int]:
+    """The estimate of a PEP run whose tasks have these (pairs, d) sizes (with their
+    witnesses unless ``witness`` is False), and the workers it may use (each holds the
+    largest task at once)."""
+    tasks = sorted((pep_task(k, d, witness) for k, d in sizes), reverse=True)
     biggest = tasks[0][0] if tasks else BASE_BYTES
     w = min(announce_workers(workers, biggest), max(1, len(tasks)))
     peak = BASE_BYTES + sum(b for b, _ in tasks[:w])
