@@ -180,8 +180,8 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
         if kappa not in (None, [], ()):
             raise InputError(f"{spec.source}: --kappa: undefined for a sublinear spec (m: 0)")
         inputs.check_time_limit(time_limit, "--time-limit")
-        est = budget.check(budget.design_estimate(
-            f"design {spec.name}", "", 1, time_limit, _budget(max_memory, workers)))
+        est = budget.check(budget.design_estimate(  # one process: no workers
+            f"design {spec.name}", "", 1, time_limit, _budget(max_memory, 1)))
         return sublinear_design_run(spec, text, out_dir, free, time_limit, verify,
                                     restart, progress) | {"estimate": est.to_dict()}
     fam = inputs.select_families(spec, certificate, options, single=True,
