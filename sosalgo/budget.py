@@ -52,13 +52,15 @@ PEP_BASE_BYTES = 110 * MiB
 # - Clarabel's factorization on the pairs that become active. Which ones is decided
 #   during the run (constraint generation), so it is not known before it: gradient
 #   descent keeps a band of neighbouring pairs (the part above is all), Nesterov's worst
-#   case needs far-apart pairs and its chordal pattern turns dense past N = 40 (N = 50,
-#   70: 219, 461 MB, up to 930 B per K * d; N = 100: 1.0 GB after 27 minutes).
-# The estimate takes the dense case (every pair may become active): PEP_BYTES_PER_KD
-# covers the largest measured B per K * d, so it never falls below a measured peak, and
-# over-states a banded run (gradient descent N = 200 without witness: 7.6 GiB estimated,
-# 0.93 GiB measured) without refusing it under half of a 16 GiB machine.
-PEP_BYTES_PER_KD = 1000.0
+#   case needs far-apart pairs and its chordal pattern turns dense past N = 40, where its
+#   cost grows like d^4 (N = 30, 50, 70: 127, 203, 441 MiB, 563, 704, 944 B per K * d;
+#   N = 100 reached 1.0 GB before it was stopped after 27 minutes).
+# The estimate takes the dense case (every pair may become active): PEP_BYTES_PER_KD is
+# the measured 944 B per K * d at N = 70 grown like d up to N = 100 (d = 102; Nesterov
+# takes more than 10 minutes there). It over-states a banded run
+# (gradient descent N = 200 without witness: 10.3 GiB estimated, 0.93 GiB measured),
+# which still starts under half of a 24 GiB machine.
+PEP_BYTES_PER_KD = 1350.0
 # The witness (on by default; --no-witness skips it) solves the PEP again in the primal
 # form, whose PSD cone on the whole Gram matrix makes a dense KKT block of (d (d+1)/2)^2
 # entries: about 13 B per d^4 above the rest (gradient descent, |x_N - x*|^2, N = 100:
