@@ -105,11 +105,12 @@ def run(quick: bool = False) -> None:
         coef, expo = _fit(big)
         print(f"fitted: PEP_SECONDS = {coef:.2g}, PEP_EXPONENT = {expo:.2f} "
               f"(now {budget.PEP_SECONDS:g}, {budget.PEP_EXPONENT:g})")
-    print(f"memory: largest B/Kd {max(r['B/Kd'] for r in rows if not r['witness']):.0f} "
+    per_kd = [r["B/Kd"] for r in rows if not r["witness"] and r["K*d"] >= 1e5]
+    print(f"memory: largest B/Kd {max(per_kd, default=float('nan')):.0f} at K*d >= 1e5 "
           f"(PEP_BYTES_PER_KD now {budget.PEP_BYTES_PER_KD:g}); model/measured must stay "
           "at least 1 (a safe over-estimate) on every row")
     seen = [(r["B/Kd"] - budget.PEP_BYTES_PER_KD) * r["K*d"] / r["d"] ** 4 for r in rows
-            if r["witness"]]
+            if r["witness"] and r["d"] >= 30]
     if seen:
         print(f"witness: at most {max(seen):.1f} B per d^4 above the proof's model "
               f"(PEP_WITNESS_BYTES_PER_D4 now {budget.PEP_WITNESS_BYTES_PER_D4:g})")
