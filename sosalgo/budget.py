@@ -64,7 +64,7 @@ PEP_BYTES_PER_KD = 1350.0
 # The witness (on by default; --no-witness skips it) solves the PEP again in the primal
 # form, whose PSD cone on the whole Gram matrix makes a dense KKT block of (d (d+1)/2)^2
 # entries: about 13 B per d^4 above the rest (gradient descent, |x_N - x*|^2, N = 100:
-# 1.47 GiB with the witness, 0.21 GiB without; N = 200 passed 9 GB and was stopped).
+# 1.49 GiB with the witness, 0.21 GiB without; N = 200 passed 9 GB and was stopped).
 PEP_WITNESS_BYTES_PER_D4 = 16.0
 # PEP wall seconds (SDP rounds and the exact proof) = PEP_SECONDS * (K d) ** PEP_EXPONENT,
 # an indication between the banded and the dense case (gradient descent N = 200 30 s,
