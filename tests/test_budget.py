@@ -176,28 +176,29 @@ def test_grid_estimate_counts_every_point_of_every_axis():
     assert small.peak_bytes < est.peak_bytes / 100
 
 
-def _pep_peak_in_child(spec: str, steps: int, measure: str | None) -> float:
-    """Peak RSS (bytes) of one PEP run (the exact proof and the witness) in a fresh
-    process."""
+def _pep_peak_in_child(spec: str, steps: int, measure: str | None, witness: bool) -> float:
+    """Peak RSS (bytes) of one PEP run (the exact proof, and the witness with
+    ``witness``) in a fresh process."""
     code = ("import resource; from sosalgo.pep.core import pep; "
-            f"pep({str(SPECS / spec)!r}, 10.0, {steps}, {measure!r}); "
+            f"pep({str(SPECS / spec)!r}, 10.0, {steps}, {measure!r}, witness={witness}); "
             "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)")
     proc = subprocess.run([sys.executable, "-c", code], env=ENV, capture_output=True,
                           text=True, timeout=3600, check=True)
     return float(proc.stdout.split()[-1]) * 1024  # Linux: kilobytes
 
 
-@pytest.mark.parametrize("spec, steps, measure, dense", [
-    ("gradient.yaml", 12, "dist", False),
-    ("nesterov.yaml", 20, None, True),
-    ("accelerated-proximal-gradient.yaml", 4, None, True),
-    pytest.param("gradient.yaml", 100, "dist", False, marks=pytest.mark.deep),
-    pytest.param("gradient.yaml", 60, None, False, marks=pytest.mark.deep),
-    pytest.param("nesterov.yaml", 50, None, True, marks=pytest.mark.deep),
-    pytest.param("accelerated-proximal-gradient.yaml", 10, None, True,
+@pytest.mark.parametrize("spec, steps, measure, witness, dense", [
+    ("gradient.yaml", 12, "dist", True, False),
+    ("nesterov.yaml", 20, None, True, True),
+    ("accelerated-proximal-gradient.yaml", 4, None, True, True),
+    # the witness takes minutes beyond these: the proof alone (--no-witness)
+    pytest.param("gradient.yaml", 100, "dist", False, False, marks=pytest.mark.deep),
+    pytest.param("gradient.yaml", 50, None, False, False, marks=pytest.mark.deep),
+    pytest.param("nesterov.yaml", 50, None, False, True, marks=pytest.mark.deep),
+    pytest.param("accelerated-proximal-gradient.yaml", 10, None, True, True,
                  marks=pytest.mark.deep),
 ])
-def test_pep_memory_model_against_a_measured_peak(spec, steps, measure, dense):
+def test_pep_memory_model_against_a_measured_peak(spec, steps, measure, witness, dense):
     """The estimate is never below the peak RSS measured in a child process. It takes
     every pair as possibly active (which pairs become active is only known during the
     run): within a factor of two of a method whose pattern turns dense (Nesterov, the
@@ -207,8 +208,8 @@ def test_pep_memory_model_against_a_measured_peak(spec, steps, measure, dense):
     from sosalgo.spec import load_spec
 
     _, st, *_ = pep_problem(load_spec(SPECS / spec), 10.0, steps, measure)
-    model = budget.pep_task(len(st.pairs), st.d)[0]  # the process that solves it
-    measured = _pep_peak_in_child(spec, steps, measure)
+    model = budget.pep_task(len(st.pairs), st.d, witness)[0]  # the process that solves it
+    measured = _pep_peak_in_child(spec, steps, measure, witness)
     assert measured <= model <= measured * (2 if dense else 10), (model, measured)
 
 
