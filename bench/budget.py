@@ -1,6 +1,7 @@
 """Calibration of the run-budget model (:mod:`sosalgo.budget`): peak resident memory and
-wall seconds of PEPs at several N, and the parent's memory per grid point, each measured
-in a fresh process, beside what the model says (``python -m bench --only budget``).
+wall seconds of PEPs at several N (the exact proof, with or without the witness), and the
+parent's memory per grid point, each measured in a fresh process, beside what the model
+says (``python -m bench --only budget``).
 
 When the code changes how much a PEP or a grid point costs, rerun this and update the
 constants at the top of ``sosalgo/budget.py`` (the fitted values are printed). Seconds
@@ -14,17 +15,27 @@ import subprocess
 import sys
 import tempfile
 
-PEP_CASES = (("gradient", (10, 20, 30)), ("nesterov", (20, 30)), ("douglas-rachford", (10,)))
-QUICK_PEP = (("gradient", (10, 20)),)
+# (spec, measure or None for the spec's default, steps, witness): gradient descent keeps
+# a band of neighbouring pairs (small solver memory), Nesterov's pattern turns dense past
+# N = 40 (the largest memory per pair), accelerated proximal gradient is the composite
+# case; the witness's primal solve grows like d^4.
+PEP_CASES = (("gradient", "dist", (50, 100, 150, 200), False),
+             ("nesterov", None, (10, 30, 50, 70), False),
+             ("accelerated-proximal-gradient", None, (5, 10, 20), False),
+             ("gradient", "dist", (50, 100), True), ("nesterov", None, (30,), True))
+QUICK_PEP = (("gradient", "dist", (10, 50), False), ("nesterov", None, (20,), False),
+             ("gradient", "dist", (30,), True))
 
 PEP_CHILD = """
 import json, resource, sys, time
 from sosalgo.pep.core import pep, pep_problem
 from sosalgo.spec import load_spec
 spec, N = load_spec(f"specs/{sys.argv[1]}.yaml"), int(sys.argv[2])
-_, st, *_ = pep_problem(spec, 10.0, N)
+measure, witness = sys.argv[3] or None, sys.argv[4] == "1"
+kappa = None if spec.sublinear else 10.0
+_, st, *_ = pep_problem(spec, kappa, N, measure)
 t0 = time.perf_counter()
-pep(spec, 10.0, N)
+pep(spec, kappa, N, measure, witness=witness)
 print(json.dumps({"pairs": len(st.pairs), "d": st.d, "seconds": time.perf_counter() - t0,
                   "bytes": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024}))
 """
@@ -58,20 +69,23 @@ def _pep_rows(cases) -> list[dict]:
     from sosalgo import budget
 
     rows = []
-    for spec, steps in cases:
+    for spec, measure, steps, witness in cases:
         for n in steps:
-            got = _child(PEP_CHILD, spec, str(n))
-            units = got["pairs"] * got["d"] ** 2
-            model_bytes, model_s = budget.pep_task(got["pairs"], got["d"])
-            rows.append({"spec": spec, "N": n, "units": units, "MiB": got["bytes"] / 2**20,
-                         "model MiB": model_bytes / 2**20, "s": got["seconds"],
-                         "model s": model_s, "model/measured": model_bytes / got["bytes"]})
+            got = _child(PEP_CHILD, spec, str(n), measure or "", "1" if witness else "0")
+            units = got["pairs"] * got["d"]
+            model_bytes, model_s = budget.pep_task(got["pairs"], got["d"], witness)
+            above = got["bytes"] - budget.PEP_BASE_BYTES
+            rows.append({"spec": spec, "N": n, "witness": witness, "d": got["d"], "K*d": units,
+                         "MiB": got["bytes"] / 2**20,
+                         "model MiB": model_bytes / 2**20, "B/Kd": above / units,
+                         "s": got["seconds"], "model s": model_s,
+                         "model/measured": model_bytes / got["bytes"]})
     return rows
 
 
 def _fit(rows: list[dict]) -> tuple[float, float]:
     """Least squares of log seconds against log units: (coefficient, exponent)."""
-    xs = [math.log(r["units"]) for r in rows]
+    xs = [math.log(r["K*d"]) for r in rows]
     ys = [math.log(r["s"]) for r in rows]
     mx, my = sum(xs) / len(xs), sum(ys) / len(ys)
     sxx = sum((x - mx) ** 2 for x in xs)
@@ -86,13 +100,20 @@ def run(quick: bool = False) -> None:
     rows = _pep_rows(QUICK_PEP if quick else PEP_CASES)
     print(format_table([{k: (f"{v:.3g}" if isinstance(v, float) else v) for k, v in r.items()}
                         for r in rows], list(rows[0])))
-    big = [r for r in rows if r["units"] >= 1e5]
+    big = [r for r in rows if r["K*d"] >= 1e5 and not r["witness"]]
     if len(big) >= 2:
         coef, expo = _fit(big)
         print(f"fitted: PEP_SECONDS = {coef:.2g}, PEP_EXPONENT = {expo:.2f} "
               f"(now {budget.PEP_SECONDS:g}, {budget.PEP_EXPONENT:g})")
-        print("memory: the model should stay within 0.5x..2x of the measured peak "
-              "(model/measured); if not, refit PEP_BYTES_PER_UNIT and PEP_BYTES_PER_KD")
+    per_kd = [r["B/Kd"] for r in rows if not r["witness"] and r["K*d"] >= 1e5]
+    print(f"memory: largest B/Kd {max(per_kd, default=float('nan')):.0f} at K*d >= 1e5 "
+          f"(PEP_BYTES_PER_KD now {budget.PEP_BYTES_PER_KD:g}); model/measured must stay "
+          "at least 1 (a safe over-estimate) on every row")
+    seen = [(r["B/Kd"] - budget.PEP_BYTES_PER_KD) * r["K*d"] / r["d"] ** 4 for r in rows
+            if r["witness"] and r["d"] >= 30]
+    if seen:
+        print(f"witness: at most {max(seen):.1f} B per d^4 above the proof's model "
+              f"(PEP_WITNESS_BYTES_PER_D4 now {budget.PEP_WITNESS_BYTES_PER_D4:g})")
     sizes = (10, 20) if quick else (20, 40)
     peaks = []
     for p in sizes:

@@ -25,10 +25,10 @@ from typing import Any
 
 from sosalgo.errors import InputError
 
-__all__ = ["Estimate", "announce_workers", "check", "cores", "default_max_memory",
-           "design_estimate", "grid_estimate", "max_memory", "parse_memory", "pep_estimate",
-           "pep_task", "plan_workers", "set_max_memory", "size_text", "sweep_estimate",
-           "usable_workers"]
+__all__ = ["Estimate", "analysis_seconds", "announce_workers", "check", "cores",
+           "default_max_memory", "design_estimate", "grid_estimate", "max_memory",
+           "parse_memory", "pep_estimate", "pep_task", "plan_workers", "set_max_memory",
+           "size_text", "sweep_estimate", "usable_workers"]
 
 MiB = 2**20
 GiB = 2**30
@@ -39,19 +39,39 @@ GiB = 2**30
 BASE_BYTES = 130 * MiB
 # A worker process of an analysis, grid or design sweep at its peak (fork-server child).
 WORKER_BYTES = 160 * MiB
-# PEP with K interpolation pairs and a Gram matrix of size d. Clarabel's setup of the
-# first SDP holds about 12 bytes per K * d^2 ("unit"; measured on gradient descent at
-# N = 50, 75, 100, 150: 85, 400, 1120, 5390 MiB above 100 MiB, 10.7-12.4 B/unit), the
-# solve about as much again; the exact proof and the witness add a part growing with
-# K * d. Whole runs (peak RSS above 93 MiB): N = 20, 30, 40, 50: 26, 62, 130, 188 MiB.
-PEP_BYTES_PER_UNIT = 24.0
-PEP_BYTES_PER_KD = 1000.0
-# PEP wall seconds (SDP rounds, exact proof, witness) = PEP_SECONDS * units ** PEP_EXPONENT
-# (gradient descent and Nesterov at load 3 to 5: N = 20 5.6-8.7 s, N = 30 56-57 s; N = 40
-# 688 s at load 11, about 130 s idle; Douglas-Rachford N = 10 14 s at load 11). The time is
-# an indication; only the memory is held against the budget.
-PEP_SECONDS = 4.6e-7
-PEP_EXPONENT = 1.3
+# One PEP process before its problem is built: Python, NumPy, SciPy, sympy, flint and
+# Clarabel imported (110-118 MiB for any small N).
+PEP_BASE_BYTES = 110 * MiB
+# PEP with K interpolation pairs (all pairs the class allows: every ordered pair of the
+# points a function is called at, with x*) and a Gram matrix of size d; for one function
+# K = d (d - 1). Its memory above PEP_BASE_BYTES has two parts:
+# - the data of every pair, built before the first solve: its rows on the basis (K x 4 x
+#   d floats) and their products with G when violated pairs are searched: about 110 B
+#   per K * d whatever the method (gradient descent, |x_N - x*|^2, peak RSS of a child
+#   process: N = 50, 100, 150, 200: 122, 220, 470, 949 MiB, 93-113 B per K * d);
+# - Clarabel's factorization on the pairs that become active. Which ones is decided
+#   during the run (constraint generation), so it is not known before it: gradient
+#   descent keeps a band of neighbouring pairs (the part above is all), Nesterov's worst
+#   case needs far-apart pairs and its chordal pattern turns dense past N = 40, where its
+#   cost grows like d^4 (N = 30, 50, 70: 127, 203, 441 MiB, 563, 704, 944 B per K * d;
+#   N = 100 reached 1.0 GB before it was stopped after 27 minutes).
+# The estimate takes the dense case (every pair may become active): PEP_BYTES_PER_KD is
+# the measured 944 B per K * d at N = 70 grown like d up to N = 100 (d = 102; Nesterov
+# takes more than 10 minutes there). It over-states a banded run
+# (gradient descent N = 200 without witness: 10.3 GiB estimated, 0.93 GiB measured),
+# which still starts under half of a 24 GiB machine.
+PEP_BYTES_PER_KD = 1350.0
+# The witness (on by default; --no-witness skips it) solves the PEP again in the primal
+# form, whose PSD cone on the whole Gram matrix makes a dense KKT block of (d (d+1)/2)^2
+# entries: about 13 B per d^4 above the rest (gradient descent, |x_N - x*|^2, N = 100:
+# 1.49 GiB with the witness, 0.21 GiB without; N = 200 passed 9 GB and was stopped).
+PEP_WITNESS_BYTES_PER_D4 = 16.0
+# PEP wall seconds (SDP rounds and the exact proof) = PEP_SECONDS * (K d) ** PEP_EXPONENT,
+# an indication between the banded and the dense case (gradient descent N = 200 30 s,
+# Nesterov N = 70 66 s, N = 100 more than 10 minutes; accelerated proximal gradient
+# N = 10 35 s, at load 9 on 2 cores). The witness (on by default) comes on top.
+PEP_SECONDS = 1e-4
+PEP_EXPONENT = 1.0
 # A grid point held by the parent: its task, its CSV row and its JSON entry (a grid of
 # 8000 and of 64000 points on three parameters: 3270 and 3173 bytes per point).
 GRID_BYTES_PER_POINT = 3300.0
@@ -60,6 +80,10 @@ GRID_BYTES_PER_POINT = 3300.0
 # seconds: 0.009-0.011 for gradient descent, 0.015 for two-state methods).
 ANALYSIS_SECONDS = 0.01
 ANALYSIS_EXPONENT = 1.0
+# Wall seconds of one certified constant of a sublinear spec (m = 0: a grid point, or the
+# analysis, which adds its simulation): gradient descent on smooth convex f, 1.0-3.0 s
+# per point at load 9 on 2 cores (about 0.5 s idle).
+SUBLINEAR_SECONDS = 0.5
 # -------------------------------------------------------------------------------------
 
 LARGE_SECONDS = 60.0  # a run estimated longer than this says so in one line
@@ -213,10 +237,12 @@ def check(est: Estimate, announce: bool = True) -> Estimate:
     budget; otherwise say it in one line on stderr when it is large."""
     budget = max_memory()
     if est.peak_bytes > budget:
-        name = est.option.split()[0]
-        raise InputError(f"{est.option}: {est.what} needs about {size_text(est.peak_bytes)} "
+        head, lower = "", ""  # a run no option makes large (one sublinear analysis)
+        if est.option:
+            head, lower = f"{est.option}: ", f"lower {est.option.split()[0]} or "
+        raise InputError(f"{head}{est.what} needs about {size_text(est.peak_bytes)} "
                          f"of memory (estimate), over --max-memory {size_text(budget)}; "
-                         f"lower {name} or raise --max-memory")
+                         f"{lower}raise --max-memory")
     if announce and est.large:
         sys.stderr.write(est.line() + "\n")
         sys.stderr.flush()
@@ -225,19 +251,23 @@ def check(est: Estimate, announce: bool = True) -> Estimate:
 
 # -- the models --------------------------------------------------------------------------
 
-def pep_task(pairs: int, d: int) -> tuple[float, float]:
+def pep_task(pairs: int, d: int, witness: bool = True) -> tuple[float, float]:
     """(peak bytes of the worker, seconds) of one PEP with ``pairs`` interpolation pairs
-    and a Gram matrix of size ``d``."""
-    units = float(pairs) * d * d
-    peak = BASE_BYTES + PEP_BYTES_PER_UNIT * units + PEP_BYTES_PER_KD * pairs * d
+    (all the class allows: an upper bound of those that become active) and a Gram matrix
+    of size ``d``, with its witness unless ``witness`` is False."""
+    units = float(pairs) * d
+    peak = BASE_BYTES + PEP_BYTES_PER_KD * units
+    if witness:
+        peak += PEP_WITNESS_BYTES_PER_D4 * float(d) ** 4
     return peak, PEP_SECONDS * units**PEP_EXPONENT
 
 
 def pep_estimate(what: str, option: str, sizes: Sequence[tuple[int, int]],
-                 workers: int | None) -> tuple[Estimate, int]:
-    """The estimate of a PEP run whose tasks have these (pairs, d) sizes, and the workers
-    it may use (each holds the largest task at once)."""
-    tasks = sorted((pep_task(k, d) for k, d in sizes), reverse=True)
+                 workers: int | None, witness: bool = True) -> tuple[Estimate, int]:
+    """The estimate of a PEP run whose tasks have these (pairs, d) sizes (with their
+    witnesses unless ``witness`` is False), and the workers it may use (each holds the
+    largest task at once)."""
+    tasks = sorted((pep_task(k, d, witness) for k, d in sizes), reverse=True)
     biggest = tasks[0][0] if tasks else BASE_BYTES
     w = min(announce_workers(workers, biggest), max(1, len(tasks)))
     peak = BASE_BYTES + sum(b for b, _ in tasks[:w])
@@ -252,19 +282,23 @@ def analysis_seconds(states: int) -> float:
 
 
 def grid_estimate(what: str, option: str, points: int, states: int,
-                  workers: int | None) -> Estimate:
-    """A grid of ``points`` points in all (every kappa)."""
+                  workers: int | None, seconds_each: float | None = None) -> Estimate:
+    """A grid of ``points`` points in all (every kappa); ``seconds_each``: a point's
+    seconds when not a certified rate's (a sublinear spec's constant)."""
     w = usable_workers(workers) if points >= 8 else 1
     peak = BASE_BYTES + GRID_BYTES_PER_POINT * points + (w * WORKER_BYTES if w > 1 else 0)
-    return Estimate(what, option, peak, points * analysis_seconds(states) / w, w)
+    each = analysis_seconds(states) if seconds_each is None else seconds_each
+    return Estimate(what, option, peak, points * each / w, w)
 
 
 def sweep_estimate(what: str, option: str, kappas: int, states: int, families: int,
-                   workers: int | None) -> Estimate:
-    """An analysis over ``kappas`` condition numbers for each of ``families``."""
+                   workers: int | None, seconds_each: float | None = None) -> Estimate:
+    """An analysis over ``kappas`` condition numbers for each of ``families``
+    (``seconds_each``: one analysis's seconds when not a certified rate's)."""
     w = usable_workers(workers) if kappas >= 8 else 1
     peak = BASE_BYTES + (w * WORKER_BYTES if w > 1 else 0)
-    per = 10 * analysis_seconds(states)  # witnesses, checks, bisection restarts
+    per = (10 * analysis_seconds(states) if seconds_each is None  # witnesses, checks, ...
+           else seconds_each)
     return Estimate(what, option, peak, kappas * families * per / w, w)
 
 

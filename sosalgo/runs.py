@@ -84,7 +84,11 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
     if spec.sublinear:  # m: 0: one constant, no kappa (sosalgo.sublinear_run)
         from sosalgo.sublinear_run import sublinear_run
 
-        return sublinear_run(spec, text, out_dir, plot, kappa, verify, restart, progress)
+        est = budget.check(budget.sweep_estimate(
+            f"analyze {spec.name}", "", 1, spec.n, 1, _budget(max_memory, workers),
+            seconds_each=budget.SUBLINEAR_SECONDS))
+        return sublinear_run(spec, text, out_dir, plot, kappa, verify, restart,
+                             progress) | {"estimate": est.to_dict()}
     kappas = _kappa_list(spec, kappa)
     inputs.check_tol(tol, "--tol")
     from sosalgo.witnesses.rows import check_witness_options
@@ -175,8 +179,11 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
 
         if kappa not in (None, [], ()):
             raise InputError(f"{spec.source}: --kappa: undefined for a sublinear spec (m: 0)")
+        inputs.check_time_limit(time_limit, "--time-limit")
+        est = budget.check(budget.design_estimate(  # one process: no workers
+            f"design {spec.name}", "", 1, time_limit, _budget(max_memory, 1)))
         return sublinear_design_run(spec, text, out_dir, free, time_limit, verify,
-                                    restart, progress)
+                                    restart, progress) | {"estimate": est.to_dict()}
     fam = inputs.select_families(spec, certificate, options, single=True,
                                  command="noise" if two else "design")[0]
     kappas = _kappa_list(spec, kappa)
@@ -269,8 +276,11 @@ def grid_run(spec: Spec | str | Path, kappa: Kappas, out_dir: str | Path = "outp
 
         if kappa not in (None, [], ()):
             raise InputError(f"{spec.source}: --kappa: undefined for a sublinear spec (m: 0)")
-        return sublinear_grid_run(spec, text, out_dir, points, free, workers, scheduler,
-                                  restart, progress)
+        names = inputs.free_names(spec, free)
+        est = _grid_budget(spec, names, points, 1, max_memory, workers)
+        return sublinear_grid_run(spec, text, out_dir, points, free,
+                                  est.workers if scheduler is None else workers, scheduler,
+                                  restart, progress) | {"estimate": est.to_dict()}
     if kappa in (None, [], ()):
         raise InputError("--kappa: required (one or more condition numbers)")
     kappas = _kappa_list(spec, kappa)
@@ -282,10 +292,7 @@ def grid_run(spec: Spec | str | Path, kappa: Kappas, out_dir: str | Path = "outp
     inputs.check_tol(tol, "--tol")
     fam = inputs.select_families(spec, certificate, options, single=True, command="grid")[0]
     boxes = inputs.parameter_boxes(spec, kappas, names)
-    total = points ** len(names) * len(dict.fromkeys(kappas))
-    est = budget.check(budget.grid_estimate(
-        f"grid {spec.name} of {total} points", f"--points {points}", total, spec.n,
-        _budget(max_memory, workers)))
+    est = _grid_budget(spec, names, points, len(dict.fromkeys(kappas)), max_memory, workers)
     workers = est.workers if scheduler is None else workers
     out = inputs.out_dir(out_dir)
     inputs.check_scheduler(scheduler)
@@ -305,6 +312,18 @@ def grid_run(spec: Spec | str | Path, kappa: Kappas, out_dir: str | Path = "outp
                     | {"fixed": {p: values[p] for p in grid_fixed(spec, names)}})
     return {"spec": spec.name, "free": names, "fixed": grid_fixed(spec, names), "grids": docs,
             "estimate": est.to_dict()}
+
+
+def _grid_budget(spec: Spec, names: list[str], points: int, kappas: int,
+                 max_memory: int | str | None, workers: int | None) -> budget.Estimate:
+    """The estimate of a grid (every point of every axis at every kappa; a sublinear
+    spec's points cost more each), checked against the memory budget."""
+    inputs.check_grid_points(points, len(names))
+    total = points ** len(names) * kappas
+    return budget.check(budget.grid_estimate(
+        f"grid {spec.name} of {total} points", f"--points {points}", total, spec.n,
+        _budget(max_memory, workers),
+        seconds_each=budget.SUBLINEAR_SECONDS if spec.sublinear else None))
 
 
 def table1_run(specs: Sequence[str | Path] = (), kappa: Sequence[float] = (),

@@ -57,6 +57,9 @@ def __getattr__(name: str) -> Any:
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 CERT_TOL = 1e-7  # tolerance of the certifying analyses
+# The share of the time limit the lower bound's polynomial model may take to build (its
+# symbolic expansion, checked between entries); past it the design goes without a bound
+MODEL_SHARE = 0.5
 GRID_TOL = 1e-5  # tolerance of the screening grid
 METHODS = ("dual", "moment")
 GRID_POINTS = {1: 21, 2: 13, 3: 7}  # per axis, by number of free parameters
@@ -237,10 +240,17 @@ def design(
     """
     t0 = time.perf_counter()
     free, box, family = _setup(spec, kappa, free, method, family)
-    model = bound_model(spec, kappa, free, family) if method == "dual" else None
+    model, late = None, None
+    if method == "dual":  # the model's expansion counts against the limit (MODEL_SHARE)
+        model, late = _timed_bound_model(spec, kappa, free, family,
+                                         t0 + MODEL_SHARE * time_limit)
     run = _Run(spec, kappa, free, box, t0 + time_limit, on_step, family,
                bound=method == "moment" or model is not None)
     run.workers = _usable_workers(workers)
+    if late is not None:
+        run.out_of_time = True
+        run.log(f"no lower bound: {late} within {MODEL_SHARE:.0%} of the time limit; "
+                "the search has the rest")
     with np.errstate(all="ignore"), warnings.catch_warnings():
         # overflow and NaN are handled (a point that cannot be certified is no point)
         warnings.simplefilter("ignore", RuntimeWarning)
@@ -249,7 +259,10 @@ def design(
         # search may use all the time
         _search(run, polish_share=0.5 if run.bound else 0.95)
         run.phase_end = run.deadline
-        if method == "dual":
+        if late is not None:
+            lb, relax = None, {"method": "dual", "status": BoundStatus.PARTIAL,
+                               "scalarize": None, "order": None, "flat": None, "ranks": []}
+        elif method == "dual":
             lb, relax = _dual_bound(run, model, gap)
         else:
             lb, relax = _moment_bound(run, scalarize, order, max_order, gap)
@@ -538,20 +551,35 @@ class BoundModel:
 
 
 def bound_model(spec: Spec, kappa: float, free: list[str],
-                 family: CertificateFamily) -> BoundModel | None:
+                 family: CertificateFamily, deadline: float | None = None
+                 ) -> BoundModel | None:
     """The exact data of the family over Θ, or None when the family has no dual bound
-    (no exact form, or variables outside θ-free cones)."""
+    (no exact form, or variables outside θ-free cones). ``deadline``
+    (``time.perf_counter``): :class:`~sosalgo.design.polymodel.ModelTimeout` once the
+    symbolic expansion passes it."""
     from sosalgo.design.modes import ModeTest
     from sosalgo.design.polymodel import exact_method, numeric_template, poly_lmi
 
     if spec.composite:  # the exact form is the seed's (A, B, C, E); no family has one here
         return None
     method = exact_method(spec, kappa, free)
-    poly = poly_lmi(method, family, numeric_template(spec, kappa, method, family))
+    poly = poly_lmi(method, family, numeric_template(spec, kappa, method, family), deadline)
     structure = None if poly is None else dual_structure(poly)
     if structure is None:
         return None
     return BoundModel(poly, structure, ModeTest(method))
+
+
+def _timed_bound_model(spec: Spec, kappa: float, free: list[str], family: CertificateFamily,
+                       deadline: float) -> tuple[BoundModel | None, str | None]:
+    """(the bound model, None), or (None, what was done) when its symbolic expansion
+    did not end by ``deadline``."""
+    from sosalgo.design.polymodel import ModelTimeout
+
+    try:
+        return bound_model(spec, kappa, free, family, deadline), None
+    except ModelTimeout as exc:
+        return None, str(exc)
 
 
 def _bound_info(state, status: BoundStatus, seconds: float) -> dict[str, Any]:

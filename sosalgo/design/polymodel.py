@@ -20,6 +20,7 @@ products such as A'PA, eq. 14). This module
 
 from __future__ import annotations
 
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from fractions import Fraction
@@ -34,11 +35,16 @@ from sosalgo.expr.parse import to_sympy
 from sosalgo.model import ModelError, evaluate_algorithm
 from sosalgo.spec import Spec
 
-__all__ = ["ExactMethod", "PolyLMI", "check_polynomial", "exact_method", "poly_lmi",
-           "shift_tensor"]
+__all__ = ["ExactMethod", "ModelTimeout", "PolyLMI", "check_polynomial", "exact_method",
+           "poly_lmi", "shift_tensor"]
 
 MAX_DEGREE = 12  # per free parameter; templates of higher degree are refused
 KEYS = ("c0", "c1", "l0", "l1")
+
+
+class ModelTimeout(TimeoutError):
+    """The expansion of the polynomial model passed its deadline (checked between
+    entries: one entry's expansion is the step that may run past it)."""
 
 
 def check_polynomial(spec: Spec, free: Sequence[str]) -> None:
@@ -201,9 +207,10 @@ class PolyLMI:
         return shift_tensor(self.coef[b][name], self.degrees, center, half)
 
 
-def poly_lmi(method: ExactMethod, family: CertificateFamily, template: LMIProblem
-             ) -> PolyLMI | None:
-    """The family's exact blocks at ``method`` as polynomial data (None: no exact form)."""
+def poly_lmi(method: ExactMethod, family: CertificateFamily, template: LMIProblem,
+             deadline: float | None = None) -> PolyLMI | None:
+    """The family's exact blocks at ``method`` as polynomial data (None: no exact form).
+    ``deadline`` (``time.perf_counter``): :class:`ModelTimeout` once it has passed."""
     A, B, C, E = (method.matrices[k] for k in ("A", "B", "C", "E"))
     blocks = family.exact_problem(A, B, C, E, method.m, method.L)
     if blocks is None:
@@ -219,7 +226,7 @@ def poly_lmi(method: ExactMethod, family: CertificateFamily, template: LMIProble
             for M in mats:
                 entries.extend(M)  # row-major
         layout.append(pos)
-    degrees, cols = ball_coefficients(entries, method.zs)
+    degrees, cols = ball_coefficients(entries, method.zs, deadline)
     balls = arb_mat(cols)
     mids = np.array([[float(x.mid()) for x in row] for row in cols])
     shape = tuple(d + 1 for d in degrees)
@@ -231,17 +238,34 @@ def poly_lmi(method: ExactMethod, family: CertificateFamily, template: LMIProble
                    balls, layout, method)
 
 
-def ball_coefficients(exprs: list[sp.Expr], zs: list[sp.Symbol]
+def _expand(exprs: list[sp.Expr], zs: list[sp.Symbol], deadline: float | None
+            ) -> list[sp.Poly | None]:
+    """Each expression as a polynomial in ``zs`` (None: constant), refused at the first
+    entry of too high a degree, stopped between entries once ``deadline`` has passed."""
+    zset = set(zs)
+    polys: list[sp.Poly | None] = []
+    for e in exprs:
+        if deadline is not None and time.perf_counter() > deadline:
+            raise ModelTimeout(f"the polynomial model was expanded for {len(polys)} of "
+                               f"{len(exprs)} entries")
+        p = sp.Poly(e, *zs) if e.free_symbols & zset else None
+        if p is not None and max(p.degree_list()) > MAX_DEGREE:
+            raise ModelError("parameters", f"the certificate data have degree "
+                             f"{max(p.degree_list())} > {MAX_DEGREE} in a free parameter; "
+                             "design refuses it")
+        polys.append(p)
+    return polys
+
+
+def ball_coefficients(exprs: list[sp.Expr], zs: list[sp.Symbol],
+                      deadline: float | None = None
                       ) -> tuple[tuple[int, ...], list[list[arb]]]:
     """Monomial coefficients of polynomials in ``zs`` as balls, on a common degree grid:
-    (degrees, rows), one row per monomial (row-major), one column per expression."""
-    zset = set(zs)
-    polys = [sp.Poly(e, *zs) if e.free_symbols & zset else None for e in exprs]
+    (degrees, rows), one row per monomial (row-major), one column per expression.
+    ``deadline``: :class:`ModelTimeout` once it has passed (between entries)."""
+    polys = _expand(exprs, zs, deadline)
     dlists = [p.degree_list() for p in polys if p is not None]
     degrees = tuple(max((d[i] for d in dlists), default=0) for i in range(len(zs)))
-    if any(d > MAX_DEGREE for d in degrees):
-        raise ModelError("parameters", f"the certificate data have degree {max(degrees)} "
-                         f"> {MAX_DEGREE} in a free parameter; design refuses it")
     dims = [d + 1 for d in degrees]
     zero = arb(0)
     rows = [[zero] * len(exprs) for _ in range(int(np.prod(dims)))]
