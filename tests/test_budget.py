@@ -107,6 +107,29 @@ def test_raising_the_budget_lets_the_same_run_start(tmp_path):
     assert 0 < est["peak_memory_bytes"] <= 2 * GIB and est["seconds"] >= 0
 
 
+def test_no_witness_counts_the_proof_only(tmp_path):
+    """A budget between the proof's estimate and the proof-and-witness estimate: the run
+    with ``--no-witness`` starts, the one with its witness is refused."""
+    from sosalgo.pep.core import pep_problem
+    from sosalgo.spec import load_spec
+
+    spec = SPECS / "gradient-convex.yaml"
+    _, st, *_ = pep_problem(load_spec(spec), None, 12)
+    sizes = [(len(st.pairs), st.d)]
+    proof = budget.pep_estimate("p", "--steps 12", sizes, 1, witness=False)[0].peak_bytes
+    both = budget.pep_estimate("p", "--steps 12", sizes, 1, witness=True)[0].peak_bytes
+    assert proof < both
+    limit = f"{int((proof + both) / 2)}B"
+    out = tmp_path / "out"
+    refused = _cli("pep", spec, "--steps", "12", "--max-memory", limit, "--out", out,
+                   "--no-plot", "--json")
+    assert refused.exit_code == 2 and "--max-memory" in refused.stderr
+    res = _cli("pep", spec, "--steps", "12", "--max-memory", limit, "--out", out,
+               "--no-plot", "--json", "--no-witness")
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.stdout)["tau"] == pytest.approx(1 / (4 * 12 + 2), rel=1e-6)
+
+
 def test_a_sublinear_run_carries_its_estimate_and_capped_workers(tmp_path):
     res = _cli("grid", SPECS / "gradient-convex.yaml", "--points", "2", "--workers", "4096",
                "--max-memory", "2G", "--out", tmp_path / "out", "--json", "--quiet")

@@ -84,7 +84,8 @@ pep_chunk.max_chunk = 1  # type: ignore[attr-defined]  # a PEP takes seconds to 
 
 
 def _check(spec: Spec, kappas: list[float | None], steps: list[int], measure: str | None,
-           initial: str | None, workers: int | None) -> tuple[Any, int, bool]:
+           initial: str | None, workers: int | None, witness: bool = True
+           ) -> tuple[Any, int, bool]:
     """Every input error before anything is written (one small problem per kappa), then
     the run's estimate against the memory budget (:mod:`sosalgo.budget`): (estimate,
     workers allowed, whether each PEP runs in a worker process: one that may take longer
@@ -100,8 +101,8 @@ def _check(spec: Spec, kappas: list[float | None], steps: list[int], measure: st
               max(1, round(st.d * (n + 1) / (top + 1)))) for n in steps] * len(kappas)
     span = f"N={steps[0]}" if len(steps) == 1 else f"N={steps[0]}..{top}"
     what = f"pep {spec.name} {span}" + (f" at {len(kappas)} kappas" if len(kappas) > 1 else "")
-    est, w = budget.pep_estimate(what, f"--steps {top}", sizes, workers)
-    longest = budget.pep_task(*sizes[steps.index(top)])[1]
+    est, w = budget.pep_estimate(what, f"--steps {top}", sizes, workers, witness)
+    longest = budget.pep_task(*sizes[steps.index(top)], witness)[1]
     return budget.check(est), w, longest > ISOLATE_SECONDS
 
 
@@ -130,7 +131,7 @@ def pep_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = Non
     from sosalgo.budget import set_max_memory
 
     set_max_memory(max_memory)  # None: the machine's default
-    est, workers, isolate = _check(spec, ks, ns, measure, initial, workers)
+    est, workers, isolate = _check(spec, ks, ns, measure, initial, workers, witness)
     inputs.check_scheduler(scheduler)
     out = None if out_dir is None else inputs.out_dir(out_dir)
     options = {"measure": measure, "initial": initial, "exact": exact, "witness": witness}
