@@ -27,7 +27,7 @@ QUICK_PEP = (("gradient", "dist", (10, 50), False), ("nesterov", None, (20,), Fa
              ("gradient", "dist", (30,), True))
 
 PEP_CHILD = """
-import json, resource, sys, time
+import json, sys, time
 from sosalgo.pep.core import pep, pep_problem
 from sosalgo.spec import load_spec
 spec, N = load_spec(f"specs/{sys.argv[1]}.yaml"), int(sys.argv[2])
@@ -36,12 +36,13 @@ kappa = None if spec.sublinear else 10.0
 _, st, *_ = pep_problem(spec, kappa, N, measure)
 t0 = time.perf_counter()
 pep(spec, kappa, N, measure, witness=witness)
+hwm = [int(x.split()[1]) for x in open('/proc/self/status') if x.startswith('VmHWM:')][0]
 print(json.dumps({"pairs": len(st.pairs), "d": st.d, "seconds": time.perf_counter() - t0,
-                  "bytes": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024}))
+                  "bytes": hwm * 1024}))
 """
 
 GRID_CHILD = """
-import json, resource, sys
+import json, sys
 import sosalgo.batch.sweeps as sw
 
 def fake(spec_text, source, options, chunk):  # the row of a real point, no solve
@@ -55,7 +56,8 @@ sw.grid_chunk = fake
 from sosalgo.runs import grid_run
 doc = grid_run("specs/three-parameter.yaml", [10.0], sys.argv[2], points=int(sys.argv[1]),
                workers=1, progress=False)
-print(json.dumps({"bytes": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024}))
+hwm = [int(x.split()[1]) for x in open('/proc/self/status') if x.startswith('VmHWM:')][0]
+print(json.dumps({"bytes": hwm * 1024}))
 """
 
 

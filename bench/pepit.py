@@ -36,7 +36,7 @@ SOLVERS = ("default", "CLARABEL")
 
 # Runs in PEPit's interpreter: one case, one JSON line out.
 WORKER = r'''
-import json, math, resource, sys, time, warnings
+import json, math, sys, time, warnings
 warnings.simplefilter("ignore")
 from PEPit import PEP
 from PEPit.functions import SmoothStronglyConvexFunction
@@ -67,10 +67,11 @@ t0 = time.perf_counter()
 tau = problem.solve(wrapper="cvxpy", verbose=0, **kw)
 seconds = time.perf_counter() - t0
 w = getattr(problem, "wrapper", None)
+hwm = [int(x.split()[1]) for x in open("/proc/self/status") if x.startswith("VmHWM:")][0]
 print(json.dumps({"tau": tau, "seconds": seconds,
                   "status": str(getattr(getattr(w, "prob", None), "status", None)),
                   "solver": str(getattr(w, "solver_name", None) or solver),
-                  "mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
+                  "mb": hwm / 1024}))
 '''
 
 
