@@ -27,27 +27,9 @@ from sosalgo.certificates.interpolation import Interpolation
 from sosalgo.model import bind
 from sosalgo.spec import load_spec
 
-TOL = 1e-6
+from .test_lag_fallback import CHAMBOLLE_POCK
 
-# Chambolle-Pock on f + g with K = I, tau = sigma = theta = 1, the dual step by Moreau's
-# identity prox_{g*}(v) = v - prox_g(v); state (x, y):
-#   y1 = prox_f(x - y),  v = y + 2 y1 - x,  y2 = prox_g(v),  x+ = y1,  y+ = v - y2.
-CHAMBOLLE_POCK = """\
-name: chambolle-pock
-description: Chambolle-Pock, tau = sigma = theta = 1, K = I
-functions:
-  f: {class: smooth_strongly_convex}
-  g: {class: convex}
-matrices:
-  A: [[1, -1], [0, 0]]
-  B: [[-1, 0], [0, 1]]
-  C: [[1, -1], [1, -1]]
-  D: [[-1, 0], [-2, -1]]
-  E: [[1, 0]]
-oracles: [f, g]
-measure: distance
-kappa: [1000]
-"""
+TOL = 1e-6
 
 SEED = """\
 name: random-momentum
