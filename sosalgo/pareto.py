@@ -1,6 +1,6 @@
 """``sosalgo pareto``: the front of (certified rate, certified noise sensitivity) over Θ.
 
-At one kappa (README, "Robustness to gradient noise", "Design on the speed–robustness
+At one kappa (docs/noise.md, "Design on the speed–robustness
 front"):
 
 1. the fast end: today's rate design (:func:`sosalgo.design.design`) gives the fastest

@@ -256,7 +256,7 @@ def test_small_front_resumes_from_its_csv(small_front):
 @pytest.mark.deep
 def test_three_parameter_front_ends(tmp_path):
     """kappa = 10, 20 points, the default family (the tightest, interpolation) on 2
-    processes (README: the time): the fast end reaches the triple momentum method's rate
+    processes (docs/noise.md: the time): the fast end reaches the triple momentum method's rate
     1 - 1/sqrt(kappa) (closed form); the slow end is below gradient descent's
     gamma at the same certified rate (closed form; GD is in the box) and within a constant
     factor of it (momentum helps there too: measured ~0.81)."""

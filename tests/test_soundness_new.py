@@ -34,7 +34,7 @@ Later additions, judged the same way:
 SOSALGO_NEW_CASES sets the number of random cases per feature (default 2; ``make
 soundness`` runs NEW_CASES; the slow features 5 (long horizons), 7 run a quarter or a
 tenth of it). SOSALGO_NEW_REPORT, a file path: every comparison is
-appended to it as one JSON line (the margins reported in README).
+appended to it as one JSON line (the margins reported in docs/validation.md).
 """
 
 from __future__ import annotations

@@ -21,7 +21,7 @@ __all__ = ["LEGEND", "design_figure", "design_table", "proven_bound", "verdict",
 LEGEND = ("rho_certified: analysis at the designed theta (with its certificate); "
           "lower_bound: proven, no theta in the box is certified below it; "
           "floor: 1 - 1/sqrt(kappa), no first-order method is faster on F(m, L) (composite "
-          "specs: only where that is a theorem, see README; empty otherwise)")
+          "specs: only where that is a theorem, see docs/commands/design.md; empty otherwise)")
 
 
 def tighter_family_note(spec: Spec, family: str, certificate: str | None) -> str | None:

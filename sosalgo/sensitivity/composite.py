@@ -1,4 +1,4 @@
-"""Noise sensitivity of composite methods (README, "Robustness to gradient noise",
+"""Noise sensitivity of composite methods (docs/noise.md,
 composite specs): noise on the gradient calls of the smooth function(s).
 
 The noisy calls i (gradient calls on ``smooth_strongly_convex`` functions) get

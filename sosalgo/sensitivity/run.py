@@ -93,7 +93,7 @@ class NoiseResult:
     proof: dict[str, Any] | None
     seconds: float
     detail: str = ""
-    # noise_limsup: the certified bound on the limsup itself (README, "The limsup itself")
+    # noise_limsup: the certified bound on the limsup itself (docs/noise.md, "The limsup itself")
     noise_limsup: float | None = None
     noise_limsup_rho: float | None = None
     noise_limsup_check: str = "none"  # "exact", "float" or "none"

@@ -4,7 +4,7 @@
 parts of :func:`sosalgo.sensitivity.window.noise_parts` (decrease ⪯ 0, positivity ⪰ 0,
 their function-value rows, eta, lambda >= 0), each strict by a small margin so that the
 certificate survives rounding to rationals; gamma = sqrt(s) is then an upper bound on the
-sensitivity over the whole class F(m, L) (README, "Robustness to gradient noise").
+sensitivity over the whole class F(m, L) (docs/noise.md).
 
 The problem is solved for f/L in F(m/L, 1) (same iterates; B scaled by L, noise by 1/L),
 where the data are of order one; the certificate is returned in original units. A

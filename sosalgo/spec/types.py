@@ -132,7 +132,7 @@ class Spec:
     # whether the spec names its family (``certificate:``); when not, each command takes
     # its own default (:func:`sosalgo.certificates.default_family_name`)
     certificate_given: bool = False
-    # the oracle model (README, "Function classes and oracles"); the defaults are the
+    # the oracle model (docs/function-classes.md); the defaults are the
     # seed's setting: one smooth strongly convex f queried by its gradient
     functions: dict[str, FunctionDecl] = field(default_factory=dict)
     oracles: tuple[str, ...] = ("f",)

@@ -12,7 +12,7 @@ floating point in the proof path:
    (the start at rest) is solved exactly and must be unique.
 2. The windows (points, tilted class inequalities of every ordered pair, measure) are
    those of :func:`sosalgo.verify.exact_composite.exact_window`, on these exact numbers.
-3. The conditions are written here from their definition (README, "Sublinear rates"), as
+3. The conditions are written here from their definition (docs/sublinear.md), as
    affine forms in the certificate's variables (:class:`Lin`): (D) phi_{k+1} - phi_k +
    sum eta(k) q <= 0 and (P) (k + b) measure + sum lam(k) q - phi_k <= 0 as polynomials in
    k (degree 2: ``[[A0, Y], [Y', A2]] <= 0``, Y = (A1 + S)/2 + K, S >= 0, K skew), (I)
