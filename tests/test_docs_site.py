@@ -161,3 +161,12 @@ def test_site_in_headless_chromium(site):
     assert any(u.endswith("/theory.html") for u in math_pages)
     assert sum(len(f["sups"]) for f in facts.values()) > 0
     assert problems == []
+
+
+def test_spec_reference_names_every_field_the_loader_knows():
+    from sosalgo.spec.types import TOP_KEYS
+
+    rows = [line for line in (DOCS / "spec.md").read_text("utf-8").splitlines()
+            if line.startswith("| `")]
+    documented = {row.split("`")[1] for row in rows}
+    assert TOP_KEYS <= documented, sorted(TOP_KEYS - documented)
