@@ -51,6 +51,8 @@ napoleon_google_docstring = True
 napoleon_numpy_docstring = False
 
 nitpicky = False
+# "--kappa" stays two hyphens (options, not dashes), quotes stay straight as in a terminal
+smartquotes = False
 # pages written before the site start at "##"; their heading levels are kept as they are
 suppress_warnings = ["myst.header"]
 os.environ.setdefault("SOSALGO_DOCS_BUILD", "1")
