@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import sympy as sp
 import yaml
 from click.testing import CliRunner
 
@@ -210,3 +211,20 @@ def test_unregister_keeps_the_shipped_classes():
     with pytest.raises(ValueError, match="shipped"):
         unregister_class("convex")
     assert "convex" in CLASSES
+
+
+def test_a_new_class_in_the_listing(registered, tmp_path):
+    """``sosalgo lmi`` lists the class by its own text, or by its description and data
+    (alpha, Q) when it gives none."""
+    path = _write(tmp_path, {"class": registered.name})
+    text = api.lmi(path)
+    assert (f"f: {registered.name} (L = L); calls y1 (gradient); for every ordered pair "
+            f"(a, b) of its points: {registered.tilted_text[0]}") in text
+    assert registered.tilted_text[1] in api.lmi(path, latex=True)
+    plain = type(registered)()
+    plain.tilted_text = None
+    head = "L-smooth convex (test class): alpha (h_a - h_b) + X'QX >= 0, alpha = 2, Q = "
+    listed = plain.listing_text({"L": 2.0}, latex=False)
+    assert listed.startswith(head)
+    Q = np.array(sp.sympify(listed[len(head):]).tolist(), dtype=float)
+    assert np.array_equal(Q, [[0, 0, 0, -1], [0, 0, 0, 1], [0, 0, -0.5, 0.5], [-1, 1, 0.5, -0.5]])

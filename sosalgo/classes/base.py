@@ -41,7 +41,6 @@ from fractions import Fraction
 from typing import Any
 
 import numpy as np
-import sympy as sp
 
 from sosalgo.classes.members import ProxFunction, quadratic
 
@@ -119,6 +118,8 @@ class FunctionClass:
         else the description and the data (alpha, Q)."""
         if self.tilted_text is not None:
             return self.tilted_text[1] if latex else self.tilted_text[0]
+        import sympy as sp  # listings only: numeric work never imports sympy
+
         data = "; ".join(f"alpha = {q.alpha:g}, Q = {sp.sstr(sp.Matrix(q.Q))}"
                          for q in self.tilted(params))
         return f"{self.description}: alpha (h_a - h_b) + X'QX >= 0, {data}"
