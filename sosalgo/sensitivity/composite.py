@@ -67,9 +67,10 @@ class NoisyModel(CallShape):
 
 
 def noisy_calls(om: Any) -> list[int]:
-    """The gradient calls (D_ii = 0) on smooth_strongly_convex functions."""
+    """The gradient calls (D_ii = 0) on functions of classes with ``noisy_gradients``
+    (smooth_strongly_convex)."""
     return [i for i, j in enumerate(om.oracles)
-            if om.functions[j].cls.name == "smooth_strongly_convex" and om.D[i, i] == 0]
+            if om.functions[j].cls.noisy_gradients and om.D[i, i] == 0]
 
 
 def _augment(A: Any, B: Any, C: Any, D: Any, noisy: list[int], zero: Any) -> tuple:

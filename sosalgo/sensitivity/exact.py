@@ -85,7 +85,7 @@ def sqrt_upper(s: Fraction, digits: int = 10) -> Fraction:
 def _exact_windows(spec: Spec, kappa: float, theta: Mapping[str, float] | None, lag: int,
                    digits: int) -> tuple[Any, Any, int]:
     """(decrease, positivity) windows of the exact method, and its number of states."""
-    from sosalgo.classes import CLASSES
+    from sosalgo.classes import SEED_CLASS
     from sosalgo.model import bind, fixed_point
     from sosalgo.verify.exact_composite import exact_class_inequalities
 
@@ -96,8 +96,7 @@ def _exact_windows(spec: Spec, kappa: float, theta: Mapping[str, float] | None, 
         raise Refused(f"the exact method cannot be built: {exc}") from None
     if exact_fixed_point(ex, fixed_point(alg)) is None:
         raise Refused("fixed point (u with (I - A)u = 0, Cu = 1, Eu = 1) not proven")
-    ineqs, _ = exact_class_inequalities(CLASSES["smooth_strongly_convex"],
-                                        {"m": Ball(ex.m), "L": Ball(ex.L)})
+    ineqs, _ = exact_class_inequalities(SEED_CLASS, {"m": Ball(ex.m), "L": Ball(ex.L)})
     alpha, Q = ineqs[0]
     from sosalgo.verify.exact_interpolation import object_matrix
 

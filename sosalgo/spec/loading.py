@@ -385,10 +385,10 @@ class _Builder:
     def functions(self, raw: object) -> dict[str, FunctionDecl]:
         """``functions:`` name -> {class: NAME, <parameter>: expr}; default: one f in
         F(m, L)."""
-        from sosalgo.classes import CLASSES
+        from sosalgo.classes import CLASSES, SEED_CLASS
 
         if raw is None:
-            raw = {"f": {"class": "smooth_strongly_convex"}}
+            raw = {"f": {"class": SEED_CLASS.name}}
         if not isinstance(raw, dict) or not raw:
             raise self.fail("functions", "must be a non-empty mapping name: {class: ...}")
         if len(raw) > MAX_FUNCTIONS:

@@ -12,6 +12,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
+from sosalgo.classes import SEED_CLASS
 from sosalgo.errors import InputError
 from sosalgo.expr.tree import Expr
 
@@ -168,7 +169,7 @@ class Spec:
             return True
         decl = self.functions.get("f")
         return len(self.functions) > 1 or (
-            decl is not None and (decl.cls != "smooth_strongly_convex" or bool(decl.given)))
+            decl is not None and (decl.cls != SEED_CLASS.name or bool(decl.given)))
 
     @property
     def p(self) -> int:
