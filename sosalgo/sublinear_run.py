@@ -252,7 +252,7 @@ def _csv_cells(spec: Spec, row: dict[str, Any]) -> dict[str, Any]:
 
 
 def attach_verification(spec: Spec, row: dict[str, Any], out: Path) -> None:
-    """``verification`` (the exact proof of :mod:`sosalgo.verify.exact_sublinear` and the
+    """``verification`` (the exact proof of :mod:`sosalgo.certificates.exact_sublinear` and the
     row's simulation; proof document in ``out/certificates``) and ``verified`` on a row."""
     from sosalgo.verify.results import verify_sublinear_rows
 
@@ -268,7 +268,7 @@ def sublinear_run(spec: Spec, text: str, out_dir: str | Path, plot: bool = True,
                   progress: bool = True) -> dict:
     """Analyze, write the CSV (and the figure with ``plot``), return the document (a kappa
     is refused first). With ``verify`` the row gets ``verification`` (the exact proof of
-    :mod:`sosalgo.verify.exact_sublinear` and the row's simulation; proof document in
+    :mod:`sosalgo.certificates.exact_sublinear` and the row's simulation; proof document in
     ``out_dir/certificates``) and ``verified``. A rerun with the same settings reads the
     row back from the CSV."""
     from sosalgo import inputs

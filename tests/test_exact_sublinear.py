@@ -15,7 +15,7 @@ from sosalgo.analysis import analyze_sublinear
 from sosalgo.cli import cli
 from sosalgo.documents import verify_document
 from sosalgo.spec import spec_from_dict
-from sosalgo.verify.exact_sublinear import verify_exact_sublinear
+from sosalgo.certificates.exact_sublinear import verify_exact_sublinear
 
 from .conftest import SPECS
 

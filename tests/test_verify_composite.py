@@ -1,5 +1,5 @@
 """Exact verification and simulation of composite certificates (proximal steps, several
-functions, other classes): sosalgo.verify.exact_composite, prox_functions, simulate_composite.
+functions, other classes): sosalgo.certificates.exact_composite, prox_functions, simulate_composite.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from sosalgo.cli import cli
 from sosalgo.model import bind
 from sosalgo.spec import load_spec
 from sosalgo.verify.exact import Ball
-from sosalgo.verify.exact_composite import exact_class_inequalities, verify_exact_composite
+from sosalgo.certificates.exact_composite import exact_class_inequalities, verify_exact_composite
 from sosalgo.verify.prox_functions import ProxFunction, ProxProblem, class_functions
 from sosalgo.verify.simulate_composite import run_method, simulate_composite
 from tests.conftest import spec_path

@@ -324,7 +324,7 @@ def verify_sublinear_rows(spec: Spec, rows: Sequence[Mapping[str, Any]],
                           ) -> list[dict[str, Any] | None]:
     """Rows of a sublinear spec (analysis or design: ``constant``, ``certificate``, a
     design's ``theta``): the exact proof of
-    :func:`sosalgo.verify.exact_sublinear.verify_exact_sublinear` and the simulation
+    :func:`sosalgo.certificates.exact_sublinear.verify_exact_sublinear` and the simulation
     check of the constant; None for a row claiming no constant. Malformed rows raise
     ResultError before anything is verified or written."""
     claims = []
@@ -350,7 +350,7 @@ def _sublinear_check(spec: Spec, C: float | None, cert: Mapping[str, Any] | None
                      simulate: bool) -> dict[str, Any]:
     """One row's check as plain values (the verdict as its string); the proof document
     goes to ``out_dir`` as ``<name>-sublinear-certificate.json``."""
-    from sosalgo.verify.exact_sublinear import verify_exact_sublinear
+    from sosalgo.certificates.exact_sublinear import verify_exact_sublinear
 
     res = verify_exact_sublinear(spec, cert or {}, theta, constant=C)
     out: dict[str, Any] = {

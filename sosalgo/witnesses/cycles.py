@@ -70,7 +70,7 @@ def context(spec: Any, kappa: float, theta: Mapping[str, float] | None = None) -
     when it cannot be built)."""
     from sosalgo.model import evaluate_algorithm
     from sosalgo.oracles import as_oracle_method
-    from sosalgo.verify.exact_composite import exact_class_inequalities, exact_oracle_method
+    from sosalgo.certificates.exact_composite import exact_class_inequalities, exact_oracle_method
 
     om = as_oracle_method(evaluate_algorithm(spec, kappa, theta))
     ex = exact_oracle_method(spec, kappa, theta)

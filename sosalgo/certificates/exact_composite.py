@@ -20,7 +20,7 @@ point in the proof path:
    the weights p (or c) are raised where the positivity function-value rows need it (a
    larger weight of a nonnegative value only increases V). Then (D) ⪯ 0, (Df) <= 0,
    (Pq) ⪰ 0 and (Pf) >= 0 are proven (exact LDL^T with the enclosure radius, as for the
-   seed's interpolation family, :mod:`sosalgo.verify.exact_interpolation`) at rho or a
+   seed's interpolation family, :mod:`sosalgo.certificates.exact_interpolation`) at rho or a
    rational slightly above it.
 """
 
@@ -52,7 +52,7 @@ from sosalgo.verify.exact import (
     rational,
     rho_candidates,
 )
-from sosalgo.verify.exact_interpolation import (
+from sosalgo.certificates.exact_interpolation import (
     InterpolationExactResult,
     Refused,
     float_entry,
