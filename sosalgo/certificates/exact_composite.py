@@ -35,6 +35,17 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
+from sosalgo.certificates.exact_interpolation import (
+    InterpolationExactResult,
+    Refused,
+    float_entry,
+    object_matrix,
+    prove_definite,
+    rational_near,
+    settle,
+    symmetric_matrix,
+    symmetrize_balls,
+)
 from sosalgo.expr.parse import to_sympy
 from sosalgo.model import bind
 from sosalgo.spec.types import BASE_SYMBOLS, ORACLE_MATRIX_NAMES, Spec
@@ -51,17 +62,6 @@ from sosalgo.verify.exact import (
     is_zero,
     rational,
     rho_candidates,
-)
-from sosalgo.certificates.exact_interpolation import (
-    InterpolationExactResult,
-    Refused,
-    float_entry,
-    object_matrix,
-    prove_definite,
-    rational_near,
-    settle,
-    symmetric_matrix,
-    symmetrize_balls,
 )
 
 __all__ = ["CompositeExactResult", "ExactOracleMethod", "exact_class_inequalities",

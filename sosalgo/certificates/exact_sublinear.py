@@ -47,15 +47,15 @@ import numpy as np
 import scipy.linalg as sla
 import sympy as sp
 
-from sosalgo.expr.parse import to_sympy
-from sosalgo.spec.types import BASE_SYMBOLS, ORACLE_MATRIX_NAMES, Spec, value_order
-from sosalgo.verify.exact import Ball, ExactAlgorithm, Verdict, fraction_str, prove_psd
 from sosalgo.certificates.exact_composite import (
     ExactOracleMethod,
     exact_class_inequalities,
     exact_window,
 )
 from sosalgo.certificates.exact_interpolation import Refused
+from sosalgo.expr.parse import to_sympy
+from sosalgo.spec.types import BASE_SYMBOLS, ORACLE_MATRIX_NAMES, Spec, value_order
+from sosalgo.verify.exact import Ball, ExactAlgorithm, Verdict, fraction_str, prove_psd
 
 __all__ = ["Lin", "SublinearExactResult", "exact_sublinear_method", "verify_exact_sublinear"]
 

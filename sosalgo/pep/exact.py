@@ -157,10 +157,10 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
     """The exact :class:`Method` of ``spec`` (``om``: its float OracleMethod, for shapes),
     its irrational entries enclosed precisely enough for a trajectory of ``steps`` steps
     (:func:`sosalgo.pep.structure.enclosure_digits`)."""
+    from sosalgo.certificates.exact_composite import exact_class_inequalities
     from sosalgo.expr.parse import to_sympy
     from sosalgo.verify.exact import Ball
     from sosalgo.verify.exact import enclose as enclose_at
-    from sosalgo.certificates.exact_composite import exact_class_inequalities
 
     K = np.array([[Fraction(float(v)) for v in row]
                   for row in deadbeat_gain(om.A, om.B, float(om.L))], dtype=object)

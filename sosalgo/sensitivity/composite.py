@@ -303,13 +303,13 @@ def exact_noise_structure(spec: Any, kappa: float, theta: Any, lag: int, digits:
     columns): the data of the exact proof (:mod:`sosalgo.sensitivity.exact`)."""
     from types import SimpleNamespace
 
-    from sosalgo.model import bind
     from sosalgo.certificates.exact_composite import (
         exact_class_inequalities,
         exact_oracle_method,
         exact_window,
         fixed_point_failure,
     )
+    from sosalgo.model import bind
 
     om = bind(spec, float(kappa), theta)
     nm = noisy_model(om)

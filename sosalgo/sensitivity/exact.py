@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Any
 
+from sosalgo.certificates.exact_interpolation import Refused, symmetric_matrix
 from sosalgo.sensitivity.limsup import limsup_bound
 from sosalgo.sensitivity.sdp import noise_windows
 from sosalgo.sensitivity.window import noise_parts, past_noise, state_size
@@ -42,7 +43,6 @@ from sosalgo.verify.exact import (
     fraction_str,
     rational,
 )
-from sosalgo.certificates.exact_interpolation import Refused, symmetric_matrix
 
 __all__ = ["NoiseProof", "verify_composite_noise", "verify_noise", "sqrt_upper"]
 
@@ -85,9 +85,9 @@ def sqrt_upper(s: Fraction, digits: int = 10) -> Fraction:
 def _exact_windows(spec: Spec, kappa: float, theta: Mapping[str, float] | None, lag: int,
                    digits: int) -> tuple[Any, Any, int]:
     """(decrease, positivity) windows of the exact method, and its number of states."""
+    from sosalgo.certificates.exact_composite import exact_class_inequalities
     from sosalgo.classes import CLASSES
     from sosalgo.model import bind, fixed_point
-    from sosalgo.certificates.exact_composite import exact_class_inequalities
 
     try:
         ex = exact_algorithm(spec, kappa, theta, digits)
@@ -199,9 +199,9 @@ def verify_composite_noise(spec: Spec, kappa: float, cert: Mapping[str, Any],
     exact method, -D ⪰ delta I and Pq ⪰ delta I by rational LDL^T, the value rows exactly;
     gamma <= sqrt(s) rounded up; the fixed points proven exactly as for the rates
     (:func:`sosalgo.certificates.exact_composite.fixed_point_failure`)."""
+    from sosalgo.certificates.exact_interpolation import prove_definite, symmetrize_balls
     from sosalgo.sensitivity.composite import composite_noise_parts, exact_noise_structure
     from sosalgo.sensitivity.sdp import check_lag
-    from sosalgo.certificates.exact_interpolation import prove_definite, symmetrize_balls
 
     start = time.perf_counter()
     res = NoiseProof(spec=spec.name)
