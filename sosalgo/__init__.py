@@ -65,7 +65,7 @@ _EXPORTS = {
     "design": "sosalgo.design",  # the module, callable (see _CallableModule)
     "verify": "sosalgo.verify",
     "pep": "sosalgo.pep",  # the package, callable: sosalgo.pep(...) -> PEPResult
-    "pep_run": "sosalgo.pep",
+    "pep_run": "sosalgo.runs.pep",
     "pareto_run": "sosalgo.pareto",
     "noise": "sosalgo.api",
     "AnalysisResult": "sosalgo.analysis",

@@ -481,7 +481,7 @@ def pep(spec_path: str, kappa: tuple[str, ...], steps: str, measure: str | None,
         no_plot: bool, no_witness: bool) -> None:
     """Worst case after N steps (performance estimation), its dual certificate proven
     exactly and a checked worst-case witness. Python: sosalgo.pep_run or sosalgo.pep."""
-    from sosalgo.pep.run import pep_run, pep_summary
+    from sosalgo.runs.pep import pep_run, pep_summary
 
     ks = _kappas(kappa)
     doc = pep_run(spec_path, ks[0] if ks and len(ks) == 1 else ks, steps, measure, initial,
