@@ -66,7 +66,7 @@ _EXPORTS = {
     "verify": "sosalgo.verify",
     "pep": "sosalgo.pep",  # the package, callable: sosalgo.pep(...) -> PEPResult
     "pep_run": "sosalgo.runs.pep",
-    "pareto_run": "sosalgo.pareto",
+    "pareto_run": "sosalgo.runs.pareto",
     "noise": "sosalgo.api",
     "AnalysisResult": "sosalgo.analysis",
     "analyze_algorithm": "sosalgo.analysis",

@@ -102,11 +102,11 @@ def pep_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = Non
     range of steps or several kappas; the CSV, the witness JSON files and the figure
     (tau_k against k) go to ``out_dir`` (None: nothing written)."""
     from sosalgo import inputs
-    from sosalgo.batch.executor import Progress, run_batch
-    from sosalgo.batch.store import ResumableCSV
+    from sosalgo.batch.executor import Progress, check_scheduler, run_batch
     from sosalgo.pep.core import parse_steps
     from sosalgo.runs import spec_with_text
     from sosalgo.schema import PEP_COLUMNS, pep_csv
+    from sosalgo.store import ResumableCSV
 
     spec, text = spec_with_text(spec, spec_text)
     ks: list[float | None] = ([None] if kappa is None else
@@ -117,7 +117,7 @@ def pep_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = Non
 
     set_max_memory(max_memory)  # None: the machine's default
     est, workers, isolate = _check(spec, ks, ns, measure, initial, workers, witness)
-    inputs.check_scheduler(scheduler)
+    check_scheduler(scheduler)
     out = None if out_dir is None else inputs.out_dir(out_dir)
     options = {"measure": measure, "initial": initial, "exact": exact, "witness": witness}
     tasks = [{"kappa": "" if k is None else k, "steps": n} for k in ks for n in ns]
@@ -183,7 +183,7 @@ def _write_files(spec: Spec, text: str, docs: list[dict[str, Any]], out: Path,
     """Witness JSON files (with the spec's text as the run read it, so ``sosalgo verify``
     needs nothing else), each written atomically, and the figure of tau_k against k for
     each kappa with two steps or more."""
-    from sosalgo.batch.store import write_atomic
+    from sosalgo.store import write_atomic
 
     files = []
     for d in docs:
