@@ -65,8 +65,8 @@ _EXPORTS = {
     "design": "sosalgo.design",  # the module, callable (see _CallableModule)
     "verify": "sosalgo.verify",
     "pep": "sosalgo.pep",  # the package, callable: sosalgo.pep(...) -> PEPResult
-    "pep_run": "sosalgo.pep",
-    "pareto_run": "sosalgo.pareto",
+    "pep_run": "sosalgo.runs.pep",
+    "pareto_run": "sosalgo.runs.pareto",
     "noise": "sosalgo.api",
     "AnalysisResult": "sosalgo.analysis",
     "analyze_algorithm": "sosalgo.analysis",

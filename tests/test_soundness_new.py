@@ -250,7 +250,7 @@ SUB_KEYS = [*range(1, 1 + max(1, CASES // 2)), "gd-1-over-L", "gd-near-2-over-L"
 @pytest.mark.parametrize("key", SUB_KEYS)
 def test_sublinear_constant_above_floor(key):
     from sosalgo.analysis import analyze_sublinear
-    from sosalgo.verify.exact_sublinear import verify_exact_sublinear
+    from sosalgo.certificates.exact_sublinear import verify_exact_sublinear
 
     case = case_of(key, True)
     spec = case.spec()

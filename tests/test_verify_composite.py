@@ -1,5 +1,5 @@
 """Exact verification and simulation of composite certificates (proximal steps, several
-functions, other classes): sosalgo.verify.exact_composite, the classes' test functions,
+functions, other classes): sosalgo.certificates.exact_composite, the classes' test functions,
 simulate_composite.
 """
 
@@ -14,13 +14,13 @@ from click.testing import CliRunner
 from scipy.optimize import minimize
 
 from sosalgo.certificates import get_family
+from sosalgo.certificates.exact_composite import exact_class_inequalities, verify_exact_composite
 from sosalgo.classes import CLASSES
 from sosalgo.classes.members import ProxFunction
 from sosalgo.cli import cli
 from sosalgo.model import bind
 from sosalgo.spec import load_spec
 from sosalgo.verify.exact import Ball
-from sosalgo.verify.exact_composite import exact_class_inequalities, verify_exact_composite
 from sosalgo.verify.prox_functions import ProxProblem
 from sosalgo.verify.simulate_composite import run_method, simulate_composite
 from tests.conftest import spec_path

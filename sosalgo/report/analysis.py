@@ -12,12 +12,12 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.batch.sweeps import reference_curves
 from sosalgo.certificates import CertificateFamily
 from sosalgo.model import bind
 from sosalgo.report import format_table, plot_rates
 from sosalgo.schema import ANALYSIS_COLUMNS, FAMILY_COLUMNS, SUBLINEAR_COLUMNS
 from sosalgo.spec import Spec
+from sosalgo.spec.references import reference_curves
 
 __all__ = ["ANALYSIS_COLUMNS", "FAMILY_COLUMNS", "analysis_figure", "analysis_table",
            "attach_checks", "families_figure", "sublinear_figure"]

@@ -153,6 +153,17 @@ def read_spec_text(path: str | Path) -> str:
         raise SpecError(source, "", f"cannot read ({reason})") from None
 
 
+def spec_text_and_path(name: str) -> tuple[str, str]:
+    """Text and location of a shipped example spec."""
+    try:
+        from sosalgo.resources import example_specs
+
+        p: Any = example_specs()[name]
+    except ImportError:  # a checkout without packaged examples: the repository's specs/
+        p = Path(__file__).resolve().parent.parent / "specs" / f"{name}.yaml"
+    return p.read_text(encoding="utf-8"), str(p)
+
+
 def _read_pipe(source: str) -> bytes:
     """A pipe's bytes up to its end (or one more than MAX_FILE_BYTES), all within
     MAX_WAIT_SECONDS; opened without blocking, so a FIFO without a writer times out."""

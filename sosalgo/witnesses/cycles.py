@@ -68,9 +68,9 @@ def _rows(A, B, C, D, E, output, balls: bool) -> dict[str, np.ndarray]:
 def context(spec: Any, kappa: float, theta: Mapping[str, float] | None = None) -> Context:
     """The method of ``spec`` at ``kappa`` in floats and exact balls (ValueError, ModelError
     when it cannot be built)."""
+    from sosalgo.certificates.exact_composite import exact_class_inequalities, exact_oracle_method
     from sosalgo.model import evaluate_algorithm
     from sosalgo.oracles import as_oracle_method
-    from sosalgo.verify.exact_composite import exact_class_inequalities, exact_oracle_method
 
     om = as_oracle_method(evaluate_algorithm(spec, kappa, theta))
     ex = exact_oracle_method(spec, kappa, theta)

@@ -20,7 +20,7 @@ point in the proof path:
    the weights p (or c) are raised where the positivity function-value rows need it (a
    larger weight of a nonnegative value only increases V). Then (D) ⪯ 0, (Df) <= 0,
    (Pq) ⪰ 0 and (Pf) >= 0 are proven (exact LDL^T with the enclosure radius, as for the
-   seed's interpolation family, :mod:`sosalgo.verify.exact_interpolation`) at rho or a
+   seed's interpolation family, :mod:`sosalgo.certificates.exact_interpolation`) at rho or a
    rational slightly above it.
 """
 
@@ -35,6 +35,17 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
+from sosalgo.certificates.exact_interpolation import (
+    InterpolationExactResult,
+    Refused,
+    float_entry,
+    object_matrix,
+    prove_definite,
+    rational_near,
+    settle,
+    symmetric_matrix,
+    symmetrize_balls,
+)
 from sosalgo.expr.parse import to_sympy
 from sosalgo.model import bind
 from sosalgo.spec.types import BASE_SYMBOLS, ORACLE_MATRIX_NAMES, Spec
@@ -51,17 +62,6 @@ from sosalgo.verify.exact import (
     is_zero,
     rational,
     rho_candidates,
-)
-from sosalgo.verify.exact_interpolation import (
-    InterpolationExactResult,
-    Refused,
-    float_entry,
-    object_matrix,
-    prove_definite,
-    rational_near,
-    settle,
-    symmetric_matrix,
-    symmetrize_balls,
 )
 
 __all__ = ["CompositeExactResult", "ExactOracleMethod", "exact_class_inequalities",

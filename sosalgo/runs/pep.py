@@ -1,38 +1,22 @@
 """``sosalgo pep`` as a Python function: :func:`pep_run` (CSV, witness JSON, figure,
-resumable sweeps over kappa and N through the batch layer)."""
+resumable sweeps over kappa and N through the batch layer). The PEP itself is
+:func:`sosalgo.pep.pep`; the figure is :func:`sosalgo.report.pep.pep_figure`."""
 
 from __future__ import annotations
 
 import json
-import re
 from collections.abc import Sequence
 from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
-from sosalgo.errors import InputError
 from sosalgo.spec import Spec
 
-__all__ = ["parse_steps", "pep_chunk", "pep_row", "pep_run"]
+__all__ = ["pep_chunk", "pep_row", "pep_run"]
 
 # a PEP estimated (sosalgo.budget) longer than this runs in a worker process that a signal
 # can end at once; a shorter one runs here, where a signal waits at most for its solve
 ISOLATE_SECONDS = 0.5
-
-
-def parse_steps(text: object) -> list[int]:
-    """``N`` or ``1..N`` (any ``a..b``), 1 <= a <= b <= MAX_STEPS."""
-    from sosalgo.pep.core import MAX_STEPS
-
-    src = str(text).strip()
-    hit = re.fullmatch(r"(\d+)(?:\s*\.\.\s*(\d+))?", src)
-    if hit is None:
-        raise InputError(f"--steps: expected N or a range a..b, got {src!r}")
-    a = int(hit.group(1))
-    b = int(hit.group(2)) if hit.group(2) else a
-    if not 1 <= a <= b <= MAX_STEPS:
-        raise InputError(f"--steps: need 1 <= N <= {MAX_STEPS} (and a <= b), got {src!r}")
-    return list(range(a if hit.group(2) else a, b + 1))
 
 
 def pep_row(res: Any, cls: dict[str, Any] | None = None) -> dict[str, Any]:
@@ -118,10 +102,11 @@ def pep_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = Non
     range of steps or several kappas; the CSV, the witness JSON files and the figure
     (tau_k against k) go to ``out_dir`` (None: nothing written)."""
     from sosalgo import inputs
-    from sosalgo.batch.executor import Progress, run_batch
-    from sosalgo.batch.store import ResumableCSV
+    from sosalgo.batch.executor import Progress, check_scheduler, run_batch
+    from sosalgo.pep.core import parse_steps
     from sosalgo.runs import spec_with_text
     from sosalgo.schema import PEP_COLUMNS, pep_csv
+    from sosalgo.store import ResumableCSV
 
     spec, text = spec_with_text(spec, spec_text)
     ks: list[float | None] = ([None] if kappa is None else
@@ -132,7 +117,7 @@ def pep_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = Non
 
     set_max_memory(max_memory)  # None: the machine's default
     est, workers, isolate = _check(spec, ks, ns, measure, initial, workers, witness)
-    inputs.check_scheduler(scheduler)
+    check_scheduler(scheduler)
     out = None if out_dir is None else inputs.out_dir(out_dir)
     options = {"measure": measure, "initial": initial, "exact": exact, "witness": witness}
     tasks = [{"kappa": "" if k is None else k, "steps": n} for k in ks for n in ns]
@@ -198,7 +183,7 @@ def _write_files(spec: Spec, text: str, docs: list[dict[str, Any]], out: Path,
     """Witness JSON files (with the spec's text as the run read it, so ``sosalgo verify``
     needs nothing else), each written atomically, and the figure of tau_k against k for
     each kappa with two steps or more."""
-    from sosalgo.batch.store import write_atomic
+    from sosalgo.store import write_atomic
 
     files = []
     for d in docs:
@@ -207,10 +192,29 @@ def _write_files(spec: Spec, text: str, docs: list[dict[str, Any]], out: Path,
             write_atomic(path, json.dumps(d["witness"] | {"spec_text": text}, indent=1))
             files.append(str(path))
     if plot:
-        from sosalgo.pep.figure import pep_figure
+        from sosalgo.report.pep import pep_figure
 
-        files += pep_figure(spec, docs, out)
+        kappas = [d["kappa"] for d in docs]
+        rates = {k: _certified_rate(spec, k) for k in set(kappas) if kappas.count(k) >= 2}
+        files += pep_figure(spec, docs, out, rates)
     return files
+
+
+def _certified_rate(spec: Spec, kappa: float | None) -> float | None:
+    """The best rate ``sosalgo analyze`` certifies at kappa, as :func:`sosalgo.analyze`
+    computes it (None: none, or m: 0)."""
+    if kappa is None:
+        return None
+    from sosalgo.analysis import analyze_spec
+    from sosalgo.inputs import check_kappa_points, select_families
+
+    try:
+        fam = select_families(spec, None, None, single=True, command="analyze")[0]
+        check_kappa_points(spec, [kappa], None)
+        res = analyze_spec(spec, kappa, None, tol=1e-6, family=fam)
+    except (ValueError, ArithmeticError):
+        return None
+    return float(res.rho) if res.certified and res.rho is not None else None
 
 
 def pep_summary(doc: dict[str, Any]) -> str:
