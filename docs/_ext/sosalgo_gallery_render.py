@@ -1,0 +1,308 @@
+"""A gallery page's Markdown and figure, from a spec and its computed rows
+(:mod:`sosalgo_gallery`).
+
+The update rule is rendered from the spec's own matrices and oracles: each oracle call
+``y_i = C_i xi + sum_j D_ij u_j`` in order, as an explicit point when ``D_ii = 0`` and as a
+proximal step ``y_i = prox_{t g}(v)``, ``t = -D_ii``, when not; then ``xi+ = A xi + B u`` row
+by row and the output ``x = E xi`` (or the oracle point the spec names).
+"""
+
+from __future__ import annotations
+
+import re
+from fractions import Fraction
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import sympy as sp
+
+STYLE = {  # the gallery's one matplotlib style
+    "figure.figsize": (6.4, 4.0), "figure.dpi": 100, "savefig.dpi": 110,
+    "font.size": 10, "axes.grid": True, "grid.alpha": 0.3, "axes.spines.top": False,
+    "axes.spines.right": False, "legend.frameon": False, "legend.fontsize": 9,
+    "lines.linewidth": 1.6,
+}
+REFERENCE_COLOURS = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"]
+CLASS_WORDS = {
+    "smooth_strongly_convex": "$L$-smooth and $m$-strongly convex, called through its gradient",
+    "convex": "closed, proper and convex (possibly nonsmooth), called through its proximal "
+              "operator or a subgradient",
+    "strongly_convex": "$m$-strongly convex (possibly nonsmooth), called through its "
+                       "proximal operator or a subgradient",
+    "indicator": "the indicator of a closed convex set $K$, called through the projection "
+                 "onto $K$",
+}
+
+
+def md_text(text: str) -> str:
+    """Plain text made safe for Markdown (its active characters escaped)."""
+    return re.sub(r"([\\`*_\[\]<>$|{}~#!&])", r"\\\1", text)
+
+
+def tex(expr: Any) -> str:
+    """LaTeX of a sympy expression (parameter names as Greek letters where they are)."""
+    return sp.latex(expr)
+
+
+def function_class(spec: Any, name: str) -> str:
+    """The class of function ``name`` as the spec declares it (the seed's default: F(m, L))."""
+    decl = spec.functions.get(name)
+    return "smooth_strongly_convex" if decl is None else decl.cls
+
+
+def linear_tex(terms: list[tuple[Any, str]]) -> str:
+    """sum c_i v_i in LaTeX, in the order given (state before oracle answers), zero terms
+    left out: ``x_k - h u_k`` rather than sympy's ``- h u_k + x_k``."""
+    out = ""
+    for coef, var in terms:
+        c = sp.sympify(coef)
+        if c == 0:
+            continue
+        sign = "-" if c.could_extract_minus_sign() else "+"
+        c = -c if sign == "-" else c
+        body = var if c == 1 else (rf"\left({tex(c)}\right) {var}" if c.is_Add
+                                   else f"{tex(c)} {var}")
+        out += (f"- {body}" if sign == "-" else body) if not out else f" {sign} {body}"
+    return out or "0"
+
+
+def _names(spec: Any) -> tuple[list[str], list[str], list[str]]:
+    """The LaTeX names of the state's coordinates, the oracle answers and the oracle
+    points at iteration k."""
+    n, p, mats = spec.n, spec.p, spec.sympy_matrices()
+    plain_x = n == 1 and spec.output is None and mats["E"] == sp.Matrix([[1]])
+    base = "x" if plain_x else ("z" if n == 1 else r"\xi")
+    xs = [f"{base}_k" if n == 1 else f"{base}^{{({i + 1})}}_k" for i in range(n)]
+    us = ["u_k" if p == 1 else f"u^{{({i + 1})}}_k" for i in range(p)]
+    ys = ["y_k" if p == 1 else f"y^{{({i + 1})}}_k" for i in range(p)]
+    return xs, us, ys
+
+
+def oracle_lines(spec: Any) -> list[str] | None:
+    """The oracle calls of one iteration in order (None when a call depends on a later one:
+    then only the matrix form is shown)."""
+    mats = spec.sympy_matrices()
+    xs, us, ys = _names(spec)
+    C, D = mats["C"], mats.get("D", sp.zeros(spec.p, spec.p))
+    lines = []
+    for i, fname in enumerate(spec.oracles):
+        if any(D[i, j] != 0 for j in range(i + 1, spec.p)):
+            return None
+        v = linear_tex([(C[i, j], xs[j]) for j in range(spec.n)]
+                       + [(D[i, j], us[j]) for j in range(i)])
+        cls, t, u, y = function_class(spec, fname), -D[i, i], us[i], ys[i]
+        if t == 0:
+            lines.append(f"{y} &= {v}")
+        elif cls == "indicator":
+            lines.append(rf"{y} &= \Pi_K\left({v}\right)")
+        else:
+            lines.append(rf"{y} &= \operatorname{{prox}}_{{{tex(t)} {fname}}}\left({v}\right)")
+        if cls == "smooth_strongly_convex":
+            lines.append(rf"{u} &= \nabla {fname}({y})")
+        else:
+            part = rf"N_K({y})" if cls == "indicator" else rf"\partial {fname}({y})"
+            pre = "" if t == 0 else rf"= \frac{{1}}{{{tex(t)}}}\left({v} - {y}\right) "
+            lines.append(rf"{u} &{pre}\in {part}")
+    return lines
+
+
+def state_lines(spec: Any) -> list[str]:
+    """xi_{k+1} = A xi_k + B u_k row by row, and the output point x_k."""
+    mats = spec.sympy_matrices()
+    xs, us, ys = _names(spec)
+    A, B, E = mats["A"], mats["B"], mats.get("E")
+    lines = []
+    for r in range(spec.n):
+        rhs = linear_tex([(A[r, j], xs[j]) for j in range(spec.n)]
+                         + [(B[r, j], us[j]) for j in range(spec.p)])
+        lines.append(f"{xs[r].replace('_k', '_{k+1}')} &= {rhs}")
+    if spec.output is not None:
+        lines.append(f"x_k &= {ys[spec.output]}")
+    else:
+        out = linear_tex([(E[0, j], xs[j]) for j in range(spec.n)])
+        if out != "x_k":
+            lines.append(f"x_k &= {out}")
+    return lines
+
+
+def matrix_form(spec: Any) -> str:
+    """A, B, C, (D,) E of the spec, in LaTeX."""
+    mats = spec.sympy_matrices()
+    parts = [f"{k} = {tex(mats[k])}" for k in ("A", "B", "C", "D", "E") if k in mats]
+    return r",\quad ".join(parts)
+
+
+def parameter_table(spec: Any) -> list[str]:
+    """A list-table of the parameters: value (or tie) and the design range."""
+    from sosalgo_gallery import to_sympy
+
+    if not spec.parameters:
+        return []
+    rows = ["```{list-table}", ":header-rows: 1", "", "* - parameter", "  - value",
+            "  - range (the box `design` searches)"]
+    for name, par in spec.parameters.items():
+        sym = tex(sp.Symbol(name))
+        value = (f"${sym} = {tex(to_sympy(par.tied))}$ (tied)" if par.is_tied
+                 else f"${sym} = {tex(to_sympy(par.value))}$")
+        rng = "" if par.range is None else (
+            f"$[{tex(to_sympy(par.range[0]))}, {tex(to_sympy(par.range[1]))}]$")
+        rows += [f"* - ${sym}$", f"  - {value}", f"  - {rng}"]
+    return rows + ["```"]
+
+
+def update_rule(spec: Any) -> list[str]:
+    """The 'Update rule' section: the functions, the iteration written out, the matrices."""
+    lines = ["## Update rule", ""]
+    names = list(spec.functions) or list(dict.fromkeys(spec.oracles))
+    for fname in names:
+        cls = function_class(spec, fname)
+        lines.append(f"- ${fname}$: {CLASS_WORDS.get(cls, md_text(cls))} (class `{cls}`)")
+    objective = " + ".join(names)
+    lines += ["", f"Iteration $k$ of the method on ${objective}$, "
+              "as the spec's matrices and oracles define it:", ""]
+    calls = oracle_lines(spec)
+    body = (calls or []) + state_lines(spec)
+    lines += ["$$", " \\\\\n".join(body), "$$", ""]
+    lines += ["In the spec's linear-system form "
+              r"$\xi_{k+1} = A\xi_k + B u_k$, $y_k = C\xi_k + D u_k$, $x_k = E\xi_k$ "
+              "(each block acts on $\\mathbb{R}^d$ as $\\otimes I_d$):", "",
+              "$$", matrix_form(spec), "$$", ""]
+    lines += parameter_table(spec)
+    return lines + [""]
+
+
+def measure_sentence(spec: Any) -> str:
+    """What the certified number bounds, in the spec's measure."""
+    names = list(spec.functions) or ["f"]
+    if spec.measure == "distance":
+        err = r"\|x_k - x_\star\|^2"
+    elif len(names) == 1:
+        err = rf"{names[0]}(x_k) - {names[0]}_\star"
+    else:
+        err = rf"F(x_k) - F_\star"
+    total = "" if len(names) == 1 else f" with $F = {' + '.join(names)}$"
+    if spec.sublinear:
+        return (rf"The certified constant $c$ bounds ${err} \le c\,\|x_0 - x_\star\|^2 / k$ "
+                rf"for every $k \ge 1${total} and every function of the class.")
+    return (rf"The certified rate $\rho$ bounds ${err} \le \rho^{{2k}} V_0$ for every $k$"
+            rf"{total} and every function of the class, where $V_0$ is the value of the "
+            r"certificate's Lyapunov function at the start: the bound shrinks by $\rho^2$ "
+            "per iteration.")
+
+
+def rate_cell(row: dict[str, Any], key: str) -> str:
+    """A certified number: the exact proof rounded up, or why there is none."""
+    from sosalgo_gallery import round_up
+
+    if row["proven"] is not None:
+        return round_up(Fraction(row["proven"]))
+    if row[key] is not None:
+        return f"{row[key]:.{6}f} (not proven exactly)"
+    return "none certified"
+
+
+def rates_table(spec: Any, rows: list[dict[str, Any]]) -> list[str]:
+    """A list-table: kappa (or L), the certified number, each reference."""
+    refs = list(spec.references)
+    first, key, label = (("$L$", "constant", "certified $c$") if spec.sublinear
+                         else (r"$\kappa$", "rho", r"certified $\rho$"))
+    lines = ["```{list-table}", ":header-rows: 1", "", f"* - {first}", f"  - {label}"]
+    lines += [f"  - reference: {md_text(r)}" for r in refs]
+    for row in rows:
+        lines.append(f"* - {row['L' if spec.sublinear else 'kappa']:g}")
+        lines.append(f"  - {rate_cell(row, key)}")
+        for r in refs:
+            v = row["references"].get(r)
+            lines.append("  - " + ("-" if v is None else f"{v:.6f}"))
+    return lines + ["```"]
+
+
+def rates_section(spec: Any, rows: list[dict[str, Any]], image: str) -> list[str]:
+    """The 'Certified rates' section: what the number bounds, the table, the figure."""
+    family = md_text(rows[0]["family"])
+    scale = (f"$m = 0$, $L = {spec.L:g}$" if spec.sublinear
+             else f"$m = {spec.m:g}$ and $L = \\kappa m$")
+    lines = ["## Certified " + ("constant" if spec.sublinear else "rates"), "",
+             measure_sentence(spec), "",
+             f"Computed when this page was built ({scale}) by the {family} certificate "
+             "family; each certificate is then proven in exact rational arithmetic "
+             "(as `sosalgo verify` does) and the proven value is shown rounded up. "
+             "The references are the spec's closed forms (`references:`), rounded.", ""]
+    lines += rates_table(spec, rows)
+    what = ("the bound $c/k$ against $k$ (with $\\|x_0 - x_\\star\\| = 1$), the references "
+            "as $c/k$ curves" if spec.sublinear else
+            "the certified rate against $\\kappa$ (points), the references as curves")
+    lines += ["", f"```{{figure}} {image}", f":alt: {spec.name}: {what}", "",
+              f"{spec.name}: {what}.", "```", ""]
+    return lines
+
+
+def page_markdown(spec: Any, rows: list[dict[str, Any]], yaml_path: str, image: str) -> str:
+    """The whole gallery page of one spec."""
+    lines = [f"({'gallery-' + spec.name})=", f"# {md_text(spec.name)}", "",
+             md_text(spec.description), ""]
+    lines += update_rule(spec)
+    lines += rates_section(spec, rows, image)
+    lines += ["## The spec", "",
+              f"Copy it with `sosalgo examples {spec.name} --copy .`, then run "
+              f"`sosalgo analyze {spec.name}.yaml`.", "",
+              f"```{{literalinclude}} {yaml_path}", ":language: yaml", "```", ""]
+    return "\n".join(lines)
+
+
+# ----------------------------------------------------------------------------- figure
+def _grid(values: list[float], points: int = 300) -> np.ndarray:
+    """A fine grid spanning ``values`` (log-spaced), the values themselves included."""
+    lo, hi = min(values), max(values)
+    return np.array([lo]) if lo == hi else np.union1d(np.geomspace(lo, hi, points), values)
+
+
+def _linear_axes(ax: Any, spec: Any, rows: list[dict[str, Any]]) -> None:
+    from sosalgo.batch.sweeps import reference_values
+
+    grid = _grid([r["kappa"] for r in rows])
+    curves = [reference_values(spec, float(k)) for k in grid]
+    for i, name in enumerate(spec.references):
+        ys = [np.nan if c.get(name) is None else c[name] for c in curves]
+        ax.plot(grid, ys, "--", color=REFERENCE_COLOURS[i % 6], label=f"reference: {name}")
+    done = [(r["kappa"], float(Fraction(r["proven"]))) for r in rows if r["proven"] is not None]
+    if done:
+        ax.plot(*zip(*done, strict=True), "o-", color="black", label="certified rate", zorder=5)
+    ax.set_xscale("log")
+    ax.set_xlabel(r"$\kappa = L/m$")
+    ax.set_ylabel(r"rate $\rho$")
+
+
+def _sublinear_axes(ax: Any, spec: Any, rows: list[dict[str, Any]]) -> None:
+    ks = np.arange(1, 101)
+    for i, (name, value) in enumerate(rows[0]["references"].items()):
+        if value is not None:
+            ax.plot(ks, value / ks, "--", color=REFERENCE_COLOURS[i % 6],
+                    label=f"reference: {name}")
+    if rows[0]["proven"] is not None:
+        c = float(Fraction(rows[0]["proven"]))
+        ax.plot(ks, c / ks, "-", color="black", label=f"certified c = {c:.6g}", zorder=5)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("iteration $k$")
+    ax.set_ylabel(r"bound on $(f(x_k) - f_\star) / \|x_0 - x_\star\|^2$")
+
+
+def draw_figure(spec: Any, rows: list[dict[str, Any]], target: Path) -> None:
+    """The page's figure in the gallery style, written as PNG."""
+    import matplotlib
+    from matplotlib.figure import Figure
+    from matplotlib.ticker import FormatStrFormatter, LogLocator, ScalarFormatter
+
+    with matplotlib.rc_context(STYLE):
+        fig = Figure()
+        ax = fig.add_subplot()
+        (_sublinear_axes if spec.sublinear else _linear_axes)(ax, spec, rows)
+        ax.xaxis.set_major_locator(LogLocator(base=10, subs=(1, 2, 5)))
+        ax.xaxis.set_major_formatter(ScalarFormatter())
+        ax.xaxis.set_minor_formatter(FormatStrFormatter(""))
+        ax.set_title(spec.name)
+        ax.legend(loc="best")
+        fig.tight_layout()
+        fig.savefig(target, format="png")
