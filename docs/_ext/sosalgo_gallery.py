@@ -164,7 +164,8 @@ def summary(rows: list[dict[str, Any]]) -> str:
     the table), or the certified constant."""
     if "constant" in rows[0]:
         c = rows[0]["proven"]
-        return "no constant certified" if c is None else f"certified $c \\le {round_up(Fraction(c))}$"
+        return ("no constant certified" if c is None
+                else f"certified $c \\le {round_up(Fraction(c))}$")
     row = next((r for r in rows if r["kappa"] == 10), rows[len(rows) // 2])
     k = f"{row['kappa']:g}"
     if row["proven"] is None:

@@ -180,7 +180,7 @@ def measure_sentence(spec: Any) -> str:
     elif len(names) == 1:
         err = rf"{names[0]}(x_k) - {names[0]}_\star"
     else:
-        err = rf"F(x_k) - F_\star"
+        err = r"F(x_k) - F_\star"
     total = "" if len(names) == 1 else f" with $F = {' + '.join(names)}$"
     if spec.sublinear:
         return (rf"The certified constant $c$ bounds ${err} \le c\,\|x_0 - x_\star\|^2 / k$ "
