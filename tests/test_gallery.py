@@ -216,3 +216,21 @@ def test_cache_key_follows_the_spec_text() -> None:
     text = (ROOT / "specs" / "gradient.yaml").read_text()
     assert sosalgo_gallery.cache_key(text) == sosalgo_gallery.cache_key(text)
     assert sosalgo_gallery.cache_key(text) != sosalgo_gallery.cache_key(text + "\n# edited\n")
+
+
+@pytest.mark.deep
+def test_whole_gallery_and_getting_started_build(tmp_path: Path) -> None:
+    """Every shipped spec gets a page with a rate (or 'none certified') at each of its
+    table kappas; every command of the getting-started page succeeds."""
+    from sosalgo.resources import example_specs
+
+    specs = {n: p.read_text() for n, p in example_specs().items()}
+    page = (ROOT / "docs" / "getting-started.md").read_text()
+    docs = make_site(tmp_path, specs, {"getting-started": page})
+    done = build(docs)
+    assert done.returncode == 0, done.stderr
+    for name in specs:
+        html_page = (docs / "_build" / "html" / "gallery" / f"{name}.html").read_text()
+        rows = table_rows(html_page)
+        assert rows and all(r[1] == "none certified" or float(r[1]) > 0 for r in rows)
+        assert '<img' in html_page

@@ -157,7 +157,10 @@ def update_rule(spec: Any) -> list[str]:
     names = list(spec.functions) or list(dict.fromkeys(spec.oracles))
     for fname in names:
         cls = function_class(spec, fname)
-        lines.append(f"- ${fname}$: {CLASS_WORDS.get(cls, md_text(cls))} (class `{cls}`)")
+        words = CLASS_WORDS.get(cls, md_text(cls))
+        if spec.sublinear:  # m = 0: no strong convexity
+            words = words.replace("$L$-smooth and $m$-strongly convex", "$L$-smooth and convex")
+        lines.append(f"- ${fname}$: {words} (class `{cls}`)")
     objective = " + ".join(names)
     lines += ["", f"Iteration $k$ of the method on ${objective}$, "
               "as the spec's matrices and oracles define it:", ""]
@@ -181,7 +184,8 @@ def measure_sentence(spec: Any) -> str:
         err = rf"{names[0]}(x_k) - {names[0]}_\star"
     else:
         err = r"F(x_k) - F_\star"
-    total = "" if len(names) == 1 else f" with $F = {' + '.join(names)}$"
+    total = "" if len(names) == 1 or spec.measure == "distance" else (
+        f" with $F = {' + '.join(names)}$")
     if spec.sublinear:
         return (rf"The certified constant $c$ bounds ${err} \le c\,\|x_0 - x_\star\|^2 / k$ "
                 rf"for every $k \ge 1${total} and every function of the class.")
@@ -293,15 +297,17 @@ def draw_figure(spec: Any, rows: list[dict[str, Any]], target: Path) -> None:
     """The page's figure in the gallery style, written as PNG."""
     import matplotlib
     from matplotlib.figure import Figure
-    from matplotlib.ticker import FormatStrFormatter, LogLocator, ScalarFormatter
+    from matplotlib.ticker import FormatStrFormatter, FuncFormatter, LogLocator
 
     with matplotlib.rc_context(STYLE):
         fig = Figure()
         ax = fig.add_subplot()
         (_sublinear_axes if spec.sublinear else _linear_axes)(ax, spec, rows)
         ax.xaxis.set_major_locator(LogLocator(base=10, subs=(1, 2, 5)))
-        ax.xaxis.set_major_formatter(ScalarFormatter())
-        ax.xaxis.set_minor_formatter(FormatStrFormatter(""))
+        plain = FuncFormatter(lambda v, _: f"{v:g}")  # 2, 5, 10, 0.01: no 10^k notation
+        for axis in (ax.xaxis, ax.yaxis):
+            axis.set_major_formatter(plain)
+            axis.set_minor_formatter(FormatStrFormatter(""))
         ax.set_title(spec.name)
         ax.legend(loc="best")
         fig.tight_layout()
