@@ -72,9 +72,10 @@ def table_rows(page: str) -> list[list[str]]:
              for c in re.findall(r"<td.*?</td>", r, flags=re.S)] for r in rows]
 
 
-RUN_PAGE = """# run
+RUN_PAGE = r"""# run
 
 ```{sosalgo-run} sosalgo examples gradient --copy .
+:expect: gradient\.yaml
 ```
 
 ```{sosalgo-run} sosalgo analyze gradient.yaml --kappa 2 --kappa 10
@@ -186,6 +187,8 @@ def test_run_directive_shows_output_and_figures(site: Path) -> None:
     ("```{sosalgo-run} sosalgo analyze missing.yaml\n```\n", "exited with 2"),
     ("```{sosalgo-run} sosalgo examples gradient --copy .\n:figures: outputs/*.png\n```\n",
      "wrote no file matching outputs/*.png"),
+    ("```{sosalgo-run} sosalgo examples gradient --copy .\n:expect: ^nothing$\n```\n",
+     "no longer matches :expect: ^nothing$"),
 ])
 def test_run_directive_fails_the_build(tmp_path: Path, page: str, message: str) -> None:
     """A failing command stops the build, warnings-as-errors or not."""

@@ -8,9 +8,10 @@ The commands of one page run in order in one folder, empty when the page's first
 starts (``_build/.sosalgo-runs/<page>``), so a page reads as a session in a fresh folder.
 Only ``sosalgo ...`` commands run (no shell); a final ``> FILE`` sends stdout to FILE in that
 folder. The page shows the command and its stdout, progress lines removed; ``:figures:``
-(glob patterns in the folder) are shown below it. A command that exits with another code
-than ``:returncode:`` (default 0), or a figure pattern that matches nothing, stops the build
-with the command, its exit code and the end of its stderr.
+(glob patterns in the folder) are shown below it. ``:expect:`` is a regular expression that
+stdout must match (the page's prose relies on it). A command that exits with another code
+than ``:returncode:`` (default 0), stdout that misses ``:expect:``, or a figure pattern
+that matches nothing stops the build with the command and the end of its stderr.
 """
 
 from __future__ import annotations
@@ -74,7 +75,7 @@ class SosalgoRun(SphinxDirective):
     final_argument_whitespace = True
     has_content = False
     option_spec = {"figures": directives.unchanged, "returncode": directives.nonnegative_int,
-                   "timeout": directives.positive_int}
+                   "timeout": directives.positive_int, "expect": directives.unchanged}
 
     def folder(self) -> Path:
         """This page's run folder, emptied before the page's first command."""
@@ -96,6 +97,11 @@ class SosalgoRun(SphinxDirective):
             tail = "\n".join(done.stderr.strip().splitlines()[-8:])
             raise ExtensionError(f"sosalgo-run in {self.env.docname}: `{command}` exited with "
                                  f"{done.returncode} (expected {expected}):\n{tail}")
+        expect = self.options.get("expect")
+        if expect and not re.search(expect, done.stdout, flags=re.M):
+            raise ExtensionError(f"sosalgo-run in {self.env.docname}: the output of `{command}` "
+                                 f"no longer matches :expect: {expect} (the page's text relies "
+                                 "on it):\n" + strip_progress(done.stdout)[-2000:])
         _, target = split_command(command)
         shown = f"$ {command}"
         if target is not None:
