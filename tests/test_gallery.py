@@ -237,3 +237,13 @@ def test_whole_gallery_and_getting_started_build(tmp_path: Path) -> None:
         rows = table_rows(html_page)
         assert rows and all(r[1] == "none certified" or float(r[1]) > 0 for r in rows)
         assert '<img' in html_page
+
+
+def test_cache_prunes_only_older_versions_of_the_same_spec(tmp_path: Path) -> None:
+    old, new, other = "a" * 24, "b" * 24, "c" * 24
+    for name in (f"gradient-{old}.json", f"gradient-{old}.png", f"gradient-{new}.json",
+                 f"gradient-convex-{other}.json", "notes.txt"):
+        (tmp_path / name).write_text("x")
+    sosalgo_gallery.prune_cache(tmp_path, "gradient", new)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        f"gradient-{new}.json", f"gradient-convex-{other}.json", "notes.txt"]

@@ -6,7 +6,8 @@ At ``builder-inited`` one page per spec of the specs folder (``specs/*.yaml``; c
 kappas (each proven in exact arithmetic by ``sosalgo.verify``, shown rounded up) beside the
 spec's closed-form references, a figure and the YAML. The numbers are computed through
 sosalgo's Python API during the build and cached in ``_build/.gallery-cache`` under a key
-of the spec's text, sosalgo's version and this extension's code, so rebuilds are fast.
+of the spec's text, sosalgo's version and source and this extension's code: rebuilds are
+fast, and a changed spec or module recomputes its numbers.
 
 ``{sosalgo-gallery-index}`` (in ``gallery/index.md``) lists the pages, one line each.
 ``{sosalgo-run}`` (:mod:`sosalgo_docrun`) runs a CLI command during the build.
@@ -14,9 +15,11 @@ of the spec's text, sosalgo's version and this extension's code, so rebuilds are
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
+import re
 from fractions import Fraction
 from pathlib import Path
 from typing import Any
@@ -37,14 +40,34 @@ DIGITS = 6  # decimals shown; certified values are rounded up
 
 
 # ----------------------------------------------------------------------------- numbers
-def cache_key(spec_text: str) -> str:
-    """The cache key of one spec's numbers: its text, sosalgo's version, this code."""
-    h = hashlib.sha256()
-    for part in (spec_text, sosalgo.__version__, (HERE / "sosalgo_gallery.py").read_text(),
-                 (HERE / "sosalgo_gallery_render.py").read_text()):
-        h.update(part.encode("utf-8"))
+@functools.cache
+def code_digest() -> str:
+    """A digest of sosalgo's source (every module) and of this extension's code: a change
+    of either, released or not, recomputes every number."""
+    h = hashlib.sha256(sosalgo.__version__.encode("utf-8"))
+    package = Path(sosalgo.__file__).resolve().parent
+    files = sorted(package.rglob("*.py")) + [HERE / "sosalgo_gallery.py",
+                                             HERE / "sosalgo_gallery_render.py"]
+    for path in files:
+        h.update(path.read_bytes())
         h.update(b"\0")
+    return h.hexdigest()
+
+
+def cache_key(spec_text: str) -> str:
+    """The cache key of one spec's numbers: its text, sosalgo's version and code, this
+    extension's code."""
+    h = hashlib.sha256(spec_text.encode("utf-8"))
+    h.update(code_digest().encode("ascii"))
     return h.hexdigest()[:24]
+
+
+def prune_cache(cache: Path, stem: str, key: str) -> None:
+    """Drop the cached numbers and figures of earlier versions of the spec ``stem``."""
+    for old in cache.glob(f"{stem}-*"):
+        if re.fullmatch(rf"{re.escape(stem)}-[0-9a-f]{{24}}\.(json|png)", old.name) and (
+                key not in old.name):
+            old.unlink()
 
 
 def table_kappas(kappas: tuple[float, ...]) -> list[float]:
@@ -105,6 +128,7 @@ def spec_numbers(path: Path, cache: Path) -> tuple[dict[str, Any], Path]:
     rows = sublinear_rows(spec) if spec.sublinear else linear_rows(spec)
     data = {"name": spec.name, "rows": rows}
     cache.mkdir(parents=True, exist_ok=True)
+    prune_cache(cache, path.stem, key)
     draw_figure(spec, rows, figure)
     data_file.write_text(json.dumps(data, indent=1), encoding="utf-8")
     return data, figure
