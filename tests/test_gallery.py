@@ -247,3 +247,10 @@ def test_cache_prunes_only_older_versions_of_the_same_spec(tmp_path: Path) -> No
     sosalgo_gallery.prune_cache(tmp_path, "gradient", new)
     assert sorted(p.name for p in tmp_path.iterdir()) == [
         f"gradient-{new}.json", f"gradient-convex-{other}.json", "notes.txt"]
+
+
+def test_a_broken_spec_fails_the_build_naming_it(tmp_path: Path) -> None:
+    docs = make_site(tmp_path, {"broken": "name: broken\nmatrices: {A: [[1]]}\n"}, {})
+    done = build(docs, warnings_are_errors=False)
+    assert done.returncode != 0
+    assert "broken.yaml" in done.stderr and "sosalgo_gallery" in done.stderr

@@ -27,6 +27,7 @@ from typing import Any
 from docutils import nodes
 from docutils.statemachine import StringList
 from sphinx.application import Sphinx
+from sphinx.errors import ExtensionError
 from sphinx.util import logging
 from sphinx.util.docutils import SphinxDirective
 
@@ -167,8 +168,11 @@ def generate_gallery(app: Sphinx) -> None:
     if not paths:
         logger.warning("sosalgo_gallery: no spec in %s", specs_dir(app))
     for path in paths:
-        data, figure = spec_numbers(path, cache_dir(app))
-        spec = sosalgo.load_spec(path)
+        try:
+            data, figure = spec_numbers(path, cache_dir(app))
+            spec = sosalgo.load_spec(path)
+        except ValueError as exc:  # a spec the loader refuses: name it, no traceback
+            raise ExtensionError(f"sosalgo_gallery: {path}: {exc}") from None
         image = src / "_generated" / "gallery" / f"{path.stem}-rate.png"
         write_if_changed(image, figure.read_bytes())
         yaml_rel = Path(os.path.relpath(path, gallery)).as_posix()
