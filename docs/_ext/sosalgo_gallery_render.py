@@ -17,13 +17,6 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-STYLE = {  # the gallery's one matplotlib style
-    "figure.figsize": (6.4, 4.0), "figure.dpi": 100, "savefig.dpi": 110,
-    "font.size": 10, "axes.grid": True, "grid.alpha": 0.3, "axes.spines.top": False,
-    "axes.spines.right": False, "legend.frameon": False, "legend.fontsize": 9,
-    "lines.linewidth": 1.6,
-}
-REFERENCE_COLOURS = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"]
 CLASS_WORDS = {
     "smooth_strongly_convex": "$L$-smooth and $m$-strongly convex, called through its gradient",
     "convex": "closed, proper and convex (possibly nonsmooth), called through its proximal "
@@ -256,59 +249,103 @@ def page_markdown(spec: Any, rows: list[dict[str, Any]], yaml_path: str, image: 
 
 
 # ----------------------------------------------------------------------------- figure
+def figure_style() -> Any:
+    """sosalgo's shared figure style (:mod:`sosalgo.report.style`: new_figure, finish,
+    log_ticks, color), or the same few functions here where sosalgo has none."""
+    try:
+        from sosalgo.report import style
+    except ImportError:
+        return FallbackStyle
+    return style
+
+
+class FallbackStyle:
+    """The shared style's interface, for a sosalgo without :mod:`sosalgo.report.style`."""
+
+    @staticmethod
+    def new_figure() -> tuple[Any, Any]:
+        from sosalgo.report import pyplot
+
+        return pyplot().subplots(figsize=(6.4, 4.4))
+
+    @staticmethod
+    def color(i: int) -> str:
+        return f"C{i % 10}"
+
+    @staticmethod
+    def log_ticks(axis: Any, lo: float, hi: float) -> None:
+        from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+        axis.set_major_locator(LogLocator(base=10.0, subs=(1.0, 2.0, 5.0), numticks=30))
+        axis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+        axis.set_minor_formatter(NullFormatter())
+
+    @staticmethod
+    def finish(ax: Any, legend: bool = True) -> None:
+        ax.grid(True, which="both", alpha=0.3)
+        if legend:
+            ax.legend(fontsize=8, loc="best")
+
+
 def _grid(values: list[float], points: int = 300) -> np.ndarray:
     """A fine grid spanning ``values`` (log-spaced), the values themselves included."""
     lo, hi = min(values), max(values)
     return np.array([lo]) if lo == hi else np.union1d(np.geomspace(lo, hi, points), values)
 
 
-def _linear_axes(ax: Any, spec: Any, rows: list[dict[str, Any]]) -> None:
+def _linear_axes(ax: Any, style: Any, spec: Any, rows: list[dict[str, Any]]) -> None:
     from sosalgo.batch.sweeps import reference_values
 
-    grid = _grid([r["kappa"] for r in rows])
+    kappas = [r["kappa"] for r in rows]
+    grid = _grid(kappas)
     curves = [reference_values(spec, float(k)) for k in grid]
     for i, name in enumerate(spec.references):
         ys = [np.nan if c.get(name) is None else c[name] for c in curves]
-        ax.plot(grid, ys, "--", color=REFERENCE_COLOURS[i % 6], label=f"reference: {name}")
+        ax.plot(grid, ys, "--", color=style.color(i), label=f"reference: {name}", zorder=4)
     done = [(r["kappa"], float(Fraction(r["proven"]))) for r in rows if r["proven"] is not None]
     if done:
-        ax.plot(*zip(*done, strict=True), "o-", color="black", label="certified rate", zorder=5)
+        ax.plot(*zip(*done, strict=True), "o-", color="black", label="certified rate", zorder=3)
     ax.set_xscale("log")
-    ax.set_xlabel(r"$\kappa = L/m$")
+    style.log_ticks(ax.xaxis, min(kappas), max(kappas))
+    ax.set_xlabel(r"condition number $\kappa = L/m$")
     ax.set_ylabel(r"rate $\rho$")
 
 
-def _sublinear_axes(ax: Any, spec: Any, rows: list[dict[str, Any]]) -> None:
+def _sublinear_axes(ax: Any, style: Any, spec: Any, rows: list[dict[str, Any]]) -> None:
+    from sosalgo_gallery import round_up
+
     ks = np.arange(1, 101)
+    drawn = []
     for i, (name, value) in enumerate(rows[0]["references"].items()):
         if value is not None:
-            ax.plot(ks, value / ks, "--", color=REFERENCE_COLOURS[i % 6],
-                    label=f"reference: {name}")
+            ax.plot(ks, value / ks, "--", color=style.color(i), label=f"reference: {name}",
+                    zorder=4)
+            drawn.append(value)
     if rows[0]["proven"] is not None:
-        c = float(Fraction(rows[0]["proven"]))
-        ax.plot(ks, c / ks, "-", color="black", label=f"certified c = {c:.6g}", zorder=5)
+        c = Fraction(rows[0]["proven"])
+        ax.plot(ks, float(c) / ks, "-", color="black", label=f"certified c = {round_up(c)}",
+                zorder=3)
+        drawn.append(float(c))
     ax.set_xscale("log")
     ax.set_yscale("log")
+    style.log_ticks(ax.xaxis, 1, 100)
+    if drawn:
+        style.log_ticks(ax.yaxis, min(drawn) / 100, max(drawn))
     ax.set_xlabel("iteration $k$")
     ax.set_ylabel(r"bound on $(f(x_k) - f_\star) / \|x_0 - x_\star\|^2$")
 
 
 def draw_figure(spec: Any, rows: list[dict[str, Any]], target: Path) -> None:
-    """The page's figure in the gallery style, written as PNG."""
-    import matplotlib
-    from matplotlib.figure import Figure
-    from matplotlib.ticker import FormatStrFormatter, FuncFormatter, LogLocator
+    """The page's figure in sosalgo's shared style, written as PNG."""
+    from sosalgo.report import pyplot
 
-    with matplotlib.rc_context(STYLE):
-        fig = Figure()
-        ax = fig.add_subplot()
-        (_sublinear_axes if spec.sublinear else _linear_axes)(ax, spec, rows)
-        ax.xaxis.set_major_locator(LogLocator(base=10, subs=(1, 2, 5)))
-        plain = FuncFormatter(lambda v, _: f"{v:g}")  # 2, 5, 10, 0.01: no 10^k notation
-        for axis in (ax.xaxis, ax.yaxis):
-            axis.set_major_formatter(plain)
-            axis.set_minor_formatter(FormatStrFormatter(""))
+    style = figure_style()
+    fig, ax = style.new_figure()
+    try:
+        (_sublinear_axes if spec.sublinear else _linear_axes)(ax, style, spec, rows)
         ax.set_title(spec.name)
-        ax.legend(loc="best")
+        style.finish(ax)
         fig.tight_layout()
-        fig.savefig(target, format="png")
+        fig.savefig(target, format="png", dpi=110)
+    finally:
+        pyplot().close(fig)
