@@ -90,8 +90,6 @@ def round_up(value: Fraction | float) -> str:
 
 def linear_rows(spec: Any) -> list[dict[str, Any]]:
     """Certified rate, its exact proof and the references at each table kappa."""
-    from sosalgo.batch.sweeps import reference_values
-
     rows = []
     for kappa in table_kappas(spec.kappa):
         result = sosalgo.analyze(spec, kappa=kappa)
@@ -106,7 +104,6 @@ def linear_rows(spec: Any) -> list[dict[str, Any]]:
 def sublinear_rows(spec: Any) -> list[dict[str, Any]]:
     """The certified constant c (f(x_k) - f* <= c |x_0 - x*|^2 / k), its exact proof."""
     from sosalgo.analysis import analyze_sublinear
-    from sosalgo.batch.sweeps import reference_values
 
     row = analyze_sublinear(spec).to_dict()
     proof = sosalgo.verify(spec, row, simulate=False) if row["certified"] else None
@@ -234,10 +231,21 @@ def setup(app: Sphinx) -> dict[str, Any]:
             "parallel_write_safe": True}
 
 
+# ----------------------------------------------------------------------------- sosalgo
+# The two sosalgo internals the gallery uses, wherever the package layout keeps them.
 def to_sympy(expr: Any) -> Any:
-    """A spec expression in sympy (the expression package's home moves with the kernel)."""
+    """A spec expression in sympy."""
     try:
         from sosalgo.kernel.expr.parse import to_sympy as convert
     except ImportError:
         from sosalgo.expr.parse import to_sympy as convert
     return convert(expr)
+
+
+def reference_values(spec: Any, kappa: float) -> dict[str, float | None]:
+    """The spec's closed-form references at kappa (None where undefined)."""
+    try:
+        from sosalgo.spec.references import reference_values as values
+    except ImportError:
+        from sosalgo.batch.sweeps import reference_values as values
+    return values(spec, kappa)

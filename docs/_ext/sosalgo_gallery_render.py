@@ -17,16 +17,6 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-CLASS_WORDS = {
-    "smooth_strongly_convex": "$L$-smooth and $m$-strongly convex, called through its gradient",
-    "convex": "closed, proper and convex (possibly nonsmooth), called through its proximal "
-              "operator or a subgradient",
-    "strongly_convex": "$m$-strongly convex (possibly nonsmooth), called through its "
-                       "proximal operator or a subgradient",
-    "indicator": "the indicator of a closed convex set $K$, called through the projection "
-                 "onto $K$",
-}
-
 
 def md_text(text: str) -> str:
     """Plain text made safe for Markdown (its active characters escaped)."""
@@ -58,6 +48,28 @@ def linear_tex(terms: list[tuple[Any, str]]) -> str:
                                    else f"{tex(c)} {var}")
         out += (f"- {body}" if sign == "-" else body) if not out else f" {sign} {body}"
     return out or "0"
+
+
+def function_words(spec: Any, name: str) -> str:
+    """The class of function ``name`` in words (the class's own description, m = 0 said
+    where it applies) and how the iteration calls it (from the diagonal of D)."""
+    from sosalgo.classes import get_class
+
+    cls = function_class(spec, name)
+    try:
+        words = md_text(get_class(cls).description) or f"class `{cls}`"
+    except KeyError:
+        words = f"class `{cls}`"
+    D = spec.sympy_matrices().get("D", sp.zeros(spec.p, spec.p))
+    calls = set()
+    for i, fname in enumerate(spec.oracles):
+        if fname == name:
+            calls.add("the projection onto $K$" if cls == "indicator" else
+                      "its proximal operator" if D[i, i] != 0 else
+                      "its gradient" if cls == "smooth_strongly_convex" else "a subgradient")
+    how = f"; called through {' and '.join(sorted(calls))}" if calls else ""
+    m0 = " ($m = 0$ here)" if spec.sublinear and "m = 0" not in words else ""
+    return f"{words}{m0}{how} (class `{cls}`)"
 
 
 def _names(spec: Any) -> tuple[list[str], list[str], list[str]]:
@@ -149,11 +161,7 @@ def update_rule(spec: Any) -> list[str]:
     lines = ["## Update rule", ""]
     names = list(spec.functions) or list(dict.fromkeys(spec.oracles))
     for fname in names:
-        cls = function_class(spec, fname)
-        words = CLASS_WORDS.get(cls, md_text(cls))
-        if spec.sublinear:  # m = 0: no strong convexity
-            words = words.replace("$L$-smooth and $m$-strongly convex", "$L$-smooth and convex")
-        lines.append(f"- ${fname}$: {words} (class `{cls}`)")
+        lines.append(f"- ${fname}$: {function_words(spec, fname)}")
     objective = " + ".join(names)
     lines += ["", f"Iteration $k$ of the method on ${objective}$, "
               "as the spec's matrices and oracles define it:", ""]
@@ -294,7 +302,7 @@ def _grid(values: list[float], points: int = 300) -> np.ndarray:
 
 
 def _linear_axes(ax: Any, style: Any, spec: Any, rows: list[dict[str, Any]]) -> None:
-    from sosalgo.batch.sweeps import reference_values
+    from sosalgo_gallery import reference_values
 
     kappas = [r["kappa"] for r in rows]
     grid = _grid(kappas)
