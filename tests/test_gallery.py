@@ -17,12 +17,15 @@ from pathlib import Path
 
 import pytest
 
+import sosalgo
+
 ROOT = Path(__file__).resolve().parent.parent
 EXT = ROOT / "docs" / "_ext"
 sys.path.insert(0, str(EXT))
 
 import sosalgo_docrun  # noqa: E402
 import sosalgo_gallery  # noqa: E402
+from sosalgo_gallery_render import oracle_lines, state_lines  # noqa: E402
 
 CONF = """
 import sys
@@ -254,3 +257,21 @@ def test_a_broken_spec_fails_the_build_naming_it(tmp_path: Path) -> None:
     done = build(docs, warnings_are_errors=False)
     assert done.returncode != 0
     assert "broken.yaml" in done.stderr and "sosalgo_gallery" in done.stderr
+
+
+@pytest.mark.parametrize("name, lines", [
+    ("nesterov", [r"y_k &= x_k + \gamma \left(x_k - x_{k-1}\right)",
+                  r"x_{k+1} &= x_k + \beta \left(x_k - x_{k-1}\right) - h u_k"]),
+    ("proximal-gradient", [r"y^{(2)}_k &= \operatorname{prox}_{h g}\left(x_k - h u^{(1)}_k\right)",
+                           r"x_{k+1} &= x_k - h u^{(1)}_k - h u^{(2)}_k"]),
+    ("triple-momentum", [r"x_k &= z_k + \delta \left(z_k - z_{k-1}\right)"]),
+    ("projected-gradient", [r"y^{(2)}_k &= \Pi_K\left(x_k - h u^{(1)}_k\right)"]),
+])
+def test_update_rule_reads_as_the_textbook_method(name: str, lines: list[str]) -> None:
+    """From the matrices back to each method's usual form (Nesterov's two momentum steps,
+    proximal gradient's prox of a gradient step, triple momentum's output, the projection
+    of projected gradient), written here from the methods' definitions."""
+    spec = sosalgo.example(name)
+    rendered = (oracle_lines(spec) or []) + state_lines(spec)
+    for line in lines:
+        assert line in rendered

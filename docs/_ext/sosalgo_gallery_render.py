@@ -72,30 +72,63 @@ def function_words(spec: Any, name: str) -> str:
     return f"{words}{m0}{how} (class `{cls}`)"
 
 
+def is_shift(spec: Any) -> bool:
+    """Two states whose first is the second one step late (A's first row [0, 1], no
+    input): the state is (z_{k-1}, z_k), and only the second row is an update."""
+    mats = spec.sympy_matrices()
+    A, B = mats["A"], mats["B"]
+    return spec.n == 2 and list(A.row(0)) == [0, 1] and all(b == 0 for b in B.row(0))
+
+
 def _names(spec: Any) -> tuple[list[str], list[str], list[str]]:
     """The LaTeX names of the state's coordinates, the oracle answers and the oracle
-    points at iteration k."""
+    points at iteration k: x when the state (or its second half, for a shift) is the
+    output point, z when it is not, xi^{(i)} for a general state."""
     n, p, mats = spec.n, spec.p, spec.sympy_matrices()
-    plain_x = n == 1 and spec.output is None and mats["E"] == sp.Matrix([[1]])
-    base = "x" if plain_x else ("z" if n == 1 else r"\xi")
-    xs = [f"{base}_k" if n == 1 else f"{base}^{{({i + 1})}}_k" for i in range(n)]
+    last = sp.Matrix([[0] * (n - 1) + [1]])
+    base = "x" if spec.output is None and mats["E"] == last else "z"
+    if is_shift(spec):
+        xs = [f"{base}_{{k-1}}", f"{base}_k"]
+    elif n == 1:
+        xs = [f"{base}_k"]
+    else:
+        xs = [rf"\xi^{{({i + 1})}}_k" for i in range(n)]
     us = ["u_k" if p == 1 else f"u^{{({i + 1})}}_k" for i in range(p)]
     ys = ["y_k" if p == 1 else f"y^{{({i + 1})}}_k" for i in range(p)]
     return xs, us, ys
+
+
+def combination(spec: Any, state: list[Any], answers: list[Any]) -> str:
+    """state . xi_k + answers . u_k in LaTeX; on a shift state with weights summing to 1,
+    in momentum form: ``z_k + c (z_k - z_{k-1})``."""
+    xs, us, _ = _names(spec)
+    a = [sp.sympify(c) for c in state]
+    rest = linear_tex(list(zip(answers, us, strict=False)))
+    if is_shift(spec) and a[0] != 0 and sp.simplify(a[0] + a[1] - 1) == 0:
+        c = sp.simplify(-a[0])
+        sign, c = ("-", -c) if c.could_extract_minus_sign() else ("+", c)
+        coef = "" if c == 1 else (rf"\left({tex(c)}\right) " if c.is_Add else f"{tex(c)} ")
+        head = rf"{xs[1]} {sign} {coef}\left({xs[1]} - {xs[0]}\right)"
+    else:
+        head = linear_tex(list(zip(a, xs, strict=True)))
+    if rest == "0":
+        return head
+    if head == "0":
+        return rest
+    return f"{head} {rest}" if rest.startswith("- ") else f"{head} + {rest}"
 
 
 def oracle_lines(spec: Any) -> list[str] | None:
     """The oracle calls of one iteration in order (None when a call depends on a later one:
     then only the matrix form is shown)."""
     mats = spec.sympy_matrices()
-    xs, us, ys = _names(spec)
+    _, us, ys = _names(spec)
     C, D = mats["C"], mats.get("D", sp.zeros(spec.p, spec.p))
     lines = []
     for i, fname in enumerate(spec.oracles):
         if any(D[i, j] != 0 for j in range(i + 1, spec.p)):
             return None
-        v = linear_tex([(C[i, j], xs[j]) for j in range(spec.n)]
-                       + [(D[i, j], us[j]) for j in range(i)])
+        v = combination(spec, list(C.row(i)), [D[i, j] for j in range(i)])
         cls, t, u, y = function_class(spec, fname), -D[i, i], us[i], ys[i]
         if t == 0:
             lines.append(f"{y} &= {v}")
@@ -113,19 +146,19 @@ def oracle_lines(spec: Any) -> list[str] | None:
 
 
 def state_lines(spec: Any) -> list[str]:
-    """xi_{k+1} = A xi_k + B u_k row by row, and the output point x_k."""
+    """xi_{k+1} = A xi_k + B u_k row by row (a shift's copy row left out), and the output
+    point x_k."""
     mats = spec.sympy_matrices()
-    xs, us, ys = _names(spec)
+    xs, _, ys = _names(spec)
     A, B, E = mats["A"], mats["B"], mats.get("E")
     lines = []
-    for r in range(spec.n):
-        rhs = linear_tex([(A[r, j], xs[j]) for j in range(spec.n)]
-                         + [(B[r, j], us[j]) for j in range(spec.p)])
+    for r in range(1 if is_shift(spec) else 0, spec.n):
+        rhs = combination(spec, list(A.row(r)), list(B.row(r)))
         lines.append(f"{xs[r].replace('_k', '_{k+1}')} &= {rhs}")
     if spec.output is not None:
         lines.append(f"x_k &= {ys[spec.output]}")
     else:
-        out = linear_tex([(E[0, j], xs[j]) for j in range(spec.n)])
+        out = combination(spec, list(E.row(0)), [])
         if out != "x_k":
             lines.append(f"x_k &= {out}")
     return lines
