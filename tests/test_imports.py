@@ -117,8 +117,8 @@ def test_no_private_names_across_modules():
 
 
 @pytest.mark.parametrize("name", [
-    "sosalgo.spec.SpecError", "sosalgo.model.ModelError", "sosalgo.expr.ExprError",
-    "sosalgo.expr.NumericError", "sosalgo.batch.store.OutputError",
+    "sosalgo.spec.SpecError", "sosalgo.model.ModelError", "sosalgo.kernel.expr.ExprError",
+    "sosalgo.kernel.expr.NumericError", "sosalgo.batch.store.OutputError",
     "sosalgo.batch.executor.BatchError",
     "sosalgo.verify.results.ResultError",
 ])

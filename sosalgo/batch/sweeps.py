@@ -17,7 +17,7 @@ from sosalgo.analysis import AnalysisResult, analyze_spec, spec_family
 from sosalgo.batch.executor import Progress, note, run_batch
 from sosalgo.batch.store import ResumableCSV
 from sosalgo.certificates import CertificateFamily, describe_family, family_from_description
-from sosalgo.expr.compile import compile_expression
+from sosalgo.kernel.expr.compile import compile_expression
 from sosalgo.model import ModelError, parameter_values
 from sosalgo.schema import (
     analysis_columns,

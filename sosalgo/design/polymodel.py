@@ -31,7 +31,7 @@ from flint import arb, arb_mat
 
 import sosalgo.design.enclosure as enc
 from sosalgo.certificates.base import CertificateFamily, ExactBlock, LMIProblem
-from sosalgo.expr.parse import to_sympy
+from sosalgo.kernel.expr.parse import to_sympy
 from sosalgo.model import ModelError, evaluate_algorithm
 from sosalgo.spec import Spec
 

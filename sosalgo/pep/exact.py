@@ -63,7 +63,7 @@ def written_kappa(kappa: float) -> Fraction:
 def _written(expr: Any, value: float) -> sp.Expr:
     """A constant of the spec as written (``1/10``, ``sqrt(2)``) exactly; its float's
     decimal when the spec object has no expression (built by hand)."""
-    from sosalgo.expr.parse import to_sympy
+    from sosalgo.kernel.expr.parse import to_sympy
 
     if expr is not None:
         return sp.sympify(to_sympy(expr))
@@ -89,7 +89,7 @@ def exact_base(spec: Spec, kappa: float | None) -> dict[sp.Symbol, sp.Expr]:
 def class_description(spec: Spec, kappa: float | None) -> dict[str, Any]:
     """Which class a proof is about, as exact strings: ``m``, ``L`` (``kappa``) and each
     function's class and parameters (sympy's exact form: ``1/10``, ``sqrt(2)/10``)."""
-    from sosalgo.expr.parse import to_sympy
+    from sosalgo.kernel.expr.parse import to_sympy
 
     base = exact_base(spec, kappa)
     out: dict[str, Any] = {str(k): str(v) for k, v in base.items()}
@@ -109,7 +109,7 @@ def _scale(L: sp.Expr) -> Fraction:
 
 def _exact_env(spec: Spec, base: dict[sp.Symbol, sp.Expr]) -> dict[sp.Symbol, sp.Expr]:
     """m, L, kappa and every parameter's value (tied ones followed), exactly."""
-    from sosalgo.expr.parse import to_sympy
+    from sosalgo.kernel.expr.parse import to_sympy
     from sosalgo.spec.types import value_order
 
     env = dict(base)
@@ -157,7 +157,7 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
     """The exact :class:`Method` of ``spec`` (``om``: its float OracleMethod, for shapes),
     its irrational entries enclosed precisely enough for a trajectory of ``steps`` steps
     (:func:`sosalgo.pep.structure.enclosure_digits`)."""
-    from sosalgo.expr.parse import to_sympy
+    from sosalgo.kernel.expr.parse import to_sympy
     from sosalgo.verify.exact import Ball
     from sosalgo.verify.exact import enclose as enclose_at
     from sosalgo.verify.exact_composite import exact_class_inequalities

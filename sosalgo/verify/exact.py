@@ -47,7 +47,7 @@ import numpy as np
 import sympy as sp
 from mpmath import libmp
 
-from sosalgo.expr.parse import to_sympy
+from sosalgo.kernel.expr.parse import to_sympy
 from sosalgo.model import bind, fixed_point
 from sosalgo.spec.types import BASE_SYMBOLS, MATRIX_NAMES, ORACLE_MATRIX_NAMES, Spec, value_order
 

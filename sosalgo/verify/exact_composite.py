@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from sosalgo.expr.parse import to_sympy
+from sosalgo.kernel.expr.parse import to_sympy
 from sosalgo.model import bind
 from sosalgo.spec.types import BASE_SYMBOLS, ORACLE_MATRIX_NAMES, Spec
 from sosalgo.verify.exact import (

@@ -47,7 +47,7 @@ import numpy as np
 import scipy.linalg as sla
 import sympy as sp
 
-from sosalgo.expr.parse import to_sympy
+from sosalgo.kernel.expr.parse import to_sympy
 from sosalgo.spec.types import BASE_SYMBOLS, ORACLE_MATRIX_NAMES, Spec, value_order
 from sosalgo.verify.exact import Ball, ExactAlgorithm, Verdict, fraction_str, prove_psd
 from sosalgo.verify.exact_composite import (
