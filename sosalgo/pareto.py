@@ -472,7 +472,7 @@ def pareto_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = 
     names = inputs.free_names(spec, free)
     fam = inputs.select_families(spec, certificate, options, single=True, command="pareto")[0]
     inputs.parameter_boxes(spec, kappas, names, design=True)
-    from sosalgo import budget
+    from sosalgo.kernel import budget
 
     budget.set_max_memory(max_memory)
     est = budget.check(budget.design_estimate(

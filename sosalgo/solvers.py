@@ -228,8 +228,8 @@ class SolverPanic(RuntimeError):
 def solve_or_raise(solver: Any) -> Any:
     """``solver.solve()``, a panic turned into :class:`SolverPanic` (an Exception). Ctrl-C
     or SIGTERM meanwhile stops the solve at its next iteration and is raised when it
-    returns (:mod:`sosalgo.interrupts`)."""
-    from sosalgo.interrupts import native_solve, watch
+    returns (:mod:`sosalgo.kernel.interrupts`)."""
+    from sosalgo.kernel.interrupts import native_solve, watch
 
     try:
         with native_solve():

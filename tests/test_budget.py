@@ -17,9 +17,9 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from sosalgo import budget
 from sosalgo.cli import cli
 from sosalgo.errors import InputError
+from sosalgo.kernel import budget
 
 from .conftest import ROOT, SPECS
 
@@ -338,7 +338,7 @@ def test_a_signal_ends_a_long_solve_at_once_and_keeps_finished_rows(tmp_path, ho
 
 
 def test_an_interruption_inside_a_native_solve_waits_for_it_to_stop():
-    from sosalgo import interrupts
+    from sosalgo.kernel import interrupts
 
     with pytest.raises(KeyboardInterrupt):
         interrupts.request(KeyboardInterrupt())  # outside a solve: at once

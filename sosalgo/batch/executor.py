@@ -48,7 +48,7 @@ class BatchError(InputError):
 
 def default_workers() -> int:
     """All cores this process may use."""
-    from sosalgo.budget import cores
+    from sosalgo.kernel.budget import cores
 
     return cores()
 
@@ -189,7 +189,7 @@ def run_batch(
     worker is killed, the finished rows are kept)."""
     if not tasks:
         return
-    from sosalgo.budget import usable_workers
+    from sosalgo.kernel.budget import usable_workers
 
     workers = usable_workers(workers)
 
@@ -303,11 +303,11 @@ def start_pool_server(preload: Sequence[str] = PRELOAD) -> None:
 
 def worker_pool(workers: int) -> ProcessPoolExecutor:
     """A process pool of ``workers`` safely started workers that die with their parent
-    (never more than the cores and the memory budget allow: :mod:`sosalgo.budget`).
+    (never more than the cores and the memory budget allow: :mod:`sosalgo.kernel.budget`).
     Stop it with ``shutdown`` when its work is done, else with :func:`kill_pool`."""
     from concurrent.futures import ProcessPoolExecutor
 
-    from sosalgo.budget import usable_workers
+    from sosalgo.kernel.budget import usable_workers
 
     ctx = pool_context()
     start_pool_server()  # started quietly (no-op when it runs already)

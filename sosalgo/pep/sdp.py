@@ -478,10 +478,11 @@ def _clarabel_attempt(P: Any, q: np.ndarray, A: Any, b: np.ndarray, cones: list[
                       precise: bool, reg: float, iters: list[int]) -> Any:
     """One attempt's solution, or None when Clarabel panics (Rust panics: an eigenvalue
     failure while solving; while building, the next chordal decomposition of
-    :data:`CHORDAL` is tried). Ctrl-C and SIGTERM stop the solve (:mod:`sosalgo.interrupts`)."""
+    :data:`CHORDAL` is tried). Ctrl-C and SIGTERM stop the solve
+    (:mod:`sosalgo.kernel.interrupts`)."""
     import clarabel
 
-    from sosalgo.interrupts import native_solve, watch
+    from sosalgo.kernel.interrupts import native_solve, watch
 
     with _quiet_stderr():
         for chordal in CHORDAL:

@@ -32,7 +32,7 @@ __all__ = ["fig4", "fig4_rows", "tmm_parameters"]
 def spec_text_and_path(name: str) -> tuple[str, str]:
     """Text and location of a shipped example spec."""
     try:
-        from sosalgo.resources import example_specs
+        from sosalgo.kernel.resources import example_specs
 
         p: Any = example_specs()[name]
     except ImportError:  # a checkout without packaged examples: the repository's specs/
