@@ -4,7 +4,7 @@ For fixed rho a family's inequalities are an LMI (Theorem 1: in (P, lambda)); a 
 search on rho in [0, 1] (Newton-type steps on a continuous feasibility margin, secant steps
 without its slope, bisection with a custom solver chain) returns the smallest rho found
 feasible, with its certificate. Only a step the solver reports *solved* and whose point
-passes the eigenvalue check counts as feasible (see :mod:`sosalgo.solvers`), so a reported
+passes the eigenvalue check counts as feasible (see :mod:`sosalgo.kernel.solvers`), so a reported
 rate always comes with a checked certificate.
 
 A family with several members to choose from (the interpolation family without a given
@@ -28,11 +28,11 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo import solvers as _solvers
 from sosalgo.certificates import FAMILIES, default_family_name, get_family
-from sosalgo.certificates.base import CertificateFamily, LMIProblem
-from sosalgo.model import Algorithm, bind
-from sosalgo.solvers import (
+from sosalgo.certificates.base import CertificateFamily
+from sosalgo.kernel import solvers as _solvers
+from sosalgo.kernel.conic import LMIProblem
+from sosalgo.kernel.solvers import (
     DEFAULT_SOLVERS,
     Feasibility,
     Margin,
@@ -41,6 +41,7 @@ from sosalgo.solvers import (
     solve_lmi,
     solve_margin,
 )
+from sosalgo.model import Algorithm, bind
 from sosalgo.spec import Spec
 
 __all__ = [
@@ -167,7 +168,7 @@ class _Search:
     def margin(self, rho: float, rough: bool = True) -> Margin:
         """t(rho), solved again precisely when its sign is within the default accuracy and
         that uncertainty would move the root by more than a quarter tolerance; ``rough``:
-        without iterative refinement (:func:`sosalgo.solvers.solve_margin`), except where
+        without iterative refinement (:func:`sosalgo.kernel.solvers.solve_margin`), except where
         the certificate degenerates (below ``degenerate_below``: :meth:`degenerate`)."""
         self.solves += 1
         if rho < self.degenerate_below:
@@ -426,7 +427,7 @@ def analyze_algorithm(
     """Smallest certified rho in [0, 1] to width ``tol`` and ``REL_TOL`` (1 - rho) (eq. 16).
 
     ``method="secant"`` (default) root-finds on the continuous margin of
-    :func:`sosalgo.solvers.solve_margin` (Newton-type steps with its slope from the dual
+    :func:`sosalgo.kernel.solvers.solve_margin` (Newton-type steps with its slope from the dual
     solution, secant steps without); ``"bisection"`` (also used whenever ``solvers`` is not
     the default chain) bisects on plain feasibility.
     Both keep a bracket [lo, hi] with hi certified by a checked certificate. ``warning``

@@ -355,7 +355,7 @@ SLOW_SOLVE = """
 import os, signal, sys, threading, time
 import numpy as np, scipy.sparse as sps, clarabel
 from sosalgo.cli_errors import Terminated, on_sigterm
-from sosalgo.solvers import clarabel_solve, quiet_settings
+from sosalgo.kernel.solvers import clarabel_solve, quiet_settings
 signal.signal(signal.SIGTERM, on_sigterm)
 n = 90  # one SDP of tens of seconds (7 iterations of seconds each)
 d = n * (n + 1) // 2

@@ -134,7 +134,7 @@ def test_input_errors_share_one_base(name):
 
 
 @pytest.mark.parametrize("name, values", [
-    ("sosalgo.solvers.Feasibility", {"feasible", "infeasible", "failed"}),
+    ("sosalgo.kernel.solvers.Feasibility", {"feasible", "infeasible", "failed"}),
     ("sosalgo.design.dualbound.BoundStatus", {"proved", "partial", "unsupported"}),
     ("sosalgo.verify.Verdict", {"exact", "failed"}),
     ("sosalgo.polyopt.RelaxationStatus",

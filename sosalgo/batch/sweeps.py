@@ -18,6 +18,7 @@ from sosalgo.batch.executor import Progress, note, run_batch
 from sosalgo.batch.store import ResumableCSV
 from sosalgo.certificates import CertificateFamily, describe_family, family_from_description
 from sosalgo.kernel.expr.compile import compile_expression
+from sosalgo.kernel.solvers import DEFAULT_SOLVERS
 from sosalgo.model import ModelError, parameter_values
 from sosalgo.schema import (
     analysis_columns,
@@ -27,7 +28,6 @@ from sosalgo.schema import (
     kappa_label,
     p_columns,
 )
-from sosalgo.solvers import DEFAULT_SOLVERS
 from sosalgo.spec import BASE_NAMES, Spec, spec_from_text
 
 __all__ = [

@@ -38,14 +38,8 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.certificates.base import (
-    AffineBlock,
-    LMIProblem,
-    complement_basis,
-    compress,
-    null_basis,
-    restricted_eigenvalues,
-)
+from sosalgo.certificates.base import complement_basis, compress, null_basis, restricted_eigenvalues
+from sosalgo.kernel.conic import AffineBlock, LMIProblem
 
 __all__ = ["CompositeStructure", "composite_problem", "composite_parts", "composite_structure",
            "facial_reduction", "isotropic_directions", "reduced_summary"]

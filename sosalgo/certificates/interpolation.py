@@ -47,14 +47,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from sosalgo.certificates.base import (
-    AffineBlock,
     CertificateFamily,
-    LMIProblem,
     complement_basis,
     compress,
     null_basis,
     restricted_eigenvalues,
 )
+from sosalgo.kernel.conic import AffineBlock, LMIProblem
 
 if TYPE_CHECKING:  # only for annotations: families do not depend on the model at run time
     import sympy as sp

@@ -28,7 +28,7 @@ direction v of a minimizer moving with zero gradients (xi = u t, every u = 0) ma
 so they are imposed as ``G v = 0`` (solved for exactly: the variables live in the null
 space of these linear equations) and ``R' G R`` negative definite on the complement R of
 v; the solver then has a strictly feasible problem and the returned point passes the
-floating-point check of :func:`sosalgo.solvers.check_point` (the equations hold to
+floating-point check of :func:`sosalgo.kernel.solvers.check_point` (the equations hold to
 rounding, reported as ``residual``).
 """
 
@@ -40,8 +40,8 @@ from typing import Any
 import numpy as np
 import scipy.linalg as sla
 
-from sosalgo.certificates.base import AffineBlock, LMIProblem
 from sosalgo.certificates.composite import CWindow, composite_structure
+from sosalgo.kernel.conic import AffineBlock, LMIProblem
 
 __all__ = ["SublinearProblem", "block_kernels", "full_violation", "original_kernels",
            "snap_basis", "sublinear_data", "sublinear_parts", "sublinear_problem"]

@@ -18,14 +18,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from sosalgo.certificates.base import (
-    AffineBlock,
-    CertificateFamily,
-    ExactBlock,
-    LMIProblem,
-    check_matrix,
-    check_number,
-)
+from sosalgo.certificates.base import CertificateFamily, check_matrix, check_number
+from sosalgo.kernel.conic import AffineBlock, ExactBlock, LMIProblem
 
 if TYPE_CHECKING:  # only for annotations: families do not depend on the model at run time
     import sympy as sp

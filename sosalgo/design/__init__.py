@@ -39,8 +39,8 @@ from sosalgo.design.boundcheck import bound_certificate
 from sosalgo.design.dualbound import ARITHMETIC, BoundSearch, BoundStatus, dual_structure
 from sosalgo.design.floor import class_floor
 from sosalgo.design.polymodel import check_polynomial
+from sosalgo.kernel.solvers import solve_margin
 from sosalgo.model import ModelError, bind, design_box
-from sosalgo.solvers import solve_margin
 from sosalgo.spec import Spec
 
 __all__ = ["BoundModel", "BoundResult", "DesignResult", "bound_model", "design",

@@ -49,7 +49,7 @@ import scipy.sparse as sps
 from sosalgo.design.boxproof import BoxProver
 from sosalgo.design.modes import ModeTest
 from sosalgo.design.polymodel import PolyLMI
-from sosalgo.solvers import (
+from sosalgo.kernel.solvers import (
     SolverStatus,
     clarabel_solve,
     finite_data,

@@ -145,7 +145,7 @@ def _rate(res: AnalysisResult | None) -> float:
 
 def _certified_at(fam: CertificateFamily, alg: Any, rho: float) -> bool:
     """One margin solve of the family's LMI at ``rho``, its point checked in floats."""
-    from sosalgo.solvers import check_point, solve_margin
+    from sosalgo.kernel.solvers import check_point, solve_margin
 
     try:
         with np.errstate(all="ignore"):
@@ -354,7 +354,7 @@ def prove_rate(spec: Spec, kappa: float, theta: Mapping[str, float],
     certificate proven exactly, else a margin solution of the family's LMI at
     rho + step (1 - rho) (RECERTIFY_STEPS, floating-point checked, then proven); (None,
     the analysis's certificate) when nothing is proven."""
-    from sosalgo.solvers import check_point, solve_margin
+    from sosalgo.kernel.solvers import check_point, solve_margin
 
     if res is None or not res.certified or res.rho is None or res.certificate is None:
         return None, None

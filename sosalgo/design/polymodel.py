@@ -30,7 +30,8 @@ import sympy as sp
 from flint import arb, arb_mat
 
 import sosalgo.design.enclosure as enc
-from sosalgo.certificates.base import CertificateFamily, ExactBlock, LMIProblem
+from sosalgo.certificates.base import CertificateFamily
+from sosalgo.kernel.conic import ExactBlock, LMIProblem
 from sosalgo.kernel.expr.parse import to_sympy
 from sosalgo.model import ModelError, evaluate_algorithm
 from sosalgo.spec import Spec

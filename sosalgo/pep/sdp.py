@@ -54,33 +54,13 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sps
 
+from sosalgo.kernel.conic import svec, svec_index, unsvec
+from sosalgo.kernel.solvers import SolverStatus, quiet_settings, solver_status
 from sosalgo.pep.structure import Method, PEPStructure
-from sosalgo.solvers import SolverStatus, quiet_settings, solver_status
 
-__all__ = ["PEPData", "SDPAnswer", "pep_data", "solve_pep", "svec_index"]
+__all__ = ["PEPData", "SDPAnswer", "pep_data", "solve_pep"]
 
 SQRT2 = math.sqrt(2.0)
-
-
-@functools.cache
-def svec_index(d: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(rows, cols, scale) of Clarabel's svec: upper triangle column by column."""
-    r = np.array([i for j in range(d) for i in range(j + 1)], dtype=int)
-    c = np.array([j for j in range(d) for i in range(j + 1)], dtype=int)
-    return r, c, np.where(r == c, 1.0, SQRT2)
-
-
-def svec(M: np.ndarray) -> np.ndarray:
-    r, c, s = svec_index(M.shape[-1])
-    return M[..., r, c] * s
-
-
-def unsvec(v: np.ndarray, d: int) -> np.ndarray:
-    r, c, s = svec_index(d)
-    out = np.zeros((d, d))
-    out[r, c] = v / s
-    out[c, r] = v / s
-    return out
 
 
 @dataclass

@@ -24,6 +24,8 @@ import numpy as np
 import scipy.sparse as sps
 
 from sosalgo.classes import CLASSES
+from sosalgo.kernel.conic import svec
+from sosalgo.kernel.solvers import SolverStatus, clarabel_solve, finite_data, solver_status
 from sosalgo.sensitivity.quadratic import quadratic_gamma2
 from sosalgo.sensitivity.window import (
     NoiseWindow,
@@ -33,7 +35,6 @@ from sosalgo.sensitivity.window import (
     past_noise,
     state_size,
 )
-from sosalgo.solvers import SolverStatus, clarabel_solve, finite_data, solver_status, svec
 
 __all__ = ["NoiseCertificate", "noise_certificate", "noise_windows", "MARGINS", "MAX_LAG",
            "attempt", "layout", "original_units", "supply_scale", "float_check", "check_lag",
@@ -176,7 +177,7 @@ def _clarabel(A: sps.csc_matrix, b: np.ndarray, q: np.ndarray,
               cones: list[tuple[str, int]]) -> tuple[SolverStatus, np.ndarray | None, str]:
     import clarabel
 
-    from sosalgo.solvers import quiet_settings
+    from sosalgo.kernel.solvers import quiet_settings
 
     settings = quiet_settings()
     settings.presolve_enable = False

@@ -71,7 +71,7 @@ def _rows(lay: Layout, method: Any, samples: Sequence[float]) -> tuple[list, lis
 
 
 def _solve(q: np.ndarray, A: np.ndarray, b: np.ndarray, cones: list) -> np.ndarray | None:
-    from sosalgo.solvers import SolverStatus, clarabel_solve, quiet_settings, solver_status
+    from sosalgo.kernel.solvers import SolverStatus, clarabel_solve, quiet_settings, solver_status
 
     settings = quiet_settings()
     settings.max_iter = 200

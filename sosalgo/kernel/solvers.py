@@ -1,6 +1,6 @@
 """One small door to the conic solvers, returning a status we trust.
 
-``solve_lmi`` asks whether an :class:`~sosalgo.certificates.base.LMIProblem` is feasible at a
+``solve_lmi`` asks whether an :class:`~sosalgo.kernel.conic.LMIProblem` is feasible at a
 given rho with a small margin (every block ⪯ -margin I) and answers ``feasible`` only when
 the solver reports *solved* **and** the returned x passes a floating-point eigenvalue check
 of every block. Anything else (inaccurate, iteration limit, numerical error, exception, a
@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sps
 
-from sosalgo.certificates.base import LMIProblem
+from sosalgo.kernel.conic import LMIProblem, svec
 
 __all__ = [
     "Feasibility", "Outcome", "solve_lmi", "solve_margin", "check_point", "Margin", "SOLVERS",
@@ -37,7 +37,6 @@ __all__ = [
     "clarabel_solve", "solve_or_raise",
 ]
 
-SQRT2 = math.sqrt(2.0)
 RELATIVE_MARGIN = 1e-9
 DEFAULT_TOL = 1e-8  # Clarabel's default tolerances (gap, feasibility)
 PRECISE_TOL = 1e-10  # ... and those of a precise margin
@@ -100,27 +99,6 @@ class Outcome:
     @property
     def feasible(self) -> bool:
         return self.status == Feasibility.FEASIBLE
-
-
-@functools.cache
-def _tri_indices(s: int, upper_colmajor: bool) -> tuple[np.ndarray, np.ndarray]:
-    if upper_colmajor:  # Clarabel: (0,0),(0,1),(1,1),(0,2),...
-        pairs = [(i, j) for j in range(s) for i in range(j + 1)]
-    else:  # SCS: lower triangle column-major: (0,0),(1,0),(2,0),(1,1),...
-        pairs = [(i, j) for j in range(s) for i in range(j, s)]
-    rows = np.array([p[0] for p in pairs])
-    cols = np.array([p[1] for p in pairs])
-    return rows, cols
-
-
-def svec(mats: np.ndarray, upper_colmajor: bool) -> np.ndarray:
-    """Scaled half-vectorization of symmetric matrix/matrices (last two axes)."""
-    s = mats.shape[-1]
-    if s == 1:
-        return mats[..., 0, :1]
-    r, c = _tri_indices(s, upper_colmajor)
-    scale = np.where(r == c, 1.0, SQRT2)
-    return mats[..., r, c] * scale
 
 
 class _ConicForm:
@@ -547,7 +525,7 @@ def _shared_solvers() -> _SolverCache:
 class _Evaluator:
     """Every block of a problem evaluated at once: the scalar blocks (many in some families)
     as one matrix-vector product, the matrix blocks one by one (same sums as
-    :meth:`~sosalgo.certificates.base.AffineBlock.value`)."""
+    :meth:`~sosalgo.kernel.conic.AffineBlock.value`)."""
 
     def __init__(self, problem: LMIProblem):
         scal = [b for b in problem.blocks if b.size == 1]
