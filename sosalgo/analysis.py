@@ -961,37 +961,6 @@ class SublinearResult:
                 "family": "sublinear"}
 
 
-def _sublinear_sdp(problem: LMIProblem, rho: float | None,
-                   near: bool = False) -> tuple[str, np.ndarray | None]:
-    """One Clarabel solve of the blocks without margin: minimize r (= rho^2, a variable)
-    when ``rho`` is None, else a feasibility point at rho (the solver's interior point).
-    Returns (status, (y, r)) with y, r only when solved (or almost solved with ``near``:
-    an estimate to start from, never a certificate)."""
-    import clarabel
-    import scipy.sparse as sps
-
-    form = _solvers._form(problem, True)
-    A, b = form.data(0.0 if rho is None else rho, 0.0)
-    A, b = A.copy(), b.copy()
-    q = np.zeros(problem.nvar)
-    if rho is None:  # b(r) = b0 + r b1: move r into the variables
-        A = sps.hstack([A, sps.csc_matrix(-form.b1[:, None])]).tocsc()
-        q = np.zeros(problem.nvar + 1)
-        q[-1] = 1.0
-    cones = [clarabel.NonnegativeConeT(1) if s == 1 else clarabel.PSDTriangleConeT(s)
-             for s in form.sizes]
-    zero = sps.csc_matrix((len(q), len(q)))
-    try:
-        sol = _solvers.clarabel_solve(zero, q, A, b, cones, _solvers._clarabel_settings(True))
-    except Exception as exc:  # noqa: BLE001 - a crash is no answer
-        return f"exception: {type(exc).__name__}", None
-    status = str(sol.status)
-    kind = _solvers.solver_status(status)
-    if kind != _solvers.SolverStatus.SOLVED and not (near and kind.near):
-        return status, None
-    return status, np.array(sol.x)
-
-
 def _tight_rows(data: Any, sp: Any, y: np.ndarray) -> frozenset[int]:
     """Scalar rows (and multipliers) at 0 at the solver's interior point: every
     certificate has them at 0, so they are solved for as equalities."""
@@ -1014,7 +983,7 @@ def _certify_constant(data: Any, r_star: float, solvers: Sequence[str],
         kernels: dict[str, np.ndarray] = {}
         for _ in range(3):  # each round: the interior point, its zeros, the strict check
             sp = sublinear_problem(data, tight, kernels, r)
-            status, z = _sublinear_sdp(sp.problem, math.sqrt(r))
+            status, z = _solvers.lmi_point(sp.problem, math.sqrt(r))
             count[0] += 1
             if z is None:
                 break
@@ -1076,7 +1045,7 @@ def _sublinear_degree(om: Any, deg: int, solvers: Sequence[str],
     )
 
     data = sublinear_data(om, deg)
-    status, z = _sublinear_sdp(sublinear_problem(data).problem, None, near=True)
+    status, z = _solvers.lmi_point(sublinear_problem(data).problem, None, near=True)
     count[0] += 1
     if z is None or not z[-1] > 0:
         return None, None

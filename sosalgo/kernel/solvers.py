@@ -30,11 +30,12 @@ import numpy as np
 import scipy.sparse as sps
 
 from sosalgo.kernel.conic import LMIProblem, svec
+from sosalgo.kernel.interrupts import native_solve, watch
 
 __all__ = [
     "Feasibility", "Outcome", "solve_lmi", "solve_margin", "check_point", "Margin", "SOLVERS",
     "DEFAULT_SOLVERS", "margin_for", "SolverStatus", "solver_status", "SolverPanic",
-    "clarabel_solve", "solve_or_raise",
+    "clarabel_solve", "solve_or_raise", "clarabel_cones", "solve_attempts", "CHORDAL", "lmi_point",
 ]
 
 RELATIVE_MARGIN = 1e-9
@@ -207,8 +208,6 @@ def solve_or_raise(solver: Any) -> Any:
     """``solver.solve()``, a panic turned into :class:`SolverPanic` (an Exception). Ctrl-C
     or SIGTERM meanwhile stops the solve at its next iteration and is raised when it
     returns (:mod:`sosalgo.kernel.interrupts`)."""
-    from sosalgo.kernel.interrupts import native_solve, watch
-
     try:
         with native_solve():
             return watch(solver).solve()
@@ -218,12 +217,23 @@ def solve_or_raise(solver: Any) -> Any:
         raise
 
 
+def clarabel_cones(cones: Sequence[Any]) -> list:
+    """Clarabel's cone objects for ``(kind, size)`` pairs, kind "zero", "nonneg" or "psd"
+    (the scaled upper-triangle PSD cone of s x s matrices); cone objects pass through."""
+    import clarabel
+
+    kinds = {"zero": clarabel.ZeroConeT, "nonneg": clarabel.NonnegativeConeT,
+             "psd": clarabel.PSDTriangleConeT}
+    return [kinds[c[0]](c[1]) if isinstance(c, tuple) else c for c in cones]
+
+
 def clarabel_solve(P: Any, q: Any, A: Any, b: Any, cones: list, settings: Any) -> Any:
-    """One Clarabel solve (a panic in its setup or solve becomes :class:`SolverPanic`)."""
+    """One Clarabel solve (a panic in its setup or solve becomes :class:`SolverPanic`);
+    ``cones`` as for :func:`clarabel_cones`."""
     import clarabel
 
     try:
-        solver = clarabel.DefaultSolver(P, q, A, b, cones, settings)
+        solver = clarabel.DefaultSolver(P, q, A, b, clarabel_cones(cones), settings)
     except BaseException as exc:
         if type(exc).__name__ == "PanicException":
             raise SolverPanic(str(exc).splitlines()[0] if str(exc) else "panic") from None
@@ -294,6 +304,33 @@ def c_stdout_to_stderr():
         sys.stdout.flush()
         os.dup2(saved, 1)
         os.close(saved)
+
+
+def lmi_point(problem: LMIProblem, rho: float | None,
+              near: bool = False) -> tuple[str, np.ndarray | None]:
+    """One Clarabel solve of the blocks without margin: minimize r (= rho^2, a variable)
+    when ``rho`` is None, else a feasibility point at rho (the solver's interior point).
+    Returns (status, (y, r)) with y, r only when solved (or almost solved with ``near``:
+    an estimate to start from, never a certificate)."""
+    form = _form(problem, True)
+    A, b = form.data(0.0 if rho is None else rho, 0.0)
+    A, b = A.copy(), b.copy()
+    q = np.zeros(problem.nvar)
+    if rho is None:  # b(r) = b0 + r b1: move r into the variables
+        A = sps.hstack([A, sps.csc_matrix(-form.b1[:, None])]).tocsc()
+        q = np.zeros(problem.nvar + 1)
+        q[-1] = 1.0
+    cones = [("nonneg", 1) if s == 1 else ("psd", s) for s in form.sizes]
+    zero = sps.csc_matrix((len(q), len(q)))
+    try:
+        sol = clarabel_solve(zero, q, A, b, cones, _clarabel_settings(True))
+    except Exception as exc:  # noqa: BLE001 - a crash is no answer
+        return f"exception: {type(exc).__name__}", None
+    status = str(sol.status)
+    kind = solver_status(status)
+    if kind != SolverStatus.SOLVED and not (near and kind.near):
+        return status, None
+    return status, np.array(sol.x)
 
 
 class _MarginForm:
@@ -620,3 +657,101 @@ def solve_lmi(
         if out.status != Feasibility.FAILED or (out.near_boundary and i >= 1):
             return out
     return out
+
+
+@contextlib.contextmanager
+def _quiet_stderr():
+    """Clarabel's Rust panics (caught below) print to file descriptor 2: hide them."""
+    try:
+        saved = os.dup(2)
+    except OSError:
+        yield
+        return
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 2)
+            yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
+@functools.cache
+def _sdp_settings(precise: bool, reg: float, max_iter: int = 400, chordal: str = "apart"
+                  ) -> Any:
+    """Settings of one attempt of :func:`solve_attempts` (tuned on PEP's dual SDPs)."""
+    s = quiet_settings()
+    s.max_iter = max_iter
+    s.static_regularization_constant = reg
+    s.direct_solve_method = "faer"  # supernodal LDL: 2-4x faster on these dense rows
+    # the dual form's chordal blocks kept apart with their overlaps as equalities (not
+    # the compact merge): half the iterations (Nesterov N = 40: 24 instead of 44);
+    # :data:`CHORDAL`: the fallbacks when Clarabel panics building the decomposition
+    s.chordal_decomposition_compact = chordal == "compact"
+    if chordal == "unmerged":
+        s.chordal_decomposition_merge_method = "none"
+    if precise:
+        s.tol_gap_abs = s.tol_gap_rel = s.tol_feas = 1e-10
+        s.tol_ktratio = 1e-10
+    return s
+
+
+# chordal decompositions in order: blocks apart, then Clarabel's compact merge, then no
+# merging (Clarabel 0.11 panics building the first on some patterns, "index out of
+# bounds": gradient descent at N = 200; the others build)
+CHORDAL = ("apart", "compact", "unmerged")
+
+
+def solve_attempts(A: Any, q: np.ndarray, b: np.ndarray, cones: Sequence[Any],
+                   attempts: tuple[tuple[Any, ...], ...], final: tuple[str, ...] = ()
+                   ) -> tuple[Any, str, SolverStatus]:
+    """min q'x s.t. A x + s = b, s in ``cones`` (see :func:`clarabel_cones`), tried with
+    each attempt in turn: (solution or None, raw status, status) of the first attempt that
+    ends solved or with a raw status in ``final`` (else the last). An attempt is (precise
+    tolerances, static regularization[, max iterations])."""
+    cones = clarabel_cones(cones)
+    P = sps.csc_matrix((A.shape[1], A.shape[1]))
+    sol, raw, st_ = None, "no attempt ended", SolverStatus.FAILED
+    for precise, reg, *iters in attempts:
+        sol = _clarabel_attempt(P, q, A, b, cones, precise, reg, iters)
+        if sol is None:
+            continue
+        raw = str(sol.status)
+        st_ = solver_status(raw)
+        if (st_ == SolverStatus.SOLVED or raw in final
+                or (iters and sol.iterations >= iters[0])):  # capped: not converging
+            break
+    return sol, raw, st_
+
+
+def _clarabel_attempt(P: Any, q: np.ndarray, A: Any, b: np.ndarray, cones: list[Any],
+                      precise: bool, reg: float, iters: list[int]) -> Any:
+    """One attempt's solution, or None when Clarabel panics (Rust panics: an eigenvalue
+    failure while solving; while building, the next chordal decomposition of
+    :data:`CHORDAL` is tried). Ctrl-C and SIGTERM stop the solve
+    (:mod:`sosalgo.kernel.interrupts`)."""
+    import clarabel
+
+    with _quiet_stderr():
+        for chordal in CHORDAL:
+            settings = _sdp_settings(precise, reg, *(iters or [400]), chordal)
+            try:
+                solver = clarabel.DefaultSolver(P, q, A, b, cones, settings)
+            except BaseException as exc:
+                _reraise_interruption(exc)
+                continue
+            try:
+                with native_solve():
+                    return watch(solver).solve()
+            except BaseException as exc:
+                _reraise_interruption(exc)
+                return None
+    return None
+
+
+def _reraise_interruption(exc: BaseException) -> None:
+    """Re-raise what is not a Clarabel failure: an interruption (Ctrl-C, SIGTERM), an exit,
+    no memory. Rust panics surface as ``PanicException`` (a BaseException)."""
+    if isinstance(exc, MemoryError) or not (isinstance(exc, Exception)
+                                            or type(exc).__name__ == "PanicException"):
+        raise exc

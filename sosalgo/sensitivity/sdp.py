@@ -175,8 +175,6 @@ def _conic(dec: NoiseWindow, pos: NoiseWindow, lay: dict[str, slice], nvar: int,
 
 def _clarabel(A: sps.csc_matrix, b: np.ndarray, q: np.ndarray,
               cones: list[tuple[str, int]]) -> tuple[SolverStatus, np.ndarray | None, str]:
-    import clarabel
-
     from sosalgo.kernel.solvers import quiet_settings
 
     settings = quiet_settings()
@@ -185,12 +183,10 @@ def _clarabel(A: sps.csc_matrix, b: np.ndarray, q: np.ndarray,
     # degenerate problems often stop at "almost solved" under 1e-8); feasibility keeps
     # Clarabel's 1e-8, and the floating-point check decides anyway
     settings.tol_gap_abs = settings.tol_gap_rel = GAP_TOL
-    kinds = [clarabel.NonnegativeConeT(k) if kind == "nonneg" else clarabel.PSDTriangleConeT(k)
-             for kind, k in cones]
     nv = A.shape[1]
     P0 = sps.csc_matrix((nv, nv))
     try:
-        sol = clarabel_solve(P0, q, A, b, kinds, settings)
+        sol = clarabel_solve(P0, q, A, b, cones, settings)
     except Exception as exc:  # noqa: BLE001 - a crash is just "no answer"
         return SolverStatus.FAILED, None, f"exception: {type(exc).__name__}"
     st = solver_status(str(sol.status))
