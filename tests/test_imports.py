@@ -136,7 +136,7 @@ def test_input_errors_share_one_base(name):
 @pytest.mark.parametrize("name, values", [
     ("sosalgo.kernel.solvers.Feasibility", {"feasible", "infeasible", "failed"}),
     ("sosalgo.design.dualbound.BoundStatus", {"proved", "partial", "unsupported"}),
-    ("sosalgo.verify.Verdict", {"exact", "failed"}),
+    ("sosalgo.kernel.exact.Verdict", {"exact", "failed"}),
     ("sosalgo.polyopt.RelaxationStatus",
      {"optimal", "inaccurate", "infeasible", "failed", "skipped", "inconsistent"}),
 ])

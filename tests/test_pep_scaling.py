@@ -103,8 +103,8 @@ def _nesterov_balls(N: int, digits: int):
     import mpmath
     import sympy as sp
 
+    from sosalgo.kernel.exact import Ball, enclose
     from sosalgo.pep.structure import coarsen, deadbeat_gain, enclosure_bits
-    from sosalgo.verify.exact import Ball, enclose
 
     beta_s = (sp.sqrt(10) - 1) / (sp.sqrt(10) + 1)
     beta = enclose(beta_s, digits)

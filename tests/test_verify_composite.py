@@ -15,9 +15,9 @@ from scipy.optimize import minimize
 from sosalgo.certificates import get_family
 from sosalgo.classes import CLASSES
 from sosalgo.cli import cli
+from sosalgo.kernel.exact import Ball
 from sosalgo.model import bind
 from sosalgo.spec import load_spec
-from sosalgo.verify.exact import Ball
 from sosalgo.verify.exact_composite import exact_class_inequalities, verify_exact_composite
 from sosalgo.verify.prox_functions import ProxFunction, ProxProblem, class_functions
 from sosalgo.verify.simulate_composite import run_method, simulate_composite

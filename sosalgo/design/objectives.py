@@ -327,7 +327,7 @@ RECERTIFY_STEPS = (1e-6, 1e-5, 1e-4)  # rho + step (1 - rho) tried when the proo
 
 def float_up(q: Any) -> float:
     """The smallest float >= the rational ``q`` (a Fraction or "p/q")."""
-    from sosalgo.verify.exact import rational
+    from sosalgo.kernel.exact import rational
 
     x = rational(q)
     f = float(x)
@@ -338,7 +338,7 @@ def _exact_rate(spec: Spec, kappa: float, theta: Mapping[str, float],
                 family: CertificateFamily, rho: float, cert: dict[str, Any]) -> str | None:
     """The proven rational rate ("p/q") of ``cert`` at ``rho`` (the family's exact
     verifier, as ``sosalgo analyze --verify`` uses it), or None when not proven."""
-    from sosalgo.verify.exact import Verdict
+    from sosalgo.kernel.exact import Verdict
 
     try:
         ex = family.exact_check(spec, kappa, rho, cert, theta)

@@ -120,7 +120,7 @@ def _rat(x: float | Fraction) -> sp.Rational:
 
 def _outward(lo: sp.Expr, hi: sp.Expr) -> tuple[Fraction, Fraction]:
     """Float ends lo_f <= lo and hi_f >= hi of an exact interval."""
-    from sosalgo.verify.exact import enclose
+    from sosalgo.kernel.exact import enclose
 
     a, b = enclose(lo), enclose(hi)
     lo_f, hi_f = float(a.lo), float(b.hi)

@@ -4,7 +4,7 @@ The method is rebuilt on exact numbers about the class as written
 (:func:`exact_base`): m (an m: 0 spec's L) from the spec's own expression (``1/10`` is
 1/10), kappa the decimal it was given as, L = kappa m; every parameter and matrix entry
 from the spec's expressions with sympy, irrational entries enclosed in rational balls
-(:func:`sosalgo.verify.exact.enclose`), the classes' tilted inequalities from exact formulas
+(:func:`sosalgo.kernel.exact.enclose`), the classes' tilted inequalities from exact formulas
 (:func:`sosalgo.verify.exact_composite.exact_class_inequalities`), the fixed points
 (u and the optimal-subgradient fixed points) solved exactly with sympy, and the PEP
 structure (:func:`sosalgo.pep.structure.build_structure`) built again on those numbers,
@@ -125,7 +125,7 @@ def _exact_matrices(spec: Spec, env: dict[sp.Symbol, sp.Expr]) -> dict[str, sp.M
 
 
 def _balls(M: sp.Matrix, digits: int) -> np.ndarray:
-    from sosalgo.verify.exact import enclose
+    from sosalgo.kernel.exact import enclose
 
     out = np.empty(M.shape, dtype=object)
     for i in range(M.shape[0]):
@@ -157,9 +157,9 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
     """The exact :class:`Method` of ``spec`` (``om``: its float OracleMethod, for shapes),
     its irrational entries enclosed precisely enough for a trajectory of ``steps`` steps
     (:func:`sosalgo.pep.structure.enclosure_digits`)."""
+    from sosalgo.kernel.exact import Ball
+    from sosalgo.kernel.exact import enclose as enclose_at
     from sosalgo.kernel.expr.parse import to_sympy
-    from sosalgo.verify.exact import Ball
-    from sosalgo.verify.exact import enclose as enclose_at
     from sosalgo.verify.exact_composite import exact_class_inequalities
 
     K = np.array([[Fraction(float(v)) for v in row]
@@ -206,9 +206,9 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
 
 
 def _proven_zero(v: sp.Expr) -> bool:
-    """``v == 0`` proven (:func:`sosalgo.verify.exact.is_zero`); a number sympy already
+    """``v == 0`` proven (:func:`sosalgo.kernel.exact.is_zero`); a number sympy already
     knows to be nonzero is answered without simplification."""
-    from sosalgo.verify.exact import is_zero
+    from sosalgo.kernel.exact import is_zero
 
     return v.is_zero is not False and is_zero(v)
 
@@ -242,7 +242,7 @@ def _exact_start_call(mats: dict[str, sp.Matrix], X: sp.Matrix, om: Any) -> int 
 
 def ball(v: Any) -> arb:
     """The arb enclosure of an exact number (int, Fraction, str ``p/q``, or a rational
-    :class:`~sosalgo.verify.exact.Ball`: centre and radius, the radius rounded up)."""
+    :class:`~sosalgo.kernel.exact.Ball`: centre and radius, the radius rounded up)."""
     if hasattr(v, "c"):
         c = ball(v.c)
         if not v.r:
@@ -364,7 +364,7 @@ def prove_scaled_psd(S: arb_mat, w: np.ndarray) -> tuple[bool, Fraction, str]:
     """Prove D S D ⪰ delta I (D = diag(w), powers of two; so S ⪰ 0) for every matrix in
     the balls: a floating-point Cholesky factor L of mid(D S D) - t I, then
     D S D - t I - L L' = E in ball arithmetic and |E|_F < t, so D S D ⪰ (t - |E|_F) I."""
-    from sosalgo.verify.exact import rational
+    from sosalgo.kernel.exact import rational
     from sosalgo.witnesses.method import arb_fraction
 
     d = S.nrows()
@@ -405,8 +405,8 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
     ``proven``, ``tau_proven`` (p/q), ``tau_proven_float``, ``detail``, ``seconds``.
     ``w``: the scale of the basis (powers of two, default 1); ``mt``: the exact method
     (built here when not given)."""
+    from sosalgo.kernel.exact import fraction_str, rational
     from sosalgo.pep.bind import bound_method
-    from sosalgo.verify.exact import fraction_str, rational
 
     t0 = time.perf_counter()
     out: dict[str, Any] = {"proven": False, "tau_proven": None, "tau_proven_float": None}

@@ -29,19 +29,12 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Any
 
+from sosalgo.kernel.exact import DEFAULT_DIGITS, Ball, Verdict, fraction_str, rational
 from sosalgo.sensitivity.limsup import limsup_bound
 from sosalgo.sensitivity.sdp import noise_windows
 from sosalgo.sensitivity.window import noise_parts, past_noise, state_size
 from sosalgo.spec.types import Spec
-from sosalgo.verify.exact import (
-    DEFAULT_DIGITS,
-    Ball,
-    Verdict,
-    exact_algorithm,
-    exact_fixed_point,
-    fraction_str,
-    rational,
-)
+from sosalgo.verify.exact import exact_algorithm, exact_fixed_point
 from sosalgo.verify.exact_interpolation import Refused, symmetric_matrix
 
 __all__ = ["NoiseProof", "verify_composite_noise", "verify_noise", "sqrt_upper"]

@@ -35,23 +35,22 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from sosalgo.kernel.expr.parse import to_sympy
-from sosalgo.model import bind
-from sosalgo.spec.types import BASE_SYMBOLS, ORACLE_MATRIX_NAMES, Spec
-from sosalgo.verify.exact import (
+from sosalgo.kernel.exact import (
     DEFAULT_DIGITS,
     DEFAULT_MAX_DEN,
     DEFAULT_RHO_STEPS,
     Ball,
-    ExactAlgorithm,
     Verdict,
     enclose,
-    exact_algorithm,
     fraction_str,
     is_zero,
     rational,
     rho_candidates,
 )
+from sosalgo.kernel.expr.parse import to_sympy
+from sosalgo.model import bind
+from sosalgo.spec.types import BASE_SYMBOLS, ORACLE_MATRIX_NAMES, Spec
+from sosalgo.verify.exact import ExactAlgorithm, exact_algorithm
 from sosalgo.verify.exact_interpolation import (
     InterpolationExactResult,
     Refused,

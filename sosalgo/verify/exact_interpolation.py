@@ -31,17 +31,12 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.model import bind, fixed_point
-from sosalgo.spec.types import MATRIX_NAMES, Spec
-from sosalgo.verify.exact import (
+from sosalgo.kernel.exact import (
     DEFAULT_DIGITS,
     DEFAULT_MAX_DEN,
     DEFAULT_RHO_STEPS,
     Ball,
-    ProofResult,
     Verdict,
-    exact_algorithm,
-    exact_fixed_point,
     fraction_str,
     frobenius_bound,
     is_zero,
@@ -50,6 +45,9 @@ from sosalgo.verify.exact import (
     rho_candidates,
     round_down,
 )
+from sosalgo.model import bind, fixed_point
+from sosalgo.spec.types import MATRIX_NAMES, Spec
+from sosalgo.verify.exact import ProofResult, exact_algorithm, exact_fixed_point
 
 __all__ = ["InterpolationExactResult", "float_entry", "object_matrix", "symmetric_matrix",
            "verify_exact_interpolation"]

@@ -28,7 +28,7 @@ floating point in the proof path:
    decide G <= 0 together): the rounded certificate is moved onto them by an
    exact rational solve (the moved values must stay within 1e-8 of the given ones: a
    repair of rounding, not a new certificate). Then every block is proven <= 0 by an exact
-   LDL^T (:func:`sosalgo.verify.exact.prove_psd` of -G, which decides semidefiniteness
+   LDL^T (:func:`sosalgo.kernel.exact.prove_psd` of -G, which decides semidefiniteness
    exactly) and every row <= 0 exactly; C is raised by a relative 1e-12 .. 1e-6 when the
    initial block needs it.
 """
@@ -47,9 +47,10 @@ import numpy as np
 import scipy.linalg as sla
 import sympy as sp
 
+from sosalgo.kernel.exact import Ball, Verdict, fraction_str, prove_psd
 from sosalgo.kernel.expr.parse import to_sympy
 from sosalgo.spec.types import BASE_SYMBOLS, ORACLE_MATRIX_NAMES, Spec, value_order
-from sosalgo.verify.exact import Ball, ExactAlgorithm, Verdict, fraction_str, prove_psd
+from sosalgo.verify.exact import ExactAlgorithm
 from sosalgo.verify.exact_composite import (
     ExactOracleMethod,
     exact_class_inequalities,
@@ -582,7 +583,7 @@ def _check(blocks: list, rows: list, x: list[Fraction]) -> tuple[dict[str, str],
 
 def _constants(C: float) -> list[Fraction]:
     """C and rationals slightly above it (C can only help the initial block)."""
-    from sosalgo.verify.exact import rational_at_least
+    from sosalgo.kernel.exact import rational_at_least
 
     out: list[Fraction] = []
     for step in CONSTANT_STEPS:
