@@ -23,11 +23,11 @@ from typing import Any
 import numpy as np
 from flint import arb, arb_mat
 
+from sosalgo.kernel.arb import arb_fraction, precision
 from sosalgo.pep.exact import ball, exact_method
 from sosalgo.pep.structure import Method
 from sosalgo.pep.terms import Term
 from sosalgo.spec import Spec
-from sosalgo.witnesses.method import arb_fraction, precision
 
 __all__ = ["PREC", "ArbView", "arb_view", "check_witness", "fit_values", "pair_forms",
            "positions", "q_str"]

@@ -315,7 +315,7 @@ def _repaired(mt: Method, st: PEPStructure, lam: list[Fraction], tb: arb
     proven >= 0 (the float dual's round-off) is raised by increasing the multiplier of
     the pair (x*, point i), whose only value coefficient is -alpha s on F_i, by a binary
     rational at least the deficit / (alpha s) (S moves by that times the pair's form)."""
-    from sosalgo.witnesses.method import arb_fraction
+    from sosalgo.kernel.arb import arb_fraction
 
     def residual(lq: list[Fraction]) -> tuple[arb_mat, list[arb]]:
         quad, lin = _residual_parts(mt, st, lq)
@@ -364,8 +364,8 @@ def prove_scaled_psd(S: arb_mat, w: np.ndarray) -> tuple[bool, Fraction, str]:
     """Prove D S D ⪰ delta I (D = diag(w), powers of two; so S ⪰ 0) for every matrix in
     the balls: a floating-point Cholesky factor L of mid(D S D) - t I, then
     D S D - t I - L L' = E in ball arithmetic and |E|_F < t, so D S D ⪰ (t - |E|_F) I."""
+    from sosalgo.kernel.arb import arb_fraction
     from sosalgo.kernel.exact import rational
-    from sosalgo.witnesses.method import arb_fraction
 
     d = S.nrows()
     Dm = arb_mat(d, d)
@@ -448,7 +448,7 @@ def prove_at(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
     """(proven, multipliers, delta, detail) of measure <= tq with the multipliers ``lam``
     (by pair of ``st``): c_F >= 0 (after :func:`_repaired` when ``repair``) and
     diag(w) S diag(w) ⪰ delta I (:func:`prove_scaled_psd`), in ball arithmetic."""
-    from sosalgo.witnesses.method import precision
+    from sosalgo.kernel.arb import precision
 
     with precision(PREC):
         I0 = arb_mat([[ball(v) for v in row] for row in st.init_q])
