@@ -153,3 +153,49 @@ def test_status_enums_write_their_strings(name, values):
     for m in enum:
         assert m == m.value and format_value(m) == m.value and f"{m}" == m.value
         assert json.loads(json.dumps({"status": m})) == {"status": m.value}
+
+
+def _absolute_imports(path: Path) -> list[str]:
+    """Every module a file imports, relative imports resolved, ``from a import b`` giving
+    both ``a`` and ``a.b`` (b may be a submodule; only ``sosalgo.b`` from the top package,
+    whose ``__init__`` imports nothing), deferred imports included."""
+    parts = list(path.relative_to(PKG.parent).with_suffix("").parts)
+    package = parts[:-1]  # the package a relative import starts from
+    out = []
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            out += [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = package[: len(package) - node.level + 1] if node.level else []
+            module = ".".join(base + ([node.module] if node.module else []))
+            out += ([module] if module != "sosalgo" else [])
+            out += [f"{module}.{a.name}" for a in node.names]
+    return out
+
+
+def test_kernel_imports_nothing_above():
+    """The numeric kernel (layer 0: expressions, exact arithmetic, conic data, the solver
+    door, the process pool) imports nothing of sosalgo but sosalgo.errors and itself."""
+    files = sorted((PKG / "kernel").rglob("*.py"))
+    assert {"solvers.py", "exact.py", "conic.py", "parallel.py"} <= {f.name for f in files}
+    above = []
+    for f in files:
+        for target in _absolute_imports(f):
+            inside = (target.split(".")[:2] in (["sosalgo", "kernel"], ["sosalgo", "errors"])
+                      or not target.startswith("sosalgo"))
+            if not inside:
+                above.append((str(f.relative_to(PKG.parent)), target))
+    assert above == []
+
+
+def test_conic_solvers_are_imported_behind_one_door():
+    """Clarabel and SCS are imported in at most two modules of sosalgo (the solver door),
+    so every conic solve shares its settings, interruption handling and trusted statuses."""
+    users: dict[str, set[str]] = {"clarabel": set(), "scs": set()}
+    for f in PKG.rglob("*.py"):
+        for target in _absolute_imports(f):
+            top = target.split(".")[0]
+            if top in users:
+                users[top].add(str(f.relative_to(PKG.parent)))
+    assert "sosalgo/kernel/solvers.py" in users["clarabel"]
+    assert all(len(mods) <= 2 for mods in users.values()), users
