@@ -11,7 +11,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["AffineBlock", "ExactBlock", "LMIProblem", "svec", "svec_index", "unsvec"]
+__all__ = ["AffineBlock", "ExactBlock", "LMIProblem", "svec", "svec_index", "sym_basis",
+           "unit_quads", "unsvec"]
 
 SQRT2 = math.sqrt(2.0)
 
@@ -110,4 +111,20 @@ def unsvec(v: np.ndarray, d: int) -> np.ndarray:
     out = np.zeros((d, d))
     out[r, c] = v / s
     out[c, r] = v / s
+    return out
+
+
+def sym_basis(n: int) -> list[tuple[int, int]]:
+    """The pairs (i, j), i <= j, of an n x n symmetric matrix, row by row: the coordinates
+    of a symmetric matrix variable in the families' decision vectors."""
+    return [(i, j) for i in range(n) for j in range(i, n)]
+
+
+def unit_quads(Z: np.ndarray, pairs: list[tuple[int, int]] | None = None) -> np.ndarray:
+    """Z' E_ab Z for every pair (a, b) (default: every a <= b, row by row, as
+    :func:`sym_basis`), E_ab the symmetric unit matrix (1 at (a, b) and (b, a))."""
+    ia, ib = np.triu_indices(Z.shape[0]) if pairs is None else np.array(pairs).T
+    out = Z[ia][:, :, None] * Z[ib][:, None, :]
+    off = ia != ib
+    out[off] = out[off] + out[off].transpose(0, 2, 1)
     return out
