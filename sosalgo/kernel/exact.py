@@ -5,7 +5,8 @@
   principal minors (n <= 8) or to LDL^T with diagonal pivoting.
 - :class:`Ball`: a real number known to lie in c ± r (exact rationals), closed under
   +, -, *; :func:`enclose` puts a constant sympy expression (sqrt, exp, log, pi, ...) in
-  a rational ball by mpmath's outward-rounding interval arithmetic.
+  a rational ball by mpmath's outward-rounding interval arithmetic;
+  :func:`prove_definite` proves sign * M ⪰ delta I for every matrix of a ball matrix M.
 - :func:`rational` (the exact binary value of a float), :func:`rational_at_least`,
   :func:`rho_candidates`, :func:`round_down`: roundings that never go the unsafe way.
 - :class:`Verdict`: what an exact check concludes.
@@ -23,14 +24,15 @@ from fractions import Fraction
 from typing import Any
 
 import mpmath
+import numpy as np
 import sympy as sp
 from mpmath import libmp
 
 __all__ = [
     "Ball", "BallMatrix", "DEFAULT_DIGITS", "DEFAULT_MAX_DEN", "DEFAULT_RHO_STEPS", "Matrix",
     "PSDProof", "Verdict", "enclose", "float_str", "fraction_str", "frobenius_bound",
-    "is_exact", "is_zero", "prove_psd", "psd_by_minors", "rational", "rational_at_least",
-    "rho_candidates", "round_down",
+    "is_exact", "is_zero", "object_matrix", "prove_definite", "prove_psd", "psd_by_minors",
+    "rational", "rational_at_least", "rho_candidates", "round_down", "symmetrize_balls",
 ]
 
 
@@ -234,6 +236,51 @@ class Ball:
 
 
 BallMatrix = list[list[Ball]]
+
+
+def object_matrix(mat: list[list[Ball]]) -> np.ndarray:
+    """Rows of balls as an object array (kept exact: numpy never converts them)."""
+    out = np.empty((len(mat), len(mat[0]) if mat else 0), dtype=object)
+    for i, row in enumerate(mat):
+        for j, b in enumerate(row):
+            out[i, j] = b
+    return out
+
+
+def symmetrize_balls(M: np.ndarray) -> list[list[Ball]]:
+    """A square matrix of numbers or balls as a symmetric ball matrix: the centres must
+    agree across the diagonal, each pair of entries gets the larger radius."""
+    s = M.shape[0]
+    out = [[Ball.of(M[i, j]) for j in range(s)] for i in range(s)]
+    for i in range(s):
+        for j in range(i):
+            if out[i][j].c != out[j][i].c:
+                raise AssertionError("matrix centre is not symmetric")
+            r = max(out[i][j].r, out[j][i].r)
+            out[i][j] = out[j][i] = Ball(out[i][j].c, r)
+    return out
+
+
+def prove_definite(M: list[list[Ball]], sign: int) -> tuple[bool, Fraction, str]:
+    """Prove sign * M ⪰ delta I for every matrix in the ball matrix M; (ok, delta, detail)."""
+    eta = frobenius_bound(M)
+    S = [[sign * b.c for b in row] for row in M]
+    s = len(S)
+    try:
+        est = float(np.linalg.eigvalsh(np.array([[float(v) for v in row] for row in S]))[0])
+    except (OverflowError, np.linalg.LinAlgError):
+        est = math.nan
+    targets = []
+    if math.isfinite(est) and est > 0 and Fraction(f"{est / 2:.3g}") > eta:
+        targets.append(Fraction(f"{est / 2:.3g}"))
+    targets.append(eta)
+    detail = ""
+    for t in targets:
+        proof = prove_psd([[S[i][j] - (t if i == j else 0) for j in range(s)] for i in range(s)])
+        if proof.psd:
+            return True, round_down(t - eta), f"{proof.kind} ({proof.method})"
+        detail = proof.detail
+    return False, Fraction(0), f"not proven (min eig estimate {est:.3g}): {detail}"
 
 
 # --------------------------------------------------------------------------- enclosures

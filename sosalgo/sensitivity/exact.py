@@ -92,7 +92,7 @@ def _exact_windows(spec: Spec, kappa: float, theta: Mapping[str, float] | None, 
     ineqs, _ = exact_class_inequalities(CLASSES["smooth_strongly_convex"],
                                         {"m": Ball(ex.m), "L": Ball(ex.L)})
     alpha, Q = ineqs[0]
-    from sosalgo.verify.exact_interpolation import object_matrix
+    from sosalgo.kernel.exact import object_matrix
 
     mats = [object_matrix(ex.balls[k]) for k in ("A", "B", "C", "E")]
     dec, pos = noise_windows(*mats, alpha, Q, lag, obj=True)
@@ -140,7 +140,7 @@ def _read_limsup(cert: Mapping[str, Any], dec: Any, pos: Any, num: dict[str, Any
 def _prove(res: NoiseProof, dec: Any, pos: Any, num: dict[str, Any]) -> None:
     """The four parts in exact arithmetic; ``res`` becomes verified when all hold (with
     ``rho2`` in ``num``: the discounted parts and bound of ``noise_limsup``)."""
-    from sosalgo.verify.exact_interpolation import prove_definite, symmetrize_balls
+    from sosalgo.kernel.exact import prove_definite, symmetrize_balls
 
     rho2 = num.get("rho2")
     parts = noise_parts(dec, pos, num["P"], num["p"], num["s"], num["c"], num["eta"],
@@ -192,9 +192,9 @@ def verify_composite_noise(spec: Spec, kappa: float, cert: Mapping[str, Any],
     exact method, -D ⪰ delta I and Pq ⪰ delta I by rational LDL^T, the value rows exactly;
     gamma <= sqrt(s) rounded up; the fixed points proven exactly as for the rates
     (:func:`sosalgo.verify.exact_composite.fixed_point_failure`)."""
+    from sosalgo.kernel.exact import prove_definite, symmetrize_balls
     from sosalgo.sensitivity.composite import composite_noise_parts, exact_noise_structure
     from sosalgo.sensitivity.sdp import check_lag
-    from sosalgo.verify.exact_interpolation import prove_definite, symmetrize_balls
 
     start = time.perf_counter()
     res = NoiseProof(spec=spec.name)

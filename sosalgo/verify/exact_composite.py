@@ -44,8 +44,11 @@ from sosalgo.kernel.exact import (
     enclose,
     fraction_str,
     is_zero,
+    object_matrix,
+    prove_definite,
     rational,
     rho_candidates,
+    symmetrize_balls,
 )
 from sosalgo.kernel.expr.parse import to_sympy
 from sosalgo.model import bind
@@ -55,12 +58,9 @@ from sosalgo.verify.exact_interpolation import (
     InterpolationExactResult,
     Refused,
     float_entry,
-    object_matrix,
-    prove_definite,
     rational_near,
     settle,
     symmetric_matrix,
-    symmetrize_balls,
 )
 
 __all__ = ["CompositeExactResult", "ExactOracleMethod", "exact_class_inequalities",
