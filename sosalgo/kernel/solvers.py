@@ -9,6 +9,14 @@ infeasibility is ``infeasible``. Callers never read a raw solver status.
 
 The problem data go straight to Clarabel (upper-triangular scaled svec) or SCS
 (lower-triangular scaled svec), so one feasibility test costs well under a millisecond.
+
+This module is the only one that imports Clarabel and SCS. Conic data other than an
+:class:`~sosalgo.kernel.conic.LMIProblem` (the PEP, noise, witness and dual-bound SDPs)
+come as ``A x + s = b`` with cones written as ``(kind, size)`` pairs
+(:func:`clarabel_cones`) and are solved by :func:`clarabel_solve` (one solve) or
+:func:`solve_attempts` (a list of settings tried in turn); the statuses they return are
+classified by :func:`solver_status`, and every solve stops at Ctrl-C or SIGTERM
+(:mod:`sosalgo.kernel.interrupts`).
 """
 
 from __future__ import annotations
@@ -657,6 +665,9 @@ def solve_lmi(
         if out.status != Feasibility.FAILED or (out.near_boundary and i >= 1):
             return out
     return out
+
+
+# --------------------------------------------------------------------------- attempt lists
 
 
 @contextlib.contextmanager
