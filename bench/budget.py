@@ -1,10 +1,10 @@
-"""Calibration of the run-budget model (:mod:`sosalgo.budget`): peak resident memory and
+"""Calibration of the run-budget model (:mod:`sosalgo.kernel.budget`): peak resident memory and
 wall seconds of PEPs at several N (the exact proof, with or without the witness), and the
 parent's memory per grid point, each measured in a fresh process, beside what the model
 says (``python -m bench --only budget``).
 
 When the code changes how much a PEP or a grid point costs, rerun this and update the
-constants at the top of ``sosalgo/budget.py`` (the fitted values are printed). Seconds
+constants at the top of ``sosalgo/kernel/budget.py`` (the fitted values are printed). Seconds
 depend on the machine's load: calibrate on an idle machine."""
 
 from __future__ import annotations
@@ -68,7 +68,7 @@ def _child(code: str, *args: str) -> dict:
 
 
 def _pep_rows(cases) -> list[dict]:
-    from sosalgo import budget
+    from sosalgo.kernel import budget
 
     rows = []
     for spec, measure, steps, witness in cases:
@@ -96,7 +96,7 @@ def _fit(rows: list[dict]) -> tuple[float, float]:
 
 
 def run(quick: bool = False) -> None:
-    from sosalgo import budget
+    from sosalgo.kernel import budget
     from sosalgo.report import format_table
 
     rows = _pep_rows(QUICK_PEP if quick else PEP_CASES)

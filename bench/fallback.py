@@ -13,9 +13,9 @@ import time
 
 import numpy as np
 
-from sosalgo import solvers
 from sosalgo.analysis import analyze_algorithm
 from sosalgo.certificates.theorem1 import Theorem1
+from sosalgo.kernel import solvers
 from sosalgo.model import Algorithm, bind
 from sosalgo.spec import load_spec
 

@@ -61,6 +61,7 @@ _EXPORTS = {
     "verify_document": "sosalgo.documents",
     "read_result": "sosalgo.documents",
     "InputError": "sosalgo.errors",
+    "set_max_memory": "sosalgo.kernel.budget",
     "prove_bound": "sosalgo.design",
     "design": "sosalgo.design",  # the module, callable (see _CallableModule)
     "verify": "sosalgo.verify",

@@ -4,7 +4,7 @@ For fixed rho a family's inequalities are an LMI (Theorem 1: in (P, lambda)); a 
 search on rho in [0, 1] (Newton-type steps on a continuous feasibility margin, secant steps
 without its slope, bisection with a custom solver chain) returns the smallest rho found
 feasible, with its certificate. Only a step the solver reports *solved* and whose point
-passes the eigenvalue check counts as feasible (see :mod:`sosalgo.solvers`), so a reported
+passes the eigenvalue check counts as feasible (see :mod:`sosalgo.kernel.solvers`), so a reported
 rate always comes with a checked certificate.
 
 A family with several members to choose from (the interpolation family without a given
@@ -28,11 +28,11 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo import solvers as _solvers
 from sosalgo.certificates import FAMILIES, default_family_name, get_family
-from sosalgo.certificates.base import CertificateFamily, LMIProblem
-from sosalgo.model import Algorithm, bind
-from sosalgo.solvers import (
+from sosalgo.certificates.base import CertificateFamily
+from sosalgo.kernel import solvers as _solvers
+from sosalgo.kernel.conic import LMIProblem
+from sosalgo.kernel.solvers import (
     DEFAULT_SOLVERS,
     Feasibility,
     Margin,
@@ -41,6 +41,7 @@ from sosalgo.solvers import (
     solve_lmi,
     solve_margin,
 )
+from sosalgo.model import Algorithm, bind
 from sosalgo.spec import Spec
 
 __all__ = [
@@ -168,7 +169,7 @@ class _Search:
     def margin(self, rho: float, rough: bool = True) -> Margin:
         """t(rho), solved again precisely when its sign is within the default accuracy and
         that uncertainty would move the root by more than a quarter tolerance; ``rough``:
-        without iterative refinement (:func:`sosalgo.solvers.solve_margin`), except where
+        without iterative refinement (:func:`sosalgo.kernel.solvers.solve_margin`), except where
         the certificate degenerates (below ``degenerate_below``: :meth:`degenerate`)."""
         self.solves += 1
         if rho < self.degenerate_below:
@@ -427,7 +428,7 @@ def analyze_algorithm(
     """Smallest certified rho in [0, 1] to width ``tol`` and ``REL_TOL`` (1 - rho) (eq. 16).
 
     ``method="secant"`` (default) root-finds on the continuous margin of
-    :func:`sosalgo.solvers.solve_margin` (Newton-type steps with its slope from the dual
+    :func:`sosalgo.kernel.solvers.solve_margin` (Newton-type steps with its slope from the dual
     solution, secant steps without); ``"bisection"`` (also used whenever ``solvers`` is not
     the default chain) bisects on plain feasibility.
     Both keep a bracket [lo, hi] with hi certified by a checked certificate. ``warning``
@@ -961,37 +962,6 @@ class SublinearResult:
                 "family": "sublinear"}
 
 
-def _sublinear_sdp(problem: LMIProblem, rho: float | None,
-                   near: bool = False) -> tuple[str, np.ndarray | None]:
-    """One Clarabel solve of the blocks without margin: minimize r (= rho^2, a variable)
-    when ``rho`` is None, else a feasibility point at rho (the solver's interior point).
-    Returns (status, (y, r)) with y, r only when solved (or almost solved with ``near``:
-    an estimate to start from, never a certificate)."""
-    import clarabel
-    import scipy.sparse as sps
-
-    form = _solvers._form(problem, True)
-    A, b = form.data(0.0 if rho is None else rho, 0.0)
-    A, b = A.copy(), b.copy()
-    q = np.zeros(problem.nvar)
-    if rho is None:  # b(r) = b0 + r b1: move r into the variables
-        A = sps.hstack([A, sps.csc_matrix(-form.b1[:, None])]).tocsc()
-        q = np.zeros(problem.nvar + 1)
-        q[-1] = 1.0
-    cones = [clarabel.NonnegativeConeT(1) if s == 1 else clarabel.PSDTriangleConeT(s)
-             for s in form.sizes]
-    zero = sps.csc_matrix((len(q), len(q)))
-    try:
-        sol = _solvers.clarabel_solve(zero, q, A, b, cones, _solvers._clarabel_settings(True))
-    except Exception as exc:  # noqa: BLE001 - a crash is no answer
-        return f"exception: {type(exc).__name__}", None
-    status = str(sol.status)
-    kind = _solvers.solver_status(status)
-    if kind != _solvers.SolverStatus.SOLVED and not (near and kind.near):
-        return status, None
-    return status, np.array(sol.x)
-
-
 def _tight_rows(data: Any, sp: Any, y: np.ndarray) -> frozenset[int]:
     """Scalar rows (and multipliers) at 0 at the solver's interior point: every
     certificate has them at 0, so they are solved for as equalities."""
@@ -1014,7 +984,7 @@ def _certify_constant(data: Any, r_star: float, solvers: Sequence[str],
         kernels: dict[str, np.ndarray] = {}
         for _ in range(3):  # each round: the interior point, its zeros, the strict check
             sp = sublinear_problem(data, tight, kernels, r)
-            status, z = _sublinear_sdp(sp.problem, math.sqrt(r))
+            status, z = _solvers.lmi_point(sp.problem, math.sqrt(r))
             count[0] += 1
             if z is None:
                 break
@@ -1076,7 +1046,7 @@ def _sublinear_degree(om: Any, deg: int, solvers: Sequence[str],
     )
 
     data = sublinear_data(om, deg)
-    status, z = _sublinear_sdp(sublinear_problem(data).problem, None, near=True)
+    status, z = _solvers.lmi_point(sublinear_problem(data).problem, None, near=True)
     count[0] += 1
     if z is None or not z[-1] > 0:
         return None, None

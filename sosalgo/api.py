@@ -33,7 +33,7 @@ __all__ = ["analyze", "as_spec", "copy_examples", "design", "example", "lmi", "n
 def example(name: str) -> Spec:
     """A shipped example spec by name (``sosalgo examples`` lists them), from the
     installed package: no checkout needed. ValueError names the available ones."""
-    from sosalgo.resources import example_specs
+    from sosalgo.kernel.resources import example_specs
     from sosalgo.spec import spec_from_text
 
     specs = example_specs()
@@ -202,7 +202,7 @@ def copy_examples(names: Sequence[str] = (), out_dir: str | Path = ".") -> dict[
     """Copy shipped example specs (default: all) into ``out_dir`` as ``NAME.yaml``; returns
     each target path and whether it was written (a different existing file is kept)."""
     from sosalgo.inputs import out_dir as checked_dir
-    from sosalgo.resources import example_specs
+    from sosalgo.kernel.resources import example_specs
 
     found = example_specs()
     unknown = [n for n in names if n not in found]

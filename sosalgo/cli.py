@@ -327,7 +327,7 @@ def fig4(kappa: tuple[str, ...], time_limit: float, out: str, as_json: bool,
     kappas = sorted(set(_kappas(kappa or ("{from: 1.5, to: 1000, points: 20, scale: log}",))
                         or []))
     check_time_limit(time_limit, "--time-limit")
-    from sosalgo import budget
+    from sosalgo.kernel import budget
 
     budget.set_max_memory(max_memory)
     workers = budget.announce_workers(workers)
@@ -544,8 +544,8 @@ def examples(names: tuple[str, ...], copy_to: str | None) -> None:
     """List the example specs shipped with sosalgo, or copy them to start from.
     Python: sosalgo.example(NAME), sosalgo.copy_examples."""
     from sosalgo.api import copy_examples, example
+    from sosalgo.kernel.resources import example_specs
     from sosalgo.report import format_table
-    from sosalgo.resources import example_specs
 
     found = example_specs()
     unknown = [n for n in names if n not in found]

@@ -43,14 +43,14 @@ class Terminated(BaseException):
 
 def on_sigterm(signum: int, frame: Any) -> None:
     """SIGTERM: Terminated, at once or when the native solve under way has stopped."""
-    from sosalgo.interrupts import request
+    from sosalgo.kernel.interrupts import request
 
     request(Terminated())
 
 
 def on_sigint(signum: int, frame: Any) -> None:
     """Ctrl-C: KeyboardInterrupt, at once or when the native solve under way has stopped."""
-    from sosalgo.interrupts import request
+    from sosalgo.kernel.interrupts import request
 
     request(KeyboardInterrupt())
 

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from sosalgo.errors import ModelError
-from sosalgo.expr.compile import NumericError, compile_expression, compile_matrix
+from sosalgo.kernel.expr.compile import NumericError, compile_expression, compile_matrix
 from sosalgo.oracles import check_magnitudes
 from sosalgo.spec.types import BASE_NAMES, MATRIX_NAMES, Spec, value_order
 

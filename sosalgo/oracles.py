@@ -247,14 +247,14 @@ def _is_zero(e) -> bool:
 
 
 def _value(e) -> float:
-    from sosalgo.expr import constant_value
+    from sosalgo.kernel.expr import constant_value
 
     return constant_value(e)
 
 
 def bind_functions(spec: Spec, values: list[float]) -> tuple[BoundFunction, ...]:
     """The spec's functions with their parameters at (m, L, kappa) = ``values``."""
-    from sosalgo.expr.compile import NumericError, compile_expression
+    from sosalgo.kernel.expr.compile import NumericError, compile_expression
     from sosalgo.spec.types import BASE_NAMES
 
     out = []

@@ -18,8 +18,9 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.certificates.base import AffineBlock, CertificateFamily, ExactBlock, LMIProblem
+from sosalgo.certificates.base import CertificateFamily
 from sosalgo.certificates.theorem1 import THEOREM1, theorem1_terms
+from sosalgo.kernel.conic import AffineBlock, ExactBlock, LMIProblem
 
 
 class DiagonalTheorem1(CertificateFamily):

@@ -7,8 +7,8 @@ import pytest
 
 from sosalgo.analysis import analyze_algorithm, analyze_spec
 from sosalgo.certificates import THEOREM1
+from sosalgo.kernel.solvers import SOLVERS
 from sosalgo.model import Algorithm, bind
-from sosalgo.solvers import SOLVERS
 from sosalgo.spec import load_spec
 
 from .conftest import SPECS

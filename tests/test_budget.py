@@ -17,9 +17,9 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from sosalgo import budget
 from sosalgo.cli import cli
 from sosalgo.errors import InputError
+from sosalgo.kernel import budget
 
 from .conftest import ROOT, SPECS
 
@@ -338,7 +338,7 @@ def test_a_signal_ends_a_long_solve_at_once_and_keeps_finished_rows(tmp_path, ho
 
 
 def test_an_interruption_inside_a_native_solve_waits_for_it_to_stop():
-    from sosalgo import interrupts
+    from sosalgo.kernel import interrupts
 
     with pytest.raises(KeyboardInterrupt):
         interrupts.request(KeyboardInterrupt())  # outside a solve: at once
@@ -355,7 +355,7 @@ SLOW_SOLVE = """
 import os, signal, sys, threading, time
 import numpy as np, scipy.sparse as sps, clarabel
 from sosalgo.cli_errors import Terminated, on_sigterm
-from sosalgo.solvers import clarabel_solve, quiet_settings
+from sosalgo.kernel.solvers import clarabel_solve, quiet_settings
 signal.signal(signal.SIGTERM, on_sigterm)
 n = 90  # one SDP of tens of seconds (7 iterations of seconds each)
 d = n * (n + 1) // 2

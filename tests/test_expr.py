@@ -5,8 +5,8 @@ from __future__ import annotations
 import pytest
 import sympy as sp
 
-from sosalgo.expr import ExprError, constant_value, parse_expression, parse_tree, to_sympy
-from sosalgo.expr.compile import NumericError, compile_expression
+from sosalgo.kernel.expr import ExprError, constant_value, parse_expression, parse_tree, to_sympy
+from sosalgo.kernel.expr.compile import NumericError, compile_expression
 
 K, H = sp.symbols("kappa h")
 NAMES = {"kappa": K, "h": H}

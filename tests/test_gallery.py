@@ -119,7 +119,7 @@ def test_every_spec_in_the_folder_gets_a_page_and_an_index_line(site: Path) -> N
 
 def test_the_gallery_shows_every_shipped_example() -> None:
     """The default folder of the gallery is the folder `sosalgo examples` ships."""
-    from sosalgo.resources import example_specs
+    from sosalgo.kernel.resources import example_specs
 
     class Config:
         sosalgo_gallery_specs = None
@@ -228,7 +228,7 @@ def test_cache_key_follows_the_spec_text() -> None:
 def test_whole_gallery_and_getting_started_build(tmp_path: Path) -> None:
     """Every shipped spec gets a page with a rate (or 'none certified') at each of its
     table kappas; every command of the getting-started page succeeds."""
-    from sosalgo.resources import example_specs
+    from sosalgo.kernel.resources import example_specs
 
     specs = {n: p.read_text() for n, p in example_specs().items()}
     page = (ROOT / "docs" / "getting-started.md").read_text()

@@ -25,7 +25,7 @@ from hypothesis import strategies as st
 
 from sosalgo.cli import cli
 from sosalgo.errors import InputError
-from sosalgo.expr.tree import MAX_DEGREE, MAX_EXPONENT, ExprError, parse_tree
+from sosalgo.kernel.expr.tree import MAX_DEGREE, MAX_EXPONENT, ExprError, parse_tree
 from sosalgo.model import ModelError, bind
 from sosalgo.oracles import consistent_solution
 from sosalgo.spec import SpecError, load_spec, spec_from_text
@@ -107,7 +107,7 @@ def test_deep_nesting_through_tied_parameters_is_refused():
 
 
 def test_shipped_specs_are_well_inside_the_bounds():
-    from sosalgo.expr.tree import measure
+    from sosalgo.kernel.expr.tree import measure
 
     for path in sorted(SPECS.glob("*.yaml")):
         spec = load_spec(path)

@@ -66,8 +66,9 @@ def test_pair_rows_are_sparse_and_match_the_dense_forms(spec, N):
     """svec Q_k of every pair, built on the columns the pair uses, equals the dense
     X_k' Qc_k X_k (einsum) on a sample, and its entries grow like the pairs, not like
     pairs times d^2 (the memory of a long horizon)."""
+    from sosalgo.kernel.conic import svec
     from sosalgo.pep.core import pep_problem
-    from sosalgo.pep.sdp import pep_data, svec
+    from sosalgo.pep.sdp import pep_data
 
     loaded = sosalgo.load_spec(SPECS / spec)
     mt, st, *_ = pep_problem(loaded, 10.0, N, None, None)
@@ -102,8 +103,8 @@ def _nesterov_balls(N: int, digits: int):
     import mpmath
     import sympy as sp
 
+    from sosalgo.kernel.exact import Ball, enclose
     from sosalgo.pep.structure import coarsen, deadbeat_gain, enclosure_bits
-    from sosalgo.verify.exact import Ball, enclose
 
     beta_s = (sp.sqrt(10) - 1) / (sp.sqrt(10) + 1)
     beta = enclose(beta_s, digits)

@@ -6,8 +6,8 @@ import warnings
 
 import numpy as np
 
-from sosalgo.certificates.base import AffineBlock, LMIProblem
-from sosalgo.solvers import (
+from sosalgo.kernel.conic import AffineBlock, LMIProblem
+from sosalgo.kernel.solvers import (
     Feasibility,
     SolverStatus,
     check_point,

@@ -19,19 +19,17 @@ from hypothesis import strategies as st
 
 from sosalgo.analysis import analyze_spec
 from sosalgo.certificates.theorem1 import THEOREM1, theorem1_terms
+from sosalgo.kernel.exact import _pivoted_ldl, enclose, prove_psd, psd_by_minors, rational_at_least
 from sosalgo.model import Algorithm, bind
 from sosalgo.spec import load_spec
 from sosalgo.verify import (
     function_suite,
     lrp_counterexample,
-    prove_psd,
-    psd_by_minors,
     simulate_check,
     theorem1_exact,
     verify_exact,
     write_certificate,
 )
-from sosalgo.verify.exact import _pivoted_ldl, enclose, rational_at_least
 
 SPECS = sorted((Path(__file__).resolve().parents[1] / "specs").glob("*.yaml"))
 KAPPAS = (2, 10, 100)

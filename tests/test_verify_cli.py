@@ -9,7 +9,7 @@ from click.testing import CliRunner
 
 from sosalgo.batch.sweeps import run_analysis_sweep
 from sosalgo.cli import cli
-from sosalgo.solvers import SOLVERS
+from sosalgo.kernel.solvers import SOLVERS
 from sosalgo.spec import load_spec
 
 from .conftest import SPECS

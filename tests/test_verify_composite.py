@@ -18,9 +18,9 @@ from sosalgo.certificates.exact_composite import exact_class_inequalities, verif
 from sosalgo.classes import CLASSES
 from sosalgo.classes.members import ProxFunction
 from sosalgo.cli import cli
+from sosalgo.kernel.exact import Ball
 from sosalgo.model import bind
 from sosalgo.spec import load_spec
-from sosalgo.verify.exact import Ball
 from sosalgo.verify.prox_functions import ProxProblem
 from sosalgo.verify.simulate_composite import run_method, simulate_composite
 from tests.conftest import spec_path

@@ -14,6 +14,7 @@ from click.testing import CliRunner
 import sosalgo
 from sosalgo.analysis import analyze_spec
 from sosalgo.cli import cli
+from sosalgo.kernel.arb import arb_of
 from sosalgo.witnesses.brackets import (
     bracketed,
     has_root_outside,
@@ -21,7 +22,6 @@ from sosalgo.witnesses.brackets import (
     rate_bracket,
 )
 from sosalgo.witnesses.cycles import check_cycle, find_cycle
-from sosalgo.witnesses.method import arb_of
 
 SPECS = Path(__file__).resolve().parents[1] / "specs"
 

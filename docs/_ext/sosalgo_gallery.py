@@ -235,17 +235,13 @@ def setup(app: Sphinx) -> dict[str, Any]:
 # The two sosalgo internals the gallery uses, wherever the package layout keeps them.
 def to_sympy(expr: Any) -> Any:
     """A spec expression in sympy."""
-    try:
-        from sosalgo.kernel.expr.parse import to_sympy as convert
-    except ImportError:
-        from sosalgo.expr.parse import to_sympy as convert
+    from sosalgo.kernel.expr.parse import to_sympy as convert
+
     return convert(expr)
 
 
 def reference_values(spec: Any, kappa: float) -> dict[str, float | None]:
     """The spec's closed-form references at kappa (None where undefined)."""
-    try:
-        from sosalgo.spec.references import reference_values as values
-    except ImportError:
-        from sosalgo.batch.sweeps import reference_values as values
+    from sosalgo.spec.references import reference_values as values
+
     return values(spec, kappa)

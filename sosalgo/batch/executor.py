@@ -7,10 +7,11 @@ re-load the spec from its YAML text (cached per process), so nothing unpicklable
 Results are handed to ``on_row`` in the parent as each chunk finishes, so the caller can
 append them to a resumable CSV at once.
 
-Local pools (:func:`worker_pool`, also used by ``design``) never fork the calling process:
-a process that has run a solve holds Clarabel's solver threads, and a forked copy of it
-deadlocks in the solver. Workers come from a fork server (started fresh, with sosalgo's
-modules preloaded) or are spawned, and die with their parent.
+Local pools are the kernel's (:func:`sosalgo.kernel.parallel.worker_pool`, also used by
+``design``): they never fork the calling process (a process that has run a solve holds
+Clarabel's solver threads, and a forked copy of it deadlocks in the solver). Workers come
+from a fork server (started fresh, with the sweeps' modules preloaded) or are spawned, and
+die with their parent.
 """
 
 from __future__ import annotations
@@ -24,20 +25,19 @@ from collections.abc import Callable, Iterator, Sequence
 from typing import TYPE_CHECKING, Any
 
 from sosalgo.errors import InputError
+from sosalgo.kernel.parallel import kill_pool, listen_to_phases, quietly, worker_pool
 
 if TYPE_CHECKING:  # pragma: no cover - imported where a pool is started
-    from concurrent.futures import Future, ProcessPoolExecutor
+    from concurrent.futures import Future
 
-__all__ = ["BatchError", "Progress", "check_scheduler", "default_workers", "kill_pool",
-           "map_until", "note", "pool_context", "quietly", "run_batch", "show_phase",
-           "start_pool_server", "worker_pool"]
+__all__ = ["BatchError", "Progress", "check_scheduler", "note", "run_batch"]
 
 Row = dict[str, Any]
 ChunkFn = Callable[[str, str, dict[str, Any], list[dict[str, Any]]], list[Row]]
 SERIAL_BELOW = 8  # fewer tasks than this run in-process: pool start-up would dominate
 CONNECT_TIMEOUT = float(os.environ.get("SOSALGO_CONNECT_TIMEOUT", "20"))  # seconds
 NO_WORKER_TIMEOUT = float(os.environ.get("SOSALGO_NO_WORKER_TIMEOUT", "120"))
-# imported once by the fork server, so that a worker starts in milliseconds
+# imported once by the fork server of a sweep's pool, so that a worker starts in milliseconds
 PRELOAD = ("sosalgo.batch.sweeps", "clarabel")
 
 
@@ -46,17 +46,10 @@ class BatchError(InputError):
     no workers left): one line, exit code 2."""
 
 
-def default_workers() -> int:
-    """All cores this process may use."""
-    from sosalgo.budget import cores
-
-    return cores()
-
-
 class Progress:
     """A one-line progress bar on stderr: count, rate, ETA and what the running task is
-    doing (:func:`show_phase`); silent when disabled. ``done`` rows were read back from
-    ``resumed_from`` (a saved file): said once, on its own line."""
+    doing (:func:`sosalgo.kernel.parallel.show_phase`); silent when disabled. ``done`` rows
+    were read back from ``resumed_from`` (a saved file): said once, on its own line."""
 
     def __init__(self, total: int, label: str, enabled: bool = True, done: int = 0,
                  resumed_from: str | os.PathLike | None = None):
@@ -72,6 +65,7 @@ class Progress:
         self.width = 0  # length of the line on screen (a tty line is overwritten)
         if enabled:
             _ACTIVE = self
+            listen_to_phases(self.phase)
             if done:
                 where = f" from {resumed_from}" if resumed_from is not None else ""
                 sys.stderr.write(f"resumed: {done} of {total} rows read{where}\n")
@@ -121,11 +115,12 @@ class Progress:
         global _ACTIVE
         if _ACTIVE is self:
             _ACTIVE = None
+            listen_to_phases(None)
         if self.enabled and self.tty and self.count < self.total:
             sys.stderr.write("\n")
 
 
-_ACTIVE: Progress | None = None  # this process's bar, which :func:`show_phase` reaches
+_ACTIVE: Progress | None = None  # this process's bar, which :func:`note` clears
 
 
 def note(msg: str) -> None:
@@ -138,13 +133,6 @@ def note(msg: str) -> None:
     if clear:
         bar.width = 0
         bar._draw(force=True)
-
-
-def show_phase(name: str | None, detail: str = "") -> None:
-    """Tell this process's progress bar what the running task is doing (a no-op without
-    a bar, e.g. in a pool's worker: only a task run in the bar's process shows phases)."""
-    if _ACTIVE is not None:
-        _ACTIVE.phase(name, detail)
 
 
 def _fmt_time(sec: float) -> str:
@@ -189,7 +177,7 @@ def run_batch(
     worker is killed, the finished rows are kept)."""
     if not tasks:
         return
-    from sosalgo.budget import usable_workers
+    from sosalgo.kernel.budget import usable_workers
 
     workers = usable_workers(workers)
 
@@ -212,7 +200,7 @@ def run_batch(
     size = 1 if isolate else chunk_size(len(tasks), workers, _largest_chunk(fn))
     if progress is not None:
         progress.phase(f"starting {workers} workers")
-    pool = worker_pool(workers)
+    pool = worker_pool(workers, PRELOAD)
     try:
         pending: set[Future] = set()
         chunks = _chunks(tasks, size)
@@ -234,158 +222,6 @@ def run_batch(
         kill_pool(pool)  # interrupted or failed: do not wait for (or leave) running workers
         raise
     pool.shutdown(wait=True)
-
-
-def quietly(fn: Callable[..., Any], *args: Any) -> Any:
-    """``fn(*args)`` with numpy's floating-point warnings off: an overflow or a NaN shows in
-    the results (a point with non-finite data is not certified, the solvers are never given
-    such data), not as stray lines on stderr."""
-    import warnings
-
-    import numpy as np
-
-    with np.errstate(all="ignore"), warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        return fn(*args)
-
-
-def pool_context(preload: Sequence[str] = PRELOAD):
-    """The multiprocessing context of every local pool: a fork server (a fresh process with
-    ``preload`` imported, forked for each worker) where available, else spawn. Never a
-    fork of the caller, whose solver threads (Clarabel's thread pool, started by the first
-    solve) a forked worker would inherit without the threads: it deadlocks in the solver."""
-    import multiprocessing as mp
-
-    _start_tracker_quietly()
-    if "forkserver" in mp.get_all_start_methods():
-        ctx = mp.get_context("forkserver")
-        ctx.set_forkserver_preload(list(preload))  # read when the server starts (once)
-        return ctx
-    return mp.get_context("spawn")  # pragma: no cover - platforms without a fork server
-
-
-def _start_tracker_quietly() -> None:
-    """Start multiprocessing's resource tracker (it unlinks a pool's named semaphores when
-    the run is killed) with its stderr on /dev/null: its note about them is no error."""
-    from multiprocessing import resource_tracker
-
-    if getattr(resource_tracker._resource_tracker, "_fd", None) is not None:
-        return  # already running
-    _without_stderr(resource_tracker.ensure_running)
-
-
-def _without_stderr(start: Callable[[], Any]) -> None:
-    """Run ``start`` (which starts a helper process) with file descriptor 2 on /dev/null,
-    so that the helper and what it forks inherit a silent stderr."""
-    sys.stderr.flush()
-    saved = os.dup(2)
-    try:
-        null = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(null, 2)
-        os.close(null)
-        start()
-    finally:
-        os.dup2(saved, 2)
-        os.close(saved)
-
-
-def start_pool_server(preload: Sequence[str] = PRELOAD) -> None:
-    """Start the fork server now (once per process): it imports ``preload`` while the
-    caller goes on, so that a pool started later has its workers at once."""
-    import multiprocessing.forkserver as fs
-
-    if pool_context(preload).get_start_method() == "forkserver":
-        # silent stderr: a worker being forked while a killed run exits fails to open the
-        # pool's unlinked semaphore and would print that (task errors travel by futures,
-        # and workers' warnings are silenced anyway)
-        _without_stderr(fs.ensure_running)
-
-
-def worker_pool(workers: int) -> ProcessPoolExecutor:
-    """A process pool of ``workers`` safely started workers that die with their parent
-    (never more than the cores and the memory budget allow: :mod:`sosalgo.budget`).
-    Stop it with ``shutdown`` when its work is done, else with :func:`kill_pool`."""
-    from concurrent.futures import ProcessPoolExecutor
-
-    from sosalgo.budget import usable_workers
-
-    ctx = pool_context()
-    start_pool_server()  # started quietly (no-op when it runs already)
-    return ProcessPoolExecutor(max_workers=usable_workers(workers), mp_context=ctx,
-                               initializer=_die_with_parent)
-
-
-def _die_with_parent() -> None:
-    """Pool initializer: the worker ends when the process that started the pool is gone,
-    even by SIGKILL, busy or idle (a thread waits on its multiprocessing sentinel; a fork
-    server's worker is not that process's child, so a parent-death signal alone would wait
-    for the server); Ctrl-C is left to that process."""
-    import multiprocessing
-    import signal
-    import threading
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # ends the worker (kill_pool)
-    try:
-        import ctypes
-
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
-    except (OSError, AttributeError):  # pragma: no cover - not Linux/glibc
-        pass
-    parent = multiprocessing.parent_process()
-    if parent is not None and parent.sentinel is not None:
-        threading.Thread(target=_exit_when_gone, args=(parent.sentinel,), daemon=True).start()
-    if os.getppid() == 1:  # the parent died before prctl took effect
-        os._exit(1)
-
-
-def _exit_when_gone(sentinel: int) -> None:
-    """End this worker at once when ``sentinel`` (the pool owner's) shows it has exited."""
-    from multiprocessing.connection import wait
-
-    wait([sentinel])
-    os._exit(1)
-
-
-def map_until(fn: Callable[[Any], Any], items: Sequence[Any], workers: int,
-              deadline: float, grace: float = 1.0) -> tuple[list[Any], list[BaseException]]:
-    """``fn(item)`` for every item on a pool of ``workers`` processes, waited for until the
-    wall-clock time ``deadline`` (``time.time()``) plus ``grace`` seconds. Returns the
-    results (None for an item not finished or failed) and the exceptions raised; a pool
-    with tasks still running is killed, never waited for."""
-    from concurrent.futures import wait
-
-    out: list[Any] = [None] * len(items)
-    errors: list[BaseException] = []
-    pool = worker_pool(workers)
-    finished = False
-    try:
-        futs = [pool.submit(fn, item) for item in items]
-        done, rest = wait(futs, timeout=max(0.0, deadline - time.time()) + grace)
-        for i, f in enumerate(futs):
-            if f in done and f.exception() is None:
-                out[i] = f.result()
-            elif f in done:
-                errors.append(f.exception())
-        finished = not rest
-    finally:
-        if finished:
-            pool.shutdown(wait=True)
-        else:
-            kill_pool(pool)  # interrupted, or tasks running past the deadline
-    return out, errors
-
-
-def kill_pool(pool: ProcessPoolExecutor) -> None:
-    """Terminate the pool's worker processes and drop queued work (running tasks are
-    lost): for an interrupted run or a time limit, never waiting for a busy worker."""
-    procs = list(getattr(pool, "_processes", {}).values())
-    for proc in procs:
-        if proc.is_alive():
-            proc.terminate()
-    pool.shutdown(wait=False, cancel_futures=True)
-    for proc in procs:
-        proc.join(timeout=5)
 
 
 def _import_distributed():

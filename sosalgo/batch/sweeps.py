@@ -15,6 +15,7 @@ import numpy as np
 from sosalgo.analysis import AnalysisResult, analyze_spec, spec_family
 from sosalgo.batch.executor import Progress, note, run_batch
 from sosalgo.certificates import CertificateFamily, describe_family, family_from_description
+from sosalgo.kernel.solvers import DEFAULT_SOLVERS
 from sosalgo.model import ModelError, parameter_values
 from sosalgo.schema import (
     analysis_columns,
@@ -24,7 +25,6 @@ from sosalgo.schema import (
     kappa_label,
     p_columns,
 )
-from sosalgo.solvers import DEFAULT_SOLVERS
 from sosalgo.spec import Spec, spec_from_text
 from sosalgo.spec.references import reference_values
 from sosalgo.store import ResumableCSV

@@ -10,7 +10,7 @@ Theorem 1 by adding a module and an entry in :data:`FAMILIES`.
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
-from sosalgo.certificates.base import AffineBlock, CertificateFamily, LMIProblem
+from sosalgo.certificates.base import CertificateFamily
 from sosalgo.certificates.interpolation import INTERPOLATION
 from sosalgo.certificates.theorem1 import THEOREM1
 
@@ -115,7 +115,7 @@ def family_from_description(desc: Mapping[str, Any] | None) -> CertificateFamily
 
 
 __all__ = [
-    "AffineBlock", "CertificateFamily", "LMIProblem", "FAMILIES", "FAMILY_OPTIONS",
+    "CertificateFamily", "FAMILIES", "FAMILY_OPTIONS",
     "DECLARED_COMMANDS", "LOWER_BOUND_COMMANDS", "TIGHTEST_FIRST", "default_family",
     "default_family_name", "describe_family", "family_applies", "family_from_description",
     "get_family",

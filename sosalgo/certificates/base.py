@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import copy
 import math
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
+
+from sosalgo.kernel.conic import ExactBlock, LMIProblem
 
 if TYPE_CHECKING:  # only for annotations: families do not depend on the model at run time
     import sympy as sp
@@ -17,67 +18,8 @@ if TYPE_CHECKING:  # only for annotations: families do not depend on the model a
     from sosalgo.spec.types import Spec
 
 
-__all__ = ["AffineBlock", "ExactBlock", "LMIProblem", "CertificateFamily", "check_matrix",
-           "check_number", "complement_basis", "compress", "null_basis",
-           "restricted_eigenvalues"]
-
-
-@dataclass(frozen=True)
-class AffineBlock:
-    """``G(x; r) = c0 + r c1 + sum_i x_i (l0[i] + r l1[i])`` with r = rho^2; we need G ⪯ 0.
-
-    ``c0, c1`` have shape (s, s); ``l0, l1`` have shape (nvar, s, s); all symmetric.
-    """
-
-    name: str
-    c0: np.ndarray
-    c1: np.ndarray
-    l0: np.ndarray
-    l1: np.ndarray
-    strict: bool = True  # solve with G ⪯ -margin I (False for plain cones such as P ⪰ 0)
-
-    @property
-    def size(self) -> int:
-        return int(self.c0.shape[0])
-
-    def constant(self, rho: float) -> np.ndarray:
-        return self.c0 + rho**2 * self.c1
-
-    def linear(self, rho: float) -> np.ndarray:
-        return self.l0 + rho**2 * self.l1
-
-    def value(self, x: np.ndarray, rho: float) -> np.ndarray:
-        """G(x; rho^2) as a dense symmetric matrix."""
-        s = self.size
-        lin = (x @ self.l0.reshape(len(x), -1) + rho**2 * (x @ self.l1.reshape(len(x), -1)))
-        return self.constant(rho) + lin.reshape(s, s)
-
-
-@dataclass(frozen=True)
-class ExactBlock:
-    """An :class:`AffineBlock` in exact arithmetic: sympy matrices (entries may be
-    polynomials in the design parameters), ``l0``/``l1`` one matrix per variable."""
-
-    name: str
-    c0: Any
-    c1: Any
-    l0: list[Any]
-    l1: list[Any]
-    strict: bool = True
-
-
-@dataclass(frozen=True, eq=False)
-class LMIProblem:
-    """Find x with every block ⪯ 0 at a given rho; ``unpack`` names the parts of x.
-
-    ``project`` moves a solver's x onto the non-strict cones exactly (e.g. clips tiny
-    negative eigenvalues of P), so that the floating-point check is meaningful.
-    """
-
-    nvar: int
-    blocks: tuple[AffineBlock, ...]
-    unpack: Callable[[np.ndarray], dict[str, Any]]
-    project: Callable[[np.ndarray], np.ndarray] = lambda x: x
+__all__ = ["CertificateFamily", "check_matrix", "check_number", "complement_basis", "compress",
+           "null_basis", "restricted_eigenvalues"]
 
 
 class CertificateFamily(Protocol):

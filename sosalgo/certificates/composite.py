@@ -38,14 +38,8 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.certificates.base import (
-    AffineBlock,
-    LMIProblem,
-    complement_basis,
-    compress,
-    null_basis,
-    restricted_eigenvalues,
-)
+from sosalgo.certificates.base import complement_basis, compress, null_basis, restricted_eigenvalues
+from sosalgo.kernel.conic import AffineBlock, LMIProblem, sym_basis, unit_quads
 
 __all__ = ["CompositeStructure", "composite_problem", "composite_parts", "composite_structure",
            "facial_reduction", "isotropic_directions", "reduced_summary"]
@@ -276,18 +270,6 @@ def composite_structure(om: Any, lag: int, s: float = 1.0,
     return CompositeStructure(om.n, om.p, lag, npi, has_c, dec, pos)
 
 
-def _sym_basis(n: int) -> list[tuple[int, int]]:
-    return [(i, j) for i in range(n) for j in range(i, n)]
-
-
-def _unit_quads(Z: np.ndarray, pairs: list[tuple[int, int]]) -> np.ndarray:
-    ia, ib = np.array(pairs).T
-    out = Z[ia][:, :, None] * Z[ib][:, None, :]
-    off = ia != ib
-    out[off] = out[off] + out[off].transpose(0, 2, 1)
-    return out
-
-
 def _layout_x(st: CompositeStructure) -> dict[str, slice]:
     nP = st.nz * (st.nz + 1) // 2
     k1 = nP + st.npi
@@ -312,13 +294,13 @@ def _blocks(st: CompositeStructure, lay: dict[str, slice]) -> list[AffineBlock]:
     restricted to the complement of their isotropic directions, the multipliers that do
     not vanish there fixed at 0 (:func:`facial_reduction`)."""
     d, p, lag = st.dec, st.pos, st.lag
-    pairs = _sym_basis(st.nz)
+    pairs = sym_basis(st.nz)
     nvar, nP = lay["lam"].stop, len(pairs)
     sD, sP = d.width, p.width
     D0, D1, P0 = np.zeros((nvar, sD, sD)), np.zeros((nvar, sD, sD)), np.zeros((nvar, sP, sP))
-    D0[:nP] = _unit_quads(d.Z[lag + 1], pairs)
-    D1[:nP] = -_unit_quads(d.Z[lag], pairs)
-    P0[:nP] = -_unit_quads(p.Z[lag], pairs)
+    D0[:nP] = unit_quads(d.Z[lag + 1], pairs)
+    D1[:nP] = -unit_quads(d.Z[lag], pairs)
+    P0[:nP] = -unit_quads(p.Z[lag], pairs)
     D0[lay["eta"]] = d.Mq
     P0[lay["lam"]] = p.Mq
     Qd, Qp, gone = reductions(st, lay)
@@ -401,7 +383,7 @@ def _unpack(st: CompositeStructure, lay: dict[str, slice], s: float, measure: st
     multipliers v mult~ / sigma, v = s for function values (V = s V~), 1 for distance."""
     v = s if measure == "function" else 1.0
     Pn = np.zeros((st.nz, st.nz))
-    for k, (a, b) in enumerate(_sym_basis(st.nz)):
+    for k, (a, b) in enumerate(sym_basis(st.nz)):
         Pn[a, b] = Pn[b, a] = x[lay["P"]][k]
     dz = np.concatenate([np.ones(st.n), np.full(st.nz - st.n, 1.0 / s)])
     pi = [float(t) * v / s for t in x[lay["pi"]]]

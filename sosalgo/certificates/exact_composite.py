@@ -39,30 +39,29 @@ from sosalgo.certificates.exact_interpolation import (
     InterpolationExactResult,
     Refused,
     float_entry,
-    object_matrix,
-    prove_definite,
     rational_near,
     settle,
     symmetric_matrix,
-    symmetrize_balls,
 )
-from sosalgo.expr.parse import to_sympy
-from sosalgo.model import bind
-from sosalgo.spec.types import BASE_SYMBOLS, ORACLE_MATRIX_NAMES, Spec
-from sosalgo.verify.exact import (
+from sosalgo.kernel.exact import (
     DEFAULT_DIGITS,
     DEFAULT_MAX_DEN,
     DEFAULT_RHO_STEPS,
     Ball,
-    ExactAlgorithm,
     Verdict,
     enclose,
-    exact_algorithm,
     fraction_str,
     is_zero,
+    object_matrix,
+    prove_definite,
     rational,
     rho_candidates,
+    symmetrize_balls,
 )
+from sosalgo.kernel.expr.parse import to_sympy
+from sosalgo.model import bind
+from sosalgo.spec.types import BASE_SYMBOLS, ORACLE_MATRIX_NAMES, Spec
+from sosalgo.verify.exact import ExactAlgorithm, exact_algorithm
 
 __all__ = ["CompositeExactResult", "ExactOracleMethod", "exact_class_inequalities",
            "exact_oracle_method", "fixed_point_failure", "verify_exact_composite"]

@@ -22,7 +22,6 @@ trajectories of actual functions.
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -31,27 +30,25 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.model import bind, fixed_point
-from sosalgo.spec.types import MATRIX_NAMES, Spec
-from sosalgo.verify.exact import (
+from sosalgo.kernel.exact import (
     DEFAULT_DIGITS,
     DEFAULT_MAX_DEN,
     DEFAULT_RHO_STEPS,
     Ball,
-    ProofResult,
     Verdict,
-    exact_algorithm,
-    exact_fixed_point,
     fraction_str,
-    frobenius_bound,
     is_zero,
-    prove_psd,
+    object_matrix,
+    prove_definite,
     rational,
     rho_candidates,
-    round_down,
+    symmetrize_balls,
 )
+from sosalgo.model import bind, fixed_point
+from sosalgo.spec.types import MATRIX_NAMES, Spec
+from sosalgo.verify.exact import ProofResult, exact_algorithm, exact_fixed_point
 
-__all__ = ["InterpolationExactResult", "float_entry", "object_matrix", "symmetric_matrix",
+__all__ = ["InterpolationExactResult", "float_entry", "symmetric_matrix",
            "verify_exact_interpolation"]
 
 
@@ -80,49 +77,6 @@ class InterpolationExactResult(ProofResult):
 def rational_near(x: Any, max_den: int) -> Fraction:
     f = rational(x)
     return f.limit_denominator(max_den) if not isinstance(x, Fraction | str) else f
-
-
-def object_matrix(mat: list[list[Ball]]) -> np.ndarray:
-    """Rows of balls as an object array (kept exact: numpy never converts them)."""
-    out = np.empty((len(mat), len(mat[0]) if mat else 0), dtype=object)
-    for i, row in enumerate(mat):
-        for j, b in enumerate(row):
-            out[i, j] = b
-    return out
-
-
-def symmetrize_balls(M: np.ndarray) -> list[list[Ball]]:
-    s = M.shape[0]
-    out = [[Ball.of(M[i, j]) for j in range(s)] for i in range(s)]
-    for i in range(s):
-        for j in range(i):
-            if out[i][j].c != out[j][i].c:
-                raise AssertionError("matrix centre is not symmetric")
-            r = max(out[i][j].r, out[j][i].r)
-            out[i][j] = out[j][i] = Ball(out[i][j].c, r)
-    return out
-
-
-def prove_definite(M: list[list[Ball]], sign: int) -> tuple[bool, Fraction, str]:
-    """Prove sign * M ⪰ delta I for every matrix in the ball matrix M; (ok, delta, detail)."""
-    eta = frobenius_bound(M)
-    S = [[sign * b.c for b in row] for row in M]
-    s = len(S)
-    try:
-        est = float(np.linalg.eigvalsh(np.array([[float(v) for v in row] for row in S]))[0])
-    except (OverflowError, np.linalg.LinAlgError):
-        est = math.nan
-    targets = []
-    if math.isfinite(est) and est > 0 and Fraction(f"{est / 2:.3g}") > eta:
-        targets.append(Fraction(f"{est / 2:.3g}"))
-    targets.append(eta)
-    detail = ""
-    for t in targets:
-        proof = prove_psd([[S[i][j] - (t if i == j else 0) for j in range(s)] for i in range(s)])
-        if proof.psd:
-            return True, round_down(t - eta), f"{proof.kind} ({proof.method})"
-        detail = proof.detail
-    return False, Fraction(0), f"not proven (min eig estimate {est:.3g}): {detail}"
 
 
 class Refused(Exception):

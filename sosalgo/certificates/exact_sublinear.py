@@ -28,7 +28,7 @@ floating point in the proof path:
    decide G <= 0 together): the rounded certificate is moved onto them by an
    exact rational solve (the moved values must stay within 1e-8 of the given ones: a
    repair of rounding, not a new certificate). Then every block is proven <= 0 by an exact
-   LDL^T (:func:`sosalgo.verify.exact.prove_psd` of -G, which decides semidefiniteness
+   LDL^T (:func:`sosalgo.kernel.exact.prove_psd` of -G, which decides semidefiniteness
    exactly) and every row <= 0 exactly; C is raised by a relative 1e-12 .. 1e-6 when the
    initial block needs it.
 """
@@ -53,9 +53,10 @@ from sosalgo.certificates.exact_composite import (
     exact_window,
 )
 from sosalgo.certificates.exact_interpolation import Refused
-from sosalgo.expr.parse import to_sympy
+from sosalgo.kernel.exact import Ball, Verdict, fraction_str, prove_psd
+from sosalgo.kernel.expr.parse import to_sympy
 from sosalgo.spec.types import BASE_SYMBOLS, ORACLE_MATRIX_NAMES, Spec, value_order
-from sosalgo.verify.exact import Ball, ExactAlgorithm, Verdict, fraction_str, prove_psd
+from sosalgo.verify.exact import ExactAlgorithm
 
 __all__ = ["Lin", "SublinearExactResult", "exact_sublinear_method", "verify_exact_sublinear"]
 
@@ -582,7 +583,7 @@ def _check(blocks: list, rows: list, x: list[Fraction]) -> tuple[dict[str, str],
 
 def _constants(C: float) -> list[Fraction]:
     """C and rationals slightly above it (C can only help the initial block)."""
-    from sosalgo.verify.exact import rational_at_least
+    from sosalgo.kernel.exact import rational_at_least
 
     out: list[Fraction] = []
     for step in CONSTANT_STEPS:

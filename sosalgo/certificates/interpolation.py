@@ -47,14 +47,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from sosalgo.certificates.base import (
-    AffineBlock,
     CertificateFamily,
-    LMIProblem,
     complement_basis,
     compress,
     null_basis,
     restricted_eigenvalues,
 )
+from sosalgo.kernel.conic import AffineBlock, LMIProblem, sym_basis, unit_quads
 
 if TYPE_CHECKING:  # only for annotations: families do not depend on the model at run time
     import sympy as sp
@@ -265,10 +264,6 @@ def structure(A, B, C, E, m, L, lag: int, has_x: bool, obj: bool = False) -> Str
     return Structure(n, lag, has_x, dec, pos, norm)
 
 
-def _sym_basis(n: int) -> list[tuple[int, int]]:
-    return [(i, j) for i in range(n) for j in range(i, n)]
-
-
 def evaluate(st: Structure, r: Any, P: Any, pi: Any, eta: Any, lam: Any) -> dict[str, Any]:
     """The four inequality parts at a certificate, in the units of ``st``:
 
@@ -426,7 +421,7 @@ class Interpolation(CertificateFamily):
     def _problem(self, alg: Algorithm, has_x: bool | None) -> LMIProblem:
         st = self._structure(alg, normalized=True, has_x=has_x)
         lay = self._layout(st)
-        pairs = _sym_basis(st.nz)
+        pairs = sym_basis(st.nz)
         nvar = lay["lam"].stop
         d, p, lag = st.dec, st.pos, st.lag
         Z1, Z0, Zp = d.Z[lag + 1], d.Z[lag], p.Z[lag]
@@ -434,9 +429,9 @@ class Interpolation(CertificateFamily):
         D0, D1 = np.zeros((nvar, sD, sD)), np.zeros((nvar, sD, sD))
         P0 = np.zeros((nvar, sP, sP))
         nP = len(pairs)
-        D0[:nP] = _unit_quads(Z1, pairs)
-        D1[:nP] = -_unit_quads(Z0, pairs)
-        P0[:nP] = -_unit_quads(Zp, pairs)
+        D0[:nP] = unit_quads(Z1, pairs)
+        D1[:nP] = -unit_quads(Z0, pairs)
+        P0[:nP] = -unit_quads(Zp, pairs)
         for k, M in enumerate(d.Mq):
             D0[lay["eta"].start + k] = M
         for k, M in enumerate(p.Mq):
@@ -502,7 +497,7 @@ class Interpolation(CertificateFamily):
         """Original units: with u = L u~, V = L V~ gives P = L D^-1 P~ D^-1 (D = diag(I_n,
         L I_{l+1})), p = p~, c = c~, and q_ij = L^2 q~_ij gives eta = eta~/L, lambda = lambda~/L."""
         Pn = np.zeros((st.nz, st.nz))
-        for k, (a, b) in enumerate(_sym_basis(st.nz)):
+        for k, (a, b) in enumerate(sym_basis(st.nz)):
             Pn[a, b] = Pn[b, a] = x[lay["P"]][k]
         dinv = np.concatenate([np.ones(st.n), np.full(st.lag + 1, 1.0 / L)])
         P = (L * dinv)[:, None] * Pn * dinv[None, :]  # L D^-1 first: no overflow at tiny L
@@ -616,7 +611,7 @@ class Interpolation(CertificateFamily):
         st = structure(*(np.array(M.tolist(), dtype=object) for M in (A, B, C, E)), m, L, lag,
                        hx, obj=True)
         P = sp.zeros(st.nz, st.nz)
-        for i, j in _sym_basis(st.nz):
+        for i, j in sym_basis(st.nz):
             P[i, j] = P[j, i] = sp.Symbol(f"P{i + 1}{j + 1}", real=True)
         rho = sp.Symbol("rho", nonnegative=True)
         return sp.Matrix(st.dec.Z[lag + 1]), {
@@ -671,16 +666,6 @@ class Interpolation(CertificateFamily):
 def _is_oracle_method(alg: Any) -> bool:
     """Whether ``alg`` is a :class:`sosalgo.oracles.OracleMethod` (not the seed's form)."""
     return hasattr(alg, "oracles")
-
-
-def _unit_quads(Z: np.ndarray, pairs: list[tuple[int, int]]) -> np.ndarray:
-    """Z' E_ab Z for every pair (a, b), E_ab the symmetric unit matrix (1 at (a, b) and
-    (b, a))."""
-    ia, ib = np.array(pairs).T
-    out = Z[ia][:, :, None] * Z[ib][:, None, :]
-    off = ia != ib
-    out[off] = out[off] + out[off].transpose(0, 2, 1)
-    return out
 
 
 INTERPOLATION = Interpolation()

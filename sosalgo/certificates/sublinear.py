@@ -28,7 +28,7 @@ direction v of a minimizer moving with zero gradients (xi = u t, every u = 0) ma
 so they are imposed as ``G v = 0`` (solved for exactly: the variables live in the null
 space of these linear equations) and ``R' G R`` negative definite on the complement R of
 v; the solver then has a strictly feasible problem and the returned point passes the
-floating-point check of :func:`sosalgo.solvers.check_point` (the equations hold to
+floating-point check of :func:`sosalgo.kernel.solvers.check_point` (the equations hold to
 rounding, reported as ``residual``).
 """
 
@@ -40,8 +40,8 @@ from typing import Any
 import numpy as np
 import scipy.linalg as sla
 
-from sosalgo.certificates.base import AffineBlock, LMIProblem
 from sosalgo.certificates.composite import CWindow, composite_structure
+from sosalgo.kernel.conic import AffineBlock, LMIProblem, unit_quads
 
 __all__ = ["SublinearProblem", "block_kernels", "full_violation", "original_kernels",
            "snap_basis", "sublinear_data", "sublinear_parts", "sublinear_problem"]
@@ -59,16 +59,6 @@ class SublinearProblem:
     rhs: np.ndarray
     # the kernels imposed, in original units (:func:`original_kernels`; exact verification)
     kernels: dict[str, list] = field(default_factory=dict)
-
-
-def _unit_quads(Z: np.ndarray) -> np.ndarray:
-    """Z' E_ab Z for each symmetric unit E_ab, a <= b."""
-    n = Z.shape[0]
-    ia, ib = np.triu_indices(n)
-    out = Z[ia][:, :, None] * Z[ib][:, None, :]
-    off = ia != ib
-    out[off] = out[off] + out[off].transpose(0, 2, 1)
-    return out
 
 
 def _fixed_direction(om: Any, width: int) -> np.ndarray:
@@ -144,7 +134,7 @@ def _polys(st: Any, lay: dict[str, slice], nvar: int, deg: int) -> dict[str, _Po
     from math import comb
 
     d, p = st.dec, st.pos
-    U0, U1, Up = _unit_quads(d.Z[0]), _unit_quads(d.Z[1]), _unit_quads(p.Z[0])
+    U0, U1, Up = unit_quads(d.Z[0]), unit_quads(d.Z[1]), unit_quads(p.Z[0])
     F0, F1, Fp = d.F[0].T, d.F[1].T, p.F[0].T  # (nphi, npi)
     D = _Poly([np.zeros((nvar, d.width, d.width)) for _ in range(deg + 1)],
               [np.zeros((d.width, d.width))] * (deg + 1),
@@ -215,7 +205,7 @@ def _halfline(name: str, poly: _Poly, lay: dict[str, slice], tag: str,
         return mats, rows
     w = poly.c[0].shape[0]
     Su, Ku = np.zeros((nvar, w, w)), np.zeros((nvar, w, w))
-    Su[lay[f"S{tag}"]], Ku[lay[f"K{tag}"]] = _unit_quads(np.eye(w)), _skew_units(w)
+    Su[lay[f"S{tag}"]], Ku[lay[f"K{tag}"]] = unit_quads(np.eye(w)), _skew_units(w)
     mats = [(name, *_stack2(poly.q, poly.c, Su, Ku)), (f"{name}-S", np.zeros((w, w)),
                                                           np.zeros((w, w)), -Su)]
     if SCALAR_SOS:
@@ -286,7 +276,7 @@ def sublinear_data(om: Any, deg: int = DEGREE) -> _XData:
         mats, rows = mats + m_, rows + r_
     T, e0 = _initial_map(om, p)
     Iq = np.zeros((nvar, p.width, p.width))
-    Iq[lay["P"]], Iq[lay["nu"]] = _unit_quads(p.Z[0]), p.Mq
+    Iq[lay["P"]], Iq[lay["nu"]] = unit_quads(p.Z[0]), p.Mq
     mats.append(("I", np.zeros((T.shape[1],) * 2), -e0, np.einsum("ia,kij,jb->kab", T, Iq, T)))
     Il = np.zeros((p.nphi, nvar))
     Il[:, lay["p"]], Il[:, lay["nu"]] = p.F[0].T, p.mq.T

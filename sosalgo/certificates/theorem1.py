@@ -18,14 +18,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from sosalgo.certificates.base import (
-    AffineBlock,
-    CertificateFamily,
-    ExactBlock,
-    LMIProblem,
-    check_matrix,
-    check_number,
-)
+from sosalgo.certificates.base import CertificateFamily, check_matrix, check_number
+from sosalgo.kernel.conic import AffineBlock, ExactBlock, LMIProblem, sym_basis
 
 if TYPE_CHECKING:  # only for annotations: families do not depend on the model at run time
     import sympy as sp
@@ -84,11 +78,6 @@ def theorem1_terms(A, B, C, E, m, L, P, symbolic: bool = False) -> dict[str, Any
     return {"M0P": M0P, "PP": PP, "N1": N1, "N2": N2, "N3": N3, "N4": N4}
 
 
-def _sym_basis(n: int) -> list[tuple[int, int]]:
-    """Upper-triangle index pairs, row-major: the order of P's entries in x."""
-    return [(i, j) for i in range(n) for j in range(i, n)]
-
-
 class Theorem1(CertificateFamily):
     """The certificate family of Theorem 1 (eq. 15)."""
 
@@ -121,7 +110,7 @@ class Theorem1(CertificateFamily):
             raise InputError("certificate theorem1: applies only to one smooth_strongly_convex "
                              "function queried by its gradient; use interpolation")
         n = alg.n
-        pairs = _sym_basis(n)
+        pairs = sym_basis(n)
         nvar = len(pairs) + 1
         s_ = alg.L
         A, B, C, E, m, L = alg.A, alg.B * s_, alg.C, alg.E, alg.m / s_, 1.0
@@ -174,7 +163,7 @@ class Theorem1(CertificateFamily):
         import sympy as sp
 
         n = A.shape[0]
-        pairs = _sym_basis(n)
+        pairs = sym_basis(n)
         nvar = len(pairs) + 1
         B, m, L = B * L, m / L, sp.Integer(1)
         base = theorem1_terms(A, B, C, E, m, L, sp.zeros(n, n), symbolic=True)
@@ -205,7 +194,7 @@ class Theorem1(CertificateFamily):
         """Inverse of ``unpack``: the (normalized) decision vector of a certificate."""
         P = np.asarray(cert["P"], dtype=float) / alg.L
         n = P.shape[0]
-        return np.array([P[i, j] for i, j in _sym_basis(n)] + [float(cert["lambda"])])
+        return np.array([P[i, j] for i, j in sym_basis(n)] + [float(cert["lambda"])])
 
     def matrix(self, alg: Algorithm, rho: float, cert: dict[str, Any]) -> np.ndarray:
         """M of eq. (15) at a numeric (P, lambda)."""
@@ -222,7 +211,7 @@ class Theorem1(CertificateFamily):
 
         n = A.shape[0]
         P = sp.zeros(n, n)
-        for i, j in _sym_basis(n):
+        for i, j in sym_basis(n):
             name = "p" if n == 1 else f"p{i + 1}{j + 1}"
             P[i, j] = P[j, i] = sp.Symbol(name, real=True)
         rho, lam = sp.symbols("rho lambda", nonnegative=True)

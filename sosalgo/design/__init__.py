@@ -33,14 +33,14 @@ from typing import Any
 import numpy as np
 
 from sosalgo.analysis import AnalysisResult, analyze_spec, jsonable, spec_family
-from sosalgo.batch.executor import show_phase
 from sosalgo.certificates import CertificateFamily, get_family
 from sosalgo.design.boundcheck import bound_certificate
 from sosalgo.design.dualbound import ARITHMETIC, BoundSearch, BoundStatus, dual_structure
 from sosalgo.design.floor import class_floor
 from sosalgo.design.polymodel import check_polynomial
+from sosalgo.kernel.parallel import show_phase
+from sosalgo.kernel.solvers import solve_margin
 from sosalgo.model import ModelError, bind, design_box
-from sosalgo.solvers import solve_margin
 from sosalgo.spec import Spec
 
 __all__ = ["BoundModel", "BoundResult", "DesignResult", "bound_model", "design",
@@ -64,6 +64,7 @@ GRID_TOL = 1e-5  # tolerance of the screening grid
 METHODS = ("dual", "moment")
 GRID_POINTS = {1: 21, 2: 13, 3: 7}  # per axis, by number of free parameters
 POLISH_TOL = 1e-6  # tolerance of the analyses inside local polishing
+POOL_PRELOAD = ("sosalgo.design", "clarabel", "scipy.optimize")  # imported by its fork server
 
 
 @dataclass
@@ -435,9 +436,9 @@ def _usable_workers(workers: int | None) -> int:
     if (not workers or workers <= 1 or mp.parent_process() is not None
             or mp.current_process().daemon):
         return 1
-    from sosalgo.batch.executor import start_pool_server
+    from sosalgo.kernel.parallel import start_pool_server
 
-    start_pool_server(("sosalgo.design", "clarabel", "scipy.optimize"))
+    start_pool_server(POOL_PRELOAD)
     return int(workers)
 
 
@@ -472,18 +473,19 @@ def _polish_task(args: tuple) -> dict[str, float] | None:
 
 def _parallel(run: _Run, fn: Callable, items: list) -> list:
     """fn((*worker_run, item)) for every item on run.workers processes, within the phase
-    (:func:`sosalgo.batch.executor.map_until`).
+    (:func:`sosalgo.kernel.parallel.map_until`).
 
     The tasks stop themselves at the phase's end; a task not finished a second later
     gives None (its pool is killed, a busy worker is never waited for). Unfinished or
     failed tasks are logged, so a cut phase never passes for a complete one. A phase
     shorter than a pool's start-up (about a second) runs here, one task after the other."""
-    from sosalgo.batch.executor import map_until
+    from sosalgo.kernel.parallel import map_until
 
     base = _worker_run(run)
     if base[-1] - time.time() < 2.0:
         return [fn((*base, item)) for item in items]
-    out, errors = map_until(fn, [(*base, item) for item in items], run.workers, base[-1])
+    out, errors = map_until(fn, [(*base, item) for item in items], run.workers, base[-1],
+                            preload=POOL_PRELOAD)
     run.can_afford(0.0, phase=False)  # marks the run out of time past its deadline
     lost = sum(o is None for o in out)
     if lost:

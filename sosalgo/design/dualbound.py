@@ -49,7 +49,7 @@ import scipy.sparse as sps
 from sosalgo.design.boxproof import BoxProver
 from sosalgo.design.modes import ModeTest
 from sosalgo.design.polymodel import PolyLMI
-from sosalgo.solvers import (
+from sosalgo.kernel.solvers import (
     SolverStatus,
     clarabel_solve,
     finite_data,
@@ -504,16 +504,12 @@ class _Rows:
         self.b.extend([0.0] * A.shape[0] if rhs is None else rhs)
 
 
-def _psd(s: int):
-    import clarabel
-
-    return clarabel.NonnegativeConeT(1) if s == 1 else clarabel.PSDTriangleConeT(s)
+def _psd(s: int) -> tuple[str, int]:
+    return ("nonneg", 1) if s == 1 else ("psd", s)
 
 
 def _z_constraints(rows: _Rows, lay: _Layout) -> None:
     """Z_d(u) ⪰ 0 on the box: Z_d0 - Σ_j S_dj ⪰ 0 and S_dj ∓ Z_dj ⪰ 0; Σ_d tr Z_d0 = 1."""
-    import clarabel
-
     tr = np.zeros(lay.ny)
     soff = lay.t_col + 1
     for q, s in enumerate(lay.sizes):
@@ -531,16 +527,14 @@ def _z_constraints(rows: _Rows, lay: _Layout) -> None:
                 rows.add(B, _psd(s))
         soff += (lay.nz_terms - 1) * t_
         rows.add(A, _psd(s))
-    rows.add(tr[None, :], clarabel.ZeroConeT(1), [1.0])
+    rows.add(tr[None, :], ("zero", 1), [1.0])
 
 
 def _h_constraints(rows: _Rows, lay: _Layout, e: int, H: np.ndarray,
                    even: np.ndarray) -> None:
     """h_0 - Σ s_α - t >= 0 with s_α >= |h_α| (even α, u^α ∈ [0, 1]: s_α >= -h_α, s_α >= 0)
     at the e-th r: the worst value of h over the box is at least t."""
-    import clarabel
-
-    nonneg = clarabel.NonnegativeConeT(1)
+    nonneg = ("nonneg", 1)
     A = np.zeros(lay.ny)
     A[:lay.nzcols] = -H[0]
     A[lay.t_col] += 1.0

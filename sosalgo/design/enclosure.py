@@ -46,7 +46,7 @@ def ball_matrix(a: np.ndarray) -> arb_mat:
 
 def sympy_ball(expr) -> arb:
     """A ball containing a real constant sympy expression (exact for rationals)."""
-    from sosalgo.verify.exact import enclose
+    from sosalgo.kernel.exact import enclose
 
     if expr.is_Rational:
         return arb(fmpq(int(expr.p), int(expr.q)))

@@ -38,7 +38,7 @@ def _contains_zero(fn) -> bool:
 
 def _gradient_only(spec: Spec, fname: str) -> bool:
     """Whether every call to ``fname`` is a gradient call (D_ii identically 0)."""
-    from sosalgo.expr import constant_value
+    from sosalgo.kernel.expr import constant_value
 
     D = spec.matrices.get("D")
     for i, name in enumerate(spec.oracles):

@@ -21,8 +21,8 @@ from typing import Any
 import sympy as sp
 
 from sosalgo.certificates.theorem1 import theorem1_terms
+from sosalgo.kernel.solvers import c_stdout_to_stderr
 from sosalgo.polyopt import PolyProblem, RelaxationStatus, solve_moment_relaxation
-from sosalgo.solvers import c_stdout_to_stderr
 from sosalgo.spec import BASE_SYMBOLS, Spec
 
 __all__ = ["design_problem", "relaxation_bound", "relaxation_size", "MomentBound"]

@@ -145,7 +145,7 @@ def _rate(res: AnalysisResult | None) -> float:
 
 def _certified_at(fam: CertificateFamily, alg: Any, rho: float) -> bool:
     """One margin solve of the family's LMI at ``rho``, its point checked in floats."""
-    from sosalgo.solvers import check_point, solve_margin
+    from sosalgo.kernel.solvers import check_point, solve_margin
 
     try:
         with np.errstate(all="ignore"):
@@ -327,7 +327,7 @@ RECERTIFY_STEPS = (1e-6, 1e-5, 1e-4)  # rho + step (1 - rho) tried when the proo
 
 def float_up(q: Any) -> float:
     """The smallest float >= the rational ``q`` (a Fraction or "p/q")."""
-    from sosalgo.verify.exact import rational
+    from sosalgo.kernel.exact import rational
 
     x = rational(q)
     f = float(x)
@@ -338,7 +338,7 @@ def _exact_rate(spec: Spec, kappa: float, theta: Mapping[str, float],
                 family: CertificateFamily, rho: float, cert: dict[str, Any]) -> str | None:
     """The proven rational rate ("p/q") of ``cert`` at ``rho`` (the family's exact
     verifier, as ``sosalgo analyze --verify`` uses it), or None when not proven."""
-    from sosalgo.verify.exact import Verdict
+    from sosalgo.kernel.exact import Verdict
 
     try:
         ex = family.exact_check(spec, kappa, rho, cert, theta)
@@ -354,7 +354,7 @@ def prove_rate(spec: Spec, kappa: float, theta: Mapping[str, float],
     certificate proven exactly, else a margin solution of the family's LMI at
     rho + step (1 - rho) (RECERTIFY_STEPS, floating-point checked, then proven); (None,
     the analysis's certificate) when nothing is proven."""
-    from sosalgo.solvers import check_point, solve_margin
+    from sosalgo.kernel.solvers import check_point, solve_margin
 
     if res is None or not res.certified or res.rho is None or res.certificate is None:
         return None, None

@@ -30,8 +30,9 @@ import sympy as sp
 from flint import arb, arb_mat
 
 import sosalgo.design.enclosure as enc
-from sosalgo.certificates.base import CertificateFamily, ExactBlock, LMIProblem
-from sosalgo.expr.parse import to_sympy
+from sosalgo.certificates.base import CertificateFamily
+from sosalgo.kernel.conic import ExactBlock, LMIProblem
+from sosalgo.kernel.expr.parse import to_sympy
 from sosalgo.model import ModelError, evaluate_algorithm
 from sosalgo.spec import Spec
 
@@ -119,7 +120,7 @@ def _rat(x: float | Fraction) -> sp.Rational:
 
 def _outward(lo: sp.Expr, hi: sp.Expr) -> tuple[Fraction, Fraction]:
     """Float ends lo_f <= lo and hi_f >= hi of an exact interval."""
-    from sosalgo.verify.exact import enclose
+    from sosalgo.kernel.exact import enclose
 
     a, b = enclose(lo), enclose(hi)
     lo_f, hi_f = float(a.lo), float(b.hi)

@@ -23,11 +23,11 @@ from typing import Any
 import numpy as np
 from flint import arb, arb_mat
 
+from sosalgo.kernel.arb import arb_fraction, precision
 from sosalgo.pep.exact import ball, exact_method
 from sosalgo.pep.structure import Method
 from sosalgo.pep.terms import Term
 from sosalgo.spec import Spec
-from sosalgo.witnesses.method import arb_fraction, precision
 
 __all__ = ["PREC", "ArbView", "arb_view", "check_witness", "fit_values", "pair_forms",
            "positions", "q_str"]
@@ -146,7 +146,7 @@ def _q_mat(rows: Any) -> np.ndarray:
 def exact_points(doc: dict[str, Any], mt: Method) -> tuple[dict[str, list[Any]],
                                                             list[list[Any]]]:
     """(every point by label, the iterates x_0..x_N) as exact rationals (Fraction) or
-    rational balls (:class:`~sosalgo.verify.exact.Ball`, when the method has irrational
+    rational balls (:class:`~sosalgo.kernel.exact.Ball`, when the method has irrational
     entries), recomputed from the start and the calls as :func:`positions` does, in
     exact arithmetic instead of arb."""
     from sosalgo.pep.structure import coarsen

@@ -262,7 +262,7 @@ def _verify_row(row: Mapping[str, Any], spec: Spec, where: str) -> dict[str, Any
 
 def _verdict(claims: _Claims, ctx: Mapping[str, Any], tau: float | None,
              upper: Fraction | None, lower: Fraction | None) -> dict[str, Any]:
-    from sosalgo.verify.exact import fraction_str
+    from sosalgo.kernel.exact import fraction_str
 
     bad = claims.bad()
     return {"kind": "pep", "kappa": ctx["kappa"], "steps": ctx["steps"], "tau": tau,

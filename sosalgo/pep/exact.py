@@ -4,7 +4,7 @@ The method is rebuilt on exact numbers about the class as written
 (:func:`exact_base`): m (an m: 0 spec's L) from the spec's own expression (``1/10`` is
 1/10), kappa the decimal it was given as, L = kappa m; every parameter and matrix entry
 from the spec's expressions with sympy, irrational entries enclosed in rational balls
-(:func:`sosalgo.verify.exact.enclose`), the classes' tilted inequalities from exact formulas
+(:func:`sosalgo.kernel.exact.enclose`), the classes' tilted inequalities from exact formulas
 (:func:`sosalgo.certificates.exact_composite.exact_class_inequalities`), the fixed points
 (u and the optimal-subgradient fixed points) solved exactly with sympy, and the PEP
 structure (:func:`sosalgo.pep.structure.build_structure`) built again on those numbers,
@@ -63,7 +63,7 @@ def written_kappa(kappa: float) -> Fraction:
 def _written(expr: Any, value: float) -> sp.Expr:
     """A constant of the spec as written (``1/10``, ``sqrt(2)``) exactly; its float's
     decimal when the spec object has no expression (built by hand)."""
-    from sosalgo.expr.parse import to_sympy
+    from sosalgo.kernel.expr.parse import to_sympy
 
     if expr is not None:
         return sp.sympify(to_sympy(expr))
@@ -89,7 +89,7 @@ def exact_base(spec: Spec, kappa: float | None) -> dict[sp.Symbol, sp.Expr]:
 def class_description(spec: Spec, kappa: float | None) -> dict[str, Any]:
     """Which class a proof is about, as exact strings: ``m``, ``L`` (``kappa``) and each
     function's class and parameters (sympy's exact form: ``1/10``, ``sqrt(2)/10``)."""
-    from sosalgo.expr.parse import to_sympy
+    from sosalgo.kernel.expr.parse import to_sympy
 
     base = exact_base(spec, kappa)
     out: dict[str, Any] = {str(k): str(v) for k, v in base.items()}
@@ -109,7 +109,7 @@ def _scale(L: sp.Expr) -> Fraction:
 
 def _exact_env(spec: Spec, base: dict[sp.Symbol, sp.Expr]) -> dict[sp.Symbol, sp.Expr]:
     """m, L, kappa and every parameter's value (tied ones followed), exactly."""
-    from sosalgo.expr.parse import to_sympy
+    from sosalgo.kernel.expr.parse import to_sympy
     from sosalgo.spec.types import value_order
 
     env = dict(base)
@@ -125,7 +125,7 @@ def _exact_matrices(spec: Spec, env: dict[sp.Symbol, sp.Expr]) -> dict[str, sp.M
 
 
 def _balls(M: sp.Matrix, digits: int) -> np.ndarray:
-    from sosalgo.verify.exact import enclose
+    from sosalgo.kernel.exact import enclose
 
     out = np.empty(M.shape, dtype=object)
     for i in range(M.shape[0]):
@@ -158,9 +158,9 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
     its irrational entries enclosed precisely enough for a trajectory of ``steps`` steps
     (:func:`sosalgo.pep.structure.enclosure_digits`)."""
     from sosalgo.certificates.exact_composite import exact_class_inequalities
-    from sosalgo.expr.parse import to_sympy
-    from sosalgo.verify.exact import Ball
-    from sosalgo.verify.exact import enclose as enclose_at
+    from sosalgo.kernel.exact import Ball
+    from sosalgo.kernel.exact import enclose as enclose_at
+    from sosalgo.kernel.expr.parse import to_sympy
 
     K = np.array([[Fraction(float(v)) for v in row]
                   for row in deadbeat_gain(om.A, om.B, float(om.L))], dtype=object)
@@ -206,9 +206,9 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
 
 
 def _proven_zero(v: sp.Expr) -> bool:
-    """``v == 0`` proven (:func:`sosalgo.verify.exact.is_zero`); a number sympy already
+    """``v == 0`` proven (:func:`sosalgo.kernel.exact.is_zero`); a number sympy already
     knows to be nonzero is answered without simplification."""
-    from sosalgo.verify.exact import is_zero
+    from sosalgo.kernel.exact import is_zero
 
     return v.is_zero is not False and is_zero(v)
 
@@ -242,7 +242,7 @@ def _exact_start_call(mats: dict[str, sp.Matrix], X: sp.Matrix, om: Any) -> int 
 
 def ball(v: Any) -> arb:
     """The arb enclosure of an exact number (int, Fraction, str ``p/q``, or a rational
-    :class:`~sosalgo.verify.exact.Ball`: centre and radius, the radius rounded up)."""
+    :class:`~sosalgo.kernel.exact.Ball`: centre and radius, the radius rounded up)."""
     if hasattr(v, "c"):
         c = ball(v.c)
         if not v.r:
@@ -315,7 +315,7 @@ def _repaired(mt: Method, st: PEPStructure, lam: list[Fraction], tb: arb
     proven >= 0 (the float dual's round-off) is raised by increasing the multiplier of
     the pair (x*, point i), whose only value coefficient is -alpha s on F_i, by a binary
     rational at least the deficit / (alpha s) (S moves by that times the pair's form)."""
-    from sosalgo.witnesses.method import arb_fraction
+    from sosalgo.kernel.arb import arb_fraction
 
     def residual(lq: list[Fraction]) -> tuple[arb_mat, list[arb]]:
         quad, lin = _residual_parts(mt, st, lq)
@@ -364,8 +364,8 @@ def prove_scaled_psd(S: arb_mat, w: np.ndarray) -> tuple[bool, Fraction, str]:
     """Prove D S D ⪰ delta I (D = diag(w), powers of two; so S ⪰ 0) for every matrix in
     the balls: a floating-point Cholesky factor L of mid(D S D) - t I, then
     D S D - t I - L L' = E in ball arithmetic and |E|_F < t, so D S D ⪰ (t - |E|_F) I."""
-    from sosalgo.verify.exact import rational
-    from sosalgo.witnesses.method import arb_fraction
+    from sosalgo.kernel.arb import arb_fraction
+    from sosalgo.kernel.exact import rational
 
     d = S.nrows()
     Dm = arb_mat(d, d)
@@ -405,8 +405,8 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
     ``proven``, ``tau_proven`` (p/q), ``tau_proven_float``, ``detail``, ``seconds``.
     ``w``: the scale of the basis (powers of two, default 1); ``mt``: the exact method
     (built here when not given)."""
+    from sosalgo.kernel.exact import fraction_str, rational
     from sosalgo.pep.bind import bound_method
-    from sosalgo.verify.exact import fraction_str, rational
 
     t0 = time.perf_counter()
     out: dict[str, Any] = {"proven": False, "tau_proven": None, "tau_proven_float": None}
@@ -448,7 +448,7 @@ def prove_at(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
     """(proven, multipliers, delta, detail) of measure <= tq with the multipliers ``lam``
     (by pair of ``st``): c_F >= 0 (after :func:`_repaired` when ``repair``) and
     diag(w) S diag(w) ⪰ delta I (:func:`prove_scaled_psd`), in ball arithmetic."""
-    from sosalgo.witnesses.method import precision
+    from sosalgo.kernel.arb import precision
 
     with precision(PREC):
         I0 = arb_mat([[ball(v) for v in row] for row in st.init_q])

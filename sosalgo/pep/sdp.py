@@ -44,43 +44,20 @@ multipliers are a certificate whatever pairs they omit).
 
 from __future__ import annotations
 
-import contextlib
-import functools
 import math
-import os
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 import scipy.sparse as sps
 
+from sosalgo.kernel.conic import svec, svec_index, unsvec
+from sosalgo.kernel.solvers import SolverStatus, solve_attempts
 from sosalgo.pep.structure import Method, PEPStructure
-from sosalgo.solvers import SolverStatus, quiet_settings, solver_status
 
-__all__ = ["PEPData", "SDPAnswer", "pep_data", "solve_pep", "svec_index"]
+__all__ = ["PEPData", "SDPAnswer", "pep_data", "solve_pep"]
 
 SQRT2 = math.sqrt(2.0)
-
-
-@functools.cache
-def svec_index(d: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(rows, cols, scale) of Clarabel's svec: upper triangle column by column."""
-    r = np.array([i for j in range(d) for i in range(j + 1)], dtype=int)
-    c = np.array([j for j in range(d) for i in range(j + 1)], dtype=int)
-    return r, c, np.where(r == c, 1.0, SQRT2)
-
-
-def svec(M: np.ndarray) -> np.ndarray:
-    r, c, s = svec_index(M.shape[-1])
-    return M[..., r, c] * s
-
-
-def unsvec(v: np.ndarray, d: int) -> np.ndarray:
-    r, c, s = svec_index(d)
-    out = np.zeros((d, d))
-    out[r, c] = v / s
-    out[c, r] = v / s
-    return out
 
 
 @dataclass
@@ -210,47 +187,6 @@ TRACE_ITER = 100
 TRACE = tuple((precise, reg, TRACE_ITER) for precise, reg in ATTEMPTS)
 
 
-@contextlib.contextmanager
-def _quiet_stderr():
-    """Clarabel's Rust panics (caught below) print to file descriptor 2: hide them."""
-    try:
-        saved = os.dup(2)
-    except OSError:
-        yield
-        return
-    try:
-        with open(os.devnull, "w") as null:
-            os.dup2(null.fileno(), 2)
-            yield
-    finally:
-        os.dup2(saved, 2)
-        os.close(saved)
-
-
-@functools.cache
-def _settings(precise: bool, reg: float, max_iter: int = 400, chordal: str = "apart") -> Any:
-    s = quiet_settings()
-    s.max_iter = max_iter
-    s.static_regularization_constant = reg
-    s.direct_solve_method = "faer"  # supernodal LDL: 2-4x faster on these dense rows
-    # the dual form's chordal blocks kept apart with their overlaps as equalities (not
-    # the compact merge): half the iterations (Nesterov N = 40: 24 instead of 44);
-    # :data:`CHORDAL`: the fallbacks when Clarabel panics building the decomposition
-    s.chordal_decomposition_compact = chordal == "compact"
-    if chordal == "unmerged":
-        s.chordal_decomposition_merge_method = "none"
-    if precise:
-        s.tol_gap_abs = s.tol_gap_rel = s.tol_feas = 1e-10
-        s.tol_ktratio = 1e-10
-    return s
-
-
-# chordal decompositions in order: blocks apart, then Clarabel's compact merge, then no
-# merging (Clarabel 0.11 panics building the first on some patterns, "index out of
-# bounds": gradient descent at N = 200; the others build)
-CHORDAL = ("apart", "compact", "unmerged")
-
-
 def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
               floor: float | None = None, slack: float = 0.0,
               unit: float = 1.0, precise: bool = False) -> SDPAnswer:
@@ -370,8 +306,9 @@ def _solve_active(data: PEPData, active: np.ndarray, margin: float, objective: s
     b.append(np.zeros(nG))
     A = sps.csc_matrix(sps.vstack(rows))
     A.eliminate_zeros()
-    sol, raw, st_ = _clarabel(A, q, np.concatenate(b), nn, d, attempts,
-                              final=("DualInfeasible", "PrimalInfeasible"))
+    cones = [("nonneg", nn), ("psd", d)]
+    sol, raw, st_ = solve_attempts(A, q, np.concatenate(b), cones, attempts,
+                                   final=("DualInfeasible", "PrimalInfeasible"))
     if raw == "DualInfeasible":
         return SDPAnswer("unbounded", raw)
     if st_ == SolverStatus.INFEASIBLE:
@@ -426,7 +363,8 @@ def _solve_dual(data: PEPData, active: np.ndarray, margin: float, unit: float,
     b = np.concatenate([np.zeros(K), -(meas + eye)[nG:], -(meas + eye)[:nG]])
     q = np.zeros(1 + K)
     q[0] = 1.0
-    sol, raw, st_ = _clarabel(A, q, b, K + nF, d, attempts, final=(
+    cones = [("nonneg", K + nF), ("psd", d)]
+    sol, raw, st_ = solve_attempts(A, q, b, cones, attempts, final=(
         "PrimalInfeasible", "DualInfeasible") + (("AlmostSolved",) if rough else ()))
     if raw == "PrimalInfeasible":  # no certificate: the measure is unbounded
         return SDPAnswer("unbounded", raw)
@@ -448,64 +386,6 @@ def _solve_dual(data: PEPData, active: np.ndarray, margin: float, unit: float,
                     size=float(np.trace(H)) + float(np.clip(Fs, 0, None).sum()))
     ans.S = residual(data, ans.tau, lam)
     return ans
-
-
-def _clarabel(A: Any, q: np.ndarray, b: np.ndarray, nn: int, d: int,
-              attempts: tuple[tuple[Any, ...], ...], final: tuple[str, ...] = ()
-              ) -> tuple[Any, str, SolverStatus]:
-    """(solution or None, raw status, status) of the first attempt that ends solved or
-    with a raw status in ``final`` (else the last). An attempt is (precise tolerances,
-    static regularization[, max iterations])."""
-    import clarabel
-
-
-    cones = [clarabel.NonnegativeConeT(nn), clarabel.PSDTriangleConeT(d)]
-    P = sps.csc_matrix((A.shape[1], A.shape[1]))
-    sol, raw, st_ = None, "no attempt ended", SolverStatus.FAILED
-    for precise, reg, *iters in attempts:
-        sol = _clarabel_attempt(P, q, A, b, cones, precise, reg, iters)
-        if sol is None:
-            continue
-        raw = str(sol.status)
-        st_ = solver_status(raw)
-        if (st_ == SolverStatus.SOLVED or raw in final
-                or (iters and sol.iterations >= iters[0])):  # capped: not converging
-            break
-    return sol, raw, st_
-
-
-def _clarabel_attempt(P: Any, q: np.ndarray, A: Any, b: np.ndarray, cones: list[Any],
-                      precise: bool, reg: float, iters: list[int]) -> Any:
-    """One attempt's solution, or None when Clarabel panics (Rust panics: an eigenvalue
-    failure while solving; while building, the next chordal decomposition of
-    :data:`CHORDAL` is tried). Ctrl-C and SIGTERM stop the solve (:mod:`sosalgo.interrupts`)."""
-    import clarabel
-
-    from sosalgo.interrupts import native_solve, watch
-
-    with _quiet_stderr():
-        for chordal in CHORDAL:
-            settings = _settings(precise, reg, *(iters or [400]), chordal)
-            try:
-                solver = clarabel.DefaultSolver(P, q, A, b, cones, settings)
-            except BaseException as exc:
-                _reraise_interruption(exc)
-                continue
-            try:
-                with native_solve():
-                    return watch(solver).solve()
-            except BaseException as exc:
-                _reraise_interruption(exc)
-                return None
-    return None
-
-
-def _reraise_interruption(exc: BaseException) -> None:
-    """Re-raise what is not a Clarabel failure: an interruption (Ctrl-C, SIGTERM), an exit,
-    no memory. Rust panics surface as ``PanicException`` (a BaseException)."""
-    if isinstance(exc, MemoryError) or not (isinstance(exc, Exception)
-                                            or type(exc).__name__ == "PanicException"):
-        raise exc
 
 
 def residual(data: PEPData, tau: float, lam: np.ndarray) -> np.ndarray:

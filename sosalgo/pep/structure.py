@@ -31,7 +31,7 @@ coincides with one of its calls is that call). Then
 
 Units: subgradients are divided by s = L and function values too (gradient rows are u~/s,
 F = h/s), so that every entry is a distance squared. The builder is written once for
-floats and for exact balls (:class:`sosalgo.verify.exact.Ball`, object arrays): the
+floats and for exact balls (:class:`sosalgo.kernel.exact.Ball`, object arrays): the
 exact check rebuilds the same structure on exact numbers.
 """
 
@@ -210,7 +210,7 @@ def coarsen(v: Any, bits: int = 160) -> Any:
     """An exact number whose denominators have grown past ``bits`` bits as a ball around
     a binary rational with about ``bits`` significant bits, the rounding error added to
     its radius (outward: the ball still holds the number)."""
-    from sosalgo.verify.exact import Ball
+    from sosalgo.kernel.exact import Ball
 
     b = Ball.of(v)
     if max(b.c.denominator.bit_length(), b.r.denominator.bit_length()) <= 2 * bits:

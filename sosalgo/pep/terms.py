@@ -5,7 +5,7 @@ part (the functions of a class with a gradient oracle), ``sdist`` = |xi - xi*|^2
 every state block (an initial ``sdist`` makes the start free); ``c`` is an expression in
 m, L, kappa. A measure term may name its point: ``f(x_N)`` (the output, the default),
 ``dist(y_N)`` (the point of the single call), ``grad(y2_N)`` (the point of call 2); an
-initial term is at x_0. The string is parsed by :mod:`sosalgo.expr` (never evaluated) and
+initial term is at x_0. The string is parsed by :mod:`sosalgo.kernel.expr` (never evaluated) and
 split into its linear terms; anything nonlinear in f, dist, grad is refused.
 """
 
@@ -16,7 +16,7 @@ import re
 from dataclasses import dataclass
 
 from sosalgo.errors import InputError
-from sosalgo.expr.tree import Expr, ExprError, evaluate, parse_tree
+from sosalgo.kernel.expr.tree import Expr, ExprError, evaluate, parse_tree
 from sosalgo.spec.initial_state import linear_parts
 
 __all__ = ["KINDS", "Term", "describe_terms", "parse_terms"]

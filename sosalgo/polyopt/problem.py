@@ -16,7 +16,7 @@ from fractions import Fraction
 import numpy as np
 import sympy as sp
 
-from sosalgo.expr import ExprError, parse_expression
+from sosalgo.kernel.expr import ExprError, parse_expression
 
 from .polynomial import (
     Exponent,
@@ -135,7 +135,7 @@ class PolyProblem:
 def _as_expr(obj: object, names: Mapping[str, sp.Symbol], what: str = "expression") -> sp.Expr:
     """A sympy expression from a sympy object, a real number or a string.
 
-    Strings are *parsed* by :func:`sosalgo.expr.parse_expression` over the variables'
+    Strings are *parsed* by :func:`sosalgo.kernel.expr.parse_expression` over the variables'
     names (never ``sympify``-ed: that evaluates Python code); anything else must be a
     sympy object or a number that sympy converts without parsing (``strict=True``).
     """

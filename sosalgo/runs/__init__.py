@@ -14,9 +14,10 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from sosalgo import budget, inputs
+from sosalgo import inputs
 from sosalgo.batch.executor import check_scheduler
 from sosalgo.errors import InputError
+from sosalgo.kernel import budget
 from sosalgo.schema import analysis_csv, design_stem, grid_stem, rate_stem
 from sosalgo.spec import Spec
 from sosalgo.store import output_lock
@@ -49,7 +50,7 @@ def _kappa_list(spec: Spec, kappa: Kappas) -> list[float]:
 
 
 def _budget(max_memory: int | str | None, workers: int | None) -> int:
-    """Set the run's memory budget (:mod:`sosalgo.budget`; None: the machine's default) and
+    """Set the run's memory budget (:mod:`sosalgo.kernel.budget`; None: the machine's default) and
     return the local workers it allows (a cap of an explicit ``workers`` said in one line)."""
     budget.set_max_memory(max_memory)
     return budget.announce_workers(workers)
@@ -342,7 +343,7 @@ def table1_run(specs: Sequence[str | Path] = (), kappa: Sequence[float] = (),
     if paths:
         texts = {p: read_spec_text(p) for p in paths}
     else:  # outside a checkout: the example specs shipped with sosalgo
-        from sosalgo.resources import example_specs
+        from sosalgo.kernel.resources import example_specs
 
         texts = {f"examples/{name}.yaml": f.read_text(encoding="utf-8")
                  for name, f in example_specs().items()}

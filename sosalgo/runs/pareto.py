@@ -266,9 +266,10 @@ def _search_options(spec: Spec, kappa: float, names: list[str], fam: Any, store:
                     deadline: float, run: Mapping[str, Any]) -> dict[str, Any]:
     """What the workers need: the grid over Θ (only when caps remain), the points already
     solved, and each cap's time (:func:`_cap_seconds`)."""
-    from sosalgo.batch.executor import SERIAL_BELOW, default_workers
+    from sosalgo.batch.executor import SERIAL_BELOW
     from sosalgo.certificates import describe_family
     from sosalgo.design.objectives import Evaluator, cloud, design_family
+    from sosalgo.kernel.parallel import default_workers
 
     todo = [t for t in tasks if not store.is_done(t)]
     samples = []
@@ -365,7 +366,7 @@ def pareto_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = 
     names = inputs.free_names(spec, free)
     fam = inputs.select_families(spec, certificate, options, single=True, command="pareto")[0]
     inputs.parameter_boxes(spec, kappas, names, design=True)
-    from sosalgo import budget
+    from sosalgo.kernel import budget
 
     budget.set_max_memory(max_memory)
     est = budget.check(budget.design_estimate(

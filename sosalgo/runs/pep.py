@@ -14,7 +14,7 @@ from sosalgo.spec import Spec
 
 __all__ = ["pep_chunk", "pep_row", "pep_run"]
 
-# a PEP estimated (sosalgo.budget) longer than this runs in a worker process that a signal
+# a PEP estimated (sosalgo.kernel.budget) longer than this runs in a worker process that a signal
 # can end at once; a shorter one runs here, where a signal waits at most for its solve
 ISOLATE_SECONDS = 0.5
 
@@ -71,10 +71,10 @@ def _check(spec: Spec, kappas: list[float | None], steps: list[int], measure: st
            initial: str | None, workers: int | None, witness: bool = True
            ) -> tuple[Any, int, bool]:
     """Every input error before anything is written (one small problem per kappa), then
-    the run's estimate against the memory budget (:mod:`sosalgo.budget`): (estimate,
+    the run's estimate against the memory budget (:mod:`sosalgo.kernel.budget`): (estimate,
     workers allowed, whether each PEP runs in a worker process: one that may take longer
     than :data:`ISOLATE_SECONDS`, so that SIGTERM or Ctrl-C need not wait for its solve)."""
-    from sosalgo import budget
+    from sosalgo.kernel import budget
     from sosalgo.pep.core import pep_problem
 
     for k in kappas:
@@ -113,7 +113,7 @@ def pep_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = Non
                               [float(kappa)] if isinstance(kappa, int | float)
                               else [float(k) for k in kappa])
     ns = parse_steps(steps)
-    from sosalgo.budget import set_max_memory
+    from sosalgo.kernel.budget import set_max_memory
 
     set_max_memory(max_memory)  # None: the machine's default
     est, workers, isolate = _check(spec, ks, ns, measure, initial, workers, witness)

@@ -94,7 +94,7 @@ def noisy_model(om: Any, exact: Any = None) -> NoisyModel | Any:
         funcs = tuple(om.functions) + (BoundFunction("noise", NOISE, {}),)  # type: ignore
         return NoisyModel(om.A, B, C, D, om.E, funcs, tuple(om.oracles) + (J,) * len(noisy),
                           om.output, float(om.L), om.p, noisy)
-    from sosalgo.verify.exact import Ball
+    from sosalgo.kernel.exact import Ball
 
     B, C, D = _augment(exact.A, exact.B, exact.C, exact.D, noisy, Ball(0))
     return replace(exact, B=B, C=C, D=D, functions=list(exact.functions) + [("noise", NOISE, {})],

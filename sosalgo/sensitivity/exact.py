@@ -30,19 +30,12 @@ from fractions import Fraction
 from typing import Any
 
 from sosalgo.certificates.exact_interpolation import Refused, symmetric_matrix
+from sosalgo.kernel.exact import DEFAULT_DIGITS, Ball, Verdict, fraction_str, rational
 from sosalgo.sensitivity.limsup import limsup_bound
 from sosalgo.sensitivity.sdp import noise_windows
 from sosalgo.sensitivity.window import noise_parts, past_noise, state_size
 from sosalgo.spec.types import Spec
-from sosalgo.verify.exact import (
-    DEFAULT_DIGITS,
-    Ball,
-    Verdict,
-    exact_algorithm,
-    exact_fixed_point,
-    fraction_str,
-    rational,
-)
+from sosalgo.verify.exact import exact_algorithm, exact_fixed_point
 
 __all__ = ["NoiseProof", "verify_composite_noise", "verify_noise", "sqrt_upper"]
 
@@ -98,7 +91,7 @@ def _exact_windows(spec: Spec, kappa: float, theta: Mapping[str, float] | None, 
         raise Refused("fixed point (u with (I - A)u = 0, Cu = 1, Eu = 1) not proven")
     ineqs, _ = exact_class_inequalities(SEED_CLASS, {"m": Ball(ex.m), "L": Ball(ex.L)})
     alpha, Q = ineqs[0]
-    from sosalgo.certificates.exact_interpolation import object_matrix
+    from sosalgo.kernel.exact import object_matrix
 
     mats = [object_matrix(ex.balls[k]) for k in ("A", "B", "C", "E")]
     dec, pos = noise_windows(*mats, alpha, Q, lag, obj=True)
@@ -146,7 +139,7 @@ def _read_limsup(cert: Mapping[str, Any], dec: Any, pos: Any, num: dict[str, Any
 def _prove(res: NoiseProof, dec: Any, pos: Any, num: dict[str, Any]) -> None:
     """The four parts in exact arithmetic; ``res`` becomes verified when all hold (with
     ``rho2`` in ``num``: the discounted parts and bound of ``noise_limsup``)."""
-    from sosalgo.certificates.exact_interpolation import prove_definite, symmetrize_balls
+    from sosalgo.kernel.exact import prove_definite, symmetrize_balls
 
     rho2 = num.get("rho2")
     parts = noise_parts(dec, pos, num["P"], num["p"], num["s"], num["c"], num["eta"],
@@ -198,7 +191,7 @@ def verify_composite_noise(spec: Spec, kappa: float, cert: Mapping[str, Any],
     exact method, -D ⪰ delta I and Pq ⪰ delta I by rational LDL^T, the value rows exactly;
     gamma <= sqrt(s) rounded up; the fixed points proven exactly as for the rates
     (:func:`sosalgo.certificates.exact_composite.fixed_point_failure`)."""
-    from sosalgo.certificates.exact_interpolation import prove_definite, symmetrize_balls
+    from sosalgo.kernel.exact import prove_definite, symmetrize_balls
     from sosalgo.sensitivity.composite import composite_noise_parts, exact_noise_structure
     from sosalgo.sensitivity.sdp import check_lag
 

@@ -24,6 +24,8 @@ import numpy as np
 import scipy.sparse as sps
 
 from sosalgo.classes import SEED_CLASS
+from sosalgo.kernel.conic import svec
+from sosalgo.kernel.solvers import SolverStatus, clarabel_solve, finite_data, solver_status
 from sosalgo.sensitivity.quadratic import quadratic_gamma2
 from sosalgo.sensitivity.window import (
     NoiseWindow,
@@ -33,7 +35,6 @@ from sosalgo.sensitivity.window import (
     past_noise,
     state_size,
 )
-from sosalgo.solvers import SolverStatus, clarabel_solve, finite_data, solver_status, svec
 
 __all__ = ["NoiseCertificate", "noise_certificate", "noise_windows", "MARGINS", "MAX_LAG",
            "attempt", "layout", "original_units", "supply_scale", "float_check", "check_lag",
@@ -174,9 +175,7 @@ def _conic(dec: NoiseWindow, pos: NoiseWindow, lay: dict[str, slice], nvar: int,
 
 def _clarabel(A: sps.csc_matrix, b: np.ndarray, q: np.ndarray,
               cones: list[tuple[str, int]]) -> tuple[SolverStatus, np.ndarray | None, str]:
-    import clarabel
-
-    from sosalgo.solvers import quiet_settings
+    from sosalgo.kernel.solvers import quiet_settings
 
     settings = quiet_settings()
     settings.presolve_enable = False
@@ -184,12 +183,10 @@ def _clarabel(A: sps.csc_matrix, b: np.ndarray, q: np.ndarray,
     # degenerate problems often stop at "almost solved" under 1e-8); feasibility keeps
     # Clarabel's 1e-8, and the floating-point check decides anyway
     settings.tol_gap_abs = settings.tol_gap_rel = GAP_TOL
-    kinds = [clarabel.NonnegativeConeT(k) if kind == "nonneg" else clarabel.PSDTriangleConeT(k)
-             for kind, k in cones]
     nv = A.shape[1]
     P0 = sps.csc_matrix((nv, nv))
     try:
-        sol = clarabel_solve(P0, q, A, b, kinds, settings)
+        sol = clarabel_solve(P0, q, A, b, cones, settings)
     except Exception as exc:  # noqa: BLE001 - a crash is just "no answer"
         return SolverStatus.FAILED, None, f"exception: {type(exc).__name__}"
     st = solver_status(str(sol.status))

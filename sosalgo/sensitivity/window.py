@@ -15,7 +15,7 @@ values phi = (f_0, ..., f_{T-1}) - f*. Interpolation pairs q_ij >= 0 of the func
 are formed between every ordered pair of the points y_0, ..., y_{T-1} and the minimizer.
 
 The same builder runs on floats (the SDP data) and on object arrays of exact numbers
-(rationals, :class:`sosalgo.verify.exact.Ball`) for the exact verifier: it only adds,
+(rationals, :class:`sosalgo.kernel.exact.Ball`) for the exact verifier: it only adds,
 multiplies and stacks.
 """
 

@@ -6,7 +6,7 @@ gradient of the spec's smooth function at x0), the coefficients expressions of t
 parameters and m, L, kappa; e.g. ``initial_state: [x0, x0 - h*g0]`` for a method whose
 second state starts one gradient step ahead. The x0-coefficients must be u (so that the
 start is the fixed point when x_0 = x* and g0 = 0), checked at every kappa of the spec.
-Expressions are parsed (:mod:`sosalgo.expr`), never evaluated as code.
+Expressions are parsed (:mod:`sosalgo.kernel.expr`), never evaluated as code.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from sosalgo.errors import InputError
-from sosalgo.expr.tree import Expr, ExprError, evaluate, parse_tree
+from sosalgo.kernel.expr.tree import Expr, ExprError, evaluate, parse_tree
 
 __all__ = ["check_initial_state", "initial_state_values", "linear_parts",
            "parse_initial_state"]

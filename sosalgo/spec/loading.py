@@ -5,9 +5,9 @@ A spec describes a first-order method in the state-space form of eq. (10) of the
     xi_{k+1} = A xi_k + B grad f(y_k),   y_k = C xi_k,   x_k = E xi_k,
 
 through the reduced templates A (n x n), B (n x 1), C and E (1 x n) of Remark 1 (the
-Kronecker factor ``⊗ I_d`` is implied). Entries are safe expressions (see :mod:`sosalgo.expr`)
-of the parameters and of ``m``, ``L``, ``kappa``. Loading checks shapes, names, ranges,
-cycles among tied parameters and the fixed-point conditions of eq. (11).
+Kronecker factor ``⊗ I_d`` is implied). Entries are safe expressions (see
+:mod:`sosalgo.kernel.expr`) of the parameters and of ``m``, ``L``, ``kappa``. Loading checks
+shapes, names, ranges, cycles among tied parameters and the fixed-point conditions of eq. (11).
 
 Every problem is reported as a :class:`SpecError` naming the file and the field.
 """
@@ -28,9 +28,9 @@ from typing import Any
 import numpy as np
 import yaml
 
-from sosalgo.expr import Expr, ExprError, constant_value, parse_tree
-from sosalgo.expr.compile import NumericError, compile_expression
-from sosalgo.expr.tree import Measure, check_measure, measure
+from sosalgo.kernel.expr import Expr, ExprError, constant_value, parse_tree
+from sosalgo.kernel.expr.compile import NumericError, compile_expression
+from sosalgo.kernel.expr.tree import Measure, check_measure, measure
 from sosalgo.spec.types import (
     BASE_NAMES,
     MAX_FILE_BYTES,
@@ -156,7 +156,7 @@ def read_spec_text(path: str | Path) -> str:
 def spec_text_and_path(name: str) -> tuple[str, str]:
     """Text and location of a shipped example spec."""
     try:
-        from sosalgo.resources import example_specs
+        from sosalgo.kernel.resources import example_specs
 
         p: Any = example_specs()[name]
     except ImportError:  # a checkout without packaged examples: the repository's specs/
@@ -498,7 +498,7 @@ class _Builder:
     def check_sizes(self, params: dict[str, Parameter], matrices: dict[str, ExprMatrix]
                     ) -> dict[str, Measure]:
         """Bound every parameter and matrix entry with tied parameters written out (see
-        :func:`sosalgo.expr.tree.measure`); the measure of each parameter is returned. A
+        :func:`sosalgo.kernel.expr.tree.measure`); the measure of each parameter is returned. A
         parameter kept symbolic (an input) has degree at least 1."""
         named: dict[str, Measure] = {}
         for pname in value_order(params, self.source):

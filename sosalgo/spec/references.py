@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.expr.compile import compile_expression
+from sosalgo.kernel.expr.compile import compile_expression
 from sosalgo.spec.types import BASE_NAMES, Spec
 
 __all__ = ["reference_curves", "reference_values"]

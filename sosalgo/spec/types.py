@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 from sosalgo.classes import SEED_CLASS
 from sosalgo.errors import InputError
-from sosalgo.expr.tree import Expr
+from sosalgo.kernel.expr.tree import Expr
 
 if TYPE_CHECKING:
     import sympy as sp
@@ -59,7 +59,7 @@ def __getattr__(name: str) -> Any:
     """``BASE_SYMBOLS`` (sympy symbols of m, L, kappa) is built on first use, so that numeric
     work never imports sympy."""
     if name == "BASE_SYMBOLS":
-        from sosalgo.expr.parse import sympy_symbol
+        from sosalgo.kernel.expr.parse import sympy_symbol
 
         return {k: sympy_symbol(k) for k in BASE_NAMES}
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
@@ -116,7 +116,7 @@ class FunctionDecl:
 
 @dataclass(frozen=True, eq=False)
 class Spec:
-    """A validated spec. Expressions are :class:`~sosalgo.expr.tree.Expr` trees over the
+    """A validated spec. Expressions are :class:`~sosalgo.kernel.expr.tree.Expr` trees over the
     parameters and m, L, kappa; :meth:`sympy_matrices`, :meth:`templates` and
     :meth:`tied_closure` give their sympy form (built on first use)."""
 
@@ -184,7 +184,7 @@ class Spec:
     @property
     def symbols(self) -> dict[str, sp.Symbol]:
         """The sympy symbol of each parameter."""
-        from sosalgo.expr.parse import sympy_symbol
+        from sosalgo.kernel.expr.parse import sympy_symbol
 
         return {p: sympy_symbol(p) for p in self.parameters}
 
@@ -193,7 +193,7 @@ class Spec:
         if "matrices" not in self._sympy:
             import sympy as sp
 
-            from sosalgo.expr.parse import to_sympy
+            from sosalgo.kernel.expr.parse import to_sympy
 
             self._sympy["matrices"] = {
                 k: sp.Matrix([[to_sympy(e) for e in row] for row in rows])
@@ -221,7 +221,7 @@ class Spec:
     def tied_closure(self) -> dict[str, sp.Expr]:
         """Every tied parameter written (in sympy) in terms of input parameters and m, L,
         kappa."""
-        from sosalgo.expr.parse import to_sympy
+        from sosalgo.kernel.expr.parse import to_sympy
 
         order = tied_order(self.parameters, self.source)
         symbols = self.symbols
@@ -239,7 +239,7 @@ class Spec:
         ``value`` expressions when ``free`` is given (``free=None`` keeps every input
         parameter symbolic).
         """
-        from sosalgo.expr.parse import to_sympy
+        from sosalgo.kernel.expr.parse import to_sympy
 
         symbols = self.symbols
         sub: dict[sp.Symbol, sp.Expr] = {}

@@ -27,11 +27,12 @@ import numpy as np
 from sosalgo.certificates import FAMILIES, default_family, get_family
 from sosalgo.certificates.base import CertificateFamily, check_number
 from sosalgo.errors import InputError
+from sosalgo.kernel.exact import Verdict
 from sosalgo.model import bind
 from sosalgo.schema import certificate_name
 from sosalgo.spec import Spec
 from sosalgo.store import output_lock
-from sosalgo.verify import Verdict, simulate_check
+from sosalgo.verify import simulate_check
 from sosalgo.verify.exact import write_certificate
 
 __all__ = [
@@ -287,8 +288,8 @@ def _noise_checks(spec: Spec, claims: Sequence[dict[str, Any] | None], key: str 
     ``noise_proven`` (a float >= the proven bound), ``noise_fraction`` and
     ``noise_reason``; the claimed ``noise`` must be >= the proven bound. With ``key``
     "noise_limsup": the same for the bound on the limsup (``noise_limsup_verified``, ...)."""
+    from sosalgo.kernel.exact import rational
     from sosalgo.sensitivity.exact import verify_noise
-    from sosalgo.verify.exact import rational
 
     out: list[dict[str, Any] | None] = []
     for c in claims:

@@ -1,4 +1,4 @@
-"""Linear algebra on rational balls (:class:`sosalgo.verify.exact.Ball`) for the witnesses.
+"""Linear algebra on rational balls (:class:`sosalgo.kernel.exact.Ball`) for the witnesses.
 
 A ball of radius 0 is an exact rational, so every routine here is exact on rational data
 and outward-rounded (rigorous enclosures) on irrational data: reciprocals and linear
@@ -13,7 +13,7 @@ from fractions import Fraction
 
 import numpy as np
 
-from sosalgo.verify.exact import Ball, fraction_str
+from sosalgo.kernel.exact import Ball, fraction_str
 
 __all__ = ["ball_array", "ball_str", "exact", "recip", "solve_right", "tidy"]
 

@@ -30,7 +30,8 @@ import numpy as np
 from flint import arb, arb_mat
 
 from sosalgo.classes import get_class
-from sosalgo.witnesses.method import ArbMethod, arb_fraction, arb_method, arb_of, precision
+from sosalgo.kernel.arb import arb_fraction, arb_of, precision
+from sosalgo.witnesses.method import ArbMethod, arb_method
 
 __all__ = ["BRACKET_KINDS", "Bracketed", "bracketed", "has_root_outside", "output_part",
            "quadratic_bracket", "quadratic_witness_fails", "rate_bracket",

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.verify.exact import Ball
+from sosalgo.kernel.exact import Ball
 from sosalgo.witnesses.balls import ball_str, exact
 from sosalgo.witnesses.search import gram_search, rounded_factors
 from sosalgo.witnesses.trajectory import build_layout, check

@@ -6,43 +6,16 @@ values of their floats, L = kappa m.
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping
-from contextlib import contextmanager
+from collections.abc import Mapping
 from dataclasses import dataclass
-from fractions import Fraction
 from typing import Any
 
-from flint import arb, arb_mat, ctx, fmpq
+from flint import arb, arb_mat
 
+from sosalgo.kernel.arb import arb_fraction, arb_of, precision
 from sosalgo.spec.types import Spec, value_order
 
-__all__ = ["ArbMethod", "arb_fraction", "arb_method", "arb_of", "precision"]
-
-PREC = 256  # bits of the enclosures
-
-
-@contextmanager
-def precision(bits: int = PREC) -> Iterator[None]:
-    """Run flint's ball arithmetic at ``bits`` of working precision."""
-    old = ctx.prec
-    ctx.prec = bits
-    try:
-        yield
-    finally:
-        ctx.prec = old
-
-
-def arb_of(x: Fraction | int | float) -> arb:
-    """The ball of an exact rational (exact when it is dyadic)."""
-    q = Fraction(x)
-    return arb(fmpq(q.numerator, q.denominator))
-
-
-def arb_fraction(x: arb) -> Fraction:
-    """The exact rational value of an exact (radius 0) ball's midpoint."""
-    man, exp = x.mid().man_exp()
-    man, exp = int(man), int(exp)
-    return Fraction(man) * (Fraction(2) ** exp)
+__all__ = ["ArbMethod", "arb_method"]
 
 
 def _apply(op: str, v: list[arb]) -> arb:

@@ -9,7 +9,6 @@ reweighted trace of H (Fazel's log-det heuristic) for a low-dimensional witness.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from fractions import Fraction
 from typing import Any
@@ -17,37 +16,13 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sps
 
+from sosalgo.kernel.conic import svec, unsvec
 from sosalgo.witnesses.trajectory import Layout, function_points, pair_scales
 
 __all__ = ["gram_search", "rounded_factors"]
 
 MIN_SLACK = 1e-7  # phase 1 optimum below this: no strictly feasible trajectory here
 SAMPLES = 6  # scaled copies s^1..s^SAMPLES imposed in the search (all of them checked)
-
-
-def _svec_index(r: int) -> dict[tuple[int, int], int]:
-    """Position of H_ij (i <= j) in Clarabel's scaled upper-triangle, column-major vector."""
-    out, k = {}, 0
-    for j in range(r):
-        for i in range(j + 1):
-            out[(i, j)] = k
-            k += 1
-    return out
-
-
-def _svec(M: np.ndarray, idx: dict[tuple[int, int], int]) -> np.ndarray:
-    """Coefficients c with <M, H> = c . svec(H) (M symmetric)."""
-    c = np.zeros(len(idx))
-    for (i, j), k in idx.items():
-        c[k] = M[i, i] if i == j else math.sqrt(2) * M[i, j]
-    return c
-
-
-def _smat(v: np.ndarray, idx: dict[tuple[int, int], int], r: int) -> np.ndarray:
-    H = np.zeros((r, r))
-    for (i, j), k in idx.items():
-        H[i, j] = H[j, i] = v[k] if i == j else v[k] / math.sqrt(2)
-    return H
 
 
 def _rows(lay: Layout, method: Any, samples: Sequence[float]) -> tuple[list, list]:
@@ -71,7 +46,7 @@ def _rows(lay: Layout, method: Any, samples: Sequence[float]) -> tuple[list, lis
 
 
 def _solve(q: np.ndarray, A: np.ndarray, b: np.ndarray, cones: list) -> np.ndarray | None:
-    from sosalgo.solvers import SolverStatus, clarabel_solve, quiet_settings, solver_status
+    from sosalgo.kernel.solvers import SolverStatus, clarabel_solve, quiet_settings, solver_status
 
     settings = quiet_settings()
     settings.max_iter = 200
@@ -89,23 +64,20 @@ def gram_search(lay: Layout, method: Any, nvals: int
                 ) -> tuple[np.ndarray, np.ndarray] | None:
     """(H, values) of a strictly feasible trajectory, or None (phase 1 slack too small or
     a solver status other than solved)."""
-    import clarabel
-
     r = lay.r
-    idx = _svec_index(r)
-    nh = len(idx)
+    nh = r * (r + 1) // 2
     nv = nh + nvals + 1  # svec(H), values, delta
     s = float(lay.s)
     samples = [s ** j for j in range(1, SAMPLES + 1)] if s < 1 else []
     rows, fixed = _rows(lay, method, samples)
     G = np.zeros((len(rows), nv))
     for i, (M, fv) in enumerate(rows):
-        G[i, :nh] = -_svec(M, idx)
+        G[i, :nh] = -svec(M)
         for f, w in fv.items():
             G[i, nh + f] -= w
         G[i, -1] = 1.0
     norm = np.zeros((1, nv))
-    norm[0, :nh] = _svec(sum(np.outer(o, o) for o in lay.out), idx)
+    norm[0, :nh] = svec(sum(np.outer(o, o) for o in lay.out))
     fix = np.zeros((len(fixed), nv))
     for i, f in enumerate(fixed):
         fix[i, nh + f] = 1.0
@@ -115,8 +87,7 @@ def gram_search(lay: Layout, method: Any, nvals: int
     A = np.vstack([norm, fix, G, cap, psd])
     b = np.concatenate([[1.0], np.zeros(len(fixed)), np.zeros(len(rows)), [1.0],
                         np.zeros(nh)])
-    cones = [clarabel.ZeroConeT(1 + len(fixed)), clarabel.NonnegativeConeT(len(rows) + 1),
-             clarabel.PSDTriangleConeT(r)]
+    cones = [("zero", 1 + len(fixed)), ("nonneg", len(rows) + 1), ("psd", r)]
     q = np.zeros(nv)
     q[-1] = -1.0
     x = _solve(q, A, b, cones)
@@ -126,18 +97,18 @@ def gram_search(lay: Layout, method: Any, nvals: int
     floor[0, -1] = -1.0
     A2 = np.vstack([norm, fix, G, cap, floor, psd])
     b2 = np.concatenate([b[: 2 + len(fixed) + len(rows)], [-0.5 * x[-1]], np.zeros(nh)])
-    cones2 = [cones[0], clarabel.NonnegativeConeT(len(rows) + 2), cones[2]]
+    cones2 = [cones[0], ("nonneg", len(rows) + 2), cones[2]]
     W = np.eye(r)
     for _ in range(3):  # reweighted trace: pushes H towards low rank
         q2 = np.zeros(nv)
-        q2[:nh] = _svec(W, idx)
+        q2[:nh] = svec(W)
         x2 = _solve(q2, A2, b2, cones2)
         if x2 is None:
             break
         x = x2
-        H = _smat(x[:nh], idx, r)
+        H = unsvec(x[:nh], r)
         W = np.linalg.inv(H + 1e-3 * np.trace(H) / r * np.eye(r))
-    return _smat(x[:nh], idx, r), x[nh: nh + nvals]
+    return unsvec(x[:nh], r), x[nh: nh + nvals]
 
 
 def rounded_factors(H: np.ndarray, values: np.ndarray, dims: Sequence[int],

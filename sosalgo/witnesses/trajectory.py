@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 import scipy.linalg
 
-from sosalgo.verify.exact import Ball
+from sosalgo.kernel.exact import Ball
 from sosalgo.witnesses.balls import solve_right
 
 __all__ = ["Layout", "Point", "build_layout", "check", "function_points", "pair_scales",

@@ -1,4 +1,4 @@
-"""Fast, safe numeric evaluation of the expression trees of :mod:`sosalgo.expr.tree`.
+"""Fast, safe numeric evaluation of the expression trees of :mod:`sosalgo.kernel.expr.tree`.
 
 An expression is compiled once into nested Python closures (no code generation, no
 ``eval``, no computer algebra) and then evaluated at many points (kappa values, grid
@@ -13,7 +13,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from sosalgo.errors import InputError
-from sosalgo.expr.tree import Expr, apply, evaluate, power
+from sosalgo.kernel.expr.tree import Expr, apply, evaluate, power
 
 __all__ = ["NumericError", "compile_expression", "compile_matrix"]
 

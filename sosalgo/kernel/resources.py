@@ -21,7 +21,7 @@ def examples_dir() -> Traversable:
             return files
     except (ModuleNotFoundError, FileNotFoundError, NotADirectoryError):
         pass
-    return Path(__file__).resolve().parent.parent / "specs"
+    return Path(__file__).resolve().parents[2] / "specs"
 
 
 def example_specs() -> dict[str, Traversable]:

@@ -229,7 +229,7 @@ class Estimate:
         """The ``estimate`` entry of a ``--json`` document."""
         return {"peak_memory_bytes": int(self.peak_bytes), "seconds": round(self.seconds, 1),
                 "workers": self.workers, "max_memory_bytes": max_memory(),
-                "model": "sosalgo.budget (measured constants; about a factor of two)"}
+                "model": "sosalgo.kernel.budget (measured constants; about a factor of two)"}
 
 
 def check(est: Estimate, announce: bool = True) -> Estimate:

@@ -8,9 +8,9 @@ names the caller allows, ``+ - * / **``, unary signs, parentheses and the functi
 string literal ... is a parse error. (sympy's own ``parse_expr`` calls ``eval`` on the
 transformed text, so it is deliberately not used.)
 
-The tree needs no computer algebra: numeric work (:mod:`~sosalgo.expr.compile`) reads it
+The tree needs no computer algebra: numeric work (:mod:`~sosalgo.kernel.expr.compile`) reads it
 directly, so analysing a spec never imports sympy. Symbolic work (design, ``lmi``, exact
-verification) converts it with :func:`sosalgo.expr.parse.to_sympy`.
+verification) converts it with :func:`sosalgo.kernel.expr.parse.to_sympy`.
 """
 
 from __future__ import annotations

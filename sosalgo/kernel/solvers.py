@@ -1,6 +1,6 @@
 """One small door to the conic solvers, returning a status we trust.
 
-``solve_lmi`` asks whether an :class:`~sosalgo.certificates.base.LMIProblem` is feasible at a
+``solve_lmi`` asks whether an :class:`~sosalgo.kernel.conic.LMIProblem` is feasible at a
 given rho with a small margin (every block ⪯ -margin I) and answers ``feasible`` only when
 the solver reports *solved* **and** the returned x passes a floating-point eigenvalue check
 of every block. Anything else (inaccurate, iteration limit, numerical error, exception, a
@@ -9,6 +9,14 @@ infeasibility is ``infeasible``. Callers never read a raw solver status.
 
 The problem data go straight to Clarabel (upper-triangular scaled svec) or SCS
 (lower-triangular scaled svec), so one feasibility test costs well under a millisecond.
+
+This module is the only one that imports Clarabel and SCS. Conic data other than an
+:class:`~sosalgo.kernel.conic.LMIProblem` (the PEP, noise, witness and dual-bound SDPs)
+come as ``A x + s = b`` with cones written as ``(kind, size)`` pairs
+(:func:`clarabel_cones`) and are solved by :func:`clarabel_solve` (one solve) or
+:func:`solve_attempts` (a list of settings tried in turn); the statuses they return are
+classified by :func:`solver_status`, and every solve stops at Ctrl-C or SIGTERM
+(:mod:`sosalgo.kernel.interrupts`).
 """
 
 from __future__ import annotations
@@ -29,15 +37,15 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sps
 
-from sosalgo.certificates.base import LMIProblem
+from sosalgo.kernel.conic import LMIProblem, svec
+from sosalgo.kernel.interrupts import native_solve, watch
 
 __all__ = [
     "Feasibility", "Outcome", "solve_lmi", "solve_margin", "check_point", "Margin", "SOLVERS",
     "DEFAULT_SOLVERS", "margin_for", "SolverStatus", "solver_status", "SolverPanic",
-    "clarabel_solve", "solve_or_raise",
+    "clarabel_solve", "solve_or_raise", "clarabel_cones", "solve_attempts", "CHORDAL", "lmi_point",
 ]
 
-SQRT2 = math.sqrt(2.0)
 RELATIVE_MARGIN = 1e-9
 DEFAULT_TOL = 1e-8  # Clarabel's default tolerances (gap, feasibility)
 PRECISE_TOL = 1e-10  # ... and those of a precise margin
@@ -100,27 +108,6 @@ class Outcome:
     @property
     def feasible(self) -> bool:
         return self.status == Feasibility.FEASIBLE
-
-
-@functools.cache
-def _tri_indices(s: int, upper_colmajor: bool) -> tuple[np.ndarray, np.ndarray]:
-    if upper_colmajor:  # Clarabel: (0,0),(0,1),(1,1),(0,2),...
-        pairs = [(i, j) for j in range(s) for i in range(j + 1)]
-    else:  # SCS: lower triangle column-major: (0,0),(1,0),(2,0),(1,1),...
-        pairs = [(i, j) for j in range(s) for i in range(j, s)]
-    rows = np.array([p[0] for p in pairs])
-    cols = np.array([p[1] for p in pairs])
-    return rows, cols
-
-
-def svec(mats: np.ndarray, upper_colmajor: bool) -> np.ndarray:
-    """Scaled half-vectorization of symmetric matrix/matrices (last two axes)."""
-    s = mats.shape[-1]
-    if s == 1:
-        return mats[..., 0, :1]
-    r, c = _tri_indices(s, upper_colmajor)
-    scale = np.where(r == c, 1.0, SQRT2)
-    return mats[..., r, c] * scale
 
 
 class _ConicForm:
@@ -228,9 +215,7 @@ class SolverPanic(RuntimeError):
 def solve_or_raise(solver: Any) -> Any:
     """``solver.solve()``, a panic turned into :class:`SolverPanic` (an Exception). Ctrl-C
     or SIGTERM meanwhile stops the solve at its next iteration and is raised when it
-    returns (:mod:`sosalgo.interrupts`)."""
-    from sosalgo.interrupts import native_solve, watch
-
+    returns (:mod:`sosalgo.kernel.interrupts`)."""
     try:
         with native_solve():
             return watch(solver).solve()
@@ -240,12 +225,23 @@ def solve_or_raise(solver: Any) -> Any:
         raise
 
 
+def clarabel_cones(cones: Sequence[Any]) -> list:
+    """Clarabel's cone objects for ``(kind, size)`` pairs, kind "zero", "nonneg" or "psd"
+    (the scaled upper-triangle PSD cone of s x s matrices); cone objects pass through."""
+    import clarabel
+
+    kinds = {"zero": clarabel.ZeroConeT, "nonneg": clarabel.NonnegativeConeT,
+             "psd": clarabel.PSDTriangleConeT}
+    return [kinds[c[0]](c[1]) if isinstance(c, tuple) else c for c in cones]
+
+
 def clarabel_solve(P: Any, q: Any, A: Any, b: Any, cones: list, settings: Any) -> Any:
-    """One Clarabel solve (a panic in its setup or solve becomes :class:`SolverPanic`)."""
+    """One Clarabel solve (a panic in its setup or solve becomes :class:`SolverPanic`);
+    ``cones`` as for :func:`clarabel_cones`."""
     import clarabel
 
     try:
-        solver = clarabel.DefaultSolver(P, q, A, b, cones, settings)
+        solver = clarabel.DefaultSolver(P, q, A, b, clarabel_cones(cones), settings)
     except BaseException as exc:
         if type(exc).__name__ == "PanicException":
             raise SolverPanic(str(exc).splitlines()[0] if str(exc) else "panic") from None
@@ -316,6 +312,33 @@ def c_stdout_to_stderr():
         sys.stdout.flush()
         os.dup2(saved, 1)
         os.close(saved)
+
+
+def lmi_point(problem: LMIProblem, rho: float | None,
+              near: bool = False) -> tuple[str, np.ndarray | None]:
+    """One Clarabel solve of the blocks without margin: minimize r (= rho^2, a variable)
+    when ``rho`` is None, else a feasibility point at rho (the solver's interior point).
+    Returns (status, (y, r)) with y, r only when solved (or almost solved with ``near``:
+    an estimate to start from, never a certificate)."""
+    form = _form(problem, True)
+    A, b = form.data(0.0 if rho is None else rho, 0.0)
+    A, b = A.copy(), b.copy()
+    q = np.zeros(problem.nvar)
+    if rho is None:  # b(r) = b0 + r b1: move r into the variables
+        A = sps.hstack([A, sps.csc_matrix(-form.b1[:, None])]).tocsc()
+        q = np.zeros(problem.nvar + 1)
+        q[-1] = 1.0
+    cones = [("nonneg", 1) if s == 1 else ("psd", s) for s in form.sizes]
+    zero = sps.csc_matrix((len(q), len(q)))
+    try:
+        sol = clarabel_solve(zero, q, A, b, cones, _clarabel_settings(True))
+    except Exception as exc:  # noqa: BLE001 - a crash is no answer
+        return f"exception: {type(exc).__name__}", None
+    status = str(sol.status)
+    kind = solver_status(status)
+    if kind != SolverStatus.SOLVED and not (near and kind.near):
+        return status, None
+    return status, np.array(sol.x)
 
 
 class _MarginForm:
@@ -547,7 +570,7 @@ def _shared_solvers() -> _SolverCache:
 class _Evaluator:
     """Every block of a problem evaluated at once: the scalar blocks (many in some families)
     as one matrix-vector product, the matrix blocks one by one (same sums as
-    :meth:`~sosalgo.certificates.base.AffineBlock.value`)."""
+    :meth:`~sosalgo.kernel.conic.AffineBlock.value`)."""
 
     def __init__(self, problem: LMIProblem):
         scal = [b for b in problem.blocks if b.size == 1]
@@ -642,3 +665,104 @@ def solve_lmi(
         if out.status != Feasibility.FAILED or (out.near_boundary and i >= 1):
             return out
     return out
+
+
+# --------------------------------------------------------------------------- attempt lists
+
+
+@contextlib.contextmanager
+def _quiet_stderr():
+    """Clarabel's Rust panics (caught below) print to file descriptor 2: hide them."""
+    try:
+        saved = os.dup(2)
+    except OSError:
+        yield
+        return
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 2)
+            yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
+@functools.cache
+def _sdp_settings(precise: bool, reg: float, max_iter: int = 400, chordal: str = "apart"
+                  ) -> Any:
+    """Settings of one attempt of :func:`solve_attempts` (tuned on PEP's dual SDPs)."""
+    s = quiet_settings()
+    s.max_iter = max_iter
+    s.static_regularization_constant = reg
+    s.direct_solve_method = "faer"  # supernodal LDL: 2-4x faster on these dense rows
+    # the dual form's chordal blocks kept apart with their overlaps as equalities (not
+    # the compact merge): half the iterations (Nesterov N = 40: 24 instead of 44);
+    # :data:`CHORDAL`: the fallbacks when Clarabel panics building the decomposition
+    s.chordal_decomposition_compact = chordal == "compact"
+    if chordal == "unmerged":
+        s.chordal_decomposition_merge_method = "none"
+    if precise:
+        s.tol_gap_abs = s.tol_gap_rel = s.tol_feas = 1e-10
+        s.tol_ktratio = 1e-10
+    return s
+
+
+# chordal decompositions in order: blocks apart, then Clarabel's compact merge, then no
+# merging (Clarabel 0.11 panics building the first on some patterns, "index out of
+# bounds": gradient descent at N = 200; the others build)
+CHORDAL = ("apart", "compact", "unmerged")
+
+
+def solve_attempts(A: Any, q: np.ndarray, b: np.ndarray, cones: Sequence[Any],
+                   attempts: tuple[tuple[Any, ...], ...], final: tuple[str, ...] = ()
+                   ) -> tuple[Any, str, SolverStatus]:
+    """min q'x s.t. A x + s = b, s in ``cones`` (see :func:`clarabel_cones`), tried with
+    each attempt in turn: (solution or None, raw status, status) of the first attempt that
+    ends solved or with a raw status in ``final`` (else the last). An attempt is (precise
+    tolerances, static regularization[, max iterations])."""
+    cones = clarabel_cones(cones)
+    P = sps.csc_matrix((A.shape[1], A.shape[1]))
+    sol, raw, st_ = None, "no attempt ended", SolverStatus.FAILED
+    for precise, reg, *iters in attempts:
+        sol = _clarabel_attempt(P, q, A, b, cones, precise, reg, iters)
+        if sol is None:
+            continue
+        raw = str(sol.status)
+        st_ = solver_status(raw)
+        if (st_ == SolverStatus.SOLVED or raw in final
+                or (iters and sol.iterations >= iters[0])):  # capped: not converging
+            break
+    return sol, raw, st_
+
+
+def _clarabel_attempt(P: Any, q: np.ndarray, A: Any, b: np.ndarray, cones: list[Any],
+                      precise: bool, reg: float, iters: list[int]) -> Any:
+    """One attempt's solution, or None when Clarabel panics (Rust panics: an eigenvalue
+    failure while solving; while building, the next chordal decomposition of
+    :data:`CHORDAL` is tried). Ctrl-C and SIGTERM stop the solve
+    (:mod:`sosalgo.kernel.interrupts`)."""
+    import clarabel
+
+    with _quiet_stderr():
+        for chordal in CHORDAL:
+            settings = _sdp_settings(precise, reg, *(iters or [400]), chordal)
+            try:
+                solver = clarabel.DefaultSolver(P, q, A, b, cones, settings)
+            except BaseException as exc:
+                _reraise_interruption(exc)
+                continue
+            try:
+                with native_solve():
+                    return watch(solver).solve()
+            except BaseException as exc:
+                _reraise_interruption(exc)
+                return None
+    return None
+
+
+def _reraise_interruption(exc: BaseException) -> None:
+    """Re-raise what is not a Clarabel failure: an interruption (Ctrl-C, SIGTERM), an exit,
+    no memory. Rust panics surface as ``PanicException`` (a BaseException)."""
+    if isinstance(exc, MemoryError) or not (isinstance(exc, Exception)
+                                            or type(exc).__name__ == "PanicException"):
+        raise exc

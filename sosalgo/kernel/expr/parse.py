@@ -1,4 +1,4 @@
-"""Symbolic form of spec expressions: :class:`~sosalgo.expr.tree.Expr` trees to sympy.
+"""Symbolic form of spec expressions: :class:`~sosalgo.kernel.expr.tree.Expr` trees to sympy.
 
 Only symbolic work imports this module (design's polynomial model, the ``lmi`` display,
 exact verification, polyopt's string input); numeric analysis works on the tree itself.
@@ -12,7 +12,7 @@ from collections.abc import Mapping
 
 import sympy as sp
 
-from sosalgo.expr.tree import Expr, ExprError, parse_tree
+from sosalgo.kernel.expr.tree import Expr, ExprError, parse_tree
 
 __all__ = ["parse_expression", "sympy_symbol", "to_sympy"]
 
