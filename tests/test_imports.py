@@ -122,7 +122,7 @@ def test_the_check_finds_a_cycle():
 # describes the layers.
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("kernel", ("errors", "kernel", "polyopt")),
-    ("problem", ("classes", "spec", "oracles", "model")),
+    ("problem", ("classes", "spec", "oracles", "model", "exact_method")),
     ("families", ("certificates",)),
     ("questions", ("symbolic", "analysis", "inputs", "sensitivity", "witnesses", "design",
                    "sublinear_design", "pep", "pareto")),
@@ -132,9 +132,6 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("faces", ("api", "__init__", "cli_errors", "cli")),
 )
 
-_EXACT_METHOD = ("the exact method (ExactAlgorithm, exact_algorithm, exact_fixed_point) is "
-                 "still in verify/exact.py beside Theorem 1's exact check; it belongs to the "
-                 "problem layer's one Method")
 _VALIDATE = ("the spec loader validates a spec by binding it at its kappas (model, "
              "oracles) and asking its certificate family; parse and validate split with "
              "the one Method and bind")
@@ -148,11 +145,6 @@ ALLOWED_UPWARD: dict[tuple[str, str], str] = {
     ("sosalgo.spec.loading", "sosalgo.certificates"): _VALIDATE,
     ("sosalgo.spec.initial_state", "sosalgo.model"): _VALIDATE,
     ("sosalgo.spec.initial_state", "sosalgo.oracles"): _VALIDATE,
-    ("sosalgo.certificates.exact_composite", "sosalgo.verify.exact"): _EXACT_METHOD,
-    ("sosalgo.certificates.exact_interpolation", "sosalgo.verify.exact"): _EXACT_METHOD,
-    ("sosalgo.certificates.exact_sublinear", "sosalgo.verify.exact"): _EXACT_METHOD,
-    ("sosalgo.certificates.theorem1", "sosalgo.verify.exact"): _EXACT_METHOD,
-    ("sosalgo.sensitivity.exact", "sosalgo.verify.exact"): _EXACT_METHOD,
 }
 
 

@@ -5,7 +5,7 @@ The certificate (rho, P, p, c, multipliers) of a method with several oracle call
 proximal steps and other function classes is checked in original units, without floating
 point in the proof path:
 
-1. The method is made exact (:func:`sosalgo.verify.exact.exact_algorithm`): rational kappa,
+1. The method is made exact (:func:`sosalgo.exact_method.exact_algorithm`): rational kappa,
    m, L (exact binary values of the floats), rational balls around irrational entries of
    A, B, C, D, E; every function's class parameters from the spec's expressions, likewise.
    D is checked lower triangular with diagonal entries <= 0, and the fixed point of every
@@ -43,6 +43,7 @@ from sosalgo.certificates.exact_interpolation import (
     settle,
     symmetric_matrix,
 )
+from sosalgo.exact_method import ExactAlgorithm, exact_algorithm
 from sosalgo.kernel.exact import (
     DEFAULT_DIGITS,
     DEFAULT_MAX_DEN,
@@ -61,7 +62,6 @@ from sosalgo.kernel.exact import (
 from sosalgo.kernel.expr.parse import to_sympy
 from sosalgo.model import bind
 from sosalgo.spec.types import BASE_SYMBOLS, ORACLE_MATRIX_NAMES, Spec
-from sosalgo.verify.exact import ExactAlgorithm, exact_algorithm
 
 __all__ = ["CompositeExactResult", "ExactOracleMethod", "exact_class_inequalities",
            "exact_oracle_method", "fixed_point_failure", "verify_exact_composite"]

@@ -3,7 +3,7 @@
 The certificate (rho, P, p, c, multipliers eta, lambda) is checked in original units
 (F(m, L), no normalization) without floating point in the proof path:
 
-1. The method is made exact as for Theorem 1 (:func:`sosalgo.verify.exact.exact_algorithm`):
+1. The method is made exact as for Theorem 1 (:func:`sosalgo.exact_method.exact_algorithm`):
    rational kappa, m, L and rational balls enclosing irrational entries of A, B, C, E.
 2. P, p, c, eta, lambda are rounded to rationals; negative multipliers are set to 0, and
    p_j (or c) is raised where needed so that the function-value rows of the positivity
@@ -30,6 +30,8 @@ from typing import Any
 
 import numpy as np
 
+from sosalgo.certificates.exact_theorem1 import ProofResult
+from sosalgo.exact_method import exact_algorithm, exact_fixed_point
 from sosalgo.kernel.exact import (
     DEFAULT_DIGITS,
     DEFAULT_MAX_DEN,
@@ -46,7 +48,6 @@ from sosalgo.kernel.exact import (
 )
 from sosalgo.model import bind, fixed_point
 from sosalgo.spec.types import MATRIX_NAMES, Spec
-from sosalgo.verify.exact import ProofResult, exact_algorithm, exact_fixed_point
 
 __all__ = ["InterpolationExactResult", "float_entry", "symmetric_matrix",
            "verify_exact_interpolation"]

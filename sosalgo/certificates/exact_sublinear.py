@@ -53,10 +53,10 @@ from sosalgo.certificates.exact_composite import (
     exact_window,
 )
 from sosalgo.certificates.exact_interpolation import Refused
+from sosalgo.exact_method import ExactAlgorithm
 from sosalgo.kernel.exact import Ball, Verdict, fraction_str, prove_psd
 from sosalgo.kernel.expr.parse import to_sympy
 from sosalgo.spec.types import BASE_SYMBOLS, ORACLE_MATRIX_NAMES, Spec, value_order
-from sosalgo.verify.exact import ExactAlgorithm
 
 __all__ = ["Lin", "SublinearExactResult", "exact_sublinear_method", "verify_exact_sublinear"]
 

@@ -232,8 +232,9 @@ class Theorem1(CertificateFamily):
 
     def exact_check(self, spec: Spec, kappa: float, rho: float, cert: Mapping[str, Any],
                     theta: Mapping[str, float] | None = None) -> Any:
-        """Exact rational proof of eq. (15) (:func:`sosalgo.verify.exact.verify_exact`)."""
-        from sosalgo.verify.exact import verify_exact
+        """Exact rational proof of eq. (15)
+        (:func:`sosalgo.certificates.exact_theorem1.verify_exact`)."""
+        from sosalgo.certificates.exact_theorem1 import verify_exact
 
         return verify_exact(spec, kappa, rho, np.asarray(cert["P"], dtype=float),
                             cert["lambda"], theta)

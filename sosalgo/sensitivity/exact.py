@@ -30,12 +30,12 @@ from fractions import Fraction
 from typing import Any
 
 from sosalgo.certificates.exact_interpolation import Refused, symmetric_matrix
+from sosalgo.exact_method import exact_algorithm, exact_fixed_point
 from sosalgo.kernel.exact import DEFAULT_DIGITS, Ball, Verdict, fraction_str, rational
 from sosalgo.sensitivity.limsup import limsup_bound
 from sosalgo.sensitivity.sdp import noise_windows
 from sosalgo.sensitivity.window import noise_parts, past_noise, state_size
 from sosalgo.spec.types import Spec
-from sosalgo.verify.exact import exact_algorithm, exact_fixed_point
 
 __all__ = ["NoiseProof", "verify_composite_noise", "verify_noise", "sqrt_upper"]
 

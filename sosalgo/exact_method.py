@@ -1,0 +1,108 @@
+"""The method made exact: the spec's templates at rational kappa, m, L (and rational
+parameter values), with exact sympy entries and rational ball enclosures of the irrational
+ones (:func:`exact_algorithm`), and its fixed point of eq. (11) proven exactly
+(:func:`exact_fixed_point`). The exact twin of :func:`sosalgo.model.bind`, used by every
+family's exact check and by the noise proofs.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from fractions import Fraction
+
+import numpy as np
+import sympy as sp
+
+from sosalgo.kernel.exact import (
+    DEFAULT_DIGITS,
+    BallMatrix,
+    enclose,
+    fraction_str,
+    is_zero,
+    rational,
+)
+from sosalgo.kernel.expr.parse import to_sympy
+from sosalgo.spec.types import BASE_SYMBOLS, ORACLE_MATRIX_NAMES, Spec, value_order
+
+__all__ = ["ExactAlgorithm", "exact_algorithm", "exact_fixed_point"]
+
+
+@dataclass(frozen=True, eq=False)
+class ExactAlgorithm:
+    """The method at rational kappa, m, L: exact sympy entries and rational enclosures."""
+
+    name: str
+    kappa: Fraction
+    m: Fraction
+    L: Fraction
+    params: dict[str, sp.Expr]
+    matrices: dict[str, sp.Matrix]
+    balls: dict[str, BallMatrix]
+    theta: dict[str, Fraction] = field(default_factory=dict)
+
+    def enclosures(self) -> dict[str, list[list[list[str]]]]:
+        """[lo, hi] of every entry as exact decimal/rational strings (lo == hi if exact)."""
+        return {
+            k: [[[fraction_str(b.lo), fraction_str(b.hi)] for b in row] for row in mat]
+            for k, mat in self.balls.items()
+        }
+
+
+def exact_algorithm(
+    spec: Spec, kappa: float | Fraction, theta: Mapping[str, float] | None = None,
+    digits: int = DEFAULT_DIGITS,
+) -> ExactAlgorithm:
+    """Exact templates A, B, C, E (eq. 10; and D where the spec has one) at rational kappa,
+    m = spec.m, L = kappa m."""
+    kq = rational(kappa)
+    if not kq > 1:
+        raise ValueError(f"condition number must be > 1, got {kappa}")
+    mq = rational(spec.m)
+    Lq = kq * mq
+    base = {
+        BASE_SYMBOLS["m"]: sp.Rational(mq.numerator, mq.denominator),
+        BASE_SYMBOLS["L"]: sp.Rational(Lq.numerator, Lq.denominator),
+        BASE_SYMBOLS["kappa"]: sp.Rational(kq.numerator, kq.denominator),
+    }
+    theta_q: dict[str, Fraction] = {}
+    for p, v in (theta or {}).items():
+        if p not in spec.parameters:
+            raise ValueError(f"unknown parameter {p!r}")
+        if spec.parameters[p].is_tied:
+            raise ValueError(f"parameter {p!r} is tied to other parameters; it cannot be set")
+        theta_q[p] = rational(v)
+    values: dict[sp.Symbol, sp.Expr] = dict(base)
+    params: dict[str, sp.Expr] = {}
+    for p in value_order(spec.parameters, spec.source):
+        par = spec.parameters[p]
+        if p in theta_q:
+            val: sp.Expr = sp.Rational(theta_q[p].numerator, theta_q[p].denominator)
+        else:
+            expr = par.tied if par.is_tied else par.value
+            assert expr is not None
+            val = to_sympy(expr).xreplace(values)
+        if val.free_symbols:
+            raise ValueError(f"parameter {p} did not evaluate to a number: {val}")
+        params[p] = val
+        values[spec.symbols[p]] = val
+    mats: dict[str, sp.Matrix] = {}
+    balls: dict[str, BallMatrix] = {}
+    # A, B, C, E; on the oracle model also D, and no E with ``output: y<i>``
+    for k in (k for k in ORACLE_MATRIX_NAMES if k in spec.sympy_matrices()):
+        mat = spec.sympy_matrices()[k].xreplace(values)
+        mats[k] = mat
+        balls[k] = [[enclose(mat[i, j], digits) for j in range(mat.shape[1])]
+                    for i in range(mat.shape[0])]
+    return ExactAlgorithm(spec.name, kq, mq, Lq, params, mats, balls, theta_q)
+
+
+def exact_fixed_point(ex: ExactAlgorithm, u_float: np.ndarray | None) -> list[sp.Expr] | None:
+    """u of eq. (11) with (I - A)u = 0, C u = 1, E u = 1 proven exactly, or None."""
+    if u_float is None:
+        return None
+    u = [sp.nsimplify(float(v), rational=True, tolerance=1e-10) for v in u_float]
+    uv = sp.Matrix(u)
+    A, C, E = ex.matrices["A"], ex.matrices["C"], ex.matrices["E"]
+    res = list((sp.eye(A.shape[0]) - A) * uv) + [(C * uv)[0] - 1, (E * uv)[0] - 1]
+    return u if all(is_zero(r) for r in res) else None
