@@ -92,7 +92,7 @@ def test_rerun_resumes_and_recomputes_other_settings(tmp_path):
     assert (tmp_path / "gradient-analysis.csv").read_text() == before  # nothing recomputed
     res = CliRunner().invoke(cli, [str(a) for a in args] + ["--tol", "1e-4"])
     assert res.exit_code == 0 and "tol: 1e-06 -> 0.0001" in res.stderr
-    assert len(list(tmp_path.glob("gradient-analysis-*.csv"))) == 1  # kept aside
+    assert len(list((tmp_path / "kept").glob("gradient-analysis-*.csv"))) == 1  # kept aside
     assert run([*args, "--tol", "1e-4", "--restart"]).exit_code == 0
 
 

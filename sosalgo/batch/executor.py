@@ -28,8 +28,8 @@ from sosalgo.errors import InputError
 if TYPE_CHECKING:  # pragma: no cover - imported where a pool is started
     from concurrent.futures import Future, ProcessPoolExecutor
 
-__all__ = ["BatchError", "Progress", "check_scheduler", "default_workers", "kill_pool",
-           "map_until", "note", "pool_context", "quietly", "run_batch", "show_phase",
+__all__ = ["BatchError", "Progress", "begin_task", "check_scheduler", "default_workers",
+           "kill_pool", "map_until", "note", "pool_context", "quietly", "run_batch", "show_phase",
            "start_pool_server", "worker_pool"]
 
 Row = dict[str, Any]
@@ -54,97 +54,171 @@ def default_workers() -> int:
 
 
 class Progress:
-    """A one-line progress bar on stderr: count, rate, ETA and what the running task is
-    doing (:func:`show_phase`); silent when disabled. ``done`` rows were read back from
-    ``resumed_from`` (a saved file): said once, on its own line."""
+    """Progress of a batch on stderr, drawn by :mod:`rich`; silent when disabled.
+
+    On a terminal: one live line (label, bar, count, elapsed time, ETA, and what the
+    running tasks are doing: :func:`show_phase`, also from pool workers). Elsewhere (a log
+    file, CI): plain lines, one per finished row (at most one every ``PLAIN_SECONDS``,
+    and the last) and one per new phase, ``LABEL | PHASE DETAIL`` (a worker's phase once
+    it has lasted ``PLAIN_SECONDS``). ``done`` rows were read
+    back from ``resumed_from`` (a saved file): said once, on its own line."""
 
     def __init__(self, total: int, label: str, enabled: bool = True, done: int = 0,
                  resumed_from: str | os.PathLike | None = None):
         global _ACTIVE
         self.total, self.label, self.enabled = total, label, enabled
         self.count = done
-        self.start_count = done
         self.t0 = time.perf_counter()
-        self.last = 0.0
-        self.tty = sys.stderr.isatty()
-        self.phase_name: str | None = None
-        self.phase_detail = ""
-        self.width = 0  # length of the line on screen (a tty line is overwritten)
-        if enabled:
-            _ACTIVE = self
-            if done:
-                where = f" from {resumed_from}" if resumed_from is not None else ""
-                sys.stderr.write(f"resumed: {done} of {total} rows read{where}\n")
-        self._draw(force=True)
+        self.phases: dict[Any, tuple[str, str, float]] = {}  # source -> (name, detail, since)
+        self.said: dict[Any, tuple[str, float]] = {}  # plain mode: source -> (phase, when)
+        self.row_said = 0.0
+        self.console = _console()
+        self.tty = self.console.is_terminal
+        self.live: Any = None
+        if not enabled:
+            return
+        _ACTIVE = self
+        if done:
+            where = f" from {resumed_from}" if resumed_from is not None else ""
+            self._say(f"resumed: {done} of {total} rows read{where}")
+        if self.tty and done < total:
+            self.live = _live_bar(self.console)
+            self.task = self.live.add_task(label, total=total, completed=done, phase="")
+            self.live.start()
+        elif done < total:
+            self._say(f"{label}: {done}/{total} rows")
+
+    @property
+    def phase_name(self) -> str | None:
+        """What this process's own task is doing now (None: nothing said)."""
+        return self.phases[None][0] if None in self.phases else None
 
     def update(self, n: int = 1) -> None:
         self.count += n
-        self._draw()
-
-    def phase(self, name: str | None, detail: str = "") -> None:
-        """Show what is running now (``name``, e.g. "grid") and how far it is (``detail``):
-        a new name is drawn at once, a new detail at the bar's usual pace."""
-        changed = name != self.phase_name
-        self.phase_name, self.phase_detail = name, detail
-        self._draw(force=changed)
-
-    def _line(self) -> str:
-        elapsed = time.perf_counter() - self.t0
-        rate = (self.count - self.start_count) / elapsed if elapsed > 0 else 0.0
-        left = self.total - self.count
-        eta = 0.0 if left <= 0 else left / rate if rate > 0 else math.inf
-        frac = self.count / self.total if self.total else 1.0
-        width = 24
-        bar = "#" * int(frac * width) + "-" * (width - int(frac * width))
-        eta_s = "?" if not math.isfinite(eta) else _fmt_time(eta)
-        line = f"{self.label} [{bar}] {self.count}/{self.total} {rate:.1f}/s ETA {eta_s}"
-        if self.phase_name and self.count < self.total:
-            detail = f" {self.phase_detail}" if self.phase_detail else ""
-            line += f" | {self.phase_name}{detail} ({_fmt_time(elapsed)} elapsed)"
-        return line
-
-    def _draw(self, force: bool = False) -> None:
         if not self.enabled:
             return
-        now = time.perf_counter()
-        if not force and now - self.last < (0.2 if self.tty else 5.0) and self.count < self.total:
+        if self.live is not None:
+            self.live.update(self.task, completed=self.count)
             return
-        self.last = now
-        line = self._line()
-        end = "\r" if self.tty and self.count < self.total else "\n"
-        pad = " " * max(0, self.width - len(line)) if self.tty else ""
-        self.width = len(line) if end == "\r" else 0
-        sys.stderr.write(line + pad + end)
-        sys.stderr.flush()
+        now = time.perf_counter()
+        if self.count >= self.total or now - self.row_said >= PLAIN_SECONDS:
+            self.row_said = now
+            self._say(f"{self.label}: {self.count}/{self.total} rows "
+                      f"({_fmt_time(now - self.t0)} elapsed)")
+
+    def phase(self, name: str | None, detail: str = "", source: Any = None) -> None:
+        """Show what a running task is doing now (``name``, e.g. "grid") and how far it is
+        (``detail``); ``source``: which task (a worker's label; None: this process's);
+        ``name=None``: it is done."""
+        if name is None:
+            self.phases.pop(source, None)
+            self.said.pop(source, None)
+        else:
+            old = self.phases.get(source)
+            since = old[2] if old and old[0] == name else time.perf_counter()
+            self.phases[source] = (name, detail, since)
+        if not self.enabled:
+            return
+        if self.live is not None:
+            self.live.update(self.task, phase=self._phase_text())
+        elif name is not None and source is None:
+            self._say_phase(source, name, detail)
+        else:
+            self.tick()
+
+    def tick(self) -> None:
+        """Plain mode: say the workers' phases that have lasted ``PLAIN_SECONDS`` (a short
+        one is not worth a line in a log); on a terminal, refresh their clocks."""
+        if not self.enabled:
+            return
+        if self.live is not None:
+            self.live.update(self.task, phase=self._phase_text())
+            return
+        now = time.perf_counter()
+        for source, (name, detail, since) in list(self.phases.items()):
+            if source is not None and now - since >= PLAIN_SECONDS:
+                self._say_phase(source, name, detail)
+
+    def _phase_text(self) -> str:
+        now = time.perf_counter()
+        parts = [f"{f'{src}: ' if src is not None else ''}{name}"
+                 f"{f' {detail}' if detail else ''} ({_fmt_time(now - since)})"
+                 for src, (name, detail, since) in self.phases.items()]
+        more = f" (+{len(parts) - 2} more)" if len(parts) > 2 else ""
+        return ("| " + " | ".join(parts[:2]) + more) if parts else ""
+
+    def _say_phase(self, source: Any, name: str, detail: str) -> None:
+        """Plain mode: a line for a new phase at once, for a new detail now and then."""
+        last, when = self.said.get(source, (None, -math.inf))
+        now = time.perf_counter()
+        if name != last or now - when >= PLAIN_PHASE_SECONDS:
+            self.said[source] = (name, now)
+            self._say(f"{self.label} | {f'{source}: ' if source is not None else ''}{name}"
+                      f"{f' {detail}' if detail else ''}")
+
+    def _say(self, msg: str) -> None:
+        if self.live is not None:
+            self.live.console.print(msg, markup=False, highlight=False, soft_wrap=True)
+        else:
+            sys.stderr.write(msg + "\n")
+            sys.stderr.flush()
 
     def close(self) -> None:
         global _ACTIVE
         if _ACTIVE is self:
             _ACTIVE = None
-        if self.enabled and self.tty and self.count < self.total:
-            sys.stderr.write("\n")
+        if self.live is not None:
+            self.live.update(self.task, phase="")
+            self.live.stop()
+            self.live = None
 
 
+PLAIN_SECONDS = 2.0  # plain mode: at most one "rows done" line this often (and the last)
+PLAIN_PHASE_SECONDS = 10.0  # plain mode: a phase's new detail at most this often
 _ACTIVE: Progress | None = None  # this process's bar, which :func:`show_phase` reaches
+_RELAY: Any = None  # in a pool's worker: the queue to the bar of the process that runs it
+_TASK: str | None = None  # in a pool's worker: the label of the task it runs
+
+
+def _console() -> Any:
+    """A rich console on stderr (a terminal or not: rich decides, e.g. from TTY_COMPATIBLE)."""
+    from rich.console import Console
+
+    return Console(stderr=True)
+
+
+def _live_bar(console: Any) -> Any:
+    """rich's live progress display with our columns (stdout untouched; other lines
+    written to stderr while it runs appear above it)."""
+    from rich import progress as rp
+
+    return rp.Progress(rp.TextColumn("{task.description}"), rp.BarColumn(bar_width=24),
+                       rp.MofNCompleteColumn(), rp.TimeElapsedColumn(), rp.TextColumn("ETA"),
+                       rp.TimeRemainingColumn(), rp.TextColumn("{task.fields[phase]}"),
+                       console=console, redirect_stdout=False, redirect_stderr=True,
+                       refresh_per_second=5)
 
 
 def note(msg: str) -> None:
-    """Print ``msg`` on its own line of stderr; on a terminal, this process's progress bar
-    is cleared first and drawn again below it (a message never runs into the bar)."""
+    """Print ``msg`` on its own line of stderr (above the live progress bar, if any)."""
     bar = _ACTIVE
-    clear = bar is not None and bar.enabled and bar.tty and bar.width
-    sys.stderr.write(("\r" + " " * bar.width + "\r" if clear else "") + msg + "\n")
+    if bar is not None and bar.live is not None:
+        bar._say(msg)
+        return
+    sys.stderr.write(msg + "\n")
     sys.stderr.flush()
-    if clear:
-        bar.width = 0
-        bar._draw(force=True)
 
 
 def show_phase(name: str | None, detail: str = "") -> None:
-    """Tell this process's progress bar what the running task is doing (a no-op without
-    a bar, e.g. in a pool's worker: only a task run in the bar's process shows phases)."""
+    """Tell the progress bar what the running task is doing: this process's bar, or, in a
+    pool's worker run by :func:`run_batch`, the bar of the process that runs the pool."""
     if _ACTIVE is not None:
-        _ACTIVE.phase(name, detail)
+        _ACTIVE.phase(name, detail, source=_TASK)
+    elif _RELAY is not None and _TASK is not None:
+        try:
+            _RELAY.put_nowait((_TASK, name, detail))
+        except (OSError, ValueError):  # the run is ending: the bar is gone
+            pass
 
 
 def _fmt_time(sec: float) -> str:
@@ -205,35 +279,88 @@ def run_batch(
     if not isolate and (workers == 1 or len(tasks) < SERIAL_BELOW):
         for task in tasks:
             deliver(quietly(fn, spec_text, source, options, [task]))
+            begin_task(None)  # what the task did ends with it
         return
-    from concurrent.futures import FIRST_COMPLETED, wait
-
     workers = min(workers, len(tasks)) if isolate else workers
     size = 1 if isolate else chunk_size(len(tasks), workers, _largest_chunk(fn))
     if progress is not None:
         progress.phase(f"starting {workers} workers")
-    pool = worker_pool(workers)
+    relay = pool_context().Queue()  # the workers' phases, for this process's bar
+    pool = worker_pool(workers, relay)
     try:
-        pending: set[Future] = set()
-        chunks = _chunks(tasks, size)
-        for chunk in chunks:
-            pending.add(pool.submit(quietly, fn, spec_text, source, options, chunk))
-            if len(pending) >= workers * 2:
-                break
-        while pending:
-            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
-            if progress is not None and progress.phase_name:
-                progress.phase(None)  # the workers run: the count says it from now on
-            for fut in finished:
-                deliver(fut.result())
-            for chunk in chunks:
-                pending.add(pool.submit(quietly, fn, spec_text, source, options, chunk))
-                if len(pending) >= workers * 2:
-                    break
+        _run_pool(pool, relay, (fn, spec_text, source, options), _chunks(tasks, size),
+                  2 * workers, deliver, progress)
     except BaseException:
         kill_pool(pool)  # interrupted or failed: do not wait for (or leave) running workers
         raise
+    finally:
+        relay.close()
     pool.shutdown(wait=True)
+
+
+def _run_pool(pool: ProcessPoolExecutor, relay: Any, job: tuple, chunks: Iterator[list],
+              ahead: int, deliver: Callable[[list[Row]], None],
+              progress: Progress | None) -> None:
+    """Keep ``ahead`` chunks of ``job`` submitted; deliver each as it finishes; meanwhile
+    show what the workers are doing (their phases arrive on ``relay``)."""
+    from concurrent.futures import FIRST_COMPLETED, wait
+
+    pending: set[Future] = set()
+    started = False
+    while True:
+        for chunk in chunks:
+            pending.add(pool.submit(_run_chunk_relayed, *job, chunk))
+            if len(pending) >= ahead:
+                break
+        if not pending:
+            return
+        finished, pending = wait(pending, timeout=RELAY_SECONDS, return_when=FIRST_COMPLETED)
+        phases = _drain(relay)
+        if progress is not None and not started and (finished or phases):
+            started = True
+            progress.phase(None)  # the workers run: they say what they do from now on
+        if progress is not None:
+            for label, name, detail in phases:
+                progress.phase(name, detail, source=label)
+            progress.tick()
+        for fut in finished:
+            deliver(fut.result())
+
+
+RELAY_SECONDS = 0.25  # how often the workers' phases are read while waiting for rows
+
+
+def _drain(relay: Any) -> list[tuple[str, str | None, str]]:
+    """The messages waiting on ``relay`` (none when it is closed)."""
+    import queue
+
+    out = []
+    while True:
+        try:
+            out.append(relay.get_nowait())
+        except (queue.Empty, OSError, ValueError, EOFError):
+            return out
+
+
+def _run_chunk_relayed(fn: ChunkFn, spec_text: str, source: str, options: dict[str, Any],
+                       chunk: list[dict[str, Any]]) -> list[Row]:
+    """In a pool's worker: ``fn`` on ``chunk``; what it shows by :func:`show_phase` goes to
+    the bar of the process running the pool, labelled by the task (:func:`begin_task`)."""
+    try:
+        return quietly(fn, spec_text, source, options, chunk)
+    finally:
+        begin_task(None)
+
+
+def begin_task(label: str | None) -> None:
+    """A task named ``label`` (e.g. "kappa 10") starts in this process (None: the last one
+    ended): in a pool's worker, its phases are shown under that name."""
+    global _TASK
+    if _TASK is not None:
+        show_phase(None)  # the previous task's phases end with it
+    _TASK = label
+    if label is not None and _ACTIVE is None and _RELAY is not None:
+        show_phase("running")
 
 
 def quietly(fn: Callable[..., Any], *args: Any) -> Any:
@@ -301,10 +428,11 @@ def start_pool_server(preload: Sequence[str] = PRELOAD) -> None:
         _without_stderr(fs.ensure_running)
 
 
-def worker_pool(workers: int) -> ProcessPoolExecutor:
+def worker_pool(workers: int, relay: Any = None) -> ProcessPoolExecutor:
     """A process pool of ``workers`` safely started workers that die with their parent
     (never more than the cores and the memory budget allow: :mod:`sosalgo.budget`).
-    Stop it with ``shutdown`` when its work is done, else with :func:`kill_pool`."""
+    Stop it with ``shutdown`` when its work is done, else with :func:`kill_pool`.
+    ``relay``: a queue of the pool's context on which the workers' phases are sent."""
     from concurrent.futures import ProcessPoolExecutor
 
     from sosalgo.budget import usable_workers
@@ -312,7 +440,17 @@ def worker_pool(workers: int) -> ProcessPoolExecutor:
     ctx = pool_context()
     start_pool_server()  # started quietly (no-op when it runs already)
     return ProcessPoolExecutor(max_workers=usable_workers(workers), mp_context=ctx,
-                               initializer=_die_with_parent)
+                               initializer=_start_worker, initargs=(relay,))
+
+
+def _start_worker(relay: Any) -> None:
+    """Pool initializer: die with the parent; send phases on ``relay`` (never waited for
+    at exit: a message the parent no longer reads is dropped)."""
+    global _RELAY
+    _die_with_parent()
+    if relay is not None:
+        relay.cancel_join_thread()
+        _RELAY = relay
 
 
 def _die_with_parent() -> None:
