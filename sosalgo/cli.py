@@ -109,7 +109,7 @@ def cli() -> None:
               help="Bisection tolerance on rho.")
 @click.option("--out", default="outputs", show_default=True, metavar="DIR",
               help="Directory for <name>-analysis.csv and <name>-rate.png/.pdf (two kappas "
-                   "or more).")
+                   "or more; -rate-<family> for a family other than the default).")
 @batch_options
 @click.option("--no-plot", is_flag=True, help="Skip the figure.")
 @click.option("--verify", "verify_", is_flag=True,
