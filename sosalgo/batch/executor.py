@@ -110,17 +110,18 @@ class Progress:
         """Show what a running task is doing now (``name``, e.g. "grid") and how far it is
         (``detail``); ``source``: which task (a worker's label; None: this process's);
         ``name=None``: it is done."""
+        old = self.phases.get(source)
         if name is None:
             self.phases.pop(source, None)
             self.said.pop(source, None)
         else:
-            old = self.phases.get(source)
             since = old[2] if old and old[0] == name else time.perf_counter()
             self.phases[source] = (name, detail, since)
         if not self.enabled:
             return
-        if self.live is not None:
-            self.live.update(self.task, phase=self._phase_text())
+        if self.live is not None:  # a new phase is drawn at once, a new detail in time
+            self.live.update(self.task, phase=self._phase_text(),
+                             refresh=name is not None and (old is None or old[0] != name))
         elif name is not None and source is None:
             self._say_phase(source, name, detail)
         else:
