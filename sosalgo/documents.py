@@ -121,7 +121,7 @@ def _verify_rows(spec: Spec, rows: list[dict[str, Any]], out_dir: Path | None,
     the spec they are written in (:func:`sosalgo.pareto.reference_spec`). Only a pareto
     document has such rows: elsewhere ``reference`` is ignored (the row is checked
     against the document's spec, and the ledger refuses the field)."""
-    from sosalgo.batch.executor import show_phase
+    from sosalgo.phases import show_phase
     from sosalgo.verify.results import verify_document_rows
 
     if not pareto or not any(r.get("reference") for r in rows):

@@ -37,7 +37,8 @@ def _cli(*args: object, env: dict | None = None) -> subprocess.CompletedProcess:
 
 # --------------------------------------------------------------------------- progress
 def test_a_forced_terminal_gets_the_live_bar(monkeypatch, capsys):
-    from sosalgo.batch.executor import Progress, note, show_phase
+    from sosalgo.batch.executor import Progress, note
+    from sosalgo.phases import show_phase
 
     monkeypatch.setenv("TTY_COMPATIBLE", "1")  # rich's switch: draw as on a terminal
     bar = Progress(3, "demo run")
@@ -52,7 +53,8 @@ def test_a_forced_terminal_gets_the_live_bar(monkeypatch, capsys):
 
 
 def test_plain_mode_says_rows_and_phases(monkeypatch, capsys):
-    from sosalgo.batch.executor import Progress, show_phase
+    from sosalgo.batch.executor import Progress
+    from sosalgo.phases import show_phase
 
     monkeypatch.setenv("TTY_COMPATIBLE", "0")
     bar = Progress(2, "demo run")

@@ -16,6 +16,7 @@ modules preloaded) or are spawned, and die with their parent.
 from __future__ import annotations
 
 import gc
+import itertools
 import math
 import os
 import sys
@@ -24,13 +25,14 @@ from collections.abc import Callable, Iterator, Sequence
 from typing import TYPE_CHECKING, Any
 
 from sosalgo.errors import InputError
+from sosalgo.phases import begin_task, set_sink
 
 if TYPE_CHECKING:  # pragma: no cover - imported where a pool is started
     from concurrent.futures import Future, ProcessPoolExecutor
 
-__all__ = ["BatchError", "Progress", "begin_task", "check_scheduler", "default_workers",
-           "kill_pool", "map_until", "note", "pool_context", "quietly", "run_batch", "show_phase",
-           "start_pool_server", "worker_pool"]
+__all__ = ["BatchError", "Progress", "check_scheduler", "default_workers", "kill_pool",
+           "map_until", "note", "pool_context", "quietly", "run_batch", "start_pool_server",
+           "worker_pool"]
 
 Row = dict[str, Any]
 ChunkFn = Callable[[str, str, dict[str, Any], list[dict[str, Any]]], list[Row]]
@@ -57,11 +59,11 @@ class Progress:
     """Progress of a batch on stderr, drawn by :mod:`rich`; silent when disabled.
 
     On a terminal: one live line (label, bar, count, elapsed time, ETA, and what the
-    running tasks are doing: :func:`show_phase`, also from pool workers). Elsewhere (a log
-    file, CI): plain lines, one per finished row (at most one every ``PLAIN_SECONDS``,
-    and the last) and one per new phase, ``LABEL | PHASE DETAIL`` (a worker's phase once
-    it has lasted ``PLAIN_SECONDS``). ``done`` rows were read
-    back from ``resumed_from`` (a saved file): said once, on its own line."""
+    running tasks are doing, :mod:`sosalgo.phases`, also in pool workers). Elsewhere (a
+    log file, CI): plain lines, one per finished row (at most one every ``PLAIN_SECONDS``,
+    and the last) and one per new phase, ``LABEL | PHASE DETAIL`` (a named task's phase
+    once it has lasted ``PLAIN_SECONDS``). ``done`` rows were read back from
+    ``resumed_from`` (a saved file): said once, on its own line."""
 
     def __init__(self, total: int, label: str, enabled: bool = True, done: int = 0,
                  resumed_from: str | os.PathLike | None = None):
@@ -71,13 +73,16 @@ class Progress:
         self.t0 = time.perf_counter()
         self.phases: dict[Any, tuple[str, str, float]] = {}  # source -> (name, detail, since)
         self.said: dict[Any, tuple[str, float]] = {}  # plain mode: source -> (phase, when)
-        self.row_said = 0.0
+        self.row_said, self.row_shown = 0.0, done  # plain mode: the last count said
+        self.early: dict[int, int] = {}  # chunk -> rows finished in a worker, not delivered
         self.console = _console()
         self.tty = self.console.is_terminal
         self.live: Any = None
+        self.previous_sink: Any = None
         if not enabled:
             return
         _ACTIVE = self
+        self.previous_sink = set_sink(self._from_task)
         if done:
             where = f" from {resumed_from}" if resumed_from is not None else ""
             self._say(f"resumed: {done} of {total} rows read{where}")
@@ -88,22 +93,37 @@ class Progress:
         elif done < total:
             self._say(f"{label}: {done}/{total} rows")
 
-    @property
-    def phase_name(self) -> str | None:
-        """What this process's own task is doing now (None: nothing said)."""
-        return self.phases[None][0] if None in self.phases else None
+    def _from_task(self, task: str | None, name: str | None, detail: str) -> None:
+        """The sink of :mod:`sosalgo.phases` while this bar is shown."""
+        self.phase(name, detail, source=task)
 
     def update(self, n: int = 1) -> None:
+        """``n`` more rows were delivered."""
         self.count += n
+        self._show_count()
+
+    def finished_early(self, chunk: int) -> None:
+        """A row of ``chunk`` finished in a worker (its rows arrive when the chunk ends)."""
+        self.early[chunk] = self.early.get(chunk, 0) + 1
+        self._show_count()
+
+    def settle(self, chunks: set[int]) -> None:
+        """These chunks are delivered: their rows count through :meth:`update` now."""
+        for c in chunks & self.early.keys():
+            del self.early[c]
+
+    def _show_count(self) -> None:
+        shown = min(self.total, self.count + sum(self.early.values()))
         if not self.enabled:
             return
         if self.live is not None:
-            self.live.update(self.task, completed=self.count)
+            self.live.update(self.task, completed=shown)
             return
         now = time.perf_counter()
-        if self.count >= self.total or now - self.row_said >= PLAIN_SECONDS:
-            self.row_said = now
-            self._say(f"{self.label}: {self.count}/{self.total} rows "
+        if shown != self.row_shown and (shown >= self.total
+                                        or now - self.row_said >= PLAIN_SECONDS):
+            self.row_said, self.row_shown = now, shown
+            self._say(f"{self.label}: {shown}/{self.total} rows "
                       f"({_fmt_time(now - self.t0)} elapsed)")
 
     def phase(self, name: str | None, detail: str = "", source: Any = None) -> None:
@@ -168,6 +188,7 @@ class Progress:
         global _ACTIVE
         if _ACTIVE is self:
             _ACTIVE = None
+            set_sink(self.previous_sink)
         if self.live is not None:
             self.live.update(self.task, phase="")
             self.live.stop()
@@ -176,9 +197,9 @@ class Progress:
 
 PLAIN_SECONDS = 2.0  # plain mode: at most one "rows done" line this often (and the last)
 PLAIN_PHASE_SECONDS = 10.0  # plain mode: a phase's new detail at most this often
-_ACTIVE: Progress | None = None  # this process's bar, which :func:`show_phase` reaches
+_ACTIVE: Progress | None = None  # this process's bar (where notes go above it)
 _RELAY: Any = None  # in a pool's worker: the queue to the bar of the process that runs it
-_TASK: str | None = None  # in a pool's worker: the label of the task it runs
+_CHUNK: int | None = None  # in a pool's worker: the number of the chunk it runs
 
 
 def _console() -> Any:
@@ -208,18 +229,6 @@ def note(msg: str) -> None:
         return
     sys.stderr.write(msg + "\n")
     sys.stderr.flush()
-
-
-def show_phase(name: str | None, detail: str = "") -> None:
-    """Tell the progress bar what the running task is doing: this process's bar, or, in a
-    pool's worker run by :func:`run_batch`, the bar of the process that runs the pool."""
-    if _ACTIVE is not None:
-        _ACTIVE.phase(name, detail, source=_TASK)
-    elif _RELAY is not None and _TASK is not None:
-        try:
-            _RELAY.put_nowait((_TASK, name, detail))
-        except (OSError, ValueError):  # the run is ending: the bar is gone
-            pass
 
 
 def _fmt_time(sec: float) -> str:
@@ -279,8 +288,11 @@ def run_batch(
         return
     if not isolate and (workers == 1 or len(tasks) < SERIAL_BELOW):
         for task in tasks:
-            deliver(quietly(fn, spec_text, source, options, [task]))
-            begin_task(None)  # what the task did ends with it
+            try:
+                rows = quietly(fn, spec_text, source, options, [task])
+            finally:
+                begin_task(None)  # what the task did ends with it
+            deliver(rows)
         return
     workers = min(workers, len(tasks)) if isolate else workers
     size = 1 if isolate else chunk_size(len(tasks), workers, _largest_chunk(fn))
@@ -306,26 +318,40 @@ def _run_pool(pool: ProcessPoolExecutor, relay: Any, job: tuple, chunks: Iterato
     show what the workers are doing (their phases arrive on ``relay``)."""
     from concurrent.futures import FIRST_COMPLETED, wait
 
-    pending: set[Future] = set()
+    pending: dict[Future, int] = {}  # chunk -> its number (the workers' messages name it)
+    done: set[int] = set()
     started = False
+    numbers = itertools.count()
     while True:
         for chunk in chunks:
-            pending.add(pool.submit(_run_chunk_relayed, *job, chunk))
+            number = next(numbers)
+            pending[pool.submit(_run_chunk_relayed, *job, chunk, number)] = number
             if len(pending) >= ahead:
                 break
         if not pending:
             return
-        finished, pending = wait(pending, timeout=RELAY_SECONDS, return_when=FIRST_COMPLETED)
-        phases = _drain(relay)
-        if progress is not None and not started and (finished or phases):
-            started = True
-            progress.phase(None)  # the workers run: they say what they do from now on
+        finished, _ = wait(pending, timeout=RELAY_SECONDS, return_when=FIRST_COMPLETED)
+        messages = _drain(relay)
         if progress is not None:
-            for label, name, detail in phases:
-                progress.phase(name, detail, source=label)
-            progress.tick()
+            if not started and (finished or messages):
+                started = True
+                progress.phase(None)  # the workers run: they say what they do from now on
+            _show_workers(progress, messages, done)
         for fut in finished:
+            done.add(pending.pop(fut))
+            if progress is not None:
+                progress.settle(done)
             deliver(fut.result())
+
+
+def _show_workers(progress: Progress, messages: list[tuple], done: set[int]) -> None:
+    """The workers' phases on the bar; a task's end (its phase None) counts its row at once,
+    before its chunk's rows arrive (unless that chunk was delivered already)."""
+    for number, label, name, detail in messages:
+        if name is None and number not in done:
+            progress.finished_early(number)
+        progress.phase(name, detail, source=label)
+    progress.tick()
 
 
 RELAY_SECONDS = 0.25  # how often the workers' phases are read while waiting for rows
@@ -344,24 +370,17 @@ def _drain(relay: Any) -> list[tuple[str, str | None, str]]:
 
 
 def _run_chunk_relayed(fn: ChunkFn, spec_text: str, source: str, options: dict[str, Any],
-                       chunk: list[dict[str, Any]]) -> list[Row]:
-    """In a pool's worker: ``fn`` on ``chunk``; what it shows by :func:`show_phase` goes to
-    the bar of the process running the pool, labelled by the task (:func:`begin_task`)."""
+                       chunk: list[dict[str, Any]], number: int) -> list[Row]:
+    """In a pool's worker: ``fn`` on ``chunk`` (the ``number``-th); what it shows by
+    :func:`show_phase` goes to the bar of the process running the pool, labelled by the
+    task (:func:`begin_task`), and the end of each task counts its row there at once."""
+    global _CHUNK
+    _CHUNK = number
     try:
         return quietly(fn, spec_text, source, options, chunk)
     finally:
         begin_task(None)
-
-
-def begin_task(label: str | None) -> None:
-    """A task named ``label`` (e.g. "kappa 10") starts in this process (None: the last one
-    ended): in a pool's worker, its phases are shown under that name."""
-    global _TASK
-    if _TASK is not None:
-        show_phase(None)  # the previous task's phases end with it
-    _TASK = label
-    if label is not None and _ACTIVE is None and _RELAY is not None:
-        show_phase("running")
+        _CHUNK = None
 
 
 def quietly(fn: Callable[..., Any], *args: Any) -> Any:
@@ -445,13 +464,25 @@ def worker_pool(workers: int, relay: Any = None) -> ProcessPoolExecutor:
 
 
 def _start_worker(relay: Any) -> None:
-    """Pool initializer: die with the parent; send phases on ``relay`` (never waited for
-    at exit: a message the parent no longer reads is dropped)."""
+    """Pool initializer: die with the parent; send the phases of the tasks it runs on
+    ``relay`` (never waited for at exit: a message the parent no longer reads is dropped)."""
     global _RELAY
     _die_with_parent()
     if relay is not None:
         relay.cancel_join_thread()
         _RELAY = relay
+        set_sink(_to_relay)
+
+
+def _to_relay(task: str | None, name: str | None, detail: str) -> None:
+    """A worker's sink of :mod:`sosalgo.phases`: the phase of a named task, with the
+    number of its chunk, to the process that runs the pool."""
+    if task is None or _RELAY is None:
+        return
+    try:
+        _RELAY.put_nowait((_CHUNK, task, name, detail))
+    except (OSError, ValueError):  # the run is ending: the bar is gone
+        pass
 
 
 def _die_with_parent() -> None:

@@ -14,11 +14,12 @@ from typing import Any
 import numpy as np
 
 from sosalgo.analysis import AnalysisResult, analyze_spec, spec_family
-from sosalgo.batch.executor import Progress, begin_task, note, run_batch, show_phase
+from sosalgo.batch.executor import Progress, note, run_batch
 from sosalgo.batch.store import ResumableCSV
 from sosalgo.certificates import CertificateFamily, describe_family, family_from_description
 from sosalgo.expr.compile import compile_expression
 from sosalgo.model import ModelError, parameter_values
+from sosalgo.phases import begin_task, show_phase
 from sosalgo.schema import (
     analysis_columns,
     design_columns,

@@ -33,13 +33,13 @@ from typing import Any
 import numpy as np
 
 from sosalgo.analysis import AnalysisResult, analyze_spec, jsonable, spec_family
-from sosalgo.batch.executor import show_phase
 from sosalgo.certificates import CertificateFamily, get_family
 from sosalgo.design.boundcheck import bound_certificate
 from sosalgo.design.dualbound import ARITHMETIC, BoundSearch, BoundStatus, dual_structure
 from sosalgo.design.floor import class_floor
 from sosalgo.design.polymodel import check_polynomial
 from sosalgo.model import ModelError, bind, design_box
+from sosalgo.phases import show_phase
 from sosalgo.solvers import solve_margin
 from sosalgo.spec import Spec
 

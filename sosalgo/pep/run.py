@@ -64,12 +64,14 @@ def pep_chunk(spec_text: str, source: str, options: dict[str, Any],
     """Worker: the PEP at each task's (kappa, steps)."""
     from sosalgo.pep.core import pep
     from sosalgo.pep.exact import class_description
+    from sosalgo.phases import begin_task
     from sosalgo.spec import spec_from_text
 
     spec = spec_from_text(spec_text, source)
     rows = []
     for task in chunk:
         kappa = None if task["kappa"] in ("", None) else float(task["kappa"])
+        begin_task(f"N {task['steps']}" + ("" if kappa is None else f", kappa {kappa:g}"))
         res = pep(spec, kappa, int(task["steps"]), options["measure"], options["initial"],
                   options["exact"], options["witness"])
         try:

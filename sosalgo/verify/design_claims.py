@@ -10,7 +10,7 @@ from collections.abc import Mapping
 from fractions import Fraction
 from typing import Any
 
-from sosalgo.batch.executor import show_phase
+from sosalgo.phases import show_phase
 from sosalgo.verify.ledger import (
     BACKED,
     CONTEXT,

@@ -7,7 +7,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from sosalgo.batch.executor import show_phase
+from sosalgo.phases import show_phase
 from sosalgo.spec import Spec
 from sosalgo.verify.claims import HANDLERS, SUBLINEAR
 from sosalgo.verify.design_claims import DESIGN_HANDLERS

@@ -24,12 +24,12 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.batch.executor import show_phase
 from sosalgo.batch.store import output_lock
 from sosalgo.certificates import FAMILIES, default_family, get_family
 from sosalgo.certificates.base import CertificateFamily, check_number
 from sosalgo.errors import InputError
 from sosalgo.model import bind
+from sosalgo.phases import show_phase
 from sosalgo.schema import certificate_name
 from sosalgo.spec import Spec
 from sosalgo.verify import Verdict, simulate_check
