@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from sosalgo.errors import InputError
+from sosalgo.phases import show_phase
 from sosalgo.spec import Spec
 
 __all__ = ["MAX_RESULT_BYTES", "read_result", "result_rows", "result_spec", "verify_document"]
@@ -121,7 +122,6 @@ def _verify_rows(spec: Spec, rows: list[dict[str, Any]], out_dir: Path | None,
     the spec they are written in (:func:`sosalgo.pareto.reference_spec`). Only a pareto
     document has such rows: elsewhere ``reference`` is ignored (the row is checked
     against the document's spec, and the ledger refuses the field)."""
-    from sosalgo.phases import show_phase
     from sosalgo.verify.results import verify_document_rows
 
     if not pareto or not any(r.get("reference") for r in rows):

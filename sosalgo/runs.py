@@ -16,6 +16,7 @@ from typing import Any
 
 from sosalgo import budget, inputs
 from sosalgo.batch.store import output_lock
+from sosalgo.certificates import describe_family
 from sosalgo.errors import InputError
 from sosalgo.schema import analysis_csv, design_stem, grid_stem, rate_stem
 from sosalgo.spec import Spec
@@ -62,8 +63,6 @@ def _figures(stem: Path) -> list[Path]:
 def _rate_figure_stem(spec: Spec, out: Path, fams: Sequence[Any]) -> Path:
     """``<name>-rate`` for the family ``analyze`` takes by default, ``<name>-rate-<family>...``
     for any other choice (a rerun with another family keeps the first figure)."""
-    from sosalgo.certificates import describe_family
-
     default = inputs.select_families(spec, None, None, command="analyze")
     same = [describe_family(f) for f in fams] == [describe_family(f) for f in default]
     return rate_stem(out, spec.name, None if same else fams)

@@ -8,6 +8,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from sosalgo.report.style import finish, new_figure
 from sosalgo.spec import Spec
 
 __all__ = ["pep_figure", "rate_curve"]
@@ -30,7 +31,6 @@ def pep_figure(spec: Spec, docs: Sequence[dict[str, Any]], out: Path) -> list[st
     """``<name>-pep[-k<kappa>]`` (.png, .pdf) per kappa with two steps or more; a 1-D
     witness of the last step as ``<name>-pep-N<N>-witness`` beside it."""
     from sosalgo.report import save_figure
-    from sosalgo.report.style import finish, new_figure
 
     files: list[str] = []
     for kappa in sorted({d["kappa"] for d in docs}, key=lambda k: k or 0.0):
@@ -61,8 +61,6 @@ def pep_figure(spec: Spec, docs: Sequence[dict[str, Any]], out: Path) -> list[st
 
 def _witness_figure(save: Any, w: dict[str, Any], stem: Path) -> list[Path]:
     """Each function (tilted, minimal at x* = 0) with the trajectory's points on it."""
-    from sosalgo.report.style import finish, new_figure
-
     fig, ax = new_figure()
     for name, f in w["interpolant"].items():
         ax.plot(f["x"], f["h"], label=f"{name} (tilted, interpolating)")

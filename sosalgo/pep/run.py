@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from sosalgo.errors import InputError
+from sosalgo.phases import begin_task
 from sosalgo.spec import Spec
 
 __all__ = ["parse_steps", "pep_chunk", "pep_row", "pep_run"]
@@ -64,7 +65,6 @@ def pep_chunk(spec_text: str, source: str, options: dict[str, Any],
     """Worker: the PEP at each task's (kappa, steps)."""
     from sosalgo.pep.core import pep
     from sosalgo.pep.exact import class_description
-    from sosalgo.phases import begin_task
     from sosalgo.spec import spec_from_text
 
     spec = spec_from_text(spec_text, source)

@@ -14,8 +14,9 @@ import numpy as np
 
 from sosalgo.batch.sweeps import reference_curves
 from sosalgo.certificates import CertificateFamily
-from sosalgo.model import bind
+from sosalgo.model import ModelError, bind
 from sosalgo.report import format_table, plot_rates
+from sosalgo.report.style import finish, new_figure
 from sosalgo.schema import ANALYSIS_COLUMNS, FAMILY_COLUMNS, SUBLINEAR_COLUMNS
 from sosalgo.spec import Spec
 
@@ -87,7 +88,6 @@ def families_figure(spec: Spec, runs: Sequence[Run], stem: Path) -> list[Path]:
 
 def _quadratic_bound(spec: Spec, kappa: float) -> float | None:
     from sosalgo.analysis import quadratic_rate
-    from sosalgo.model import ModelError
 
     try:
         return quadratic_rate(bind(spec, kappa))
@@ -126,7 +126,6 @@ def sublinear_figure(spec: Spec, row: dict[str, Any], stem: Path, steps: int = 5
     """The certified bound c/k on measure(x_k) / |x_0 - x*|^2 against k (log-log), with
     each reference constant r drawn as r/k; none without a certified constant."""
     from sosalgo.report import pyplot, save_figure
-    from sosalgo.report.style import finish, new_figure
 
     if row.get("constant") is None:
         return []

@@ -24,6 +24,7 @@ from sosalgo.batch.sweeps import (
     run_design_sweep,
 )
 from sosalgo.certificates import get_family
+from sosalgo.report.style import color, finish, log_ticks, new_figure
 from sosalgo.spec import spec_from_text
 
 __all__ = ["fig4", "fig4_rows", "tmm_parameters"]
@@ -110,7 +111,6 @@ def fig4_rows(data: dict[str, list]) -> list[dict[str, Any]]:
 def _draw(stem: Path, data: dict[str, list]) -> list[Path]:
     """Both panels, written as ``stem.png`` and ``stem.pdf``."""
     from sosalgo.report import save_figure
-    from sosalgo.report.style import new_figure
 
     k = np.asarray(data["kappa"], dtype=float)
     fine = np.geomspace(k.min(), k.max(), 400)
@@ -124,8 +124,6 @@ def _draw(stem: Path, data: dict[str, list]) -> list[Path]:
 def _draw_rates(ax: Any, k: np.ndarray, fine: np.ndarray, data: dict[str, list]) -> None:
     """Left panel: the four rate curves (a curve without values gets only its "missing"
     marks on the bottom edge), the floor and the quadratic rate."""
-    from sosalgo.report.style import color, finish, log_ticks
-
     styles = {"designed (interpolation)": dict(marker="o", lw=2.2, zorder=5),
               "designed (Theorem 1)": dict(marker="s", lw=1.4),
               "Nesterov's tuning (interpolation)": dict(marker="^", lw=1.2),
@@ -152,8 +150,6 @@ def _draw_rates(ax: Any, k: np.ndarray, fine: np.ndarray, data: dict[str, list])
 def _draw_parameters(bx: Any, k: np.ndarray, fine: np.ndarray, data: dict[str, list]) -> None:
     """Right panel: designed h L, beta, gamma (m = 1 in the shipped spec, so L = kappa)
     beside the triple momentum method's formulas."""
-    from sosalgo.report.style import color, finish, log_ticks
-
     tmm = [tmm_parameters(x, x) for x in fine]
     colors = {"h": color(0), "beta": color(1), "gamma": color(2)}
     names = {"h": r"$hL$", "beta": r"$\beta$", "gamma": r"$\gamma$"}
