@@ -424,7 +424,7 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
     rows = result_rows(doc, result_path)
     folder = os.path.join(out, "certificates")
     can_write = writable(out)
-    bar = Progress(len(rows), f"verify {result_path}")  # phases: rows, then claims
+    bar = Progress(len(rows), f"verify {result_path}", lazy=True)  # rows, then claims
     try:
         res = verify_document(doc, spec_override, folder if can_write else None,
                               not no_simulate, certificate, {"lag": lag}, name=result_path)

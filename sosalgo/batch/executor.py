@@ -63,10 +63,12 @@ class Progress:
     log file, CI): plain lines, one per finished row (at most one every ``PLAIN_SECONDS``,
     and the last) and one per new phase, ``LABEL | PHASE DETAIL`` (a named task's phase
     once it has lasted ``PLAIN_SECONDS``). ``done`` rows were read back from
-    ``resumed_from`` (a saved file): said once, on its own line."""
+    ``resumed_from`` (a saved file): said once, on its own line. ``lazy``: nothing is shown
+    before the first phase or row (a command that may still refuse its input then says
+    one line, its error)."""
 
     def __init__(self, total: int, label: str, enabled: bool = True, done: int = 0,
-                 resumed_from: str | os.PathLike | None = None):
+                 resumed_from: str | os.PathLike | None = None, lazy: bool = False):
         global _ACTIVE
         self.total, self.label, self.enabled = total, label, enabled
         self.count = done
@@ -86,12 +88,22 @@ class Progress:
         if done:
             where = f" from {resumed_from}" if resumed_from is not None else ""
             self._say(f"resumed: {done} of {total} rows read{where}")
-        if self.tty and done < total:
+        self.started = done >= total  # nothing left to show: no bar
+        if not lazy:
+            self._start()
+
+    def _start(self) -> None:
+        """The live bar on a terminal, else the first plain line."""
+        if self.started:
+            return
+        self.started = True
+        if self.tty:
             self.live = _live_bar(self.console)
-            self.task = self.live.add_task(label, total=total, completed=done, phase="")
+            self.task = self.live.add_task(self.label, total=self.total, completed=self.count,
+                                           phase="")
             self.live.start()
-        elif done < total:
-            self._say(f"{label}: {done}/{total} rows")
+        else:
+            self._say(f"{self.label}: {self.count}/{self.total} rows")
 
     def _from_task(self, task: str | None, name: str | None, detail: str) -> None:
         """The sink of :mod:`sosalgo.phases` while this bar is shown."""
@@ -116,6 +128,7 @@ class Progress:
         shown = min(self.total, self.count + sum(self.early.values()))
         if not self.enabled:
             return
+        self._start()
         if self.live is not None:
             self.live.update(self.task, completed=shown)
             return
@@ -139,6 +152,7 @@ class Progress:
             self.phases[source] = (name, detail, since)
         if not self.enabled:
             return
+        self._start()
         if self.live is not None:  # a new phase is drawn at once, a new detail in time
             self.live.update(self.task, phase=self._phase_text(),
                              refresh=name is not None and (old is None or old[0] != name))
