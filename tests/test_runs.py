@@ -83,8 +83,10 @@ def test_another_kappa_is_another_run_not_an_append(tmp_path):
     assert res.exit_code == 0, res.output
     assert "kappa" in res.stderr and "kept it aside" in res.stderr
     assert [float(r["kappa"]) for r in rows_of(tmp_path / "gradient-analysis.csv")] == [16.0]
-    # the figure of the first run moved aside with its CSV
-    assert len(list(tmp_path.glob("gradient-rate-*.png"))) == 1
+    # the figure of the first run moved aside with its CSV (a family other than analyze's
+    # default: the figure is named after it)
+    assert len(list((tmp_path / "kept").glob("gradient-rate-theorem1-*.png"))) == 1
+    assert not list(tmp_path.glob("gradient-rate*.png"))  # one kappa: no figure
 
 
 def test_identical_rerun_resumes_without_notes(tmp_path):
@@ -103,7 +105,8 @@ def test_grids_over_other_free_parameters_do_not_collide(tmp_path):
     assert run([*base, "--free", "h"]).exit_code == 0
     res = run([*base, "--free", "beta"])
     assert res.exit_code == 0 and "free" in res.stderr
-    files = sorted(p.name for p in tmp_path.glob("nesterov-grid-k10*.csv"))
+    files = sorted(p.name for p in [*tmp_path.glob("nesterov-grid-k10*.csv"),
+                                    *(tmp_path / "kept").glob("nesterov-grid-k10*.csv")])
     assert len(files) == 2
     assert "beta" in rows_of(tmp_path / "nesterov-grid-k10.csv")[0]
 
