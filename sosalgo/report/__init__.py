@@ -14,19 +14,9 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.report.style import color, finish, log_ticks, new_figure
+from sosalgo.report.style import color, finish, log_ticks, new_figure, pyplot
 
-
-def pyplot() -> Any:
-    """matplotlib.pyplot with the Agg backend, imported on first use (tables need none)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-__all__ = ["format_table", "grid_figure", "log_ticks", "plot_grid", "plot_rates",
+__all__ = ["format_table", "grid_figure", "log_ticks", "plot_grid", "plot_rates", "pyplot",
            "rate_figure", "save_figure"]
 
 

@@ -13,7 +13,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["FIGSIZE", "WIDE", "color", "finish", "log_ticks", "new_figure", "plain_tick"]
+__all__ = ["FIGSIZE", "WIDE", "color", "finish", "log_ticks", "new_figure", "plain_tick",
+           "pyplot"]
 
 FIGSIZE = (6.4, 4.4)  # inches: one panel
 WIDE = (12.0, 4.6)  # two panels side by side
@@ -29,11 +30,19 @@ def color(i: int) -> str:
     return f"C{i % 10}"
 
 
+def pyplot() -> Any:
+    """matplotlib.pyplot with the Agg backend, imported on first use (tables need none)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
 def new_figure(panels: int = 1) -> tuple[Any, Any]:
     """A figure of the shared size with ``panels`` axes side by side (one axes object for
     one panel, a tuple otherwise)."""
-    from sosalgo.report import pyplot
-
     return pyplot().subplots(1, panels, figsize=FIGSIZE if panels == 1 else WIDE)
 
 
