@@ -34,6 +34,7 @@ from typing import Any
 
 from sosalgo import inputs
 from sosalgo.errors import InputError
+from sosalgo.phases import begin_task
 from sosalgo.spec import Spec
 
 __all__ = ["front_caps", "is_pareto_document", "known_tunings", "pareto_chunk",
@@ -265,6 +266,8 @@ def pareto_chunk(spec_text: str, source: str, options: dict[str, Any],
     rows = []
     for task in chunk:
         t0 = time.perf_counter()
+        cap = task.get("cap")
+        begin_task(f"rate cap {cap:.6f}" if cap is not None else str(task.get("name")))
         try:
             if task["kind"] == "front":
                 pt = _cap_point(spec, options, task)
