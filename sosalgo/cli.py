@@ -424,7 +424,8 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
     rows = result_rows(doc, result_path)
     folder = os.path.join(out, "certificates")
     can_write = writable(out)
-    bar = Progress(len(rows), f"verify {result_path}", lazy=True)  # rows, then claims
+    bar = Progress(len(rows), f"verify {result_path}", enabled=not as_json,  # rows, claims
+                   lazy=True)
     try:
         res = verify_document(doc, spec_override, folder if can_write else None,
                               not no_simulate, certificate, {"lag": lag}, name=result_path)
