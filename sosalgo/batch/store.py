@@ -10,9 +10,8 @@ that determine them (job, spec text, kappa list, tolerance, free parameters, ...
   ``companions``) is *kept aside* in the ``kept`` subfolder under a name carrying a short
   hash of its settings, ``DIR/kept/<name>-<hash8>.csv`` (``.settings.json``, figures
   likewise), and a one-line note says which setting differs and where the old results
-  went. If a kept-aside file for the
-  new settings exists it is moved back and resumed, so alternating between two settings
-  never recomputes anything. ``restart=True`` (``--restart``) *replaces* the results of
+  went. If a kept-aside file for the new settings exists it is moved back and resumed,
+  so alternating between two settings never recomputes anything. ``restart=True`` (``--restart``) *replaces* the results of
   the current file instead (deleted, then recomputed), again with a note.
 - One exclusive lock per output file (:mod:`filelock` on ``DIR/.<name>.csv.lock``) is held
   from reading the done set to the last row, so two concurrent runs into one folder never
