@@ -41,6 +41,7 @@ def test_a_forced_terminal_gets_the_live_bar(monkeypatch, capsys):
     from sosalgo.phases import show_phase
 
     monkeypatch.setenv("TTY_COMPATIBLE", "1")  # rich's switch: draw as on a terminal
+    monkeypatch.setenv("COLUMNS", "160")  # wide enough for the whole phase
     bar = Progress(3, "demo run")
     assert bar.live is not None
     show_phase("building the model", "budget 4 s")
@@ -49,7 +50,7 @@ def test_a_forced_terminal_gets_the_live_bar(monkeypatch, capsys):
     bar.close()
     err = capsys.readouterr().err
     assert "demo run" in err and "3/3" in err and "a message above the bar" in err
-    assert "building the model budget 4 s" in err
+    assert "building the model (0:00) budget 4 s" in err
 
 
 def test_plain_mode_says_rows_and_phases(monkeypatch, capsys):

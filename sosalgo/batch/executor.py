@@ -98,7 +98,7 @@ class Progress:
             return
         self.started = True
         if self.tty:
-            self.live = _live_bar(self.console)
+            self.live = _live_bar(self.console, self.label, self.total)
             self.task = self.live.add_task(self.label, total=self.total, completed=self.count,
                                            phase="")
             self.live.start()
@@ -176,8 +176,8 @@ class Progress:
 
     def _phase_text(self) -> str:
         now = time.perf_counter()
-        parts = [f"{f'{src}: ' if src is not None else ''}{name}"
-                 f"{f' {detail}' if detail else ''} ({_fmt_time(now - since)})"
+        parts = [f"{f'{src}: ' if src is not None else ''}{name} ({_fmt_time(now - since)})"
+                 f"{f' {detail}' if detail else ''}"  # a narrow screen cuts the detail
                  for src, (name, detail, since) in self.phases.items()]
         more = f" (+{len(parts) - 2} more)" if len(parts) > 2 else ""
         return ("| " + " | ".join(parts[:2]) + more) if parts else ""
@@ -223,14 +223,25 @@ def _console() -> Any:
     return Console(stderr=True)
 
 
-def _live_bar(console: Any) -> Any:
+def _live_bar(console: Any, label: str, total: int) -> Any:
     """rich's live progress display with our columns (stdout untouched; other lines
-    written to stderr while it runs appear above it)."""
+    written to stderr while it runs appear above it). On a narrow terminal the phase
+    text is cut, never the label, the count or the times."""
     from rich import progress as rp
+    from rich.table import Column
 
-    return rp.Progress(rp.TextColumn("{task.description}"), rp.BarColumn(bar_width=24),
-                       rp.MofNCompleteColumn(), rp.TimeElapsedColumn(), rp.TextColumn("ETA"),
-                       rp.TimeRemainingColumn(), rp.TextColumn("{task.fields[phase]}"),
+    widths = [len(label), 16, 2 * len(str(total)) + 1, 7, 3, 7]
+    fixed = [Column(no_wrap=True, min_width=w) for w in widths]
+    room = max(10, console.width - sum(widths) - len(widths))  # what the phase may take
+    return rp.Progress(rp.TextColumn("{task.description}", table_column=fixed[0]),
+                       rp.BarColumn(bar_width=16, table_column=fixed[1]),
+                       rp.MofNCompleteColumn(table_column=fixed[2]),
+                       rp.TimeElapsedColumn(table_column=fixed[3]),
+                       rp.TextColumn("ETA", table_column=fixed[4]),
+                       rp.TimeRemainingColumn(table_column=fixed[5]),
+                       rp.TextColumn("{task.fields[phase]}",
+                                     table_column=Column(no_wrap=True, overflow="ellipsis",
+                                                         max_width=room)),
                        console=console, redirect_stdout=False, redirect_stderr=True,
                        refresh_per_second=5)
 

@@ -11,8 +11,9 @@ that determine them (job, spec text, kappa list, tolerance, free parameters, ...
   hash of its settings, ``DIR/kept/<name>-<hash8>.csv`` (``.settings.json``, figures
   likewise), and a one-line note says which setting differs and where the old results
   went. If a kept-aside file for the new settings exists it is moved back and resumed,
-  so alternating between two settings never recomputes anything. ``restart=True`` (``--restart``) *replaces* the results of
-  the current file instead (deleted, then recomputed), again with a note.
+  so alternating between two settings never recomputes anything. ``restart=True``
+  (``--restart``) *replaces* the results of the current file instead (deleted, then
+  recomputed), again with a note.
 - One exclusive lock per output file (:mod:`filelock` on ``DIR/.<name>.csv.lock``) is held
   from reading the done set to the last row, so two concurrent runs into one folder never
   write a row twice: the second waits (with a note) and then resumes or keeps aside. The
