@@ -53,6 +53,21 @@ def test_a_forced_terminal_gets_the_live_bar(monkeypatch, capsys):
     assert "building the model (0:00) budget 4 s" in err
 
 
+def test_a_narrow_terminal_cuts_the_phase_not_the_count(monkeypatch, capsys):
+    from sosalgo.batch.executor import Progress
+    from sosalgo.phases import show_phase
+
+    monkeypatch.setenv("TTY_COMPATIBLE", "1")
+    monkeypatch.setenv("COLUMNS", "80")
+    bar = Progress(12, "design three-parameter")
+    show_phase("bound", "123 boxes proven, 456 open, below 0.812817, budget 40 s " * 3)
+    bar.update(5)
+    bar.live.refresh()
+    bar.close()
+    err = re.sub(r"\x1b\[[0-9;?]*[a-zA-Z]", "", capsys.readouterr().err)
+    assert "design three-parameter" in err and "5/12" in err and "ETA" in err, err
+
+
 def test_plain_mode_says_rows_and_phases(monkeypatch, capsys):
     from sosalgo.batch.executor import Progress
     from sosalgo.phases import show_phase
