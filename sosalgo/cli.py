@@ -109,7 +109,7 @@ def cli() -> None:
               help="Bisection tolerance on rho.")
 @click.option("--out", default="outputs", show_default=True, metavar="DIR",
               help="Directory for <name>-analysis.csv and <name>-rate.png/.pdf (two kappas "
-                   "or more).")
+                   "or more; -rate-<family> for a family other than the default).")
 @batch_options
 @click.option("--no-plot", is_flag=True, help="Skip the figure.")
 @click.option("--verify", "verify_", is_flag=True,
@@ -402,6 +402,7 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
     Exit code 3 when some claim is not backed, or nothing is claimed. Python:
     sosalgo.verify_document.
     """
+    from sosalgo.batch.executor import Progress
     from sosalgo.documents import read_result, result_rows, verify_document
     from sosalgo.inputs import writable
     from sosalgo.verify.results import check_failed
@@ -423,8 +424,14 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
     rows = result_rows(doc, result_path)
     folder = os.path.join(out, "certificates")
     can_write = writable(out)
-    res = verify_document(doc, spec_override, folder if can_write else None,
-                          not no_simulate, certificate, {"lag": lag}, name=result_path)
+    bar = Progress(len(rows), f"verify {result_path}", enabled=not as_json,  # rows, claims
+                   lazy=True)
+    try:
+        res = verify_document(doc, spec_override, folder if can_write else None,
+                              not no_simulate, certificate, {"lag": lag}, name=result_path)
+        bar.update(len(rows))
+    finally:
+        bar.close()
     notes = res["notes"] + ([] if can_write else [
         f"--out {out} is not writable: certificates checked, no files written"])
     for note in notes:

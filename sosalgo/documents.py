@@ -6,11 +6,13 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 from sosalgo.errors import InputError
+from sosalgo.kernel.phases import show_phase
 from sosalgo.spec import Spec
 
 __all__ = ["MAX_RESULT_BYTES", "read_result", "result_rows", "result_spec", "verify_document"]
@@ -126,14 +128,25 @@ def _verify_rows(spec: Spec, rows: list[dict[str, Any]], out_dir: Path | None,
         return verify_document_rows(spec, rows, out_dir, simulate, family=fam)
     from sosalgo.pareto import reference_spec
 
-    mine = [i for i, r in enumerate(rows) if not r.get("reference")]
-    ref = [i for i, r in enumerate(rows) if r.get("reference")]
     out: list[dict[str, Any] | None] = [None] * len(rows)
-    for idx, s in ((mine, spec), (ref, reference_spec())):
-        for i, chk in zip(idx, verify_document_rows(s, [rows[i] for i in idx], out_dir,
-                                                    simulate, family=fam), strict=True):
-            out[i] = chk
+    mine = [i for i, r in enumerate(rows) if not r.get("reference")]
+    for i, chk in zip(mine, verify_document_rows(spec, [rows[i] for i in mine], out_dir,
+                                                 simulate, family=fam), strict=True):
+        out[i] = chk
+    for i, row in enumerate(rows):  # a tuning's certificate file: the document's name, its own
+        if row.get("reference"):
+            show_phase("checking", f"tuning {row.get('name')}")
+            stem = f"{spec.name}-tuning-{_slug(row.get('name'))}"
+            out[i] = verify_document_rows(reference_spec(), [row], out_dir, simulate,
+                                          family=fam, file_stem=stem)[0]
     return out
+
+
+def _slug(name: Any) -> str:
+    """A tuning's name as part of a file name ("robust momentum rho=0.7" ->
+    "robust-momentum-rho-0.7")."""
+    text = re.sub(r"[^A-Za-z0-9.]+", "-", str(name or "unnamed")).strip("-.").lower()
+    return text[:60] or "unnamed"
 
 
 def verify_document(result: str | Path | Mapping[str, Any], spec: Spec | str | Path | None = None,

@@ -168,9 +168,15 @@ def pareto_stem(out_dir: Path, spec_name: str, kappa: float) -> Path:
     return Path(out_dir) / f"{spec_name}-pareto-k{kappa_label(kappa)}"
 
 
-def rate_stem(out_dir: Path, spec_name: str) -> Path:
-    """``<name>-rate`` (.png, .pdf): analyze's figure, every family on one."""
-    return Path(out_dir) / f"{spec_name}-rate"
+def rate_stem(out_dir: Path, spec_name: str,
+              families: Sequence[CertificateFamily] | None = None) -> Path:
+    """``<name>-rate[-<family>...]`` (.png, .pdf): analyze's figure, every family on one;
+    the families drawn are named unless ``families`` is None (the command's default
+    family), so that a run with other families does not overwrite it."""
+    if families is None:
+        return Path(out_dir) / f"{spec_name}-rate"
+    tags = "".join(family_suffix(f) or f"-{f.name}" for f in families)
+    return Path(out_dir) / f"{spec_name}-rate{tags}"
 
 
 def design_stem(out_dir: Path, spec_name: str, family: CertificateFamily | None) -> Path:

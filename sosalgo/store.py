@@ -7,13 +7,14 @@ that determine them (job, spec text, kappa list, tolerance, free parameters, ...
 
 - A rerun with **identical settings resumes**: keys already in the file are skipped.
 - A rerun with **other settings recomputes**. The existing file (and its figures, the
-  ``companions``) is *kept aside* under a name carrying a short hash of its settings,
-  ``DIR/<name>-<hash8>.csv`` (``.settings.json``, figures likewise), and a one-line note
-  says which setting differs and where the old results went. If a kept-aside file for the
-  new settings exists it is moved back and resumed, so alternating between two settings
-  never recomputes anything. ``restart=True`` (``--restart``) *replaces* the results of
-  the current file instead (deleted, then recomputed), again with a note.
-- One exclusive lock per output file (``fcntl.flock`` on ``DIR/.<name>.csv.lock``) is held
+  ``companions``) is *kept aside* in the ``kept`` subfolder under a name carrying a short
+  hash of its settings, ``DIR/kept/<name>-<hash8>.csv`` (``.settings.json``, figures
+  likewise), and a one-line note says which setting differs and where the old results
+  went. If a kept-aside file for the new settings exists it is moved back and resumed,
+  so alternating between two settings never recomputes anything. ``restart=True``
+  (``--restart``) *replaces* the results of the current file instead (deleted, then
+  recomputed), again with a note.
+- One exclusive lock per output file (:mod:`filelock` on ``DIR/.<name>.csv.lock``) is held
   from reading the done set to the last row, so two concurrent runs into one folder never
   write a row twice: the second waits (with a note) and then resumes or keeps aside. The
   lock file is removed when its run lets go (:func:`output_lock`); a killed run leaves
@@ -60,6 +61,7 @@ __all__ = [
 ]
 
 MAX_SETTINGS_BYTES = 4_000_000
+KEPT_FOLDER = "kept"  # DIR/kept/: the results of other settings, kept aside
 FSYNC_SECONDS = 1.0  # a per-row fsync costs milliseconds on a busy disk: as much as a rate
 
 
@@ -123,77 +125,71 @@ def _note(msg: str) -> None:
 
 
 # --------------------------------------------------------------------------- locking
-_HELD: dict[str, tuple[int, int]] = {}  # lock path -> (fd, depth): re-entrant per process
+_HELD: dict[str, tuple[Any, int]] = {}  # lock path -> (held lock, depth): re-entrant
 
 
 @contextmanager
 def output_lock(path: Path, notify: Callable[[str], None] = _note) -> Iterator[None]:
     """Exclusive (re-entrant within a process) lock on output ``path`` across processes.
 
-    The lock file ``DIR/.<name>.lock`` exists only while a run holds it: the holder
-    removes it before letting go, and a run that was waiting on the removed file (its
-    lock taken on a name no longer in the folder) opens the new one and waits again, so
-    two runs never hold the lock of one output at once."""
+    The lock is :mod:`filelock`'s ``flock`` on ``DIR/.<name>.lock``, a file that exists
+    only while a run holds it: the holder removes it before letting go, and filelock
+    retries a lock taken on a name no longer in the folder (a waiter then locks the new
+    file), so two runs never hold the lock of one output at once. A killed run leaves
+    an empty file (the kernel drops its ``flock``), which the next run takes over."""
     path = Path(path)
     lock = str(path.with_name(f".{path.name}.lock").absolute())
     if lock in _HELD:
-        fd, depth = _HELD[lock]
-        _HELD[lock] = (fd, depth + 1)
+        held, depth = _HELD[lock]
+        _HELD[lock] = (held, depth + 1)
     else:
         _HELD[lock] = (_acquire(path, lock, notify), 1)
     try:
         yield
     finally:
-        fd, depth = _HELD[lock]
+        held, depth = _HELD[lock]
         if depth > 1:
-            _HELD[lock] = (fd, depth - 1)
+            _HELD[lock] = (held, depth - 1)
         else:
             del _HELD[lock]
-            _release(lock, fd)
+            _release(lock, held)
 
 
-def _acquire(path: Path, lock: str, notify: Callable[[str], None]) -> int:
-    """A descriptor holding the flock on the file named ``lock`` (created if missing)."""
-    import fcntl
+def _acquire(path: Path, lock: str, notify: Callable[[str], None]) -> tuple[Any, tuple]:
+    """The held :class:`filelock.UnixFileLock` on the file named ``lock`` and the identity
+    (device, inode) of the file it locked, which its holder removes on release."""
+    from filelock import Timeout, UnixFileLock
 
-    told = False
-    while True:
-        try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
-        except OSError as exc:
-            raise OutputError(f"{path.parent}: cannot write ({exc.strerror})") from None
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            if not told:
-                notify(f"another sosalgo run is writing {path}; waiting for it to finish")
-                told = True
-            fcntl.flock(fd, fcntl.LOCK_EX)
-        if _same_file(fd, lock):
-            return fd
-        os.close(fd)  # its holder removed it while we waited: lock the new one
+    taken: list[tuple[int, int]] = []
 
+    def remember(fd: int) -> None:  # the file this process locked (to remove it later)
+        st = os.fstat(fd)
+        taken.append((st.st_dev, st.st_ino))
 
-def _same_file(fd: int, name: str) -> bool:
-    """True when ``name`` still names the file open as ``fd``."""
+    held = UnixFileLock(lock, on_acquired=remember)
     try:
-        st = os.stat(name)
-    except FileNotFoundError:
-        return False
-    own = os.fstat(fd)
-    return (st.st_dev, st.st_ino) == (own.st_dev, own.st_ino)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            held.acquire(timeout=0)
+        except Timeout:
+            notify(f"another sosalgo run is writing {path}; waiting for it to finish")
+            held.acquire()
+    except OSError as exc:
+        raise OutputError(f"{path.parent}: cannot write ({exc.strerror})") from None
+    return held, taken[-1]
 
 
-def _release(lock: str, fd: int) -> None:
+def _release(lock: str, held: tuple[Any, tuple]) -> None:
     """Remove the lock file (while still holding it), then let go of it."""
+    file_lock, identity = held
     try:
-        if _same_file(fd, lock):
+        st = os.stat(lock)
+        if (st.st_dev, st.st_ino) == identity:
             os.unlink(lock)
     except OSError:  # a read-only folder keeps its lock file; the lock is released anyway
         pass
     finally:
-        os.close(fd)  # closing the descriptor releases the flock
+        file_lock.release()
 
 
 # --------------------------------------------------------------------------- files
@@ -259,30 +255,44 @@ def _old_digest(old_settings: Any, path: Path) -> str:
 
 
 def _move_aside(files: Sequence[Path], digest: str, back: bool = False) -> None:
-    """Rename ``files`` to their kept-aside names (``back``: the other way round)."""
+    """Rename ``files`` to their kept-aside names (``back``: the other way round; the
+    ``kept`` folder goes when it is left empty)."""
     for p in files:
         aside = _aside_name(p, digest)
         src, dst = (aside, p) if back else (p, aside)
         if src.exists() or src.is_symlink():
+            dst.parent.mkdir(exist_ok=True)
             os.replace(src, dst)
         elif back:
             dst.unlink(missing_ok=True)
+    if back and files:
+        try:
+            _aside_name(files[0], digest).parent.rmdir()
+        except OSError:  # not empty: other settings' results are kept there
+            pass
 
 
 def _aside_name(path: Path, digest: str) -> Path:
-    """``DIR/stem-<digest>.ext`` (``.csv.settings.json`` keeps its double suffix)."""
+    """``DIR/kept/stem-<digest>.ext`` (``.csv.settings.json`` keeps its double suffix):
+    results of other settings, in one subfolder of the output folder."""
     name = path.name
+    kept = path.parent / KEPT_FOLDER
     for suffix in (".csv.settings.json", ".csv", ".png", ".pdf", ".json"):
         if name.endswith(suffix):
-            return path.with_name(f"{name[: -len(suffix)]}-{digest}{suffix}")
-    return path.with_name(f"{name}-{digest}")
+            return kept / f"{name[: -len(suffix)]}-{digest}{suffix}"
+    return kept / f"{name}-{digest}"
+
+
+def _kept_label(path: Path) -> str:
+    """A kept-aside file's name as a note shows it: relative to the output folder."""
+    return f"{KEPT_FOLDER}/{path.name}"
 
 
 def write_table(path: Path, columns: Sequence[str], rows: Iterable[dict[str, Any]],
                 settings: dict[str, Any], notify: Callable[[str], None] = _note) -> None:
     """Write a small table computed in one go (``table1``) under the run model: the whole
     file is replaced atomically under the output lock; a file written with other settings is
-    kept aside first (``DIR/<name>-<hash8>.csv``), with a note saying what differs."""
+    kept aside first (``DIR/kept/<name>-<hash8>.csv``), with a note saying what differs."""
     path = Path(path)
     settings = json.loads(json.dumps(settings, sort_keys=True))
     settings_path = path.with_name(path.name + ".settings.json")
@@ -298,7 +308,7 @@ def write_table(path: Path, columns: Sequence[str], rows: Iterable[dict[str, Any
                 _move_aside([path, settings_path], digest)
                 notify(f"{path} was written with other settings "
                        f"({describe_difference(old, settings)}); kept it aside as "
-                       f"{_aside_name(path, digest).name}")
+                       f"{_kept_label(_aside_name(path, digest))}")
         _atomic_write(path, buf.getvalue())
         _atomic_write(settings_path, json.dumps(settings, indent=2, sort_keys=True) + "\n")
 
@@ -362,7 +372,7 @@ class ResumableCSV:
             if why is not None:
                 _move_aside(self._files(), digest)
                 self.notify(f"{self.path} was written with other settings ({why}); "
-                            f"kept it aside as {_aside_name(self.path, digest).name}; "
+                            f"kept it aside as {_kept_label(_aside_name(self.path, digest))}; "
                             "computing anew")
                 exists = False
         if not exists and not self.restart:
@@ -370,7 +380,8 @@ class ResumableCSV:
             if (_regular_or_missing(aside) and self._header_ok(aside) and _read_settings(
                     _aside_name(self.settings_path, self.digest)) == self.settings):
                 _move_aside(self._files(), self.digest, back=True)
-                self.notify(f"resuming the results of these settings kept in {aside.name}")
+                self.notify(f"resuming the results of these settings kept in "
+                            f"{_kept_label(aside)}")
                 exists = True
         if exists:
             self.dropped = 0

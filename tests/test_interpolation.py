@@ -287,7 +287,7 @@ def test_cli_compare_families_and_table1(tmp_path):
     t1 = list(csv.DictReader(open(tmp_path / "nesterov-analysis.csv")))
     ti = list(csv.DictReader(open(tmp_path / "nesterov-analysis-interpolation.csv")))
     assert "p0" not in t1[0] and float(ti[0]["rho"]) < float(t1[0]["rho"])
-    assert (tmp_path / "nesterov-rate.png").stat().st_size > 1000
+    assert (tmp_path / "nesterov-rate-theorem1-interpolation.png").stat().st_size > 1000
     res = _run(["table1", "--specs", SPECS / "gradient.yaml", "--kappa", "10",
                 "--certificate", "theorem1,interpolation", "--out", tmp_path])
     assert res.exit_code == 0, res.output

@@ -226,7 +226,7 @@ def test_kill_resume_concurrency_and_keep_aside(case, tmp_path):
     before = final.read_text(encoding="utf-8")
     other = _run(case.other, out, "--quiet")
     assert "kept it aside" in other.stderr, other.stderr
-    aside = [p for p in out.glob(f"{final.stem}-*.csv") if p.read_text() == before]
+    aside = [p for p in (out / "kept").glob(f"{final.stem}-*.csv") if p.read_text() == before]
     assert len(aside) == 1
     back = _run(case.args, out, "--quiet")
     assert "resuming" in back.stderr
@@ -258,7 +258,7 @@ def test_one_row_outputs_resume_keep_aside_and_run_concurrently(case, tmp_path):
     other = _run(tuple(str(edited) if a == _spec("gradient-convex") else a
                        for a in case.args), out, "--quiet")
     assert "kept it aside" in other.stderr, other.stderr
-    assert [p.read_text() for p in out.glob(f"{path.stem}-*.csv")] == [before]
+    assert [p.read_text() for p in (out / "kept").glob(f"{path.stem}-*.csv")] == [before]
     assert "note: resuming the results" in _run(case.args, out, "--quiet").stderr
     assert path.read_text() == before
     _no_locks_left(out)

@@ -54,7 +54,7 @@ def test_edited_copy_keeps_the_original_aside_and_both_resume(tmp_path):
     # the message says what differs and where the old results went
     assert "spec text" in edited.stderr and "1/L" in edited.stderr
     assert "kept it aside" in edited.stderr
-    aside = [p for p in out.glob("gradient-analysis-*.csv")]
+    aside = [p for p in (out / "kept").glob("gradient-analysis-*.csv")]
     assert len(aside) == 1 and aside[0].read_text() == original
     # closed forms: h = 1/L gives 1 - 1/kappa, h = 1.5/L gives max|1 - h*lambda| = 1 - 1.5/kappa
     rho_edit = float(rows_of(out / "gradient-analysis.csv")[0]["rho"])
@@ -83,8 +83,10 @@ def test_another_kappa_is_another_run_not_an_append(tmp_path):
     assert res.exit_code == 0, res.output
     assert "kappa" in res.stderr and "kept it aside" in res.stderr
     assert [float(r["kappa"]) for r in rows_of(tmp_path / "gradient-analysis.csv")] == [16.0]
-    # the figure of the first run moved aside with its CSV
-    assert len(list(tmp_path.glob("gradient-rate-*.png"))) == 1
+    # the figure of the first run moved aside with its CSV (a family other than analyze's
+    # default: the figure is named after it)
+    assert len(list((tmp_path / "kept").glob("gradient-rate-theorem1-*.png"))) == 1
+    assert not list(tmp_path.glob("gradient-rate*.png"))  # one kappa: no figure
 
 
 def test_identical_rerun_resumes_without_notes(tmp_path):
@@ -103,7 +105,8 @@ def test_grids_over_other_free_parameters_do_not_collide(tmp_path):
     assert run([*base, "--free", "h"]).exit_code == 0
     res = run([*base, "--free", "beta"])
     assert res.exit_code == 0 and "free" in res.stderr
-    files = sorted(p.name for p in tmp_path.glob("nesterov-grid-k10*.csv"))
+    files = sorted(p.name for p in [*tmp_path.glob("nesterov-grid-k10*.csv"),
+                                    *(tmp_path / "kept").glob("nesterov-grid-k10*.csv")])
     assert len(files) == 2
     assert "beta" in rows_of(tmp_path / "nesterov-grid-k10.csv")[0]
 
@@ -356,7 +359,7 @@ def test_design_with_another_free_set_keeps_the_first_aside(tmp_path, monkeypatc
     notes = capsys.readouterr().err
     assert 'free: ["beta"] -> ["h", "beta"]' in notes and "kept it aside" in notes
     assert "resuming" in notes  # the third run got the first one's rows back
-    assert len(list(tmp_path.glob("nesterov-design-*.csv"))) == 1
+    assert len(list((tmp_path / "kept").glob("nesterov-design-*.csv"))) == 1
 
 
 def test_outputs_without_settings_are_kept_aside_not_overwritten(tmp_path):
@@ -367,7 +370,7 @@ def test_outputs_without_settings_are_kept_aside_not_overwritten(tmp_path):
         with ResumableCSV(path, ["kappa", "v"], ["kappa"], {"a": 1}, notify=notes.append) as s:
             s.write({"kappa": 5.0, "v": 2})
         path.with_name("x.csv.settings.json").unlink()
-    kept = sorted(p.read_text() for p in tmp_path.glob("x-*.csv"))
+    kept = sorted(p.read_text() for p in (tmp_path / "kept").glob("x-*.csv"))
     assert kept == ["kappa,v\n2.0,1\n", "kappa,v\n3.0,1\n"]
     assert all("settings file is missing" in n for n in notes)
 
@@ -382,7 +385,7 @@ def test_a_file_with_other_columns_is_kept_aside(tmp_path):
         s.write({"kappa": 2.0, "v": 1, "w": 3})
     assert "columns differ" in notes[0]
     assert path.read_text().splitlines()[0] == "kappa,v,w"
-    assert [p.read_text() for p in tmp_path.glob("x-*.csv")] == ["kappa,v\n2.0,1\n"]
+    assert [p.read_text() for p in (tmp_path / "kept").glob("x-*.csv")] == ["kappa,v\n2.0,1\n"]
 
 
 def test_quoted_multiline_cells_survive_a_resume(tmp_path):
@@ -407,12 +410,12 @@ def test_table1_reruns_keep_other_settings_aside_and_concurrent_runs_do_not_mix(
     # identical settings: replaced by the same table, no note
     again = run([*base, "--kappa", "4"])
     assert again.exit_code == 0 and "kept it aside" not in again.stderr
-    assert not list(out.glob("table1-*.csv"))
+    assert not list(out.glob("table1-*.csv")) and not (out / "kept").exists()
     # other settings: the old table is kept aside, the message says what differs
     other = run([*base, "--kappa", "10"])
     assert other.exit_code == 0, other.output
     assert "kept it aside" in other.stderr and "kappa" in other.stderr
-    (aside,) = out.glob("table1-*.csv")
+    (aside,) = (out / "kept").glob("table1-*.csv")
     assert [float(r["kappa"]) for r in rows_of(aside)] == pytest.approx([4.0])
     assert [float(r["kappa"]) for r in rows_of(out / "table1.csv")] == pytest.approx([10.0])
     # two runs at once into one folder: each table is whole (never interleaved lines)
@@ -421,8 +424,9 @@ def test_table1_reruns_keep_other_settings_aside_and_concurrent_runs_do_not_mix(
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
              for k in ("2", "3")]
     assert all(p.wait(timeout=300) == 0 for p in procs)
-    for path in out.glob("table1*.csv"):
+    tables = [*out.glob("table1*.csv"), *(out / "kept").glob("table1*.csv")]
+    for path in tables:
         got = rows_of(path)
         assert len(got) == 1 and got[0]["spec"] == "gradient", path
-    kappas = {float(rows_of(p)[0]["kappa"]) for p in out.glob("table1*.csv")}
+    kappas = {float(rows_of(p)[0]["kappa"]) for p in tables}
     assert {2.0, 3.0, 4.0} <= kappas

@@ -7,16 +7,16 @@ re-load the spec from its YAML text (cached per process), so nothing unpicklable
 Results are handed to ``on_row`` in the parent as each chunk finishes, so the caller can
 append them to a resumable CSV at once.
 
-Local pools are the kernel's (:func:`sosalgo.kernel.parallel.worker_pool`, also used by
-``design``): they never fork the calling process (a process that has run a solve holds
-Clarabel's solver threads, and a forked copy of it deadlocks in the solver). Workers come
-from a fork server (started fresh, with the sweeps' modules preloaded) or are spawned, and
-die with their parent.
+Local pools (:func:`worker_pool`, also used by ``design``) never fork the calling process:
+a process that has run a solve holds Clarabel's solver threads, and a forked copy of it
+deadlocks in the solver. Workers come from a fork server (started fresh, with sosalgo's
+modules preloaded) or are spawned, and die with their parent.
 """
 
 from __future__ import annotations
 
 import gc
+import itertools
 import math
 import os
 import sys
@@ -25,10 +25,11 @@ from collections.abc import Callable, Iterator, Sequence
 from typing import TYPE_CHECKING, Any
 
 from sosalgo.errors import InputError
-from sosalgo.kernel.parallel import kill_pool, listen_to_phases, quietly, worker_pool
+from sosalgo.kernel.parallel import kill_pool, pool_context, quietly, set_chunk, worker_pool
+from sosalgo.kernel.phases import begin_task, set_sink
 
 if TYPE_CHECKING:  # pragma: no cover - imported where a pool is started
-    from concurrent.futures import Future
+    from concurrent.futures import Future, ProcessPoolExecutor
 
 __all__ = ["BatchError", "Progress", "check_scheduler", "note", "run_batch"]
 
@@ -47,92 +48,202 @@ class BatchError(InputError):
 
 
 class Progress:
-    """A one-line progress bar on stderr: count, rate, ETA and what the running task is
-    doing (:func:`sosalgo.kernel.parallel.show_phase`); silent when disabled. ``done`` rows
-    were read back from ``resumed_from`` (a saved file): said once, on its own line."""
+    """Progress of a batch on stderr, drawn by :mod:`rich`; silent when disabled.
+
+    On a terminal: one live line (label, bar, count, elapsed time, ETA, and what the
+    running tasks are doing, :mod:`sosalgo.kernel.phases`, also in pool workers). Elsewhere (a
+    log file, CI): plain lines, one per finished row (at most one every ``PLAIN_SECONDS``,
+    and the last) and one per new phase, ``LABEL | PHASE DETAIL`` (a named task's phase
+    once it has lasted ``PLAIN_SECONDS``). ``done`` rows were read back from
+    ``resumed_from`` (a saved file): said once, on its own line. ``lazy``: nothing is shown
+    before the first phase or row (a command that may still refuse its input then says
+    one line, its error)."""
 
     def __init__(self, total: int, label: str, enabled: bool = True, done: int = 0,
-                 resumed_from: str | os.PathLike | None = None):
+                 resumed_from: str | os.PathLike | None = None, lazy: bool = False):
         global _ACTIVE
         self.total, self.label, self.enabled = total, label, enabled
         self.count = done
-        self.start_count = done
         self.t0 = time.perf_counter()
-        self.last = 0.0
-        self.tty = sys.stderr.isatty()
-        self.phase_name: str | None = None
-        self.phase_detail = ""
-        self.width = 0  # length of the line on screen (a tty line is overwritten)
-        if enabled:
-            _ACTIVE = self
-            listen_to_phases(self.phase)
-            if done:
-                where = f" from {resumed_from}" if resumed_from is not None else ""
-                sys.stderr.write(f"resumed: {done} of {total} rows read{where}\n")
-        self._draw(force=True)
+        self.phases: dict[Any, tuple[str, str, float]] = {}  # source -> (name, detail, since)
+        self.said: dict[Any, tuple[str, float]] = {}  # plain mode: source -> (phase, when)
+        self.row_said, self.row_shown = 0.0, done  # plain mode: the last count said
+        self.early: dict[int, int] = {}  # chunk -> rows finished in a worker, not delivered
+        self.console = _console()
+        self.tty = self.console.is_terminal
+        self.live: Any = None
+        self.previous_sink: Any = None
+        if not enabled:
+            return
+        _ACTIVE = self
+        self.previous_sink = set_sink(self._from_task)
+        if done:
+            where = f" from {resumed_from}" if resumed_from is not None else ""
+            self._say(f"resumed: {done} of {total} rows read{where}")
+        self.started = done >= total  # nothing left to show: no bar
+        if not lazy:
+            self._start()
+
+    def _start(self) -> None:
+        """The live bar on a terminal, else the first plain line."""
+        if self.started:
+            return
+        self.started = True
+        if self.tty:
+            self.live = _live_bar(self.console, self.label, self.total)
+            self.task = self.live.add_task(self.label, total=self.total, completed=self.count,
+                                           phase="")
+            self.live.start()
+        else:
+            self._say(f"{self.label}: {self.count}/{self.total} rows")
+
+    def _from_task(self, task: str | None, name: str | None, detail: str) -> None:
+        """The sink of :mod:`sosalgo.kernel.phases` while this bar is shown."""
+        self.phase(name, detail, source=task)
 
     def update(self, n: int = 1) -> None:
+        """``n`` more rows were delivered."""
         self.count += n
-        self._draw()
+        self._show_count()
 
-    def phase(self, name: str | None, detail: str = "") -> None:
-        """Show what is running now (``name``, e.g. "grid") and how far it is (``detail``):
-        a new name is drawn at once, a new detail at the bar's usual pace."""
-        changed = name != self.phase_name
-        self.phase_name, self.phase_detail = name, detail
-        self._draw(force=changed)
+    def finished_early(self, chunk: int) -> None:
+        """A row of ``chunk`` finished in a worker (its rows arrive when the chunk ends)."""
+        self.early[chunk] = self.early.get(chunk, 0) + 1
+        self._show_count()
 
-    def _line(self) -> str:
-        elapsed = time.perf_counter() - self.t0
-        rate = (self.count - self.start_count) / elapsed if elapsed > 0 else 0.0
-        left = self.total - self.count
-        eta = 0.0 if left <= 0 else left / rate if rate > 0 else math.inf
-        frac = self.count / self.total if self.total else 1.0
-        width = 24
-        bar = "#" * int(frac * width) + "-" * (width - int(frac * width))
-        eta_s = "?" if not math.isfinite(eta) else _fmt_time(eta)
-        line = f"{self.label} [{bar}] {self.count}/{self.total} {rate:.1f}/s ETA {eta_s}"
-        if self.phase_name and self.count < self.total:
-            detail = f" {self.phase_detail}" if self.phase_detail else ""
-            line += f" | {self.phase_name}{detail} ({_fmt_time(elapsed)} elapsed)"
-        return line
+    def settle(self, chunks: set[int]) -> None:
+        """These chunks are delivered: their rows count through :meth:`update` now."""
+        for c in chunks & self.early.keys():
+            del self.early[c]
 
-    def _draw(self, force: bool = False) -> None:
+    def _show_count(self) -> None:
+        shown = min(self.total, self.count + sum(self.early.values()))
         if not self.enabled:
             return
-        now = time.perf_counter()
-        if not force and now - self.last < (0.2 if self.tty else 5.0) and self.count < self.total:
+        self._start()
+        if self.live is not None:
+            self.live.update(self.task, completed=shown)
             return
-        self.last = now
-        line = self._line()
-        end = "\r" if self.tty and self.count < self.total else "\n"
-        pad = " " * max(0, self.width - len(line)) if self.tty else ""
-        self.width = len(line) if end == "\r" else 0
-        sys.stderr.write(line + pad + end)
-        sys.stderr.flush()
+        now = time.perf_counter()
+        if shown != self.row_shown and (shown >= self.total
+                                        or now - self.row_said >= PLAIN_SECONDS):
+            self.row_said, self.row_shown = now, shown
+            self._say(f"{self.label}: {shown}/{self.total} rows "
+                      f"({_fmt_time(now - self.t0)} elapsed)")
+
+    def phase(self, name: str | None, detail: str = "", source: Any = None) -> None:
+        """Show what a running task is doing now (``name``, e.g. "grid") and how far it is
+        (``detail``); ``source``: which task (a worker's label; None: this process's);
+        ``name=None``: it is done."""
+        old = self.phases.get(source)
+        if name is None:
+            self.phases.pop(source, None)
+            self.said.pop(source, None)
+        else:
+            since = old[2] if old and old[0] == name else time.perf_counter()
+            self.phases[source] = (name, detail, since)
+        if not self.enabled:
+            return
+        self._start()
+        if self.live is not None:  # a new phase is drawn at once, a new detail in time
+            self.live.update(self.task, phase=self._phase_text(),
+                             refresh=name is not None and (old is None or old[0] != name))
+        elif name is not None and source is None:
+            self._say_phase(source, name, detail)
+        else:
+            self.tick()
+
+    def tick(self) -> None:
+        """Plain mode: say the workers' phases that have lasted ``PLAIN_SECONDS`` (a short
+        one is not worth a line in a log); on a terminal, refresh their clocks."""
+        if not self.enabled:
+            return
+        if self.live is not None:
+            self.live.update(self.task, phase=self._phase_text())
+            return
+        now = time.perf_counter()
+        for source, (name, detail, since) in list(self.phases.items()):
+            if source is not None and now - since >= PLAIN_SECONDS:
+                self._say_phase(source, name, detail)
+
+    def _phase_text(self) -> str:
+        now = time.perf_counter()
+        parts = [f"{f'{src}: ' if src is not None else ''}{name} ({_fmt_time(now - since)})"
+                 f"{f' {detail}' if detail else ''}"  # a narrow screen cuts the detail
+                 for src, (name, detail, since) in self.phases.items()]
+        more = f" (+{len(parts) - 2} more)" if len(parts) > 2 else ""
+        return ("| " + " | ".join(parts[:2]) + more) if parts else ""
+
+    def _say_phase(self, source: Any, name: str, detail: str) -> None:
+        """Plain mode: a line for a new phase at once, for a new detail now and then."""
+        last, when = self.said.get(source, (None, -math.inf))
+        now = time.perf_counter()
+        if name != last or now - when >= PLAIN_PHASE_SECONDS:
+            self.said[source] = (name, now)
+            self._say(f"{self.label} | {f'{source}: ' if source is not None else ''}{name}"
+                      f"{f' {detail}' if detail else ''}")
+
+    def _say(self, msg: str) -> None:
+        if self.live is not None:
+            self.live.console.print(msg, markup=False, highlight=False, soft_wrap=True)
+        else:
+            sys.stderr.write(msg + "\n")
+            sys.stderr.flush()
 
     def close(self) -> None:
         global _ACTIVE
         if _ACTIVE is self:
             _ACTIVE = None
-            listen_to_phases(None)
-        if self.enabled and self.tty and self.count < self.total:
-            sys.stderr.write("\n")
+            set_sink(self.previous_sink)
+        if self.live is not None:
+            self.live.update(self.task, phase="")
+            self.live.stop()
+            self.live = None
 
 
-_ACTIVE: Progress | None = None  # this process's bar, which :func:`note` clears
+PLAIN_SECONDS = 2.0  # plain mode: at most one "rows done" line this often (and the last)
+PLAIN_PHASE_SECONDS = 10.0  # plain mode: a phase's new detail at most this often
+_ACTIVE: Progress | None = None  # this process's bar (where notes go above it)
+
+
+def _console() -> Any:
+    """A rich console on stderr (a terminal or not: rich decides, e.g. from TTY_COMPATIBLE)."""
+    from rich.console import Console
+
+    return Console(stderr=True)
+
+
+def _live_bar(console: Any, label: str, total: int) -> Any:
+    """rich's live progress display with our columns (stdout untouched; other lines
+    written to stderr while it runs appear above it). On a narrow terminal the phase
+    text is cut, never the label, the count or the times."""
+    from rich import progress as rp
+    from rich.table import Column
+
+    widths = [len(label), 16, 2 * len(str(total)) + 1, 7, 3, 7]
+    fixed = [Column(no_wrap=True, min_width=w) for w in widths]
+    room = max(10, console.width - sum(widths) - len(widths))  # what the phase may take
+    return rp.Progress(rp.TextColumn("{task.description}", table_column=fixed[0]),
+                       rp.BarColumn(bar_width=16, table_column=fixed[1]),
+                       rp.MofNCompleteColumn(table_column=fixed[2]),
+                       rp.TimeElapsedColumn(table_column=fixed[3]),
+                       rp.TextColumn("ETA", table_column=fixed[4]),
+                       rp.TimeRemainingColumn(table_column=fixed[5]),
+                       rp.TextColumn("{task.fields[phase]}",
+                                     table_column=Column(no_wrap=True, overflow="ellipsis",
+                                                         max_width=room)),
+                       console=console, redirect_stdout=False, redirect_stderr=True,
+                       refresh_per_second=5)
 
 
 def note(msg: str) -> None:
-    """Print ``msg`` on its own line of stderr; on a terminal, this process's progress bar
-    is cleared first and drawn again below it (a message never runs into the bar)."""
+    """Print ``msg`` on its own line of stderr (above the live progress bar, if any)."""
     bar = _ACTIVE
-    clear = bar is not None and bar.enabled and bar.tty and bar.width
-    sys.stderr.write(("\r" + " " * bar.width + "\r" if clear else "") + msg + "\n")
+    if bar is not None and bar.live is not None:
+        bar._say(msg)
+        return
+    sys.stderr.write(msg + "\n")
     sys.stderr.flush()
-    if clear:
-        bar.width = 0
-        bar._draw(force=True)
 
 
 def _fmt_time(sec: float) -> str:
@@ -192,36 +303,98 @@ def run_batch(
         return
     if not isolate and (workers == 1 or len(tasks) < SERIAL_BELOW):
         for task in tasks:
-            deliver(quietly(fn, spec_text, source, options, [task]))
+            try:
+                rows = quietly(fn, spec_text, source, options, [task])
+            finally:
+                begin_task(None)  # what the task did ends with it
+            deliver(rows)
         return
-    from concurrent.futures import FIRST_COMPLETED, wait
-
     workers = min(workers, len(tasks)) if isolate else workers
     size = 1 if isolate else chunk_size(len(tasks), workers, _largest_chunk(fn))
     if progress is not None:
         progress.phase(f"starting {workers} workers")
-    pool = worker_pool(workers, PRELOAD)
+    relay = pool_context(PRELOAD).Queue()  # the workers' phases, for this process's bar
+    pool = worker_pool(workers, PRELOAD, relay)
     try:
-        pending: set[Future] = set()
-        chunks = _chunks(tasks, size)
-        for chunk in chunks:
-            pending.add(pool.submit(quietly, fn, spec_text, source, options, chunk))
-            if len(pending) >= workers * 2:
-                break
-        while pending:
-            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
-            if progress is not None and progress.phase_name:
-                progress.phase(None)  # the workers run: the count says it from now on
-            for fut in finished:
-                deliver(fut.result())
-            for chunk in chunks:
-                pending.add(pool.submit(quietly, fn, spec_text, source, options, chunk))
-                if len(pending) >= workers * 2:
-                    break
+        _run_pool(pool, relay, (fn, spec_text, source, options), _chunks(tasks, size),
+                  2 * workers, deliver, progress)
     except BaseException:
         kill_pool(pool)  # interrupted or failed: do not wait for (or leave) running workers
         raise
+    finally:
+        relay.close()
     pool.shutdown(wait=True)
+
+
+def _run_pool(pool: ProcessPoolExecutor, relay: Any, job: tuple, chunks: Iterator[list],
+              ahead: int, deliver: Callable[[list[Row]], None],
+              progress: Progress | None) -> None:
+    """Keep ``ahead`` chunks of ``job`` submitted; deliver each as it finishes; meanwhile
+    show what the workers are doing (their phases arrive on ``relay``)."""
+    from concurrent.futures import FIRST_COMPLETED, wait
+
+    pending: dict[Future, int] = {}  # chunk -> its number (the workers' messages name it)
+    done: set[int] = set()
+    started = False
+    numbers = itertools.count()
+    while True:
+        for chunk in chunks:
+            number = next(numbers)
+            pending[pool.submit(_run_chunk_relayed, *job, chunk, number)] = number
+            if len(pending) >= ahead:
+                break
+        if not pending:
+            return
+        finished, _ = wait(pending, timeout=RELAY_SECONDS, return_when=FIRST_COMPLETED)
+        messages = _drain(relay)
+        if progress is not None:
+            if not started and (finished or messages):
+                started = True
+                progress.phase(None)  # the workers run: they say what they do from now on
+            _show_workers(progress, messages, done)
+        for fut in finished:
+            done.add(pending.pop(fut))
+            if progress is not None:
+                progress.settle(done)
+            deliver(fut.result())
+
+
+def _show_workers(progress: Progress, messages: list[tuple], done: set[int]) -> None:
+    """The workers' phases on the bar; a task's end (its phase None) counts its row at once,
+    before its chunk's rows arrive (unless that chunk was delivered already)."""
+    for number, label, name, detail in messages:
+        if name is None and number not in done:
+            progress.finished_early(number)
+        progress.phase(name, detail, source=label)
+    progress.tick()
+
+
+RELAY_SECONDS = 0.25  # how often the workers' phases are read while waiting for rows
+
+
+def _drain(relay: Any) -> list[tuple[str, str | None, str]]:
+    """The messages waiting on ``relay`` (none when it is closed)."""
+    import queue
+
+    out = []
+    while True:
+        try:
+            out.append(relay.get_nowait())
+        except (queue.Empty, OSError, ValueError, EOFError):
+            return out
+
+
+def _run_chunk_relayed(fn: ChunkFn, spec_text: str, source: str, options: dict[str, Any],
+                       chunk: list[dict[str, Any]], number: int) -> list[Row]:
+    """In a pool's worker: ``fn`` on ``chunk`` (the ``number``-th); what it shows by
+    :func:`show_phase` goes to the bar of the process running the pool, labelled by the
+    task (:func:`begin_task`), and the end of each task counts its row there at once."""
+    set_chunk(number)
+    try:
+        return quietly(fn, spec_text, source, options, chunk)
+    finally:
+        begin_task(None)
+        set_chunk(None)
 
 
 def _import_distributed():
@@ -294,12 +467,10 @@ def _probe_scheduler(address: str) -> None:
                          f"protocol (its first bytes: {head[:8]!r})")
 
 
-def check_scheduler(address: str | None) -> None:
-    """Connect once (then disconnect): Dask installed, address well formed and reachable
-    (None: no scheduler, nothing to check), before anything is written."""
-    if address:
-        client = _connect(address)
-        client.close()
+def check_scheduler(address: str) -> None:
+    """Connect once (then disconnect): Dask installed, address well formed and reachable."""
+    client = _connect(address)
+    client.close()
 
 
 def _run_dask(fn, spec_text, source, options, tasks, deliver, address: str) -> None:

@@ -15,6 +15,7 @@ import numpy as np
 from sosalgo.analysis import AnalysisResult, analyze_spec, spec_family
 from sosalgo.batch.executor import Progress, note, run_batch
 from sosalgo.certificates import CertificateFamily, describe_family, family_from_description
+from sosalgo.kernel.phases import begin_task, show_phase
 from sosalgo.kernel.solvers import DEFAULT_SOLVERS
 from sosalgo.model import ModelError, parameter_values
 from sosalgo.schema import (
@@ -145,6 +146,7 @@ def _run_chunk(spec_text: str, source: str, options: dict[str, Any],
     rows = []
     for task in chunk:
         kappa = float(task["kappa"])
+        begin_task(f"kappa {kappa:g}")
         try:
             row = one(spec, fam, kappa, task)
         except ModelError as exc:  # e.g. a grid point outside a function's domain
@@ -165,11 +167,13 @@ def analysis_chunk(
         res = analyze_spec(spec, kappa, task.get("theta"), tol=options["tol"],
                            solvers=options.get("solvers", DEFAULT_SOLVERS), family=fam)
         if options.get("witnesses") is not None:  # analyze: cycles, rate brackets
+            show_phase("witnessed lower bound" if res.certified else "cycle search")
             res = _with_witnesses(spec, kappa, task.get("theta"), res, options["witnesses"])
         row = result_row(spec, res, fam)
         if options.get("noise"):  # analyze --noise: sosalgo.sensitivity
             from sosalgo.sensitivity.run import analyze_noise, noise_cells
 
+            show_phase("noise sensitivity")
             row.update(noise_cells(analyze_noise(spec, kappa, task.get("theta"))))
         return row
 

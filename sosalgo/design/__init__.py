@@ -38,7 +38,7 @@ from sosalgo.design.boundcheck import bound_certificate
 from sosalgo.design.dualbound import ARITHMETIC, BoundSearch, BoundStatus, dual_structure
 from sosalgo.design.floor import class_floor
 from sosalgo.design.polymodel import check_polynomial
-from sosalgo.kernel.parallel import show_phase
+from sosalgo.kernel.phases import show_phase
 from sosalgo.kernel.solvers import solve_margin
 from sosalgo.model import ModelError, bind, design_box
 from sosalgo.spec import Spec
@@ -144,6 +144,7 @@ class _Run:
         self.bound = bound  # a lower-bound phase follows the search
         self.live_phase: str | None = None  # a phase whose bar counts analyses
         self.live_count = 0
+        self.live_budget = ""  # the time the shown phase may take
         self.floor = class_floor(spec, kappa)  # None: no floor is a theorem here
 
     def log(self, msg: str, record: bool = True) -> None:
@@ -156,7 +157,9 @@ class _Run:
         """Put the phase in the progress bar (when this process draws one);
         ``per_analysis``: refresh it at each analysis (count, best rate) until the next."""
         self.live_phase, self.live_count = (name if per_analysis else None), 0
-        show_phase(name, detail)
+        left = min(self.deadline, self.phase_end) - time.perf_counter()
+        self.live_budget = f"budget {max(left, 0.0):.0f} s"  # the phase's share of the limit
+        show_phase(name, f"{detail}, {self.live_budget}" if detail else self.live_budget)
 
     def left(self) -> float:
         return self.deadline - time.perf_counter()
@@ -192,7 +195,8 @@ class _Run:
             if self.live_phase is not None:
                 self.live_count += 1
                 best = f", best {self.upper:.6f}" if math.isfinite(self.upper) else ""
-                show_phase(self.live_phase, f"{self.live_count} analyses{best}")
+                show_phase(self.live_phase,
+                           f"{self.live_count} analyses{best}, {self.live_budget}")
         return res
 
     def consider(self, theta: dict[str, float] | None, why: str) -> bool:
@@ -243,6 +247,7 @@ def design(
     free, box, family = _setup(spec, kappa, free, method, family)
     model, late = None, None
     if method == "dual":  # the model's expansion counts against the limit (MODEL_SHARE)
+        show_phase("model building", f"budget {MODEL_SHARE * time_limit:.0f} s")
         model, late = _timed_bound_model(spec, kappa, free, family,
                                          t0 + MODEL_SHARE * time_limit)
     run = _Run(spec, kappa, free, box, t0 + time_limit, on_step, family,
@@ -634,9 +639,11 @@ def _dual_bound(run: _Run, model: BoundModel | None, gap: float
 
     run.log(f"bound: proving no certificate below {math.sqrt(target()):.8f}", record=False)
     t = time.perf_counter()
+    budget = f"budget {max(run.deadline - t, 0.0):.0f} s"
+    show_phase("bound", f"below {math.sqrt(target()):.6f}, {budget}")
     state = search.run(run.deadline, on_open, on_box=lambda st: show_phase(
         "bound", f"{st.proven} boxes proven, {len(st.heap) + len(st.stuck)} open, "
-                 f"below {math.sqrt(st.target):.6f}"))
+                 f"below {math.sqrt(st.target):.6f}, {budget}"))
     if state.heap:
         run.out_of_time = run.out_of_time or time.perf_counter() >= run.deadline
     lb = state.lower_bound()

@@ -4,7 +4,8 @@ A process that has run a solve holds Clarabel's solver threads, and a forked cop
 deadlocks in the solver: workers come from a fork server (started fresh, with the modules
 of ``preload`` imported) or are spawned, and die with their parent. :func:`map_until` runs
 a function over items on such a pool and never waits for a task past its deadline;
-:func:`show_phase` tells whatever progress display listens what the running task does.
+a pool's workers send the phases of their tasks (:mod:`sosalgo.kernel.phases`) on a relay
+queue to the process that runs the pool.
 """
 
 from __future__ import annotations
@@ -15,17 +16,19 @@ import time
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
+from sosalgo.kernel.phases import set_sink
+
 if TYPE_CHECKING:  # pragma: no cover - imported where a pool is started
     from concurrent.futures import ProcessPoolExecutor
 
-__all__ = ["PRELOAD", "default_workers", "kill_pool", "listen_to_phases", "map_until",
-           "pool_context", "quietly", "show_phase", "start_pool_server", "worker_pool"]
+__all__ = ["PRELOAD", "default_workers", "kill_pool", "map_until", "pool_context", "quietly",
+           "set_chunk", "start_pool_server", "worker_pool"]
 
 # imported once by a fork server that no caller gave its own list, so that a worker
 # starts in milliseconds
 PRELOAD = ("clarabel",)
-PhaseListener = Callable[[str | None, str], None]
-_phase_listener: PhaseListener | None = None  # this process's progress display, if any
+_RELAY: Any = None  # in a pool's worker: the queue to the bar of the process that runs it
+_CHUNK: int | None = None  # in a pool's worker: the number of the chunk it runs
 
 
 def default_workers() -> int:
@@ -35,17 +38,10 @@ def default_workers() -> int:
     return cores()
 
 
-def show_phase(name: str | None, detail: str = "") -> None:
-    """Tell this process's progress display what the running task is doing (a no-op without
-    one, e.g. in a pool's worker: only a task run in the display's process shows phases)."""
-    if _phase_listener is not None:
-        _phase_listener(name, detail)
-
-
-def listen_to_phases(listener: PhaseListener | None) -> None:
-    """Send :func:`show_phase` to ``listener`` (a progress bar; None: nobody listens)."""
-    global _phase_listener
-    _phase_listener = listener
+def set_chunk(number: int | None) -> None:
+    """In a pool's worker: the chunk it runs now (its phases are sent labelled with it)."""
+    global _CHUNK
+    _CHUNK = number
 
 
 def quietly(fn: Callable[..., Any], *args: Any) -> Any:
@@ -113,11 +109,13 @@ def start_pool_server(preload: Sequence[str] = PRELOAD) -> None:
         _without_stderr(fs.ensure_running)
 
 
-def worker_pool(workers: int, preload: Sequence[str] = PRELOAD) -> ProcessPoolExecutor:
+def worker_pool(workers: int, preload: Sequence[str] = PRELOAD, relay: Any = None
+                ) -> ProcessPoolExecutor:
     """A process pool of ``workers`` safely started workers that die with their parent
     (never more than the cores and the memory budget allow: :mod:`sosalgo.kernel.budget`);
     its fork server, when it starts now, imports ``preload``. Stop it with ``shutdown``
-    when its work is done, else with :func:`kill_pool`."""
+    when its work is done, else with :func:`kill_pool`. ``relay``: a queue of the pool's
+    context on which the workers' phases are sent."""
     from concurrent.futures import ProcessPoolExecutor
 
     from sosalgo.kernel.budget import usable_workers
@@ -125,7 +123,29 @@ def worker_pool(workers: int, preload: Sequence[str] = PRELOAD) -> ProcessPoolEx
     ctx = pool_context(preload)
     start_pool_server(preload)  # started quietly (no-op when it runs already)
     return ProcessPoolExecutor(max_workers=usable_workers(workers), mp_context=ctx,
-                               initializer=_die_with_parent)
+                               initializer=_start_worker, initargs=(relay,))
+
+
+def _start_worker(relay: Any) -> None:
+    """Pool initializer: die with the parent; send the phases of the tasks it runs on
+    ``relay`` (never waited for at exit: a message the parent no longer reads is dropped)."""
+    global _RELAY
+    _die_with_parent()
+    if relay is not None:
+        relay.cancel_join_thread()
+        _RELAY = relay
+        set_sink(_to_relay)
+
+
+def _to_relay(task: str | None, name: str | None, detail: str) -> None:
+    """A worker's sink of :mod:`sosalgo.kernel.phases`: the phase of a named task, with the
+    number of its chunk, to the process that runs the pool."""
+    if task is None or _RELAY is None:
+        return
+    try:
+        _RELAY.put_nowait((_CHUNK, task, name, detail))
+    except (OSError, ValueError):  # the run is ending: the bar is gone
+        pass
 
 
 def _die_with_parent() -> None:

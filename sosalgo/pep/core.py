@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from sosalgo.errors import InputError
+from sosalgo.kernel.phases import show_phase
 from sosalgo.pep.bind import bound_method, initial_gradient
 from sosalgo.pep.sdp import PEPData, SDPAnswer, pep_data, solve_pep, value_residual
 from sosalgo.pep.structure import Method, PEPStructure, build_structure, deadbeat_gain, output_call
@@ -155,6 +156,7 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
     spec = _load(spec)
     mt, st, mterms, iterms, names = pep_problem(spec, kappa, steps, measure, initial)
     data = pep_data(mt, st)
+    show_phase("solving the PEP", f"{len(st.pairs)} interpolation pairs")
     ans = solve_pep(data)
     res = PEPResult(spec.name, None if spec.sublinear else float(kappa),  # type: ignore[arg-type]
                     steps, *names, ans.status, ans.primal if ans.status == "solved" else None)
@@ -167,10 +169,12 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
         from sosalgo.pep.exact import exact_or_none
 
         ex = exact_or_none(spec, kappa, steps) if exact or witness else None  # built once
+        show_phase("proving the certificate" if exact else "checking the certificate")
         res.certificate = _certificate(spec, kappa, mt, data, ans, exact, mterms, iterms, ex)
         if witness:
             from sosalgo.pep.witness import make_witness
 
+            show_phase("worst-case witness")
             res.witness = make_witness(spec, kappa, mt, data, ans, mterms, iterms, res, ex)
     res.seconds = time.perf_counter() - t0
     return res

@@ -14,18 +14,10 @@ from typing import Any
 
 import numpy as np
 
+from sosalgo.report.style import color, finish, log_ticks, new_figure, pyplot
 
-def pyplot() -> Any:
-    """matplotlib.pyplot with the Agg backend, imported on first use (tables need none)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-__all__ = ["format_table", "grid_figure", "plot_grid", "plot_rates", "rate_figure",
-           "save_figure"]
+__all__ = ["format_table", "grid_figure", "log_ticks", "plot_grid", "plot_rates", "pyplot",
+           "rate_figure", "save_figure"]
 
 
 def fmt(v: Any, digits: int = 7) -> str:
@@ -102,7 +94,7 @@ def rate_figure(
     ("<series>: missing"; a series without any value gets only those marks, no legend
     line); ``uncertified`` kappas along the top, never as rho = 1 data. The legend lists
     exactly what is drawn."""
-    fig, ax = pyplot().subplots(figsize=(6.4, 4.4))
+    fig, ax = new_figure()
     k = np.asarray(kappa, dtype=float)
     unc = np.isin(k, np.asarray(uncertified, dtype=float))
     for i, (label, vals) in enumerate(series.items()):
@@ -112,7 +104,7 @@ def rate_figure(
         y = _floats(vals)
         if np.isfinite(y).any():
             ax.plot(np.asarray(ref_k, dtype=float), y, ls="--", lw=1.2, label=label, zorder=2,
-                    color=f"C{j % 10}")
+                    color=color(j))
     if len(uncertified):
         ax.plot(uncertified, np.ones(len(uncertified)), ls="none", marker="x", color="red",
                 ms=7, label="no certificate", clip_on=False)
@@ -120,8 +112,7 @@ def rate_figure(
     ax.set_xlabel(r"condition number $\kappa = L/m$")
     ax.set_ylabel(ylabel)
     ax.set_title(title)
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8, loc="best")  # "best" also keeps clear of the bottom marks
+    finish(ax)  # legend "best": it also keeps clear of the bottom marks
     return fig
 
 
@@ -137,14 +128,14 @@ def _series(ax: Any, k: np.ndarray, y: np.ndarray, label: str, i: int, n: int,
             uncertified: np.ndarray) -> None:
     """One series (the i-th of n) and, in its colour, triangles on the bottom edge where
     it has no value (except where "no certificate" already marks the kappa)."""
-    color = f"C{i % 10}"
+    color_i = color(i)
     if np.isfinite(y).any():
         ax.plot(k, y, marker=_MARKERS[i % len(_MARKERS)], label=label, zorder=3 + n - i,
-                color=color, **_STYLES[min(i, len(_STYLES) - 1)])
+                color=color_i, **_STYLES[min(i, len(_STYLES) - 1)])
     missing = ~np.isfinite(y) & ~uncertified
     if missing.any():
         ax.plot(k[missing], np.zeros(missing.sum()), ls="none", marker="v", ms=7,
-                color=color, label=f"{label}: missing", transform=ax.get_xaxis_transform(),
+                color=color_i, label=f"{label}: missing", transform=ax.get_xaxis_transform(),
                 clip_on=False, zorder=6)
 
 
@@ -165,30 +156,6 @@ def _kappa_axis(ax: Any, k: np.ndarray) -> None:
     fmt = ScalarFormatter(useOffset=True, useMathText=True)
     fmt.set_powerlimits((-3, 4))
     ax.xaxis.set_major_formatter(fmt)
-
-
-def log_ticks(axis: Any, lo: float, hi: float) -> None:
-    """Label a log axis (already log-scaled) at 1, 2 and 5 times the powers of ten as plain
-    numbers (2, 5, 10, 20, ...), or at the powers of ten only over more than four decades
-    (the labels would crowd); the other minor ticks stay unlabelled."""
-    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
-
-    decades = math.log10(hi / lo) if hi > 0 and lo > 0 else 1.0
-    subs = (1.0, 2.0, 5.0) if decades <= 4 else (1.0,)
-    axis.set_major_locator(LogLocator(base=10.0, subs=subs, numticks=30))
-    axis.set_major_formatter(FuncFormatter(_plain_tick))
-    axis.set_minor_locator(LogLocator(base=10.0, subs=np.arange(2, 10), numticks=30))
-    axis.set_minor_formatter(NullFormatter())
-
-
-def _plain_tick(v: float, _pos: Any = None) -> str:
-    """2, 50, 1000 as plain numbers; very small or large values as powers of ten."""
-    if v <= 0:
-        return ""
-    if 1e-3 <= v < 1e6:
-        return f"{v:g}"
-    exp = math.log10(v)
-    return f"$10^{{{round(exp)}}}$" if abs(exp - round(exp)) < 1e-9 else f"{v:.0e}"
 
 
 def plot_grid(
@@ -215,7 +182,7 @@ def grid_figure(
     found; those parameters are drawn as a hatched grey region (2-D: everything the
     certified contours do not cover, so no white band between the two; 1-D: shaded
     intervals), never as rho = 1. The grid minimum and the spec's own value are marked."""
-    fig, ax = pyplot().subplots(figsize=(6.4, 4.8))
+    fig, ax = new_figure()
     finite = np.isfinite(rho)
     if len(names) == 1:
         _grid_1d(ax, axes[0], rho, finite, value_point)
@@ -226,7 +193,9 @@ def grid_figure(
         ax.set_xlabel(names[0])
         ax.set_ylabel(names[1])
     ax.set_title(title)
-    ax.legend(fontsize=8, loc="best")
+    finish(ax)
+    if len(names) > 1:
+        ax.grid(False)  # the contours carry the grid's information
     return fig
 
 

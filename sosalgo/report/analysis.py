@@ -13,8 +13,9 @@ from typing import Any
 import numpy as np
 
 from sosalgo.certificates import CertificateFamily
-from sosalgo.model import bind
+from sosalgo.model import ModelError, bind
 from sosalgo.report import format_table, plot_rates
+from sosalgo.report.style import finish, new_figure
 from sosalgo.schema import ANALYSIS_COLUMNS, FAMILY_COLUMNS, SUBLINEAR_COLUMNS
 from sosalgo.spec import Spec
 from sosalgo.spec.references import reference_curves
@@ -60,10 +61,9 @@ def verdict_lines(rows: list[dict[str, Any]]) -> list[str]:
 
 def families_figure(spec: Spec, runs: Sequence[Run], stem: Path) -> list[Path]:
     """Every family's certified rate vs kappa, with the spec's references,
-    1 - 1/sqrt(kappa) and the rate on quadratics (unless a reference already draws them);
-    no figure for fewer than two kappas, as for one family."""
-    from sosalgo.analysis import quadratic_rate
-
+    1 - 1/sqrt(kappa) and the rate on quadratics (unless a reference already draws them),
+    all drawn as smooth curves on a fine kappa grid; no figure for fewer than two kappas,
+    as for one family."""
     kap = [r["kappa"] for r in runs[0][2]]
     if len(kap) < 2:
         return []
@@ -72,16 +72,33 @@ def families_figure(spec: Spec, runs: Sequence[Run], stem: Path) -> list[Path]:
                                                   r.get("rho_lower") is not None), default=None)}
                               for row in zip(*(rows for _, _, rows in runs), strict=True)])
     refs = {name: [r["references"][name] for r in runs[0][2]] for name in spec.references}
-    extra = {"1 - 1/sqrt(kappa)": [1 - k ** -0.5 for k in kap],
-             "quadratic bound max_q rho(A + qBC)": [quadratic_rate(bind(spec, k)) for k in kap]}
-    for label, vals in extra.items():  # unless the spec already draws the same curve
+    fine = reference_curves(spec, kap)
+    grid, curves = fine if fine is not None else (kap, dict(refs))
+    for label, fn in _EXTRA_CURVES.items():  # unless the spec already draws the same curve
+        vals = [fn(spec, k) for k in kap]
         if not any(all(v is not None and abs(v - w) < 1e-6 for v, w in
                        zip(ref, vals, strict=True)) for ref in refs.values()):
             refs[label] = vals
+            curves[label] = [fn(spec, k) for k in grid]
     none = [k for i, k in enumerate(kap) if all(rows[i]["rho"] is None for _, _, rows in runs)]
     title = " vs ".join(f.label for f, _, _ in runs)
     return plot_rates(f"{spec.name}: certified rate ({title})", kap, series, refs, stem,
-                      uncertified=none)
+                      uncertified=none, reference_curves=(grid, curves))
+
+
+def _quadratic_bound(spec: Spec, kappa: float) -> float | None:
+    from sosalgo.analysis import quadratic_rate
+
+    try:
+        return quadratic_rate(bind(spec, kappa))
+    except (ModelError, ValueError, ArithmeticError):
+        return None
+
+
+_EXTRA_CURVES = {  # drawn beside the spec's references when comparing families
+    "1 - 1/sqrt(kappa)": lambda spec, k: 1 - k ** -0.5,
+    "quadratic bound max_q rho(A + qBC)": _quadratic_bound,
+}
 
 
 def attach_checks(spec: Spec, rows: list[dict[str, Any]], out_dir: Path,
@@ -114,7 +131,7 @@ def sublinear_figure(spec: Spec, row: dict[str, Any], stem: Path, steps: int = 5
         return []
     plt = pyplot()
     k = np.arange(1, steps + 1)
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = new_figure()
     ax.loglog(k, row["constant"] / k, "o-", ms=3, label=f"certified c/k, c = {row['constant']:.6g}")
     for name, val in row.get("references", {}).items():
         if val is not None:
@@ -122,7 +139,7 @@ def sublinear_figure(spec: Spec, row: dict[str, Any], stem: Path, steps: int = 5
     ax.set_xlabel("k")
     ax.set_ylabel("bound on measure(x_k) / |x_0 - x*|^2")
     ax.set_title(f"{spec.name}: sublinear bound (L = {spec.L:g})")
-    ax.legend(fontsize=7)
+    finish(ax)
     try:
         return save_figure(fig, stem)
     finally:

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from sosalgo.pareto import tmm_parameters
+from sosalgo.report.style import color, finish, log_ticks, new_figure
 
 __all__ = ["fig4_figure", "fig4_rows"]
 
@@ -32,16 +33,11 @@ def fig4_rows(data: dict[str, list]) -> list[dict[str, Any]]:
 
 def fig4_figure(stem: Path, data: dict[str, list]) -> list[Path]:
     """Both panels, written as ``stem.png`` and ``stem.pdf``."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     from sosalgo.report import save_figure
 
     k = np.asarray(data["kappa"], dtype=float)
     fine = np.geomspace(k.min(), k.max(), 400)
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(12, 4.6))
+    fig, (ax, bx) = new_figure(panels=2)
     _draw_rates(ax, k, fine, data)
     _draw_parameters(bx, k, fine, data)
     fig.tight_layout()
@@ -51,8 +47,6 @@ def fig4_figure(stem: Path, data: dict[str, list]) -> list[Path]:
 def _draw_rates(ax: Any, k: np.ndarray, fine: np.ndarray, data: dict[str, list]) -> None:
     """Left panel: the four rate curves (a curve without values gets only its "missing"
     marks on the bottom edge), the floor and the quadratic rate."""
-    from sosalgo.report import log_ticks
-
     styles = {"designed (interpolation)": dict(marker="o", lw=2.2, zorder=5),
               "designed (Theorem 1)": dict(marker="s", lw=1.4),
               "Nesterov's tuning (interpolation)": dict(marker="^", lw=1.2),
@@ -60,10 +54,10 @@ def _draw_rates(ax: Any, k: np.ndarray, fine: np.ndarray, data: dict[str, list])
     for i, (label, st) in enumerate(styles.items()):
         y = np.array([np.nan if v is None else v for v in data[label]], dtype=float)
         if np.isfinite(y).any():
-            ax.plot(k, y, ms=4, label=label, color=f"C{i}", **st)
+            ax.plot(k, y, ms=4, label=label, color=color(i), **st)
         if (~np.isfinite(y)).any():
             ax.plot(k[~np.isfinite(y)], np.zeros((~np.isfinite(y)).sum()), ls="none",
-                    marker="v", ms=7, color=f"C{i}", label=f"{label}: missing",
+                    marker="v", ms=7, color=color(i), label=f"{label}: missing",
                     transform=ax.get_xaxis_transform(), clip_on=False, zorder=6)
     ax.plot(fine, 1 - 1 / np.sqrt(fine), "k--", lw=1.2, label=r"$1 - 1/\sqrt{\kappa}$ (floor)")
     ax.plot(fine, (np.sqrt(fine) - 1) / (np.sqrt(fine) + 1), ls=":", color="grey", lw=1.2,
@@ -73,17 +67,14 @@ def _draw_rates(ax: Any, k: np.ndarray, fine: np.ndarray, data: dict[str, list])
     ax.set_xlabel(r"condition number $\kappa = L/m$")
     ax.set_ylabel(r"rate $\rho$")
     ax.set_title("three-parameter family: designed rate")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8, loc="best")
+    finish(ax)
 
 
 def _draw_parameters(bx: Any, k: np.ndarray, fine: np.ndarray, data: dict[str, list]) -> None:
     """Right panel: designed h L, beta, gamma (m = 1 in the shipped spec, so L = kappa)
     beside the triple momentum method's formulas."""
-    from sosalgo.report import log_ticks
-
     tmm = [tmm_parameters(x, x) for x in fine]
-    colors = {"h": "C0", "beta": "C1", "gamma": "C2"}
+    colors = {"h": color(0), "beta": color(1), "gamma": color(2)}
     names = {"h": r"$hL$", "beta": r"$\beta$", "gamma": r"$\gamma$"}
     for p, c in colors.items():
         scale = k if p == "h" else np.ones_like(k)
@@ -98,5 +89,4 @@ def _draw_parameters(bx: Any, k: np.ndarray, fine: np.ndarray, data: dict[str, l
     log_ticks(bx.xaxis, float(k.min()), float(k.max()))
     bx.set_xlabel(r"condition number $\kappa = L/m$")
     bx.set_title("designed parameters vs the triple momentum method")
-    bx.grid(True, which="both", alpha=0.3)
-    bx.legend(fontsize=8, ncol=2)
+    finish(bx, ncol=2)

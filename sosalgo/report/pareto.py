@@ -13,9 +13,11 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from sosalgo.report import pyplot, save_figure
+from sosalgo.report import save_figure
+from sosalgo.report.style import color, finish, log_ticks, new_figure
 
-__all__ = ["noise_check_lines", "objective_lines", "pareto_figure", "pareto_lines"]
+__all__ = ["noise_check_lines", "objective_lines", "pareto_figure", "pareto_lines",
+           "pareto_plot"]
 
 NOISE_LEGEND = ("noise: certified upper bound on gamma, the root of the long-run average of "
                 "E|x_k - x*|^2/d per sigma^2 (the limsup when E|x_k - x*|^2 converges, e.g. "
@@ -33,8 +35,12 @@ def _certified(p: Mapping[str, Any]) -> bool:
 
 def pareto_figure(doc: Mapping[str, Any], stem: Path) -> list[Path]:
     """Draw a ``sosalgo pareto`` document (one kappa) into ``stem``.png/.pdf."""
-    plt = pyplot()
-    fig, ax = plt.subplots(figsize=(7.5, 5.2))
+    return save_figure(pareto_plot(doc), stem)
+
+
+def pareto_plot(doc: Mapping[str, Any]) -> Any:
+    """The figure of a ``sosalgo pareto`` document (one kappa), not yet saved."""
+    fig, ax = new_figure()
     front = doc["front"]
     on_front = {p["index"] for p in front}
     rest = [p for p in doc["points"] if _certified(p) and p["index"] not in on_front]
@@ -42,27 +48,29 @@ def pareto_figure(doc: Mapping[str, Any], stem: Path) -> list[Path]:
         ax.plot([p["rho"] for p in rest], [p["noise"] for p in rest], "x", color="0.6",
                 label="dominated search results")
     if front:
-        ax.plot([p["rho"] for p in front], [p["noise"] for p in front], "o-", color="C0",
+        ax.plot([p["rho"] for p in front], [p["noise"] for p in front], "o-", color=color(0),
                 lw=2, ms=4, label=f"front over Θ ({doc['family']}, proven)", zorder=3)
     rm = [p for p in doc["tunings"] if p["kind"] == "robust momentum" and _certified(p)]
     if rm:
-        ax.plot([p["rho"] for p in rm], [p["noise"] for p in rm], ".--", color="C1",
+        ax.plot([p["rho"] for p in rm], [p["noise"] for p in rm], ".--", color=color(1),
                 label="robust momentum family (certified)")
     for i, p in enumerate(t for t in doc["tunings"] if t["kind"] == "tuning"):
         marker = _MARKERS.get(p["name"], "P")
         if _certified(p):
-            ax.plot([p["rho"]], [p["noise"]], marker, color=f"C{i + 2}", ms=9,
+            ax.plot([p["rho"]], [p["noise"]], marker, color=color(i + 2), ms=9,
                     label=p["name"], zorder=4)
         else:
-            ax.plot([], [], marker, color=f"C{i + 2}", label=f"{p['name']}: not certified")
+            ax.plot([], [], marker, color=color(i + 2), label=f"{p['name']}: not certified")
     ax.axvline(doc["floor"], color="k", ls=":", lw=1, label="1 - 1/√κ (no method is faster)")
     ax.set_yscale("log")
+    noise = [p["noise"] for p in [*doc["points"], *doc["tunings"]] if _certified(p)]
+    if noise:
+        log_ticks(ax.yaxis, min(noise), max(noise))
     ax.set_xlabel("certified rate ρ")
     ax.set_ylabel("certified noise sensitivity γ (upper bound)")
     ax.set_title(f"{doc['spec']}: speed vs robustness at κ = {doc['kappa']:g}")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7, loc="lower left")
-    return save_figure(fig, stem)
+    finish(ax, loc="lower left")
+    return fig
 
 
 def objective_lines(doc: Mapping[str, Any]) -> list[str]:

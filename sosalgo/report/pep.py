@@ -8,6 +8,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from sosalgo.report.style import finish, new_figure
 from sosalgo.spec import Spec
 
 __all__ = ["pep_figure", "rate_curve"]
@@ -18,15 +19,14 @@ def pep_figure(spec: Spec, docs: Sequence[dict[str, Any]], out: Path,
     """``<name>-pep[-k<kappa>]`` (.png, .pdf) per kappa with two steps or more; a 1-D
     witness of the last step as ``<name>-pep-N<N>-witness`` beside it. ``rates``: the
     rate certified at each kappa (None: none), drawn as C rho^(2k)."""
-    from sosalgo.report import pyplot, save_figure
+    from sosalgo.report import save_figure
 
-    plt = pyplot()
     files: list[str] = []
     for kappa in sorted({d["kappa"] for d in docs}, key=lambda k: k or 0.0):
         rows = sorted((d for d in docs if d["kappa"] == kappa), key=lambda d: d["steps"])
         tag = "" if kappa is None else f"-k{kappa:g}"
         if len(rows) >= 2:
-            fig, ax = plt.subplots(figsize=(5.5, 3.8))
+            fig, ax = new_figure()
             ks = [d["steps"] for d in rows]
             taus = [d["tau"] for d in rows]
             ax.semilogy(ks, taus, "o-", label=r"$\tau_k$ (PEP)")
@@ -39,18 +39,18 @@ def pep_figure(spec: Spec, docs: Sequence[dict[str, Any]], out: Path,
             ax.set_ylabel(f"{rows[0]['measure']} / {rows[0]['initial']}")
             ax.set_title(f"{spec.name}: worst case" + ("" if kappa is None
                                                        else f", kappa = {kappa:g}"))
-            ax.legend()
+            finish(ax)
             files += [str(p) for p in save_figure(fig, out / f"{spec.name}-pep{tag}")]
         w = rows[-1].get("witness")
         if w and w.get("interpolant"):
-            files += [str(p) for p in _witness_figure(plt, save_figure, w, out /
+            files += [str(p) for p in _witness_figure(save_figure, w, out /
                       f"{spec.name}-pep{tag}-N{rows[-1]['steps']}-witness")]
     return files
 
 
-def _witness_figure(plt: Any, save: Any, w: dict[str, Any], stem: Path) -> list[Path]:
+def _witness_figure(save: Any, w: dict[str, Any], stem: Path) -> list[Path]:
     """Each function (tilted, minimal at x* = 0) with the trajectory's points on it."""
-    fig, ax = plt.subplots(figsize=(5.5, 3.8))
+    fig, ax = new_figure()
     for name, f in w["interpolant"].items():
         ax.plot(f["x"], f["h"], label=f"{name} (tilted, interpolating)")
         xs = [p[0] for p in f["points"]]
@@ -61,7 +61,7 @@ def _witness_figure(plt: Any, save: Any, w: dict[str, Any], stem: Path) -> list[
         ax.annotate(str(k), (x, 0.0), textcoords="offset points", xytext=(0, 8), fontsize=7)
     ax.set_xlabel("x")
     ax.set_title(f"worst case after N = {w['steps']} steps (1-D witness)")
-    ax.legend(fontsize=8)
+    finish(ax)
     return save(fig, stem)
 
 

@@ -16,6 +16,7 @@ from typing import Any
 
 from sosalgo import inputs
 from sosalgo.batch.executor import check_scheduler
+from sosalgo.certificates import describe_family
 from sosalgo.errors import InputError
 from sosalgo.kernel import budget
 from sosalgo.schema import analysis_csv, design_stem, grid_stem, rate_stem
@@ -59,6 +60,14 @@ def _budget(max_memory: int | str | None, workers: int | None) -> int:
 def _figures(stem: Path) -> list[Path]:
     """The PNG and PDF written for a figure stem (they move with their CSV)."""
     return [stem.with_name(f"{stem.name}.{ext}") for ext in ("png", "pdf")]
+
+
+def _rate_figure_stem(spec: Spec, out: Path, fams: Sequence[Any]) -> Path:
+    """``<name>-rate`` for the family ``analyze`` takes by default, ``<name>-rate-<family>...``
+    for any other choice (a rerun with another family keeps the first figure)."""
+    default = inputs.select_families(spec, None, None, command="analyze")
+    same = [describe_family(f) for f in fams] == [describe_family(f) for f in default]
+    return rate_stem(out, spec.name, None if same else fams)
 
 
 def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Path = "outputs",
@@ -105,6 +114,7 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
     out = inputs.out_dir(out_dir)
     check_scheduler(scheduler)
     plain = len(fams) == 1 and fams[0].is_default  # Theorem 1 alone: the historical output
+    stem = _rate_figure_stem(spec, out, fams)
     runs, figs = [], []
     for fam in fams:
         path = analysis_csv(out, spec.name, fam)
@@ -112,15 +122,15 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
             rows = run_analysis_sweep(spec, text, kappas, path, tol, workers=workers,
                                       scheduler=scheduler, restart=restart, progress=progress,
                                       family=fam,
-                                      companions=_figures(rate_stem(out, spec.name))
+                                      companions=_figures(stem)
                                       if len(fams) == 1 else (), noise=noise, brackets=brackets,
                                       cycle_seconds=cycle_seconds)
             jrows = [csv_row_to_json(spec, r, None if plain else fam) for r in rows]
             if plain and plot and len(jrows) >= 2:  # one point is not a curve
-                figs = rep.analysis_figure(spec, jrows, rate_stem(out, spec.name))
+                figs = rep.analysis_figure(spec, jrows, stem)
         runs.append((fam, path, jrows))
     if not plain:
-        figs = rep.families_figure(spec, runs, rate_stem(out, spec.name)) if plot else []
+        figs = rep.families_figure(spec, runs, stem) if plot else []
     for fam, _, jrows in runs:
         for r in jrows:  # every row names its family (Theorem 1's too)
             r["family"] = fam.name

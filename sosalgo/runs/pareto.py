@@ -35,6 +35,7 @@ from typing import Any
 from sosalgo import inputs
 from sosalgo.batch.executor import check_scheduler
 from sosalgo.errors import InputError
+from sosalgo.kernel.phases import begin_task
 from sosalgo.pareto import front_caps, known_tunings, pareto_filter, reference_spec
 from sosalgo.spec import Spec
 
@@ -158,6 +159,8 @@ def pareto_chunk(spec_text: str, source: str, options: dict[str, Any],
     rows = []
     for task in chunk:
         t0 = time.perf_counter()
+        cap = task.get("cap")
+        begin_task(f"rate cap {cap:.6f}" if cap is not None else str(task.get("name")))
         try:
             if task["kind"] == "front":
                 pt = _cap_point(spec, options, task)

@@ -10,6 +10,7 @@ from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
+from sosalgo.kernel.phases import begin_task
 from sosalgo.spec import Spec
 
 __all__ = ["pep_chunk", "pep_row", "pep_run"]
@@ -54,6 +55,7 @@ def pep_chunk(spec_text: str, source: str, options: dict[str, Any],
     rows = []
     for task in chunk:
         kappa = None if task["kappa"] in ("", None) else float(task["kappa"])
+        begin_task(f"N {task['steps']}" + ("" if kappa is None else f", kappa {kappa:g}"))
         res = pep(spec, kappa, int(task["steps"]), options["measure"], options["initial"],
                   options["exact"], options["witness"])
         try:

@@ -10,6 +10,7 @@ from collections.abc import Mapping
 from fractions import Fraction
 from typing import Any
 
+from sosalgo.kernel.phases import show_phase
 from sosalgo.verify.ledger import (
     BACKED,
     CONTEXT,
@@ -42,6 +43,7 @@ def _reprove(L: RowLedger) -> Any:
         return "the moment relaxation's bound comes from a floating-point SDP: not re-provable"
     if not isinstance(cert, Mapping):
         return "no bound_certificate in the document (e.g. a design read back from its CSV)"
+    show_phase("re-proving the bound certificate", f"kappa {row.get('kappa')}")
     try:
         fam = get_family(str(row.get("family") or L.spec.certificate),
                          {"lag": row.get("lag")} if row.get("lag") is not None else None)

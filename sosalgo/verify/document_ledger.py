@@ -7,6 +7,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from sosalgo.kernel.phases import show_phase
 from sosalgo.spec import Spec
 from sosalgo.verify.claims import HANDLERS, SUBLINEAR
 from sosalgo.verify.design_claims import DESIGN_HANDLERS
@@ -57,6 +58,7 @@ def document_ledger(spec: Spec, doc: Mapping[str, Any], rows: Sequence[Mapping[s
     if not rows:
         out.append(entry(None, "rows", [], UNSUPPORTED, "no rows: nothing to vouch for"))
     for i, (row, chk) in enumerate(zip(rows, checks, strict=True)):
+        show_phase("claims", f"row {i + 1} of {len(rows)}")
         design = "rho_certified" in row or "lower_bound" in row
         out += row_ledger(spec, None if lone else i, row, chk, _handlers(spec, design))
     return out
@@ -127,6 +129,7 @@ def _pareto(spec: Spec, doc: Mapping[str, Any], checks: Sequence[Any]) -> list[d
                 if key == "tunings" else {})
             s = reference_spec() if key == "tunings" else spec
             for p in pts:
+                show_phase("claims", f"{key} row {total + 1} of {len(checks)}")
                 view = {"kappa": kappa, "family": f.get("family"), **p}
                 out += row_ledger(s, total, view, next(it), extra)
                 total += 1

@@ -28,6 +28,7 @@ from sosalgo.certificates import FAMILIES, default_family, get_family
 from sosalgo.certificates.base import CertificateFamily, check_number
 from sosalgo.errors import InputError
 from sosalgo.kernel.exact import Verdict
+from sosalgo.kernel.phases import show_phase
 from sosalgo.model import bind
 from sosalgo.schema import certificate_name
 from sosalgo.spec import Spec
@@ -54,9 +55,11 @@ def verify_family_certificate(
     theta: Mapping[str, float] | None = None,
     out_dir: Path | None = None,
     simulate: bool = True,
+    file_stem: str | None = None,
 ) -> dict[str, Any]:
     """Exact check (``family.exact_check``) and simulation along the family's Lyapunov
-    function (``family.lyapunov``) of one certificate; writes the rational certificate.
+    function (``family.lyapunov``) of one certificate; writes the rational certificate
+    (its file named after ``file_stem``, by default the spec's name).
     The returned document holds plain values (the verdict as its string)."""
     ex = family.exact_check(spec, kappa, rho, cert, theta)
     out: dict[str, Any] = {"kappa": kappa, "rho": rho}
@@ -67,7 +70,8 @@ def verify_family_certificate(
                 "reason": ex.reason})
     if out_dir is not None:
         out["certificate_file"] = str(_write_certificate_file(
-            out_dir, spec, family, kappa, rho, cert, theta, ex.to_dict()))
+            out_dir, spec, family, kappa, rho, cert, theta, ex.to_dict(),
+            file_stem or spec.name))
     if simulate:
         out["simulation"] = _simulation(spec, family, kappa, rho, cert, theta)
     return out
@@ -113,10 +117,11 @@ def _plain(value: Any) -> Any:
 
 def _write_certificate_file(out_dir: Path, spec: Spec, family: CertificateFamily,
                             kappa: float, rho: float, cert: Mapping[str, Any],
-                            theta: Mapping[str, float] | None, doc: dict[str, Any]) -> Path:
+                            theta: Mapping[str, float] | None, doc: dict[str, Any],
+                            stem: str) -> Path:
     """Write a verification's certificate document, never over another certificate.
 
-    ``<name>-k<kappa>[-<family>]-certificate.json`` (exact kappa; the family named unless it
+    ``<stem>-k<kappa>[-<family>]-certificate.json`` (exact kappa; the family named unless it
     is the default one) holds the first certificate written there; a different certificate
     (other spec text, theta, rho or parts, e.g. a tampered or a design's result) gets its
     own file with a short hash of its inputs added, and the same certificate rewrites its
@@ -125,8 +130,8 @@ def _write_certificate_file(out_dir: Path, spec: Spec, family: CertificateFamily
     (concurrent runs), and the write is atomic."""
     digest = hashlib.sha256(_certificate_inputs(spec, family, kappa, rho, cert, theta)
                             .encode()).hexdigest()[:8]
-    return _write_once(out_dir, certificate_name(spec.name, kappa, family),
-                       certificate_name(spec.name, kappa, family, digest), digest, doc)
+    return _write_once(out_dir, certificate_name(stem, kappa, family),
+                       certificate_name(stem, kappa, family, digest), digest, doc)
 
 
 def _write_once(out_dir: Path, name: str, hashed: str, digest: str,
@@ -218,10 +223,12 @@ def _unverifiable(c: dict[str, Any], reason: str) -> dict[str, Any]:
 
 def verify_document_rows(
     spec: Spec, rows: Sequence[Mapping[str, Any]], out_dir: Path | None, simulate: bool = True,
-    family: CertificateFamily | None = None,
+    family: CertificateFamily | None = None, file_stem: str | None = None,
 ) -> list[dict[str, Any] | None]:
     """Verify analysis rows (``rho`` and a certificate) or design documents
     (``rho_certified``, ``certificate``, ``theta``); None for rows claiming no certificate.
+    Certificate files are named after ``file_stem`` (default: the spec's name); the
+    progress bar, if any, says which row is being checked.
     A claimed certificate without rho or one of its family's ``certificate_parts`` fails;
     malformed rows raise ResultError, before anything is verified or written.
 
@@ -238,7 +245,9 @@ def verify_document_rows(
     noise = [_noise_claim(row, i) for i, row in enumerate(rows)]
     limsup = [_noise_claim(row, i, "noise_limsup") for i, row in enumerate(rows)]
     results: list[dict[str, Any] | None] = []
-    for (fam, c), nz, ls in zip(claims, noise, limsup, strict=True):
+    for i, ((fam, c), nz, ls) in enumerate(zip(claims, noise, limsup, strict=True)):
+        if len(rows) > 1:
+            show_phase("checking", f"row {i + 1} of {len(rows)}")
         if c is None:
             results.append(None if nz is None and ls is None else _noise_only(nz or ls))
             continue
@@ -255,7 +264,8 @@ def verify_document_rows(
             continue
         try:
             results.append(verify_family_certificate(spec, fam, c["kappa"], c["rho"],
-                                                     c["cert"], c["theta"], out_dir, simulate))
+                                                     c["cert"], c["theta"], out_dir, simulate,
+                                                     file_stem))
         except (KeyError, TypeError, ValueError) as exc:
             raise ResultError(f"{c['field']}: malformed ({exc})") from None
     return [r if r is None else r | (nz or {}) | (ls or {})
