@@ -291,41 +291,10 @@ def page_markdown(spec: Any, rows: list[dict[str, Any]], yaml_path: str, image: 
 
 # ----------------------------------------------------------------------------- figure
 def figure_style() -> Any:
-    """sosalgo's shared figure style (:mod:`sosalgo.report.style`: new_figure, finish,
-    log_ticks, color), or the same few functions here where sosalgo has none."""
-    try:
-        from sosalgo.report import style
-    except ImportError:
-        return FallbackStyle
+    """sosalgo's shared figure style (:mod:`sosalgo.report.style`)."""
+    from sosalgo.report import style
+
     return style
-
-
-class FallbackStyle:
-    """The shared style's interface, for a sosalgo without :mod:`sosalgo.report.style`."""
-
-    @staticmethod
-    def new_figure() -> tuple[Any, Any]:
-        from sosalgo.report import pyplot
-
-        return pyplot().subplots(figsize=(6.4, 4.4))
-
-    @staticmethod
-    def color(i: int) -> str:
-        return f"C{i % 10}"
-
-    @staticmethod
-    def log_ticks(axis: Any, lo: float, hi: float) -> None:
-        from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
-
-        axis.set_major_locator(LogLocator(base=10.0, subs=(1.0, 2.0, 5.0), numticks=30))
-        axis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
-        axis.set_minor_formatter(NullFormatter())
-
-    @staticmethod
-    def finish(ax: Any, legend: bool = True) -> None:
-        ax.grid(True, which="both", alpha=0.3)
-        if legend:
-            ax.legend(fontsize=8, loc="best")
 
 
 def _grid(values: list[float], points: int = 300) -> np.ndarray:
