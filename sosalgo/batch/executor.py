@@ -7,10 +7,11 @@ re-load the spec from its YAML text (cached per process), so nothing unpicklable
 Results are handed to ``on_row`` in the parent as each chunk finishes, so the caller can
 append them to a resumable CSV at once.
 
-Local pools (:func:`worker_pool`, also used by ``design``) never fork the calling process:
-a process that has run a solve holds Clarabel's solver threads, and a forked copy of it
-deadlocks in the solver. Workers come from a fork server (started fresh, with sosalgo's
-modules preloaded) or are spawned, and die with their parent.
+Local pools are the kernel's (:func:`sosalgo.kernel.parallel.worker_pool`, also used by
+``design``): they never fork the calling process (a process that has run a solve holds
+Clarabel's solver threads, and a forked copy of it deadlocks in the solver). Workers come
+from a fork server (started fresh, with the sweeps' modules preloaded) or are spawned, and
+die with their parent; they send their tasks' phases to the bar on a relay queue.
 """
 
 from __future__ import annotations
@@ -467,10 +468,12 @@ def _probe_scheduler(address: str) -> None:
                          f"protocol (its first bytes: {head[:8]!r})")
 
 
-def check_scheduler(address: str) -> None:
-    """Connect once (then disconnect): Dask installed, address well formed and reachable."""
-    client = _connect(address)
-    client.close()
+def check_scheduler(address: str | None) -> None:
+    """Connect once (then disconnect): Dask installed, address well formed and reachable
+    (None: no scheduler, nothing to check), before anything is written."""
+    if address:
+        client = _connect(address)
+        client.close()
 
 
 def _run_dask(fn, spec_text, source, options, tasks, deliver, address: str) -> None:
