@@ -84,6 +84,29 @@ def batch_options(fn: Callable[..., Any]) -> Callable[..., Any]:
     return fn
 
 
+def set_option(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """--set NAME=EXPR (repeatable): fix a parameter of the spec for this run."""
+    return click.option(
+        "--set", "overrides", multiple=True, metavar="NAME=EXPR",
+        help="Fix a parameter of the spec, e.g. --set h=1/L (repeatable; an expression of "
+             "m, L, kappa and the other parameters, parsed like the spec's). The result "
+             "records it in 'set'; verify applies it again.")(fn)
+
+
+def details_option(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """--details: the solver's internals in the printed table (always in CSV/JSON)."""
+    return click.option(
+        "--details", is_flag=True,
+        help="Also print the solver's internals (lambda, eigenvalue margins, solves, "
+             "seconds, ...); the CSV and --json always hold them.")(fn)
+
+
+def _overrides(values: tuple[str, ...]) -> dict[str, str]:
+    from sosalgo.spec.overrides import parse_set_options
+
+    return parse_set_options(values)
+
+
 def _exit_if_unverified(checks: list[Any], what: str = "some certificate") -> None:
     """Exit code 3 when some certificate failed its check (as ``sosalgo verify`` does)."""
     if all(c is None for c in checks):
@@ -125,52 +148,32 @@ def cli() -> None:
               show_default=True,
               help="Time per uncertified kappa for the search of a cycle (0: no search).")
 @certificate_options(default="tightest", several=True)
+@set_option
+@details_option
 @handle_errors
 def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_json: bool,
             workers: int | None, scheduler: str | None, restart: bool, quiet: bool,
             max_memory: str | None, no_plot: bool, verify_: bool, noise: bool, brackets: str,
-            cycle_seconds: float, certificate: str | None, lag: int | None) -> None:
+            cycle_seconds: float, certificate: str | None, lag: int | None,
+            overrides: tuple[str, ...], details: bool) -> None:
     """Best rate certified at each kappa, with its certificate; by default by the
     tightest certificate family that applies (interpolation; --certificate theorem1 for
     the paper's Theorem 1). Python: sosalgo.analyze_run (files) or sosalgo.analyze."""
-    from sosalgo.certificates import FAMILIES
     from sosalgo.report import analysis as rep
     from sosalgo.runs import analyze_run
-    from sosalgo.schema import ANALYSIS_COLUMNS, FAMILY_COLUMNS
 
     doc = analyze_run(spec_path, _kappas(kappa), out, tol, certificate, {"lag": lag},
                       workers, scheduler, restart, not quiet, not no_plot, verify_,
                       noise=noise, brackets=brackets, cycle_seconds=cycle_seconds,
-                      max_memory=max_memory)
+                      max_memory=max_memory, overrides=_overrides(overrides))
     rows = doc["rows"]
     if as_json:
         click.echo(json.dumps(doc, indent=2))
     else:
-        from sosalgo.spec import spec_from_text
-
-        spec = spec_from_text(doc["spec_text"], doc["source"])
-        click.echo(f"{spec.name}: {spec.description}".rstrip(": "))
-        extra = (["verified"] if verify_ else []) + (
-            ["noise", "noise_quadratic", "noise_lag", "noise_check", "noise_limsup",
-             "noise_limsup_rho"] if noise else [])
-        if "csvs" not in doc:  # Theorem 1 alone (with lambda), or a sublinear spec
-            named = FAMILIES.get(rows[0].get("family", "")) if rows else None
-            if named is not None:
-                click.echo(f"certificate family: {named.description}")
-            click.echo(rep.analysis_table(spec, rows, ANALYSIS_COLUMNS + extra))
-            for line in rep.verdict_lines(rows):
-                click.echo(line)
-        for name in doc.get("csvs", {}):
-            click.echo(f"certificate family: {FAMILIES[name].description}")
-            mine = [r for r in rows if r["family"] == name]
-            click.echo(rep.analysis_table(spec, mine, FAMILY_COLUMNS + extra))
-            for line in rep.verdict_lines(mine):
-                click.echo(line)
+        click.echo("\n".join(rep.analysis_lines(doc, details, verify_, noise)))
         for r in rows:
             if r.get("warning"):
                 click.echo(f"warning at kappa {r['kappa']:g}: {r['warning']}", err=True)
-        csvs = list(doc.get("csvs", {"": doc["csv"]}).values())
-        click.echo("wrote " + ", ".join(csvs + doc["figures"]))
     _exit_if_unverified([r.get("verification") for r in rows])
 
 

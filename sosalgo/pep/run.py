@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from fractions import Fraction
 from pathlib import Path
 from typing import Any
@@ -111,19 +111,22 @@ def pep_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = Non
             out_dir: str | Path | None = "outputs", workers: int | None = None,
             scheduler: str | None = None, restart: bool = False, progress: bool = True,
             plot: bool = True, exact: bool = True, witness: bool = True,
-            spec_text: str | None = None, max_memory: int | str | None = None
-            ) -> dict[str, Any]:
+            spec_text: str | None = None, max_memory: int | str | None = None,
+            overrides: Mapping[str, str] | None = None) -> dict[str, Any]:
     """``sosalgo pep``: one document per (kappa, N) — ``{"spec", "kappa", "steps", "tau",
     "measure", "initial", "certificate", "witness", ...}`` — alone, or as ``rows`` for a
     range of steps or several kappas; the CSV, the witness JSON files and the figure
-    (tau_k against k) go to ``out_dir`` (None: nothing written)."""
+    (tau_k against k) go to ``out_dir`` (None: nothing written). ``overrides``
+    (``--set``) fix parameters; the document and the witness files record them in
+    ``set``."""
     from sosalgo import inputs
     from sosalgo.batch.executor import Progress, run_batch
     from sosalgo.batch.store import ResumableCSV
-    from sosalgo.runs import spec_with_text
+    from sosalgo.runs import set_field, spec_with_text
     from sosalgo.schema import PEP_COLUMNS, pep_csv
 
-    spec, text = spec_with_text(spec, spec_text)
+    spec, text = spec_with_text(spec, spec_text, overrides)
+    recorded = set_field(overrides)
     ks: list[float | None] = ([None] if kappa is None else
                               [float(kappa)] if isinstance(kappa, int | float)
                               else [float(k) for k in kappa])
@@ -140,7 +143,7 @@ def pep_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = Non
         got: list[dict[str, Any]] = []
         run_batch(pep_chunk, text, spec.source, options, tasks, got.append, workers,
                   scheduler, isolate=isolate)
-        return _pep_document(spec, measure, initial, _docs(got), [], est)
+        return _pep_document(spec, measure, initial, _docs(got), [], est) | recorded
     path = pep_csv(out, spec.name)
     settings = {"job": "pep", "spec": text, **options}
     store = ResumableCSV(path, PEP_COLUMNS, ["kappa", "steps"], settings, restart=restart,
@@ -156,8 +159,8 @@ def pep_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = Non
             bar.close()
         keys = {store.row_key(t) for t in tasks}
         docs = _docs([r for r in store.rows() if store.row_key(r) in keys])
-        files = _write_files(spec, text, docs, out, plot)
-    return _pep_document(spec, measure, initial, docs, files, est)
+        files = _write_files(spec, text, docs, out, plot, recorded)
+    return _pep_document(spec, measure, initial, docs, files, est) | recorded
 
 
 def _docs(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -194,9 +197,9 @@ def _companions(spec: Spec, ks: list[float | None], ns: list[int], out: Path) ->
 
 
 def _write_files(spec: Spec, text: str, docs: list[dict[str, Any]], out: Path,
-                 plot: bool) -> list[str]:
+                 plot: bool, recorded: Mapping[str, Any]) -> list[str]:
     """Witness JSON files (with the spec's text as the run read it, so ``sosalgo verify``
-    needs nothing else), each written atomically, and the figure of tau_k against k for
+    needs nothing else; ``recorded``: the ``set`` overrides), each written atomically, and the figure of tau_k against k for
     each kappa with two steps or more."""
     from sosalgo.batch.store import write_atomic
 
@@ -204,7 +207,8 @@ def _write_files(spec: Spec, text: str, docs: list[dict[str, Any]], out: Path,
     for d in docs:
         if d.get("witness"):
             path = _witness_path(spec, out, d["kappa"], d["steps"])
-            write_atomic(path, json.dumps(d["witness"] | {"spec_text": text}, indent=1))
+            write_atomic(path, json.dumps(d["witness"] | {"spec_text": text} | dict(recorded),
+                                          indent=1))
             files.append(str(path))
     if plot:
         from sosalgo.pep.figure import pep_figure
