@@ -210,13 +210,16 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
 @click.option("--max-noise", type=float, default=None, metavar="G",
               help="With --objective rate: the certified noise sensitivity must be <= G.")
 @certificate_options(default="design")
+@set_option
+@details_option
 @handle_errors
 def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: str,
            order: int | None, gap: float, time_limit: float, method: str, out: str,
            as_json: bool, workers: int | None, scheduler: str | None, restart: bool,
            quiet: bool, max_memory: str | None, verify_: bool, objective: str,
            max_rate: float | None,
-           max_noise: float | None, certificate: str | None, lag: int | None) -> None:
+           max_noise: float | None, certificate: str | None, lag: int | None,
+           overrides: tuple[str, ...], details: bool) -> None:
     """Design parameters: certified design, proven lower bound, gap between them.
     Python: sosalgo.design_run (files) or sosalgo.design (results)."""
     from sosalgo.report import design as rep
@@ -226,7 +229,7 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
                      method, certificate, {"lag": lag}, workers, scheduler, restart,
                      not quiet, verify_, progress_steps=not quiet and not as_json,
                      objective=objective, max_rate=max_rate, max_noise=max_noise,
-                     max_memory=max_memory)
+                     max_memory=max_memory, overrides=_overrides(overrides))
     docs = doc["rows"]
     if as_json:
         one = docs[0] | ({"estimate": doc["estimate"]} if "estimate" in doc else {})
@@ -236,7 +239,7 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
     if "objective" in docs[0]:  # a design with the noise sensitivity
         from sosalgo.report.pareto import objective_lines
 
-        click.echo("\n".join(objective_lines(doc)))
+        click.echo("\n".join(objective_lines(doc, details)))
         _exit_if_unverified([d.get("verification") for d in docs], "some certificate")
         return
     if docs[0].get("rate_type") == "sublinear":
@@ -252,13 +255,15 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
            else f"lower bound by moment relaxation ({scalarize})")
     click.echo(f"{doc['spec']}: design of {', '.join(names)} certified by "
                f"{docs[0]['family']}; {how}")
+    if doc.get("set"):
+        click.echo("with --set " + ", ".join(f"{k}={v}" for k, v in doc["set"].items()))
     from sosalgo.spec import spec_from_text
 
     note = rep.tighter_family_note(spec_from_text(doc["spec_text"], doc["source"]),
                                    docs[0]["family"], certificate)
     if note:
         click.echo(note)
-    click.echo(rep.design_table(docs, names, gap, method))
+    click.echo(rep.design_table(docs, names, gap, method, details))
     for step in docs[0]["steps"] if len(docs) == 1 else ():
         click.echo(f"  - {step}")
     for line in rep.verification_notes(docs):
@@ -286,11 +291,14 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
 @batch_options
 @click.option("--no-plot", is_flag=True, help="Skip the figure.")
 @certificate_options(default="tightest")
+@set_option
+@details_option
 @handle_errors
 def pareto(spec_path: str, kappa: tuple[str, ...], points: int, time_limit: float,
            free: str | None, out: str, as_json: bool, workers: int | None,
            scheduler: str | None, restart: bool, quiet: bool, max_memory: str | None,
-           no_plot: bool, certificate: str | None, lag: int | None) -> None:
+           no_plot: bool, certificate: str | None, lag: int | None,
+           overrides: tuple[str, ...], details: bool) -> None:
     """Front of certified rate vs certified noise sensitivity over the parameter box,
     beside the known tunings. Python: sosalgo.pareto_run."""
     from sosalgo.pareto import pareto_run
@@ -298,14 +306,14 @@ def pareto(spec_path: str, kappa: tuple[str, ...], points: int, time_limit: floa
 
     doc = pareto_run(spec_path, _kappas(kappa), out, points, time_limit, free, certificate,
                      {"lag": lag}, workers, scheduler, restart, not quiet, not no_plot,
-                     max_memory=max_memory)
+                     max_memory=max_memory, overrides=_overrides(overrides))
     fronts = doc["fronts"]
     if as_json:
         one = fronts[0] | ({"estimate": doc["estimate"]} if "estimate" in doc else {})
         click.echo(json.dumps(one if len(fronts) == 1 else doc, indent=2))
         return
     for d in fronts:
-        click.echo("\n".join(pareto_lines(d)))
+        click.echo("\n".join(pareto_lines(d, details)))
 
 
 # --------------------------------------------------------------------------- fig4
@@ -357,11 +365,12 @@ def fig4(kappa: tuple[str, ...], time_limit: float, out: str, as_json: bool,
 @click.option("--out", default="outputs", show_default=True, metavar="DIR")
 @batch_options
 @certificate_options
+@set_option
 @handle_errors
 def grid(spec_path: str, kappa: tuple[str, ...], points: int, free: str | None, tol: float,
          out: str, as_json: bool, workers: int | None, scheduler: str | None, restart: bool,
-         quiet: bool, max_memory: str | None, certificate: str | None, lag: int | None
-         ) -> None:
+         quiet: bool, max_memory: str | None, certificate: str | None, lag: int | None,
+         overrides: tuple[str, ...]) -> None:
     """Exhaustive search: certified rate on a grid over the free parameters (Figure 3).
     Python: sosalgo.grid_run."""
     from sosalgo.report import grid as rep
@@ -369,7 +378,7 @@ def grid(spec_path: str, kappa: tuple[str, ...], points: int, free: str | None, 
 
     doc = grid_run(spec_path, _kappas(kappa), out, points, free, tol, certificate,
                    {"lag": lag}, workers, scheduler, restart, not quiet,
-                   max_memory=max_memory)
+                   max_memory=max_memory, overrides=_overrides(overrides))
     if as_json:
         click.echo(json.dumps(doc, indent=2))
         return
@@ -477,11 +486,13 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
 @batch_options
 @click.option("--no-plot", is_flag=True, help="Skip the figures.")
 @click.option("--no-witness", is_flag=True, help="Skip the worst-case witness.")
+@set_option
+@details_option
 @handle_errors
 def pep(spec_path: str, kappa: tuple[str, ...], steps: str, measure: str | None,
         initial: str | None, out: str, as_json: bool, workers: int | None,
         scheduler: str | None, restart: bool, quiet: bool, max_memory: str | None,
-        no_plot: bool, no_witness: bool) -> None:
+        no_plot: bool, no_witness: bool, overrides: tuple[str, ...], details: bool) -> None:
     """Worst case after N steps (performance estimation), its dual certificate proven
     exactly and a checked worst-case witness. Python: sosalgo.pep_run or sosalgo.pep."""
     from sosalgo.pep.run import pep_run, pep_summary
@@ -489,8 +500,9 @@ def pep(spec_path: str, kappa: tuple[str, ...], steps: str, measure: str | None,
     ks = _kappas(kappa)
     doc = pep_run(spec_path, ks[0] if ks and len(ks) == 1 else ks, steps, measure, initial,
                   out, workers, scheduler, restart, not quiet, not no_plot,
-                  witness=not no_witness, max_memory=max_memory)
-    click.echo(json.dumps(doc, indent=2) if as_json else pep_summary(doc))
+                  witness=not no_witness, max_memory=max_memory,
+                  overrides=_overrides(overrides))
+    click.echo(json.dumps(doc, indent=2) if as_json else pep_summary(doc, details))
 
 
 # --------------------------------------------------------------------------- lmi

@@ -13,7 +13,7 @@ from typing import Any
 from sosalgo.errors import InputError
 from sosalgo.spec import Spec
 
-__all__ = ["parse_steps", "pep_chunk", "pep_row", "pep_run"]
+__all__ = ["pep_heading", "term_words", "parse_steps", "pep_chunk", "pep_row", "pep_run"]
 
 # a PEP estimated (sosalgo.budget) longer than this runs in a worker process that a signal
 # can end at once; a shorter one runs here, where a signal waits at most for its solve
@@ -217,9 +217,12 @@ def _write_files(spec: Spec, text: str, docs: list[dict[str, Any]], out: Path,
     return files
 
 
-def pep_summary(doc: dict[str, Any]) -> str:
-    """The printed table of ``sosalgo pep``."""
+def pep_summary(doc: dict[str, Any], details: bool = True) -> str:
+    """The printed table of ``sosalgo pep``: what tau is (the class and its parameters, the
+    measure, the initial condition and the steps, in words), the table (the witness's
+    dimension and the seconds only with ``details``) and its legend."""
     from sosalgo.report import format_table
+    from sosalgo.schema import printed_columns
 
     rows = doc.get("rows", [doc])
     table = []
@@ -235,10 +238,55 @@ def pep_summary(doc: dict[str, Any]) -> str:
                       "seconds": d.get("seconds")})
     cols = ["kappa", "N", "tau", "tau_proven", "check", "witness_lower", "witness_dim",
             "seconds"]
-    head = f"{rows[0]['spec']}: worst case of {rows[0]['measure']} / {rows[0]['initial']}"
-    cls = rows[0].get("class")
-    if cls:  # the class the proofs are about, exactly
-        many = len({d["kappa"] for d in rows}) > 1
-        head += f" over the class m = {cls['m']}, L = " + ("kappa m" if many else cls["L"])
     files = doc.get("files") or []
-    return "\n".join([head, format_table(table, cols)] + [f"wrote {f}" for f in files])
+    return "\n".join([*pep_heading(rows), format_table(table, printed_columns(cols, details)),
+                      *PEP_LEGEND] + [f"wrote {f}" for f in files])
+
+
+PEP_LEGEND = ("tau: the SDP's worst case (floating point); tau_proven: proven upper bound "
+              "(exact dual certificate)",
+              "witness_lower: witnessed lower bound (reached by an explicit function and start)")
+_TERM = re.compile(r"\b(f|dist|grad|sdist)\b(\s*\(\s*([A-Za-z0-9_]+)\s*\))?")
+
+
+def term_words(text: str, initial: bool, several: bool) -> str:
+    """A measure or initial condition (``f``, ``2*dist``, ``f + L/2*grad(y_N)``) in words:
+    f(x_N) - f*, |x_0 - x*|^2, |grad f(y_N)|^2, |xi_N - xi*|^2 (``several``: a sum over
+    the functions)."""
+    def words(mt: re.Match[str]) -> str:
+        kind, point = mt.group(1), mt.group(3) or ("x_0" if initial else "x_N")
+        state = "xi_0" if initial else "xi_N"
+        return {"f": (f"(sum_j f_j({point}) - f_j*)" if several else f"(f({point}) - f*)"),
+                "dist": f"|{point} - x*|^2", "grad": f"|grad f({point})|^2",
+                "sdist": f"|{state} - xi*|^2"}[kind]
+
+    out = _TERM.sub(words, str(text))
+    return out[1:-1] if out.startswith("(") and out.endswith(")") and out.count("(") == 2 \
+        else out
+
+
+def pep_heading(rows: list[dict[str, Any]]) -> list[str]:
+    """What tau is, in words: the measure over the initial condition, each function's
+    class with its parameters (m, L; L = kappa m over several kappas), the steps."""
+    from sosalgo.classes import CLASSES
+
+    d = rows[0]
+    cls = d.get("class") or {}
+    funcs = cls.get("functions") or {"f": {"class": "smooth_strongly_convex",
+                                           "params": {"m": cls.get("m"), "L": cls.get("L")}}}
+    several = len(funcs) > 1
+    many = len({r["kappa"] for r in rows}) > 1
+    start = ("any xi_0 (the whole state is free)" if "sdist" in str(d["initial"])
+             else "x_0 (the method at rest there, or as its initial_state says)")
+    lines = [f"{d['spec']}: tau = worst case of {term_words(d['measure'], False, several)} "
+             f"when {term_words(d['initial'], True, several)} <= 1, over"]
+    for name, fn in funcs.items():
+        what = getattr(CLASSES.get(fn.get("class")), "description", "") or fn.get("class")
+        params = {k: ("kappa m" if many and k == "L" else v)
+                  for k, v in (fn.get("params") or {}).items()}
+        shown = ", ".join(f"{k} = {v}" for k, v in params.items())
+        lines.append(f"  {name}: {fn.get('class')} ({what})" + (f" with {shown}" if shown
+                                                                 else ""))
+    return lines + [f"  start: {start}",
+                    "  N steps: N iterations xi+ = A xi + B u (each with its oracle calls); "
+                    "x_N: the output after them"]

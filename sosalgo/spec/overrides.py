@@ -100,7 +100,8 @@ def apply_overrides(text: str, overrides: Mapping[str, str], source: str) -> str
             raise InputError(f"--set {name}: {exc}") from None
         params[name] = expr
     data["parameters"] = params
-    new = yaml.safe_dump(data, sort_keys=False, allow_unicode=True, width=1000)
+    new = yaml.safe_dump(data, sort_keys=False, allow_unicode=True, width=1000,
+                         default_flow_style=None)
     try:
         spec_from_text(new, source)
     except SpecError as exc:
