@@ -198,9 +198,9 @@ def _companions(spec: Spec, ks: list[float | None], ns: list[int], out: Path) ->
 
 def _write_files(spec: Spec, text: str, docs: list[dict[str, Any]], out: Path,
                  plot: bool, recorded: Mapping[str, Any]) -> list[str]:
-    """Witness JSON files (with the spec's text as the run read it, so ``sosalgo verify``
-    needs nothing else; ``recorded``: the ``set`` overrides), each written atomically, and the figure of tau_k against k for
-    each kappa with two steps or more."""
+    """Witness JSON files (with the spec's text as the run read it and ``recorded``, the
+    ``set`` overrides, so ``sosalgo verify`` needs nothing else), each written atomically,
+    and the figure of tau_k against k for each kappa with two steps or more."""
     from sosalgo.batch.store import write_atomic
 
     files = []
