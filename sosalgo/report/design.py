@@ -19,11 +19,13 @@ from sosalgo.spec import Spec
 __all__ = ["LEGEND", "design_figure", "design_table", "proven_bound", "verdict",
            "verification_notes"]
 
-LEGEND = ("rho_certified: certified rate at the designed theta (with its certificate); "
-          "lower_bound: proven lower bound, no theta in the box is certified below it; "
-          "rho_at_values: certified rate at the spec's own values; "
-          "floor: 1 - 1/sqrt(kappa), no first-order method is faster on F(m, L) (composite "
-          "specs: only where that is a theorem, see README; empty otherwise)")
+LEGEND = "\n".join([
+    "rho_certified: certified rate at the designed theta (with its certificate)",
+    "lower_bound: proven lower bound, no theta in the box is certified below it",
+    "rho_at_values: certified rate at the spec's own values",
+    "floor: 1 - 1/sqrt(kappa), no first-order method is faster on F(m, L) (composite specs: "
+    "only where",
+    "  that is a theorem, see the docs; empty otherwise)"])
 
 
 def tighter_family_note(spec: Spec, family: str, certificate: str | None) -> str | None:

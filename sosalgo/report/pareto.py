@@ -89,9 +89,9 @@ def objective_lines(doc: Mapping[str, Any], details: bool = True) -> list[str]:
                  ["kappa", *names, "rho_certified", "rho_check", "noise", "noise_quadratic",
                   "noise_lag", "noise_check", "status", "seconds"], details))]
     lines += [f"  - {s}" for s in (d0.get("steps") or [])] if len(docs) == 1 else []
-    lines.append(RHO_LEGEND.replace("rho:", "rho_certified:") + "; "
-                 + NOISE_LEGEND + "; status 'none found': no theta found meeting the cap "
-                 "(not a proof that none exists)")
+    lines += [RHO_LEGEND.replace("rho:", "rho_certified:"), NOISE_LEGEND,
+              "status 'none found': no theta found meeting the cap (not a proof that none "
+              "exists)"]
     lines.append("wrote " + ", ".join([doc["csv"], *doc["figures"]]))
     return lines
 
@@ -119,7 +119,7 @@ def pareto_lines(doc: Mapping[str, Any], details: bool = True) -> list[str]:
             "known tunings, in the form x+ = x + beta (x - x-) - h grad f(x + gamma (x - x-)):",
             format_table(tun, printed_columns(["name", "rho", "rho_check", "noise",
                                                "noise_quadratic", "noise_check"], details)),
-            RHO_LEGEND + "; " + NOISE_LEGEND,
+            RHO_LEGEND, NOISE_LEGEND,
             "wrote " + ", ".join([doc["csv"], *doc["figures"]])]
 
 
