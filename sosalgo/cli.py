@@ -545,7 +545,10 @@ def table1(spec_paths: tuple[str, ...], kappa: tuple[str, ...], tol: float, out:
     from sosalgo.runs import table1_run
 
     doc = table1_run(spec_paths, _kappas(kappa) or (), tol, out, certificate, {"lag": lag})
+    from sosalgo.report.legend import TABLE1_LEGEND
+
     click.echo(format_table(doc["rows"], doc["columns"]))
+    click.echo(TABLE1_LEGEND)
     click.echo(f"wrote {doc['csv']}")
 
 

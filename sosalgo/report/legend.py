@@ -19,14 +19,16 @@ from typing import Any
 
 from sosalgo.spec import Spec
 
-__all__ = ["CERTIFIED", "PROVEN_LOWER", "REFERENCE", "WITNESSED", "measure_words",
-           "noise_legend", "rate_legend", "rate_meaning", "reference_header",
+__all__ = ["CERTIFIED", "PROVEN_LOWER", "REFERENCE", "TABLE1_LEGEND", "WITNESSED",
+           "measure_words", "noise_legend", "rate_legend", "rate_meaning", "reference_header",
            "sublinear_meaning"]
 
 CERTIFIED = "certified rate"
 WITNESSED = "witnessed lower bound"
 REFERENCE = "reference"
 PROVEN_LOWER = "proven lower bound"
+TABLE1_LEGEND = (f"rho_certified: {CERTIFIED}; closed_form_rate: {REFERENCE}, the spec's first "
+                 "closed form (floating point; not proven by sosalgo)")
 
 
 def reference_header(name: str) -> str:
@@ -83,8 +85,8 @@ def rate_legend(rows: Sequence[Mapping[str, Any]], references: Sequence[str]) ->
            "  (the squared quantities above shrink by rho^2 per step: compare a PEPit tau(N) "
            "with rho^(2N))"]
     if any(r.get("rho_lower") is not None for r in rows):
-        out.append(f"worst-case rate in [a, b]: a = {WITNESSED} (reached by an explicit "
-                   f"function), b = {CERTIFIED}")
+        out.append(f"worst-case rate in [a, b]: a = {WITNESSED} (reached by a function), "
+                   f"b = {CERTIFIED}")
     if references:
         out.append(f"{REFERENCE}: NAME = the spec's closed form for comparison (floating "
                    "point; not proven by sosalgo)")
@@ -97,8 +99,8 @@ def noise_legend(details: bool) -> list[str]:
            "over the class,",
            "  gradients u_k = grad f(y_k) + w_k, w_k zero-mean, covariance sigma^2 I, "
            "independent of the past",
-           "noise_quadratic: the exact sensitivity on quadratics (a witnessed lower bound "
-           "on the worst case)",
+           "noise_quadratic: the sensitivity on quadratics (floating point; the worst case "
+           "is at least it)",
            "noise_limsup: certified bound on sqrt(limsup_k E|x_k - x*|^2 / d) / sigma"]
     if details:
         out += ["noise_lag: the lag of noise's certificate; noise_check: how it was checked; "
