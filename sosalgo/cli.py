@@ -255,8 +255,10 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
            else f"lower bound by moment relaxation ({scalarize})")
     click.echo(f"{doc['spec']}: design of {', '.join(names)} certified by "
                f"{docs[0]['family']}; {how}")
-    if doc.get("set"):
-        click.echo("with --set " + ", ".join(f"{k}={v}" for k, v in doc["set"].items()))
+    from sosalgo.report.legend import set_lines
+
+    for line in set_lines(doc):
+        click.echo(line)
     from sosalgo.spec import spec_from_text
 
     note = rep.tighter_family_note(spec_from_text(doc["spec_text"], doc["source"]),
@@ -386,6 +388,10 @@ def grid(spec_path: str, kappa: tuple[str, ...], points: int, free: str | None, 
         click.echo(f"{doc['spec']}: certified constant c on a grid of {', '.join(doc['free'])}"
                    f"; best c = {doc['best']}; wrote {doc['csv']}")
         return
+    from sosalgo.report.legend import set_lines
+
+    for line in set_lines(doc):
+        click.echo(line)
     for d in doc["grids"]:
         for line in rep.grid_lines(doc["spec"], d):
             click.echo(line)

@@ -239,7 +239,10 @@ def pep_summary(doc: dict[str, Any], details: bool = True) -> str:
     cols = ["kappa", "N", "tau", "tau_proven", "check", "witness_lower", "witness_dim",
             "seconds"]
     files = doc.get("files") or []
-    return "\n".join([*pep_heading(rows), format_table(table, printed_columns(cols, details)),
+    from sosalgo.report.legend import set_lines
+
+    return "\n".join([*pep_heading(rows), *set_lines(doc),
+                      format_table(table, printed_columns(cols, details)),
                       *PEP_LEGEND] + [f"wrote {f}" for f in files])
 
 

@@ -21,6 +21,7 @@ from sosalgo.report.legend import (
     rate_legend,
     rate_meaning,
     reference_header,
+    set_lines,
     sublinear_meaning,
 )
 from sosalgo.schema import ANALYSIS_COLUMNS, FAMILY_COLUMNS, SUBLINEAR_COLUMNS, printed_columns
@@ -135,8 +136,7 @@ def analysis_lines(doc: dict[str, Any], details: bool = False, verified: bool = 
     spec = spec_from_text(doc["spec_text"], doc["source"])
     rows = doc["rows"]
     out = [f"{spec.name}: {spec.description}".rstrip(": ")]
-    if doc.get("set"):
-        out.append("with --set " + ", ".join(f"{k}={v}" for k, v in doc["set"].items()))
+    out += set_lines(doc)
     columns = ["verified"] if verified else []
     groups = ([(name, [r for r in rows if r["family"] == name]) for name in doc["csvs"]]
               if "csvs" in doc else [(rows[0].get("family", "") if rows else "", rows)])

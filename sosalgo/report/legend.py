@@ -21,7 +21,7 @@ from sosalgo.spec import Spec
 
 __all__ = ["CERTIFIED", "PROVEN_LOWER", "REFERENCE", "TABLE1_LEGEND", "WITNESSED",
            "measure_words", "noise_legend", "rate_legend", "rate_meaning", "reference_header",
-           "sublinear_meaning"]
+           "set_lines", "sublinear_meaning"]
 
 CERTIFIED = "certified rate"
 WITNESSED = "witnessed lower bound"
@@ -29,6 +29,12 @@ REFERENCE = "reference"
 PROVEN_LOWER = "proven lower bound"
 TABLE1_LEGEND = (f"rho_certified: {CERTIFIED}; closed_form_rate: {REFERENCE}, the spec's first "
                  "closed form (floating point; not proven by sosalgo)")
+
+
+def set_lines(doc: Mapping[str, Any]) -> list[str]:
+    """One line naming the ``--set`` overrides a result was computed with (none without)."""
+    given = doc.get("set") or {}
+    return ["with --set " + ", ".join(f"{k}={v}" for k, v in given.items())] if given else []
 
 
 def reference_header(name: str) -> str:

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from sosalgo.report import pyplot, save_figure
+from sosalgo.report.legend import set_lines
 
 __all__ = ["noise_check_lines", "objective_lines", "pareto_figure", "pareto_lines"]
 
@@ -115,6 +116,7 @@ def pareto_lines(doc: Mapping[str, Any], details: bool = True) -> list[str]:
     return [f"{doc['spec']}: front of certified rate vs certified noise sensitivity at "
             f"kappa {doc['kappa']:g} over {', '.join(names)} ({doc['family']}); "
             f"{len(doc['front'])} points ({lost} dominated or uncertified dropped)",
+            *set_lines(doc),
             format_table(front, printed_columns(cols, details)),
             "known tunings, in the form x+ = x + beta (x - x-) - h grad f(x + gamma (x - x-)):",
             format_table(tun, printed_columns(["name", "rho", "rho_check", "noise",
