@@ -7,7 +7,7 @@ WORKERS ?=
 SCHEDULER ?=
 BATCH_OPTS := $(if $(WORKERS),--workers $(WORKERS)) $(if $(SCHEDULER),--scheduler $(SCHEDULER))
 
-.PHONY: help venv dev demo test test-all lint table1 bench fig1 fig2 fig3 fig4 fig5 pep sweeps figures fuzz soundness clean
+.PHONY: help venv dev docs demo test test-all lint table1 bench fig1 fig2 fig3 fig4 fig5 pep sweeps figures fuzz soundness clean
 
 help:
 	@echo "make help     - this list"
@@ -17,6 +17,7 @@ help:
 	@echo "make test     - create/reuse .venv with dev extras, run ruff and pytest (TEST_WORKERS processes)"
 	@echo "make test-all - make test plus the deep property checks (marked deep)"
 	@echo "make lint     - ruff check sosalgo tests bench"
+	@echo "make docs     - the documentation site into docs/_build/html (warnings are errors)"
 	@echo "make table1   - $(OUT)/table1.csv: shipped specs at kappa 2, 10, 100 vs closed forms (Theorem 1 and interpolation)"
 	@echo "make bench    - benchmarks in bench/ (prints a table)"
 	@echo "make bench-autolyap - the AutoLyap comparison, AutoLyap (GPL) in its own $(AUTOLYAP_VENV)/"
@@ -57,11 +58,17 @@ demo: $(VENV)/.installed
 TEST_WORKERS ?= 3
 test: $(VENV)/.installed-dev
 	$(BIN)/ruff check sosalgo tests bench
+	$(MAKE) docs
 	$(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadgroup -m "not deep"
 
 test-all: $(VENV)/.installed-dev
 	$(BIN)/ruff check sosalgo tests bench
 	$(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadgroup
+
+# -E: a fresh build every time (a page that stopped building is never served from the cache);
+# the gallery keeps its own cache of computed rates in docs/_build
+docs: $(VENV)/.installed-dev
+	$(BIN)/python -m sphinx -E -W --keep-going -b html docs docs/_build/html
 
 lint: $(VENV)/.installed-dev
 	$(BIN)/ruff check sosalgo tests bench

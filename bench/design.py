@@ -66,7 +66,7 @@ def _tight_row(kappa: float, target_rho: float, target_s: float) -> None:
     """Three-parameter design with the interpolation family vs the triple momentum method."""
     import numpy as np
 
-    from sosalgo.report.fig4 import tmm_parameters
+    from sosalgo.pareto import tmm_parameters
 
     spec = load_spec(SPECS / "three-parameter.yaml")
     t0 = time.perf_counter()

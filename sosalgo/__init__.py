@@ -1,6 +1,6 @@
 """sosalgo: certify and design first-order methods for L-smooth, m-strongly convex functions.
 
-The Python API (see the README, "Python API"): :func:`load_spec`, :func:`analyze`,
+The Python API (see docs/api.md): :func:`load_spec`, :func:`analyze`,
 :func:`design`, :func:`verify`, the twins of the commands (:func:`analyze_run`,
 :func:`design_run`, :func:`grid_run`, :func:`verify_document`, :func:`lmi`,
 :func:`table1_run`, :func:`copy_examples`), and the result types :class:`AnalysisResult`,
@@ -65,8 +65,8 @@ _EXPORTS = {
     "design": "sosalgo.design",  # the module, callable (see _CallableModule)
     "verify": "sosalgo.verify",
     "pep": "sosalgo.pep",  # the package, callable: sosalgo.pep(...) -> PEPResult
-    "pep_run": "sosalgo.pep",
-    "pareto_run": "sosalgo.pareto",
+    "pep_run": "sosalgo.runs.pep",
+    "pareto_run": "sosalgo.runs.pareto",
     "noise": "sosalgo.api",
     "AnalysisResult": "sosalgo.analysis",
     "analyze_algorithm": "sosalgo.analysis",

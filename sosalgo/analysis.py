@@ -55,9 +55,10 @@ LAG_PATIENCE = 2  # auto lag: stop after this many lags in a row that do not imp
 LAG_SECONDS = 60.0  # auto lag: no further lag is tried once the analysis took this long
 Tolerance = Callable[[float], float]  # bracket width needed when its lower end is at rho
 UNDECIDED_AT_ONE = ("not decided at rho = 1: the feasibility margin there is below the "
-                    "solver's accuracy (kappa too large; see README, 'How large κ can be')")
+                    "solver's accuracy (kappa too large; see docs/commands/analyze.md, "
+                    "'How large κ can be')")
 UNRESOLVED = ("1 - rho not resolved: the rate is too close to 1 for the solver's accuracy "
-              "(kappa too large; see README, 'How large κ can be')")
+              "(kappa too large; see docs/commands/analyze.md, 'How large κ can be')")
 
 
 def _tolerance(tol: float) -> Tolerance:

@@ -155,8 +155,8 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
 def noise(spec: Spec | str | Path, kappa: float | Sequence[float] | None = None,
           theta: Mapping[str, float] | None = None, lag: int | None = None,
           exact: bool = True) -> Any:
-    """Certified sensitivity to gradient noise (``sosalgo analyze --noise``; README,
-    "Robustness to gradient noise"): a :class:`sosalgo.sensitivity.run.NoiseResult` per
+    """Certified sensitivity to gradient noise (``sosalgo analyze --noise``;
+    docs/noise.md): a :class:`sosalgo.sensitivity.run.NoiseResult` per
     kappa (one for a number), with the bound proven exactly when ``exact``; ``lag`` fixes
     the certificate's lag (default: the best of 0 .. n + 1)."""
     from sosalgo.inputs import check_kappa_points

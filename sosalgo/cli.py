@@ -303,8 +303,8 @@ def pareto(spec_path: str, kappa: tuple[str, ...], points: int, time_limit: floa
            overrides: tuple[str, ...], details: bool) -> None:
     """Front of certified rate vs certified noise sensitivity over the parameter box,
     beside the known tunings. Python: sosalgo.pareto_run."""
-    from sosalgo.pareto import pareto_run
     from sosalgo.report.pareto import pareto_lines
+    from sosalgo.runs.pareto import pareto_run
 
     doc = pareto_run(spec_path, _kappas(kappa), out, points, time_limit, free, certificate,
                      {"lag": lag}, workers, scheduler, restart, not quiet, not no_plot,
@@ -331,11 +331,11 @@ def fig4(kappa: tuple[str, ...], time_limit: float, out: str, as_json: bool,
          workers: int | None, scheduler: str | None, restart: bool, quiet: bool,
          max_memory: str | None) -> None:
     """Figure 4: the three-parameter family designed with tight certificates vs kappa.
-    Python: sosalgo.report.fig4.fig4."""
+    Python: sosalgo.runs.fig4.fig4."""
     from sosalgo.inputs import check_time_limit, out_dir
     from sosalgo.report import format_table
-    from sosalgo.report.fig4 import fig4 as run_fig4
     from sosalgo.report.fig4 import fig4_rows
+    from sosalgo.runs.fig4 import fig4 as run_fig4
 
     kappas = sorted(set(_kappas(kappa or ("{from: 1.5, to: 1000, points: 20, scale: log}",))
                         or []))
@@ -501,7 +501,7 @@ def pep(spec_path: str, kappa: tuple[str, ...], steps: str, measure: str | None,
         no_plot: bool, no_witness: bool, overrides: tuple[str, ...], details: bool) -> None:
     """Worst case after N steps (performance estimation), its dual certificate proven
     exactly and a checked worst-case witness. Python: sosalgo.pep_run or sosalgo.pep."""
-    from sosalgo.pep.run import pep_run, pep_summary
+    from sosalgo.runs.pep import pep_run, pep_summary
 
     ks = _kappas(kappa)
     doc = pep_run(spec_path, ks[0] if ks and len(ks) == 1 else ks, steps, measure, initial,

@@ -135,7 +135,7 @@ def check_numbers(doc: Any, where: str) -> None:
 
 
 def _difference_note(src: str, where: str, embedded: str, text: str) -> str:
-    from sosalgo.batch.store import describe_difference
+    from sosalgo.store import describe_difference
 
     what = describe_difference({"spec": embedded}, {"spec": text})
     return (f"{src} differs from the spec embedded in {where} ({what}); the certificates "

@@ -19,7 +19,7 @@ from sosalgo.spec import Spec
 
 __all__ = [
     "MAX_GRID_POINTS", "MAX_POINTS_PER_AXIS", "check_gap", "check_grid_points",
-    "check_kappa_points", "check_method", "check_scheduler", "check_time_limit", "check_tol",
+    "check_kappa_points", "check_method", "check_time_limit", "check_tol",
     "free_names", "kappa_option", "out_dir", "parameter_boxes", "select_families", "writable",
 ]
 
@@ -177,14 +177,6 @@ def out_dir(out: str | Path, label: str = "--out") -> Path:
         reason = getattr(exc, "strerror", None) or str(exc)
         raise InputError(f"{label} {str(out)[:80]}: {reason}") from None
     return path
-
-
-def check_scheduler(scheduler: str | None) -> None:
-    """A missing Dask or an unusable scheduler address, before anything is written."""
-    if scheduler:
-        from sosalgo.batch.executor import check_scheduler as check
-
-        check(scheduler)
 
 
 def select_families(spec: Spec, certificate: str | Sequence[str] | None = None,

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.classes import CLASSES, FunctionClass
+from sosalgo.classes import CLASSES, SEED_CLASS, FunctionClass
 from sosalgo.errors import ModelError
 from sosalgo.spec.types import Spec, SpecError
 
@@ -286,7 +286,7 @@ def as_oracle_method(alg: Any) -> OracleMethod:
     otherwise."""
     if isinstance(alg, OracleMethod):
         return alg
-    f = BoundFunction("f", CLASSES["smooth_strongly_convex"], {"m": alg.m, "L": alg.L})
+    f = BoundFunction("f", SEED_CLASS, {"m": alg.m, "L": alg.L})
     return OracleMethod(alg.A, alg.B, alg.C, np.zeros((1, 1)), alg.E, alg.m, alg.L, (f,),
                         (0,), None, "function", dict(alg.params))
 

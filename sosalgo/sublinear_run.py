@@ -5,7 +5,7 @@
 .pdf); ``design`` one row to ``<name>-design.csv``; ``grid`` one row per point to
 ``<name>-grid.csv``. Each returns the ``--json`` document (rows say ``rate_type:
 sublinear`` and ``constant: c``). Every file is written under the run model of
-:mod:`sosalgo.batch.store` (resume, keep other settings' results aside, one output lock):
+:mod:`sosalgo.store` (resume, keep other settings' results aside, one output lock):
 a rerun with the same settings reads the finished rows back instead of computing them.
 """
 
@@ -44,7 +44,7 @@ def sublinear_row(spec: Spec) -> dict[str, Any]:
     """The analysis of a sublinear spec as a JSON row (with the references' values and the
     simulation check of the constant)."""
     from sosalgo.analysis import analyze_sublinear
-    from sosalgo.batch.sweeps import reference_values
+    from sosalgo.spec.references import reference_values
 
     row = analyze_sublinear(spec).to_dict()
     row["references"] = reference_values(spec, float("nan"))
@@ -73,7 +73,7 @@ def _json_cell(v: str | None) -> Any:
 def _store(path: Path, columns: Sequence[str], key: Sequence[str], settings: dict[str, Any],
            restart: bool, companions: Sequence[Path] = ()) -> Any:
     """The resumable output of a sublinear run (the run model of the other commands)."""
-    from sosalgo.batch.store import ResumableCSV
+    from sosalgo.store import ResumableCSV
 
     return ResumableCSV(path, columns, key, settings, restart=restart, companions=companions)
 
@@ -194,6 +194,7 @@ def sublinear_grid_run(spec: Spec, text: str, out_dir: str | Path, points: int =
     grid over the free parameters' box, written row by row to ``<name>-grid.csv``
     (resumable, on ``workers`` processes or a Dask ``scheduler`` like every grid)."""
     from sosalgo import inputs
+    from sosalgo.batch.executor import check_scheduler
     from sosalgo.batch.sweeps import grid_points, run_store, seed_spec
     from sosalgo.model import parameter_box
 
@@ -202,7 +203,7 @@ def sublinear_grid_run(spec: Spec, text: str, out_dir: str | Path, points: int =
     box = parameter_box(spec, float("nan"), names)
     out = inputs.out_dir(out_dir)
     if scheduler is not None:
-        inputs.check_scheduler(scheduler)
+        check_scheduler(scheduler)
     path = out / f"{spec.name}-grid.csv"
     settings = {"job": "grid", "spec": text, "free": names, "points": points,
                 "box": [list(b) for b in box]}
@@ -252,7 +253,7 @@ def _csv_cells(spec: Spec, row: dict[str, Any]) -> dict[str, Any]:
 
 
 def attach_verification(spec: Spec, row: dict[str, Any], out: Path) -> None:
-    """``verification`` (the exact proof of :mod:`sosalgo.verify.exact_sublinear` and the
+    """``verification`` (the exact proof of :mod:`sosalgo.certificates.exact_sublinear` and the
     row's simulation; proof document in ``out/certificates``) and ``verified`` on a row."""
     from sosalgo.verify.results import verify_sublinear_rows
 
@@ -268,7 +269,7 @@ def sublinear_run(spec: Spec, text: str, out_dir: str | Path, plot: bool = True,
                   progress: bool = True) -> dict:
     """Analyze, write the CSV (and the figure with ``plot``), return the document (a kappa
     is refused first). With ``verify`` the row gets ``verification`` (the exact proof of
-    :mod:`sosalgo.verify.exact_sublinear` and the row's simulation; proof document in
+    :mod:`sosalgo.certificates.exact_sublinear` and the row's simulation; proof document in
     ``out_dir/certificates``) and ``verified``. A rerun with the same settings reads the
     row back from the CSV."""
     from sosalgo import inputs
@@ -305,7 +306,7 @@ def sublinear_run(spec: Spec, text: str, out_dir: str | Path, plot: bool = True,
 def _analysis_from_csv(spec: Spec, cells: dict[str, str]) -> dict[str, Any]:
     """The analysis row read back from its CSV row (references and the simulation of the
     constant computed again: they are cheap next to the certificate's search)."""
-    from sosalgo.batch.sweeps import reference_values
+    from sosalgo.spec.references import reference_values
 
     constant = _num(cells["constant"])
     row = {"rate_type": cells["rate_type"], "constant": constant,

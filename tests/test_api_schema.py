@@ -173,14 +173,15 @@ def test_lmi_latex_is_a_complete_snippet():
     assert "sqrt(" not in tm and "rho^2 M" not in tm.split("\n", 1)[1]
 
 
-def test_readme_schema_table_matches_the_schema_module():
-    """README's result-schema table names the columns sosalgo.schema builds (nesterov)."""
+def test_api_page_schema_table_matches_the_schema_module():
+    """The Python API page's result-schema table names the columns sosalgo.schema builds
+    (nesterov)."""
     from pathlib import Path
 
     import sosalgo
     from sosalgo import schema
 
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    readme = (Path(__file__).resolve().parents[1] / "docs" / "api.md").read_text()
     row = next(line for line in readme.splitlines()
                if line.startswith("| analyze, Theorem 1 |"))
     listed = [c.strip() for c in row.split("|")[3].split(",")]

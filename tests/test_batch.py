@@ -18,11 +18,11 @@ from click.testing import CliRunner
 from scipy.optimize import minimize
 
 from sosalgo.analysis import analyze_spec
-from sosalgo.batch.store import ResumableCSV
 from sosalgo.batch.sweeps import run_grid
 from sosalgo.cli import cli
 from sosalgo.model import parameter_box
 from sosalgo.spec import load_spec
+from sosalgo.store import ResumableCSV
 
 from .conftest import SPECS
 

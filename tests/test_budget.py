@@ -65,7 +65,7 @@ def test_a_run_over_the_budget_is_refused_naming_the_options(tmp_path, args, opt
 
 def _pep_estimate(spec: str, steps: int, measure: str | None = None):
     """What ``sosalgo pep`` checks before it starts (nothing is solved or written)."""
-    from sosalgo.pep.run import _check
+    from sosalgo.runs.pep import _check
     from sosalgo.spec import load_spec
 
     return _check(load_spec(SPECS / spec), [10.0], [steps], measure, None, 1)[0]

@@ -240,7 +240,7 @@ def test_lmi_rows_and_pair_counts_by_hand():
 
 # --------------------------------------------------------------------------- sweeps, table1
 def test_analyze_sweep_with_workers_and_resume(tmp_path):
-    """The README's sweep on Douglas-Rachford (Giselsson-Boyd at every kappa), then a
+    """The sweep on Douglas-Rachford of docs/outputs.md (Giselsson-Boyd at every kappa), then a
     resume after losing the last rows: each kappa once, the same rates."""
     spec_path = SPECS / "douglas-rachford.yaml"
     sweep = "{from: 1.5, to: 1000, points: 20, scale: log}"

@@ -12,10 +12,10 @@ import yaml
 from click.testing import CliRunner
 
 from sosalgo.analysis import analyze_sublinear
+from sosalgo.certificates.exact_sublinear import verify_exact_sublinear
 from sosalgo.cli import cli
 from sosalgo.documents import verify_document
 from sosalgo.spec import spec_from_dict
-from sosalgo.verify.exact_sublinear import verify_exact_sublinear
 
 from .conftest import SPECS
 

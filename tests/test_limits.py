@@ -231,7 +231,7 @@ def test_tiny_units_stay_usable():
 
 def _disk_fills_after(monkeypatch, lines: int):
     """The CSV writer fails with ENOSPC after ``lines`` lines, leaving half a line."""
-    from sosalgo.batch.store import ResumableCSV
+    from sosalgo.store import ResumableCSV
 
     original = ResumableCSV._write_line
     count = {"n": 0}

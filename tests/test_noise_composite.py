@@ -1,4 +1,4 @@
-"""Noise sensitivity of composite specs (README, "Robustness to gradient noise",
+"""Noise sensitivity of composite specs (docs/noise.md,
 composite specs): closed forms of gradient descent, a Monte Carlo with a nonsmooth g,
 the exact proof, one-line refusals."""
 

@@ -1,4 +1,4 @@
-"""The certified bound on the limsup itself, ``noise_limsup`` (README, "The limsup itself"),
+"""The certified bound on the limsup itself, ``noise_limsup`` (docs/noise.md, "The limsup itself"),
 checked against closed forms, scipy's Lyapunov solver and Monte Carlo runs written here."""
 
 from __future__ import annotations

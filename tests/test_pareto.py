@@ -17,7 +17,8 @@ from scipy.linalg import solve_discrete_lyapunov
 import sosalgo
 from sosalgo.cli import cli
 from sosalgo.design.objectives import objective_design
-from sosalgo.pareto import front_caps, pareto_filter, pareto_run, robust_momentum
+from sosalgo.pareto import front_caps, pareto_filter, robust_momentum
+from sosalgo.runs.pareto import pareto_run
 
 from .conftest import spec_path
 from .independent import certify
@@ -159,7 +160,7 @@ def test_default_family_certifies_the_triple_momentum_method():
     member of the three-parameter family, triple momentum, at its rate 1 - 1/sqrt(kappa)
     (Van Scoy, Freeman, Lynch 2018; closed form), where Theorem 1 certifies a slower rate."""
     from sosalgo.analysis import analyze_spec
-    from sosalgo.pareto import _base_family
+    from sosalgo.runs.pareto import _base_family
 
     spec = sosalgo.load_spec(spec_path("three-parameter"))
     fam = _base_family(spec, {})
@@ -256,7 +257,7 @@ def test_small_front_resumes_from_its_csv(small_front):
 @pytest.mark.deep
 def test_three_parameter_front_ends(tmp_path):
     """kappa = 10, 20 points, the default family (the tightest, interpolation) on 2
-    processes (README: the time): the fast end reaches the triple momentum method's rate
+    processes (docs/noise.md: the time): the fast end reaches the triple momentum method's rate
     1 - 1/sqrt(kappa) (closed form); the slow end is below gradient descent's
     gamma at the same certified rate (closed form; GD is in the box) and within a constant
     factor of it (momentum helps there too: measured ~0.81)."""
@@ -295,7 +296,7 @@ def test_noise_design_beats_robust_momentum_inside_the_family():
     2/5 of the range, and near rho = 0.864 the design (60 s) and robust momentum agree to
     0.2 %, so only this member is asserted."""
     from sosalgo.design.objectives import certify_point
-    from sosalgo.pareto import _base_family
+    from sosalgo.runs.pareto import _base_family
 
     spec = sosalgo.load_spec(spec_path("three-parameter"))
     fam = _base_family(spec, {})

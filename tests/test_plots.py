@@ -12,9 +12,9 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from sosalgo.batch.sweeps import reference_curves  # noqa: E402
 from sosalgo.report import grid_figure, rate_figure  # noqa: E402
 from sosalgo.spec import load_spec  # noqa: E402
+from sosalgo.spec.references import reference_curves  # noqa: E402
 
 from .conftest import SPECS  # noqa: E402
 

@@ -268,7 +268,7 @@ def test_one_row_outputs_resume_keep_aside_and_run_concurrently(case, tmp_path):
 def _hold_lock_repeatedly(path: str, marker: str, rounds: int) -> None:
     """Take the output lock ``rounds`` times; inside, create ``marker`` exclusively (it
     fails if another process is inside too) and remove it again."""
-    from sosalgo.batch.store import output_lock
+    from sosalgo.store import output_lock
 
     for _ in range(rounds):
         with output_lock(Path(path), notify=lambda m: None):
@@ -326,7 +326,7 @@ def test_sublinear_grid_resume_computes_only_the_missing_points(tmp_path, monkey
 def test_witness_holds_the_spec_as_read_at_the_start(tmp_path, monkeypatch):
     """The spec edited while the run works (and a spec read from a pipe): every witness
     embeds the text the run read, so that verify judges what was computed."""
-    import sosalgo.pep.run as pep_run_module
+    import sosalgo.runs.pep as pep_run_module
 
     spec = tmp_path / "gradient.yaml"
     original = Path(_spec("gradient")).read_text()
@@ -400,8 +400,8 @@ def test_one_dask_worker_gets_the_work_in_chunks(tmp_path):
 def test_chunks_of_long_tasks_hold_one_task():
     from sosalgo.batch.executor import _largest_chunk, chunk_size
     from sosalgo.batch.sweeps import analysis_chunk, design_chunk
-    from sosalgo.pareto import pareto_chunk
-    from sosalgo.pep.run import pep_chunk
+    from sosalgo.runs.pareto import pareto_chunk
+    from sosalgo.runs.pep import pep_chunk
     from sosalgo.sublinear_run import sublinear_grid_chunk
 
     for fn in (design_chunk, pep_chunk, pareto_chunk, sublinear_grid_chunk):

@@ -16,8 +16,8 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from sosalgo.batch.store import ResumableCSV, kappa_label
 from sosalgo.cli import cli
+from sosalgo.store import ResumableCSV, kappa_label
 
 from .conftest import SPECS
 

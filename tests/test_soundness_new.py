@@ -34,7 +34,7 @@ Later additions, judged the same way:
 SOSALGO_NEW_CASES sets the number of random cases per feature (default 2; ``make
 soundness`` runs NEW_CASES; the slow features 5 (long horizons), 7 run a quarter or a
 tenth of it). SOSALGO_NEW_REPORT, a file path: every comparison is
-appended to it as one JSON line (the margins reported in README).
+appended to it as one JSON line (the margins reported in docs/validation.md).
 """
 
 from __future__ import annotations
@@ -250,7 +250,7 @@ SUB_KEYS = [*range(1, 1 + max(1, CASES // 2)), "gd-1-over-L", "gd-near-2-over-L"
 @pytest.mark.parametrize("key", SUB_KEYS)
 def test_sublinear_constant_above_floor(key):
     from sosalgo.analysis import analyze_sublinear
-    from sosalgo.verify.exact_sublinear import verify_exact_sublinear
+    from sosalgo.certificates.exact_sublinear import verify_exact_sublinear
 
     case = case_of(key, True)
     spec = case.spec()

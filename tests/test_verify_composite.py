@@ -1,5 +1,6 @@
 """Exact verification and simulation of composite certificates (proximal steps, several
-functions, other classes): sosalgo.verify.exact_composite, prox_functions, simulate_composite.
+functions, other classes): sosalgo.certificates.exact_composite, the classes' test functions,
+simulate_composite.
 """
 
 from __future__ import annotations
@@ -13,13 +14,14 @@ from click.testing import CliRunner
 from scipy.optimize import minimize
 
 from sosalgo.certificates import get_family
+from sosalgo.certificates.exact_composite import exact_class_inequalities, verify_exact_composite
 from sosalgo.classes import CLASSES
+from sosalgo.classes.members import ProxFunction
 from sosalgo.cli import cli
 from sosalgo.model import bind
 from sosalgo.spec import load_spec
 from sosalgo.verify.exact import Ball
-from sosalgo.verify.exact_composite import exact_class_inequalities, verify_exact_composite
-from sosalgo.verify.prox_functions import ProxFunction, ProxProblem, class_functions
+from sosalgo.verify.prox_functions import ProxProblem
 from sosalgo.verify.simulate_composite import run_method, simulate_composite
 from tests.conftest import spec_path
 
@@ -136,7 +138,7 @@ def test_prox_closed_forms_against_numeric_minimization(cls, params):
     rng = np.random.default_rng(3)
     d = 2
     xs = rng.standard_normal(d)
-    for f in class_functions(CLASSES[cls], params, xs, rng):
+    for f in CLASSES[cls].test_functions(params, xs, rng):
         for t in (0.1, 1.0, 3.0):
             v = xs + 2 * rng.standard_normal(d)
             y = f.prox(v[None, :], t)[0]
@@ -162,7 +164,7 @@ def test_smooth_test_functions_are_in_the_class():
     (ineq,) = cls.inequalities(params)
     rng = np.random.default_rng(5)
     xs = rng.standard_normal(3)
-    for f in class_functions(cls, params, xs, rng):
+    for f in cls.test_functions(params, xs, rng):
         pts = xs + 2 * rng.standard_normal((30, 3))
         vals, grads = f.value(pts), f.grad(pts)
         for a in range(30):
@@ -240,9 +242,9 @@ def test_proximal_gradient_distance_ratio_never_exceeds_the_certified_rate(docum
         m, L = om.m, om.L
         for d in (1, 3):
             xs = rng.standard_normal(d)
-            for f in class_functions(CLASSES["smooth_strongly_convex"], {"m": m, "L": L}, xs,
-                                     rng):
-                g = class_functions(CLASSES["convex"], {}, xs, rng)[0]  # the l1 norm
+            for f in CLASSES["smooth_strongly_convex"].test_functions({"m": m, "L": L},
+                                                                      xs, rng):
+                g = CLASSES["convex"].test_functions({}, xs, rng)[0]  # the l1 norm
                 prob = ProxProblem("pg", d, (f.tilt(-(f.s + g.s)), g), xs)
                 x0 = xs + 10 ** rng.uniform(-1, 1, (8, 1, 1)) * rng.standard_normal((8, 1, d))
                 tr = run_method(om, prob, x0, 40)

@@ -1,2 +1,2 @@
-"""Batch runs: the executor (serial, processes, Dask), the resumable CSV store, and the
-sweeps built on them (kappa sweeps of analyze and design, grids)."""
+"""Batch runs: the executor (serial, processes, Dask) and the sweeps built on it and on
+the resumable CSV store (:mod:`sosalgo.store`): kappa sweeps of analyze and design, grids."""

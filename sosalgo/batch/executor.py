@@ -458,10 +458,12 @@ def _probe_scheduler(address: str) -> None:
                          f"protocol (its first bytes: {head[:8]!r})")
 
 
-def check_scheduler(address: str) -> None:
-    """Connect once (then disconnect): Dask installed, address well formed and reachable."""
-    client = _connect(address)
-    client.close()
+def check_scheduler(address: str | None) -> None:
+    """Connect once (then disconnect): Dask installed, address well formed and reachable
+    (None: no scheduler, nothing to check), before anything is written."""
+    if address:
+        client = _connect(address)
+        client.close()
 
 
 def _run_dask(fn, spec_text, source, options, tasks, deliver, address: str) -> None:

@@ -6,7 +6,6 @@ driver that writes rows to a resumable CSV as they finish.
 
 from __future__ import annotations
 
-import weakref
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -15,9 +14,7 @@ import numpy as np
 
 from sosalgo.analysis import AnalysisResult, analyze_spec, spec_family
 from sosalgo.batch.executor import Progress, note, run_batch
-from sosalgo.batch.store import ResumableCSV
 from sosalgo.certificates import CertificateFamily, describe_family, family_from_description
-from sosalgo.expr.compile import compile_expression
 from sosalgo.model import ModelError, parameter_values
 from sosalgo.schema import (
     analysis_columns,
@@ -28,7 +25,9 @@ from sosalgo.schema import (
     p_columns,
 )
 from sosalgo.solvers import DEFAULT_SOLVERS
-from sosalgo.spec import BASE_NAMES, Spec, spec_from_text
+from sosalgo.spec import Spec, spec_from_text
+from sosalgo.spec.references import reference_values
+from sosalgo.store import ResumableCSV
 
 __all__ = [
     "analysis_columns",
@@ -39,7 +38,6 @@ __all__ = [
     "p_columns",
     "analysis_chunk",
     "run_analysis_sweep",
-    "reference_values",
     "csv_row_to_json",
 ]
 
@@ -83,53 +81,6 @@ def _family_settings(fam: CertificateFamily) -> dict[str, Any] | None:
     (so that Theorem 1 runs keep their settings files)."""
     desc = describe_family(fam)
     return None if fam.is_default and desc == {"family": fam.name} else desc
-
-
-_REFERENCES: weakref.WeakKeyDictionary[Spec, dict[str, Any]] = weakref.WeakKeyDictionary()
-
-
-def _reference_fns(spec: Spec) -> dict[str, Any]:
-    """The spec's references compiled once (None for one that cannot be compiled)."""
-    fns = _REFERENCES.get(spec)
-    if fns is None:
-        fns = {}
-        for name, expr in spec.references.items():
-            try:
-                fns[name] = compile_expression(expr, BASE_NAMES)
-            except ValueError:
-                fns[name] = None
-        _REFERENCES[spec] = fns
-    return fns
-
-
-def reference_values(spec: Spec, kappa: float) -> dict[str, float | None]:
-    """Closed-form reference rates at kappa (None where not defined)."""
-    out: dict[str, float | None] = {}
-    m, L = spec.mL(kappa)
-    for name, fn in _reference_fns(spec).items():
-        try:
-            out[name] = None if fn is None else fn([m, L, kappa])
-        except ValueError:
-            out[name] = None
-    return out
-
-
-def reference_curves(
-    spec: Spec, kappas: Sequence[float], points: int = 400
-) -> tuple[list[float], dict[str, list[float | None]]] | None:
-    """The references on a fine kappa grid spanning ``kappas`` (log-spaced over a decade or
-    more, else linear), for smooth curves in figures; None for fewer than two kappas."""
-    ks = [float(k) for k in kappas]
-    if len(set(ks)) < 2:
-        return None
-    lo, hi = min(ks), max(ks)
-    grid = np.geomspace(lo, hi, points) if hi >= 10 * lo else np.linspace(lo, hi, points)
-    grid = np.union1d(grid, ks)  # the data kappas stay on the curve
-    out: dict[str, list[float | None]] = {name: [] for name in spec.references}
-    for k in grid:
-        for name, v in reference_values(spec, float(k)).items():
-            out[name].append(v)
-    return [float(k) for k in grid], out
 
 
 def result_row(spec: Spec, res: AnalysisResult,

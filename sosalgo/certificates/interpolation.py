@@ -651,13 +651,13 @@ class Interpolation(CertificateFamily):
     def exact_check(self, spec: Spec, kappa: float, rho: float, cert: Mapping[str, Any],
                     theta: Mapping[str, float] | None = None, **options: Any) -> Any:
         """Exact rational proof of (D) and (P), the certificate's own lag
-        (:func:`sosalgo.verify.exact_interpolation.verify_exact_interpolation`; on the
-        oracle model :func:`sosalgo.verify.exact_composite.verify_exact_composite`)."""
+        (:func:`sosalgo.certificates.exact_interpolation.verify_exact_interpolation`; on the
+        oracle model :func:`sosalgo.certificates.exact_composite.verify_exact_composite`)."""
         if spec.composite:
-            from sosalgo.verify.exact_composite import verify_exact_composite
+            from sosalgo.certificates.exact_composite import verify_exact_composite
 
             return verify_exact_composite(spec, kappa, rho, cert, theta, **options)
-        from sosalgo.verify.exact_interpolation import verify_exact_interpolation
+        from sosalgo.certificates.exact_interpolation import verify_exact_interpolation
 
         return verify_exact_interpolation(spec, kappa, rho, cert, theta, family=self, **options)
 

@@ -85,24 +85,6 @@ def _interpolation_latex(spec: Any, syms: dict, ex: Any) -> str:
 
 
 # --------------------------------------------------------------------------- composite specs
-# The pairwise inequality of each shipped class, on the tilted functions h (plain, LaTeX);
-# a class without an entry is listed by its description and its data (alpha, Q).
-CLASS_INEQUALITIES = {
-    "smooth_strongly_convex": (
-        "h_a >= h_b + <g_b, x_a - x_b> + |g_a - g_b|^2/(2L) "
-        "+ m |x_a - x_b - (g_a - g_b)/L|^2/(2(1 - m/L))",
-        r"h_a \ge h_b + \langle g_b, x_a - x_b\rangle + \frac{\|g_a - g_b\|^2}{2L}"
-        r" + \frac{m\,\|x_a - x_b - (g_a - g_b)/L\|^2}{2(1 - m/L)}"),
-    "convex": ("h_a >= h_b + <g_b, x_a - x_b>",
-               r"h_a \ge h_b + \langle g_b, x_a - x_b\rangle"),
-    "strongly_convex": ("h_a >= h_b + <g_b, x_a - x_b> + (m/2)|x_a - x_b|^2",
-                        r"h_a \ge h_b + \langle g_b, x_a - x_b\rangle"
-                        r" + \tfrac{m}{2}\|x_a - x_b\|^2"),
-    "indicator": ("h_a >= h_b + <g_b, x_a - x_b>, values h >= 0 kept free (tilted "
-                  "indicator: a relaxation)",
-                  r"h_a \ge h_b + \langle g_b, x_a - x_b\rangle,\ h \ge 0\ "
-                  r"\text{(tilted indicator, relaxed)}"),
-}
 
 
 def _rows(mats: dict[str, Any], p: int, steps: int, output: int | None) -> dict[str, Any]:
@@ -134,16 +116,6 @@ def _dot(row: Any, names: list[str]) -> str:
     return " + ".join(terms).replace("+ -", "- ") or "0"
 
 
-def _class_text(fn: Any, latex: bool) -> str:
-    """The pairwise inequality of a function's class (or its data, for an unlisted one)."""
-    known = CLASS_INEQUALITIES.get(fn.cls.name)
-    if known is not None:
-        return known[1] if latex else known[0]
-    data = "; ".join(f"alpha = {q.alpha:g}, Q = {sp.sstr(sp.Matrix(q.Q))}"
-                     for q in fn.cls.tilted(fn.params))
-    return f"{fn.cls.description}: alpha (h_a - h_b) + X'QX >= 0, {data}"
-
-
 def _functions(spec: Any, om: Any, latex: bool) -> list[str]:
     """One line per function: its class, parameters, calls (gradient or proximal step)."""
     lines = []
@@ -155,7 +127,7 @@ def _functions(spec: Any, om: Any, latex: bool) -> list[str]:
                           for i, o in enumerate(om.oracles) if o == j)
         head = f"{fn.name}: {fn.cls.name}" + (f" ({params})" if params else "")
         lines.append(f"{head}; calls {calls}; for every ordered pair (a, b) of its points: "
-                     f"{_class_text(fn, latex)}")
+                     f"{fn.cls.listing_text(fn.params, latex)}")
     return lines
 
 
@@ -231,7 +203,7 @@ def _composite_latex(spec: Any, om: Any, st: Any, lag: int, rows: dict[str, Any]
                 f"% (P) V_l - sum lambda_ab q_ab >= measure ({p.width}x{p.width}), "
                 f"{len(p.labels)} pairs; w = (xi_0 - xi*, u~[0], ..., u~[{lag + 1}])"]
     rows_tex = [f"\\text{{{fn.name} ({fn.cls.name.replace('_', chr(92) + '_')})}} &: "
-                f"{_class_text(fn, True)}"
+                f"{fn.cls.listing_text(fn.params, True)}"
                 for fn in om.functions]
     for t in range(lag + 2):
         rows_tex.append(f"Y_{{{t}}} &= " + mat(rows["Y"][t]))

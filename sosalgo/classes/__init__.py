@@ -1,10 +1,11 @@
 """Function classes: one module per class, one registry line each.
 
-A class (:class:`~sosalgo.classes.base.FunctionClass`) declares its parameters, the
-oracles it answers, its pairwise interpolation inequalities and its quadratics; the spec
-loader, the oracle model (:mod:`sosalgo.oracles`) and the interpolation certificate
-family read nothing else. To add a class: write a module with a ``FunctionClass``
-subclass and add it below (or call :func:`register_class`).
+A class (:class:`~sosalgo.classes.base.FunctionClass`) owns everything known about it:
+its parameters, the oracles it answers, its pairwise interpolation inequalities (float and
+exact), its quadratics, its listing text, its test functions, the facts the witnesses,
+design floors and noise analysis rely on. The rest of sosalgo asks the class and names
+none (a test checks it). To add a class: write a module with a ``FunctionClass`` subclass
+and add it below (or call :func:`register_class`); docs/classes.md.
 """
 
 from __future__ import annotations
@@ -26,6 +27,13 @@ def register_class(cls: FunctionClass) -> FunctionClass:
     return cls
 
 
+def unregister_class(name: str) -> None:
+    """Remove the class registered under ``name`` (the shipped ones stay)."""
+    if CLASSES.get(name) in _SHIPPED:
+        raise ValueError(f"class {name}: shipped classes cannot be removed")
+    CLASSES.pop(name, None)
+
+
 def get_class(name: str) -> FunctionClass:
     """The class registered under ``name`` (KeyError naming the known ones)."""
     try:
@@ -38,6 +46,9 @@ register_class(smooth_strongly_convex.CLASS)
 register_class(convex.CLASS)
 register_class(strongly_convex.CLASS)
 register_class(indicator.CLASS)
+_SHIPPED = tuple(CLASSES.values())
 
-__all__ = ["CLASSES", "FunctionClass", "Inequality", "ORACLE_KINDS", "convex_form",
-           "get_class", "register_class"]
+SEED_CLASS: FunctionClass = smooth_strongly_convex.CLASS  # F(m, L): a spec without functions:
+
+__all__ = ["CLASSES", "FunctionClass", "Inequality", "ORACLE_KINDS", "SEED_CLASS",
+           "convex_form", "get_class", "register_class", "unregister_class"]

@@ -17,17 +17,34 @@ interpolation certificate family only reads the data declared here:
 - ``finite_everywhere``: the function has a (sub)gradient at every point, so it may be
   evaluated where the method never queries it (the output point of ``measure: function``);
 - :meth:`FunctionClass.curvatures`: the curvatures q of the quadratics (q/2)|x|^2 in the
-  class (an interval, or None), for the rate-on-quadratics lower bound.
+  class (an interval, or None), for the rate-on-quadratics lower bound;
+  :meth:`FunctionClass.exact_curvatures` the same from rational bounds of the parameters
+  (the quadratic rate brackets);
+- :meth:`FunctionClass.exact_tilted`: the exact twin of :meth:`FunctionClass.tilted`, on
+  exact parameters (balls), for the exact checks (None: the float data are enclosed);
+- :meth:`FunctionClass.strong_convexity`: a modulus every function of the class has
+  (searching cycles needs one); :meth:`FunctionClass.gradient_floor`: the lower complexity
+  bound of methods that query gradients of it alone (the class floor of a design);
+  ``noisy_gradients``: its gradient calls may carry noise (noise sensitivity);
+- ``tilted_text``: its tilted inequality as text and LaTeX (``sosalgo lmi`` listings);
+- :meth:`FunctionClass.test_functions`: functions of the class with closed-form proximal
+  steps (:mod:`sosalgo.classes.members`), for simulations.
+
+:data:`sosalgo.classes.SEED_CLASS` is F(m, L), the class of a spec without ``functions:``.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from fractions import Fraction
+from typing import Any
 
 import numpy as np
 
-__all__ = ["FunctionClass", "Inequality", "ORACLE_KINDS", "convex_form"]
+from sosalgo.classes.members import ProxFunction, quadratic
+
+__all__ = ["FunctionClass", "Inequality", "ORACLE_KINDS", "convex_form", "exact_convex_form"]
 
 ORACLE_KINDS = ("gradient", "subgradient", "proximal")
 
@@ -51,6 +68,8 @@ class FunctionClass:
     zero_values: bool = False
     finite_everywhere: bool = False
     tilt_invariant: bool = True
+    noisy_gradients: bool = False
+    tilted_text: tuple[str, str] | None = None  # (plain, LaTeX); None: listed by its data
 
     def check(self, params: Mapping[str, float]) -> None:
         """Raise ValueError('<parameter>: what is wrong') for invalid values."""
@@ -70,6 +89,54 @@ class FunctionClass:
         """[lo, hi] such that (q/2)|x|^2 is in the class for q in [lo, hi] (None: none)."""
         return None
 
+    def exact_curvatures(self, lower: Callable[[str], Fraction],
+                         upper: Callable[[str], Fraction],
+                         ) -> tuple[Fraction, Fraction] | None:
+        """A rational [lo, hi] such that (q/2)|x|^2 is in the class for every q in it and
+        every parameter value p with ``lower(p) <= p <= upper(p)`` (rational bounds of each
+        parameter's enclosure); None: none known."""
+        return None
+
+    def exact_tilted(self, params: Mapping[str, Any]) -> list[tuple[Any, Any]] | None:
+        """The exact twin of :meth:`tilted`: (alpha, Q) of each inequality, computed from the
+        exact parameters (balls) with rational constants, so that every entry encloses the
+        exact value; None: no exact data (the float data are enclosed instead)."""
+        return None
+
+    def strong_convexity(self, params: Mapping[str, float]) -> float:
+        """A modulus mu > 0 such that every function of the class is mu-strongly convex
+        (0: none)."""
+        return 0.0
+
+    def gradient_floor(self, params: Mapping[str, float]) -> float | None:
+        """A rate no first-order method querying gradients of one function of the class
+        alone can beat on the whole class (a theorem), or None."""
+        return None
+
+    def listing_text(self, params: Mapping[str, float], latex: bool) -> str:
+        """The pairwise inequality of the tilted functions, for listings: ``tilted_text``,
+        else the description and the data (alpha, Q)."""
+        if self.tilted_text is not None:
+            return self.tilted_text[1] if latex else self.tilted_text[0]
+        import sympy as sp  # listings only: numeric work never imports sympy
+
+        data = "; ".join(f"alpha = {q.alpha:g}, Q = {sp.sstr(sp.Matrix(q.Q))}"
+                         for q in self.tilted(params))
+        return f"{self.description}: alpha (h_a - h_b) + X'QX >= 0, {data}"
+
+    def test_functions(self, params: Mapping[str, float], xs: np.ndarray,
+                       rng: np.random.Generator) -> list[ProxFunction]:
+        """Functions of the class at these parameters with closed-form proximal steps, built
+        around the minimizer ``xs`` (:mod:`sosalgo.classes.members`): by default the
+        quadratics at both ends of :meth:`curvatures` (none without)."""
+        cur = self.curvatures(params)
+        if cur is None:
+            return []
+        lo, hi = cur
+        d = len(xs)
+        return [quadratic(np.full(d, lo), xs, rng, "quad-lo"),
+                quadratic(np.full(d, hi), xs, rng, "quad-hi")]
+
     @property
     def explicit(self) -> bool:
         """Whether the class answers a (sub)gradient call (a zero diagonal entry of D)."""
@@ -88,4 +155,16 @@ def convex_form(mu: float = 0.0) -> np.ndarray:
     Q[0, 3] = Q[3, 0] = -0.5  # -<g_b, x_a>
     Q[1, 3] = Q[3, 1] = 0.5  # +<g_b, x_b>
     Q[:2, :2] -= 0.5 * mu * np.array([[1.0, -1.0], [-1.0, 1.0]])
+    return Q
+
+
+def exact_convex_form(mu: Any = 0) -> np.ndarray:
+    """:func:`convex_form` on exact numbers: ``mu`` a ball or a rational; entries are
+    rationals or balls (object array)."""
+    h = Fraction(1, 2)
+    Q = np.full((4, 4), Fraction(0), dtype=object)
+    Q[0, 3] = Q[3, 0] = -h
+    Q[1, 3] = Q[3, 1] = h
+    Q[0, 0] = Q[1, 1] = -(mu * h)
+    Q[0, 1] = Q[1, 0] = mu * h
     return Q

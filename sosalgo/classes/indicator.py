@@ -7,13 +7,21 @@ h(x*) = 0, and its values on the set are -<s*, x - x*>: the certificate keeps th
 nonnegative values with the convex inequalities (:meth:`Indicator.tilted`), a relaxation:
 the rates it certifies hold for every closed convex function queried by the same
 proximal steps, indicators included.
+
+Test functions: the indicators of a box, of a ball, of the whole space.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
+from dataclasses import replace
+from fractions import Fraction
+from typing import Any
 
-from sosalgo.classes.base import FunctionClass, Inequality, convex_form
+import numpy as np
+
+from sosalgo.classes.base import FunctionClass, Inequality, convex_form, exact_convex_form
+from sosalgo.classes.members import ProxFunction, ball, box, zero
 
 
 class Indicator(FunctionClass):
@@ -22,6 +30,10 @@ class Indicator(FunctionClass):
     oracles = frozenset({"proximal"})
     zero_values = True
     tilt_invariant = False
+    tilted_text = ("h_a >= h_b + <g_b, x_a - x_b>, values h >= 0 kept free (tilted "
+                   "indicator: a relaxation)",
+                   r"h_a \ge h_b + \langle g_b, x_a - x_b\rangle,\ h \ge 0\ "
+                   r"\text{(tilted indicator, relaxed)}")
 
     def tilted(self, params: Mapping[str, float]) -> list[Inequality]:
         return [Inequality(1.0, convex_form())]
@@ -31,6 +43,18 @@ class Indicator(FunctionClass):
 
     def curvatures(self, params: Mapping[str, float]) -> tuple[float, float]:
         return 0.0, 0.0  # the indicator of the whole space
+
+    def exact_tilted(self, params: Mapping[str, Any]) -> list[tuple[Any, Any]]:
+        return [(Fraction(1), exact_convex_form())]
+
+    def exact_curvatures(self, lower: Callable[[str], Fraction],
+                         upper: Callable[[str], Fraction]) -> tuple[Fraction, Fraction]:
+        return Fraction(0), Fraction(0)  # the indicator of the whole space
+
+    def test_functions(self, params: Mapping[str, float], xs: np.ndarray,
+                       rng: np.random.Generator) -> list[ProxFunction]:
+        return [box(xs, rng), ball(xs, rng), replace(zero(xs), name="whole-space",
+                                                     tiltable=False, grad=None)]
 
 
 CLASS = Indicator()

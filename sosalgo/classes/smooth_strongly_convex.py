@@ -2,15 +2,30 @@
 
 Interpolation (Taylor, Hendrickx, Glineur 2017, Thm. 4), scaled by L - m:
 (L - m)(f_a - f_b) + 1/2 X' MM X >= 0 with MM as in Taylor, Van Scoy, Lessard (2018), (11).
+
+Test functions: rotated quadratics with curvatures in [m, L] (random, all m, all L), a
+rotated separable Huber-type m/2 z^2 + (L - m) H_delta(z) (curvature L near the kink
+region, m outside). Gradient-only methods cannot beat 1 - 1/sqrt(L/m) on the class (the
+lower complexity bound attained by the triple momentum method; Drori, Taylor 2022).
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import math
+from collections.abc import Callable, Mapping
+from fractions import Fraction
+from typing import Any
 
 import numpy as np
 
 from sosalgo.classes.base import FunctionClass, Inequality
+from sosalgo.classes.members import ProxFunction, huber_smooth, quadratic
+
+
+def _mm(m: Any, L: Any) -> list[list[Any]]:
+    """MM of the interpolation inequality (floats or exact numbers)."""
+    return [[-(m * L), m * L, m, -L], [m * L, -(m * L), -m, L], [m, -m, -1, 1],
+            [-L, L, 1, -1]]
 
 
 class SmoothStronglyConvex(FunctionClass):
@@ -20,6 +35,12 @@ class SmoothStronglyConvex(FunctionClass):
     defaults = {"m": "m", "L": "L"}
     oracles = frozenset({"gradient", "proximal"})
     finite_everywhere = True
+    noisy_gradients = True
+    tilted_text = (
+        "h_a >= h_b + <g_b, x_a - x_b> + |g_a - g_b|^2/(2L) "
+        "+ m |x_a - x_b - (g_a - g_b)/L|^2/(2(1 - m/L))",
+        r"h_a \ge h_b + \langle g_b, x_a - x_b\rangle + \frac{\|g_a - g_b\|^2}{2L}"
+        r" + \frac{m\,\|x_a - x_b - (g_a - g_b)/L\|^2}{2(1 - m/L)}")
 
     def check(self, params: Mapping[str, float]) -> None:
         m, L = params["m"], params["L"]
@@ -30,12 +51,39 @@ class SmoothStronglyConvex(FunctionClass):
 
     def inequalities(self, params: Mapping[str, float]) -> list[Inequality]:
         m, L = params["m"], params["L"]
-        MM = np.array([[-m * L, m * L, m, -L], [m * L, -m * L, -m, L], [m, -m, -1, 1],
-                       [-L, L, 1, -1]], dtype=float)
+        MM = np.array(_mm(m, L), dtype=float)
         return [Inequality(L - m, 0.5 * MM)]
+
+    def exact_tilted(self, params: Mapping[str, Any]) -> list[tuple[Any, Any]]:
+        m, L = params["m"], params["L"]
+        h = Fraction(1, 2)
+        Q = np.array([[v * h for v in row] for row in _mm(m, L)], dtype=object)
+        return [(L - m, Q)]
 
     def curvatures(self, params: Mapping[str, float]) -> tuple[float, float]:
         return params["m"], params["L"]
+
+    def exact_curvatures(self, lower: Callable[[str], Fraction],
+                         upper: Callable[[str], Fraction]) -> tuple[Fraction, Fraction]:
+        return upper("m"), lower("L")  # an inner interval: every q in it is in [m, L]
+
+    def strong_convexity(self, params: Mapping[str, float]) -> float:
+        return params["m"]
+
+    def gradient_floor(self, params: Mapping[str, float]) -> float | None:
+        m, L = params["m"], params["L"]
+        if not (m > 0 and L > m):
+            return None
+        return 1.0 - 1.0 / math.sqrt(L / m)
+
+    def test_functions(self, params: Mapping[str, float], xs: np.ndarray,
+                       rng: np.random.Generator) -> list[ProxFunction]:
+        d = len(xs)
+        m, L = params["m"], params["L"]
+        q = rng.uniform(m, L, d)
+        q[0], q[-1] = m, L
+        return [quadratic(q, xs, rng, "quadratic"), quadratic(np.full(d, m), xs, rng, "quad-m"),
+                quadratic(np.full(d, L), xs, rng, "quad-L"), huber_smooth(m, L, xs, rng)]
 
 
 CLASS = SmoothStronglyConvex()

@@ -6,8 +6,10 @@ composite problem min f + sum_j g_j the same floor holds when it is a theorem:
 
 * exactly one function f is outside the classes that contain the zero function (a class
   contains it when its quadratics (q/2)|x|^2 include q = 0: ``convex``, ``indicator`` of
-  the whole space, ``smooth_strongly_convex`` with m = 0), and f is
-  ``smooth_strongly_convex`` with m > 0;
+  the whole space, ``smooth_strongly_convex`` with m = 0), and f's class has a floor for
+  methods querying its gradients alone
+  (:meth:`~sosalgo.classes.base.FunctionClass.gradient_floor`: ``smooth_strongly_convex``
+  with m > 0, 1 - 1/sqrt(L_f/m_f));
 * every call to f is a gradient call (its diagonal entry of D is identically 0).
 
 Then the problems with every g_j = 0 are in the class; on them a proximal step on g_j is
@@ -15,7 +17,7 @@ the identity and its subgradient is 0, so the method is a first-order method que
 gradients of f alone, and the floor of F(m_f, L_f) bounds its worst case, hence that of the
 whole class. Anything else (a proximal step on f, as in the proximal point method or
 Douglas-Rachford, which converge arbitrarily fast as t grows; two strongly convex
-functions; an unknown class) gets no floor: None.
+functions; a class without a gradient floor) gets no floor: None.
 """
 
 from __future__ import annotations
@@ -60,10 +62,10 @@ def class_floor(spec: Spec, kappa: float) -> float | None:
     except ModelError:
         return None
     hard = [fn for fn in om.functions if not _contains_zero(fn)]
-    if len(hard) != 1 or hard[0].cls.name != "smooth_strongly_convex":
+    if len(hard) != 1:
         return None
     f = hard[0]
-    m, L = f.params["m"], f.params["L"]
-    if not (m > 0 and L > m) or not _gradient_only(spec, f.name):
+    floor = f.cls.gradient_floor(f.params)
+    if floor is None or not _gradient_only(spec, f.name):
         return None
-    return 1.0 - 1.0 / math.sqrt(L / m)
+    return floor

@@ -2,7 +2,7 @@
 
 ``sosalgo design --objective noise --max-rate R``: the least sensitive θ in Θ whose
 certified rate is <= R; ``--objective rate --max-noise G``: the fastest θ whose certified
-sensitivity is <= G (README, "Robustness to gradient noise", "Design on the front").
+sensitivity is <= G (docs/noise.md, "Design on the front").
 
 The search is a heuristic (there is no box-wide lower bound for these objectives:
 ``bound_status: unsupported``): a grid over Θ (the *cloud*: screened rate and noise at

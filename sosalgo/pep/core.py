@@ -5,6 +5,7 @@
 from __future__ import annotations
 
 import math
+import re
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -19,9 +20,24 @@ from sosalgo.pep.structure import Method, PEPStructure, build_structure, deadbea
 from sosalgo.pep.terms import Term, parse_terms
 from sosalgo.spec import Spec
 
-__all__ = ["MAX_STEPS", "PEPResult", "float_method", "pep", "pep_problem"]
+__all__ = ["MAX_STEPS", "PEPResult", "float_method", "parse_steps", "pep", "pep_problem"]
 
 MAX_STEPS = 200
+
+
+def parse_steps(text: object) -> list[int]:
+    """``N`` or ``1..N`` (any ``a..b``), 1 <= a <= b <= MAX_STEPS."""
+    src = str(text).strip()
+    hit = re.fullmatch(r"(\d+)(?:\s*\.\.\s*(\d+))?", src)
+    if hit is None:
+        raise InputError(f"--steps: expected N or a range a..b, got {src!r}")
+    a = int(hit.group(1))
+    b = int(hit.group(2)) if hit.group(2) else a
+    if not 1 <= a <= b <= MAX_STEPS:
+        raise InputError(f"--steps: need 1 <= N <= {MAX_STEPS} (and a <= b), got {src!r}")
+    return list(range(a if hit.group(2) else a, b + 1))
+
+
 MARGINS = (1e-9, 1e-8, 1e-7, 1e-6)  # relative margins of the certificate solve, in order
 # beyond LONG steps the float dual's error (late vectors orders of magnitude below the
 # first) exceeds 1e-6 of tau: only the larger margins, tau_proven about 1e-5 above tau;

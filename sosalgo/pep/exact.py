@@ -5,7 +5,7 @@ The method is rebuilt on exact numbers about the class as written
 1/10), kappa the decimal it was given as, L = kappa m; every parameter and matrix entry
 from the spec's expressions with sympy, irrational entries enclosed in rational balls
 (:func:`sosalgo.verify.exact.enclose`), the classes' tilted inequalities from exact formulas
-(:func:`sosalgo.verify.exact_composite.exact_class_inequalities`), the fixed points
+(:func:`sosalgo.certificates.exact_composite.exact_class_inequalities`), the fixed points
 (u and the optimal-subgradient fixed points) solved exactly with sympy, and the PEP
 structure (:func:`sosalgo.pep.structure.build_structure`) built again on those numbers,
 with the same labels and the same basis as the float one (the gain K that defines the
@@ -157,10 +157,10 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
     """The exact :class:`Method` of ``spec`` (``om``: its float OracleMethod, for shapes),
     its irrational entries enclosed precisely enough for a trajectory of ``steps`` steps
     (:func:`sosalgo.pep.structure.enclosure_digits`)."""
+    from sosalgo.certificates.exact_composite import exact_class_inequalities
     from sosalgo.expr.parse import to_sympy
     from sosalgo.verify.exact import Ball
     from sosalgo.verify.exact import enclose as enclose_at
-    from sosalgo.verify.exact_composite import exact_class_inequalities
 
     K = np.array([[Fraction(float(v)) for v in row]
                   for row in deadbeat_gain(om.A, om.B, float(om.L))], dtype=object)

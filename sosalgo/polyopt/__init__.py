@@ -2,7 +2,7 @@
 
 ``PolyProblem`` states a POP with sympy; ``solve_moment_relaxation`` solves one moment
 relaxation, detects exactness (flat extension) and extracts global minimizers
-(Henrion-Lasserre). See README, section "Polynomial optimization module".
+(Henrion-Lasserre). See docs/polyopt.md.
 """
 
 from .problem import PolyProblem

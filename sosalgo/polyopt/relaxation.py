@@ -93,7 +93,7 @@ _STATUS = {
 
 @dataclass
 class RelaxationResult:
-    """Outcome of :func:`solve_moment_relaxation` (README, polynomial optimization, Result).
+    """Outcome of :func:`solve_moment_relaxation` (docs/polyopt.md, "Result").
 
     Attributes:
         bound: "optimal": a lower bound on the POP's minimum proven by the dual

@@ -12,7 +12,6 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.batch.sweeps import reference_curves
 from sosalgo.certificates import CertificateFamily
 from sosalgo.model import bind
 from sosalgo.report import format_table, plot_rates
@@ -26,6 +25,7 @@ from sosalgo.report.legend import (
 )
 from sosalgo.schema import ANALYSIS_COLUMNS, FAMILY_COLUMNS, SUBLINEAR_COLUMNS, printed_columns
 from sosalgo.spec import Spec
+from sosalgo.spec.references import reference_curves
 
 __all__ = ["ANALYSIS_COLUMNS", "FAMILY_COLUMNS", "analysis_figure", "analysis_lines",
            "analysis_table", "attach_checks", "families_figure", "noise_table",

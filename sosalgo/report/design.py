@@ -10,11 +10,11 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from sosalgo.batch.sweeps import design_csv_to_json, reference_curves
 from sosalgo.certificates import CertificateFamily
 from sosalgo.report import format_table, plot_rates
 from sosalgo.schema import printed_columns
 from sosalgo.spec import Spec
+from sosalgo.spec.references import reference_curves
 
 __all__ = ["LEGEND", "design_figure", "design_table", "proven_bound", "verdict",
            "verification_notes"]
@@ -25,7 +25,7 @@ LEGEND = "\n".join([
     "rho_at_values: certified rate at the spec's own values",
     "floor: 1 - 1/sqrt(kappa), no first-order method is faster on F(m, L) (composite specs: "
     "only where",
-    "  that is a theorem, see the docs; empty otherwise)"])
+    "  that is a theorem, see docs/commands/design.md; empty otherwise)"])
 
 
 def tighter_family_note(spec: Spec, family: str, certificate: str | None) -> str | None:
@@ -97,9 +97,8 @@ def design_figure(spec: Spec, names: Sequence[str], rows: Sequence[dict[str, str
     A bound of 0 proves nothing and is drawn as missing; without any bound the figure
     has no bound curve and its title says "no lower bound" (``how`` names the method
     otherwise)."""
-    refs = {name: [r.get("references", {}).get(name) for r in
-                   (design_csv_to_json(spec, names, x, fam) for x in rows)]
-            for name in spec.references}
+    refs = {name: [None if x[name] in ("", None) else float(x[name]) for x in rows]
+            for name in spec.references}  # the CSV's reference columns
     bounds = [proven_bound(d) for d in docs]
     series = {"designed (certified)": [d["rho_certified"] for d in docs]}
     if any(b is not None for b in bounds):

@@ -1,11 +1,11 @@
-"""Certified sensitivity to additive gradient noise (README, "Robustness to gradient noise").
+"""Certified sensitivity to additive gradient noise (docs/noise.md).
 
 - :func:`noise_certificate`: for a bound method and a lag, the certified upper bound gamma
   on the sensitivity over F(m, L) with its certificate (one SDP, floating-point checked);
 - :func:`noise_quadratic`: the exact sensitivity on the quadratics (q/2)|x|^2, q in [m, L]
   (a discrete Lyapunov equation per q, the largest over q);
 - :func:`noise_limsup_certificate`: the certified bound on the limsup itself (a discounted
-  dissipation inequality, rho searched; README, "The limsup itself");
+  dissipation inequality, rho searched; docs/noise.md, "The limsup itself");
 - :func:`verify_noise`: the exact (rational) proof of a certificate (``limsup=True``: of a
   ``noise_limsup`` certificate);
 - :func:`analyze_noise`: all three for a spec at one kappa (``sosalgo analyze --noise``).

@@ -1,4 +1,4 @@
-"""Noise sensitivity of composite methods (README, "Robustness to gradient noise",
+"""Noise sensitivity of composite methods (docs/noise.md,
 composite specs): noise on the gradient calls of the smooth function(s).
 
 The noisy calls i (gradient calls on ``smooth_strongly_convex`` functions) get
@@ -67,9 +67,10 @@ class NoisyModel(CallShape):
 
 
 def noisy_calls(om: Any) -> list[int]:
-    """The gradient calls (D_ii = 0) on smooth_strongly_convex functions."""
+    """The gradient calls (D_ii = 0) on functions of classes with ``noisy_gradients``
+    (smooth_strongly_convex)."""
     return [i for i, j in enumerate(om.oracles)
-            if om.functions[j].cls.name == "smooth_strongly_convex" and om.D[i, i] == 0]
+            if om.functions[j].cls.noisy_gradients and om.D[i, i] == 0]
 
 
 def _augment(A: Any, B: Any, C: Any, D: Any, noisy: list[int], zero: Any) -> tuple:
@@ -83,7 +84,7 @@ def _augment(A: Any, B: Any, C: Any, D: Any, noisy: list[int], zero: Any) -> tup
 
 def noisy_model(om: Any, exact: Any = None) -> NoisyModel | Any:
     """The float model of an OracleMethod ``om`` (or, with ``exact`` an
-    :class:`~sosalgo.verify.exact_composite.ExactOracleMethod`, the exact one)."""
+    :class:`~sosalgo.certificates.exact_composite.ExactOracleMethod`, the exact one)."""
     noisy = noisy_calls(om)
     J = len(om.functions)
     if exact is None:
@@ -303,13 +304,13 @@ def exact_noise_structure(spec: Any, kappa: float, theta: Any, lag: int, digits:
     columns): the data of the exact proof (:mod:`sosalgo.sensitivity.exact`)."""
     from types import SimpleNamespace
 
-    from sosalgo.model import bind
-    from sosalgo.verify.exact_composite import (
+    from sosalgo.certificates.exact_composite import (
         exact_class_inequalities,
         exact_oracle_method,
         exact_window,
         fixed_point_failure,
     )
+    from sosalgo.model import bind
 
     om = bind(spec, float(kappa), theta)
     nm = noisy_model(om)

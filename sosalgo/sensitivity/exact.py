@@ -3,7 +3,7 @@
 The certificate (P, p, s, c and the multipliers, original units) of
 :func:`sosalgo.sensitivity.sdp.noise_certificate` is checked without floating point in the
 proof path, as the interpolation family's certificates are
-(:mod:`sosalgo.verify.exact_interpolation`):
+(:mod:`sosalgo.certificates.exact_interpolation`):
 
 1. the method is made exact (:func:`sosalgo.verify.exact.exact_algorithm`: rational kappa,
    m, L, rational balls around irrational entries) and its fixed point proven;
@@ -12,7 +12,7 @@ proof path, as the interpolation family's certificates are
 3. the windows (:mod:`sosalgo.sensitivity.window`) and the four parts are computed in
    midpoint-radius arithmetic; the function-value rows are checked exactly (<= 0, >= 0)
    and -D ⪰ delta I, Pq ⪰ delta I proven by rational LDL^T with delta above the radius
-   of the enclosure (:func:`sosalgo.verify.exact_interpolation.prove_definite`);
+   of the enclosure (:func:`sosalgo.certificates.exact_interpolation.prove_definite`);
 4. the proven bound is gamma <= sqrt(s), a rational rounded upward.
 
 With ``limsup`` the certificate of ``noise_limsup`` (:mod:`sosalgo.sensitivity.limsup`):
@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Any
 
+from sosalgo.certificates.exact_interpolation import Refused, symmetric_matrix
 from sosalgo.sensitivity.limsup import limsup_bound
 from sosalgo.sensitivity.sdp import noise_windows
 from sosalgo.sensitivity.window import noise_parts, past_noise, state_size
@@ -42,7 +43,6 @@ from sosalgo.verify.exact import (
     fraction_str,
     rational,
 )
-from sosalgo.verify.exact_interpolation import Refused, symmetric_matrix
 
 __all__ = ["NoiseProof", "verify_composite_noise", "verify_noise", "sqrt_upper"]
 
@@ -85,9 +85,9 @@ def sqrt_upper(s: Fraction, digits: int = 10) -> Fraction:
 def _exact_windows(spec: Spec, kappa: float, theta: Mapping[str, float] | None, lag: int,
                    digits: int) -> tuple[Any, Any, int]:
     """(decrease, positivity) windows of the exact method, and its number of states."""
-    from sosalgo.classes import CLASSES
+    from sosalgo.certificates.exact_composite import exact_class_inequalities
+    from sosalgo.classes import SEED_CLASS
     from sosalgo.model import bind, fixed_point
-    from sosalgo.verify.exact_composite import exact_class_inequalities
 
     try:
         ex = exact_algorithm(spec, kappa, theta, digits)
@@ -96,10 +96,9 @@ def _exact_windows(spec: Spec, kappa: float, theta: Mapping[str, float] | None, 
         raise Refused(f"the exact method cannot be built: {exc}") from None
     if exact_fixed_point(ex, fixed_point(alg)) is None:
         raise Refused("fixed point (u with (I - A)u = 0, Cu = 1, Eu = 1) not proven")
-    ineqs, _ = exact_class_inequalities(CLASSES["smooth_strongly_convex"],
-                                        {"m": Ball(ex.m), "L": Ball(ex.L)})
+    ineqs, _ = exact_class_inequalities(SEED_CLASS, {"m": Ball(ex.m), "L": Ball(ex.L)})
     alpha, Q = ineqs[0]
-    from sosalgo.verify.exact_interpolation import object_matrix
+    from sosalgo.certificates.exact_interpolation import object_matrix
 
     mats = [object_matrix(ex.balls[k]) for k in ("A", "B", "C", "E")]
     dec, pos = noise_windows(*mats, alpha, Q, lag, obj=True)
@@ -147,7 +146,7 @@ def _read_limsup(cert: Mapping[str, Any], dec: Any, pos: Any, num: dict[str, Any
 def _prove(res: NoiseProof, dec: Any, pos: Any, num: dict[str, Any]) -> None:
     """The four parts in exact arithmetic; ``res`` becomes verified when all hold (with
     ``rho2`` in ``num``: the discounted parts and bound of ``noise_limsup``)."""
-    from sosalgo.verify.exact_interpolation import prove_definite, symmetrize_balls
+    from sosalgo.certificates.exact_interpolation import prove_definite, symmetrize_balls
 
     rho2 = num.get("rho2")
     parts = noise_parts(dec, pos, num["P"], num["p"], num["s"], num["c"], num["eta"],
@@ -198,10 +197,10 @@ def verify_composite_noise(spec: Spec, kappa: float, cert: Mapping[str, Any],
     (:func:`sosalgo.sensitivity.composite.composite_noise_certificate`): its parts on the
     exact method, -D ⪰ delta I and Pq ⪰ delta I by rational LDL^T, the value rows exactly;
     gamma <= sqrt(s) rounded up; the fixed points proven exactly as for the rates
-    (:func:`sosalgo.verify.exact_composite.fixed_point_failure`)."""
+    (:func:`sosalgo.certificates.exact_composite.fixed_point_failure`)."""
+    from sosalgo.certificates.exact_interpolation import prove_definite, symmetrize_balls
     from sosalgo.sensitivity.composite import composite_noise_parts, exact_noise_structure
     from sosalgo.sensitivity.sdp import check_lag
-    from sosalgo.verify.exact_interpolation import prove_definite, symmetrize_balls
 
     start = time.perf_counter()
     res = NoiseProof(spec=spec.name)

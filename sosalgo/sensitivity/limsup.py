@@ -1,4 +1,4 @@
-"""A certified bound on the limsup itself: ``noise_limsup`` (README, "The limsup itself").
+"""A certified bound on the limsup itself: ``noise_limsup`` (docs/noise.md, "The limsup itself").
 
 ``noise`` (:mod:`sosalgo.sensitivity.sdp`) bounds the long-run *average* of
 E|x_k - x*|^2 / d. Here, on the same windows, a discounted dissipation inequality
@@ -63,7 +63,7 @@ def quadratic_radius(alg: Any, points: int = 41) -> float:
 
 
 def limsup_bound(cert: dict[str, Any], tau: Any) -> Any:
-    """gamma^2 <= (s + sum sd) / (1 - rho^2) + sum r, tau = 1 - rho^2 (README, "The limsup
+    """gamma^2 <= (s + sum sd) / (1 - rho^2) + sum r, tau = 1 - rho^2 (docs/noise.md, "The limsup
     itself"); exact when the entries and tau are rationals."""
     return (cert["s"] + sum(cert.get("sd", ()))) / tau + sum(cert.get("r", ()))
 

@@ -1,4 +1,4 @@
-"""The exact noise sensitivity on quadratics (README, "Robustness to gradient noise").
+"""The exact noise sensitivity on quadratics (docs/noise.md).
 
 On f = (q/2)|x - x*|^2 the noisy method is linear: xi_{k+1} - xi* = A_q (xi_k - xi*) + B w_k
 with A_q = A + q B C. When A_q is Schur stable the covariance of xi_k - xi* tends (per

@@ -3,7 +3,8 @@
 :func:`analyze_noise` is what ``sosalgo analyze --noise`` computes per kappa (and the
 Python twin ``sosalgo.noise``): the certified bound of :func:`best_noise_certificate`
 (the lag given, or the best of lags 0 .. n + 1), its exact proof, and the exact
-sensitivity on quadratics beside it. Its CSV cells are :data:`NOISE_COLUMNS`.
+sensitivity on quadratics beside it. Its CSV cells are
+:data:`sosalgo.schema.NOISE_COLUMNS`.
 """
 
 from __future__ import annotations
@@ -16,13 +17,12 @@ from dataclasses import dataclass
 from typing import Any
 
 from sosalgo.errors import InputError
-from sosalgo.schema import NOISE_COLUMNS
 from sosalgo.sensitivity.quadratic import QuadraticNoise, noise_quadratic
 from sosalgo.sensitivity.sdp import MAX_LAG, NoiseCertificate, noise_certificate
 from sosalgo.spec import Spec
 
 __all__ = ["NoiseResult", "analyze_noise", "best_noise_certificate", "check_noise_spec",
-           "limsup_fields", "noise_cells", "noise_json", "NOISE_COLUMNS", "LAG_GAIN"]
+           "limsup_fields", "noise_cells", "noise_json", "LAG_GAIN"]
 
 LAG_GAIN = 1e-6  # relative improvement that counts as a gain when the lag is chosen
 
@@ -93,7 +93,7 @@ class NoiseResult:
     proof: dict[str, Any] | None
     seconds: float
     detail: str = ""
-    # noise_limsup: the certified bound on the limsup itself (README, "The limsup itself")
+    # noise_limsup: the certified bound on the limsup itself (docs/noise.md, "The limsup itself")
     noise_limsup: float | None = None
     noise_limsup_rho: float | None = None
     noise_limsup_check: str = "none"  # "exact", "float" or "none"
@@ -191,8 +191,8 @@ def analyze_noise(spec: Spec, kappa: float, theta: Mapping[str, float] | None = 
 
 
 def noise_cells(res: NoiseResult) -> dict[str, Any]:
-    """The CSV cells of :data:`NOISE_COLUMNS` (the certificate as one JSON object; an
-    empty ``noise_quadratic`` means unstable on some quadratic of the class)."""
+    """The CSV cells of :data:`sosalgo.schema.NOISE_COLUMNS` (the certificate as one JSON
+    object; an empty ``noise_quadratic`` means unstable on some quadratic of the class)."""
     q = res.noise_quadratic
     return {"noise": res.noise, "noise_quadratic": q if math.isfinite(q) else None,
             "noise_lag": res.lag if res.noise is not None else None,

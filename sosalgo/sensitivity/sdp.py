@@ -4,7 +4,7 @@
 parts of :func:`sosalgo.sensitivity.window.noise_parts` (decrease ⪯ 0, positivity ⪰ 0,
 their function-value rows, eta, lambda >= 0), each strict by a small margin so that the
 certificate survives rounding to rationals; gamma = sqrt(s) is then an upper bound on the
-sensitivity over the whole class F(m, L) (README, "Robustness to gradient noise").
+sensitivity over the whole class F(m, L) (docs/noise.md).
 
 The problem is solved for f/L in F(m/L, 1) (same iterates; B scaled by L, noise by 1/L),
 where the data are of order one; the certificate is returned in original units. A
@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sps
 
-from sosalgo.classes import CLASSES
+from sosalgo.classes import SEED_CLASS
 from sosalgo.sensitivity.quadratic import quadratic_gamma2
 from sosalgo.sensitivity.window import (
     NoiseWindow,
@@ -296,7 +296,7 @@ def scaled_problem(alg: Any, lag: int, limsup: bool = False,
     for f/L in F(m/L, 1) (B scaled by L); ``limsup``: the layout of noise_limsup."""
     check_lag(lag)
     L = float(alg.L)
-    ineq = CLASSES["smooth_strongly_convex"].inequalities({"m": alg.m / L, "L": 1.0})[0]
+    ineq = SEED_CLASS.inequalities({"m": alg.m / L, "L": 1.0})[0]
     dec, pos = noise_windows(alg.A, alg.B * L, alg.C, alg.E, ineq.alpha, ineq.Q, lag)
     N = state_size(alg.n, lag)
     return dec, pos, N, layout(N, lag, dec, pos, limsup)

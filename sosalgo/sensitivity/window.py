@@ -1,4 +1,4 @@
-"""The windows of the noise-sensitivity certificate (README, "Robustness to gradient noise").
+"""The windows of the noise-sensitivity certificate (docs/noise.md).
 
 The method runs with noisy gradients, xi_{t+1} = A xi_t + B (g_t + w_t), g_t = grad f(y_t),
 y_t = C xi_t, x_t = E xi_t (coordinates relative to the fixed point xi* = u x*, so that
@@ -133,14 +133,14 @@ def _values(win: NoiseWindow, t: int, p: Any, obj: bool) -> np.ndarray:
 def noise_parts(dec: NoiseWindow, pos: NoiseWindow, P: Any, p: Any, s: Any, c: Any, eta: Any,
                 lam: Any, obj: bool = False, rho2: Any = None,
                 past: Mapping[str, Any] | None = None) -> dict[str, Any]:
-    """The four parts of the certificate (README, "Robustness to gradient noise"):
+    """The four parts of the certificate (docs/noise.md):
 
     ``D`` ⪯ 0 and ``Df`` <= 0 (decrease: E V_{k+1} - V_k + |x_k - x*|^2 <= s sigma^2 d),
     ``Pq`` ⪰ 0 and ``Pf`` >= 0 (positivity: V_k >= 0), where
     D = H_{l+1}' P H_{l+1} - H_l' P H_l + x_l' x_l + sum eta M - s e_w e_w' - (e_w c' + c e_w'),
     c the free cross terms of the new noise with the columns known at time k.
 
-    With ``rho2`` (= rho^2) the discounted form of ``noise_limsup`` (README, "The limsup
+    With ``rho2`` (= rho^2) the discounted form of ``noise_limsup`` (docs/noise.md, "The limsup
     itself"): D = H_{l+1}' P H_{l+1} - rho2 H_l' P H_l + ... (no output term; the function
     values likewise discounted: E V_{k+1} <= rho^2 V_k + s sigma^2 d) and the output term
     moved into the positivity part, Pq = H_l' P H_l - x_l' x_l - ... (V_k >= |x_k - x*|^2),

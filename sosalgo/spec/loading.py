@@ -168,6 +168,17 @@ def _shipped_or_missing(source: str) -> str:
     raise SpecError(source, "", f"no such file{hint}")
 
 
+def spec_text_and_path(name: str) -> tuple[str, str]:
+    """Text and location of a shipped example spec."""
+    try:
+        from sosalgo.resources import example_specs
+
+        p: Any = example_specs()[name]
+    except ImportError:  # a checkout without packaged examples: the repository's specs/
+        p = Path(__file__).resolve().parent.parent / "specs" / f"{name}.yaml"
+    return p.read_text(encoding="utf-8"), str(p)
+
+
 def _read_pipe(source: str) -> bytes:
     """A pipe's bytes up to its end (or one more than MAX_FILE_BYTES), all within
     MAX_WAIT_SECONDS; opened without blocking, so a FIFO without a writer times out."""
@@ -400,10 +411,10 @@ class _Builder:
     def functions(self, raw: object) -> dict[str, FunctionDecl]:
         """``functions:`` name -> {class: NAME, <parameter>: expr}; default: one f in
         F(m, L)."""
-        from sosalgo.classes import CLASSES
+        from sosalgo.classes import CLASSES, SEED_CLASS
 
         if raw is None:
-            raw = {"f": {"class": "smooth_strongly_convex"}}
+            raw = {"f": {"class": SEED_CLASS.name}}
         if not isinstance(raw, dict) or not raw:
             raise self.fail("functions", "must be a non-empty mapping name: {class: ...}")
         if len(raw) > MAX_FUNCTIONS:

@@ -12,6 +12,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
+from sosalgo.classes import SEED_CLASS
 from sosalgo.errors import InputError
 from sosalgo.expr.tree import Expr
 
@@ -132,7 +133,7 @@ class Spec:
     # whether the spec names its family (``certificate:``); when not, each command takes
     # its own default (:func:`sosalgo.certificates.default_family_name`)
     certificate_given: bool = False
-    # the oracle model (README, "Function classes and oracles"); the defaults are the
+    # the oracle model (docs/function-classes.md); the defaults are the
     # seed's setting: one smooth strongly convex f queried by its gradient
     functions: dict[str, FunctionDecl] = field(default_factory=dict)
     oracles: tuple[str, ...] = ("f",)
@@ -168,7 +169,7 @@ class Spec:
             return True
         decl = self.functions.get("f")
         return len(self.functions) > 1 or (
-            decl is not None and (decl.cls != "smooth_strongly_convex" or bool(decl.given)))
+            decl is not None and (decl.cls != SEED_CLASS.name or bool(decl.given)))
 
     @property
     def p(self) -> int:

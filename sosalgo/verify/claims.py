@@ -242,7 +242,7 @@ def quadratic_noise(spec: Any, alg: Any) -> float:
 
 
 def references(L: RowLedger, field: str) -> None:
-    from sosalgo.batch.sweeps import reference_values
+    from sosalgo.spec.references import reference_values
 
     refs = L.row.get(field)
     if not refs:

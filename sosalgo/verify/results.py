@@ -24,13 +24,13 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.batch.store import output_lock
 from sosalgo.certificates import FAMILIES, default_family, get_family
 from sosalgo.certificates.base import CertificateFamily, check_number
 from sosalgo.errors import InputError
 from sosalgo.model import bind
 from sosalgo.schema import certificate_name
 from sosalgo.spec import Spec
+from sosalgo.store import output_lock
 from sosalgo.verify import Verdict, simulate_check
 from sosalgo.verify.exact import write_certificate
 
@@ -324,7 +324,7 @@ def verify_sublinear_rows(spec: Spec, rows: Sequence[Mapping[str, Any]],
                           ) -> list[dict[str, Any] | None]:
     """Rows of a sublinear spec (analysis or design: ``constant``, ``certificate``, a
     design's ``theta``): the exact proof of
-    :func:`sosalgo.verify.exact_sublinear.verify_exact_sublinear` and the simulation
+    :func:`sosalgo.certificates.exact_sublinear.verify_exact_sublinear` and the simulation
     check of the constant; None for a row claiming no constant. Malformed rows raise
     ResultError before anything is verified or written."""
     claims = []
@@ -350,7 +350,7 @@ def _sublinear_check(spec: Spec, C: float | None, cert: Mapping[str, Any] | None
                      simulate: bool) -> dict[str, Any]:
     """One row's check as plain values (the verdict as its string); the proof document
     goes to ``out_dir`` as ``<name>-sublinear-certificate.json``."""
-    from sosalgo.verify.exact_sublinear import verify_exact_sublinear
+    from sosalgo.certificates.exact_sublinear import verify_exact_sublinear
 
     res = verify_exact_sublinear(spec, cert or {}, theta, constant=C)
     out: dict[str, Any] = {

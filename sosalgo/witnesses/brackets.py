@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 from flint import arb, arb_mat
 
+from sosalgo.classes import get_class
 from sosalgo.witnesses.method import ArbMethod, arb_fraction, arb_method, arb_of, precision
 
 __all__ = ["BRACKET_KINDS", "Bracketed", "bracketed", "has_root_outside", "output_part",
@@ -66,21 +67,17 @@ def bracketed(spec: Any, kappa: float, theta: Mapping[str, float] | None = None
 
 def _curvature_box(bk: Bracketed) -> list[tuple[Fraction, Fraction]] | None:
     """Exact curvature interval [lo, hi] of every function (q with (q/2)|x|^2 in the
-    class, proven from the parameters' enclosures), None when some class has none we
-    know."""
+    class, proven from the parameters' enclosures:
+    :meth:`~sosalgo.classes.base.FunctionClass.exact_curvatures`), None when some class
+    has none we know."""
     out = []
     for _, cls, params in bk.am.functions:
-        if cls == "smooth_strongly_convex":  # an inner interval: every q in it is in [m, L]
-            lo, hi = arb_fraction(params["m"].upper()), arb_fraction(params["L"].lower())
-        elif cls in ("convex", "indicator"):
-            lo = hi = Fraction(0)  # the zero function (the indicator of the whole space)
-        elif cls == "strongly_convex":
-            lo = hi = arb_fraction(params["m"].upper())  # (q/2)|x|^2 with q >= m
-        else:
+        cur = get_class(cls).exact_curvatures(
+            lambda k, p=params: arb_fraction(p[k].lower()),
+            lambda k, p=params: arb_fraction(p[k].upper()))
+        if cur is None or cur[0] > cur[1]:
             return None
-        if lo > hi:
-            return None
-        out.append((lo, hi))
+        out.append(cur)
     return out
 
 

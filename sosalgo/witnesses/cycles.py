@@ -68,9 +68,9 @@ def _rows(A, B, C, D, E, output, balls: bool) -> dict[str, np.ndarray]:
 def context(spec: Any, kappa: float, theta: Mapping[str, float] | None = None) -> Context:
     """The method of ``spec`` at ``kappa`` in floats and exact balls (ValueError, ModelError
     when it cannot be built)."""
+    from sosalgo.certificates.exact_composite import exact_class_inequalities, exact_oracle_method
     from sosalgo.model import evaluate_algorithm
     from sosalgo.oracles import as_oracle_method
-    from sosalgo.verify.exact_composite import exact_class_inequalities, exact_oracle_method
 
     om = as_oracle_method(evaluate_algorithm(spec, kappa, theta))
     ex = exact_oracle_method(spec, kappa, theta)
@@ -85,13 +85,8 @@ def context(spec: Any, kappa: float, theta: Mapping[str, float] | None = None) -
 
 
 def _strongly_convex(om: Any) -> bool:
-    """Whether some function has curvature bounded below by a positive number."""
-    for fn in om.functions:
-        cur = fn.cls.curvatures(fn.params)
-        if cur is not None and cur[0] > 0 and fn.cls.name in ("smooth_strongly_convex",
-                                                              "strongly_convex"):
-            return True
-    return False
+    """Whether some function's class makes it strongly convex (a positive modulus)."""
+    return any(fn.cls.strong_convexity(fn.params) > 0 for fn in om.functions)
 
 
 def search_trajectory(ctx: Context, K: int, s: Fraction, deadline: float

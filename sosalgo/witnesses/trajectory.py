@@ -11,7 +11,7 @@ xi_K - s xi_0 = 0 is solved for n pivot coordinates of z, leaving t (r = pK coor
 free: z = N t. The Gram matrix H of t makes every interpolation inequality linear
 (alpha (f_a - f_b) + <R' Q R, H>, R the rows of x_a, x_b, g_a, g_b on t); a witness in
 dimension d is t = V (r x d), V V' ≈ H. The same layout on exact balls (the method's exact
-matrices, :func:`sosalgo.verify.exact_composite.exact_oracle_method`) turns a rounded V into
+matrices, :func:`sosalgo.certificates.exact_composite.exact_oracle_method`) turns a rounded V into
 the exact trajectory, which :func:`check` verifies.
 """
 

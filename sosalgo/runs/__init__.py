@@ -2,7 +2,7 @@
 
 Each function checks its input (:mod:`sosalgo.inputs`: InputError, a ValueError, before
 anything is written), runs the resumable sweep into ``out_dir`` under the run model
-(:mod:`sosalgo.batch.store`), draws the figures and returns the document that the
+(:mod:`sosalgo.store`), draws the figures and returns the document that the
 command prints with ``--json``. File names come from :mod:`sosalgo.schema`.
 """
 
@@ -15,10 +15,11 @@ from pathlib import Path
 from typing import Any
 
 from sosalgo import budget, inputs
-from sosalgo.batch.store import output_lock
+from sosalgo.batch.executor import check_scheduler
 from sosalgo.errors import InputError
 from sosalgo.schema import analysis_csv, design_stem, grid_stem, rate_stem
 from sosalgo.spec import Spec
+from sosalgo.store import output_lock
 
 __all__ = ["analyze_run", "design_run", "grid_run", "set_field", "spec_with_text",
            "table1_run"]
@@ -120,7 +121,7 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
                                 len(fams), _budget(max_memory, workers))
     workers = budget.check(est).workers if scheduler is None else workers
     out = inputs.out_dir(out_dir)
-    inputs.check_scheduler(scheduler)
+    check_scheduler(scheduler)
     plain = len(fams) == 1 and fams[0].is_default  # Theorem 1 alone: the historical output
     runs, figs = [], []
     for fam in fams:
@@ -219,7 +220,7 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
         _budget(max_memory, workers)))
     workers = est.workers if scheduler is None else workers
     out = inputs.out_dir(out_dir)
-    inputs.check_scheduler(scheduler)
+    check_scheduler(scheduler)
     one = len(kappas) == 1
     opts |= {"progress_steps": one and progress_steps,  # one kappa: workers go inside
              "inner_workers": (workers or os.cpu_count() or 1) if one and scheduler is None
@@ -323,7 +324,7 @@ def grid_run(spec: Spec | str | Path, kappa: Kappas, out_dir: str | Path = "outp
     est = _grid_budget(spec, names, points, len(dict.fromkeys(kappas)), max_memory, workers)
     workers = est.workers if scheduler is None else workers
     out = inputs.out_dir(out_dir)
-    inputs.check_scheduler(scheduler)
+    check_scheduler(scheduler)
     docs = []
     for k in dict.fromkeys(kappas):
         stem = grid_stem(out, spec.name, k, fam)
@@ -361,7 +362,7 @@ def table1_run(specs: Sequence[str | Path] = (), kappa: Sequence[float] = (),
     """``sosalgo table1``: each spec's certified rate beside its closed form, written to
     ``table1.csv``; returns ``{"rows", "columns", "csv"}``. Default specs: ``specs/*.yaml``,
     else the shipped examples."""
-    from sosalgo.report.table1 import table1_rows, write_table1
+    from sosalgo.runs.table1 import table1_rows, write_table1
     from sosalgo.spec import read_spec_text, spec_from_text
 
     inputs.check_tol(tol, "--tol")

@@ -7,11 +7,11 @@ from pathlib import Path
 from typing import Any
 
 from sosalgo.analysis import analyze_spec
-from sosalgo.batch.store import write_table
-from sosalgo.batch.sweeps import reference_values
 from sosalgo.certificates import CertificateFamily
 from sosalgo.schema import TABLE1_COLUMNS, TABLE1_FILE
 from sosalgo.spec import Spec
+from sosalgo.spec.references import reference_values
+from sosalgo.store import write_table
 
 __all__ = ["TABLE1_COLUMNS", "table1_rows", "write_table1"]
 
@@ -60,7 +60,7 @@ def _row(spec: Spec, kappa: float, tol: float,
 def write_table1(out_dir: Path, rows: Sequence[Mapping[str, Any]], cols: Sequence[str],
                  settings: dict[str, Any]) -> Path:
     """``out_dir/table1.csv``, replaced whole under the run model
-    (:func:`sosalgo.batch.store.write_table`: a table of other settings is kept aside)."""
+    (:func:`sosalgo.store.write_table`: a table of other settings is kept aside)."""
     path = out_dir / TABLE1_FILE
     write_table(path, cols, rows, settings)
     return path

@@ -1,5 +1,6 @@
 """``sosalgo pep`` as a Python function: :func:`pep_run` (CSV, witness JSON, figure,
-resumable sweeps over kappa and N through the batch layer)."""
+resumable sweeps over kappa and N through the batch layer). The PEP itself is
+:func:`sosalgo.pep.pep`; the figure is :func:`sosalgo.report.pep.pep_figure`."""
 
 from __future__ import annotations
 
@@ -10,29 +11,13 @@ from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
-from sosalgo.errors import InputError
 from sosalgo.spec import Spec
 
-__all__ = ["pep_heading", "term_words", "parse_steps", "pep_chunk", "pep_row", "pep_run"]
+__all__ = ["pep_chunk", "pep_heading", "pep_row", "pep_run", "term_words"]
 
 # a PEP estimated (sosalgo.budget) longer than this runs in a worker process that a signal
 # can end at once; a shorter one runs here, where a signal waits at most for its solve
 ISOLATE_SECONDS = 0.5
-
-
-def parse_steps(text: object) -> list[int]:
-    """``N`` or ``1..N`` (any ``a..b``), 1 <= a <= b <= MAX_STEPS."""
-    from sosalgo.pep.core import MAX_STEPS
-
-    src = str(text).strip()
-    hit = re.fullmatch(r"(\d+)(?:\s*\.\.\s*(\d+))?", src)
-    if hit is None:
-        raise InputError(f"--steps: expected N or a range a..b, got {src!r}")
-    a = int(hit.group(1))
-    b = int(hit.group(2)) if hit.group(2) else a
-    if not 1 <= a <= b <= MAX_STEPS:
-        raise InputError(f"--steps: need 1 <= N <= {MAX_STEPS} (and a <= b), got {src!r}")
-    return list(range(a if hit.group(2) else a, b + 1))
 
 
 def pep_row(res: Any, cls: dict[str, Any] | None = None) -> dict[str, Any]:
@@ -120,10 +105,11 @@ def pep_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = Non
     (``--set``) fix parameters; the document and the witness files record them in
     ``set``."""
     from sosalgo import inputs
-    from sosalgo.batch.executor import Progress, run_batch
-    from sosalgo.batch.store import ResumableCSV
+    from sosalgo.batch.executor import Progress, check_scheduler, run_batch
+    from sosalgo.pep.core import parse_steps
     from sosalgo.runs import set_field, spec_with_text
     from sosalgo.schema import PEP_COLUMNS, pep_csv
+    from sosalgo.store import ResumableCSV
 
     spec, text = spec_with_text(spec, spec_text, overrides)
     recorded = set_field(overrides)
@@ -135,7 +121,7 @@ def pep_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = Non
 
     set_max_memory(max_memory)  # None: the machine's default
     est, workers, isolate = _check(spec, ks, ns, measure, initial, workers, witness)
-    inputs.check_scheduler(scheduler)
+    check_scheduler(scheduler)
     out = None if out_dir is None else inputs.out_dir(out_dir)
     options = {"measure": measure, "initial": initial, "exact": exact, "witness": witness}
     tasks = [{"kappa": "" if k is None else k, "steps": n} for k in ks for n in ns]
@@ -201,7 +187,7 @@ def _write_files(spec: Spec, text: str, docs: list[dict[str, Any]], out: Path,
     """Witness JSON files (with the spec's text as the run read it and ``recorded``, the
     ``set`` overrides, so ``sosalgo verify`` needs nothing else), each written atomically,
     and the figure of tau_k against k for each kappa with two steps or more."""
-    from sosalgo.batch.store import write_atomic
+    from sosalgo.store import write_atomic
 
     files = []
     for d in docs:
@@ -211,10 +197,29 @@ def _write_files(spec: Spec, text: str, docs: list[dict[str, Any]], out: Path,
                                           indent=1))
             files.append(str(path))
     if plot:
-        from sosalgo.pep.figure import pep_figure
+        from sosalgo.report.pep import pep_figure
 
-        files += pep_figure(spec, docs, out)
+        kappas = [d["kappa"] for d in docs]
+        rates = {k: _certified_rate(spec, k) for k in set(kappas) if kappas.count(k) >= 2}
+        files += pep_figure(spec, docs, out, rates)
     return files
+
+
+def _certified_rate(spec: Spec, kappa: float | None) -> float | None:
+    """The best rate ``sosalgo analyze`` certifies at kappa, as :func:`sosalgo.analyze`
+    computes it (None: none, or m: 0)."""
+    if kappa is None:
+        return None
+    from sosalgo.analysis import analyze_spec
+    from sosalgo.inputs import check_kappa_points, select_families
+
+    try:
+        fam = select_families(spec, None, None, single=True, command="analyze")[0]
+        check_kappa_points(spec, [kappa], None)
+        res = analyze_spec(spec, kappa, None, tol=1e-6, family=fam)
+    except (ValueError, ArithmeticError):
+        return None
+    return float(res.rho) if res.certified and res.rho is not None else None
 
 
 def pep_summary(doc: dict[str, Any], details: bool = True) -> str:
@@ -222,6 +227,7 @@ def pep_summary(doc: dict[str, Any], details: bool = True) -> str:
     measure, the initial condition and the steps, in words), the table (the witness's
     dimension and the seconds only with ``details``) and its legend."""
     from sosalgo.report import format_table
+    from sosalgo.report.legend import set_lines
     from sosalgo.schema import printed_columns
 
     rows = doc.get("rows", [doc])
@@ -239,8 +245,6 @@ def pep_summary(doc: dict[str, Any], details: bool = True) -> str:
     cols = ["kappa", "N", "tau", "tau_proven", "check", "witness_lower", "witness_dim",
             "seconds"]
     files = doc.get("files") or []
-    from sosalgo.report.legend import set_lines
-
     return "\n".join([*pep_heading(rows), *set_lines(doc),
                       format_table(table, printed_columns(cols, details)),
                       *PEP_LEGEND] + [f"wrote {f}" for f in files])

@@ -4,7 +4,7 @@ certified at that kappa), and a one-dimensional worst case beside its functions.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -13,22 +13,11 @@ from sosalgo.spec import Spec
 __all__ = ["pep_figure", "rate_curve"]
 
 
-def _certified_rate(spec: Spec, kappa: float | None) -> float | None:
-    """The best rate ``sosalgo.analyze`` certifies at kappa (None: none, or m: 0)."""
-    if kappa is None:
-        return None
-    from sosalgo.api import analyze
-
-    try:
-        res = analyze(spec, kappa)
-    except (ValueError, ArithmeticError):
-        return None
-    return float(res.rho) if res.certified and res.rho is not None else None
-
-
-def pep_figure(spec: Spec, docs: Sequence[dict[str, Any]], out: Path) -> list[str]:
+def pep_figure(spec: Spec, docs: Sequence[dict[str, Any]], out: Path,
+               rates: Mapping[float | None, float | None]) -> list[str]:
     """``<name>-pep[-k<kappa>]`` (.png, .pdf) per kappa with two steps or more; a 1-D
-    witness of the last step as ``<name>-pep-N<N>-witness`` beside it."""
+    witness of the last step as ``<name>-pep-N<N>-witness`` beside it. ``rates``: the
+    rate certified at each kappa (None: none), drawn as C rho^(2k)."""
     from sosalgo.report import pyplot, save_figure
 
     plt = pyplot()
@@ -41,7 +30,7 @@ def pep_figure(spec: Spec, docs: Sequence[dict[str, Any]], out: Path) -> list[st
             ks = [d["steps"] for d in rows]
             taus = [d["tau"] for d in rows]
             ax.semilogy(ks, taus, "o-", label=r"$\tau_k$ (PEP)")
-            rho = _certified_rate(spec, kappa)
+            rho = rates.get(kappa)
             if rho is not None and 0 < rho < 1:
                 C, curve = rate_curve(list(zip(ks, taus, strict=True)), rho)
                 ax.semilogy(ks, curve, "--", label=rf"$C\rho^{{2k}}$, $\rho$ = {rho:.4g} "

@@ -20,7 +20,7 @@ point in the proof path:
    the weights p (or c) are raised where the positivity function-value rows need it (a
    larger weight of a nonnegative value only increases V). Then (D) ⪯ 0, (Df) <= 0,
    (Pq) ⪰ 0 and (Pf) >= 0 are proven (exact LDL^T with the enclosure radius, as for the
-   seed's interpolation family, :mod:`sosalgo.verify.exact_interpolation`) at rho or a
+   seed's interpolation family, :mod:`sosalgo.certificates.exact_interpolation`) at rho or a
    rational slightly above it.
 """
 
@@ -35,6 +35,17 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
+from sosalgo.certificates.exact_interpolation import (
+    InterpolationExactResult,
+    Refused,
+    float_entry,
+    object_matrix,
+    prove_definite,
+    rational_near,
+    settle,
+    symmetric_matrix,
+    symmetrize_balls,
+)
 from sosalgo.expr.parse import to_sympy
 from sosalgo.model import bind
 from sosalgo.spec.types import BASE_SYMBOLS, ORACLE_MATRIX_NAMES, Spec
@@ -51,17 +62,6 @@ from sosalgo.verify.exact import (
     is_zero,
     rational,
     rho_candidates,
-)
-from sosalgo.verify.exact_interpolation import (
-    InterpolationExactResult,
-    Refused,
-    float_entry,
-    object_matrix,
-    prove_definite,
-    rational_near,
-    settle,
-    symmetric_matrix,
-    symmetrize_balls,
 )
 
 __all__ = ["CompositeExactResult", "ExactOracleMethod", "exact_class_inequalities",
@@ -134,34 +134,15 @@ def exact_oracle_method(spec: Spec, kappa: float, theta: Mapping[str, float] | N
 # --------------------------------------------------------------------------- class data
 
 
-def _convex_form(mu: Ball | Fraction | int = 0) -> np.ndarray:
-    """Q of f_a - f_b - <g_b, x_a - x_b> - mu/2 |x_a - x_b|^2 >= 0 (exact)."""
-    h = Fraction(1, 2)
-    Q = np.full((4, 4), Ball(0), dtype=object)
-    Q[0, 3] = Q[3, 0] = Ball(-h)
-    Q[1, 3] = Q[3, 1] = Ball(h)
-    Q[0, 0] = Q[1, 1] = -(Ball.of(mu) * h)
-    Q[0, 1] = Q[1, 0] = Ball.of(mu) * h
-    return Q
-
-
 def exact_class_inequalities(cls: Any, params: Mapping[str, Ball],
                              ) -> tuple[list[tuple[Ball, np.ndarray]], str]:
-    """(alpha, Q) of every tilted inequality of a class at exact parameters, and where
-    they come from ("exact" or the float enclosure)."""
-    if cls.name == "smooth_strongly_convex":
-        m, L = params["m"], params["L"]
-        rows = [[-(m * L), m * L, m, -L], [m * L, -(m * L), -m, L], [m, -m, -1, 1],
-                [-L, L, 1, -1]]
-        Q = np.array([[Ball.of(v) * Fraction(1, 2) for v in r] for r in rows], dtype=object)
-        return [(L - m, Q)], "exact"
-    if cls.name in ("convex", "indicator"):
-        return [(Ball(1), _convex_form())], "exact"
-    if cls.name == "strongly_convex":
-        return [(Ball(1), _convex_form(params["m"]))], "exact"
-    if hasattr(cls, "exact_tilted"):
-        return [(Ball.of(a), np.array(Q, dtype=object)) for a, Q in cls.exact_tilted(params)], \
-            "exact (the class's exact_tilted)"
+    """(alpha, Q) of every tilted inequality of a class at exact parameters (the class's
+    :meth:`~sosalgo.classes.base.FunctionClass.exact_tilted`, every entry as a ball), and
+    where they come from ("exact" or the float enclosure)."""
+    exact = cls.exact_tilted(params)
+    if exact is not None:
+        return [(Ball.of(a), np.vectorize(Ball.of, otypes=[object])(np.asarray(Q, object)))
+                for a, Q in exact], "exact"
     fl = cls.tilted({k: float(b.c) for k, b in params.items()})
 
     def widen(v: float) -> Ball:

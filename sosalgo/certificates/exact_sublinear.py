@@ -11,8 +11,8 @@ floating point in the proof path:
    rational number (else: not proven, with the entry named). The fixed point u of x* = 1
    (the start at rest) is solved exactly and must be unique.
 2. The windows (points, tilted class inequalities of every ordered pair, measure) are
-   those of :func:`sosalgo.verify.exact_composite.exact_window`, on these exact numbers.
-3. The conditions are written here from their definition (README, "Sublinear rates"), as
+   those of :func:`sosalgo.certificates.exact_composite.exact_window`, on these exact numbers.
+3. The conditions are written here from their definition (docs/sublinear.md), as
    affine forms in the certificate's variables (:class:`Lin`): (D) phi_{k+1} - phi_k +
    sum eta(k) q <= 0 and (P) (k + b) measure + sum lam(k) q - phi_k <= 0 as polynomials in
    k (degree 2: ``[[A0, Y], [Y', A2]] <= 0``, Y = (A1 + S)/2 + K, S >= 0, K skew), (I)
@@ -47,15 +47,15 @@ import numpy as np
 import scipy.linalg as sla
 import sympy as sp
 
-from sosalgo.expr.parse import to_sympy
-from sosalgo.spec.types import BASE_SYMBOLS, ORACLE_MATRIX_NAMES, Spec, value_order
-from sosalgo.verify.exact import Ball, ExactAlgorithm, Verdict, fraction_str, prove_psd
-from sosalgo.verify.exact_composite import (
+from sosalgo.certificates.exact_composite import (
     ExactOracleMethod,
     exact_class_inequalities,
     exact_window,
 )
-from sosalgo.verify.exact_interpolation import Refused
+from sosalgo.certificates.exact_interpolation import Refused
+from sosalgo.expr.parse import to_sympy
+from sosalgo.spec.types import BASE_SYMBOLS, ORACLE_MATRIX_NAMES, Spec, value_order
+from sosalgo.verify.exact import Ball, ExactAlgorithm, Verdict, fraction_str, prove_psd
 
 __all__ = ["Lin", "SublinearExactResult", "exact_sublinear_method", "verify_exact_sublinear"]
 
