@@ -157,7 +157,7 @@ def read_spec_text(path: str | Path) -> str:
 def _shipped_or_missing(source: str) -> str:
     """The text of the shipped example a bare name stands for (``nesterov``: no such file
     here); else the one-line error naming the closest shipped example."""
-    from sosalgo.spec.overrides import closest_example, shipped_example
+    from sosalgo.spec.names import closest_example, shipped_example
 
     example = shipped_example(source)
     if example is not None:

@@ -1,49 +1,17 @@
-"""Spec names and parameter overrides: how a command finds the spec it was given.
-
-A SPEC argument is a file; where no such file exists, the name of a shipped example
-(``nesterov`` or ``nesterov.yaml``, see ``sosalgo examples``) stands for it, and a missing
-file's error names the closest shipped example. ``--set NAME=EXPR`` fixes a parameter: the
-spec's text is rewritten with ``NAME: EXPR`` (a tie, so the parameter is neither analysed
-at its ``value`` nor free in a design), parsed by the same expression parser as the spec.
+"""Parameter overrides: ``--set NAME=EXPR`` fixes a parameter. The spec's text is
+rewritten with ``NAME: EXPR`` (a tie, so the parameter is neither analysed at its
+``value`` nor free in a design), parsed by the same expression parser as the spec.
 """
 
 from __future__ import annotations
 
-import difflib
-import os
 from collections.abc import Mapping, Sequence
-from importlib.abc import Traversable
-from pathlib import Path
 
 from sosalgo.errors import InputError
 
-__all__ = ["apply_overrides", "closest_example", "parse_set_options", "shipped_example"]
+__all__ = ["apply_overrides", "parse_set_options", "same_overrides_applied"]
 
 MAX_OVERRIDES = 64
-
-
-def shipped_example(name: str | Path) -> Traversable | None:
-    """The shipped example a bare name (no folder; ``.yaml`` optional) stands for, else
-    None. Only asked where no such file exists: a file always wins."""
-    from sosalgo.resources import example_specs
-
-    text = str(name)
-    if not text or os.sep in text or (os.altsep and os.altsep in text):
-        return None
-    stem = text[: -len(".yaml")] if text.endswith(".yaml") else text
-    return example_specs().get(stem)
-
-
-def closest_example(name: str | Path) -> str | None:
-    """The shipped example whose name is closest to ``name``'s file stem (difflib)."""
-    from sosalgo.resources import example_specs
-
-    names = list(example_specs())
-    stem = Path(str(name)).name
-    for ext in (".yaml", ".yml"):
-        stem = stem[: -len(ext)] if stem.endswith(ext) else stem
-    close = difflib.get_close_matches(stem, names, n=1, cutoff=0.0)
-    return close[0] if close else None
 
 
 def parse_set_options(values: Sequence[str] | Mapping[str, str] | None) -> dict[str, str]:
