@@ -452,8 +452,11 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
         click.echo(json.dumps(res, indent=2))
     else:
         from sosalgo.report.checks import checks_table, ledger_lines
+        from sosalgo.report.legend import set_lines
         from sosalgo.report.pareto import noise_check_lines
 
+        for line in set_lines(doc):
+            click.echo(line)
         click.echo(checks_table(rows, res["results"]))
         for line in noise_check_lines(rows, res["results"]):
             click.echo(line)
@@ -574,7 +577,10 @@ def examples(names: tuple[str, ...], copy_to: str | None) -> None:
     found = example_specs()
     unknown = [n for n in names if n not in found]
     if unknown:
-        raise InputError(f"{unknown[0]}: no such example (known: {', '.join(found)})")
+        from sosalgo.spec.names import closest_example
+
+        raise InputError(f"{unknown[0]}: no such example (closest: "
+                         f"{closest_example(unknown[0])}; known: {', '.join(found)})")
     if copy_to is None:
         rows = [{"name": n, "description": example(n).description} for n in names or found]
         click.echo(format_table(rows, ["name", "description"]))
