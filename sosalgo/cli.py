@@ -251,8 +251,8 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
     names = docs[0]["free"]
     unsupported = all((d.get("relaxation") or {}).get("status") == "unsupported" for d in docs)
     how = ("no lower bound for this family" if unsupported
-           else "lower bound by box-wide dual certificates" if method == "dual"
-           else f"lower bound by moment relaxation ({scalarize})")
+           else "proven lower bound by box-wide dual certificates" if method == "dual"
+           else f"proven lower bound by moment relaxation ({scalarize})")
     click.echo(f"{doc['spec']}: design of {', '.join(names)} certified by "
                f"{docs[0]['family']}; {how}")
     from sosalgo.report.legend import set_lines
