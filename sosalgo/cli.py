@@ -252,7 +252,7 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
     unsupported = all((d.get("relaxation") or {}).get("status") == "unsupported" for d in docs)
     how = ("no lower bound for this family" if unsupported
            else "proven lower bound by box-wide dual certificates" if method == "dual"
-           else f"proven lower bound by moment relaxation ({scalarize})")
+           else f"lower bound by moment relaxation ({scalarize}; floating point)")
     click.echo(f"{doc['spec']}: design of {', '.join(names)} certified by "
                f"{docs[0]['family']}; {how}")
     from sosalgo.report.legend import set_lines
@@ -270,7 +270,7 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
         click.echo(f"  - {step}")
     for line in rep.verification_notes(docs):
         click.echo(line)
-    click.echo(rep.LEGEND)
+    click.echo(rep.design_legend(method))
     click.echo("wrote " + ", ".join([doc["csv"], *doc["figures"]]))
     for d in docs:
         if d.get("error"):

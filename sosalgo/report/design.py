@@ -16,7 +16,7 @@ from sosalgo.schema import printed_columns
 from sosalgo.spec import Spec
 from sosalgo.spec.references import reference_curves
 
-__all__ = ["LEGEND", "design_figure", "design_table", "proven_bound", "verdict",
+__all__ = ["LEGEND", "design_figure", "design_legend", "design_table", "proven_bound", "verdict",
            "verification_notes"]
 
 LEGEND = "\n".join([
@@ -26,6 +26,16 @@ LEGEND = "\n".join([
     "floor: 1 - 1/sqrt(kappa), no first-order method is faster on F(m, L) (composite specs: "
     "only where",
     "  that is a theorem, see docs/commands/design.md; empty otherwise)"])
+
+
+def design_legend(method: str) -> str:
+    """The legend under the design table; the moment relaxation's bound is a floating-point
+    SDP's value, not a proven lower bound."""
+    if method != "moment":
+        return LEGEND
+    return LEGEND.replace(
+        "lower_bound: proven lower bound, no theta in the box is certified below it",
+        "lower_bound: the moment relaxation's value (floating point, not proven exactly)")
 
 
 def tighter_family_note(spec: Spec, family: str, certificate: str | None) -> str | None:
