@@ -130,3 +130,11 @@ def test_pep_free_start_and_composite_classes_in_words(tmp_path):
     assert res.exit_code == 0, res.output
     assert "when |xi_0 - xi*|^2 <= 1" in res.stdout  # sdist: the whole state is free
     assert "g: convex" in res.stdout and "f: smooth_strongly_convex" in res.stdout
+
+
+def test_design_legend_names_the_proven_lower_bound_only_when_it_is_proven():
+    from sosalgo.report.design import design_legend
+
+    assert "lower_bound: proven lower bound" in design_legend("dual")
+    moment = design_legend("moment")
+    assert "proven lower bound" not in moment and "floating point" in moment
