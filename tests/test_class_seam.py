@@ -17,10 +17,10 @@ import yaml
 from click.testing import CliRunner
 
 from sosalgo import api
+from sosalgo.certificates.exact_composite import exact_class_inequalities
 from sosalgo.classes import CLASSES, register_class, unregister_class
 from sosalgo.cli import cli
 from sosalgo.verify.exact import Ball
-from sosalgo.verify.exact_composite import exact_class_inequalities
 
 from .smooth_convex_class import CLASS as SMOOTH_CONVEX
 
