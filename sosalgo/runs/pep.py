@@ -279,8 +279,8 @@ def pep_heading(rows: list[dict[str, Any]]) -> list[str]:
 
     d = rows[0]
     cls = d.get("class") or {}
-    funcs = cls.get("functions") or {"f": {"class": "smooth_strongly_convex",
-                                           "params": {"m": cls.get("m"), "L": cls.get("L")}}}
+    funcs = cls.get("functions") or {"f": {"class": "F(m, L)", "params": {
+        "m": cls.get("m"), "L": cls.get("L")}}}  # a row written before rows named classes
     several = len(funcs) > 1
     many = len({r["kappa"] for r in rows}) > 1
     start = ("any xi_0 (the whole state is free)" if "sdist" in str(d["initial"])
