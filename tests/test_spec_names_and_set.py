@@ -158,3 +158,12 @@ def test_grid_records_set(tmp_path):
     doc = json.loads(res.stdout)
     assert doc["set"] == {"beta": "1/2"} and doc["free"] == ["h"]
     assert doc["grids"][0]["points"] == 3
+
+
+def test_design_with_set_designs_the_other_parameters(tmp_path):
+    res = run("design", SPECS / "nesterov.yaml", "--kappa", 10, "--set", "beta=1/2",
+              "--time-limit", 5, "--out", tmp_path, "--json", "--quiet")
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    assert doc["free"] == ["h"] and doc["set"] == {"beta": "1/2"}
+    assert set(doc["theta"]) == {"h"}
