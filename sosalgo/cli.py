@@ -84,6 +84,29 @@ def batch_options(fn: Callable[..., Any]) -> Callable[..., Any]:
     return fn
 
 
+def set_option(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """--set NAME=EXPR (repeatable): fix a parameter of the spec for this run."""
+    return click.option(
+        "--set", "overrides", multiple=True, metavar="NAME=EXPR",
+        help="Fix a parameter of the spec, e.g. --set h=1/L (repeatable; an expression of "
+             "m, L, kappa and the other parameters, parsed like the spec's). The result "
+             "records it in 'set'; verify applies it again.")(fn)
+
+
+def details_option(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """--details: the solver's internals in the printed table (always in CSV/JSON)."""
+    return click.option(
+        "--details", is_flag=True,
+        help="Also print the solver's internals (lambda, eigenvalue margins, solves, "
+             "seconds, ...); the CSV and --json always hold them.")(fn)
+
+
+def _overrides(values: tuple[str, ...]) -> dict[str, str]:
+    from sosalgo.spec.overrides import parse_set_options
+
+    return parse_set_options(values)
+
+
 def _exit_if_unverified(checks: list[Any], what: str = "some certificate") -> None:
     """Exit code 3 when some certificate failed its check (as ``sosalgo verify`` does)."""
     if all(c is None for c in checks):
@@ -125,52 +148,32 @@ def cli() -> None:
               show_default=True,
               help="Time per uncertified kappa for the search of a cycle (0: no search).")
 @certificate_options(default="tightest", several=True)
+@set_option
+@details_option
 @handle_errors
 def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_json: bool,
             workers: int | None, scheduler: str | None, restart: bool, quiet: bool,
             max_memory: str | None, no_plot: bool, verify_: bool, noise: bool, brackets: str,
-            cycle_seconds: float, certificate: str | None, lag: int | None) -> None:
+            cycle_seconds: float, certificate: str | None, lag: int | None,
+            overrides: tuple[str, ...], details: bool) -> None:
     """Best rate certified at each kappa, with its certificate; by default by the
     tightest certificate family that applies (interpolation; --certificate theorem1 for
     the paper's Theorem 1). Python: sosalgo.analyze_run (files) or sosalgo.analyze."""
-    from sosalgo.certificates import FAMILIES
     from sosalgo.report import analysis as rep
     from sosalgo.runs import analyze_run
-    from sosalgo.schema import ANALYSIS_COLUMNS, FAMILY_COLUMNS
 
     doc = analyze_run(spec_path, _kappas(kappa), out, tol, certificate, {"lag": lag},
                       workers, scheduler, restart, not quiet, not no_plot, verify_,
                       noise=noise, brackets=brackets, cycle_seconds=cycle_seconds,
-                      max_memory=max_memory)
+                      max_memory=max_memory, overrides=_overrides(overrides))
     rows = doc["rows"]
     if as_json:
         click.echo(json.dumps(doc, indent=2))
     else:
-        from sosalgo.spec import spec_from_text
-
-        spec = spec_from_text(doc["spec_text"], doc["source"])
-        click.echo(f"{spec.name}: {spec.description}".rstrip(": "))
-        extra = (["verified"] if verify_ else []) + (
-            ["noise", "noise_quadratic", "noise_lag", "noise_check", "noise_limsup",
-             "noise_limsup_rho"] if noise else [])
-        if "csvs" not in doc:  # Theorem 1 alone (with lambda), or a sublinear spec
-            named = FAMILIES.get(rows[0].get("family", "")) if rows else None
-            if named is not None:
-                click.echo(f"certificate family: {named.description}")
-            click.echo(rep.analysis_table(spec, rows, ANALYSIS_COLUMNS + extra))
-            for line in rep.verdict_lines(rows):
-                click.echo(line)
-        for name in doc.get("csvs", {}):
-            click.echo(f"certificate family: {FAMILIES[name].description}")
-            mine = [r for r in rows if r["family"] == name]
-            click.echo(rep.analysis_table(spec, mine, FAMILY_COLUMNS + extra))
-            for line in rep.verdict_lines(mine):
-                click.echo(line)
+        click.echo("\n".join(rep.analysis_lines(doc, details, verify_, noise)))
         for r in rows:
             if r.get("warning"):
                 click.echo(f"warning at kappa {r['kappa']:g}: {r['warning']}", err=True)
-        csvs = list(doc.get("csvs", {"": doc["csv"]}).values())
-        click.echo("wrote " + ", ".join(csvs + doc["figures"]))
     _exit_if_unverified([r.get("verification") for r in rows])
 
 
@@ -207,13 +210,16 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
 @click.option("--max-noise", type=float, default=None, metavar="G",
               help="With --objective rate: the certified noise sensitivity must be <= G.")
 @certificate_options(default="design")
+@set_option
+@details_option
 @handle_errors
 def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: str,
            order: int | None, gap: float, time_limit: float, method: str, out: str,
            as_json: bool, workers: int | None, scheduler: str | None, restart: bool,
            quiet: bool, max_memory: str | None, verify_: bool, objective: str,
            max_rate: float | None,
-           max_noise: float | None, certificate: str | None, lag: int | None) -> None:
+           max_noise: float | None, certificate: str | None, lag: int | None,
+           overrides: tuple[str, ...], details: bool) -> None:
     """Design parameters: certified design, proven lower bound, gap between them.
     Python: sosalgo.design_run (files) or sosalgo.design (results)."""
     from sosalgo.report import design as rep
@@ -223,7 +229,7 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
                      method, certificate, {"lag": lag}, workers, scheduler, restart,
                      not quiet, verify_, progress_steps=not quiet and not as_json,
                      objective=objective, max_rate=max_rate, max_noise=max_noise,
-                     max_memory=max_memory)
+                     max_memory=max_memory, overrides=_overrides(overrides))
     docs = doc["rows"]
     if as_json:
         one = docs[0] | ({"estimate": doc["estimate"]} if "estimate" in doc else {})
@@ -233,7 +239,7 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
     if "objective" in docs[0]:  # a design with the noise sensitivity
         from sosalgo.report.pareto import objective_lines
 
-        click.echo("\n".join(objective_lines(doc)))
+        click.echo("\n".join(objective_lines(doc, details)))
         _exit_if_unverified([d.get("verification") for d in docs], "some certificate")
         return
     if docs[0].get("rate_type") == "sublinear":
@@ -245,22 +251,26 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
     names = docs[0]["free"]
     unsupported = all((d.get("relaxation") or {}).get("status") == "unsupported" for d in docs)
     how = ("no lower bound for this family" if unsupported
-           else "lower bound by box-wide dual certificates" if method == "dual"
-           else f"lower bound by moment relaxation ({scalarize})")
+           else "proven lower bound by box-wide dual certificates" if method == "dual"
+           else f"lower bound by moment relaxation ({scalarize}; floating point)")
     click.echo(f"{doc['spec']}: design of {', '.join(names)} certified by "
                f"{docs[0]['family']}; {how}")
+    from sosalgo.report.legend import set_lines
+
+    for line in set_lines(doc):
+        click.echo(line)
     from sosalgo.spec import spec_from_text
 
     note = rep.tighter_family_note(spec_from_text(doc["spec_text"], doc["source"]),
                                    docs[0]["family"], certificate)
     if note:
         click.echo(note)
-    click.echo(rep.design_table(docs, names, gap, method))
+    click.echo(rep.design_table(docs, names, gap, method, details))
     for step in docs[0]["steps"] if len(docs) == 1 else ():
         click.echo(f"  - {step}")
     for line in rep.verification_notes(docs):
         click.echo(line)
-    click.echo(rep.LEGEND)
+    click.echo(rep.design_legend(method))
     click.echo("wrote " + ", ".join([doc["csv"], *doc["figures"]]))
     for d in docs:
         if d.get("error"):
@@ -283,11 +293,14 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
 @batch_options
 @click.option("--no-plot", is_flag=True, help="Skip the figure.")
 @certificate_options(default="tightest")
+@set_option
+@details_option
 @handle_errors
 def pareto(spec_path: str, kappa: tuple[str, ...], points: int, time_limit: float,
            free: str | None, out: str, as_json: bool, workers: int | None,
            scheduler: str | None, restart: bool, quiet: bool, max_memory: str | None,
-           no_plot: bool, certificate: str | None, lag: int | None) -> None:
+           no_plot: bool, certificate: str | None, lag: int | None,
+           overrides: tuple[str, ...], details: bool) -> None:
     """Front of certified rate vs certified noise sensitivity over the parameter box,
     beside the known tunings. Python: sosalgo.pareto_run."""
     from sosalgo.report.pareto import pareto_lines
@@ -295,14 +308,14 @@ def pareto(spec_path: str, kappa: tuple[str, ...], points: int, time_limit: floa
 
     doc = pareto_run(spec_path, _kappas(kappa), out, points, time_limit, free, certificate,
                      {"lag": lag}, workers, scheduler, restart, not quiet, not no_plot,
-                     max_memory=max_memory)
+                     max_memory=max_memory, overrides=_overrides(overrides))
     fronts = doc["fronts"]
     if as_json:
         one = fronts[0] | ({"estimate": doc["estimate"]} if "estimate" in doc else {})
         click.echo(json.dumps(one if len(fronts) == 1 else doc, indent=2))
         return
     for d in fronts:
-        click.echo("\n".join(pareto_lines(d)))
+        click.echo("\n".join(pareto_lines(d, details)))
 
 
 # --------------------------------------------------------------------------- fig4
@@ -354,11 +367,12 @@ def fig4(kappa: tuple[str, ...], time_limit: float, out: str, as_json: bool,
 @click.option("--out", default="outputs", show_default=True, metavar="DIR")
 @batch_options
 @certificate_options
+@set_option
 @handle_errors
 def grid(spec_path: str, kappa: tuple[str, ...], points: int, free: str | None, tol: float,
          out: str, as_json: bool, workers: int | None, scheduler: str | None, restart: bool,
-         quiet: bool, max_memory: str | None, certificate: str | None, lag: int | None
-         ) -> None:
+         quiet: bool, max_memory: str | None, certificate: str | None, lag: int | None,
+         overrides: tuple[str, ...]) -> None:
     """Exhaustive search: certified rate on a grid over the free parameters (Figure 3).
     Python: sosalgo.grid_run."""
     from sosalgo.report import grid as rep
@@ -366,7 +380,7 @@ def grid(spec_path: str, kappa: tuple[str, ...], points: int, free: str | None, 
 
     doc = grid_run(spec_path, _kappas(kappa), out, points, free, tol, certificate,
                    {"lag": lag}, workers, scheduler, restart, not quiet,
-                   max_memory=max_memory)
+                   max_memory=max_memory, overrides=_overrides(overrides))
     if as_json:
         click.echo(json.dumps(doc, indent=2))
         return
@@ -374,6 +388,10 @@ def grid(spec_path: str, kappa: tuple[str, ...], points: int, free: str | None, 
         click.echo(f"{doc['spec']}: certified constant c on a grid of {', '.join(doc['free'])}"
                    f"; best c = {doc['best']}; wrote {doc['csv']}")
         return
+    from sosalgo.report.legend import set_lines
+
+    for line in set_lines(doc):
+        click.echo(line)
     for d in doc["grids"]:
         for line in rep.grid_lines(doc["spec"], d):
             click.echo(line)
@@ -441,8 +459,11 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
         click.echo(json.dumps(res, indent=2))
     else:
         from sosalgo.report.checks import checks_table, ledger_lines
+        from sosalgo.report.legend import set_lines
         from sosalgo.report.pareto import noise_check_lines
 
+        for line in set_lines(doc):
+            click.echo(line)
         click.echo(checks_table(rows, res["results"]))
         for line in noise_check_lines(rows, res["results"]):
             click.echo(line)
@@ -481,11 +502,13 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
 @batch_options
 @click.option("--no-plot", is_flag=True, help="Skip the figures.")
 @click.option("--no-witness", is_flag=True, help="Skip the worst-case witness.")
+@set_option
+@details_option
 @handle_errors
 def pep(spec_path: str, kappa: tuple[str, ...], steps: str, measure: str | None,
         initial: str | None, out: str, as_json: bool, workers: int | None,
         scheduler: str | None, restart: bool, quiet: bool, max_memory: str | None,
-        no_plot: bool, no_witness: bool) -> None:
+        no_plot: bool, no_witness: bool, overrides: tuple[str, ...], details: bool) -> None:
     """Worst case after N steps (performance estimation), its dual certificate proven
     exactly and a checked worst-case witness. Python: sosalgo.pep_run or sosalgo.pep."""
     from sosalgo.runs.pep import pep_run, pep_summary
@@ -493,8 +516,9 @@ def pep(spec_path: str, kappa: tuple[str, ...], steps: str, measure: str | None,
     ks = _kappas(kappa)
     doc = pep_run(spec_path, ks[0] if ks and len(ks) == 1 else ks, steps, measure, initial,
                   out, workers, scheduler, restart, not quiet, not no_plot,
-                  witness=not no_witness, max_memory=max_memory)
-    click.echo(json.dumps(doc, indent=2) if as_json else pep_summary(doc))
+                  witness=not no_witness, max_memory=max_memory,
+                  overrides=_overrides(overrides))
+    click.echo(json.dumps(doc, indent=2) if as_json else pep_summary(doc, details))
 
 
 # --------------------------------------------------------------------------- lmi
@@ -537,7 +561,10 @@ def table1(spec_paths: tuple[str, ...], kappa: tuple[str, ...], tol: float, out:
     from sosalgo.runs import table1_run
 
     doc = table1_run(spec_paths, _kappas(kappa) or (), tol, out, certificate, {"lag": lag})
+    from sosalgo.report.legend import TABLE1_LEGEND
+
     click.echo(format_table(doc["rows"], doc["columns"]))
+    click.echo(TABLE1_LEGEND)
     click.echo(f"wrote {doc['csv']}")
 
 
@@ -557,7 +584,10 @@ def examples(names: tuple[str, ...], copy_to: str | None) -> None:
     found = example_specs()
     unknown = [n for n in names if n not in found]
     if unknown:
-        raise InputError(f"{unknown[0]}: no such example (known: {', '.join(found)})")
+        from sosalgo.spec.names import closest_example
+
+        raise InputError(f"{unknown[0]}: no such example (closest: "
+                         f"{closest_example(unknown[0])}; known: {', '.join(found)})")
     if copy_to is None:
         rows = [{"name": n, "description": example(n).description} for n in names or found]
         click.echo(format_table(rows, ["name", "description"]))

@@ -60,35 +60,63 @@ def result_spec(doc: Mapping[str, Any], where: str = "result",
                 spec: Spec | str | Path | None = None) -> tuple[Spec, str | None, str | None]:
     """(spec, its source, a note): ``spec`` when given, else the spec text embedded in the
     result (``spec_text``), else its ``source`` path. The note says when a given spec differs
-    from the embedded one (a failed check may then be the edit, not the certificate)."""
-    from sosalgo.spec import load_spec, read_spec_text, spec_from_text
+    from the embedded one (a failed check may then be the edit, not the certificate).
+    The document's ``set`` overrides (``--set``) are applied to the spec file; the embedded
+    text already holds them, and a ``set`` it does not hold is refused (VerificationError)."""
+    from sosalgo.spec import read_spec_text, spec_from_text
+    from sosalgo.spec.overrides import apply_overrides
 
     rows = doc.get("rows")
     first = rows[0] if isinstance(rows, list) and rows and isinstance(rows[0], dict) else {}
     embedded = doc.get("spec_text") or first.get("spec_text")
     if embedded is not None and not isinstance(embedded, str):
         raise InputError(f"{where}: spec_text: expected the spec's YAML text")
+    overrides = _overrides(doc, first, where)
     note = None
     if spec is not None:
         if isinstance(spec, Spec):
             chosen, src, text = spec, spec.source, None
         else:
-            text = read_spec_text(spec)
+            text = apply_overrides(read_spec_text(spec), overrides, str(spec))
             chosen, src = spec_from_text(text, source=str(spec)), str(spec)
         if embedded is not None and text is not None and text != embedded:
             note = _difference_note(src, where, embedded, text)
     elif embedded is not None:
         src = doc.get("source") or first.get("source")
+        _check_overrides_held(embedded, overrides, where)
         chosen = spec_from_text(embedded, source=f"{where}: spec_text")
     else:
         src = doc.get("source") or first.get("source")
         if not src or not isinstance(src, str):
             raise InputError(f"{where}: source: unknown spec file; pass --spec")
-        chosen = load_spec(src)
+        chosen = spec_from_text(apply_overrides(read_spec_text(src), overrides, src), src)
     if doc.get("spec") not in (None, chosen.name):
         raise InputError(f"{where}: spec: result is for '{doc.get('spec')}', "
                          f"{src} is '{chosen.name}'")
     return chosen, src if isinstance(src, str) else None, note
+
+
+def _overrides(doc: Mapping[str, Any], first: Mapping[str, Any], where: str) -> dict[str, str]:
+    """The document's ``set`` field (``--set NAME=EXPR`` overrides), checked."""
+    from sosalgo.spec.overrides import parse_set_options
+
+    raw = doc.get("set", first.get("set"))
+    if raw is None:
+        return {}
+    if not isinstance(raw, dict) or not all(isinstance(v, str) for v in raw.values()):
+        raise InputError(f"{where}: set: expected a mapping of parameter names to expressions")
+    return parse_set_options(raw)
+
+
+def _check_overrides_held(embedded: str, overrides: Mapping[str, str], where: str) -> None:
+    """Refuse a ``set`` the embedded spec does not hold: the document would claim a
+    computation with other parameters than the one its certificates were made for."""
+    from sosalgo.errors import VerificationError
+    from sosalgo.spec.overrides import same_overrides_applied
+
+    if overrides and not same_overrides_applied(embedded, overrides, f"{where}: spec_text"):
+        raise VerificationError(f"{where}: set: the overrides are not those of the embedded "
+                                "spec the result was computed with (edited after the run?)")
 
 
 def check_numbers(doc: Any, where: str) -> None:

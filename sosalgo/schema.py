@@ -23,6 +23,7 @@ __all__ = [
     "design_stem", "family_suffix", "grid_columns", "grid_fixed", "grid_stem", "kappa_label",
     "p_columns", "rate_stem", "SUBLINEAR_COLUMNS", "sublinear_columns", "NOISE_COLUMNS",
     "PEP_COLUMNS", "pep_csv", "OBJECTIVE_COLUMNS", "PARETO_COLUMNS", "pareto_stem",
+    "SOLVER_COLUMNS", "printed_columns",
 ]
 
 # ---------------------------------------------------------------------------- printed tables
@@ -30,6 +31,9 @@ __all__ = [
 ANALYSIS_COLUMNS = ["kappa", "rho", "certified", "lambda", "max_eig_M", "min_eig_P", "solves",
                     "seconds"]
 FAMILY_COLUMNS = ["kappa", "rho", "certified", "max_eig_M", "min_eig_P", "solves", "seconds"]
+# the solver's internals: printed only with ``--details`` (the CSV and JSON always hold them)
+SOLVER_COLUMNS = frozenset({"lambda", "max_eig_M", "min_eig_P", "solves", "seconds",
+                            "witness_dim", "noise_lag", "noise_check", "noise_limsup_rho"})
 CHECK_COLUMNS = ["kappa", "rho", "verified", "rho_proven", "simulation", "reason"]
 TABLE1_COLUMNS = ["spec", "kappa", "rho_certified", "certified", "closed_form",
                   "closed_form_rate", "difference"]
@@ -72,6 +76,12 @@ _DESIGN_TAIL = ["scalarize", "order", "status", "flat", "ranks", "seconds", "ste
                 "method", "floor", "time_limited"]
 # a grid's parameter columns may not take these names
 GRID_COLUMNS = frozenset(["kappa", *_GRID_HEAD, *_GRID_TAIL])
+
+
+def printed_columns(columns: Sequence[str], details: bool) -> list[str]:
+    """The printed table's columns: without ``--details``, the solver's internals
+    (:data:`SOLVER_COLUMNS`) are left out."""
+    return [c for c in columns if details or c not in SOLVER_COLUMNS]
 
 
 def p_columns(n: int) -> list[str]:

@@ -15,13 +15,22 @@ import numpy as np
 from sosalgo.certificates import CertificateFamily
 from sosalgo.model import ModelError, bind
 from sosalgo.report import format_table, plot_rates
+from sosalgo.report.legend import (
+    noise_legend,
+    rate_legend,
+    rate_meaning,
+    reference_header,
+    set_lines,
+    sublinear_meaning,
+)
 from sosalgo.report.style import finish, new_figure
-from sosalgo.schema import ANALYSIS_COLUMNS, FAMILY_COLUMNS, SUBLINEAR_COLUMNS
+from sosalgo.schema import ANALYSIS_COLUMNS, FAMILY_COLUMNS, SUBLINEAR_COLUMNS, printed_columns
 from sosalgo.spec import Spec
 from sosalgo.spec.references import reference_curves
 
-__all__ = ["ANALYSIS_COLUMNS", "FAMILY_COLUMNS", "analysis_figure", "analysis_table",
-           "attach_checks", "families_figure", "sublinear_figure"]
+__all__ = ["ANALYSIS_COLUMNS", "FAMILY_COLUMNS", "analysis_figure", "analysis_lines",
+           "analysis_table", "attach_checks", "families_figure", "noise_table",
+           "sublinear_figure"]
 
 Run = tuple[CertificateFamily, Path, list[dict[str, Any]]]  # family, its CSV, its JSON rows
 
@@ -113,13 +122,60 @@ def attach_checks(spec: Spec, rows: list[dict[str, Any]], out_dir: Path,
         r["verified"] = None if v is None else v["verified"]
 
 
-def analysis_table(spec: Spec, rows: list[dict[str, Any]], columns: list[str]) -> str:
-    """The printed table of analysis rows: ``columns`` and the spec's references (a
-    sublinear spec's rows: L, rate_type, constant, ... whatever ``columns`` says)."""
+def analysis_table(spec: Spec, rows: list[dict[str, Any]], columns: list[str],
+                   details: bool = True) -> str:
+    """The printed table of analysis rows: ``columns`` and the spec's references, headed
+    "reference: NAME" (a sublinear spec's rows: L, rate_type, constant, ...); without
+    ``details`` the solver's internals are left out (:func:`sosalgo.schema.printed_columns`)."""
     if spec.sublinear:
         columns = SUBLINEAR_COLUMNS + (["verified"] if "verified" in columns else [])
-    return format_table([{**r, **r["references"]} for r in rows],
-                        columns + list(spec.references))
+    columns = printed_columns(columns, details)
+    refs = list(spec.references)
+    return format_table([{**r, **r["references"]} for r in rows], columns + refs,
+                        columns + [reference_header(n) for n in refs])
+
+
+def noise_table(rows: list[dict[str, Any]], details: bool) -> str:
+    """The printed table of ``analyze --noise``: one row per kappa and family."""
+    columns = ["kappa"] + (["family"] if len({r.get("family") for r in rows}) > 1 else []) + [
+        "noise", "noise_quadratic", "noise_limsup", "noise_lag", "noise_check",
+        "noise_limsup_rho"]
+    return format_table(rows, printed_columns(columns, details))
+
+
+def analysis_lines(doc: dict[str, Any], details: bool = False, verified: bool = False,
+                   noise: bool = False) -> list[str]:
+    """What ``sosalgo analyze`` prints (without ``--json``): per family its name, table
+    and verdicts; what rho (or c) bounds, the legend, the noise table; the files."""
+    from sosalgo.certificates import FAMILIES
+    from sosalgo.spec import spec_from_text
+
+    spec = spec_from_text(doc["spec_text"], doc["source"])
+    rows = doc["rows"]
+    out = [f"{spec.name}: {spec.description}".rstrip(": ")]
+    out += set_lines(doc)
+    columns = ["verified"] if verified else []
+    groups = ([(name, [r for r in rows if r["family"] == name]) for name in doc["csvs"]]
+              if "csvs" in doc else [(rows[0].get("family", "") if rows else "", rows)])
+    for name, mine in groups:
+        fam = FAMILIES.get(name)
+        if fam is not None:
+            out.append(f"certificate family: {fam.description}")
+        base = ANALYSIS_COLUMNS if "csvs" not in doc else FAMILY_COLUMNS
+        out.append(analysis_table(spec, mine, base + columns, details))
+        out += verdict_lines(mine)
+    if spec.sublinear:
+        out.append(sublinear_meaning(spec))
+    else:
+        for name, mine in groups:
+            out += rate_meaning(spec, name or None, [r.get("lag") for r in mine],
+                                named=len(groups) > 1)
+        out += rate_legend(rows, list(spec.references))
+    if noise and rows:
+        out += [noise_table(rows, details), *noise_legend(details)]
+    csvs = list(doc.get("csvs", {"": doc["csv"]}).values())
+    out.append("wrote " + ", ".join(csvs + doc["figures"]))
+    return out
 
 
 def sublinear_figure(spec: Spec, row: dict[str, Any], stem: Path, steps: int = 50) -> list[Path]:

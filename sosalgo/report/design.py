@@ -12,16 +12,30 @@ from typing import Any
 
 from sosalgo.certificates import CertificateFamily
 from sosalgo.report import format_table, plot_rates
+from sosalgo.schema import printed_columns
 from sosalgo.spec import Spec
 from sosalgo.spec.references import reference_curves
 
-__all__ = ["LEGEND", "design_figure", "design_table", "proven_bound", "verdict",
+__all__ = ["LEGEND", "design_figure", "design_legend", "design_table", "proven_bound", "verdict",
            "verification_notes"]
 
-LEGEND = ("rho_certified: analysis at the designed theta (with its certificate); "
-          "lower_bound: proven, no theta in the box is certified below it; "
-          "floor: 1 - 1/sqrt(kappa), no first-order method is faster on F(m, L) (composite "
-          "specs: only where that is a theorem, see docs/commands/design.md; empty otherwise)")
+LEGEND = "\n".join([
+    "rho_certified: certified rate at the designed theta (with its certificate)",
+    "lower_bound: proven lower bound, no theta in the box is certified below it",
+    "rho_at_values: certified rate at the spec's own values",
+    "floor: 1 - 1/sqrt(kappa), no first-order method is faster on F(m, L) (composite specs: "
+    "only where",
+    "  that is a theorem, see docs/commands/design.md; empty otherwise)"])
+
+
+def design_legend(method: str) -> str:
+    """The legend under the design table; the moment relaxation's bound is a floating-point
+    SDP's value, not a proven lower bound."""
+    if method != "moment":
+        return LEGEND
+    return LEGEND.replace(
+        "lower_bound: proven lower bound, no theta in the box is certified below it",
+        "lower_bound: the moment relaxation's value (floating point, not proven exactly)")
 
 
 def tighter_family_note(spec: Spec, family: str, certificate: str | None) -> str | None:
@@ -50,9 +64,10 @@ def verdict(doc: dict[str, Any], gap: float) -> str:
 
 
 def design_table(docs: Sequence[dict[str, Any]], names: Sequence[str], gap: float,
-                 method: str) -> str:
+                 method: str, details: bool = True) -> str:
     """One row per kappa: designed parameters, lower bound, certified rate, gap, verdict
-    (and the relaxation's order and flatness for the moment method)."""
+    (and the relaxation's order and flatness for the moment method); the seconds only
+    with ``details``."""
     table = []
     for d in docs:
         row = {"kappa": d["kappa"], "lower_bound": proven_bound(d) or "none proven",
@@ -66,7 +81,7 @@ def design_table(docs: Sequence[dict[str, Any]], names: Sequence[str], gap: floa
     cols = ["kappa", *names, "lower_bound", "rho_certified", "gap", "verdict",
             "rho_at_values", "floor"] + (["order", "flat"] if method == "moment" else []) + [
             "seconds"]
-    return format_table(table, cols)
+    return format_table(table, printed_columns(cols, details))
 
 
 def verification_notes(docs: Sequence[dict[str, Any]]) -> list[str]:

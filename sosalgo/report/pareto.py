@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from sosalgo.report import save_figure
+from sosalgo.report.legend import set_lines
 from sosalgo.report.style import color, finish, log_ticks, new_figure
 
 __all__ = ["noise_check_lines", "objective_lines", "pareto_figure", "pareto_lines",
@@ -73,9 +74,11 @@ def pareto_plot(doc: Mapping[str, Any]) -> Any:
     return fig
 
 
-def objective_lines(doc: Mapping[str, Any]) -> list[str]:
-    """What ``sosalgo design --objective noise|--max-noise`` prints: one row per kappa."""
+def objective_lines(doc: Mapping[str, Any], details: bool = True) -> list[str]:
+    """What ``sosalgo design --objective noise|--max-noise`` prints: one row per kappa
+    (the noise certificate's lag and check and the seconds only with ``details``)."""
     from sosalgo.report import format_table
+    from sosalgo.schema import printed_columns
 
     docs = doc["rows"]
     names = docs[0]["free"]
@@ -91,20 +94,22 @@ def objective_lines(doc: Mapping[str, Any]) -> list[str]:
              "seconds": d["seconds"]} for d in docs]
     lines = [f"{doc['spec']}: {what}, over {', '.join(names)} ({d0['family']}; a search, "
              "no lower bound for this objective)",
-             format_table(rows, ["kappa", *names, "rho_certified", "rho_check", "noise",
-                                 "noise_quadratic",
-                                 "noise_lag", "noise_check", "status", "seconds"])]
+             format_table(rows, printed_columns(
+                 ["kappa", *names, "rho_certified", "rho_check", "noise", "noise_quadratic",
+                  "noise_lag", "noise_check", "status", "seconds"], details))]
     lines += [f"  - {s}" for s in (d0.get("steps") or [])] if len(docs) == 1 else []
-    lines.append(RHO_LEGEND.replace("rho:", "rho_certified:") + "; "
-                 + NOISE_LEGEND + "; status 'none found': no theta found meeting the cap "
-                 "(not a proof that none exists)")
+    lines += [RHO_LEGEND.replace("rho:", "rho_certified:"), NOISE_LEGEND,
+              "status 'none found': no theta found meeting the cap (not a proof that none "
+              "exists)"]
     lines.append("wrote " + ", ".join([doc["csv"], *doc["figures"]]))
     return lines
 
 
-def pareto_lines(doc: Mapping[str, Any]) -> list[str]:
-    """What ``sosalgo pareto`` prints for one kappa: the front, then the known tunings."""
+def pareto_lines(doc: Mapping[str, Any], details: bool = True) -> list[str]:
+    """What ``sosalgo pareto`` prints for one kappa: the front, then the known tunings
+    (the noise certificates' lags and checks only with ``details``)."""
     from sosalgo.report import format_table
+    from sosalgo.schema import printed_columns
 
     names = doc["free"]
     front = [{"rho": p["rho"], "rho_check": p.get("rho_check"), "noise": p["noise"],
@@ -119,11 +124,12 @@ def pareto_lines(doc: Mapping[str, Any]) -> list[str]:
     return [f"{doc['spec']}: front of certified rate vs certified noise sensitivity at "
             f"kappa {doc['kappa']:g} over {', '.join(names)} ({doc['family']}); "
             f"{len(doc['front'])} points ({lost} dominated or uncertified dropped)",
-            format_table(front, cols),
+            *set_lines(doc),
+            format_table(front, printed_columns(cols, details)),
             "known tunings, in the form x+ = x + beta (x - x-) - h grad f(x + gamma (x - x-)):",
-            format_table(tun, ["name", "rho", "rho_check", "noise", "noise_quadratic",
-                               "noise_check"]),
-            RHO_LEGEND + "; " + NOISE_LEGEND,
+            format_table(tun, printed_columns(["name", "rho", "rho_check", "noise",
+                                               "noise_quadratic", "noise_check"], details)),
+            RHO_LEGEND, NOISE_LEGEND,
             "wrote " + ", ".join([doc["csv"], *doc["figures"]])]
 
 

@@ -23,23 +23,40 @@ from sosalgo.schema import analysis_csv, design_stem, grid_stem, rate_stem
 from sosalgo.spec import Spec
 from sosalgo.store import output_lock
 
-__all__ = ["analyze_run", "design_run", "grid_run", "spec_with_text", "table1_run"]
+__all__ = ["analyze_run", "design_run", "grid_run", "set_field", "spec_with_text",
+           "table1_run"]
 
 Kappas = float | Sequence[float] | None
 
 
-def spec_with_text(spec: Spec | str | Path, spec_text: str | None = None) -> tuple[Spec, str]:
+def spec_with_text(spec: Spec | str | Path, spec_text: str | None = None,
+                   overrides: Mapping[str, str] | None = None) -> tuple[Spec, str]:
     """(spec, its YAML text): batch runs send the text to workers and settings files. A
-    path is read once (a pipe works); a Spec needs its ``spec_text``."""
+    path is read once (a pipe works; a shipped example's name reads the example); a Spec
+    needs its ``spec_text``. ``overrides`` (``--set NAME=EXPR``) fix parameters: the text
+    returned is the spec's with them applied (:mod:`sosalgo.spec.overrides`)."""
     from sosalgo.spec import read_spec_text, spec_from_text
+    from sosalgo.spec.overrides import apply_overrides
 
     if isinstance(spec, Spec):
         if spec_text is None:
             raise InputError(f"{spec.source}: a batch run needs the spec's text: pass a path "
                              "or spec_text")
-        return spec, spec_text
-    text = read_spec_text(spec) if spec_text is None else spec_text
-    return spec_from_text(text, source=str(spec)), text
+        source, text = spec.source, spec_text
+        if not overrides:
+            return spec, spec_text
+    else:
+        source = str(spec)
+        text = read_spec_text(spec) if spec_text is None else spec_text
+    if overrides:
+        text = apply_overrides(text, overrides, source)
+    return spec_from_text(text, source=source), text
+
+
+def set_field(overrides: Mapping[str, str] | None) -> dict[str, Any]:
+    """The ``set`` field of a result document: the ``--set`` overrides it was computed
+    with (``sosalgo verify`` applies them again); nothing without overrides."""
+    return {"set": dict(overrides)} if overrides else {}
 
 
 def _kappa_list(spec: Spec, kappa: Kappas) -> list[float]:
@@ -77,17 +94,19 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
                 plot: bool = True, verify: bool = False,
                 spec_text: str | None = None, noise: bool = False,
                 brackets: str = "quadratic", cycle_seconds: float = 5.0,
-                max_memory: int | str | None = None) -> dict[str, Any]:
+                max_memory: int | str | None = None,
+                overrides: Mapping[str, str] | None = None) -> dict[str, Any]:
     """``sosalgo analyze``: one CSV per family, the rate figure, optional checks; returns
     the ``--json`` document (every row names its ``family``; Theorem 1's rows carry P and
     lambda beside rho, no ``certificate`` object).
     ``noise`` (``--noise``) adds the certified noise sensitivity to every row.
     ``brackets`` (quadratic, self-similar, none) and ``cycle_seconds`` (the cycle search's
-    time per uncertified row, 0: none) choose the witnesses (:mod:`sosalgo.witnesses`)."""
+    time per uncertified row, 0: none) choose the witnesses (:mod:`sosalgo.witnesses`).
+    ``overrides`` (``--set``) fix parameters; the document records them in ``set``."""
     from sosalgo.batch.sweeps import csv_row_to_json, run_analysis_sweep
     from sosalgo.report import analysis as rep
 
-    spec, text = spec_with_text(spec, spec_text)
+    spec, text = spec_with_text(spec, spec_text, overrides)
     if noise:  # one gradient call on F(m, L) only (sosalgo.sensitivity)
         from sosalgo.sensitivity.run import check_noise_spec
 
@@ -99,7 +118,7 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
             f"analyze {spec.name}", "", 1, spec.n, 1, _budget(max_memory, workers),
             seconds_each=budget.SUBLINEAR_SECONDS))
         return sublinear_run(spec, text, out_dir, plot, kappa, verify, restart,
-                             progress) | {"estimate": est.to_dict()}
+                             progress) | {"estimate": est.to_dict()} | set_field(overrides)
     kappas = _kappa_list(spec, kappa)
     inputs.check_tol(tol, "--tol")
     from sosalgo.witnesses.rows import check_witness_options
@@ -137,7 +156,7 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
         if verify:
             rep.attach_checks(spec, jrows, out / "certificates", family=None if plain else fam)
     doc = {"spec": spec.name, "source": spec.source, "spec_text": text, "tol": tol,
-           "csv": str(runs[0][1])}
+           "csv": str(runs[0][1])} | set_field(overrides)
     if not plain:
         doc["csvs"] = {f.name: str(p) for f, p, _ in runs}
     return doc | {"figures": [str(p) for p in figs],
@@ -171,18 +190,21 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
                verify: bool = False, progress_steps: bool = False,
                spec_text: str | None = None, objective: str = "rate",
                max_rate: float | None = None, max_noise: float | None = None,
-               max_memory: int | str | None = None) -> dict[str, Any]:
+               max_memory: int | str | None = None,
+               overrides: Mapping[str, str] | None = None) -> dict[str, Any]:
     """``sosalgo design``: the design sweep over kappa into ``<name>-design[...].csv``;
     returns ``{"spec", "source", "spec_text", "csv", "figures", "rows"}``, one design
     document per kappa (``--json`` prints the single document for one kappa).
     ``objective="noise"`` with ``max_rate`` (or ``max_noise`` with the default objective)
     designs with the noise sensitivity (:mod:`sosalgo.design.objectives`) into
-    ``<name>-design[...]-min-noise.csv`` (``-min-rate.csv``)."""
+    ``<name>-design[...]-min-noise.csv`` (``-min-rate.csv``). ``overrides`` (``--set``)
+    fix parameters (a fixed parameter is not free); every document records them in
+    ``set``."""
     from sosalgo.batch.sweeps import design_csv_to_json, run_design_sweep
     from sosalgo.design.objectives import check_objective
     from sosalgo.report import design as rep
 
-    spec, text = spec_with_text(spec, spec_text)
+    spec, text = spec_with_text(spec, spec_text, overrides)
     check_objective(spec, [] if spec.sublinear else _kappa_list(spec, kappa), objective,
                     max_rate, max_noise)
     two = objective != "rate" or max_noise is not None  # a noise objective or cap
@@ -195,7 +217,8 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
         est = budget.check(budget.design_estimate(  # one process: no workers
             f"design {spec.name}", "", 1, time_limit, _budget(max_memory, 1)))
         return sublinear_design_run(spec, text, out_dir, free, time_limit, verify,
-                                    restart, progress) | {"estimate": est.to_dict()}
+                                    restart, progress) | {"estimate": est.to_dict()
+                                                          } | set_field(overrides)
     fam = inputs.select_families(spec, certificate, options, single=True,
                                  command="noise" if two else "design")[0]
     kappas = _kappa_list(spec, kappa)
@@ -229,6 +252,7 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
             _design_certificates(csv_path, d)
         for d in docs:
             d["source"], d["spec_text"] = spec.source, text
+            d.update(set_field(overrides))
         how = ("dual certificates" if method == "dual" else f"moment relaxation, {scalarize}")
         figs = (rep.design_figure(spec, opts["free"], rows, docs, stem, fam, how)
                 if len(docs) > 1 else [])
@@ -239,7 +263,8 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
         for d, v in zip(docs, checks, strict=True):
             d["verification"] = v
     return {"spec": spec.name, "source": spec.source, "spec_text": text, "csv": str(csv_path),
-            "figures": [str(p) for p in figs], "rows": docs, "estimate": est.to_dict()}
+            "figures": [str(p) for p in figs], "rows": docs, "estimate": est.to_dict()
+            } | set_field(overrides)
 
 
 DESIGN_CERTIFICATES = ("bound_certificate", "values_certificate")
@@ -273,16 +298,18 @@ def grid_run(spec: Spec | str | Path, kappa: Kappas, out_dir: str | Path = "outp
              certificate: str | None = None, options: Mapping[str, Any] | None = None,
              workers: int | None = None, scheduler: str | None = None, restart: bool = False,
              progress: bool = True, spec_text: str | None = None,
-             max_memory: int | str | None = None) -> dict[str, Any]:
+             max_memory: int | str | None = None,
+             overrides: Mapping[str, str] | None = None) -> dict[str, Any]:
     """``sosalgo grid``: one CSV (and figure, for one or two free parameters) per kappa;
     returns ``{"spec", "free", "fixed", "grids"}`` (``fixed``: the parameters that are not
-    free, with their values at each kappa in the grid entries)."""
+    free, with their values at each kappa in the grid entries; ``set``: the ``--set``
+    overrides, when given)."""
     from sosalgo.batch.sweeps import run_grid
     from sosalgo.model import parameter_values
     from sosalgo.report import grid as rep
     from sosalgo.schema import GRID_COLUMNS, grid_fixed
 
-    spec, text = spec_with_text(spec, spec_text)
+    spec, text = spec_with_text(spec, spec_text, overrides)
     if spec.sublinear:  # m: 0: the certified constant on the grid (no kappa)
         from sosalgo.sublinear_run import sublinear_grid_run
 
@@ -292,7 +319,8 @@ def grid_run(spec: Spec | str | Path, kappa: Kappas, out_dir: str | Path = "outp
         est = _grid_budget(spec, names, points, 1, max_memory, workers)
         return sublinear_grid_run(spec, text, out_dir, points, free,
                                   est.workers if scheduler is None else workers, scheduler,
-                                  restart, progress) | {"estimate": est.to_dict()}
+                                  restart, progress) | {"estimate": est.to_dict()
+                                                        } | set_field(overrides)
     if kappa in (None, [], ()):
         raise InputError("--kappa: required (one or more condition numbers)")
     kappas = _kappa_list(spec, kappa)
@@ -323,7 +351,7 @@ def grid_run(spec: Spec | str | Path, kappa: Kappas, out_dir: str | Path = "outp
         docs.append(rep.grid_document(k, csv_path, figs, rows, rho, names)
                     | {"fixed": {p: values[p] for p in grid_fixed(spec, names)}})
     return {"spec": spec.name, "free": names, "fixed": grid_fixed(spec, names), "grids": docs,
-            "estimate": est.to_dict()}
+            "estimate": est.to_dict()} | set_field(overrides)
 
 
 def _grid_budget(spec: Spec, names: list[str], points: int, kappas: int,

@@ -357,14 +357,16 @@ def pareto_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = 
                options: Mapping[str, Any] | None = None, workers: int | None = None,
                scheduler: str | None = None, restart: bool = False, progress: bool = True,
                plot: bool = True, spec_text: str | None = None,
-               max_memory: int | str | None = None) -> dict[str, Any]:
+               max_memory: int | str | None = None,
+               overrides: Mapping[str, str] | None = None) -> dict[str, Any]:
     """``sosalgo pareto``: the front of (certified rate, certified sensitivity) at each
     kappa (module docstring), ``time_limit`` seconds per kappa; returns
     ``{"spec", "source", "fronts": [document per kappa]}`` (``--json`` prints the single
-    document for one kappa). Bad input is an InputError before anything is written."""
-    from sosalgo.runs import spec_with_text
+    document for one kappa). Bad input is an InputError before anything is written.
+    ``overrides`` (``--set``) fix parameters; the documents record them in ``set``."""
+    from sosalgo.runs import set_field, spec_with_text
 
-    spec, text = spec_with_text(spec, spec_text)
+    spec, text = spec_with_text(spec, spec_text, overrides)
     kappas = _check(spec, kappa, points, time_limit)
     names = inputs.free_names(spec, free)
     fam = inputs.select_families(spec, certificate, options, single=True, command="pareto")[0]
@@ -382,6 +384,6 @@ def pareto_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = 
     run = {"workers": workers, "scheduler": scheduler, "restart": restart,
            "progress": progress, "plot": plot}
     docs = [_one_kappa(spec, text, k, names, fam, points, float(time_limit), out, run)
-            for k in kappas]
+            | set_field(overrides) for k in kappas]
     return {"spec": spec.name, "source": spec.source, "spec_text": text, "kind": "pareto",
-            "fronts": docs, "estimate": est.to_dict()}
+            "fronts": docs, "estimate": est.to_dict()} | set_field(overrides)

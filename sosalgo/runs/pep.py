@@ -5,7 +5,8 @@ resumable sweeps over kappa and N through the batch layer). The PEP itself is
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+import re
+from collections.abc import Mapping, Sequence
 from fractions import Fraction
 from pathlib import Path
 from typing import Any
@@ -13,7 +14,7 @@ from typing import Any
 from sosalgo.kernel.phases import begin_task
 from sosalgo.spec import Spec
 
-__all__ = ["pep_chunk", "pep_row", "pep_run"]
+__all__ = ["pep_chunk", "pep_heading", "pep_row", "pep_run", "term_words"]
 
 # a PEP estimated (sosalgo.kernel.budget) longer than this runs in a worker process that a signal
 # can end at once; a shorter one runs here, where a signal waits at most for its solve
@@ -97,20 +98,23 @@ def pep_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = Non
             out_dir: str | Path | None = "outputs", workers: int | None = None,
             scheduler: str | None = None, restart: bool = False, progress: bool = True,
             plot: bool = True, exact: bool = True, witness: bool = True,
-            spec_text: str | None = None, max_memory: int | str | None = None
-            ) -> dict[str, Any]:
+            spec_text: str | None = None, max_memory: int | str | None = None,
+            overrides: Mapping[str, str] | None = None) -> dict[str, Any]:
     """``sosalgo pep``: one document per (kappa, N) — ``{"spec", "kappa", "steps", "tau",
     "measure", "initial", "certificate", "witness", ...}`` — alone, or as ``rows`` for a
     range of steps or several kappas; the CSV, the witness JSON files and the figure
-    (tau_k against k) go to ``out_dir`` (None: nothing written)."""
+    (tau_k against k) go to ``out_dir`` (None: nothing written). ``overrides``
+    (``--set``) fix parameters; the document and the witness files record them in
+    ``set``."""
     from sosalgo import inputs
     from sosalgo.batch.executor import Progress, check_scheduler, run_batch
     from sosalgo.pep.core import parse_steps
-    from sosalgo.runs import spec_with_text
+    from sosalgo.runs import set_field, spec_with_text
     from sosalgo.schema import PEP_COLUMNS, pep_csv
     from sosalgo.store import ResumableCSV
 
-    spec, text = spec_with_text(spec, spec_text)
+    spec, text = spec_with_text(spec, spec_text, overrides)
+    recorded = set_field(overrides)
     ks: list[float | None] = ([None] if kappa is None else
                               [float(kappa)] if isinstance(kappa, int | float)
                               else [float(k) for k in kappa])
@@ -127,7 +131,7 @@ def pep_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = Non
         got: list[dict[str, Any]] = []
         run_batch(pep_chunk, text, spec.source, options, tasks, got.append, workers,
                   scheduler, isolate=isolate)
-        return _pep_document(spec, measure, initial, _docs(got), [], est)
+        return _pep_document(spec, measure, initial, _docs(got), [], est) | recorded
     path = pep_csv(out, spec.name)
     settings = {"job": "pep", "spec": text, **options}
     store = ResumableCSV(path, PEP_COLUMNS, ["kappa", "steps"], settings, restart=restart,
@@ -143,8 +147,8 @@ def pep_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = Non
             bar.close()
         keys = {store.row_key(t) for t in tasks}
         docs = _docs([r for r in store.rows() if store.row_key(r) in keys])
-        files = _write_files(spec, text, docs, out, plot)
-    return _pep_document(spec, measure, initial, docs, files, est)
+        files = _write_files(spec, text, docs, out, plot, recorded)
+    return _pep_document(spec, measure, initial, docs, files, est) | recorded
 
 
 def _docs(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -181,17 +185,18 @@ def _companions(spec: Spec, ks: list[float | None], ns: list[int], out: Path) ->
 
 
 def _write_files(spec: Spec, text: str, docs: list[dict[str, Any]], out: Path,
-                 plot: bool) -> list[str]:
-    """Witness JSON files (with the spec's text as the run read it, so ``sosalgo verify``
-    needs nothing else), each written atomically, and the figure of tau_k against k for
-    each kappa with two steps or more."""
+                 plot: bool, recorded: Mapping[str, Any]) -> list[str]:
+    """Witness JSON files (with the spec's text as the run read it and ``recorded``, the
+    ``set`` overrides, so ``sosalgo verify`` needs nothing else), each written atomically,
+    and the figure of tau_k against k for each kappa with two steps or more."""
     from sosalgo.store import write_atomic
 
     files = []
     for d in docs:
         if d.get("witness"):
             path = _witness_path(spec, out, d["kappa"], d["steps"])
-            write_atomic(path, json.dumps(d["witness"] | {"spec_text": text}, indent=1))
+            write_atomic(path, json.dumps(d["witness"] | {"spec_text": text} | dict(recorded),
+                                          indent=1))
             files.append(str(path))
     if plot:
         from sosalgo.report.pep import pep_figure
@@ -219,9 +224,13 @@ def _certified_rate(spec: Spec, kappa: float | None) -> float | None:
     return float(res.rho) if res.certified and res.rho is not None else None
 
 
-def pep_summary(doc: dict[str, Any]) -> str:
-    """The printed table of ``sosalgo pep``."""
+def pep_summary(doc: dict[str, Any], details: bool = True) -> str:
+    """The printed table of ``sosalgo pep``: what tau is (the class and its parameters, the
+    measure, the initial condition and the steps, in words), the table (the witness's
+    dimension and the seconds only with ``details``) and its legend."""
     from sosalgo.report import format_table
+    from sosalgo.report.legend import set_lines
+    from sosalgo.schema import printed_columns
 
     rows = doc.get("rows", [doc])
     table = []
@@ -237,10 +246,56 @@ def pep_summary(doc: dict[str, Any]) -> str:
                       "seconds": d.get("seconds")})
     cols = ["kappa", "N", "tau", "tau_proven", "check", "witness_lower", "witness_dim",
             "seconds"]
-    head = f"{rows[0]['spec']}: worst case of {rows[0]['measure']} / {rows[0]['initial']}"
-    cls = rows[0].get("class")
-    if cls:  # the class the proofs are about, exactly
-        many = len({d["kappa"] for d in rows}) > 1
-        head += f" over the class m = {cls['m']}, L = " + ("kappa m" if many else cls["L"])
     files = doc.get("files") or []
-    return "\n".join([head, format_table(table, cols)] + [f"wrote {f}" for f in files])
+    return "\n".join([*pep_heading(rows), *set_lines(doc),
+                      format_table(table, printed_columns(cols, details)),
+                      *PEP_LEGEND] + [f"wrote {f}" for f in files])
+
+
+PEP_LEGEND = ("tau: the SDP's worst case (floating point); tau_proven: proven upper bound "
+              "(exact dual certificate)",
+              "witness_lower: witnessed lower bound (reached by an explicit function and start)")
+_TERM = re.compile(r"\b(f|dist|grad|sdist)\b(\s*\(\s*([A-Za-z0-9_]+)\s*\))?")
+
+
+def term_words(text: str, initial: bool, several: bool) -> str:
+    """A measure or initial condition (``f``, ``2*dist``, ``f + L/2*grad(y_N)``) in words:
+    f(x_N) - f*, |x_0 - x*|^2, |grad f(y_N)|^2, |xi_N - xi*|^2 (``several``: a sum over
+    the functions)."""
+    def words(mt: re.Match[str]) -> str:
+        kind, point = mt.group(1), mt.group(3) or ("x_0" if initial else "x_N")
+        state = "xi_0" if initial else "xi_N"
+        return {"f": (f"(sum_j f_j({point}) - f_j*)" if several else f"(f({point}) - f*)"),
+                "dist": f"|{point} - x*|^2", "grad": f"|grad f({point})|^2",
+                "sdist": f"|{state} - xi*|^2"}[kind]
+
+    out = _TERM.sub(words, str(text))
+    return out[1:-1] if out.startswith("(") and out.endswith(")") and out.count("(") == 2 \
+        else out
+
+
+def pep_heading(rows: list[dict[str, Any]]) -> list[str]:
+    """What tau is, in words: the measure over the initial condition, each function's
+    class with its parameters (m, L; L = kappa m over several kappas), the steps."""
+    from sosalgo.classes import CLASSES
+
+    d = rows[0]
+    cls = d.get("class") or {}
+    funcs = cls.get("functions") or {"f": {"class": "F(m, L)", "params": {
+        "m": cls.get("m"), "L": cls.get("L")}}}  # a row written before rows named classes
+    several = len(funcs) > 1
+    many = len({r["kappa"] for r in rows}) > 1
+    start = ("any xi_0 (the whole state is free)" if "sdist" in str(d["initial"])
+             else "x_0 (the method at rest there, or as its initial_state says)")
+    lines = [f"{d['spec']}: tau = worst case of {term_words(d['measure'], False, several)} "
+             f"when {term_words(d['initial'], True, several)} <= 1, over"]
+    for name, fn in funcs.items():
+        what = getattr(CLASSES.get(fn.get("class")), "description", "") or fn.get("class")
+        params = {k: ("kappa m" if many and k == "L" else v)
+                  for k, v in (fn.get("params") or {}).items()}
+        shown = ", ".join(f"{k} = {v}" for k, v in params.items())
+        lines.append(f"  {name}: {fn.get('class')} ({what})" + (f" with {shown}" if shown
+                                                                 else ""))
+    return lines + [f"  start: {start}",
+                    "  N steps: N iterations xi+ = A xi + B u (each with its oracle calls); "
+                    "x_N: the output after them"]

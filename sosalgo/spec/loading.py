@@ -124,7 +124,8 @@ def read_spec_text(path: str | Path) -> str:
     A regular file or a terminal is read as it is. A pipe (``/dev/stdin`` fed by a pipe,
     ``<(...)``, a named FIFO) is read as it arrives, but the whole text must have arrived
     within :data:`MAX_WAIT_SECONDS`: a FIFO nobody writes to is refused, not waited on
-    forever. A directory, a block device or a socket is refused."""
+    forever. A directory, a block device or a socket is refused. Where no such file
+    exists, a shipped example's name (``nesterov``) reads that example."""
     source = str(path)
     try:
         mode = os.stat(path).st_mode
@@ -143,7 +144,7 @@ def read_spec_text(path: str | Path) -> str:
     except SpecError:
         raise
     except FileNotFoundError:
-        raise SpecError(source, "", "no such file") from None
+        return _shipped_or_missing(source)
     except IsADirectoryError:
         raise SpecError(source, "", "is a directory, not a spec file") from None
     except UnicodeDecodeError:
@@ -151,6 +152,20 @@ def read_spec_text(path: str | Path) -> str:
     except (OSError, ValueError) as exc:  # ValueError: a NUL byte in the path
         reason = getattr(exc, "strerror", None) or str(exc)
         raise SpecError(source, "", f"cannot read ({reason})") from None
+
+
+def _shipped_or_missing(source: str) -> str:
+    """The text of the shipped example a bare name stands for (``nesterov``: no such file
+    here); else the one-line error naming the closest shipped example."""
+    from sosalgo.spec.names import closest_example, shipped_example
+
+    example = shipped_example(source)
+    if example is not None:
+        return example.read_bytes()[: MAX_FILE_BYTES + 1].decode("utf-8")
+    close = closest_example(source)
+    hint = (f" (closest shipped example: {close}; `sosalgo examples` lists them)"
+            if close else "")
+    raise SpecError(source, "", f"no such file{hint}")
 
 
 def spec_text_and_path(name: str) -> tuple[str, str]:

@@ -44,7 +44,7 @@ RUN_FIELDS = frozenset({
     "check", "simulation", "constant_estimate", "verification", "index", "kind",
     "method", "rate_type", "gap_met", "objective", "objective_status", "description",
     "free", "box", "name", "note", "notes", "estimate"})
-CONDITION_FIELDS = frozenset({"kappa", "family", "lag", "reference"})
+CONDITION_FIELDS = frozenset({"kappa", "family", "lag", "reference", "set"})
 
 
 def entry(row: int | None, field: str, claimed: Any, status: str, reason: str,
