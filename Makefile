@@ -144,4 +144,4 @@ soundness: $(VENV)/.installed-dev
 	SOSALGO_SOUNDNESS_CASES=$(SOUNDNESS_CASES) SOSALGO_COMPOSITE_CASES=$(COMPOSITE_CASES) \
 	  SOSALGO_NEW_CASES=$(NEW_CASES) \
 	  $(BIN)/python -m pytest tests/test_soundness.py tests/test_soundness_composite.py \
-	  tests/test_soundness_new.py
+	  tests/test_soundness_pep.py

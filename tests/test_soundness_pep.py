@@ -50,7 +50,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from .independent_new import (
+from .independent_momentum import (
     Momentum,
     Start,
     check_cycle,
