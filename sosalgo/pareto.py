@@ -3,7 +3,7 @@
 At one kappa (README, "Robustness to gradient noise", "Design on the speed–robustness
 front"):
 
-1. the fast end: today's rate design (:func:`sosalgo.design.design`) gives the fastest
+1. the fast end: the rate design (:func:`sosalgo.design.design`) gives the fastest
    certified rate rho_0 it finds on the box;
 2. N - 1 rate caps R_i = 1 - (1 - rho_0)^(1 + i/(N - 1)), i = 1 .. N - 1, evenly spaced in
    log(1 - rho) from rho_0 to the slow end 1 - (1 - rho_0)^2 (1 - 1/kappa when rho_0 is the

@@ -56,7 +56,7 @@ PEP_COLUMNS = ["kappa", "steps", "tau", "status", "gap", "tau_proven", "check_ki
                "witness_verified", "tau_lower", "witness_dimension", "measure", "initial",
                "seconds", "document"]
 # ``design --objective noise --max-rate R`` / ``--objective rate --max-noise G``: appended to
-# the design columns (only then: today's design files keep their columns)
+# the design columns (only then: a rate design's file keeps its columns)
 OBJECTIVE_COLUMNS = ["objective", "max_rate", "max_noise", "noise", "noise_quadratic",
                      "noise_lag", "noise_check", "objective_status", "bound_status",
                      "rho_check", "rho_proven", "noise_certificate"]

@@ -67,7 +67,7 @@ def test_triple_momentum_default_reaches_one_minus_one_over_sqrt_kappa():
     assert res.rho == pytest.approx(1 - 1 / math.sqrt(10), abs=1e-5)
 
 
-def test_an_old_document_without_family_is_read_as_theorem1():
+def test_a_document_without_family_is_read_as_theorem1():
     """A row written before rows named their family (no ``family``, P and lambda beside
     rho) is Theorem 1's: verified as Theorem 1, never reinterpreted."""
     spec = _spec("gradient-optimal")

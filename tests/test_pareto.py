@@ -97,7 +97,7 @@ def test_design_cli_objective_fields_and_files(tmp_path):
 
 
 def test_default_design_keeps_its_columns_and_settings(tmp_path):
-    """Today's design (no objective): no objective columns, no new settings."""
+    """A rate design (no objective): no objective columns, no objective settings."""
     res = _run("design", spec_path("gradient"), "--kappa", 10, "--time-limit", 20,
                "--out", tmp_path, "--quiet")
     assert res.exit_code == 0, res.output
