@@ -210,6 +210,20 @@ def test_small_front_rechecked_independently(small_front):
         assert q * (1 - 1e-9) <= p["noise"] <= q * 1.05, (p, q)
 
 
+def test_small_front_names_its_kind_and_a_forged_one_is_refused(small_front, tmp_path):
+    """A pareto document says ``kind: pareto``, as its content shows; called an analysis,
+    it is refused (exit code 3, naming the field)."""
+    from sosalgo.documents import sniff_kind
+
+    _, doc = small_front
+    assert doc["kind"] == "pareto"
+    assert sniff_kind({k: v for k, v in doc.items() if k != "kind"}) == "pareto"
+    path = tmp_path / "forged.json"
+    path.write_text(json.dumps(doc | {"kind": "analysis"}))
+    res = _run("verify", path, "--no-simulate")
+    assert res.exit_code == 3 and "kind" in res.output.strip().splitlines()[-1], res.output
+
+
 def test_small_front_rechecked_by_verify(small_front):
     """``sosalgo verify`` on the --json document: every computed point and every known
     tuning (against the spec of eq. (9)) proven again on both axes; a lowered rate fails."""

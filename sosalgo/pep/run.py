@@ -10,6 +10,7 @@ from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
+from sosalgo.documents import PEP
 from sosalgo.errors import InputError
 from sosalgo.spec import Spec
 
@@ -169,9 +170,10 @@ def _docs(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
 def _pep_document(spec: Spec, measure: str | None, initial: str | None,
                   docs: list[dict[str, Any]], files: list[str], est: Any) -> dict[str, Any]:
     if len(docs) == 1:
-        return docs[0] | {"source": spec.source, "files": files, "estimate": est.to_dict()}
-    return {"spec": spec.name, "source": spec.source, "measure": measure, "initial": initial,
-            "rows": docs, "files": files, "estimate": est.to_dict()}
+        return {"kind": PEP} | docs[0] | {"source": spec.source, "files": files,
+                                          "estimate": est.to_dict()}
+    return {"kind": PEP, "spec": spec.name, "source": spec.source, "measure": measure,
+            "initial": initial, "rows": docs, "files": files, "estimate": est.to_dict()}
 
 
 def _tag(kappa: float | None) -> str:

@@ -35,9 +35,12 @@ from sosalgo.verify import Verdict, simulate_check
 from sosalgo.verify.exact import write_certificate
 
 __all__ = [
-    "ResultError", "check_failed", "verify_document_rows", "verify_family_certificate",
-    "verify_sublinear_rows",
+    "CERTIFICATE_KIND", "ResultError", "check_failed", "verify_document_rows",
+    "verify_family_certificate", "verify_sublinear_rows",
 ]
+
+
+CERTIFICATE_KIND = "certificate"  # sosalgo.documents.CERTIFICATE: the files written here
 
 
 class ResultError(InputError):
@@ -141,7 +144,8 @@ def _write_once(out_dir: Path, name: str, hashed: str, digest: str,
             old = None
         exists = plain.exists() or plain.is_symlink()
         path = plain if not exists or old == digest else out_dir / hashed
-        return write_certificate({**doc, "inputs_hash": digest}, path)
+        return write_certificate({"kind": CERTIFICATE_KIND, **doc, "inputs_hash": digest},
+                                 path)
 
 
 def _number(value: Any, where: str, allow_none: bool = True) -> float | None:
