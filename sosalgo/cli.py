@@ -334,9 +334,9 @@ def fig4(kappa: tuple[str, ...], time_limit: float, out: str, as_json: bool,
     figs, data = run_fig4(out_dir(out), kappas, workers=workers, scheduler=scheduler,
                           restart=restart, progress=not quiet, time_limit=time_limit)
     if as_json:
-        from sosalgo.documents import FIG4
+        from sosalgo.schema import FIG4_KIND
 
-        click.echo(json.dumps({"kind": FIG4, "figures": [str(p) for p in figs], **data},
+        click.echo(json.dumps({"kind": FIG4_KIND, "figures": [str(p) for p in figs], **data},
                               indent=2))
         return
     rows = fig4_rows(data)

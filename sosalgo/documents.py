@@ -2,9 +2,10 @@
 against, verifying every certificate they hold and every claim they make
 (:func:`verify_document`, the Python twin of ``sosalgo verify``).
 
-Every JSON document sosalgo writes names its kind in a top-level ``kind`` field; the kinds
-are registered once, in :data:`KINDS` (what each holds, the command and files that write
-it, its fields and CSV columns, how its rows are persisted, and how it is verified).
+Every JSON document sosalgo writes names its kind in a top-level ``kind`` field (the
+names: ``sosalgo.schema``, ``*_KIND``); the kinds are registered once, in :data:`KINDS`
+(what each holds, the command and files that write it, its fields and CSV columns, how
+its rows are persisted, and how it is verified).
 ``sosalgo verify`` dispatches on ``kind`` (:func:`document_kind`); a document written
 before documents named their kind is recognised by its fields instead, as it was then.
 """
@@ -19,12 +20,23 @@ from pathlib import Path
 from typing import Any
 
 from sosalgo.errors import InputError, VerificationError
+from sosalgo.schema import (
+    ANALYSIS_KIND,
+    CERTIFICATE_KIND,
+    DESIGN_CERTIFICATES_KIND,
+    DESIGN_KIND,
+    FIG4_KIND,
+    GRID_KIND,
+    PARETO_KIND,
+    PEP_KIND,
+    TABLE1_KIND,
+    VERIFICATION_KIND,
+    WITNESS_KIND,
+)
 from sosalgo.spec import Spec
 
-__all__ = ["ANALYSIS", "CERTIFICATE", "DESIGN", "DESIGN_CERTIFICATES", "FIG4", "GRID", "KINDS",
-           "MAX_RESULT_BYTES", "PARETO", "PEP", "PEP_WITNESS", "TABLE1", "VERIFICATION",
-           "ResultKind", "document_kind", "read_result", "result_rows", "result_spec",
-           "sniff_kind", "verify_document"]
+__all__ = ["KINDS", "MAX_RESULT_BYTES", "ResultKind", "document_kind", "read_result",
+           "result_rows", "result_spec", "sniff_kind", "verify_document"]
 
 MAX_RESULT_BYTES = 200_000_000
 MAX_INTEGER = 2**1023  # larger integers have no float value
@@ -171,7 +183,7 @@ def verify_document(result: str | Path | Mapping[str, Any], spec: Spec | str | P
         raise InputError(f"{where}: kind: a {kind.name} document ({kind.summary}) claims "
                          f"nothing sosalgo verify checks; it checks {_verifiable_names()} "
                          "documents")
-    return {"kind": VERIFICATION} | kind.verify(doc, where, spec, out_dir, simulate,
+    return {"kind": VERIFICATION_KIND} | kind.verify(doc, where, spec, out_dir, simulate,
                                                 certificate, options)
 
 
@@ -226,12 +238,6 @@ def _verify_ledger(doc: dict[str, Any], where: str, spec: Spec | str | Path | No
 
 
 # ---------------------------------------------------------------------------- result kinds
-ANALYSIS, DESIGN, GRID, PARETO = "analysis", "design", "grid", "pareto"
-PEP, PEP_WITNESS, TABLE1, FIG4 = "pep", "pep-witness", "table1", "fig4"
-CERTIFICATE, DESIGN_CERTIFICATES = "certificate", "design-certificates"
-VERIFICATION = "verification"
-
-
 @dataclass(frozen=True)
 class ResultKind:
     """One kind of result document: what it holds (``summary``), the command that writes
@@ -291,7 +297,7 @@ def _verifiable_names() -> str:
 
 KINDS: dict[str, ResultKind] = {k.name: k for k in [
     ResultKind(
-        ANALYSIS, "the certified rate at each kappa, or the sublinear constant of an m: 0 "
+        ANALYSIS_KIND, "the certified rate at each kappa, or the sublinear constant of an m: 0 "
         "spec", "sosalgo analyze --json (sosalgo.analyze_run)",
         "<name>-analysis[-<family>...].csv, one row per kappa",
         ("kind", "spec", "source", "spec_text", "tol", "csv", "csvs", "figures", "rows",
@@ -300,8 +306,8 @@ KINDS: dict[str, ResultKind] = {k.name: k for k in [
         "typed result -> CSV cells (sosalgo.batch.sweeps) -> JSON row (csv_row_to_json)",
         lambda doc: _rows_all(doc, _analysis_row), _verify_ledger, "ledger"),
     ResultKind(
-        DESIGN, "designed parameters with their certified rate and proven lower bound, one "
-                "design per kappa (the document itself for one kappa)",
+        DESIGN_KIND, "designed parameters with their certified rate and proven lower bound, "
+        "one design per kappa (the document itself for one kappa)",
         "sosalgo design --json (sosalgo.design_run)",
         "<name>-design[-<family>...][-min-noise|-min-rate].csv, one row per kappa",
         ("kind", "spec", "kappa", "free", "theta", "rho_certified", "lower_bound", "gap",
@@ -311,7 +317,7 @@ KINDS: dict[str, ResultKind] = {k.name: k for k in [
         "certificates too large for a cell in a design-certificates file",
         _looks_design, _verify_ledger, "ledger"),
     ResultKind(
-        PARETO, "the front of (certified rate, certified noise sensitivity) at each kappa",
+        PARETO_KIND, "the front of (certified rate, certified noise sensitivity) at each kappa",
         "sosalgo pareto --json (sosalgo.pareto_run)", "<name>-pareto-k<kappa>.csv",
         ("kind", "spec", "kappa", "front", "points", "tunings", "family", "floor", "fronts",
          "source", "spec_text", "csv", "figures", "estimate"),
@@ -319,56 +325,57 @@ KINDS: dict[str, ResultKind] = {k.name: k for k in [
         lambda doc: "fronts" in doc or {"front", "points"} <= set(doc),
         _verify_ledger, "ledger"),
     ResultKind(
-        PEP, "the worst case after N steps, its proven dual bound and checked witness",
+        PEP_KIND, "the worst case after N steps, its proven dual bound and checked witness",
         "sosalgo pep --json (sosalgo.pep_run)", "<name>-pep.csv, one row per (kappa, N)",
         ("kind", "spec", "kappa", "steps", "tau", "measure", "initial", "certificate",
          "witness", "source", "files", "rows", "estimate"),
         "sosalgo.schema.PEP_COLUMNS", "result -> JSON document in the CSV's document cell",
         _looks_pep, _verify_pep, "claims"),
     ResultKind(
-        PEP_WITNESS, "a worst-case function set and trajectory for N steps",
+        WITNESS_KIND, "a worst-case function set and trajectory for N steps",
         "sosalgo pep (beside its CSV)", "<name>-pep[-k<kappa>]-N<steps>-witness.json",
         ("kind", "spec", "kappa", "steps", "iterates", "tau_float", "check", "class",
          "upper", "spec_text"), "", "written whole (sosalgo.pep.witness.make_witness)",
         _has("calls_per_step", "iterates", "tau_float"), _verify_witness, "claims"),
     ResultKind(
-        GRID, "the certified rate (or constant) on a grid of the free parameters",
+        GRID_KIND, "the certified rate (or constant) on a grid of the free parameters",
         "sosalgo grid --json (sosalgo.grid_run)", "<name>-grid-k<kappa>[-<family>...].csv",
         ("kind", "spec", "free", "fixed", "grids", "rate_type", "best", "csv", "estimate"),
         "sosalgo.schema.grid_columns", "typed result -> CSV cells -> JSON (report.grid)",
         _has("grids")),
     ResultKind(
-        TABLE1, "each spec's certified rate beside its closed form",
+        TABLE1_KIND, "each spec's certified rate beside its closed form",
         "sosalgo.table1_run (sosalgo table1 prints its table)", "table1.csv",
         ("kind", "rows", "columns", "csv"), "sosalgo.schema.TABLE1_COLUMNS",
         "row -> CSV cells (written whole)", _has("rows", "columns", "csv")),
     ResultKind(
-        FIG4, "Figure 4: the designed three-parameter family against kappa",
+        FIG4_KIND, "Figure 4: the designed three-parameter family against kappa",
         "sosalgo fig4 --json", "fig4-tight-design.png/.pdf and its sweeps' CSV files",
         ("kind", "figures", "kappa"), "", "the sweeps' CSV files (analysis, design)",
         _has("designed (interpolation)", "designed (Theorem 1)")),
     ResultKind(
-        CERTIFICATE, "a rational certificate and its exact check, re-checkable without "
+        CERTIFICATE_KIND, "a rational certificate and its exact check, re-checkable without "
                      "sosalgo", "sosalgo verify (and --verify)",
         "DIR/certificates/<name>-k<kappa>[-<family>][-<digest>]-certificate.json",
         ("kind", "spec", "verified", "rho_proven", "inputs_hash"), "",
         "written whole (sosalgo.verify.exact.write_certificate)",
         _has("inputs_hash", "verified")),
     ResultKind(
-        DESIGN_CERTIFICATES, "the certificates of a design row too large for a CSV cell",
+        DESIGN_CERTIFICATES_KIND, "the certificates of a design row too large for a CSV cell",
         "sosalgo design (beside its CSV)", "<design csv stem>-k<kappa>-certificates.json",
         ("kind", "for", "bound_certificate", "values_certificate"), "",
         "written whole; attached again to a row read back from the CSV", _has("for")),
     ResultKind(
-        VERIFICATION, "the checks and claim ledger of a result document",
+        VERIFICATION_KIND, "the checks and claim ledger of a result document",
         "sosalgo verify --json (sosalgo.verify_document)", "stdout only",
         ("kind", "spec", "source", "results", "notes", "ledger", "claims", "vouched"), "",
         "not persisted", _has("results", "notes")),
 ]}
 
 # the order content is recognised in (the most specific first)
-_SNIFF_ORDER = (PEP_WITNESS, PEP, PARETO, GRID, TABLE1, FIG4, CERTIFICATE,
-                DESIGN_CERTIFICATES, VERIFICATION, DESIGN, ANALYSIS)
+_SNIFF_ORDER = (WITNESS_KIND, PEP_KIND, PARETO_KIND, GRID_KIND, TABLE1_KIND, FIG4_KIND,
+                CERTIFICATE_KIND, DESIGN_CERTIFICATES_KIND, VERIFICATION_KIND, DESIGN_KIND,
+                ANALYSIS_KIND)
 
 
 def sniff_kind(doc: Mapping[str, Any]) -> str | None:
@@ -386,7 +393,7 @@ def document_kind(doc: Mapping[str, Any], where: str = "result") -> ResultKind:
     declared = doc.get("kind")
     shown = sniff_kind(doc)
     if declared is None:
-        return KINDS[shown if shown is not None and KINDS[shown].verify else ANALYSIS]
+        return KINDS[shown if shown is not None and KINDS[shown].verify else ANALYSIS_KIND]
     if not isinstance(declared, str) or declared not in KINDS:
         raise InputError(f"{where}: kind: {declared!r} is not a sosalgo result kind "
                          f"(known: {', '.join(KINDS)})")

@@ -34,6 +34,7 @@ from typing import Any
 
 from sosalgo import inputs
 from sosalgo.errors import InputError
+from sosalgo.schema import PARETO_KIND
 from sosalgo.spec import Spec
 
 __all__ = ["front_caps", "is_pareto_document", "known_tunings", "pareto_chunk",
@@ -130,7 +131,7 @@ def reference_spec() -> Spec:
 
 def is_pareto_document(doc: Mapping[str, Any]) -> bool:
     """Whether ``doc`` is a ``sosalgo pareto`` document (one kappa, or several)."""
-    return doc.get("kind") == "pareto" or "fronts" in doc or (
+    return doc.get("kind") == PARETO_KIND or "fronts" in doc or (
         "front" in doc and "points" in doc)
 
 
@@ -448,7 +449,7 @@ def _document(spec: Spec, text: str, kappa: float, fam: Any, names: list[str],
     parsed = sorted((_parse(r) for r in rows), key=lambda p: p["index"])
     mine = [p for p in parsed if p["kind"] == "front"]
     return {"spec": spec.name, "kappa": float(kappa), "front": pareto_filter(mine),
-            "source": spec.source, "spec_text": text, "kind": "pareto",
+            "source": spec.source, "spec_text": text, "kind": PARETO_KIND,
             "points": mine, "tunings": [p for p in parsed if p["kind"] != "front"],
             "family": fam.name, "lag": fam.options().get("lag"), "free": names,
             "floor": 1 - 1 / math.sqrt(kappa), "csv": str(csv_path), "figures": []}
@@ -486,5 +487,5 @@ def pareto_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = 
            "progress": progress, "plot": plot}
     docs = [_one_kappa(spec, text, k, names, fam, points, float(time_limit), out, run)
             for k in kappas]
-    return {"spec": spec.name, "source": spec.source, "spec_text": text, "kind": "pareto",
+    return {"spec": spec.name, "source": spec.source, "spec_text": text, "kind": PARETO_KIND,
             "fronts": docs, "estimate": est.to_dict()}

@@ -16,9 +16,17 @@ from typing import Any
 
 from sosalgo import budget, inputs
 from sosalgo.batch.store import output_lock
-from sosalgo.documents import ANALYSIS, DESIGN, GRID, TABLE1
 from sosalgo.errors import InputError
-from sosalgo.schema import analysis_csv, design_stem, grid_stem, rate_stem
+from sosalgo.schema import (
+    ANALYSIS_KIND,
+    DESIGN_KIND,
+    GRID_KIND,
+    TABLE1_KIND,
+    analysis_csv,
+    design_stem,
+    grid_stem,
+    rate_stem,
+)
 from sosalgo.spec import Spec
 
 __all__ = ["analyze_run", "design_run", "grid_run", "spec_with_text", "table1_run"]
@@ -125,7 +133,7 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
             r["family"] = fam.name
         if verify:
             rep.attach_checks(spec, jrows, out / "certificates", family=None if plain else fam)
-    doc = {"kind": ANALYSIS, "spec": spec.name, "source": spec.source, "spec_text": text,
+    doc = {"kind": ANALYSIS_KIND, "spec": spec.name, "source": spec.source, "spec_text": text,
            "tol": tol, "csv": str(runs[0][1])}
     if not plain:
         doc["csvs"] = {f.name: str(p) for f, p, _ in runs}
@@ -217,7 +225,7 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
         for d in docs:
             _design_certificates(csv_path, d)
         for d in docs:  # each a whole design document (``--json`` prints it alone)
-            d["kind"], d["source"], d["spec_text"] = DESIGN, spec.source, text
+            d["kind"], d["source"], d["spec_text"] = DESIGN_KIND, spec.source, text
         how = ("dual certificates" if method == "dual" else f"moment relaxation, {scalarize}")
         figs = (rep.design_figure(spec, opts["free"], rows, docs, stem, fam, how)
                 if len(docs) > 1 else [])
@@ -227,7 +235,7 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
         checks = verify_document_rows(spec, docs, out / "certificates")
         for d, v in zip(docs, checks, strict=True):
             d["verification"] = v
-    return {"kind": DESIGN, "spec": spec.name, "source": spec.source, "spec_text": text,
+    return {"kind": DESIGN_KIND, "spec": spec.name, "source": spec.source, "spec_text": text,
             "csv": str(csv_path), "figures": [str(p) for p in figs], "rows": docs,
             "estimate": est.to_dict()}
 
@@ -241,8 +249,7 @@ def _design_certificates(csv_path: Path, doc: dict[str, Any]) -> None:
     ``<csv stem>-k<kappa>-certificates.json``: written with a fresh result, attached
     again to a result read back from the CSV when they are for its numbers (``sosalgo
     verify`` re-proves them either way). Called under the CSV's output lock."""
-    from sosalgo.documents import DESIGN_CERTIFICATES as DESIGN_CERTIFICATES_KIND
-    from sosalgo.schema import kappa_label
+    from sosalgo.schema import DESIGN_CERTIFICATES_KIND, kappa_label
     from sosalgo.verify.exact import write_certificate
 
     path = csv_path.with_name(f"{csv_path.stem}-k{kappa_label(doc['kappa'])}"
@@ -314,7 +321,7 @@ def grid_run(spec: Spec | str | Path, kappa: Kappas, out_dir: str | Path = "outp
         values = parameter_values(spec, k)
         docs.append(rep.grid_document(k, csv_path, figs, rows, rho, names)
                     | {"fixed": {p: values[p] for p in grid_fixed(spec, names)}})
-    return {"kind": GRID, "spec": spec.name, "free": names, "fixed": grid_fixed(spec, names),
+    return {"kind": GRID_KIND, "spec": spec.name, "free": names, "fixed": grid_fixed(spec, names),
             "grids": docs, "estimate": est.to_dict()}
 
 
@@ -361,4 +368,4 @@ def table1_run(specs: Sequence[str | Path] = (), kappa: Sequence[float] = (),
     settings = {"job": "table1", "specs": texts, "kappa": kappas, "tol": tol,  # lag: None
                 "certificate": certificate, "lag": None, **dict(options or {})}  # unless given
     path = write_table1(inputs.out_dir(out_dir), rows, cols, settings)
-    return {"kind": TABLE1, "rows": rows, "columns": cols, "csv": str(path)}
+    return {"kind": TABLE1_KIND, "rows": rows, "columns": cols, "csv": str(path)}

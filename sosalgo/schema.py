@@ -23,7 +23,18 @@ __all__ = [
     "design_stem", "family_suffix", "grid_columns", "grid_fixed", "grid_stem", "kappa_label",
     "p_columns", "rate_stem", "SUBLINEAR_COLUMNS", "sublinear_columns", "NOISE_COLUMNS",
     "PEP_COLUMNS", "pep_csv", "OBJECTIVE_COLUMNS", "PARETO_COLUMNS", "pareto_stem",
+    "ANALYSIS_KIND", "CERTIFICATE_KIND", "DESIGN_CERTIFICATES_KIND", "DESIGN_KIND",
+    "FIG4_KIND", "GRID_KIND", "PARETO_KIND", "PEP_KIND", "TABLE1_KIND", "VERIFICATION_KIND",
+    "WITNESS_KIND",
 ]
+
+# ---------------------------------------------------------------------------- result kinds
+# the ``kind`` field of every JSON document sosalgo writes (the registry of what each
+# holds, its files and its check: sosalgo.documents.KINDS)
+ANALYSIS_KIND, DESIGN_KIND, GRID_KIND, PARETO_KIND = "analysis", "design", "grid", "pareto"
+PEP_KIND, WITNESS_KIND, TABLE1_KIND, FIG4_KIND = "pep", "pep-witness", "table1", "fig4"
+CERTIFICATE_KIND, DESIGN_CERTIFICATES_KIND = "certificate", "design-certificates"
+VERIFICATION_KIND = "verification"
 
 # ---------------------------------------------------------------------------- printed tables
 # analyze's printed table (the CSV has more); the default family's shows lambda as well

@@ -16,7 +16,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from sosalgo.documents import ANALYSIS, DESIGN, GRID
+from sosalgo.schema import ANALYSIS_KIND, DESIGN_KIND, GRID_KIND
 from sosalgo.spec import Spec
 
 __all__ = ["attach_verification", "design_lines", "sublinear_design_run",
@@ -107,11 +107,11 @@ def sublinear_design_run(spec: Spec, text: str, out_dir: str | Path, free: Any =
         else:
             row = _design_row(spec, names, time_limit, progress)
             store.write(_design_cells(names, row))
-    row |= {"kind": DESIGN, "spec": spec.name, "source": spec.source,
+    row |= {"kind": DESIGN_KIND, "spec": spec.name, "source": spec.source,
             "spec_text": text}  # self-contained
     if verify:
         attach_verification(spec, row, out)
-    return {"kind": DESIGN, "spec": spec.name, "source": spec.source, "spec_text": text,
+    return {"kind": DESIGN_KIND, "spec": spec.name, "source": spec.source, "spec_text": text,
             "csv": str(path), "figures": [], "rows": [row]}
 
 
@@ -217,7 +217,7 @@ def sublinear_grid_run(spec: Spec, text: str, out_dir: str | Path, points: int =
     rows = sorted((r for r in store.rows() if store.row_key(r) in order),
                   key=lambda r: order[store.row_key(r)])
     constants = [float(r["constant"]) for r in rows if r["constant"] != ""]
-    return {"kind": GRID, "spec": spec.name, "rate_type": "sublinear", "free": names,
+    return {"kind": GRID_KIND, "spec": spec.name, "rate_type": "sublinear", "free": names,
             "csv": str(path), "best": min(constants, default=None), "grids": []}
 
 def design_lines(doc: dict[str, Any]) -> list[str]:
@@ -300,7 +300,7 @@ def sublinear_run(spec: Spec, text: str, out_dir: str | Path, plot: bool = True,
         figs = sublinear_figure(spec, row, stem) if plot else []
     if verify:
         attach_verification(spec, row, out)
-    return {"kind": ANALYSIS, "spec": spec.name, "source": spec.source, "spec_text": text,
+    return {"kind": ANALYSIS_KIND, "spec": spec.name, "source": spec.source, "spec_text": text,
             "csv": str(path), "figures": [str(p) for p in figs], "rows": [row]}
 
 

@@ -10,8 +10,8 @@ from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
-from sosalgo.documents import PEP
 from sosalgo.errors import InputError
+from sosalgo.schema import PEP_KIND
 from sosalgo.spec import Spec
 
 __all__ = ["parse_steps", "pep_chunk", "pep_row", "pep_run"]
@@ -170,9 +170,9 @@ def _docs(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
 def _pep_document(spec: Spec, measure: str | None, initial: str | None,
                   docs: list[dict[str, Any]], files: list[str], est: Any) -> dict[str, Any]:
     if len(docs) == 1:
-        return {"kind": PEP} | docs[0] | {"source": spec.source, "files": files,
+        return {"kind": PEP_KIND} | docs[0] | {"source": spec.source, "files": files,
                                           "estimate": est.to_dict()}
-    return {"kind": PEP, "spec": spec.name, "source": spec.source, "measure": measure,
+    return {"kind": PEP_KIND, "spec": spec.name, "source": spec.source, "measure": measure,
             "initial": initial, "rows": docs, "files": files, "estimate": est.to_dict()}
 
 

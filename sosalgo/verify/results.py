@@ -29,18 +29,15 @@ from sosalgo.certificates import FAMILIES, default_family, get_family
 from sosalgo.certificates.base import CertificateFamily, check_number
 from sosalgo.errors import InputError
 from sosalgo.model import bind
-from sosalgo.schema import certificate_name
+from sosalgo.schema import CERTIFICATE_KIND, certificate_name
 from sosalgo.spec import Spec
 from sosalgo.verify import Verdict, simulate_check
 from sosalgo.verify.exact import write_certificate
 
 __all__ = [
-    "CERTIFICATE_KIND", "ResultError", "check_failed", "verify_document_rows",
-    "verify_family_certificate", "verify_sublinear_rows",
+    "ResultError", "check_failed", "verify_document_rows", "verify_family_certificate",
+    "verify_sublinear_rows",
 ]
-
-
-CERTIFICATE_KIND = "certificate"  # sosalgo.documents.CERTIFICATE: the files written here
 
 
 class ResultError(InputError):
