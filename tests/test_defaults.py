@@ -45,7 +45,7 @@ def test_the_spec_and_the_command_line_win(tmp_path):
     assert spec.certificate_given and default_family_name(spec, "analyze") == "theorem1"
     assert select_families(_spec("nesterov"), "theorem1", command="analyze")[0].name == \
         "theorem1"
-    # --lag alone now goes to the default family (it has the option)
+    # --lag alone goes to the default family (it has the option)
     (fam,) = select_families(_spec("nesterov"), None, {"lag": 0}, command="analyze")
     assert fam.name == "interpolation" and fam.lag == 0
 
