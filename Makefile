@@ -32,7 +32,7 @@ help:
 	@echo "make figures  - table1, fig1, fig2, fig3 and fig4"
 	@echo "make fuzz     - the loader fuzz tests with FUZZ_EXAMPLES (default 20000) cases"
 	@echo "make soundness - design bounds and composite rates vs independent judges, SOUNDNESS_CASES (300) and COMPOSITE_CASES (200) specs;"
-	@echo "                 sublinear constants, noise bounds, PEP bounds, rate brackets on NEW_CASES (100) random methods each;"
+	@echo "                 sublinear constants, noise bounds, PEP bounds, rate brackets on MOMENTUM_CASES (100) random methods each;"
 	@echo "                 PEP from initial states and long horizons, hidden-mode brackets, Pareto and objective designs"
 	@echo "make clean    - remove CSV, PNG, PDF and JSON files from $(OUT)/"
 	@echo "Options: WORKERS=N, SCHEDULER=tcp://host:8786 (batch targets), OUT=DIR"
@@ -146,9 +146,11 @@ fuzz: $(VENV)/.installed-dev
 
 SOUNDNESS_CASES ?= 300
 COMPOSITE_CASES ?= 200
-NEW_CASES ?= 100
+MOMENTUM_CASES ?= 100
 soundness: $(VENV)/.installed-dev
 	SOSALGO_SOUNDNESS_CASES=$(SOUNDNESS_CASES) SOSALGO_COMPOSITE_CASES=$(COMPOSITE_CASES) \
-	  SOSALGO_NEW_CASES=$(NEW_CASES) \
+	  SOSALGO_MOMENTUM_CASES=$(MOMENTUM_CASES) \
 	  $(BIN)/python -m pytest tests/test_soundness.py tests/test_soundness_composite.py \
-	  tests/test_soundness_new.py
+	  tests/test_momentum_judge.py tests/test_soundness_sublinear.py \
+	  tests/test_soundness_noise.py tests/test_soundness_pep.py \
+	  tests/test_soundness_brackets.py tests/test_soundness_pareto.py

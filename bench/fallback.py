@@ -1,4 +1,4 @@
-"""Theorem 1 on 16-state methods: the search with SCS in its fallback chain (as before)
+"""Theorem 1 on 16-state methods: the search with SCS in its fallback chain
 and without it (Clarabel alone, as the interpolation family), interleaved in the same run;
 the time spent in SCS, and what SCS answered.
 

@@ -347,7 +347,10 @@ def fig4(kappa: tuple[str, ...], time_limit: float, out: str, as_json: bool,
     figs, data = run_fig4(out_dir(out), kappas, workers=workers, scheduler=scheduler,
                           restart=restart, progress=not quiet, time_limit=time_limit)
     if as_json:
-        click.echo(json.dumps({"figures": [str(p) for p in figs], **data}, indent=2))
+        from sosalgo.schema import FIG4_KIND
+
+        click.echo(json.dumps({"kind": FIG4_KIND, "figures": [str(p) for p in figs], **data},
+                              indent=2))
         return
     rows = fig4_rows(data)
     click.echo(format_table(rows, list(rows[0]) if rows else []))
@@ -415,20 +418,22 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
     """Verify every claim of an `analyze --json`, `design --json` or `pareto --json`
     result (rates, bounds, noise bounds, constants): a ledger of each claim, backed,
     contradicted or unsupported (docs/verify.md); and every claim of a `pep --json`
-    document or a pep witness file (docs/pep.md).
+    document or a pep witness file (docs/pep.md). The document's `kind` field chooses
+    the check (docs/results.md).
 
-    Exit code 3 when some claim is not backed, or nothing is claimed. Python:
-    sosalgo.verify_document.
+    Exit code 3 when some claim is not backed, nothing is claimed, or the document's
+    kind contradicts its content. Python: sosalgo.verify_document.
     """
     from sosalgo.batch.executor import Progress
-    from sosalgo.documents import read_result, result_rows, verify_document
+    from sosalgo.documents import document_kind, read_result, result_rows, verify_document
     from sosalgo.inputs import writable
     from sosalgo.verify.results import check_failed
 
     doc = read_result(result_path)
-    from sosalgo.pep.claims import is_pep_document, passed, pep_check_lines
+    kind = document_kind(doc, result_path)  # a kind its content contradicts: exit code 3
+    if kind.checks == "claims":  # from `sosalgo pep`
+        from sosalgo.pep.claims import passed, pep_check_lines
 
-    if doc.get("kind") == "pep-witness" or is_pep_document(doc):  # from `sosalgo pep`
         res = verify_document(doc, spec_override, name=result_path)
         for note in res["notes"]:
             click.echo(f"note: {note}", err=True)
@@ -439,7 +444,7 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
             raise VerificationError(f"{result_path}: {len(failed)} of "
                                     f"{len(res['results'])} not verified")
         return
-    rows = result_rows(doc, result_path)
+    rows = result_rows(doc, result_path) if kind.verify else []  # else refused below
     folder = os.path.join(out, "certificates")
     can_write = writable(out)
     bar = Progress(len(rows), f"verify {result_path}", enabled=not as_json,  # rows, claims

@@ -1,21 +1,44 @@
-"""Result documents (``analyze --json``, ``design --json``, ``pareto --json``): reading
-them, choosing the spec they are checked against, verifying every certificate they hold and
-every claim they make (:func:`verify_document`, the Python twin of ``sosalgo verify``)."""
+"""Result documents: their kinds, reading them, choosing the spec they are checked
+against, verifying every certificate they hold and every claim they make
+(:func:`verify_document`, the Python twin of ``sosalgo verify``).
+
+Every JSON document sosalgo writes names its kind in a top-level ``kind`` field (the
+names: ``sosalgo.schema``, ``*_KIND``); the kinds are registered once, in :data:`KINDS`
+(what each holds, the command and files that write it, its fields and CSV columns, how
+its rows are persisted, and how it is verified).
+``sosalgo verify`` dispatches on ``kind`` (:func:`document_kind`); a document written
+before documents named their kind is recognised by its fields instead, as it was then.
+"""
 
 from __future__ import annotations
 
 import json
 import math
 import re
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from sosalgo.errors import InputError
+from sosalgo.errors import InputError, VerificationError
 from sosalgo.kernel.phases import show_phase
+from sosalgo.schema import (
+    ANALYSIS_KIND,
+    CERTIFICATE_KIND,
+    DESIGN_CERTIFICATES_KIND,
+    DESIGN_KIND,
+    FIG4_KIND,
+    GRID_KIND,
+    PARETO_KIND,
+    PEP_KIND,
+    TABLE1_KIND,
+    VERIFICATION_KIND,
+    WITNESS_KIND,
+)
 from sosalgo.spec import Spec
 
-__all__ = ["MAX_RESULT_BYTES", "read_result", "result_rows", "result_spec", "verify_document"]
+__all__ = ["KINDS", "MAX_RESULT_BYTES", "ResultKind", "document_kind", "read_result",
+           "result_rows", "result_spec", "sniff_kind", "verify_document"]
 
 MAX_RESULT_BYTES = 200_000_000
 MAX_INTEGER = 2**1023  # larger integers have no float value
@@ -183,33 +206,60 @@ def verify_document(result: str | Path | Mapping[str, Any], spec: Spec | str | P
                     name: str | None = None) -> dict[str, Any]:
     """Verify every certificate of a result document (a path or the parsed dict).
 
-    Returns ``{"spec", "source", "results"}`` (one check per row, None for a row that claims
-    no certificate), ``notes`` (e.g. that ``spec`` differs from the embedded one), and the
-    claim ledger: ``ledger`` (every field of every row: backed, recomputed, contradicted,
-    unsupported or context, :mod:`sosalgo.verify.ledger`), ``claims`` (the count per
-    status) and ``vouched`` (True only when every claim is backed; ``sosalgo verify``
-    exits 3 otherwise).
+    Returns ``{"kind": "verification", "spec", "source", "results"}`` (one check per row,
+    None for a row that claims no certificate), ``notes`` (e.g. that ``spec`` differs from
+    the embedded one), and for analyze, design and pareto documents the claim ledger:
+    ``ledger`` (every field of every row: backed, recomputed, contradicted, unsupported or
+    context, :mod:`sosalgo.verify.ledger`), ``claims`` (the count per status) and
+    ``vouched`` (True only when every claim is backed; ``sosalgo verify`` exits 3
+    otherwise). The document's ``kind`` chooses the check (:func:`document_kind`: a kind
+    its content contradicts raises VerificationError, exit code 3).
     Rational certificates go to ``out_dir`` when given (nothing is written otherwise).
     A malformed document raises InputError naming it (its path, or ``name``); failed
     checks are results, not errors (:func:`sosalgo.verify.results.check_failed`)."""
-    from sosalgo.inputs import select_families
-    from sosalgo.verify.results import ResultError
-
     where = name or (str(result) if isinstance(result, str | Path) else "result")
     doc = read_result(result) if isinstance(result, str | Path) else dict(result)
-    from sosalgo.pep.claims import is_pep_document
+    kind = document_kind(doc, where)
+    if kind.verify is None:
+        raise InputError(f"{where}: kind: a {kind.name} document ({kind.summary}) claims "
+                         f"nothing sosalgo verify checks; it checks {_verifiable_names()} "
+                         "documents")
+    return {"kind": VERIFICATION_KIND} | kind.verify(doc, where, spec, out_dir, simulate,
+                                                certificate, options)
 
-    if doc.get("kind") == "pep-witness" or is_pep_document(doc):  # ``sosalgo pep``
-        from sosalgo.pep.claims import verify_pep_document, verify_witness_file
 
-        chosen, src, note = result_spec(doc, where, spec)
-        checks = ([verify_witness_file(doc, chosen, where)] if doc.get("kind") ==
-                  "pep-witness" else verify_pep_document(doc, chosen, where))
-        return {"spec": chosen.name, "source": src, "results": checks,
-                "notes": [] if note is None else [note]}
+def _verify_pep(doc: dict[str, Any], where: str, spec: Spec | str | Path | None,
+                *_: Any) -> dict[str, Any]:
+    """The claims of a ``pep --json`` document (:mod:`sosalgo.pep.claims`)."""
+    from sosalgo.pep.claims import verify_pep_document
+
+    chosen, src, note = result_spec(doc, where, spec)
+    return {"spec": chosen.name, "source": src,
+            "results": verify_pep_document(doc, chosen, where),
+            "notes": [] if note is None else [note]}
+
+
+def _verify_witness(doc: dict[str, Any], where: str, spec: Spec | str | Path | None,
+                    *_: Any) -> dict[str, Any]:
+    """The claims of a pep witness file (:func:`sosalgo.pep.claims.verify_witness_file`)."""
+    from sosalgo.pep.claims import verify_witness_file
+
+    chosen, src, note = result_spec(doc, where, spec)
+    return {"spec": chosen.name, "source": src,
+            "results": [verify_witness_file(doc, chosen, where)],
+            "notes": [] if note is None else [note]}
+
+
+def _verify_ledger(doc: dict[str, Any], where: str, spec: Spec | str | Path | None,
+                   out_dir: str | Path | None, simulate: bool, certificate: str | None,
+                   options: Mapping[str, Any] | None) -> dict[str, Any]:
+    """Every certificate and every claim of an analyze, design or pareto document: the
+    rows' checks and the claim ledger."""
+    from sosalgo.inputs import select_families
     from sosalgo.pareto import is_pareto_document
     from sosalgo.verify.document_ledger import document_ledger
     from sosalgo.verify.ledger import ledger_counts, vouched
+    from sosalgo.verify.results import ResultError
 
     check_numbers(doc, where)
     rows = result_rows(doc, where)
@@ -227,3 +277,168 @@ def verify_document(result: str | Path | Mapping[str, Any], spec: Spec | str | P
             "notes": [] if note is None else [note], "ledger": ledger,
             "claims": ledger_counts(ledger), "vouched": vouched(ledger)}
 
+
+# ---------------------------------------------------------------------------- result kinds
+@dataclass(frozen=True)
+class ResultKind:
+    """One kind of result document: what it holds (``summary``), the command that writes
+    it, its files, its top-level ``fields`` and the CSV ``columns`` of its rows (a
+    function of :mod:`sosalgo.schema`), how a row goes to its file and back
+    (``persisted``), the test of its content (``looks_like``: how a document without a
+    ``kind`` is recognised, and how a ``kind`` is checked against the content) and its
+    check (``verify``: None when ``sosalgo verify`` checks no claim of it; ``checks``
+    says how the command reports it: ``ledger`` or ``claims``)."""
+
+    name: str
+    summary: str
+    command: str
+    files: str
+    fields: tuple[str, ...]
+    columns: str
+    persisted: str
+    looks_like: Callable[[Mapping[str, Any]], bool]
+    verify: Callable[..., dict[str, Any]] | None = None
+    checks: str | None = None
+
+
+def _design_row(r: Any) -> bool:
+    return isinstance(r, Mapping) and ("rho_certified" in r or "lower_bound" in r)
+
+
+def _analysis_row(r: Any) -> bool:
+    return isinstance(r, Mapping) and not _design_row(r) and (
+        {"kappa", "rho"} <= set(r) or (r.get("rate_type") == "sublinear" and "constant" in r))
+
+
+def _rows_all(doc: Mapping[str, Any], test: Callable[[Any], bool]) -> bool:
+    rows = doc.get("rows")
+    return isinstance(rows, list) and bool(rows) and all(test(r) for r in rows)
+
+
+def _looks_design(doc: Mapping[str, Any]) -> bool:
+    """One design (the document is its row), or rows that are all designs."""
+    if "rows" not in doc:
+        return _design_row(doc) and "columns" not in doc
+    return _rows_all(doc, _design_row) and "columns" not in doc
+
+
+def _looks_pep(doc: Mapping[str, Any]) -> bool:
+    from sosalgo.pep.claims import is_pep_document
+
+    return is_pep_document(doc)
+
+
+def _has(*names: str) -> Callable[[Mapping[str, Any]], bool]:
+    return lambda doc: set(names) <= set(doc)
+
+
+def _verifiable_names() -> str:
+    return ", ".join(k.name for k in KINDS.values() if k.verify is not None)
+
+
+KINDS: dict[str, ResultKind] = {k.name: k for k in [
+    ResultKind(
+        ANALYSIS_KIND, "the certified rate at each kappa, or the sublinear constant of an m: 0 "
+        "spec", "sosalgo analyze --json (sosalgo.analyze_run)",
+        "<name>-analysis[-<family>...].csv, one row per kappa",
+        ("kind", "spec", "source", "spec_text", "tol", "csv", "csvs", "figures", "rows",
+         "estimate"),
+        "sosalgo.schema.analysis_columns (sublinear_columns for an m: 0 spec)",
+        "typed result -> CSV cells (sosalgo.batch.sweeps) -> JSON row (csv_row_to_json)",
+        lambda doc: _rows_all(doc, _analysis_row), _verify_ledger, "ledger"),
+    ResultKind(
+        DESIGN_KIND, "designed parameters with their certified rate and proven lower bound, "
+        "one design per kappa (the document itself for one kappa)",
+        "sosalgo design --json (sosalgo.design_run)",
+        "<name>-design[-<family>...][-min-noise|-min-rate].csv, one row per kappa",
+        ("kind", "spec", "kappa", "free", "theta", "rho_certified", "lower_bound", "gap",
+         "certificate", "source", "spec_text", "rows", "estimate"),
+        "sosalgo.schema.design_columns",
+        "typed result -> CSV cells (sosalgo.batch.sweeps) -> JSON (design_csv_to_json); the "
+        "certificates too large for a cell in a design-certificates file",
+        _looks_design, _verify_ledger, "ledger"),
+    ResultKind(
+        PARETO_KIND, "the front of (certified rate, certified noise sensitivity) at each kappa",
+        "sosalgo pareto --json (sosalgo.pareto_run)", "<name>-pareto-k<kappa>.csv",
+        ("kind", "spec", "kappa", "front", "points", "tunings", "family", "floor", "fronts",
+         "source", "spec_text", "csv", "figures", "estimate"),
+        "sosalgo.schema.PARETO_COLUMNS", "point -> CSV cells -> JSON point (sosalgo.pareto)",
+        lambda doc: "fronts" in doc or {"front", "points"} <= set(doc),
+        _verify_ledger, "ledger"),
+    ResultKind(
+        PEP_KIND, "the worst case after N steps, its proven dual bound and checked witness",
+        "sosalgo pep --json (sosalgo.pep_run)", "<name>-pep.csv, one row per (kappa, N)",
+        ("kind", "spec", "kappa", "steps", "tau", "measure", "initial", "certificate",
+         "witness", "source", "files", "rows", "estimate"),
+        "sosalgo.schema.PEP_COLUMNS", "result -> JSON document in the CSV's document cell",
+        _looks_pep, _verify_pep, "claims"),
+    ResultKind(
+        WITNESS_KIND, "a worst-case function set and trajectory for N steps",
+        "sosalgo pep (beside its CSV)", "<name>-pep[-k<kappa>]-N<steps>-witness.json",
+        ("kind", "spec", "kappa", "steps", "iterates", "tau_float", "check", "class",
+         "upper", "spec_text"), "", "written whole (sosalgo.pep.witness.make_witness)",
+        _has("calls_per_step", "iterates", "tau_float"), _verify_witness, "claims"),
+    ResultKind(
+        GRID_KIND, "the certified rate (or constant) on a grid of the free parameters",
+        "sosalgo grid --json (sosalgo.grid_run)", "<name>-grid-k<kappa>[-<family>...].csv",
+        ("kind", "spec", "free", "fixed", "grids", "rate_type", "best", "csv", "estimate"),
+        "sosalgo.schema.grid_columns", "typed result -> CSV cells -> JSON (report.grid)",
+        _has("grids")),
+    ResultKind(
+        TABLE1_KIND, "each spec's certified rate beside its closed form",
+        "sosalgo.table1_run (sosalgo table1 prints its table)", "table1.csv",
+        ("kind", "rows", "columns", "csv"), "sosalgo.schema.TABLE1_COLUMNS",
+        "row -> CSV cells (written whole)", _has("rows", "columns", "csv")),
+    ResultKind(
+        FIG4_KIND, "Figure 4: the designed three-parameter family against kappa",
+        "sosalgo fig4 --json", "fig4-tight-design.png/.pdf and its sweeps' CSV files",
+        ("kind", "figures", "kappa"), "", "the sweeps' CSV files (analysis, design)",
+        _has("designed (interpolation)", "designed (Theorem 1)")),
+    ResultKind(
+        CERTIFICATE_KIND, "a rational certificate and its exact check, re-checkable without "
+                     "sosalgo", "sosalgo verify (and --verify)",
+        "DIR/certificates/<name>-k<kappa>[-<family>][-<digest>]-certificate.json",
+        ("kind", "spec", "verified", "rho_proven", "inputs_hash"), "",
+        "written whole (sosalgo.verify.exact.write_certificate)",
+        _has("inputs_hash", "verified")),
+    ResultKind(
+        DESIGN_CERTIFICATES_KIND, "the certificates of a design row too large for a CSV cell",
+        "sosalgo design (beside its CSV)", "<design csv stem>-k<kappa>-certificates.json",
+        ("kind", "for", "bound_certificate", "values_certificate"), "",
+        "written whole; attached again to a row read back from the CSV", _has("for")),
+    ResultKind(
+        VERIFICATION_KIND, "the checks and claim ledger of a result document",
+        "sosalgo verify --json (sosalgo.verify_document)", "stdout only",
+        ("kind", "spec", "source", "results", "notes", "ledger", "claims", "vouched"), "",
+        "not persisted", _has("results", "notes")),
+]}
+
+# the order content is recognised in (the most specific first)
+_SNIFF_ORDER = (WITNESS_KIND, PEP_KIND, PARETO_KIND, GRID_KIND, TABLE1_KIND, FIG4_KIND,
+                CERTIFICATE_KIND, DESIGN_CERTIFICATES_KIND, VERIFICATION_KIND, DESIGN_KIND,
+                ANALYSIS_KIND)
+
+
+def sniff_kind(doc: Mapping[str, Any]) -> str | None:
+    """The kind a document's content shows, whatever its ``kind`` field says (None when
+    it shows none)."""
+    return next((n for n in _SNIFF_ORDER if KINDS[n].looks_like(doc)), None)
+
+
+def document_kind(doc: Mapping[str, Any], where: str = "result") -> ResultKind:
+    """The kind of a document: its ``kind`` field, checked against its content (a kind
+    the content contradicts raises VerificationError naming the field; an unknown kind an
+    InputError). A document without ``kind`` (written before documents named it) is
+    recognised by its content among the kinds verify checks, as it was then (else it is
+    taken for an analysis, whose checks name what is missing)."""
+    declared = doc.get("kind")
+    shown = sniff_kind(doc)
+    if declared is None:
+        return KINDS[shown if shown is not None and KINDS[shown].verify else ANALYSIS_KIND]
+    if not isinstance(declared, str) or declared not in KINDS:
+        raise InputError(f"{where}: kind: {declared!r} is not a sosalgo result kind "
+                         f"(known: {', '.join(KINDS)})")
+    if shown is not None and shown != declared:
+        raise VerificationError(f"{where}: kind: the document says {declared!r}, but it "
+                                f"holds {KINDS[shown].summary} ({shown!r}): refused")
+    return KINDS[declared]

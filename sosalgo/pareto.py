@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from sosalgo.errors import InputError
+from sosalgo.schema import PARETO_KIND
 from sosalgo.spec import Spec
 
 __all__ = ["front_caps", "is_pareto_document", "known_tunings", "pareto_filter",
@@ -97,7 +98,7 @@ def reference_spec() -> Spec:
 
 def is_pareto_document(doc: Mapping[str, Any]) -> bool:
     """Whether ``doc`` is a ``sosalgo pareto`` document (one kappa, or several)."""
-    return doc.get("kind") == "pareto" or "fronts" in doc or (
+    return doc.get("kind") == PARETO_KIND or "fronts" in doc or (
         "front" in doc and "points" in doc)
 
 

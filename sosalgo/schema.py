@@ -24,7 +24,18 @@ __all__ = [
     "p_columns", "rate_stem", "SUBLINEAR_COLUMNS", "sublinear_columns", "NOISE_COLUMNS",
     "PEP_COLUMNS", "pep_csv", "OBJECTIVE_COLUMNS", "PARETO_COLUMNS", "pareto_stem",
     "SOLVER_COLUMNS", "printed_columns",
+    "ANALYSIS_KIND", "CERTIFICATE_KIND", "DESIGN_CERTIFICATES_KIND", "DESIGN_KIND",
+    "FIG4_KIND", "GRID_KIND", "PARETO_KIND", "PEP_KIND", "TABLE1_KIND", "VERIFICATION_KIND",
+    "WITNESS_KIND",
 ]
+
+# ---------------------------------------------------------------------------- result kinds
+# the ``kind`` field of every JSON document sosalgo writes (the registry of what each
+# holds, its files and its check: sosalgo.documents.KINDS)
+ANALYSIS_KIND, DESIGN_KIND, GRID_KIND, PARETO_KIND = "analysis", "design", "grid", "pareto"
+PEP_KIND, WITNESS_KIND, TABLE1_KIND, FIG4_KIND = "pep", "pep-witness", "table1", "fig4"
+CERTIFICATE_KIND, DESIGN_CERTIFICATES_KIND = "certificate", "design-certificates"
+VERIFICATION_KIND = "verification"
 
 # ---------------------------------------------------------------------------- printed tables
 # analyze's printed table (the CSV has more); the default family's shows lambda as well
@@ -60,7 +71,7 @@ PEP_COLUMNS = ["kappa", "steps", "tau", "status", "gap", "tau_proven", "check_ki
                "witness_verified", "tau_lower", "witness_dimension", "measure", "initial",
                "seconds", "document"]
 # ``design --objective noise --max-rate R`` / ``--objective rate --max-noise G``: appended to
-# the design columns (only then: today's design files keep their columns)
+# the design columns (only then: a rate design's file keeps its columns)
 OBJECTIVE_COLUMNS = ["objective", "max_rate", "max_noise", "noise", "noise_quadratic",
                      "noise_lag", "noise_check", "objective_status", "bound_status",
                      "rho_check", "rho_proven", "noise_certificate"]

@@ -16,6 +16,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from sosalgo.schema import ANALYSIS_KIND, DESIGN_KIND, GRID_KIND
 from sosalgo.spec import Spec
 
 __all__ = ["attach_verification", "design_lines", "sublinear_design_run",
@@ -106,11 +107,12 @@ def sublinear_design_run(spec: Spec, text: str, out_dir: str | Path, free: Any =
         else:
             row = _design_row(spec, names, time_limit, progress)
             store.write(_design_cells(names, row))
-    row |= {"spec": spec.name, "source": spec.source, "spec_text": text}  # self-contained
+    row |= {"kind": DESIGN_KIND, "spec": spec.name, "source": spec.source,
+            "spec_text": text}  # self-contained
     if verify:
         attach_verification(spec, row, out)
-    return {"spec": spec.name, "source": spec.source, "spec_text": text, "csv": str(path),
-            "figures": [], "rows": [row]}
+    return {"kind": DESIGN_KIND, "spec": spec.name, "source": spec.source, "spec_text": text,
+            "csv": str(path), "figures": [], "rows": [row]}
 
 
 def _design_row(spec: Spec, names: list[str], time_limit: float,
@@ -216,8 +218,8 @@ def sublinear_grid_run(spec: Spec, text: str, out_dir: str | Path, points: int =
     rows = sorted((r for r in store.rows() if store.row_key(r) in order),
                   key=lambda r: order[store.row_key(r)])
     constants = [float(r["constant"]) for r in rows if r["constant"] != ""]
-    return {"spec": spec.name, "rate_type": "sublinear", "free": names, "csv": str(path),
-            "best": min(constants, default=None), "grids": []}
+    return {"kind": GRID_KIND, "spec": spec.name, "rate_type": "sublinear", "free": names,
+            "csv": str(path), "best": min(constants, default=None), "grids": []}
 
 def design_lines(doc: dict[str, Any]) -> list[str]:
     """What ``sosalgo design`` prints for a sublinear design document."""
@@ -299,8 +301,8 @@ def sublinear_run(spec: Spec, text: str, out_dir: str | Path, plot: bool = True,
         figs = sublinear_figure(spec, row, stem) if plot else []
     if verify:
         attach_verification(spec, row, out)
-    return {"spec": spec.name, "source": spec.source, "spec_text": text, "csv": str(path),
-            "figures": [str(p) for p in figs], "rows": [row]}
+    return {"kind": ANALYSIS_KIND, "spec": spec.name, "source": spec.source, "spec_text": text,
+            "csv": str(path), "figures": [str(p) for p in figs], "rows": [row]}
 
 
 def _analysis_from_csv(spec: Spec, cells: dict[str, str]) -> dict[str, Any]:

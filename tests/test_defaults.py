@@ -45,7 +45,7 @@ def test_the_spec_and_the_command_line_win(tmp_path):
     assert spec.certificate_given and default_family_name(spec, "analyze") == "theorem1"
     assert select_families(_spec("nesterov"), "theorem1", command="analyze")[0].name == \
         "theorem1"
-    # --lag alone now goes to the default family (it has the option)
+    # --lag alone goes to the default family (it has the option)
     (fam,) = select_families(_spec("nesterov"), None, {"lag": 0}, command="analyze")
     assert fam.name == "interpolation" and fam.lag == 0
 
@@ -67,7 +67,7 @@ def test_triple_momentum_default_reaches_one_minus_one_over_sqrt_kappa():
     assert res.rho == pytest.approx(1 - 1 / math.sqrt(10), abs=1e-5)
 
 
-def test_an_old_document_without_family_is_read_as_theorem1():
+def test_a_document_without_family_is_read_as_theorem1():
     """A row written before rows named their family (no ``family``, P and lambda beside
     rho) is Theorem 1's: verified as Theorem 1, never reinterpreted."""
     spec = _spec("gradient-optimal")

@@ -28,7 +28,7 @@ from sosalgo.spec import load_spec, spec_from_dict
 
 from .conftest import SPECS
 
-NEW = ["proximal-gradient", "projected-gradient", "proximal-point", "douglas-rachford",
+COMPOSITE_NAMES = ["proximal-gradient", "projected-gradient", "proximal-point", "douglas-rachford",
        "accelerated-proximal-gradient"]
 TOL = 1e-6
 
@@ -102,7 +102,7 @@ def test_floor_only_where_it_is_a_theorem(tmp_path):
     """1 - 1/sqrt(kappa) for gradient calls on F(m, L) plus functions that may be 0; none
     with a prox on the smooth part or a strongly convex second function."""
     k = 10.0
-    floors = {n: class_floor(load_spec(SPECS / f"{n}.yaml"), k) for n in NEW}
+    floors = {n: class_floor(load_spec(SPECS / f"{n}.yaml"), k) for n in COMPOSITE_NAMES}
     want = 1 - 1 / math.sqrt(k)
     assert floors["proximal-gradient"] == pytest.approx(want)
     assert floors["projected-gradient"] == pytest.approx(want)
@@ -181,7 +181,7 @@ def test_every_new_spec_and_free_subset(name, free, tmp_path):
 
 
 # --------------------------------------------------------------------------- grid
-@pytest.mark.parametrize("name", NEW)
+@pytest.mark.parametrize("name", COMPOSITE_NAMES)
 def test_grid_on_each_new_spec(name, tmp_path):
     """CSV and figure; one-parameter grids against their closed forms."""
     code, out = _run(["grid", SPECS / f"{name}.yaml", "--kappa", "10", "--points", "5",
@@ -211,7 +211,7 @@ def test_grid_on_each_new_spec(name, tmp_path):
 
 
 # --------------------------------------------------------------------------- lmi
-@pytest.mark.parametrize("name", NEW)
+@pytest.mark.parametrize("name", COMPOSITE_NAMES)
 def test_lmi_lists_classes_rows_and_blocks(name):
     spec = load_spec(SPECS / f"{name}.yaml")
     code, text = _run(["lmi", SPECS / f"{name}.yaml"])
@@ -280,7 +280,7 @@ def test_table1_runs_over_every_spec(tmp_path):
     assert code == 0, out
     rows = list(csv.DictReader(open(tmp_path / "table1.csv")))
     names = {r["spec"] for r in rows}
-    assert set(NEW) <= names and {"nesterov", "gradient"} <= names
+    assert set(COMPOSITE_NAMES) <= names and {"nesterov", "gradient"} <= names
     by = {r["spec"]: r for r in rows}
     assert float(by["proximal-gradient"]["rho_certified"]) == pytest.approx(0.9, abs=2 * TOL)
     assert float(by["proximal-point"]["rho_certified"]) == pytest.approx(1 / 1.1, abs=2 * TOL)

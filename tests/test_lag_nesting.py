@@ -7,10 +7,10 @@ slower than at lag 0 (up to the search tolerance).
 
 Chambolle-Pock (K = I, tau = sigma = theta = 1, kappa 1000): a state in the kernel of A
 that only its dual call sees makes every lag >= 1 window carry a direction on which every
-quadratic form vanishes, so that no lag >= 1 certificate was strictly feasible and the
-solver certified nothing at lags 1 and 2. The construction now removes those directions
-(:func:`sosalgo.certificates.composite.facial_reduction`); the test checks that the lifted
-lag-0 certificate does not use anything the reduction removes."""
+quadratic form vanishes, so that without care no lag >= 1 certificate is strictly
+feasible and the solver certifies nothing at lags 1 and 2. The construction removes
+those directions (:func:`sosalgo.certificates.composite.facial_reduction`); the test
+checks that the lifted lag-0 certificate does not use anything the reduction removes."""
 
 from __future__ import annotations
 

@@ -175,7 +175,7 @@ def test_accepted_expressions_have_the_degree_bound(text):
 
 
 @pytest.mark.parametrize("d_entry, where", [
-    ("[[0, 0], [-h, -1e200]]", "matrices"),  # passed the old check (overflow)
+    ("[[0, 0], [-h, -1e200]]", "matrices"),  # a huge entry
     ("[[0, 0], [1e200, -h]]", "matrices"),
     ("[[0, 0], [-h, -1e-200]]", "matrices"),
     ("[[0, 0], [-h, -1e100]]", "matrices"),  # no fixed point: D S != 0

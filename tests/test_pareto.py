@@ -98,7 +98,7 @@ def test_design_cli_objective_fields_and_files(tmp_path):
 
 
 def test_default_design_keeps_its_columns_and_settings(tmp_path):
-    """Today's design (no objective): no objective columns, no new settings."""
+    """A rate design (no objective): no objective columns, no objective settings."""
     res = _run("design", spec_path("gradient"), "--kappa", 10, "--time-limit", 20,
                "--out", tmp_path, "--quiet")
     assert res.exit_code == 0, res.output
@@ -209,6 +209,20 @@ def test_small_front_rechecked_independently(small_front):
         assert ok, (p, t)
         q = _quadratic_gamma(A, B, C, E, 1.0, 10.0)
         assert q * (1 - 1e-9) <= p["noise"] <= q * 1.05, (p, q)
+
+
+def test_small_front_names_its_kind_and_a_forged_one_is_refused(small_front, tmp_path):
+    """A pareto document says ``kind: pareto``, as its content shows; called an analysis,
+    it is refused (exit code 3, naming the field)."""
+    from sosalgo.documents import sniff_kind
+
+    _, doc = small_front
+    assert doc["kind"] == "pareto"
+    assert sniff_kind({k: v for k, v in doc.items() if k != "kind"}) == "pareto"
+    path = tmp_path / "forged.json"
+    path.write_text(json.dumps(doc | {"kind": "analysis"}))
+    res = _run("verify", path, "--no-simulate")
+    assert res.exit_code == 3 and "kind" in res.output.strip().splitlines()[-1], res.output
 
 
 def test_small_front_rechecked_by_verify(small_front):

@@ -599,7 +599,7 @@ def test_overstated_dual_is_caught(monkeypatch: pytest.MonkeyPatch) -> None:
 def test_float_coefficients_are_expanded_exactly() -> None:
     # 1e9 (x - 1/3)^2 + 7 has minimum exactly 7 at x = 1/3. Expanded in sympy Float
     # arithmetic, its constant 1e9/9 + 7 is rounded before the relaxation sees it, which
-    # moved the proven bound to 7.0000000066; Floats are now taken at their exact binary
+    # would move the proven bound to 7.0000000066; Floats are taken at their exact binary
     # values and expanded exactly.
     res = solve_moment_relaxation(PolyProblem([x], 1e9 * (x - sp.Rational(1, 3)) ** 2 + 7))
     _assert_honest(res, 7.0, rel=0.0)

@@ -72,7 +72,6 @@ def _fixed_direction(om: Any, width: int) -> np.ndarray:
     return v / np.linalg.norm(v)
 
 
-SCALAR_SOS = False
 DEGREE = 2  # weights polynomial in k of this degree (1: affine, Taylor and Bach's form)
 WEIGHTS = ("P", "Q", "R")  # z' (P + k Q + k^2 R) z
 VALUES = ("p", "q", "r")  # (p + k q + k^2 r)' psi
@@ -93,7 +92,9 @@ def _layout(sizes: dict[str, int]) -> dict[str, slice]:
 def _sizes(st: Any, deg: int) -> dict[str, int]:
     """Variables: the weights, b, the multipliers' coefficients (eta: decrease, lam:
     positivity, nu: initial) and, for degree 2, the auxiliaries of each "<= 0 on k >= 0"
-    (S psd and K skew of the matrix blocks, t >= 0 of the scalar ones)."""
+    (S psd and K skew of the matrix blocks). The t variables are in no constraint (the
+    scalar parts are constrained coefficient-wise); they stay because the solver's path,
+    and so every constant it gives, depends on the number of variables."""
     d, p = st.dec, st.pos
     nd, npos = len(d.labels), len(p.labels)
     sizes = {WEIGHTS[j]: _tri(st.nz) for j in range(deg + 1)}
@@ -196,7 +197,8 @@ def _halfline(name: str, poly: _Poly, lay: dict[str, slice], tag: str,
               nvar: int) -> tuple[list, list]:
     """``poly(k) <= 0`` for all k >= 0 as LMIs. Degree 1: both coefficients <= 0. Degree 2:
     [[A0, Y], [Y', A2]] <= 0 with Y = (A1 + S)/2 + K, S >= 0, K skew (then -A(k) =
-    [I; kI]' M [I; kI] + k S with M >= 0); coefficient-wise the same with 1 x 1 blocks."""
+    [I; kI]' M [I; kI] + k S with M >= 0); the scalar parts coefficient-wise (each
+    coefficient <= 0)."""
     deg = len(poly.q) - 1
     if deg == 1:
         mats = [(f"{name}{j}", poly.c[j], np.zeros_like(poly.c[j]), poly.q[j]) for j in (0, 1)]
@@ -208,13 +210,8 @@ def _halfline(name: str, poly: _Poly, lay: dict[str, slice], tag: str,
     Su[lay[f"S{tag}"]], Ku[lay[f"K{tag}"]] = unit_quads(np.eye(w)), _skew_units(w)
     mats = [(name, *_stack2(poly.q, poly.c, Su, Ku)), (f"{name}-S", np.zeros((w, w)),
                                                           np.zeros((w, w)), -Su)]
-    if SCALAR_SOS:
-        mats += _scalar_blocks(name, poly.lin, poly.cl, lay[f"t{tag}"], nvar)
-        rows = [(f"t{tag}[{i}]", 0.0, -np.eye(nvar)[k])
-                for i, k in enumerate(range(lay[f"t{tag}"].start, lay[f"t{tag}"].stop))]
-    else:
-        rows = [(f"{name}{j}-f[{i}]", float(poly.cl[j][i]), poly.lin[j][i])
-                for j in range(3) for i in range(len(poly.cl[j]))]
+    rows = [(f"{name}{j}-f[{i}]", float(poly.cl[j][i]), poly.lin[j][i])
+            for j in range(3) for i in range(len(poly.cl[j]))]
     return mats, rows
 
 
@@ -232,33 +229,12 @@ def _stack2(q: list, c: list, Su: np.ndarray, Ku: np.ndarray) -> tuple:
     return C, np.zeros_like(C), L
 
 
-def _scalar_blocks(name: str, lin: list, cl: list, tsl: slice, nvar: int) -> list:
-    """[[a0, (a1 + t)/2], [(a1 + t)/2, a2]] <= 0 for each component (t = x[tsl])."""
-    out = []
-    for i in range(len(cl[0])):
-        L = np.zeros((nvar, 2, 2))
-        L[:, 0, 0], L[:, 1, 1] = lin[0][i], lin[2][i]
-        off = 0.5 * lin[1][i]
-        off[tsl.start + i] += 0.5
-        L[:, 0, 1] = L[:, 1, 0] = off
-        C = np.array([[cl[0][i], 0.5 * cl[1][i]], [0.5 * cl[1][i], cl[2][i]]])
-        out.append((f"{name}-f[{i}]", C, np.zeros((2, 2)), L))
-    return out
-
-
-def _nonneg(names: tuple[str, ...], lay: dict[str, slice], nvar: int,
-            tname: str | None) -> tuple[list, list]:
-    """Multiplier polynomials sum_j k^j x[names[j]] >= 0 on k >= 0 (coefficient-wise for
-    degree 1; a 2 x 2 block per multiplier with its t >= 0 for degree 2)."""
+def _nonneg(names: tuple[str, ...], lay: dict[str, slice], nvar: int) -> list:
+    """Multiplier polynomials sum_j k^j x[names[j]] >= 0 on k >= 0, coefficient-wise
+    (every coefficient >= 0): one row each."""
     eye = np.eye(nvar)
-    if tname is None or not SCALAR_SOS:
-        return [], [(f"{nm}[{i - lay[nm].start}]", 0.0, -eye[i]) for nm in names
-                    for i in range(lay[nm].start, lay[nm].stop)]
-    cnt = lay[names[0]].stop - lay[names[0]].start
-    lin = [-eye[lay[nm]] for nm in names]
-    mats = _scalar_blocks(names[0][:-1], lin, [np.zeros(cnt)] * 3, lay[tname], nvar)
-    rows = [(f"{tname}[{i}]", 0.0, -eye[lay[tname].start + i]) for i in range(cnt)]
-    return mats, rows
+    return [(f"{nm}[{i - lay[nm].start}]", 0.0, -eye[i]) for nm in names
+            for i in range(lay[nm].start, lay[nm].stop)]
 
 
 def sublinear_data(om: Any, deg: int = DEGREE) -> _XData:
@@ -282,12 +258,9 @@ def sublinear_data(om: Any, deg: int = DEGREE) -> _XData:
     Il[:, lay["p"]], Il[:, lay["nu"]] = p.F[0].T, p.mq.T
     rows += [(f"I-f[{i}]", 0.0, Il[i]) for i in range(p.nphi)]
     rows.append(("b[0]", 0.0, -np.eye(nvar)[lay["b"].start]))
-    for group, t in (("eta", "teta"), ("lam", "tlam")):
-        m_, r_ = _nonneg(tuple(f"{group}{j}" for j in range(deg + 1)), lay, nvar,
-                         t if deg == 2 else None)
-        mats, rows = mats + m_, rows + r_
-    m_, r_ = _nonneg(("nu",), lay, nvar, None)
-    mats, rows = mats + m_, rows + r_
+    for group in ("eta", "lam"):
+        rows += _nonneg(tuple(f"{group}{j}" for j in range(deg + 1)), lay, nvar)
+    rows += _nonneg(("nu",), lay, nvar)
     return _XData(mats, rows, _known(om, st, deg), lay, st, s, deg)
 
 

@@ -526,7 +526,7 @@ def objective_design(spec: Spec, kappa: float, objective: str = "noise",
     samples = cloud(ev)
     starts = _starts(ev, samples, objective, cap)
     log(f"cloud: {len(samples)} points, {len(starts)} meet the constraint")
-    if not starts and objective == "noise":  # the fastest θ first (today's design)
+    if not starts and objective == "noise":  # the fastest θ first (the rate design)
         starts = _fast_start(spec, kappa, names, fam, ev, time_limit, workers, log)
     search = min_noise if objective == "noise" else min_rate
     key, val = search(ev, cap, starts)

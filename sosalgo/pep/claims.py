@@ -37,6 +37,7 @@ from fractions import Fraction
 from typing import Any
 
 from sosalgo.errors import InputError
+from sosalgo.schema import WITNESS_KIND
 from sosalgo.spec import Spec
 
 __all__ = ["FLOAT_REL", "LOWER_REL", "TAU_REL", "is_pep_document", "passed",
@@ -284,8 +285,8 @@ def verify_witness_file(doc: Mapping[str, Any], spec: Spec, where: str = "witnes
     the check fails)."""
     from sosalgo.pep.check import check_witness
 
-    if doc.get("kind") != "pep-witness":
-        raise InputError(f"{where}.kind: expected 'pep-witness'")
+    if doc.get("kind") != WITNESS_KIND:
+        raise InputError(f"{where}.kind: expected '{WITNESS_KIND}'")
     ctx = _ctx(doc, spec, where)
     claims = _Claims()
     chk = check_witness(dict(doc), spec)

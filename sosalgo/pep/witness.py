@@ -43,12 +43,12 @@ from sosalgo.pep.check import ArbView, arb_view, check_witness, fit_values, q_st
 from sosalgo.pep.sdp import PEPData, SDPAnswer, solve_pep
 from sosalgo.pep.structure import Method
 from sosalgo.pep.terms import Term
+from sosalgo.schema import WITNESS_KIND
 from sosalgo.spec import Spec
 
 __all__ = ["WITNESS_KIND", "check_witness", "fit_values", "interior_point", "make_witness",
            "plausible"]
 
-WITNESS_KIND = "pep-witness"
 # (slack, eta) of the reduced solves, in order: every inequality >= slack (scaled rows),
 # the measure kept at (1 - eta) tau_N; a larger eta leaves room for a larger slack
 LADDER = ((1e-9, 1e-6), (1e-8, 1e-5), (1e-7, 1e-4), (1e-6, 1e-3))

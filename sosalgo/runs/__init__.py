@@ -19,7 +19,16 @@ from sosalgo.batch.executor import check_scheduler
 from sosalgo.certificates import describe_family
 from sosalgo.errors import InputError
 from sosalgo.kernel import budget
-from sosalgo.schema import analysis_csv, design_stem, grid_stem, rate_stem
+from sosalgo.schema import (
+    ANALYSIS_KIND,
+    DESIGN_KIND,
+    GRID_KIND,
+    TABLE1_KIND,
+    analysis_csv,
+    design_stem,
+    grid_stem,
+    rate_stem,
+)
 from sosalgo.spec import Spec
 from sosalgo.store import output_lock
 
@@ -132,7 +141,7 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
     workers = budget.check(est).workers if scheduler is None else workers
     out = inputs.out_dir(out_dir)
     check_scheduler(scheduler)
-    plain = len(fams) == 1 and fams[0].is_default  # Theorem 1 alone: the historical output
+    plain = len(fams) == 1 and fams[0].is_default  # Theorem 1 alone: one CSV, no family columns
     stem = _rate_figure_stem(spec, out, fams)
     runs, figs = [], []
     for fam in fams:
@@ -155,8 +164,8 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
             r["family"] = fam.name
         if verify:
             rep.attach_checks(spec, jrows, out / "certificates", family=None if plain else fam)
-    doc = {"spec": spec.name, "source": spec.source, "spec_text": text, "tol": tol,
-           "csv": str(runs[0][1])} | set_field(overrides)
+    doc = {"kind": ANALYSIS_KIND, "spec": spec.name, "source": spec.source, "spec_text": text,
+           "tol": tol, "csv": str(runs[0][1])} | set_field(overrides)
     if not plain:
         doc["csvs"] = {f.name: str(p) for f, p, _ in runs}
     return doc | {"figures": [str(p) for p in figs],
@@ -237,7 +246,7 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
              "inner_workers": (workers or os.cpu_count() or 1) if one and scheduler is None
              else 1}
     stem = design_stem(out, spec.name, fam)
-    if two:  # only then: today's designs keep their settings (and files) exactly
+    if two:  # only then: a rate design's settings (and files) stay as they are without
         opts |= {"objective": objective, "max_rate": max_rate, "max_noise": max_noise}
         stem = stem.with_name(stem.name + ("-min-noise" if objective == "noise"
                                            else "-min-rate"))
@@ -250,8 +259,8 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
                 for r in rows]
         for d in docs:
             _design_certificates(csv_path, d)
-        for d in docs:
-            d["source"], d["spec_text"] = spec.source, text
+        for d in docs:  # each a whole design document (``--json`` prints it alone)
+            d["kind"], d["source"], d["spec_text"] = DESIGN_KIND, spec.source, text
             d.update(set_field(overrides))
         how = ("dual certificates" if method == "dual" else f"moment relaxation, {scalarize}")
         figs = (rep.design_figure(spec, opts["free"], rows, docs, stem, fam, how)
@@ -262,9 +271,9 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
         checks = verify_document_rows(spec, docs, out / "certificates")
         for d, v in zip(docs, checks, strict=True):
             d["verification"] = v
-    return {"spec": spec.name, "source": spec.source, "spec_text": text, "csv": str(csv_path),
-            "figures": [str(p) for p in figs], "rows": docs, "estimate": est.to_dict()
-            } | set_field(overrides)
+    return {"kind": DESIGN_KIND, "spec": spec.name, "source": spec.source, "spec_text": text,
+            "csv": str(csv_path), "figures": [str(p) for p in figs], "rows": docs,
+            "estimate": est.to_dict()} | set_field(overrides)
 
 
 DESIGN_CERTIFICATES = ("bound_certificate", "values_certificate")
@@ -276,14 +285,15 @@ def _design_certificates(csv_path: Path, doc: dict[str, Any]) -> None:
     ``<csv stem>-k<kappa>-certificates.json``: written with a fresh result, attached
     again to a result read back from the CSV when they are for its numbers (``sosalgo
     verify`` re-proves them either way). Called under the CSV's output lock."""
-    from sosalgo.schema import kappa_label
+    from sosalgo.schema import DESIGN_CERTIFICATES_KIND, kappa_label
     from sosalgo.verify.exact import write_certificate
 
     path = csv_path.with_name(f"{csv_path.stem}-k{kappa_label(doc['kappa'])}"
                               "-certificates.json")
     key = {k: doc.get(k) for k in ("lower_bound", "rho_at_values", "theta", "free")}
     if any(k in doc for k in DESIGN_CERTIFICATES):
-        write_certificate({"for": key, **{k: doc.get(k) for k in DESIGN_CERTIFICATES}}, path)
+        write_certificate({"kind": DESIGN_CERTIFICATES_KIND, "for": key,
+                           **{k: doc.get(k) for k in DESIGN_CERTIFICATES}}, path)
         return
     try:
         kept = json.loads(path.read_text(encoding="utf-8"))
@@ -350,8 +360,8 @@ def grid_run(spec: Spec | str | Path, kappa: Kappas, out_dir: str | Path = "outp
         values = parameter_values(spec, k)
         docs.append(rep.grid_document(k, csv_path, figs, rows, rho, names)
                     | {"fixed": {p: values[p] for p in grid_fixed(spec, names)}})
-    return {"spec": spec.name, "free": names, "fixed": grid_fixed(spec, names), "grids": docs,
-            "estimate": est.to_dict()} | set_field(overrides)
+    return {"kind": GRID_KIND, "spec": spec.name, "free": names, "fixed": grid_fixed(spec, names),
+            "grids": docs, "estimate": est.to_dict()} | set_field(overrides)
 
 
 def _grid_budget(spec: Spec, names: list[str], points: int, kappas: int,
@@ -394,7 +404,7 @@ def table1_run(specs: Sequence[str | Path] = (), kappa: Sequence[float] = (),
     fams = [inputs.select_families(s, certificate, options, applicable_only=True) if chosen
             else [None] for s in parsed]
     rows, cols = table1_rows(parsed, kappas, tol, fams)
-    settings = {"job": "table1", "specs": texts, "kappa": kappas, "tol": tol,
-                "certificate": certificate, "lag": None, **dict(options or {})}  # lag: as ever
+    settings = {"job": "table1", "specs": texts, "kappa": kappas, "tol": tol,  # lag: None
+                "certificate": certificate, "lag": None, **dict(options or {})}  # unless given
     path = write_table1(inputs.out_dir(out_dir), rows, cols, settings)
-    return {"rows": rows, "columns": cols, "csv": str(path)}
+    return {"kind": TABLE1_KIND, "rows": rows, "columns": cols, "csv": str(path)}

@@ -37,6 +37,7 @@ from sosalgo.batch.executor import check_scheduler
 from sosalgo.errors import InputError
 from sosalgo.kernel.phases import begin_task
 from sosalgo.pareto import front_caps, known_tunings, pareto_filter, reference_spec
+from sosalgo.schema import PARETO_KIND
 from sosalgo.spec import Spec
 
 __all__ = ["pareto_chunk", "pareto_run", "MAX_POINTS"]
@@ -345,7 +346,7 @@ def _document(spec: Spec, text: str, kappa: float, fam: Any, names: list[str],
     parsed = sorted((_parse(r) for r in rows), key=lambda p: p["index"])
     mine = [p for p in parsed if p["kind"] == "front"]
     return {"spec": spec.name, "kappa": float(kappa), "front": pareto_filter(mine),
-            "source": spec.source, "spec_text": text, "kind": "pareto",
+            "source": spec.source, "spec_text": text, "kind": PARETO_KIND,
             "points": mine, "tunings": [p for p in parsed if p["kind"] != "front"],
             "family": fam.name, "lag": fam.options().get("lag"), "free": names,
             "floor": 1 - 1 / math.sqrt(kappa), "csv": str(csv_path), "figures": []}
@@ -385,5 +386,5 @@ def pareto_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = 
            "progress": progress, "plot": plot}
     docs = [_one_kappa(spec, text, k, names, fam, points, float(time_limit), out, run)
             | set_field(overrides) for k in kappas]
-    return {"spec": spec.name, "source": spec.source, "spec_text": text, "kind": "pareto",
+    return {"spec": spec.name, "source": spec.source, "spec_text": text, "kind": PARETO_KIND,
             "fronts": docs, "estimate": est.to_dict()} | set_field(overrides)

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from sosalgo.kernel.phases import begin_task
+from sosalgo.schema import PEP_KIND
 from sosalgo.spec import Spec
 
 __all__ = ["pep_chunk", "pep_heading", "pep_row", "pep_run", "term_words"]
@@ -160,9 +161,10 @@ def _docs(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
 def _pep_document(spec: Spec, measure: str | None, initial: str | None,
                   docs: list[dict[str, Any]], files: list[str], est: Any) -> dict[str, Any]:
     if len(docs) == 1:
-        return docs[0] | {"source": spec.source, "files": files, "estimate": est.to_dict()}
-    return {"spec": spec.name, "source": spec.source, "measure": measure, "initial": initial,
-            "rows": docs, "files": files, "estimate": est.to_dict()}
+        return {"kind": PEP_KIND} | docs[0] | {"source": spec.source, "files": files,
+                                          "estimate": est.to_dict()}
+    return {"kind": PEP_KIND, "spec": spec.name, "source": spec.source, "measure": measure,
+            "initial": initial, "rows": docs, "files": files, "estimate": est.to_dict()}
 
 
 def _tag(kappa: float | None) -> str:

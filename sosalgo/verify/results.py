@@ -30,7 +30,7 @@ from sosalgo.errors import InputError
 from sosalgo.kernel.exact import Verdict
 from sosalgo.kernel.phases import show_phase
 from sosalgo.model import bind
-from sosalgo.schema import certificate_name
+from sosalgo.schema import CERTIFICATE_KIND, certificate_name
 from sosalgo.spec import Spec
 from sosalgo.store import output_lock
 from sosalgo.verify import simulate_check
@@ -147,7 +147,8 @@ def _write_once(out_dir: Path, name: str, hashed: str, digest: str,
             old = None
         exists = plain.exists() or plain.is_symlink()
         path = plain if not exists or old == digest else out_dir / hashed
-        return write_certificate({**doc, "inputs_hash": digest}, path)
+        return write_certificate({"kind": CERTIFICATE_KIND, **doc, "inputs_hash": digest},
+                                 path)
 
 
 def _number(value: Any, where: str, allow_none: bool = True) -> float | None:
