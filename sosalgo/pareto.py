@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from sosalgo.errors import InputError
-from sosalgo.schema import PARETO_KIND
+from sosalgo.kinds import PARETO_KIND
 from sosalgo.spec import Spec
 
 __all__ = ["front_caps", "is_pareto_document", "known_tunings", "pareto_filter",

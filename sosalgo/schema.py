@@ -13,6 +13,20 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from sosalgo.kinds import (  # noqa: F401 - the kind names, also from here
+    ANALYSIS_KIND,
+    CERTIFICATE_KIND,
+    DESIGN_CERTIFICATES_KIND,
+    DESIGN_KIND,
+    FIG4_KIND,
+    GRID_KIND,
+    PARETO_KIND,
+    PEP_KIND,
+    TABLE1_KIND,
+    VERIFICATION_KIND,
+    WITNESS_KIND,
+)
+
 if TYPE_CHECKING:  # pragma: no cover
     from sosalgo.certificates.base import CertificateFamily
     from sosalgo.spec import Spec
@@ -30,12 +44,8 @@ __all__ = [
 ]
 
 # ---------------------------------------------------------------------------- result kinds
-# the ``kind`` field of every JSON document sosalgo writes (the registry of what each
-# holds, its files and its check: sosalgo.documents.KINDS)
-ANALYSIS_KIND, DESIGN_KIND, GRID_KIND, PARETO_KIND = "analysis", "design", "grid", "pareto"
-PEP_KIND, WITNESS_KIND, TABLE1_KIND, FIG4_KIND = "pep", "pep-witness", "table1", "fig4"
-CERTIFICATE_KIND, DESIGN_CERTIFICATES_KIND = "certificate", "design-certificates"
-VERIFICATION_KIND = "verification"
+# the ``kind`` field of every JSON document sosalgo writes (names: sosalgo.kinds; the
+# registry of what each holds, its files and its check: sosalgo.documents.KINDS)
 
 # ---------------------------------------------------------------------------- printed tables
 # analyze's printed table (the CSV has more); the default family's shows lambda as well

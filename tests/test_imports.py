@@ -121,7 +121,7 @@ def test_the_check_finds_a_cycle():
 # top-level unit gets its place here (test_every_unit_has_a_layer). docs/architecture.md
 # describes the layers.
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
-    ("kernel", ("errors", "kernel", "polyopt")),
+    ("kernel", ("errors", "kinds", "kernel", "polyopt")),
     ("problem", ("classes", "spec", "oracles", "model", "exact_method")),
     ("families", ("certificates",)),
     ("questions", ("symbolic", "analysis", "inputs", "sensitivity", "witnesses", "design",

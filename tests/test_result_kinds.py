@@ -84,7 +84,7 @@ def test_every_document_names_its_kind(docs, name):
 
 def test_fig4_json_names_its_kind(monkeypatch):
     """fig4 --json (its sweeps replaced: only the printed document is tested)."""
-    import sosalgo.report.fig4 as fig4
+    import sosalgo.runs.fig4 as fig4
 
     data = {"kappa": [2.0], "designed (interpolation)": [0.5], "designed (Theorem 1)": [0.6],
             "Nesterov's tuning (interpolation)": [0.7], "Nesterov's tuning (Theorem 1)": [0.8]}

@@ -37,7 +37,7 @@ from fractions import Fraction
 from typing import Any
 
 from sosalgo.errors import InputError
-from sosalgo.schema import WITNESS_KIND
+from sosalgo.kinds import WITNESS_KIND
 from sosalgo.spec import Spec
 
 __all__ = ["FLOAT_REL", "LOWER_REL", "TAU_REL", "is_pep_document", "passed",

@@ -39,11 +39,11 @@ from typing import Any
 
 import numpy as np
 
+from sosalgo.kinds import WITNESS_KIND
 from sosalgo.pep.check import ArbView, arb_view, check_witness, fit_values, q_str
 from sosalgo.pep.sdp import PEPData, SDPAnswer, solve_pep
 from sosalgo.pep.structure import Method
 from sosalgo.pep.terms import Term
-from sosalgo.schema import WITNESS_KIND
 from sosalgo.spec import Spec
 
 __all__ = ["WITNESS_KIND", "check_witness", "fit_values", "interior_point", "make_witness",
