@@ -347,7 +347,7 @@ def fig4(kappa: tuple[str, ...], time_limit: float, out: str, as_json: bool,
     figs, data = run_fig4(out_dir(out), kappas, workers=workers, scheduler=scheduler,
                           restart=restart, progress=not quiet, time_limit=time_limit)
     if as_json:
-        from sosalgo.schema import FIG4_KIND
+        from sosalgo.kinds import FIG4_KIND
 
         click.echo(json.dumps({"kind": FIG4_KIND, "figures": [str(p) for p in figs], **data},
                               indent=2))

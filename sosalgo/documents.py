@@ -22,7 +22,7 @@ from typing import Any
 
 from sosalgo.errors import InputError, VerificationError
 from sosalgo.kernel.phases import show_phase
-from sosalgo.schema import (
+from sosalgo.kinds import (
     ANALYSIS_KIND,
     CERTIFICATE_KIND,
     DESIGN_CERTIFICATES_KIND,

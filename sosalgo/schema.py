@@ -13,20 +13,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from sosalgo.kinds import (  # noqa: F401 - the kind names, also from here
-    ANALYSIS_KIND,
-    CERTIFICATE_KIND,
-    DESIGN_CERTIFICATES_KIND,
-    DESIGN_KIND,
-    FIG4_KIND,
-    GRID_KIND,
-    PARETO_KIND,
-    PEP_KIND,
-    TABLE1_KIND,
-    VERIFICATION_KIND,
-    WITNESS_KIND,
-)
-
 if TYPE_CHECKING:  # pragma: no cover
     from sosalgo.certificates.base import CertificateFamily
     from sosalgo.spec import Spec
@@ -38,14 +24,7 @@ __all__ = [
     "p_columns", "rate_stem", "SUBLINEAR_COLUMNS", "sublinear_columns", "NOISE_COLUMNS",
     "PEP_COLUMNS", "pep_csv", "OBJECTIVE_COLUMNS", "PARETO_COLUMNS", "pareto_stem",
     "SOLVER_COLUMNS", "printed_columns",
-    "ANALYSIS_KIND", "CERTIFICATE_KIND", "DESIGN_CERTIFICATES_KIND", "DESIGN_KIND",
-    "FIG4_KIND", "GRID_KIND", "PARETO_KIND", "PEP_KIND", "TABLE1_KIND", "VERIFICATION_KIND",
-    "WITNESS_KIND",
 ]
-
-# ---------------------------------------------------------------------------- result kinds
-# the ``kind`` field of every JSON document sosalgo writes (names: sosalgo.kinds; the
-# registry of what each holds, its files and its check: sosalgo.documents.KINDS)
 
 # ---------------------------------------------------------------------------- printed tables
 # analyze's printed table (the CSV has more); the default family's shows lambda as well

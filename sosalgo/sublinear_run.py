@@ -16,7 +16,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from sosalgo.schema import ANALYSIS_KIND, DESIGN_KIND, GRID_KIND
+from sosalgo.kinds import ANALYSIS_KIND, DESIGN_KIND, GRID_KIND
 from sosalgo.spec import Spec
 
 __all__ = ["attach_verification", "design_lines", "sublinear_design_run",

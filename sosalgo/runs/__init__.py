@@ -19,16 +19,8 @@ from sosalgo.batch.executor import check_scheduler
 from sosalgo.certificates import describe_family
 from sosalgo.errors import InputError
 from sosalgo.kernel import budget
-from sosalgo.schema import (
-    ANALYSIS_KIND,
-    DESIGN_KIND,
-    GRID_KIND,
-    TABLE1_KIND,
-    analysis_csv,
-    design_stem,
-    grid_stem,
-    rate_stem,
-)
+from sosalgo.kinds import ANALYSIS_KIND, DESIGN_KIND, GRID_KIND, TABLE1_KIND
+from sosalgo.schema import analysis_csv, design_stem, grid_stem, rate_stem
 from sosalgo.spec import Spec
 from sosalgo.store import output_lock
 
@@ -285,7 +277,8 @@ def _design_certificates(csv_path: Path, doc: dict[str, Any]) -> None:
     ``<csv stem>-k<kappa>-certificates.json``: written with a fresh result, attached
     again to a result read back from the CSV when they are for its numbers (``sosalgo
     verify`` re-proves them either way). Called under the CSV's output lock."""
-    from sosalgo.schema import DESIGN_CERTIFICATES_KIND, kappa_label
+    from sosalgo.kinds import DESIGN_CERTIFICATES_KIND
+    from sosalgo.schema import kappa_label
     from sosalgo.verify.exact import write_certificate
 
     path = csv_path.with_name(f"{csv_path.stem}-k{kappa_label(doc['kappa'])}"

@@ -36,8 +36,8 @@ from sosalgo import inputs
 from sosalgo.batch.executor import check_scheduler
 from sosalgo.errors import InputError
 from sosalgo.kernel.phases import begin_task
+from sosalgo.kinds import PARETO_KIND
 from sosalgo.pareto import front_caps, known_tunings, pareto_filter, reference_spec
-from sosalgo.schema import PARETO_KIND
 from sosalgo.spec import Spec
 
 __all__ = ["pareto_chunk", "pareto_run", "MAX_POINTS"]

@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from sosalgo.kernel.phases import begin_task
-from sosalgo.schema import PEP_KIND
+from sosalgo.kinds import PEP_KIND
 from sosalgo.spec import Spec
 
 __all__ = ["pep_chunk", "pep_heading", "pep_row", "pep_run", "term_words"]

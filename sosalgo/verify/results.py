@@ -29,8 +29,9 @@ from sosalgo.certificates.base import CertificateFamily, check_number
 from sosalgo.errors import InputError
 from sosalgo.kernel.exact import Verdict
 from sosalgo.kernel.phases import show_phase
+from sosalgo.kinds import CERTIFICATE_KIND
 from sosalgo.model import bind
-from sosalgo.schema import CERTIFICATE_KIND, certificate_name
+from sosalgo.schema import certificate_name
 from sosalgo.spec import Spec
 from sosalgo.store import output_lock
 from sosalgo.verify import simulate_check
