@@ -464,12 +464,13 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
         click.echo(json.dumps(res, indent=2))
     else:
         from sosalgo.report.checks import checks_table, ledger_lines
-        from sosalgo.report.legend import set_lines
+        from sosalgo.report.legend import VERIFY_LEGEND, set_lines
         from sosalgo.report.pareto import noise_check_lines
 
         for line in set_lines(doc):
             click.echo(line)
         click.echo(checks_table(rows, res["results"]))
+        click.echo(VERIFY_LEGEND)
         for line in noise_check_lines(rows, res["results"]):
             click.echo(line)
         click.echo(f"rational certificates in {folder}" if can_write

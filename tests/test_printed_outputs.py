@@ -138,3 +138,20 @@ def test_design_legend_names_the_proven_lower_bound_only_when_it_is_proven():
     assert "lower_bound: proven lower bound" in design_legend("dual")
     moment = design_legend("moment")
     assert "proven lower bound" not in moment and "floating point" in moment
+
+
+def test_verify_says_what_its_columns_mean_in_100_characters(tmp_path):
+    """verify's table is followed by a legend: exact re-proof, the proven rate, and the
+    simulation as evidence (not a proof), in lines of at most 100 characters."""
+    doc = tmp_path / "g.json"
+    res = run("analyze", SPECS / "gradient.yaml", "--kappa", 10, "--out", tmp_path, "--quiet",
+              "--no-plot", "--json")
+    doc.write_text(res.output)
+    out = run("verify", doc, "--out", tmp_path / "v")
+    assert out.exit_code == 0, out.output
+    text = out.output
+    assert "re-proven in exact" in text and "rho_proven" in text
+    assert "evidence, not a proof" in text
+    legend = [ln for ln in text.splitlines()
+              if any(w in ln for w in ("re-proven in exact", "rho_proven:", "not a proof"))]
+    assert legend and all(len(line) <= 100 for line in legend)

@@ -19,7 +19,7 @@ from typing import Any
 
 from sosalgo.spec import Spec
 
-__all__ = ["CERTIFIED", "PROVEN_LOWER", "REFERENCE", "TABLE1_LEGEND", "WITNESSED",
+__all__ = ["CERTIFIED", "PROVEN_LOWER", "REFERENCE", "TABLE1_LEGEND", "VERIFY_LEGEND", "WITNESSED",
            "measure_words", "noise_legend", "rate_legend", "rate_meaning", "reference_header",
            "set_lines", "sublinear_meaning"]
 
@@ -27,6 +27,9 @@ CERTIFIED = "certified rate"
 WITNESSED = "witnessed lower bound"
 REFERENCE = "reference"
 PROVEN_LOWER = "proven lower bound"
+VERIFY_LEGEND = ("verified exact: the certificate re-proven in exact or outward-rounded "
+                 "arithmetic;\nrho_proven: the rate that proof establishes; simulation: the "
+                 "method run on test functions\nof the class (evidence, not a proof)")
 TABLE1_LEGEND = (f"rho_certified: {CERTIFIED}; closed_form_rate: {REFERENCE}, the spec's first "
                  "closed form (floating point; not proven by sosalgo)")
 
