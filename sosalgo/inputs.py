@@ -114,7 +114,8 @@ def free_names(spec: Spec, free: str | Sequence[str] | None,
     if twice:
         raise InputError(f"--free: {', '.join(twice)[:80]} given more than once")
     if not names and need_range:
-        raise InputError(f"{spec.source}: parameters: no parameter has a range (use --free)")
+        raise InputError(f"{spec.source}: parameters: no parameter has a range (use --free; "
+                         "a parameter fixed by --set has none)")
     spec.check_free(names, need_range=need_range)
     return names
 

@@ -167,3 +167,13 @@ def test_design_with_set_designs_the_other_parameters(tmp_path):
     doc = json.loads(res.stdout)
     assert doc["free"] == ["h"] and doc["set"] == {"beta": "1/2"}
     assert set(doc["theta"]) == {"h"}
+
+
+def test_design_with_every_range_fixed_by_set_says_so(tmp_path):
+    """gradient.yaml has one ranged parameter; fixing it leaves nothing to design: one line
+    naming the parameters and --set, exit 2, nothing written."""
+    res = CliRunner().invoke(cli, ["design", str(SPECS / "gradient.yaml"), "--kappa", "10",
+                                   "--set", "h=1/L", "--out", str(tmp_path / "d")])
+    assert res.exit_code == 2
+    assert "parameters" in res.output and "--set" in res.output
+    assert not (tmp_path / "d").exists() or not any((tmp_path / "d").iterdir())
