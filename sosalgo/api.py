@@ -186,13 +186,16 @@ def _check_design(spec: Spec, options: Mapping[str, Any]) -> None:
 
 
 def lmi(spec: Spec | str | Path, free: str | Sequence[str] | None = None, latex: bool = False,
-        certificate: str | None = None, options: Mapping[str, Any] | None = None) -> str:
+        certificate: str | None = None, options: Mapping[str, Any] | None = None,
+        overrides: Mapping[str, str] | None = None) -> str:
     """The symbolic certificate inequality (``sosalgo lmi``): plain text, or a LaTeX
-    snippet ready to paste (``latex``); ``free`` parameters stay symbols."""
+    snippet ready to paste (``latex``); ``free`` parameters stay symbols; ``overrides``
+    (``--set NAME=EXPR``) fix parameters first."""
     from sosalgo.inputs import free_names, select_families
+    from sosalgo.runs import spec_with_text
     from sosalgo.symbolic import symbolic_lmi
 
-    s = as_spec(spec)
+    s = spec_with_text(spec, None, overrides)[0] if overrides else as_spec(spec)
     names = None if free is None else free_names(s, free, need_range=False)
     fam = select_families(s, certificate, options, single=True, command="lmi")[0]
     return symbolic_lmi(s, free=names, latex=latex, family=fam)

@@ -535,14 +535,16 @@ def pep(spec_path: str, kappa: tuple[str, ...], steps: str, measure: str | None,
 @click.option("--free", default=None, metavar="NAMES",
               help="Comma-separated parameters kept symbolic (default: all untied ones).")
 @certificate_options
+@set_option
 @handle_errors
 def lmi(spec_path: str, latex: bool, free: str | None, certificate: str | None,
-        lag: int | None) -> None:
+        lag: int | None, overrides: tuple[str, ...]) -> None:
     """Print the symbolic matrix M(theta, rho, lambda, P) of Theorem 1 (eq. 15), or the
     blocks of another certificate family. Python: sosalgo.lmi."""
     from sosalgo.api import lmi as symbolic
 
-    click.echo(symbolic(spec_path, free, latex, certificate, {"lag": lag}))
+    click.echo(symbolic(spec_path, free, latex, certificate, {"lag": lag},
+                        overrides=_overrides(overrides)))
 
 
 # --------------------------------------------------------------------------- table1

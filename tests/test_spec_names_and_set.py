@@ -177,3 +177,23 @@ def test_design_with_every_range_fixed_by_set_says_so(tmp_path):
     assert res.exit_code == 2
     assert "parameters" in res.output and "--set" in res.output
     assert not (tmp_path / "d").exists() or not any((tmp_path / "d").iterdir())
+
+
+def test_lmi_takes_set_and_substitutes_the_value(tmp_path):
+    """lmi --set h=1/L: the step is gone from the printed matrix and M22 of Theorem 1 for
+    gradient descent is L h^2/2 + h^2 p - h - lambda/(L+m) at h = 1/L (the independent
+    expansion by sympy below), so the printed entry equals it."""
+    import sympy as sp
+
+    free = run("lmi", SPECS / "gradient.yaml")
+    fixed = run("lmi", SPECS / "gradient.yaml", "--set", "h=1/L")
+    assert free.exit_code == 0 and fixed.exit_code == 0, fixed.output
+    assert "h" in free.output.split("M22 = ")[1].splitlines()[0]
+    m22 = fixed.output.split("M22 = ")[1].splitlines()[0]
+    L, m, p, lam, h = sp.symbols("L m p lambda h")
+    expected = (L * h**2 / 2 + h**2 * p - h - lam / (L + m)).subs(h, 1 / L)
+    printed = sp.sympify(m22.replace("lambda", "lam"), locals={"lam": lam, "L": L, "m": m,
+                                                               "p": p})
+    assert sp.simplify(printed - expected) == 0
+    bad = run("lmi", SPECS / "gradient.yaml", "--set", "q=1")
+    assert bad.exit_code == 2 and "--set q" in bad.output
