@@ -51,10 +51,11 @@ def _spec_checks() -> dict[str, Any]:
     of sosalgo's, so that a load never depends on what was imported; imported on the first
     load, so that ``import sosalgo`` stays fast."""
     from sosalgo.certificates.spec_field import check_certificate_field
-    from sosalgo.validation import check_oracles, check_values
+    from sosalgo.oracles import check_oracle_spec
+    from sosalgo.spec_values import check_values
 
-    return {"oracles": check_oracles, "certificate": check_certificate_field,
-            "values": check_values}
+    return {"oracles": lambda spec, data, fail: check_oracle_spec(spec, fail),
+            "certificate": check_certificate_field, "values": check_values}
 
 
 provide_checks(_spec_checks)

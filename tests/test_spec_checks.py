@@ -79,14 +79,14 @@ def test_a_load_with_a_check_missing_is_refused():
     out = _fresh("""
         from sosalgo.spec import spec_from_text
         from sosalgo.spec.checks import provide_checks
-        from sosalgo.validation import check_oracles
-        provide_checks(lambda: {"oracles": check_oracles})
+        from sosalgo.spec_values import check_values
+        provide_checks(lambda: {"values": check_values})
         try:
             spec_from_text(open("specs/gradient.yaml").read(), "g.yaml")
         except RuntimeError as exc:
             print(exc)
         """)
-    assert out.stdout.strip() == "spec checks missing: certificate, values", out.stderr
+    assert out.stdout.strip() == "spec checks missing: oracles, certificate", out.stderr
 
 
 def test_the_cli_refuses_a_bad_option_in_one_line(tmp_path):

@@ -11,7 +11,7 @@ the layers that own what they ask:
   :func:`sosalgo.certificates.spec_field.check_certificate_field`);
 - ``values``: at every kappa of the spec the method binds (a fixed point exists), the
   references are numbers, each parameter lies in its range, and ``initial_state:`` starts
-  at the fixed point (:func:`sosalgo.validation.check_values`).
+  at the fixed point (:func:`sosalgo.spec_values.check_values`).
 
 They run in that order (:data:`STAGES`), after the structure, every time a spec is loaded.
 The package's root module (``sosalgo/__init__.py``, which Python runs before any submodule)

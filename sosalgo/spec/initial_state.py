@@ -6,7 +6,7 @@ gradient of the spec's smooth function at x0), the coefficients expressions of t
 parameters and m, L, kappa; e.g. ``initial_state: [x0, x0 - h*g0]`` for a method whose
 second state starts one gradient step ahead. The x0-coefficients must be u (so that the
 start is the fixed point when x_0 = x* and g0 = 0), checked at every kappa of the spec
-(:func:`sosalgo.validation.check_initial_state`, where the method is bound).
+(:func:`sosalgo.spec_values.check_initial_state`, where the method is bound).
 Expressions are parsed (:mod:`sosalgo.kernel.expr`), never evaluated as code.
 """
 

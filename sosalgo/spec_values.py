@@ -1,8 +1,8 @@
-"""The checks of a parsed spec that bind it (checks of :mod:`sosalgo.spec.checks`, run by
-every spec load): its oracle calls against the classes of the functions they query, and,
-at every kappa of the spec, its references, its parameters' ranges, the method itself
-(:func:`sosalgo.model.bind`: the fixed-point conditions of eq. (11)) and where
-``initial_state:`` starts it.
+"""The checks of a parsed spec at its own values (the ``values`` check of
+:mod:`sosalgo.spec.checks`, run by every spec load): at every kappa of the spec, its
+references are numbers, its parameters lie in their ranges, the method binds
+(:func:`sosalgo.model.bind`: the fixed-point conditions of eq. (11)) and
+``initial_state:`` starts it at the fixed point.
 
 Every problem is reported through ``fail(field, message)``, the loader's one-line
 :class:`~sosalgo.spec.SpecError` naming the file and the field.
@@ -19,18 +19,13 @@ import numpy as np
 from sosalgo.kernel.expr import Expr
 from sosalgo.kernel.expr.compile import NumericError, compile_expression
 from sosalgo.model import ModelError, bind, bind_sublinear, parameter_box, parameter_values
-from sosalgo.oracles import as_oracle_method, check_oracle_spec, fixed_point_basis
+from sosalgo.oracles import as_oracle_method, fixed_point_basis
 from sosalgo.spec.initial_state import FIELD, initial_state_values
 from sosalgo.spec.types import BASE_NAMES, Spec
 
-__all__ = ["check_initial_state", "check_oracles", "check_values"]
+__all__ = ["check_in_range", "check_initial_state", "check_sublinear_values", "check_values"]
 
 Fail = Callable[[str, str], Exception]
-
-
-def check_oracles(spec: Spec, data: Mapping[str, Any], fail: Fail) -> None:
-    """The oracle model's checks (:func:`sosalgo.oracles.check_oracle_spec`)."""
-    check_oracle_spec(spec, fail)
 
 
 def check_values(spec: Spec, data: Mapping[str, Any], fail: Fail) -> None:
