@@ -34,3 +34,7 @@ def __getattr__(name: str) -> Any:
 
         return getattr(import_module(f"sosalgo.spec.{_EXPORTS[name]}"), name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_EXPORTS))
