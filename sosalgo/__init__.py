@@ -15,6 +15,8 @@ import types
 from importlib import import_module
 from typing import Any
 
+from sosalgo.spec.checks import provide_checks
+
 __version__ = "0.1.0"
 
 
@@ -41,6 +43,22 @@ class _Package(types.ModuleType):
 
 
 sys.modules[__name__].__class__ = _Package
+
+
+def _spec_checks() -> dict[str, Any]:
+    """The checks every spec load runs after parsing (:data:`sosalgo.spec.checks.STAGES`),
+    each from the layer that owns it. Provided here, by the module Python runs before any
+    of sosalgo's, so that a load never depends on what was imported; imported on the first
+    load, so that ``import sosalgo`` stays fast."""
+    from sosalgo.certificates.spec_field import check_certificate_field
+    from sosalgo.oracles import check_oracle_spec
+    from sosalgo.spec_values import check_values
+
+    return {"oracles": lambda spec, data, fail: check_oracle_spec(spec, fail),
+            "certificate": check_certificate_field, "values": check_values}
+
+
+provide_checks(_spec_checks)
 
 _EXPORTS = {
     "load_spec": "sosalgo.spec",

@@ -5,13 +5,13 @@ field lists one expression per state, linear in the symbols ``x0`` and ``g0`` (g
 gradient of the spec's smooth function at x0), the coefficients expressions of the
 parameters and m, L, kappa; e.g. ``initial_state: [x0, x0 - h*g0]`` for a method whose
 second state starts one gradient step ahead. The x0-coefficients must be u (so that the
-start is the fixed point when x_0 = x* and g0 = 0), checked at every kappa of the spec.
+start is the fixed point when x_0 = x* and g0 = 0), checked at every kappa of the spec
+(:func:`sosalgo.spec_values.check_initial_state`, where the method is bound).
 Expressions are parsed (:mod:`sosalgo.kernel.expr`), never evaluated as code.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Collection, Mapping
 from typing import Any
 
@@ -20,8 +20,7 @@ import numpy as np
 from sosalgo.errors import InputError
 from sosalgo.kernel.expr.tree import Expr, ExprError, evaluate, parse_tree
 
-__all__ = ["check_initial_state", "initial_state_values", "linear_parts",
-           "parse_initial_state"]
+__all__ = ["initial_state_values", "linear_parts", "parse_initial_state"]
 
 FIELD = "initial_state"
 ZERO = Expr("num", (0,))
@@ -96,30 +95,3 @@ def initial_state_values(pairs: tuple[tuple[Expr, Expr], ...], env: Mapping[str,
     a = np.array([evaluate(x, env) for x, _ in pairs])
     b = np.array([evaluate(g, env) for _, g in pairs])
     return a, b
-
-
-def check_initial_state(spec: Any, kappas: Collection[float],
-                        fail: Callable[[str, str], Exception]) -> None:
-    """At every kappa: the coefficients are finite and the x0-coefficients are the
-    fixed-point direction u (relative 1e-9)."""
-    from sosalgo.model import bind, bind_sublinear, parameter_values
-    from sosalgo.oracles import as_oracle_method, fixed_point_basis
-
-    if spec.initial_state is None:
-        return
-    for k in kappas:
-        m, L = (0.0, spec.L) if spec.sublinear else spec.mL(k)
-        env = {"m": m, "L": L, "kappa": k, **parameter_values(spec, k)}
-        try:
-            a, b = initial_state_values(spec.initial_state, env)
-        except (ValueError, ZeroDivisionError, OverflowError, KeyError) as exc:
-            raise fail(FIELD, f"not a number at kappa={k:g}: {exc}") from None
-        if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
-            raise fail(FIELD, f"not a finite number at kappa={k:g}")
-        om = as_oracle_method(bind_sublinear(spec) if spec.sublinear else bind(spec, k))
-        X = fixed_point_basis(om)
-        u = X[:, 0] if X is not None else None
-        if u is not None and np.abs(a - u).max() > 1e-9 * (1 + np.abs(u).max()):
-            at = "" if math.isnan(k) else f" at kappa={k:g}"
-            raise fail(FIELD, f"the x0-coefficients {np.round(a, 9).tolist()} must be the "
-                       f"fixed-point direction u = {np.round(u, 9).tolist()}{at}")

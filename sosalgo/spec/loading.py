@@ -21,7 +21,7 @@ import re
 import select
 import stat
 import time
-from collections.abc import Callable, Collection, Sequence
+from collections.abc import Collection
 from pathlib import Path
 from typing import Any
 
@@ -29,8 +29,8 @@ import numpy as np
 import yaml
 
 from sosalgo.kernel.expr import Expr, ExprError, constant_value, parse_tree
-from sosalgo.kernel.expr.compile import NumericError, compile_expression
 from sosalgo.kernel.expr.tree import Measure, check_measure, measure
+from sosalgo.spec.checks import run_checks
 from sosalgo.spec.types import (
     BASE_NAMES,
     MAX_FILE_BYTES,
@@ -311,16 +311,7 @@ class _Builder:
         )
         if spec.sublinear:
             self.check_sublinear(spec)
-        from sosalgo.oracles import check_oracle_spec
-
-        check_oracle_spec(spec, self.fail)
-        certificate, cert_options = self.certificate(
-            data.get("certificate", "interpolation" if spec.composite else "theorem1"), spec)
-        spec = dataclasses.replace(spec, certificate=certificate,
-                                   certificate_options=cert_options,
-                                   certificate_given="certificate" in data)
-        self.check_values(spec)
-        return spec
+        return run_checks(spec, data, self.fail)
 
     def name(self, raw: object) -> str:
         if raw is None:
@@ -330,34 +321,6 @@ class _Builder:
                 "name", "must be letters, digits, '_', '-', '.' (no path separators, no '..')"
             )
         return raw
-
-    def certificate(self, raw: object, spec: Spec) -> tuple[str, dict[str, Any]]:
-        """``certificate: NAME`` or ``certificate: {family: NAME, <option>: value}``; the
-        options are checked by the family (:func:`sosalgo.certificates.get_family`), and
-        the family must apply to the spec's setting
-        (:func:`sosalgo.certificates.family_applies`)."""
-        from sosalgo.certificates import FAMILIES, family_applies, get_family
-
-        known = ", ".join(FAMILIES)
-        if isinstance(raw, dict):
-            name = raw.get("family")
-            if not isinstance(name, str) or name not in FAMILIES:
-                raise self.fail("certificate.family", f"missing or unknown family (known: {known})")
-            options = {k: v for k, v in raw.items() if k != "family"}
-            for key, val in options.items():
-                try:
-                    get_family(name, {key: val})
-                except ValueError as exc:
-                    what = str(exc).split(": ", 1)[-1]
-                    raise self.fail(f"certificate.{str(key)[:40]}", what) from None
-        elif not isinstance(raw, str) or raw not in FAMILIES:
-            raise self.fail("certificate", f"unknown family (known: {known})")
-        else:
-            name, options = raw, {}
-        problem = family_applies(spec, name)
-        if problem:
-            raise self.fail("certificate", problem)
-        return name, options
 
     def m_value(self, raw: object, has_kappa: bool) -> float:
         try:
@@ -615,83 +578,6 @@ class _Builder:
     def kappa(self, raw: object) -> tuple[float, ...]:
         return parse_kappa(raw, self.source, "kappa")
 
-    # -- numeric checks at the spec's own values -------------------------------------
-    def check_values(self, spec: Spec) -> None:
-        from sosalgo.model import ModelError, bind
-
-        if spec.sublinear:
-            self.check_sublinear_values(spec)
-            return
-        for k in spec.kappa:
-            if not math.isfinite(spec.mL(k)[1]):
-                raise self.fail("kappa", f"L = kappa * m overflows at kappa={k:g}, m={spec.m:g}")
-        for ref, expr in spec.references.items():
-            where = f"references.{ref}"
-            fn = _compile_or_fail(expr, self, where)
-            for k in spec.kappa:
-                _num(fn, spec, k, self, where)
-        for pname, par in spec.parameters.items():
-            if par.range is None:
-                continue
-            where = f"parameters.{pname}.range"
-            fns = [_compile_or_fail(e, self, where) for e in par.range]
-            for k in spec.kappa:
-                lo, hi = (_num(fn, spec, k, self, where) for fn in fns)
-                if lo > hi:
-                    raise self.fail(
-                        f"parameters.{pname}.range",
-                        f"lower bound {lo:g} exceeds upper bound {hi:g} at kappa={k:g}",
-                    )
-        for k in spec.kappa:
-            try:
-                bind(spec, k)
-            except ModelError as exc:
-                raise self.fail(exc.field, f"at kappa={k:g}: {exc.message}") from None
-        self.check_in_range(spec)
-        from sosalgo.spec.initial_state import check_initial_state
-
-        check_initial_state(spec, spec.kappa, self.fail)
-
-    def check_sublinear_values(self, spec: Spec) -> None:
-        """:meth:`check_values` for a sublinear spec: at (m, L) = (0, L), kappa undefined."""
-        from sosalgo.model import ModelError, bind_sublinear, parameter_box, parameter_values
-
-        nan = math.nan
-        for ref, expr in spec.references.items():
-            _num(_compile_or_fail(expr, self, f"references.{ref}"), spec, nan, self,
-                 f"references.{ref}")
-        try:
-            values = parameter_values(spec, nan)
-            ranged = spec.ranged
-            for pname, (lo, hi) in zip(ranged, parameter_box(spec, nan, ranged), strict=True):
-                slack = 1e-12 * max(1.0, abs(lo), abs(hi))
-                if not lo - slack <= values[pname] <= hi + slack:
-                    raise self.fail(f"parameters.{pname}.value", f"{values[pname]:.6g} is "
-                                    f"outside its range [{lo:.6g}, {hi:.6g}]")
-            bind_sublinear(spec)
-        except ModelError as exc:
-            raise self.fail(exc.field, exc.message) from None
-        from sosalgo.spec.initial_state import check_initial_state
-
-        check_initial_state(spec, [nan], self.fail)
-
-    def check_in_range(self, spec: Spec) -> None:
-        """Each ranged parameter's value lies in its own range at every kappa of the spec."""
-        from sosalgo.model import parameter_box, parameter_values
-
-        ranged = spec.ranged
-        if not ranged:
-            return
-        for k in spec.kappa:
-            values = parameter_values(spec, k)
-            for pname, (lo, hi) in zip(ranged, parameter_box(spec, k, ranged), strict=True):
-                v = values[pname]
-                slack = 1e-12 * max(1.0, abs(lo), abs(hi))
-                if not lo - slack <= v <= hi + slack:
-                    raise self.fail(f"parameters.{pname}.value",
-                                    f"{v:.6g} is outside its range [{lo:.6g}, {hi:.6g}] "
-                                    f"at kappa={k:g}")
-
 
 _PLAIN_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
 
@@ -750,25 +636,6 @@ def parse_kappa(raw: object, source: str, where: str) -> tuple[float, ...]:
         vals = np.geomspace(lo, hi, pts) if scale == "log" else np.linspace(lo, hi, pts)
         return tuple(float(v) for v in vals)
     raise fail("must be a number, a list or {from, to, points, scale}")
-
-
-def _compile_or_fail(expr: Expr, b: _Builder, where: str) -> Callable[[Sequence[float]], float]:
-    """``expr`` (over m, L, kappa) compiled once for evaluation at every kappa."""
-    try:
-        return compile_expression(expr, BASE_NAMES)
-    except NumericError as exc:
-        raise b.fail(where, str(exc)) from None
-
-
-def _num(
-    fn: Callable[[Sequence[float]], float], spec: Spec, kappa: float, b: _Builder, where: str
-) -> float:
-    m, L = spec.mL(kappa)
-    try:
-        return fn([m, L, kappa])
-    except NumericError as exc:
-        at = "" if spec.sublinear else f"at kappa={kappa:g}: "
-        raise b.fail(where, f"{at}{exc}") from None
 
 
 def _is_unicode(text: str) -> bool:
