@@ -89,7 +89,7 @@ CASES = [
                     "--time-limit", "20"),
          ("index",), ("pareto", _spec("nesterov"), "--kappa", "10", "--points", "2",
                       "--time-limit", "10"),
-         exact=False, marks=(pytest.mark.deep,), uncounted=1),
+         exact=False, marks=(pytest.mark.deep,)),
 ]
 ONE_ROW = [  # one row: nothing to resume mid-run, but a rerun reads it back
     Case("analyze-sublinear", ("analyze", _spec("gradient-convex")), ("L",), ()),

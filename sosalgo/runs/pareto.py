@@ -314,15 +314,18 @@ def _one_kappa(spec: Spec, text: str, kappa: float, names: list[str], fam: Any,
         store = ResumableCSV(csv_path, PARETO_COLUMNS, ["index"], settings,
                              restart=run["restart"], companions=figures)
         with store:
+            fast_read = store.row_key({"index": 0}) in store.done  # read back, not computed
             fast = _parse(_fast_end(store, spec, kappa, names, fam, time_limit,
                                     run["workers"]))
             tasks = _tasks(spec, kappa, fast["rho"], points)
             todo = [t for t in tasks if not store.is_done(t)]
             opts = _search_options(spec, kappa, names, fam, store, fast, tasks, time_limit,
                                    t0 + time_limit, run)
-            bar = Progress(len(tasks), f"pareto {spec.name} k={kappa_label(kappa)}",
-                           run["progress"], done=len(tasks) - len(todo),
+            bar = Progress(len(tasks) + 1, f"pareto {spec.name} k={kappa_label(kappa)}",
+                           run["progress"], done=len(tasks) - len(todo) + fast_read,
                            resumed_from=store.path)
+            if not fast_read:
+                bar.update(1)  # the fast end, computed above
             try:
                 run_batch(pareto_chunk, text, spec.source, opts, todo, store.write,
                           workers=run["workers"], scheduler=run["scheduler"], progress=bar)
