@@ -1,13 +1,12 @@
-"""``sosalgo analyze|design|grid`` on a sublinear spec (``m: 0``, L given, no kappa).
+"""``sosalgo design|grid`` on a sublinear spec (``m: 0``, L given, no kappa).
 
-``analyze`` writes one row to ``<name>-analysis.csv`` (columns
-:func:`sosalgo.schema.sublinear_columns`) and the bound figure ``<name>-rate`` (.png,
-.pdf); ``design`` one row to ``<name>-design.csv``; ``grid`` one row per point to
+``design`` writes one row to ``<name>-design.csv``; ``grid`` one row per point to
 ``<name>-grid.csv``. Each returns the ``--json`` document (rows say ``rate_type:
 sublinear`` and ``constant: c``). Every file is written under the run model of
 :mod:`sosalgo.store` (resume, keep other settings' results aside, one output lock):
 a rerun with the same settings reads the finished rows back instead of computing them.
-"""
+``analyze`` goes through the analysis sweep (:mod:`sosalgo.batch.sweeps`) with the
+sublinear family (:class:`sosalgo.certificates.sublinear.SublinearFamily`)."""
 
 from __future__ import annotations
 
@@ -16,41 +15,17 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from sosalgo.schema import ANALYSIS_KIND, DESIGN_KIND, GRID_KIND
+from sosalgo.batch.sweeps import sublinear_simulation
+from sosalgo.schema import DESIGN_KIND, GRID_KIND
 from sosalgo.spec import Spec
 
-__all__ = ["attach_verification", "design_lines", "sublinear_design_run",
-           "sublinear_grid_chunk", "sublinear_grid_run", "sublinear_row", "sublinear_run",
-           "sublinear_simulation"]
+__all__ = ["design_lines", "sublinear_design_run", "sublinear_grid_chunk",
+           "sublinear_grid_run"]
 
 DESIGN_COLUMNS = ["L", "rate_type", "free", "constant", "certified", "lower_bound",
                   "bound_status", "evaluations", "seconds", "time_limit", "timed_out",
                   "check_kind", "simulation_ok", "simulation_worst_ratio"]
 GRID_RESULT_COLUMNS = ["constant", "certified", "solves", "seconds"]
-
-
-def sublinear_simulation(spec: Spec, constant: float | None,
-                         theta: dict[str, float] | None = None) -> dict[str, Any] | None:
-    """The simulation check of a certified constant (evidence, not proof:
-    :mod:`sosalgo.verify.simulate_sublinear`), or None when nothing is certified."""
-    from sosalgo.model import bind_sublinear
-    from sosalgo.verify.simulate_sublinear import simulate_sublinear
-
-    if constant is None:
-        return None
-    return simulate_sublinear(bind_sublinear(spec, theta), constant).to_dict()
-
-
-def sublinear_row(spec: Spec) -> dict[str, Any]:
-    """The analysis of a sublinear spec as a JSON row (with the references' values and the
-    simulation check of the constant)."""
-    from sosalgo.analysis import analyze_sublinear
-    from sosalgo.spec.references import reference_values
-
-    row = analyze_sublinear(spec).to_dict()
-    row["references"] = reference_values(spec, float("nan"))
-    row["simulation"] = sublinear_simulation(spec, row["constant"])
-    return row
 
 
 # --------------------------------------------------------------------------- CSV cells
@@ -93,6 +68,7 @@ def sublinear_design_run(spec: Spec, text: str, out_dir: str | Path, free: Any =
     reads the design back from the CSV."""
     from sosalgo import inputs
     from sosalgo.batch.executor import Progress
+    from sosalgo.report.analysis import attach_constant_checks
 
     names = inputs.free_names(spec, free)
     inputs.check_time_limit(time_limit, "--time-limit")
@@ -110,7 +86,7 @@ def sublinear_design_run(spec: Spec, text: str, out_dir: str | Path, free: Any =
     row |= {"kind": DESIGN_KIND, "spec": spec.name, "source": spec.source,
             "spec_text": text}  # self-contained
     if verify:
-        attach_verification(spec, row, out)
+        attach_constant_checks(spec, [row], out / "certificates")
     return {"kind": DESIGN_KIND, "spec": spec.name, "source": spec.source, "spec_text": text,
             "csv": str(path), "figures": [], "rows": [row]}
 
@@ -240,86 +216,3 @@ def design_lines(doc: dict[str, Any]) -> list[str]:
                      + (f" (c <= {ver['constant_proven_float']:.7g})"
                         if ver.get("constant_proven_float") is not None else ""))
     return lines + [f"wrote {doc['csv']}"]
-
-
-def _csv_cells(spec: Spec, row: dict[str, Any]) -> dict[str, Any]:
-    cells = {k: row.get(k) for k in ("L", "rate_type", "constant", "certified",
-                                      "constant_estimate", "measure", "solves", "seconds",
-                                      "solver", "check_kind")}
-    cells["check"] = None if row["check"] is None else json.dumps(row["check"])
-    cells["certificate"] = (None if row["certificate"] is None
-                            else json.dumps(row["certificate"], separators=(",", ":")))
-    cells.update({f"param_{p}": v for p, v in row["params"].items()})
-    cells.update(row["references"])
-    return cells
-
-
-def attach_verification(spec: Spec, row: dict[str, Any], out: Path) -> None:
-    """``verification`` (the exact proof of :mod:`sosalgo.certificates.exact_sublinear` and the
-    row's simulation; proof document in ``out/certificates``) and ``verified`` on a row."""
-    from sosalgo.verify.results import verify_sublinear_rows
-
-    check = verify_sublinear_rows(spec, [row], out / "certificates", simulate=False)[0]
-    if check is not None:
-        check["simulation"] = row["simulation"]
-    row["verification"] = check
-    row["verified"] = None if check is None else check["verified"]
-
-
-def sublinear_run(spec: Spec, text: str, out_dir: str | Path, plot: bool = True,
-                  kappa: Any = None, verify: bool = False, restart: bool = False,
-                  progress: bool = True) -> dict:
-    """Analyze, write the CSV (and the figure with ``plot``), return the document (a kappa
-    is refused first). With ``verify`` the row gets ``verification`` (the exact proof of
-    :mod:`sosalgo.certificates.exact_sublinear` and the row's simulation; proof document in
-    ``out_dir/certificates``) and ``verified``. A rerun with the same settings reads the
-    row back from the CSV."""
-    from sosalgo import inputs
-    from sosalgo.batch.executor import Progress
-    from sosalgo.errors import InputError
-    from sosalgo.report.analysis import sublinear_figure
-    from sosalgo.schema import analysis_csv, rate_stem, sublinear_columns
-
-    if kappa is not None and kappa != () and kappa != []:
-        raise InputError(f"{spec.source}: --kappa: undefined for a sublinear spec (m: 0)")
-    out = inputs.out_dir(out_dir)
-    path, stem = analysis_csv(out, spec.name, None), rate_stem(out, spec.name)
-    settings = {"job": "analyze", "spec": text}
-    with _store(path, sublinear_columns(spec), ["L"], settings, restart,
-                _figures(stem)) as store:
-        bar = Progress(1, f"analyze {spec.name}", progress, done=len(store.rows()[:1]),
-                       resumed_from=path)
-        try:
-            if store.rows():
-                row = _analysis_from_csv(spec, store.rows()[0])
-            else:
-                row = sublinear_row(spec)
-                store.write({k: _cell(v) for k, v in _csv_cells(spec, row).items()})
-                bar.update()
-        finally:
-            bar.close()
-        figs = sublinear_figure(spec, row, stem) if plot else []
-    if verify:
-        attach_verification(spec, row, out)
-    return {"kind": ANALYSIS_KIND, "spec": spec.name, "source": spec.source, "spec_text": text,
-            "csv": str(path), "figures": [str(p) for p in figs], "rows": [row]}
-
-
-def _analysis_from_csv(spec: Spec, cells: dict[str, str]) -> dict[str, Any]:
-    """The analysis row read back from its CSV row (references and the simulation of the
-    constant computed again: they are cheap next to the certificate's search)."""
-    from sosalgo.spec.references import reference_values
-
-    constant = _num(cells["constant"])
-    row = {"rate_type": cells["rate_type"], "constant": constant,
-           "certified": _flag(cells["certified"]), "L": float(cells["L"]),
-           "measure": cells["measure"], "constant_estimate": _num(cells["constant_estimate"]),
-           "solves": int(cells["solves"]), "seconds": float(cells["seconds"]),
-           "solver": cells["solver"] or None,
-           "params": {p: float(cells[f"param_{p}"]) for p in spec.parameters
-                      if cells.get(f"param_{p}", "") != ""},
-           "check_kind": cells["check_kind"] or None, "check": _json_cell(cells["check"]),
-           "certificate": _json_cell(cells["certificate"]), "family": "sublinear"}
-    row["references"] = reference_values(spec, float("nan"))
-    row["simulation"] = sublinear_simulation(spec, constant)
-    return row

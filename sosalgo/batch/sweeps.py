@@ -15,6 +15,7 @@ import numpy as np
 from sosalgo.analysis import AnalysisResult, analyze_spec, spec_family
 from sosalgo.batch.executor import Progress, note, run_batch
 from sosalgo.certificates import CertificateFamily, describe_family, family_from_description
+from sosalgo.certificates.sublinear import SUBLINEAR, SublinearFamily
 from sosalgo.kernel.phases import begin_task, show_phase
 from sosalgo.kernel.solvers import DEFAULT_SOLVERS
 from sosalgo.model import ModelError, parameter_values
@@ -222,6 +223,9 @@ def run_analysis_sweep(
     self-similar, none) and ``cycle_seconds`` (0: no cycle search) choose the witnesses of
     :mod:`sosalgo.witnesses` (recorded when not the defaults)."""
     fam = family or spec_family(spec)
+    if isinstance(fam, SublinearFamily):  # m: 0: one row at L, the family's cells
+        return _run_constant_sweep(spec, spec_text, fam, out_csv, workers, scheduler,
+                                   restart, progress, companions)
     options: dict[str, Any] = {"tol": tol, "certificate": family_options(fam)}
     if solvers:
         options["solvers"] = tuple(solvers)
@@ -246,15 +250,64 @@ def run_analysis_sweep(
     return sorted(rows, key=lambda r: float(r["kappa"]))
 
 
+# --------------------------------------------------------------------------- sublinear rows
+def sublinear_simulation(spec: Spec, constant: float | None,
+                         theta: dict[str, float] | None = None) -> dict[str, Any] | None:
+    """The simulation check of a certified constant (evidence, not proof:
+    :mod:`sosalgo.verify.simulate_sublinear`), or None when nothing is certified."""
+    from sosalgo.model import bind_sublinear
+    from sosalgo.verify.simulate_sublinear import simulate_sublinear
+
+    if constant is None:
+        return None
+    return simulate_sublinear(bind_sublinear(spec, theta), constant).to_dict()
+
+
+def sublinear_row(spec: Spec) -> dict[str, Any]:
+    """The analysis of a sublinear spec as a JSON row, with the references' values."""
+    from sosalgo.analysis import analyze_sublinear
+
+    row = analyze_sublinear(spec).to_dict()
+    row["references"] = reference_values(spec, float("nan"))
+    return row
+
+
+def sublinear_chunk(spec_text: str, source: str, options: dict[str, Any],
+                    chunk: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Worker: the certified constant of a sublinear spec, as the family's CSV cells."""
+    spec = cached_spec(spec_text, source)
+    return [SUBLINEAR.analysis_cells(spec, sublinear_row(spec)) for _ in chunk]
+
+
+def _run_constant_sweep(spec: Spec, spec_text: str, fam: SublinearFamily, out_csv: Path,
+                        workers: int | None, scheduler: str | None, restart: bool,
+                        progress: bool, companions: Sequence[Path]) -> list[dict[str, str]]:
+    """The analysis of a sublinear spec (its one row, keyed by L), resumable."""
+    store = ResumableCSV(out_csv, fam.analysis_columns(spec), list(fam.key),
+                         {"job": "analyze", "spec": spec_text}, restart=restart,
+                         companions=companions)
+    tasks = fam.analysis_tasks(spec)
+    seed_spec(spec, spec_text)
+    run_store(store, tasks, f"analyze {spec.name}", progress, sublinear_chunk, spec_text,
+              spec.source, {}, None, workers, scheduler)
+    wanted = {store.row_key(t) for t in tasks}
+    return [r for r in store.rows() if store.row_key(r) in wanted]
+
+
 def _num(v: str) -> float | None:
     return None if v in ("", None) else float(v)
 
 
 def csv_row_to_json(spec: Spec, row: dict[str, str],
-                    family: CertificateFamily | None = None) -> dict[str, Any]:
+                    family: CertificateFamily | SublinearFamily | None = None
+                    ) -> dict[str, Any]:
     """The JSON form of an analysis row (the `rows` entries of ``analyze --json``).
 
-    A family other than Theorem 1 adds ``family`` and ``certificate`` (its named parts)."""
+    A family other than Theorem 1 adds ``family`` and ``certificate`` (its named parts);
+    the sublinear family reads its own cells (and the constant is simulated again)."""
+    if isinstance(family, SublinearFamily):
+        out = family.analysis_json(spec, row)
+        return out | {"simulation": sublinear_simulation(spec, out["constant"])}
     n = p_size(spec, family)
     P = None
     if row.get("P11", "") != "":

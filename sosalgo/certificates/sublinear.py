@@ -43,8 +43,9 @@ import scipy.linalg as sla
 from sosalgo.certificates.composite import CWindow, composite_structure
 from sosalgo.kernel.conic import AffineBlock, LMIProblem, unit_quads
 
-__all__ = ["SublinearProblem", "block_kernels", "full_violation", "original_kernels",
-           "snap_basis", "sublinear_data", "sublinear_parts", "sublinear_problem"]
+__all__ = ["SUBLINEAR", "SublinearFamily", "SublinearProblem", "block_kernels",
+           "full_violation", "original_kernels", "snap_basis", "sublinear_data",
+           "sublinear_parts", "sublinear_problem"]
 
 @dataclass
 class SublinearProblem:
@@ -435,3 +436,79 @@ def sublinear_parts(sp: SublinearProblem, y: np.ndarray, r: float) -> dict[str, 
     out["residual"] = float(np.abs(res).max())  # absolute: what the blocks see
     out["size"] = float(np.abs(x).max())
     return out
+
+
+# --------------------------------------------------------------------------- the family in runs
+def _cell(v: Any) -> Any:
+    """A CSV cell as these files have always written it (``True``/``False`` for flags)."""
+    return str(v) if isinstance(v, bool) else v
+
+
+def _num(v: str | None) -> float | None:
+    return None if v in (None, "") else float(v)
+
+
+def _json_cell(v: str | None) -> Any:
+    import json
+
+    return None if v in (None, "") else json.loads(v)
+
+
+class SublinearFamily:
+    """The sublinear family as the analysis sweep meets it: what an ``m: 0`` spec's
+    analysis row holds, keyed by ``L`` (one row, no kappa), how its CSV cells are written
+    and read back. The float build is :func:`sublinear_problem` (asked by
+    :func:`sosalgo.analysis.analyze_sublinear`), the exact check
+    :mod:`sosalgo.certificates.exact_sublinear`."""
+
+    name = "sublinear"
+    rate_type = "sublinear"
+    is_default = False
+    key = ("L",)
+    COLUMNS = ("L", "rate_type", "constant", "certified", "constant_estimate", "measure",
+               "solves", "seconds", "solver", "check_kind", "check", "error", "certificate")
+
+    def analysis_columns(self, spec: Any) -> list[str]:
+        """CSV columns of ``sosalgo analyze``: the constant and how it was checked, the
+        parameters' values, the spec's references, the certificate (one JSON object)."""
+        return (list(self.COLUMNS) + [f"param_{p}" for p in spec.parameters]
+                + list(spec.references))
+
+    def analysis_tasks(self, spec: Any) -> list[dict[str, Any]]:
+        """The sweep's tasks: the one row at the spec's L."""
+        return [{"L": float(spec.L)}]
+
+    def analysis_cells(self, spec: Any, row: dict[str, Any]) -> dict[str, Any]:
+        """The CSV cells of an analysis row (its JSON form, references included)."""
+        import json
+
+        cells = {k: row.get(k) for k in ("L", "rate_type", "constant", "certified",
+                                          "constant_estimate", "measure", "solves",
+                                          "seconds", "solver", "check_kind")}
+        cells["check"] = None if row["check"] is None else json.dumps(row["check"])
+        cells["certificate"] = (None if row["certificate"] is None
+                                else json.dumps(row["certificate"], separators=(",", ":")))
+        cells.update({f"param_{p}": v for p, v in row["params"].items()})
+        cells.update(row["references"])
+        return {k: _cell(v) for k, v in cells.items()}
+
+    def analysis_json(self, spec: Any, cells: dict[str, str]) -> dict[str, Any]:
+        """The JSON row read back from its CSV cells (the references computed again; the
+        simulation of the constant is evidence added by the run)."""
+        from sosalgo.spec.references import reference_values
+
+        return {"rate_type": cells["rate_type"], "constant": _num(cells["constant"]),
+                "certified": cells["certified"] in ("True", "true"), "L": float(cells["L"]),
+                "measure": cells["measure"],
+                "constant_estimate": _num(cells["constant_estimate"]),
+                "solves": int(cells["solves"]), "seconds": float(cells["seconds"]),
+                "solver": cells["solver"] or None,
+                "params": {p: float(cells[f"param_{p}"]) for p in spec.parameters
+                           if cells.get(f"param_{p}", "") != ""},
+                "check_kind": cells["check_kind"] or None,
+                "check": _json_cell(cells["check"]),
+                "certificate": _json_cell(cells["certificate"]), "family": self.name,
+                "references": reference_values(spec, float("nan"))}
+
+
+SUBLINEAR = SublinearFamily()

@@ -120,14 +120,9 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
         from sosalgo.sensitivity.run import check_noise_spec
 
         check_noise_spec(spec)
-    if spec.sublinear:  # m: 0: one constant, no kappa (sosalgo.sublinear_run)
-        from sosalgo.sublinear_run import sublinear_run
-
-        est = budget.check(budget.sweep_estimate(
-            f"analyze {spec.name}", "", 1, spec.n, 1, _budget(max_memory, workers),
-            seconds_each=budget.SUBLINEAR_SECONDS))
-        return sublinear_run(spec, text, out_dir, plot, kappa, verify, restart,
-                             progress) | {"estimate": est.to_dict()} | set_field(overrides)
+    if spec.sublinear:  # m: 0: the sublinear family's one constant, no kappa
+        return _analyze_constant(spec, text, kappa, out_dir, plot, verify, restart, progress,
+                                 max_memory, workers) | set_field(overrides)
     kappas = _kappa_list(spec, kappa)
     inputs.check_tol(tol, "--tol")
     from sosalgo.witnesses.rows import check_witness_options
@@ -171,6 +166,36 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
     return doc | {"figures": [str(p) for p in figs],
                   "rows": [r for _, _, jrows in runs for r in jrows],
                   "estimate": est.to_dict()}
+
+
+def _analyze_constant(spec: Spec, text: str, kappa: Kappas, out_dir: str | Path,
+                      plot: bool, verify: bool, restart: bool, progress: bool,
+                      max_memory: int | str | None, workers: int | None) -> dict[str, Any]:
+    """``analyze`` of a sublinear spec: the analysis sweep with the sublinear family (one
+    row keyed by L in ``<name>-analysis.csv``), the bound figure ``<name>-rate``, with
+    ``verify`` the exact proof of each row (proof documents in ``out_dir/certificates``)."""
+    from sosalgo.batch.sweeps import csv_row_to_json, run_analysis_sweep
+    from sosalgo.certificates.sublinear import SUBLINEAR
+    from sosalgo.report.analysis import attach_constant_checks, sublinear_figure
+
+    if kappa not in (None, [], ()):
+        raise InputError(f"{spec.source}: --kappa: undefined for a sublinear spec (m: 0)")
+    est = budget.check(budget.sweep_estimate(
+        f"analyze {spec.name}", "", 1, spec.n, 1, _budget(max_memory, workers),
+        seconds_each=budget.SUBLINEAR_SECONDS))
+    out = inputs.out_dir(out_dir)
+    path, stem = analysis_csv(out, spec.name, None), rate_stem(out, spec.name)
+    with output_lock(path):
+        rows = run_analysis_sweep(spec, text, [], path, 0.0, restart=restart,
+                                  progress=progress, family=SUBLINEAR,
+                                  companions=_figures(stem))
+        jrows = [csv_row_to_json(spec, r, SUBLINEAR) for r in rows]
+        figs = sublinear_figure(spec, jrows[0], stem) if plot else []
+    if verify:
+        attach_constant_checks(spec, jrows, out / "certificates")
+    return {"kind": ANALYSIS_KIND, "spec": spec.name, "source": spec.source, "spec_text": text,
+            "csv": str(path), "figures": [str(p) for p in figs], "rows": jrows,
+            "estimate": est.to_dict()}
 
 
 def _design_options(spec: Spec, kappas: list[float], free: str | Sequence[str] | None,
