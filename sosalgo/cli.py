@@ -243,9 +243,9 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
         _exit_if_unverified([d.get("verification") for d in docs], "some certificate")
         return
     if docs[0].get("rate_type") == "sublinear":
-        from sosalgo.sublinear_run import design_lines
+        from sosalgo.report.design import sublinear_design_lines
 
-        click.echo("\n".join(design_lines(doc)))
+        click.echo("\n".join(sublinear_design_lines(doc)))
         _exit_if_unverified([d.get("verification") for d in docs])
         return
     names = docs[0]["free"]

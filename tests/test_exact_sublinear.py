@@ -166,7 +166,7 @@ def test_cli_analyze_verify_and_verify_document(tmp_path):
 def test_cli_analyze_verify_exits_3_when_the_proof_fails(tmp_path, monkeypatch):
     """A certificate that does not prove its constant (lowered below L/4 before the
     check): the row says failed and the command exits 3, as for linear rows."""
-    import sosalgo.sublinear_run as run
+    import sosalgo.batch.sweeps as run
 
     real = run.sublinear_row
 

@@ -128,7 +128,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
                    "sublinear_design", "pep", "pareto")),
     ("results", ("schema", "store", "verify", "documents")),
     ("report", ("report",)),
-    ("runs", ("batch", "sublinear_run", "runs")),
+    ("runs", ("batch", "runs")),
     ("faces", ("api", "__init__", "cli_errors", "cli")),
 )
 

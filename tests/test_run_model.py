@@ -399,10 +399,9 @@ def test_one_dask_worker_gets_the_work_in_chunks(tmp_path):
 
 def test_chunks_of_long_tasks_hold_one_task():
     from sosalgo.batch.executor import _largest_chunk, chunk_size
-    from sosalgo.batch.sweeps import analysis_chunk, design_chunk
+    from sosalgo.batch.sweeps import analysis_chunk, design_chunk, sublinear_grid_chunk
     from sosalgo.runs.pareto import pareto_chunk
     from sosalgo.runs.pep import pep_chunk
-    from sosalgo.sublinear_run import sublinear_grid_chunk
 
     for fn in (design_chunk, pep_chunk, pareto_chunk, sublinear_grid_chunk):
         assert chunk_size(400, 1, _largest_chunk(fn)) == 1

@@ -15,6 +15,7 @@ import numpy as np
 from sosalgo.analysis import AnalysisResult, analyze_spec, spec_family
 from sosalgo.batch.executor import Progress, note, run_batch
 from sosalgo.certificates import CertificateFamily, describe_family, family_from_description
+from sosalgo.certificates.sublinear import SUBLINEAR, SublinearFamily
 from sosalgo.kernel.phases import begin_task, show_phase
 from sosalgo.kernel.solvers import DEFAULT_SOLVERS
 from sosalgo.model import ModelError, parameter_values
@@ -222,6 +223,9 @@ def run_analysis_sweep(
     self-similar, none) and ``cycle_seconds`` (0: no cycle search) choose the witnesses of
     :mod:`sosalgo.witnesses` (recorded when not the defaults)."""
     fam = family or spec_family(spec)
+    if isinstance(fam, SublinearFamily):  # m: 0: one row at L, the family's cells
+        return _run_constant_sweep(spec, spec_text, fam, out_csv, workers, scheduler,
+                                   restart, progress, companions)
     options: dict[str, Any] = {"tol": tol, "certificate": family_options(fam)}
     if solvers:
         options["solvers"] = tuple(solvers)
@@ -246,15 +250,64 @@ def run_analysis_sweep(
     return sorted(rows, key=lambda r: float(r["kappa"]))
 
 
+# --------------------------------------------------------------------------- sublinear rows
+def sublinear_simulation(spec: Spec, constant: float | None,
+                         theta: dict[str, float] | None = None) -> dict[str, Any] | None:
+    """The simulation check of a certified constant (evidence, not proof:
+    :mod:`sosalgo.verify.simulate_sublinear`), or None when nothing is certified."""
+    from sosalgo.model import bind_sublinear
+    from sosalgo.verify.simulate_sublinear import simulate_sublinear
+
+    if constant is None:
+        return None
+    return simulate_sublinear(bind_sublinear(spec, theta), constant).to_dict()
+
+
+def sublinear_row(spec: Spec) -> dict[str, Any]:
+    """The analysis of a sublinear spec as a JSON row, with the references' values."""
+    from sosalgo.analysis import analyze_sublinear
+
+    row = analyze_sublinear(spec).to_dict()
+    row["references"] = reference_values(spec, float("nan"))
+    return row
+
+
+def sublinear_chunk(spec_text: str, source: str, options: dict[str, Any],
+                    chunk: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Worker: the certified constant of a sublinear spec, as the family's CSV cells."""
+    spec = cached_spec(spec_text, source)
+    return [SUBLINEAR.analysis_cells(spec, sublinear_row(spec)) for _ in chunk]
+
+
+def _run_constant_sweep(spec: Spec, spec_text: str, fam: SublinearFamily, out_csv: Path,
+                        workers: int | None, scheduler: str | None, restart: bool,
+                        progress: bool, companions: Sequence[Path]) -> list[dict[str, str]]:
+    """The analysis of a sublinear spec (its one row, keyed by L), resumable."""
+    store = ResumableCSV(out_csv, fam.analysis_columns(spec), list(fam.key),
+                         {"job": "analyze", "spec": spec_text}, restart=restart,
+                         companions=companions)
+    tasks = fam.analysis_tasks(spec)
+    seed_spec(spec, spec_text)
+    run_store(store, tasks, f"analyze {spec.name}", progress, sublinear_chunk, spec_text,
+              spec.source, {}, None, workers, scheduler)
+    wanted = {store.row_key(t) for t in tasks}
+    return [r for r in store.rows() if store.row_key(r) in wanted]
+
+
 def _num(v: str) -> float | None:
     return None if v in ("", None) else float(v)
 
 
 def csv_row_to_json(spec: Spec, row: dict[str, str],
-                    family: CertificateFamily | None = None) -> dict[str, Any]:
+                    family: CertificateFamily | SublinearFamily | None = None
+                    ) -> dict[str, Any]:
     """The JSON form of an analysis row (the `rows` entries of ``analyze --json``).
 
-    A family other than Theorem 1 adds ``family`` and ``certificate`` (its named parts)."""
+    A family other than Theorem 1 adds ``family`` and ``certificate`` (its named parts);
+    the sublinear family reads its own cells (and the constant is simulated again)."""
+    if isinstance(family, SublinearFamily):
+        out = family.analysis_json(spec, row)
+        return out | {"simulation": sublinear_simulation(spec, out["constant"])}
     n = p_size(spec, family)
     P = None
     if row.get("P11", "") != "":
@@ -480,8 +533,12 @@ def run_grid(
     progress: bool = True, family: CertificateFamily | None = None,
     companions: Sequence[Path] = (),
 ) -> list[dict[str, str]]:
-    """Analysis on a grid over Θ at one kappa, resumable; rows in grid order."""
+    """Analysis on a grid over Θ at one kappa (the sublinear family: no kappa, rows keyed
+    by the free parameters), resumable; rows in grid order."""
     fam = family or spec_family(spec)
+    if isinstance(fam, SublinearFamily):
+        return _run_constant_grid(spec, spec_text, fam, free, box, points, out_csv, workers,
+                                  scheduler, restart, progress)
     options = {"tol": tol, "free": list(free), "certificate": family_options(fam)}
     settings = {"job": "grid", "spec": spec_text, "tol": tol, "kappa": float(kappa),
                 "free": list(free), "points": points, "box": [list(b) for b in box]}
@@ -502,3 +559,90 @@ def run_grid(
     order = {store.row_key(t): i for i, t in enumerate(tasks)}
     rows = [r for r in store.rows() if store.row_key(r) in order]
     return sorted(rows, key=lambda r: order[store.row_key(r)])
+
+
+def sublinear_grid_chunk(spec_text: str, source: str, options: dict[str, Any],
+                         chunk: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Worker: the certified constant at each task's point (its free parameters' values)."""
+    from sosalgo import analysis
+
+    spec = cached_spec(spec_text, source)
+    rows = []
+    for task in chunk:
+        theta = {p: float(task[p]) for p in options["free"]}
+        try:
+            res = analysis.analyze_sublinear(spec, theta)
+        except ModelError:  # no fixed point or a domain error there
+            res = None
+        rows.append(SUBLINEAR.grid_cells(theta, res))
+    return rows
+
+
+sublinear_grid_chunk.max_chunk = 1  # type: ignore[attr-defined]  # a point takes ~0.5 s
+
+
+def _run_constant_grid(spec: Spec, spec_text: str, fam: SublinearFamily,
+                       free: Sequence[str], box: Sequence[tuple[float, float]], points: int,
+                       out_csv: Path, workers: int | None, scheduler: str | None,
+                       restart: bool, progress: bool) -> list[dict[str, str]]:
+    """The certified constant of a sublinear spec on a grid, resumable; rows in grid order."""
+    names = list(free)
+    settings = {"job": "grid", "spec": spec_text, "free": names, "points": points,
+                "box": [list(b) for b in box]}
+    store = ResumableCSV(out_csv, fam.grid_columns(names), names, settings, restart=restart)
+    tasks = [dict(zip(names, pt, strict=True)) for pt in grid_points(box, points)]
+    seed_spec(spec, spec_text)
+    run_store(store, tasks, f"grid {spec.name}", progress, sublinear_grid_chunk, spec_text,
+              spec.source, {"free": names}, None, workers, scheduler)
+    order = {store.row_key(t): i for i, t in enumerate(tasks)}
+    return sorted((r for r in store.rows() if store.row_key(r) in order),
+                  key=lambda r: order[store.row_key(r)])
+
+
+def sublinear_design_chunk(spec_text: str, source: str, options: dict[str, Any],
+                           chunk: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Worker: the design minimizing the certified constant (with its simulation), as the
+    family's CSV cells and the whole row (``_result``)."""
+    from sosalgo.sublinear_design import sublinear_design
+
+    spec = cached_spec(spec_text, source)
+    rows = []
+    for _ in chunk:
+        show_phase("search", f"time limit {options['time_limit']:g} s")
+        row = sublinear_design(spec, options["free"], options["time_limit"])
+        row["simulation"] = sublinear_simulation(spec, row["constant"], row["theta"])
+        rows.append(SUBLINEAR.design_cells(options["free"], row) | {"_result": row})
+    return rows
+
+
+sublinear_design_chunk.max_chunk = 1  # type: ignore[attr-defined]  # a design takes seconds
+
+
+def run_constant_design(spec: Spec, spec_text: str, free: list[str], time_limit: float,
+                        out_csv: Path, restart: bool = False,
+                        progress: bool = True) -> dict[str, Any]:
+    """The design of a sublinear spec (one row keyed by L, in this process), resumable:
+    the row computed now, or read back from the CSV (its simulation run again: evidence
+    about the constant, cheap next to the design)."""
+    fam = SUBLINEAR
+    settings = {"job": "design", "spec": spec_text, "free": free,
+                "time_limit": float(time_limit)}
+    store = ResumableCSV(out_csv, fam.design_columns(spec), list(fam.key), settings,
+                         restart=restart)
+    fresh: list[dict[str, Any]] = []
+
+    def on_row(row: dict[str, Any]) -> None:
+        fresh.append(row.pop("_result"))
+        store.write(row)
+
+    tasks = fam.analysis_tasks(spec)
+    seed_spec(spec, spec_text)
+    run_store(store, tasks, f"design {spec.name}", progress, sublinear_design_chunk,
+              spec_text, spec.source, {"free": free, "time_limit": time_limit}, on_row, 1,
+              None)
+    if fresh:
+        return fresh[0]
+    wanted = {store.row_key(t) for t in tasks}
+    cells = next(r for r in store.rows() if store.row_key(r) in wanted)
+    row = fam.design_json(spec, free, cells)
+    return row | {"simulation": sublinear_simulation(spec, row["constant"], row["theta"])}

@@ -43,8 +43,9 @@ import scipy.linalg as sla
 from sosalgo.certificates.composite import CWindow, composite_structure
 from sosalgo.kernel.conic import AffineBlock, LMIProblem, unit_quads
 
-__all__ = ["SublinearProblem", "block_kernels", "full_violation", "original_kernels",
-           "snap_basis", "sublinear_data", "sublinear_parts", "sublinear_problem"]
+__all__ = ["SUBLINEAR", "SublinearFamily", "SublinearProblem", "block_kernels",
+           "full_violation", "original_kernels", "snap_basis", "sublinear_data",
+           "sublinear_parts", "sublinear_problem"]
 
 @dataclass
 class SublinearProblem:
@@ -435,3 +436,141 @@ def sublinear_parts(sp: SublinearProblem, y: np.ndarray, r: float) -> dict[str, 
     out["residual"] = float(np.abs(res).max())  # absolute: what the blocks see
     out["size"] = float(np.abs(x).max())
     return out
+
+
+# --------------------------------------------------------------------------- the family in runs
+def _cell(v: Any) -> Any:
+    """A CSV cell as these files have always written it (``True``/``False`` for flags)."""
+    return str(v) if isinstance(v, bool) else v
+
+
+def _num(v: str | None) -> float | None:
+    return None if v in (None, "") else float(v)
+
+
+def _flag(v: str | None) -> bool:
+    return v in ("True", "true")
+
+
+def _json_cell(v: str | None) -> Any:
+    import json
+
+    return None if v in (None, "") else json.loads(v)
+
+
+class SublinearFamily:
+    """The sublinear family as the analysis sweep meets it: what an ``m: 0`` spec's
+    analysis row holds, keyed by ``L`` (one row, no kappa), how its CSV cells are written
+    and read back. The float build is :func:`sublinear_problem` (asked by
+    :func:`sosalgo.analysis.analyze_sublinear`), the exact check
+    :mod:`sosalgo.certificates.exact_sublinear`."""
+
+    name = "sublinear"
+    rate_type = "sublinear"
+    is_default = False
+    key = ("L",)
+    COLUMNS = ("L", "rate_type", "constant", "certified", "constant_estimate", "measure",
+               "solves", "seconds", "solver", "check_kind", "check", "error", "certificate")
+
+    def analysis_columns(self, spec: Any) -> list[str]:
+        """CSV columns of ``sosalgo analyze``: the constant and how it was checked, the
+        parameters' values, the spec's references, the certificate (one JSON object)."""
+        return (list(self.COLUMNS) + [f"param_{p}" for p in spec.parameters]
+                + list(spec.references))
+
+    def analysis_tasks(self, spec: Any) -> list[dict[str, Any]]:
+        """The sweep's tasks: the one row at the spec's L."""
+        return [{"L": float(spec.L)}]
+
+    def analysis_cells(self, spec: Any, row: dict[str, Any]) -> dict[str, Any]:
+        """The CSV cells of an analysis row (its JSON form, references included)."""
+        import json
+
+        cells = {k: row.get(k) for k in ("L", "rate_type", "constant", "certified",
+                                          "constant_estimate", "measure", "solves",
+                                          "seconds", "solver", "check_kind")}
+        cells["check"] = None if row["check"] is None else json.dumps(row["check"])
+        cells["certificate"] = (None if row["certificate"] is None
+                                else json.dumps(row["certificate"], separators=(",", ":")))
+        cells.update({f"param_{p}": v for p, v in row["params"].items()})
+        cells.update(row["references"])
+        return {k: _cell(v) for k, v in cells.items()}
+
+    def analysis_json(self, spec: Any, cells: dict[str, str]) -> dict[str, Any]:
+        """The JSON row read back from its CSV cells (the references computed again; the
+        simulation of the constant is evidence added by the run)."""
+        from sosalgo.spec.references import reference_values
+
+        return {"rate_type": cells["rate_type"], "constant": _num(cells["constant"]),
+                "certified": _flag(cells["certified"]), "L": float(cells["L"]),
+                "measure": cells["measure"],
+                "constant_estimate": _num(cells["constant_estimate"]),
+                "solves": int(cells["solves"]), "seconds": float(cells["seconds"]),
+                "solver": cells["solver"] or None,
+                "params": {p: float(cells[f"param_{p}"]) for p in spec.parameters
+                           if cells.get(f"param_{p}", "") != ""},
+                "check_kind": cells["check_kind"] or None,
+                "check": _json_cell(cells["check"]),
+                "certificate": _json_cell(cells["certificate"]), "family": self.name,
+                "references": reference_values(spec, float("nan"))}
+
+    # -- design: the constant minimized over the free parameters' box (one row at L)
+    DESIGN_COLUMNS = ("L", "rate_type", "free", "constant", "certified", "lower_bound",
+                      "bound_status", "evaluations", "seconds", "time_limit", "timed_out",
+                      "check_kind", "simulation_ok", "simulation_worst_ratio")
+
+    def design_columns(self, spec: Any) -> list[str]:
+        """CSV columns of ``sosalgo design``."""
+        return (list(self.DESIGN_COLUMNS) + [f"param_{p}" for p in spec.parameters]
+                + ["certificate"])
+
+    def design_cells(self, names: list[str], row: dict[str, Any]) -> dict[str, Any]:
+        """The CSV cells of a design row (its JSON form, the simulation included)."""
+        import json
+
+        sim = row["simulation"]
+        cells = {k: row.get(k) for k in self.DESIGN_COLUMNS} | {
+            "free": ",".join(names), "certificate": json.dumps(row["certificate"]),
+            "simulation_ok": None if sim is None else sim["ok"],
+            "simulation_worst_ratio": None if sim is None else sim["worst_ratio"]}
+        cells |= {f"param_{p}": v for p, v in row["params"].items()}
+        return {k: _cell(v) for k, v in cells.items()}
+
+    def design_json(self, spec: Any, names: list[str], cells: dict[str, str]) -> dict[str, Any]:
+        """The design row read back from its CSV cells (the simulation is evidence the run
+        adds again)."""
+        from sosalgo.model import parameter_box
+
+        params = {p: float(cells[f"param_{p}"]) for p in spec.parameters
+                  if cells.get(f"param_{p}", "") != ""}
+        constant = _num(cells["constant"])
+        box = parameter_box(spec, float("nan"), names)
+        return {"rate_type": cells["rate_type"], "L": float(cells["L"]), "free": names,
+                "box": [list(b) for b in box], "constant": constant,
+                "certified": _flag(cells["certified"]),
+                "theta": None if constant is None else {p: params[p] for p in names},
+                "params": params, "lower_bound": _num(cells["lower_bound"]),
+                "bound_status": cells["bound_status"],
+                "evaluations": int(cells["evaluations"]), "seconds": float(cells["seconds"]),
+                "time_limit": float(cells["time_limit"]),
+                "timed_out": _flag(cells["timed_out"]),
+                "check_kind": cells["check_kind"] or None,
+                "certificate": _json_cell(cells["certificate"]), "family": self.name}
+
+    # -- grid: the constant at each point of a grid over the free parameters
+    GRID_COLUMNS = ("constant", "certified", "solves", "seconds")
+
+    def grid_columns(self, names: list[str]) -> list[str]:
+        """CSV columns of ``sosalgo grid``: the free parameters, then the constant."""
+        return list(names) + list(self.GRID_COLUMNS)
+
+    def grid_cells(self, theta: dict[str, float], res: Any) -> dict[str, Any]:
+        """The CSV cells of a grid point (``res``: its analysis; None where the model has
+        no fixed point or leaves a function's domain)."""
+        cells = {"certified": False} if res is None else {
+            "constant": res.constant, "certified": res.certified, "solves": res.solves,
+            "seconds": res.seconds}
+        return {k: _cell(v) for k, v in (theta | cells).items()}
+
+
+SUBLINEAR = SublinearFamily()

@@ -16,8 +16,8 @@ from sosalgo.schema import printed_columns
 from sosalgo.spec import Spec
 from sosalgo.spec.references import reference_curves
 
-__all__ = ["LEGEND", "design_figure", "design_legend", "design_table", "proven_bound", "verdict",
-           "verification_notes"]
+__all__ = ["LEGEND", "design_figure", "design_legend", "design_table", "proven_bound",
+           "sublinear_design_lines", "verdict", "verification_notes"]
 
 LEGEND = "\n".join([
     "rho_certified: certified rate at the designed theta (with its certificate)",
@@ -127,3 +127,24 @@ def proven_bound(doc: dict[str, Any]) -> float | None:
     """The document's lower bound when it proves something (> 0), else None."""
     lb = doc.get("lower_bound")
     return lb if lb is not None and lb > 0 else None
+
+
+def sublinear_design_lines(doc: dict[str, Any]) -> list[str]:
+    """What ``sosalgo design`` prints for a sublinear design document."""
+    row = doc["rows"][0]
+    sim = row.get("simulation") or {}
+    theta = ", ".join(f"{k} = {v:.7g}" for k, v in (row["theta"] or {}).items())
+    head = (f"{doc['spec']}: design of {', '.join(row['free'])} minimizing the certified "
+            "constant c in measure(x_k) <= c |x_0 - x*|^2 / k (no lower bound over the box)")
+    best = ("no constant certified anywhere in the box" if row["constant"] is None else
+            f"c = {row['constant']:.7g} at {theta} ({row['check_kind']}; simulation: "
+            f"{'ok' if sim.get('ok') else 'VIOLATED'}, worst ratio "
+            f"{sim.get('worst_ratio', float('nan')):.3g})")
+    lines = [head, f"  {best}", f"  {row['evaluations']} evaluations, "
+             f"{row['seconds']:.1f} s" + (" (time limit reached)" if row["timed_out"] else "")]
+    ver = row.get("verification")
+    if ver is not None:
+        lines.append(f"  exact verification: {ver.get('verified')}"
+                     + (f" (c <= {ver['constant_proven_float']:.7g})"
+                        if ver.get("constant_proven_float") is not None else ""))
+    return lines + [f"wrote {doc['csv']}"]

@@ -112,14 +112,9 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
         from sosalgo.sensitivity.run import check_noise_spec
 
         check_noise_spec(spec)
-    if spec.sublinear:  # m: 0: one constant, no kappa (sosalgo.sublinear_run)
-        from sosalgo.sublinear_run import sublinear_run
-
-        est = budget.check(budget.sweep_estimate(
-            f"analyze {spec.name}", "", 1, spec.n, 1, _budget(max_memory, workers),
-            seconds_each=budget.SUBLINEAR_SECONDS))
-        return sublinear_run(spec, text, out_dir, plot, kappa, verify, restart,
-                             progress) | {"estimate": est.to_dict()} | set_field(overrides)
+    if spec.sublinear:  # m: 0: the sublinear family's one constant, no kappa
+        return _analyze_constant(spec, text, kappa, out_dir, plot, verify, restart, progress,
+                                 max_memory, workers) | set_field(overrides)
     kappas = _kappa_list(spec, kappa)
     inputs.check_tol(tol, "--tol")
     from sosalgo.witnesses.rows import check_witness_options
@@ -163,6 +158,35 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
     return doc | {"figures": [str(p) for p in figs],
                   "rows": [r for _, _, jrows in runs for r in jrows],
                   "estimate": est.to_dict()}
+
+
+def _analyze_constant(spec: Spec, text: str, kappa: Kappas, out_dir: str | Path,
+                      plot: bool, verify: bool, restart: bool, progress: bool,
+                      max_memory: int | str | None, workers: int | None) -> dict[str, Any]:
+    """``analyze`` of a sublinear spec: the analysis sweep with the sublinear family (one
+    row keyed by L in ``<name>-analysis.csv``), the bound figure ``<name>-rate``, with
+    ``verify`` the exact proof of each row (proof documents in ``out_dir/certificates``)."""
+    from sosalgo.batch.sweeps import csv_row_to_json, run_analysis_sweep
+    from sosalgo.certificates.sublinear import SUBLINEAR
+    from sosalgo.report.analysis import attach_constant_checks, sublinear_figure
+
+    _no_kappa(spec, kappa)
+    est = budget.check(budget.sweep_estimate(
+        f"analyze {spec.name}", "", 1, spec.n, 1, _budget(max_memory, workers),
+        seconds_each=budget.SUBLINEAR_SECONDS))
+    out = inputs.out_dir(out_dir)
+    path, stem = analysis_csv(out, spec.name, None), rate_stem(out, spec.name)
+    with output_lock(path):
+        rows = run_analysis_sweep(spec, text, [], path, 0.0, restart=restart,
+                                  progress=progress, family=SUBLINEAR,
+                                  companions=_figures(stem))
+        jrows = [csv_row_to_json(spec, r, SUBLINEAR) for r in rows]
+        figs = sublinear_figure(spec, jrows[0], stem) if plot else []
+    if verify:
+        attach_constant_checks(spec, jrows, out / "certificates")
+    return {"kind": ANALYSIS_KIND, "spec": spec.name, "source": spec.source, "spec_text": text,
+            "csv": str(path), "figures": [str(p) for p in figs], "rows": jrows,
+            "estimate": est.to_dict()}
 
 
 def _design_options(spec: Spec, kappas: list[float], free: str | Sequence[str] | None,
@@ -209,17 +233,9 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
     check_objective(spec, [] if spec.sublinear else _kappa_list(spec, kappa), objective,
                     max_rate, max_noise)
     two = objective != "rate" or max_noise is not None  # a noise objective or cap
-    if spec.sublinear:  # m: 0: minimize the certified constant (no kappa)
-        from sosalgo.sublinear_run import sublinear_design_run
-
-        if kappa not in (None, [], ()):
-            raise InputError(f"{spec.source}: --kappa: undefined for a sublinear spec (m: 0)")
-        inputs.check_time_limit(time_limit, "--time-limit")
-        est = budget.check(budget.design_estimate(  # one process: no workers
-            f"design {spec.name}", "", 1, time_limit, _budget(max_memory, 1)))
-        return sublinear_design_run(spec, text, out_dir, free, time_limit, verify,
-                                    restart, progress) | {"estimate": est.to_dict()
-                                                          } | set_field(overrides)
+    if spec.sublinear:  # m: 0: minimize the sublinear family's constant (no kappa)
+        return _design_constant(spec, text, kappa, out_dir, free, time_limit, verify,
+                                restart, progress, max_memory) | set_field(overrides)
     fam = inputs.select_families(spec, certificate, options, single=True,
                                  command="noise" if two else "design")[0]
     kappas = _kappa_list(spec, kappa)
@@ -268,6 +284,67 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
             "estimate": est.to_dict()} | set_field(overrides)
 
 
+def _no_kappa(spec: Spec, kappa: Kappas) -> None:
+    """A sublinear spec (m: 0) has no kappa: one given is refused."""
+    if kappa not in (None, [], ()):
+        raise InputError(f"{spec.source}: --kappa: undefined for a sublinear spec (m: 0)")
+
+
+def _design_constant(spec: Spec, text: str, kappa: Kappas, out_dir: str | Path,
+                     free: str | Sequence[str] | None, time_limit: float, verify: bool,
+                     restart: bool, progress: bool,
+                     max_memory: int | str | None) -> dict[str, Any]:
+    """``design`` of a sublinear spec: minimize the certified constant over the box
+    (:func:`sosalgo.sublinear_design.sublinear_design`), simulate the design, write
+    ``<name>-design.csv`` (one row, in this process); the document holds that row."""
+    from sosalgo.batch.sweeps import run_constant_design
+    from sosalgo.report.analysis import attach_constant_checks
+
+    _no_kappa(spec, kappa)
+    inputs.check_time_limit(time_limit, "--time-limit")
+    est = budget.check(budget.design_estimate(  # one process: no workers
+        f"design {spec.name}", "", 1, time_limit, _budget(max_memory, 1)))
+    names = inputs.free_names(spec, free)
+    out = inputs.out_dir(out_dir)
+    path = out / f"{spec.name}-design.csv"
+    row = run_constant_design(spec, text, names, time_limit, path, restart, progress)
+    row |= {"kind": DESIGN_KIND, "spec": spec.name, "source": spec.source,
+            "spec_text": text}  # self-contained
+    if verify:
+        attach_constant_checks(spec, [row], out / "certificates")
+    return {"kind": DESIGN_KIND, "spec": spec.name, "source": spec.source, "spec_text": text,
+            "csv": str(path), "figures": [], "rows": [row], "estimate": est.to_dict()}
+
+
+def _grid_constant(spec: Spec, text: str, kappa: Kappas, out_dir: str | Path, points: int,
+                   free: str | Sequence[str] | None, workers: int | None,
+                   scheduler: str | None, restart: bool, progress: bool,
+                   max_memory: int | str | None) -> dict[str, Any]:
+    """``grid`` of a sublinear spec: the certified constant at every point of a grid over
+    the free parameters' box, row by row into ``<name>-grid.csv`` (resumable, on
+    ``workers`` processes or a Dask ``scheduler`` like every grid)."""
+    from sosalgo.batch.sweeps import run_grid
+    from sosalgo.certificates.sublinear import SUBLINEAR
+    from sosalgo.model import parameter_box
+
+    _no_kappa(spec, kappa)
+    names = inputs.free_names(spec, free)
+    est = _grid_budget(spec, names, points, 1, max_memory, workers)
+    workers = est.workers if scheduler is None else workers
+    box = parameter_box(spec, float("nan"), names)
+    out = inputs.out_dir(out_dir)
+    if scheduler is not None:
+        check_scheduler(scheduler)
+    path = out / f"{spec.name}-grid.csv"
+    rows = run_grid(spec, text, float("nan"), names, box, points, path, 0.0,
+                    workers=workers, scheduler=scheduler, restart=restart,
+                    progress=progress, family=SUBLINEAR)
+    constants = [float(r["constant"]) for r in rows if r["constant"] != ""]
+    return {"kind": GRID_KIND, "spec": spec.name, "rate_type": "sublinear", "free": names,
+            "csv": str(path), "best": min(constants, default=None), "grids": [],
+            "estimate": est.to_dict()}
+
+
 DESIGN_CERTIFICATES = ("bound_certificate", "values_certificate")
 
 
@@ -313,17 +390,9 @@ def grid_run(spec: Spec | str | Path, kappa: Kappas, out_dir: str | Path = "outp
     from sosalgo.schema import GRID_COLUMNS, grid_fixed
 
     spec, text = spec_with_text(spec, spec_text, overrides)
-    if spec.sublinear:  # m: 0: the certified constant on the grid (no kappa)
-        from sosalgo.sublinear_run import sublinear_grid_run
-
-        if kappa not in (None, [], ()):
-            raise InputError(f"{spec.source}: --kappa: undefined for a sublinear spec (m: 0)")
-        names = inputs.free_names(spec, free)
-        est = _grid_budget(spec, names, points, 1, max_memory, workers)
-        return sublinear_grid_run(spec, text, out_dir, points, free,
-                                  est.workers if scheduler is None else workers, scheduler,
-                                  restart, progress) | {"estimate": est.to_dict()
-                                                        } | set_field(overrides)
+    if spec.sublinear:  # m: 0: the sublinear family's constant on the grid (no kappa)
+        return _grid_constant(spec, text, kappa, out_dir, points, free, workers, scheduler,
+                              restart, progress, max_memory) | set_field(overrides)
     if kappa in (None, [], ()):
         raise InputError("--kappa: required (one or more condition numbers)")
     kappas = _kappa_list(spec, kappa)
