@@ -27,8 +27,8 @@ CERTIFIED = "certified rate"
 WITNESSED = "witnessed lower bound"
 REFERENCE = "reference"
 PROVEN_LOWER = "proven lower bound"
-VERIFY_LEGEND = ("verified exact: the certificate re-proven in exact or outward-rounded "
-                 "arithmetic;\nrho_proven: the rate that proof establishes; simulation: the "
+VERIFY_LEGEND = ("verified: how the certificate was re-proven (rational or outward-rounded "
+                 "arithmetic);\nrho_proven: the rate that proof establishes; simulation: the "
                  "method run on test functions\nof the class (evidence, not a proof)")
 TABLE1_LEGEND = (f"rho_certified: {CERTIFIED}; closed_form_rate: {REFERENCE}, the spec's first "
                  "closed form (floating point; not proven by sosalgo)")
