@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 
 from sosalgo.certificates.base import CertificateFamily
 from sosalgo.certificates.interpolation import INTERPOLATION
+from sosalgo.certificates.sublinear import SUBLINEAR
 from sosalgo.certificates.theorem1 import THEOREM1
 
 if TYPE_CHECKING:  # only for annotations
@@ -20,6 +21,9 @@ if TYPE_CHECKING:  # only for annotations
 FAMILIES: dict[str, CertificateFamily] = {
     THEOREM1.name: THEOREM1, INTERPOLATION.name: INTERPOLATION,
 }
+# families a spec selects by itself (:func:`spec_family`), not choices of
+# ``--certificate``: their question is not a linear rate (the sublinear family's constant)
+SPEC_FAMILIES: tuple[CertificateFamily, ...] = (SUBLINEAR,)
 # the option names of each family (its ``option_names``; kept as a table for old callers)
 FAMILY_OPTIONS: dict[str, tuple[str, ...]] = {n: tuple(f.option_names)
                                                for n, f in FAMILIES.items()}
@@ -51,12 +55,17 @@ DECLARED_COMMANDS = frozenset({"table1", "lmi", "grid"})
 
 def family_applies(spec: "Spec", family: str) -> str | None:
     """Why certificate family ``family`` does not apply to ``spec`` (None when it does):
-    Theorem 1 holds only in the seed's setting (see :attr:`Spec.composite`)."""
-    if family == "theorem1" and spec.composite:
-        return ("theorem1 applies only to one smooth_strongly_convex function with the "
-                "spec's m and L, queried by its gradient (no D, x = E xi, measure: function); "
-                "use interpolation, the family for this spec")
-    return None
+    the family's ``applies_to`` (Theorem 1 holds only in the seed's setting; a family
+    registered without one applies to every spec)."""
+    applies_to = getattr(FAMILIES.get(family), "applies_to", None)
+    return None if applies_to is None else applies_to(spec)
+
+
+def spec_family(spec: "Spec") -> CertificateFamily | None:
+    """The family a spec selects by itself, whatever ``--certificate`` says: the first of
+    :data:`SPEC_FAMILIES` that applies to it (the sublinear family for an ``m: 0`` spec),
+    None for a spec whose rate a family of :data:`FAMILIES` certifies."""
+    return next((f for f in SPEC_FAMILIES if f.applies_to(spec) is None), None)
 
 
 def default_family_name(spec: "Spec", command: str | None = "analyze") -> str:
@@ -116,8 +125,9 @@ def family_from_description(desc: Mapping[str, Any] | None) -> CertificateFamily
 
 __all__ = [
     "CertificateFamily", "FAMILIES", "FAMILY_OPTIONS",
-    "DECLARED_COMMANDS", "LOWER_BOUND_COMMANDS", "TIGHTEST_FIRST", "default_family",
+    "DECLARED_COMMANDS", "LOWER_BOUND_COMMANDS", "SPEC_FAMILIES", "TIGHTEST_FIRST",
+    "default_family",
     "default_family_name", "describe_family", "family_applies", "family_from_description",
     "get_family",
-    "register_family",
+    "register_family", "spec_family",
 ]

@@ -19,7 +19,7 @@ if TYPE_CHECKING:  # only for annotations: families do not depend on the model a
 
 
 __all__ = ["CertificateFamily", "check_matrix", "check_number", "complement_basis", "compress",
-           "null_basis", "restricted_eigenvalues"]
+           "null_basis", "restricted_eigenvalues", "snap_basis"]
 
 
 class CertificateFamily(Protocol):
@@ -42,7 +42,7 @@ class CertificateFamily(Protocol):
     names and run settings; ``csv_columns``/``csv_cells``/``cert_from_csv``/``p_size`` give
     its own CSV columns; ``summary`` the two eigenvalues of its results; ``auto_lags`` and
     ``guess_problem`` steer the rate search; ``listing`` its text for ``sosalgo lmi``
-    (None: the entries of its main matrix).
+    (None: the entries of its main matrix); ``applies_to`` why it refuses a spec.
     """
 
     name: str
@@ -166,6 +166,11 @@ class CertificateFamily(Protocol):
         default) prints the entries of the main matrix."""
         return None
 
+    def applies_to(self, spec: Spec) -> str | None:
+        """Why the family cannot certify ``spec`` (one line for the user), None when it can
+        (the default: every spec)."""
+        return None
+
 
 def check_number(value: Any, part: str, allow_none: bool = True) -> float | None:
     """``value`` as a float (None passes when allowed); ValueError naming ``part`` else."""
@@ -219,3 +224,20 @@ def restricted_eigenvalues(M: np.ndarray, W: np.ndarray | None) -> np.ndarray:
         if float(np.abs(M @ W).max()) <= 1e-12 * scale:
             M = Q.T @ M @ Q
     return np.linalg.eigvalsh(M)
+
+
+def snap_basis(K: np.ndarray, tol: float = 1e-3, max_den: int = 16) -> np.ndarray:
+    """A basis of the span of K's columns in reduced echelon form with entries close to
+    small-denominator fractions snapped to them (structural kernels are such spans; the
+    eigenvectors found at a solver's point are only close to them)."""
+    from fractions import Fraction
+
+    import scipy.linalg as sla
+
+    q = K.shape[1]
+    if not q:
+        return K
+    _, _, piv = sla.qr(K.T, pivoting=True)
+    E = K @ np.linalg.inv(K[piv[:q], :])
+    snapped = np.vectorize(lambda v: float(Fraction(v).limit_denominator(max_den)))(E)
+    return np.where(np.abs(snapped - E) <= tol, snapped, E)

@@ -22,7 +22,7 @@ floating point in the proof path:
    with zero gradients: the exact direction v = (u, 0)) and some rows are at 0. The other
    directions are those the analysis imposed (``certificate.kernels``; for a certificate
    without them: found at the float certificate, |eigenvalue| <= 1e-11 relative, snapped
-   within 1e-9 to small fractions by :func:`sosalgo.certificates.sublinear.snap_basis`);
+   within 1e-9 to small fractions by :func:`sosalgo.certificates.base.snap_basis`);
    the rows at 0 are found at the float certificate. All are imposed as exact equalities
    G K = 0 and row = 0 (any basis is sound: G K = 0 exactly and the exact LDL^T below
    decide G <= 0 together): the rounded certificate is moved onto them by an
@@ -467,7 +467,7 @@ def _kernels(blocks: list, known: dict[str, np.ndarray], x: np.ndarray,
     """Per block: the exact known directions and, on their complement, the eigenvectors of
     the float certificate's block with |eigenvalue| <= KERNEL_TOL * scale (snapped; a
     clearly positive one is a violation, left for the exact check to report)."""
-    from sosalgo.certificates.sublinear import snap_basis
+    from sosalgo.certificates.base import snap_basis
 
     out = {}
     for name, M in blocks:

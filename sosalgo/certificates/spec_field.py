@@ -21,7 +21,8 @@ def check_certificate_field(spec: Spec, data: Mapping[str, Any],
     <option>: value}`` (default: interpolation for a composite spec, else theorem1). The
     options are checked by the family (:func:`sosalgo.certificates.get_family`), and the
     family must apply to the spec's setting (:func:`sosalgo.certificates.family_applies`)."""
-    raw = data.get("certificate", "interpolation" if spec.composite else "theorem1")
+    seed = family_applies(spec, "theorem1") is None  # Theorem 1's setting
+    raw = data.get("certificate", "theorem1" if seed else "interpolation")
     known = ", ".join(FAMILIES)
     if isinstance(raw, dict):
         name = raw.get("family")

@@ -34,14 +34,19 @@ rounding, reported as ``residual``).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import scipy.linalg as sla
 
+from sosalgo.certificates.base import CertificateFamily, snap_basis
 from sosalgo.certificates.composite import CWindow, composite_structure
 from sosalgo.kernel.conic import AffineBlock, LMIProblem, unit_quads
+
+if TYPE_CHECKING:  # only for annotations
+    from sosalgo.spec.types import Spec
 
 __all__ = ["SUBLINEAR", "SublinearFamily", "SublinearProblem", "block_kernels",
            "full_violation", "original_kernels", "snap_basis", "sublinear_data",
@@ -333,21 +338,6 @@ def block_kernels(data: _XData, x: np.ndarray, r: float,
     return out
 
 
-def snap_basis(K: np.ndarray, tol: float = 1e-3, max_den: int = 16) -> np.ndarray:
-    """A basis of the span of K's columns in reduced echelon form with entries close to
-    small-denominator fractions snapped to them (structural kernels are such spans; the
-    eigenvectors found at a solver's point are only close to them)."""
-    from fractions import Fraction
-
-    q = K.shape[1]
-    if not q:
-        return K
-    _, _, piv = sla.qr(K.T, pivoting=True)
-    E = K @ np.linalg.inv(K[piv[:q], :])
-    snapped = np.vectorize(lambda v: float(Fraction(v).limit_denominator(max_den)))(E)
-    return np.where(np.abs(snapped - E) <= tol, snapped, E)
-
-
 def full_violation(data: _XData, x: np.ndarray, r: float) -> float:
     """The largest eigenvalue of every block and the largest row at (x, r), before any
     equality is used (each must be <= 0): the reduced check assumes the equalities hold,
@@ -458,16 +448,80 @@ def _json_cell(v: str | None) -> Any:
     return None if v in (None, "") else json.loads(v)
 
 
-class SublinearFamily:
-    """The sublinear family as the analysis sweep meets it: what an ``m: 0`` spec's
-    analysis row holds, keyed by ``L`` (one row, no kappa), how its CSV cells are written
-    and read back. The float build is :func:`sublinear_problem` (asked by
-    :func:`sosalgo.analysis.analyze_sublinear`), the exact check
-    :mod:`sosalgo.certificates.exact_sublinear`."""
+class SublinearFamily(CertificateFamily):
+    """The family of ``m: 0`` specs: a constant c in measure(x_k) <= c |x_0 - x*|^2 / k
+    instead of a rate. It implements :class:`CertificateFamily` with the constant in the
+    place of rho and no kappa: the float build :meth:`problem` (its data at the spec's L,
+    what :func:`sosalgo.analysis.analyze_sublinear` solves for each degree), the exact check
+    :meth:`exact_check` (:mod:`sosalgo.certificates.exact_sublinear`), :meth:`listing` and
+    :meth:`applies_to`, which selects it for a spec (:func:`sosalgo.certificates.spec_family`;
+    it is not a ``--certificate`` choice). It owns what an analysis, design and grid row
+    holds, keyed by ``L`` (one row, no kappa), how its CSV cells are written and read back,
+    and the columns its printed table shows."""
 
     name = "sublinear"
+    description = ("sublinear: potential z'(P + k Q + k^2 R) z + (p + k q + k^2 r)' psi, "
+                   "measure(x_k) <= c |x_0 - x*|^2 / k")
+    label = "sublinear"
     rate_type = "sublinear"
     is_default = False
+    supports_moment = False
+    certificate_parts = ("P", "Q", "p", "q")  # R and r too at degree 2
+    # the columns of its printed table (before ``verified`` and the spec's references)
+    PRINTED_COLUMNS = ("L", "rate_type", "constant", "certified", "solves", "seconds")
+
+    def applies_to(self, spec: Spec) -> str | None:
+        """Why the family does not answer ``spec`` (None for an ``m: 0`` spec, L given)."""
+        if spec.sublinear:
+            return None
+        return "the sublinear family answers m: 0 specs (L given, no kappa) only"
+
+    def problem(self, alg: Any) -> LMIProblem:
+        """The feasibility data of the potential of degree :data:`DEGREE` for a method
+        bound without kappa (:func:`sosalgo.model.bind_sublinear`), in y and r = c / s."""
+        return sublinear_problem(sublinear_data(alg)).problem
+
+    def exact_problem(self, A: Any, B: Any, C: Any, E: Any, m: Any, L: Any) -> None:
+        """None: design proves no box-wide lower bound for a constant."""
+        return None
+
+    def parse_certificate(self, parts: Mapping[str, Any], n: int) -> dict[str, Any]:
+        """The parts as given (a mapping): the exact check itself fails a malformed one."""
+        if not isinstance(parts, Mapping):
+            raise ValueError("certificate: expected an object")
+        return dict(parts)
+
+    def exact_check(self, spec: Spec, kappa: float | None, rho: float | None,
+                    cert: Mapping[str, Any], theta: Mapping[str, float] | None = None) -> Any:
+        """Proof in exact arithmetic that ``cert`` certifies the constant ``rho`` (there is
+        no kappa): :func:`sosalgo.certificates.exact_sublinear.verify_exact_sublinear`, its
+        result carrying ``constant_proven`` where a rate family's carries ``rho_proven``."""
+        from sosalgo.certificates.exact_sublinear import verify_exact_sublinear
+
+        if kappa is not None:
+            raise ValueError("kappa: an m: 0 spec has no kappa")
+        return verify_exact_sublinear(spec, cert, theta, constant=rho)
+
+    def lyapunov(self, cert: Mapping[str, Any]) -> dict[str, Any]:
+        """The potential's weights at k = 0 (P, p): the simulation of a constant follows the
+        bound itself (:mod:`sosalgo.verify.simulate_sublinear`), not a decrease."""
+        return {"P": np.asarray(cert["P"], dtype=float),
+                "lyapunov": {"p": [float(v) for v in cert["p"]]}}
+
+    def listing(self, spec: Spec, symbols: dict[str, Any], latex: bool) -> str:
+        """Its text for ``spec``: the bound, the potential and its conditions (the module's
+        docstring, eqs. (D0) to (I))."""
+        return "\n".join([
+            f"{spec.name}: measure(x_k) <= c |x_0 - x*|^2 / k for k >= 1 (m: 0)",
+            "phi_k = z_k' (P + k Q + k^2 R) z_k + (p + k q + k^2 r)' psi_k,"
+            "  z_k = (xi_k - xi*, u_k)",
+            "phi_{k+1} <= phi_k, phi_k >= (k + b) measure(x_k), phi_0 <= c |x_0 - x*|^2:"
+            " each coefficient of k a matrix inequality with interpolation multipliers"])
+
+    def printed_columns(self, columns: list[str]) -> list[str]:
+        """The columns of its printed table: :data:`PRINTED_COLUMNS`, then ``verified``
+        when ``columns`` (what a rate family would print) has it."""
+        return list(self.PRINTED_COLUMNS) + (["verified"] if "verified" in columns else [])
     key = ("L",)
     COLUMNS = ("L", "rate_type", "constant", "certified", "constant_estimate", "measure",
                "solves", "seconds", "solver", "check_kind", "check", "error", "certificate")

@@ -96,6 +96,14 @@ class Theorem1(CertificateFamily):
     fallback_solvers = ("clarabel-fast", "clarabel")
     certificate_parts = ("P", "lambda")
 
+    def applies_to(self, spec: Spec) -> str | None:
+        """Theorem 1 holds only in the seed's setting (see :attr:`Spec.composite`)."""
+        if not spec.composite:
+            return None
+        return ("theorem1 applies only to one smooth_strongly_convex function with the "
+                "spec's m and L, queried by its gradient (no D, x = E xi, measure: function); "
+                "use interpolation, the family for this spec")
+
     def problem(self, alg: Algorithm) -> LMIProblem:
         """x = (P_ij for i <= j, lambda); blocks: M ⪯ 0, -P ⪯ 0, -lambda <= 0.
 

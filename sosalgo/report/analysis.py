@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.certificates import CertificateFamily
+from sosalgo.certificates import CertificateFamily, spec_family
 from sosalgo.model import ModelError, bind
 from sosalgo.report import format_table, plot_rates
 from sosalgo.report.legend import (
@@ -24,7 +24,7 @@ from sosalgo.report.legend import (
     sublinear_meaning,
 )
 from sosalgo.report.style import finish, new_figure
-from sosalgo.schema import ANALYSIS_COLUMNS, FAMILY_COLUMNS, SUBLINEAR_COLUMNS, printed_columns
+from sosalgo.schema import ANALYSIS_COLUMNS, FAMILY_COLUMNS, printed_columns
 from sosalgo.spec import Spec
 from sosalgo.spec.references import reference_curves
 
@@ -128,7 +128,8 @@ def attach_constant_checks(spec: Spec, rows: list[dict[str, Any]], out_dir: Path
     the check in ``verification`` and its verdict in ``verified``."""
     from sosalgo.verify.results import verify_sublinear_rows
 
-    checks = verify_sublinear_rows(spec, rows, out_dir, simulate=False)
+    checks = verify_sublinear_rows(spec, rows, out_dir, simulate=False,
+                                   family=spec_family(spec))
     for r, v in zip(rows, checks, strict=True):
         if v is not None:
             v["simulation"] = r["simulation"]
@@ -141,8 +142,9 @@ def analysis_table(spec: Spec, rows: list[dict[str, Any]], columns: list[str],
     """The printed table of analysis rows: ``columns`` and the spec's references, headed
     "reference: NAME" (a sublinear spec's rows: L, rate_type, constant, ...); without
     ``details`` the solver's internals are left out (:func:`sosalgo.schema.printed_columns`)."""
-    if spec.sublinear:
-        columns = SUBLINEAR_COLUMNS + (["verified"] if "verified" in columns else [])
+    own = spec_family(spec)  # a family with its own printed columns (m: 0: a constant)
+    if own is not None:
+        columns = own.printed_columns(columns)
     columns = printed_columns(columns, details)
     refs = list(spec.references)
     return format_table([{**r, **r["references"]} for r in rows], columns + refs,
@@ -178,7 +180,7 @@ def analysis_lines(doc: dict[str, Any], details: bool = False, verified: bool = 
         base = ANALYSIS_COLUMNS if "csvs" not in doc else FAMILY_COLUMNS
         out.append(analysis_table(spec, mine, base + columns, details))
         out += verdict_lines(mine)
-    if spec.sublinear:
+    if spec_family(spec) is not None:  # what c bounds (no rate, no kappa)
         out.append(sublinear_meaning(spec))
     else:
         for name, mine in groups:

@@ -16,7 +16,7 @@ from typing import Any
 
 from sosalgo import inputs
 from sosalgo.batch.executor import check_scheduler
-from sosalgo.certificates import describe_family
+from sosalgo.certificates import describe_family, spec_family
 from sosalgo.errors import InputError
 from sosalgo.kernel import budget
 from sosalgo.kinds import ANALYSIS_KIND, DESIGN_KIND, GRID_KIND, TABLE1_KIND
@@ -112,9 +112,10 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
         from sosalgo.sensitivity.run import check_noise_spec
 
         check_noise_spec(spec)
-    if spec.sublinear:  # m: 0: the sublinear family's one constant, no kappa
-        return _analyze_constant(spec, text, kappa, out_dir, plot, verify, restart, progress,
-                                 max_memory, workers) | set_field(overrides)
+    own = spec_family(spec)
+    if own is not None:  # m: 0: the sublinear family's one constant, no kappa
+        return _analyze_constant(spec, own, text, kappa, out_dir, plot, verify, restart,
+                                 progress, max_memory, workers) | set_field(overrides)
     kappas = _kappa_list(spec, kappa)
     inputs.check_tol(tol, "--tol")
     from sosalgo.witnesses.rows import check_witness_options
@@ -160,14 +161,13 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
                   "estimate": est.to_dict()}
 
 
-def _analyze_constant(spec: Spec, text: str, kappa: Kappas, out_dir: str | Path,
+def _analyze_constant(spec: Spec, fam: Any, text: str, kappa: Kappas, out_dir: str | Path,
                       plot: bool, verify: bool, restart: bool, progress: bool,
                       max_memory: int | str | None, workers: int | None) -> dict[str, Any]:
-    """``analyze`` of a sublinear spec: the analysis sweep with the sublinear family (one
+    """``analyze`` of a sublinear spec: the analysis sweep with its family ``fam`` (one
     row keyed by L in ``<name>-analysis.csv``), the bound figure ``<name>-rate``, with
     ``verify`` the exact proof of each row (proof documents in ``out_dir/certificates``)."""
     from sosalgo.batch.sweeps import csv_row_to_json, run_analysis_sweep
-    from sosalgo.certificates.sublinear import SUBLINEAR
     from sosalgo.report.analysis import attach_constant_checks, sublinear_figure
 
     _no_kappa(spec, kappa)
@@ -178,9 +178,9 @@ def _analyze_constant(spec: Spec, text: str, kappa: Kappas, out_dir: str | Path,
     path, stem = analysis_csv(out, spec.name, None), rate_stem(out, spec.name)
     with output_lock(path):
         rows = run_analysis_sweep(spec, text, [], path, 0.0, restart=restart,
-                                  progress=progress, family=SUBLINEAR,
+                                  progress=progress, family=fam,
                                   companions=_figures(stem))
-        jrows = [csv_row_to_json(spec, r, SUBLINEAR) for r in rows]
+        jrows = [csv_row_to_json(spec, r, fam) for r in rows]
         figs = sublinear_figure(spec, jrows[0], stem) if plot else []
     if verify:
         attach_constant_checks(spec, jrows, out / "certificates")
@@ -230,10 +230,11 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
     from sosalgo.report import design as rep
 
     spec, text = spec_with_text(spec, spec_text, overrides)
-    check_objective(spec, [] if spec.sublinear else _kappa_list(spec, kappa), objective,
+    own = spec_family(spec)  # m: 0: the sublinear family's constant (no kappa)
+    check_objective(spec, [] if own is not None else _kappa_list(spec, kappa), objective,
                     max_rate, max_noise)
     two = objective != "rate" or max_noise is not None  # a noise objective or cap
-    if spec.sublinear:  # m: 0: minimize the sublinear family's constant (no kappa)
+    if own is not None:  # minimize the constant
         return _design_constant(spec, text, kappa, out_dir, free, time_limit, verify,
                                 restart, progress, max_memory) | set_field(overrides)
     fam = inputs.select_families(spec, certificate, options, single=True,
@@ -316,7 +317,8 @@ def _design_constant(spec: Spec, text: str, kappa: Kappas, out_dir: str | Path,
             "csv": str(path), "figures": [], "rows": [row], "estimate": est.to_dict()}
 
 
-def _grid_constant(spec: Spec, text: str, kappa: Kappas, out_dir: str | Path, points: int,
+def _grid_constant(spec: Spec, fam: Any, text: str, kappa: Kappas, out_dir: str | Path,
+                   points: int,
                    free: str | Sequence[str] | None, workers: int | None,
                    scheduler: str | None, restart: bool, progress: bool,
                    max_memory: int | str | None) -> dict[str, Any]:
@@ -324,7 +326,6 @@ def _grid_constant(spec: Spec, text: str, kappa: Kappas, out_dir: str | Path, po
     the free parameters' box, row by row into ``<name>-grid.csv`` (resumable, on
     ``workers`` processes or a Dask ``scheduler`` like every grid)."""
     from sosalgo.batch.sweeps import run_grid
-    from sosalgo.certificates.sublinear import SUBLINEAR
     from sosalgo.model import parameter_box
 
     _no_kappa(spec, kappa)
@@ -338,9 +339,9 @@ def _grid_constant(spec: Spec, text: str, kappa: Kappas, out_dir: str | Path, po
     path = out / f"{spec.name}-grid.csv"
     rows = run_grid(spec, text, float("nan"), names, box, points, path, 0.0,
                     workers=workers, scheduler=scheduler, restart=restart,
-                    progress=progress, family=SUBLINEAR)
+                    progress=progress, family=fam)
     constants = [float(r["constant"]) for r in rows if r["constant"] != ""]
-    return {"kind": GRID_KIND, "spec": spec.name, "rate_type": "sublinear", "free": names,
+    return {"kind": GRID_KIND, "spec": spec.name, "rate_type": fam.rate_type, "free": names,
             "csv": str(path), "best": min(constants, default=None), "grids": [],
             "estimate": est.to_dict()}
 
@@ -390,9 +391,10 @@ def grid_run(spec: Spec | str | Path, kappa: Kappas, out_dir: str | Path = "outp
     from sosalgo.schema import GRID_COLUMNS, grid_fixed
 
     spec, text = spec_with_text(spec, spec_text, overrides)
-    if spec.sublinear:  # m: 0: the sublinear family's constant on the grid (no kappa)
-        return _grid_constant(spec, text, kappa, out_dir, points, free, workers, scheduler,
-                              restart, progress, max_memory) | set_field(overrides)
+    own = spec_family(spec)
+    if own is not None:  # m: 0: the sublinear family's constant on the grid (no kappa)
+        return _grid_constant(spec, own, text, kappa, out_dir, points, free, workers,
+                              scheduler, restart, progress, max_memory) | set_field(overrides)
     if kappa in (None, [], ()):
         raise InputError("--kappa: required (one or more condition numbers)")
     kappas = _kappa_list(spec, kappa)
@@ -435,7 +437,7 @@ def _grid_budget(spec: Spec, names: list[str], points: int, kappas: int,
     return budget.check(budget.grid_estimate(
         f"grid {spec.name} of {total} points", f"--points {points}", total, spec.n,
         _budget(max_memory, workers),
-        seconds_each=budget.SUBLINEAR_SECONDS if spec.sublinear else None))
+        seconds_each=None if spec_family(spec) is None else budget.SUBLINEAR_SECONDS))
 
 
 def table1_run(specs: Sequence[str | Path] = (), kappa: Sequence[float] = (),
@@ -458,7 +460,7 @@ def table1_run(specs: Sequence[str | Path] = (), kappa: Sequence[float] = (),
         texts = {f"examples/{name}.yaml": f.read_text(encoding="utf-8")
                  for name, f in example_specs().items()}
     parsed = [spec_from_text(t, source=src) for src, t in texts.items()]
-    parsed = [s for s in parsed if not s.sublinear]  # no kappa, no linear rate (m: 0)
+    parsed = [s for s in parsed if spec_family(s) is None]  # m: 0: no kappa, no linear rate
     if not parsed:
         raise InputError("--specs: no spec files given and none in specs/")
     kappas = [float(k) for k in kappa] or [2.0, 10.0, 100.0]

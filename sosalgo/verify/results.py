@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.certificates import FAMILIES, default_family, get_family
+from sosalgo.certificates import FAMILIES, default_family, get_family, spec_family
 from sosalgo.certificates.base import CertificateFamily, check_number
 from sosalgo.errors import InputError
 from sosalgo.kernel.exact import Verdict
@@ -235,9 +235,12 @@ def verify_document_rows(
     malformed rows raise ResultError, before anything is verified or written.
 
     Each row is checked by the family it names (``family``), else by ``family``, else by
-    the default family, through the family's ``exact_check`` and ``lyapunov``."""
-    if spec.sublinear:  # m: 0: a constant c and its potential certificate
-        return verify_sublinear_rows(spec, rows, out_dir, simulate)
+    the default family, through the family's ``exact_check`` and ``lyapunov``; the rows of
+    a spec that selects its family (:func:`sosalgo.certificates.spec_family`: a constant c
+    and its potential certificate for ``m: 0``) by that family."""
+    own = spec_family(spec)
+    if own is not None:
+        return verify_sublinear_rows(spec, rows, out_dir, simulate, family=own)
     claims = []
     for i, row in enumerate(rows):
         if not isinstance(row, Mapping):
@@ -334,12 +337,17 @@ def _noise_only(nz: dict[str, Any]) -> dict[str, Any]:
 
 def verify_sublinear_rows(spec: Spec, rows: Sequence[Mapping[str, Any]],
                           out_dir: Path | None, simulate: bool = True,
+                          family: CertificateFamily | None = None,
                           ) -> list[dict[str, Any] | None]:
     """Rows of a sublinear spec (analysis or design: ``constant``, ``certificate``, a
-    design's ``theta``): the exact proof of
-    :func:`sosalgo.certificates.exact_sublinear.verify_exact_sublinear` and the simulation
+    design's ``theta``): the family's exact proof (``family``, default the spec's own,
+    :func:`sosalgo.certificates.spec_family`: the sublinear family's
+    :func:`sosalgo.certificates.exact_sublinear.verify_exact_sublinear`) and the simulation
     check of the constant; None for a row claiming no constant. Malformed rows raise
     ResultError before anything is verified or written."""
+    fam = family or spec_family(spec)
+    if fam is None:
+        raise ResultError("rows: the spec's rows are rates, not constants (its m is not 0)")
     claims = []
     for i, row in enumerate(rows):
         where = f"rows[{i}]"
@@ -354,18 +362,17 @@ def verify_sublinear_rows(spec: Spec, rows: Sequence[Mapping[str, Any]],
         theta = _theta(row, where)
         claims.append(None if C is None and row.get("certified") is not True
                       else (C, cert, theta))
-    return [None if c is None else _sublinear_check(spec, *c, out_dir, simulate)
+    return [None if c is None else _sublinear_check(spec, fam, *c, out_dir, simulate)
             for c in claims]
 
 
-def _sublinear_check(spec: Spec, C: float | None, cert: Mapping[str, Any] | None,
-                     theta: dict[str, float] | None, out_dir: Path | None,
-                     simulate: bool) -> dict[str, Any]:
-    """One row's check as plain values (the verdict as its string); the proof document
-    goes to ``out_dir`` as ``<name>-sublinear-certificate.json``."""
-    from sosalgo.certificates.exact_sublinear import verify_exact_sublinear
-
-    res = verify_exact_sublinear(spec, cert or {}, theta, constant=C)
+def _sublinear_check(spec: Spec, fam: CertificateFamily, C: float | None,
+                     cert: Mapping[str, Any] | None, theta: dict[str, float] | None,
+                     out_dir: Path | None, simulate: bool) -> dict[str, Any]:
+    """One row's check as plain values (the verdict as its string): the family's exact
+    check of the constant C (no kappa); the proof document goes to ``out_dir`` as
+    ``<name>-sublinear-certificate.json``."""
+    res = fam.exact_check(spec, None, C, cert or {}, theta)
     out: dict[str, Any] = {
         "rate_type": "sublinear", "constant": C, "rho": None, "verified": str(res.verified),
         "constant_proven": res.constant_proven,
