@@ -11,7 +11,21 @@ import numpy as np
 from sosalgo.errors import InputError
 from sosalgo.spec import Spec
 
-__all__ = ["bound_method", "initial_gradient"]
+__all__ = ["bound_method", "class_kappa", "has_kappa", "initial_gradient"]
+
+
+def has_kappa(spec: Spec) -> bool:
+    """Whether the class a spec's results are about has a kappa: not when the spec's
+    certificate family answers a constant (:func:`sosalgo.certificates.spec_family`:
+    m: 0, L given)."""
+    from sosalgo.certificates import spec_family
+
+    return spec_family(spec) is None
+
+
+def class_kappa(spec: Spec, kappa: float | None) -> float | None:
+    """``kappa`` when the spec's class has one (:func:`has_kappa`), else None."""
+    return kappa if has_kappa(spec) else None
 
 
 def bound_method(spec: Spec, kappa: float | None) -> tuple[Any, float]:
@@ -20,7 +34,7 @@ def bound_method(spec: Spec, kappa: float | None) -> tuple[Any, float]:
     from sosalgo.model import bind_sublinear, evaluate_algorithm
     from sosalgo.oracles import as_oracle_method
 
-    if spec.sublinear:
+    if not has_kappa(spec):
         if kappa is not None:
             raise InputError(f"{spec.source}: --kappa: an m: 0 spec has no condition number "
                              f"(L = {spec.L:g} is given)")

@@ -396,7 +396,7 @@ def check_witness(doc: dict[str, Any], spec: Spec, mt: Method | ArbView | None =
     """Check a witness against ``spec`` (see the module; ``mt``: its exact method, built
     here when not given); never raises on a bad witness: ``verified`` False with the
     reason."""
-    from sosalgo.pep.bind import bound_method
+    from sosalgo.pep.bind import bound_method, class_kappa
 
     t0 = time.perf_counter()
     out: dict[str, Any] = {"verified": False, "check_kind": "exact (rational and ball "
@@ -404,7 +404,7 @@ def check_witness(doc: dict[str, Any], spec: Spec, mt: Method | ArbView | None =
     try:
         if mt is None:
             kappa = doc.get("kappa")
-            om, _ = bound_method(spec, None if spec.sublinear else kappa)
+            om, _ = bound_method(spec, class_kappa(spec, kappa))
             mt = exact_method(spec, kappa, om, int(doc["steps"]))
         av = mt if isinstance(mt, ArbView) else arb_view(mt)
         with precision(PREC):

@@ -170,11 +170,13 @@ def _check_class(claims: _Claims, spec: Spec, kappa: float | None, doc: Mapping[
 
 def _ctx(row: Mapping[str, Any], spec: Spec, where: str) -> dict[str, Any]:
     """kappa, steps, measure, initial of a row or witness, checked against the spec."""
+    from sosalgo.pep.bind import has_kappa
     from sosalgo.pep.core import MAX_STEPS
 
     kappa = _num(row.get("kappa"), f"{where}.kappa")
-    if spec.sublinear != (kappa is None):
-        raise InputError(f"{where}.kappa: " + ("an m: 0 spec has no kappa" if spec.sublinear
+    none = not has_kappa(spec)  # m: 0: the class has no kappa
+    if none != (kappa is None):
+        raise InputError(f"{where}.kappa: " + ("an m: 0 spec has no kappa" if none
                                                else "missing"))
     steps = row.get("steps")
     if isinstance(steps, bool) or not isinstance(steps, int) or not 1 <= steps <= MAX_STEPS:

@@ -15,7 +15,7 @@ import numpy as np
 
 from sosalgo.errors import InputError
 from sosalgo.kernel.phases import show_phase
-from sosalgo.pep.bind import bound_method, initial_gradient
+from sosalgo.pep.bind import bound_method, class_kappa, initial_gradient
 from sosalgo.pep.sdp import PEPData, SDPAnswer, pep_data, solve_pep, value_residual
 from sosalgo.pep.structure import Method, PEPStructure, build_structure, deadbeat_gain, output_call
 from sosalgo.pep.terms import Term, parse_terms
@@ -158,7 +158,8 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
     data = pep_data(mt, st)
     show_phase("solving the PEP", f"{len(st.pairs)} interpolation pairs")
     ans = solve_pep(data)
-    res = PEPResult(spec.name, None if spec.sublinear else float(kappa),  # type: ignore[arg-type]
+    k = class_kappa(spec, kappa)
+    res = PEPResult(spec.name, None if k is None else float(k),
                     steps, *names, ans.status, ans.primal if ans.status == "solved" else None)
     if ans.status == "unbounded":
         res.tau = math.inf

@@ -34,7 +34,7 @@ import numpy as np
 import sympy as sp
 from flint import arb, arb_mat, fmpq
 
-from sosalgo.pep.bind import initial_gradient
+from sosalgo.pep.bind import class_kappa, has_kappa, initial_gradient
 from sosalgo.pep.structure import (
     Method,
     PEPStructure,
@@ -76,7 +76,7 @@ def exact_base(spec: Spec, kappa: float | None) -> dict[sp.Symbol, sp.Expr]:
     m: 0 spec) from its expression, kappa the decimal it was given as, L = kappa m."""
     from sosalgo.spec.types import BASE_SYMBOLS
 
-    if spec.sublinear:
+    if not has_kappa(spec):  # m: 0: the class has no kappa
         vals = {"m": sp.Integer(0), "L": _written(spec.L_expr, float(spec.L or 0.0))}
     else:
         kq = written_kappa(float(kappa))  # type: ignore[arg-type]
@@ -259,8 +259,8 @@ def exact_or_none(spec: Spec, kappa: float | None, steps: int = 0) -> Method | N
     from sosalgo.pep.bind import bound_method
 
     try:
-        return exact_method(spec, kappa, bound_method(spec, None if spec.sublinear
-                                                      else kappa)[0], steps)
+        return exact_method(spec, kappa, bound_method(spec, class_kappa(spec, kappa))[0],
+                            steps)
     except (ValueError, ArithmeticError):
         return None
 
@@ -412,7 +412,7 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
     out: dict[str, Any] = {"proven": False, "tau_proven": None, "tau_proven_float": None}
     try:
         if mt is None:
-            om, _ = bound_method(spec, None if spec.sublinear else kappa)
+            om, _ = bound_method(spec, class_kappa(spec, kappa))
             mt = exact_method(spec, kappa, om, st_float.steps)
         st = build_structure(mt, st_float.steps, mterms, iterms)
     except (ValueError, ArithmeticError) as exc:
