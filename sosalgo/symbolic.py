@@ -12,7 +12,7 @@ from typing import Any
 
 import sympy as sp
 
-from sosalgo.certificates import get_family
+from sosalgo.certificates import get_family, spec_family
 from sosalgo.certificates.listing import latex_block
 from sosalgo.spec import BASE_SYMBOLS, Spec
 
@@ -33,6 +33,9 @@ def symbolic_lmi(spec: Spec, free: Sequence[str] | None = None, latex: bool = Fa
                  family: Any = None) -> str:
     """Human-readable (or LaTeX) listing of M's entries and the certificate's unknowns; a
     family with its own listing (``listing``) gives its text."""
+    selected = spec_family(spec)
+    if selected is not None:  # m: 0: the family's own text (no kappa to bind the method at)
+        return selected.listing(spec, {}, latex)
     fam = family or get_family(spec.certificate, spec.certificate_options)
     if spec.composite:
         return _composite(spec, free, latex, fam)

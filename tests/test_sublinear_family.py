@@ -95,3 +95,13 @@ def test_its_printed_columns_are_the_sublinear_table_columns():
     assert SUBLINEAR.printed_columns(["kappa", "verified"]) == SUBLINEAR_COLUMNS + ["verified"]
     assert SUBLINEAR.listing(spec_from_dict(GD), {}, latex=False).startswith(
         "gradient-convex: measure(x_k) <= c |x_0 - x*|^2 / k")
+
+
+def test_lmi_prints_the_potential_and_its_conditions():
+    """``sosalgo lmi`` of an m: 0 spec: the family's listing (there is no kappa to bind the
+    method at, so no matrix of a rate family)."""
+    for extra, lines in (([], ["c |x_0 - x*|^2 / k", "phi_{k+1} <= phi_k"]),
+                         (["--latex"], [r"\begin{aligned}", r"\phi_{k+1} \le \phi_k"])):
+        res = CliRunner().invoke(cli, ["lmi", str(SPECS / "gradient-convex.yaml"), *extra])
+        assert res.exit_code == 0, res.output
+        assert all(line in res.output for line in lines), res.output

@@ -509,14 +509,25 @@ class SublinearFamily(CertificateFamily):
                 "lyapunov": {"p": [float(v) for v in cert["p"]]}}
 
     def listing(self, spec: Spec, symbols: dict[str, Any], latex: bool) -> str:
-        """Its text for ``spec``: the bound, the potential and its conditions (the module's
-        docstring, eqs. (D0) to (I))."""
+        """Its text for ``sosalgo lmi``: the bound, the potential and what its conditions
+        say (the module's docstring, eqs. (D0) to (I), each coefficient of k a matrix
+        inequality with interpolation multipliers); a LaTeX snippet with ``latex``."""
+        if latex:
+            return "\n".join([
+                "\\begin{equation*}", "\\begin{aligned}",
+                "&\\mathrm{measure}(x_k) \\le c\\,\\|x_0 - x_\\star\\|^2 / k,"
+                "\\quad k \\ge 1\\\\",
+                "&\\phi_k = z_k^\\top (P + kQ + k^2 R)\\, z_k + (p + kq + k^2 r)^\\top "
+                "\\psi_k,\\quad z_k = (\\xi_k - \\xi_\\star, u_k)\\\\",
+                "&\\phi_{k+1} \\le \\phi_k,\\quad \\phi_k \\ge (k + b)\\,"
+                "\\mathrm{measure}(x_k),\\quad \\phi_0 \\le c\\,\\|x_0 - x_\\star\\|^2",
+                "\\end{aligned}", "\\end{equation*}"])
         return "\n".join([
             f"{spec.name}: measure(x_k) <= c |x_0 - x*|^2 / k for k >= 1 (m: 0)",
-            "phi_k = z_k' (P + k Q + k^2 R) z_k + (p + k q + k^2 r)' psi_k,"
-            "  z_k = (xi_k - xi*, u_k)",
-            "phi_{k+1} <= phi_k, phi_k >= (k + b) measure(x_k), phi_0 <= c |x_0 - x*|^2:"
-            " each coefficient of k a matrix inequality with interpolation multipliers"])
+            "phi_k = z_k' (P + k Q + k^2 R) z_k + (p + k q + k^2 r)' psi_k,",
+            "  z_k = (xi_k - xi*, u_k), psi_k the function values of the window",
+            "phi_{k+1} <= phi_k, phi_k >= (k + b) measure(x_k), phi_0 <= c |x_0 - x*|^2,",
+            "  each coefficient of k a matrix inequality with interpolation multipliers"])
 
     def printed_columns(self, columns: list[str]) -> list[str]:
         """The columns of its printed table: :data:`PRINTED_COLUMNS`, then ``verified``
