@@ -88,7 +88,7 @@ def test_tight_design_cli_contract(tmp_path):
 
 @pytest.mark.slow
 def test_fig4_runs_and_resumes(tmp_path):
-    args = ["fig4", "--kappa", "2", "--time-limit", "5", "--quiet", "--json",
+    args = ["fig4", "--kappa", "2", "--time-limit", "10", "--quiet", "--json",
             "--out", str(tmp_path)]
     first = CliRunner().invoke(cli, args)
     assert first.exit_code == 0, first.output
@@ -96,7 +96,8 @@ def test_fig4_runs_and_resumes(tmp_path):
     assert all(tmp_path.joinpath(p).exists() or __import__("os").path.exists(p)
                for p in doc["figures"])
     assert doc["designed (interpolation)"][0] <= doc["designed (Theorem 1)"][0] + 1e-9
-    # a short limit: never below the class floor (that would be a false certificate)
+    # a short limit (10 s: the interpolation design reaches the Theorem 1 one on a machine
+    # at load 14): never below the class floor (that would be a false certificate)
     assert doc["designed (interpolation)"][0] >= 1 - 1 / np.sqrt(2.0) - 1e-6
     again = CliRunner().invoke(cli, args)  # identical settings: resumes, same numbers
     assert again.exit_code == 0
