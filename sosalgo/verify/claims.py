@@ -79,6 +79,7 @@ def rho_proven(L: RowLedger, field: str) -> None:
 def exact_at(L: RowLedger, rho: Fraction) -> bool:
     """The row's certificate proven exactly at the rational ``rho`` (cached)."""
     from sosalgo.certificates import get_family
+    from sosalgo.verify.results import row_kappa
 
     cache = L.cache.setdefault("exact_at", {})
     if rho not in cache:
@@ -87,7 +88,7 @@ def exact_at(L: RowLedger, rho: Fraction) -> bool:
             fam = get_family(str(row.get("family") or L.spec.certificate))
             parts = row.get("certificate") if row.get("certificate") is not None else row
             cert = fam.parse_certificate(parts, L.spec.n)
-            ex = fam.exact_check(L.spec, float(row["kappa"]), rho, cert,
+            ex = fam.exact_check(L.spec, row_kappa(row, "row"), rho, cert,
                                  row.get("theta") or None)
             cache[rho] = ex.verified == "exact" and frac(ex.rho_proven) <= rho
         except Exception:  # noqa: BLE001 - a certificate that cannot be checked proves nothing
