@@ -20,9 +20,10 @@ from __future__ import annotations
 import math
 import re
 from fractions import Fraction
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import sympy as sp
+if TYPE_CHECKING:  # sympy is loaded by the exact proofs only, not by numeric work
+    import sympy as sp
 
 __all__ = ["Kappa", "exact_kappa", "kappa_fields", "kappa_from_fields", "kappa_written"]
 
@@ -55,6 +56,8 @@ def kappa_written(value: float, text: object = None) -> Kappa:
 def exact_kappa(kappa: Any) -> sp.Expr:
     """kappa's exact value as a sympy number: a :class:`Kappa` (or a string) as written, a
     float its binary value, an int or Fraction itself."""
+    import sympy as sp
+
     text = kappa.written if isinstance(kappa, Kappa) else kappa
     if isinstance(text, str):
         return _text_value(text)
@@ -71,6 +74,8 @@ def exact_kappa(kappa: Any) -> sp.Expr:
 
 
 def _text_value(text: str) -> sp.Expr:
+    import sympy as sp
+
     from sosalgo.kernel.expr.parse import to_sympy
     from sosalgo.kernel.expr.tree import parse_tree
 
@@ -107,6 +112,8 @@ def kappa_from_fields(kappa: float, exact: object, where: str) -> Kappa | float:
     """A result row's kappa: its float ``kappa`` with the ``kappa_exact`` it records (an
     old row without one: the float). ValueError (naming ``where``) when ``kappa_exact`` is
     not a constant or is not the number ``kappa`` is the float of."""
+    import sympy as sp
+
     from sosalgo.kernel.expr.tree import ExprError
 
     if exact is None:
