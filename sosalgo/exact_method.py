@@ -55,7 +55,8 @@ def exact_algorithm(
 ) -> ExactAlgorithm:
     """Exact templates A, B, C, E (eq. 10; and D where the spec has one) at rational kappa
     (as written: :func:`sosalgo.kernel.kappa.exact_kappa`; ``10/3`` is 10/3, a float its
-    binary value), m = spec.m, L = kappa m. ValueError for an irrational kappa."""
+    shortest decimal, 3.3 is 33/10), m = spec.m, L = kappa m. ValueError for an irrational
+    kappa."""
     kq = _rational_kappa(kappa)
     if not kq > 1:
         raise ValueError(f"condition number must be > 1, got {kappa}")

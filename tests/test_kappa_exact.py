@@ -46,8 +46,10 @@ def test_exact_algorithm_takes_kappa_as_written():
     assert ex.kappa == TENTHIRDS and ex.L == TENTHIRDS
     h = ex.params["h"]
     assert h == Fraction(2, 1) / (1 + TENTHIRDS)  # 2/(m+L) = 6/13 exactly
-    assert exact_algorithm(spec, 10 / 3).kappa == Fraction(10 / 3)  # a float: its binary value
-    assert exact_algorithm(spec, 10 / 3).kappa != TENTHIRDS
+    # a float: the shortest decimal that reads back as it; a Fraction: itself
+    assert exact_algorithm(spec, 10 / 3).kappa == Fraction("3.3333333333333335")
+    assert exact_algorithm(spec, 3.3).kappa == Fraction(33, 10)
+    assert exact_algorithm(spec, Fraction(3.3)).kappa == Fraction(3.3) != Fraction(33, 10)
     with pytest.raises(ValueError, match="irrational"):
         exact_algorithm(spec, spec_from_text(_gradient_text('["sqrt(2)*5"]')).kappa[0])
 

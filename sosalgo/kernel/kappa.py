@@ -8,11 +8,12 @@ The convention, the same for the spec's ``kappa`` list, ``--kappa`` and the Pyth
   is the number the text denotes: ``10/3`` is 10/3, the decimal ``3.3`` is 33/10,
   ``5*sqrt(2)`` is the irrational 5 sqrt(2) (enclosed in outward-rounded balls where it
   enters a proof);
-- a YAML number (``kappa: [3.3]``, which YAML reads as a float before sosalgo sees it) is
-  the shortest decimal that reads back as that float (``3.3`` is 33/10); so is each point
-  of a ``{from, to, points}`` range;
-- a Python float (or int, or Fraction) given to the API is its own exact value: a float is
-  its binary value.
+- a number that arrives as a float is the shortest decimal that reads back as that float
+  (``3.3`` is 33/10, ``10/3`` computed in Python is 3.3333333333333335): a YAML number
+  (``kappa: [3.3]``, which YAML reads as a float before sosalgo sees it), each point of a
+  ``{from, to, points}`` range, a Python float given to the API;
+- an int or a ``Fraction`` given to the API is itself (``Fraction(10, 3)`` is 10/3;
+  ``Fraction(x)`` of a float x is x's binary value).
 """
 
 from __future__ import annotations
@@ -55,7 +56,7 @@ def kappa_written(value: float, text: object = None) -> Kappa:
 
 def exact_kappa(kappa: Any) -> sp.Expr:
     """kappa's exact value as a sympy number: a :class:`Kappa` (or a string) as written, a
-    float its binary value, an int or Fraction itself."""
+    float the shortest decimal that reads back as it, an int or Fraction itself."""
     import sympy as sp
 
     text = kappa.written if isinstance(kappa, Kappa) else kappa
@@ -69,7 +70,7 @@ def exact_kappa(kappa: Any) -> sp.Expr:
         xf = float(kappa)
         if not math.isfinite(xf):
             raise ValueError(f"condition number must be finite, got {kappa}")
-        q = Fraction(xf)
+        q = Fraction(repr(xf))
     return sp.Rational(q.numerator, q.denominator)
 
 

@@ -84,7 +84,7 @@ def record_kappas(rows: list[dict[str, Any]], kappas: Sequence[float]
 def kappa_value(kappa: float | str) -> float:
     """One kappa given to a run: a :class:`~sosalgo.kernel.kappa.Kappa` (from the spec or
     --kappa) kept with its exact value, a string read as written (``"10/3"``), a Python
-    number as its float (whose exact value is its binary value)."""
+    number as its float (whose exact value is its shortest decimal)."""
     from sosalgo.kernel.kappa import Kappa
 
     if isinstance(kappa, Kappa):

@@ -186,9 +186,9 @@ def _theta(row: Mapping[str, Any], where: str) -> dict[str, float] | None:
 def row_kappa(row: Mapping[str, Any], where: str) -> float:
     """A row's kappa: its float ``kappa`` with the exact value it records in
     ``kappa_exact`` (:func:`sosalgo.kernel.kappa.kappa_from_fields`), which the proofs are
-    about; a row without ``kappa_exact`` (written before rows recorded it): the float, its
-    binary value, as such rows were proven. ResultError when ``kappa_exact`` is not the
-    float's number."""
+    about; a row without ``kappa_exact`` (written before rows recorded it): the float, read
+    as its shortest decimal (:func:`sosalgo.kernel.kappa.exact_kappa`). ResultError when
+    ``kappa_exact`` is not the float's number."""
     from sosalgo.kernel.kappa import kappa_from_fields
 
     kappa = _number(row.get("kappa"), f"{where}.kappa", allow_none=False)
