@@ -110,6 +110,7 @@ def pep_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = Non
     ``set``."""
     from sosalgo import inputs
     from sosalgo.batch.executor import Progress, check_scheduler, run_batch
+    from sosalgo.batch.sweeps import kappa_settings
     from sosalgo.pep.core import parse_steps
     from sosalgo.runs import kappa_value, set_field, spec_with_text
     from sosalgo.schema import PEP_COLUMNS, pep_csv
@@ -135,7 +136,8 @@ def pep_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = Non
                   scheduler, isolate=isolate)
         return _pep_document(spec, measure, initial, _docs(got), [], est) | recorded
     path = pep_csv(out, spec.name)
-    settings = {"job": "pep", "spec": text, **options}
+    settings = {"job": "pep", "spec": text, **options} | kappa_settings(
+        [k for k in ks if k is not None])  # 10/3 is not resumed from 3.3333333333333335
     store = ResumableCSV(path, PEP_COLUMNS, ["kappa", "steps"], settings, restart=restart,
                          companions=_companions(spec, ks, ns, out))
     with store:  # the lock is held until the last witness and figure are written
