@@ -40,6 +40,14 @@ def test_spec_kappas_are_their_written_values():
     assert [float(k) for k in spec.kappa][:2] == [10 / 3, 1000.0]  # the floats unchanged
 
 
+def test_range_points_are_decimals_of_their_floats():
+    spec = spec_from_text(_gradient_text("{from: 10/3, to: 30, points: 3, scale: linear}"))
+    mid = (10 / 3 + 30) / 2  # numpy's linspace midpoint, the float
+    assert [float(k) for k in spec.kappa] == pytest.approx([10 / 3, mid, 30], rel=1e-15)
+    assert exact_kappa(spec.kappa[0]) == TENTHIRDS and exact_kappa(spec.kappa[2]) == 30
+    assert exact_kappa(spec.kappa[1]) == Fraction(repr(float(spec.kappa[1])))
+
+
 def test_exact_algorithm_takes_kappa_as_written():
     spec = spec_from_text(_gradient_text("[10/3]"))
     ex = exact_algorithm(spec, spec.kappa[0])
@@ -91,6 +99,10 @@ def test_analyze_cli_kappa_ten_thirds_and_verify(tmp_path):
     path.write_text(json.dumps(doc))
     ok = _run("verify", str(path), "--out", str(tmp_path / "v"))
     assert ok.exit_code == 0, ok.output
+    old = json.loads(json.dumps(doc))
+    del old["rows"][0]["kappa_exact"]  # a document written before rows recorded it
+    path.write_text(json.dumps(old))
+    assert _run("verify", str(path), "--out", str(tmp_path / "v")).exit_code == 0
     doc["rows"][0]["kappa_exact"] = "3"  # not the number kappa is the float of
     path.write_text(json.dumps(doc))
     bad = _run("verify", str(path), "--out", str(tmp_path / "v"))
