@@ -146,12 +146,10 @@ def kappa_settings(kappas: Sequence[float]) -> dict[str, Any]:
     Nothing for plain decimals, so their settings files stay as they are."""
     from fractions import Fraction
 
-    from sosalgo.kernel.kappa import exact_kappa
+    from sosalgo.kernel.kappa import exact_kappa, plain_kappa
 
-    def plain(k: float) -> bool:
-        val = exact_kappa(k)
-        return bool(val.is_Rational) and Fraction(int(val.p), int(val.q)) == Fraction(
-            repr(float(k)))
+    def plain(k: float) -> bool:  # no sympy for plain numbers
+        return plain_kappa(k) == Fraction(repr(float(k)))
 
     odd = [str(exact_kappa(k)) for k in kappas if isinstance(k, Kappa) and not plain(k)]
     return {"kappa_exact": odd} if odd else {}

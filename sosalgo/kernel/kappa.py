@@ -26,7 +26,8 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:  # sympy is loaded by the exact proofs only, not by numeric work
     import sympy as sp
 
-__all__ = ["Kappa", "exact_kappa", "kappa_fields", "kappa_from_fields", "kappa_written"]
+__all__ = ["Kappa", "exact_kappa", "kappa_fields", "kappa_from_fields", "kappa_written",
+           "plain_kappa"]
 
 _PLAIN_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
 
@@ -59,34 +60,37 @@ def exact_kappa(kappa: Any) -> sp.Expr:
     float the shortest decimal that reads back as it, an int or Fraction itself."""
     import sympy as sp
 
+    q = plain_kappa(kappa)
+    if q is not None:
+        return sp.Rational(q.numerator, q.denominator)
+    return _expression_value(kappa.written if isinstance(kappa, Kappa) else kappa)
+
+
+def plain_kappa(kappa: Any) -> Fraction | None:
+    """kappa's exact value when it is a plain number (a float, int, Fraction, or a decimal
+    written as text), without sympy; None for an expression (``10/3``, ``sqrt(2)*5``)."""
     text = kappa.written if isinstance(kappa, Kappa) else kappa
     if isinstance(text, str):
-        return _text_value(text)
+        return Fraction(text.strip()) if _PLAIN_NUMBER.fullmatch(text.strip()) else None
     if isinstance(kappa, bool):
         raise ValueError(f"condition number must be a number, got {kappa!r}")
     if isinstance(kappa, int | Fraction):
-        q = Fraction(kappa)
-    else:
-        xf = float(kappa)
-        if not math.isfinite(xf):
-            raise ValueError(f"condition number must be finite, got {kappa}")
-        q = Fraction(repr(xf))
-    return sp.Rational(q.numerator, q.denominator)
+        return Fraction(kappa)
+    xf = float(kappa)
+    if not math.isfinite(xf):
+        raise ValueError(f"condition number must be finite, got {kappa}")
+    return Fraction(repr(xf))
 
 
-def _text_value(text: str) -> sp.Expr:
+def _expression_value(text: str) -> sp.Expr:
     import sympy as sp
 
     from sosalgo.kernel.expr.parse import to_sympy
     from sosalgo.kernel.expr.tree import parse_tree
 
-    t = text.strip()
-    if _PLAIN_NUMBER.fullmatch(t):
-        q = Fraction(t)
-        return sp.Rational(q.numerator, q.denominator)
-    val = sp.sympify(to_sympy(parse_tree(t, ())))
+    val = sp.sympify(to_sympy(parse_tree(text.strip(), ())))
     if val.free_symbols or not val.is_real:
-        raise ValueError(f"condition number {t!r} is not a real constant")
+        raise ValueError(f"condition number {text.strip()!r} is not a real constant")
     return val
 
 
@@ -94,10 +98,13 @@ def kappa_fields(kappa: Any, digits: int = 30) -> dict[str, Any]:
     """What a result document records about kappa besides its float: ``kappa_exact``, the
     exact value proven about (``10/3``, ``33/10``, ``5*sqrt(2)``), and for an irrational
     kappa ``kappa_enclosure``, an outward-rounded rational ball [lo, hi] holding it."""
-    from sosalgo.kernel.exact import enclose, fraction_str
-
     if kappa is None:
         return {}
+    q = plain_kappa(kappa)
+    if q is not None:  # no sympy for numeric runs of plain numbers
+        return {"kappa_exact": str(q)}
+    from sosalgo.kernel.exact import enclose, fraction_str
+
     val = exact_kappa(kappa)
     out: dict[str, Any] = {"kappa_exact": str(val)}
     if not val.is_Rational:
