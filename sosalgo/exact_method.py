@@ -53,9 +53,11 @@ def exact_algorithm(
     spec: Spec, kappa: float | Fraction, theta: Mapping[str, float] | None = None,
     digits: int = DEFAULT_DIGITS,
 ) -> ExactAlgorithm:
-    """Exact templates A, B, C, E (eq. 10; and D where the spec has one) at rational kappa,
-    m = spec.m, L = kappa m."""
-    kq = rational(kappa)
+    """Exact templates A, B, C, E (eq. 10; and D where the spec has one) at rational kappa
+    (as written: :func:`sosalgo.kernel.kappa.exact_kappa`; ``10/3`` is 10/3, a float its
+    shortest decimal, 3.3 is 33/10), m = spec.m, L = kappa m. ValueError for an irrational
+    kappa."""
+    kq = _rational_kappa(kappa)
     if not kq > 1:
         raise ValueError(f"condition number must be > 1, got {kappa}")
     mq = rational(spec.m)
@@ -95,6 +97,18 @@ def exact_algorithm(
         balls[k] = [[enclose(mat[i, j], digits) for j in range(mat.shape[1])]
                     for i in range(mat.shape[0])]
     return ExactAlgorithm(spec.name, kq, mq, Lq, params, mats, balls, theta_q)
+
+
+def _rational_kappa(kappa: float | Fraction) -> Fraction:
+    """kappa's exact value as written, a rational (ValueError when it is irrational: these
+    proofs take rational m and L)."""
+    from sosalgo.kernel.kappa import exact_kappa
+
+    val = exact_kappa(kappa)
+    if not val.is_Rational:
+        raise ValueError(f"kappa {val} is irrational: the exact check takes a rational "
+                         "kappa (the PEP proofs enclose it in a ball)")
+    return Fraction(int(val.p), int(val.q))
 
 
 def exact_fixed_point(ex: ExactAlgorithm, u_float: np.ndarray | None) -> list[sp.Expr] | None:

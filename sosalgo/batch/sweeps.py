@@ -16,6 +16,7 @@ from sosalgo.analysis import AnalysisResult, analyze_spec, spec_family
 from sosalgo.batch.executor import Progress, note, run_batch
 from sosalgo.certificates import CertificateFamily, describe_family, family_from_description
 from sosalgo.certificates.sublinear import SUBLINEAR, SublinearFamily
+from sosalgo.kernel.kappa import Kappa
 from sosalgo.kernel.phases import begin_task, show_phase
 from sosalgo.kernel.solvers import DEFAULT_SOLVERS
 from sosalgo.model import ModelError, parameter_values
@@ -139,6 +140,21 @@ def _worker_setup(spec_text: str, source: str, options: dict[str, Any]):
     return spec, family_from_options(options.get("certificate")) or spec_family(spec)
 
 
+def kappa_settings(kappas: Sequence[float]) -> dict[str, Any]:
+    """The settings entry of kappas whose exact value is not their float's shortest
+    decimal (``10/3``, ``5*sqrt(2)``): a row proven about another value is not resumed.
+    Nothing for plain decimals, so their settings files stay as they are."""
+    from fractions import Fraction
+
+    from sosalgo.kernel.kappa import exact_kappa, plain_kappa
+
+    def plain(k: float) -> bool:  # no sympy for plain numbers
+        return plain_kappa(k) == Fraction(repr(float(k)))
+
+    odd = [str(exact_kappa(k)) for k in kappas if isinstance(k, Kappa) and not plain(k)]
+    return {"kappa_exact": odd} if odd else {}
+
+
 def _run_chunk(spec_text: str, source: str, options: dict[str, Any],
                chunk: list[dict[str, Any]], one: Any) -> list[dict[str, Any]]:
     """Worker loop shared by the jobs: ``one(spec, fam, kappa, task)`` makes a row; a
@@ -146,7 +162,7 @@ def _run_chunk(spec_text: str, source: str, options: dict[str, Any],
     spec, fam = _worker_setup(spec_text, source, options)
     rows = []
     for task in chunk:
-        kappa = float(task["kappa"])
+        kappa = task["kappa"] if isinstance(task["kappa"], Kappa) else float(task["kappa"])
         begin_task(f"kappa {kappa:g}")
         try:
             row = one(spec, fam, kappa, task)
@@ -231,7 +247,7 @@ def run_analysis_sweep(
         options["solvers"] = tuple(solvers)
     settings = {"job": "analyze", "spec": spec_text, "tol": tol,
                 "solvers": list(solvers) if solvers else None,
-                "kappa": [float(k) for k in kappas]}
+                "kappa": [float(k) for k in kappas]} | kappa_settings(kappas)
     if _family_settings(fam) is not None:
         settings["certificate"] = _family_settings(fam)
     if noise:
@@ -241,7 +257,7 @@ def run_analysis_sweep(
         settings["witnesses"] = options["witnesses"]
     store = ResumableCSV(out_csv, analysis_columns(spec, fam, noise), ["kappa"], settings,
                          restart=restart, companions=companions)
-    tasks = [{"kappa": float(k)} for k in kappas]
+    tasks = [{"kappa": k if isinstance(k, Kappa) else float(k)} for k in kappas]
     seed_spec(spec, spec_text)
     run_store(store, tasks, f"analyze {spec.name}", progress, analysis_chunk, spec_text,
                spec.source, options, None, workers, scheduler)
@@ -431,12 +447,12 @@ def run_design_sweep(
     results of the rows computed in this run (keyed by kappa)."""
     settings = {"job": "design", "spec": spec_text,
                 **{k: v for k, v in options.items() if k not in RUNTIME_OPTIONS},
-                "kappa": [float(k) for k in kappas]}
+                "kappa": [float(k) for k in kappas]} | kappa_settings(kappas)
     fam = family_from_options(options.get("certificate")) or spec_family(spec)
     store = ResumableCSV(out_csv, design_columns(spec, options["free"], fam,
                                                  "objective" in options), ["kappa"],
                          settings, restart=restart, companions=companions)
-    tasks = [{"kappa": float(k)} for k in kappas]
+    tasks = [{"kappa": k if isinstance(k, Kappa) else float(k)} for k in kappas]
     fresh: dict[float, dict[str, Any]] = {}
 
     def on_row(row: dict[str, Any]) -> None:

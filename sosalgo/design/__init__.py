@@ -566,8 +566,11 @@ def bound_model(spec: Spec, kappa: float, free: list[str],
     symbolic expansion passes it."""
     from sosalgo.design.modes import ModeTest
     from sosalgo.design.polymodel import exact_method, numeric_template, poly_lmi
+    from sosalgo.kernel.kappa import exact_kappa
 
     if spec.composite:  # the exact form is the seed's (A, B, C, E); no family has one here
+        return None
+    if not exact_kappa(kappa).is_Rational:  # the exact data are rational
         return None
     method = exact_method(spec, kappa, free)
     poly = poly_lmi(method, family, numeric_template(spec, kappa, method, family), deadline)

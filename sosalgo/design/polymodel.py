@@ -131,13 +131,24 @@ def _outward(lo: sp.Expr, hi: sp.Expr) -> tuple[Fraction, Fraction]:
     return Fraction(lo_f), Fraction(hi_f)
 
 
+def _rational_kappa(kappa: float) -> Fraction:
+    """kappa as written (:func:`sosalgo.kernel.kappa.exact_kappa`: ``10/3`` is 10/3, a
+    float its shortest decimal); ValueError when it is irrational."""
+    from sosalgo.kernel.kappa import exact_kappa
+
+    val = exact_kappa(kappa)
+    if not val.is_Rational:
+        raise ValueError(f"kappa {val} is irrational: the lower bound takes a rational kappa")
+    return Fraction(int(val.p), int(val.q))
+
+
 def exact_method(spec: Spec, kappa: float, free: Sequence[str]) -> ExactMethod:
     """The spec at ``kappa`` with the free parameters as scaled symbols (see class)."""
     from sosalgo.spec.types import BASE_SYMBOLS, MATRIX_NAMES, value_order
 
     check_polynomial(spec, free)
     free = list(free)
-    kq = Fraction(float(kappa))
+    kq = _rational_kappa(kappa)
     mq = Fraction(float(spec.m))
     base = {BASE_SYMBOLS["m"]: _rat(mq), BASE_SYMBOLS["L"]: _rat(kq * mq),
             BASE_SYMBOLS["kappa"]: _rat(kq)}

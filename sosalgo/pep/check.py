@@ -397,13 +397,14 @@ def check_witness(doc: dict[str, Any], spec: Spec, mt: Method | ArbView | None =
     here when not given); never raises on a bad witness: ``verified`` False with the
     reason."""
     from sosalgo.pep.bind import bound_method, class_kappa
+    from sosalgo.pep.exact import document_kappa
 
     t0 = time.perf_counter()
     out: dict[str, Any] = {"verified": False, "check_kind": "exact (rational and ball "
                            "arithmetic)", "tau_lower": None, "tau_lower_float": None}
     try:
         if mt is None:
-            kappa = doc.get("kappa")
+            kappa = document_kappa(doc.get("kappa"), doc.get("kappa_exact"), "witness")
             om, _ = bound_method(spec, class_kappa(spec, kappa))
             mt = exact_method(spec, kappa, om, int(doc["steps"]))
         av = mt if isinstance(mt, ArbView) else arb_view(mt)

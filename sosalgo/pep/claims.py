@@ -172,8 +172,10 @@ def _ctx(row: Mapping[str, Any], spec: Spec, where: str) -> dict[str, Any]:
     """kappa, steps, measure, initial of a row or witness, checked against the spec."""
     from sosalgo.pep.bind import has_kappa
     from sosalgo.pep.core import MAX_STEPS
+    from sosalgo.pep.exact import document_kappa
 
-    kappa = _num(row.get("kappa"), f"{where}.kappa")
+    kappa = document_kappa(_num(row.get("kappa"), f"{where}.kappa"), row.get("kappa_exact"),
+                           where)
     none = not has_kappa(spec)  # m: 0: the class has no kappa
     if none != (kappa is None):
         raise InputError(f"{where}.kappa: " + ("an m: 0 spec has no kappa" if none

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from sosalgo.errors import InputError
+from sosalgo.kernel.kappa import Kappa, kappa_fields
 from sosalgo.kernel.phases import show_phase
 from sosalgo.pep.bind import bound_method, class_kappa, initial_gradient
 from sosalgo.pep.sdp import PEPData, SDPAnswer, pep_data, solve_pep, value_residual
@@ -69,7 +70,8 @@ class PEPResult:
         return {"spec": self.spec, "kappa": self.kappa, "steps": self.steps,
                 "tau": self.tau, "measure": self.measure, "initial": self.initial,
                 "status": self.status, "gap": self.gap, "certificate": self.certificate,
-                "witness": self.witness, "seconds": self.seconds} | self.extra
+                "witness": self.witness, "seconds": self.seconds} | self.extra \
+            | kappa_fields(self.kappa)  # the exact kappa the proofs are about
 
 
 def _load(spec: Spec | str | Path) -> Spec:
@@ -159,7 +161,9 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
     show_phase("solving the PEP", f"{len(st.pairs)} interpolation pairs")
     ans = solve_pep(data)
     k = class_kappa(spec, kappa)
-    res = PEPResult(spec.name, None if k is None else float(k),
+    kf = None if k is None else (  # a Kappa keeps its exact value
+        k if isinstance(k, Kappa) else float(k))  # type: ignore[arg-type]
+    res = PEPResult(spec.name, kf,
                     steps, *names, ans.status, ans.primal if ans.status == "solved" else None)
     if ans.status == "unbounded":
         res.tau = math.inf

@@ -2,9 +2,10 @@
 
 The method is rebuilt on exact numbers about the class as written
 (:func:`exact_base`): m (an m: 0 spec's L) from the spec's own expression (``1/10`` is
-1/10), kappa the decimal it was given as, L = kappa m; every parameter and matrix entry
-from the spec's expressions with sympy, irrational entries enclosed in rational balls
-(:func:`sosalgo.kernel.exact.enclose`), the classes' tilted inequalities from exact formulas
+1/10), kappa as written (``10/3`` is 10/3, ``3.3`` is 33/10), L = kappa m; every
+parameter and matrix entry from the spec's expressions with sympy, irrational entries
+enclosed in rational balls (:func:`sosalgo.kernel.exact.enclose`), the classes' tilted
+inequalities from exact formulas
 (:func:`sosalgo.certificates.exact_composite.exact_class_inequalities`), the fixed points
 (u and the optimal-subgradient fixed points) solved exactly with sympy, and the PEP
 structure (:func:`sosalgo.pep.structure.build_structure`) built again on those numbers,
@@ -54,10 +55,22 @@ TAU_STEPS = (1e-12, 1e-9, 1e-7)
 PREC = 320  # bits of the ball arithmetic of the proof
 
 
-def written_kappa(kappa: float) -> Fraction:
-    """kappa as written: the decimal the float prints as (``10.1`` is 101/10, ``10`` is 10;
-    the shortest decimal that reads back as the same float)."""
-    return Fraction(repr(float(kappa)))
+def document_kappa(kappa: float | None, exact: object, where: str) -> float | None:
+    """The kappa a PEP document or witness is about: its float ``kappa`` with its
+    ``kappa_exact`` (:func:`sosalgo.kernel.kappa.kappa_from_fields`; InputError when that
+    is not the float's number); a document without ``kappa_exact`` is about the shortest
+    decimal of its float, as PEP proofs were before they recorded it."""
+    from sosalgo.errors import InputError
+    from sosalgo.kernel.kappa import kappa_from_fields, kappa_written
+
+    if kappa is None:
+        return None
+    if exact is None:
+        return kappa_written(float(kappa))
+    try:
+        return kappa_from_fields(float(kappa), exact, where)
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
 
 
 def _written(expr: Any, value: float) -> sp.Expr:
@@ -67,21 +80,22 @@ def _written(expr: Any, value: float) -> sp.Expr:
 
     if expr is not None:
         return sp.sympify(to_sympy(expr))
-    q = written_kappa(value)
+    q = Fraction(repr(float(value)))
     return sp.Rational(q.numerator, q.denominator)
 
 
 def exact_base(spec: Spec, kappa: float | None) -> dict[sp.Symbol, sp.Expr]:
     """m, L (and kappa) of the class as written, exactly: the spec's ``m`` (``L`` for an
-    m: 0 spec) from its expression, kappa the decimal it was given as, L = kappa m."""
+    m: 0 spec) from its expression, kappa as written
+    (:func:`sosalgo.kernel.kappa.exact_kappa`), L = kappa m."""
+    from sosalgo.kernel.kappa import exact_kappa
     from sosalgo.spec.types import BASE_SYMBOLS
 
     if not has_kappa(spec):  # m: 0: the class has no kappa
         vals = {"m": sp.Integer(0), "L": _written(spec.L_expr, float(spec.L or 0.0))}
     else:
-        kq = written_kappa(float(kappa))  # type: ignore[arg-type]
+        kq_s = exact_kappa(kappa)  # as written (sosalgo.kernel.kappa)
         mq = _written(spec.m_expr, spec.m)
-        kq_s = sp.Rational(kq.numerator, kq.denominator)
         vals = {"m": mq, "L": kq_s * mq, "kappa": kq_s}
     return {BASE_SYMBOLS[k]: v for k, v in vals.items()}
 
@@ -90,9 +104,12 @@ def class_description(spec: Spec, kappa: float | None) -> dict[str, Any]:
     """Which class a proof is about, as exact strings: ``m``, ``L`` (``kappa``) and each
     function's class and parameters (sympy's exact form: ``1/10``, ``sqrt(2)/10``)."""
     from sosalgo.kernel.expr.parse import to_sympy
+    from sosalgo.kernel.kappa import kappa_fields
 
     base = exact_base(spec, kappa)
     out: dict[str, Any] = {str(k): str(v) for k, v in base.items()}
+    if "kappa_enclosure" in (fields := kappa_fields(None if spec.sublinear else kappa)):
+        out["kappa_enclosure"] = fields["kappa_enclosure"]  # an irrational kappa's ball
     out["functions"] = {name: {"class": decl.cls, "params": {
         k: str(to_sympy(e).xreplace(base)) for k, e in decl.params.items()}}
         for name, decl in spec.functions.items()}

@@ -255,12 +255,14 @@ def _finish(doc: dict[str, Any], spec: Spec, kappa: float | None,
     """The chosen witness: the class it is about (exact strings), the proven upper bound
     of the same PEP (``upper``: its exact multipliers, re-proven by ``sosalgo verify``),
     every point and iterate exactly (:func:`add_exact_points`), the 1-d interpolant."""
+    from sosalgo.kernel.kappa import kappa_fields
     from sosalgo.pep.exact import class_description
 
     try:
         doc["class"] = class_description(spec, kappa)
     except (ValueError, ArithmeticError):  # no exact class: the check fails and says why
         pass
+    doc |= kappa_fields(kappa)  # the exact kappa the witness is about
     proof = ((getattr(res, "certificate", None) or {}).get("proof")) or {}
     if proof.get("proven"):
         doc["upper"] = {k: proof[k] for k in ("tau_proven", "multipliers_exact", "scale")}

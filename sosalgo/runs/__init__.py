@@ -63,9 +63,37 @@ def set_field(overrides: Mapping[str, str] | None) -> dict[str, Any]:
 def _kappa_list(spec: Spec, kappa: Kappas) -> list[float]:
     if kappa is None:
         return list(spec.kappa)
-    if isinstance(kappa, int | float) and not isinstance(kappa, bool):
-        return [float(kappa)]
-    return [float(k) for k in kappa]  # type: ignore[union-attr]
+    if isinstance(kappa, int | float | str) and not isinstance(kappa, bool):
+        return [kappa_value(kappa)]
+    return [kappa_value(k) for k in kappa]  # type: ignore[union-attr]
+
+
+def record_kappas(rows: list[dict[str, Any]], kappas: Sequence[float]
+                  ) -> list[dict[str, Any]]:
+    """Each row with ``kappa_exact`` (and an irrational kappa's ``kappa_enclosure``): the
+    exact value of the kappa it was computed at, which ``sosalgo verify`` proves about."""
+    from sosalgo.kernel.kappa import kappa_fields
+
+    given = {float(k): k for k in kappas}
+    for r in rows:
+        if isinstance(r.get("kappa"), int | float):
+            r.update(kappa_fields(given.get(float(r["kappa"]), r["kappa"])))
+    return rows
+
+
+def kappa_value(kappa: float | str) -> float:
+    """One kappa given to a run: a :class:`~sosalgo.kernel.kappa.Kappa` (from the spec or
+    --kappa) kept with its exact value, a string read as written (``"10/3"``), a Python
+    number as its float (whose exact value is its shortest decimal)."""
+    from sosalgo.kernel.kappa import Kappa
+
+    if isinstance(kappa, Kappa):
+        return kappa
+    if isinstance(kappa, str):
+        from sosalgo.spec import parse_kappa
+
+        return parse_kappa(kappa, "kappa", "value")[0]
+    return float(kappa)
 
 
 def _budget(max_memory: int | str | None, workers: int | None) -> int:
@@ -141,7 +169,8 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
                                       companions=_figures(stem)
                                       if len(fams) == 1 else (), noise=noise, brackets=brackets,
                                       cycle_seconds=cycle_seconds)
-            jrows = [csv_row_to_json(spec, r, None if plain else fam) for r in rows]
+            jrows = record_kappas([csv_row_to_json(spec, r, None if plain else fam)
+                                   for r in rows], kappas)
             if plain and plot and len(jrows) >= 2:  # one point is not a curve
                 figs = rep.analysis_figure(spec, jrows, stem)
         runs.append((fam, path, jrows))
@@ -264,8 +293,9 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
         rows, fresh = run_design_sweep(spec, text, kappas, csv_path, opts, workers=workers,
                                        scheduler=scheduler, restart=restart,
                                        progress=progress, companions=_figures(stem))
-        docs = [fresh.get(float(r["kappa"])) or design_csv_to_json(spec, opts["free"], r, fam)
-                for r in rows]
+        docs = record_kappas([fresh.get(float(r["kappa"]))
+                              or design_csv_to_json(spec, opts["free"], r, fam) for r in rows],
+                             kappas)
         for d in docs:
             _design_certificates(csv_path, d)
         for d in docs:  # each a whole design document (``--json`` prints it alone)

@@ -51,12 +51,13 @@ def pep_chunk(spec_text: str, source: str, options: dict[str, Any],
     """Worker: the PEP at each task's (kappa, steps)."""
     from sosalgo.pep.core import pep
     from sosalgo.pep.exact import class_description
+    from sosalgo.runs import kappa_value
     from sosalgo.spec import spec_from_text
 
     spec = spec_from_text(spec_text, source)
     rows = []
     for task in chunk:
-        kappa = None if task["kappa"] in ("", None) else float(task["kappa"])
+        kappa = None if task["kappa"] in ("", None) else kappa_value(task["kappa"])
         begin_task(f"N {task['steps']}" + ("" if kappa is None else f", kappa {kappa:g}"))
         res = pep(spec, kappa, int(task["steps"]), options["measure"], options["initial"],
                   options["exact"], options["witness"])
@@ -109,16 +110,17 @@ def pep_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = Non
     ``set``."""
     from sosalgo import inputs
     from sosalgo.batch.executor import Progress, check_scheduler, run_batch
+    from sosalgo.batch.sweeps import kappa_settings
     from sosalgo.pep.core import parse_steps
-    from sosalgo.runs import set_field, spec_with_text
+    from sosalgo.runs import kappa_value, set_field, spec_with_text
     from sosalgo.schema import PEP_COLUMNS, pep_csv
     from sosalgo.store import ResumableCSV
 
     spec, text = spec_with_text(spec, spec_text, overrides)
     recorded = set_field(overrides)
     ks: list[float | None] = ([None] if kappa is None else
-                              [float(kappa)] if isinstance(kappa, int | float)
-                              else [float(k) for k in kappa])
+                              [kappa_value(kappa)] if isinstance(kappa, int | float | str)
+                              else [kappa_value(k) for k in kappa])
     ns = parse_steps(steps)
     from sosalgo.kernel.budget import set_max_memory
 
@@ -134,7 +136,8 @@ def pep_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = Non
                   scheduler, isolate=isolate)
         return _pep_document(spec, measure, initial, _docs(got), [], est) | recorded
     path = pep_csv(out, spec.name)
-    settings = {"job": "pep", "spec": text, **options}
+    settings = {"job": "pep", "spec": text, **options} | kappa_settings(
+        [k for k in ks if k is not None])  # 10/3 is not resumed from 3.3333333333333335
     store = ResumableCSV(path, PEP_COLUMNS, ["kappa", "steps"], settings, restart=restart,
                          companions=_companions(spec, ks, ns, out))
     with store:  # the lock is held until the last witness and figure are written

@@ -583,7 +583,11 @@ _PLAIN_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
 
 
 def parse_kappa(raw: object, source: str, where: str) -> tuple[float, ...]:
-    """A kappa list ``[2, 10]`` or a range ``{from, to, points, scale: log|linear}``."""
+    """A kappa list ``[2, 10]`` or a range ``{from, to, points, scale: log|linear}``; each
+    a :class:`~sosalgo.kernel.kappa.Kappa`, its float with its exact value as written
+    (``10/3``; a YAML number or a range point: the shortest decimal of its float)."""
+    from sosalgo.kernel.kappa import kappa_written
+
     def fail(msg: str, sub: str = "") -> SpecError:
         return SpecError(source, where + sub, msg)
 
@@ -601,7 +605,7 @@ def parse_kappa(raw: object, source: str, where: str) -> tuple[float, ...]:
             raise fail("must be finite", sub)
         if val <= 1:
             raise fail(f"condition number must be > 1, got {val:g}", sub)
-        return val
+        return kappa_written(val, v)  # its exact value as written (sosalgo.kernel.kappa)
 
     if isinstance(raw, bool):
         raise fail("must be a number, a list or {from, to, points, scale}")
@@ -634,7 +638,7 @@ def parse_kappa(raw: object, source: str, where: str) -> tuple[float, ...]:
         if pts == 1:
             return (lo,)
         vals = np.geomspace(lo, hi, pts) if scale == "log" else np.linspace(lo, hi, pts)
-        return tuple(float(v) for v in vals)
+        return (lo, *(kappa_written(float(v)) for v in vals[1:-1]), hi)
     raise fail("must be a number, a list or {from, to, points, scale}")
 
 

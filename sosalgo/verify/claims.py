@@ -79,6 +79,7 @@ def rho_proven(L: RowLedger, field: str) -> None:
 def exact_at(L: RowLedger, rho: Fraction) -> bool:
     """The row's certificate proven exactly at the rational ``rho`` (cached)."""
     from sosalgo.certificates import get_family
+    from sosalgo.verify.results import row_kappa
 
     cache = L.cache.setdefault("exact_at", {})
     if rho not in cache:
@@ -87,7 +88,7 @@ def exact_at(L: RowLedger, rho: Fraction) -> bool:
             fam = get_family(str(row.get("family") or L.spec.certificate))
             parts = row.get("certificate") if row.get("certificate") is not None else row
             cert = fam.parse_certificate(parts, L.spec.n)
-            ex = fam.exact_check(L.spec, float(row["kappa"]), rho, cert,
+            ex = fam.exact_check(L.spec, row_kappa(row, "row"), rho, cert,
                                  row.get("theta") or None)
             cache[rho] = ex.verified == "exact" and frac(ex.rho_proven) <= rho
         except Exception:  # noqa: BLE001 - a certificate that cannot be checked proves nothing
@@ -344,6 +345,33 @@ def witness_part(L: RowLedger, field: str) -> None:
     L.add(field, CONTEXT, "the witness of rho_lower (checked there)")
 
 
+def kappa_exact(L: RowLedger, field: str) -> None:
+    """``kappa_exact``: the exact kappa the row's proofs are about (checked on reading to
+    be the number ``kappa`` is the float of)."""
+    L.add(field, CONTEXT, "the exact kappa the claims are proven about (kappa is its float)")
+
+
+def kappa_enclosure(L: RowLedger, field: str) -> None:
+    """``kappa_enclosure`` [lo, hi]: an irrational kappa's ball, holding ``kappa_exact``."""
+    from sosalgo.kernel.exact import enclose
+    from sosalgo.kernel.kappa import exact_kappa
+
+    ends = L.row.get(field)
+    lo, hi = (frac(ends[0]), frac(ends[1])) if isinstance(ends, list) and len(ends) == 2 \
+        else (None, None)
+    try:
+        val = exact_kappa(str(L.row.get("kappa_exact")))
+        ball = enclose(val, 40)
+    except (ValueError, ArithmeticError):
+        ball = None
+    if lo is None or hi is None or ball is None:
+        L.add(field, UNSUPPORTED, "expected [lo, hi] around the row's kappa_exact")
+    elif lo <= ball.lo and ball.hi <= hi:
+        L.add(field, BACKED, "holds kappa_exact (ball arithmetic)")
+    else:
+        L.add(field, CONTRADICTED, "does not hold kappa_exact")
+
+
 def certificate_of(what: str) -> Any:
     def handler(L: RowLedger, field: str) -> None:
         L.add(field, CONTEXT, f"the certificate of {what} (checked there)")
@@ -366,6 +394,7 @@ HANDLERS: dict[str, Any] = {
     "rho_lower_kind": witness_part, "rho_lower_witness": witness_part, "cycle": cycle,
     "bound_certificate": certificate_of("lower_bound"),
     "values_certificate": certificate_of("rho_at_values"),
+    "kappa_exact": kappa_exact, "kappa_enclosure": kappa_enclosure,
 }
 SUBLINEAR: dict[str, Any] = {
     "constant": constant, "certified": constant, "certificate": constant,

@@ -36,6 +36,7 @@ def _reprove(L: RowLedger) -> Any:
     from sosalgo.certificates import get_family
     from sosalgo.design import bound_model
     from sosalgo.design.boundcheck import check_bound_certificate
+    from sosalgo.verify.results import row_kappa
 
     row = L.row
     cert = row.get("bound_certificate")
@@ -47,7 +48,7 @@ def _reprove(L: RowLedger) -> Any:
     try:
         fam = get_family(str(row.get("family") or L.spec.certificate),
                          {"lag": row.get("lag")} if row.get("lag") is not None else None)
-        model = bound_model(L.spec, float(row["kappa"]), list(row["free"]), fam)
+        model = bound_model(L.spec, row_kappa(row, "row"), list(row["free"]), fam)
         if model is None:
             return f"the {fam.name} family has no box-wide dual bound"
         return check_bound_certificate(model, cert)

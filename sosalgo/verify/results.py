@@ -183,6 +183,23 @@ def _theta(row: Mapping[str, Any], where: str) -> dict[str, float] | None:
     return {k: _number(v, f"{where}.theta.{k}", allow_none=False) for k, v in theta.items()}
 
 
+def row_kappa(row: Mapping[str, Any], where: str) -> float:
+    """A row's kappa: its float ``kappa`` with the exact value it records in
+    ``kappa_exact`` (:func:`sosalgo.kernel.kappa.kappa_from_fields`), which the proofs are
+    about; a row without ``kappa_exact`` (written before rows recorded it): the float, read
+    as its shortest decimal (:func:`sosalgo.kernel.kappa.exact_kappa`). ResultError when
+    ``kappa_exact`` is not the float's number."""
+    from sosalgo.kernel.kappa import kappa_from_fields
+
+    kappa = _number(row.get("kappa"), f"{where}.kappa", allow_none=False)
+    if not (math.isfinite(kappa) and kappa > 1):
+        raise ResultError(f"{where}.kappa: must be a finite number > 1")
+    try:
+        return kappa_from_fields(kappa, row.get("kappa_exact"), where)
+    except ValueError as exc:
+        raise ResultError(str(exc)) from None
+
+
 def _claim(spec: Spec, fam: CertificateFamily, row: Any, i: int) -> dict[str, Any] | None:
     """What row ``i`` claims: None when it claims no certificate; else its numbers and the
     certificate's parts (read by ``fam.parse_certificate``; a missing part is None and the
@@ -190,9 +207,7 @@ def _claim(spec: Spec, fam: CertificateFamily, row: Any, i: int) -> dict[str, An
     in ``certificate`` or, for the default family, beside ``rho``; design documents claim
     with ``rho_certified`` and carry them in ``certificate`` with their ``theta``."""
     where = f"rows[{i}]"
-    kappa = _number(row.get("kappa"), f"{where}.kappa", allow_none=False)
-    if not (math.isfinite(kappa) and kappa > 1):
-        raise ResultError(f"{where}.kappa: must be a finite number > 1")
+    kappa = row_kappa(row, where)
     if "rho_certified" in row:
         rho = _number(row.get("rho_certified"), f"{where}.rho_certified")
         parts, field, theta = row.get("certificate"), f"{where}.certificate", _theta(row, where)
@@ -291,7 +306,7 @@ def _noise_claim(row: Mapping[str, Any], i: int, key: str = "noise") -> dict[str
         return None
     if cert is not None and not isinstance(cert, Mapping):
         raise ResultError(f"{where}.{key}_certificate: expected an object")
-    kappa = _number(row.get("kappa"), f"{where}.kappa", allow_none=False)
+    kappa = row_kappa(row, where)
     return {"kappa": kappa, "noise": noise, "cert": cert,
             "theta": _theta(row, where) if "rho_certified" in row else None}
 
