@@ -105,10 +105,11 @@ def class_description(spec: Spec, kappa: float | None) -> dict[str, Any]:
     function's class and parameters (sympy's exact form: ``1/10``, ``sqrt(2)/10``)."""
     from sosalgo.kernel.expr.parse import to_sympy
     from sosalgo.kernel.kappa import kappa_fields
+    from sosalgo.pep.bind import class_kappa
 
     base = exact_base(spec, kappa)
     out: dict[str, Any] = {str(k): str(v) for k, v in base.items()}
-    if "kappa_enclosure" in (fields := kappa_fields(None if spec.sublinear else kappa)):
+    if "kappa_enclosure" in (fields := kappa_fields(class_kappa(spec, kappa))):
         out["kappa_enclosure"] = fields["kappa_enclosure"]  # an irrational kappa's ball
     out["functions"] = {name: {"class": decl.cls, "params": {
         k: str(to_sympy(e).xreplace(base)) for k, e in decl.params.items()}}
