@@ -37,8 +37,9 @@ from sosalgo.kinds import (
 )
 from sosalgo.spec import Spec
 
-__all__ = ["KINDS", "MAX_RESULT_BYTES", "ResultKind", "document_kind", "read_result",
-           "result_rows", "result_spec", "sniff_kind", "verify_document"]
+__all__ = ["KINDS", "MAX_RESULT_BYTES", "ResultKind", "claim_ledger", "document_kind",
+           "read_result", "result_rows", "result_spec", "sniff_kind", "verify_document",
+           "vouch_run"]
 
 MAX_RESULT_BYTES = 200_000_000
 MAX_INTEGER = 2**1023  # larger integers have no float value
@@ -257,8 +258,6 @@ def _verify_ledger(doc: dict[str, Any], where: str, spec: Spec | str | Path | No
     rows' checks and the claim ledger."""
     from sosalgo.inputs import select_families
     from sosalgo.pareto import is_pareto_document
-    from sosalgo.verify.document_ledger import document_ledger
-    from sosalgo.verify.ledger import ledger_counts, vouched
     from sosalgo.verify.results import ResultError
 
     check_numbers(doc, where)
@@ -272,10 +271,33 @@ def _verify_ledger(doc: dict[str, Any], where: str, spec: Spec | str | Path | No
                               simulate, fam, is_pareto_document(doc))
     except ResultError as exc:
         raise InputError(f"{where}: {exc}") from None
-    ledger = document_ledger(chosen, doc, rows, checks)
     return {"spec": chosen.name, "source": src, "results": checks,
-            "notes": [] if note is None else [note], "ledger": ledger,
-            "claims": ledger_counts(ledger), "vouched": vouched(ledger)}
+            "notes": [] if note is None else [note]} | claim_ledger(chosen, doc, rows, checks)
+
+
+def claim_ledger(spec: Spec, doc: Mapping[str, Any], rows: list[dict[str, Any]],
+                 checks: list[dict[str, Any] | None]) -> dict[str, Any]:
+    """The claim ledger of a document whose rows have their ``checks``
+    (:mod:`sosalgo.verify.document_ledger`): ``ledger`` (every entry), ``claims`` (the
+    count per status) and ``vouched`` (True only when every claim is backed)."""
+    from sosalgo.verify.document_ledger import document_ledger
+    from sosalgo.verify.ledger import ledger_counts, vouched
+
+    ledger = document_ledger(spec, doc, rows, checks)
+    return {"ledger": ledger, "claims": ledger_counts(ledger), "vouched": vouched(ledger)}
+
+
+def vouch_run(spec: Spec, doc: Mapping[str, Any]) -> dict[str, Any]:
+    """The fields a run with ``--verify`` adds to the document it writes, after its rows
+    got their checks (``verification``): the claim ledger that ``sosalgo verify`` runs
+    on that document (:func:`claim_ledger`), as ``claims`` (the count per status),
+    ``vouched`` and ``unbacked`` (the entries contradicted or unsupported)."""
+    from sosalgo.verify.ledger import BAD
+
+    rows = result_rows(doc, doc.get("spec") or "result")
+    res = claim_ledger(spec, doc, rows, [r.get("verification") for r in rows])
+    return {"claims": res["claims"], "vouched": res["vouched"],
+            "unbacked": [e for e in res["ledger"] if e["status"] in BAD]}
 
 
 # ---------------------------------------------------------------------------- result kinds
