@@ -492,6 +492,11 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
         click.echo(VERIFY_LEGEND)
         for line in noise_check_lines(rows, res["results"]):
             click.echo(line)
+        from sosalgo.report.analysis import UNITS_NOTE
+
+        for r, c in zip(rows, res["results"], strict=True):
+            if (c or {}).get("units"):
+                click.echo(f"kappa {r['kappa']:g}: proven in units where L = 1 ({UNITS_NOTE})")
         click.echo(f"rational certificates in {folder}" if can_write
                    else "no certificate files written")
         for line in ledger_lines(res["ledger"], res["claims"]):

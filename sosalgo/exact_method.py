@@ -8,7 +8,7 @@ family's exact check and by the noise proofs.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from fractions import Fraction
 
 import numpy as np
@@ -25,7 +25,7 @@ from sosalgo.kernel.exact import (
 from sosalgo.kernel.expr.parse import to_sympy
 from sosalgo.spec.types import BASE_SYMBOLS, ORACLE_MATRIX_NAMES, Spec, value_order
 
-__all__ = ["ExactAlgorithm", "exact_algorithm", "exact_fixed_point"]
+__all__ = ["ExactAlgorithm", "exact_algorithm", "exact_fixed_point", "scaled_method"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -97,6 +97,16 @@ def exact_algorithm(
         balls[k] = [[enclose(mat[i, j], digits) for j in range(mat.shape[1])]
                     for i in range(mat.shape[0])]
     return ExactAlgorithm(spec.name, kq, mq, Lq, params, mats, balls, theta_q)
+
+
+def scaled_method(ex: ExactAlgorithm, s: Fraction) -> ExactAlgorithm:
+    """The seed's form run on f/s (s > 0 rational): f is in F(m, L) exactly when f/s is in
+    F(m/s, L/s), and B s applied to the gradients of f/s gives the same iterates, so every
+    rate is the same. Exact (the enclosures' radii scale with their centres)."""
+    k = sp.Rational(s.numerator, s.denominator)
+    return replace(ex, m=ex.m / s, L=ex.L / s,
+                   matrices={**ex.matrices, "B": ex.matrices["B"] * k},
+                   balls={**ex.balls, "B": [[b * s for b in row] for row in ex.balls["B"]]})
 
 
 def _rational_kappa(kappa: float | Fraction) -> Fraction:

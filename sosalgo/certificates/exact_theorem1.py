@@ -41,7 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.exact_method import ExactAlgorithm, exact_algorithm, exact_fixed_point
+from sosalgo.exact_method import ExactAlgorithm, exact_algorithm, exact_fixed_point, scaled_method
 from sosalgo.kernel.exact import (
     DEFAULT_DIGITS,
     DEFAULT_MAX_DEN,
@@ -188,10 +188,17 @@ class ProofResult:
     m: str = ""
     L: str = ""
     params: dict[str, str] = field(default_factory=dict)
+    units: str | None = None  # SCALED_UNITS when the certificate is proven for f/L
 
     @property
     def ok(self) -> bool:
         return self.verified == Verdict.EXACT
+
+
+# the units of a proof made for f/L after the proof as written failed (tiny or huge m, L:
+# a certificate found in normalized units rounds to rationals badly when written back)
+SCALED_UNITS = ("f/L in F(m/L, 1) (gradients u/L, the method with B L; L as recorded): the "
+                "certificate is proven in these units, and the rate is the same for F(m, L)")
 
 
 @dataclass
@@ -243,7 +250,7 @@ class ExactResult(ProofResult):
             "matrices": {k: [list(r) for r in v] for k, v in self.matrices.items()},
             "enclosures": self.enclosures,
             "model_max_abs_diff": self.model_max_abs_diff,
-        }
+        } | ({"units": self.units} if self.units else {})
 
 
 def write_certificate(result: ProofResult | Mapping[str, Any], path: str | Path) -> Path:
@@ -335,18 +342,41 @@ def verify_exact(
     result = _new_result(spec, ex, rho)
     reason = _check_method(spec, kappa, theta, ex, result)
     if reason is None:
-        inputs = _rational_inputs(P, lam, rho, len(ex.balls["A"]), max_den)
-        if isinstance(inputs, str):
-            reason = inputs
-        else:
-            rho_q, lam_opts, p_cands = inputs
-            P_opts, reason = _psd_roundings(p_cands)
-            if P_opts:
-                reason = _search_proof(ex, result, rho_q, P_opts, lam_opts,
-                                       rho_candidates(rho_q, list(rho_steps), max_den))
+        reason = _prove(ex, result, P, lam, rho, max_den, rho_steps)
+        if reason is not None and ex.L != 1 and _prove(
+                scaled_method(ex, ex.L), result, _scaled_P(P, ex.L), lam, rho, max_den,
+                rho_steps) is None:
+            reason, result.units = None, SCALED_UNITS  # see scaled_method
     result.reason = reason
     result.seconds = time.perf_counter() - start
     return result
+
+
+def _prove(ex: ExactAlgorithm, result: ExactResult, P: Any, lam: Any, rho: Any,
+           max_den: int, rho_steps: Sequence[float]) -> str | None:
+    """The proof of (rho, P, lambda) for ``ex`` recorded in ``result`` (None), or why not."""
+    inputs = _rational_inputs(P, lam, rho, len(ex.balls["A"]), max_den)
+    if isinstance(inputs, str):
+        return inputs
+    rho_q, lam_opts, p_cands = inputs
+    P_opts, reason = _psd_roundings(p_cands)
+    if P_opts:
+        reason = _search_proof(ex, result, rho_q, P_opts, lam_opts,
+                               rho_candidates(rho_q, list(rho_steps), max_den))
+    return reason
+
+
+def _scaled_P(P: Any, s: Fraction) -> Any:
+    """P for f/s: V/s = xi'(P/s)xi (lambda is the same: every term of M scales by 1/s);
+    floats stay floats (candidates to round), exact entries exact; P itself when it
+    cannot be divided (the proof then says why)."""
+    try:
+        raw = np.atleast_2d(np.asarray(P, dtype=object))
+        if all(is_exact(v) for v in raw.flat):
+            return [[fraction_str(rational(v) / s) for v in row] for row in raw]
+        return raw.astype(float) / float(s)
+    except (ArithmeticError, TypeError, ValueError):
+        return P
 
 
 def _new_result(spec: Spec, ex: ExactAlgorithm, rho: float) -> ExactResult:
