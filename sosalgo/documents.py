@@ -389,10 +389,13 @@ KINDS: dict[str, ResultKind] = {k.name: k for k in [
         _verify_ledger, "ledger"),
     ResultKind(
         PEP_KIND, "the worst case after N steps, its proven dual bound and checked witness",
-        "sosalgo pep --json (sosalgo.pep_run)", "<name>-pep.csv, one row per (kappa, N)",
+        "sosalgo pep --json (sosalgo.pep_run)",
+        "<name>-pep.csv, one row per (kappa, N); <name>-pep[-k<kappa>]-N<steps>.json, its "
+        "document",
         ("kind", "spec", "kappa", "steps", "tau", "measure", "initial", "certificate",
          "witness", "source", "files", "rows", "estimate"),
-        "sosalgo.schema.PEP_COLUMNS", "result -> JSON document in the CSV's document cell",
+        "sosalgo.schema.PEP_COLUMNS", "result -> plain CSV cells (sosalgo.store) and the "
+        "document in its own file, named in the row's document cell (sosalgo.runs.pep)",
         _looks_pep, _verify_pep, "claims"),
     ResultKind(
         WITNESS_KIND, "a worst-case function set and trajectory for N steps",
