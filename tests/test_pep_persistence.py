@@ -13,7 +13,7 @@ from click.testing import CliRunner
 from sosalgo.cli import cli
 from sosalgo.runs.pep import FILE_FIELDS
 
-from .conftest import SPECS
+from .conftest import SPECS, timeless
 
 ARGS = ["pep", str(SPECS / "gradient-convex.yaml"), "--steps", "1..2", "--no-plot", "--json"]
 
@@ -27,14 +27,6 @@ def _pep(out, *extra: str):
 def _rows(out) -> list[dict[str, str]]:
     with open(out / "gradient-convex-pep.csv", encoding="utf-8") as fh:
         return list(csv.DictReader(fh))
-
-
-def _timeless(value):
-    if isinstance(value, dict):
-        return {k: _timeless(v) for k, v in value.items() if k != "seconds"}
-    if isinstance(value, list):
-        return [_timeless(v) for v in value]
-    return value
 
 
 def test_rows_are_plain_and_documents_have_their_own_files(tmp_path):
@@ -54,7 +46,7 @@ def test_rows_are_plain_and_documents_have_their_own_files(tmp_path):
         assert ver.exit_code == 0, ver.output  # the file alone: spec text, witness, proof
     again = _pep(tmp_path)
     assert "resumed: 2 of 2" in again.stderr
-    assert _timeless(json.loads(again.stdout)["rows"]) == _timeless(first["rows"])
+    assert timeless(json.loads(again.stdout)["rows"]) == timeless(first["rows"])
 
 
 def test_a_csv_with_documents_in_its_cells_still_resumes(tmp_path):
@@ -71,7 +63,7 @@ def test_a_csv_with_documents_in_its_cells_still_resumes(tmp_path):
         writer.writerows(rows)
     again = _pep(tmp_path, "--no-witness")
     assert "resumed: 2 of 2" in again.stderr
-    assert _timeless(json.loads(again.stdout)["rows"]) == _timeless(first["rows"])
+    assert timeless(json.loads(again.stdout)["rows"]) == timeless(first["rows"])
 
 
 def test_a_missing_document_file_leaves_the_plain_columns_with_a_note(tmp_path):
@@ -80,5 +72,5 @@ def test_a_missing_document_file_leaves_the_plain_columns_with_a_note(tmp_path):
     again = _pep(tmp_path, "--no-witness")
     assert "gradient-convex-pep-N2.json: unreadable" in again.stderr
     one, two = json.loads(again.stdout)["rows"]
-    assert _timeless(one) == _timeless(first["rows"][0])
+    assert timeless(one) == timeless(first["rows"][0])
     assert two["certificate"] is None and two["tau"] == first["rows"][1]["tau"]

@@ -55,10 +55,12 @@ from sosalgo.kernel.exact import (
     fraction_str,
     frobenius_bound,
     is_exact,
+    object_matrix,
     prove_psd,
     rational,
     rho_candidates,
     round_down,
+    symmetrize_balls,
 )
 from sosalgo.model import bind, fixed_point
 from sosalgo.spec.types import MATRIX_NAMES, Spec
@@ -127,14 +129,7 @@ def theorem1_balls(
     Q4 = [[Ball(-m * L / (m + L)), half], [half, Ball(-1 / (m + L))]]
     N1, N2, N3, N4 = _quad(X1, Q1), _quad(X2, Q2), _quad(X3, Q2), _quad(X3, Q4)
     M = _lin((1, M0), (rho2, N1), (rho2, N2), (1 - rho2, N1), (1 - rho2, N3), (lam, N4))
-    s = n + 1
-    for i in range(s):  # exact centres are symmetric; take the larger radius
-        for j in range(i):
-            if M[i][j].c != M[j][i].c:
-                raise AssertionError("Theorem 1 matrix centre is not symmetric")
-            r = max(M[i][j].r, M[j][i].r)
-            M[i][j] = M[j][i] = Ball(M[i][j].c, r)
-    return M
+    return symmetrize_balls(object_matrix(M))  # exact centres: the larger radius of a pair
 
 
 def theorem1_exact(
