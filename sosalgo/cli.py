@@ -257,12 +257,14 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
         from sosalgo.report.pareto import objective_lines
 
         click.echo("\n".join(objective_lines(doc, details)))
+        _claims_line(doc)
         _exit_if_unverified([d.get("verification") for d in docs], doc=doc)
         return
     if docs[0].get("rate_type") == "sublinear":
         from sosalgo.report.design import sublinear_design_lines
 
         click.echo("\n".join(sublinear_design_lines(doc)))
+        _claims_line(doc)
         _exit_if_unverified([d.get("verification") for d in docs], doc=doc)
         return
     names = docs[0]["free"]
