@@ -31,7 +31,12 @@ from typing import Any
 import numpy as np
 
 from sosalgo.certificates.exact_theorem1 import SCALED_UNITS, ProofResult
-from sosalgo.exact_method import exact_algorithm, exact_fixed_point, scaled_method
+from sosalgo.exact_method import (
+    exact_algorithm,
+    exact_fixed_point,
+    scaled_method,
+    units_far_from_one,
+)
 from sosalgo.kernel.exact import (
     DEFAULT_DIGITS,
     DEFAULT_MAX_DEN,
@@ -137,7 +142,7 @@ def verify_exact_interpolation(
             raise Refused(f"rho = {rho!r} is not in (0, 1]")
         res.reason = _prove_in_units(res, family, ex, n, cert, Fraction(1), rational(rho),
                                      rho_steps, max_den)
-        if res.reason is not None and ex.L != 1:
+        if res.reason is not None and units_far_from_one(ex):
             _prove_scaled(res, family, ex, n, cert, rational(rho), rho_steps, max_den)
     except Refused as exc:
         res.reason = str(exc)
@@ -164,7 +169,8 @@ def _prove_in_units(res: InterpolationExactResult, family: Any, ex: Any, n: int,
 def _prove_scaled(res: InterpolationExactResult, family: Any, ex: Any, n: int,
                   cert: Mapping[str, Any], rho: Fraction, rho_steps: tuple[float, ...],
                   max_den: int) -> None:
-    """The proof in units where L = 1, after it failed as written: f in F(m, L) exactly
+    """The proof in units where L = 1, after it failed as written in units far from 1
+    (:func:`~sosalgo.exact_method.units_far_from_one`): f in F(m, L) exactly
     when f/L is in F(m/L, 1), and the method run on f/L with the step matrix B L has the
     same iterates, so a rate proven there is the rate on F(m, L) (the rate is
     scale-invariant). A certificate found in the normalized units (every float solve is)

@@ -41,7 +41,13 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.exact_method import ExactAlgorithm, exact_algorithm, exact_fixed_point, scaled_method
+from sosalgo.exact_method import (
+    ExactAlgorithm,
+    exact_algorithm,
+    exact_fixed_point,
+    scaled_method,
+    units_far_from_one,
+)
 from sosalgo.kernel.exact import (
     DEFAULT_DIGITS,
     DEFAULT_MAX_DEN,
@@ -338,7 +344,7 @@ def verify_exact(
     reason = _check_method(spec, kappa, theta, ex, result)
     if reason is None:
         reason = _prove(ex, result, P, lam, rho, max_den, rho_steps)
-        if reason is not None and ex.L != 1 and _prove(
+        if reason is not None and units_far_from_one(ex) and _prove(
                 scaled_method(ex, ex.L), result, _scaled_P(P, ex.L), lam, rho, max_den,
                 rho_steps) is None:
             reason, result.units = None, SCALED_UNITS  # see scaled_method
