@@ -364,7 +364,7 @@ KINDS: dict[str, ResultKind] = {k.name: k for k in [
         "spec", "sosalgo analyze --json (sosalgo.analyze_run)",
         "<name>-analysis[-<family>...].csv, one row per kappa",
         ("kind", "spec", "source", "spec_text", "tol", "csv", "csvs", "figures", "rows",
-         "estimate"),
+         "estimate", "claims", "vouched", "unbacked"),
         "sosalgo.schema.analysis_columns (sublinear_columns for an m: 0 spec)",
         "typed result -> CSV cells (sosalgo.batch.sweeps) -> JSON row (csv_row_to_json)",
         lambda doc: _rows_all(doc, _analysis_row), _verify_ledger, "ledger"),
@@ -374,7 +374,8 @@ KINDS: dict[str, ResultKind] = {k.name: k for k in [
         "sosalgo design --json (sosalgo.design_run)",
         "<name>-design[-<family>...][-min-noise|-min-rate].csv, one row per kappa",
         ("kind", "spec", "kappa", "free", "theta", "rho_certified", "lower_bound", "gap",
-         "certificate", "source", "spec_text", "rows", "estimate"),
+         "certificate", "source", "spec_text", "rows", "estimate", "claims", "vouched",
+         "unbacked"),
         "sosalgo.schema.design_columns",
         "typed result -> CSV cells (sosalgo.batch.sweeps) -> JSON (design_csv_to_json); the "
         "certificates too large for a cell in a design-certificates file",
