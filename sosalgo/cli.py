@@ -530,7 +530,8 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
                    "start); default sdist when the fixed point moves with the optimal "
                    "subgradients (Douglas-Rachford), dist otherwise.")
 @click.option("--out", default="outputs", show_default=True, metavar="DIR",
-              help="Directory for <name>-pep.csv, witness JSON files and figures.")
+              help="Directory for <name>-pep.csv, its rows' documents, witness JSON files "
+                   "and figures.")
 @batch_options
 @click.option("--no-plot", is_flag=True, help="Skip the figures.")
 @click.option("--no-witness", is_flag=True, help="Skip the worst-case witness.")
