@@ -121,7 +121,7 @@ _CACHE: weakref.WeakKeyDictionary[Spec, _Compiled] = weakref.WeakKeyDictionary()
 
 def _compiled(spec: Spec) -> _Compiled:
     if spec.time_varying:  # one method per step: sosalgo.steps binds it
-        from sosalgo.spec.time_varying import VARIES
+        from sosalgo.spec.types import VARIES
 
         raise SpecError(spec.source, "", VARIES.format(source=spec.source))
     comp = _CACHE.get(spec)

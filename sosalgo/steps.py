@@ -47,7 +47,8 @@ __all__ = ["MAX_EXACT_OPS", "MAX_STEPS", "SAMPLE_HORIZON", "ball_steps", "check_
 
 MAX_STEPS = 10_000
 SAMPLE_HORIZON = 4  # the horizon a spec is checked at when it is loaded (lists: their own)
-MAX_EXACT_OPS = 80  # sympy operations of one exact value before exact_steps gives up
+MAX_EXACT_OPS = 32  # sympy operations of one exact value before exact_steps gives up (sympy
+# slows steeply past it: OGM's theta_9 alone takes minutes)
 BALL_BITS = 320  # working precision of ball_steps
 FIXED_POINT_TOL = 1e-9
 
@@ -283,8 +284,10 @@ class _TooLarge(Exception):
     """An exact value grew past :data:`MAX_EXACT_OPS` operations."""
 
 
-def _sympy_value(expr: Expr, env: Mapping[str, Any], spec: Spec, where: str, k: int | None
-                 ) -> sp.Expr:
+def _sympy_value(expr: Expr, env: Mapping[str, Any], spec: Spec, where: str, k: int | None,
+                 limit: bool = False) -> sp.Expr:
+    """The exact value of ``expr`` at ``env``; with ``limit`` (a sequence's values, which
+    feed the next ones), :class:`_TooLarge` past :data:`MAX_EXACT_OPS` operations."""
     import sympy as sp
 
     from sosalgo.kernel.expr import ExprError
@@ -299,7 +302,7 @@ def _sympy_value(expr: Expr, env: Mapping[str, Any], spec: Spec, where: str, k: 
     if value.has(sp.zoo, sp.nan, sp.oo, -sp.oo):
         at = "" if k is None else f" at k={k}"
         raise SpecError(spec.source, where, f"division by zero{at}")
-    if sp.count_ops(value) > MAX_EXACT_OPS:
+    if limit and sp.count_ops(value) > MAX_EXACT_OPS:
         raise _TooLarge
     return value
 
@@ -314,13 +317,14 @@ def _exact_env(spec: Spec, kappa: Any, N: int, theta: Theta | None) -> list[dict
     seqs: dict[str, list] = {}
     for s, decl in spec.sequences.items():
         seqs[s] = [_sympy_value(decl.first, {**env0, **{e: v[0] for e, v in seqs.items()}},
-                                spec, f"sequences.{s}.first", None)]
+                                spec, f"sequences.{s}.first", None, True)]
     for k in range(N):
         env = {**env0, "k": sp.Integer(k), **{s: v[k] for s, v in seqs.items()}}
         for s, decl in spec.sequences.items():
             rule, key = ((decl.last, "last") if k == N - 1 and decl.last is not None
                          else (decl.next, "next"))
-            env[s + NEXT_SUFFIX] = _sympy_value(rule, env, spec, f"sequences.{s}.{key}", k)
+            env[s + NEXT_SUFFIX] = _sympy_value(rule, env, spec, f"sequences.{s}.{key}", k,
+                                                True)
             seqs[s].append(env[s + NEXT_SUFFIX])
     out = []
     for k in range(N):

@@ -298,17 +298,18 @@ class _Builder:
         matrices = self.matrices(raw_matrices, names, len(oracles), output is not None)
         named = self.check_sizes(params, matrices)
         varies = self.varies(sequences, params, matrices)
-        if varies and data.get("initial_state") is not None:
-            raise self.fail("initial_state", "not supported for a method that changes with k "
-                            "(it starts at xi_0 = u x0)")
         from sosalgo.spec.time_varying import LAST_SUFFIX
 
         self.in_references = True
-        references = self.references(data.get("references", {}), (
-            *(("N",) if varies and "N" in self.step_names else ()),
-            *(s + LAST_SUFFIX for s in sequences)))
+        ends = (*(("N",) if "N" in self.step_names else ()),
+                *(s + LAST_SUFFIX for s in sequences))
+        references = self.references(data.get("references", {}), ends)
         self.in_references = False
+        varies = varies or any(e.names() & set(ends) for e in references.values())
         kappa = () if m == 0 else self.kappa(data.get("kappa", [10]))
+        if varies and data.get("initial_state") is not None:
+            raise self.fail("initial_state", "not supported for a method that changes with k "
+                            "(it starts at xi_0 = u x0)")
         from sosalgo.spec.initial_state import parse_initial_state
 
         initial_state = parse_initial_state(data.get("initial_state"), {*BASE_NAMES, *symbols},

@@ -27,7 +27,7 @@ from sosalgo.spec.types import (
     SequenceDecl,
 )
 
-__all__ = ["LAST_SUFFIX", "VARIES", "index_names", "parse_schedule", "parse_sequences",
+__all__ = ["LAST_SUFFIX", "index_names", "parse_schedule", "parse_sequences",
            "rewrite_indices", "schedule_lengths", "sequence_keys", "sequence_names",
            "uses_step"]
 
@@ -35,9 +35,6 @@ SEQUENCE_KEYS = ("first", "next", "last")
 _SUBSCRIPT = re.compile(r"\b([A-Za-z][A-Za-z0-9_]*)\s*\[([^\[\]]*)\]")
 _INDEX = {"k": "", "k+1": NEXT_SUFFIX}
 LAST_SUFFIX = "_last"  # ``theta[N]`` in references: the sequence's last value
-
-# what a command that takes no method changing with k says (after the file's name)
-VARIES = "varies with k: use `sosalgo pep {source} --steps N`"
 
 Fail = Callable[[str, str], Exception]
 ExprOf = Callable[[object, Collection[str], str], Expr]

@@ -20,7 +20,7 @@ if TYPE_CHECKING:
     import sympy as sp
 
 __all__ = [
-    "BASE_NAMES", "INDEX_NAMES", "MATRIX_NAMES", "MEASURES", "NEXT_SUFFIX", "ExprMatrix",
+    "BASE_NAMES", "INDEX_NAMES", "MATRIX_NAMES", "MEASURES", "NEXT_SUFFIX", "VARIES", "ExprMatrix",
     "FunctionDecl", "Parameter", "SequenceDecl", "Spec", "SpecError", "deps", "tied_order",
     "value_order",
 ]
@@ -28,6 +28,8 @@ __all__ = [
 BASE_NAMES = ("m", "L", "kappa")
 INDEX_NAMES = ("k", "N")  # the iteration index (0-based) and the horizon of a varying spec
 NEXT_SUFFIX = "_next"  # ``theta_next``: a sequence's next value theta[k+1]
+# what a command that takes no method changing with k says (after the file's name)
+VARIES = "varies with k: use `sosalgo pep {source} --steps N`"
 MATRIX_NAMES = ("A", "B", "C", "E")
 ORACLE_MATRIX_NAMES = ("A", "B", "C", "D", "E")  # D optional; E absent with ``output``
 MEASURES = ("function", "distance")
@@ -272,6 +274,8 @@ class Spec:
         """
         from sosalgo.kernel.expr.parse import to_sympy
 
+        if self.time_varying:  # one method per step: sosalgo.steps binds it
+            raise SpecError(self.source, "", VARIES.format(source=self.source))
         symbols = self.symbols
         sub: dict[sp.Symbol, sp.Expr] = {}
         tied = self.tied_closure()
