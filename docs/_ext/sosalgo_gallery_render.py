@@ -292,7 +292,16 @@ def steps_section(spec: Any, rows: list[dict[str, Any]]) -> list[str]:
     text += (". Its worst case after $N$ steps is a performance estimation problem: "
              "`sosalgo pep SPEC --steps N` "
              "([methods that change with k](../spec.md#methods-that-change-with-k)).")
-    lines = ["## A method that changes with k", "", text]
+    lines = ["## A method that changes with k", "", text, ""]
+    for name, decl in spec.sequences.items():
+        from sosalgo_gallery import to_sympy
+
+        sym = tex(sp.Symbol(name))
+        rules = [f"${sym}_0 = {tex(to_sympy(decl.first))}$",
+                 f"${sym}_{{k+1}} = {tex(to_sympy(decl.next))}$"]
+        if decl.last is not None:
+            rules.append(f"${sym}_N = {tex(to_sympy(decl.last))}$")
+        lines.append(f"- {', '.join(rules)} (on the right, ${sym}$ is ${sym}_k$)")
     refs = list(spec.references)
     if not refs:
         return lines + [""]
