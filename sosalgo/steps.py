@@ -217,8 +217,8 @@ def check_steps(spec: Spec, fail: Any) -> None:
     kappas: Sequence[float | None] = [None] if spec.sublinear else spec.kappa
     try:
         for kappa in kappas:
-            for om in float_steps(spec, kappa, N):
-                _check_ranges(spec, om.params, kappa, om, fail)
+            for k, om in enumerate(float_steps(spec, kappa, N)):
+                _check_ranges(spec, om.params, kappa, k, fail)
             reference_values(spec, kappa, N)
     except SpecError as exc:
         at = "" if spec.sublinear or kappa is None else f" (kappa={kappa:g})"
@@ -237,8 +237,8 @@ def reference_values(spec: Spec, kappa: float | None, steps: int) -> dict[str, f
             for ref, expr in spec.references.items()}
 
 
-def _check_ranges(spec: Spec, values: Mapping[str, float], kappa: float | None,
-                  om: OracleMethod, fail: Any) -> None:
+def _check_ranges(spec: Spec, values: Mapping[str, float], kappa: float | None, k: int,
+                  fail: Any) -> None:
     base = _base(spec, kappa)
     for p, par in spec.parameters.items():
         if par.range is None:
@@ -251,7 +251,7 @@ def _check_ranges(spec: Spec, values: Mapping[str, float], kappa: float | None,
         slack = 1e-12 * max(1.0, abs(lo), abs(hi))
         if not lo - slack <= v <= hi + slack:
             raise fail(f"parameters.{p}.value", f"{v:.6g} is outside its range "
-                       f"[{lo:.6g}, {hi:.6g}] at some step")
+                       f"[{lo:.6g}, {hi:.6g}] at k={k}")
 
 
 # --------------------------------------------------------------------------- exact numbers

@@ -263,6 +263,8 @@ def test_sequence_dividing_by_zero_names_k():
     ("  h: theta[k+2]", "parameters.h", "write theta[k] or theta[k+1]"),
     ("  h: {value: 'h2[k]'}", "parameters.h.value", "only a sequence can be indexed"),
     ("  h: {value: 1/L}\n  theta_next: 1", "parameters.theta_next", "a sequence has"),
+    ("  h: {value: [1/L, 4/L], range: [0, 3/L]}", "parameters.h.value",
+     "4 is outside its range [0, 3] at k=1"),
 ])
 def test_errors_name_file_and_field(snippet, field, words):
     text = GD.replace("  h: {value: 1/L, range: [0, 3/L], per_step: true}", snippet)
