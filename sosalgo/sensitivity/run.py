@@ -31,7 +31,8 @@ def check_noise_spec(spec: Spec) -> None:
     """InputError (one line naming the file) unless the spec has one gradient call on
     F(m, L) (a seed spec with m > 0), or is a composite spec with m > 0 and a gradient
     call on a smooth_strongly_convex function (the noisy calls)."""
-    if spec.sublinear or (spec.composite and not _has_noisy_call(spec)):
+    if not spec.has_condition_number or (not spec.has_seed_form
+                                          and not _has_noisy_call(spec)):
         raise InputError(f"{spec.source}: --noise: noise sensitivity needs one gradient "
                          "call on F(m, L) (a seed spec with m > 0, or a composite spec with "
                          "m > 0 and a gradient call on a smooth_strongly_convex function)")
@@ -147,7 +148,7 @@ def _quadratic(spec: Spec, alg: Any) -> tuple[QuadraticNoise, Any]:
     """(value on quadratics, certify(alg, lag) or None for the seed's): a composite spec
     gets the composite quadratic value (q: the worst curvature of the first noisy call's
     function) and :func:`~sosalgo.sensitivity.composite.composite_noise_certificate`."""
-    if not spec.composite:
+    if alg.has_seed_form:
         return noise_quadratic(alg), None
     from sosalgo.sensitivity.composite import (
         composite_noise_certificate,
@@ -184,7 +185,7 @@ def analyze_noise(spec: Spec, kappa: float, theta: Mapping[str, float] | None = 
             noise, kind = pr.gamma_proven, "exact"
     res = NoiseResult(float(kappa), noise, cert.gamma, quad.gamma, quad.q, cert.lag, kind,
                       _jsonable(cert.certificate), proof, 0.0, cert.detail)
-    if limsup and math.isfinite(quad.gamma) and not spec.composite:
+    if limsup and math.isfinite(quad.gamma) and alg.has_seed_form:
         _limsup(res, spec, alg, theta, max(1, cert.lag) if lag is None else lag, exact)
     res.seconds = time.perf_counter() - start
     return res
