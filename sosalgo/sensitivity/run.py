@@ -144,10 +144,11 @@ def _limsup(res: NoiseResult, spec: Spec, alg: Any, theta: Mapping[str, float] |
             res.noise_limsup, res.noise_limsup_check = pr.gamma_proven, "exact"
 
 
-def _quadratic(spec: Spec, alg: Any) -> tuple[QuadraticNoise, Any]:
-    """(value on quadratics, certify(alg, lag) or None for the seed's): a composite spec
-    gets the composite quadratic value (q: the worst curvature of the first noisy call's
-    function) and :func:`~sosalgo.sensitivity.composite.composite_noise_certificate`."""
+def _quadratic(alg: Any) -> tuple[QuadraticNoise, Any]:
+    """(value on quadratics, certify(alg, lag) or None for the seed's): a method outside
+    the seed's form gets the composite quadratic value (q: the worst curvature of the first
+    noisy call's function) and
+    :func:`~sosalgo.sensitivity.composite.composite_noise_certificate`."""
     if alg.has_seed_form:
         return noise_quadratic(alg), None
     from sosalgo.sensitivity.composite import (
@@ -173,7 +174,7 @@ def analyze_noise(spec: Spec, kappa: float, theta: Mapping[str, float] | None = 
     check_noise_spec(spec)
     start = time.perf_counter()
     alg = bind(spec, kappa, theta)
-    quad, certify = _quadratic(spec, alg)
+    quad, certify = _quadratic(alg)
     cert = best_noise_certificate(alg, None if lag is None else [lag], quad.gamma, certify)
     noise, kind, proof = cert.gamma, cert.check_kind, None
     if cert.certified and exact:
