@@ -208,9 +208,9 @@ def pair_forms(doc: dict[str, Any], av: ArbView, pos: dict[str, Any]
                ) -> list[tuple[list[str], list[tuple[int, int, arb, arb]]]]:
     """Per function: (labels, [(a, b, alpha, q)]) with q = X' Q X the quadratic part of
     each tilted class inequality alpha (h_a - h_b) + q >= 0 of each ordered pair (x*
-    last, g = s_j*, h = 0)."""
+    last, g = s_j*, h = 0; not for a nonconvex class, whose PEP has no x*)."""
     out = []
-    for j, (name, _, _) in enumerate(av.mt.functions):
+    for j, (name, cls, _) in enumerate(av.mt.functions):
         fd = doc["functions"][name]
         sj = [ball(v) for v in fd["optimal_subgradient"]]
         r = len(sj)
@@ -225,8 +225,9 @@ def pair_forms(doc: dict[str, Any], av: ArbView, pos: dict[str, Any]
         gram = Vm * Vm.transpose()
         npts = len(vecs) // 2
         rows = []
-        for a in range(npts):
-            for b in range(npts):
+        ends = npts if cls.convex else npts - 1  # a nonconvex class: no x* in its PEP
+        for a in range(ends):
+            for b in range(ends):
                 if a == b:
                     continue
                 idx = (2 * a, 2 * b, 2 * a + 1, 2 * b + 1)  # x_a, x_b, g_a, g_b

@@ -359,7 +359,8 @@ def _solve_dual(data: PEPData, active: np.ndarray, margin: float, unit: float,
     A = sps.vstack([sps.hstack([sps.csr_matrix((K, 1)), -sps.identity(K)]),
                     body[nG:], body[:nG]]).tocsc()
     A.eliminate_zeros()
-    eye = np.concatenate([svec(np.eye(d)), np.ones(nF)]) * margin
+    eye = np.concatenate([svec(np.eye(d)), np.full(nF, 0.0 if st.free_values else 1.0)]
+                         ) * margin  # free values: c_F = 0 (no margin there)
     b = np.concatenate([np.zeros(K), -(meas + eye)[nG:], -(meas + eye)[:nG]])
     q = np.zeros(1 + K)
     q[0] = 1.0
