@@ -111,6 +111,7 @@ def positions(doc: dict[str, Any], av: ArbView) -> dict[str, Any]:
     if doc.get("xi0") is None and av.G0 is None and mt.x0_call is not None:
         start = mt.x0_call
         pos["x0"] = [ball(v) for v in doc["x0"]]
+    states = [xi]
     for k in range(int(doc["call_steps"])):
         rows = doc["calls"][k]
         if len(rows) != p or any(len(ui) != r for ui in rows):
@@ -122,17 +123,19 @@ def positions(doc: dict[str, Any], av: ArbView) -> dict[str, Any]:
                                     else [y[i, c] for c in range(r)])
         if k < N:
             xi = av.A * xi + av.B * u
+            states.append(xi)
     pos["xiN"] = xi
     call = mt.output if mt.output is not None else mt.out_call  # x_k is that call's point
-    for k, key in ((N, f"x{N}"), (0, "x0")):
+    for k in [N, 0, *range(1, N)]:
+        key = f"x{k}"
         if key == "x0" and doc.get("xi0") is None:
             pos.setdefault("x0", [ball(v) for v in doc["x0"]])
         elif call is not None and _label(call, k, p) in pos:
             pos[key] = pos[_label(call, k, p)]
         elif mt.output is None:
-            row = av.E * (pos["xiN"] if k == N else pos["xi0"])  # type: ignore[operator]
+            row = av.E * states[k]  # type: ignore[operator]
             pos[key] = [row[0, c] for c in range(r)]
-        else:
+        elif _label(mt.output, k, p) in pos:
             pos[key] = pos[_label(mt.output, k, p)]
     for i in range(p):
         pos.setdefault(f"y{i + 1}_{N}", pos.get(_label(i, N, p)))
@@ -343,14 +346,22 @@ def pos_key(point: str, N: int, p: int) -> str:
 
 def _terms_value(terms: list[Term], doc: dict[str, Any], av: ArbView,
                  pos: dict[str, Any]) -> arb:
+    from sosalgo.pep.terms import MIN_KIND, STEP_POINT
+
     mt, N = av.mt, int(doc["steps"])
     total = arb(0)
     for t in terms:
         c = av.coef(t)
+        if t.kind == MIN_KIND:  # min over the iterates x_0 .. x_N (x_N: point "x")
+            each = [_terms_value([Term("grad", f"x{k}" if k < N else "x", t.coef)], doc, av,
+                                 pos) for k in range(N + 1)]
+            total += arb_min(each)
+            continue
         if t.kind == "sdist":
             total += c * _sdist(doc, av, pos["xi0" if t.point == "x0" else "xiN"])
             continue
-        key = {"x": f"x{N}", "x0": "x0"}.get(t.point) or pos_key(t.point, N, mt.p)
+        key = {"x": f"x{N}"}.get(t.point) or (t.point if STEP_POINT.match(t.point)
+                                               else pos_key(t.point, N, mt.p))
         P = pos[key]
         if t.kind == "dist":
             total += c * _dot(P, P)
@@ -371,6 +382,18 @@ def _terms_value(terms: list[Term], doc: dict[str, Any], av: ArbView,
                 acc = [a + ball(g) for a, g in zip(acc, pt["g"], strict=True)]
         total += c * (acc if t.kind == "f" else _dot(acc, acc))
     return total
+
+
+def arb_min(values: list[arb]) -> arb:
+    """A ball that holds the minimum of ``values``: from the least lower end to the least
+    upper end (exact comparisons of exact endpoints)."""
+    lo, hi = values[0].lower(), values[0].upper()
+    for v in values[1:]:
+        if v.lower() < lo:
+            lo = v.lower()
+        if v.upper() < hi:
+            hi = v.upper()
+    return lo.union(hi)
 
 
 def _measure_initial(doc: dict[str, Any], spec: Spec, av: ArbView

@@ -298,9 +298,11 @@ def _solve_active(data: PEPData, active: np.ndarray, margin: float, objective: s
     rows = [sps.csr_matrix(init[None, :]), -sps.diags(1.0 / sig) @ ineq,
             sps.hstack([sps.csr_matrix((nF, nG)), -sps.identity(nF)])]
     b = [np.ones(1), np.full(K, -slack), np.zeros(nF)]
-    if floor is not None:
-        rows.append(sps.csr_matrix(-meas[None, :]))
-        b.append(np.array([-floor / unit]))
+    if floor is not None:  # a mingrad measure: each of its forms (st.floors) at the floor
+        for form in ([meas] if st.floors is None else
+                     [_scaled_form(data, fq, ff) / unit for fq, ff in st.floors]):
+            rows.append(sps.csr_matrix(-form[None, :]))
+            b.append(np.array([-floor / unit]))
     nn = sum(r.shape[0] for r in rows)
     rows.append(sps.hstack([-sps.identity(nG), sps.csr_matrix((nG, nF))]))
     b.append(np.zeros(nG))

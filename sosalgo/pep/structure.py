@@ -90,6 +90,8 @@ class Method(CallShape):
     # exact methods: significant bits kept when a long centre is rounded outward
     # (:func:`coarsen`), matched to the decimals of the enclosures (:func:`enclosure_digits`)
     bits: int = 160
+    # a mingrad measure: the weighted sum that bounds it (:mod:`sosalgo.pep.minimum`)
+    bound: str | None = None
 
 
 @dataclass
@@ -121,6 +123,9 @@ class PEPStructure:
     # no x* (a nonconvex class): values enter only as differences, the dual's c_F is 0
     # (no margin on it; proven exactly zero, :func:`sosalgo.pep.exact.prove_at`)
     free_values: bool = False
+    # a mingrad measure: the forms c |grad f(x_k)|^2 + (linear terms), k = 0..N (the
+    # witness keeps each at its floor, so that their minimum is; :mod:`sosalgo.pep.minimum`)
+    floors: list[tuple[np.ndarray, np.ndarray]] | None = None
 
     @property
     def d(self) -> int:

@@ -87,9 +87,9 @@ def _check(spec: Spec, kappas: list[float | None], steps: list[int], measure: st
     from sosalgo.pep.core import pep_problem
 
     for k in kappas:
-        pep_problem(spec, k, 1, measure, initial)
+        pep_problem(spec, k, 1, measure, initial, solve_min=False)
     top = max(steps)
-    _, st, *_ = pep_problem(spec, kappas[0], top, measure, initial)
+    _, st, *_ = pep_problem(spec, kappas[0], top, measure, initial, solve_min=False)
     sizes = [(round(len(st.pairs) * ((n + 1) / (top + 1)) ** 2),
               max(1, round(st.d * (n + 1) / (top + 1)))) for n in steps] * len(kappas)
     span = f"N={steps[0]}" if len(steps) == 1 else f"N={steps[0]}..{top}"
