@@ -36,7 +36,7 @@ import numpy as np
 
 from sosalgo.classes.base import FunctionClass, Inequality
 from sosalgo.classes.members import ProxFunction, huber_smooth, quadratic
-from sosalgo.classes.smooth_strongly_convex import _mm
+from sosalgo.classes.smooth_strongly_convex import interpolation_matrix
 
 
 class Smooth(FunctionClass):
@@ -48,8 +48,8 @@ class Smooth(FunctionClass):
     finite_everywhere = True
     convex = False
     tilted_text = (
-        "h_a >= h_b + <g_b, x_a - x_b> + |g_a - g_b|^2/(2(L - m)) + m L |x_a - x_b|^2/(2(L - m))"
-        " - m <g_a - g_b, x_a - x_b>/(L - m)   (m < 0)",
+        "h_a >= h_b + <g_b, x_a - x_b> + |g_a - g_b|^2/(2(L - m))"
+        " + m L |x_a - x_b|^2/(2(L - m)) - m <g_a - g_b, x_a - x_b>/(L - m)   (m < 0)",
         r"h_a \ge h_b + \langle g_b, x_a - x_b\rangle + \frac{\|g_a - g_b\|^2}{2(L - m)}"
         r" + \frac{m L\,\|x_a - x_b\|^2}{2(L - m)} - \frac{m\,\langle g_a - g_b,"
         r" x_a - x_b\rangle}{L - m}\quad (m < 0)")
@@ -64,12 +64,12 @@ class Smooth(FunctionClass):
 
     def inequalities(self, params: Mapping[str, float]) -> list[Inequality]:
         m, L = params["m"], params["L"]
-        return [Inequality(L - m, 0.5 * np.array(_mm(m, L), dtype=float))]
+        return [Inequality(L - m, 0.5 * np.array(interpolation_matrix(m, L), dtype=float))]
 
     def exact_tilted(self, params: Mapping[str, Any]) -> list[tuple[Any, Any]]:
         m, L = params["m"], params["L"]
         h = Fraction(1, 2)
-        return [(L - m, np.array([[v * h for v in row] for row in _mm(m, L)], dtype=object))]
+        return [(L - m, np.array([[v * h for v in row] for row in interpolation_matrix(m, L)], dtype=object))]
 
     def curvatures(self, params: Mapping[str, float]) -> tuple[float, float]:
         return params["m"], params["L"]

@@ -144,10 +144,12 @@ def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None
         raise InputError(f"{spec.source}: varies with k: its PEP (one method per step, "
                          "sosalgo.steps) is not built yet")
     om, kq = bound_method(spec, kappa)
-    measure = measure or _default_measure(spec)
-    initial = initial or default_initial(om)
-    mterms = parse_terms(measure, "--measure", False, om.p)
-    iterms = parse_terms(initial, "--initial", True, om.p)
+    mopt = "--measure" if measure or "measure" not in spec.pep else f"{spec.source}: pep.measure"
+    iopt = "--initial" if initial or "initial" not in spec.pep else f"{spec.source}: pep.initial"
+    measure = measure or spec.pep.get("measure") or _default_measure(spec)
+    initial = initial or spec.pep.get("initial") or default_initial(om)
+    mterms = parse_terms(measure, mopt, False, om.p)
+    iterms = parse_terms(initial, iopt, True, om.p)
     mt = float_method(om, kq)
     mt.G0, mt.smooth = initial_gradient(spec, om, kq)
     try:

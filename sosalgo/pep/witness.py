@@ -332,7 +332,8 @@ def _document(spec: Spec, mt: Method, st: Any, V: np.ndarray, F: np.ndarray,
     return doc | {"kind": WITNESS_KIND, "spec": spec.name, "kappa": res.kappa,
             "steps": st.steps, "calls_per_step": p, "call_steps": st.calls,
             "measure": res.measure, "initial": res.initial, "dimension": int(V.shape[1]),
-            "x0": _vec(V[0] if st.basis[0] == "x0-x*" else 0 * V[0]), "calls": calls, "functions": funcs,
+            "x0": _vec(V[0] if st.basis[0] == "x0-x*" else 0 * V[0]),  # no x*: x_0 = 0
+            "calls": calls, "functions": funcs,
             "evaluations": {f"{key}|{mt.functions[j][0]}": st.points[j][a].label
                             for (key, j), a in st.at.items()},
             "iterates": [[float(v) for v in _out(mt, st, k) @ V]
