@@ -69,7 +69,8 @@ class Smooth(FunctionClass):
     def exact_tilted(self, params: Mapping[str, Any]) -> list[tuple[Any, Any]]:
         m, L = params["m"], params["L"]
         h = Fraction(1, 2)
-        return [(L - m, np.array([[v * h for v in row] for row in interpolation_matrix(m, L)], dtype=object))]
+        rows = interpolation_matrix(m, L)
+        return [(L - m, np.array([[v * h for v in row] for row in rows], dtype=object))]
 
     def curvatures(self, params: Mapping[str, float]) -> tuple[float, float]:
         return params["m"], params["L"]
