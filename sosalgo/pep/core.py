@@ -261,6 +261,8 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
         # at least the reported tau (its float value, up to the solver's accuracy)
         proof = prove_certificate(spec, kappa, st, mterms, iterms, max(cand.tau, tau),
                                   cand.lam, data.w, ex)
+        if mt.bound is not None:  # what the proof is about (a mingrad measure's bound)
+            proof["measure_bound"] = mt.bound
         cert["proof"] = proof
         if proof["proven"]:
             cert.update(check_kind="exact (rational and ball arithmetic)",

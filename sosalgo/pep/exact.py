@@ -546,6 +546,30 @@ def prove_at(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
                                + ("c_F = 0 (exact)" if st.free_values else "c_F >= 0"))
 
 
+def _bounding_terms(mt: Method, steps: int, mterms: list[Term], bound: Any) -> list[Term]:
+    """The terms the proof is about: ``mterms``, or for a mingrad measure the proof's
+    ``measure_bound`` once it is shown to bound the measure from above in exact rationals
+    (:func:`sosalgo.pep.terms.dominates`); ValueError otherwise."""
+    from sosalgo.pep.terms import MIN_KIND, dominates, parse_terms
+
+    if not any(t.kind == MIN_KIND for t in mterms):
+        return mterms
+    if not isinstance(bound, str):
+        raise ValueError("a mingrad measure needs the proof's measure_bound")
+    terms = parse_terms(bound, "measure_bound", False, mt.p)
+
+    def value(t: Term) -> Fraction:
+        v = _exact_fraction(mt.coef(t))
+        if v is None:
+            raise ValueError(f"measure_bound: {t.coef}: not an exact rational")
+        return v
+
+    why = dominates(mterms, terms, steps, value)
+    if why:
+        raise ValueError(f"measure_bound: {why}")
+    return terms
+
+
 def reprove_certificate(spec: Spec, kappa: float | None, steps: int, measure: str,
                         initial: str, proof: dict[str, Any]) -> tuple[bool, str]:
     """(proven, detail): the claim measure <= ``proof["tau_proven"]`` proven again from
@@ -561,8 +585,10 @@ def reprove_certificate(spec: Spec, kappa: float | None, steps: int, measure: st
         mt = exact_or_none(spec, kappa, int(steps))
         if mt is None:
             return False, "the exact method cannot be built"
-        st = build_structure(mt, int(steps), parse_terms(measure, "measure", False, mt.p),
-                             parse_terms(initial, "initial", True, mt.p))
+        mterms = _bounding_terms(mt, int(steps), parse_terms(measure, "measure", False, mt.p),
+                                 proof.get("measure_bound"))
+        st = build_structure(mt, int(steps), mterms, parse_terms(initial, "initial", True,
+                                                                   mt.p))
         index = {name: k for k, name in enumerate(st.labels)}
         unknown = [k for k in lab if k not in index]
         if unknown:
