@@ -144,17 +144,21 @@ def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None
         raise InputError(f"{spec.source}: varies with k: its PEP (one method per step, "
                          "sosalgo.steps) is not built yet")
     om, kq = bound_method(spec, kappa)
-    mopt = "--measure" if measure or "measure" not in spec.pep else f"{spec.source}: pep.measure"
-    iopt = "--initial" if initial or "initial" not in spec.pep else f"{spec.source}: pep.initial"
+    mopt = "--measure" if measure or "measure" not in spec.pep else "pep.measure"
+    iopt = "--initial" if initial or "initial" not in spec.pep else "pep.initial"
     measure = measure or spec.pep.get("measure") or _default_measure(spec)
     initial = initial or spec.pep.get("initial") or default_initial(om)
-    mterms = parse_terms(measure, mopt, False, om.p)
-    iterms = parse_terms(initial, iopt, True, om.p)
+    try:
+        mterms = parse_terms(measure, mopt, False, om.p)
+        iterms = parse_terms(initial, iopt, True, om.p)
+    except InputError as exc:  # a spec's field: named with its file
+        raise (InputError(f"{spec.source}: {exc}") if str(exc).startswith("pep.")
+               else exc) from None
     mt = float_method(om, kq)
     mt.G0, mt.smooth = initial_gradient(spec, om, kq)
     try:
         bound = _resolve_min(mt, steps, mterms, iterms, kq, solve_min)
-        st = build_structure(mt, steps, bound, iterms)
+        st = build_structure(mt, steps, bound, iterms, (mopt, iopt))
         if bound is not mterms and solve_min:
             from sosalgo.pep.minimum import min_floors
 
