@@ -233,3 +233,38 @@ def test_a_bad_pep_field_names_file_and_field(tmp_path):
         assert r.exit_code == 2
         lines = [ln for ln in r.output.strip().splitlines() if ln]
         assert len(lines) == 1 and "bad.yaml" in lines[0] and field in lines[0], r.output
+
+
+@pytest.mark.parametrize("steps", [1, 3])
+def test_mingrad_on_a_convex_class_is_the_closed_form(tmp_path, steps):
+    """Gradient descent with step 1/L on L-smooth convex f: min_k |grad f(x_k)|^2 =
+    |grad f(x_N)|^2 <= L^2 |x_0 - x*|^2 / (N + 1)^2, tight (Taylor, Hendrickx, Glineur
+    2017); the gradient norm does not increase, so the minimum is the last one."""
+    spec = SPEC.parent / "gradient-convex.yaml"
+    r = CliRunner().invoke(cli, ["pep", str(spec), "--steps", str(steps), "--measure",
+                                 "mingrad", "--initial", "dist", "--json", "--out",
+                                 str(tmp_path / "o")])
+    assert r.exit_code == 0, r.output
+    doc = json.loads(r.stdout)
+    ref = 1 / (steps + 1) ** 2
+    assert doc["tau"] == pytest.approx(ref, rel=1e-6)
+    upper = Fraction(doc["certificate"]["tau_proven"])
+    assert ref * (1 - 1e-9) <= upper <= ref * (1 + 1e-5)
+    assert ref * (1 - 1e-4) <= Fraction(doc["witness"]["check"]["tau_lower"]) <= upper
+
+
+def test_a_hypoconvex_class_is_below_the_nonconvex_one(tmp_path):
+    """F(-L/2, L) is inside F(-L, L): its proven worst case is at most the nonconvex one's
+    (4/9 at N = 3), proven and witnessed."""
+    data = yaml.safe_load(SPEC.read_text(encoding="utf-8"))
+    data["functions"] = {"f": {"class": "smooth", "m": "-L/2"}}
+    path = tmp_path / "hypo.yaml"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    r = CliRunner().invoke(cli, ["pep", str(path), "--steps", "3", "--json", "--out",
+                                 str(tmp_path / "o")])
+    assert r.exit_code == 0, r.output
+    doc = json.loads(r.stdout)
+    lower = Fraction(doc["witness"]["check"]["tau_lower"])
+    upper = Fraction(doc["certificate"]["tau_proven"])
+    assert doc["witness"]["check"]["verified"] and lower <= upper
+    assert upper < Fraction(4, 9) * (1 - Fraction(1, 100))
