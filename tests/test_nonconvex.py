@@ -268,3 +268,16 @@ def test_a_hypoconvex_class_is_below_the_nonconvex_one(tmp_path):
     upper = Fraction(doc["certificate"]["tau_proven"])
     assert doc["witness"]["check"]["verified"] and lower <= upper
     assert upper < Fraction(4, 9) * (1 - Fraction(1, 100))
+
+
+def test_a_witness_about_f_star_of_a_nonconvex_class_is_refused(tmp_path):
+    """The witness's values are known up to a shift (no f* in a nonconvex PEP): a document
+    whose initial condition is f(x_0) - f* is not verified (else shifting h would make
+    any ratio)."""
+    from sosalgo import load_spec
+    from sosalgo.pep import check_witness
+
+    wit = _pep(tmp_path, 2)["witness"]
+    assert check_witness(dict(wit), load_spec(SPEC))["verified"]
+    bad = check_witness(dict(wit) | {"initial": "f(x_0)"}, load_spec(SPEC))
+    assert not bad["verified"] and "f - f*" in bad["detail"]

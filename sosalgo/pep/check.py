@@ -396,6 +396,17 @@ def arb_min(values: list[arb]) -> arb:
     return lo.union(hi)
 
 
+def _differences_only(terms: list[Term], av: ArbView) -> None:
+    """A nonconvex class's PEP has no x* and no f*: its values are known up to a shift
+    and its origin is arbitrary, so a witness proves a ratio only of terms free of x*
+    (no dist, sdist) whose f coefficients sum to exactly 0 (ValueError otherwise)."""
+    if any(t.kind in ("dist", "sdist") for t in terms):
+        raise ValueError("dist about a nonconvex class (its PEP has no x*)")
+    total = sum((av.coef(t) for t in terms if t.kind == "f"), arb(0))
+    if not total.is_zero():
+        raise ValueError("f - f* about a nonconvex class: the f coefficients do not cancel")
+
+
 def _measure_initial(doc: dict[str, Any], spec: Spec, av: ArbView
                      ) -> tuple[int, int, bool, arb, arb]:
     """(pairs checked, not proven, optimal subgradients sum to 0, measure, initial)."""
@@ -406,6 +417,9 @@ def _measure_initial(doc: dict[str, Any], spec: Spec, av: ArbView
     iterms = parse_terms(doc["initial"], "initial", True, p)
     if any(t.kind == "sdist" for t in iterms) != (doc.get("xi0") is not None):
         raise ValueError("an initial sdist needs the free start xi0, and only it")
+    if not all(cls.convex for _, cls, _ in av.mt.functions):
+        _differences_only(mterms, av)
+        _differences_only(iterms, av)
     pos = positions(doc, av)
     checked, bad = _pairs_ok(doc, av, pos)
     ssum = [sum(Fraction(v[c]) for v in (f["optimal_subgradient"] for f in
