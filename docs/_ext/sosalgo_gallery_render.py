@@ -297,8 +297,8 @@ def steps_section(spec: Any, rows: list[dict[str, Any]]) -> list[str]:
     if nonconvex(spec) and not spec.time_varying:
         text = (f"{', '.join(nonconvex(spec))} is nonconvex: no rate is certified (no "
                 "Lyapunov family applies). Its worst case after $N$ steps is a performance "
-                "estimation problem: `sosalgo pep SPEC --steps N` "
-                "([nonconvex classes](../commands/pep.md#pep-mingrad)).")
+                "estimation problem: `sosalgo pep SPEC --steps N` (the pep command's "
+                "page: minimum over iterates and nonconvex classes).")
         refs = list(spec.references)
         table = ["", "```{list-table}", ":header-rows: 1", "", "* - $N$"]
         table += [f"  - reference: {md_text(r)}" for r in refs]
