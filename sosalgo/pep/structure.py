@@ -509,8 +509,9 @@ def _used_columns(pts: list[list[PEPPoint]], forms: list[np.ndarray], n0: int, J
     """Columns some point or term uses: the first d, minus optimal subgradients that appear
     nowhere (they would be free directions of G)."""
     used = [c < d for c in range(len(pts[0][0].x))]
-    used[0] = (any(_nonzero(pt.x[0]) or _nonzero(pt.g[0]) for fp in pts for pt in fp)
-               or any(_nonzero(v) for q in forms for v in q[0]))  # x0-x* (no x*: unused)
+    if n0 == 1:  # x0-x*: unused when the PEP has no x* (its origin at x_0)
+        used[0] = (any(_nonzero(pt.x[0]) or _nonzero(pt.g[0]) for fp in pts for pt in fp)
+                   or any(_nonzero(v) for q in forms for v in q[0]))
     for c in range(n0, n0 + J - 1):
         used[c] = (any(_nonzero(pt.x[c]) or _nonzero(pt.g[c]) for fp in pts for pt in fp)
                    or any(_nonzero(v) for q in forms for v in q[c]))

@@ -106,7 +106,7 @@ def quadratic_point(mt: Method, st: Any) -> np.ndarray | None:
         q.append((lo + hi) / 2 if hi > lo else lo + s / 2)
     qc = np.array([q[j] for j in mt.oracles])
     col = {name: c for c, name in enumerate(st.basis)}
-    if "x0-x*" not in col and "xi0_1-xi*" not in col:
+    if st.free_values:
         return None  # the origin at x_0 (no x*): no direction from x_0 = 1
     v = np.zeros(st.d)
     xi = np.asarray(mt.X0, float).copy()
@@ -332,7 +332,7 @@ def _document(spec: Spec, mt: Method, st: Any, V: np.ndarray, F: np.ndarray,
     return doc | {"kind": WITNESS_KIND, "spec": spec.name, "kappa": res.kappa,
             "steps": st.steps, "calls_per_step": p, "call_steps": st.calls,
             "measure": res.measure, "initial": res.initial, "dimension": int(V.shape[1]),
-            "x0": _vec(V[0] if st.basis[0] == "x0-x*" else 0 * V[0]),  # no x*: x_0 = 0
+            "x0": _vec(0 * V[0] if st.free_values else V[0]),  # no x*: x_0 = 0
             "calls": calls, "functions": funcs,
             "evaluations": {f"{key}|{mt.functions[j][0]}": st.points[j][a].label
                             for (key, j), a in st.at.items()},
