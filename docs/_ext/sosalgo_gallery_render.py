@@ -314,7 +314,7 @@ def steps_section(spec: Any, rows: list[dict[str, Any]]) -> list[str]:
                  "at $k + 1$ carries the subscript next)")
     text += (". Its worst case after $N$ steps is a performance estimation problem: "
              "`sosalgo pep SPEC --steps N` "
-             "([methods that change with k](../spec.md#methods-that-change-with-k)).")
+             "({ref}`methods that change with k <methods-that-change-with-k>`).")
     lines = ["## A method that changes with k", "", text, ""]
     for name, decl in spec.sequences.items():
         from sosalgo_gallery import to_sympy
