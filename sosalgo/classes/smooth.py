@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from sosalgo.classes.base import FunctionClass, Inequality
-from sosalgo.classes.members import ProxFunction, huber_smooth, quadratic
+from sosalgo.classes.members import ProxFunction, curvature_members
 from sosalgo.classes.smooth_strongly_convex import interpolation_matrix
 
 
@@ -81,12 +81,7 @@ class Smooth(FunctionClass):
 
     def test_functions(self, params: Mapping[str, float], xs: np.ndarray,
                        rng: np.random.Generator) -> list[ProxFunction]:
-        d = len(xs)
-        m, L = params["m"], params["L"]
-        q = rng.uniform(m, L, d)
-        q[0], q[-1] = m, L
-        return [quadratic(q, xs, rng, "indefinite-quadratic"),
-                quadratic(np.full(d, m), xs, rng, "quad-m"), huber_smooth(m, L, xs, rng)]
+        return curvature_members(params["m"], params["L"], xs, rng, "indefinite-quadratic")
 
 
 CLASS = Smooth()

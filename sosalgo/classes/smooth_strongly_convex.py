@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from sosalgo.classes.base import FunctionClass, Inequality
-from sosalgo.classes.members import ProxFunction, huber_smooth, quadratic
+from sosalgo.classes.members import ProxFunction, curvature_members
 
 
 def interpolation_matrix(m: Any, L: Any) -> list[list[Any]]:
@@ -78,12 +78,7 @@ class SmoothStronglyConvex(FunctionClass):
 
     def test_functions(self, params: Mapping[str, float], xs: np.ndarray,
                        rng: np.random.Generator) -> list[ProxFunction]:
-        d = len(xs)
-        m, L = params["m"], params["L"]
-        q = rng.uniform(m, L, d)
-        q[0], q[-1] = m, L
-        return [quadratic(q, xs, rng, "quadratic"), quadratic(np.full(d, m), xs, rng, "quad-m"),
-                quadratic(np.full(d, L), xs, rng, "quad-L"), huber_smooth(m, L, xs, rng)]
+        return curvature_members(params["m"], params["L"], xs, rng, "quadratic", ("m", "L"))
 
 
 CLASS = SmoothStronglyConvex()
