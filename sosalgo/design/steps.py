@@ -1,0 +1,310 @@
+"""``design SPEC --steps N``: minimize the N-step worst case tau_N(θ) over the box Θ.
+
+Three numbers come out, never mixed:
+
+* ``tau_certified``: the worst case at the designed θ (``schedule``, decimals), its dual
+  certificate proven exactly as ``sosalgo pep`` proves it (:func:`sosalgo.pep.pep`), so
+  tau_N(schedule) <= tau_certified. θ comes from a local search of the float PEP value
+  (:func:`worst_case_evaluator`: the one function that computes a worst case at θ) from
+  a grid, polished, and from the centres of the boxes the bound search splits.
+* ``lower_bound``: proven over the whole box: tau_N(θ) >= lower_bound for every θ in Θ
+  (:mod:`sosalgo.design.steps_bound`: branch and bound over boxes, each proven in exact
+  rational arithmetic).
+* ``floor``: only where a theorem gives it: for m = 0, one L-smooth convex f queried by
+  its gradient and a method whose iterates stay in x_0 + span(g_0, ...) (every linear
+  method started at rest), no method has a worst case below L / (2 theta_N^2) after N
+  gradient calls, OGM's theta (Drori 2017). None otherwise.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from fractions import Fraction
+from typing import Any
+
+import numpy as np
+
+from sosalgo.design.steps_bound import BranchResult, branch_and_bound
+from sosalgo.design.steps_model import Unsupported, parametric_pep
+from sosalgo.errors import InputError
+from sosalgo.kernel.phases import show_phase
+from sosalgo.spec import Spec
+
+__all__ = ["StepsDesign", "design_steps", "drori_floor", "ogm_theta", "worst_case_evaluator"]
+
+DIGITS = 12  # significant digits of the designed values (the exact θ of the proof)
+SEARCH_SHARE = 0.3  # of the time limit, for the upper bound's search before the bound
+
+
+@dataclass
+class StepsDesign:
+    """The result of :func:`design_steps` (``to_dict``: the ``design --steps --json``
+    document; ``schedule``, ``tau_certified``, ``lower_bound``, ``gap``, ``floor`` are
+    contracts)."""
+
+    spec: str
+    kappa: float | None
+    steps: int
+    free: list[str]
+    schedule: dict[str, Any]
+    schedule_exact: dict[str, Any]
+    tau_certified: float | None
+    tau_certified_exact: str | None
+    tau_float: float | None
+    lower_bound: float | None
+    lower_bound_exact: str | None
+    floor: float | None
+    seconds: float
+    time_limited: bool = False
+    bound: dict[str, Any] = field(default_factory=dict)
+    log: list[str] = field(default_factory=list)
+
+    @property
+    def gap(self) -> float | None:
+        if self.tau_certified is None or self.lower_bound is None:
+            return None
+        return self.tau_certified - self.lower_bound
+
+    def to_dict(self) -> dict[str, Any]:
+        gap = self.gap
+        rel = (None if gap is None or not self.tau_certified
+               else gap / self.tau_certified)
+        return {"spec": self.spec, "kappa": self.kappa, "steps": self.steps,
+                "free": list(self.free), "schedule": self.schedule,
+                "schedule_exact": self.schedule_exact,
+                "tau_certified": self.tau_certified,
+                "tau_certified_exact": self.tau_certified_exact,
+                "tau_float": self.tau_float, "lower_bound": self.lower_bound,
+                "lower_bound_exact": self.lower_bound_exact, "gap": gap,
+                "gap_relative": rel, "floor": self.floor,
+                "floor_theorem": None if self.floor is None else
+                "Drori 2017: L/(2 theta_N^2), OGM's theta, every method in the span of "
+                "the gradients on L-smooth convex f",
+                "seconds": self.seconds, "time_limited": self.time_limited,
+                "bound": self.bound, "log": list(self.log)}
+
+
+def ogm_theta(steps: int) -> float:
+    """OGM's theta_N: theta_0 = 1, theta_{i+1} = (1 + sqrt(1 + 4 theta_i^2)) / 2, the last
+    (1 + sqrt(1 + 8 theta_{N-1}^2)) / 2."""
+    th = 1.0
+    for i in range(steps):
+        c = 8.0 if i == steps - 1 else 4.0
+        th = (1 + math.sqrt(1 + c * th * th)) / 2
+    return th
+
+
+def drori_floor(spec: Spec, steps: int) -> float | None:
+    """L / (2 theta_N^2) where the theorem applies (see the module), else None."""
+    if not spec.sublinear or spec.L is None:
+        return None
+    try:
+        parametric_pep(spec, None, 1, [])  # the setting: one smooth convex f, at rest
+    except (Unsupported, InputError):
+        return None
+    return float(spec.L) / (2 * ogm_theta(steps) ** 2)
+
+
+# ------------------------------------------------------------------ the worst case at θ
+Values = dict[str, Any]  # parameter -> number (or per-step list)
+
+
+def _decimal(x: float) -> str:
+    return f"{x:.{DIGITS}g}"
+
+
+def worst_case_evaluator(spec: Spec, text: str, kappa: float | None, steps: int,
+                         ) -> tuple[Callable[[Values], float],
+                                    Callable[[Values], tuple[Fraction | None, float]]]:
+    """(float tau_N at θ, proven tau_N at θ): the PEP of ``sosalgo pep`` at the spec
+    with the parameters fixed to θ's values (``--set``). The proven one returns
+    (tau_proven or None, float tau). The values are written as given (decimals)."""
+    from sosalgo.pep.core import pep
+    from sosalgo.spec import spec_from_text
+    from sosalgo.spec.overrides import apply_overrides
+
+    def at(values: Values) -> Spec:
+        over = {k: _text(v) for k, v in values.items()}
+        return spec_from_text(apply_overrides(text, over, spec.source), spec.source)
+
+    def value(values: Values) -> float:
+        try:
+            res = pep(at(values), kappa, steps, exact=False, witness=False)
+        except (InputError, ArithmeticError, ValueError):
+            return math.inf
+        return math.inf if res.tau is None else float(res.tau)
+
+    def proven(values: Values) -> tuple[Fraction | None, float]:
+        res = pep(at(values), kappa, steps, exact=True, witness=False)
+        cert = res.certificate or {}
+        tp = cert.get("tau_proven")
+        return (Fraction(tp) if isinstance(tp, str) else None,
+                math.inf if res.tau is None else float(res.tau))
+
+    return value, proven
+
+
+def _text(v: Any) -> str:
+    if isinstance(v, list | tuple):
+        return "[" + ", ".join(_text(x) for x in v) + "]"
+    return v if isinstance(v, str) else _decimal(float(v))
+
+
+# ------------------------------------------------------------------ the search
+class _Search:
+    """The best θ found (float PEP values), over the box [lo, hi] of the free values."""
+
+    def __init__(self, names: list[str], lo: np.ndarray, hi: np.ndarray,
+                 value: Callable[[Values], float], pack: Callable[[np.ndarray], Values]):
+        self.names, self.lo, self.hi = names, lo, hi
+        self.value, self.pack = value, pack
+        self.best_z: np.ndarray | None = None
+        self.best = math.inf
+        self.evals = 0
+
+    def __call__(self, z: Sequence[float]) -> float:
+        zc = self.round(np.clip(np.asarray(z, float), self.lo, self.hi))
+        v = self.value(self.pack(zc))
+        self.evals += 1
+        if v < self.best:
+            self.best, self.best_z = v, zc
+        return v
+
+    def round(self, z: np.ndarray) -> np.ndarray:
+        """The decimals the proof will use, inside the box."""
+        r = np.array([float(_decimal(float(x))) for x in z])
+        return np.clip(r, self.lo, self.hi)
+
+    def polish(self, z0: np.ndarray, deadline: float, tol: float = 1e-9) -> None:
+        from scipy.optimize import minimize, minimize_scalar
+
+        if time.time() >= deadline:
+            return
+        if len(z0) == 1:
+            w = (self.hi[0] - self.lo[0]) / 20
+            a, b = max(self.lo[0], z0[0] - w), min(self.hi[0], z0[0] + w)
+            minimize_scalar(lambda x: self([x]), bounds=(a, b), method="bounded",
+                            options={"xatol": tol * max(1.0, abs(z0[0]))})
+            return
+        left = max(1.0, deadline - time.time())
+        minimize(self, z0, method="Nelder-Mead",
+                 options={"xatol": tol, "fatol": tol * max(self.best, 1e-12),
+                          "maxfev": int(200 * len(z0) + 100 * min(left, 60))},
+                 bounds=list(zip(self.lo, self.hi, strict=True)))
+
+
+def _starts(search: _Search, seeds: list[np.ndarray], deadline: float) -> list[np.ndarray]:
+    """A grid (one parameter) or random points and the seeds, best first."""
+    k = len(search.lo)
+    if k == 1:
+        pts = [np.array([x]) for x in np.linspace(search.lo[0], search.hi[0], 41)]
+    else:
+        rng = np.random.default_rng(0)
+        pts = [search.lo + rng.random(k) * (search.hi - search.lo) for _ in range(12 * k)]
+    scored = []
+    for z in seeds + pts:
+        if time.time() >= deadline:
+            break
+        scored.append((search(z), len(scored), z))
+    scored.sort(key=lambda t: (t[0], t[1]))
+    return [z for _, _, z in scored]
+
+
+# ------------------------------------------------------------------ the design
+def design_steps(spec: Spec, text: str, kappa: float | None, steps: int,
+                 free: Sequence[str], box: Sequence[tuple[Fraction, Fraction]],
+                 time_limit: float = 120.0, gap: float = 1e-3,
+                 evaluator: tuple[Callable, Callable] | None = None,
+                 seeds: Sequence[Sequence[float]] = ()) -> StepsDesign:
+    """The N-step design of ``spec`` over ``box`` (exact ends, one per free value):
+    schedule, tau_certified, lower_bound, floor (see the module). ``evaluator``: the
+    worst case at θ (default :func:`worst_case_evaluator`); ``gap``: the relative gap at
+    which the bound search stops."""
+    t0 = time.time()
+    deadline = t0 + time_limit
+    names = list(free)
+    value, proven = evaluator or worst_case_evaluator(spec, text, kappa, steps)
+    lo = np.array([float(a) for a, _ in box])
+    hi = np.array([float(b) for _, b in box])
+    search = _Search(names, lo, hi, value, lambda z: dict(zip(names, (float(x) for x in z),
+                                                              strict=True)))
+    log: list[str] = []
+    show_phase("searching", f"N = {steps}")
+    starts = _starts(search, [np.asarray(s, float) for s in seeds],
+                     t0 + SEARCH_SHARE * time_limit)
+    for z in starts[:3]:
+        search.polish(z, t0 + SEARCH_SHARE * time_limit)
+    log.append(f"search: {search.evals} PEPs, best {search.best:.12g}")
+    bound, reason = _bound(spec, kappa, steps, names, box, search, deadline, gap)
+    log.append(reason)
+    if search.best_z is not None:
+        search.polish(search.best_z, deadline - 0.1 * time_limit)
+    return _finish(spec, kappa, steps, names, search, proven, bound, log, t0, deadline)
+
+
+def _bound(spec: Spec, kappa: float | None, steps: int, names: list[str],
+           box: Sequence[tuple[Fraction, Fraction]], search: _Search, deadline: float,
+           gap: float) -> tuple[BranchResult | None, str]:
+    try:
+        pp = parametric_pep(spec, kappa, steps, names)
+    except Unsupported as exc:
+        return None, f"no box-wide lower bound: {exc}"
+
+    def report(boxes: int, low: float) -> None:
+        show_phase("lower bound", f"{boxes} boxes, bound {low:.6g}, best {search.best:.6g}")
+
+    def probe(z: list[float]) -> None:
+        if time.time() < deadline:
+            search(z)
+
+    res = branch_and_bound(pp, [a for a, _ in box], [b for _, b in box],
+                           lambda: search.best, deadline - 0.15 * (deadline - time.time()),
+                           gap / 2, probe, report)
+    return res, (f"bound: {res.boxes} boxes in {res.seconds:.1f} s, leaves proven by "
+                 + ", ".join(f"{k} {v}" for k, v in sorted(res.hows.items())))
+
+
+def _finish(spec: Spec, kappa: float | None, steps: int, names: list[str], search: _Search,
+            proven: Callable, bound: BranchResult | None, log: list[str], t0: float,
+            deadline: float) -> StepsDesign:
+    show_phase("proving the worst case", f"N = {steps}")
+    sched: dict[str, Any] = {}
+    exact: dict[str, Any] = {}
+    tp, tf = None, None
+    if search.best_z is not None:
+        vals = search.pack(search.best_z)
+        exact = {k: _text(v) for k, v in vals.items()}
+        sched = {k: float(v) for k, v in exact.items()}
+        tp, tf = proven(exact)
+    lb = None if bound is None else bound.lower_bound
+    res = StepsDesign(spec.name, kappa, steps, names, sched, exact,
+                      None if tp is None else _up(tp), None if tp is None else str(tp),
+                      tf, None if lb is None else _down(lb),
+                      None if lb is None else str(lb), drori_floor(spec, steps),
+                      time.time() - t0, time_limited=time.time() >= deadline or (
+                          bound is not None and not bound.finished))
+    res.log = log
+    if bound is not None:
+        res.bound = _bound_doc(bound)
+    return res
+
+
+def _up(q: Fraction) -> float:
+    f = float(q)
+    return f if Fraction(f) >= q else float(np.nextafter(f, math.inf))
+
+
+def _down(q: Fraction) -> float:
+    f = float(q)
+    return f if Fraction(f) <= q else float(np.nextafter(f, -math.inf))
+
+
+def _bound_doc(b: BranchResult) -> dict[str, Any]:
+    """The leaves of the bound (boxes, how each was proven, its bound)."""
+    return {"boxes": b.boxes, "seconds": b.seconds, "finished": b.finished,
+            "proven_by": dict(b.hows),
+            "leaves": [{"lo": [str(x) for x in leaf.lo], "hi": [str(x) for x in leaf.hi],
+                        "how": leaf.how, "bound": str(leaf.bound)} for leaf in b.leaves]}

@@ -1,0 +1,381 @@
+"""A lower bound of the N-step worst case proven over a whole box of parameters.
+
+For a sub-box B of θ, three sound bounds of min_{θ in B} tau_N(θ):
+
+* **robust PEP point** (:class:`BoxSolver`, :func:`prove_point`): one (G, F) feasible for
+  the PEP of every θ in B (:mod:`sosalgo.design.steps_model`: each inequality is
+  F_i - F_j + sum_alpha θ^alpha c_alpha >= 0 with c_alpha = <Q_alpha, G>; it holds on B
+  when c_0 + sum_alpha min(lo_alpha c_alpha, hi_alpha c_alpha) >= 0, lo/hi the exact
+  range of θ^alpha on B). The SDP maximizing F_N over such points is solved in floating
+  point for a subclass F(m + s (L - m), L (1 - s)), s = 1e-7 (inequalities with slack); the
+  proof rounds G to V V' with V rational (positive semidefinite by construction), takes
+  the largest F for that G exactly (a shortest path from x*: F_j <= F_i + w_ij) and
+  divides by G_00: every step in exact rational arithmetic, about the class as written.
+* **quadratic witnesses** (:func:`quadratic_bound`): f = q x^2 / 2 in one dimension,
+  m <= q <= L, its trajectory from x_0 = 1 enclosed in exact interval arithmetic over B.
+* **Huber witnesses** (m = 0 only): slope tau, curvature L; while every query stays at
+  y >= tau / L the gradients are tau, and f(x_N) >= tau x_N - tau^2 / (2L) everywhere.
+
+The first converges to tau_N as B shrinks (where no two points coincide on B); the
+witnesses cover the boxes where it cannot (θ = 0: the iterates stop moving).
+:func:`branch_and_bound` splits the box whose proven bound is lowest; the bound over the
+whole box is the minimum over the leaves.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from fractions import Fraction
+from typing import Any
+
+import numpy as np
+
+from sosalgo.design.steps_model import ParametricPEP, Poly, poly_range
+
+__all__ = ["BoxBound", "BoxSolver", "BranchResult", "branch_and_bound", "prove_box",
+           "quadratic_bound"]
+
+# the SDP's class: F(m + s (L - m), L (1 - s)), s = SHRINK: a subclass whose inequalities
+# have slack where points or gradients differ, which absorbs the rounding of the proof
+SHRINK = Fraction(1, 10 ** 7)
+Box = tuple[tuple[Fraction, ...], tuple[Fraction, ...]]
+
+
+def _ranges(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction]
+            ) -> list[tuple[Fraction, Fraction]]:
+    return [poly_range(e, lo, hi) for e in pp.monomials]
+
+
+class BoxSolver:
+    """The robust SDP of a box (floating point, cvxpy with the box as parameters)."""
+
+    def __init__(self, pp: ParametricPEP):
+        import cvxpy as cp
+
+        self.pp = pp
+        K, A, d = len(pp.pairs), len(pp.monomials), pp.d
+        forms = pp.float_forms(SHRINK).reshape(K, A, d * d)
+        self.G = cp.Variable((d, d), PSD=True)
+        self.F = cp.Variable(pp.npts)
+        self.lo = cp.Parameter(A)
+        self.hi = cp.Parameter(A)
+        g = cp.vec(self.G, order="C")
+        zero = pp.monomials.index((0,) * len(pp.free))
+        total = forms[:, zero, :] @ g
+        cons = [self.G[0, 0] <= 1]
+        for a in range(A):
+            if a == zero or not np.any(forms[:, a, :]):
+                continue
+            rows = np.flatnonzero(np.any(forms[:, a, :] != 0, axis=1))
+            c = forms[rows, a, :] @ g
+            t = cp.Variable(len(rows))
+            cons += [t <= self.lo[a] * c, t <= self.hi[a] * c]
+            sel = np.zeros((K, len(rows)))
+            sel[rows, np.arange(len(rows))] = 1.0
+            total = total + sel @ t
+        diff = np.zeros((K, pp.npts))
+        for k, (i, j) in enumerate(pp.pairs):
+            if i < pp.npts:
+                diff[k, i] += 1.0
+            if j < pp.npts:
+                diff[k, j] -= 1.0
+        cons.append(diff @ self.F + total >= 0)
+        self.problem = cp.Problem(cp.Maximize(self.F[pp.measure_point]), cons)
+
+    def solve(self, lo: Sequence[Fraction], hi: Sequence[Fraction]
+              ) -> tuple[float, np.ndarray | None]:
+        """(float value, G) of the robust SDP on the box (-inf, None on failure)."""
+        r = _ranges(self.pp, lo, hi)
+        self.lo.value = np.array([float(a) for a, _ in r])
+        self.hi.value = np.array([float(b) for _, b in r])
+        try:
+            self.problem.solve(solver="CLARABEL")
+        except Exception:  # noqa: BLE001 - a failed solve is no bound, never an error
+            return -math.inf, None
+        if self.problem.status not in ("optimal", "optimal_inaccurate") \
+                or self.G.value is None:
+            return -math.inf, None
+        return float(self.problem.value), np.array(self.G.value)
+
+
+def _rational_factor(G: np.ndarray, bits: int = 52) -> Any:
+    """V V' (an exact rational PSD matrix) from a float G: V = U sqrt(lambda) rounded
+    to dyadic rationals, eigenvalues below 1e-11 of the largest dropped."""
+    from flint import fmpq, fmpq_mat
+
+    Gs = (G + G.T) / 2
+    lam, U = np.linalg.eigh(Gs)
+    top = max(float(lam[-1]), 0.0)
+    keep = lam > 1e-11 * top if top > 0 else np.zeros_like(lam, dtype=bool)
+    V = U[:, keep] * np.sqrt(lam[keep])
+    if V.shape[1] == 0:
+        return None
+    scale = 2 ** bits
+    Vq = fmpq_mat(V.shape[0], V.shape[1],
+                  [fmpq(int(round(float(v) * scale)), scale) for v in V.ravel()])
+    return Vq * Vq.transpose()
+
+
+def exact_forms(pp: ParametricPEP) -> Any:
+    """All pair forms as one fmpq matrix: row k * A + a is vec of pair k's monomial a."""
+    from flint import fmpq, fmpq_mat
+
+    if getattr(pp, "_exact", None) is None:
+        K, A, d = len(pp.pairs), len(pp.monomials), pp.d
+        idx = {e: a for a, e in enumerate(pp.monomials)}
+        entries = [fmpq(0)] * (K * A * d * d)
+        for k, form in enumerate(pp.forms):
+            for e, M in form.items():
+                base = (k * A + idx[e]) * d * d
+                for r in range(d):
+                    for c in range(d):
+                        if M[r, c]:
+                            entries[base + r * d + c] = fmpq(M[r, c].numerator,
+                                                             M[r, c].denominator)
+        pp._exact = fmpq_mat(K * A, d * d, entries)  # type: ignore[attr-defined]
+    return pp._exact  # type: ignore[attr-defined]
+
+
+def prove_point(pp: ParametricPEP, G: np.ndarray, lo: Sequence[Fraction],
+                hi: Sequence[Fraction]) -> Fraction | None:
+    """The exact lower bound on the box from the float point G (None: not proven)."""
+    from flint import fmpq_mat
+
+    Gq = _rational_factor(G)
+    if Gq is None or Gq[0, 0] <= 0:
+        return None
+    d, A = pp.d, len(pp.monomials)
+    vec = fmpq_mat(d * d, 1, [Gq[r, c] for r in range(d) for c in range(d)])
+    cval = exact_forms(pp) * vec
+    ranges = _ranges(pp, lo, hi)
+    zero = pp.monomials.index((0,) * len(pp.free))
+    weights = []
+    for k in range(len(pp.pairs)):
+        w = _q(cval[k * A + zero, 0])
+        for a, (ra, rb) in enumerate(ranges):
+            if a != zero:
+                c = _q(cval[k * A + a, 0])
+                if c:
+                    w += min(ra * c, rb * c)
+        weights.append(w)
+    best = _largest_values(pp, weights)
+    if best is None:
+        return None
+    return best / _q(Gq[0, 0])
+
+
+def _q(v: Any) -> Fraction:
+    return Fraction(int(v.p), int(v.q))
+
+
+def _largest_values(pp: ParametricPEP, weights: list[Fraction]) -> Fraction | None:
+    """max F_N with F_* = 0 and F_j <= F_i + w_ij for every pair: the shortest distance
+    from x* to x_N (Bellman-Ford); None when a cycle is negative (no feasible F)."""
+    n = pp.npts + 1
+    star = pp.npts
+    dist: list[Fraction | None] = [None] * n
+    dist[star] = Fraction(0)
+    for _ in range(n):
+        changed = False
+        for (i, j), w in zip(pp.pairs, weights, strict=True):
+            di = dist[i]
+            if di is not None and (dist[j] is None or di + w < dist[j]):
+                dist[j] = di + w
+                changed = True
+        if not changed:
+            break
+    else:
+        return None
+    if dist[star] != 0:
+        return None
+    return dist[pp.measure_point]
+
+
+# ------------------------------------------------------------------ witnesses
+Interval = tuple[Fraction, Fraction]
+
+
+def _imul(a: Interval, b: Interval) -> Interval:
+    c = (a[0] * b[0], a[0] * b[1], a[1] * b[0], a[1] * b[1])
+    return min(c), max(c)
+
+
+def _iadd(a: Interval, b: Interval) -> Interval:
+    return a[0] + b[0], a[1] + b[1]
+
+
+def _poly_interval(p: Poly, lo: Sequence[Fraction], hi: Sequence[Fraction]) -> Interval:
+    out = (Fraction(0), Fraction(0))
+    for e, c in p.items():
+        a, b = poly_range(e, lo, hi)
+        out = _iadd(out, _imul((c, c), (a, b)))
+    return out
+
+
+def _imat(M: list[list[Poly]], lo: Sequence[Fraction], hi: Sequence[Fraction]
+          ) -> list[list[Interval]]:
+    return [[_poly_interval(p, lo, hi) for p in row] for row in M]
+
+
+def _imatvec(M: list[list[Interval]], v: list[Interval]) -> list[Interval]:
+    out = []
+    for row in M:
+        acc = (Fraction(0), Fraction(0))
+        for a, b in zip(row, v, strict=True):
+            acc = _iadd(acc, _imul(a, b))
+        out.append(acc)
+    return out
+
+
+def _trajectory(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction],
+                grad: Callable[[Interval], Interval], start: int = 1
+                ) -> tuple[list[Interval], Interval]:
+    """(queries y_k, x_N) in one dimension from x_0 = ``start`` (xi_0 = x_0 1),
+    g_k = grad(y_k), enclosed over the box."""
+    assert pp.step_polys is not None
+    n = len(pp.step_polys[0]["A"])
+    xi = [(Fraction(start), Fraction(start))] * n
+    ys = []
+    for k in range(pp.steps):
+        mats = {name: _imat(M, lo, hi) for name, M in pp.step_polys[k].items()}
+        y = _imatvec(mats["C"], xi)[0]
+        ys.append(y)
+        g = grad(y)
+        Ax = _imatvec(mats["A"], xi)
+        xi = [_iadd(a, _imul(b[0], g)) for a, b in zip(Ax, mats["B"], strict=True)]
+    E = _imat(pp.step_polys[-1]["E"], lo, hi)
+    return ys, _imatvec(E, xi)[0]
+
+
+def quadratic_bound(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction],
+                    qs: Sequence[Fraction]) -> Fraction:
+    """max over q of the proven min over the box of f(x_N) for f = q x^2 / 2 (x_0 = 1)."""
+    best = Fraction(0)
+    for q in qs:
+        _, (a, b) = _trajectory(pp, lo, hi, lambda y, q=q: (q * y[0], q * y[1])
+                                if q >= 0 else (q * y[1], q * y[0]))
+        low = Fraction(0) if a <= 0 <= b else min(abs(a), abs(b))
+        best = max(best, q * low * low / 2)
+    return best
+
+
+def huber_bound(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction]
+                ) -> Fraction:
+    """The proven min over the box of f(x_N) for the Huber function of slope tau (m = 0
+    only), tau the largest that keeps every query at y >= tau / L (proven), at most the
+    best tau for the enclosure x_N = 1 + tau beta of the output."""
+    if pp.m != 0:
+        return Fraction(0)
+    L = pp.L
+    ys, xN = _trajectory(pp, lo, hi, lambda y: (Fraction(1), Fraction(1)), start=0)
+    tau = 1 / (1 / L - 2 * min(xN[0], Fraction(0)))
+    for y in ys:  # y_k = 1 + tau gamma_k >= tau / L while tau <= 1 / (1/L - gamma_k)
+        tau = min(tau, 1 / (1 / L - min(y[0], Fraction(0))))
+    ys, (a, _) = _trajectory(pp, lo, hi, lambda y: (tau, tau))
+    if not all(y[0] >= tau / L for y in ys):
+        return Fraction(0)
+    return max(Fraction(0), tau * a - tau * tau / (2 * L))
+
+
+def witness_curvatures(pp: ParametricPEP) -> list[Fraction]:
+    """The curvatures q of the quadratic witnesses: L, m and a geometric grid between."""
+    L, m = pp.L, pp.m
+    return sorted({L, m} | {max(m, L * Fraction(2, 3) ** j) for j in range(1, 16)} - {0})
+
+
+# ------------------------------------------------------------------ branch and bound
+@dataclass
+class BoxBound:
+    """A box with its proven bound (``how``: robust-pep | quadratic | huber | none)."""
+
+    lo: tuple[Fraction, ...]
+    hi: tuple[Fraction, ...]
+    bound: Fraction
+    how: str
+    estimate: float  # the float SDP value (the bound the box could reach)
+
+    def center(self) -> list[float]:
+        return [float((a + b) / 2) for a, b in zip(self.lo, self.hi, strict=True)]
+
+
+def prove_box(pp: ParametricPEP, solver: BoxSolver | None, lo: Sequence[Fraction],
+              hi: Sequence[Fraction]) -> BoxBound:
+    """The best proven bound of the box (the robust point, else the witnesses)."""
+    lo, hi = tuple(lo), tuple(hi)
+    val, G = solver.solve(lo, hi) if solver is not None else (-math.inf, None)
+    best, how = Fraction(0), "none"
+    if G is not None and val > 0:
+        pt = prove_point(pp, G, lo, hi)
+        if pt is not None and pt > best:
+            best, how = pt, "robust-pep"
+    for name, b in (("quadratic", quadratic_bound(pp, lo, hi, witness_curvatures(pp))),
+                    ("huber", huber_bound(pp, lo, hi))):
+        if b > best:
+            best, how = b, name
+    return BoxBound(lo, hi, best, how, val)
+
+
+@dataclass
+class BranchResult:
+    """The proven lower bound over the box (min over the leaves) and the search's log."""
+
+    lower_bound: Fraction
+    leaves: list[BoxBound]
+    boxes: int
+    seconds: float
+    finished: bool  # the target gap was reached (else: the time ran out)
+    hows: dict[str, int] = field(default_factory=dict)
+
+
+def _split(b: BoxBound, root: Box) -> list[tuple[tuple[Fraction, ...], tuple[Fraction, ...]]]:
+    widths = [(h - lo_) / max(rh - rl, Fraction(1, 10 ** 30))
+              for lo_, h, rl, rh in zip(b.lo, b.hi, root[0], root[1], strict=True)]
+    ax = max(range(len(widths)), key=lambda i: widths[i])
+    mid = (b.lo[ax] + b.hi[ax]) / 2
+    left_hi = tuple(mid if i == ax else v for i, v in enumerate(b.hi))
+    right_lo = tuple(mid if i == ax else v for i, v in enumerate(b.lo))
+    return [(b.lo, left_hi), (right_lo, b.hi)]
+
+
+def branch_and_bound(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction],
+                     upper: Callable[[], float], deadline: float, gap: float,
+                     probe: Callable[[list[float]], None] | None = None,
+                     on_box: Callable[[int, float], None] | None = None,
+                     max_boxes: int = 100000) -> BranchResult:
+    """Split the box with the lowest proven bound until min bound >= upper() (1 - gap)
+    or the deadline; ``probe(theta)`` is offered each split box's centre (the upper
+    bound's search), ``on_box(boxes, lower)`` reports progress."""
+    t0 = time.perf_counter()
+    solver = BoxSolver(pp)
+    root: Box = (tuple(lo), tuple(hi))
+    first = prove_box(pp, solver, *root)
+    heap: list[tuple[Fraction, int, BoxBound]] = [(first.bound, 0, first)]
+    count, finished = 1, False
+    while heap:
+        low, _, box = heap[0]
+        if float(low) >= upper() * (1 - gap):
+            finished = True
+            break
+        if time.time() >= deadline or count >= max_boxes:
+            break
+        heapq.heappop(heap)
+        if probe is not None:
+            probe(box.center())
+        for clo, chi in _split(box, root):
+            child = prove_box(pp, solver, clo, chi)
+            if child.bound < box.bound:  # the parent's proof holds on the child
+                child = BoxBound(clo, chi, box.bound, box.how, child.estimate)
+            count += 1
+            heapq.heappush(heap, (child.bound, count, child))
+        if on_box is not None:
+            on_box(count, float(heap[0][0]))
+    leaves = [b for _, _, b in heap]
+    hows: dict[str, int] = {}
+    for b in leaves:
+        hows[b.how] = hows.get(b.how, 0) + 1
+    return BranchResult(min(b.bound for b in leaves), leaves, count,
+                        time.perf_counter() - t0, finished, hows)
