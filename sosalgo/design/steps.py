@@ -5,7 +5,7 @@ Three numbers come out, never mixed:
 * ``tau_certified``: the worst case at the designed θ (``schedule``, decimals), its dual
   certificate proven exactly as ``sosalgo pep`` proves it (:func:`sosalgo.pep.pep`), so
   tau_N(schedule) <= tau_certified. θ comes from a local search of the float PEP value
-  (:func:`worst_case_evaluator`: the one function that computes a worst case at θ) from
+  (the ``evaluator`` given: :func:`sosalgo.pep.evaluate.worst_case_evaluator`) from
   a grid, polished, and from the centres of the boxes the bound search splits.
 * ``lower_bound``: proven over the whole box: tau_N(θ) >= lower_bound for every θ in Θ
   (:mod:`sosalgo.design.steps_bound`: branch and bound over boxes, each proven in exact
@@ -33,7 +33,8 @@ from sosalgo.errors import InputError
 from sosalgo.kernel.phases import show_phase
 from sosalgo.spec import Spec
 
-__all__ = ["StepsDesign", "design_steps", "drori_floor", "ogm_theta", "worst_case_evaluator"]
+__all__ = ["StepsDesign", "design_steps", "drori_floor", "exact_box", "ogm_theta",
+           "value_text"]
 
 DIGITS = 12  # significant digits of the designed values (the exact θ of the proof)
 SEARCH_SHARE = 0.3  # of the time limit, for the upper bound's search before the bound
@@ -116,40 +117,10 @@ def _decimal(x: float) -> str:
     return f"{x:.{DIGITS}g}"
 
 
-def worst_case_evaluator(spec: Spec, text: str, kappa: float | None, steps: int,
-                         ) -> tuple[Callable[[Values], float],
-                                    Callable[[Values], tuple[Fraction | None, float]]]:
-    """(float tau_N at θ, proven tau_N at θ): the PEP of ``sosalgo pep`` at the spec
-    with the parameters fixed to θ's values (``--set``). The proven one returns
-    (tau_proven or None, float tau). The values are written as given (decimals)."""
-    from sosalgo.pep.core import pep
-    from sosalgo.spec import spec_from_text
-    from sosalgo.spec.overrides import apply_overrides
-
-    def at(values: Values) -> Spec:
-        over = {k: _text(v) for k, v in values.items()}
-        return spec_from_text(apply_overrides(text, over, spec.source), spec.source)
-
-    def value(values: Values) -> float:
-        try:
-            res = pep(at(values), kappa, steps, exact=False, witness=False)
-        except (InputError, ArithmeticError, ValueError):
-            return math.inf
-        return math.inf if res.tau is None else float(res.tau)
-
-    def proven(values: Values) -> tuple[Fraction | None, float]:
-        res = pep(at(values), kappa, steps, exact=True, witness=False)
-        cert = res.certificate or {}
-        tp = cert.get("tau_proven")
-        return (Fraction(tp) if isinstance(tp, str) else None,
-                math.inf if res.tau is None else float(res.tau))
-
-    return value, proven
-
-
-def _text(v: Any) -> str:
+def value_text(v: Any) -> str:
+    """A parameter value as the decimal (or list of decimals) the proofs use."""
     if isinstance(v, list | tuple):
-        return "[" + ", ".join(_text(x) for x in v) + "]"
+        return "[" + ", ".join(value_text(x) for x in v) + "]"
     return v if isinstance(v, str) else _decimal(float(v))
 
 
@@ -216,17 +187,17 @@ def _starts(search: _Search, seeds: list[np.ndarray], deadline: float) -> list[n
 # ------------------------------------------------------------------ the design
 def design_steps(spec: Spec, text: str, kappa: float | None, steps: int,
                  free: Sequence[str], box: Sequence[tuple[Fraction, Fraction]],
-                 time_limit: float = 120.0, gap: float = 1e-3,
-                 evaluator: tuple[Callable, Callable] | None = None,
-                 seeds: Sequence[Sequence[float]] = ()) -> StepsDesign:
+                 evaluator: tuple[Callable, Callable], time_limit: float = 120.0,
+                 gap: float = 1e-3, seeds: Sequence[Sequence[float]] = ()) -> StepsDesign:
     """The N-step design of ``spec`` over ``box`` (exact ends, one per free value):
-    schedule, tau_certified, lower_bound, floor (see the module). ``evaluator``: the
-    worst case at θ (default :func:`worst_case_evaluator`); ``gap``: the relative gap at
+    schedule, tau_certified, lower_bound, floor (see the module). ``evaluator``: (float
+    worst case at θ, proven worst case at θ), θ a dict of parameter values
+    (:func:`sosalgo.pep.evaluate.worst_case_evaluator`); ``gap``: the relative gap at
     which the bound search stops."""
     t0 = time.time()
     deadline = t0 + time_limit
     names = list(free)
-    value, proven = evaluator or worst_case_evaluator(spec, text, kappa, steps)
+    value, proven = evaluator
     lo = np.array([float(a) for a, _ in box])
     hi = np.array([float(b) for _, b in box])
     search = _Search(names, lo, hi, value, lambda z: dict(zip(names, (float(x) for x in z),
@@ -276,7 +247,7 @@ def _finish(spec: Spec, kappa: float | None, steps: int, names: list[str], searc
     tp, tf = None, None
     if search.best_z is not None:
         vals = search.pack(search.best_z)
-        exact = {k: _text(v) for k, v in vals.items()}
+        exact = {k: value_text(v) for k, v in vals.items()}
         sched = {k: float(v) for k, v in exact.items()}
         tp, tf = proven(exact)
     lb = None if bound is None else bound.lower_bound
@@ -306,5 +277,61 @@ def _bound_doc(b: BranchResult) -> dict[str, Any]:
     """The leaves of the bound (boxes, how each was proven, its bound)."""
     return {"boxes": b.boxes, "seconds": b.seconds, "finished": b.finished,
             "proven_by": dict(b.hows),
-            "leaves": [{"lo": [str(x) for x in leaf.lo], "hi": [str(x) for x in leaf.hi],
-                        "how": leaf.how, "bound": str(leaf.bound)} for leaf in b.leaves]}
+            "leaves": [_leaf_doc(leaf) for leaf in b.leaves]}
+
+
+def _leaf_doc(leaf: Any) -> dict[str, Any]:
+    doc = {"lo": [str(x) for x in leaf.lo], "hi": [str(x) for x in leaf.hi],
+           "how": leaf.how, "bound": str(leaf.bound)}
+    if leaf.proven_on is not None:  # proven on an ancestor box, which contains it
+        doc["proven_on"] = [[str(x) for x in leaf.proven_on[0]],
+                            [str(x) for x in leaf.proven_on[1]]]
+    return doc
+
+
+def exact_box(spec: Spec, kappa: float | None, names: Sequence[str]
+              ) -> list[tuple[Fraction, Fraction]]:
+    """Each free parameter's range as exact rationals (an irrational end rounded outward
+    to a float: a larger box, on which the lower bound still holds); InputError naming
+    ``parameters.<name>.range`` when missing or empty."""
+    import sympy as sp
+
+    from sosalgo.design.steps_model import exact_class
+    from sosalgo.kernel.expr.parse import to_sympy
+    from sosalgo.spec.types import BASE_SYMBOLS
+
+    try:
+        m, L = exact_class(spec, kappa)
+    except Unsupported as exc:
+        raise InputError(f"{spec.source}: --kappa: {exc}") from None
+    env = {BASE_SYMBOLS["m"]: sp.Rational(m.numerator, m.denominator),
+           BASE_SYMBOLS["L"]: sp.Rational(L.numerator, L.denominator)}
+    if m:
+        kq = L / m
+        env[BASE_SYMBOLS["kappa"]] = sp.Rational(kq.numerator, kq.denominator)
+    out = []
+    for p in names:
+        par = spec.parameters[p]
+        if par.range is None:
+            raise InputError(f"{spec.source}: parameters.{p}.range: missing (design "
+                             "--steps needs the box of every free parameter)")
+        lo, hi = (_rational_end(to_sympy(e).xreplace(env), down)
+                  for e, down in zip(par.range, (True, False), strict=True))
+        if lo > hi:
+            raise InputError(f"{spec.source}: parameters.{p}.range: empty box "
+                             f"[{float(lo):g}, {float(hi):g}]")
+        out.append((lo, hi))
+    return out
+
+
+def _rational_end(v: Any, down: bool) -> Fraction:
+    import sympy as sp
+
+    if v.is_Rational:
+        return Fraction(int(v.p), int(v.q))
+    f = float(v)
+    q = Fraction(f)
+    exact = sp.Rational(q.numerator, q.denominator)
+    if (down and exact > v) or (not down and exact < v):
+        q = Fraction(float(np.nextafter(f, -math.inf if down else math.inf)))
+    return q

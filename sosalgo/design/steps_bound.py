@@ -27,6 +27,7 @@ from __future__ import annotations
 import heapq
 import math
 import time
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from fractions import Fraction
@@ -36,8 +37,8 @@ import numpy as np
 
 from sosalgo.design.steps_model import ParametricPEP, Poly, poly_range
 
-__all__ = ["BoxBound", "BoxSolver", "BranchResult", "branch_and_bound", "prove_box",
-           "quadratic_bound"]
+__all__ = ["BoxBound", "BoxSolver", "BranchResult", "branch_and_bound", "huber_bound",
+           "prove_box", "quadratic_bound", "reprove"]
 
 # the SDP's class: F(m + s (L - m), L (1 - s)), s = SHRINK: a subclass whose inequalities
 # have slack where points or gradients differ, which absorbs the rounding of the proof
@@ -93,7 +94,9 @@ class BoxSolver:
         self.lo.value = np.array([float(a) for a, _ in r])
         self.hi.value = np.array([float(b) for _, b in r])
         try:
-            self.problem.solve(solver="CLARABEL")
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # an inaccurate solve is only a candidate
+                self.problem.solve(solver="CLARABEL")
         except Exception:  # noqa: BLE001 - a failed solve is no bound, never an error
             return -math.inf, None
         if self.problem.status not in ("optimal", "optimal_inaccurate") \
@@ -297,6 +300,10 @@ class BoxBound:
     bound: Fraction
     how: str
     estimate: float  # the float SDP value (the bound the box could reach)
+    proven_on: Box | None = None  # the box the proof is about (an ancestor), None: this
+
+    def proof_box(self) -> Box:
+        return self.proven_on or (self.lo, self.hi)
 
     def center(self) -> list[float]:
         return [float((a + b) / 2) for a, b in zip(self.lo, self.hi, strict=True)]
@@ -317,6 +324,21 @@ def prove_box(pp: ParametricPEP, solver: BoxSolver | None, lo: Sequence[Fraction
         if b > best:
             best, how = b, name
     return BoxBound(lo, hi, best, how, val)
+
+
+def reprove(pp: ParametricPEP, solver: BoxSolver, lo: Sequence[Fraction],
+            hi: Sequence[Fraction], how: str) -> Fraction:
+    """The bound of the box by the one argument ``how`` (0 when it proves nothing):
+    what ``sosalgo verify`` re-runs for each leaf."""
+    if how == "robust-pep":
+        val, G = solver.solve(lo, hi)
+        pt = prove_point(pp, G, lo, hi) if G is not None and val > 0 else None
+        return Fraction(0) if pt is None else pt
+    if how == "quadratic":
+        return quadratic_bound(pp, lo, hi, witness_curvatures(pp))
+    if how == "huber":
+        return huber_bound(pp, lo, hi)
+    return Fraction(0)
 
 
 @dataclass
@@ -368,7 +390,8 @@ def branch_and_bound(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fra
         for clo, chi in _split(box, root):
             child = prove_box(pp, solver, clo, chi)
             if child.bound < box.bound:  # the parent's proof holds on the child
-                child = BoxBound(clo, chi, box.bound, box.how, child.estimate)
+                child = BoxBound(clo, chi, box.bound, box.how, child.estimate,
+                                 box.proof_box())
             count += 1
             heapq.heappush(heap, (child.bound, count, child))
         if on_box is not None:
