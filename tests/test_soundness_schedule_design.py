@@ -152,7 +152,7 @@ def test_design_reaches_the_optimal_constant_step():
 
     path = str(spec_path("gradient-convex"))
     spec, text = load_spec(path), read_spec_text(path)
-    res = design_steps(spec, text, None, 1, ["h"], exact_box(spec, None, ["h"]),
+    res = design_steps(spec, text, None, 1, [("h", None)], exact_box(spec, None, ["h"]),
                        worst_case_evaluator(spec, text, None, 1), time_limit=60)
     d = res.to_dict()
     assert d["lower_bound"] <= 0.125 <= d["tau_certified"]
@@ -214,7 +214,7 @@ def test_gd_constant_step_gap_target(steps):
 
     path = str(spec_path("gradient-convex"))
     spec, text = load_spec(path), read_spec_text(path)
-    res = design_steps(spec, text, None, steps, ["h"], exact_box(spec, None, ["h"]),
+    res = design_steps(spec, text, None, steps, [("h", None)], exact_box(spec, None, ["h"]),
                        worst_case_evaluator(spec, text, None, steps), time_limit=120)
     d = res.to_dict()
     best = minimize_scalar(lambda h: gd_closed_form(h, steps), bounds=(1, 2),

@@ -125,24 +125,55 @@ def value_text(v: Any) -> str:
 
 
 # ------------------------------------------------------------------ the search
-class _Search:
-    """The best θ found (float PEP values), over the box [lo, hi] of the free values."""
+Layout = Sequence[tuple[str, int | None]]  # (parameter, N values per step, or None: one)
 
-    def __init__(self, names: list[str], lo: np.ndarray, hi: np.ndarray,
-                 value: Callable[[Values], float], pack: Callable[[np.ndarray], Values]):
-        self.names, self.lo, self.hi = names, lo, hi
-        self.value, self.pack = value, pack
+
+def flat_names(layout: Layout) -> list[str]:
+    """The names of the free values: ``h`` for one value, ``h_0, ..., h_{N-1}`` per step."""
+    return [p if n is None else f"{p}_{k}" for p, n in layout for k in range(n or 1)]
+
+
+def pack(layout: Layout, z: Sequence[Any]) -> Values:
+    """The flat values as parameter -> value (or per-step list)."""
+    out: Values = {}
+    i = 0
+    for p, n in layout:
+        out[p] = z[i] if n is None else list(z[i:i + n])
+        i += n or 1
+    return out
+
+
+class _Search:
+    """The best θ found (float PEP values), over the box [lo, hi] of the flat values;
+    ``point``: the parametric model's PEP at a point (value and gradient), else the
+    evaluator's value alone."""
+
+    def __init__(self, layout: Layout, lo: np.ndarray, hi: np.ndarray,
+                 value: Callable[[Values], float], point: Any = None):
+        self.layout, self.lo, self.hi = layout, lo, hi
+        self.value, self.point = value, point
         self.best_z: np.ndarray | None = None
         self.best = math.inf
         self.evals = 0
 
-    def __call__(self, z: Sequence[float]) -> float:
-        zc = self.round(np.clip(np.asarray(z, float), self.lo, self.hi))
-        v = self.value(self.pack(zc))
+    def _record(self, z: np.ndarray, v: float) -> None:
         self.evals += 1
         if v < self.best:
-            self.best, self.best_z = v, zc
+            self.best, self.best_z = v, z
+
+    def __call__(self, z: Sequence[float]) -> float:
+        zc = self.round(np.clip(np.asarray(z, float), self.lo, self.hi))
+        v = (self.point.value_grad(zc)[0] if self.point is not None
+             else self.value(pack(self.layout, [float(x) for x in zc])))
+        self._record(zc, v)
         return v
+
+    def with_grad(self, z: np.ndarray) -> tuple[float, np.ndarray]:
+        zc = np.clip(np.asarray(z, float), self.lo, self.hi)
+        v, g = self.point.value_grad(zc)
+        if v < self.best:  # the decimals the proof uses, checked
+            self(zc)
+        return v, g
 
     def round(self, z: np.ndarray) -> np.ndarray:
         """The decimals the proof will use, inside the box."""
@@ -154,17 +185,34 @@ class _Search:
 
         if time.time() >= deadline:
             return
+        bounds = list(zip(self.lo, self.hi, strict=True))
         if len(z0) == 1:
             w = (self.hi[0] - self.lo[0]) / 20
             a, b = max(self.lo[0], z0[0] - w), min(self.hi[0], z0[0] + w)
             minimize_scalar(lambda x: self([x]), bounds=(a, b), method="bounded",
                             options={"xatol": tol * max(1.0, abs(z0[0]))})
             return
+        if self.point is not None:
+            minimize(self.with_grad, z0, jac=True, method="L-BFGS-B", bounds=bounds,
+                     options={"maxiter": 300, "ftol": 1e-13, "gtol": 1e-11})
+            z0 = self.best_z if self.best_z is not None else z0
         left = max(1.0, deadline - time.time())
         minimize(self, z0, method="Nelder-Mead",
                  options={"xatol": tol, "fatol": tol * max(self.best, 1e-12),
-                          "maxfev": int(200 * len(z0) + 100 * min(left, 60))},
-                 bounds=list(zip(self.lo, self.hi, strict=True)))
+                          "maxfev": int(min(200 * len(z0) + 100 * min(left, 60), 4000)),
+                          "initial_simplex": _simplex(z0, self.lo, self.hi)},
+                 bounds=bounds)
+
+
+def _simplex(z0: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """A small simplex around z0 (a twentieth of the box), inside the box."""
+    step = (hi - lo) / 20
+    pts = [z0]
+    for i in range(len(z0)):
+        z = z0.copy()
+        z[i] = z[i] + step[i] if z[i] + step[i] <= hi[i] else z[i] - step[i]
+        pts.append(z)
+    return np.array(pts)
 
 
 def _starts(search: _Search, seeds: list[np.ndarray], deadline: float) -> list[np.ndarray]:
@@ -174,7 +222,8 @@ def _starts(search: _Search, seeds: list[np.ndarray], deadline: float) -> list[n
         pts = [np.array([x]) for x in np.linspace(search.lo[0], search.hi[0], 41)]
     else:
         rng = np.random.default_rng(0)
-        pts = [search.lo + rng.random(k) * (search.hi - search.lo) for _ in range(12 * k)]
+        pts = [search.lo + rng.random(k) * (search.hi - search.lo)
+               for _ in range(4 * k if search.point is not None else 12 * k)]
     scored = []
     for z in seeds + pts:
         if time.time() >= deadline:
@@ -185,45 +234,53 @@ def _starts(search: _Search, seeds: list[np.ndarray], deadline: float) -> list[n
 
 
 # ------------------------------------------------------------------ the design
-def design_steps(spec: Spec, text: str, kappa: float | None, steps: int,
-                 free: Sequence[str], box: Sequence[tuple[Fraction, Fraction]],
+def design_steps(spec: Spec, text: str, kappa: float | None, steps: int, layout: Layout,
+                 box: Sequence[tuple[Fraction, Fraction]],
                  evaluator: tuple[Callable, Callable], time_limit: float = 120.0,
-                 gap: float = 1e-3, seeds: Sequence[Sequence[float]] = ()) -> StepsDesign:
-    """The N-step design of ``spec`` over ``box`` (exact ends, one per free value):
-    schedule, tau_certified, lower_bound, floor (see the module). ``evaluator``: (float
-    worst case at θ, proven worst case at θ), θ a dict of parameter values
-    (:func:`sosalgo.pep.evaluate.worst_case_evaluator`); ``gap``: the relative gap at
-    which the bound search stops."""
+                 gap: float = 1e-3, seeds: Sequence[Sequence[float]] = (),
+                 model: Any = None) -> StepsDesign:
+    """The N-step design of ``spec`` over ``box`` (exact ends, one per flat free value,
+    :func:`flat_names` of ``layout``): schedule, tau_certified, lower_bound, floor (see
+    the module). ``evaluator``: (float worst case at θ, proven worst case at θ), θ a dict
+    of parameter values (:func:`sosalgo.pep.evaluate.worst_case_evaluator`); ``model``:
+    the parametric PEP (:func:`sosalgo.design.steps_model.parametric_pep`; built here for
+    a time-invariant spec when None); ``gap``: the relative gap at which the bound
+    search stops."""
     t0 = time.time()
     deadline = t0 + time_limit
-    names = list(free)
+    names = flat_names(layout)
     value, proven = evaluator
     lo = np.array([float(a) for a, _ in box])
     hi = np.array([float(b) for _, b in box])
-    search = _Search(names, lo, hi, value, lambda z: dict(zip(names, (float(x) for x in z),
-                                                              strict=True)))
     log: list[str] = []
+    if model is None:
+        try:
+            model = parametric_pep(spec, kappa, steps, names)
+        except Unsupported as exc:
+            log.append(f"no box-wide lower bound: {exc}")
+    point = None
+    if model is not None:
+        from sosalgo.design.steps_point import PointPEP
+
+        point = PointPEP(model)
+    search = _Search(layout, lo, hi, value, point)
     show_phase("searching", f"N = {steps}")
-    starts = _starts(search, [np.asarray(s, float) for s in seeds],
-                     t0 + SEARCH_SHARE * time_limit)
+    share = t0 + SEARCH_SHARE * time_limit
+    starts = _starts(search, [np.asarray(s, float) for s in seeds], share)
     for z in starts[:3]:
-        search.polish(z, t0 + SEARCH_SHARE * time_limit)
+        search.polish(z, share)
     log.append(f"search: {search.evals} PEPs, best {search.best:.12g}")
-    bound, reason = _bound(spec, kappa, steps, names, box, search, deadline, gap)
-    log.append(reason)
+    bound = None
+    if model is not None:
+        bound, reason = _bound(model, box, search, deadline, gap)
+        log.append(reason)
     if search.best_z is not None:
         search.polish(search.best_z, deadline - 0.1 * time_limit)
-    return _finish(spec, kappa, steps, names, search, proven, bound, log, t0, deadline)
+    return _finish(spec, kappa, steps, layout, search, proven, bound, log, t0, deadline)
 
 
-def _bound(spec: Spec, kappa: float | None, steps: int, names: list[str],
-           box: Sequence[tuple[Fraction, Fraction]], search: _Search, deadline: float,
-           gap: float) -> tuple[BranchResult | None, str]:
-    try:
-        pp = parametric_pep(spec, kappa, steps, names)
-    except Unsupported as exc:
-        return None, f"no box-wide lower bound: {exc}"
-
+def _bound(pp: Any, box: Sequence[tuple[Fraction, Fraction]], search: _Search,
+           deadline: float, gap: float) -> tuple[BranchResult, str]:
     def report(boxes: int, low: float) -> None:
         show_phase("lower bound", f"{boxes} boxes, bound {low:.6g}, best {search.best:.6g}")
 
@@ -238,7 +295,7 @@ def _bound(spec: Spec, kappa: float | None, steps: int, names: list[str],
                  + ", ".join(f"{k} {v}" for k, v in sorted(res.hows.items())))
 
 
-def _finish(spec: Spec, kappa: float | None, steps: int, names: list[str], search: _Search,
+def _finish(spec: Spec, kappa: float | None, steps: int, layout: Layout, search: _Search,
             proven: Callable, bound: BranchResult | None, log: list[str], t0: float,
             deadline: float) -> StepsDesign:
     show_phase("proving the worst case", f"N = {steps}")
@@ -246,12 +303,12 @@ def _finish(spec: Spec, kappa: float | None, steps: int, names: list[str], searc
     exact: dict[str, Any] = {}
     tp, tf = None, None
     if search.best_z is not None:
-        vals = search.pack(search.best_z)
-        exact = {k: value_text(v) for k, v in vals.items()}
-        sched = {k: float(v) for k, v in exact.items()}
+        exact = pack(layout, [_decimal(float(x)) for x in search.best_z])
+        sched = {k: ([float(x) for x in v] if isinstance(v, list) else float(v))
+                 for k, v in exact.items()}
         tp, tf = proven(exact)
     lb = None if bound is None else bound.lower_bound
-    res = StepsDesign(spec.name, kappa, steps, names, sched, exact,
+    res = StepsDesign(spec.name, kappa, steps, [p for p, _ in layout], sched, exact,
                       None if tp is None else _up(tp), None if tp is None else str(tp),
                       tf, None if lb is None else _down(lb),
                       None if lb is None else str(lb), drori_floor(spec, steps),

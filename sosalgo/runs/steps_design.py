@@ -33,7 +33,8 @@ def steps_design_chunk(spec_text: str, source: str, options: dict[str, Any],
         begin_task(f"N {task['steps']}" + ("" if kappa is None else f", kappa {kappa:g}"))
         box = exact_box(spec, kappa, options["free"])
         steps = int(task["steps"])
-        res = design_steps(spec, spec_text, kappa, steps, options["free"], box,
+        res = design_steps(spec, spec_text, kappa, steps, [(p, None) for p in options["free"]],
+                           box,
                            worst_case_evaluator(spec, spec_text, kappa, steps),
                            options["time_limit"], options["gap"])
         doc = res.to_dict()
