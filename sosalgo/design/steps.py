@@ -33,8 +33,8 @@ from sosalgo.errors import InputError
 from sosalgo.kernel.phases import show_phase
 from sosalgo.spec import Spec
 
-__all__ = ["StepsDesign", "design_steps", "drori_floor", "exact_box", "ogm_theta",
-           "value_text"]
+__all__ = ["StepsDesign", "design_steps", "drori_floor", "exact_box", "flat_names",
+           "ogm_theta", "pack", "point_evaluator", "value_text"]
 
 DIGITS = 12  # significant digits of the designed values (the exact θ of the proof)
 SEARCH_SHARE = 0.3  # of the time limit, for the upper bound's search before the bound
@@ -392,3 +392,28 @@ def _rational_end(v: Any, down: bool) -> Fraction:
     if (down and exact > v) or (not down and exact < v):
         q = Fraction(float(np.nextafter(f, -math.inf if down else math.inf)))
     return q
+
+
+def point_evaluator(model: Any, layout: Layout) -> tuple[Callable, Callable]:
+    """(float worst case, proven worst case) at θ from the parametric model's own PEP
+    (:class:`sosalgo.design.steps_point.PointPEP`: its dual certificate proven exactly),
+    for methods ``sosalgo pep`` does not bind."""
+    from sosalgo.design.steps_point import PointPEP
+
+    point = PointPEP(model)
+
+    def flat(values: Values) -> list[Any]:
+        out: list[Any] = []
+        for p, n in layout:
+            v = values[p]
+            out += list(v) if n is not None else [v]
+        return out
+
+    def value(values: Values) -> float:
+        return point.value_grad([float(x) for x in flat(values)])[0]
+
+    def proven(values: Values) -> tuple[Fraction | None, float]:
+        th = [Fraction(str(x)) for x in flat(values)]
+        return point.prove(th), value(values)
+
+    return value, proven

@@ -31,7 +31,10 @@ from sosalgo.design.steps_model import ParametricPEP
 
 __all__ = ["PointPEP", "positive_definite"]
 
-MARGIN = 1e-8  # relative eps of the certificate's solve (tau_proven about this above tau)
+# relative margins eps / tau of the certificate's solves, in order (tau_proven is about
+# eps tr G above tau): the first whose rounded certificate is proven
+MARGINS = (1e-7, 1e-6, 1e-5)
+TIGHT = {"tol_gap_abs": 1e-11, "tol_gap_rel": 1e-11, "tol_feas": 1e-11}
 
 
 class PointPEP:
@@ -73,15 +76,17 @@ class PointPEP:
             out[:, i] = c * np.prod(np.power(theta[None, :], e), axis=1)
         return out
 
-    def solve(self, theta: Sequence[float], eps: float = 0.0) -> dict[str, Any] | None:
-        """value, G, lam (K), tau at θ (None when the solve fails)."""
+    def solve(self, theta: Sequence[float], eps: float = 0.0, tight: bool = False
+              ) -> dict[str, Any] | None:
+        """value, G, lam (K), tau at θ (None when the solve fails); ``tight``: Clarabel
+        at tight tolerances (the certificates)."""
         th = np.asarray(theta, float)
         self.P.value = np.einsum("a,kaj->kj", self._monomials(th), self.forms)
         self.eps.value = eps
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                self.problem.solve(solver="CLARABEL")
+                self.problem.solve(solver="CLARABEL", **(TIGHT if tight else {}))
         except Exception:  # noqa: BLE001 - a failed solve is a missing value
             return None
         if self.problem.status not in ("optimal", "optimal_inaccurate"):
@@ -105,23 +110,19 @@ class PointPEP:
     def prove(self, theta: Sequence[Fraction]) -> Fraction | None:
         """tau_proven >= tau_N(θ) at the exact θ (see the module), or None."""
         th = [Fraction(x) for x in theta]
-        sol = self.solve([float(x) for x in th], 0.0)
+        sol = self.solve([float(x) for x in th])
         if sol is None:
             return None
         scale = max(sol["value"], 1e-300)
-        sol = self.solve([float(x) for x in th], MARGIN * scale)
-        if sol is None:
-            return None
-        lam = [Fraction(float(v)) for v in sol["lam"]]
-        lam = self._balanced(lam)
-        S = self._slack(th, lam, Fraction(sol["tau"]))
-        tau = Fraction(sol["tau"])
-        for _ in range(3):  # tau only lifts S's (0, 0) entry: a few tries
-            if positive_definite(S):
-                return tau
-            bump = tau * Fraction(1, 10 ** 6)
-            S[0][0] += bump
-            tau += bump
+        for rel in MARGINS:
+            for tight in (False, True):
+                cand = self.solve([float(x) for x in th], rel * scale, tight)
+                if cand is None:
+                    continue
+                lam = self._balanced([Fraction(float(v)) for v in cand["lam"]])
+                tau = Fraction(cand["tau"])
+                if positive_definite(self._slack(th, lam, tau)):
+                    return tau
         return None
 
     def _balanced(self, lam: list[Fraction]) -> list[Fraction]:
