@@ -340,6 +340,8 @@ def _bound_doc(b: BranchResult) -> dict[str, Any]:
 def _leaf_doc(leaf: Any) -> dict[str, Any]:
     doc = {"lo": [str(x) for x in leaf.lo], "hi": [str(x) for x in leaf.hi],
            "how": leaf.how, "bound": str(leaf.bound)}
+    if leaf.rung:
+        doc["rung"] = leaf.rung
     if leaf.proven_on is not None:  # proven on an ancestor box, which contains it
         doc["proven_on"] = [[str(x) for x in leaf.proven_on[0]],
                             [str(x) for x in leaf.proven_on[1]]]

@@ -40,9 +40,13 @@ from sosalgo.design.steps_model import ParametricPEP, Poly, poly_range
 __all__ = ["BoxBound", "BoxSolver", "BranchResult", "branch_and_bound", "huber_bound",
            "prove_box", "quadratic_bound", "reprove"]
 
-# the SDP's class: F(m + s (L - m), L (1 - s)), s = SHRINK: a subclass whose inequalities
-# have slack where points or gradients differ, which absorbs the rounding of the proof
-SHRINK = Fraction(1, 10 ** 7)
+# the SDP's class: F(m + s (L - m), L (1 - s)), a subclass whose inequalities have slack
+# where points or gradients differ, which absorbs the solver's error and the rounding of
+# the proof. The ladder of a box: (s, tight tolerances) in order, the first proven wins
+# (the bound loses about s relative); a leaf records its rung for ``sosalgo verify``.
+LADDER = ((Fraction(1, 10 ** 7), False), (Fraction(1, 10 ** 7), True),
+          (Fraction(1, 10 ** 5), True))
+TIGHT = {"tol_gap_abs": 1e-11, "tol_gap_rel": 1e-11, "tol_feas": 1e-11}
 Box = tuple[tuple[Fraction, ...], tuple[Fraction, ...]]
 
 
@@ -51,17 +55,16 @@ def _ranges(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction]
     return [poly_range(e, lo, hi) for e in pp.monomials]
 
 
-class BoxSolver:
-    """The robust SDP of a box (floating point, cvxpy with the box as parameters)."""
+class _Robust:
+    """The robust SDP of a box for one subclass (cvxpy, the box as parameters)."""
 
-    def __init__(self, pp: ParametricPEP):
+    def __init__(self, pp: ParametricPEP, shrink: Fraction):
         import cvxpy as cp
 
-        self.pp = pp
         K, A, d = len(pp.pairs), len(pp.monomials), pp.d
-        forms = pp.float_forms(SHRINK).reshape(K, A, d * d)
+        forms = pp.float_forms(shrink).reshape(K, A, d * d)
         self.G = cp.Variable((d, d), PSD=True)
-        self.F = cp.Variable(pp.npts)
+        F = cp.Variable(pp.npts)
         self.lo = cp.Parameter(A)
         self.hi = cp.Parameter(A)
         g = cp.vec(self.G, order="C")
@@ -84,25 +87,55 @@ class BoxSolver:
                 diff[k, i] += 1.0
             if j < pp.npts:
                 diff[k, j] -= 1.0
-        cons.append(diff @ self.F + total >= 0)
-        self.problem = cp.Problem(cp.Maximize(self.F[pp.measure_point]), cons)
+        cons.append(diff @ F + total >= 0)
+        self.problem = cp.Problem(cp.Maximize(F[pp.measure_point]), cons)
 
-    def solve(self, lo: Sequence[Fraction], hi: Sequence[Fraction]
+
+class BoxSolver:
+    """The robust SDPs of boxes (floating point), one per subclass of :data:`LADDER`."""
+
+    def __init__(self, pp: ParametricPEP):
+        self.pp = pp
+        self._robust: dict[Fraction, _Robust] = {}
+
+    def solve(self, lo: Sequence[Fraction], hi: Sequence[Fraction], rung: int = 0
               ) -> tuple[float, np.ndarray | None]:
-        """(float value, G) of the robust SDP on the box (-inf, None on failure)."""
+        """(float value, G) of the robust SDP on the box at ``rung`` of the ladder
+        (-inf, None on failure)."""
+        shrink, tight = LADDER[rung]
+        if shrink not in self._robust:
+            self._robust[shrink] = _Robust(self.pp, shrink)
+        rb = self._robust[shrink]
         r = _ranges(self.pp, lo, hi)
-        self.lo.value = np.array([float(a) for a, _ in r])
-        self.hi.value = np.array([float(b) for _, b in r])
+        rb.lo.value = np.array([float(a) for a, _ in r])
+        rb.hi.value = np.array([float(b) for _, b in r])
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")  # an inaccurate solve is only a candidate
-                self.problem.solve(solver="CLARABEL")
+                rb.problem.solve(solver="CLARABEL", **(TIGHT if tight else {}))
         except Exception:  # noqa: BLE001 - a failed solve is no bound, never an error
             return -math.inf, None
-        if self.problem.status not in ("optimal", "optimal_inaccurate") \
-                or self.G.value is None:
+        if rb.problem.status not in ("optimal", "optimal_inaccurate") or rb.G.value is None:
             return -math.inf, None
-        return float(self.problem.value), np.array(self.G.value)
+        return float(rb.problem.value), np.array(rb.G.value)
+
+    def proven(self, lo: Sequence[Fraction], hi: Sequence[Fraction]
+               ) -> tuple[float, Fraction | None, int]:
+        """(float value, proven bound or None, rung): the ladder's rungs in order until
+        a proof holds (a failed first solve, or a value <= 0, ends it)."""
+        first = -math.inf
+        for rung in range(len(LADDER)):
+            val, G = self.solve(lo, hi, rung)
+            if rung == 0:
+                first = val
+            if G is None or val <= 0:
+                if rung == 0:
+                    return val, None, 0
+                continue
+            pt = prove_point(self.pp, G, lo, hi)
+            if pt is not None:
+                return first, pt, rung
+        return first, None, 0
 
 
 def _rational_factor(G: np.ndarray, bits: int = 52) -> Any:
@@ -301,6 +334,7 @@ class BoxBound:
     how: str
     estimate: float  # the float SDP value (the bound the box could reach)
     proven_on: Box | None = None  # the box the proof is about (an ancestor), None: this
+    rung: int = 0  # the robust point's rung of LADDER
 
     def proof_box(self) -> Box:
         return self.proven_on or (self.lo, self.hi)
@@ -311,27 +345,30 @@ class BoxBound:
 
 def prove_box(pp: ParametricPEP, solver: BoxSolver | None, lo: Sequence[Fraction],
               hi: Sequence[Fraction]) -> BoxBound:
-    """The best proven bound of the box (the robust point, else the witnesses)."""
+    """The best proven bound of the box: the robust point, and the witnesses (Huber
+    always, it is cheap; the quadratic ones where the robust point is not proven or
+    falls short of its float value)."""
     lo, hi = tuple(lo), tuple(hi)
-    val, G = solver.solve(lo, hi) if solver is not None else (-math.inf, None)
+    val, pt, rung = solver.proven(lo, hi) if solver is not None else (-math.inf, None, 0)
     best, how = Fraction(0), "none"
-    if G is not None and val > 0:
-        pt = prove_point(pp, G, lo, hi)
-        if pt is not None and pt > best:
-            best, how = pt, "robust-pep"
-    for name, b in (("quadratic", quadratic_bound(pp, lo, hi, witness_curvatures(pp))),
-                    ("huber", huber_bound(pp, lo, hi))):
-        if b > best:
-            best, how = b, name
-    return BoxBound(lo, hi, best, how, val)
+    if pt is not None and pt > 0:
+        best, how = pt, "robust-pep"
+    hb = huber_bound(pp, lo, hi)
+    if hb > best:
+        best, how = hb, "huber"
+    if pt is None or pt < Fraction(val) * (1 - Fraction(1, 10 ** 3)):
+        qb = quadratic_bound(pp, lo, hi, witness_curvatures(pp))
+        if qb > best:
+            best, how = qb, "quadratic"
+    return BoxBound(lo, hi, best, how, val, rung=rung if how == "robust-pep" else 0)
 
 
 def reprove(pp: ParametricPEP, solver: BoxSolver, lo: Sequence[Fraction],
-            hi: Sequence[Fraction], how: str) -> Fraction:
-    """The bound of the box by the one argument ``how`` (0 when it proves nothing):
-    what ``sosalgo verify`` re-runs for each leaf."""
+            hi: Sequence[Fraction], how: str, rung: int = 0) -> Fraction:
+    """The bound of the box by the one argument ``how`` (0 when it proves nothing), the
+    robust point at its ``rung``: what ``sosalgo verify`` re-runs for each leaf."""
     if how == "robust-pep":
-        val, G = solver.solve(lo, hi)
+        val, G = solver.solve(lo, hi, rung)
         pt = prove_point(pp, G, lo, hi) if G is not None and val > 0 else None
         return Fraction(0) if pt is None else pt
     if how == "quadratic":
@@ -391,7 +428,7 @@ def branch_and_bound(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fra
             child = prove_box(pp, solver, clo, chi)
             if child.bound < box.bound:  # the parent's proof holds on the child
                 child = BoxBound(clo, chi, box.bound, box.how, child.estimate,
-                                 box.proof_box())
+                                 box.proof_box(), box.rung)
             count += 1
             heapq.heappush(heap, (child.bound, count, child))
         if on_box is not None:

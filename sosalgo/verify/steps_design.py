@@ -121,7 +121,7 @@ def _lower(items: list[dict[str, str]], row: Mapping[str, Any], spec: Spec,
         if not _inside((lo, hi), (plo, phi)):
             _claim(items, field, "contradicted", "a leaf is outside the box it was proven on")
             return None
-        b = reprove(pp, solver, plo, phi, str(lf.get("how")))
+        b = reprove(pp, solver, plo, phi, str(lf.get("how")), _rung(lf))
         low = b if low is None else min(low, b)
     assert low is not None
     if low >= Fraction(float(claim)):
@@ -129,6 +129,13 @@ def _lower(items: list[dict[str, str]], row: Mapping[str, Any], spec: Spec,
     else:
         _claim(items, field, "contradicted", f"re-proven {float(low):.12g} < claimed {claim}")
     return low
+
+
+def _rung(leaf: Mapping[str, Any]) -> int:
+    from sosalgo.design.steps_bound import LADDER
+
+    r = leaf.get("rung", 0)
+    return r if isinstance(r, int) and 0 <= r < len(LADDER) else 0
 
 
 def _fracs(v: Any) -> tuple[Fraction, ...]:
