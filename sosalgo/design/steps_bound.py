@@ -120,9 +120,9 @@ class BoxSolver:
         return float(rb.problem.value), np.array(rb.G.value)
 
     def proven(self, lo: Sequence[Fraction], hi: Sequence[Fraction]
-               ) -> tuple[float, Fraction | None, int]:
-        """(float value, proven bound or None, rung): the ladder's rungs in order until
-        a proof holds (a failed first solve, or a value <= 0, ends it)."""
+               ) -> tuple[float, tuple[Fraction, list[list[int]]] | None, int]:
+        """(float value, (proven bound, its factor V) or None, rung): the ladder's rungs
+        in order until a proof holds (a failed first solve, or a value <= 0, ends it)."""
         first = -math.inf
         for rung in range(len(LADDER)):
             val, G = self.solve(lo, hi, rung)
@@ -132,17 +132,18 @@ class BoxSolver:
                 if rung == 0:
                     return val, None, 0
                 continue
-            pt = prove_point(self.pp, G, lo, hi)
-            if pt is not None:
-                return first, pt, rung
+            got = prove_point(self.pp, G, lo, hi)
+            if got is not None:
+                return first, got, rung
         return first, None, 0
 
 
-def _rational_factor(G: np.ndarray, bits: int = 52) -> Any:
-    """V V' (an exact rational PSD matrix) from a float G: V = U sqrt(lambda) rounded
-    to dyadic rationals, eigenvalues below 1e-11 of the largest dropped."""
-    from flint import fmpq, fmpq_mat
+FACTOR_BITS = 52  # V = integers / 2^FACTOR_BITS
 
+
+def rational_factor(G: np.ndarray) -> list[list[int]] | None:
+    """V (integers, V / 2^FACTOR_BITS) with V V' close to the float G: U sqrt(lambda)
+    rounded, eigenvalues below 1e-11 of the largest dropped (None: G is about 0)."""
     Gs = (G + G.T) / 2
     lam, U = np.linalg.eigh(Gs)
     top = max(float(lam[-1]), 0.0)
@@ -150,9 +151,16 @@ def _rational_factor(G: np.ndarray, bits: int = 52) -> Any:
     V = U[:, keep] * np.sqrt(lam[keep])
     if V.shape[1] == 0:
         return None
-    scale = 2 ** bits
-    Vq = fmpq_mat(V.shape[0], V.shape[1],
-                  [fmpq(int(round(float(v) * scale)), scale) for v in V.ravel()])
+    scale = 2 ** FACTOR_BITS
+    return [[int(round(float(v) * scale)) for v in row] for row in V]
+
+
+def _gram(V: list[list[int]]) -> Any:
+    """V V' / 4^FACTOR_BITS, exact (positive semidefinite by construction)."""
+    from flint import fmpq, fmpq_mat
+
+    scale = 2 ** FACTOR_BITS
+    Vq = fmpq_mat(len(V), len(V[0]), [fmpq(v, scale) for row in V for v in row])
     return Vq * Vq.transpose()
 
 
@@ -177,14 +185,28 @@ def exact_forms(pp: ParametricPEP) -> Any:
 
 
 def prove_point(pp: ParametricPEP, G: np.ndarray, lo: Sequence[Fraction],
-                hi: Sequence[Fraction]) -> Fraction | None:
-    """The exact lower bound on the box from the float point G (None: not proven)."""
+                hi: Sequence[Fraction]) -> tuple[Fraction, list[list[int]]] | None:
+    """(the exact lower bound on the box, its factor V) from the float point G (None:
+    not proven)."""
+    V = rational_factor(G)
+    if V is None:
+        return None
+    b = prove_factor(pp, V, lo, hi)
+    return None if b is None else (b, V)
+
+
+def prove_factor(pp: ParametricPEP, V: list[list[int]], lo: Sequence[Fraction],
+                 hi: Sequence[Fraction]) -> Fraction | None:
+    """The exact lower bound on the box of the PEP point G = V V' / 4^FACTOR_BITS with
+    the largest function values for it (None: none is feasible, or G_00 = 0)."""
     from flint import fmpq_mat
 
-    Gq = _rational_factor(G)
-    if Gq is None or Gq[0, 0] <= 0:
-        return None
     d, A = pp.d, len(pp.monomials)
+    if len(V) != d or not V[0] or any(len(r) != len(V[0]) for r in V):
+        return None
+    Gq = _gram(V)
+    if Gq[0, 0] <= 0:
+        return None
     vec = fmpq_mat(d * d, 1, [Gq[r, c] for r in range(d) for c in range(d)])
     cval = exact_forms(pp) * vec
     ranges = _ranges(pp, lo, hi)
@@ -335,6 +357,7 @@ class BoxBound:
     estimate: float  # the float SDP value (the bound the box could reach)
     proven_on: Box | None = None  # the box the proof is about (an ancestor), None: this
     rung: int = 0  # the robust point's rung of LADDER
+    point: list[list[int]] | None = None  # the robust point's factor V (integers)
 
     def proof_box(self) -> Box:
         return self.proven_on or (self.lo, self.hi)
@@ -349,8 +372,9 @@ def prove_box(pp: ParametricPEP, solver: BoxSolver | None, lo: Sequence[Fraction
     always, it is cheap; the quadratic ones where the robust point is not proven or
     falls short of its float value)."""
     lo, hi = tuple(lo), tuple(hi)
-    val, pt, rung = solver.proven(lo, hi) if solver is not None else (-math.inf, None, 0)
+    val, got, rung = solver.proven(lo, hi) if solver is not None else (-math.inf, None, 0)
     best, how = Fraction(0), "none"
+    pt = None if got is None else got[0]
     if pt is not None and pt > 0:
         best, how = pt, "robust-pep"
     hb = huber_bound(pp, lo, hi)
@@ -360,16 +384,18 @@ def prove_box(pp: ParametricPEP, solver: BoxSolver | None, lo: Sequence[Fraction
         qb = quadratic_bound(pp, lo, hi, witness_curvatures(pp))
         if qb > best:
             best, how = qb, "quadratic"
-    return BoxBound(lo, hi, best, how, val, rung=rung if how == "robust-pep" else 0)
+    robust = how == "robust-pep"
+    return BoxBound(lo, hi, best, how, val, rung=rung if robust else 0,
+                    point=got[1] if robust and got is not None else None)
 
 
-def reprove(pp: ParametricPEP, solver: BoxSolver, lo: Sequence[Fraction],
-            hi: Sequence[Fraction], how: str, rung: int = 0) -> Fraction:
-    """The bound of the box by the one argument ``how`` (0 when it proves nothing), the
-    robust point at its ``rung``: what ``sosalgo verify`` re-runs for each leaf."""
+def reprove(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction], how: str,
+            point: list[list[int]] | None = None) -> Fraction:
+    """The bound of the box by the one argument ``how`` (0 when it proves nothing; the
+    robust point is the recorded factor ``point``): what ``sosalgo verify`` re-checks
+    for each leaf, exactly."""
     if how == "robust-pep":
-        val, G = solver.solve(lo, hi, rung)
-        pt = prove_point(pp, G, lo, hi) if G is not None and val > 0 else None
+        pt = prove_factor(pp, point, lo, hi) if point else None
         return Fraction(0) if pt is None else pt
     if how == "quadratic":
         return quadratic_bound(pp, lo, hi, witness_curvatures(pp))
@@ -428,7 +454,7 @@ def branch_and_bound(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fra
             child = prove_box(pp, solver, clo, chi)
             if child.bound < box.bound:  # the parent's proof holds on the child
                 child = BoxBound(clo, chi, box.bound, box.how, child.estimate,
-                                 box.proof_box(), box.rung)
+                                 box.proof_box(), box.rung, box.point)
             count += 1
             heapq.heappush(heap, (child.bound, count, child))
         if on_box is not None:

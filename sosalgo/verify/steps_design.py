@@ -100,7 +100,7 @@ def _lower(items: list[dict[str, str]], row: Mapping[str, Any], spec: Spec,
         _claim(items, field, "unsupported", "no leaves to re-prove (or too many)")
         return None
     from sosalgo.design.steps import exact_box
-    from sosalgo.design.steps_bound import BoxSolver, reprove
+    from sosalgo.design.steps_bound import reprove
     from sosalgo.design.steps_model import Unsupported, parametric_pep
 
     free = list(row.get("free") or [])
@@ -114,14 +114,14 @@ def _lower(items: list[dict[str, str]], row: Mapping[str, Any], spec: Spec,
     except Unsupported as exc:
         _claim(items, field, "unsupported", str(exc))
         return None
-    solver, low = BoxSolver(pp), None
+    low = None
     for lf, (lo, hi) in zip(leaves, boxes, strict=True):
         plo, phi = ((_fracs(lf["proven_on"][0]), _fracs(lf["proven_on"][1]))
                     if "proven_on" in lf else (lo, hi))
         if not _inside((lo, hi), (plo, phi)):
             _claim(items, field, "contradicted", "a leaf is outside the box it was proven on")
             return None
-        b = reprove(pp, solver, plo, phi, str(lf.get("how")), _rung(lf))
+        b = reprove(pp, plo, phi, str(lf.get("how")), _point(lf))
         low = b if low is None else min(low, b)
     assert low is not None
     if low >= Fraction(float(claim)):
@@ -131,11 +131,12 @@ def _lower(items: list[dict[str, str]], row: Mapping[str, Any], spec: Spec,
     return low
 
 
-def _rung(leaf: Mapping[str, Any]) -> int:
-    from sosalgo.design.steps_bound import LADDER
-
-    r = leaf.get("rung", 0)
-    return r if isinstance(r, int) and 0 <= r < len(LADDER) else 0
+def _point(leaf: Mapping[str, Any]) -> list[list[int]] | None:
+    """The robust point's factor (integers), None when missing or malformed."""
+    try:
+        return [[int(str(v)) for v in row] for row in leaf["point"]]
+    except (KeyError, TypeError, ValueError):
+        return None
 
 
 def _fracs(v: Any) -> tuple[Fraction, ...]:
