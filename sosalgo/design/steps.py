@@ -33,8 +33,9 @@ from sosalgo.errors import InputError
 from sosalgo.kernel.phases import show_phase
 from sosalgo.spec import Spec
 
-__all__ = ["StepsDesign", "design_steps", "drori_floor", "exact_box", "flat_names",
-           "ogm_theta", "pack", "point_evaluator", "value_text"]
+__all__ = ["StepsDesign", "StepsProblem", "design_steps", "drori_floor", "exact_box",
+           "flat_names", "ogm_theta", "pack", "point_evaluator", "steps_problem",
+           "value_text"]
 
 DIGITS = 12  # significant digits of the designed values (the exact θ of the proof)
 SEARCH_SHARE = 0.3  # of the time limit, for the upper bound's search before the bound
@@ -130,7 +131,9 @@ Layout = Sequence[tuple[str, int | None]]  # (parameter, N values per step, or N
 
 def flat_names(layout: Layout) -> list[str]:
     """The names of the free values: ``h`` for one value, ``h_0, ..., h_{N-1}`` per step."""
-    return [p if n is None else f"{p}_{k}" for p, n in layout for k in range(n or 1)]
+    from sosalgo.design.steps_model import step_symbol
+
+    return [step_symbol(p, None if n is None else k) for p, n in layout for k in range(n or 1)]
 
 
 def pack(layout: Layout, z: Sequence[Any]) -> Values:
@@ -284,9 +287,14 @@ def _bound(pp: Any, box: Sequence[tuple[Fraction, Fraction]], search: _Search,
     def report(boxes: int, low: float) -> None:
         show_phase("lower bound", f"{boxes} boxes, bound {low:.6g}, best {search.best:.6g}")
 
-    def probe(z: list[float]) -> None:
-        if time.time() < deadline:
+    def probe(z: list[float]) -> Any:
+        if time.time() >= deadline:
+            return None
+        if search.point is None:
             search(z)
+            return None
+        v, g = search.with_grad(np.asarray(z, float))
+        return g
 
     res = branch_and_bound(pp, [a for a, _ in box], [b for _, b in box],
                            lambda: search.best, deadline - 0.15 * (deadline - time.time()),
@@ -421,3 +429,43 @@ def point_evaluator(model: Any, layout: Layout) -> tuple[Callable, Callable]:
         return point.prove(th), value(values)
 
     return value, proven
+
+
+@dataclass
+class StepsProblem:
+    """What an N-step design runs on: the layout of the free values, their exact box,
+    the parametric PEP (None: no box-wide bound, ``reason`` says why) and the spec's own
+    values as a start."""
+
+    layout: list[tuple[str, int | None]]
+    box: list[tuple[Fraction, Fraction]]
+    model: Any
+    seeds: list[list[float]]
+    reason: str | None = None
+
+
+def steps_problem(spec: Spec, kappa: float | None, steps: int, names: Sequence[str]
+                  ) -> StepsProblem:
+    """The problem of ``design --steps`` (see :class:`StepsProblem`): a parameter that
+    varies with k (``per_step``) is free at every step k = 0..N-1 of a spec that varies
+    with k, one value otherwise."""
+    from sosalgo.design.steps_model import step_symbol, varying_matrices
+
+    ranges = exact_box(spec, kappa, names)
+    varying = bool(getattr(spec, "time_varying", False))
+    per = [(p, varying and bool(getattr(spec.parameters[p], "per_step", False)))
+           for p in names]
+    layout: list[tuple[str, int | None]] = [(p, steps if v else None) for p, v in per]
+    box = [r for r, (_, n) in zip(ranges, layout, strict=True) for _ in range(n or 1)]
+    if not varying:
+        return StepsProblem(layout, box, None, [])
+    flat = [step_symbol(p, k if n else None) for p, n in layout for k in range(n or 1)]
+    try:
+        at, own = varying_matrices(spec, kappa, steps, per)
+        model = parametric_pep(spec, kappa, steps, flat, at)
+    except Unsupported as exc:
+        return StepsProblem(layout, box, None, [], str(exc))
+    seed = [own[k][i] for i, (_, n) in enumerate(layout)  # parameter-major, as flat
+            for k in range(n or 1)]
+    ok = all(math.isfinite(x) for x in seed)
+    return StepsProblem(layout, box, model, [seed] if ok else [])

@@ -416,9 +416,19 @@ class BranchResult:
     hows: dict[str, int] = field(default_factory=dict)
 
 
-def _split(b: BoxBound, root: Box) -> list[tuple[tuple[Fraction, ...], tuple[Fraction, ...]]]:
-    widths = [(h - lo_) / max(rh - rl, Fraction(1, 10 ** 30))
+def _split(b: BoxBound, root: Box, slope: Sequence[float] | None = None
+           ) -> list[tuple[tuple[Fraction, ...], tuple[Fraction, ...]]]:
+    """Halve the box along the side that costs the bound most: width times |slope| of
+    the worst case at the centre (``slope``, when known; plus a tenth of the largest so
+    that no side is never split), else the widest side relative to the root."""
+    widths = [float((h - lo_) / max(rh - rl, Fraction(1, 10 ** 30)))
               for lo_, h, rl, rh in zip(b.lo, b.hi, root[0], root[1], strict=True)]
+    if slope is not None and len(slope) == len(widths) and all(map(math.isfinite, slope)):
+        top = max(abs(float(g)) for g in slope) or 1.0
+        cost = [float(h - lo_) * (abs(float(g)) + 0.1 * top)
+                for lo_, h, g in zip(b.lo, b.hi, slope, strict=True)]
+        if max(cost) > 0:
+            widths = cost
     ax = max(range(len(widths)), key=lambda i: widths[i])
     mid = (b.lo[ax] + b.hi[ax]) / 2
     left_hi = tuple(mid if i == ax else v for i, v in enumerate(b.hi))
@@ -428,12 +438,13 @@ def _split(b: BoxBound, root: Box) -> list[tuple[tuple[Fraction, ...], tuple[Fra
 
 def branch_and_bound(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction],
                      upper: Callable[[], float], deadline: float, gap: float,
-                     probe: Callable[[list[float]], None] | None = None,
+                     probe: Callable[[list[float]], Any] | None = None,
                      on_box: Callable[[int, float], None] | None = None,
                      max_boxes: int = 100000) -> BranchResult:
     """Split the box with the lowest proven bound until min bound >= upper() (1 - gap)
     or the deadline; ``probe(theta)`` is offered each split box's centre (the upper
-    bound's search), ``on_box(boxes, lower)`` reports progress."""
+    bound's search; it may return the worst case's gradient there, which chooses the
+    side to split), ``on_box(boxes, lower)`` reports progress."""
     t0 = time.perf_counter()
     solver = BoxSolver(pp)
     root: Box = (tuple(lo), tuple(hi))
@@ -448,9 +459,8 @@ def branch_and_bound(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fra
         if time.time() >= deadline or count >= max_boxes:
             break
         heapq.heappop(heap)
-        if probe is not None:
-            probe(box.center())
-        for clo, chi in _split(box, root):
+        slope = probe(box.center()) if probe is not None else None
+        for clo, chi in _split(box, root, slope):
             child = prove_box(pp, solver, clo, chi)
             if child.bound < box.bound:  # the parent's proof holds on the child
                 child = BoxBound(clo, chi, box.bound, box.how, child.estimate,

@@ -31,7 +31,7 @@ import sympy as sp
 from sosalgo.spec import Spec
 
 __all__ = ["ParametricPEP", "Poly", "Unsupported", "parametric_pep", "poly_range",
-           "smooth_convex_q"]
+           "smooth_convex_q", "step_symbol", "varying_matrices"]
 
 Poly = dict[tuple[int, ...], Fraction]  # monomial exponents -> coefficient
 
@@ -319,3 +319,59 @@ def poly_range(e: tuple[int, ...], lo: Sequence[Fraction], hi: Sequence[Fraction
         cands = [a * plo, a * phi, b * plo, b * phi]
         a, b = min(cands), max(cands)
     return a, b
+
+
+def step_symbol(p: str, k: int | None) -> str:
+    """The name of a free value: ``p`` (one value), ``p_k`` (the value at step k)."""
+    return p if k is None else f"{p}_{k}"
+
+
+def varying_matrices(spec: Spec, kappa: float | None, steps: int,
+                     per_step: Sequence[tuple[str, bool]]
+                     ) -> tuple[Callable[[int], dict[str, sp.Matrix]], list[list[float]]]:
+    """(step k -> the spec's A, B, C, E at step k with the free values as symbols
+    (``step_symbol``), the free values' own per-step values as seeds): m, L, kappa, k, N
+    exact, fixed parameters (values, ties, listed schedules) substituted. Entries that
+    still use a sequence are left to :func:`parametric_pep` to refuse (not polynomial
+    with rational coefficients)."""
+    from sosalgo.kernel.expr.parse import sympy_symbol, to_sympy
+    from sosalgo.spec.types import value_order
+
+    m, L = exact_class(spec, kappa)
+    base: dict[str, Any] = {"m": sp.Rational(m.numerator, m.denominator),
+                            "L": sp.Rational(L.numerator, L.denominator),
+                            "N": sp.Integer(steps)}
+    if m:
+        kq = L / m
+        base["kappa"] = sp.Rational(kq.numerator, kq.denominator)
+    free = dict(per_step)
+    envs, seeds = [], []
+    for k in range(steps):
+        env = dict(base, k=sp.Integer(k))
+        own: dict[str, float] = {}
+        for p in value_order(spec.parameters, spec.source):
+            par = spec.parameters[p]
+            sub = {sympy_symbol(n): v for n, v in env.items()}
+            sched = getattr(par, "schedule", None)
+            expr = (to_sympy(sched[k]) if sched is not None else
+                    to_sympy(par.tied if par.is_tied else par.value)).xreplace(sub)
+            if p in free:
+                own[p] = _seed(expr)
+                env[p] = sp.Symbol(step_symbol(p, k if free[p] else None))
+            else:
+                env[p] = expr
+        envs.append({sympy_symbol(n): v for n, v in env.items()})
+        seeds.append([own[p] for p, _ in per_step])
+    mats = spec.sympy_matrices()
+
+    def at(k: int) -> dict[str, sp.Matrix]:
+        return {key: mats[key].xreplace(envs[k]) for key in ("A", "B", "C", "E")}
+
+    return at, seeds
+
+
+def _seed(expr: Any) -> float:
+    try:
+        return float(expr)
+    except (TypeError, ValueError):
+        return float("nan")

@@ -13,7 +13,7 @@ from sosalgo.design.steps import value_text
 from sosalgo.errors import InputError
 from sosalgo.spec import Spec
 
-__all__ = ["worst_case_evaluator"]
+__all__ = ["steps_evaluator", "worst_case_evaluator"]
 
 Values = dict[str, Any]  # parameter -> number, decimal text (or per-step list)
 
@@ -47,3 +47,18 @@ def worst_case_evaluator(spec: Spec, text: str, kappa: float | None, steps: int,
                 math.inf if res.tau is None else float(res.tau))
 
     return value, proven
+
+
+def steps_evaluator(spec: Spec, text: str, kappa: float | None, steps: int,
+                    prob: Any) -> tuple[Callable, Callable]:
+    """The worst case at θ: ``sosalgo pep``'s (its proof) for a time-invariant spec; for
+    a spec that varies with k, the parametric model's own PEP and dual proof
+    (:func:`sosalgo.design.steps.point_evaluator`); InputError when neither exists."""
+    from sosalgo.design.steps import point_evaluator
+
+    if not getattr(spec, "time_varying", False):
+        return worst_case_evaluator(spec, text, kappa, steps)
+    if prob.model is None:
+        raise InputError(f"{spec.source}: design --steps: the worst case of this method "
+                         f"cannot be evaluated per step here: {prob.reason}")
+    return point_evaluator(prob.model, prob.layout)

@@ -21,8 +21,8 @@ __all__ = ["steps_design_chunk", "steps_design_run"]
 def steps_design_chunk(spec_text: str, source: str, options: dict[str, Any],
                        chunk: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Worker: the design at each task's (kappa, steps)."""
-    from sosalgo.design.steps import design_steps, exact_box
-    from sosalgo.pep.evaluate import worst_case_evaluator
+    from sosalgo.design.steps import design_steps, steps_problem
+    from sosalgo.pep.evaluate import steps_evaluator
     from sosalgo.runs import kappa_value
     from sosalgo.spec import spec_from_text
 
@@ -31,12 +31,13 @@ def steps_design_chunk(spec_text: str, source: str, options: dict[str, Any],
     for task in chunk:
         kappa = None if task["kappa"] in ("", None) else kappa_value(task["kappa"])
         begin_task(f"N {task['steps']}" + ("" if kappa is None else f", kappa {kappa:g}"))
-        box = exact_box(spec, kappa, options["free"])
         steps = int(task["steps"])
-        res = design_steps(spec, spec_text, kappa, steps, [(p, None) for p in options["free"]],
-                           box,
-                           worst_case_evaluator(spec, spec_text, kappa, steps),
-                           options["time_limit"], options["gap"])
+        prob = steps_problem(spec, kappa, steps, options["free"])
+        res = design_steps(spec, spec_text, kappa, steps, prob.layout, prob.box,
+                           steps_evaluator(spec, spec_text, kappa, steps, prob),
+                           options["time_limit"], options["gap"], prob.seeds, prob.model)
+        if prob.reason:
+            res.log.insert(0, f"no box-wide lower bound: {prob.reason}")
         doc = res.to_dict()
         rows.append({"kappa": "" if kappa is None else kappa, "steps": res.steps,
                      "schedule": json.dumps(doc["schedule"]),
@@ -79,8 +80,9 @@ def steps_design_run(spec: Spec | str | Path, kappa: float | Sequence[float] | N
     from sosalgo import inputs
     from sosalgo.batch.executor import Progress, check_scheduler, run_batch
     from sosalgo.batch.sweeps import kappa_settings
-    from sosalgo.design.steps import exact_box
+    from sosalgo.design.steps import steps_problem
     from sosalgo.pep.core import parse_steps
+    from sosalgo.pep.evaluate import steps_evaluator
     from sosalgo.runs import set_field, spec_with_text
     from sosalgo.schema import STEPS_DESIGN_COLUMNS, steps_design_csv
     from sosalgo.store import ResumableCSV
@@ -91,8 +93,10 @@ def steps_design_run(spec: Spec | str | Path, kappa: float | Sequence[float] | N
     names = inputs.free_names(spec, free)
     inputs.check_gap(gap, "--gap")
     inputs.check_time_limit(time_limit, "--time-limit")
-    for k in ks:
-        exact_box(spec, k, names)
+    for k in ks:  # every input error before anything is written
+        for n in ns:
+            prob = steps_problem(spec, k, n, names)
+            steps_evaluator(spec, text, k, n, prob)
     check_scheduler(scheduler)
     out = inputs.out_dir(out_dir)
     options = {"free": names, "gap": gap, "time_limit": time_limit}

@@ -60,7 +60,8 @@ def verify_steps_row(row: Mapping[str, Any], spec: Spec, where: str = "result"
 
 def _upper(items: list[dict[str, str]], row: Mapping[str, Any], spec: Spec,
            kappa: float | None, steps: int, where: str) -> Fraction | None:
-    from sosalgo.pep.evaluate import worst_case_evaluator
+    from sosalgo.design.steps import steps_problem
+    from sosalgo.pep.evaluate import steps_evaluator
     from sosalgo.spec import read_spec_text
 
     field = f"{where}.tau_certified"
@@ -73,7 +74,8 @@ def _upper(items: list[dict[str, str]], row: Mapping[str, Any], spec: Spec,
         return None
     text = row.get("spec_text")  # the text the design ran on (its --set applied)
     text = text if isinstance(text, str) else read_spec_text(spec.source)
-    _, proven = worst_case_evaluator(spec, text, kappa, steps)
+    prob = steps_problem(spec, kappa, steps, list(row.get("free") or []))
+    _, proven = steps_evaluator(spec, text, kappa, steps, prob)
     try:
         tp, _ = proven({str(k): v for k, v in sched.items()})
     except (InputError, ValueError, ArithmeticError) as exc:
@@ -99,18 +101,17 @@ def _lower(items: list[dict[str, str]], row: Mapping[str, Any], spec: Spec,
     if not isinstance(leaves, list) or not leaves or len(leaves) > MAX_LEAVES:
         _claim(items, field, "unsupported", "no leaves to re-prove (or too many)")
         return None
-    from sosalgo.design.steps import exact_box
+    from sosalgo.design.steps import flat_names, steps_problem
     from sosalgo.design.steps_bound import reprove
     from sosalgo.design.steps_model import Unsupported, parametric_pep
 
-    free = list(row.get("free") or [])
-    box = exact_box(spec, kappa, free)
+    prob = steps_problem(spec, kappa, steps, list(row.get("free") or []))
     boxes = [(_fracs(lf["lo"]), _fracs(lf["hi"])) for lf in leaves]
-    if not _covers(boxes, box):
+    if not _covers(boxes, prob.box):
         _claim(items, field, "unsupported", "the leaves do not cover the box")
         return None
     try:
-        pp = parametric_pep(spec, kappa, steps, free)
+        pp = prob.model or parametric_pep(spec, kappa, steps, flat_names(prob.layout))
     except Unsupported as exc:
         _claim(items, field, "unsupported", str(exc))
         return None
