@@ -146,6 +146,10 @@ def pack(layout: Layout, z: Sequence[Any]) -> Values:
     return out
 
 
+class _Stop(Exception):
+    """The search's time is up (raised inside a scipy minimizer)."""
+
+
 class _Search:
     """The best θ found (float PEP values), over the box [lo, hi] of the flat values;
     ``point``: the parametric model's PEP at a point (value and gradient), else the
@@ -158,6 +162,7 @@ class _Search:
         self.best_z: np.ndarray | None = None
         self.best = math.inf
         self.evals = 0
+        self.stop = math.inf  # the minimizers stop at this time
 
     def _record(self, z: np.ndarray, v: float) -> None:
         self.evals += 1
@@ -165,6 +170,8 @@ class _Search:
             self.best, self.best_z = v, z
 
     def __call__(self, z: Sequence[float]) -> float:
+        if time.time() > self.stop:
+            raise _Stop
         zc = self.round(np.clip(np.asarray(z, float), self.lo, self.hi))
         v = (self.point.value_grad(zc)[0] if self.point is not None
              else self.value(pack(self.layout, [float(x) for x in zc])))
@@ -172,11 +179,40 @@ class _Search:
         return v
 
     def with_grad(self, z: np.ndarray) -> tuple[float, np.ndarray]:
+        if time.time() > self.stop:
+            raise _Stop
         zc = np.clip(np.asarray(z, float), self.lo, self.hi)
         v, g = self.point.value_grad(zc)
         if v < self.best:  # the decimals the proof uses, checked
             self(zc)
         return v, g
+
+    def hop(self, deadline: float, scale: float = 0.05, seed: int = 0) -> int:
+        """Restarts of the gradient descent from random points near the best (a normal
+        step of ``scale`` times the box, wider after failures) until ``deadline``: the
+        worst case is a max over functions, its kinks stop a descent early."""
+        from scipy.optimize import minimize
+
+        rng = np.random.default_rng(seed)
+        bounds = list(zip(self.lo, self.hi, strict=True))
+        hops, sigma = 0, scale
+        self.stop = deadline
+        while time.time() < deadline and self.best_z is not None:
+            before = self.best
+            z = np.clip(self.best_z + rng.normal(0.0, sigma, len(self.lo)) *
+                        (self.hi - self.lo), self.lo, self.hi)
+            try:
+                minimize(self.with_grad, z, jac=True, method="L-BFGS-B", bounds=bounds,
+                         options={"maxiter": 150, "ftol": 1e-12, "gtol": 1e-10})
+            except _Stop:
+                break
+            finally:
+                self.stop = deadline
+            hops += 1
+            sigma = scale if self.best < before * (1 - 1e-9) else min(4 * scale,
+                                                                        sigma * 1.5)
+        self.stop = math.inf
+        return hops
 
     def round(self, z: np.ndarray) -> np.ndarray:
         """The decimals the proof will use, inside the box."""
@@ -184,10 +220,20 @@ class _Search:
         return np.clip(r, self.lo, self.hi)
 
     def polish(self, z0: np.ndarray, deadline: float, tol: float = 1e-9) -> None:
-        from scipy.optimize import minimize, minimize_scalar
-
+        """Local descent from z0 until ``deadline`` (see :meth:`_polish`)."""
         if time.time() >= deadline:
             return
+        self.stop = deadline
+        try:
+            self._polish(z0, tol)
+        except _Stop:
+            pass
+        finally:
+            self.stop = math.inf
+
+    def _polish(self, z0: np.ndarray, tol: float) -> None:
+        from scipy.optimize import minimize, minimize_scalar
+
         bounds = list(zip(self.lo, self.hi, strict=True))
         if len(z0) == 1:
             w = (self.hi[0] - self.lo[0]) / 20
@@ -199,10 +245,9 @@ class _Search:
             minimize(self.with_grad, z0, jac=True, method="L-BFGS-B", bounds=bounds,
                      options={"maxiter": 300, "ftol": 1e-13, "gtol": 1e-11})
             z0 = self.best_z if self.best_z is not None else z0
-        left = max(1.0, deadline - time.time())
         minimize(self, z0, method="Nelder-Mead",
                  options={"xatol": tol, "fatol": tol * max(self.best, 1e-12),
-                          "maxfev": int(min(200 * len(z0) + 100 * min(left, 60), 4000)),
+                          "maxfev": 400 * len(z0),
                           "initial_simplex": _simplex(z0, self.lo, self.hi)},
                  bounds=bounds)
 
@@ -268,11 +313,15 @@ def design_steps(spec: Spec, text: str, kappa: float | None, steps: int, layout:
         point = PointPEP(model)
     search = _Search(layout, lo, hi, value, point)
     show_phase("searching", f"N = {steps}")
-    share = t0 + SEARCH_SHARE * time_limit
-    starts = _starts(search, [np.asarray(s, float) for s in seeds], share)
-    for z in starts[:3]:
-        search.polish(z, share)
-    log.append(f"search: {search.evals} PEPs, best {search.best:.12g}")
+    span = (SEARCH_SHARE if len(lo) <= 4 else 2 * SEARCH_SHARE) * time_limit
+    share = t0 + span
+    starts = _starts(search, [np.asarray(s, float) for s in seeds], t0 + 0.2 * span)
+    hopping = point is not None and len(lo) > 1
+    for i, z in enumerate(starts[:3]):
+        search.polish(z, t0 + (0.2 + 0.2 * (i + 1)) * span if hopping else share)
+    hops = search.hop(share) if hopping else 0
+    log.append(f"search: {search.evals} PEPs ({hops} random restarts near the best), "
+               f"best {search.best:.12g}")
     bound = None
     if model is not None:
         bound, reason = _bound(model, box, search, deadline, gap)
