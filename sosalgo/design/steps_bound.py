@@ -27,7 +27,6 @@ from __future__ import annotations
 import heapq
 import math
 import time
-import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from fractions import Fraction
@@ -36,6 +35,7 @@ from typing import Any
 import numpy as np
 
 from sosalgo.design.steps_model import ParametricPEP, Poly, poly_range
+from sosalgo.kernel.solvers import SolverStatus, cvxpy_solve
 
 __all__ = ["BoxBound", "BoxSolver", "BranchResult", "branch_and_bound", "huber_bound",
            "prove_box", "quadratic_bound", "reprove"]
@@ -109,13 +109,10 @@ class BoxSolver:
         r = _ranges(self.pp, lo, hi)
         rb.lo.value = np.array([float(a) for a, _ in r])
         rb.hi.value = np.array([float(b) for _, b in r])
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")  # an inaccurate solve is only a candidate
-                rb.problem.solve(solver="CLARABEL", **(TIGHT if tight else {}))
-        except Exception:  # noqa: BLE001 - a failed solve is no bound, never an error
-            return -math.inf, None
-        if rb.problem.status not in ("optimal", "optimal_inaccurate") or rb.G.value is None:
+        end = cvxpy_solve(rb.problem, "CLARABEL", **(TIGHT if tight else {}))
+        # an inaccurate solve is only a candidate: the proof decides
+        if end.status not in (SolverStatus.SOLVED, SolverStatus.ALMOST_SOLVED) \
+                or rb.G.value is None:
             return -math.inf, None
         return float(rb.problem.value), np.array(rb.G.value)
 

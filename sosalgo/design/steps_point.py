@@ -20,7 +20,6 @@ solve makes S ⪰ eps I, room for the rounding.
 from __future__ import annotations
 
 import math
-import warnings
 from collections.abc import Sequence
 from fractions import Fraction
 from typing import Any
@@ -28,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from sosalgo.design.steps_model import ParametricPEP
+from sosalgo.kernel.solvers import SolverStatus, cvxpy_solve
 
 __all__ = ["PointPEP", "positive_definite"]
 
@@ -83,13 +83,9 @@ class PointPEP:
         th = np.asarray(theta, float)
         self.P.value = np.einsum("a,kaj->kj", self._monomials(th), self.forms)
         self.eps.value = eps
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                self.problem.solve(solver="CLARABEL", **(TIGHT if tight else {}))
-        except Exception:  # noqa: BLE001 - a failed solve is a missing value
-            return None
-        if self.problem.status not in ("optimal", "optimal_inaccurate"):
+        end = cvxpy_solve(self.problem, "CLARABEL", **(TIGHT if tight else {}))
+        if end.status not in (SolverStatus.SOLVED, SolverStatus.ALMOST_SOLVED) \
+                or self.G.value is None:
             return None
         return {"value": float(self.F.value[self.pp.measure_point]),
                 "G": np.array(self.G.value), "lam": np.maximum(
