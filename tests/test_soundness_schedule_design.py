@@ -123,6 +123,69 @@ def test_witness_bounds_match_their_closed_forms(gd_models):
             assert quad == (1 - h) ** (2 * steps) / 2
 
 
+def independent_schedule_pep(hs: list[float]) -> float:
+    """Gradient descent with steps h_0..h_{N-1} (a per-step A, B): the independent PEP
+    step by step (the same Gram formulation, one step's matrices at a time)."""
+    import cvxpy as cp
+
+    steps, d = len(hs), len(hs) + 2
+    x = np.eye(d)[0]
+    pts = []
+    for k, h in enumerate(hs):
+        g = np.eye(d)[1 + k]
+        pts.append((x.copy(), g))
+        x = x - h * g
+    pts += [(x, np.eye(d)[steps + 1]), (np.zeros(d), np.zeros(d))]
+    G = cp.Variable((d, d), PSD=True)
+    F = cp.Variable(len(pts))
+    cons = [F[-1] == 0, G[0, 0] <= 1]
+    for i, (xa, ga) in enumerate(pts):
+        for j, (xb, gb) in enumerate(pts):
+            if i != j:
+                quad = np.outer(gb, xa - xb) + np.outer(ga - gb, ga - gb) / 2
+                cons.append(F[i] >= F[j] + cp.trace((quad + quad.T) / 2 @ G))
+    prob = cp.Problem(cp.Maximize(F[steps]), cons)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        prob.solve(solver="CLARABEL")
+    return float(prob.value)
+
+
+def test_per_step_schedule_boxes():
+    """Per-step steps (h_0, h_1) free in [0, 3]^2: random boxes, boxes touching h = 0
+    and h = 3, a point box; the bound stays below the worst case at random θ inside,
+    and the point box's bound is close to it (so the comparison can fail)."""
+    import sympy as sp
+
+    from sosalgo.design.steps_point import PointPEP
+
+    spec = load_spec(str(spec_path("gradient-convex")))
+    hs = [sp.Symbol("h_0"), sp.Symbol("h_1")]
+
+    def mats(k):
+        return {"A": sp.Matrix([[1]]), "B": sp.Matrix([[-hs[k]]]), "C": sp.Matrix([[1]]),
+                "E": sp.Matrix([[1]])}
+
+    pp = parametric_pep(spec, None, 2, ["h_0", "h_1"], mats)
+    solver = BoxSolver(pp)
+    rng = random.Random(11)
+    boxes = [((Fraction(0), Fraction(14, 10)), (Fraction(1, 10), Fraction(15, 10))),
+             ((Fraction(29, 10), Fraction(1)), (Fraction(3), Fraction(12, 10))),
+             ((Fraction(7, 5), Fraction(15, 8)), (Fraction(7, 5), Fraction(15, 8)))]
+    for _ in range(2):
+        a = [Fraction(rng.randint(0, 280), 100) for _ in range(2)]
+        boxes.append((tuple(a), tuple(x + Fraction(rng.randint(1, 20), 100) for x in a)))
+    for lo, hi in boxes:
+        bound = float(prove_box(pp, solver, lo, hi).bound)
+        for _ in range(2):
+            h = [float(a) + rng.random() * float(b - a) for a, b in zip(lo, hi, strict=True)]
+            assert bound <= independent_schedule_pep(h) * (1 + 1e-6) + 1e-9, (lo, hi, h)
+    point = independent_schedule_pep([1.4, 1.875])
+    assert bound >= 0 and float(prove_box(pp, solver, *boxes[2]).bound) >= point * (1 - 1e-4)
+    proven = PointPEP(pp).prove([Fraction(7, 5), Fraction(15, 8)])
+    assert proven is not None and point * (1 - 1e-6) <= float(proven) <= point * (1 + 1e-5)
+
+
 def test_strongly_convex_two_parameter_boxes():
     """Nesterov's method (h, beta) at kappa 10: random sub-boxes, random θ inside."""
     spec = load_spec(str(spec_path("nesterov")))
