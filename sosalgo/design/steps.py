@@ -103,9 +103,11 @@ def drori_floor(spec: Spec, steps: int) -> float | None:
     """L / (2 theta_N^2) where the theorem applies (see the module), else None."""
     if not spec.sublinear or spec.L is None:
         return None
+    from sosalgo.design.steps_model import check_setting
+
     try:
-        parametric_pep(spec, None, 1, [])  # the setting: one smooth convex f, at rest
-    except (Unsupported, InputError):
+        check_setting(spec)  # one smooth convex f by its gradient, linear, at rest
+    except Unsupported:
         return None
     return float(spec.L) / (2 * ogm_theta(steps) ** 2)
 

@@ -7,9 +7,10 @@ For a sub-box B of θ, three sound bounds of min_{θ in B} tau_N(θ):
   F_i - F_j + sum_alpha θ^alpha c_alpha >= 0 with c_alpha = <Q_alpha, G>; it holds on B
   when c_0 + sum_alpha min(lo_alpha c_alpha, hi_alpha c_alpha) >= 0, lo/hi the exact
   range of θ^alpha on B). The SDP maximizing F_N over such points is solved in floating
-  point for a subclass F(m + s (L - m), L (1 - s)), s = 1e-7 (inequalities with slack); the
-  proof rounds G to V V' with V rational (positive semidefinite by construction), takes
-  the largest F for that G exactly (a shortest path from x*: F_j <= F_i + w_ij) and
+  point for a subclass F(m + s (L - m), L (1 - s)), s = 1e-7 (1e-5 when that is not
+  proven, :data:`LADDER`), whose inequalities have slack; the proof rounds G to V V' with
+  V rational (positive semidefinite by construction; V is kept for ``sosalgo verify``),
+  takes the largest F for that G exactly (a shortest path from x*: F_j <= F_i + w_ij) and
   divides by G_00: every step in exact rational arithmetic, about the class as written.
 * **quadratic witnesses** (:func:`quadratic_bound`): f = q x^2 / 2 in one dimension,
   m <= q <= L, its trajectory from x_0 = 1 enclosed in exact interval arithmetic over B.

@@ -30,7 +30,8 @@ import sympy as sp
 
 from sosalgo.spec import Spec
 
-__all__ = ["ParametricPEP", "Poly", "Unsupported", "parametric_pep", "poly_range",
+__all__ = ["ParametricPEP", "Poly", "Unsupported", "check_setting", "parametric_pep",
+           "poly_range",
            "smooth_convex_q", "step_symbol", "varying_matrices"]
 
 Poly = dict[tuple[int, ...], Fraction]  # monomial exponents -> coefficient
@@ -224,7 +225,8 @@ def exact_class(spec: Spec, kappa: float | None) -> tuple[Fraction, Fraction]:
     return mq, mq * Fraction(int(kq.p), int(kq.q))
 
 
-def _check_setting(spec: Spec) -> None:
+def check_setting(spec: Spec) -> None:
+    """Unsupported unless the spec is in the setting of the module."""
     fns = list(spec.functions.values())
     if (len(fns) > 1 or (fns and fns[0].cls != "smooth_strongly_convex")
             or spec.oracles != ("f",) or spec.output is not None
@@ -240,7 +242,7 @@ def parametric_pep(spec: Spec, kappa: float | None, steps: int, free: Sequence[s
                    ) -> ParametricPEP:
     """The exact parametric PEP (see the module). ``step_matrices(k)``: the sympy
     matrices of step k in the free symbols (default: the spec's, the same every step)."""
-    _check_setting(spec)
+    check_setting(spec)
     m, L = exact_class(spec, kappa)
     syms = [spec.symbols[p] for p in free] if step_matrices is None else \
         [sp.Symbol(p) for p in free]
