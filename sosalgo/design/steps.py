@@ -322,8 +322,9 @@ def design_steps(spec: Spec, text: str, kappa: float | None, steps: int, layout:
     for i, z in enumerate(starts[:3]):
         search.polish(z, t0 + (0.2 + 0.2 * (i + 1)) * span if hopping else share)
     hops = search.hop(share) if hopping else 0
-    log.append(f"search: {search.evals} PEPs ({hops} random restarts near the best), "
-               f"best {search.best:.12g}")
+    log.append(f"search: {search.evals} PEPs" + (
+        f" ({hops} random restarts near the best)" if hopping else "")
+        + f", best {search.best:.12g}")
     bound = None
     if model is not None:
         bound, reason = _bound(model, box, search, deadline, gap)
