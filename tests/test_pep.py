@@ -128,6 +128,10 @@ def test_every_spec_runs(spec):
     """Every shipped spec has a finite worst case after two steps (Douglas-Rachford
     through its default free start, ``sdist``)."""
     kappa = None if spec == "gradient-convex.yaml" else 10.0
+    if sosalgo.load_spec(SPECS / spec).time_varying:  # not built yet: refused in one line
+        with pytest.raises(sosalgo.InputError, match="varies with k"):
+            sosalgo.pep(SPECS / spec, None, 2, exact=False, witness=False)
+        return
     res = sosalgo.pep(SPECS / spec, kappa, 2, exact=False, witness=False)
     assert res.status == "solved"
     assert np.isfinite(res.tau) and res.tau >= 0 and res.gap is not None

@@ -136,6 +136,9 @@ def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None
     resolved (InputError naming the option for bad input)."""
     if isinstance(steps, bool) or not isinstance(steps, int) or not 1 <= steps <= MAX_STEPS:
         raise InputError(f"--steps: must be an integer in 1..{MAX_STEPS}, got {steps!r}")
+    if spec.time_varying:  # the seam: sosalgo.steps.float_steps gives the per-step methods
+        raise InputError(f"{spec.source}: varies with k: its PEP (one method per step, "
+                         "sosalgo.steps) is not built yet")
     om, kq = bound_method(spec, kappa)
     measure = measure or _default_measure(spec)
     initial = initial or default_initial(om)
