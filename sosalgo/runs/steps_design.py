@@ -87,7 +87,7 @@ def steps_design_run(spec: Spec | str | Path, kappa: float | Sequence[float] | N
     from sosalgo.schema import STEPS_DESIGN_COLUMNS, steps_design_csv
     from sosalgo.store import ResumableCSV
 
-    spec, text = spec_with_text(spec, spec_text, overrides)
+    spec, text = spec_with_text(spec, spec_text, overrides, varying=True)
     ks = _kappas(spec, kappa)
     ns = parse_steps(steps)
     names = inputs.free_names(spec, free)
