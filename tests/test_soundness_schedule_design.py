@@ -285,3 +285,44 @@ def test_gd_constant_step_gap_target(steps):
     assert d["lower_bound"] <= best * (1 + 1e-7)
     assert d["gap_relative"] <= 1e-3
     assert d["tau_certified"] <= best * (1 + 1e-3)
+
+
+def _design_rows(tmp_path, spec: str, steps: str, limit: float) -> list[dict]:
+    from sosalgo.runs.steps_design import steps_design_run
+
+    doc = steps_design_run(str(spec_path(spec)), None, steps, tmp_path, time_limit=limit,
+                           workers=1, progress=False, plot=False)
+    return doc["rows"]
+
+
+def test_momentum_schedule_one_step_reaches_the_floor(tmp_path):
+    """momentum-schedule, N = 1: (beta_0, gamma_0) free per step; the design reaches
+    L/(2 theta_1^2) = 1/8 (OGM, Drori's floor) within 1e-5, never below it, and its
+    lower bound stays below it."""
+    (row,) = _design_rows(tmp_path, "momentum-schedule", "1", 30)
+    assert len(row["schedule"]["beta"]) == 1 and len(row["schedule"]["gamma"]) == 1
+    assert 0.125 <= row["tau_certified"] <= 0.125 * (1 + 1e-5)
+    assert row["lower_bound"] is not None and row["lower_bound"] <= 0.125
+    assert row["floor"] == pytest.approx(0.125, rel=1e-12)
+
+
+@pytest.mark.deep
+@pytest.mark.parametrize("steps", [2, 3, 4])
+def test_momentum_schedule_rediscovers_ogm(tmp_path, steps):
+    from sosalgo.design.steps import ogm_theta
+
+    (row,) = _design_rows(tmp_path, "momentum-schedule", str(steps), 180)
+    ogm = 1 / (2 * ogm_theta(steps) ** 2)
+    assert ogm * (1 - 1e-9) <= row["tau_certified"] <= ogm * (1 + 1e-5)
+    assert row["lower_bound"] <= ogm
+
+
+@pytest.mark.deep
+@pytest.mark.parametrize("steps", [2, 3])
+def test_gradient_schedule_gap(tmp_path, steps):
+    """gradient-schedule: proven relative gap <= 1e-3 (N = 2, 3), the schedule's worst
+    case checked by the independent PEP."""
+    (row,) = _design_rows(tmp_path, "gradient-schedule", str(steps), 600)
+    indep = independent_schedule_pep(row["schedule"]["h"])
+    assert indep * (1 - 1e-6) <= row["tau_certified"] <= indep * (1 + 1e-5)
+    assert row["gap_relative"] <= 1e-3
