@@ -355,6 +355,11 @@ def varying_matrices(spec: Spec, kappa: float | None, steps: int,
             par = spec.parameters[p]
             sub = {sympy_symbol(n): v for n, v in env.items()}
             sched = getattr(par, "schedule", None)
+            if sched is not None and k >= len(sched):  # a free list of another length
+                sched = sched[-1:] * (k + 1) if p in free else None
+                if sched is None:
+                    raise Unsupported(f"parameters.{p}: a schedule of "
+                                      f"{len(par.schedule)} values for N = {steps} steps")
             expr = (to_sympy(sched[k]) if sched is not None else
                     to_sympy(par.tied if par.is_tied else par.value)).xreplace(sub)
             if p in free:
