@@ -249,6 +249,13 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
     from sosalgo.runs import design_run
 
     if steps is not None:
+        mixed = [o for o, on in (("--objective noise", objective != "rate"),
+                                 ("--max-rate", max_rate is not None),
+                                 ("--max-noise", max_noise is not None),
+                                 ("--method moment", method != "dual"),
+                                 ("--certificate", certificate is not None)) if on]
+        if mixed:
+            raise InputError(f"--steps: designs the N-step worst case; not with {mixed[0]}")
         _design_steps(spec_path, kappa, free, gap, time_limit, steps, out, as_json, workers,
                       scheduler, restart, quiet, verify_, overrides, details)
         return

@@ -46,6 +46,9 @@ def steps_design_lines(doc: dict[str, Any], details: bool = False) -> list[str]:
     for d in rows:
         if details or d.get("time_limited"):
             lines += [f"  N = {d['steps']}: {x}" for x in d.get("log", [])]
+        elif d.get("lower_bound") is None:  # say why there is none
+            lines += [f"  N = {d['steps']}: {x}" for x in d.get("log", [])
+                      if x.startswith("no box-wide")]
         if d.get("time_limited"):
             lines.append(f"  N = {d['steps']}: stopped by --time-limit (the bounds are "
                          "proven as far as they got)")
