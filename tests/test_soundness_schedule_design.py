@@ -252,6 +252,10 @@ def test_cli_design_steps_and_verify(tmp_path):
     for key in ("schedule", "tau_certified", "lower_bound", "gap", "floor"):
         assert key in doc
     assert (out / "gradient-convex-design-steps.csv").exists()
+    again = runner.invoke(cli, ["design", str(spec_path("gradient-convex")), "--steps", "1",
+                                "--time-limit", "60", "--out", str(out), "--json",
+                                "--quiet", "--workers", "1"])
+    assert json.loads(again.stdout)["seconds"] == doc["seconds"]  # resumed, not re-run
     good = tmp_path / "good.json"
     good.write_text(json.dumps(doc))
     assert runner.invoke(cli, ["verify", str(good)]).exit_code == 0
