@@ -303,7 +303,7 @@ def test_momentum_schedule_one_step_reaches_the_floor(tmp_path):
     """momentum-schedule, N = 1: (beta_0, gamma_0) free per step; the design reaches
     L/(2 theta_1^2) = 1/8 (OGM, Drori's floor) within 1e-5, never below it, and its
     lower bound stays below it."""
-    (row,) = _design_rows(tmp_path, "momentum-schedule", "1", 30)
+    (row,) = _design_rows(tmp_path, "momentum-schedule", "1", 12)
     assert len(row["schedule"]["beta"]) == 1 and len(row["schedule"]["gamma"]) == 1
     assert 0.125 <= row["tau_certified"] <= 0.125 * (1 + 1e-5)
     assert row["lower_bound"] is not None and row["lower_bound"] <= 0.125

@@ -404,6 +404,8 @@ def _leaf_doc(leaf: Any) -> dict[str, Any]:
         doc["rung"] = leaf.rung
     if leaf.point is not None:  # V: the point G = V V' / 4^52, re-checked by verify
         doc["point"] = [[str(v) for v in row] for row in leaf.point]
+    if leaf.slopes is not None and any(v for row in leaf.slopes for v in row):
+        doc["slopes"] = [[str(v) for v in row] for row in leaf.slopes]
     if leaf.proven_on is not None:  # proven on an ancestor box, which contains it
         doc["proven_on"] = [[str(x) for x in leaf.proven_on[0]],
                             [str(x) for x in leaf.proven_on[1]]]

@@ -56,40 +56,64 @@ def _ranges(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction]
     return [poly_range(e, lo, hi) for e in pp.monomials]
 
 
+def linear_monomials(pp: ParametricPEP) -> list[int | None]:
+    """Per free value i, the index of the monomial θ_i in ``pp.monomials`` (None: none)."""
+    p = len(pp.free)
+    unit = [tuple(int(j == i) for j in range(p)) for i in range(p)]
+    return [pp.monomials.index(e) if e in pp.monomials else None for e in unit]
+
+
 class _Robust:
-    """The robust SDP of a box for one subclass (cvxpy, the box as parameters)."""
+    """The robust SDP of a box for one subclass (cvxpy, the box as parameters): one G
+    for the whole box and function values affine in θ, F(θ) = F0 + F1 θ (F1 only on the
+    free values with a monomial θ_i), F(x*) = 0."""
 
     def __init__(self, pp: ParametricPEP, shrink: Fraction):
         import cvxpy as cp
 
         K, A, d = len(pp.pairs), len(pp.monomials), pp.d
         forms = pp.float_forms(shrink).reshape(K, A, d * d)
+        lin = linear_monomials(pp)
         self.G = cp.Variable((d, d), PSD=True)
         F = cp.Variable(pp.npts)
+        self.F1 = cp.Variable((pp.npts, len(lin)))
         self.lo = cp.Parameter(A)
         self.hi = cp.Parameter(A)
         g = cp.vec(self.G, order="C")
-        zero = pp.monomials.index((0,) * len(pp.free))
-        total = forms[:, zero, :] @ g
-        cons = [self.G[0, 0] <= 1]
-        for a in range(A):
-            if a == zero or not np.any(forms[:, a, :]):
-                continue
-            rows = np.flatnonzero(np.any(forms[:, a, :] != 0, axis=1))
-            c = forms[rows, a, :] @ g
-            t = cp.Variable(len(rows))
-            cons += [t <= self.lo[a] * c, t <= self.hi[a] * c]
-            sel = np.zeros((K, len(rows)))
-            sel[rows, np.arange(len(rows))] = 1.0
-            total = total + sel @ t
         diff = np.zeros((K, pp.npts))
         for k, (i, j) in enumerate(pp.pairs):
             if i < pp.npts:
                 diff[k, i] += 1.0
             if j < pp.npts:
                 diff[k, j] -= 1.0
+        slope_of = {a: i for i, a in enumerate(lin) if a is not None}
+        zero = pp.monomials.index((0,) * len(pp.free))
+        total = forms[:, zero, :] @ g
+        cons = [self.G[0, 0] <= 1]
+        for a in range(A):
+            if a == zero or (a not in slope_of and not np.any(forms[:, a, :])):
+                continue
+            if a in slope_of:  # every pair: its G part and its slope of F
+                c = forms[:, a, :] @ g + diff @ self.F1[:, slope_of[a]]
+                rows = np.arange(K)
+            else:
+                rows = np.flatnonzero(np.any(forms[:, a, :] != 0, axis=1))
+                c = forms[rows, a, :] @ g
+            t = cp.Variable(len(rows))
+            cons += [t <= self.lo[a] * c, t <= self.hi[a] * c]
+            sel = np.zeros((K, len(rows)))
+            sel[rows, np.arange(len(rows))] = 1.0
+            total = total + sel @ t
+        for i, a in enumerate(lin):
+            if a is None:
+                cons.append(self.F1[:, i] == 0)
         cons.append(diff @ F + total >= 0)
-        self.problem = cp.Problem(cp.Maximize(F[pp.measure_point]), cons)
+        u = cp.Variable(len(lin))  # the measure's least value over the box
+        N = pp.measure_point
+        cons += [u[i] <= self.lo[a] * self.F1[N, i] for i, a in enumerate(lin) if a is not None]
+        cons += [u[i] <= self.hi[a] * self.F1[N, i] for i, a in enumerate(lin) if a is not None]
+        cons += [u[i] == 0 for i, a in enumerate(lin) if a is None]
+        self.problem = cp.Problem(cp.Maximize(F[N] + cp.sum(u)), cons)
 
 
 class BoxSolver:
@@ -100,9 +124,9 @@ class BoxSolver:
         self._robust: dict[Fraction, _Robust] = {}
 
     def solve(self, lo: Sequence[Fraction], hi: Sequence[Fraction], rung: int = 0
-              ) -> tuple[float, np.ndarray | None]:
-        """(float value, G) of the robust SDP on the box at ``rung`` of the ladder
-        (-inf, None on failure)."""
+              ) -> tuple[float, np.ndarray | None, np.ndarray | None]:
+        """(float value, G, F1) of the robust SDP on the box at ``rung`` of the ladder
+        (-inf, None, None on failure)."""
         shrink, tight = LADDER[rung]
         if shrink not in self._robust:
             self._robust[shrink] = _Robust(self.pp, shrink)
@@ -113,24 +137,25 @@ class BoxSolver:
         end = cvxpy_solve(rb.problem, "CLARABEL", **(TIGHT if tight else {}))
         # an inaccurate solve is only a candidate: the proof decides
         if end.status not in (SolverStatus.SOLVED, SolverStatus.ALMOST_SOLVED) \
-                or rb.G.value is None:
-            return -math.inf, None
-        return float(rb.problem.value), np.array(rb.G.value)
+                or rb.G.value is None or rb.F1.value is None:
+            return -math.inf, None, None
+        return float(rb.problem.value), np.array(rb.G.value), np.array(rb.F1.value)
 
     def proven(self, lo: Sequence[Fraction], hi: Sequence[Fraction]
-               ) -> tuple[float, tuple[Fraction, list[list[int]]] | None, int]:
-        """(float value, (proven bound, its factor V) or None, rung): the ladder's rungs
-        in order until a proof holds (a failed first solve, or a value <= 0, ends it)."""
+               ) -> tuple[float, tuple[Fraction, list[list[int]], Slopes] | None, int]:
+        """(float value, (proven bound, its factor V, its slopes F1) or None, rung): the
+        ladder's rungs in order until a proof holds (a failed first solve, or a value
+        <= 0, ends it)."""
         first = -math.inf
         for rung in range(len(LADDER)):
-            val, G = self.solve(lo, hi, rung)
+            val, G, F1 = self.solve(lo, hi, rung)
             if rung == 0:
                 first = val
             if G is None or val <= 0:
                 if rung == 0:
                     return val, None, 0
                 continue
-            got = prove_point(self.pp, G, lo, hi)
+            got = prove_point(self.pp, G, F1, lo, hi)
             if got is not None:
                 return first, got, rung
         return first, None, 0
@@ -182,26 +207,40 @@ def exact_forms(pp: ParametricPEP) -> Any:
     return pp._exact  # type: ignore[attr-defined]
 
 
-def prove_point(pp: ParametricPEP, G: np.ndarray, lo: Sequence[Fraction],
-                hi: Sequence[Fraction]) -> tuple[Fraction, list[list[int]]] | None:
-    """(the exact lower bound on the box, its factor V) from the float point G (None:
-    not proven)."""
+Slopes = list[list[Fraction]]  # F1: per point, per free value (exact dyadic rationals)
+
+
+def prove_point(pp: ParametricPEP, G: np.ndarray, F1: np.ndarray | None,
+                lo: Sequence[Fraction], hi: Sequence[Fraction]
+                ) -> tuple[Fraction, list[list[int]], Slopes] | None:
+    """(the exact lower bound on the box, its factor V, its slopes F1) from the float
+    point (G, F1) (None: not proven)."""
     V = rational_factor(G)
     if V is None:
         return None
-    b = prove_factor(pp, V, lo, hi)
-    return None if b is None else (b, V)
+    p = len(pp.free)
+    slopes = [[Fraction(float(F1[i, j])) if F1 is not None else Fraction(0)
+               for j in range(p)] for i in range(pp.npts)]
+    b = prove_factor(pp, V, lo, hi, slopes)
+    return None if b is None else (b, V, slopes)
 
 
 def prove_factor(pp: ParametricPEP, V: list[list[int]], lo: Sequence[Fraction],
-                 hi: Sequence[Fraction]) -> Fraction | None:
+                 hi: Sequence[Fraction], slopes: Slopes | None = None) -> Fraction | None:
     """The exact lower bound on the box of the PEP point G = V V' / 4^FACTOR_BITS with
-    the largest function values for it (None: none is feasible, or G_00 = 0)."""
+    function values F0 + F1 θ, F1 = ``slopes`` (zero on the free values without a
+    monomial θ_i) and F0 the largest for them (a shortest path): min over the box of
+    F_N(θ) / G_00 (None: no F0 is feasible, or G_00 = 0)."""
     from flint import fmpq_mat
 
-    d, A = pp.d, len(pp.monomials)
+    d, A, p = pp.d, len(pp.monomials), len(pp.free)
     if len(V) != d or not V[0] or any(len(r) != len(V[0]) for r in V):
         return None
+    lin = linear_monomials(pp)
+    F1 = [[Fraction(0)] * p for _ in range(pp.npts)] if slopes is None else slopes
+    if len(F1) != pp.npts or any(len(r) != p for r in F1):
+        return None
+    F1 = [[v if lin[j] is not None else Fraction(0) for j, v in enumerate(r)] for r in F1]
     Gq = _gram(V)
     if Gq[0, 0] <= 0:
         return None
@@ -209,18 +248,29 @@ def prove_factor(pp: ParametricPEP, V: list[list[int]], lo: Sequence[Fraction],
     cval = exact_forms(pp) * vec
     ranges = _ranges(pp, lo, hi)
     zero = pp.monomials.index((0,) * len(pp.free))
+    slope_at = {a: j for j, a in enumerate(lin) if a is not None}
+    star = pp.npts
     weights = []
-    for k in range(len(pp.pairs)):
+    for k, (i, j) in enumerate(pp.pairs):
         w = _q(cval[k * A + zero, 0])
         for a, (ra, rb) in enumerate(ranges):
-            if a != zero:
-                c = _q(cval[k * A + a, 0])
-                if c:
-                    w += min(ra * c, rb * c)
+            if a == zero:
+                continue
+            c = _q(cval[k * A + a, 0])
+            if a in slope_at:
+                s = slope_at[a]
+                c += (F1[i][s] if i < star else 0) - (F1[j][s] if j < star else 0)
+            if c:
+                w += min(ra * c, rb * c)
         weights.append(w)
     best = _largest_values(pp, weights)
     if best is None:
         return None
+    N = pp.measure_point
+    for s, a in enumerate(lin):
+        if a is not None and F1[N][s]:
+            ra, rb = ranges[a]
+            best += min(ra * F1[N][s], rb * F1[N][s])
     return best / _q(Gq[0, 0])
 
 
@@ -356,6 +406,7 @@ class BoxBound:
     proven_on: Box | None = None  # the box the proof is about (an ancestor), None: this
     rung: int = 0  # the robust point's rung of LADDER
     point: list[list[int]] | None = None  # the robust point's factor V (integers)
+    slopes: Slopes | None = None  # its function values' slopes F1 in θ
 
     def proof_box(self) -> Box:
         return self.proven_on or (self.lo, self.hi)
@@ -384,16 +435,18 @@ def prove_box(pp: ParametricPEP, solver: BoxSolver | None, lo: Sequence[Fraction
             best, how = qb, "quadratic"
     robust = how == "robust-pep"
     return BoxBound(lo, hi, best, how, val, rung=rung if robust else 0,
-                    point=got[1] if robust and got is not None else None)
+                    point=got[1] if robust and got is not None else None,
+                    slopes=got[2] if robust and got is not None else None)
 
 
 def reprove(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction], how: str,
-            point: list[list[int]] | None = None) -> Fraction:
+            point: list[list[int]] | None = None, slopes: Slopes | None = None
+            ) -> Fraction:
     """The bound of the box by the one argument ``how`` (0 when it proves nothing; the
     robust point is the recorded factor ``point``): what ``sosalgo verify`` re-checks
     for each leaf, exactly."""
     if how == "robust-pep":
-        pt = prove_factor(pp, point, lo, hi) if point else None
+        pt = prove_factor(pp, point, lo, hi, slopes) if point else None
         return Fraction(0) if pt is None else pt
     if how == "quadratic":
         return quadratic_bound(pp, lo, hi, witness_curvatures(pp))
@@ -462,7 +515,7 @@ def branch_and_bound(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fra
             child = prove_box(pp, solver, clo, chi)
             if child.bound < box.bound:  # the parent's proof holds on the child
                 child = BoxBound(clo, chi, box.bound, box.how, child.estimate,
-                                 box.proof_box(), box.rung, box.point)
+                                 box.proof_box(), box.rung, box.point, box.slopes)
             count += 1
             heapq.heappush(heap, (child.bound, count, child))
         if on_box is not None:
