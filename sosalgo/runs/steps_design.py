@@ -105,18 +105,23 @@ def steps_design_run(spec: Spec | str | Path, kappa: float | Sequence[float] | N
     settings = {"job": "design-steps", "spec": text, **options} | kappa_settings(
         [k for k in ks if k is not None])
     store = ResumableCSV(path, STEPS_DESIGN_COLUMNS, ["kappa", "steps"], settings,
-                         restart=restart, companions=_figure_files(spec, out))
+                         restart=restart,
+                         companions=_figure_files(spec, out) + [
+                             out / document_file(spec, k, n) for k in ks for n in ns])
     with store:
         todo = [t for t in tasks if not store.is_done(t)]
         bar = Progress(len(tasks), f"design {spec.name} --steps", progress,
                        done=len(tasks) - len(todo), resumed_from=path)
         try:
-            run_batch(steps_design_chunk, text, spec.source, options, todo, store.write,
+            def persist(row: dict[str, Any]) -> None:  # the document's file, then its row
+                store.write(_persist(spec, text, row, out, set_field(overrides)))
+
+            run_batch(steps_design_chunk, text, spec.source, options, todo, persist,
                       workers, scheduler, bar, isolate=True)
         finally:
             bar.close()
         keys = {store.row_key(t) for t in tasks}
-        docs = sorted((json.loads(r["document"]) for r in store.rows()
+        docs = sorted((_row_document(r, out) for r in store.rows()
                        if store.row_key(r) in keys),
                       key=lambda d: (d["kappa"] or 0.0, d["steps"]))
         for d in docs:
@@ -131,6 +136,42 @@ def steps_design_run(spec: Spec | str | Path, kappa: float | Sequence[float] | N
     return {"kind": DESIGN_STEPS_KIND, "spec": spec.name, "source": spec.source,
             "spec_text": text, "csv": str(path), "figures": figs, "rows": docs} \
         | set_field(overrides)
+
+
+def document_file(spec: Spec, kappa: float | None, steps: int) -> str:
+    """``<name>-design-steps[-k<kappa>]-N<steps>.json``: one (kappa, N) document beside
+    the CSV (its leaves are too large for a CSV cell); the ``document`` cell names it."""
+    from sosalgo.schema import kappa_label
+
+    tag = "" if kappa is None else f"-k{kappa_label(kappa)}"
+    return f"{spec.name}-design-steps{tag}-N{steps}.json"
+
+
+def _persist(spec: Spec, text: str, row: dict[str, Any], out: Path,
+             recorded: Mapping[str, Any]) -> dict[str, Any]:
+    """Write the row's document (a ``design-steps`` document of its own, with the spec's
+    text: ``sosalgo verify`` needs nothing else) atomically, then return the row with the
+    file's name in its ``document`` cell (called under the CSV's lock)."""
+    from sosalgo.store import write_atomic
+
+    doc = json.loads(row["document"])
+    name = document_file(spec, doc["kappa"], doc["steps"])
+    whole = {"kind": DESIGN_STEPS_KIND} | doc | {"source": spec.source,
+                                                 "spec_text": text} | dict(recorded)
+    write_atomic(out / name, json.dumps(whole, indent=1))
+    return row | {"document": name}
+
+
+def _row_document(row: Mapping[str, Any], out: Path) -> dict[str, Any]:
+    """A row's document: the file its cell names (InputError when it is gone)."""
+    cell = str(row["document"])
+    if cell.lstrip().startswith("{"):
+        return json.loads(cell)
+    try:
+        return json.loads((out / cell).read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{out / cell}: unreadable ({type(exc).__name__}): run again "
+                         "with --restart") from None
 
 
 def _figure_files(spec: Spec, out: Path) -> list[Path]:
