@@ -417,9 +417,9 @@ class BoxBound:
 
 def prove_box(pp: ParametricPEP, solver: BoxSolver | None, lo: Sequence[Fraction],
               hi: Sequence[Fraction]) -> BoxBound:
-    """The best proven bound of the box: the robust point, and the witnesses (Huber
-    always, it is cheap; the quadratic ones where the robust point is not proven or
-    falls short of its float value)."""
+    """The best proven bound of the box: the robust point and the witnesses (where the
+    method diverges on quadratics, a box's robust point is small and its quadratic
+    witness large)."""
     lo, hi = tuple(lo), tuple(hi)
     val, got, rung = solver.proven(lo, hi) if solver is not None else (-math.inf, None, 0)
     best, how = Fraction(0), "none"
@@ -429,10 +429,9 @@ def prove_box(pp: ParametricPEP, solver: BoxSolver | None, lo: Sequence[Fraction
     hb = huber_bound(pp, lo, hi)
     if hb > best:
         best, how = hb, "huber"
-    if pt is None or pt < Fraction(val) * (1 - Fraction(1, 10 ** 3)):
-        qb = quadratic_bound(pp, lo, hi, witness_curvatures(pp))
-        if qb > best:
-            best, how = qb, "quadratic"
+    qb = quadratic_bound(pp, lo, hi, witness_curvatures(pp))
+    if qb > best:
+        best, how = qb, "quadratic"
     robust = how == "robust-pep"
     return BoxBound(lo, hi, best, how, val, rung=rung if robust else 0,
                     point=got[1] if robust and got is not None else None,
