@@ -101,7 +101,7 @@ def ogm_theta(steps: int) -> float:
 
 def drori_floor(spec: Spec, steps: int) -> float | None:
     """L / (2 theta_N^2) where the theorem applies (see the module), else None."""
-    if not spec.sublinear or spec.L is None:
+    if spec.has_condition_number or spec.L is None:
         return None
     from sosalgo.design.steps_model import check_setting
 

@@ -211,7 +211,7 @@ def exact_class(spec: Spec, kappa: float | None) -> tuple[Fraction, Fraction]:
     """(m, L) as exact rationals: m: 0 specs their L as written, others m and kappa m."""
     from sosalgo.kernel.expr.parse import to_sympy
 
-    if spec.sublinear:
+    if not spec.has_condition_number:
         Le = sp.nsimplify(to_sympy(spec.L_expr)) if spec.L_expr is not None else None
         L = (Fraction(int(Le.p), int(Le.q)) if Le is not None and Le.is_Rational
              else Fraction(float(spec.L)))  # type: ignore[arg-type]

@@ -54,7 +54,7 @@ steps_design_chunk.max_chunk = 1  # type: ignore[attr-defined]  # a design takes
 def _kappas(spec: Spec, kappa: float | Sequence[float] | None) -> list[float | None]:
     from sosalgo.runs import kappa_value
 
-    if spec.sublinear:
+    if not spec.has_condition_number:
         if kappa not in (None, [], ()):
             raise InputError(f"{spec.source}: --kappa: undefined for a sublinear spec (m: 0)")
         return [None]
