@@ -46,6 +46,9 @@ MARGINS = (1e-9, 1e-8, 1e-7, 1e-6)  # relative margins of the certificate solve,
 # up to LONG they follow MARGINS when those fail (Nesterov and triple momentum at N = 16:
 # an error of 5e-8 tau in one direction that a margin up to 1e-6 does not cover)
 LONG, LONG_MARGINS = 30, (1e-5, 1e-4)
+# past LONG, when those fail: Nesterov at N = 80 (the exact S's least eigenvalue is
+# -9e-8 tau below the float one's, a margin of 1e-4 does not cover it)
+LAST_MARGIN = 1e-3
 
 
 @dataclass
@@ -189,7 +192,7 @@ def _ladder(steps: int) -> list[tuple[float, bool]]:
     """(relative margin, tight tolerances) of the certificate solves, in order: the first
     margin at Clarabel's default tolerances, then again at tight ones (a default solve's
     dual may miss the proof by its accuracy), then the larger margins."""
-    rels = MARGINS + LONG_MARGINS if steps <= LONG else LONG_MARGINS
+    rels = MARGINS + LONG_MARGINS if steps <= LONG else LONG_MARGINS + (LAST_MARGIN,)
     return [(rels[0], False), (rels[0], True)] + [(r, False) for r in rels[1:]]
 
 

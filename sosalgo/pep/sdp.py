@@ -174,7 +174,8 @@ ATTEMPTS = ((True, 1e-8), (False, 1e-8), (True, 1e-7), (False, 1e-7), (False, 1e
 # ``precise``: a certificate the default tolerances left unproven (Nesterov N = 40,
 # margin 1e-5: proven from the tight solve); when that solve is not solved (Nesterov
 # N = 50), the ladder goes on to the next margin
-PRECISE = ((True, 1e-8),)
+# capped at TRACE_ITER iterations (Nesterov N = 80: "almost solved" after 133, 400 s)
+PRECISE = ((True, 1e-8, 100),)
 # second: without Clarabel's equilibration (the triple momentum method at N = 16 ends
 # "almost solved" at every other attempt, its dual stalled; solved without it)
 QUICK = ((False, 1e-8), (False, 1e-8, None, False), (True, 1e-8), (False, 1e-7),
@@ -208,8 +209,10 @@ def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
                             tries + STRONG if margin > 0 and not precise else tries,
                             rough=not exact_next)
         rounds += 1
-        if (objective == "measure" and ans.G is not None and rescales < MAX_RESCALES
-                and np.all(np.isfinite(ans.G))):
+        if (objective == "measure" and margin == 0 and ans.G is not None
+                and rescales < MAX_RESCALES and np.all(np.isfinite(ans.G))):
+            # a margin solve keeps the scale its measure's solve ended with (rescaled,
+            # Nesterov at N = 80 solved its first margin twice: 60 s + 100 s)
             moved = _rescale(data, ans.G, ans.F)
             got = measure_value(data.st, ans.G, ans.F)
             if got > 0 and abs(math.log2(got / unit)) > 2:
