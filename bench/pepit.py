@@ -127,7 +127,10 @@ def run(quick: bool = False) -> None:
           "status | PEPit Clarabel s | PEPit Clarabel MB | PEPit Clarabel tau (rel.), "
           "status | PEPit SCS s / sosalgo s | PEPit Clarabel s / sosalgo s |")
     print("|---|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    only = os.environ.get("SOSALGO_BENCH_METHODS")  # e.g. "gradient": those cases only
     for spec, measure in CASES:
+        if only and spec not in only.split(","):
+            continue
         for N in QUICK_STEPS if quick else STEPS:
             ours = run_child(sys.executable, SOSALGO_CHILD,
                              [spec, KAPPA, N, measure, True, False])

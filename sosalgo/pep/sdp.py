@@ -73,6 +73,9 @@ class PEPData:
     active: np.ndarray
     w: np.ndarray  # (d,) G = W H W
     v: np.ndarray  # (nF,) F = V F'
+    # an omitted pair violated by more (relative) joins the next solve; the constraint
+    # generation ends when none is
+    violation: float = 1e-9
     _svec: dict[int, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
 
     def q(self, idx: np.ndarray, scaled: bool = False) -> np.ndarray:
@@ -232,7 +235,7 @@ def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
         assert ans.G is not None and ans.F is not None
         viol = data.violations(ans.G, ans.F)
         viol[active] = np.inf
-        bad = np.flatnonzero(viol < (0.5 * slack if slack > 0 else -VIOLATION))
+        bad = np.flatnonzero(viol < (0.5 * slack if slack > 0 else -data.violation))
         if not len(bad):
             if ans.status == "solved":
                 break
@@ -240,7 +243,7 @@ def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
             continue
         bad = bad[np.argsort(viol[bad])][:max(len(active), MIN_ADD)]
         if slack == 0:  # with the violated pairs, the most nearly tight ones: the next
-            near = np.flatnonzero((viol >= -VIOLATION) & (viol < NEAR))  # round's
+            near = np.flatnonzero((viol >= -data.violation) & (viol < NEAR))  # round's
             bad = np.union1d(bad, near[np.argsort(viol[near])][:MIN_ADD])  # violated
         active = np.union1d(active, bad)
         exact_next = objective != "measure"
@@ -249,7 +252,6 @@ def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
     return ans
 
 
-VIOLATION = 1e-9  # an omitted inequality below -VIOLATION (relative) joins the solve
 NEAR = 1e-6  # and when one does, up to MIN_ADD omitted ones below NEAR (relative) too
 MIN_ADD = 64  # joins per round: at least this many, or as many as are active
 MAX_RESCALES = 3
