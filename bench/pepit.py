@@ -128,10 +128,12 @@ def run(quick: bool = False) -> None:
           "status | PEPit SCS s / sosalgo s | PEPit Clarabel s / sosalgo s |")
     print("|---|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     only = os.environ.get("SOSALGO_BENCH_METHODS")  # e.g. "gradient": those cases only
+    steps = os.environ.get("SOSALGO_BENCH_STEPS")  # e.g. "50,70": those N only
     for spec, measure in CASES:
         if only and spec not in only.split(","):
             continue
-        for N in QUICK_STEPS if quick else STEPS:
+        for N in ([int(n) for n in steps.split(",")] if steps
+                  else QUICK_STEPS if quick else STEPS):
             ours = run_child(sys.executable, SOSALGO_CHILD,
                              [spec, KAPPA, N, measure, True, False])
             theirs = {s: run_child(python, WORKER, [spec, N, KAPPA, s]) for s in SOLVERS}
