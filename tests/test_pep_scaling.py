@@ -61,12 +61,12 @@ def test_nesterov_moderate_horizon_few_solves(solves):
     assert sum(solves.values()) <= 8, dict(solves)
 
 
-@pytest.mark.deep  # about a minute at load 10: two solves of the whole PEP at N = 60
+@pytest.mark.deep  # about a minute at load 10: three solves of the whole PEP at N = 60
 def test_nesterov_sixty_steps_one_round_past_the_seed(monkeypatch):
-    """Nesterov at N = 60: past the seed (360 pairs), one constraint-generation round and
-    one certificate solve (the last rounds only added pairs violated by less than 1e-6:
-    three such solves before), proven below Nesterov's bound (1 - 1/sqrt(kappa))^N
-    (L + m)/2."""
+    """Nesterov at N = 60: past the seed (360 pairs), one constraint-generation round
+    (its pairs solved again at most in their own unit and for the certificate; the
+    second round only added pairs violated by less than 1e-6), proven below Nesterov's
+    bound (1 - 1/sqrt(kappa))^N (L + m)/2."""
     import clarabel
 
     sizes: list[int] = []
@@ -83,7 +83,7 @@ def test_nesterov_sixty_steps_one_round_past_the_seed(monkeypatch):
     upper = Fraction(res.certificate["tau_proven"])
     assert float(upper) <= (1 - 10 ** -0.5) ** N * (10 + 1) / 2
     seed = min(sizes)
-    assert len([k for k in sizes if k > seed]) <= 2, sizes
+    assert len({k for k in sizes if k > seed}) == 1, sizes
 
 
 @pytest.mark.parametrize("spec,N", [("nesterov.yaml", 40), ("gradient.yaml", 60)])
