@@ -14,7 +14,10 @@ exact proof, no witness (a fresh process per case: its peak memory is its own). 
 Clarabel; its time is the ``solve`` call (problem building excluded, to its advantage).
 The accuracy each reaches is printed beside its time: PEPit's value against sosalgo's
 proven bound (sosalgo's value is an exact upper bound; PEPit's is a float, above or
-below the true value by its solver's accuracy).
+below the true value by its solver's accuracy), with each run's peak memory and
+sosalgo's Clarabel solves. N = 10 ... 100; a case past ``SOSALGO_BENCH_CASE_SECONDS``
+(1800) is reported as such; ``SOSALGO_BENCH_METHODS`` (``gradient,nesterov``) and
+``SOSALGO_BENCH_STEPS`` (``50,70``) choose the cases.
 """
 
 from __future__ import annotations
