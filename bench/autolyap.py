@@ -33,7 +33,6 @@ Clarabel (cvxpy's ``solver_stats.solve_time``).
 
 from __future__ import annotations
 
-import dataclasses
 import importlib.util
 import json
 import math
@@ -177,7 +176,9 @@ def rho2_tolerance(rho_q: float, tol: float) -> float:
 def like_for_like(alg: Any) -> Any:
     """``alg`` measured where AutoLyap measures: a seed :class:`Algorithm` with E = C
     (f(y_k) - f*, no x-points in our LMI); an oracle-model method is returned as it is."""
-    return dataclasses.replace(alg, E=alg.C) if isinstance(alg, Algorithm) else alg
+    if not isinstance(alg, Algorithm):
+        return alg
+    return Algorithm(A=alg.A, B=alg.B, C=alg.C, E=alg.C, m=alg.m, L=alg.L, params=alg.params)
 
 
 def autolyap_job(alg: Any, h: int, tau: int, repeats: int) -> dict | None:

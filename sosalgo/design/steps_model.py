@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
+from sosalgo.classes import SEED_CLASS, get_class
 from sosalgo.spec import Spec
 
 __all__ = ["ParametricPEP", "Poly", "Unsupported", "check_setting", "parametric_pep",
@@ -228,7 +229,7 @@ def exact_class(spec: Spec, kappa: float | None) -> tuple[Fraction, Fraction]:
 def check_setting(spec: Spec) -> None:
     """Unsupported unless the spec is in the setting of the module."""
     fns = list(spec.functions.values())
-    if (len(fns) > 1 or (fns and fns[0].cls != "smooth_strongly_convex")
+    if (len(fns) > 1 or (fns and get_class(fns[0].cls) is not SEED_CLASS)
             or spec.oracles != ("f",) or spec.output is not None
             or "D" in spec.matrices or spec.initial_state is not None
             or spec.measure != "function" or (fns and fns[0].given - {"m", "L"})):
