@@ -61,9 +61,18 @@ class ArbView:
     Xs: list[list[arb]]
     ineqs: list[list[tuple[arb, list[list[arb]]]]]
     G0: arb_mat | None = None  # ``initial_state``: xi_0 = X0 x_0 + G0 g0
+    per_step: list[tuple[arb_mat, arb_mat, arb_mat, arb_mat]] | None = None  # changes with k
 
     def coef(self, t: Term) -> arb:
         return ball(self.mt.coef(t))
+
+    def step(self, k: int) -> tuple[arb_mat, arb_mat, arb_mat, arb_mat]:
+        """(A, B, C, D) of step k (:meth:`sosalgo.pep.structure.Method.step`)."""
+        if self.per_step is None:
+            return self.A, self.B, self.C, self.D
+        if k >= len(self.per_step):
+            raise ValueError(f"the method's matrices stop before step {k}")
+        return self.per_step[k]
 
 
 def arb_view(mt: Method) -> ArbView:
@@ -71,10 +80,13 @@ def arb_view(mt: Method) -> ArbView:
     with precision(PREC):
         ineqs = [[(ball(a), [[ball(v) for v in row] for row in Q]) for a, Q in fi]
                  for fi in mt.ineqs]
+        per = None if mt.per_step is None else [tuple(_mat(M) for M in mats)
+                                                 for mats in mt.per_step]
         return ArbView(mt, _mat(mt.A), _mat(mt.B), _mat(mt.C), _mat(mt.D),
                        None if mt.E is None else _mat(mt.E), _mat([[v] for v in mt.X0]),
                        [[ball(v) for v in row] for row in mt.Xs], ineqs,
-                       None if mt.G0 is None else _mat([[v] for v in mt.G0]))
+                       None if mt.G0 is None else _mat([[v] for v in mt.G0]),
+                       per)  # type: ignore[arg-type]
 
 
 def _label(i: int, k: int, p: int) -> str:
@@ -116,12 +128,13 @@ def positions(doc: dict[str, Any], av: ArbView) -> dict[str, Any]:
         if len(rows) != p or any(len(ui) != r for ui in rows):
             raise ValueError(f"calls[{k}]: expected {p} gradients of {r} coordinates")
         u = _mat(rows)
-        y = av.C * xi + av.D * u
+        A, B, C, D = av.step(k)
+        y = C * xi + D * u
         for i in range(p):
             pos[_label(i, k, p)] = (pos["x0"] if k == 0 and i == start
                                     else [y[i, c] for c in range(r)])
         if k < N:
-            xi = av.A * xi + av.B * u
+            xi = A * xi + B * u
     pos["xiN"] = xi
     call = mt.output if mt.output is not None else mt.out_call  # x_k is that call's point
     for k, key in ((N, f"x{N}"), (0, "x0")):
@@ -169,12 +182,13 @@ def exact_points(doc: dict[str, Any], mt: Method) -> tuple[dict[str, list[Any]],
     states = [xi]
     for k in range(int(doc["call_steps"])):
         u = _q_mat(doc["calls"][k])
-        y = mt.C.dot(xi) + mt.D.dot(u)
+        A, B, C, D = mt.step(k)
+        y = C.dot(xi) + D.dot(u)
         for i in range(p):
             pts[_label(i, k, p)] = ([Fraction(v) for v in doc["x0"]] if k == 0 and i == start
                                     else list(y[i]))
         if k < N:
-            xi = np.vectorize(shorter, otypes=[object])(mt.A.dot(xi) + mt.B.dot(u))
+            xi = np.vectorize(shorter, otypes=[object])(A.dot(xi) + B.dot(u))
             states.append(xi)
     x0 = [Fraction(v) for v in doc["x0"]] if doc.get("xi0") is None else None
     its = []  # x_k as the float ``iterates``: the output call's point, else E xi_k

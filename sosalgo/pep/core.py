@@ -18,6 +18,7 @@ from sosalgo.kernel.kappa import Kappa, kappa_fields
 from sosalgo.kernel.phases import show_phase
 from sosalgo.pep.bind import bound_method, class_kappa, initial_gradient
 from sosalgo.pep.sdp import PEPData, SDPAnswer, pep_data, solve_pep, value_residual
+from sosalgo.pep.steps import StepMethods, float_step_method, steps_needed
 from sosalgo.pep.structure import Method, PEPStructure, build_structure, deadbeat_gain, output_call
 from sosalgo.pep.terms import Term, parse_terms
 from sosalgo.spec import Spec
@@ -130,18 +131,25 @@ def default_initial(om: Any) -> str:
 
 
 def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None = None,
-                initial: str | None = None) -> tuple[Method, PEPStructure, list[Term],
-                                                     list[Term], tuple[str, str]]:
+                initial: str | None = None, schedule: StepMethods | None = None
+                ) -> tuple[Method, PEPStructure, list[Term], list[Term], tuple[str, str]]:
     """The float method, structure, terms and the (measure, initial) texts, defaults
-    resolved (InputError naming the option for bad input)."""
+    resolved (InputError naming the option for bad input). ``schedule``: a method that
+    changes with k (:mod:`sosalgo.pep.steps`; the spec gives its class and terms)."""
     if isinstance(steps, bool) or not isinstance(steps, int) or not 1 <= steps <= MAX_STEPS:
         raise InputError(f"--steps: must be an integer in 1..{MAX_STEPS}, got {steps!r}")
-    om, kq = bound_method(spec, kappa)
+    if schedule is not None:
+        om, kq = schedule.floats[0], (math.nan if kappa is None else float(kappa))
+    else:
+        om, kq = bound_method(spec, kappa)
     measure = measure or _default_measure(spec)
     initial = initial or default_initial(om)
     mterms = parse_terms(measure, "--measure", False, om.p)
     iterms = parse_terms(initial, "--initial", True, om.p)
-    mt = float_method(om, kq)
+    if schedule is not None:
+        mt = float_step_method(schedule, kq, steps_needed(om, steps, mterms))
+    else:
+        mt = float_method(om, kq)
     mt.G0, mt.smooth = initial_gradient(spec, om, kq)
     try:
         st = build_structure(mt, steps, mterms, iterms)
@@ -152,12 +160,17 @@ def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None
 
 def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
         measure: str | None = None, initial: str | None = None, exact: bool = True,
-        witness: bool = True) -> PEPResult:
-    """The PEP of ``spec`` at ``kappa`` over ``steps`` steps (see the module)."""
+        witness: bool = True, schedule: StepMethods | None = None) -> PEPResult:
+    """The PEP of ``spec`` at ``kappa`` over ``steps`` steps (see the module);
+    ``schedule``: the per-step methods of a method that changes with k
+    (:mod:`sosalgo.pep.steps`), the spec giving the class, the units and the terms."""
     t0 = time.perf_counter()
     spec = _load(spec)
-    mt, st, mterms, iterms, names = pep_problem(spec, kappa, steps, measure, initial)
+    mt, st, mterms, iterms, names = pep_problem(spec, kappa, steps, measure, initial,
+                                                schedule)
     data = pep_data(mt, st)
+    if schedule is not None:  # dense rows (the plain basis): every pair from the start
+        data.active, data.strong = np.arange(len(st.pairs)), True
     show_phase("solving the PEP", f"{len(st.pairs)} interpolation pairs")
     ans = solve_pep(data)
     k = class_kappa(spec, kappa)
@@ -169,11 +182,19 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
         res.tau = math.inf
         res.extra["note"] = ("the measure is unbounded for this initial condition (e.g. the "
                              "start does not control the method's fixed point)")
+    if schedule is not None:
+        res.extra["schedule"] = schedule.schedule
     if ans.status == "solved":
         res.gap = abs(float(ans.primal) - float(ans.dual))  # type: ignore[arg-type]
         from sosalgo.pep.exact import exact_or_none
 
-        ex = exact_or_none(spec, kappa, steps) if exact or witness else None  # built once
+        if schedule is None:
+            ex = exact_or_none(spec, kappa, steps) if exact or witness else None  # built once
+        else:
+            ex = _exact_schedule(spec, kappa, schedule, len(mt.per_step or ()))
+            exact, witness = exact and ex is not None, witness and ex is not None
+            if ex is None:
+                res.extra["note"] = "no exact per-step matrices: the certificate is not proven"
         show_phase("proving the certificate" if exact else "checking the certificate")
         res.certificate = _certificate(spec, kappa, mt, data, ans, exact, mterms, iterms, ex)
         if witness:
@@ -183,6 +204,18 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
             res.witness = make_witness(spec, kappa, mt, data, ans, mterms, iterms, res, ex)
     res.seconds = time.perf_counter() - t0
     return res
+
+
+def _exact_schedule(spec: Spec, kappa: float | None, schedule: StepMethods,
+                    count: int) -> Method | None:
+    """The exact method of a schedule's first ``count`` steps, None when it cannot be
+    built (no exact matrices, or their fixed point not proven)."""
+    from sosalgo.pep.steps import exact_step_method
+
+    try:
+        return exact_step_method(spec, kappa, schedule, count)
+    except (ValueError, ArithmeticError):
+        return None
 
 
 def _ladder(steps: int) -> list[tuple[float, bool]]:

@@ -73,6 +73,9 @@ class PEPData:
     active: np.ndarray
     w: np.ndarray  # (d,) G = W H W
     v: np.ndarray  # (nF,) F = V F'
+    # the measure's solves also try the strong regularization (:data:`STRONG`): methods
+    # that change with k (OGM at N = 30 ends "almost solved" without)
+    strong: bool = False
     _svec: dict[int, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
 
     def q(self, idx: np.ndarray, scaled: bool = False) -> np.ndarray:
@@ -201,8 +204,9 @@ def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
     exact_next = objective != "measure" or margin > 0  # a certificate: never rough
     while True:
         tries = TRACE if objective == "trace" else PRECISE if precise else QUICK
+        strong = (margin > 0 or (data.strong and objective == "measure")) and not precise
         ans = _solve_active(data, active, margin, objective, floor, slack, unit,
-                            tries + STRONG if margin > 0 and not precise else tries,
+                            tries + STRONG if strong else tries,
                             rough=not exact_next)
         rounds += 1
         if (objective == "measure" and ans.G is not None and rescales < MAX_RESCALES

@@ -90,6 +90,23 @@ class Method(CallShape):
     # exact methods: significant bits kept when a long centre is rounded outward
     # (:func:`coarsen`), matched to the decimals of the enclosures (:func:`enclosure_digits`)
     bits: int = 160
+    # a method that changes with k: (A_k, B_k, C_k, D_k) of step k (call k and the move
+    # from xi_k to xi_{k+1}); None: A, B, C, D at every step (:meth:`step`)
+    per_step: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] | None = None
+    per_gain: list[np.ndarray] | None = None  # K_k of step k's basis (None: K at every step)
+
+    def gain(self, k: int) -> np.ndarray:
+        """The gain K_k of step k's basis vectors (:func:`_trajectory`)."""
+        return self.K if self.per_gain is None else self.per_gain[k]
+
+    def step(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(A, B, C, D) of step k."""
+        if self.per_step is None:
+            return self.A, self.B, self.C, self.D
+        if k >= len(self.per_step):
+            raise InputError(f"--steps: the method's matrices are given for steps "
+                             f"0..{len(self.per_step) - 1}, step {k} is needed")
+        return self.per_step[k]
 
 
 @dataclass
@@ -232,10 +249,11 @@ def _trajectory(mt: Method, xi0: np.ndarray, new: list[np.ndarray],
         return _exact_trajectory(mt, xi0, new, calls)
     xi, Y, U = [xi0], [], []
     for k in range(calls):
-        u = mt.K @ xi[k] + new[k]
+        A, B, C, D = mt.step(k)
+        u = mt.gain(k) @ xi[k] + new[k]
         U.append(u)
-        Y.append(mt.C @ xi[k] + mt.s * (mt.D @ u))
-        nxt = mt.A @ xi[k] + mt.s * (mt.B @ u)
+        Y.append(C @ xi[k] + mt.s * (D @ u))
+        nxt = A @ xi[k] + mt.s * (B @ u)
         nxt[np.abs(nxt) < 1e-13 * (1.0 + np.abs(nxt).max())] = 0.0
         xi.append(nxt)
     return xi, Y, U
@@ -252,11 +270,12 @@ def _exact_trajectory(mt: Method, xi0: np.ndarray, new: list[np.ndarray],
         cols = np.flatnonzero([any(_nonzero(v) for v in col) for col in
                                np.vstack([xi[k], new[k]]).T])
         x, b = xi[k][:, cols], new[k][:, cols]
-        u = mt.K @ x + b
+        A, B, C, D = mt.step(k)
+        u = mt.gain(k) @ x + b
         nxt = np.vectorize(lambda v: coarsen(v, mt.bits), otypes=[object])(
-            mt.A @ x + mt.s * (mt.B @ u))
+            A @ x + mt.s * (B @ u))
         parts = []
-        for rows in (u, mt.C @ x + mt.s * (mt.D @ u), nxt):
+        for rows in (u, C @ x + mt.s * (D @ u), nxt):
             full = np.full((rows.shape[0], xi0.shape[1]), zero, dtype=object)
             full[:, cols] = rows
             parts.append(full)

@@ -113,8 +113,8 @@ def quadratic_point(mt: Method, st: Any) -> np.ndarray | None:
         j = mt.smooth
         v[col[f"g_{mt.functions[j][0]}(x0)/s"]] = q[j] / s
         xi = xi + np.asarray(mt.G0, float) * q[j]
-    C, D, A, B, K = (np.asarray(M, float) for M in (mt.C, mt.D, mt.A, mt.B, mt.K))
     for k in range(st.calls):
+        A, B, C, D, K = (np.asarray(M, float) for M in (*mt.step(k), mt.gain(k)))
         try:
             y = np.linalg.solve(np.eye(p) - D * qc, C @ xi)
         except np.linalg.LinAlgError:
