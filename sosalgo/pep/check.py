@@ -25,7 +25,7 @@ from flint import arb, arb_mat
 
 from sosalgo.kernel.arb import arb_fraction, precision
 from sosalgo.pep.exact import ball, exact_method
-from sosalgo.pep.structure import Method
+from sosalgo.pep.structure import Method, last_calls
 from sosalgo.pep.terms import Term
 from sosalgo.spec import Spec
 
@@ -138,7 +138,9 @@ def positions(doc: dict[str, Any], av: ArbView) -> dict[str, Any]:
     pos["xiN"] = xi
     call = mt.output if mt.output is not None else mt.out_call  # x_k is that call's point
     for k, key in ((N, f"x{N}"), (0, "x0")):
-        if key == "x0" and doc.get("xi0") is None:
+        if k == N and mt.output is not None and last_calls(mt):  # step N - 1's call
+            pos[key] = pos[_label(mt.output, N - 1, p)]
+        elif key == "x0" and doc.get("xi0") is None:
             pos.setdefault("x0", [ball(v) for v in doc["x0"]])
         elif call is not None and _label(call, k, p) in pos:
             pos[key] = pos[_label(call, k, p)]
@@ -149,6 +151,11 @@ def positions(doc: dict[str, Any], av: ArbView) -> dict[str, Any]:
             pos[key] = pos[_label(mt.output, k, p)]
     for i in range(p):
         pos.setdefault(f"y{i + 1}_{N}", pos.get(_label(i, N, p)))
+    if last_calls(mt):  # the y terms after N steps: the calls of step N - 1
+        for i in range(p):
+            pos[f"y{i + 1}_{N}"] = pos[_label(i, N - 1, p)]
+            if p == 1:
+                pos.setdefault(f"y{N}", pos[_label(i, N - 1, p)])
     return pos
 
 
@@ -193,7 +200,10 @@ def exact_points(doc: dict[str, Any], mt: Method) -> tuple[dict[str, list[Any]],
     x0 = [Fraction(v) for v in doc["x0"]] if doc.get("xi0") is None else None
     its = []  # x_k as the float ``iterates``: the output call's point, else E xi_k
     for k in range(N + 1):
-        if mt.output is not None:
+        if mt.output is not None and last_calls(mt):  # step k - 1's call (x_0: the start)
+            its.append(pts[_label(mt.output, k - 1, p)] if k else
+                       (x0 if x0 is not None else list(mt.E.dot(states[0])[0])))
+        elif mt.output is not None:
             its.append(pts[_label(mt.output, k, p)])
         elif k == 0 and x0 is not None and mt.G0 is None:
             its.append(x0)  # E X0 = 1, E Xs = 0 exactly
@@ -206,6 +216,8 @@ def exact_points(doc: dict[str, Any], mt: Method) -> tuple[dict[str, list[Any]],
     for i in range(p):
         if _label(i, N, p) in pts:
             pts.setdefault(f"y{i + 1}_{N}", pts[_label(i, N, p)])
+        elif last_calls(mt):
+            pts.setdefault(f"y{i + 1}_{N}", pts[_label(i, N - 1, p)])
     return pts, its
 
 

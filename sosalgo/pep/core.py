@@ -18,7 +18,7 @@ from sosalgo.kernel.kappa import Kappa, kappa_fields
 from sosalgo.kernel.phases import show_phase
 from sosalgo.pep.bind import bound_method, class_kappa, initial_gradient
 from sosalgo.pep.sdp import PEPData, SDPAnswer, pep_data, solve_pep, value_residual
-from sosalgo.pep.steps import StepMethods, float_step_method, steps_needed
+from sosalgo.pep.steps import StepMethods, float_step_method
 from sosalgo.pep.structure import Method, PEPStructure, build_structure, deadbeat_gain, output_call
 from sosalgo.pep.terms import Term, parse_terms
 from sosalgo.spec import Spec
@@ -147,7 +147,7 @@ def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None
     mterms = parse_terms(measure, "--measure", False, om.p)
     iterms = parse_terms(initial, "--initial", True, om.p)
     if schedule is not None:
-        mt = float_step_method(schedule, kq, steps_needed(om, steps, mterms))
+        mt = float_step_method(schedule, kq, steps)
     else:
         mt = float_method(om, kq)
     mt.G0, mt.smooth = initial_gradient(spec, om, kq)

@@ -16,8 +16,9 @@ move xi_{k+1} = A_k xi_k + B_k u_k. :class:`StepMethods` holds them twice:
   it: a ball residual only contains 0); None: solved exactly from step 0's sympy
   matrices and checked exactly (sympy) on every step.
 
-Steps needed: N for the transitions; a PEP whose measure reads a call of step N (an
-output call, a ``y`` term) also needs step N's C and D (its A, B are not used).
+N steps make N calls: an output call and the ``y`` terms after N steps are the calls of
+step N - 1 (:func:`sosalgo.pep.structure.last_calls`: the N-th prox point is x_N, as
+PEPit counts FISTA).
 
 The PEP is the one of :mod:`sosalgo.pep.structure` with the plain basis (K = 0: the
 oracle answers themselves are the basis vectors, as PEPit's): a deadbeat gain is a
@@ -40,7 +41,7 @@ import sympy as sp
 from sosalgo.errors import InputError
 from sosalgo.pep.structure import Method
 
-__all__ = ["StepMethods", "exact_step_method", "float_step_method", "steps_needed"]
+__all__ = ["StepMethods", "exact_step_method", "float_step_method"]
 
 FIXED_TOL = 1e-9  # relative residual of the common fixed point in floating point
 
@@ -59,13 +60,6 @@ class StepMethods:
 
     def __len__(self) -> int:
         return len(self.floats)
-
-
-def steps_needed(om: Any, steps: int, measure: Sequence[Any]) -> int:
-    """How many per-step methods an N-step PEP reads: N, or N + 1 when a call of step N
-    is a point of the PEP (an output call, a ``y`` term)."""
-    needs_n = om.output is not None or any(t.point.startswith("y") for t in measure)
-    return steps + 1 if needs_n else steps
 
 
 def _same_shape(oms: Sequence[Any]) -> None:

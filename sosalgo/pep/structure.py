@@ -50,7 +50,7 @@ from sosalgo.oracles import CallShape
 from sosalgo.pep.terms import Term
 
 __all__ = ["Method", "PEPPoint", "PEPStructure", "build_structure", "enclosure_bits",
-           "enclosure_digits", "output_call", "pair_label", "radius_growth"]
+           "enclosure_digits", "last_calls", "output_call", "pair_label", "radius_growth"]
 
 
 @dataclass
@@ -306,7 +306,7 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
     free = any(t.kind == "sdist" for t in initial)
     n0 = n if free else 1
     needs_n = mt.output is not None or any(t.point.startswith("y") for t in measure)
-    calls = steps + 1 if needs_n else steps
+    calls = steps + 1 if needs_n and mt.per_step is None else steps  # see last_calls
     extra_cap = J * (len(measure) + len(initial)) + J + 1
     g0 = mt.G0 is not None and not free
     dmax = n0 + (J - 1) + p * calls + extra_cap
@@ -334,6 +334,8 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
         Yr[0][mt.x0_call] = x0
     where = {"x": out, "x0": x0}
     where.update({f"y{i + 1}": Yr[steps][i] for i in range(p)} if calls > steps else {})
+    if last_calls(mt):  # the calls of the last step
+        where.update({f"y{i + 1}": Yr[steps - 1][i] for i in range(p)})
     pts: list[list[PEPPoint]] = [[] for _ in range(J)]
     nF = 0
     for k in range(calls):
@@ -367,10 +369,19 @@ def _output_row(mt: Method, xi: list[np.ndarray], Yr: list[list[np.ndarray]],
     and that call is made at step k — the same point by construction, so a term there
     reads the call's subgradient and value, in floats and in exact numbers alike (a
     numerical comparison of ball rows cannot prove them equal) — else E xi_k."""
+    if last_calls(mt) and mt.output is not None and k >= 1:
+        return Yr[k - 1][mt.output]
     call = mt.output if mt.output is not None else mt.out_call
     if call is not None and k < len(Yr):
         return Yr[k][call]
     return (mt.E @ xi[k])[0]
+
+
+def last_calls(mt: Method) -> bool:
+    """Whether the output call and the ``y`` terms after N steps are the calls of step
+    N - 1 (a method that changes with k: its N per-step methods make N calls, the N-th
+    one's prox point is x_N, as PEPit counts FISTA), not those of a step N."""
+    return mt.per_step is not None
 
 
 def output_call(E: Any, C: Any, D: Any, same: Callable[[Any, Any], bool]) -> int | None:
