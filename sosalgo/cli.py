@@ -107,14 +107,30 @@ def _overrides(values: tuple[str, ...]) -> dict[str, str]:
     return parse_set_options(values)
 
 
-def _exit_if_unverified(checks: list[Any], what: str = "some certificate") -> None:
-    """Exit code 3 when some certificate failed its check (as ``sosalgo verify`` does)."""
-    if all(c is None for c in checks):
+def _exit_if_unverified(checks: list[Any], what: str = "some certificate",
+                        doc: dict[str, Any] | None = None) -> None:
+    """Exit code 3 when some certificate failed its check, or (``doc`` of a run with
+    ``--verify``) when the claim ledger found a claim contradicted or unsupported, named
+    in the one line (as ``sosalgo verify`` does)."""
+    if all(c is None for c in checks) and not (doc or {}).get("unbacked"):
         return  # nothing was verified (no --verify): nothing to import or report
     from sosalgo.verify.results import check_failed
 
     if any(check_failed(c) for c in checks):
         raise VerificationError(f"{what} failed verification (exit code 3)")
+    if doc is not None and doc.get("unbacked"):
+        from sosalgo.report.checks import entry_text
+
+        bad = doc["unbacked"]
+        more = f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""
+        raise VerificationError(f"claim {bad[0]['status']}: {entry_text(bad[0])}{more} "
+                                "(exit code 3)")
+
+
+def _claims_line(doc: dict[str, Any]) -> None:
+    """With ``--verify``: the claim ledger's count per status (as ``sosalgo verify``)."""
+    if "claims" in doc:
+        click.echo("claims: " + ", ".join(f"{v} {k}" for k, v in doc["claims"].items()))
 
 
 @click.group(cls=OneLineErrors, context_settings={"help_option_names": ["-h", "--help"]})
@@ -174,7 +190,8 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
         for r in rows:
             if r.get("warning"):
                 click.echo(f"warning at kappa {r['kappa']:g}: {r['warning']}", err=True)
-    _exit_if_unverified([r.get("verification") for r in rows])
+        _claims_line(doc)
+    _exit_if_unverified([r.get("verification") for r in rows], doc=doc)
 
 
 # --------------------------------------------------------------------------- design
@@ -234,19 +251,21 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
     if as_json:
         one = docs[0] | ({"estimate": doc["estimate"]} if "estimate" in doc else {})
         click.echo(json.dumps(one if len(docs) == 1 else doc, indent=2))
-        _exit_if_unverified([d.get("verification") for d in docs], "some certificate")
+        _exit_if_unverified([d.get("verification") for d in docs], doc=doc)
         return
     if "objective" in docs[0]:  # a design with the noise sensitivity
         from sosalgo.report.pareto import objective_lines
 
         click.echo("\n".join(objective_lines(doc, details)))
-        _exit_if_unverified([d.get("verification") for d in docs], "some certificate")
+        _claims_line(doc)
+        _exit_if_unverified([d.get("verification") for d in docs], doc=doc)
         return
     if docs[0].get("rate_type") == "sublinear":
         from sosalgo.report.design import sublinear_design_lines
 
         click.echo("\n".join(sublinear_design_lines(doc)))
-        _exit_if_unverified([d.get("verification") for d in docs])
+        _claims_line(doc)
+        _exit_if_unverified([d.get("verification") for d in docs], doc=doc)
         return
     names = docs[0]["free"]
     unsupported = all((d.get("relaxation") or {}).get("status") == "unsupported" for d in docs)
@@ -275,6 +294,8 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
     for d in docs:
         if d.get("error"):
             click.echo(f"error at kappa {d['kappa']:g}: {d['error']}", err=True)
+    _claims_line(doc)
+    _exit_if_unverified([d.get("verification") for d in docs], doc=doc)
 
 
 # --------------------------------------------------------------------------- pareto
@@ -473,6 +494,11 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
         click.echo(VERIFY_LEGEND)
         for line in noise_check_lines(rows, res["results"]):
             click.echo(line)
+        from sosalgo.report.analysis import UNITS_NOTE
+
+        for r, c in zip(rows, res["results"], strict=True):
+            if (c or {}).get("units"):
+                click.echo(f"kappa {r['kappa']:g}: proven in units where L = 1 ({UNITS_NOTE})")
         click.echo(f"rational certificates in {folder}" if can_write
                    else "no certificate files written")
         for line in ledger_lines(res["ledger"], res["claims"]):
@@ -504,7 +530,8 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
                    "start); default sdist when the fixed point moves with the optimal "
                    "subgradients (Douglas-Rachford), dist otherwise.")
 @click.option("--out", default="outputs", show_default=True, metavar="DIR",
-              help="Directory for <name>-pep.csv, witness JSON files and figures.")
+              help="Directory for <name>-pep.csv, its rows' documents, witness JSON files "
+                   "and figures.")
 @batch_options
 @click.option("--no-plot", is_flag=True, help="Skip the figures.")
 @click.option("--no-witness", is_flag=True, help="Skip the worst-case witness.")

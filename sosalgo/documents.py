@@ -37,8 +37,9 @@ from sosalgo.kinds import (
 )
 from sosalgo.spec import Spec
 
-__all__ = ["KINDS", "MAX_RESULT_BYTES", "ResultKind", "document_kind", "read_result",
-           "result_rows", "result_spec", "sniff_kind", "verify_document"]
+__all__ = ["KINDS", "MAX_RESULT_BYTES", "ResultKind", "claim_ledger", "document_kind",
+           "read_result", "result_rows", "result_spec", "sniff_kind", "verify_document",
+           "vouch_run"]
 
 MAX_RESULT_BYTES = 200_000_000
 MAX_INTEGER = 2**1023  # larger integers have no float value
@@ -257,8 +258,6 @@ def _verify_ledger(doc: dict[str, Any], where: str, spec: Spec | str | Path | No
     rows' checks and the claim ledger."""
     from sosalgo.inputs import select_families
     from sosalgo.pareto import is_pareto_document
-    from sosalgo.verify.document_ledger import document_ledger
-    from sosalgo.verify.ledger import ledger_counts, vouched
     from sosalgo.verify.results import ResultError
 
     check_numbers(doc, where)
@@ -272,10 +271,33 @@ def _verify_ledger(doc: dict[str, Any], where: str, spec: Spec | str | Path | No
                               simulate, fam, is_pareto_document(doc))
     except ResultError as exc:
         raise InputError(f"{where}: {exc}") from None
-    ledger = document_ledger(chosen, doc, rows, checks)
     return {"spec": chosen.name, "source": src, "results": checks,
-            "notes": [] if note is None else [note], "ledger": ledger,
-            "claims": ledger_counts(ledger), "vouched": vouched(ledger)}
+            "notes": [] if note is None else [note]} | claim_ledger(chosen, doc, rows, checks)
+
+
+def claim_ledger(spec: Spec, doc: Mapping[str, Any], rows: list[dict[str, Any]],
+                 checks: list[dict[str, Any] | None]) -> dict[str, Any]:
+    """The claim ledger of a document whose rows have their ``checks``
+    (:mod:`sosalgo.verify.document_ledger`): ``ledger`` (every entry), ``claims`` (the
+    count per status) and ``vouched`` (True only when every claim is backed)."""
+    from sosalgo.verify.document_ledger import document_ledger
+    from sosalgo.verify.ledger import ledger_counts, vouched
+
+    ledger = document_ledger(spec, doc, rows, checks)
+    return {"ledger": ledger, "claims": ledger_counts(ledger), "vouched": vouched(ledger)}
+
+
+def vouch_run(spec: Spec, doc: Mapping[str, Any]) -> dict[str, Any]:
+    """The fields a run with ``--verify`` adds to the document it writes, after its rows
+    got their checks (``verification``): the claim ledger that ``sosalgo verify`` runs
+    on that document (:func:`claim_ledger`), as ``claims`` (the count per status),
+    ``vouched`` and ``unbacked`` (the entries contradicted or unsupported)."""
+    from sosalgo.verify.ledger import BAD
+
+    rows = result_rows(doc, doc.get("spec") or "result")
+    res = claim_ledger(spec, doc, rows, [r.get("verification") for r in rows])
+    return {"claims": res["claims"], "vouched": res["vouched"],
+            "unbacked": [e for e in res["ledger"] if e["status"] in BAD]}
 
 
 # ---------------------------------------------------------------------------- result kinds
@@ -342,7 +364,7 @@ KINDS: dict[str, ResultKind] = {k.name: k for k in [
         "spec", "sosalgo analyze --json (sosalgo.analyze_run)",
         "<name>-analysis[-<family>...].csv, one row per kappa",
         ("kind", "spec", "source", "spec_text", "tol", "csv", "csvs", "figures", "rows",
-         "estimate"),
+         "estimate", "claims", "vouched", "unbacked"),
         "sosalgo.schema.analysis_columns (sublinear_columns for an m: 0 spec)",
         "typed result -> CSV cells (sosalgo.batch.sweeps) -> JSON row (csv_row_to_json)",
         lambda doc: _rows_all(doc, _analysis_row), _verify_ledger, "ledger"),
@@ -352,7 +374,8 @@ KINDS: dict[str, ResultKind] = {k.name: k for k in [
         "sosalgo design --json (sosalgo.design_run)",
         "<name>-design[-<family>...][-min-noise|-min-rate].csv, one row per kappa",
         ("kind", "spec", "kappa", "free", "theta", "rho_certified", "lower_bound", "gap",
-         "certificate", "source", "spec_text", "rows", "estimate"),
+         "certificate", "source", "spec_text", "rows", "estimate", "claims", "vouched",
+         "unbacked"),
         "sosalgo.schema.design_columns",
         "typed result -> CSV cells (sosalgo.batch.sweeps) -> JSON (design_csv_to_json); the "
         "certificates too large for a cell in a design-certificates file",
@@ -367,10 +390,13 @@ KINDS: dict[str, ResultKind] = {k.name: k for k in [
         _verify_ledger, "ledger"),
     ResultKind(
         PEP_KIND, "the worst case after N steps, its proven dual bound and checked witness",
-        "sosalgo pep --json (sosalgo.pep_run)", "<name>-pep.csv, one row per (kappa, N)",
+        "sosalgo pep --json (sosalgo.pep_run)",
+        "<name>-pep.csv, one row per (kappa, N); <name>-pep[-k<kappa>]-N<steps>.json, its "
+        "document",
         ("kind", "spec", "kappa", "steps", "tau", "measure", "initial", "certificate",
          "witness", "source", "files", "rows", "estimate"),
-        "sosalgo.schema.PEP_COLUMNS", "result -> JSON document in the CSV's document cell",
+        "sosalgo.schema.PEP_COLUMNS", "result -> plain CSV cells (sosalgo.store) and the "
+        "document in its own file, named in the row's document cell (sosalgo.runs.pep)",
         _looks_pep, _verify_pep, "claims"),
     ResultKind(
         WITNESS_KIND, "a worst-case function set and trajectory for N steps",

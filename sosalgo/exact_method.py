@@ -8,7 +8,7 @@ family's exact check and by the noise proofs.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from fractions import Fraction
 
 import numpy as np
@@ -25,7 +25,8 @@ from sosalgo.kernel.exact import (
 from sosalgo.kernel.expr.parse import to_sympy
 from sosalgo.spec.types import BASE_SYMBOLS, ORACLE_MATRIX_NAMES, Spec, value_order
 
-__all__ = ["ExactAlgorithm", "exact_algorithm", "exact_fixed_point"]
+__all__ = ["ExactAlgorithm", "exact_algorithm", "exact_fixed_point", "scaled_method",
+           "units_far_from_one"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -97,6 +98,25 @@ def exact_algorithm(
         balls[k] = [[enclose(mat[i, j], digits) for j in range(mat.shape[1])]
                     for i in range(mat.shape[0])]
     return ExactAlgorithm(spec.name, kq, mq, Lq, params, mats, balls, theta_q)
+
+
+def scaled_method(ex: ExactAlgorithm, s: Fraction) -> ExactAlgorithm:
+    """The method run on f/s (s > 0 rational): f is in F(m, L) exactly when f/s is in
+    F(m/s, L/s), and B s (and D s) applied to the gradients of f/s give the same iterates,
+    so every rate is the same. Exact (the enclosures' radii scale with their centres)."""
+    k = sp.Rational(s.numerator, s.denominator)
+    gain = [name for name in ("B", "D") if name in ex.matrices]  # the maps of the gradients
+    return replace(ex, m=ex.m / s, L=ex.L / s,
+                   matrices={**ex.matrices, **{g: ex.matrices[g] * k for g in gain}},
+                   balls={**ex.balls, **{g: [[b * s for b in row] for row in ex.balls[g]]
+                                         for g in gain}})
+
+
+def units_far_from_one(ex: ExactAlgorithm) -> bool:
+    """Whether m or L is far from 1 (m < 1/1024 or L > 2^20): a certificate written in
+    such units may not round to rationals that prove it, where it would in units with
+    L = 1 (:func:`scaled_method`). Near 1 a failed proof is not a matter of units."""
+    return ex.m < Fraction(1, 1024) or ex.L > 2**20
 
 
 def _rational_kappa(kappa: float | Fraction) -> Fraction:

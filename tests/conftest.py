@@ -1,4 +1,4 @@
-"""Shared fixtures: paths to the shipped specs."""
+"""Shared fixtures and helpers: paths to the shipped specs, documents without timings."""
 
 from __future__ import annotations
 
@@ -17,3 +17,12 @@ def specs_dir() -> Path:
 
 def spec_path(name: str) -> Path:
     return SPECS / f"{name}.yaml"
+
+
+def timeless(value):
+    """``value`` without its ``seconds`` (how long a step took) anywhere inside."""
+    if isinstance(value, dict):
+        return {k: timeless(v) for k, v in value.items() if k != "seconds"}
+    if isinstance(value, list):
+        return [timeless(v) for v in value]
+    return value

@@ -15,7 +15,7 @@ from sosalgo.cli import cli
 from sosalgo.documents import KINDS, document_kind, sniff_kind
 from sosalgo.errors import InputError, VerificationError
 
-from .conftest import SPECS
+from .conftest import SPECS, timeless
 
 
 def run(args):
@@ -127,15 +127,6 @@ def test_kinds_without_claims_are_refused_by_verify(docs, tmp_path, name):
     res = run(["verify", path, "--no-simulate"])
     assert res.exit_code == 2, res.output
     assert f"kind: a {EXPECTED[name]} document" in res.output
-
-
-def timeless(value):
-    """``value`` without its ``seconds`` (how long a check took) anywhere inside."""
-    if isinstance(value, dict):
-        return {k: timeless(v) for k, v in value.items() if k != "seconds"}
-    if isinstance(value, list):
-        return [timeless(v) for v in value]
-    return value
 
 
 @pytest.mark.parametrize("name", ["analysis", "sublinear", "design", "pep", "peps"])

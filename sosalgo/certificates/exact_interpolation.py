@@ -30,8 +30,13 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.certificates.exact_theorem1 import ProofResult
-from sosalgo.exact_method import exact_algorithm, exact_fixed_point
+from sosalgo.certificates.exact_theorem1 import SCALED_UNITS, ProofResult
+from sosalgo.exact_method import (
+    exact_algorithm,
+    exact_fixed_point,
+    scaled_method,
+    units_far_from_one,
+)
 from sosalgo.kernel.exact import (
     DEFAULT_DIGITS,
     DEFAULT_MAX_DEN,
@@ -49,7 +54,7 @@ from sosalgo.kernel.exact import (
 from sosalgo.model import bind, fixed_point
 from sosalgo.spec.types import MATRIX_NAMES, Spec
 
-__all__ = ["InterpolationExactResult", "float_entry", "symmetric_matrix",
+__all__ = ["InterpolationExactResult", "float_entry", "scaled_certificate", "symmetric_matrix",
            "verify_exact_interpolation"]
 
 
@@ -72,7 +77,7 @@ class InterpolationExactResult(ProofResult):
             "reason": self.reason, "attempts": self.attempts, "seconds": self.seconds,
             "kappa": self.kappa, "m": self.m, "L": self.L, "params": dict(self.params),
             "enclosures": self.enclosures,
-        }
+        } | ({"units": self.units} if self.units else {})
 
 
 def rational_near(x: Any, max_den: int) -> Fraction:
@@ -133,19 +138,75 @@ def verify_exact_interpolation(
                                    rho_requested=float(rho))
     try:
         ex, n = _exact_method(spec, kappa, theta, digits, res)
-        c = _read_certificate(cert, ex, n, max_den)
-        st = family.exact_structure(*(object_matrix(ex.balls[k]) for k in MATRIX_NAMES), ex.m, ex.L,
-                                    c.lag, c.has_x)
-        eta, lam = _multipliers(c, st, max_den)
         if not np.isfinite(float(rho)) or not 0 < rational(rho) <= 1:
             raise Refused(f"rho = {rho!r} is not in (0, 1]")
-        _raise_weights(st, c, lam)
-        res.certificate = _rational_certificate(c, st, eta, lam)
-        res.reason = _prove(res, family, st, c, eta, lam, rational(rho), rho_steps, max_den)
+        res.reason = _prove_in_units(res, family, ex, n, cert, Fraction(1), rational(rho),
+                                     rho_steps, max_den)
+        if res.reason is not None and units_far_from_one(ex):
+            _prove_scaled(res, family, ex, n, cert, rational(rho), rho_steps, max_den)
     except Refused as exc:
         res.reason = str(exc)
     res.seconds = time.perf_counter() - start
     return res
+
+
+def _prove_in_units(res: InterpolationExactResult, family: Any, ex: Any, n: int,
+                    cert: Mapping[str, Any], s: Fraction, rho: Fraction,
+                    rho_steps: tuple[float, ...], max_den: int) -> str | None:
+    """The proof for the class with f divided by ``s`` (1: as written): the method with
+    B s on F(m/s, L/s), the certificate ``cert`` in those units; None when proven."""
+    c = _read_certificate(cert, ex, n, max_den)
+    if s != 1:
+        ex = scaled_method(ex, s)
+    st = family.exact_structure(*(object_matrix(ex.balls[k]) for k in MATRIX_NAMES), ex.m, ex.L,
+                                c.lag, c.has_x)
+    eta, lam = _multipliers(c, st, max_den)
+    _raise_weights(st, c, lam)
+    res.certificate = _rational_certificate(c, st, eta, lam)
+    return _prove(res, family, st, c, eta, lam, rho, rho_steps, max_den)
+
+
+def _prove_scaled(res: InterpolationExactResult, family: Any, ex: Any, n: int,
+                  cert: Mapping[str, Any], rho: Fraction, rho_steps: tuple[float, ...],
+                  max_den: int) -> None:
+    """The proof in units where L = 1, after it failed as written in units far from 1
+    (:func:`~sosalgo.exact_method.units_far_from_one`): f in F(m, L) exactly
+    when f/L is in F(m/L, 1), and the method run on f/L with the step matrix B L has the
+    same iterates, so a rate proven there is the rate on F(m, L) (the rate is
+    scale-invariant). A certificate found in the normalized units (every float solve is)
+    and written back in tiny or huge units (m = 1e-300) rounds to rationals there. The
+    result says which units its rational certificate is in; a failure keeps the reason of
+    the proof as written."""
+    first, kept = res.reason, res.certificate
+    try:
+        scaled = scaled_certificate(cert, n, ex.L)
+        reason = _prove_in_units(res, family, ex, n, scaled, ex.L, rho, rho_steps, max_den)
+    except (Refused, ArithmeticError, TypeError, ValueError):
+        reason = "not proven"
+    if reason is None:
+        res.reason, res.units = None, SCALED_UNITS
+        res.proofs["units"] = res.units
+    else:
+        res.reason, res.certificate = first, kept
+
+
+def scaled_certificate(cert: Mapping[str, Any], n: int, s: Fraction) -> dict[str, Any]:
+    """``cert`` for f/s: V/s = z'(D P D / s)z on z = (xi, u/s) with D = diag(I_n, s I), the
+    weights p and c as they are, the multipliers times s (each interpolation inequality
+    scales by 1/s^2). Floats stay floats (a candidate to round), exact strings exact."""
+    def times(v: Any, k: int) -> Any:  # v * s^k
+        if isinstance(v, str | Fraction):
+            return fraction_str(rational(v) * s**k)
+        return float(v) / float(s) ** -k if k < 0 else float(v) * float(s) ** k
+
+    lag = int(cert["lag"])
+    side = n + lag + 1
+    power = [0] * n + [1] * (lag + 1)
+    P = [[times(cert["P"][i][j], power[i] + power[j] - 1) for j in range(side)]
+         for i in range(side)]
+    mult = {w: {k: times(v, 1) for k, v in cert["multipliers"][w].items()}
+            for w in ("decrease", "positivity")}
+    return {**cert, "P": P, "multipliers": mult}
 
 
 def _exact_method(spec: Spec, kappa: float, theta: Mapping[str, float] | None, digits: int,

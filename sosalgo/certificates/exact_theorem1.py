@@ -41,7 +41,13 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.exact_method import ExactAlgorithm, exact_algorithm, exact_fixed_point
+from sosalgo.exact_method import (
+    ExactAlgorithm,
+    exact_algorithm,
+    exact_fixed_point,
+    scaled_method,
+    units_far_from_one,
+)
 from sosalgo.kernel.exact import (
     DEFAULT_DIGITS,
     DEFAULT_MAX_DEN,
@@ -55,10 +61,12 @@ from sosalgo.kernel.exact import (
     fraction_str,
     frobenius_bound,
     is_exact,
+    object_matrix,
     prove_psd,
     rational,
     rho_candidates,
     round_down,
+    symmetrize_balls,
 )
 from sosalgo.model import bind, fixed_point
 from sosalgo.spec.types import MATRIX_NAMES, Spec
@@ -127,14 +135,7 @@ def theorem1_balls(
     Q4 = [[Ball(-m * L / (m + L)), half], [half, Ball(-1 / (m + L))]]
     N1, N2, N3, N4 = _quad(X1, Q1), _quad(X2, Q2), _quad(X3, Q2), _quad(X3, Q4)
     M = _lin((1, M0), (rho2, N1), (rho2, N2), (1 - rho2, N1), (1 - rho2, N3), (lam, N4))
-    s = n + 1
-    for i in range(s):  # exact centres are symmetric; take the larger radius
-        for j in range(i):
-            if M[i][j].c != M[j][i].c:
-                raise AssertionError("Theorem 1 matrix centre is not symmetric")
-            r = max(M[i][j].r, M[j][i].r)
-            M[i][j] = M[j][i] = Ball(M[i][j].c, r)
-    return M
+    return symmetrize_balls(object_matrix(M))  # exact centres: the larger radius of a pair
 
 
 def theorem1_exact(
@@ -188,10 +189,17 @@ class ProofResult:
     m: str = ""
     L: str = ""
     params: dict[str, str] = field(default_factory=dict)
+    units: str | None = None  # SCALED_UNITS when the certificate is proven for f/L
 
     @property
     def ok(self) -> bool:
         return self.verified == Verdict.EXACT
+
+
+# the units of a proof made for f/L after the proof as written failed (tiny or huge m, L:
+# a certificate found in normalized units rounds to rationals badly when written back)
+SCALED_UNITS = ("f/L in F(m/L, 1) (gradients u/L, the method with B L; L as recorded): the "
+                "certificate is proven in these units, and the rate is the same for F(m, L)")
 
 
 @dataclass
@@ -243,7 +251,7 @@ class ExactResult(ProofResult):
             "matrices": {k: [list(r) for r in v] for k, v in self.matrices.items()},
             "enclosures": self.enclosures,
             "model_max_abs_diff": self.model_max_abs_diff,
-        }
+        } | ({"units": self.units} if self.units else {})
 
 
 def write_certificate(result: ProofResult | Mapping[str, Any], path: str | Path) -> Path:
@@ -335,18 +343,41 @@ def verify_exact(
     result = _new_result(spec, ex, rho)
     reason = _check_method(spec, kappa, theta, ex, result)
     if reason is None:
-        inputs = _rational_inputs(P, lam, rho, len(ex.balls["A"]), max_den)
-        if isinstance(inputs, str):
-            reason = inputs
-        else:
-            rho_q, lam_opts, p_cands = inputs
-            P_opts, reason = _psd_roundings(p_cands)
-            if P_opts:
-                reason = _search_proof(ex, result, rho_q, P_opts, lam_opts,
-                                       rho_candidates(rho_q, list(rho_steps), max_den))
+        reason = _prove(ex, result, P, lam, rho, max_den, rho_steps)
+        if reason is not None and units_far_from_one(ex) and _prove(
+                scaled_method(ex, ex.L), result, _scaled_P(P, ex.L), lam, rho, max_den,
+                rho_steps) is None:
+            reason, result.units = None, SCALED_UNITS  # see scaled_method
     result.reason = reason
     result.seconds = time.perf_counter() - start
     return result
+
+
+def _prove(ex: ExactAlgorithm, result: ExactResult, P: Any, lam: Any, rho: Any,
+           max_den: int, rho_steps: Sequence[float]) -> str | None:
+    """The proof of (rho, P, lambda) for ``ex`` recorded in ``result`` (None), or why not."""
+    inputs = _rational_inputs(P, lam, rho, len(ex.balls["A"]), max_den)
+    if isinstance(inputs, str):
+        return inputs
+    rho_q, lam_opts, p_cands = inputs
+    P_opts, reason = _psd_roundings(p_cands)
+    if P_opts:
+        reason = _search_proof(ex, result, rho_q, P_opts, lam_opts,
+                               rho_candidates(rho_q, list(rho_steps), max_den))
+    return reason
+
+
+def _scaled_P(P: Any, s: Fraction) -> Any:
+    """P for f/s: V/s = xi'(P/s)xi (lambda is the same: every term of M scales by 1/s);
+    floats stay floats (candidates to round), exact entries exact; P itself when it
+    cannot be divided (the proof then says why)."""
+    try:
+        raw = np.atleast_2d(np.asarray(P, dtype=object))
+        if all(is_exact(v) for v in raw.flat):
+            return [[fraction_str(rational(v) / s) for v in row] for row in raw]
+        return raw.astype(float) / float(s)
+    except (ArithmeticError, TypeError, ValueError):
+        return P
 
 
 def _new_result(spec: Spec, ex: ExactAlgorithm, rho: float) -> ExactResult:

@@ -49,7 +49,13 @@ def fraction_str(x: Fraction) -> str:
 
 
 def float_str(x: Fraction) -> str:
-    return f"{float(x):.6g}"
+    """Six digits of ``x``; beyond the float range its order of magnitude (~1e+400)."""
+    try:
+        return f"{float(x):.6g}"
+    except OverflowError:
+        q = abs(Fraction(x))
+        digits = len(str(q.numerator)) - len(str(q.denominator))
+        return f"{'-' if x < 0 else ''}~1e{digits:+d}"
 
 
 # --------------------------------------------------------------------------- PSD proofs

@@ -10,7 +10,10 @@ infeasibility is ``infeasible``. Callers never read a raw solver status.
 The problem data go straight to Clarabel (upper-triangular scaled svec) or SCS
 (lower-triangular scaled svec), so one feasibility test costs well under a millisecond.
 
-This module is the only one that imports Clarabel and SCS. Conic data other than an
+This module is the only one that imports Clarabel and SCS, and the door of every conic
+solve: a problem modelled in cvxpy (the moment relaxations of :mod:`sosalgo.polyopt`, the
+composite noise SDP) is solved by :func:`cvxpy_solve`, its status classified here too.
+Conic data other than an
 :class:`~sosalgo.kernel.conic.LMIProblem` (the PEP, noise, witness and dual-bound SDPs)
 come as ``A x + s = b`` with cones written as ``(kind, size)`` pairs
 (:func:`clarabel_cones`) and are solved by :func:`clarabel_solve` (one solve) or
@@ -27,12 +30,13 @@ import math
 import os
 import sys
 import threading
+import warnings
 import weakref
 from collections import OrderedDict
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import scipy.sparse as sps
@@ -44,6 +48,7 @@ __all__ = [
     "Feasibility", "Outcome", "solve_lmi", "solve_margin", "check_point", "Margin", "SOLVERS",
     "DEFAULT_SOLVERS", "margin_for", "SolverStatus", "solver_status", "SolverPanic",
     "clarabel_solve", "solve_or_raise", "clarabel_cones", "solve_attempts", "CHORDAL", "lmi_point",
+    "CvxpySolve", "cvxpy_solve",
 ]
 
 RELATIVE_MARGIN = 1e-9
@@ -88,6 +93,39 @@ def solver_status(raw: object) -> SolverStatus:
         return _STATUSES[name]
     return (SolverStatus.INACCURATE if name.startswith("Almost") or "inaccurate" in name
             else SolverStatus.FAILED)
+
+
+_CVXPY_STATUSES = {  # cvxpy's status names (cvxpy.settings), classified as the others
+    "optimal": SolverStatus.SOLVED, "optimal_inaccurate": SolverStatus.ALMOST_SOLVED,
+    "infeasible": SolverStatus.INFEASIBLE, "infeasible_inaccurate": SolverStatus.INACCURATE,
+}
+
+
+class CvxpySolve(NamedTuple):
+    """How a cvxpy solve ended: its status, cvxpy's own (None after an error), the error."""
+
+    status: SolverStatus
+    raw: str | None
+    error: Exception | None = None
+
+
+def cvxpy_solve(problem: Any, solver: str, **options: Any) -> CvxpySolve:
+    """``problem.solve(solver=solver, **options)`` for a cvxpy problem, options as given.
+    cvxpy's statuses are classified here (optimal: solved; optimal_inaccurate: almost
+    solved; infeasible; infeasible_inaccurate: inaccurate; anything else: failed) and its
+    warnings silenced (an inaccurate end is a status, not a warning). A crash, a Rust
+    panic included, is a failed status with its error; Ctrl-C and SIGTERM go through."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            problem.solve(solver=solver, **options)
+    except BaseException as exc:
+        if not isinstance(exc, Exception) and type(exc).__name__ != "PanicException":
+            raise
+        err = exc if isinstance(exc, Exception) else SolverPanic(str(exc)[:200] or "panic")
+        return CvxpySolve(SolverStatus.FAILED, None, err)
+    raw = str(problem.status)
+    return CvxpySolve(_CVXPY_STATUSES.get(raw, SolverStatus.FAILED), raw)
 
 
 def finite_data(*arrays: Any) -> bool:

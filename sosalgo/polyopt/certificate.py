@@ -33,6 +33,8 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sps
 
+from sosalgo.kernel.solvers import cvxpy_solve
+
 from .moment import MomentIndex
 
 __all__ = ["DualData", "certified_bound", "interior_dual", "newton_keep"]
@@ -310,10 +312,8 @@ def interior_dual(
     rhs[0] -= gamma
     cons.append(expr == rhs)
     prob = cp.Problem(cp.Maximize(eps), cons)
-    try:
-        prob.solve(solver=solver, **options)
-    except Exception:  # noqa: BLE001 - a failed refinement just leaves the bound as it was
-        return None
+    if cvxpy_solve(prob, solver, **options).error is not None:
+        return None  # a failed refinement just leaves the bound as it was
     if Q.value is None or any(Zv.value is None for Zv in zs):
         return None
     Z0 = np.zeros((N, N))

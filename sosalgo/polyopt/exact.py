@@ -23,10 +23,11 @@ exact objective and ``G`` a rational. Failure proves nothing and returns None.
 
 from __future__ import annotations
 
-import warnings
 from fractions import Fraction
 
 import numpy as np
+
+from sosalgo.kernel.solvers import cvxpy_solve
 
 from .moment import MomentIndex
 from .polynomial import Exponent
@@ -123,12 +124,8 @@ def _exposing_matrix(
     cons = [M >> 0, cp.trace(M) == 1, cf @ y == 0]
     if 0 in where:
         cons.append(y[where[0]] == 0)
-    try:
-        with warnings.catch_warnings():
-            warnings.filterwarnings("ignore", message="Solution may be inaccurate")
-            cp.Problem(cp.Minimize(0), cons).solve(solver="CLARABEL")
-    except Exception:  # noqa: BLE001 - no exposing vector: no reduction
-        return None
+    if cvxpy_solve(cp.Problem(cp.Minimize(0), cons), "CLARABEL").error is not None:
+        return None  # no exposing vector: no reduction
     if y.value is None:
         return None
     vals = [Fraction(0) if abs(v) < 1e-7 else Fraction(float(v)).limit_denominator(

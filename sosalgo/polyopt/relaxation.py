@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import math
 import time
-import warnings
 from dataclasses import dataclass, field
 from enum import StrEnum
 from fractions import Fraction
@@ -29,6 +28,8 @@ import cvxpy as cp
 import numpy as np
 import scipy.sparse as sps
 import sympy as sp
+
+from sosalgo.kernel.solvers import SolverStatus, cvxpy_solve
 
 from .certificate import DualData, certified_bound, interior_dual, newton_keep
 from .exact import exact_sos_bound
@@ -83,11 +84,12 @@ class RelaxationStatus(StrEnum):
     INCONSISTENT = "inconsistent"  # its bound exceeds a certified rate: discarded
 
 
-_STATUS = {
-    cp.OPTIMAL: RelaxationStatus.OPTIMAL,
-    cp.OPTIMAL_INACCURATE: RelaxationStatus.INACCURATE,
-    cp.INFEASIBLE: RelaxationStatus.INFEASIBLE,
-    cp.INFEASIBLE_INACCURATE: RelaxationStatus.INFEASIBLE,
+_STATUS = {  # the solver door's statuses (cvxpy's optimal, optimal_inaccurate,
+    # infeasible, infeasible_inaccurate)
+    SolverStatus.SOLVED: RelaxationStatus.OPTIMAL,
+    SolverStatus.ALMOST_SOLVED: RelaxationStatus.INACCURATE,
+    SolverStatus.INFEASIBLE: RelaxationStatus.INFEASIBLE,
+    SolverStatus.INACCURATE: RelaxationStatus.INFEASIBLE,
 }
 
 
@@ -405,16 +407,12 @@ def _solve_once(
     index, prob, y, parts = _build(compiled, order)
     result = RelaxationResult(bound=math.nan, status=RelaxationStatus.FAILED, order=order,
                               solver=name)
-    try:
-        with warnings.catch_warnings():
-            # cvxpy warns on inaccurate solutions; the status field reports that instead.
-            warnings.filterwarnings("ignore", message="Solution may be inaccurate")
-            prob.solve(solver=name, **opts)
-        result.solver_status = str(prob.status)
-    except Exception as exc:  # noqa: BLE001 - solver failures must not raise
-        result.solver_status = f"{type(exc).__name__}: {exc}"
+    end = cvxpy_solve(prob, name, **opts)  # an inaccurate end is its status
+    if end.error is not None:  # solver failures must not raise
+        result.solver_status = f"{type(end.error).__name__}: {end.error}"
         return result
-    status = _STATUS.get(prob.status, RelaxationStatus.FAILED)
+    result.solver_status = end.raw
+    status = _STATUS.get(end.status, RelaxationStatus.FAILED)
     yv = None if y.value is None else np.asarray(y.value, dtype=float)
     solved = (RelaxationStatus.OPTIMAL, RelaxationStatus.INACCURATE)
     if status in solved and (yv is None or not np.all(np.isfinite(yv))):
@@ -516,9 +514,7 @@ def _interior_bound(
     exact = -math.inf
     for frac in _BACKOFF:
         level = value - frac * (value - target)
-        with warnings.catch_warnings():
-            warnings.filterwarnings("ignore", message="Solution may be inaccurate")
-            interior = interior_dual(index, data, level, keep, solver[0], solver[1])
+        interior = interior_dual(index, data, level, keep, solver[0], solver[1])
         if interior is not None:
             b = max(b, certified_bound(index, interior, None, target, None, keeps)[0])
             if b < target and keep is not None and compiled.exact_objective is not None:

@@ -159,6 +159,9 @@ def noise_table(rows: list[dict[str, Any]], details: bool) -> str:
     return format_table(rows, printed_columns(columns, details))
 
 
+UNITS_NOTE = "f/L in F(m/L, 1): the rate is scale-invariant; the certificate file says so"
+
+
 def analysis_lines(doc: dict[str, Any], details: bool = False, verified: bool = False,
                    noise: bool = False) -> list[str]:
     """What ``sosalgo analyze`` prints (without ``--json``): per family its name, table
@@ -180,6 +183,8 @@ def analysis_lines(doc: dict[str, Any], details: bool = False, verified: bool = 
         base = ANALYSIS_COLUMNS if "csvs" not in doc else FAMILY_COLUMNS
         out.append(analysis_table(spec, mine, base + columns, details))
         out += verdict_lines(mine)
+        out += [f"kappa {r['kappa']:g}: proven in units where L = 1 ({UNITS_NOTE})"
+                for r in mine if (r.get("verification") or {}).get("units")]
     if spec_family(spec) is not None:  # what c bounds (no rate, no kappa)
         out.append(sublinear_meaning(spec))
     else:

@@ -8,7 +8,7 @@ from typing import Any
 from sosalgo.report import format_table
 from sosalgo.schema import CHECK_COLUMNS
 
-__all__ = ["CHECK_COLUMNS", "checks_table"]
+__all__ = ["CHECK_COLUMNS", "checks_table", "entry_text", "ledger_lines"]
 
 
 def checks_table(rows: Sequence[Mapping[str, Any]],
@@ -40,12 +40,15 @@ def ledger_lines(ledger: Sequence[Mapping[str, Any]], counts: Mapping[str, int]
     recomputed, contradicted or unsupported (the context fields are only counted)."""
     lines = ["claims:"]
     for e in ledger:
-        if e["status"] == "context":
-            continue
-        where = "document" if e["row"] is None else f"row {e['row']}"
-        claimed = e["claimed"]
-        shown = f"{claimed:.10g}" if isinstance(claimed, float) else str(claimed)
-        lines.append(f"  {e['status']:<12} {where}: {e['field']} = {shown[:40]}"
-                     f" -- {e['reason']}")
+        if e["status"] != "context":
+            lines.append(f"  {e['status']:<12} {entry_text(e)}")
     lines.append("  " + ", ".join(f"{v} {k}" for k, v in counts.items()))
     return lines
+
+
+def entry_text(e: Mapping[str, Any]) -> str:
+    """One ledger entry in words: where, the field, its claimed value and the reason."""
+    where = "document" if e["row"] is None else f"row {e['row']}"
+    claimed = e["claimed"]
+    shown = f"{claimed:.10g}" if isinstance(claimed, float) else str(claimed)
+    return f"{where}: {e['field']} = {shown[:40]} -- {e['reason']}"

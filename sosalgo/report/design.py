@@ -94,8 +94,10 @@ def verification_notes(docs: Sequence[dict[str, Any]]) -> list[str]:
             note = "" if sim is None else (
                 ", simulation skipped" if "skipped" in sim else
                 ", simulation ok" if sim["ok"] else ", SIMULATION VIOLATION")
-            lines.append(f"  kappa {d['kappa']:g}: verified {v['verified']} "
-                         f"(rho proven {v['rho_proven_float']:.10g}{note})")
+            proven = v.get("rho_proven_float")
+            what = (f"rho proven {proven:.10g}" if proven is not None
+                    else f"not proven: {v.get('reason')}")
+            lines.append(f"  kappa {d['kappa']:g}: verified {v['verified']} ({what}{note})")
     return lines
 
 

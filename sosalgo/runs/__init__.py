@@ -17,6 +17,7 @@ from typing import Any
 from sosalgo import inputs
 from sosalgo.batch.executor import check_scheduler
 from sosalgo.certificates import describe_family, spec_family
+from sosalgo.documents import vouch_run
 from sosalgo.errors import InputError
 from sosalgo.kernel import budget
 from sosalgo.kinds import ANALYSIS_KIND, DESIGN_KIND, GRID_KIND, TABLE1_KIND
@@ -185,9 +186,9 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
            "tol": tol, "csv": str(runs[0][1])} | set_field(overrides)
     if not plain:
         doc["csvs"] = {f.name: str(p) for f, p, _ in runs}
-    return doc | {"figures": [str(p) for p in figs],
-                  "rows": [r for _, _, jrows in runs for r in jrows],
-                  "estimate": est.to_dict()}
+    doc |= {"figures": [str(p) for p in figs],
+            "rows": [r for _, _, jrows in runs for r in jrows], "estimate": est.to_dict()}
+    return doc | (vouch_run(spec, doc) if verify else {})
 
 
 def _analyze_constant(spec: Spec, fam: Any, text: str, kappa: Kappas, out_dir: str | Path,
@@ -213,9 +214,10 @@ def _analyze_constant(spec: Spec, fam: Any, text: str, kappa: Kappas, out_dir: s
         figs = sublinear_figure(spec, jrows[0], stem) if plot else []
     if verify:
         attach_constant_checks(spec, jrows, out / "certificates")
-    return {"kind": ANALYSIS_KIND, "spec": spec.name, "source": spec.source, "spec_text": text,
-            "csv": str(path), "figures": [str(p) for p in figs], "rows": jrows,
-            "estimate": est.to_dict()}
+    doc = {"kind": ANALYSIS_KIND, "spec": spec.name, "source": spec.source, "spec_text": text,
+           "csv": str(path), "figures": [str(p) for p in figs], "rows": jrows,
+           "estimate": est.to_dict()}
+    return doc | (vouch_run(spec, doc) if verify else {})
 
 
 def _design_options(spec: Spec, kappas: list[float], free: str | Sequence[str] | None,
@@ -312,7 +314,21 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
             d["verification"] = v
     return {"kind": DESIGN_KIND, "spec": spec.name, "source": spec.source, "spec_text": text,
             "csv": str(csv_path), "figures": [str(p) for p in figs], "rows": docs,
-            "estimate": est.to_dict()} | set_field(overrides)
+            "estimate": est.to_dict()} | set_field(overrides) | (
+        _vouch_designs(spec, docs) if verify else {})
+
+
+def _vouch_designs(spec: Spec, docs: list[dict[str, Any]]) -> dict[str, Any]:
+    """The claim ledger of each design document (``design --json`` prints one alone), added
+    to it (:func:`sosalgo.documents.vouch_run`), and its totals for the run's document."""
+    claims: dict[str, int] = {}
+    unbacked = []
+    for i, d in enumerate(docs):
+        d |= vouch_run(spec, d)
+        claims = {k: claims.get(k, 0) + v for k, v in d["claims"].items()}
+        unbacked += [e | {"row": i} for e in d["unbacked"]]
+    return {"claims": claims, "vouched": all(d["vouched"] for d in docs),
+            "unbacked": unbacked}
 
 
 def _no_kappa(spec: Spec, kappa: Kappas) -> None:
@@ -344,7 +360,8 @@ def _design_constant(spec: Spec, text: str, kappa: Kappas, out_dir: str | Path,
     if verify:
         attach_constant_checks(spec, [row], out / "certificates")
     return {"kind": DESIGN_KIND, "spec": spec.name, "source": spec.source, "spec_text": text,
-            "csv": str(path), "figures": [], "rows": [row], "estimate": est.to_dict()}
+            "csv": str(path), "figures": [], "rows": [row], "estimate": est.to_dict()} | (
+        _vouch_designs(spec, [row]) if verify else {})
 
 
 def _grid_constant(spec: Spec, fam: Any, text: str, kappa: Kappas, out_dir: str | Path,

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import re
+import sys
 from collections.abc import Mapping, Sequence
 from fractions import Fraction
 from pathlib import Path
@@ -15,7 +16,8 @@ from sosalgo.kernel.phases import begin_task
 from sosalgo.kinds import PEP_KIND
 from sosalgo.spec import Spec
 
-__all__ = ["pep_chunk", "pep_heading", "pep_row", "pep_run", "term_words"]
+__all__ = ["FILE_FIELDS", "document_file", "pep_chunk", "pep_heading", "pep_row", "pep_run",
+           "term_words"]
 
 # a PEP estimated (sosalgo.kernel.budget) longer than this runs in a worker process that a signal
 # can end at once; a shorter one runs here, where a signal waits at most for its solve
@@ -23,9 +25,11 @@ ISOLATE_SECONDS = 0.5
 
 
 def pep_row(res: Any, cls: dict[str, Any] | None = None) -> dict[str, Any]:
-    """The CSV row of a result (columns :data:`sosalgo.schema.PEP_COLUMNS`); ``cls``: the
-    class its proofs are about (:func:`sosalgo.pep.exact.class_description`), added to
-    the document as ``class``."""
+    """The row of a result (columns :data:`sosalgo.schema.PEP_COLUMNS`) as a worker hands
+    it over, ``document`` the whole document's JSON text; the run stores that text in its
+    own file and the cell names the file (:func:`document_file`). ``cls``: the class its
+    proofs are about (:func:`sosalgo.pep.exact.class_description`), added to the document
+    as ``class``."""
     cert = res.certificate or {}
     chk = (res.witness or {}).get("check") or {}
     return {"kappa": res.kappa if res.kappa is not None else "", "steps": res.steps,
@@ -144,21 +148,88 @@ def pep_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = Non
         todo = [t for t in tasks if not store.is_done(t)]
         bar = Progress(len(tasks), f"pep {spec.name}", progress,
                        done=len(tasks) - len(todo), resumed_from=path)
+
+        def persist(row: dict[str, Any]) -> None:  # the document's file, then its row
+            store.write(_persist_document(spec, text, row, out, recorded))
+
         try:
-            run_batch(pep_chunk, text, spec.source, options, todo, store.write,
+            run_batch(pep_chunk, text, spec.source, options, todo, persist,
                       workers, scheduler, bar, isolate=isolate)
         finally:
             bar.close()
         keys = {store.row_key(t) for t in tasks}
-        docs = _docs([r for r in store.rows() if store.row_key(r) in keys])
+        docs = _docs([r for r in store.rows() if store.row_key(r) in keys], out, spec)
         files = _write_files(spec, text, docs, out, plot, recorded)
     return _pep_document(spec, measure, initial, docs, files, est) | recorded
 
 
-def _docs(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """The documents of the CSV rows, in (kappa, steps) order."""
-    docs = [json.loads(r["document"]) for r in rows]
+def _docs(rows: list[dict[str, Any]], out: Path | None = None,
+          spec: Spec | None = None) -> list[dict[str, Any]]:
+    """The documents of the rows (a worker's, or the CSV's read back with their files in
+    ``out``), in (kappa, steps) order."""
+    docs = [_row_document(r, out, spec) for r in rows]
     return sorted(docs, key=lambda d: (d["kappa"] or 0.0, d["steps"]))
+
+
+# what a document file adds to the document of its row (and reading it back drops)
+FILE_FIELDS = ("kind", "source", "spec_text", "set")
+
+
+def document_file(spec: Spec, kappa: float | None, steps: int) -> str:
+    """``<name>-pep[-k<kappa>]-N<steps>.json``: one (kappa, N) document (kappa exact:
+    :func:`sosalgo.schema.kappa_label`), beside the CSV; the CSV's ``document`` cell
+    names it."""
+    from sosalgo.schema import kappa_label
+
+    tag = "" if kappa is None else f"-k{kappa_label(kappa)}"
+    return f"{spec.name}-pep{tag}-N{steps}.json"
+
+
+def _persist_document(spec: Spec, text: str, row: dict[str, Any], out: Path,
+                      recorded: Mapping[str, Any]) -> dict[str, Any]:
+    """Write the row's document (a ``pep`` document of its own, with the spec's text, so
+    ``sosalgo verify`` needs nothing else) atomically to its file and return the row with
+    the file's name in its ``document`` cell. Called under the CSV's lock, before the row
+    is written: a row on disk always has its file."""
+    from sosalgo.store import write_atomic
+
+    doc = json.loads(row["document"])
+    name = document_file(spec, doc["kappa"], doc["steps"])
+    whole = {"kind": PEP_KIND} | doc | {"source": spec.source, "spec_text": text} | dict(
+        recorded)
+    write_atomic(out / name, json.dumps(whole, indent=1, default=float))
+    return row | {"document": name}
+
+
+def _row_document(row: Mapping[str, Any], out: Path | None,
+                  spec: Spec | None) -> dict[str, Any]:
+    """A row's document: the JSON text a worker handed over (or that a CSV written before
+    documents had their own files holds), else the file the cell names, without what the
+    file adds (:data:`FILE_FIELDS`). A file that is gone leaves the row's plain columns,
+    with a note (no certificate, no witness: ``--restart`` computes them again)."""
+    cell = str(row["document"])
+    if cell.lstrip().startswith("{"):
+        return json.loads(cell)
+    assert out is not None and spec is not None  # a worker's rows hold the JSON text
+    try:
+        doc = json.loads((out / cell).read_text(encoding="utf-8"))
+        return {k: v for k, v in doc.items() if k not in FILE_FIELDS}
+    except (OSError, ValueError, AttributeError) as exc:
+        sys.stderr.write(f"note: {out / cell}: unreadable ({type(exc).__name__}): the row "
+                         "read from the CSV's columns, without its certificate and witness "
+                         "(--restart computes them again)\n")
+        return _plain_document(spec, row)
+
+
+def _plain_document(spec: Spec, row: Mapping[str, Any]) -> dict[str, Any]:
+    """The document of a CSV row from its plain columns alone."""
+    def num(key: str) -> float | None:
+        return None if row.get(key) in ("", None) else float(row[key])
+
+    return {"spec": spec.name, "kappa": num("kappa"), "steps": int(row["steps"]),
+            "tau": num("tau"), "measure": row.get("measure"), "initial": row.get("initial"),
+            "status": row.get("status"), "gap": num("gap"), "certificate": None,
+            "witness": None, "seconds": num("seconds")}
 
 
 def _pep_document(spec: Spec, measure: str | None, initial: str | None,
@@ -184,6 +255,7 @@ def _companions(spec: Spec, ks: list[float | None], ns: list[int], out: Path) ->
     files = []
     for k in ks:
         files += [_witness_path(spec, out, k, n) for n in ns]
+        files += [out / document_file(spec, k, n) for n in ns]
         for stem in (f"{spec.name}-pep{_tag(k)}", f"{spec.name}-pep{_tag(k)}-N{ns[-1]}-witness"):
             files += [out / f"{stem}.{ext}" for ext in ("png", "pdf")]
     return files

@@ -20,13 +20,13 @@ from __future__ import annotations
 
 import math
 import time
-import warnings
 from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from sosalgo.certificates.composite import composite_structure
+from sosalgo.kernel.solvers import SolverStatus, cvxpy_solve
 from sosalgo.oracles import CallShape
 from sosalgo.sensitivity.sdp import GAP_TOL, MARGINS, NoiseCertificate, check_lag
 
@@ -173,14 +173,11 @@ def _solve(nm: NoisyModel, st: Any, known: list[int], margin: float,
     cons = [ex["D"] << -margin * np.eye(W), ex["Pq"] >> margin * np.eye(Wp),
             ex["Df"] <= -margin, ex["Pf"] >= margin]
     prob = cp.Problem(cp.Minimize(var["s"]), cons)
-    try:
-        with warnings.catch_warnings():  # "inaccurate" is a status here, not a warning
-            warnings.simplefilter("ignore")
-            prob.solve(solver=cp.CLARABEL, tol_gap_abs=GAP_TOL, tol_gap_rel=GAP_TOL)
-    except Exception as exc:  # noqa: BLE001 - a crash is just "no answer"
-        return "failed", None, f"exception: {type(exc).__name__}"
-    if prob.status != cp.OPTIMAL:
-        return ("infeasible" if prob.status == cp.INFEASIBLE else "failed"), None, \
+    end = cvxpy_solve(prob, cp.CLARABEL, tol_gap_abs=GAP_TOL, tol_gap_rel=GAP_TOL)
+    if end.error is not None:  # a crash is just "no answer"
+        return "failed", None, f"exception: {type(end.error).__name__}"
+    if end.status != SolverStatus.SOLVED:
+        return ("infeasible" if end.status == SolverStatus.INFEASIBLE else "failed"), None, \
             f"clarabel: {prob.status}"
     vals = {k: np.array(v.value, dtype=float) / weight for k, v in var.items()}
     vals["s"] = float(vals["s"])

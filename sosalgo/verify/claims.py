@@ -242,18 +242,27 @@ def quadratic_noise(spec: Any, alg: Any) -> float:
     return on_quadratics(alg).gamma
 
 
+def _recomputed(L: RowLedger, field: str, compute: Any) -> Any:
+    """``compute(kappa)`` (NaN for a row without kappa): the spec's value of a claim the
+    row makes; None, its entry added, when the row claims nothing (context) or when the
+    value cannot be recomputed (unsupported)."""
+    if not L.row.get(field):
+        L.add(field, CONTEXT, "none")
+        return None
+    kappa = L.row.get("kappa")
+    try:
+        return compute(float("nan") if kappa is None else float(kappa))
+    except Exception as exc:  # noqa: BLE001 - a value that cannot be recomputed
+        L.add(field, UNSUPPORTED, f"cannot be recomputed: {type(exc).__name__}: {exc}"[:200])
+        return None
+
+
 def references(L: RowLedger, field: str) -> None:
     from sosalgo.spec.references import reference_values
 
     refs = L.row.get(field)
-    if not refs:
-        L.add(field, CONTEXT, "none")
-        return
-    kappa = L.row.get("kappa")
-    try:
-        got = reference_values(L.spec, float("nan") if kappa is None else float(kappa))
-    except (TypeError, ValueError) as exc:
-        L.add(field, UNSUPPORTED, f"cannot be recomputed: {exc}")
+    got = _recomputed(L, field, lambda kappa: reference_values(L.spec, kappa))
+    if got is None:
         return
     same = isinstance(refs, Mapping) and set(refs) == set(got) and all(
         refs[k] == got[k] or (isinstance(refs[k], float) and isinstance(got[k], float)
@@ -277,15 +286,9 @@ def params(L: RowLedger, field: str) -> None:
     from sosalgo.model import parameter_values
 
     v = L.row.get(field)
-    if not v:
-        L.add(field, CONTEXT, "none")
-        return
-    kappa = L.row.get("kappa")
-    try:
-        got = parameter_values(L.spec, float("nan") if kappa is None else float(kappa),
-                               L.row.get("theta") or None)
-    except Exception as exc:  # noqa: BLE001 - values that cannot be recomputed
-        L.add(field, UNSUPPORTED, f"cannot be recomputed: {type(exc).__name__}")
+    got = _recomputed(L, field, lambda kappa: parameter_values(L.spec, kappa,
+                                                               L.row.get("theta") or None))
+    if got is None:
         return
     ok = isinstance(v, Mapping) and all(
         k in got and (v[k] == got[k] or (math.isnan(v[k]) and math.isnan(got[k])))

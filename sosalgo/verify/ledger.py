@@ -36,14 +36,15 @@ BACKED, RECOMPUTED, CONTRADICTED = "backed", "recomputed", "contradicted"
 UNSUPPORTED, CONTEXT = "unsupported", "context"
 BAD = (CONTRADICTED, UNSUPPORTED)
 
-# not claims about the method: how the run went, or where it is written
+# not claims about the method: how the run went, where it is written, or what a run's
+# own --verify found (claims, vouched, unbacked: verify derives them again)
 RUN_FIELDS = frozenset({
     "seconds", "solves", "solver", "steps", "tol", "error", "warning", "max_eig_M",
     "min_eig_P", "rho_infeasible", "csv", "csvs", "figures", "source", "spec_text",
     "spec", "time_limited", "time_limit", "timed_out", "evaluations", "check_kind",
     "check", "simulation", "constant_estimate", "verification", "index", "kind",
     "method", "rate_type", "gap_met", "objective", "objective_status", "description",
-    "free", "box", "name", "note", "notes", "estimate"})
+    "free", "box", "name", "note", "notes", "estimate", "claims", "vouched", "unbacked"})
 CONDITION_FIELDS = frozenset({"kappa", "family", "lag", "reference", "set"})
 
 

@@ -69,6 +69,8 @@ def verify_family_certificate(
     out.update({"verified": str(ex.verified), "rho_proven": ex.rho_proven,
                 "rho_proven_float": ex.rho_proven_float, "delta": ex.delta,
                 "reason": ex.reason})
+    if getattr(ex, "units", None):  # proven for f/L (tiny or huge m, L): said so
+        out["units"] = ex.units
     if out_dir is not None:
         out["certificate_file"] = str(_write_certificate_file(
             out_dir, spec, family, kappa, rho, cert, theta, ex.to_dict(),
