@@ -24,7 +24,8 @@ import numpy as np
 from flint import arb, arb_mat
 
 from sosalgo.kernel.arb import arb_fraction, precision
-from sosalgo.pep.exact import ball, exact_method
+from sosalgo.pep.exact import ball, exact_method, exact_steps_or_none
+from sosalgo.pep.steps import is_time_varying
 from sosalgo.pep.structure import Method, last_calls
 from sosalgo.pep.terms import Term
 from sosalgo.spec import Spec
@@ -429,6 +430,11 @@ def check_witness(doc: dict[str, Any], spec: Spec, mt: Method | ArbView | None =
     out: dict[str, Any] = {"verified": False, "check_kind": "exact (rational and ball "
                            "arithmetic)", "tau_lower": None, "tau_lower_float": None}
     try:
+        if mt is None and is_time_varying(spec):  # the per-step methods, exactly
+            kappa = document_kappa(doc.get("kappa"), doc.get("kappa_exact"), "witness")
+            mt = exact_steps_or_none(spec, kappa, int(doc["steps"]))
+            if mt is None:
+                raise ValueError("the exact per-step methods cannot be built")
         if mt is None:
             kappa = document_kappa(doc.get("kappa"), doc.get("kappa_exact"), "witness")
             om, _ = bound_method(spec, class_kappa(spec, kappa))

@@ -18,7 +18,7 @@ from sosalgo.kernel.kappa import Kappa, kappa_fields
 from sosalgo.kernel.phases import show_phase
 from sosalgo.pep.bind import bound_method, class_kappa, initial_gradient
 from sosalgo.pep.sdp import PEPData, SDPAnswer, pep_data, solve_pep, value_residual
-from sosalgo.pep.steps import StepMethods, float_step_method
+from sosalgo.pep.steps import StepMethods, float_step_method, is_time_varying, spec_steps
 from sosalgo.pep.structure import Method, PEPStructure, build_structure, deadbeat_gain, output_call
 from sosalgo.pep.terms import Term, parse_terms
 from sosalgo.spec import Spec
@@ -138,6 +138,8 @@ def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None
     changes with k (:mod:`sosalgo.pep.steps`; the spec gives its class and terms)."""
     if isinstance(steps, bool) or not isinstance(steps, int) or not 1 <= steps <= MAX_STEPS:
         raise InputError(f"--steps: must be an integer in 1..{MAX_STEPS}, got {steps!r}")
+    if schedule is None and is_time_varying(spec):
+        schedule = spec_steps(spec, kappa, steps)
     if schedule is not None:
         om, kq = schedule.floats[0], (math.nan if kappa is None else float(kappa))
     else:
@@ -146,10 +148,9 @@ def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None
     initial = initial or default_initial(om)
     mterms = parse_terms(measure, "--measure", False, om.p)
     iterms = parse_terms(initial, "--initial", True, om.p)
+    mt = float_method(om, kq)
     if schedule is not None:
-        mt = float_step_method(schedule, kq, steps)
-    else:
-        mt = float_method(om, kq)
+        mt = float_step_method(schedule, mt, steps)
     mt.G0, mt.smooth = initial_gradient(spec, om, kq)
     try:
         st = build_structure(mt, steps, mterms, iterms)
@@ -166,6 +167,8 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
     (:mod:`sosalgo.pep.steps`), the spec giving the class, the units and the terms."""
     t0 = time.perf_counter()
     spec = _load(spec)
+    if schedule is None and is_time_varying(spec):
+        schedule = spec_steps(spec, kappa, steps)
     mt, st, mterms, iterms, names = pep_problem(spec, kappa, steps, measure, initial,
                                                 schedule)
     data = pep_data(mt, st)
@@ -210,7 +213,7 @@ def _exact_schedule(spec: Spec, kappa: float | None, schedule: StepMethods,
                     count: int) -> Method | None:
     """The exact method of a schedule's first ``count`` steps, None when it cannot be
     built (no exact matrices, or their fixed point not proven)."""
-    from sosalgo.pep.steps import exact_step_method
+    from sosalgo.pep.exact import exact_step_method
 
     try:
         return exact_step_method(spec, kappa, schedule, count)
