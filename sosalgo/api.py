@@ -42,9 +42,16 @@ def example(name: str) -> Spec:
     return spec_from_text(specs[name].read_text(), source=f"{name}.yaml")
 
 
-def as_spec(spec: Spec | str | Path) -> Spec:
-    """A Spec, loading it when given a path."""
-    return spec if isinstance(spec, Spec) else load_spec(spec)
+def as_spec(spec: Spec | str | Path, varying: bool = False) -> Spec:
+    """A Spec, loading it when given a path; a method that changes with k is refused (one
+    line naming ``sosalgo pep --steps``) unless the caller takes one (``varying``)."""
+    out = spec if isinstance(spec, Spec) else load_spec(spec)
+    if out.time_varying and not varying:
+        from sosalgo.spec import SpecError
+        from sosalgo.spec.types import VARIES
+
+        raise SpecError(out.source, "", VARIES.format(source=out.source))
+    return out
 
 
 def _kappas(spec: Spec, kappa: float | Sequence[float] | None) -> tuple[list[float], bool]:
@@ -149,7 +156,7 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
     dual certificate (proven exactly), the worst-case witness (checked exactly)."""
     from sosalgo.pep.core import pep as run
 
-    return run(as_spec(spec), kappa, steps, measure, initial, exact, witness)
+    return run(as_spec(spec, varying=True), kappa, steps, measure, initial, exact, witness)
 
 
 def noise(spec: Spec | str | Path, kappa: float | Sequence[float] | None = None,

@@ -17,7 +17,7 @@ import numpy as np
 from sosalgo.errors import ModelError
 from sosalgo.kernel.expr.compile import NumericError, compile_expression, compile_matrix
 from sosalgo.oracles import check_magnitudes
-from sosalgo.spec.types import BASE_NAMES, MATRIX_NAMES, Spec, value_order
+from sosalgo.spec.types import BASE_NAMES, MATRIX_NAMES, Spec, SpecError, value_order
 
 __all__ = ["Algorithm", "ModelError", "bind", "bind_sublinear", "design_box", "evaluate_algorithm",
            "fixed_point"]
@@ -120,6 +120,10 @@ _CACHE: weakref.WeakKeyDictionary[Spec, _Compiled] = weakref.WeakKeyDictionary()
 
 
 def _compiled(spec: Spec) -> _Compiled:
+    if spec.time_varying:  # one method per step: sosalgo.steps binds it
+        from sosalgo.spec.types import VARIES
+
+        raise SpecError(spec.source, "", VARIES.format(source=spec.source))
     comp = _CACHE.get(spec)
     if comp is None:
         comp = _CACHE[spec] = _Compiled(spec)

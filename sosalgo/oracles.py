@@ -32,7 +32,7 @@ from sosalgo.spec.types import Spec, SpecError
 
 __all__ = ["BoundFunction", "CallShape", "OracleMethod", "as_oracle_method", "check_oracle_spec",
            "check_magnitudes", "composite_quadratic_rate", "consistent_solution",
-           "fixed_point_basis"]
+           "fixed_point_basis", "fixed_point_system"]
 
 FIXED_POINT_TOL = 1e-8
 # Nonzero matrix entries must lie in [1/MAX_MAGNITUDE, MAX_MAGNITUDE] in magnitude: beyond,
@@ -155,6 +155,12 @@ class OracleMethod(CallShape):
 def fixed_point_basis(om: OracleMethod, tol: float = FIXED_POINT_TOL) -> np.ndarray | None:
     """xi* for x* = 1, s* = 0 and for x* = 0 with each free optimal subgradient (columns),
     or None when one of them does not exist (least squares, relative residual ``tol``)."""
+    return consistent_solution(*fixed_point_system(om), tol)
+
+
+def fixed_point_system(om: OracleMethod) -> tuple[np.ndarray, np.ndarray]:
+    """(lhs, rhs) of the fixed-point conditions: the basis X of :func:`fixed_point_basis`
+    solves lhs X = rhs."""
     n, p = om.n, om.p
     S = om.optimal_map()
     erow, drow = om.output_row()
@@ -166,7 +172,7 @@ def fixed_point_basis(om: OracleMethod, tol: float = FIXED_POINT_TOL) -> np.ndar
             rhs[:n, 1:] = om.B @ S
             rhs[n: n + p, 1:] = -om.D @ S
             rhs[n + p, 1:] = -(drow @ S)
-    return consistent_solution(lhs, rhs, tol)
+    return lhs, rhs
 
 
 def consistent_solution(lhs: np.ndarray, rhs: np.ndarray, tol: float = FIXED_POINT_TOL

@@ -30,6 +30,11 @@ Fail = Callable[[str, str], Exception]
 
 def check_values(spec: Spec, data: Mapping[str, Any], fail: Fail) -> None:
     """The numeric checks at the spec's own values, at every kappa of the spec."""
+    if spec.time_varying:
+        from sosalgo.steps import check_steps
+
+        check_steps(spec, fail)
+        return
     if spec.sublinear:
         check_sublinear_values(spec, fail)
         return

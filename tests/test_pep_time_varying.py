@@ -10,6 +10,7 @@ OGM, L/(2 theta_N^2) (Kim, Fessler 2016).
 
 from __future__ import annotations
 
+import math
 from fractions import Fraction
 
 import numpy as np
@@ -246,3 +247,81 @@ def test_no_exact_matrices_no_proof():
     assert res.certificate["tau_proven"] is None
     assert not res.certificate["check_kind"].startswith("exact")
     assert res.witness is None
+
+
+# --------------------------------------------------------------------------- shipped specs
+
+
+def _silver(n: int) -> list[float]:
+    """Altschuler and Parrilo's silver steps (units of 1/L): 1 + rho^(nu(i) - 1), rho =
+    1 + sqrt(2), nu(i) the 2-adic valuation of i = 1..n."""
+    rho = 1 + math.sqrt(2)
+    return [1 + rho ** (((i & -i).bit_length() - 1) - 1) for i in range(1, n + 1)]
+
+
+@pytest.mark.parametrize("N", [1, 2, 3, 7, 12])
+def test_ogm_spec_equals_kim_fessler(N):
+    """``pep specs/ogm.yaml``: L/(2 theta_N^2), proven above it, the witness below it."""
+    res = pep(spec_path("ogm"), None, N, witness=N <= 3)
+    bound = ogm_bound(N)
+    assert res.tau == pytest.approx(float(bound.mid()), rel=1e-6)
+    assert _above(_proven(res), bound)
+    assert float(_proven(res)) <= float(bound.mid()) * (1 + 2e-3)
+    if N <= 3:
+        check = res.witness["check"]
+        assert check["verified"], check
+        assert float(Fraction(check["tau_lower"])) <= float(bound.mid())
+
+
+@pytest.mark.parametrize("N", [1, 2, 3, 4, 5])
+def test_fista_spec_against_pepit(N):
+    """``pep specs/fista.yaml``: PEPit's FISTA values (F at the N-th prox point)."""
+    res = pep(spec_path("fista"), None, N, witness=False)
+    assert res.tau == pytest.approx(PEPIT_FISTA[N], rel=PEER_REL)
+    assert float(_proven(res)) >= PEPIT_FISTA[N] * (1 - PEER_REL)
+
+
+@pytest.mark.parametrize("N", [1, 3, 7])
+def test_silver_spec_against_pepit(N):
+    """``pep specs/silver.yaml`` (its own 7 steps at N = 7, ``--set h=[...]`` otherwise):
+    PEPit's silver values."""
+    from sosalgo.runs.pep import pep_run
+
+    sets = None if N == 7 else {"h": "[" + ", ".join(repr(h) for h in _silver(N)) + "]"}
+    doc = pep_run(spec_path("silver"), None, N, out_dir=None, progress=False, plot=False,
+                  witness=False, overrides=sets)
+    assert doc["tau"] == pytest.approx(PEPIT_SILVER[N], rel=PEER_REL)
+    proven = Fraction(doc["certificate"]["tau_proven"])
+    assert float(proven) >= PEPIT_SILVER[N] * (1 - PEER_REL)
+    assert [float(h) for h in doc["schedule"]["h"]] == pytest.approx(_silver(N), rel=1e-12)
+
+
+def test_cli_pep_and_verify_on_a_schedule(tmp_path):
+    """``sosalgo pep specs/gradient-schedule.yaml --steps 3 --set h=[1, 3/2, 1/2]`` writes
+    a row and a witness that ``sosalgo verify`` re-proves; a tampered schedule in the
+    recorded overrides does not verify."""
+    import json
+
+    from click.testing import CliRunner
+
+    from sosalgo.cli import cli
+
+    run = CliRunner()
+    out = tmp_path / "o"
+    r = run.invoke(cli, ["pep", str(spec_path("gradient-schedule")), "--steps", "3", "--set",
+                         "h=[1, 3/2, 1/2]", "--out", str(out), "--json", "--quiet",
+                         "--no-plot"], catch_exceptions=False)
+    assert r.exit_code == 0, r.output
+    doc = json.loads(r.output)
+    assert doc["schedule"]["h"] == ["1.0", "1.5", "0.5"]
+    for path in sorted(out.glob("*.json")):
+        if path.name.endswith("settings.json"):
+            continue
+        v = run.invoke(cli, ["verify", str(path)], catch_exceptions=False)
+        assert v.exit_code == 0, (path.name, v.output)
+    w = out / "gradient-schedule-pep-N3-witness.json"
+    bad = json.loads(w.read_text())
+    bad["set"] = {"h": "[1, 1, 1/2]"}
+    (tmp_path / "bad.json").write_text(json.dumps(bad))
+    v = run.invoke(cli, ["verify", str(tmp_path / "bad.json")], catch_exceptions=False)
+    assert v.exit_code == 3, v.output

@@ -113,16 +113,29 @@ def sublinear_rows(spec: Any) -> list[dict[str, Any]]:
              "references": reference_values(spec, float("nan"))}]
 
 
-def spec_numbers(path: Path, cache: Path) -> tuple[dict[str, Any], Path]:
-    """The numbers of one spec and its figure, from the cache or computed (and cached)."""
+def varying_rows(spec: Any) -> list[dict[str, Any]]:
+    """A method that changes with k: its references at a few horizons N (the horizon of its
+    lists when it has some)."""
+    from sosalgo.steps import horizon, reference_values
+
+    listed = any(par.schedule is not None for par in spec.parameters.values())
+    steps = [horizon(spec, None)] if listed else [1, 2, 5, 10, 20]
+    return [{"steps": n, "references": reference_values(spec, None, n)} for n in steps]
+
+
+def spec_numbers(path: Path, cache: Path) -> tuple[dict[str, Any], Path | None]:
+    """The numbers of one spec and its figure (None for a method that changes with k),
+    from the cache or computed (and cached)."""
     from sosalgo_gallery_render import draw_figure
 
     text = path.read_text(encoding="utf-8")
     key = cache_key(text)
     data_file, figure = cache / f"{path.stem}-{key}.json", cache / f"{path.stem}-{key}.png"
+    spec = sosalgo.load_spec(path)
+    if spec.time_varying:
+        return {"name": spec.name, "rows": varying_rows(spec)}, None
     if data_file.exists() and figure.exists():
         return json.loads(data_file.read_text(encoding="utf-8")), figure
-    spec = sosalgo.load_spec(path)
     rows = sublinear_rows(spec) if spec.sublinear else linear_rows(spec)
     data = {"name": spec.name, "rows": rows}
     cache.mkdir(parents=True, exist_ok=True)
@@ -171,7 +184,8 @@ def generate_gallery(app: Sphinx) -> None:
         except ValueError as exc:  # a spec the loader refuses: name it, no traceback
             raise ExtensionError(f"sosalgo_gallery: {path}: {exc}") from None
         image = src / "_generated" / "gallery" / f"{path.stem}-rate.png"
-        write_if_changed(image, figure.read_bytes())
+        if figure is not None:
+            write_if_changed(image, figure.read_bytes())
         yaml_rel = Path(os.path.relpath(path, gallery)).as_posix()
         page = page_markdown(spec, data["rows"], yaml_rel, f"/_generated/gallery/{image.name}")
         write_if_changed(gallery / f"{path.stem}.md", MARKER + "\n" + page)
@@ -187,6 +201,8 @@ def generate_gallery(app: Sphinx) -> None:
 def summary(rows: list[dict[str, Any]]) -> str:
     """One phrase for the index: the certified rate at kappa = 10 (else the middle kappa of
     the table), or the certified constant."""
+    if "steps" in rows[0]:
+        return "changes with k: `sosalgo pep --steps N`"
     if "constant" in rows[0]:
         c = rows[0]["proven"]
         return ("no constant certified" if c is None

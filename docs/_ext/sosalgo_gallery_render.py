@@ -183,6 +183,10 @@ def parameter_table(spec: Any) -> list[str]:
         sym = tex(sp.Symbol(name))
         value = (f"${sym} = {tex(to_sympy(par.tied))}$ (tied)" if par.is_tied
                  else f"${sym} = {tex(to_sympy(par.value))}$")
+        if par.schedule is not None:  # one value per step
+            value = "$" + ", ".join(tex(to_sympy(e)) for e in par.schedule) + "$ (per step)"
+        elif par.per_step:
+            value += " (free per step)" if par.range is not None else ""
         rng = "" if par.range is None else (
             f"$[{tex(to_sympy(par.range[0]))}, {tex(to_sympy(par.range[1]))}]$")
         rows += [f"* - ${sym}$", f"  - {value}", f"  - {rng}"]
@@ -276,15 +280,53 @@ def rates_section(spec: Any, rows: list[dict[str, Any]], image: str) -> list[str
     return lines
 
 
+def steps_section(spec: Any, rows: list[dict[str, Any]]) -> list[str]:
+    """A method that changes with k: what its matrices use, and its references against the
+    horizon N (its worst case is the finite-horizon PEP, ``sosalgo pep --steps N``)."""
+    text = (r"Its coefficients depend on the iteration $k = 0, \dots, N - 1$ (and the "
+            "horizon $N$): the matrices above are those of step $k$")
+    seqs = [f"${tex(sp.Symbol(s))}$" for s in spec.sequences]
+    if seqs:
+        text += (", written with the sequence " + ", ".join(seqs) + " at $k$ (its value "
+                 "at $k + 1$ carries the subscript next)")
+    text += (". Its worst case after $N$ steps is a performance estimation problem: "
+             "`sosalgo pep SPEC --steps N` "
+             "([methods that change with k](../spec.md#methods-that-change-with-k)).")
+    lines = ["## A method that changes with k", "", text, ""]
+    for name, decl in spec.sequences.items():
+        from sosalgo_gallery import to_sympy
+
+        sym = tex(sp.Symbol(name))
+        rules = [f"${sym}_0 = {tex(to_sympy(decl.first))}$",
+                 f"${sym}_{{k+1}} = {tex(to_sympy(decl.next))}$"]
+        if decl.last is not None:
+            rules.append(f"${sym}_N = {tex(to_sympy(decl.last))}$")
+        lines.append(f"- {', '.join(rules)} (on the right, ${sym}$ is ${sym}_k$)")
+    refs = list(spec.references)
+    if not refs:
+        return lines + [""]
+    table = ["", "```{list-table}", ":header-rows: 1", "", "* - $N$"]
+    table += [f"  - reference: {md_text(r)}" for r in refs]
+    for row in rows:
+        table.append(f"* - {row['steps']}")
+        table += [f"  - {row['references'][r]:.6f}" for r in refs]
+    return lines + table + ["```", ""]
+
+
 def page_markdown(spec: Any, rows: list[dict[str, Any]], yaml_path: str, image: str) -> str:
     """The whole gallery page of one spec."""
     lines = [f"({'gallery-' + spec.name})=", f"# {md_text(spec.name)}", "",
              md_text(spec.description), ""]
     lines += update_rule(spec)
-    lines += rates_section(spec, rows, image)
+    command = f"sosalgo analyze {spec.name}.yaml"
+    if spec.time_varying:
+        lines += steps_section(spec, rows)
+        command = f"sosalgo pep {spec.name}.yaml --steps {rows[0]['steps']}"
+    else:
+        lines += rates_section(spec, rows, image)
     lines += ["## The spec", "",
               f"Copy it with `sosalgo examples {spec.name} --copy .`, then run "
-              f"`sosalgo analyze {spec.name}.yaml`.", "",
+              f"`{command}`.", "",
               f"```{{literalinclude}} {yaml_path}", ":language: yaml", "```", ""]
     return "\n".join(lines)
 

@@ -22,7 +22,7 @@ from sosalgo.errors import InputError
 from sosalgo.kernel import budget
 from sosalgo.kinds import ANALYSIS_KIND, DESIGN_KIND, GRID_KIND, TABLE1_KIND
 from sosalgo.schema import analysis_csv, design_stem, grid_stem, rate_stem
-from sosalgo.spec import Spec
+from sosalgo.spec import Spec, SpecError
 from sosalgo.store import output_lock
 
 __all__ = ["analyze_run", "design_run", "grid_run", "set_field", "spec_with_text",
@@ -32,11 +32,24 @@ Kappas = float | Sequence[float] | None
 
 
 def spec_with_text(spec: Spec | str | Path, spec_text: str | None = None,
-                   overrides: Mapping[str, str] | None = None) -> tuple[Spec, str]:
+                   overrides: Mapping[str, str] | None = None, varying: bool = False
+                   ) -> tuple[Spec, str]:
     """(spec, its YAML text): batch runs send the text to workers and settings files. A
     path is read once (a pipe works; a shipped example's name reads the example); a Spec
     needs its ``spec_text``. ``overrides`` (``--set NAME=EXPR``) fix parameters: the text
-    returned is the spec's with them applied (:mod:`sosalgo.spec.overrides`)."""
+    returned is the spec's with them applied (:mod:`sosalgo.spec.overrides`). A method
+    that changes with k is refused (one line naming ``sosalgo pep --steps``) unless the
+    command takes one (``varying``)."""
+    spec, text = _spec_and_text(spec, spec_text, overrides)
+    if spec.time_varying and not varying:
+        from sosalgo.spec.types import VARIES
+
+        raise SpecError(spec.source, "", VARIES.format(source=spec.source))
+    return spec, text
+
+
+def _spec_and_text(spec: Spec | str | Path, spec_text: str | None,
+                   overrides: Mapping[str, str] | None) -> tuple[Spec, str]:
     from sosalgo.spec import read_spec_text, spec_from_text
     from sosalgo.spec.overrides import apply_overrides
 

@@ -122,7 +122,7 @@ def pep_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = Non
     from sosalgo.schema import PEP_COLUMNS, pep_csv
     from sosalgo.store import ResumableCSV
 
-    spec, text = spec_with_text(spec, spec_text, overrides)
+    spec, text = spec_with_text(spec, spec_text, overrides, varying=True)
     recorded = set_field(overrides)
     ks: list[float | None] = ([None] if kappa is None else
                               [kappa_value(kappa)] if isinstance(kappa, int | float | str)

@@ -244,6 +244,9 @@ def spec_from_dict(data: object, source: str = "<spec>") -> Spec:
 class _Builder:
     def __init__(self, source: str):
         self.source = source
+        self.sequence_keys: list[str] = []  # sequences: s[k], s[k+1] are rewritten
+        self.step_names: tuple[str, ...] = ()  # k, N and the sequences' names
+        self.in_references = False  # references may use s[N], a sequence's last value
 
     def fail(self, field_: str, message: str) -> SpecError:
         return SpecError(self.source, field_, message)
@@ -279,7 +282,8 @@ class _Builder:
             if pname in RESERVED:
                 raise self.fail(f"parameters.{pname}", "name is reserved")
             symbols.append(pname)
-        names = frozenset(BASE_NAMES) | frozenset(symbols)
+        sequences = self.sequences(data.get("sequences"), symbols)
+        names = frozenset(BASE_NAMES) | frozenset(symbols) | frozenset(self.step_names)
         params = {p: self.parameter(p, raw, names) for p, raw in raw_params.items()}
         tied_order(params, self.source)  # detects cycles
         value_order(params, self.source)
@@ -293,8 +297,19 @@ class _Builder:
         output = self.output(data, raw_matrices, len(oracles))
         matrices = self.matrices(raw_matrices, names, len(oracles), output is not None)
         named = self.check_sizes(params, matrices)
-        references = self.references(data.get("references", {}))
+        varies = self.varies(sequences, params, matrices)
+        from sosalgo.spec.time_varying import LAST_SUFFIX
+
+        self.in_references = True
+        ends = (*(("N",) if "N" in self.step_names else ()),
+                *(s + LAST_SUFFIX for s in sequences))
+        references = self.references(data.get("references", {}), ends)
+        self.in_references = False
+        varies = varies or any(e.names() & set(ends) for e in references.values())
         kappa = () if m == 0 else self.kappa(data.get("kappa", [10]))
+        if varies and data.get("initial_state") is not None:
+            raise self.fail("initial_state", "not supported for a method that changes with k "
+                            "(it starts at xi_0 = u x0)")
         from sosalgo.spec.initial_state import parse_initial_state
 
         initial_state = parse_initial_state(data.get("initial_state"), {*BASE_NAMES, *symbols},
@@ -308,6 +323,7 @@ class _Builder:
             functions=functions, oracles=oracles, output=output, measure=measure, L=L,
             initial_state=initial_state, m_expr=parse_tree(data.get("m", 1), ()),
             L_expr=parse_tree(data["L"], ()) if L is not None else None,
+            sequences=sequences, time_varying=varies,
         )
         if spec.sublinear:
             self.check_sublinear(spec)
@@ -366,6 +382,10 @@ class _Builder:
         found += [(f"references.{k}", e) for k, e in spec.references.items()]
         found += [(f"functions.{f}.{k}", e) for f, d in spec.functions.items()
                   for k, e in d.params.items()]
+        found += [(f"sequences.{s}.{k}", getattr(d, k)) for s, d in spec.sequences.items()
+                  for k in ("first", "next", "last")]
+        found += [(f"parameters.{p}[{i}]", e) for p, par in spec.parameters.items()
+                  for i, e in enumerate(par.schedule or ())]
         for where, expr in found:
             if expr is not None and "kappa" in expr.names():
                 raise self.fail(where, "uses kappa, undefined when m: 0 (use L)")
@@ -443,24 +463,70 @@ class _Builder:
 
     # -- parameters ------------------------------------------------------------------
     def parameter(self, pname: str, raw: object, names: frozenset[str]) -> Parameter:
+        from sosalgo.spec.time_varying import parse_schedule, per_step_flag, uses_step
+
         where = f"parameters.{pname}"
         if isinstance(raw, dict):
             for key in raw:
-                if key not in ("value", "range"):
-                    raise self.fail(f"{where}.{str(key)[:40]}", "unknown field (use value, range)")
+                if key not in ("value", "range", "per_step"):
+                    raise self.fail(f"{where}.{str(key)[:40]}",
+                                    "unknown field (use value, range, per_step)")
             if "value" not in raw:
                 raise self.fail(f"{where}.value", "missing (analysis needs a value)")
-            value = self.expr(raw["value"], names, f"{where}.value")
-            if pname in value.names():
-                raise self.fail(f"{where}.value", "refers to itself")
             rng = None
             if "range" in raw:
                 rng = self.range(raw["range"], f"{where}.range")
-            return Parameter(pname, value=value, range=rng)
+            flag = per_step_flag(raw.get("per_step", False), f"{where}.per_step", self.fail)
+            if isinstance(raw["value"], list):
+                return parse_schedule(pname, raw["value"], rng, False, self.fail, self.expr)
+            value = self.expr(raw["value"], names, f"{where}.value")
+            if pname in value.names():
+                raise self.fail(f"{where}.value", "refers to itself")
+            per_step = flag or uses_step(value, self.step_names)
+            return Parameter(pname, value=value, range=rng, per_step=per_step)
         if raw is None:
             raise self.fail(where, "missing value: give {value: ..., range: [lo, hi]} or a tie")
+        if isinstance(raw, list):
+            return parse_schedule(pname, raw, None, True, self.fail, self.expr)
         tied = self.expr(raw, names, where)
         return Parameter(pname, tied=tied)
+
+    # -- methods that change with k ---------------------------------------------------
+    def sequences(self, raw: object, symbols: list[str]) -> dict[str, Any]:
+        """``sequences:`` (:mod:`sosalgo.spec.time_varying`); sets the names k, N and the
+        sequences' that the parameters and matrices may use."""
+        from sosalgo.spec.time_varying import (
+            index_names,
+            parse_sequences,
+            sequence_keys,
+            sequence_names,
+        )
+
+        keys = sequence_keys(raw, self.fail)
+        for name in sequence_names(keys):
+            if name in symbols:
+                raise self.fail(f"parameters.{name}", "a sequence has this name")
+        index = index_names(symbols)
+        self.sequence_keys = keys
+        self.step_names = (*index, *sequence_names(keys))
+        return parse_sequences(raw, keys, index, self.fail, self.expr) if keys else {}
+
+    def varies(self, sequences: dict[str, Any], params: dict[str, Parameter],
+               matrices: dict[str, ExprMatrix]) -> bool:
+        """Whether the method changes with k; the listed schedules must agree in length
+        (they fix the horizon N)."""
+        from sosalgo.spec.time_varying import schedule_lengths, uses_step
+
+        lengths = schedule_lengths(params)
+        if len(set(lengths.values())) > 1:
+            (p0, n0), *rest = lengths.items()
+            p1, n1 = next((p, n) for p, n in rest if n != n0)
+            raise self.fail(f"parameters.{p1}", f"{n1} values, but parameters.{p0} has {n0} "
+                            "(one value per step: the lists fix the horizon N)")
+        exprs = [e for par in params.values() for e in (par.value, par.tied)]
+        exprs += [e for rows in matrices.values() for row in rows for e in row]
+        return (bool(sequences) or any(par.per_step for par in params.values())
+                or any(uses_step(e, self.step_names) for e in exprs))
 
     def range(self, raw: object, where: str) -> tuple[Expr, Expr]:
         if not isinstance(raw, list) or len(raw) != 2:
@@ -503,6 +569,10 @@ class _Builder:
 
     def expr(self, raw: object, names: Collection[str], where: str) -> Expr:
         try:
+            if self.sequence_keys:
+                from sosalgo.spec.time_varying import rewrite_indices
+
+                raw = rewrite_indices(raw, self.sequence_keys, self.in_references)
             return parse_tree(raw, names)
         except ExprError as exc:
             raise self.fail(where, str(exc)) from None
@@ -557,7 +627,7 @@ class _Builder:
         return tuple(rows)
 
     # -- references and kappa --------------------------------------------------------
-    def references(self, raw: object) -> dict[str, Expr]:
+    def references(self, raw: object, extra: tuple[str, ...] = ()) -> dict[str, Expr]:
         if raw is None:
             return {}
         if not isinstance(raw, dict):
@@ -572,7 +642,7 @@ class _Builder:
                 raise self.fail(f"references.{key[:40]}", "name has non-printable characters")
             if key in RESERVED_COLUMNS or re.fullmatch(r"P\d+", key):
                 raise self.fail(f"references.{key}", "name clashes with an output column")
-            out[key] = self.expr(val, BASE_NAMES, f"references.{key}")
+            out[key] = self.expr(val, (*BASE_NAMES, *extra), f"references.{key}")
         return out
 
     def kappa(self, raw: object) -> tuple[float, ...]:

@@ -53,20 +53,26 @@ def apply_overrides(text: str, overrides: Mapping[str, str], source: str) -> str
 
     if not overrides:
         return text
+    from sosalgo.spec.time_varying import index_names, rewrite_indices, sequence_names
+
     base = spec_from_text(text, source)  # the spec's own errors are the spec's
     data = yaml.safe_load(text)
     params = data.get("parameters") or {}
-    names = frozenset(BASE_NAMES) | frozenset(base.parameters)
+    names = (frozenset(BASE_NAMES) | frozenset(base.parameters)
+             | frozenset(index_names(base.parameters)) | frozenset(sequence_names(base.sequences)))
     for name, expr in overrides.items():
         if name not in base.parameters:
             known = ", ".join(base.parameters) or "none"
             raise InputError(f"--set {name}: unknown parameter of {source} (parameters: "
                              f"{known})")
+        value: str | list[str] = _schedule(name, expr)
         try:
-            parse_tree(expr, names)
+            for entry in [value] if isinstance(value, str) else value:
+                parse_tree(rewrite_indices(entry, base.sequences),
+                           BASE_NAMES if isinstance(value, list) else names)
         except ExprError as exc:
             raise InputError(f"--set {name}: {exc}") from None
-        params[name] = expr
+        params[name] = value
     data["parameters"] = params
     new = yaml.safe_dump(data, sort_keys=False, allow_unicode=True, width=1000,
                          default_flow_style=None)
@@ -76,6 +82,21 @@ def apply_overrides(text: str, overrides: Mapping[str, str], source: str) -> str
         which = ", ".join(overrides)
         raise InputError(f"--set {which}: {exc.field}: {exc.message}") from None
     return new
+
+
+def _schedule(name: str, expr: str) -> str | list[str]:
+    """``[e1, e2, ...]``: one value per step (a list of expressions); else ``expr``."""
+    text = expr.strip()
+    if not (text.startswith("[") and text.endswith("]")):
+        return expr
+    inner = text[1:-1]
+    if "[" in inner or "]" in inner:
+        raise InputError(f"--set {name}: a list of values [e1, e2, ...] (expressions of m, "
+                         "L, kappa), one per step")
+    entries = [e.strip() for e in inner.split(",")]
+    if not all(entries):
+        raise InputError(f"--set {name}: empty entry in the list {text}")
+    return entries
 
 
 def same_overrides_applied(text: str, overrides: Mapping[str, str], source: str) -> bool:

@@ -20,17 +20,22 @@ if TYPE_CHECKING:
     import sympy as sp
 
 __all__ = [
-    "BASE_NAMES", "MATRIX_NAMES", "MEASURES", "ExprMatrix", "FunctionDecl", "Parameter",
-    "Spec", "SpecError", "deps", "tied_order", "value_order",
+    "BASE_NAMES", "INDEX_NAMES", "MATRIX_NAMES", "MEASURES", "NEXT_SUFFIX", "VARIES", "ExprMatrix",
+    "FunctionDecl", "Parameter", "SequenceDecl", "Spec", "SpecError", "deps", "tied_order",
+    "value_order",
 ]
 
 BASE_NAMES = ("m", "L", "kappa")
+INDEX_NAMES = ("k", "N")  # the iteration index (0-based) and the horizon of a varying spec
+NEXT_SUFFIX = "_next"  # ``theta_next``: a sequence's next value theta[k+1]
+# what a command that takes no method changing with k says (after the file's name)
+VARIES = "varies with k: use `sosalgo pep {source} --steps N`"
 MATRIX_NAMES = ("A", "B", "C", "E")
 ORACLE_MATRIX_NAMES = ("A", "B", "C", "D", "E")  # D optional; E absent with ``output``
 MEASURES = ("function", "distance")
 TOP_KEYS = {
     "name", "description", "parameters", "matrices", "references", "kappa", "m", "certificate",
-    "functions", "oracles", "measure", "output", "L", "initial_state",
+    "functions", "oracles", "measure", "output", "L", "initial_state", "sequences",
 }
 NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,79}$")
 PARAM_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,31}$")
@@ -49,6 +54,8 @@ MAX_FUNCTIONS = 8
 MAX_PARAMETERS = 100
 MAX_REFERENCES = 100
 MAX_KAPPA_POINTS = 10_000
+MAX_SEQUENCES = 8
+MAX_SCHEDULE = 1000  # values of a per-step list (the horizon of a listed schedule)
 MAX_MESSAGE = 300  # characters of a SpecError's field or message (the rest is cut)
 
 
@@ -91,16 +98,37 @@ class SpecError(InputError):
 
 @dataclass(frozen=True)
 class Parameter:
-    """A tunable parameter (``value`` and optional ``range``) or a tied one (``tied``)."""
+    """A tunable parameter (``value`` and optional ``range``) or a tied one (``tied``).
+
+    A parameter of a method that changes with k (docs/spec.md, "Methods that change with
+    k") may be a ``schedule`` (one value per step; ``value`` is then its first entry) and
+    is ``per_step`` when it can take a different value at each step (a schedule, a value
+    that uses k, N or a sequence, or ``per_step: true``): free per step in a design when
+    it has a range; ``fixed`` when the spec wrote it as a bare list (a tie per step)."""
 
     name: str
     value: Expr | None = None
     range: tuple[Expr, Expr] | None = None
     tied: Expr | None = None
+    schedule: tuple[Expr, ...] | None = None
+    per_step: bool = False
+    fixed: bool = False
 
     @property
     def is_tied(self) -> bool:
         return self.tied is not None
+
+
+@dataclass(frozen=True)
+class SequenceDecl:
+    """A named sequence s_0, ..., s_N of a method that changes with k: ``first`` (s_0),
+    ``next`` (s_{k+1} from s_k, written with the name for s_k) and the optional ``last``
+    (s_N from s_{N-1}, replacing ``next`` at the last step: OGM's theta_N)."""
+
+    name: str
+    first: Expr
+    next: Expr
+    last: Expr | None = None
 
 
 @dataclass(frozen=True)
@@ -148,6 +176,11 @@ class Spec:
     # None: the floats above are all there is
     m_expr: Expr | None = None
     L_expr: Expr | None = None
+    # a method that changes with k: named sequences (in their order) and whether anything
+    # varies with k (sequences, schedules, per-step parameters, k or N in an expression);
+    # sosalgo.steps binds such a spec step by step
+    sequences: dict[str, SequenceDecl] = field(default_factory=dict)
+    time_varying: bool = False
     _sympy: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     @property
@@ -241,6 +274,8 @@ class Spec:
         """
         from sosalgo.kernel.expr.parse import to_sympy
 
+        if self.time_varying:  # one method per step: sosalgo.steps binds it
+            raise SpecError(self.source, "", VARIES.format(source=self.source))
         symbols = self.symbols
         sub: dict[sp.Symbol, sp.Expr] = {}
         tied = self.tied_closure()
