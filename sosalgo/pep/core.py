@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 import re
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -221,12 +221,49 @@ def _exact_schedule(spec: Spec, kappa: float | None, schedule: StepMethods,
         return None
 
 
-def _ladder(steps: int) -> list[tuple[float, bool]]:
+def _ladder(steps: int, mixed: bool = False) -> list[tuple[float, bool]]:
     """(relative margin, tight tolerances) of the certificate solves, in order: the first
     margin at Clarabel's default tolerances, then again at tight ones (a default solve's
-    dual may miss the proof by its accuracy), then the larger margins."""
+    dual may miss the proof by its accuracy), then the larger margins. ``mixed`` (an
+    interior certificate to mix with, :func:`_mixed`): the measure's own answer first
+    (margin 0), then every margin at default tolerances."""
+    if mixed:
+        return [(0.0, False)] + [(r, False) for r in MARGINS + LONG_MARGINS]
     rels = MARGINS + LONG_MARGINS if steps <= LONG else LONG_MARGINS
     return [(rels[0], False), (rels[0], True)] + [(r, False) for r in rels[1:]]
+
+
+INTERIOR_MARGINS = (1e-3, 1e-2)  # relative margins of the interior certificate
+
+
+def _interior_certificate(data: PEPData, tau: float, scale: float) -> SDPAnswer | None:
+    """A dual certificate with S clearly positive definite (a large margin: its tau is
+    about 1e-3 above), None when none solves; mixed into the candidates of a degenerate
+    SDP (:func:`_mixed`)."""
+    for rel in INTERIOR_MARGINS:
+        cand = solve_pep(data, margin=rel / scale, unit=tau if tau > 1e-200 else 1.0)
+        if cand.status == "solved" and cand.S is not None and _min_eig(cand.S, data.w) > 0:
+            return cand
+    return None
+
+
+def _min_eig(S: np.ndarray, w: np.ndarray) -> float:
+    return float(np.linalg.eigvalsh(S * np.outer(w, w))[0])
+
+
+def _mixed(cand: SDPAnswer, inner: SDPAnswer, w: np.ndarray) -> SDPAnswer:
+    """cand mixed with the interior certificate: (tau, lambda) = (1 - theta) cand +
+    theta inner (S and c_F are affine in them), theta the smallest that makes the scaled S
+    clearly positive definite in floating point (min eig at least 3 times cand's
+    deficit): tau grows by theta (tau_inner - tau). cand itself when already so."""
+    a, b = _min_eig(cand.S, w), _min_eig(inner.S, w)  # type: ignore[arg-type]
+    floor = 1e-12 * max(1.0, float(np.abs(cand.S * np.outer(w, w)).max()))  # type: ignore[operator]
+    if a >= floor or b <= 0:
+        return cand
+    theta = min(1.0, 4 * (floor - a) / (b - a))
+    lam = (1 - theta) * cand.lam + theta * inner.lam  # type: ignore[operator]
+    tau = (1 - theta) * float(cand.tau) + theta * float(inner.tau)  # type: ignore[arg-type]
+    return replace(cand, tau=tau, lam=lam, S=(1 - theta) * cand.S + theta * inner.S)
 
 
 def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
@@ -241,12 +278,15 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
     cert: dict[str, Any] = {"tau": ans.tau, "check_kind": "floating-point check",
                             "tau_proven": None, "proof": None}
     best = ans
-    for rel, precise in _ladder(st.steps) if exact else ():
+    inner = _interior_certificate(data, tau, scale) if exact and data.strong else None
+    for rel, precise in _ladder(st.steps, inner is not None) if exact else ():
         eps = rel / scale  # relative to tau: the measure is divided by tau
-        cand = solve_pep(data, margin=eps, unit=tau if tau > 1e-200 else 1.0,
-                         precise=precise)
+        cand = ans if rel == 0 else solve_pep(data, margin=eps, unit=tau if tau > 1e-200
+                                              else 1.0, precise=precise)
         if cand.status != "solved":
             continue
+        if inner is not None:
+            cand = _mixed(cand, inner, data.w)
         best = cand
         from sosalgo.pep.exact import prove_certificate
 

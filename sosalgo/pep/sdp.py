@@ -73,8 +73,9 @@ class PEPData:
     active: np.ndarray
     w: np.ndarray  # (d,) G = W H W
     v: np.ndarray  # (nF,) F = V F'
-    # the measure's solves also try the strong regularization (:data:`STRONG`): methods
-    # that change with k (OGM at N = 30 ends "almost solved" without)
+    # the measure's solves also try the strong regularization (:data:`STRONG`), and a
+    # margin solve that ends almost solved gives its multipliers as a candidate
+    # certificate: methods that change with k (OGM ends "almost solved" at N = 30)
     strong: bool = False
     _svec: dict[int, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
 
@@ -379,8 +380,10 @@ def _solve_dual(data: PEPData, active: np.ndarray, margin: float, unit: float,
     x, z = np.array(sol.x), np.array(sol.z)
     H, Fs = unsvec(z[K + nF:], d), z[K:K + nF]
     G, F = H * np.outer(data.w, data.w), Fs * data.v
-    if st_ != SolverStatus.SOLVED:  # G, F of an almost solved problem: a scale only
-        almost = raw.startswith("Almost")
+    almost = raw.startswith("Almost")
+    if st_ != SolverStatus.SOLVED and not (almost and margin > 0 and data.strong):
+        # G, F of an almost solved problem: a scale only (with ``strong``, a margin
+        # solve's almost solved multipliers are a candidate: the exact check decides)
         return SDPAnswer("almost" if almost and rough else "failed", raw,
                          G=G if almost else None, F=F)
     lam = np.zeros(len(st.pairs))
