@@ -254,13 +254,13 @@ def _min_eig(S: np.ndarray, w: np.ndarray) -> float:
 def _mixed(cand: SDPAnswer, inner: SDPAnswer, w: np.ndarray) -> SDPAnswer:
     """cand mixed with the interior certificate: (tau, lambda) = (1 - theta) cand +
     theta inner (S and c_F are affine in them), theta the smallest that makes the scaled S
-    clearly positive definite in floating point (min eig at least 3 times cand's
+    clearly positive definite in floating point (min eig at least cand.s
     deficit): tau grows by theta (tau_inner - tau). cand itself when already so."""
     a, b = _min_eig(cand.S, w), _min_eig(inner.S, w)  # type: ignore[arg-type]
     floor = 1e-12 * max(1.0, float(np.abs(cand.S * np.outer(w, w)).max()))  # type: ignore[operator]
     if a >= floor or b <= 0:
         return cand
-    theta = min(1.0, 4 * (floor - a) / (b - a))
+    theta = min(1.0, 2 * (floor - a) / (b - a))
     lam = (1 - theta) * cand.lam + theta * inner.lam  # type: ignore[operator]
     tau = (1 - theta) * float(cand.tau) + theta * float(inner.tau)  # type: ignore[arg-type]
     return replace(cand, tau=tau, lam=lam, S=(1 - theta) * cand.S + theta * inner.S)
