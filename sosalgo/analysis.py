@@ -911,7 +911,7 @@ def quadratic_rate(alg: Algorithm, points: int = 2001) -> float:
     quadratics, a lower bound for any certificate family (drawn on comparison plots). For
     a method of the oracle model: every function a quadratic of its class
     (:func:`sosalgo.oracles.composite_quadratic_rate`)."""
-    if hasattr(alg, "oracles"):
+    if not alg.has_seed_form:
         from sosalgo.oracles import composite_quadratic_rate
 
         return composite_quadratic_rate(alg, min(points, 201))  # type: ignore[arg-type]

@@ -2,7 +2,9 @@
 parameter values), with exact sympy entries and rational ball enclosures of the irrational
 ones (:func:`exact_algorithm`), and its fixed point of eq. (11) proven exactly
 (:func:`exact_fixed_point`). The exact twin of :func:`sosalgo.model.bind`, used by every
-family's exact check and by the noise proofs.
+family's exact check and by the noise proofs; on the oracle model with every function's
+class parameters enclosed (:func:`exact_oracle_method`, the exact twin of
+:class:`sosalgo.oracles.OracleMethod`).
 """
 
 from __future__ import annotations
@@ -10,23 +12,28 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from fractions import Fraction
+from typing import Any
 
 import numpy as np
 import sympy as sp
 
+from sosalgo.classes import CLASSES
 from sosalgo.kernel.exact import (
     DEFAULT_DIGITS,
+    Ball,
     BallMatrix,
     enclose,
     fraction_str,
     is_zero,
+    object_matrix,
     rational,
 )
 from sosalgo.kernel.expr.parse import to_sympy
+from sosalgo.oracles import CallShape
 from sosalgo.spec.types import BASE_SYMBOLS, ORACLE_MATRIX_NAMES, Spec, value_order
 
-__all__ = ["ExactAlgorithm", "exact_algorithm", "exact_fixed_point", "scaled_method",
-           "units_far_from_one"]
+__all__ = ["ExactAlgorithm", "ExactOracleMethod", "exact_algorithm", "exact_fixed_point",
+           "exact_oracle_method", "scaled_method", "units_far_from_one"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -140,3 +147,42 @@ def exact_fixed_point(ex: ExactAlgorithm, u_float: np.ndarray | None) -> list[sp
     A, C, E = ex.matrices["A"], ex.matrices["C"], ex.matrices["E"]
     res = list((sp.eye(A.shape[0]) - A) * uv) + [(C * uv)[0] - 1, (E * uv)[0] - 1]
     return u if all(is_zero(r) for r in res) else None
+
+
+@dataclass
+class ExactOracleMethod(CallShape):
+    """The method of the oracle model on exact numbers (object arrays of :class:`Ball`):
+    the exact twin of :class:`sosalgo.oracles.OracleMethod`."""
+
+    ex: ExactAlgorithm
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    E: np.ndarray | None
+    functions: list[tuple[str, Any, dict[str, Ball]]]  # (name, class, exact parameters)
+    oracles: tuple[int, ...]
+    output: int | None
+    measure: str
+
+
+def exact_oracle_method(spec: Spec, kappa: float, theta: Mapping[str, float] | None = None,
+                        digits: int = DEFAULT_DIGITS) -> ExactOracleMethod:
+    """The exact method of a composite spec at ``kappa`` and ``theta`` (ValueError when it
+    cannot be built)."""
+    ex = exact_algorithm(spec, kappa, theta, digits)
+    base = {BASE_SYMBOLS["m"]: sp.Rational(ex.m.numerator, ex.m.denominator),
+            BASE_SYMBOLS["L"]: sp.Rational(ex.L.numerator, ex.L.denominator),
+            BASE_SYMBOLS["kappa"]: sp.Rational(ex.kappa.numerator, ex.kappa.denominator)}
+    funcs = []
+    for fname, decl in spec.functions.items():
+        params = {k: enclose(to_sympy(e).xreplace(base), digits) for k, e in decl.params.items()}
+        funcs.append((fname, CLASSES[decl.cls], params))
+    p = spec.p
+    D = object_matrix(ex.balls["D"]) if "D" in ex.balls else object_matrix([[Ball(0)] * p] * p)
+    names = list(spec.functions)
+    return ExactOracleMethod(ex, object_matrix(ex.balls["A"]), object_matrix(ex.balls["B"]),
+                             object_matrix(ex.balls["C"]), D,
+                             object_matrix(ex.balls["E"]) if "E" in ex.balls else None, funcs,
+                             tuple(names.index(f) for f in spec.oracles), spec.output,
+                             spec.measure)

@@ -9,14 +9,19 @@ from __future__ import annotations
 
 import weakref
 from collections.abc import Mapping
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from sosalgo.errors import ModelError
 from sosalgo.kernel.expr.compile import NumericError, compile_expression, compile_matrix
-from sosalgo.oracles import check_magnitudes
+from sosalgo.oracles import (
+    OracleMethod,
+    check_magnitudes,
+    fixed_point_basis,
+    make_method,
+    seed_functions,
+)
 from sosalgo.spec.types import BASE_NAMES, MATRIX_NAMES, Spec, SpecError, value_order
 
 __all__ = ["Algorithm", "ModelError", "bind", "bind_sublinear", "design_box", "evaluate_algorithm",
@@ -26,9 +31,10 @@ FIXED_POINT_TOL = 1e-8
 MAX_DESIGN_ENTRY = 1e50  # largest parameter value or matrix entry a design box may reach
 
 
-@dataclass(frozen=True)
-class Algorithm:
-    """Numeric reduced templates (Remark 1) of one method on F(m, L).
+class Algorithm(OracleMethod):
+    """The seed's form of the one float method (:class:`~sosalgo.oracles.OracleMethod`):
+    numeric reduced templates (Remark 1) of a method with one gradient call on f in
+    F(m, L), D = 0, x = E xi, ``measure: function``.
 
     A, B, C, E may be given as nested lists or arrays; they are stored as float arrays of
     shapes n x n, n x 1, 1 x n, 1 x n. As in the spec loader, a method without the fixed
@@ -36,48 +42,45 @@ class Algorithm:
     skips that check, for algebraic tests only).
     """
 
-    A: np.ndarray
-    B: np.ndarray
-    C: np.ndarray
-    E: np.ndarray
-    m: float
-    L: float
-    params: dict[str, float] = field(default_factory=dict)
-    require_fixed_point: bool = field(default=True, repr=False, compare=False)
+    has_seed_form = True
+    require_fixed_point: bool
 
-    def __post_init__(self) -> None:
-        mats = {}
-        for k in MATRIX_NAMES:
-            try:
-                mats[k] = np.array(getattr(self, k), dtype=float, ndmin=2)
-            except (TypeError, ValueError):
-                raise ModelError(f"matrices.{k}", "must be a matrix of numbers") from None
-            check_magnitudes(k, mats[k])
-            object.__setattr__(self, k, mats[k])
-        n = mats["A"].shape[0]
-        shapes = {"A": (n, n), "B": (n, 1), "C": (1, n), "E": (1, n)}
-        for k, shape in shapes.items():
-            if mats[k].shape != shape:
-                raise ModelError(f"matrices.{k}", f"must be {shape[0]}x{shape[1]}, "
-                                 f"got {mats[k].shape[0]}x{mats[k].shape[1]}")
-        m, L = float(self.m), float(self.L)
+    def __init__(self, A: Any, B: Any, C: Any, E: Any, m: float, L: float,
+                 params: dict[str, float] | None = None,
+                 require_fixed_point: bool = True) -> None:
+        mats = _seed_matrices({"A": A, "B": B, "C": C, "E": E})
+        m, L = float(m), float(L)
         if not (np.isfinite(m) and np.isfinite(L) and 0 < m < L):
             raise ModelError("m, L", f"need 0 < m < L (finite), got m={m:g}, L={L:g}")
-        object.__setattr__(self, "m", m)
-        object.__setattr__(self, "L", L)
-        if self.require_fixed_point and fixed_point(self) is None:
+        fields_ = {**mats, "D": np.zeros((1, 1)), "m": m, "L": L,
+                   "functions": seed_functions(m, L), "oracles": (0,), "output": None,
+                   "measure": "function", "params": {} if params is None else params,
+                   "require_fixed_point": require_fixed_point}
+        for k, v in fields_.items():
+            object.__setattr__(self, k, v)
+        if require_fixed_point and fixed_point(self) is None:
             raise ModelError(
                 "matrices",
                 "no fixed point: eq. (11) needs u with (I - A) u = 0, C u = 1, E u = 1",
             )
 
-    @property
-    def kappa(self) -> float:
-        return self.L / self.m
 
-    @property
-    def n(self) -> int:
-        return int(self.A.shape[0])
+def _seed_matrices(given: Mapping[str, Any]) -> dict[str, np.ndarray]:
+    """A, B, C, E as float arrays of shapes n x n, n x 1, 1 x n, 1 x n (ModelError else)."""
+    mats = {}
+    for k in MATRIX_NAMES:
+        try:
+            mats[k] = np.array(given[k], dtype=float, ndmin=2)
+        except (TypeError, ValueError):
+            raise ModelError(f"matrices.{k}", "must be a matrix of numbers") from None
+        check_magnitudes(k, mats[k])
+    n = mats["A"].shape[0]
+    shapes = {"A": (n, n), "B": (n, 1), "C": (1, n), "E": (1, n)}
+    for k, shape in shapes.items():
+        if mats[k].shape != shape:
+            raise ModelError(f"matrices.{k}", f"must be {shape[0]}x{shape[1]}, "
+                             f"got {mats[k].shape[0]}x{mats[k].shape[1]}")
+    return mats
 
 
 class _Compiled:
@@ -216,22 +219,23 @@ def _matrix_size(spec: Spec, kappa: float, theta: Mapping[str, float]) -> float 
         return float("inf") if "finite" in str(exc) else None
 
 
-def bind(spec: Spec, kappa: float, theta: Mapping[str, float] | None = None) -> Algorithm:
-    """Numeric Algorithm at condition number ``kappa`` (m = spec.m, L = kappa m).
+def bind(spec: Spec, kappa: float, theta: Mapping[str, float] | None = None) -> OracleMethod:
+    """The spec's method at condition number ``kappa`` (m = spec.m, L = kappa m): the one
+    float method, :class:`~sosalgo.oracles.OracleMethod`, in the seed's form an
+    :class:`Algorithm` (``has_seed_form``).
 
     ``theta`` sets input parameters (others keep their ``value``; tied ones follow).
-    The fixed-point conditions of eq. (11) are checked (by :class:`Algorithm`). A spec
-    outside the seed's setting (``spec.composite``) gives an
-    :class:`~sosalgo.oracles.OracleMethod` (its own fixed-point check).
+    The fixed-point conditions of eq. (11) are checked on creation.
     """
     return evaluate_algorithm(spec, kappa, theta)
 
 
 def evaluate_algorithm(
     spec: Spec, kappa: float, theta: Mapping[str, float] | None = None
-) -> Algorithm:
-    """The numeric templates at ``kappa`` and ``theta`` as an :class:`Algorithm` (which
-    refuses a method without the fixed point of eq. (11), :class:`ModelError`)."""
+) -> OracleMethod:
+    """The numeric templates at ``kappa`` and ``theta`` as the one float method (an
+    :class:`Algorithm` for a spec in the seed's form), which refuses a method without the
+    fixed point of eq. (11) (:class:`ModelError`)."""
     if not (np.isfinite(kappa) and kappa > 1):
         raise ModelError("kappa", f"condition number must be > 1, got {kappa:g}")
     comp = _compiled(spec)
@@ -240,37 +244,24 @@ def evaluate_algorithm(
         raise ModelError("kappa", f"L = kappa * m overflows at kappa={kappa:g}")
     params = parameter_values(spec, kappa, theta)
     mats = _matrices(comp, [m, L, kappa] + [params[p] for p in comp.names])
-    if spec.composite:
-        from sosalgo.oracles import make_method
-
-        return make_method(spec, mats, m, L, kappa, params)  # type: ignore[return-value]
-    return Algorithm(mats["A"], mats["B"], mats["C"], mats["E"], m, L, params)
+    if spec.has_seed_form:
+        return Algorithm(mats["A"], mats["B"], mats["C"], mats["E"], m, L, params)
+    return make_method(spec, mats, m, L, kappa, params)
 
 
-def fixed_point(alg: Algorithm, tol: float = FIXED_POINT_TOL) -> np.ndarray | None:
-    """The u of eq. (11) (least-squares solution), or None if the conditions fail. For a
-    method of the oracle model: its xi* for x* = 1 with zero optimal subgradients
-    (:func:`sosalgo.oracles.fixed_point_basis`)."""
-    if hasattr(alg, "oracles"):
-        from sosalgo.oracles import fixed_point_basis
-
-        basis = fixed_point_basis(alg, tol)  # type: ignore[arg-type]
-        return None if basis is None else basis[:, 0]
-    from sosalgo.oracles import consistent_solution
-
-    n = alg.n
-    lhs = np.vstack([np.eye(n) - alg.A, alg.C, alg.E])
-    rhs = np.concatenate([np.zeros(n), [1.0, 1.0]])[:, None]
-    u = consistent_solution(lhs, rhs, tol)
-    return None if u is None else u[:, 0]
+def fixed_point(alg: OracleMethod, tol: float = FIXED_POINT_TOL) -> np.ndarray | None:
+    """The u of eq. (11) (least-squares solution), or None if the conditions fail: the
+    method's xi* for x* = 1 with zero optimal subgradients
+    (:func:`sosalgo.oracles.fixed_point_basis`; in the seed's form (I - A) u = 0,
+    C u = 1, E u = 1)."""
+    basis = fixed_point_basis(alg, tol)
+    return None if basis is None else basis[:, 0]
 
 
-def bind_sublinear(spec: Spec, theta: Mapping[str, float] | None = None) -> Any:
+def bind_sublinear(spec: Spec, theta: Mapping[str, float] | None = None) -> OracleMethod:
     """The :class:`OracleMethod` of a sublinear spec (``m: 0``, L given, no kappa) at its
     parameter values (``theta`` overrides input parameters); ModelError names the field."""
-    from sosalgo.oracles import fixed_point_basis, make_method
-
-    if not spec.sublinear or spec.L is None:
+    if spec.has_condition_number or spec.L is None:
         raise ModelError("m", "not a sublinear spec (m: 0, L given)")
     comp = _compiled(spec)
     nan = float("nan")

@@ -32,7 +32,7 @@ from sosalgo.spec.types import Spec, SpecError
 
 __all__ = ["BoundFunction", "CallShape", "OracleMethod", "as_oracle_method", "check_oracle_spec",
            "check_magnitudes", "composite_quadratic_rate", "consistent_solution",
-           "fixed_point_basis", "fixed_point_system"]
+           "fixed_point_basis", "fixed_point_system", "seed_functions"]
 
 FIXED_POINT_TOL = 1e-8
 # Nonzero matrix entries must lie in [1/MAX_MAGNITUDE, MAX_MAGNITUDE] in magnitude: beyond,
@@ -72,7 +72,15 @@ class OracleMethod(CallShape):
     ``oracles[i]`` is the index in ``functions`` of the function call i queries; ``output``
     the call whose point is the output (None: x = E xi); ``m``, ``L`` the spec's (they set
     kappa and the units of the certificate). Checked on creation (:class:`ModelError`).
+
+    The one float method: the seed's form (one gradient call on f in F(m, L)) is the
+    subclass :class:`sosalgo.model.Algorithm`, whose :attr:`has_seed_form` is True.
     """
+
+    # whether the method is in the seed's form, so that its certificates are built on
+    # (A, B, C, E) alone (Theorem 1, the seed's interpolation windows, the seed's noise
+    # sensitivity); False here: the constructions of the oracle model
+    has_seed_form = False
 
     A: np.ndarray
     B: np.ndarray
@@ -286,15 +294,21 @@ def make_method(spec: Spec, mats: Mapping[str, np.ndarray], m: float, L: float,
                         spec.measure, params)
 
 
+def seed_functions(m: float, L: float) -> tuple[BoundFunction, ...]:
+    """The functions of the seed's form: one f in F(m, L)."""
+    return (BoundFunction("f", SEED_CLASS, {"m": m, "L": L}),)
+
+
 def as_oracle_method(alg: Any) -> OracleMethod:
-    """Any bound method as an :class:`OracleMethod`: itself when it is one; a seed-setting
-    :class:`~sosalgo.model.Algorithm` (one gradient call on f in F(m, L), D = 0, x = E xi)
-    otherwise."""
+    """A bound method as an :class:`OracleMethod`: itself when it is one (every bound
+    method is, the seed's :class:`~sosalgo.model.Algorithm` included); any other object
+    with the seed's A, B, C, E, m, L as the method of one gradient call on f in F(m, L),
+    D = 0, x = E xi."""
     if isinstance(alg, OracleMethod):
         return alg
-    f = BoundFunction("f", SEED_CLASS, {"m": alg.m, "L": alg.L})
-    return OracleMethod(alg.A, alg.B, alg.C, np.zeros((1, 1)), alg.E, alg.m, alg.L, (f,),
-                        (0,), None, "function", dict(alg.params))
+    return OracleMethod(alg.A, alg.B, alg.C, np.zeros((1, 1)), alg.E, alg.m, alg.L,
+                        seed_functions(alg.m, alg.L), (0,), None, "function",
+                        dict(alg.params))
 
 
 def composite_quadratic_rate(om: OracleMethod, points: int = 201) -> float:

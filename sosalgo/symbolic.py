@@ -37,7 +37,7 @@ def symbolic_lmi(spec: Spec, free: Sequence[str] | None = None, latex: bool = Fa
     if selected is not None:  # m: 0: the family's own text (no kappa to bind the method at)
         return selected.listing(spec, {}, latex)
     fam = family or get_family(spec.certificate, spec.certificate_options)
-    if spec.composite:
+    if not spec.has_seed_form:
         return _composite(spec, free, latex, fam)
     M, syms = symbolic_matrix(spec, free, fam)
     own = fam.listing(spec, syms, latex)

@@ -430,3 +430,11 @@ def test_table1_reruns_keep_other_settings_aside_and_concurrent_runs_do_not_mix(
         assert len(got) == 1 and got[0]["spec"] == "gradient", path
     kappas = {float(rows_of(p)[0]["kappa"]) for p in tables}
     assert {2.0, 3.0, 4.0} <= kappas
+
+
+def test_table1_of_specs_without_a_linear_rate_says_why(tmp_path):
+    res = CliRunner().invoke(cli, ["table1", "--specs", str(SPECS / "ogm.yaml"), "--specs",
+                                   str(SPECS / "gradient-convex.yaml"), "--out", str(tmp_path)])
+    assert res.exit_code == 2
+    assert "ogm.yaml" in res.output and "no spec with a linear rate" in res.output
+    assert not list(tmp_path.iterdir())

@@ -43,25 +43,22 @@ from sosalgo.certificates.exact_interpolation import (
     settle,
     symmetric_matrix,
 )
-from sosalgo.exact_method import ExactAlgorithm, exact_algorithm
+from sosalgo.exact_method import ExactOracleMethod, exact_oracle_method
 from sosalgo.kernel.exact import (
     DEFAULT_DIGITS,
     DEFAULT_MAX_DEN,
     DEFAULT_RHO_STEPS,
     Ball,
     Verdict,
-    enclose,
     fraction_str,
     is_zero,
-    object_matrix,
     prove_definite,
     rational,
     rho_candidates,
     symmetrize_balls,
 )
-from sosalgo.kernel.expr.parse import to_sympy
 from sosalgo.model import bind
-from sosalgo.spec.types import BASE_SYMBOLS, ORACLE_MATRIX_NAMES, Spec
+from sosalgo.spec.types import ORACLE_MATRIX_NAMES, Spec
 
 __all__ = ["CompositeExactResult", "ExactOracleMethod", "exact_class_inequalities",
            "exact_oracle_method", "fixed_point_failure", "verify_exact_composite"]
@@ -80,54 +77,6 @@ class CompositeExactResult(InterpolationExactResult):
         doc["certificate_family"] = ("interpolation on the oracle model (Lyapunov function "
                                      "with function values, tilted class inequalities)")
         return doc | self.model
-
-
-@dataclass
-class ExactOracleMethod:
-    """The method of the oracle model on exact numbers (object arrays of :class:`Ball`)."""
-
-    ex: ExactAlgorithm
-    A: np.ndarray
-    B: np.ndarray
-    C: np.ndarray
-    D: np.ndarray
-    E: np.ndarray | None
-    functions: list[tuple[str, Any, dict[str, Ball]]]  # (name, class, exact parameters)
-    oracles: tuple[int, ...]
-    output: int | None
-    measure: str
-
-    @property
-    def n(self) -> int:
-        return self.A.shape[0]
-
-    @property
-    def p(self) -> int:
-        return len(self.oracles)
-
-
-def exact_oracle_method(spec: Spec, kappa: float, theta: Mapping[str, float] | None = None,
-                        digits: int = DEFAULT_DIGITS) -> ExactOracleMethod:
-    """The exact method of a composite spec at ``kappa`` and ``theta`` (ValueError when it
-    cannot be built)."""
-    from sosalgo.classes import CLASSES
-
-    ex = exact_algorithm(spec, kappa, theta, digits)
-    base = {BASE_SYMBOLS["m"]: sp.Rational(ex.m.numerator, ex.m.denominator),
-            BASE_SYMBOLS["L"]: sp.Rational(ex.L.numerator, ex.L.denominator),
-            BASE_SYMBOLS["kappa"]: sp.Rational(ex.kappa.numerator, ex.kappa.denominator)}
-    funcs = []
-    for fname, decl in spec.functions.items():
-        params = {k: enclose(to_sympy(e).xreplace(base), digits) for k, e in decl.params.items()}
-        funcs.append((fname, CLASSES[decl.cls], params))
-    p = spec.p
-    D = object_matrix(ex.balls["D"]) if "D" in ex.balls else object_matrix([[Ball(0)] * p] * p)
-    names = list(spec.functions)
-    return ExactOracleMethod(ex, object_matrix(ex.balls["A"]), object_matrix(ex.balls["B"]),
-                             object_matrix(ex.balls["C"]), D,
-                             object_matrix(ex.balls["E"]) if "E" in ex.balls else None, funcs,
-                             tuple(names.index(f) for f in spec.oracles), spec.output,
-                             spec.measure)
 
 
 # --------------------------------------------------------------------------- class data

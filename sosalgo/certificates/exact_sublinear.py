@@ -184,7 +184,7 @@ def exact_sublinear_method(spec: Spec, theta: Mapping[str, float] | None = None,
     parameter is not rational."""
     from sosalgo.classes import CLASSES
 
-    if not spec.sublinear or spec.L is None:
+    if spec.has_condition_number or spec.L is None:
         raise Refused("not a sublinear spec (m: 0, L given)")
     Lq = Fraction(spec.L)
     values: dict[sp.Symbol, sp.Expr] = {BASE_SYMBOLS["m"]: sp.Integer(0),

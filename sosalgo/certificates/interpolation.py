@@ -349,7 +349,7 @@ class Interpolation(CertificateFamily):
         vanish (:func:`null_directions`, on the oracle model
         :func:`sosalgo.certificates.composite.isotropic_directions`): its certificates then
         have exact zero eigenvalues there."""
-        if _is_oracle_method(alg):
+        if not alg.has_seed_form:
             from sosalgo.certificates.composite import composite_structure
 
             st = composite_structure(alg, lag)
@@ -365,7 +365,7 @@ class Interpolation(CertificateFamily):
         composite spec does a larger lag certify a better rate, so the first lag that
         certifies is kept (larger ones are tried only while none does; ``--lag`` asks for
         one)."""
-        return getattr(alg, "p", 1) == 1
+        return alg.p == 1
 
     def max_lag(self, n: int) -> int:
         """The largest lag a certificate of this family can have (sizes the CSV columns)."""
@@ -396,7 +396,7 @@ class Interpolation(CertificateFamily):
         normalized class F(m/L, 1) with B scaled by L; ``unpack`` returns original units.
         A method of the oracle model (several calls, proximal steps, other classes) gets
         the generic construction of :mod:`sosalgo.certificates.composite`."""
-        if _is_oracle_method(alg):
+        if not alg.has_seed_form:
             from sosalgo.certificates.composite import composite_problem
 
             return composite_problem(alg, self.lag_for(alg.n), self.name)
@@ -412,7 +412,7 @@ class Interpolation(CertificateFamily):
         gradient descent, Nesterov and triple momentum), and it is 3-5x cheaper to solve
         (blocks 4x4 and 3x3, 15 variables, instead of 7x7 and 5x5, 55 variables, for
         n = 2, l = 1). Where the rates differ (heavy ball, lag 1), the search goes on."""
-        if _is_oracle_method(alg):
+        if not alg.has_seed_form:
             return None if self.lag_for(alg.n) == 0 else Interpolation(0).problem(alg)
         if self.lag_for(alg.n) == 0 and not has_output_point(alg.C, alg.E):
             return None
@@ -519,7 +519,7 @@ class Interpolation(CertificateFamily):
     def parts(self, alg: Algorithm, rho: float, cert: dict[str, Any]) -> dict[str, Any]:
         """The inequality parts (D, Df, Pq, Pf) at a certificate (at its own lag), original
         units (floats)."""
-        if _is_oracle_method(alg):
+        if not alg.has_seed_form:
             from sosalgo.certificates.composite import composite_parts
 
             return composite_parts(alg, rho, cert)
@@ -539,7 +539,7 @@ class Interpolation(CertificateFamily):
         model without the directions where every certificate's matrices vanish
         (:func:`sosalgo.certificates.composite.reduced_summary`); each without the directions
         where every matrix of its window vanishes (:func:`null_directions`)."""
-        if _is_oracle_method(alg):
+        if not alg.has_seed_form:
             from sosalgo.certificates.composite import reduced_summary
 
             return reduced_summary(alg, rho, cert)
@@ -648,7 +648,7 @@ class Interpolation(CertificateFamily):
         """Exact rational proof of (D) and (P), the certificate's own lag
         (:func:`sosalgo.certificates.exact_interpolation.verify_exact_interpolation`; on the
         oracle model :func:`sosalgo.certificates.exact_composite.verify_exact_composite`)."""
-        if spec.composite:
+        if not spec.has_seed_form:
             from sosalgo.certificates.exact_composite import verify_exact_composite
 
             return verify_exact_composite(spec, kappa, rho, cert, theta, **options)
@@ -661,11 +661,6 @@ class Interpolation(CertificateFamily):
         return {"P": np.asarray(cert["P"], dtype=float),
                 "lyapunov": {"lag": int(cert["lag"]), "p": [float(v) for v in cert["p"]],
                              "c": None if cert.get("c") is None else float(cert["c"])}}
-
-
-def _is_oracle_method(alg: Any) -> bool:
-    """Whether ``alg`` is a :class:`sosalgo.oracles.OracleMethod` (not the seed's form)."""
-    return hasattr(alg, "oracles")
 
 
 INTERPOLATION = Interpolation()

@@ -472,7 +472,7 @@ class SublinearFamily(CertificateFamily):
 
     def applies_to(self, spec: Spec) -> str | None:
         """Why the family does not answer ``spec`` (None for an ``m: 0`` spec, L given)."""
-        if spec.sublinear:
+        if not spec.has_condition_number:
             return None
         return "the sublinear family answers m: 0 specs (L given, no kappa) only"
 

@@ -97,8 +97,8 @@ class Theorem1(CertificateFamily):
     certificate_parts = ("P", "lambda")
 
     def applies_to(self, spec: Spec) -> str | None:
-        """Theorem 1 holds only in the seed's setting (see :attr:`Spec.composite`)."""
-        if not spec.composite:
+        """Theorem 1 holds only in the seed's setting (see :attr:`Spec.has_seed_form`)."""
+        if spec.has_seed_form:
             return None
         return ("theorem1 applies only to one smooth_strongly_convex function with the "
                 "spec's m and L, queried by its gradient (no D, x = E xi, measure: function); "
@@ -112,7 +112,7 @@ class Theorem1(CertificateFamily):
         so both inequalities hold together. ``unpack`` returns the original (P, lambda).
         Only in the seed's setting: a method of the oracle model is refused (InputError).
         """
-        if hasattr(alg, "oracles"):
+        if not alg.has_seed_form:
             from sosalgo.errors import InputError
 
             raise InputError("certificate theorem1: applies only to one smooth_strongly_convex "

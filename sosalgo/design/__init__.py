@@ -568,7 +568,7 @@ def bound_model(spec: Spec, kappa: float, free: list[str],
     from sosalgo.design.polymodel import exact_method, numeric_template, poly_lmi
     from sosalgo.kernel.kappa import exact_kappa
 
-    if spec.composite:  # the exact form is the seed's (A, B, C, E); no family has one here
+    if not spec.has_seed_form:  # the exact form is the seed's (A, B, C, E); no family has one here
         return None
     if not exact_kappa(kappa).is_Rational:  # the exact data are rational
         return None

@@ -53,7 +53,7 @@ def _gradient_only(spec: Spec, fname: str) -> bool:
 def class_floor(spec: Spec, kappa: float) -> float | None:
     """1 - 1/sqrt(L_f/m_f) where it is a theorem for the spec's problem class (see the
     module), else None. The seed's setting: 1 - 1/sqrt(kappa)."""
-    if not spec.composite:
+    if spec.has_seed_form:
         return 1.0 - 1.0 / math.sqrt(kappa)
     from sosalgo.model import bind
 

@@ -447,7 +447,7 @@ class ObjectiveDesignResult(DesignResult):
 def check_noise_spec_for(spec: Spec, label: str) -> None:
     """InputError naming the file and ``label`` unless the spec has one gradient call on
     F(m, L) (what the noise sensitivity needs: :mod:`sosalgo.sensitivity`)."""
-    if spec.composite or spec.sublinear:
+    if not spec.has_seed_form:  # m: 0 is not the seed's form either
         raise InputError(f"{spec.source}: {label}: noise sensitivity needs one gradient "
                          "call on F(m, L) (a spec without functions/oracles/D/output/measure "
                          "and with m > 0)")

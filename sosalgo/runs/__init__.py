@@ -520,9 +520,13 @@ def table1_run(specs: Sequence[str | Path] = (), kappa: Sequence[float] = (),
         texts = {f"examples/{name}.yaml": f.read_text(encoding="utf-8")
                  for name, f in example_specs().items()}
     parsed = [spec_from_text(t, source=src) for src, t in texts.items()]
-    parsed = [s for s in parsed if spec_family(s) is None]  # m: 0: no kappa, no linear rate
-    if not parsed:
+    kept = [s for s in parsed if spec_family(s) is None]  # m: 0: no kappa, no linear rate
+    if not kept and parsed:
+        raise InputError(f"--specs: {', '.join(s.source for s in parsed)}: no spec with a "
+                         "linear rate (m: 0 specs have no kappa; Table 1 compares rates)")
+    if not kept:
         raise InputError("--specs: no spec files given and none in specs/")
+    parsed = kept
     kappas = [float(k) for k in kappa] or [2.0, 10.0, 100.0]
     chosen = certificate is not None or any(v is not None for v in (options or {}).values())
     fams = [inputs.select_families(s, certificate, options, applicable_only=True) if chosen

@@ -239,10 +239,10 @@ def verify_noise(spec: Spec, kappa: float, cert: Mapping[str, Any],
     (the long-run average, or with ``limsup`` the limsup) of the spec's method at ``kappa``."""
     start = time.perf_counter()
     res = NoiseProof(spec=spec.name)
-    if spec.composite and not spec.sublinear and not limsup:
+    if not spec.has_seed_form and spec.has_condition_number and not limsup:
         return verify_composite_noise(spec, kappa, cert, theta, digits)
     try:
-        if spec.composite or spec.sublinear:
+        if not spec.has_seed_form:  # m: 0 is not the seed's form either
             raise Refused("noise sensitivity needs one gradient call on F(m, L)")
         dec, pos, n = _exact_windows(spec, kappa, theta, int(cert["lag"]), digits)
         num = _read(cert, dec, pos, n)

@@ -31,7 +31,8 @@ def check_noise_spec(spec: Spec) -> None:
     """InputError (one line naming the file) unless the spec has one gradient call on
     F(m, L) (a seed spec with m > 0), or is a composite spec with m > 0 and a gradient
     call on a smooth_strongly_convex function (the noisy calls)."""
-    if spec.sublinear or (spec.composite and not _has_noisy_call(spec)):
+    if not spec.has_condition_number or (not spec.has_seed_form
+                                          and not _has_noisy_call(spec)):
         raise InputError(f"{spec.source}: --noise: noise sensitivity needs one gradient "
                          "call on F(m, L) (a seed spec with m > 0, or a composite spec with "
                          "m > 0 and a gradient call on a smooth_strongly_convex function)")
@@ -143,11 +144,12 @@ def _limsup(res: NoiseResult, spec: Spec, alg: Any, theta: Mapping[str, float] |
             res.noise_limsup, res.noise_limsup_check = pr.gamma_proven, "exact"
 
 
-def _quadratic(spec: Spec, alg: Any) -> tuple[QuadraticNoise, Any]:
-    """(value on quadratics, certify(alg, lag) or None for the seed's): a composite spec
-    gets the composite quadratic value (q: the worst curvature of the first noisy call's
-    function) and :func:`~sosalgo.sensitivity.composite.composite_noise_certificate`."""
-    if not spec.composite:
+def _quadratic(alg: Any) -> tuple[QuadraticNoise, Any]:
+    """(value on quadratics, certify(alg, lag) or None for the seed's): a method outside
+    the seed's form gets the composite quadratic value (q: the worst curvature of the first
+    noisy call's function) and
+    :func:`~sosalgo.sensitivity.composite.composite_noise_certificate`."""
+    if alg.has_seed_form:
         return noise_quadratic(alg), None
     from sosalgo.sensitivity.composite import (
         composite_noise_certificate,
@@ -172,7 +174,7 @@ def analyze_noise(spec: Spec, kappa: float, theta: Mapping[str, float] | None = 
     check_noise_spec(spec)
     start = time.perf_counter()
     alg = bind(spec, kappa, theta)
-    quad, certify = _quadratic(spec, alg)
+    quad, certify = _quadratic(alg)
     cert = best_noise_certificate(alg, None if lag is None else [lag], quad.gamma, certify)
     noise, kind, proof = cert.gamma, cert.check_kind, None
     if cert.certified and exact:
@@ -184,7 +186,7 @@ def analyze_noise(spec: Spec, kappa: float, theta: Mapping[str, float] | None = 
             noise, kind = pr.gamma_proven, "exact"
     res = NoiseResult(float(kappa), noise, cert.gamma, quad.gamma, quad.q, cert.lag, kind,
                       _jsonable(cert.certificate), proof, 0.0, cert.detail)
-    if limsup and math.isfinite(quad.gamma) and not spec.composite:
+    if limsup and math.isfinite(quad.gamma) and alg.has_seed_form:
         _limsup(res, spec, alg, theta, max(1, cert.lag) if lag is None else lag, exact)
     res.seconds = time.perf_counter() - start
     return res

@@ -205,6 +205,21 @@ class Spec:
             decl is not None and (decl.cls != SEED_CLASS.name or bool(decl.given)))
 
     @property
+    def has_seed_form(self) -> bool:
+        """Whether the method is the seed's: one smooth_strongly_convex f with the spec's m
+        and L queried by its gradient, no D, x = E xi, ``measure: function`` (the opposite
+        of :attr:`composite`). Its certificates and proofs are built on (A, B, C, E) alone:
+        the only setting of Theorem 1, of the exact polynomial forms of design and of the
+        symbolic listing of eq. (15)."""
+        return not self.composite
+
+    @property
+    def has_condition_number(self) -> bool:
+        """Whether the method is bound at a condition number kappa = L/m (m > 0: linear
+        rates); False for ``m: 0`` (L given, no kappa), whose rates are sublinear."""
+        return not self.sublinear
+
+    @property
     def p(self) -> int:
         """Number of oracle calls per iteration (columns of B)."""
         return len(self.oracles)

@@ -233,7 +233,7 @@ def noise_quadratic(L: RowLedger, field: str) -> None:
 
 def quadratic_noise(spec: Any, alg: Any) -> float:
     """The sensitivity on the quadratics, as ``analyze --noise`` computes it."""
-    if spec.composite:
+    if not alg.has_seed_form:
         from sosalgo.sensitivity.composite import composite_noise_quadratic
 
         return composite_noise_quadratic(alg)[0]

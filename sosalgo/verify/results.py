@@ -85,7 +85,7 @@ def _simulation(spec: Spec, family: CertificateFamily, kappa: float, rho: float,
     """The simulation check as plain values; ``skipped`` (with ``ok`` None) when its test
     functions cannot be built in floating point (e.g. m = 1e-300: m L underflows)."""
     check = simulate_check
-    if spec.composite:  # proximal steps on test functions with closed-form proxes
+    if not spec.has_seed_form:  # proximal steps on test functions with closed-form proxes
         from sosalgo.verify.simulate_composite import simulate_composite as check
     try:
         sim = check(bind(spec, kappa, theta), rho, **family.lyapunov(cert))

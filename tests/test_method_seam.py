@@ -1,0 +1,162 @@
+"""One float method, asked rather than switched on (the seam of the problem layer): no module
+above the problem layer chooses code by the type of a method (``spec.composite``,
+``spec.sublinear``, ``hasattr(alg, "oracles")``, ``isinstance(alg, Algorithm)``); it asks
+the spec or the bound method a question with a name (``has_seed_form``,
+``has_condition_number``) or a family's ``applies_to``. The seed's ``Algorithm`` is the
+one float method (:class:`~sosalgo.oracles.OracleMethod`) in the seed's form."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import sosalgo
+from sosalgo.analysis import analyze_algorithm, quadratic_rate
+from sosalgo.classes import SEED_CLASS
+from sosalgo.model import Algorithm, bind, fixed_point
+from sosalgo.oracles import OracleMethod, seed_functions
+from sosalgo.spec import load_spec
+
+from .conftest import SPECS
+from .test_imports import LAYERS
+
+PACKAGE = Path(__file__).resolve().parents[1] / "sosalgo"
+PROBLEM_LAYER = dict(LAYERS)["problem"]
+
+# attributes whose only use is telling kinds of methods apart
+SWITCH_ATTRIBUTES = {"composite", "sublinear"}
+# fields a kind of method has and another lacks (asked by hasattr/getattr, a type switch)
+METHOD_FIELDS = {"oracles", "functions", "D", "output", "p", "measure", "has_seed_form"}
+METHOD_TYPES = {"Algorithm", "OracleMethod", "ExactAlgorithm", "ExactOracleMethod"}
+
+
+def _switches(text: str, where: str) -> list[str]:
+    """The method-type switches in the Python source ``text``: the attributes
+    :data:`SWITCH_ATTRIBUTES`, ``hasattr``/``getattr`` of a :data:`METHOD_FIELDS` name, and
+    ``isinstance`` with a :data:`METHOD_TYPES` class."""
+    found = []
+    for node in ast.walk(ast.parse(text)):
+        if isinstance(node, ast.Attribute) and node.attr in SWITCH_ATTRIBUTES:
+            found.append((node.lineno, node.col_offset, f".{node.attr}"))
+        if not (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)):
+            continue
+        args = node.args
+        if (node.func.id in ("hasattr", "getattr") and len(args) >= 2
+                and isinstance(args[1], ast.Constant) and args[1].value in METHOD_FIELDS):
+            found.append((node.lineno, node.col_offset,
+                          f"{node.func.id}(..., {args[1].value!r})"))
+        if node.func.id == "isinstance" and len(args) == 2:
+            names = {n.id if isinstance(n, ast.Name) else getattr(n, "attr", None)
+                     for n in ast.walk(args[1])}
+            found += [(node.lineno, node.col_offset, f"isinstance(..., {t})")
+                      for t in sorted(names & METHOD_TYPES)]
+    return [f"{where}:{line}: {what}" for line, _, what in sorted(found)]
+
+
+def test_no_method_type_switch_above_the_problem_layer():
+    found = [hit for path in sorted(PACKAGE.rglob("*.py"))
+             if path.relative_to(PACKAGE).with_suffix("").parts[0] not in PROBLEM_LAYER
+             for hit in _switches(path.read_text(encoding="utf-8"),
+                                  str(path.relative_to(PACKAGE.parent)))]
+    assert not found, ("method-type switches outside the problem layer (ask the spec or "
+                       "the method, e.g. has_seed_form):\n" + "\n".join(found))
+
+
+def test_the_scan_sees_each_kind_of_switch():
+    """The scan above would see each switch in code, and not the question asked instead."""
+    text = ("from sosalgo.certificates.sublinear import SUBLINEAR\n"
+            "if spec.composite or spec.sublinear: pass\n"
+            "if hasattr(alg, 'oracles') or getattr(alg, 'p', 1) == 1: pass\n"
+            "if isinstance(alg, model.Algorithm): pass\n"
+            "if spec.has_seed_form and alg.has_seed_form: pass\n")
+    assert _switches(text, "probe.py") == [
+        "probe.py:2: .composite", "probe.py:2: .sublinear",
+        "probe.py:3: hasattr(..., 'oracles')", "probe.py:3: getattr(..., 'p')",
+        "probe.py:4: isinstance(..., Algorithm)"]
+
+
+def test_the_problem_layer_units_exist():
+    """The units exempted above are modules or packages of sosalgo (a renamed one would
+    silently widen the scan's blind spot otherwise)."""
+    for unit in PROBLEM_LAYER:
+        assert (PACKAGE / f"{unit}.py").exists() or (PACKAGE / unit).is_dir(), unit
+
+
+# --------------------------------------------------------------------------- one Method
+
+
+def test_the_public_algorithm_is_the_method_in_the_seed_form():
+    """``sosalgo.Algorithm(A=..., ...)`` builds the one float method with one gradient call
+    on f in F(m, L): D = 0, x = E xi, measure function."""
+    alg = sosalgo.Algorithm(A=[[1.0]], B=[[-0.25]], C=[[1.0]], E=[[1.0]], m=1.0, L=4.0)
+    assert isinstance(alg, OracleMethod) and alg.has_seed_form
+    assert (alg.n, alg.p, alg.oracles, alg.output, alg.measure) == (1, 1, (0,), None,
+                                                                     "function")
+    (f,) = alg.functions
+    assert f.cls is SEED_CLASS and f.params == {"m": 1.0, "L": 4.0}
+    assert np.array_equal(alg.D, [[0.0]]) and alg.kappa == 4.0 and alg.params == {}
+
+
+@pytest.mark.parametrize("name, seed", [("nesterov", True), ("gradient", True),
+                                        ("proximal-gradient", False)])
+def test_bind_gives_one_type_and_says_its_form(name, seed):
+    spec = load_spec(SPECS / f"{name}.yaml")
+    alg = bind(spec, 10.0)
+    assert isinstance(alg, OracleMethod)
+    assert alg.has_seed_form is seed is spec.has_seed_form
+    assert isinstance(alg, Algorithm) is seed
+    assert spec.has_condition_number
+
+
+def test_an_m0_spec_has_no_condition_number():
+    spec = load_spec(SPECS / "gradient-convex.yaml")
+    assert not spec.has_condition_number and not spec.has_seed_form
+
+
+def _general_form(alg: Algorithm) -> OracleMethod:
+    """The same numbers written as a method of the oracle model (not the seed's form)."""
+    return OracleMethod(alg.A, alg.B, alg.C, np.zeros((1, 1)), alg.E, alg.m, alg.L,
+                        seed_functions(alg.m, alg.L), (0,))
+
+
+def test_heavy_ball_fixed_point_and_quadratic_rate_in_both_forms():
+    """Heavy ball x+ = x - h g + b (x - x-), state (x, x-): the fixed point is (1, 1); its
+    rate on quadratics with Polyak's h = 4/(sqrt L + sqrt m)^2, b = ((sqrt k - 1)/(sqrt k
+    + 1))^2 is sqrt(b) = (sqrt k - 1)/(sqrt k + 1) (a closed form); the seed's form and
+    the oracle-model form of the same numbers give both (two codes)."""
+    m, L = 1.0, 16.0
+    h, b = 4 / (np.sqrt(L) + np.sqrt(m)) ** 2, ((4 - 1) / (4 + 1)) ** 2
+    alg = Algorithm([[1 + b, -b], [1, 0]], [[-h], [0]], [[1, 0]], [[1, 0]], m, L)
+    general = _general_form(alg)
+    assert not general.has_seed_form
+    for form in (alg, general):
+        assert np.allclose(fixed_point(form), [1.0, 1.0], atol=1e-12)
+    closed = (4 - 1) / (4 + 1)
+    assert quadratic_rate(alg) == pytest.approx(closed, abs=1e-6)
+    assert quadratic_rate(general) == pytest.approx(closed, abs=1e-6)
+
+
+def test_gradient_descent_rate_in_both_forms():
+    """Gradient descent with h = 2/(m + L) on F(m, L) has the rate (kappa - 1)/(kappa + 1)
+    (a closed form, attained on a quadratic); the interpolation family certifies it on the
+    seed's form (its windows on A, B, C, E) and on the oracle-model form (the generic
+    construction), two codes."""
+    m, L = 1.0, 10.0
+    alg = Algorithm([[1.0]], [[-2 / (m + L)]], [[1.0]], [[1.0]], m, L)
+    closed = (L - m) / (L + m)
+    for form in (alg, _general_form(alg)):
+        res = analyze_algorithm(form, family="interpolation")
+        assert res.certified and closed - 1e-9 <= res.rho <= closed + 1e-4
+
+
+def test_theorem1_refuses_the_oracle_model_form():
+    from sosalgo.certificates import get_family
+    from sosalgo.errors import InputError
+
+    alg = Algorithm([[1.0]], [[-0.1]], [[1.0]], [[1.0]], 1.0, 10.0)
+    get_family("theorem1").problem(alg)  # the seed's form: built
+    with pytest.raises(InputError, match="theorem1"):
+        get_family("theorem1").problem(_general_form(alg))
