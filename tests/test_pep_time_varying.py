@@ -325,3 +325,8 @@ def test_cli_pep_and_verify_on_a_schedule(tmp_path):
     (tmp_path / "bad.json").write_text(json.dumps(bad))
     v = run.invoke(cli, ["verify", str(tmp_path / "bad.json")], catch_exceptions=False)
     assert v.exit_code == 3, v.output
+    row = json.loads((out / "gradient-schedule-pep-N3.json").read_text())
+    row["schedule"]["h"][1] = "2.0"
+    (tmp_path / "row.json").write_text(json.dumps(row))
+    v = run.invoke(cli, ["verify", str(tmp_path / "row.json")], catch_exceptions=False)
+    assert v.exit_code == 3 and "schedule" in v.output, v.output
