@@ -330,3 +330,18 @@ def test_cli_pep_and_verify_on_a_schedule(tmp_path):
     (tmp_path / "row.json").write_text(json.dumps(row))
     v = run.invoke(cli, ["verify", str(tmp_path / "row.json")], catch_exceptions=False)
     assert v.exit_code == 3 and "schedule" in v.output, v.output
+
+
+def test_kappa_on_an_m0_schedule_is_refused(tmp_path):
+    """``--kappa`` on an m: 0 spec that changes with k: one line, exit 2, nothing written."""
+    from click.testing import CliRunner
+
+    from sosalgo.cli import cli
+
+    out = tmp_path / "o"
+    r = CliRunner().invoke(cli, ["pep", str(spec_path("ogm")), "--steps", "3", "--kappa",
+                                 "10", "--out", str(out)])
+    assert r.exit_code == 2
+    lines = [ln for ln in r.output.strip().splitlines() if ln]
+    assert len(lines) == 1 and "--kappa" in lines[0] and "ogm.yaml" in lines[0]
+    assert not out.exists()

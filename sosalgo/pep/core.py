@@ -114,6 +114,17 @@ def float_method(om: Any, kappa: float) -> Method:
     return mt
 
 
+def _check_kappa(spec: Spec, kappa: float | None) -> None:
+    """A kappa exactly when the spec's class has one (as :func:`bound_method` asks)."""
+    from sosalgo.pep.bind import has_kappa
+
+    if not has_kappa(spec) and kappa is not None:
+        raise InputError(f"{spec.source}: --kappa: an m: 0 spec has no condition number "
+                         f"(L = {spec.L:g} is given)")
+    if has_kappa(spec) and kappa is None:
+        raise InputError(f"{spec.source}: --kappa: required (the condition number L/m)")
+
+
 def _default_measure(spec: Spec) -> str:
     return "dist" if spec.measure == "distance" else "f"
 
@@ -138,6 +149,8 @@ def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None
     changes with k (:mod:`sosalgo.pep.steps`; the spec gives its class and terms)."""
     if isinstance(steps, bool) or not isinstance(steps, int) or not 1 <= steps <= MAX_STEPS:
         raise InputError(f"--steps: must be an integer in 1..{MAX_STEPS}, got {steps!r}")
+    if schedule is not None or is_time_varying(spec):
+        _check_kappa(spec, kappa)
     if schedule is None and is_time_varying(spec):
         schedule = spec_steps(spec, kappa, steps)
     if schedule is not None:
