@@ -206,11 +206,15 @@ def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
     while True:
         tries = TRACE if objective == "trace" else PRECISE if precise else QUICK
         strong = (margin > 0 or (data.strong and objective == "measure")) and not precise
-        ans = _solve_active(data, active, margin, objective, floor, slack, unit,
-                            tries + STRONG if strong else tries,
+        if strong and data.strong and margin == 0:  # ends almost solved at the others
+            tries = STRONG + tries
+        elif strong:
+            tries = tries + STRONG
+        ans = _solve_active(data, active, margin, objective, floor, slack, unit, tries,
                             rough=not exact_next)
         rounds += 1
         if (objective == "measure" and ans.G is not None and rescales < MAX_RESCALES
+                and not (data.strong and margin > 0)  # a certificate at the measure's scale
                 and np.all(np.isfinite(ans.G))):
             moved = _rescale(data, ans.G, ans.F)
             got = measure_value(data.st, ans.G, ans.F)
