@@ -45,6 +45,18 @@ def check_grid_points(points: Any, n_free: int, label: str = "--points") -> int:
     return total
 
 
+def refuse_nonconvex(spec: Any) -> None:
+    """InputError (one line) for a spec with a nonconvex function: no certificate family
+    certifies a rate for it (``sosalgo pep`` bounds its N-step worst case)."""
+    from sosalgo.certificates import nonconvex_functions
+
+    bad = nonconvex_functions(spec)
+    if bad:
+        raise InputError(f"{spec.source}: functions: {', '.join(bad)} is nonconvex: no "
+                         "linear or sublinear rate is certified for it (no Lyapunov family "
+                         "applies); sosalgo pep bounds its worst case after N steps")
+
+
 def check_tol(tol: Any, label: str = "tol") -> float:
     """The bisection tolerance, in (0, 0.5)."""
     if isinstance(tol, bool) or not isinstance(tol, int | float) or not 0 < tol < 0.5:

@@ -61,7 +61,8 @@ def _class_mentions(text: str, where: str, names: set[str]) -> list[str]:
 
 def test_no_module_outside_the_classes_package_names_a_class():
     names = _shipped_names()
-    assert {"smooth_strongly_convex", "convex", "strongly_convex", "indicator"} <= names
+    assert {"smooth_strongly_convex", "convex", "strongly_convex", "indicator",
+            "smooth"} <= names
     found = [hit for path in sorted(PACKAGE.rglob("*.py"))
              if path.relative_to(PACKAGE).parts[0] != "classes"
              for hit in _class_mentions(path.read_text(encoding="utf-8"),
@@ -82,7 +83,8 @@ def test_the_scan_sees_a_literal_and_an_import():
 @pytest.mark.parametrize("name,params", [
     ("smooth_strongly_convex", {"m": Fraction(1, 3), "L": Fraction(7, 2)}),
     ("convex", {}), ("strongly_convex", {"m": Fraction(2, 5)}), ("indicator", {}),
-    ("test_smooth_convex", {"L": Fraction(9, 4)})])
+    ("test_smooth_convex", {"L": Fraction(9, 4)}),
+    ("smooth", {"m": Fraction(-2, 3), "L": Fraction(3, 2)})])
 def test_exact_twins_are_the_float_inequalities(name, params):
     """Each class's exact tilted inequalities (balls, exact here) equal its float ones at
     rational parameters (two codes: the float formulas and the exact ones)."""

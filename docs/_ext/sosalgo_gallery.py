@@ -132,8 +132,13 @@ def spec_numbers(path: Path, cache: Path) -> tuple[dict[str, Any], Path | None]:
     key = cache_key(text)
     data_file, figure = cache / f"{path.stem}-{key}.json", cache / f"{path.stem}-{key}.png"
     spec = sosalgo.load_spec(path)
-    if spec.time_varying:
-        return {"name": spec.name, "rows": varying_rows(spec)}, None
+    from sosalgo.certificates import nonconvex_functions
+
+    if spec.time_varying or nonconvex_functions(spec):  # sosalgo pep answers, no rate
+        rows = varying_rows(spec)
+        for row in rows if not spec.time_varying else ():
+            row["nonconvex"] = True
+        return {"name": spec.name, "rows": rows}, None
     if data_file.exists() and figure.exists():
         return json.loads(data_file.read_text(encoding="utf-8")), figure
     rows = sublinear_rows(spec) if spec.sublinear else linear_rows(spec)
@@ -202,7 +207,8 @@ def summary(rows: list[dict[str, Any]]) -> str:
     """One phrase for the index: the certified rate at kappa = 10 (else the middle kappa of
     the table), or the certified constant."""
     if "steps" in rows[0]:
-        return "changes with k: `sosalgo pep --steps N`"
+        return ("nonconvex, no rate: `sosalgo pep --steps N`" if rows[0].get("nonconvex")
+                else "changes with k: `sosalgo pep --steps N`")
     if "constant" in rows[0]:
         c = rows[0]["proven"]
         return ("no constant certified" if c is None

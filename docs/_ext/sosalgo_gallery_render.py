@@ -57,18 +57,21 @@ def function_words(spec: Any, name: str) -> str:
 
     cls = function_class(spec, name)
     try:
-        words = md_text(get_class(cls).description) or f"class `{cls}`"
+        found = get_class(cls)
+        words = md_text(found.description) or f"class `{cls}`"
     except KeyError:
-        words = f"class `{cls}`"
+        found, words = None, f"class `{cls}`"
     D = spec.sympy_matrices().get("D", sp.zeros(spec.p, spec.p))
     calls = set()
     for i, fname in enumerate(spec.oracles):
         if fname == name:
             calls.add("the projection onto $K$" if cls == "indicator" else
                       "its proximal operator" if D[i, i] != 0 else
-                      "its gradient" if cls == "smooth_strongly_convex" else "a subgradient")
+                      "its gradient" if found is not None and "gradient" in found.oracles
+                      else "a subgradient")
     how = f"; called through {' and '.join(sorted(calls))}" if calls else ""
-    m0 = " ($m = 0$ here)" if spec.sublinear and "m = 0" not in words else ""
+    m0 = (" ($m = 0$ here)" if spec.sublinear and "m = 0" not in words
+          and (found is None or found.convex) else "")
     return f"{words}{m0}{how} (class `{cls}`)"
 
 
@@ -280,9 +283,29 @@ def rates_section(spec: Any, rows: list[dict[str, Any]], image: str) -> list[str
     return lines
 
 
+def nonconvex(spec: Any) -> list[str]:
+    """The spec's nonconvex functions (no rate is certified; ``sosalgo pep`` answers)."""
+    from sosalgo.certificates import nonconvex_functions
+
+    return nonconvex_functions(spec)
+
+
 def steps_section(spec: Any, rows: list[dict[str, Any]]) -> list[str]:
-    """A method that changes with k: what its matrices use, and its references against the
-    horizon N (its worst case is the finite-horizon PEP, ``sosalgo pep --steps N``)."""
+    """A method that changes with k, or on a nonconvex class: what its matrices use, and
+    its references against the horizon N (its worst case is the finite-horizon PEP,
+    ``sosalgo pep --steps N``)."""
+    if nonconvex(spec) and not spec.time_varying:
+        text = (f"{', '.join(nonconvex(spec))} is nonconvex: no rate is certified (no "
+                "Lyapunov family applies). Its worst case after $N$ steps is a performance "
+                "estimation problem: `sosalgo pep SPEC --steps N` (the pep command's "
+                "page: minimum over iterates and nonconvex classes).")
+        refs = list(spec.references)
+        table = ["", "```{list-table}", ":header-rows: 1", "", "* - $N$"]
+        table += [f"  - reference: {md_text(r)}" for r in refs]
+        for row in rows:
+            table.append(f"* - {row['steps']}")
+            table += [f"  - {row['references'][r]:.6f}" for r in refs]
+        return ["## A nonconvex class", "", text, ""] + (table + ["```", ""] if refs else [])
     text = (r"Its coefficients depend on the iteration $k = 0, \dots, N - 1$ (and the "
             "horizon $N$): the matrices above are those of step $k$")
     seqs = [f"${tex(sp.Symbol(s))}$" for s in spec.sequences]
@@ -291,7 +314,7 @@ def steps_section(spec: Any, rows: list[dict[str, Any]]) -> list[str]:
                  "at $k + 1$ carries the subscript next)")
     text += (". Its worst case after $N$ steps is a performance estimation problem: "
              "`sosalgo pep SPEC --steps N` "
-             "([methods that change with k](../spec.md#methods-that-change-with-k)).")
+             "({ref}`methods that change with k <methods-that-change-with-k>`).")
     lines = ["## A method that changes with k", "", text, ""]
     for name, decl in spec.sequences.items():
         from sosalgo_gallery import to_sympy
@@ -319,7 +342,7 @@ def page_markdown(spec: Any, rows: list[dict[str, Any]], yaml_path: str, image: 
              md_text(spec.description), ""]
     lines += update_rule(spec)
     command = f"sosalgo analyze {spec.name}.yaml"
-    if spec.time_varying:
+    if spec.time_varying or nonconvex(spec):
         lines += steps_section(spec, rows)
         command = f"sosalgo pep {spec.name}.yaml --steps {rows[0]['steps']}"
     else:

@@ -57,8 +57,21 @@ def family_applies(spec: "Spec", family: str) -> str | None:
     """Why certificate family ``family`` does not apply to ``spec`` (None when it does):
     the family's ``applies_to`` (Theorem 1 holds only in the seed's setting; a family
     registered without one applies to every spec)."""
+    nonconvex = nonconvex_functions(spec)
+    if nonconvex:
+        return (f"{', '.join(nonconvex)} is nonconvex: no Lyapunov family certifies a "
+                "linear or sublinear rate for it (use sosalgo pep)")
     applies_to = getattr(FAMILIES.get(family), "applies_to", None)
     return None if applies_to is None else applies_to(spec)
+
+
+def nonconvex_functions(spec: "Spec") -> list[str]:
+    """``name (class)`` of each function of ``spec`` whose class is not convex (no family
+    of this package certifies a rate for it)."""
+    from sosalgo.classes import get_class
+
+    return [f"{name} ({decl.cls})" for name, decl in spec.functions.items()
+            if not get_class(decl.cls).convex]
 
 
 def spec_family(spec: "Spec") -> CertificateFamily | None:
@@ -128,6 +141,7 @@ __all__ = [
     "DECLARED_COMMANDS", "LOWER_BOUND_COMMANDS", "SPEC_FAMILIES", "TIGHTEST_FIRST",
     "default_family",
     "default_family_name", "describe_family", "family_applies", "family_from_description",
+    "nonconvex_functions",
     "get_family",
     "register_family", "spec_family",
 ]

@@ -13,6 +13,8 @@ interpolation certificate family only reads the data declared here:
   h(z) = f(z) - f(x*) - <s*, z - x*> (s* a subgradient at x*), which the certificate uses;
   the class's own inequalities when ``tilt_invariant`` (the class is closed under adding
   linear functions);
+- ``convex``: every function of the class is convex (False: no Lyapunov family of
+  ``analyze`` applies; ``pep`` answers);
 - ``zero_values``: every function value is 0 (indicators: f = 0 on the set);
 - ``finite_everywhere``: the function has a (sub)gradient at every point, so it may be
   evaluated where the method never queries it (the output point of ``measure: function``);
@@ -65,6 +67,7 @@ class FunctionClass:
     parameters: tuple[str, ...] = ()
     defaults: Mapping[str, str] = {}
     oracles: frozenset[str] = frozenset()
+    convex: bool = True
     zero_values: bool = False
     finite_everywhere: bool = False
     tilt_invariant: bool = True

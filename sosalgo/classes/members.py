@@ -211,3 +211,16 @@ def strongly_convex_box(m: float, xs: Array, rng: np.random.Generator) -> ProxFu
                         lambda x: 0.5 * m * ((x - c) ** 2).sum(axis=-1) + b.value(x),
                         lambda v, t: b.prox((v + t * m * c) / (1 + t * m), t), None,
                         m * (xs - c) + b.s, "m-strongly convex quadratic + a box", True)
+
+
+def curvature_members(m: float, L: float, xs: Array, rng: np.random.Generator,
+                      spread: str, ends: tuple[str, ...] = ("m",)) -> list[ProxFunction]:
+    """The members of F(m, L) every smooth class tests: a quadratic with curvatures spread
+    over [m, L] (both ends included; labelled ``spread``), the quadratics of curvature m
+    (and L: ``ends``), and a Huber-like function whose curvature jumps between m and L."""
+    q = rng.uniform(m, L, len(xs))
+    q[0], q[-1] = m, L
+    out = [quadratic(q, xs, rng, spread)]
+    out += [quadratic(np.full(len(xs), {"m": m, "L": L}[e]), xs, rng, f"quad-{e}")
+            for e in ends]
+    return out + [huber_smooth(m, L, xs, rng)]

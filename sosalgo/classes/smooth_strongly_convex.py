@@ -19,10 +19,10 @@ from typing import Any
 import numpy as np
 
 from sosalgo.classes.base import FunctionClass, Inequality
-from sosalgo.classes.members import ProxFunction, huber_smooth, quadratic
+from sosalgo.classes.members import ProxFunction, curvature_members
 
 
-def _mm(m: Any, L: Any) -> list[list[Any]]:
+def interpolation_matrix(m: Any, L: Any) -> list[list[Any]]:
     """MM of the interpolation inequality (floats or exact numbers)."""
     return [[-(m * L), m * L, m, -L], [m * L, -(m * L), -m, L], [m, -m, -1, 1],
             [-L, L, 1, -1]]
@@ -51,13 +51,13 @@ class SmoothStronglyConvex(FunctionClass):
 
     def inequalities(self, params: Mapping[str, float]) -> list[Inequality]:
         m, L = params["m"], params["L"]
-        MM = np.array(_mm(m, L), dtype=float)
+        MM = np.array(interpolation_matrix(m, L), dtype=float)
         return [Inequality(L - m, 0.5 * MM)]
 
     def exact_tilted(self, params: Mapping[str, Any]) -> list[tuple[Any, Any]]:
         m, L = params["m"], params["L"]
         h = Fraction(1, 2)
-        Q = np.array([[v * h for v in row] for row in _mm(m, L)], dtype=object)
+        Q = np.array([[v * h for v in row] for row in interpolation_matrix(m, L)], dtype=object)
         return [(L - m, Q)]
 
     def curvatures(self, params: Mapping[str, float]) -> tuple[float, float]:
@@ -78,12 +78,7 @@ class SmoothStronglyConvex(FunctionClass):
 
     def test_functions(self, params: Mapping[str, float], xs: np.ndarray,
                        rng: np.random.Generator) -> list[ProxFunction]:
-        d = len(xs)
-        m, L = params["m"], params["L"]
-        q = rng.uniform(m, L, d)
-        q[0], q[-1] = m, L
-        return [quadratic(q, xs, rng, "quadratic"), quadratic(np.full(d, m), xs, rng, "quad-m"),
-                quadratic(np.full(d, L), xs, rng, "quad-L"), huber_smooth(m, L, xs, rng)]
+        return curvature_members(params["m"], params["L"], xs, rng, "quadratic", ("m", "L"))
 
 
 CLASS = SmoothStronglyConvex()

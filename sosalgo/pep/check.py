@@ -124,6 +124,7 @@ def positions(doc: dict[str, Any], av: ArbView) -> dict[str, Any]:
     if doc.get("xi0") is None and av.G0 is None and mt.x0_call is not None:
         start = mt.x0_call
         pos["x0"] = [ball(v) for v in doc["x0"]]
+    states = [xi]
     for k in range(int(doc["call_steps"])):
         rows = doc["calls"][k]
         if len(rows) != p or any(len(ui) != r for ui in rows):
@@ -136,19 +137,21 @@ def positions(doc: dict[str, Any], av: ArbView) -> dict[str, Any]:
                                     else [y[i, c] for c in range(r)])
         if k < N:
             xi = A * xi + B * u
+            states.append(xi)
     pos["xiN"] = xi
     call = mt.output if mt.output is not None else mt.out_call  # x_k is that call's point
-    for k, key in ((N, f"x{N}"), (0, "x0")):
-        if k == N and mt.output is not None and last_calls(mt):  # step N - 1's call
-            pos[key] = pos[_label(mt.output, N - 1, p)]
+    for k in [N, 0, *range(1, N)]:
+        key = f"x{k}"
+        if k >= 1 and mt.output is not None and last_calls(mt):  # step k - 1's call
+            pos[key] = pos[_label(mt.output, k - 1, p)]
         elif key == "x0" and doc.get("xi0") is None:
             pos.setdefault("x0", [ball(v) for v in doc["x0"]])
         elif call is not None and _label(call, k, p) in pos:
             pos[key] = pos[_label(call, k, p)]
         elif mt.output is None:
-            row = av.E * (pos["xiN"] if k == N else pos["xi0"])  # type: ignore[operator]
+            row = av.E * states[k]  # type: ignore[operator]
             pos[key] = [row[0, c] for c in range(r)]
-        else:
+        elif _label(mt.output, k, p) in pos:
             pos[key] = pos[_label(mt.output, k, p)]
     for i in range(p):
         pos.setdefault(f"y{i + 1}_{N}", pos.get(_label(i, N, p)))
@@ -235,9 +238,9 @@ def pair_forms(doc: dict[str, Any], av: ArbView, pos: dict[str, Any]
                ) -> list[tuple[list[str], list[tuple[int, int, arb, arb]]]]:
     """Per function: (labels, [(a, b, alpha, q)]) with q = X' Q X the quadratic part of
     each tilted class inequality alpha (h_a - h_b) + q >= 0 of each ordered pair (x*
-    last, g = s_j*, h = 0)."""
+    last, g = s_j*, h = 0; not for a nonconvex class, whose PEP has no x*)."""
     out = []
-    for j, (name, _, _) in enumerate(av.mt.functions):
+    for j, (name, cls, _) in enumerate(av.mt.functions):
         fd = doc["functions"][name]
         sj = [ball(v) for v in fd["optimal_subgradient"]]
         r = len(sj)
@@ -252,8 +255,9 @@ def pair_forms(doc: dict[str, Any], av: ArbView, pos: dict[str, Any]
         gram = Vm * Vm.transpose()
         npts = len(vecs) // 2
         rows = []
-        for a in range(npts):
-            for b in range(npts):
+        ends = npts if cls.convex else npts - 1  # a nonconvex class: no x* in its PEP
+        for a in range(ends):
+            for b in range(ends):
                 if a == b:
                     continue
                 idx = (2 * a, 2 * b, 2 * a + 1, 2 * b + 1)  # x_a, x_b, g_a, g_b
@@ -369,14 +373,22 @@ def pos_key(point: str, N: int, p: int) -> str:
 
 def _terms_value(terms: list[Term], doc: dict[str, Any], av: ArbView,
                  pos: dict[str, Any]) -> arb:
+    from sosalgo.pep.terms import MIN_KIND, STEP_POINT
+
     mt, N = av.mt, int(doc["steps"])
     total = arb(0)
     for t in terms:
         c = av.coef(t)
+        if t.kind == MIN_KIND:  # min over the iterates x_0 .. x_N (x_N: point "x")
+            each = [_terms_value([Term("grad", f"x{k}" if k < N else "x", t.coef)], doc, av,
+                                 pos) for k in range(N + 1)]
+            total += arb_min(each)
+            continue
         if t.kind == "sdist":
             total += c * _sdist(doc, av, pos["xi0" if t.point == "x0" else "xiN"])
             continue
-        key = {"x": f"x{N}", "x0": "x0"}.get(t.point) or pos_key(t.point, N, mt.p)
+        key = {"x": f"x{N}"}.get(t.point) or (t.point if STEP_POINT.match(t.point)
+                                               else pos_key(t.point, N, mt.p))
         P = pos[key]
         if t.kind == "dist":
             total += c * _dot(P, P)
@@ -399,6 +411,29 @@ def _terms_value(terms: list[Term], doc: dict[str, Any], av: ArbView,
     return total
 
 
+def arb_min(values: list[arb]) -> arb:
+    """A ball that holds the minimum of ``values``: from the least lower end to the least
+    upper end (exact comparisons of exact endpoints)."""
+    lo, hi = values[0].lower(), values[0].upper()
+    for v in values[1:]:
+        if v.lower() < lo:
+            lo = v.lower()
+        if v.upper() < hi:
+            hi = v.upper()
+    return lo.union(hi)
+
+
+def _differences_only(terms: list[Term], av: ArbView) -> None:
+    """A nonconvex class's PEP has no x* and no f*: its values are known up to a shift
+    and its origin is arbitrary, so a witness proves a ratio only of terms free of x*
+    (no dist, sdist) whose f coefficients sum to exactly 0 (ValueError otherwise)."""
+    if any(t.kind in ("dist", "sdist") for t in terms):
+        raise ValueError("dist about a nonconvex class (its PEP has no x*)")
+    total = sum((av.coef(t) for t in terms if t.kind == "f"), arb(0))
+    if not total.is_zero():
+        raise ValueError("f - f* about a nonconvex class: the f coefficients do not cancel")
+
+
 def _measure_initial(doc: dict[str, Any], spec: Spec, av: ArbView
                      ) -> tuple[int, int, bool, arb, arb]:
     """(pairs checked, not proven, optimal subgradients sum to 0, measure, initial)."""
@@ -409,6 +444,9 @@ def _measure_initial(doc: dict[str, Any], spec: Spec, av: ArbView
     iterms = parse_terms(doc["initial"], "initial", True, p)
     if any(t.kind == "sdist" for t in iterms) != (doc.get("xi0") is not None):
         raise ValueError("an initial sdist needs the free start xi0, and only it")
+    if not all(cls.convex for _, cls, _ in av.mt.functions):
+        _differences_only(mterms, av)
+        _differences_only(iterms, av)
     pos = positions(doc, av)
     checked, bad = _pairs_ok(doc, av, pos)
     ssum = [sum(Fraction(v[c]) for v in (f["optimal_subgradient"] for f in

@@ -8,6 +8,7 @@ import math
 import re
 import time
 from dataclasses import dataclass, field, replace
+from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
@@ -142,11 +143,16 @@ def default_initial(om: Any) -> str:
 
 
 def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None = None,
-                initial: str | None = None, schedule: StepMethods | None = None
+                initial: str | None = None, schedule: StepMethods | None = None,
+                solve_min: bool = True
                 ) -> tuple[Method, PEPStructure, list[Term], list[Term], tuple[str, str]]:
     """The float method, structure, terms and the (measure, initial) texts, defaults
     resolved (InputError naming the option for bad input). ``schedule``: a method that
-    changes with k (:mod:`sosalgo.pep.steps`; the spec gives its class and terms)."""
+    changes with k (:mod:`sosalgo.pep.steps`; the spec gives its class and terms). A
+    ``mingrad`` measure is replaced by its weighted sum at the minimax weights
+    (:mod:`sosalgo.pep.minimum`; uniform weights when not ``solve_min``: the structure's
+    size only); the returned terms are then the weighted sum's, and ``mt.bound`` its
+    text."""
     if isinstance(steps, bool) or not isinstance(steps, int) or not 1 <= steps <= MAX_STEPS:
         raise InputError(f"--steps: must be an integer in 1..{MAX_STEPS}, got {steps!r}")
     if schedule is not None or is_time_varying(spec):
@@ -157,19 +163,53 @@ def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None
         om, kq = schedule.floats[0], (math.nan if kappa is None else float(kappa))
     else:
         om, kq = bound_method(spec, kappa)
-    measure = measure or _default_measure(spec)
-    initial = initial or default_initial(om)
-    mterms = parse_terms(measure, "--measure", False, om.p)
-    iterms = parse_terms(initial, "--initial", True, om.p)
+    mopt = "--measure" if measure or "measure" not in spec.pep else "pep.measure"
+    iopt = "--initial" if initial or "initial" not in spec.pep else "pep.initial"
+    measure = measure or spec.pep.get("measure") or _default_measure(spec)
+    initial = initial or spec.pep.get("initial") or default_initial(om)
+    try:
+        mterms = parse_terms(measure, mopt, False, om.p)
+        iterms = parse_terms(initial, iopt, True, om.p)
+    except InputError as exc:  # a spec's field: named with its file
+        raise (InputError(f"{spec.source}: {exc}") if str(exc).startswith("pep.")
+               else exc) from None
     mt = float_method(om, kq)
     if schedule is not None:
         mt = float_step_method(schedule, mt, steps)
     mt.G0, mt.smooth = initial_gradient(spec, om, kq)
     try:
-        st = build_structure(mt, steps, mterms, iterms)
+        bound = _resolve_min(mt, steps, mterms, iterms, kq, solve_min)
+        st = build_structure(mt, steps, bound, iterms, (mopt, iopt))
+        if bound is not mterms and solve_min:
+            from sosalgo.pep.minimum import min_floors
+
+            st.floors = min_floors(mt, steps, mterms, iterms)
+        mterms = bound
     except InputError as exc:
         raise InputError(f"{spec.source}: {exc}") from None
     return mt, st, mterms, iterms, (measure, initial)
+
+
+def _resolve_min(mt: Method, steps: int, mterms: list[Term], iterms: list[Term],
+                 kappa: float, solve_min: bool) -> list[Term]:
+    """``mterms`` with a mingrad term replaced by its weighted sum (see
+    :func:`pep_problem`); the text is kept as ``mt.bound``."""
+    from sosalgo.pep.terms import MIN_KIND, expand_min
+
+    mins = [t for t in mterms if t.kind == MIN_KIND]
+    if not mins:
+        return mterms
+    if len(mins) > 1 or not mt.coef(mins[0]) > 0:
+        raise InputError(f"--measure: {MIN_KIND}: one term, with a positive coefficient (a "
+                         "minimum is bounded from above, not from below)")
+    if solve_min:
+        from sosalgo.pep.minimum import min_weights, rational_weights
+
+        w = rational_weights(min_weights(mt, steps, mterms, iterms))
+    else:
+        w = [Fraction(1, steps + 1)] * (steps + 1)
+    mt.bound = expand_min(mterms, steps, w)
+    return parse_terms(mt.bound, "--measure", False, mt.p)
 
 
 def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
@@ -194,6 +234,8 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
         k if isinstance(k, Kappa) else float(k))  # type: ignore[arg-type]
     res = PEPResult(spec.name, kf,
                     steps, *names, ans.status, ans.primal if ans.status == "solved" else None)
+    if mt.bound is not None:  # mingrad: every number is about this upper bound of it
+        res.extra["measure_bound"] = mt.bound
     if ans.status == "unbounded":
         res.tau = math.inf
         res.extra["note"] = ("the measure is unbounded for this initial condition (e.g. the "
@@ -311,6 +353,8 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
         # at least the reported tau (its float value, up to the solver's accuracy)
         proof = prove_certificate(spec, kappa, st, mterms, iterms, max(cand.tau, tau),
                                   cand.lam, data.w, ex)
+        if mt.bound is not None:  # what the proof is about (a mingrad measure's bound)
+            proof["measure_bound"] = mt.bound
         cert["proof"] = proof
         if proof["proven"]:
             cert.update(check_kind="exact (rational and ball arithmetic)",

@@ -367,6 +367,57 @@ def _repaired(mt: Method, st: PEPStructure, lam: list[Fraction], tb: arb
     return new, quad, cF
 
 
+def _exact_fraction(v: Any) -> Fraction | None:
+    """An exact number (rational, or a ball of radius 0) as a Fraction; None else."""
+    if hasattr(v, "c"):
+        return Fraction(v.c) if v.r == 0 else None
+    return Fraction(v)
+
+
+def _balanced(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
+              repair: bool) -> tuple[list[Fraction], str]:
+    """(multipliers, why not) with c_F = tau i_F - m_F - sum lambda_k a_k exactly 0, in
+    rationals: the PEP's values enter only as differences (no x*), so the F_i are free up
+    to a common shift and the dual needs c_F = 0; the float dual's round-off is routed
+    (``repair``) through the pairs (hub, i) and (i, hub) of each function, each raised by
+    a rational >= 0 (a pair adds alpha s to c_F[b] and takes it from c_F[a]). The sum of
+    c_F is exactly 0 when the f coefficients cancel, so the hub ends at 0 too."""
+    s = _exact_fraction(mt.s)
+    alphas = [[_exact_fraction(a) for a, _ in fi] for fi in mt.ineqs]
+    vals = [_exact_fraction(v) for v in list(st.init_f) + list(st.meas_f)]
+    if s is None or None in vals or any(a is None for fa in alphas for a in fa):
+        return lam, "values: irrational data (c_F = 0 cannot be proven exactly)"
+    nF = st.nF
+    cF = [tq * vals[i] - vals[nF + i] for i in range(nF)]
+    by_f: dict[tuple[int, int], int] = {}
+    for k, (j, a, b, r) in enumerate(st.pairs):
+        fa, fb = st.points[j][a].f, st.points[j][b].f
+        w = alphas[j][r] * s  # type: ignore[operator]
+        if lam[k]:
+            if fa is not None:
+                cF[fa] -= lam[k] * w
+            if fb is not None:
+                cF[fb] += lam[k] * w
+        if fa is not None and fb is not None and r == 0 and w > 0:
+            by_f.setdefault((fa, fb), k)
+    if repair:
+        lam = list(lam)
+        for fp in st.points:
+            fs = [pt.f for pt in fp if pt.f is not None]
+            for i in fs[1:]:
+                hub = fs[0]
+                k = by_f.get((hub, i) if cF[i] < 0 else (i, hub))
+                if k is None or cF[i] == 0:
+                    continue
+                j, _, _, r = st.pairs[k]
+                d = abs(cF[i]) / (alphas[j][r] * s)  # type: ignore[operator]
+                lam[k] += d
+                cF[hub] += cF[i]
+                cF[i] = Fraction(0)
+    bad = next((i for i, c in enumerate(cF) if c != 0), None)
+    return lam, "" if bad is None else f"value residual {bad} is not exactly 0"
+
+
 def decimal_up(x: Fraction, digits: int = 12) -> Fraction:
     """A decimal >= x with ``digits`` significant digits (x itself when x <= 0 or it has
     fewer): relative rounding, so a tiny tau keeps its digits."""
@@ -477,7 +528,13 @@ def prove_at(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
         I0 = arb_mat([[ball(v) for v in row] for row in st.init_q])
         M = arb_mat([[ball(v) for v in row] for row in st.meas_q])
         tb = ball(tq)
-        if repair:
+        if st.free_values:  # c_F = 0 exactly, in rationals (sosalgo.pep.structure)
+            lam2, why = _balanced(mt, st, list(lam), tq, repair)
+            if why:
+                return False, lam2, Fraction(0), why
+            quad, _ = _residual_parts(mt, st, lam2)
+            cF = []
+        elif repair:
             lam2, quad, cF = _repaired(mt, st, lam, tb)
         else:
             lam2 = list(lam)
@@ -490,7 +547,32 @@ def prove_at(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
         ok, delta, why = prove_scaled_psd(I0 * tb - M - quad, w)
     if not ok:
         return False, lam2, Fraction(0), why
-    return True, lam2, delta, f"diag(w) S diag(w) ⪰ {float(delta):.3g} I: {why}; c_F >= 0"
+    return True, lam2, delta, (f"diag(w) S diag(w) ⪰ {float(delta):.3g} I: {why}; "
+                               + ("c_F = 0 (exact)" if st.free_values else "c_F >= 0"))
+
+
+def _bounding_terms(mt: Method, steps: int, mterms: list[Term], bound: Any) -> list[Term]:
+    """The terms the proof is about: ``mterms``, or for a mingrad measure the proof's
+    ``measure_bound`` once it is shown to bound the measure from above in exact rationals
+    (:func:`sosalgo.pep.terms.dominates`); ValueError otherwise."""
+    from sosalgo.pep.terms import MIN_KIND, dominates, parse_terms
+
+    if not any(t.kind == MIN_KIND for t in mterms):
+        return mterms
+    if not isinstance(bound, str):
+        raise ValueError("a mingrad measure needs the proof's measure_bound")
+    terms = parse_terms(bound, "measure_bound", False, mt.p)
+
+    def value(t: Term) -> Fraction:
+        v = _exact_fraction(mt.coef(t))
+        if v is None:
+            raise ValueError(f"measure_bound: {t.coef}: not an exact rational")
+        return v
+
+    why = dominates(mterms, terms, steps, value)
+    if why:
+        raise ValueError(f"measure_bound: {why}")
+    return terms
 
 
 def reprove_certificate(spec: Spec, kappa: float | None, steps: int, measure: str,
@@ -508,8 +590,10 @@ def reprove_certificate(spec: Spec, kappa: float | None, steps: int, measure: st
         mt = exact_or_none(spec, kappa, int(steps))
         if mt is None:
             return False, "the exact method cannot be built"
-        st = build_structure(mt, int(steps), parse_terms(measure, "measure", False, mt.p),
-                             parse_terms(initial, "initial", True, mt.p))
+        mterms = _bounding_terms(mt, int(steps), parse_terms(measure, "measure", False, mt.p),
+                                 proof.get("measure_bound"))
+        st = build_structure(mt, int(steps), mterms, parse_terms(initial, "initial", True,
+                                                                   mt.p))
         index = {name: k for k, name in enumerate(st.labels)}
         unknown = [k for k in lab if k not in index]
         if unknown:

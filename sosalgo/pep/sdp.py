@@ -307,9 +307,11 @@ def _solve_active(data: PEPData, active: np.ndarray, margin: float, objective: s
     rows = [sps.csr_matrix(init[None, :]), -sps.diags(1.0 / sig) @ ineq,
             sps.hstack([sps.csr_matrix((nF, nG)), -sps.identity(nF)])]
     b = [np.ones(1), np.full(K, -slack), np.zeros(nF)]
-    if floor is not None:
-        rows.append(sps.csr_matrix(-meas[None, :]))
-        b.append(np.array([-floor / unit]))
+    if floor is not None:  # a mingrad measure: each of its forms (st.floors) at the floor
+        for form in ([meas] if st.floors is None else
+                     [_scaled_form(data, fq, ff) / unit for fq, ff in st.floors]):
+            rows.append(sps.csr_matrix(-form[None, :]))
+            b.append(np.array([-floor / unit]))
     nn = sum(r.shape[0] for r in rows)
     rows.append(sps.hstack([-sps.identity(nG), sps.csr_matrix((nG, nF))]))
     b.append(np.zeros(nG))
@@ -368,7 +370,8 @@ def _solve_dual(data: PEPData, active: np.ndarray, margin: float, unit: float,
     A = sps.vstack([sps.hstack([sps.csr_matrix((K, 1)), -sps.identity(K)]),
                     body[nG:], body[:nG]]).tocsc()
     A.eliminate_zeros()
-    eye = np.concatenate([svec(np.eye(d)), np.ones(nF)]) * margin
+    eye = np.concatenate([svec(np.eye(d)), np.full(nF, 0.0 if st.free_values else 1.0)]
+                         ) * margin  # free values: c_F = 0 (no margin there)
     b = np.concatenate([np.zeros(K), -(meas + eye)[nG:], -(meas + eye)[:nG]])
     q = np.zeros(1 + K)
     q[0] = 1.0

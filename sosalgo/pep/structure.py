@@ -47,7 +47,7 @@ import numpy as np
 
 from sosalgo.errors import InputError
 from sosalgo.oracles import CallShape
-from sosalgo.pep.terms import Term
+from sosalgo.pep.terms import MIN_KIND, STEP_POINT, Term
 
 __all__ = ["Method", "PEPPoint", "PEPStructure", "build_structure", "enclosure_bits",
            "enclosure_digits", "last_calls", "output_call", "pair_label", "radius_growth"]
@@ -90,6 +90,8 @@ class Method(CallShape):
     # exact methods: significant bits kept when a long centre is rounded outward
     # (:func:`coarsen`), matched to the decimals of the enclosures (:func:`enclosure_digits`)
     bits: int = 160
+    # a mingrad measure: the weighted sum that bounds it (:mod:`sosalgo.pep.minimum`)
+    bound: str | None = None
     # a method that changes with k: (A_k, B_k, C_k, D_k) of step k (call k and the move
     # from xi_k to xi_{k+1}); None: A, B, C, D at every step (:meth:`step`)
     per_step: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] | None = None
@@ -135,6 +137,12 @@ class PEPStructure:
     init_f: np.ndarray
     rows: dict[str, Any] = field(default_factory=dict)  # xi, y, x rows by time
     at: dict[tuple[str, int], int] = field(default_factory=dict)  # (term point, j) -> point
+    # no x* (a nonconvex class): values enter only as differences, the dual's c_F is 0
+    # (no margin on it; proven exactly zero, :func:`sosalgo.pep.exact.prove_at`)
+    free_values: bool = False
+    # a mingrad measure: the forms c |grad f(x_k)|^2 + (linear terms), k = 0..N (the
+    # witness keeps each at its floor, so that their minimum is; :mod:`sosalgo.pep.minimum`)
+    floors: list[tuple[np.ndarray, np.ndarray]] | None = None
 
     @property
     def d(self) -> int:
@@ -304,6 +312,7 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
                      initial: Sequence[Term], option: tuple[str, str]) -> PEPStructure:
     p, J, n = mt.p, len(mt.functions), mt.n
     free = any(t.kind == "sdist" for t in initial)
+    origin = _check_nonconvex(mt, measure, initial, option)
     n0 = n if free else 1
     needs_n = mt.output is not None or any(t.point.startswith("y") for t in measure)
     calls = steps + 1 if needs_n and mt.per_step is None else steps  # see last_calls
@@ -320,6 +329,8 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
         cols.append(f"g_{mt.functions[mt.smooth][0]}(x0)/s")
     if free:
         xi0 = eye[:n]
+    elif origin:  # no x*: the origin at x_0, the column x0-x* unused (dropped)
+        xi0 = np.outer(mt.X0, eye[0] * 0)
     else:
         xi0 = np.outer(mt.X0, eye[0]) - (mt.s * (mt.Xs @ S) if J > 1 else 0)
         if g0:  # + G0 g0, g0 / s = its tilted column + s_j* / s
@@ -329,7 +340,7 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
                                      for k in range(calls)], calls)
     Yr = [[Y[k][i] for i in range(p)] for k in range(calls)]  # one object per call point
     out = _output_row(mt, xi, Yr, steps)
-    x0 = _output_row(mt, xi, Yr, 0) if free else eye[0]
+    x0 = _output_row(mt, xi, Yr, 0) if free else eye[0] * 0 if origin else eye[0]
     if not free and not g0 and mt.x0_call is not None:  # the same point, proven exactly
         Yr[0][mt.x0_call] = x0
     where = {"x": out, "x0": x0}
@@ -350,16 +361,49 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
         nF += 1
     for j in range(J):
         pts[j].append(PEPPoint("x*", zero, zero, None))
-    state = {"nF": nF, "next": len(cols), "cols": cols, "eye": eye, "at": at,
+    state = {"nF": nF, "next": len(cols), "cols": cols, "eye": eye, "at": at, "origin": origin,
              "xi": {"x": xi[steps], "x0": xi[0]}}
     forms = {}
     for key, terms, opt in (("m", measure, option[0]), ("i", initial, option[1])):
         forms[key] = []
         for t in terms:
+            if t.kind == MIN_KIND:
+                raise InputError(f"{opt}: {MIN_KIND}: expand it first (terms.expand_min)")
+            step = STEP_POINT.match(t.point)
+            if step and t.point not in where:
+                if int(step.group(1)) > steps:
+                    raise InputError(f"{opt}: x_{step.group(1)}: after the last step "
+                                     f"(N = {steps})")
+                where[t.point] = _output_row(mt, xi, Yr, int(step.group(1)))
             if t.point not in where:
                 raise InputError(f"{opt}: {t.point}_N: no such point")
             forms[key].append(_term(mt, t, where[t.point], pts, sstar, state, opt, steps))
     return _finish(mt, steps, calls, state, pts, forms, {"xi": xi, "y": Y, "u": U, "x": out})
+
+
+def _check_nonconvex(mt: Method, measure: Sequence[Term], initial: Sequence[Term],
+                     option: tuple[str, str]) -> bool:
+    """Whether the PEP has no x* (a nonconvex class: a stationary point below the points
+    is not a minimizer, :mod:`sosalgo.classes.smooth`): then one function, no term about
+    x* (dist, sdist), and f only in differences (the f terms' coefficients sum to 0, so
+    that f* cancels; checked on floats). InputError naming the option otherwise."""
+    bad = [f"{name} ({cls.name})" for name, cls, _ in mt.functions if not cls.convex]
+    if not bad:
+        return False
+    if len(mt.functions) > 1 or mt.G0 is not None:
+        raise InputError(f"functions: {bad[0]} is nonconvex: its PEP takes one function "
+                         "started at x_0 (no initial_state gradient)")
+    for terms, opt in ((measure, option[0]), (initial, option[1])):
+        near = [t.kind for t in terms if t.kind in ("dist", "sdist")]
+        if near:
+            raise InputError(f"{opt}: {near[0]}: {bad[0]} is nonconvex, its PEP has no "
+                             "minimizer x* (use grad, mingrad or differences of f)")
+        if not mt.exact and any(t.kind == "f" for t in terms):
+            total = sum(float(mt.coef(t)) for t in terms if t.kind == "f")
+            if abs(total) > 1e-12 * sum(abs(float(mt.coef(t))) for t in terms):
+                raise InputError(f"{opt}: f - f*: {bad[0]} is nonconvex, its PEP has no "
+                                 "minimum f*; use differences such as f(x_0) - f(x_N)")
+    return True
 
 
 def _output_row(mt: Method, xi: list[np.ndarray], Yr: list[list[np.ndarray]],
@@ -414,18 +458,20 @@ def _finish(mt: Method, steps: int, calls: int, state: dict[str, Any],
     init_q, init_f = _sum_forms([q for q, _ in forms["i"]], [f for _, f in forms["i"]],
                                 keep, nF, dt)
     pairs, labels = [], []
-    for j, (fname, _, _) in enumerate(mt.functions):
+    for j, (fname, cls, _) in enumerate(mt.functions):
         many = len(mt.ineqs[j]) > 1
+        star = cls.convex  # a nonconvex class has no minimizer in its PEP: no x* pairs
         for a, pa in enumerate(pts[j]):
             for b, pb in enumerate(pts[j]):
-                if a != b:
+                if a != b and (star or "x*" not in (pa.label, pb.label)):
                     for r in range(len(mt.ineqs[j])):
                         pairs.append((j, a, b, r))
                         labels.append(pair_label(fname, pa.label, pb.label, r, many))
     cut = {"xi": [x[:, keep] for x in rows["xi"]], "y": [y[:, keep] for y in rows["y"]],
            "u": [u[:, keep] for u in rows["u"]], "x": rows["x"][keep]}
     return PEPStructure(steps, calls, [state["cols"][c] for c in keep], pts, nF, pairs,
-                        labels, meas_q, meas_f, init_q, init_f, cut, state["at"])
+                        labels, meas_q, meas_f, init_q, init_f, cut, state["at"],
+                        state["origin"])
 
 
 def _obj_eye(k: int) -> np.ndarray:
@@ -463,7 +509,8 @@ def _term(mt: Method, t: Term, row: np.ndarray, pts: list[list[PEPPoint]],
           steps: int) -> tuple[np.ndarray, dict[int, Any]]:
     """(quadratic form on the basis, {F index: coefficient}) of one term."""
     c = mt.coef(t)
-    label = {"x": f"x{steps}", "x0": "x0"}.get(t.point, f"{t.point}_{steps}")
+    label = {"x": f"x{steps}"}.get(t.point) or (
+        t.point if STEP_POINT.match(t.point) else f"{t.point}_{steps}")
     if t.kind == "dist":
         return np.outer(row, row) * c, {}
     if t.kind == "sdist":
@@ -492,6 +539,9 @@ def _used_columns(pts: list[list[PEPPoint]], forms: list[np.ndarray], n0: int, J
     """Columns some point or term uses: the first d, minus optimal subgradients that appear
     nowhere (they would be free directions of G)."""
     used = [c < d for c in range(len(pts[0][0].x))]
+    if n0 == 1:  # x0-x*: unused when the PEP has no x* (its origin at x_0)
+        used[0] = (any(_nonzero(pt.x[0]) or _nonzero(pt.g[0]) for fp in pts for pt in fp)
+                   or any(_nonzero(v) for q in forms for v in q[0]))
     for c in range(n0, n0 + J - 1):
         used[c] = (any(_nonzero(pt.x[c]) or _nonzero(pt.g[c]) for fp in pts for pt in fp)
                    or any(_nonzero(v) for q in forms for v in q[c]))

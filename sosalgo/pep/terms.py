@@ -2,33 +2,43 @@
 
 ``f`` = sum_j f_j(x) - f_j*, ``dist`` = |x - x*|^2, ``grad`` = |grad f(x)|^2 of the smooth
 part (the functions of a class with a gradient oracle), ``sdist`` = |xi - xi*|^2 over
-every state block (an initial ``sdist`` makes the start free); ``c`` is an expression in
-m, L, kappa. A measure term may name its point: ``f(x_N)`` (the output, the default),
+every state block (an initial ``sdist`` makes the start free), ``mingrad`` = the minimum
+over the iterates x_0, ..., x_N of |grad f(x_k)|^2 (measure only, coefficient > 0:
+:func:`expand_min`); ``c`` is an expression in m, L, kappa. A measure term may name its
+point: ``f(x_N)`` (the output, the default), ``grad(x_3)`` (the output after 3 steps),
 ``dist(y_N)`` (the point of the single call), ``grad(y2_N)`` (the point of call 2); an
-initial term is at x_0. The string is parsed by :mod:`sosalgo.kernel.expr` (never evaluated) and
-split into its linear terms; anything nonlinear in f, dist, grad is refused.
+initial term is at x_0 or at x_N (``f(x_0) - f(x_N)``). The string is parsed by
+:mod:`sosalgo.kernel.expr` (never evaluated) and split into its linear terms; anything
+nonlinear in f, dist, grad is refused.
 """
 
 from __future__ import annotations
 
 import math
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
+from fractions import Fraction
+from typing import Any
 
 from sosalgo.errors import InputError
 from sosalgo.kernel.expr.tree import Expr, ExprError, evaluate, parse_tree
 from sosalgo.spec.initial_state import linear_parts
 
-__all__ = ["KINDS", "Term", "describe_terms", "parse_terms"]
+__all__ = ["KINDS", "MIN_KIND", "Term", "describe_terms", "dominates", "expand_min",
+           "parse_terms"]
 
-KINDS = ("f", "dist", "grad", "sdist")
+MIN_KIND = "mingrad"  # min over k = 0..N of |grad f(x_k)|^2
+KINDS = ("f", "dist", "grad", "sdist", MIN_KIND)
 _AT = re.compile(r"\b(f|dist|grad)\s*\(\s*([A-Za-z0-9_]+)\s*\)")
-_POINT = re.compile(r"^(x|y(\d*))_(N|0)$")
+_POINT = re.compile(r"^(x|y(\d*))_(N|\d+)$")
+STEP_POINT = re.compile(r"^x(\d+)$")  # a measure's x_k, k a number: the output at step k
 
 
 @dataclass(frozen=True)
 class Term:
-    """``coef * kind(point)``: point "x" (the output), "y<i>" (call i, 1-based) or "x0"."""
+    """``coef * kind(point)``: point "x" (the output at step N), "x<k>" (the output at step
+    k; "x0" is also the start), "y<i>" (call i at step N, 1-based)."""
 
     kind: str
     point: str
@@ -54,13 +64,19 @@ def _rewrite(text: str, option: str, initial: bool, p: int) -> str:
         kind, pt = mt.group(1), mt.group(2)
         hit = _POINT.match(pt)
         if hit is None:
-            raise InputError(f"{option}: unknown point {pt!r} (use x_N, y_N, y<i>_N"
-                             + (", x_0)" if initial else ")"))
-        if initial != (hit.group(3) == "0"):
-            raise InputError(f"{option}: {pt}: " + ("the initial condition is at x_0" if initial
-                                                     else "the measure is at step N (x_N, y_N)"))
+            raise InputError(f"{option}: unknown point {pt!r} (use "
+                             + ("x_0, x_N)" if initial else "x_N, x_<k>, y_N, y<i>_N)"))
+        step = hit.group(3)
         if hit.group(1) == "x":
-            return _placeholder(kind, "x0" if initial else "x")
+            if step == "N":
+                return _placeholder(kind, "x")
+            if initial and step != "0":
+                raise InputError(f"{option}: {pt}: the initial condition is at x_0 or x_N")
+            return _placeholder(kind, f"x{int(step)}")
+        if initial or step != "N":
+            raise InputError(f"{option}: {pt}: " + ("the initial condition is at x_0 or x_N"
+                                                     if initial else "a call's point is at "
+                                                     "step N (y_N, y<i>_N)"))
         i = int(hit.group(2) or (1 if p == 1 else 0))
         if not 1 <= i <= p:
             raise InputError(f"{option}: {pt}: the method has {p} oracle call(s) per step"
@@ -84,6 +100,8 @@ def parse_terms(text: object, option: str, initial: bool, p: int) -> list[Term]:
     parts = linear_parts(tree, frozenset({"m", "L", "kappa"}), option)
     if "1" in parts:
         raise InputError(f"{option}: a constant term; every term multiplies f, dist or grad")
+    if MIN_KIND in parts and initial:
+        raise InputError(f"{option}: {MIN_KIND} is a measure (the initial condition is linear)")
     out = []
     for key, coef in parts.items():
         kind, _, point = key.partition("__")
@@ -94,3 +112,68 @@ def parse_terms(text: object, option: str, initial: bool, p: int) -> list[Term]:
 def describe_terms(terms: list[Term]) -> str:
     """A readable form: ``1*f(x) + L/2*dist(x0)``."""
     return " + ".join(f"({t.coef})*{t.kind}({t.point})" for t in terms)
+
+
+def _point_text(t: Term) -> str:
+    """The point of a term as written: x_N, x_<k>, y<i>_N."""
+    if t.point == "x":
+        return "x_N"
+    hit = STEP_POINT.match(t.point)
+    return f"x_{hit.group(1)}" if hit else f"{t.point}_N"
+
+
+def _term_text(t: Term, weight: Fraction = Fraction(1), point: str | None = None,
+               kind: str | None = None) -> str:
+    w = "" if weight == 1 else f"{weight.numerator}/{weight.denominator}*"
+    where = "" if (kind or t.kind) == "sdist" else f"({point or _point_text(t)})"
+    return f"({t.coef})*{w}{kind or t.kind}{where}"
+
+
+def expand_min(terms: list[Term], steps: int, weights: list[Fraction]) -> str:
+    """The measure with its ``mingrad`` term c min_k |grad f(x_k)|^2 replaced by
+    c sum_k w_k |grad f(x_k)|^2 (x_N written x_N): an upper bound of it when the weights
+    are >= 0 and sum to 1, and its worst case equals the minimum's at the minimax weights
+    (max over the PEP of min_k = min over the weights of the max; the weights are found
+    by :mod:`sosalgo.pep.minimum`)."""
+    if len(weights) != steps + 1 or any(w < 0 for w in weights) or sum(weights) != 1:
+        raise ValueError("weights: steps + 1 rationals >= 0 summing to 1")
+    out = []
+    for t in terms:
+        if t.kind != MIN_KIND:
+            out.append(_term_text(t))
+            continue
+        out += [_term_text(t, w, "x_N" if k == steps else f"x_{k}", "grad")
+                for k, w in enumerate(weights)]
+    return " + ".join(out)
+
+
+def dominates(measure: list[Term], bound: list[Term], steps: int,
+              value: Callable[[Term], Any]) -> str | None:
+    """Why ``bound`` (a linear measure) is not an upper bound of ``measure`` (None when
+    it is): the terms other than ``mingrad`` equal, and the mingrad term's coefficient c
+    (value > 0) covered by c w_k grad(x_k), w_k >= 0 summing to at least 1 (exact
+    values: ``value`` of a term's coefficient, rationals or balls)."""
+    mins = [t for t in measure if t.kind == MIN_KIND]
+    rest = [t for t in measure if t.kind != MIN_KIND]
+    if len(mins) != 1:
+        return "the measure has no mingrad term"
+    c = value(mins[0])
+    if not c > 0:
+        return "the mingrad coefficient is not positive"
+    key = {(t.kind, t.point): t for t in rest}
+    points = {f"x{k}" for k in range(steps)} | {"x"}
+    total = 0
+    for t in bound:
+        if (t.kind, t.point) in key:
+            if value(t) != value(key.pop((t.kind, t.point))):
+                return f"{t.kind}({t.point}): a coefficient differs from the measure's"
+        elif t.kind == "grad" and t.point in points:
+            w = value(t)
+            if not w >= 0:
+                return f"grad({t.point}): a negative weight"
+            total = total + w
+        else:
+            return f"{t.kind}({t.point}): not a term of the measure"
+    if key:
+        return "a term of the measure is missing from the bound"
+    return None if total >= c else "the weights sum to less than the mingrad coefficient"

@@ -106,6 +106,8 @@ def quadratic_point(mt: Method, st: Any) -> np.ndarray | None:
         q.append((lo + hi) / 2 if hi > lo else lo + s / 2)
     qc = np.array([q[j] for j in mt.oracles])
     col = {name: c for c, name in enumerate(st.basis)}
+    if st.free_values:
+        return None  # the origin at x_0 (no x*): no direction from x_0 = 1
     v = np.zeros(st.d)
     xi = np.asarray(mt.X0, float).copy()
     v[0] = 1.0
@@ -330,7 +332,8 @@ def _document(spec: Spec, mt: Method, st: Any, V: np.ndarray, F: np.ndarray,
     return doc | {"kind": WITNESS_KIND, "spec": spec.name, "kappa": res.kappa,
             "steps": st.steps, "calls_per_step": p, "call_steps": st.calls,
             "measure": res.measure, "initial": res.initial, "dimension": int(V.shape[1]),
-            "x0": _vec(V[0]), "calls": calls, "functions": funcs,
+            "x0": _vec(0 * V[0] if st.free_values else V[0]),  # no x*: x_0 = 0
+            "calls": calls, "functions": funcs,
             "evaluations": {f"{key}|{mt.functions[j][0]}": st.points[j][a].label
                             for (key, j), a in st.at.items()},
             "iterates": [[float(v) for v in _out(mt, st, k) @ V]

@@ -150,6 +150,7 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
     from sosalgo.report import analysis as rep
 
     spec, text = spec_with_text(spec, spec_text, overrides)
+    inputs.refuse_nonconvex(spec)
     if noise:  # one gradient call on F(m, L) only (sosalgo.sensitivity)
         from sosalgo.sensitivity.run import check_noise_spec
 
@@ -274,6 +275,7 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
     from sosalgo.report import design as rep
 
     spec, text = spec_with_text(spec, spec_text, overrides)
+    inputs.refuse_nonconvex(spec)
     own = spec_family(spec)  # m: 0: the sublinear family's constant (no kappa)
     check_objective(spec, [] if own is not None else _kappa_list(spec, kappa), objective,
                     max_rate, max_noise)
@@ -451,6 +453,7 @@ def grid_run(spec: Spec | str | Path, kappa: Kappas, out_dir: str | Path = "outp
     from sosalgo.schema import GRID_COLUMNS, grid_fixed
 
     spec, text = spec_with_text(spec, spec_text, overrides)
+    inputs.refuse_nonconvex(spec)
     own = spec_family(spec)
     if own is not None:  # m: 0: the sublinear family's constant on the grid (no kappa)
         return _grid_constant(spec, own, text, kappa, out_dir, points, free, workers,

@@ -371,6 +371,7 @@ def pareto_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = 
     from sosalgo.runs import set_field, spec_with_text
 
     spec, text = spec_with_text(spec, spec_text, overrides)
+    inputs.refuse_nonconvex(spec)
     kappas = _check(spec, kappa, points, time_limit)
     names = inputs.free_names(spec, free)
     fam = inputs.select_families(spec, certificate, options, single=True, command="pareto")[0]

@@ -89,9 +89,9 @@ def _check(spec: Spec, kappas: list[float | None], steps: list[int], measure: st
 
     small = steps[0] if is_time_varying(spec) else 1  # a schedule's horizon is its length
     for k in kappas:
-        pep_problem(spec, k, small, measure, initial)
+        pep_problem(spec, k, small, measure, initial, solve_min=False)
     top = max(steps)
-    _, st, *_ = pep_problem(spec, kappas[0], top, measure, initial)
+    _, st, *_ = pep_problem(spec, kappas[0], top, measure, initial, solve_min=False)
     sizes = [(round(len(st.pairs) * ((n + 1) / (top + 1)) ** 2),
               max(1, round(st.d * (n + 1) / (top + 1)))) for n in steps] * len(kappas)
     span = f"N={steps[0]}" if len(steps) == 1 else f"N={steps[0]}..{top}"
@@ -334,7 +334,8 @@ def pep_summary(doc: dict[str, Any], details: bool = True) -> str:
 PEP_LEGEND = ("tau: the SDP's worst case (floating point); tau_proven: proven upper bound "
               "(exact dual certificate)",
               "witness_lower: witnessed lower bound (reached by an explicit function and start)")
-_TERM = re.compile(r"\b(f|dist|grad|sdist)\b(\s*\(\s*([A-Za-z0-9_]+)\s*\))?")
+_TERM = re.compile(r"\b(f|dist|grad|sdist|mingrad)\b(\s*\(\s*([A-Za-z0-9_]+)\s*\))?")
+_DIFF = re.compile(r"\(f\(([A-Za-z0-9_]+)\) - f\*\) - \(f\(([A-Za-z0-9_]+)\) - f\*\)")
 
 
 def term_words(text: str, initial: bool, several: bool) -> str:
@@ -346,9 +347,10 @@ def term_words(text: str, initial: bool, several: bool) -> str:
         state = "xi_0" if initial else "xi_N"
         return {"f": (f"(sum_j f_j({point}) - f_j*)" if several else f"(f({point}) - f*)"),
                 "dist": f"|{point} - x*|^2", "grad": f"|grad f({point})|^2",
-                "sdist": f"|{state} - xi*|^2"}[kind]
+                "sdist": f"|{state} - xi*|^2",
+                "mingrad": "min_{k <= N} |grad f(x_k)|^2"}[kind]
 
-    out = _TERM.sub(words, str(text))
+    out = _DIFF.sub(r"f(\1) - f(\2)", _TERM.sub(words, str(text)))
     return out[1:-1] if out.startswith("(") and out.endswith(")") and out.count("(") == 2 \
         else out
 

@@ -251,6 +251,17 @@ class _Builder:
     def fail(self, field_: str, message: str) -> SpecError:
         return SpecError(self.source, field_, message)
 
+    def pep_terms(self, raw: object) -> dict[str, str]:
+        """``pep: {measure: TERMS, initial: TERMS}`` (the terms are parsed by ``sosalgo
+        pep``, :mod:`sosalgo.pep.terms`, which names pep.measure or pep.initial)."""
+        if raw is None:
+            return {}
+        if (not isinstance(raw, dict) or not raw or set(raw) - {"measure", "initial"}
+                or not all(isinstance(v, str) and v.strip() for v in raw.values())):
+            raise self.fail("pep", "expected a mapping with measure and/or initial, each "
+                                   "terms such as 'mingrad', 'f(x_0) - f(x_N)'")
+        return {str(k): str(v) for k, v in raw.items()}
+
     # -- top level -------------------------------------------------------------------
     def build(self, data: object) -> Spec:
         if not isinstance(data, dict):
@@ -324,6 +335,7 @@ class _Builder:
             initial_state=initial_state, m_expr=parse_tree(data.get("m", 1), ()),
             L_expr=parse_tree(data["L"], ()) if L is not None else None,
             sequences=sequences, time_varying=varies,
+            pep=self.pep_terms(data.get("pep")),
         )
         if spec.sublinear:
             self.check_sublinear(spec)

@@ -35,7 +35,7 @@ ORACLE_MATRIX_NAMES = ("A", "B", "C", "D", "E")  # D optional; E absent with ``o
 MEASURES = ("function", "distance")
 TOP_KEYS = {
     "name", "description", "parameters", "matrices", "references", "kappa", "m", "certificate",
-    "functions", "oracles", "measure", "output", "L", "initial_state", "sequences",
+    "functions", "oracles", "measure", "output", "L", "initial_state", "sequences", "pep",
 }
 NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,79}$")
 PARAM_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,31}$")
@@ -181,6 +181,9 @@ class Spec:
     # sosalgo.steps binds such a spec step by step
     sequences: dict[str, SequenceDecl] = field(default_factory=dict)
     time_varying: bool = False
+    # ``pep: {measure, initial}``: the PEP's default terms (sosalgo.pep.terms), when the
+    # command line gives none
+    pep: dict[str, str] = field(default_factory=dict)
     _sympy: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     @property
