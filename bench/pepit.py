@@ -14,7 +14,10 @@ exact proof, no witness (a fresh process per case: its peak memory is its own). 
 Clarabel; its time is the ``solve`` call (problem building excluded, to its advantage).
 The accuracy each reaches is printed beside its time: PEPit's value against sosalgo's
 proven bound (sosalgo's value is an exact upper bound; PEPit's is a float, above or
-below the true value by its solver's accuracy).
+below the true value by its solver's accuracy), with each run's peak memory and
+sosalgo's Clarabel solves. N = 10 ... 100; a case past ``SOSALGO_BENCH_CASE_SECONDS``
+(1800) is reported as such; ``SOSALGO_BENCH_METHODS`` (``gradient,nesterov``) and
+``SOSALGO_BENCH_STEPS`` (``50,70``) choose the cases.
 """
 
 from __future__ import annotations
@@ -31,8 +34,11 @@ from bench.pep import SOSALGO_CHILD
 ROOT = Path(__file__).resolve().parents[1]
 KAPPA = 10.0
 CASES = (("gradient", "dist"), ("nesterov", None))
-STEPS, QUICK_STEPS = (10, 20, 30, 50), (10, 20)
+STEPS, QUICK_STEPS = (10, 20, 30, 50, 70, 100), (10, 20)
 SOLVERS = ("default", "CLARABEL")
+# seconds allowed to one case (one tool, one method, one N): a case past it prints
+# "over ... s" and the run goes on (``SOSALGO_BENCH_CASE_SECONDS`` changes it)
+CASE_SECONDS = float(os.environ.get("SOSALGO_BENCH_CASE_SECONDS", "1800"))
 
 # Runs in PEPit's interpreter: one case, one JSON line out.
 WORKER = r'''
@@ -98,7 +104,7 @@ def pepit_python() -> tuple[str | None, str]:
                   "a Python that has it)")
 
 
-def run_child(python: str, code: str, job: list, timeout: float = 3600) -> dict:
+def run_child(python: str, code: str, job: list, timeout: float = CASE_SECONDS) -> dict:
     """One case in a fresh process: its JSON line, or {"error": ...}."""
     env = dict(os.environ, OMP_NUM_THREADS="1")
     try:
@@ -119,13 +125,18 @@ def run(quick: bool = False) -> None:
         print(f"skipped: {origin}")
         return
     print(f"PEPit from {origin}; kappa = {KAPPA:g}; one thread each; same run, same machine\n")
-    print("| method | N | sosalgo s (SDP + exact proof) | sosalgo MB | tau proven | "
-          "PEPit SCS s | PEPit SCS tau (rel. to proven), status | PEPit Clarabel s | "
-          "PEPit Clarabel tau (rel.), status | PEPit SCS s / sosalgo s | "
-          "PEPit Clarabel s / sosalgo s |")
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    print("| method | N | sosalgo s (SDP + exact proof) | sosalgo MB | sosalgo solves | "
+          "tau proven | PEPit SCS s | PEPit SCS MB | PEPit SCS tau (rel. to proven), "
+          "status | PEPit Clarabel s | PEPit Clarabel MB | PEPit Clarabel tau (rel.), "
+          "status | PEPit SCS s / sosalgo s | PEPit Clarabel s / sosalgo s |")
+    print("|---|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    only = os.environ.get("SOSALGO_BENCH_METHODS")  # e.g. "gradient": those cases only
+    steps = os.environ.get("SOSALGO_BENCH_STEPS")  # e.g. "50,70": those N only
     for spec, measure in CASES:
-        for N in QUICK_STEPS if quick else STEPS:
+        if only and spec not in only.split(","):
+            continue
+        for N in ([int(n) for n in steps.split(",")] if steps
+                  else QUICK_STEPS if quick else STEPS):
             ours = run_child(sys.executable, SOSALGO_CHILD,
                              [spec, KAPPA, N, measure, True, False])
             theirs = {s: run_child(python, WORKER, [spec, N, KAPPA, s]) for s in SOLVERS}
@@ -141,15 +152,18 @@ def _rel(value: float | None, ref: float | None) -> str:
 def row(spec: str, N: int, ours: dict, theirs: dict) -> str:
     if "error" in ours:
         return f"| {spec} | {N} | {ours['error']} |"
+    from bench.pep_scaling import solves_text
+
     ref = ours.get("tau_proven")
     cells = [spec, str(N), f"{ours['seconds']:.2f}", f"{ours['mb']:.0f}",
-             f"{ref:.9g}" if ref else "not proven"]
+             solves_text(ours.get("solves") or {}), f"{ref:.9g}" if ref else "not proven"]
     for s in SOLVERS:
         t = theirs[s]
         if "error" in t:
-            cells += [t["error"], "—"]
+            cells += [t["error"], "—", "—"]
             continue
-        cells += [f"{t['seconds']:.2f}", f"{_rel(t['tau'], ref)}, {t['status']}"]
+        cells += [f"{t['seconds']:.2f}", f"{t['mb']:.0f}",
+                  f"{_rel(t['tau'], ref)}, {t['status']}"]
     for s in SOLVERS:
         t = theirs[s]
         cells.append(f"{t['seconds'] / ours['seconds']:.2f}" if "seconds" in t else "—")

@@ -86,6 +86,7 @@ _EXPORTS = {
     "pep": "sosalgo.pep",  # the package, callable: sosalgo.pep(...) -> PEPResult
     "pep_run": "sosalgo.runs.pep",
     "pareto_run": "sosalgo.runs.pareto",
+    "steps_design_run": "sosalgo.runs.steps_design",
     "noise": "sosalgo.api",
     "AnalysisResult": "sosalgo.analysis",
     "analyze_algorithm": "sosalgo.analysis",

@@ -205,11 +205,15 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
               show_default=True, help="Matrix inequality kept whole (pmi) or as minors.")
 @click.option("--order", type=click.IntRange(min=1), default=None,
               help="Relaxation order (default: 3 for pmi, the minimum for minors).")
-@click.option("--gap", default=1e-4, show_default=True, type=float,
-              help="Target gap between certified rate and lower bound.")
+@click.option("--gap", default=None, type=float,
+              help="Target gap between certified rate and lower bound  [default: 1e-4; "
+                   "with --steps 1e-3, relative]")
 @click.option("--time-limit", default=120.0, show_default=True, type=float,
               help="Wall-clock seconds per kappa (all phases); the best proven results "
                    "so far are returned when it runs out.")
+@click.option("--steps", default=None, metavar="N|a..b",
+              help="Minimize the worst case after N steps (or each N of a..b) over the "
+                   "box: schedule, tau_certified, lower_bound, gap, floor (docs/design.md).")
 @click.option("--method", type=click.Choice(["dual", "moment"]), default="dual",
               show_default=True,
               help="Lower bound by box-wide dual certificates (dual) or by the paper's "
@@ -231,17 +235,31 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
 @details_option
 @handle_errors
 def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: str,
-           order: int | None, gap: float, time_limit: float, method: str, out: str,
+           order: int | None, gap: float | None, time_limit: float, steps: str | None,
+           method: str, out: str,
            as_json: bool, workers: int | None, scheduler: str | None, restart: bool,
            quiet: bool, max_memory: str | None, verify_: bool, objective: str,
            max_rate: float | None,
            max_noise: float | None, certificate: str | None, lag: int | None,
            overrides: tuple[str, ...], details: bool) -> None:
     """Design parameters: certified design, proven lower bound, gap between them.
-    Python: sosalgo.design_run (files) or sosalgo.design (results)."""
+    Python: sosalgo.design_run (files) or sosalgo.design (results); with --steps
+    sosalgo.steps_design_run."""
     from sosalgo.report import design as rep
     from sosalgo.runs import design_run
 
+    if steps is not None:
+        mixed = [o for o, on in (("--objective noise", objective != "rate"),
+                                 ("--max-rate", max_rate is not None),
+                                 ("--max-noise", max_noise is not None),
+                                 ("--method moment", method != "dual"),
+                                 ("--certificate", certificate is not None)) if on]
+        if mixed:
+            raise InputError(f"--steps: designs the N-step worst case; not with {mixed[0]}")
+        _design_steps(spec_path, kappa, free, gap, time_limit, steps, out, as_json, workers,
+                      scheduler, restart, quiet, verify_, overrides, details)
+        return
+    gap = 1e-4 if gap is None else gap
     doc = design_run(spec_path, _kappas(kappa), out, free, scalarize, order, gap, time_limit,
                      method, certificate, {"lag": lag}, workers, scheduler, restart,
                      not quiet, verify_, progress_steps=not quiet and not as_json,
@@ -296,6 +314,32 @@ def design(spec_path: str, kappa: tuple[str, ...], free: str | None, scalarize: 
             click.echo(f"error at kappa {d['kappa']:g}: {d['error']}", err=True)
     _claims_line(doc)
     _exit_if_unverified([d.get("verification") for d in docs], doc=doc)
+
+
+def _design_steps(spec_path: str, kappa: tuple[str, ...], free: str | None,
+                  gap: float | None, time_limit: float, steps: str, out: str, as_json: bool,
+                  workers: int | None, scheduler: str | None, restart: bool, quiet: bool,
+                  verify_: bool, overrides: tuple[str, ...], details: bool) -> None:
+    """``design --steps``: the N-step design (:func:`sosalgo.runs.steps_design`)."""
+    from sosalgo.report.steps_design import steps_design_lines
+    from sosalgo.runs.steps_design import steps_design_run
+
+    doc = steps_design_run(spec_path, _kappas(kappa), steps, out, free,
+                           1e-3 if gap is None else gap, time_limit, workers, scheduler,
+                           restart, not quiet, verify_, overrides=_overrides(overrides))
+    rows = doc["rows"]
+    if as_json:
+        click.echo(json.dumps(rows[0] if len(rows) == 1 else doc, indent=2))
+    else:
+        click.echo("\n".join(steps_design_lines(doc, details)))
+        for r in rows:
+            if "verification" in r:
+                from sosalgo.pep.claims import pep_check_lines
+
+                click.echo("\n".join(pep_check_lines("verify", [r["verification"]])))
+    bad = [r for r in rows if (r.get("verification") or {}).get("verified") == "failed"]
+    if bad:
+        raise VerificationError(f"{len(bad)} design(s) not verified (exit code 3)")
 
 
 # --------------------------------------------------------------------------- pareto

@@ -27,6 +27,7 @@ from sosalgo.kinds import (
     CERTIFICATE_KIND,
     DESIGN_CERTIFICATES_KIND,
     DESIGN_KIND,
+    DESIGN_STEPS_KIND,
     FIG4_KIND,
     GRID_KIND,
     PARETO_KIND,
@@ -240,6 +241,17 @@ def _verify_pep(doc: dict[str, Any], where: str, spec: Spec | str | Path | None,
             "notes": [] if note is None else [note]}
 
 
+def _verify_steps(doc: dict[str, Any], where: str, spec: Spec | str | Path | None,
+                  *_: Any) -> dict[str, Any]:
+    """The claims of a ``design --steps`` document (:mod:`sosalgo.verify.steps_design`)."""
+    from sosalgo.verify.steps_design import verify_steps_document
+
+    chosen, src, note = result_spec(doc, where, spec)
+    return {"spec": chosen.name, "source": src,
+            "results": verify_steps_document(doc, chosen, where),
+            "notes": [] if note is None else [note]}
+
+
 def _verify_witness(doc: dict[str, Any], where: str, spec: Spec | str | Path | None,
                     *_: Any) -> dict[str, Any]:
     """The claims of a pep witness file (:func:`sosalgo.pep.claims.verify_witness_file`)."""
@@ -344,6 +356,15 @@ def _looks_design(doc: Mapping[str, Any]) -> bool:
     return _rows_all(doc, _design_row) and "columns" not in doc
 
 
+def _steps_row(r: Any) -> bool:
+    return isinstance(r, Mapping) and "tau_certified" in r and "schedule" in r
+
+
+def _looks_steps(doc: Mapping[str, Any]) -> bool:
+    """One ``design --steps`` row (the document is its row), or rows that all are."""
+    return _steps_row(doc) if "rows" not in doc else _rows_all(doc, _steps_row)
+
+
 def _looks_pep(doc: Mapping[str, Any]) -> bool:
     from sosalgo.pep.claims import is_pep_document
 
@@ -380,6 +401,15 @@ KINDS: dict[str, ResultKind] = {k.name: k for k in [
         "typed result -> CSV cells (sosalgo.batch.sweeps) -> JSON (design_csv_to_json); the "
         "certificates too large for a cell in a design-certificates file",
         _looks_design, _verify_ledger, "ledger"),
+    ResultKind(
+        DESIGN_STEPS_KIND, "a schedule minimizing the worst case after N steps, its worst "
+        "case proven, a lower bound proven over the whole box, one per (kappa, N)",
+        "sosalgo design --steps N --json (sosalgo.steps_design_run)",
+        "<name>-design-steps.csv, one row per (kappa, N)",
+        ("kind", "spec", "kappa", "steps", "free", "schedule", "tau_certified",
+         "lower_bound", "gap", "floor", "bound", "source", "spec_text", "rows"),
+        "sosalgo.schema.STEPS_DESIGN_COLUMNS",
+        "the document in the CSV's document column", _looks_steps, _verify_steps, "claims"),
     ResultKind(
         PARETO_KIND, "the front of (certified rate, certified noise sensitivity) at each kappa",
         "sosalgo pareto --json (sosalgo.pareto_run)", "<name>-pareto-k<kappa>.csv",
@@ -441,8 +471,8 @@ KINDS: dict[str, ResultKind] = {k.name: k for k in [
 
 # the order content is recognised in (the most specific first)
 _SNIFF_ORDER = (WITNESS_KIND, PEP_KIND, PARETO_KIND, GRID_KIND, TABLE1_KIND, FIG4_KIND,
-                CERTIFICATE_KIND, DESIGN_CERTIFICATES_KIND, VERIFICATION_KIND, DESIGN_KIND,
-                ANALYSIS_KIND)
+                CERTIFICATE_KIND, DESIGN_CERTIFICATES_KIND, VERIFICATION_KIND,
+                DESIGN_STEPS_KIND, DESIGN_KIND, ANALYSIS_KIND)
 
 
 def sniff_kind(doc: Mapping[str, Any]) -> str | None:

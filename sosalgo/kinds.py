@@ -9,7 +9,9 @@ ANALYSIS_KIND, DESIGN_KIND, GRID_KIND, PARETO_KIND = "analysis", "design", "grid
 PEP_KIND, WITNESS_KIND, TABLE1_KIND, FIG4_KIND = "pep", "pep-witness", "table1", "fig4"
 CERTIFICATE_KIND, DESIGN_CERTIFICATES_KIND = "certificate", "design-certificates"
 VERIFICATION_KIND = "verification"
+DESIGN_STEPS_KIND = "design-steps"
 
 __all__ = ["ANALYSIS_KIND", "CERTIFICATE_KIND", "DESIGN_CERTIFICATES_KIND", "DESIGN_KIND",
+           "DESIGN_STEPS_KIND",
            "FIG4_KIND", "GRID_KIND", "PARETO_KIND", "PEP_KIND", "TABLE1_KIND",
            "VERIFICATION_KIND", "WITNESS_KIND"]

@@ -23,6 +23,7 @@ __all__ = [
     "design_stem", "family_suffix", "grid_columns", "grid_fixed", "grid_stem", "kappa_label",
     "p_columns", "rate_stem", "SUBLINEAR_COLUMNS", "sublinear_columns", "NOISE_COLUMNS",
     "PEP_COLUMNS", "pep_csv", "OBJECTIVE_COLUMNS", "PARETO_COLUMNS", "pareto_stem",
+    "STEPS_DESIGN_COLUMNS", "steps_design_csv",
     "SOLVER_COLUMNS", "printed_columns",
 ]
 
@@ -56,6 +57,9 @@ NOISE_COLUMNS = ["noise", "noise_quadratic", "noise_lag", "noise_check", "noise_
 PEP_COLUMNS = ["kappa", "steps", "tau", "status", "gap", "tau_proven", "check_kind",
                "witness_verified", "tau_lower", "witness_dimension", "measure", "initial",
                "seconds", "document"]
+# ``design --steps N``: one row per (kappa, N); ``document`` the whole design document
+STEPS_DESIGN_COLUMNS = ["kappa", "steps", "schedule", "tau_certified", "lower_bound", "gap",
+                        "gap_relative", "floor", "time_limited", "seconds", "document"]
 # ``design --objective noise --max-rate R`` / ``--objective rate --max-noise G``: appended to
 # the design columns (only then: a rate design's file keeps its columns)
 OBJECTIVE_COLUMNS = ["objective", "max_rate", "max_noise", "noise", "noise_quadratic",
@@ -166,6 +170,11 @@ def family_suffix(family: CertificateFamily | None) -> str:
 def analysis_csv(out_dir: Path, spec_name: str, family: CertificateFamily | None) -> Path:
     """``<name>-analysis[-<family>...].csv``."""
     return Path(out_dir) / f"{spec_name}-analysis{family_suffix(family)}.csv"
+
+
+def steps_design_csv(out_dir: Path, spec_name: str) -> Path:
+    """``<name>-design-steps.csv``: ``sosalgo design --steps``'s rows."""
+    return Path(out_dir) / f"{spec_name}-design-steps.csv"
 
 
 def pep_csv(out_dir: Path, spec_name: str) -> Path:

@@ -179,6 +179,20 @@ def test_long_horizon_closed_forms():
     assert Fraction(1, 82) <= proven <= Fraction(1, 82) * (1 + Fraction(1, 10**5))
 
 
+def test_past_long_horizon_gradient_closed_form():
+    """N = 40 (past the horizon where the constraint generation stops at violations of
+    1e-6 and the margins start at 1e-5): gradient descent h = 1/L on F(1, 10), dist/dist,
+    has the worst case 0.9^(2N) (Taylor, Hendrickx and Glineur); the proven bound holds
+    it, at most 1e-4 above, and the float tau is within 1e-5 of it."""
+    N = 40
+    res = sosalgo.pep(SPECS / "gradient.yaml", 10.0, N, measure="dist", witness=False)
+    closed = Fraction(81, 100) ** N
+    assert res.tau == pytest.approx(float(closed), rel=1e-5)
+    assert res.certificate["check_kind"].startswith("exact")
+    proven = Fraction(res.certificate["tau_proven"])
+    assert closed <= proven <= closed * (1 + Fraction(1, 10**4))
+
+
 @pytest.mark.deep  # about 7-12 s: the SDP, three margin solves and the witness search
 def test_nesterov_twenty_steps_witness():
     """N = 20 of Nesterov's method with its witness (45 s before the rank reductions were

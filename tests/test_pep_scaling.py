@@ -61,6 +61,31 @@ def test_nesterov_moderate_horizon_few_solves(solves):
     assert sum(solves.values()) <= 8, dict(solves)
 
 
+@pytest.mark.deep  # about a minute at load 10: three solves of the whole PEP at N = 60
+def test_nesterov_sixty_steps_one_round_past_the_seed(monkeypatch):
+    """Nesterov at N = 60: past the seed (360 pairs), one constraint-generation round
+    (its pairs solved again at most in their own unit and for the certificate; the
+    second round only added pairs violated by less than 1e-6), proven below Nesterov's
+    bound (1 - 1/sqrt(kappa))^N (L + m)/2."""
+    import clarabel
+
+    sizes: list[int] = []
+    inner = clarabel.DefaultSolver
+
+    def spy(P, q, A, *args):
+        sizes.append(A.shape[1] - 1)  # tau and one multiplier per active pair
+        return inner(P, q, A, *args)
+
+    monkeypatch.setattr(clarabel, "DefaultSolver", spy)
+    N = 60
+    res = sosalgo.pep(SPECS / "nesterov.yaml", 10.0, N, witness=False)
+    assert res.certificate["check_kind"].startswith("exact")
+    upper = Fraction(res.certificate["tau_proven"])
+    assert float(upper) <= (1 - 10 ** -0.5) ** N * (10 + 1) / 2
+    seed = min(sizes)
+    assert len({k for k in sizes if k > seed}) == 1, sizes
+
+
 @pytest.mark.parametrize("spec,N", [("nesterov.yaml", 40), ("gradient.yaml", 60)])
 def test_pair_rows_are_sparse_and_match_the_dense_forms(spec, N):
     """svec Q_k of every pair, built on the columns the pair uses, equals the dense

@@ -32,7 +32,7 @@ kappa: [10]
 # fields that claim nothing: solver diagnostics, timings, texts, the drawing, file names
 DIAGNOSTIC = {"gap", "status", "seconds", "detail", "slack", "min_eig_slack",
               "min_value_slack", "multipliers", "basis", "margin", "objective_floor",
-              "mixed", "interpolant", "pairs_checked", "delta",
+              "mixed", "interpolant", "pairs_checked", "delta", "search",
               "multipliers_nonzero", "repaired", "files", "source", "note", "spec_text"}
 # proof data: any values that still prove the claim are a proof (tampered below by
 # breaking them: a negative multiplier, a zero scale)

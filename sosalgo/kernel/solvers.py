@@ -726,11 +726,14 @@ def _quiet_stderr():
 
 
 @functools.cache
-def _sdp_settings(precise: bool, reg: float, max_iter: int = 400, chordal: str = "apart"
-                  ) -> Any:
+def _sdp_settings(precise: bool, reg: float, max_iter: int = 400, chordal: str = "apart",
+                  equilibrate: bool = True) -> Any:
     """Settings of one attempt of :func:`solve_attempts` (tuned on PEP's dual SDPs)."""
     s = quiet_settings()
     s.max_iter = max_iter
+    # off: the PEP's own scaling (powers of two on G, F and the rows) is kept as it is;
+    # Clarabel's equilibration on top of it stalls the triple momentum method's duals
+    s.equilibrate_enable = equilibrate
     s.static_regularization_constant = reg
     s.direct_solve_method = "faer"  # supernodal LDL: 2-4x faster on these dense rows
     # the dual form's chordal blocks kept apart with their overlaps as equalities (not
@@ -757,12 +760,14 @@ def solve_attempts(A: Any, q: np.ndarray, b: np.ndarray, cones: Sequence[Any],
     """min q'x s.t. A x + s = b, s in ``cones`` (see :func:`clarabel_cones`), tried with
     each attempt in turn: (solution or None, raw status, status) of the first attempt that
     ends solved or with a raw status in ``final`` (else the last). An attempt is (precise
-    tolerances, static regularization[, max iterations])."""
+    tolerances, static regularization[, max iterations or None[, equilibration]])."""
     cones = clarabel_cones(cones)
     P = sps.csc_matrix((A.shape[1], A.shape[1]))
     sol, raw, st_ = None, "no attempt ended", SolverStatus.FAILED
-    for precise, reg, *iters in attempts:
-        sol = _clarabel_attempt(P, q, A, b, cones, precise, reg, iters)
+    for precise, reg, *rest in attempts:
+        iters = [rest[0]] if rest and rest[0] else []
+        equilibrate = bool(rest[1]) if len(rest) > 1 else True
+        sol = _clarabel_attempt(P, q, A, b, cones, precise, reg, iters, equilibrate)
         if sol is None:
             continue
         raw = str(sol.status)
@@ -774,7 +779,8 @@ def solve_attempts(A: Any, q: np.ndarray, b: np.ndarray, cones: Sequence[Any],
 
 
 def _clarabel_attempt(P: Any, q: np.ndarray, A: Any, b: np.ndarray, cones: list[Any],
-                      precise: bool, reg: float, iters: list[int]) -> Any:
+                      precise: bool, reg: float, iters: list[int],
+                      equilibrate: bool = True) -> Any:
     """One attempt's solution, or None when Clarabel panics (Rust panics: an eigenvalue
     failure while solving; while building, the next chordal decomposition of
     :data:`CHORDAL` is tried). Ctrl-C and SIGTERM stop the solve
@@ -783,7 +789,7 @@ def _clarabel_attempt(P: Any, q: np.ndarray, A: Any, b: np.ndarray, cones: list[
 
     with _quiet_stderr():
         for chordal in CHORDAL:
-            settings = _sdp_settings(precise, reg, *(iters or [400]), chordal)
+            settings = _sdp_settings(precise, reg, *(iters or [400]), chordal, equilibrate)
             try:
                 solver = clarabel.DefaultSolver(P, q, A, b, cones, settings)
             except BaseException as exc:

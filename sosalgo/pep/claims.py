@@ -26,7 +26,8 @@ when every claim is backed. The claims:
 
 Solver diagnostics (``gap``, ``slack``, ``min_eig_slack``, ``min_value_slack``, float
 ``multipliers``, ``basis``, ``seconds``, ``detail`` texts, a witness's ``objective_floor``,
-``slack``, ``mixed`` and ``interpolant`` drawing) claim nothing and are not checked.
+``slack``, ``mixed``, ``search`` and ``interpolant`` drawing) claim nothing and are not
+checked.
 """
 
 from __future__ import annotations

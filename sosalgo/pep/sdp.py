@@ -77,6 +77,9 @@ class PEPData:
     # margin solve that ends almost solved gives its multipliers as a candidate
     # certificate: methods that change with k (OGM ends "almost solved" at N = 30)
     strong: bool = False
+    # an omitted pair violated by more (relative) joins the next solve; the constraint
+    # generation ends when none is
+    violation: float = 1e-9
     _svec: dict[int, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
 
     def q(self, idx: np.ndarray, scaled: bool = False) -> np.ndarray:
@@ -178,8 +181,12 @@ ATTEMPTS = ((True, 1e-8), (False, 1e-8), (True, 1e-7), (False, 1e-7), (False, 1e
 # ``precise``: a certificate the default tolerances left unproven (Nesterov N = 40,
 # margin 1e-5: proven from the tight solve); when that solve is not solved (Nesterov
 # N = 50), the ladder goes on to the next margin
-PRECISE = ((True, 1e-8),)
-QUICK = ((False, 1e-8), (True, 1e-8), (False, 1e-7), (False, 1e-6))
+# capped at TRACE_ITER iterations (Nesterov N = 80: "almost solved" after 133, 400 s)
+PRECISE = ((True, 1e-8, 100),)
+# second: without Clarabel's equilibration (the triple momentum method at N = 16 ends
+# "almost solved" at every other attempt, its dual stalled; solved without it)
+QUICK = ((False, 1e-8), (False, 1e-8, None, False), (True, 1e-8), (False, 1e-7),
+         (False, 1e-6))
 # margin solves only, when the above end "almost solved": a much stronger regularization
 # (GD on L-smooth convex f at N = 20: a degenerate dual, rank-1 worst case); the answer is
 # only a candidate certificate, which the exact check accepts or refuses
@@ -201,7 +208,7 @@ def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
     for the solver (about tau); the answer is in the original units. ``precise``: the
     measure's solves try tight tolerances first (:data:`ATTEMPTS`, not :data:`QUICK`)."""
     K = len(data.st.pairs)
-    active, rounds, rescales = data.active, 0, 0
+    active, rounds, rescales, resolved = data.active, 0, 0, False
     exact_next = objective != "measure" or margin > 0  # a certificate: never rough
     while True:
         tries = TRACE if objective == "trace" else PRECISE if precise else QUICK
@@ -213,9 +220,10 @@ def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
         ans = _solve_active(data, active, margin, objective, floor, slack, unit, tries,
                             rough=not exact_next)
         rounds += 1
-        if (objective == "measure" and ans.G is not None and rescales < MAX_RESCALES
-                and not (data.strong and margin > 0)  # a certificate at the measure's scale
-                and np.all(np.isfinite(ans.G))):
+        if (objective == "measure" and margin == 0 and ans.G is not None
+                and rescales < MAX_RESCALES and np.all(np.isfinite(ans.G))):
+            # a margin solve keeps the scale its measure's solve ended with (rescaled,
+            # Nesterov at N = 80 solved its first margin twice: 60 s + 100 s)
             moved = _rescale(data, ans.G, ans.F)
             got = measure_value(data.st, ans.G, ans.F)
             if got > 0 and abs(math.log2(got / unit)) > 2:
@@ -235,15 +243,20 @@ def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
         assert ans.G is not None and ans.F is not None
         viol = data.violations(ans.G, ans.F)
         viol[active] = np.inf
-        bad = np.flatnonzero(viol < (0.5 * slack if slack > 0 else -VIOLATION))
+        bad = np.flatnonzero(viol < (0.5 * slack if slack > 0 else -data.violation))
         if not len(bad):
+            if ans.status == "solved" and objective == "measure" and margin == 0 \
+                    and not resolved and _unit_off(data, ans, unit):
+                unit, resolved = float(_pow2(np.array(measure_value(
+                    data.st, ans.G, ans.F)))), True
+                continue  # the last answer, solved again in its own unit
             if ans.status == "solved":
                 break
             exact_next = True  # no violated pair at a rough answer: solve this set
             continue
         bad = bad[np.argsort(viol[bad])][:max(len(active), MIN_ADD)]
         if slack == 0:  # with the violated pairs, the most nearly tight ones: the next
-            near = np.flatnonzero((viol >= -VIOLATION) & (viol < NEAR))  # round's
+            near = np.flatnonzero((viol >= -data.violation) & (viol < NEAR))  # round's
             bad = np.union1d(bad, near[np.argsort(viol[near])][:MIN_ADD])  # violated
         active = np.union1d(active, bad)
         exact_next = objective != "measure"
@@ -252,16 +265,31 @@ def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
     return ans
 
 
-VIOLATION = 1e-9  # an omitted inequality below -VIOLATION (relative) joins the solve
 NEAR = 1e-6  # and when one does, up to MIN_ADD omitted ones below NEAR (relative) too
 MIN_ADD = 64  # joins per round: at least this many, or as many as are active
 MAX_RESCALES = 3
 FLOOR = 1e-2  # W_cc >= FLOOR sqrt(measure), V_i >= FLOOR^2 measure
+# and W_cc >= RANGE times the largest: a late gradient of a long horizon is far below
+# x_0 - x* (Nesterov N = 100: 1e-12 of it); floored at 1e-8 of it, as it was, those
+# directions stayed 1e4 too small for the solver: a seed solve took 283 iterations and
+# its tau was 500 times the proven bound (18 iterations and 8.3e-25, just above the
+# proven 8.08e-25, at 1e-14)
+RANGE = 1e-14
 
 
 def measure_value(st: PEPStructure, G: np.ndarray, F: np.ndarray) -> float:
     """The measure <M, G> + m_F F."""
     return float(np.sum(st.meas_q.astype(float) * G) + st.meas_f.astype(float) @ F)
+
+
+def _unit_off(data: PEPData, ans: SDPAnswer, unit: float) -> bool:
+    """Whether the unit of tau the solver saw is more than a factor 2 off the answer's
+    measure. The unit is set while the scale moves (at most MAX_RESCALES times, spent
+    on the cheap first rounds); a long horizon's later rounds move the measure again,
+    and a solve in a unit off by that much was 3 % low (Nesterov N = 100: 7.81e-25, the
+    same pairs in their own unit 8.08e-25, which the certificate proves)."""
+    got = measure_value(data.st, ans.G, ans.F)  # type: ignore[arg-type]
+    return got > 0 and abs(math.log2(got / unit)) > 1
 
 
 def _pow2(x: np.ndarray) -> np.ndarray:
@@ -275,8 +303,8 @@ def _rescale(data: PEPData, G: np.ndarray, F: np.ndarray) -> bool:
     moves by at most 4."""
     g = np.sqrt(np.clip(np.diag(G), 0.0, None))
     top = max(float(g.max(initial=0.0)), 1e-100)
-    size = max(abs(measure_value(data.st, G, F)), 1e-16 * top ** 2, 1e-200)
-    w = _pow2(np.maximum(g, max(1e-8 * top, FLOOR * math.sqrt(size))))
+    size = max(abs(measure_value(data.st, G, F)), (RANGE * top) ** 2, 1e-200)
+    w = _pow2(np.maximum(g, max(RANGE * top, FLOOR * math.sqrt(size))))
     v = _pow2(np.maximum(np.clip(F, 0.0, None), FLOOR ** 2 * size))
     if np.all(np.abs(np.log2(w / data.w)) <= 2) and np.all(np.abs(np.log2(v / data.v)) <= 2):
         return False

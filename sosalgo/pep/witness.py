@@ -59,6 +59,10 @@ INTERIOR = (1e-3, 1e-4, 1e-5, 1e-6)  # slacks tried for the interior point
 ALL_PAIRS = 2000  # the interior point's solve takes every pair up to this many
 ACCEPT = 1e-3  # a verified witness this close to tau (relative) ends the search
 PRECHECK = 1e-9  # margin of the floating-point pre-check (relative to each row's scale)
+# the witness's ``search``: candidate geometries tried, refused by the floating-point
+# pre-check (:func:`plausible`), with no exact values (:func:`fit_values`), checked
+# exactly; an unverified witness adds whether an interior point of the PEP was found
+SEARCH = ("candidates", "refused_in_floating_point", "no_exact_values", "checked_exactly")
 _q = q_str
 
 
@@ -159,16 +163,22 @@ def make_witness(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
 
     last: dict[str, Any] | None = None
     best: dict[str, Any] | None = None
+    tally = dict.fromkeys(SEARCH, 0)
     for G, F, slack, eta in _sources(data, ans, tau, unit):
         for V, theta in _candidates(mt, data.st, G, slack, interior):
+            tally["candidates"] += 1
             if last is not None and not plausible(data, coef, V):
+                tally["refused_in_floating_point"] += 1
                 continue  # no values fit this geometry in floating point: skip it
             doc = _document(spec, mt, data.st, V, F, res)
-            doc.update(tau_float=tau, objective_floor=1 - eta, slack=slack, mixed=theta)
+            doc.update(tau_float=tau, objective_floor=1 - eta, slack=slack, mixed=theta,
+                       search=tally)
             last = doc
             if ex is None or not fit_values(doc, ex):
+                tally["no_exact_values"] += 1
                 continue  # no values fit this geometry: the check would fail
             doc["check"] = check_witness(doc, spec, ex)
+            tally["checked_exactly"] += 1
             low = doc["check"]["tau_lower_float"]
             if low is not None and (best is None or low > best["check"]["tau_lower_float"]):
                 best = doc
@@ -178,6 +188,8 @@ def make_witness(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
         return _finish(best, spec, kappa, exact_mt, res)
     if last is not None and "check" not in last:
         last["check"] = check_witness(last, spec, ex)
+    if last is not None:  # not verified: what the search tried, and why each failed
+        last["search"]["interior_point"] = bool(inner and inner[0] is not None)
     return None if last is None else _finish(last, spec, kappa, exact_mt, res)
 
 

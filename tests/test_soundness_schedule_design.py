@@ -1,0 +1,332 @@
+"""Soundness of the N-step design's box-wide lower bound (sosalgo.design.steps_bound).
+
+Every proven bound of a box must be at most the worst case at every θ of the box. The
+worst case is computed here independently: a small cvxpy PEP on the Gram matrix of
+(x_0 - x*, g_0, ..., g_N), written from the interpolation conditions of L-smooth
+(strongly) convex functions (Taylor, Hendrickx, Glineur 2017), and, for gradient descent
+with a constant step h in (0, 2) on L-smooth convex f, the closed form
+L max(1/(2(2Nh + 1)), (1 - h)^(2N) / 2) (Drori-Teboulle; Teboulle-Vaisbourd). Boxes are
+random, tiny, touching h = 0 and touching h = 2 (where the method stops converging).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import random
+import warnings
+from fractions import Fraction
+
+import numpy as np
+import pytest
+
+from sosalgo.design.steps_bound import BoxSolver, huber_bound, prove_box, quadratic_bound
+from sosalgo.design.steps_model import parametric_pep
+from sosalgo.spec import load_spec
+from tests.conftest import spec_path
+
+
+def independent_pep(A, B, C, E, steps: int, m: float, L: float) -> float:
+    """max f(x_N) - f* over F(m, L) with |x_0 - x*| <= 1 for xi+ = A xi + B g(C xi),
+    x = E xi, xi_0 = 1 x_0 (numeric matrices), by cvxpy on the Gram matrix."""
+    import cvxpy as cp
+
+    A, B, C, E = (np.atleast_2d(np.asarray(M, float)) for M in (A, B, C, E))
+    n, d = A.shape[0], steps + 2
+    xi = np.zeros((n, d))
+    xi[:, 0] = 1.0
+    pts = []  # (x row, g row) of y_0..y_{N-1}, x_N, x*
+    for k in range(steps):
+        g = np.eye(d)[1 + k]
+        pts.append(((C @ xi)[0], g))
+        xi = A @ xi + np.outer(B[:, 0], g)
+    pts.append(((E @ xi)[0], np.eye(d)[steps + 1]))
+    pts.append((np.zeros(d), np.zeros(d)))
+    G = cp.Variable((d, d), PSD=True)
+    F = cp.Variable(len(pts))
+    cons = [F[-1] == 0, G[0, 0] <= 1]
+    for i, (xa, ga) in enumerate(pts):
+        for j, (xb, gb) in enumerate(pts):
+            if i == j:
+                continue
+            dx, dg = xa - xb, ga - gb
+            # f_i >= f_j + <g_j, x_i - x_j> + (|dg|^2/L + m|dx|^2 - 2 m/L <dg, dx>)/(2(1-m/L))
+            quad = (np.outer(gb, dx) + (np.outer(dg, dg) / L + m * np.outer(dx, dx)
+                                        - 2 * m / L * np.outer(dg, dx)) / (2 * (1 - m / L)))
+            quad = (quad + quad.T) / 2
+            cons.append(F[i] >= F[j] + cp.trace(quad @ G))
+    prob = cp.Problem(cp.Maximize(F[steps]), cons)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # "may be inaccurate": compared with a margin
+        prob.solve(solver="CLARABEL")
+    return float(prob.value)
+
+
+def gd_closed_form(h: float, steps: int) -> float:
+    return max(1 / (2 * (2 * steps * h + 1)), (1 - h) ** (2 * steps) / 2)
+
+
+@pytest.fixture(scope="module")
+def gd_models():
+    spec = load_spec(str(spec_path("gradient-convex")))
+    return {n: parametric_pep(spec, None, n, ["h"]) for n in (1, 2, 3)}
+
+
+def _boxes(rng: random.Random) -> list[tuple[Fraction, Fraction]]:
+    out = []
+    for _ in range(4):  # random sub-boxes of [0, 2]
+        a, b = sorted(Fraction(rng.randint(0, 2000), 1000) for _ in range(2))
+        out.append((a, b))
+    c = Fraction(rng.randint(1, 1999), 1000)
+    out += [(c, c + Fraction(1, 10 ** 9)),  # tiny
+            (Fraction(0), Fraction(1, 50)), (Fraction(0), Fraction(0)),  # touching 0
+            (Fraction(199, 100), Fraction(2)), (Fraction(2), Fraction(2))]  # the edge
+    return out
+
+
+@pytest.mark.parametrize("steps", [1, 2, 3])
+def test_gd_box_bounds_below_worst_case(gd_models, steps):
+    pp = gd_models[steps]
+    solver = BoxSolver(pp)
+    rng = random.Random(steps)
+    for lo, hi in _boxes(rng):
+        b = prove_box(pp, solver, (lo,), (hi,))
+        hs = {float(lo), float(hi)} | {float(lo) + rng.random() * float(hi - lo)
+                                         for _ in range(2)}
+        for h in hs:
+            indep = independent_pep([[1]], [[-h]], [[1]], [[1]], steps, 0.0, 1.0)
+            assert float(b.bound) <= indep * (1 + 1e-6) + 1e-9, (lo, hi, h, b)
+            if 0 < h < 2:
+                assert float(b.bound) <= gd_closed_form(h, steps) * (1 + 1e-9), (lo, hi, h)
+
+
+def test_gd_bounds_are_tight_on_small_boxes(gd_models):
+    """A bound that cannot fail the test above by being 0 is no test: on small boxes the
+    proven bound is close to the closed form at the box's worst end."""
+    pp = gd_models[2]
+    solver = BoxSolver(pp)
+    for c in (Fraction(1, 2), Fraction(1), Fraction(3, 2), Fraction(19, 10)):
+        lo, hi = c - Fraction(1, 10 ** 4), c + Fraction(1, 10 ** 4)
+        b = prove_box(pp, solver, (lo,), (hi,))
+        low = min(gd_closed_form(float(lo), 2), gd_closed_form(float(hi), 2))
+        assert float(b.bound) >= low * (1 - 2e-3), (c, b)
+
+
+def test_witness_bounds_match_their_closed_forms(gd_models):
+    """On a point h, the Huber witness gives exactly 1/(2(2Nh+1)) (its slope
+    1/(2Nh+1)) and the quadratic one at q = L at least (1-h)^(2N)/2."""
+    for steps, pp in gd_models.items():
+        for h in (Fraction(1, 2), Fraction(1), Fraction(7, 4)):
+            hub = huber_bound(pp, (h,), (h,))
+            assert hub == 1 / (2 * (2 * steps * h + 1))
+            quad = quadratic_bound(pp, (h,), (h,), [Fraction(1)])
+            assert quad == (1 - h) ** (2 * steps) / 2
+
+
+def independent_schedule_pep(hs: list[float]) -> float:
+    """Gradient descent with steps h_0..h_{N-1} (a per-step A, B): the independent PEP
+    step by step (the same Gram formulation, one step's matrices at a time)."""
+    import cvxpy as cp
+
+    steps, d = len(hs), len(hs) + 2
+    x = np.eye(d)[0]
+    pts = []
+    for k, h in enumerate(hs):
+        g = np.eye(d)[1 + k]
+        pts.append((x.copy(), g))
+        x = x - h * g
+    pts += [(x, np.eye(d)[steps + 1]), (np.zeros(d), np.zeros(d))]
+    G = cp.Variable((d, d), PSD=True)
+    F = cp.Variable(len(pts))
+    cons = [F[-1] == 0, G[0, 0] <= 1]
+    for i, (xa, ga) in enumerate(pts):
+        for j, (xb, gb) in enumerate(pts):
+            if i != j:
+                quad = np.outer(gb, xa - xb) + np.outer(ga - gb, ga - gb) / 2
+                cons.append(F[i] >= F[j] + cp.trace((quad + quad.T) / 2 @ G))
+    prob = cp.Problem(cp.Maximize(F[steps]), cons)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        prob.solve(solver="CLARABEL")
+    return float(prob.value)
+
+
+def test_per_step_schedule_boxes():
+    """Per-step steps (h_0, h_1) free in [0, 3]^2: random boxes, boxes touching h = 0
+    and h = 3, a point box; the bound stays below the worst case at random θ inside,
+    and the point box's bound is close to it (so the comparison can fail)."""
+    import sympy as sp
+
+    from sosalgo.design.steps_point import PointPEP
+
+    spec = load_spec(str(spec_path("gradient-convex")))
+    hs = [sp.Symbol("h_0"), sp.Symbol("h_1")]
+
+    def mats(k):
+        return {"A": sp.Matrix([[1]]), "B": sp.Matrix([[-hs[k]]]), "C": sp.Matrix([[1]]),
+                "E": sp.Matrix([[1]])}
+
+    pp = parametric_pep(spec, None, 2, ["h_0", "h_1"], mats)
+    solver = BoxSolver(pp)
+    rng = random.Random(11)
+    boxes = [((Fraction(0), Fraction(14, 10)), (Fraction(1, 10), Fraction(15, 10))),
+             ((Fraction(29, 10), Fraction(1)), (Fraction(3), Fraction(12, 10))),
+             ((Fraction(7, 5), Fraction(15, 8)), (Fraction(7, 5), Fraction(15, 8)))]
+    for _ in range(2):
+        a = [Fraction(rng.randint(0, 280), 100) for _ in range(2)]
+        boxes.append((tuple(a), tuple(x + Fraction(rng.randint(1, 20), 100) for x in a)))
+    for lo, hi in boxes:
+        bound = float(prove_box(pp, solver, lo, hi).bound)
+        for _ in range(2):
+            h = [float(a) + rng.random() * float(b - a) for a, b in zip(lo, hi, strict=True)]
+            assert bound <= independent_schedule_pep(h) * (1 + 1e-6) + 1e-9, (lo, hi, h)
+    point = independent_schedule_pep([1.4, 1.875])
+    assert bound >= 0 and float(prove_box(pp, solver, *boxes[2]).bound) >= point * (1 - 1e-4)
+    proven = PointPEP(pp).prove([Fraction(7, 5), Fraction(15, 8)])
+    assert proven is not None and point * (1 - 1e-6) <= float(proven) <= point * (1 + 1e-5)
+
+
+def test_strongly_convex_two_parameter_boxes():
+    """Nesterov's method (h, beta) at kappa 10: random sub-boxes, random θ inside."""
+    spec = load_spec(str(spec_path("nesterov")))
+    pp = parametric_pep(spec, 10.0, 2, ["h", "beta"])
+    solver = BoxSolver(pp)
+    rng = random.Random(7)
+    m, L = 1.0, 10.0
+    for _ in range(3):
+        h0 = Fraction(rng.randint(1, 19), 100)
+        b0 = Fraction(rng.randint(0, 90), 100)
+        lo, hi = (h0, b0), (h0 + Fraction(1, 100), b0 + Fraction(1, 10))
+        bound = prove_box(pp, solver, lo, hi).bound
+        for _ in range(2):
+            h = float(lo[0]) + rng.random() * float(hi[0] - lo[0])
+            beta = float(lo[1]) + rng.random() * float(hi[1] - lo[1])
+            A = [[0, 1], [-beta, 1 + beta]]
+            indep = independent_pep(A, [[0], [-h]], [[-beta, 1 + beta]], [[0, 1]], 2, m, L)
+            assert float(bound) <= indep * (1 + 1e-6) + 1e-9, (lo, hi, h, beta)
+
+
+def test_design_reaches_the_optimal_constant_step():
+    """N = 1: the best constant step is h = 3/2 with worst case 1/8 (the closed form's
+    two branches meet), which is also Drori's floor L/(2 theta_1^2) = 1/8."""
+    from sosalgo.design.steps import design_steps, exact_box
+    from sosalgo.pep.evaluate import worst_case_evaluator
+    from sosalgo.spec import read_spec_text
+
+    path = str(spec_path("gradient-convex"))
+    spec, text = load_spec(path), read_spec_text(path)
+    res = design_steps(spec, text, None, 1, [("h", None)], exact_box(spec, None, ["h"]),
+                       worst_case_evaluator(spec, text, None, 1), time_limit=60)
+    d = res.to_dict()
+    assert d["lower_bound"] <= 0.125 <= d["tau_certified"]
+    assert d["gap"] <= 1e-6
+    assert abs(d["schedule"]["h"] - 1.5) < 1e-3
+    assert d["floor"] == pytest.approx(0.125, rel=1e-12)
+
+
+def test_ogm_theta_and_floor():
+    from sosalgo.design.steps import ogm_theta
+
+    th = [1.0]
+    for _ in range(3):
+        th.append((1 + math.sqrt(1 + 4 * th[-1] ** 2)) / 2)
+    last = (1 + math.sqrt(1 + 8 * th[3] ** 2)) / 2
+    assert ogm_theta(4) == pytest.approx(last, rel=1e-15)
+    assert ogm_theta(1) == 2.0
+
+
+def test_cli_design_steps_and_verify(tmp_path):
+    """The user's path: design --steps --json, the contract fields, verify (exit 0), a
+    lower bound raised past the truth (exit 3), bad --steps (exit 2, one line)."""
+    from click.testing import CliRunner
+
+    from sosalgo.cli import cli
+
+    runner = CliRunner()
+    out = tmp_path / "o"
+    res = runner.invoke(cli, ["design", str(spec_path("gradient-convex")), "--steps", "1",
+                              "--time-limit", "60", "--out", str(out), "--json",
+                              "--quiet", "--workers", "1"])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    for key in ("schedule", "tau_certified", "lower_bound", "gap", "floor"):
+        assert key in doc
+    assert (out / "gradient-convex-design-steps.csv").exists()
+    again = runner.invoke(cli, ["design", str(spec_path("gradient-convex")), "--steps", "1",
+                                "--time-limit", "60", "--out", str(out), "--json",
+                                "--quiet", "--workers", "1"])
+    assert json.loads(again.stdout)["seconds"] == doc["seconds"]  # resumed, not re-run
+    good = tmp_path / "good.json"
+    good.write_text(json.dumps(doc))
+    assert runner.invoke(cli, ["verify", str(good)]).exit_code == 0
+    doc["lower_bound"] = 0.126  # above the true minimum 1/8
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(doc))
+    assert runner.invoke(cli, ["verify", str(bad)]).exit_code == 3
+    res = runner.invoke(cli, ["design", str(spec_path("gradient-convex")), "--steps", "0",
+                              "--out", str(out)])
+    assert res.exit_code == 2 and "--steps" in res.output and "Traceback" not in res.output
+
+
+@pytest.mark.deep
+@pytest.mark.parametrize("steps", [2, 3, 4])
+def test_gd_constant_step_gap_target(steps):
+    """design gradient-convex --steps N: proven relative gap <= 1e-3 for N <= 4, and the
+    designed worst case within 1e-3 of the closed form's minimum over h."""
+    from scipy.optimize import minimize_scalar
+
+    from sosalgo.design.steps import design_steps, exact_box
+    from sosalgo.pep.evaluate import worst_case_evaluator
+    from sosalgo.spec import read_spec_text
+
+    path = str(spec_path("gradient-convex"))
+    spec, text = load_spec(path), read_spec_text(path)
+    res = design_steps(spec, text, None, steps, [("h", None)], exact_box(spec, None, ["h"]),
+                       worst_case_evaluator(spec, text, None, steps), time_limit=120)
+    d = res.to_dict()
+    best = minimize_scalar(lambda h: gd_closed_form(h, steps), bounds=(1, 2),
+                           method="bounded", options={"xatol": 1e-10}).fun
+    assert d["lower_bound"] <= best * (1 + 1e-7)
+    assert d["gap_relative"] <= 1e-3
+    assert d["tau_certified"] <= best * (1 + 1e-3)
+
+
+def _design_rows(tmp_path, spec: str, steps: str, limit: float) -> list[dict]:
+    from sosalgo.runs.steps_design import steps_design_run
+
+    doc = steps_design_run(str(spec_path(spec)), None, steps, tmp_path, time_limit=limit,
+                           workers=1, progress=False, plot=False)
+    return doc["rows"]
+
+
+def test_momentum_schedule_one_step_reaches_the_floor(tmp_path):
+    """momentum-schedule, N = 1: (beta_0, gamma_0) free per step; the design reaches
+    L/(2 theta_1^2) = 1/8 (OGM, Drori's floor) within 1e-5, never below it, and its
+    lower bound stays below it."""
+    (row,) = _design_rows(tmp_path, "momentum-schedule", "1", 12)
+    assert len(row["schedule"]["beta"]) == 1 and len(row["schedule"]["gamma"]) == 1
+    assert 0.125 <= row["tau_certified"] <= 0.125 * (1 + 1e-5)
+    assert row["lower_bound"] is not None and row["lower_bound"] <= 0.125
+    assert row["floor"] == pytest.approx(0.125, rel=1e-12)
+
+
+@pytest.mark.deep
+@pytest.mark.parametrize("steps", [2, 3, 4])
+def test_momentum_schedule_rediscovers_ogm(tmp_path, steps):
+    from sosalgo.design.steps import ogm_theta
+
+    (row,) = _design_rows(tmp_path, "momentum-schedule", str(steps), 180)
+    ogm = 1 / (2 * ogm_theta(steps) ** 2)
+    assert ogm * (1 - 1e-9) <= row["tau_certified"] <= ogm * (1 + 1e-5)
+    assert row["lower_bound"] <= ogm
+
+
+@pytest.mark.deep
+@pytest.mark.parametrize("steps", [2, 3])
+def test_gradient_schedule_gap(tmp_path, steps):
+    """gradient-schedule: proven relative gap <= 1e-3 (N = 2, 3), the schedule's worst
+    case checked by the independent PEP."""
+    (row,) = _design_rows(tmp_path, "gradient-schedule", str(steps), 600)
+    indep = independent_schedule_pep(row["schedule"]["h"])
+    assert indep * (1 - 1e-6) <= row["tau_certified"] <= indep * (1 + 1e-5)
+    assert row["gap_relative"] <= 1e-3
