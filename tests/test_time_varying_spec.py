@@ -65,10 +65,10 @@ def ogm(grad, x0: np.ndarray, N: int, L: float = 1.0) -> np.ndarray:
 
 
 def fista(grad, prox, x0: np.ndarray, N: int, L: float = 1.0) -> np.ndarray:
-    """PEPit's accelerated proximal gradient example, loop for loop: lam = golden ratio;
-    each step lam_old = lam, lam = (1 + sqrt(4 lam_old^2 + 1))/2, x_new = prox(y - grad/L),
-    y = x_new + (lam_old - 1)/lam (x_new - x_old); x_N the last prox point."""
-    lam, y, x_new = (1 + math.sqrt(5)) / 2, x0.copy(), x0.copy()
+    """PEPit's accelerated proximal gradient example (PEPit 0.5.1), loop for loop: lam =
+    1; each step lam_old = lam, lam = (1 + sqrt(4 lam_old^2 + 1))/2, x_new = prox(y -
+    grad/L), y = x_new + (lam_old - 1)/lam (x_new - x_old); x_N the last prox point."""
+    lam, y, x_new = 1.0, x0.copy(), x0.copy()
     for _ in range(N):
         lam_old = lam
         lam = (1 + math.sqrt(4 * lam_old**2 + 1)) / 2

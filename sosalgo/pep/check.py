@@ -24,8 +24,9 @@ import numpy as np
 from flint import arb, arb_mat
 
 from sosalgo.kernel.arb import arb_fraction, precision
-from sosalgo.pep.exact import ball, exact_method
-from sosalgo.pep.structure import Method
+from sosalgo.pep.exact import ball, exact_method, exact_steps_or_none
+from sosalgo.pep.steps import is_time_varying
+from sosalgo.pep.structure import Method, last_calls
 from sosalgo.pep.terms import Term
 from sosalgo.spec import Spec
 
@@ -61,9 +62,18 @@ class ArbView:
     Xs: list[list[arb]]
     ineqs: list[list[tuple[arb, list[list[arb]]]]]
     G0: arb_mat | None = None  # ``initial_state``: xi_0 = X0 x_0 + G0 g0
+    per_step: list[tuple[arb_mat, arb_mat, arb_mat, arb_mat]] | None = None  # changes with k
 
     def coef(self, t: Term) -> arb:
         return ball(self.mt.coef(t))
+
+    def step(self, k: int) -> tuple[arb_mat, arb_mat, arb_mat, arb_mat]:
+        """(A, B, C, D) of step k (:meth:`sosalgo.pep.structure.Method.step`)."""
+        if self.per_step is None:
+            return self.A, self.B, self.C, self.D
+        if k >= len(self.per_step):
+            raise ValueError(f"the method's matrices stop before step {k}")
+        return self.per_step[k]
 
 
 def arb_view(mt: Method) -> ArbView:
@@ -71,10 +81,13 @@ def arb_view(mt: Method) -> ArbView:
     with precision(PREC):
         ineqs = [[(ball(a), [[ball(v) for v in row] for row in Q]) for a, Q in fi]
                  for fi in mt.ineqs]
+        per = None if mt.per_step is None else [tuple(_mat(M) for M in mats)
+                                                 for mats in mt.per_step]
         return ArbView(mt, _mat(mt.A), _mat(mt.B), _mat(mt.C), _mat(mt.D),
                        None if mt.E is None else _mat(mt.E), _mat([[v] for v in mt.X0]),
                        [[ball(v) for v in row] for row in mt.Xs], ineqs,
-                       None if mt.G0 is None else _mat([[v] for v in mt.G0]))
+                       None if mt.G0 is None else _mat([[v] for v in mt.G0]),
+                       per)  # type: ignore[arg-type]
 
 
 def _label(i: int, k: int, p: int) -> str:
@@ -117,18 +130,21 @@ def positions(doc: dict[str, Any], av: ArbView) -> dict[str, Any]:
         if len(rows) != p or any(len(ui) != r for ui in rows):
             raise ValueError(f"calls[{k}]: expected {p} gradients of {r} coordinates")
         u = _mat(rows)
-        y = av.C * xi + av.D * u
+        A, B, C, D = av.step(k)
+        y = C * xi + D * u
         for i in range(p):
             pos[_label(i, k, p)] = (pos["x0"] if k == 0 and i == start
                                     else [y[i, c] for c in range(r)])
         if k < N:
-            xi = av.A * xi + av.B * u
+            xi = A * xi + B * u
             states.append(xi)
     pos["xiN"] = xi
     call = mt.output if mt.output is not None else mt.out_call  # x_k is that call's point
     for k in [N, 0, *range(1, N)]:
         key = f"x{k}"
-        if key == "x0" and doc.get("xi0") is None:
+        if k >= 1 and mt.output is not None and last_calls(mt):  # step k - 1's call
+            pos[key] = pos[_label(mt.output, k - 1, p)]
+        elif key == "x0" and doc.get("xi0") is None:
             pos.setdefault("x0", [ball(v) for v in doc["x0"]])
         elif call is not None and _label(call, k, p) in pos:
             pos[key] = pos[_label(call, k, p)]
@@ -139,6 +155,11 @@ def positions(doc: dict[str, Any], av: ArbView) -> dict[str, Any]:
             pos[key] = pos[_label(mt.output, k, p)]
     for i in range(p):
         pos.setdefault(f"y{i + 1}_{N}", pos.get(_label(i, N, p)))
+    if last_calls(mt):  # the y terms after N steps: the calls of step N - 1
+        for i in range(p):
+            pos[f"y{i + 1}_{N}"] = pos[_label(i, N - 1, p)]
+            if p == 1:
+                pos.setdefault(f"y{N}", pos[_label(i, N - 1, p)])
     return pos
 
 
@@ -172,17 +193,21 @@ def exact_points(doc: dict[str, Any], mt: Method) -> tuple[dict[str, list[Any]],
     states = [xi]
     for k in range(int(doc["call_steps"])):
         u = _q_mat(doc["calls"][k])
-        y = mt.C.dot(xi) + mt.D.dot(u)
+        A, B, C, D = mt.step(k)
+        y = C.dot(xi) + D.dot(u)
         for i in range(p):
             pts[_label(i, k, p)] = ([Fraction(v) for v in doc["x0"]] if k == 0 and i == start
                                     else list(y[i]))
         if k < N:
-            xi = np.vectorize(shorter, otypes=[object])(mt.A.dot(xi) + mt.B.dot(u))
+            xi = np.vectorize(shorter, otypes=[object])(A.dot(xi) + B.dot(u))
             states.append(xi)
     x0 = [Fraction(v) for v in doc["x0"]] if doc.get("xi0") is None else None
     its = []  # x_k as the float ``iterates``: the output call's point, else E xi_k
     for k in range(N + 1):
-        if mt.output is not None:
+        if mt.output is not None and last_calls(mt):  # step k - 1's call (x_0: the start)
+            its.append(pts[_label(mt.output, k - 1, p)] if k else
+                       (x0 if x0 is not None else list(mt.E.dot(states[0])[0])))
+        elif mt.output is not None:
             its.append(pts[_label(mt.output, k, p)])
         elif k == 0 and x0 is not None and mt.G0 is None:
             its.append(x0)  # E X0 = 1, E Xs = 0 exactly
@@ -195,6 +220,8 @@ def exact_points(doc: dict[str, Any], mt: Method) -> tuple[dict[str, list[Any]],
     for i in range(p):
         if _label(i, N, p) in pts:
             pts.setdefault(f"y{i + 1}_{N}", pts[_label(i, N, p)])
+        elif last_calls(mt):
+            pts.setdefault(f"y{i + 1}_{N}", pts[_label(i, N - 1, p)])
     return pts, its
 
 
@@ -441,6 +468,11 @@ def check_witness(doc: dict[str, Any], spec: Spec, mt: Method | ArbView | None =
     out: dict[str, Any] = {"verified": False, "check_kind": "exact (rational and ball "
                            "arithmetic)", "tau_lower": None, "tau_lower_float": None}
     try:
+        if mt is None and is_time_varying(spec):  # the per-step methods, exactly
+            kappa = document_kappa(doc.get("kappa"), doc.get("kappa_exact"), "witness")
+            mt = exact_steps_or_none(spec, kappa, int(doc["steps"]))
+            if mt is None:
+                raise ValueError("the exact per-step methods cannot be built")
         if mt is None:
             kappa = document_kappa(doc.get("kappa"), doc.get("kappa_exact"), "witness")
             om, _ = bound_method(spec, class_kappa(spec, kappa))

@@ -169,6 +169,30 @@ def _check_class(claims: _Claims, spec: Spec, kappa: float | None, doc: Mapping[
         claims.backed(f"{where}.class", f"m = {want['m']}, L = {want['L']}")
 
 
+def _check_schedule(claims: _Claims, spec: Spec, ctx: Mapping[str, Any],
+                    row: Mapping[str, Any], where: str) -> None:
+    """A claimed ``schedule`` (a method that changes with k: each parameter per step)
+    must be the spec's over the row's steps, to 1e-12."""
+    if "schedule" not in row:
+        return
+    from sosalgo.pep.steps import spec_steps
+
+    said = row["schedule"]
+    try:
+        want = spec_steps(spec, ctx["kappa"], ctx["steps"]).schedule
+        same = isinstance(said, dict) and set(said) == set(want) and all(
+            len(said[p]) == len(v) and all(_close(float(a), float(b), 1e-12)
+                                           for a, b in zip(said[p], v, strict=True))
+            for p, v in want.items())
+    except (InputError, ValueError, TypeError):
+        same, want = False, None
+    if same:
+        claims.backed(f"{where}.schedule", "the spec's parameters per step")
+    else:
+        claims.add(f"{where}.schedule", "contradicted", f"claims {str(said)[:80]}, the spec "
+                   f"gives {str(want)[:80]}")
+
+
 def _ctx(row: Mapping[str, Any], spec: Spec, where: str) -> dict[str, Any]:
     """kappa, steps, measure, initial of a row or witness, checked against the spec."""
     from sosalgo.pep.bind import has_kappa
@@ -241,6 +265,7 @@ def _verify_row(row: Mapping[str, Any], spec: Spec, where: str) -> dict[str, Any
     ctx = _ctx(row, spec, where)
     claims = _Claims()
     _check_class(claims, spec, ctx["kappa"], row, where)
+    _check_schedule(claims, spec, ctx, row, where)
     tau = _num(row.get("tau"), f"{where}.tau")
     upper = _certificate(claims, spec, ctx, row.get("certificate"), where)
     lower = None

@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 import re
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from fractions import Fraction
 from pathlib import Path
 from typing import Any
@@ -19,6 +19,7 @@ from sosalgo.kernel.kappa import Kappa, kappa_fields
 from sosalgo.kernel.phases import show_phase
 from sosalgo.pep.bind import bound_method, class_kappa, initial_gradient
 from sosalgo.pep.sdp import PEPData, SDPAnswer, pep_data, solve_pep, value_residual
+from sosalgo.pep.steps import StepMethods, float_step_method, is_time_varying, spec_steps
 from sosalgo.pep.structure import Method, PEPStructure, build_structure, deadbeat_gain, output_call
 from sosalgo.pep.terms import Term, parse_terms
 from sosalgo.spec import Spec
@@ -124,6 +125,17 @@ def float_method(om: Any, kappa: float) -> Method:
     return mt
 
 
+def _check_kappa(spec: Spec, kappa: float | None) -> None:
+    """A kappa exactly when the spec's class has one (as :func:`bound_method` asks)."""
+    from sosalgo.pep.bind import has_kappa
+
+    if not has_kappa(spec) and kappa is not None:
+        raise InputError(f"{spec.source}: --kappa: an m: 0 spec has no condition number "
+                         f"(L = {spec.L:g} is given)")
+    if has_kappa(spec) and kappa is None:
+        raise InputError(f"{spec.source}: --kappa: required (the condition number L/m)")
+
+
 def _default_measure(spec: Spec) -> str:
     return "dist" if spec.measure == "distance" else "f"
 
@@ -141,19 +153,26 @@ def default_initial(om: Any) -> str:
 
 
 def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None = None,
-                initial: str | None = None, solve_min: bool = True
+                initial: str | None = None, schedule: StepMethods | None = None,
+                solve_min: bool = True
                 ) -> tuple[Method, PEPStructure, list[Term], list[Term], tuple[str, str]]:
     """The float method, structure, terms and the (measure, initial) texts, defaults
-    resolved (InputError naming the option for bad input). A ``mingrad`` measure is
-    replaced by its weighted sum at the minimax weights (:mod:`sosalgo.pep.minimum`;
-    uniform weights when not ``solve_min``: the structure's size only); the returned
-    terms are then the weighted sum's, and ``mt.bound`` its text."""
+    resolved (InputError naming the option for bad input). ``schedule``: a method that
+    changes with k (:mod:`sosalgo.pep.steps`; the spec gives its class and terms). A
+    ``mingrad`` measure is replaced by its weighted sum at the minimax weights
+    (:mod:`sosalgo.pep.minimum`; uniform weights when not ``solve_min``: the structure's
+    size only); the returned terms are then the weighted sum's, and ``mt.bound`` its
+    text."""
     if isinstance(steps, bool) or not isinstance(steps, int) or not 1 <= steps <= MAX_STEPS:
         raise InputError(f"--steps: must be an integer in 1..{MAX_STEPS}, got {steps!r}")
-    if spec.time_varying:  # the seam: sosalgo.steps.float_steps gives the per-step methods
-        raise InputError(f"{spec.source}: varies with k: its PEP (one method per step, "
-                         "sosalgo.steps) is not built yet")
-    om, kq = bound_method(spec, kappa)
+    if schedule is not None or is_time_varying(spec):
+        _check_kappa(spec, kappa)
+    if schedule is None and is_time_varying(spec):
+        schedule = spec_steps(spec, kappa, steps)
+    if schedule is not None:
+        om, kq = schedule.floats[0], (math.nan if kappa is None else float(kappa))
+    else:
+        om, kq = bound_method(spec, kappa)
     mopt = "--measure" if measure or "measure" not in spec.pep else "pep.measure"
     iopt = "--initial" if initial or "initial" not in spec.pep else "pep.initial"
     measure = measure or spec.pep.get("measure") or _default_measure(spec)
@@ -165,6 +184,8 @@ def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None
         raise (InputError(f"{spec.source}: {exc}") if str(exc).startswith("pep.")
                else exc) from None
     mt = float_method(om, kq)
+    if schedule is not None:
+        mt = float_step_method(schedule, mt, steps)
     mt.G0, mt.smooth = initial_gradient(spec, om, kq)
     try:
         bound = _resolve_min(mt, steps, mterms, iterms, kq, solve_min)
@@ -203,12 +224,19 @@ def _resolve_min(mt: Method, steps: int, mterms: list[Term], iterms: list[Term],
 
 def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
         measure: str | None = None, initial: str | None = None, exact: bool = True,
-        witness: bool = True) -> PEPResult:
-    """The PEP of ``spec`` at ``kappa`` over ``steps`` steps (see the module)."""
+        witness: bool = True, schedule: StepMethods | None = None) -> PEPResult:
+    """The PEP of ``spec`` at ``kappa`` over ``steps`` steps (see the module);
+    ``schedule``: the per-step methods of a method that changes with k
+    (:mod:`sosalgo.pep.steps`), the spec giving the class, the units and the terms."""
     t0 = time.perf_counter()
     spec = _load(spec)
-    mt, st, mterms, iterms, names = pep_problem(spec, kappa, steps, measure, initial)
+    if schedule is None and is_time_varying(spec):
+        schedule = spec_steps(spec, kappa, steps)
+    mt, st, mterms, iterms, names = pep_problem(spec, kappa, steps, measure, initial,
+                                                schedule)
     data = pep_data(mt, st)
+    if schedule is not None:  # dense rows (the plain basis): every pair from the start
+        data.active, data.strong = np.arange(len(st.pairs)), True
     if steps > LONG:  # its proof is about LONG_MARGINS above tau anyway
         data.violation = LONG_VIOLATION
     show_phase("solving the PEP", f"{len(st.pairs)} interpolation pairs")
@@ -224,11 +252,19 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
         res.tau = math.inf
         res.extra["note"] = ("the measure is unbounded for this initial condition (e.g. the "
                              "start does not control the method's fixed point)")
+    if schedule is not None:
+        res.extra["schedule"] = schedule.schedule
     if ans.status == "solved":
         res.gap = abs(float(ans.primal) - float(ans.dual))  # type: ignore[arg-type]
         from sosalgo.pep.exact import exact_or_none
 
-        ex = exact_or_none(spec, kappa, steps) if exact or witness else None  # built once
+        if schedule is None:
+            ex = exact_or_none(spec, kappa, steps) if exact or witness else None  # built once
+        else:
+            ex = _exact_schedule(spec, kappa, schedule, len(mt.per_step or ()))
+            exact, witness = exact and ex is not None, witness and ex is not None
+            if ex is None:
+                res.extra["note"] = "no exact per-step matrices: the certificate is not proven"
         show_phase("proving the certificate" if exact else "checking the certificate")
         res.certificate = _certificate(spec, kappa, mt, data, ans, exact, mterms, iterms, ex)
         if witness:
@@ -240,12 +276,61 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
     return res
 
 
-def _ladder(steps: int) -> list[tuple[float, bool]]:
+def _exact_schedule(spec: Spec, kappa: float | None, schedule: StepMethods,
+                    count: int) -> Method | None:
+    """The exact method of a schedule's first ``count`` steps, None when it cannot be
+    built (no exact matrices, or their fixed point not proven)."""
+    from sosalgo.pep.exact import exact_step_method
+
+    try:
+        return exact_step_method(spec, kappa, schedule, count)
+    except (ValueError, ArithmeticError):
+        return None
+
+
+def _ladder(steps: int, mixed: bool = False) -> list[tuple[float, bool]]:
     """(relative margin, tight tolerances) of the certificate solves, in order: the first
     margin at Clarabel's default tolerances, then again at tight ones (a default solve's
-    dual may miss the proof by its accuracy), then the larger margins."""
+    dual may miss the proof by its accuracy), then the larger margins. ``mixed`` (an
+    interior certificate to mix with, :func:`_mixed`): the measure's own answer first
+    (margin 0), then every margin at default tolerances."""
+    if mixed:
+        return [(0.0, False)] + [(r, False) for r in MARGINS + LONG_MARGINS]
     rels = MARGINS + LONG_MARGINS if steps <= LONG else LONG_MARGINS + (LAST_MARGIN,)
     return [(rels[0], False), (rels[0], True)] + [(r, False) for r in rels[1:]]
+
+
+INTERIOR_MARGINS = (1e-3, 1e-2)  # relative margins of the interior certificate
+
+
+def _interior_certificate(data: PEPData, tau: float, scale: float) -> SDPAnswer | None:
+    """A dual certificate with S clearly positive definite (a large margin: its tau is
+    about 1e-3 above), None when none solves; mixed into the candidates of a degenerate
+    SDP (:func:`_mixed`)."""
+    for rel in INTERIOR_MARGINS:
+        cand = solve_pep(data, margin=rel / scale, unit=tau if tau > 1e-200 else 1.0)
+        if cand.status == "solved" and cand.S is not None and _min_eig(cand.S, data.w) > 0:
+            return cand
+    return None
+
+
+def _min_eig(S: np.ndarray, w: np.ndarray) -> float:
+    return float(np.linalg.eigvalsh(S * np.outer(w, w))[0])
+
+
+def _mixed(cand: SDPAnswer, inner: SDPAnswer, w: np.ndarray) -> SDPAnswer:
+    """cand mixed with the interior certificate: (tau, lambda) = (1 - theta) cand +
+    theta inner (S and c_F are affine in them), theta the smallest that makes the scaled S
+    clearly positive definite in floating point (min eig at least cand.s
+    deficit): tau grows by theta (tau_inner - tau). cand itself when already so."""
+    a, b = _min_eig(cand.S, w), _min_eig(inner.S, w)  # type: ignore[arg-type]
+    floor = 1e-12 * max(1.0, float(np.abs(cand.S * np.outer(w, w)).max()))  # type: ignore[operator]
+    if a >= floor or b <= 0:
+        return cand
+    theta = min(1.0, 2 * (floor - a) / (b - a))
+    lam = (1 - theta) * cand.lam + theta * inner.lam  # type: ignore[operator]
+    tau = (1 - theta) * float(cand.tau) + theta * float(inner.tau)  # type: ignore[arg-type]
+    return replace(cand, tau=tau, lam=lam, S=(1 - theta) * cand.S + theta * inner.S)
 
 
 def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
@@ -260,12 +345,15 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
     cert: dict[str, Any] = {"tau": ans.tau, "check_kind": "floating-point check",
                             "tau_proven": None, "proof": None}
     best = ans
-    for rel, precise in _ladder(st.steps) if exact else ():
+    inner = _interior_certificate(data, tau, scale) if exact and data.strong else None
+    for rel, precise in _ladder(st.steps, inner is not None) if exact else ():
         eps = rel / scale  # relative to tau: the measure is divided by tau
-        cand = solve_pep(data, margin=eps, unit=tau if tau > 1e-200 else 1.0,
-                         precise=precise)
+        cand = ans if rel == 0 else solve_pep(data, margin=eps, unit=tau if tau > 1e-200
+                                              else 1.0, precise=precise)
         if cand.status != "solved":
             continue
+        if inner is not None:
+            cand = _mixed(cand, inner, data.w)
         best = cand
         from sosalgo.pep.exact import prove_certificate
 

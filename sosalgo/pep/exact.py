@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Mapping, Sequence
 from fractions import Fraction
 from typing import Any
 
@@ -36,6 +37,7 @@ import sympy as sp
 from flint import arb, arb_mat, fmpq
 
 from sosalgo.pep.bind import class_kappa, has_kappa, initial_gradient
+from sosalgo.pep.steps import StepMethods, is_time_varying, spec_steps
 from sosalgo.pep.structure import (
     Method,
     PEPStructure,
@@ -49,7 +51,8 @@ from sosalgo.pep.terms import Term
 from sosalgo.spec import Spec
 
 __all__ = ["ball", "class_description", "exact_base", "exact_method", "exact_or_none",
-           "prove_at", "prove_certificate", "prove_scaled_psd", "reprove_certificate"]
+           "exact_step_method", "exact_steps_or_none", "prove_at", "prove_certificate",
+           "prove_scaled_psd", "reprove_certificate", "symbolic_fixed_point"]
 
 TAU_STEPS = (1e-12, 1e-9, 1e-7)
 PREC = 320  # bits of the ball arithmetic of the proof
@@ -276,6 +279,8 @@ def exact_or_none(spec: Spec, kappa: float | None, steps: int = 0) -> Method | N
     when it cannot be built (the proofs then say why)."""
     from sosalgo.pep.bind import bound_method
 
+    if is_time_varying(spec):
+        return exact_steps_or_none(spec, kappa, steps)
     try:
         return exact_method(spec, kappa, bound_method(spec, class_kappa(spec, kappa))[0],
                             steps)
@@ -606,3 +611,191 @@ def reprove_certificate(spec: Spec, kappa: float | None, steps: int, measure: st
         return False, f"malformed proof: {type(exc).__name__}: {exc}"
     ok, _, _, why = prove_at(mt, st, lam, tq, wf, repair=False)
     return ok, why
+
+# --------------------------------------------------------------------------- changes with k
+# The exact method of per-step methods (:mod:`sosalgo.pep.steps`): the same class, units
+# and terms as :func:`exact_method`, the per-step matrices exact, the plain basis (K = 0).
+
+
+def exact_steps_or_none(spec: Spec, kappa: float | None, steps: int) -> Method | None:
+    """The exact method of a spec that changes with k over ``steps`` steps
+    (:func:`sosalgo.pep.steps.spec_steps`), None when it cannot be built."""
+    from sosalgo.errors import InputError
+
+    try:
+        return exact_step_method(spec, kappa, spec_steps(spec, kappa, steps), steps)
+    except (ValueError, ArithmeticError, InputError):
+        return None
+
+
+def _exact_array(M: Any, digits: int) -> np.ndarray:
+    """An exact matrix as an object array of Fractions and rational balls: a sympy
+    matrix enclosed at ``digits`` decimals, an array of Balls/rationals as given."""
+    from sosalgo.kernel.exact import Ball
+
+    if isinstance(M, sp.MatrixBase):
+        return _balls(M, digits)
+    arr = np.array(M, dtype=object)
+    if arr.ndim != 2:
+        raise ValueError("a per-step matrix must be two-dimensional")
+    out = np.empty(arr.shape, dtype=object)
+    for idx, v in np.ndenumerate(arr):
+        if isinstance(v, Ball):
+            out[idx] = v if v.r else v.c
+        elif isinstance(v, int | Fraction) and not isinstance(v, bool):
+            out[idx] = Fraction(v)
+        elif isinstance(v, sp.Rational):
+            out[idx] = Fraction(int(v.p), int(v.q))
+        else:
+            raise ValueError(f"per-step entry {v!r}: expected an exact number or a Ball")
+    return out
+
+
+def _exact_zero(v: Any) -> bool:
+    """``v == 0`` proven: a sympy number simplified to 0, an exact 0 (a ball of radius 0)."""
+
+    if isinstance(v, sp.Basic):
+        return _proven_zero(v)
+    return bool(getattr(v, "c", v) == 0 and getattr(v, "r", 0) == 0)
+
+
+def _sympy_steps(steps: Sequence[Mapping[str, Any]], p: int
+                 ) -> list[dict[str, sp.Matrix]] | None:
+    """The per-step matrices as sympy matrices (D = 0 when absent), None when a step is
+    given as balls."""
+    out = []
+    for mats in steps:
+        if not all(isinstance(M, sp.MatrixBase) for M in mats.values()):
+            return None
+        out.append({k: sp.Matrix(M) for k, M in mats.items()}
+                   | ({} if "D" in mats else {"D": sp.zeros(p, p)}))
+    return out
+
+
+def _exact_fixed_point(sm: StepMethods, om: Any, count: int) -> tuple[Any, list | None]:
+    """(X = [u, X_s] exact, the sympy steps or None): the provider's proven one, or
+    solved from step 0 and proven on every step (sympy); ValueError when not proven."""
+
+    steps = list(sm.exact or [])[:count]
+    sym = _sympy_steps(steps, om.p)
+    if sm.fixed_point is not None:
+        return sp.Matrix(sm.fixed_point), sym
+    if sym is None:
+        raise ValueError("the per-step matrices are balls: their common fixed point must "
+                         "be given (proven by their provider)")
+    X = _fixed_points(sym[0], om)
+    for k, mats in enumerate(sym[1:], 1):
+        if not _fixed_points_hold(mats, om, X):
+            raise ValueError(f"step {k} does not keep step 0's fixed point exactly")
+    return X, sym
+
+
+def _fixed_points_hold(mats: Mapping[str, sp.Matrix], om: Any, X: sp.Matrix) -> bool:
+    """X = [u, X_s] solves step ``mats``' fixed-point equations exactly (sympy)."""
+
+    n, p = om.n, om.p
+    D = mats.get("D", sp.zeros(p, p))
+    S = (sp.Matrix(om.optimal_map().astype(int).tolist()) if om.optimal_map().size
+         else sp.zeros(p, 0))
+    erow, drow = ((mats["E"], sp.zeros(1, p)) if om.output is None
+                  else (mats["C"][om.output, :], D[om.output, :]))
+    lhs = sp.Matrix.vstack(sp.eye(n) - mats["A"], mats["C"], erow)
+    rhs = sp.zeros(n + p + 1, X.shape[1])
+    for r in range(n, n + p + 1):
+        rhs[r, 0] = 1
+    if S.shape[1]:
+        rhs[:, 1:] = sp.Matrix.vstack(mats["B"] * S, -D * S, -drow * S)
+    return all(_proven_zero(sp.sympify(v)) for v in lhs * X - rhs)
+
+
+def _call_at(rows_a: list[np.ndarray], rows_b: list[np.ndarray]) -> bool:
+    return all(all(_exact_zero(x - y) for x, y in zip(a, b, strict=True))
+               for a, b in zip(rows_a, rows_b, strict=True))
+
+
+def exact_step_method(spec: Any, kappa: float | None, sm: StepMethods, count: int,
+                      digits: int = 60) -> Method:
+    """The exact :class:`Method` of the first ``count`` per-step methods of ``sm``: the
+    class, units and terms of ``spec`` as written (:func:`sosalgo.pep.exact.exact_base`),
+    the per-step matrices exact (sympy ones enclosed at ``digits`` decimals), K = 0.
+    ValueError when they are missing or their fixed point is not proven."""
+    from sosalgo.certificates.exact_composite import exact_class_inequalities
+    from sosalgo.kernel.exact import Ball, enclose
+    from sosalgo.kernel.expr.parse import to_sympy
+    from sosalgo.pep.structure import enclosure_bits
+
+    if callable(sm.exact):  # built when first needed (:func:`spec_steps`)
+        sm.exact = sm.exact()
+    if sm.exact is None or len(sm.exact) < count:
+        raise ValueError(f"{count} steps' exact matrices needed")
+    om = sm.floats[0]
+    if sm.fixed_point is None and is_time_varying(spec):
+        sm.fixed_point = symbolic_fixed_point(spec, om)
+    X, _ = _exact_fixed_point(sm, om, count)
+    Xb = _balls(X, digits)
+    steps = [{k: _exact_array(M, digits) for k, M in mats.items()}
+             for mats in list(sm.exact)[:count]]
+    p = om.p
+    zero = np.full((p, p), Fraction(0), dtype=object)
+    per = [(s["A"], s["B"], s["C"], s.get("D", zero)) for s in steps]
+    base = exact_base(spec, kappa)
+    funcs, ineqs = [], []
+    for fn in om.functions:
+        decl = spec.functions[fn.name]
+        params = {k: enclose(to_sympy(e).xreplace(base), digits) for k, e in decl.params.items()}
+        funcs.append((fn.name, fn.cls, params))
+        ineqs.append(exact_class_inequalities(fn.cls, params)[0])
+
+    def coef(t: Any) -> Any:
+        return enclose(to_sympy(t.coef).xreplace(base), digits)
+
+    def same(a: np.ndarray, b: np.ndarray) -> bool:
+        return all(Ball.of(v).c == 0 and Ball.of(v).r == 0 for v in a - b)
+
+    A0, B0, C0, D0 = per[0]
+    E = steps[0].get("E")
+    mt = Method(A0, B0, C0, D0, E, om.output, funcs, tuple(om.oracles), Xb[:, 0], Xb[:, 1:],
+                _scale(base[_sym("L")]), ineqs, coef, same,
+                np.full((p, om.n), Fraction(0), dtype=object), exact=True,
+                bits=enclosure_bits(digits), per_step=per)
+    mt.x0_call = _step_start_call(mt, per[0])
+    mt.out_call = _step_output_call(mt, per)
+    return mt
+
+
+def _step_start_call(mt: Method, step0: tuple[np.ndarray, ...]) -> int | None:
+    """The first call of step 0 at x_0 for every start xi_0 = X0 x_0 - Xs s~ (D_i = 0,
+    C_i X0 = 1, C_i Xs = 0), proven exactly."""
+    _, _, C, D = step0
+    for i in range(C.shape[0]):
+        if (_exact_zero(C[i].dot(mt.X0) - 1) and all(_exact_zero(v) for v in C[i].dot(mt.Xs))
+                and all(_exact_zero(v) for v in D[i])):
+            return i
+    return None
+
+
+def _step_output_call(mt: Method, per: list[tuple[np.ndarray, ...]]) -> int | None:
+    """The first call i with E = C_i and D_i = 0 at every step, proven exactly."""
+    if mt.output is not None or mt.E is None:
+        return None
+    for i in range(mt.p):
+        if all(_call_at([mt.E[0], D[i]], [C[i], 0 * D[i]]) for _, _, C, D in per):
+            return i
+    return None
+
+
+def symbolic_fixed_point(spec: Any, om: Any) -> sp.Matrix | None:
+    """The fixed points [u, X_s] of the spec's matrices, proven for every value of the
+    parameters, sequences, k and N (sympy, those names left as symbols): the solution
+    when it is free of them and solves the equations identically, else None. Then every
+    per-step method of the spec keeps it (its matrices are these at numbers)."""
+
+    mats = dict(spec.sympy_matrices())
+    mats.setdefault("D", sp.zeros(om.p, om.p))
+    try:
+        X = _fixed_points(mats, om)
+    except (ValueError, ArithmeticError, TypeError):
+        return None
+    if X.free_symbols or not _fixed_points_hold(mats, om, X):
+        return None
+    return X

@@ -73,6 +73,10 @@ class PEPData:
     active: np.ndarray
     w: np.ndarray  # (d,) G = W H W
     v: np.ndarray  # (nF,) F = V F'
+    # the measure's solves also try the strong regularization (:data:`STRONG`), and a
+    # margin solve that ends almost solved gives its multipliers as a candidate
+    # certificate: methods that change with k (OGM ends "almost solved" at N = 30)
+    strong: bool = False
     # an omitted pair violated by more (relative) joins the next solve; the constraint
     # generation ends when none is
     violation: float = 1e-9
@@ -208,8 +212,12 @@ def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
     exact_next = objective != "measure" or margin > 0  # a certificate: never rough
     while True:
         tries = TRACE if objective == "trace" else PRECISE if precise else QUICK
-        ans = _solve_active(data, active, margin, objective, floor, slack, unit,
-                            tries + STRONG if margin > 0 and not precise else tries,
+        strong = (margin > 0 or (data.strong and objective == "measure")) and not precise
+        if strong and data.strong and margin == 0:  # ends almost solved at the others
+            tries = STRONG + tries
+        elif strong:
+            tries = tries + STRONG
+        ans = _solve_active(data, active, margin, objective, floor, slack, unit, tries,
                             rough=not exact_next)
         rounds += 1
         if (objective == "measure" and margin == 0 and ans.G is not None
@@ -407,8 +415,10 @@ def _solve_dual(data: PEPData, active: np.ndarray, margin: float, unit: float,
     x, z = np.array(sol.x), np.array(sol.z)
     H, Fs = unsvec(z[K + nF:], d), z[K:K + nF]
     G, F = H * np.outer(data.w, data.w), Fs * data.v
-    if st_ != SolverStatus.SOLVED:  # G, F of an almost solved problem: a scale only
-        almost = raw.startswith("Almost")
+    almost = raw.startswith("Almost")
+    if st_ != SolverStatus.SOLVED and not (almost and margin > 0 and data.strong):
+        # G, F of an almost solved problem: a scale only (with ``strong``, a margin
+        # solve's almost solved multipliers are a candidate: the exact check decides)
         return SDPAnswer("almost" if almost and rough else "failed", raw,
                          G=G if almost else None, F=F)
     lam = np.zeros(len(st.pairs))

@@ -50,7 +50,7 @@ from sosalgo.oracles import CallShape
 from sosalgo.pep.terms import MIN_KIND, STEP_POINT, Term
 
 __all__ = ["Method", "PEPPoint", "PEPStructure", "build_structure", "enclosure_bits",
-           "enclosure_digits", "output_call", "pair_label", "radius_growth"]
+           "enclosure_digits", "last_calls", "output_call", "pair_label", "radius_growth"]
 
 
 @dataclass
@@ -92,6 +92,23 @@ class Method(CallShape):
     bits: int = 160
     # a mingrad measure: the weighted sum that bounds it (:mod:`sosalgo.pep.minimum`)
     bound: str | None = None
+    # a method that changes with k: (A_k, B_k, C_k, D_k) of step k (call k and the move
+    # from xi_k to xi_{k+1}); None: A, B, C, D at every step (:meth:`step`)
+    per_step: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] | None = None
+    per_gain: list[np.ndarray] | None = None  # K_k of step k's basis (None: K at every step)
+
+    def gain(self, k: int) -> np.ndarray:
+        """The gain K_k of step k's basis vectors (:func:`_trajectory`)."""
+        return self.K if self.per_gain is None else self.per_gain[k]
+
+    def step(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(A, B, C, D) of step k."""
+        if self.per_step is None:
+            return self.A, self.B, self.C, self.D
+        if k >= len(self.per_step):
+            raise InputError(f"--steps: the method's matrices are given for steps "
+                             f"0..{len(self.per_step) - 1}, step {k} is needed")
+        return self.per_step[k]
 
 
 @dataclass
@@ -240,10 +257,11 @@ def _trajectory(mt: Method, xi0: np.ndarray, new: list[np.ndarray],
         return _exact_trajectory(mt, xi0, new, calls)
     xi, Y, U = [xi0], [], []
     for k in range(calls):
-        u = mt.K @ xi[k] + new[k]
+        A, B, C, D = mt.step(k)
+        u = mt.gain(k) @ xi[k] + new[k]
         U.append(u)
-        Y.append(mt.C @ xi[k] + mt.s * (mt.D @ u))
-        nxt = mt.A @ xi[k] + mt.s * (mt.B @ u)
+        Y.append(C @ xi[k] + mt.s * (D @ u))
+        nxt = A @ xi[k] + mt.s * (B @ u)
         nxt[np.abs(nxt) < 1e-13 * (1.0 + np.abs(nxt).max())] = 0.0
         xi.append(nxt)
     return xi, Y, U
@@ -260,11 +278,12 @@ def _exact_trajectory(mt: Method, xi0: np.ndarray, new: list[np.ndarray],
         cols = np.flatnonzero([any(_nonzero(v) for v in col) for col in
                                np.vstack([xi[k], new[k]]).T])
         x, b = xi[k][:, cols], new[k][:, cols]
-        u = mt.K @ x + b
+        A, B, C, D = mt.step(k)
+        u = mt.gain(k) @ x + b
         nxt = np.vectorize(lambda v: coarsen(v, mt.bits), otypes=[object])(
-            mt.A @ x + mt.s * (mt.B @ u))
+            A @ x + mt.s * (B @ u))
         parts = []
-        for rows in (u, mt.C @ x + mt.s * (mt.D @ u), nxt):
+        for rows in (u, C @ x + mt.s * (D @ u), nxt):
             full = np.full((rows.shape[0], xi0.shape[1]), zero, dtype=object)
             full[:, cols] = rows
             parts.append(full)
@@ -296,7 +315,7 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
     origin = _check_nonconvex(mt, measure, initial, option)
     n0 = n if free else 1
     needs_n = mt.output is not None or any(t.point.startswith("y") for t in measure)
-    calls = steps + 1 if needs_n else steps
+    calls = steps + 1 if needs_n and mt.per_step is None else steps  # see last_calls
     extra_cap = J * (len(measure) + len(initial)) + J + 1
     g0 = mt.G0 is not None and not free
     dmax = n0 + (J - 1) + p * calls + extra_cap
@@ -326,6 +345,8 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
         Yr[0][mt.x0_call] = x0
     where = {"x": out, "x0": x0}
     where.update({f"y{i + 1}": Yr[steps][i] for i in range(p)} if calls > steps else {})
+    if last_calls(mt):  # the calls of the last step
+        where.update({f"y{i + 1}": Yr[steps - 1][i] for i in range(p)})
     pts: list[list[PEPPoint]] = [[] for _ in range(J)]
     nF = 0
     for k in range(calls):
@@ -392,10 +413,19 @@ def _output_row(mt: Method, xi: list[np.ndarray], Yr: list[list[np.ndarray]],
     and that call is made at step k — the same point by construction, so a term there
     reads the call's subgradient and value, in floats and in exact numbers alike (a
     numerical comparison of ball rows cannot prove them equal) — else E xi_k."""
+    if last_calls(mt) and mt.output is not None and k >= 1:
+        return Yr[k - 1][mt.output]
     call = mt.output if mt.output is not None else mt.out_call
     if call is not None and k < len(Yr):
         return Yr[k][call]
     return (mt.E @ xi[k])[0]
+
+
+def last_calls(mt: Method) -> bool:
+    """Whether the output call and the ``y`` terms after N steps are the calls of step
+    N - 1 (a method that changes with k: its N per-step methods make N calls, the N-th
+    one's prox point is x_N, as PEPit counts FISTA), not those of a step N."""
+    return mt.per_step is not None
 
 
 def output_call(E: Any, C: Any, D: Any, same: Callable[[Any, Any], bool]) -> int | None:

@@ -42,7 +42,7 @@ import numpy as np
 from sosalgo.kinds import WITNESS_KIND
 from sosalgo.pep.check import ArbView, arb_view, check_witness, fit_values, q_str
 from sosalgo.pep.sdp import PEPData, SDPAnswer, solve_pep
-from sosalgo.pep.structure import Method
+from sosalgo.pep.structure import Method, last_calls
 from sosalgo.pep.terms import Term
 from sosalgo.spec import Spec
 
@@ -119,8 +119,8 @@ def quadratic_point(mt: Method, st: Any) -> np.ndarray | None:
         j = mt.smooth
         v[col[f"g_{mt.functions[j][0]}(x0)/s"]] = q[j] / s
         xi = xi + np.asarray(mt.G0, float) * q[j]
-    C, D, A, B, K = (np.asarray(M, float) for M in (mt.C, mt.D, mt.A, mt.B, mt.K))
     for k in range(st.calls):
+        A, B, C, D, K = (np.asarray(M, float) for M in (*mt.step(k), mt.gain(k)))
         try:
             y = np.linalg.solve(np.eye(p) - D * qc, C @ xi)
         except np.linalg.LinAlgError:
@@ -356,6 +356,8 @@ def _out(mt: Method, st: Any, k: int) -> np.ndarray:
     """The output row at step k (x_k = E xi_k, or the output call's point)."""
     if mt.output is None:
         return (mt.E @ st.rows["xi"][k])[0]
+    if last_calls(mt):  # step k - 1's call; x_0 the start (the first basis vector)
+        return st.rows["y"][k - 1][mt.output] if k else np.eye(st.d)[0]
     return st.rows["y"][k][mt.output] if k < len(st.rows["y"]) else st.rows["x"]
 
 

@@ -85,9 +85,11 @@ def _check(spec: Spec, kappas: list[float | None], steps: list[int], measure: st
     than :data:`ISOLATE_SECONDS`, so that SIGTERM or Ctrl-C need not wait for its solve)."""
     from sosalgo.kernel import budget
     from sosalgo.pep.core import pep_problem
+    from sosalgo.pep.steps import is_time_varying
 
+    small = steps[0] if is_time_varying(spec) else 1  # a schedule's horizon is its length
     for k in kappas:
-        pep_problem(spec, k, 1, measure, initial, solve_min=False)
+        pep_problem(spec, k, small, measure, initial, solve_min=False)
     top = max(steps)
     _, st, *_ = pep_problem(spec, kappas[0], top, measure, initial, solve_min=False)
     sizes = [(round(len(st.pairs) * ((n + 1) / (top + 1)) ** 2),
