@@ -80,12 +80,7 @@ class _Robust:
         self.lo = cp.Parameter(A)
         self.hi = cp.Parameter(A)
         g = cp.vec(self.G, order="C")
-        diff = np.zeros((K, pp.npts))
-        for k, (i, j) in enumerate(pp.pairs):
-            if i < pp.npts:
-                diff[k, i] += 1.0
-            if j < pp.npts:
-                diff[k, j] -= 1.0
+        diff = pp.value_differences()
         slope_of = {a: i for i, a in enumerate(lin) if a is not None}
         zero = pp.monomials.index((0,) * len(pp.free))
         total = forms[:, zero, :] @ g

@@ -133,6 +133,16 @@ class ParametricPEP:
                 out[k, idx[e]] = np.asarray(M, dtype=float)
         return out
 
+    def value_differences(self) -> np.ndarray:
+        """(K, npts): row k picks F_i - F_j of pair k = (i, j) (x* has value 0, no column)."""
+        diff = np.zeros((len(self.pairs), self.npts))
+        for k, (i, j) in enumerate(self.pairs):
+            if i < self.npts:
+                diff[k, i] += 1.0
+            if j < self.npts:
+                diff[k, j] -= 1.0
+        return diff
+
     _rows: list[list[list[Poly]]] | None = None
     step_polys: list[dict[str, list[list[Poly]]]] | None = None  # A, B, C, E of step k
 

@@ -50,12 +50,7 @@ class PointPEP:
         self.F = cp.Variable(pp.npts)
         self.P = cp.Parameter((K, d * d))
         self.eps = cp.Parameter(nonneg=True)
-        diff = np.zeros((K, pp.npts))
-        for k, (i, j) in enumerate(pp.pairs):
-            if i < pp.npts:
-                diff[k, i] += 1.0
-            if j < pp.npts:
-                diff[k, j] -= 1.0
+        diff = pp.value_differences()
         self.pairs_con = diff @ self.F + self.P @ cp.vec(self.G, order="C") >= 0
         self.norm_con = self.G[0, 0] <= 1
         self.problem = cp.Problem(

@@ -50,19 +50,27 @@ def _proven_float(cert: dict[str, Any]) -> float | None:
     return float(Fraction(text)) if isinstance(text, str) else None
 
 
+def task_kappa(task: dict[str, Any]) -> float | None:
+    """The kappa of a (kappa, steps) task (None: an m: 0 spec), announced as the task the
+    progress bar shows."""
+    from sosalgo.runs import kappa_value
+
+    kappa = None if task["kappa"] in ("", None) else kappa_value(task["kappa"])
+    begin_task(f"N {task['steps']}" + ("" if kappa is None else f", kappa {kappa:g}"))
+    return kappa
+
+
 def pep_chunk(spec_text: str, source: str, options: dict[str, Any],
               chunk: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Worker: the PEP at each task's (kappa, steps)."""
     from sosalgo.pep.core import pep
     from sosalgo.pep.exact import class_description
-    from sosalgo.runs import kappa_value
     from sosalgo.spec import spec_from_text
 
     spec = spec_from_text(spec_text, source)
     rows = []
     for task in chunk:
-        kappa = None if task["kappa"] in ("", None) else kappa_value(task["kappa"])
-        begin_task(f"N {task['steps']}" + ("" if kappa is None else f", kappa {kappa:g}"))
+        kappa = task_kappa(task)
         res = pep(spec, kappa, int(task["steps"]), options["measure"], options["initial"],
                   options["exact"], options["witness"])
         try:

@@ -11,7 +11,6 @@ from pathlib import Path
 from typing import Any
 
 from sosalgo.errors import InputError
-from sosalgo.kernel.phases import begin_task
 from sosalgo.kinds import DESIGN_STEPS_KIND
 from sosalgo.spec import Spec
 
@@ -23,14 +22,13 @@ def steps_design_chunk(spec_text: str, source: str, options: dict[str, Any],
     """Worker: the design at each task's (kappa, steps)."""
     from sosalgo.design.steps import design_steps, steps_problem
     from sosalgo.pep.evaluate import steps_evaluator
-    from sosalgo.runs import kappa_value
+    from sosalgo.runs.pep import task_kappa
     from sosalgo.spec import spec_from_text
 
     spec = spec_from_text(spec_text, source)
     rows = []
     for task in chunk:
-        kappa = None if task["kappa"] in ("", None) else kappa_value(task["kappa"])
-        begin_task(f"N {task['steps']}" + ("" if kappa is None else f", kappa {kappa:g}"))
+        kappa = task_kappa(task)
         steps = int(task["steps"])
         prob = steps_problem(spec, kappa, steps, options["free"])
         res = design_steps(spec, spec_text, kappa, steps, prob.layout, prob.box,
