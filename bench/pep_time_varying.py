@@ -16,7 +16,7 @@ import math
 import sys
 
 from bench.pep import SOSALGO_CHILD
-from bench.pepit import pepit_python, run_child
+from bench.pepit import SOLVE_AND_REPORT, pepit_python, run_child
 
 STEPS, QUICK_STEPS = (5, 10, 20, 30, 40, 50, 60, 80, 100), (5, 10)
 BUDGET = 600.0  # seconds: no larger N once a case took longer
@@ -44,16 +44,7 @@ for i in range(N):
     theta_new = (1 + math.sqrt(c * theta_new ** 2 + 1)) / 2
     y = x_new + (theta_old - 1) / theta_new * (x_new - x_old) + theta_old / theta_new * (x_new - y)
 problem.set_performance_metric(func(y) - fs)
-kw = {} if solver == "default" else {"solver": solver}
-t0 = time.perf_counter()
-tau = problem.solve(wrapper="cvxpy", verbose=0, **kw)
-seconds = time.perf_counter() - t0
-w = getattr(problem, "wrapper", None)
-hwm = [int(x.split()[1]) for x in open("/proc/self/status") if x.startswith("VmHWM:")][0]
-print(json.dumps({"tau": tau, "seconds": seconds,
-                  "status": str(getattr(getattr(w, "prob", None), "status", None)),
-                  "mb": hwm / 1024}))
-'''
+''' + SOLVE_AND_REPORT
 
 
 def closed_form(N: int) -> float:

@@ -40,6 +40,20 @@ SOLVERS = ("default", "CLARABEL")
 # "over ... s" and the run goes on (``SOSALGO_BENCH_CASE_SECONDS`` changes it)
 CASE_SECONDS = float(os.environ.get("SOSALGO_BENCH_CASE_SECONDS", "1800"))
 
+# The end of every PEPit worker script: solve (``solver`` and ``problem`` set by the script),
+# then print the value, time, status, solver and peak memory as one JSON line.
+SOLVE_AND_REPORT = r'''kw = {} if solver == "default" else {"solver": solver}
+t0 = time.perf_counter()
+tau = problem.solve(wrapper="cvxpy", verbose=0, **kw)
+seconds = time.perf_counter() - t0
+w = getattr(problem, "wrapper", None)
+hwm = [int(x.split()[1]) for x in open("/proc/self/status") if x.startswith("VmHWM:")][0]
+print(json.dumps({"tau": tau, "seconds": seconds,
+                  "status": str(getattr(getattr(w, "prob", None), "status", None)),
+                  "solver": str(getattr(w, "solver_name", None) or solver),
+                  "mb": hwm / 1024}))
+'''
+
 # Runs in PEPit's interpreter: one case, one JSON line out.
 WORKER = r'''
 import json, math, sys, time, warnings
@@ -68,17 +82,7 @@ else:
         y = x + beta * (x - xp)
         xp, x = x, y - h * func.gradient(y)
     problem.set_performance_metric(func(x) - fs)
-kw = {} if solver == "default" else {"solver": solver}
-t0 = time.perf_counter()
-tau = problem.solve(wrapper="cvxpy", verbose=0, **kw)
-seconds = time.perf_counter() - t0
-w = getattr(problem, "wrapper", None)
-hwm = [int(x.split()[1]) for x in open("/proc/self/status") if x.startswith("VmHWM:")][0]
-print(json.dumps({"tau": tau, "seconds": seconds,
-                  "status": str(getattr(getattr(w, "prob", None), "status", None)),
-                  "solver": str(getattr(w, "solver_name", None) or solver),
-                  "mb": hwm / 1024}))
-'''
+''' + SOLVE_AND_REPORT
 
 
 def pepit_python() -> tuple[str | None, str]:
