@@ -157,7 +157,8 @@ def test_per_step_schedule_boxes():
     and the point box's bound is close to it (so the comparison can fail)."""
     import sympy as sp
 
-    from sosalgo.design.steps_point import PointPEP
+    from sosalgo.pep.evaluate import worst_case_evaluator
+    from sosalgo.spec import read_spec_text
 
     spec = load_spec(str(spec_path("gradient-convex")))
     hs = [sp.Symbol("h_0"), sp.Symbol("h_1")]
@@ -182,7 +183,9 @@ def test_per_step_schedule_boxes():
             assert bound <= independent_schedule_pep(h) * (1 + 1e-6) + 1e-9, (lo, hi, h)
     point = independent_schedule_pep([1.4, 1.875])
     assert bound >= 0 and float(prove_box(pp, solver, *boxes[2]).bound) >= point * (1 - 1e-4)
-    proven = PointPEP(pp).prove([Fraction(7, 5), Fraction(15, 8)])
+    path = str(spec_path("gradient-schedule"))  # the same class, per-step h (pep's proof)
+    _, proven_at = worst_case_evaluator(load_spec(path), read_spec_text(path), None, 2)
+    proven, _ = proven_at({"h": ["1.4", "1.875"]})
     assert proven is not None and point * (1 - 1e-6) <= float(proven) <= point * (1 + 1e-5)
 
 

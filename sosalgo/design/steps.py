@@ -34,7 +34,7 @@ from sosalgo.kernel.phases import show_phase
 from sosalgo.spec import Spec
 
 __all__ = ["StepsDesign", "StepsProblem", "design_steps", "drori_floor", "exact_box",
-           "flat_names", "ogm_theta", "pack", "point_evaluator", "steps_problem",
+           "flat_names", "ogm_theta", "pack", "steps_problem",
            "value_text"]
 
 DIGITS = 12  # significant digits of the designed values (the exact θ of the proof)
@@ -154,8 +154,8 @@ class _Stop(Exception):
 
 class _Search:
     """The best θ found (float PEP values), over the box [lo, hi] of the flat values;
-    ``point``: the parametric model's PEP at a point (value and gradient), else the
-    evaluator's value alone."""
+    ``point``: the parametric model's float PEP at a point (value and gradient,
+    :class:`sosalgo.design.steps_model.PointSearch`), else the evaluator's value alone."""
 
     def __init__(self, layout: Layout, lo: np.ndarray, hi: np.ndarray,
                  value: Callable[[Values], float], point: Any = None):
@@ -288,14 +288,15 @@ def design_steps(spec: Spec, text: str, kappa: float | None, steps: int, layout:
                  box: Sequence[tuple[Fraction, Fraction]],
                  evaluator: tuple[Callable, Callable], time_limit: float = 120.0,
                  gap: float = 1e-3, seeds: Sequence[Sequence[float]] = (),
-                 model: Any = None) -> StepsDesign:
+                 model: Any = None, no_model: str | None = None) -> StepsDesign:
     """The N-step design of ``spec`` over ``box`` (exact ends, one per flat free value,
     :func:`flat_names` of ``layout``): schedule, tau_certified, lower_bound, floor (see
     the module). ``evaluator``: (float worst case at θ, proven worst case at θ), θ a dict
     of parameter values (:func:`sosalgo.pep.evaluate.worst_case_evaluator`); ``model``:
     the parametric PEP (:func:`sosalgo.design.steps_model.parametric_pep`; built here for
-    a time-invariant spec when None); ``gap``: the relative gap at which the bound
-    search stops."""
+    a time-invariant spec when None, unless ``no_model`` says why there is none: then no
+    box-wide bound, and the search uses the evaluator's values); ``gap``: the relative
+    gap at which the bound search stops."""
     t0 = time.time()
     deadline = t0 + time_limit
     names = flat_names(layout)
@@ -303,16 +304,18 @@ def design_steps(spec: Spec, text: str, kappa: float | None, steps: int, layout:
     lo = np.array([float(a) for a, _ in box])
     hi = np.array([float(b) for _, b in box])
     log: list[str] = []
-    if model is None:
+    if no_model is not None:
+        log.append(f"no box-wide lower bound: {no_model}")
+    elif model is None:
         try:
             model = parametric_pep(spec, kappa, steps, names)
         except Unsupported as exc:
             log.append(f"no box-wide lower bound: {exc}")
     point = None
     if model is not None:
-        from sosalgo.design.steps_point import PointPEP
+        from sosalgo.design.steps_model import PointSearch
 
-        point = PointPEP(model)
+        point = PointSearch(model)
     search = _Search(layout, lo, hi, value, point)
     show_phase("searching", f"N = {steps}")
     span = (SEARCH_SHARE if len(lo) <= 4 else 2 * SEARCH_SHARE) * time_limit
@@ -458,31 +461,6 @@ def _rational_end(v: Any, down: bool) -> Fraction:
     if (down and exact > v) or (not down and exact < v):
         q = Fraction(float(np.nextafter(f, -math.inf if down else math.inf)))
     return q
-
-
-def point_evaluator(model: Any, layout: Layout) -> tuple[Callable, Callable]:
-    """(float worst case, proven worst case) at θ from the parametric model's own PEP
-    (:class:`sosalgo.design.steps_point.PointPEP`: its dual certificate proven exactly),
-    for methods ``sosalgo pep`` does not bind."""
-    from sosalgo.design.steps_point import PointPEP
-
-    point = PointPEP(model)
-
-    def flat(values: Values) -> list[Any]:
-        out: list[Any] = []
-        for p, n in layout:
-            v = values[p]
-            out += list(v) if n is not None else [v]
-        return out
-
-    def value(values: Values) -> float:
-        return point.value_grad([float(x) for x in flat(values)])[0]
-
-    def proven(values: Values) -> tuple[Fraction | None, float]:
-        th = [Fraction(str(x)) for x in flat(values)]
-        return point.prove(th), value(values)
-
-    return value, proven
 
 
 @dataclass

@@ -31,7 +31,8 @@ import sympy as sp
 from sosalgo.classes import SEED_CLASS, get_class
 from sosalgo.spec import Spec
 
-__all__ = ["ParametricPEP", "Poly", "Unsupported", "check_setting", "parametric_pep",
+__all__ = ["ParametricPEP", "PointSearch", "Poly", "Unsupported", "check_setting",
+           "parametric_pep",
            "poly_range",
            "smooth_convex_q", "step_symbol", "varying_matrices"]
 
@@ -386,6 +387,61 @@ def varying_matrices(spec: Spec, kappa: float | None, steps: int,
         return {key: mats[key].xreplace(envs[k]) for key in ("A", "B", "C", "E")}
 
     return at, seeds
+
+
+class PointSearch:
+    """The float PEP of ``pp`` at one θ (cvxpy, Clarabel): its value and its gradient in θ,
+    which steer the schedule search (:mod:`sosalgo.design.steps`). It proves nothing: the
+    worst case of a schedule and its proof are ``sosalgo pep``'s
+    (:func:`sosalgo.pep.evaluate.worst_case_evaluator`).
+
+    Primal: max F_N subject to G_00 <= 1, G ⪰ 0 and, for every pair k = (i, j),
+    F_i - F_j + <P_k(θ), G> >= 0 with P_k(θ) = sum_alpha θ^alpha Q_{k,alpha}. The gradient
+    of the value in θ is sum_k lambda_k <dP_k/dθ, G> at the optimum, lambda the pairs'
+    multipliers (the envelope theorem; a subgradient where the optimum is not unique)."""
+
+    def __init__(self, pp: ParametricPEP):
+        import cvxpy as cp
+
+        self.pp = pp
+        K, A, d = len(pp.pairs), len(pp.monomials), pp.d
+        self.forms = pp.float_forms().reshape(K, A, d * d)
+        self.G = cp.Variable((d, d), PSD=True)
+        self.F = cp.Variable(pp.npts)
+        self.P = cp.Parameter((K, d * d))
+        self.pairs_con = (pp.value_differences() @ self.F
+                          + self.P @ cp.vec(self.G, order="C") >= 0)
+        self.problem = cp.Problem(cp.Maximize(self.F[pp.measure_point]),
+                                  [self.pairs_con, self.G[0, 0] <= 1])
+        self.exps = np.array(pp.monomials, dtype=float)  # (A, p)
+
+    def _monomials(self, theta: np.ndarray) -> np.ndarray:
+        return np.prod(np.power(theta[None, :], self.exps), axis=1)
+
+    def _dmonomials(self, theta: np.ndarray) -> np.ndarray:
+        """(A, p): the derivative of each monomial in each θ_i."""
+        out = np.zeros_like(self.exps)
+        for i in range(self.exps.shape[1]):
+            e = self.exps.copy()
+            c = e[:, i].copy()
+            e[:, i] = np.maximum(e[:, i] - 1, 0)
+            out[:, i] = c * np.prod(np.power(theta[None, :], e), axis=1)
+        return out
+
+    def value_grad(self, theta: Sequence[float]) -> tuple[float, np.ndarray]:
+        """The PEP value at θ and its gradient (inf and zeros when the solve fails)."""
+        from sosalgo.kernel.solvers import SolverStatus, cvxpy_solve
+
+        th = np.asarray(theta, float)
+        self.P.value = np.einsum("a,kaj->kj", self._monomials(th), self.forms)
+        end = cvxpy_solve(self.problem, "CLARABEL")
+        if end.status not in (SolverStatus.SOLVED, SolverStatus.ALMOST_SOLVED) \
+                or self.G.value is None:
+            return float("inf"), np.zeros(len(th))
+        lam = np.maximum(np.asarray(self.pairs_con.dual_value, float), 0.0)
+        inner = np.einsum("kaj,j->ka", self.forms, np.array(self.G.value).reshape(-1))
+        grad = (lam @ inner) @ self._dmonomials(th)  # sum_k lam_k <dP_k/dθ, G>
+        return float(self.F.value[self.pp.measure_point]), grad
 
 
 def _seed(expr: Any) -> float:

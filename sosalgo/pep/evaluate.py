@@ -1,6 +1,7 @@
 """The worst case after N steps at given parameter values: the one function the N-step
-design (:mod:`sosalgo.design.steps`) and its verification evaluate. It is the PEP of
-``sosalgo pep`` at the spec with the values fixed (``--set``)."""
+design (:mod:`sosalgo.design.steps`) and its verification evaluate and prove. It is the
+PEP of ``sosalgo pep`` at the spec with the values fixed (``--set``): one per-step PEP
+and one dual proof for ``pep``, ``design --steps`` and ``verify``."""
 
 from __future__ import annotations
 
@@ -51,23 +52,27 @@ def worst_case_evaluator(spec: Spec, text: str, kappa: float | None, steps: int,
 
 def steps_evaluator(spec: Spec, text: str, kappa: float | None, steps: int,
                     prob: Any) -> tuple[Callable, Callable]:
-    """The worst case at θ: ``sosalgo pep``'s (its proof) for a time-invariant spec, and
-    for a spec that varies with k when ``sosalgo pep`` binds it and agrees with the
-    parametric model at the spec's own values (to 1e-6); otherwise the parametric model's
-    own PEP and dual proof (:func:`sosalgo.design.steps.point_evaluator`). InputError
-    when neither exists."""
-    from sosalgo.design.steps import pack, point_evaluator
+    """The worst case at θ of ``design --steps`` and ``verify``: always ``sosalgo pep``'s
+    (:func:`worst_case_evaluator`, its exact proof). For a spec that varies with k, the
+    parametric model ``prob.model`` (the box-wide bound's and the search's) must agree
+    with ``sosalgo pep`` on the spec as written (its own values, to 1e-6), else it is
+    dropped (``prob.model`` None, ``prob.reason`` says why): a bound about another method
+    is never reported. InputError when ``sosalgo pep`` cannot bind the spec."""
+    from sosalgo.design.steps_model import PointSearch
+    from sosalgo.pep.core import pep
 
-    if not getattr(spec, "time_varying", False):
-        return worst_case_evaluator(spec, text, kappa, steps)
-    if prob.model is None:
-        raise InputError(f"{spec.source}: design --steps: the worst case of this method "
-                         f"cannot be evaluated per step here: {prob.reason}")
-    own = point_evaluator(prob.model, prob.layout)
-    if prob.seeds:
-        values = pack(prob.layout, prob.seeds[0])
-        theirs = worst_case_evaluator(spec, text, kappa, steps)
-        a, b = own[0](values), theirs[0](values)
-        if math.isfinite(a) and math.isfinite(b) and abs(a - b) <= 1e-6 * max(abs(a), 1e-12):
-            return theirs
-    return own
+    evaluator = worst_case_evaluator(spec, text, kappa, steps)
+    if prob.model is None and prob.reason is None:  # time-invariant: same matrices
+        return evaluator
+    ours = pep(spec, kappa, steps, exact=False, witness=False).tau  # InputError: unbound
+    if prob.model is not None and not prob.seeds:
+        prob.model, prob.reason = None, ("the parametric model cannot be checked against "
+                                         "sosalgo pep (the spec's own values are not numbers)")
+    if prob.model is not None:
+        theirs = PointSearch(prob.model).value_grad(prob.seeds[0])[0]
+        if ours is None or not math.isfinite(theirs) or \
+                abs(theirs - ours) > 1e-6 * max(abs(ours), 1e-12):
+            prob.model, prob.reason = None, (
+                f"the parametric model's worst case at the spec's values ({theirs:.9g}) "
+                f"differs from sosalgo pep's ({ours})")
+    return evaluator

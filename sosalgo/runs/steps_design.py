@@ -33,9 +33,8 @@ def steps_design_chunk(spec_text: str, source: str, options: dict[str, Any],
         prob = steps_problem(spec, kappa, steps, options["free"])
         res = design_steps(spec, spec_text, kappa, steps, prob.layout, prob.box,
                            steps_evaluator(spec, spec_text, kappa, steps, prob),
-                           options["time_limit"], options["gap"], prob.seeds, prob.model)
-        if prob.reason:
-            res.log.insert(0, f"no box-wide lower bound: {prob.reason}")
+                           options["time_limit"], options["gap"], prob.seeds, prob.model,
+                           prob.reason)
         doc = res.to_dict()
         rows.append({"kappa": "" if kappa is None else kappa, "steps": res.steps,
                      "schedule": json.dumps(doc["schedule"]),
