@@ -45,13 +45,10 @@ def example(name: str) -> Spec:
 def as_spec(spec: Spec | str | Path, varying: bool = False) -> Spec:
     """A Spec, loading it when given a path; a method that changes with k is refused (one
     line naming ``sosalgo pep --steps``) unless the caller takes one (``varying``)."""
-    out = spec if isinstance(spec, Spec) else load_spec(spec)
-    if out.time_varying and not varying:
-        from sosalgo.spec import SpecError
-        from sosalgo.spec.types import VARIES
+    from sosalgo.steps import one_method
 
-        raise SpecError(out.source, "", VARIES.format(source=out.source))
-    return out
+    out = spec if isinstance(spec, Spec) else load_spec(spec)
+    return out if varying else one_method(out)
 
 
 def _kappas(spec: Spec, kappa: float | Sequence[float] | None) -> tuple[list[float], bool]:

@@ -41,9 +41,9 @@ if TYPE_CHECKING:
     import sympy as sp
     from flint import arb
 
-__all__ = ["MAX_EXACT_OPS", "MAX_STEPS", "SAMPLE_HORIZON", "ball_steps", "check_steps",
-           "exact_steps", "float_steps", "horizon", "reference_values", "sequence_values",
-           "step_values"]
+__all__ = ["MAX_EXACT_OPS", "MAX_STEPS", "SAMPLE_HORIZON", "ball_steps", "changes_with_k",
+           "check_steps", "exact_steps", "float_steps", "horizon", "one_method",
+           "reference_values", "sequence_values", "step_methods", "step_values"]
 
 MAX_STEPS = 10_000
 SAMPLE_HORIZON = 4  # the horizon a spec is checked at when it is loaded (lists: their own)
@@ -53,6 +53,31 @@ BALL_BITS = 320  # working precision of ball_steps
 FIXED_POINT_TOL = 1e-9
 
 Theta = Mapping[str, float | Sequence[float]]
+
+
+def changes_with_k(spec: Spec) -> bool:
+    """Whether the spec's method changes with k (``k``, ``N``, sequences, per-step
+    parameters): then step k's method is :func:`float_steps`'s k-th; otherwise one
+    method serves every step (:mod:`sosalgo.model` binds it once)."""
+    return bool(spec.time_varying)
+
+
+def one_method(spec: Spec) -> Spec:
+    """``spec``, for a command that takes one method for every step; SpecError (one line
+    naming ``sosalgo pep --steps``) when its method changes with k."""
+    if changes_with_k(spec):
+        from sosalgo.spec.types import VARIES
+
+        raise SpecError(spec.source, "", VARIES.format(source=spec.source))
+    return spec
+
+
+def step_methods(spec: Spec, kappa: float | None, steps: int, theta: Theta | None = None
+                 ) -> list[OracleMethod] | None:
+    """The method of each step k = 0..N-1: one float method per step
+    (:func:`float_steps`) when the spec's method changes with k; None when it is one
+    method for every step (N equal steps, which its caller binds once)."""
+    return float_steps(spec, kappa, steps, theta) if changes_with_k(spec) else None
 
 
 def horizon(spec: Spec, steps: int | None) -> int:

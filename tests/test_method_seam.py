@@ -26,10 +26,12 @@ from .test_imports import LAYERS
 PACKAGE = Path(__file__).resolve().parents[1] / "sosalgo"
 PROBLEM_LAYER = dict(LAYERS)["problem"]
 
-# attributes whose only use is telling kinds of methods apart
-SWITCH_ATTRIBUTES = {"composite", "sublinear"}
+# attributes whose only use is telling kinds of methods apart (``time_varying``: the
+# problem layer answers the step-k method, :func:`sosalgo.steps.step_methods`)
+SWITCH_ATTRIBUTES = {"composite", "sublinear", "time_varying"}
 # fields a kind of method has and another lacks (asked by hasattr/getattr, a type switch)
-METHOD_FIELDS = {"oracles", "functions", "D", "output", "p", "measure", "has_seed_form"}
+METHOD_FIELDS = {"oracles", "functions", "D", "output", "p", "measure", "has_seed_form",
+                 "time_varying"}
 METHOD_TYPES = {"Algorithm", "OracleMethod", "ExactAlgorithm", "ExactOracleMethod"}
 
 
@@ -71,11 +73,15 @@ def test_the_scan_sees_each_kind_of_switch():
             "if spec.composite or spec.sublinear: pass\n"
             "if hasattr(alg, 'oracles') or getattr(alg, 'p', 1) == 1: pass\n"
             "if isinstance(alg, model.Algorithm): pass\n"
-            "if spec.has_seed_form and alg.has_seed_form: pass\n")
+            "if spec.has_seed_form and alg.has_seed_form: pass\n"
+            "if spec.time_varying or getattr(spec, 'time_varying', False): pass\n"
+            "from sosalgo.spec.time_varying import uses_step\n"
+            "if changes_with_k(spec): pass\n")
     assert _switches(text, "probe.py") == [
         "probe.py:2: .composite", "probe.py:2: .sublinear",
         "probe.py:3: hasattr(..., 'oracles')", "probe.py:3: getattr(..., 'p')",
-        "probe.py:4: isinstance(..., Algorithm)"]
+        "probe.py:4: isinstance(..., Algorithm)", "probe.py:6: .time_varying",
+        "probe.py:6: getattr(..., 'time_varying')"]
 
 
 def test_the_problem_layer_units_exist():

@@ -317,7 +317,7 @@ def design_steps(spec: Spec, text: str, kappa: float | None, steps: int, layout:
 
         point = PointSearch(model)
     search = _Search(layout, lo, hi, value, point)
-    show_phase("searching", f"N = {steps}")
+    show_phase("searching")  # the task names N (:func:`sosalgo.runs.pep.task_kappa`)
     span = (SEARCH_SHARE if len(lo) <= 4 else 2 * SEARCH_SHARE) * time_limit
     share = t0 + span
     starts = _starts(search, [np.asarray(s, float) for s in seeds], t0 + 0.2 * span)
@@ -361,7 +361,7 @@ def _bound(pp: Any, box: Sequence[tuple[Fraction, Fraction]], search: _Search,
 def _finish(spec: Spec, kappa: float | None, steps: int, layout: Layout, search: _Search,
             proven: Callable, bound: BranchResult | None, log: list[str], t0: float,
             deadline: float) -> StepsDesign:
-    show_phase("proving the worst case", f"N = {steps}")
+    show_phase("proving the worst case")
     sched: dict[str, Any] = {}
     exact: dict[str, Any] = {}
     tp, tf = None, None
@@ -484,7 +484,9 @@ def steps_problem(spec: Spec, kappa: float | None, steps: int, names: Sequence[s
     from sosalgo.design.steps_model import step_symbol, varying_matrices
 
     ranges = exact_box(spec, kappa, names)
-    varying = bool(getattr(spec, "time_varying", False))
+    from sosalgo.steps import changes_with_k
+
+    varying = changes_with_k(spec)
     per = [(p, varying and bool(getattr(spec.parameters[p], "per_step", False)))
            for p in names]
     layout: list[tuple[str, int | None]] = [(p, steps if v else None) for p, v in per]

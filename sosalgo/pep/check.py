@@ -25,10 +25,10 @@ from flint import arb, arb_mat
 
 from sosalgo.kernel.arb import arb_fraction, precision
 from sosalgo.pep.exact import ball, exact_method, exact_steps_or_none
-from sosalgo.pep.steps import is_time_varying
 from sosalgo.pep.structure import Method, last_calls
 from sosalgo.pep.terms import Term
 from sosalgo.spec import Spec
+from sosalgo.steps import changes_with_k
 
 __all__ = ["PREC", "ArbView", "arb_view", "check_witness", "fit_values", "pair_forms",
            "positions", "q_str"]
@@ -468,7 +468,7 @@ def check_witness(doc: dict[str, Any], spec: Spec, mt: Method | ArbView | None =
     out: dict[str, Any] = {"verified": False, "check_kind": "exact (rational and ball "
                            "arithmetic)", "tau_lower": None, "tau_lower_float": None}
     try:
-        if mt is None and is_time_varying(spec):  # the per-step methods, exactly
+        if mt is None and changes_with_k(spec):  # the per-step methods, exactly
             kappa = document_kappa(doc.get("kappa"), doc.get("kappa_exact"), "witness")
             mt = exact_steps_or_none(spec, kappa, int(doc["steps"]))
             if mt is None:

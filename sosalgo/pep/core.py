@@ -19,7 +19,7 @@ from sosalgo.kernel.kappa import Kappa, kappa_fields
 from sosalgo.kernel.phases import show_phase
 from sosalgo.pep.bind import bound_method, class_kappa, initial_gradient
 from sosalgo.pep.sdp import PEPData, SDPAnswer, pep_data, solve_pep, value_residual
-from sosalgo.pep.steps import StepMethods, float_step_method, is_time_varying, spec_steps
+from sosalgo.pep.steps import StepMethods, float_step_method, spec_steps
 from sosalgo.pep.structure import Method, PEPStructure, build_structure, deadbeat_gain, output_call
 from sosalgo.pep.terms import Term, parse_terms
 from sosalgo.spec import Spec
@@ -165,11 +165,10 @@ def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None
     text."""
     if isinstance(steps, bool) or not isinstance(steps, int) or not 1 <= steps <= MAX_STEPS:
         raise InputError(f"--steps: must be an integer in 1..{MAX_STEPS}, got {steps!r}")
-    if schedule is not None or is_time_varying(spec):
-        _check_kappa(spec, kappa)
-    if schedule is None and is_time_varying(spec):
+    if schedule is None:  # the problem layer's per-step methods (None: one method)
         schedule = spec_steps(spec, kappa, steps)
     if schedule is not None:
+        _check_kappa(spec, kappa)
         om, kq = schedule.floats[0], (math.nan if kappa is None else float(kappa))
     else:
         om, kq = bound_method(spec, kappa)
@@ -230,7 +229,7 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
     (:mod:`sosalgo.pep.steps`), the spec giving the class, the units and the terms."""
     t0 = time.perf_counter()
     spec = _load(spec)
-    if schedule is None and is_time_varying(spec):
+    if schedule is None:  # the problem layer's per-step methods (None: one method)
         schedule = spec_steps(spec, kappa, steps)
     mt, st, mterms, iterms, names = pep_problem(spec, kappa, steps, measure, initial,
                                                 schedule)

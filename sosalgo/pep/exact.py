@@ -37,7 +37,7 @@ import sympy as sp
 from flint import arb, arb_mat, fmpq
 
 from sosalgo.pep.bind import class_kappa, has_kappa, initial_gradient
-from sosalgo.pep.steps import StepMethods, is_time_varying, spec_steps
+from sosalgo.pep.steps import StepMethods, spec_steps
 from sosalgo.pep.structure import (
     Method,
     PEPStructure,
@@ -278,8 +278,9 @@ def exact_or_none(spec: Spec, kappa: float | None, steps: int = 0) -> Method | N
     """The exact method (:func:`sosalgo.pep.exact.exact_method`) for ``steps`` steps, None
     when it cannot be built (the proofs then say why)."""
     from sosalgo.pep.bind import bound_method
+    from sosalgo.steps import changes_with_k
 
-    if is_time_varying(spec):
+    if changes_with_k(spec):
         return exact_steps_or_none(spec, kappa, steps)
     try:
         return exact_method(spec, kappa, bound_method(spec, class_kappa(spec, kappa))[0],
@@ -623,7 +624,8 @@ def exact_steps_or_none(spec: Spec, kappa: float | None, steps: int) -> Method |
     from sosalgo.errors import InputError
 
     try:
-        return exact_step_method(spec, kappa, spec_steps(spec, kappa, steps), steps)
+        sm = spec_steps(spec, kappa, steps)
+        return None if sm is None else exact_step_method(spec, kappa, sm, steps)
     except (ValueError, ArithmeticError, InputError):
         return None
 
@@ -723,13 +725,14 @@ def exact_step_method(spec: Any, kappa: float | None, sm: StepMethods, count: in
     from sosalgo.kernel.exact import Ball, enclose
     from sosalgo.kernel.expr.parse import to_sympy
     from sosalgo.pep.structure import enclosure_bits
+    from sosalgo.steps import changes_with_k
 
     if callable(sm.exact):  # built when first needed (:func:`spec_steps`)
         sm.exact = sm.exact()
     if sm.exact is None or len(sm.exact) < count:
         raise ValueError(f"{count} steps' exact matrices needed")
     om = sm.floats[0]
-    if sm.fixed_point is None and is_time_varying(spec):
+    if sm.fixed_point is None and changes_with_k(spec):
         sm.fixed_point = symbolic_fixed_point(spec, om)
     X, _ = _exact_fixed_point(sm, om, count)
     Xb = _balls(X, digits)

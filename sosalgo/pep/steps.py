@@ -39,7 +39,7 @@ import numpy as np
 from sosalgo.errors import InputError
 from sosalgo.pep.structure import Method
 
-__all__ = ["StepMethods", "float_step_method", "is_time_varying", "spec_steps"]
+__all__ = ["StepMethods", "float_step_method", "spec_steps"]
 
 FIXED_TOL = 1e-9  # relative residual of the common fixed point in floating point
 
@@ -116,19 +116,18 @@ def float_step_method(sm: StepMethods, mt: Method, count: int) -> Method:
     return mt
 
 
-def is_time_varying(spec: Any) -> bool:
-    """Whether a spec's method changes with k (``k``, ``N``, sequences, schedules)."""
-    return bool(getattr(spec, "time_varying", False))
+def spec_steps(spec: Any, kappa: float | None, steps: int) -> StepMethods | None:
+    """The per-step methods of the spec over N = ``steps`` steps, as the problem layer
+    gives them (:func:`sosalgo.steps.step_methods`): floats now; the exact matrices when
+    first needed (sympy ones while their closed forms stay small, else outward-rounded
+    balls); the schedule (every parameter per step) for the document. None when one
+    method serves every step (N equal steps: the PEP binds it once and keeps its
+    time-invariant structure). SpecError (one line) for bad input."""
+    from sosalgo.steps import ball_steps, exact_steps, step_methods, step_values
 
-
-def spec_steps(spec: Any, kappa: float | None, steps: int) -> StepMethods:
-    """The per-step methods of a spec that changes with k over N = ``steps`` steps
-    (:mod:`sosalgo.steps`): floats now; the exact matrices when first needed (sympy ones
-    while their closed forms stay small, else outward-rounded balls); the schedule (every
-    parameter per step) for the document. SpecError (one line) for bad input."""
-    from sosalgo.steps import ball_steps, exact_steps, float_steps, step_values
-
-    floats = float_steps(spec, kappa, steps)
+    floats = step_methods(spec, kappa, steps)
+    if floats is None:
+        return None
     values = step_values(spec, kappa, steps)
     schedule = {p: [repr(float(env[p])) for env in values] for p in spec.parameters}
 

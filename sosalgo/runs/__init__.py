@@ -22,7 +22,7 @@ from sosalgo.errors import InputError
 from sosalgo.kernel import budget
 from sosalgo.kinds import ANALYSIS_KIND, DESIGN_KIND, GRID_KIND, TABLE1_KIND
 from sosalgo.schema import analysis_csv, design_stem, grid_stem, rate_stem
-from sosalgo.spec import Spec, SpecError
+from sosalgo.spec import Spec
 from sosalgo.store import output_lock
 
 __all__ = ["analyze_run", "design_run", "grid_run", "set_field", "spec_with_text",
@@ -40,12 +40,10 @@ def spec_with_text(spec: Spec | str | Path, spec_text: str | None = None,
     returned is the spec's with them applied (:mod:`sosalgo.spec.overrides`). A method
     that changes with k is refused (one line naming ``sosalgo pep --steps``) unless the
     command takes one (``varying``)."""
-    spec, text = _spec_and_text(spec, spec_text, overrides)
-    if spec.time_varying and not varying:
-        from sosalgo.spec.types import VARIES
+    from sosalgo.steps import one_method
 
-        raise SpecError(spec.source, "", VARIES.format(source=spec.source))
-    return spec, text
+    spec, text = _spec_and_text(spec, spec_text, overrides)
+    return (spec if varying else one_method(spec)), text
 
 
 def _spec_and_text(spec: Spec | str | Path, spec_text: str | None,
