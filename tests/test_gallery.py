@@ -97,11 +97,14 @@ def edited_gradient() -> str:
 
 @pytest.fixture(scope="module")
 def site(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """One build: two shipped specs, an edited one, a page running two commands."""
+    """One build: three shipped specs (one that changes with k), an edited one, a page
+    running two commands."""
     specs = {n: (ROOT / "specs" / f"{n}.yaml").read_text()
-             for n in ("gradient", "gradient-convex")}
+             for n in ("gradient", "gradient-convex", "gradient-schedule")}
     specs["gradient-edited"] = edited_gradient()
-    docs = make_site(tmp_path_factory.mktemp("gallery"), specs, {"run": RUN_PAGE})
+    label = "(methods-that-change-with-k)=\n# Methods that change with k\n"  # spec.md's
+    docs = make_site(tmp_path_factory.mktemp("gallery"), specs,
+                     {"run": RUN_PAGE, "varying": label})
     done = build(docs)
     assert done.returncode == 0, done.stderr
     return docs
@@ -153,6 +156,19 @@ def test_gradient_convex_constant_is_the_tight_one(site: Path) -> None:
     assert float(row[0]) == 1.0
     assert Fraction(1, 4) <= Fraction(row[1]) <= Fraction(1, 4) + Fraction(1, 10**4)
     assert "c\\,\\|x_0 - x_\\star\\|^2 / k" in (site / "gallery" / "gradient-convex.md").read_text()
+
+
+def test_a_method_that_changes_with_k_shows_its_proven_worst_case(site: Path) -> None:
+    """Drori and Teboulle: gradient with h_k = 1/L on L-smooth convex f has the tight
+    worst case L |x_0 - x*|^2 / (4N + 2) after N steps; the page of the per-step spec
+    shows its proven PEP value, rounded up, within 2e-6 above it for N = 1..5."""
+    page = (site / "_build" / "html" / "gallery" / "gradient-schedule.html").read_text()
+    rows = table_rows(page)
+    assert [int(r[0]) for r in rows] == [1, 2, 3, 4, 5]
+    for row in rows:
+        closed = Fraction(1, 4 * int(row[0]) + 2)
+        assert closed <= Fraction(row[1]) <= closed + Fraction(2, 10**6), row
+    assert "gradient-schedule-rate.png" in page
 
 
 def test_update_rule_is_rendered_from_the_matrices(site: Path) -> None:

@@ -294,7 +294,7 @@ def steps_section(spec: Any, rows: list[dict[str, Any]]) -> list[str]:
     """A method that changes with k, or on a nonconvex class: what its matrices use, and
     its references against the horizon N (its worst case is the finite-horizon PEP,
     ``sosalgo pep --steps N``)."""
-    if nonconvex(spec) and not spec.time_varying:
+    if "tau" not in rows[0]:  # a nonconvex class: references only
         text = (f"{', '.join(nonconvex(spec))} is nonconvex: no rate is certified (no "
                 "Lyapunov family applies). Its worst case after $N$ steps is a performance "
                 "estimation problem: `sosalgo pep SPEC --steps N` (the pep command's "
@@ -325,15 +325,38 @@ def steps_section(spec: Any, rows: list[dict[str, Any]]) -> list[str]:
         if decl.last is not None:
             rules.append(f"${sym}_N = {tex(to_sympy(decl.last))}$")
         lines.append(f"- {', '.join(rules)} (on the right, ${sym}$ is ${sym}_k$)")
+    return lines + [""]
+
+
+def pep_section(spec: Any, rows: list[dict[str, Any]], image: str) -> list[str]:
+    """The 'Certified worst case' section of a method that changes with k: tau_N and its
+    exact proof at each N, the references, the figure."""
+    kappa = rows[0]["kappa"]
+    scale = (f"$m = 0$, $L = {spec.L:g}$" if kappa is None
+             else f"$\\kappa = {kappa:g}$")
+    lines = ["## Certified worst case", "",
+             f"The worst case $\\tau_N$ is the largest value of the measure "
+             f"`{rows[0]['measure']}` after $N$ steps over every function of the class, "
+             f"with the initial condition `{rows[0]['initial']}` at most 1 (the pep "
+             "command's `--measure` and `--initial`).", "",
+             f"Computed when this page was built ({scale}) by `sosalgo pep SPEC --steps N`: "
+             "$\\tau_N$ is the performance estimation problem's value (floating point), "
+             "its dual certificate is then proven in exact rational arithmetic and the "
+             "proven bound is shown rounded up. The references are the spec's closed "
+             "forms (`references:`), rounded.", "",
+             "```{list-table}", ":header-rows: 1", "", "* - $N$",
+             "  - proven $\\tau_N$", "  - PEP $\\tau_N$"]
     refs = list(spec.references)
-    if not refs:
-        return lines + [""]
-    table = ["", "```{list-table}", ":header-rows: 1", "", "* - $N$"]
-    table += [f"  - reference: {md_text(r)}" for r in refs]
+    lines += [f"  - reference: {md_text(r)}" for r in refs]
     for row in rows:
-        table.append(f"* - {row['steps']}")
-        table += [f"  - {row['references'][r]:.6f}" for r in refs]
-    return lines + table + ["```", ""]
+        lines += [f"* - {row['steps']}", f"  - {rate_cell(row, 'tau')}",
+                  "  - " + ("-" if row["tau"] is None else f"{row['tau']:.6g}")]
+        for r in refs:
+            v = row["references"].get(r)
+            lines.append("  - " + ("-" if v is None else f"{v:.6f}"))
+    what = "the proven worst case against the horizon N (points), the references"
+    return lines + ["```", "", f"```{{figure}} {image}", f":alt: {spec.name}: {what}", "",
+                    f"{spec.name}: {what}.", "```", ""]
 
 
 def page_markdown(spec: Any, rows: list[dict[str, Any]], yaml_path: str, image: str) -> str:
@@ -342,9 +365,11 @@ def page_markdown(spec: Any, rows: list[dict[str, Any]], yaml_path: str, image: 
              md_text(spec.description), ""]
     lines += update_rule(spec)
     command = f"sosalgo analyze {spec.name}.yaml"
-    if spec.time_varying or nonconvex(spec):
+    if "steps" in rows[0]:  # changes with k, or a nonconvex class: sosalgo pep answers
         lines += steps_section(spec, rows)
-        command = f"sosalgo pep {spec.name}.yaml --steps {rows[0]['steps']}"
+        if "tau" in rows[0]:
+            lines += pep_section(spec, rows, image)
+        command = f"sosalgo pep {spec.name}.yaml --steps {rows[-1]['steps']}"
     else:
         lines += rates_section(spec, rows, image)
     lines += ["## The spec", "",
@@ -410,6 +435,23 @@ def _sublinear_axes(ax: Any, style: Any, spec: Any, rows: list[dict[str, Any]]) 
     ax.set_ylabel(r"bound on $(f(x_k) - f_\star) / \|x_0 - x_\star\|^2$")
 
 
+def _steps_axes(ax: Any, style: Any, spec: Any, rows: list[dict[str, Any]]) -> None:
+    ns = [r["steps"] for r in rows]
+    for i, name in enumerate(spec.references):
+        ys = [np.nan if r["references"].get(name) is None else r["references"][name]
+              for r in rows]
+        ax.plot(ns, ys, "s--", color=style.color(i), label=f"reference: {name}", zorder=4,
+                markerfacecolor="none")
+    done = [(r["steps"], float(Fraction(r["proven"]))) for r in rows if r["proven"] is not None]
+    if done:
+        ax.plot(*zip(*done, strict=True), "o-", color="black", label="proven worst case",
+                zorder=3)
+    ax.set_xticks(ns)
+    ax.set_yscale("log")
+    ax.set_xlabel("horizon $N$ (steps)")
+    ax.set_ylabel(r"worst case $\tau_N$")
+
+
 def draw_figure(spec: Any, rows: list[dict[str, Any]], target: Path) -> None:
     """The page's figure in sosalgo's shared style, written as PNG."""
     from sosalgo.report import pyplot
@@ -417,7 +459,9 @@ def draw_figure(spec: Any, rows: list[dict[str, Any]], target: Path) -> None:
     style = figure_style()
     fig, ax = style.new_figure()
     try:
-        (_sublinear_axes if spec.sublinear else _linear_axes)(ax, style, spec, rows)
+        axes = (_steps_axes if "steps" in rows[0] else
+                _sublinear_axes if spec.sublinear else _linear_axes)
+        axes(ax, style, spec, rows)
         ax.set_title(spec.name)
         style.finish(ax)
         fig.tight_layout()
