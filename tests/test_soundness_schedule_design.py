@@ -333,3 +333,44 @@ def test_gradient_schedule_gap(tmp_path, steps):
     indep = independent_schedule_pep(row["schedule"]["h"])
     assert indep * (1 - 1e-6) <= row["tau_certified"] <= indep * (1 + 1e-5)
     assert row["gap_relative"] <= 1e-3
+
+
+def _closed_form_minimum(steps: int) -> float:
+    from scipy.optimize import minimize_scalar
+
+    return minimize_scalar(lambda h: gd_closed_form(h, steps), bounds=(1, 2),
+                           method="bounded", options={"xatol": 1e-10}).fun
+
+
+def test_design_steps_with_workers_and_dask(tmp_path):
+    """design gradient-convex --steps 1..2 with --workers 2, then on a local Dask
+    scheduler (when distributed is installed): each row brackets the closed form's minimum
+    over h (lower_bound <= min <= tau_certified, within the gap), and the two runs agree."""
+    from click.testing import CliRunner
+
+    from sosalgo.cli import cli
+    from sosalgo.runs.steps_design import steps_design_run
+
+    res = CliRunner().invoke(cli, ["design", str(spec_path("gradient-convex")), "--steps",
+                                   "1..2", "--time-limit", "60", "--workers", "2",
+                                   "--out", str(tmp_path / "w"), "--json", "--quiet"])
+    assert res.exit_code == 0, res.output
+    local = json.loads(res.stdout)["rows"]
+    for row in local:
+        best = _closed_form_minimum(row["steps"])
+        assert row["lower_bound"] <= best * (1 + 1e-9) <= row["tau_certified"] * (1 + 2e-9)
+        assert row["gap_relative"] <= 1e-3
+    distributed = pytest.importorskip("distributed")
+    import gc
+
+    gc.collect()  # a Client left by an earlier test must not close inside this loop's start
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  host="127.0.0.1", dashboard_address=None) as cluster:
+        doc = steps_design_run(str(spec_path("gradient-convex")), None, "1..2",
+                               tmp_path / "d", time_limit=60, progress=False, plot=False,
+                               scheduler=cluster.scheduler_address)
+    dask_rows = doc["rows"]
+    assert [r["steps"] for r in dask_rows] == [r["steps"] for r in local] == [1, 2]
+    for a, b in zip(local, dask_rows, strict=True):
+        assert b["tau_certified"] == pytest.approx(a["tau_certified"], rel=1e-6)
+        assert b["lower_bound"] <= a["tau_certified"] and a["lower_bound"] <= b["tau_certified"]
