@@ -374,3 +374,44 @@ def test_design_steps_with_workers_and_dask(tmp_path):
     for a, b in zip(local, dask_rows, strict=True):
         assert b["tau_certified"] == pytest.approx(a["tau_certified"], rel=1e-6)
         assert b["lower_bound"] <= a["tau_certified"] and a["lower_bound"] <= b["tau_certified"]
+
+
+def test_schedule_outside_the_parametric_model_is_proven_by_pep(tmp_path):
+    """A per-step step size times a sequence (c_k = 1 for every k) is outside the
+    parametric model (not polynomial in the free values): the design still searches the
+    schedule on sosalgo pep's values and proves it with pep's certificate, without a
+    box-wide bound. N = 1: the best step's worst case is the closed form's 1/8."""
+    from sosalgo.runs.steps_design import steps_design_run
+
+    text = spec_path("gradient-schedule").read_text()
+    text = text.replace("parameters:", "sequences:\n  c: {first: 1, next: c}\nparameters:")
+    text = text.replace("B: [[-h]]", "B: [[-h*c]]")
+    path = tmp_path / "gs-seq.yaml"
+    path.write_text(text)
+    (row,) = steps_design_run(str(path), None, 1, tmp_path / "o", time_limit=15, workers=1,
+                              progress=False, plot=False)["rows"]
+    assert 0.125 <= row["tau_certified"] <= 0.125 * (1 + 1e-5)
+    assert row["lower_bound"] is None and "not a polynomial" in row["log"][0]
+
+
+def test_a_model_that_disagrees_with_pep_is_set_aside():
+    """The box-wide bound is about the parametric model: when the model is not the
+    method pep proves (here steps 2 h_k instead of h_k), steps_evaluator drops it, with
+    the reason, before any bound is computed."""
+    import sympy as sp
+
+    from sosalgo.design.steps import steps_problem
+    from sosalgo.pep.evaluate import steps_evaluator
+    from sosalgo.spec import read_spec_text
+
+    path = str(spec_path("gradient-schedule"))
+    spec, text = load_spec(path), read_spec_text(path)
+    prob = steps_problem(spec, None, 2, ["h"])
+    kept = steps_evaluator(spec, text, None, 2, prob)
+    assert prob.model is not None and prob.reason is None and kept
+    hs = [sp.Symbol("h_0"), sp.Symbol("h_1")]
+    prob.model = parametric_pep(spec, None, 2, ["h_0", "h_1"], lambda k: {
+        "A": sp.Matrix([[1]]), "B": sp.Matrix([[-2 * hs[k]]]), "C": sp.Matrix([[1]]),
+        "E": sp.Matrix([[1]])})
+    steps_evaluator(spec, text, None, 2, prob)
+    assert prob.model is None and "differs from sosalgo pep" in prob.reason
