@@ -211,15 +211,23 @@ def test_strongly_convex_two_parameter_boxes():
 
 def test_design_reaches_the_optimal_constant_step():
     """N = 1: the best constant step is h = 3/2 with worst case 1/8 (the closed form's
-    two branches meet), which is also Drori's floor L/(2 theta_1^2) = 1/8."""
+    two branches meet), which is also Drori's floor L/(2 theta_1^2) = 1/8. Its progress
+    phases leave N to the task's label (a phase repeating it read "N 1: searching N = 1")."""
     from sosalgo.design.steps import design_steps, exact_box
+    from sosalgo.kernel.phases import set_sink
     from sosalgo.pep.evaluate import worst_case_evaluator
     from sosalgo.spec import read_spec_text
 
     path = str(spec_path("gradient-convex"))
     spec, text = load_spec(path), read_spec_text(path)
-    res = design_steps(spec, text, None, 1, [("h", None)], exact_box(spec, None, ["h"]),
-                       worst_case_evaluator(spec, text, None, 1), time_limit=60)
+    phases: list[tuple[str | None, str]] = []
+    previous = set_sink(lambda task, name, detail: phases.append((name, detail)))
+    try:
+        res = design_steps(spec, text, None, 1, [("h", None)], exact_box(spec, None, ["h"]),
+                           worst_case_evaluator(spec, text, None, 1), time_limit=60)
+    finally:
+        set_sink(previous)
+    assert ("searching", "") in phases and not any("N =" in d for _, d in phases)
     d = res.to_dict()
     assert d["lower_bound"] <= 0.125 <= d["tau_certified"]
     assert d["gap"] <= 1e-6
