@@ -114,14 +114,6 @@ def sublinear_rows(spec: Any) -> list[dict[str, Any]]:
              "references": reference_values(spec, float("nan"))}]
 
 
-def varying_rows(spec: Any) -> list[dict[str, Any]]:
-    """A method on a nonconvex class: its references at a few horizons N."""
-    from sosalgo.steps import reference_values
-
-    return [{"steps": n, "references": reference_values(spec, None, n)}
-            for n in (1, 2, 5, 10, 20)]
-
-
 def pep_kappa(spec: Any) -> float | None:
     """The kappa of a PEP table: None for m = 0, else 10 when the spec lists it (else the
     middle of its list)."""
@@ -162,15 +154,12 @@ def spec_numbers(path: Path, cache: Path) -> tuple[dict[str, Any], Path | None]:
     from sosalgo.certificates import nonconvex_functions
     from sosalgo.steps import changes_with_k
 
-    if nonconvex_functions(spec) and not changes_with_k(spec):  # pep answers, no rate
-        rows = varying_rows(spec)
-        for row in rows:
-            row["nonconvex"] = True
-        return {"name": spec.name, "rows": rows}, None
     if data_file.exists() and figure.exists():
         return json.loads(data_file.read_text(encoding="utf-8")), figure
-    if changes_with_k(spec):  # the worst case after N steps, no rate
+    if changes_with_k(spec) or nonconvex_functions(spec):  # the worst case after N steps
         rows = pep_rows(spec)
+        for row in rows:
+            row["nonconvex"] = bool(nonconvex_functions(spec))
     else:
         rows = sublinear_rows(spec) if spec.sublinear else linear_rows(spec)
     data = {"name": spec.name, "rows": rows}

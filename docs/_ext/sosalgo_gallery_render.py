@@ -294,18 +294,14 @@ def steps_section(spec: Any, rows: list[dict[str, Any]]) -> list[str]:
     """A method that changes with k, or on a nonconvex class: what its matrices use, and
     its references against the horizon N (its worst case is the finite-horizon PEP,
     ``sosalgo pep --steps N``)."""
-    if "tau" not in rows[0]:  # a nonconvex class: references only
+    from sosalgo.steps import changes_with_k
+
+    if not changes_with_k(spec):  # time-invariant on a nonconvex class
         text = (f"{', '.join(nonconvex(spec))} is nonconvex: no rate is certified (no "
                 "Lyapunov family applies). Its worst case after $N$ steps is a performance "
                 "estimation problem: `sosalgo pep SPEC --steps N` (the pep command's "
                 "page: minimum over iterates and nonconvex classes).")
-        refs = list(spec.references)
-        table = ["", "```{list-table}", ":header-rows: 1", "", "* - $N$"]
-        table += [f"  - reference: {md_text(r)}" for r in refs]
-        for row in rows:
-            table.append(f"* - {row['steps']}")
-            table += [f"  - {row['references'][r]:.6f}" for r in refs]
-        return ["## A nonconvex class", "", text, ""] + (table + ["```", ""] if refs else [])
+        return ["## A nonconvex class", "", text, ""]
     text = (r"Its coefficients depend on the iteration $k = 0, \dots, N - 1$ (and the "
             "horizon $N$): the matrices above are those of step $k$")
     seqs = [f"${tex(sp.Symbol(s))}$" for s in spec.sequences]
@@ -329,7 +325,8 @@ def steps_section(spec: Any, rows: list[dict[str, Any]]) -> list[str]:
 
 
 def pep_section(spec: Any, rows: list[dict[str, Any]], image: str) -> list[str]:
-    """The 'Certified worst case' section of a method that changes with k: tau_N and its
+    """The 'Certified worst case' section of a method that changes with k or of one on a
+    nonconvex class: tau_N and its
     exact proof at each N, the references, the figure."""
     kappa = rows[0]["kappa"]
     scale = (f"$m = 0$, $L = {spec.L:g}$" if kappa is None
