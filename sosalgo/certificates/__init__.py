@@ -57,6 +57,12 @@ def family_applies(spec: "Spec", family: str) -> str | None:
     """Why certificate family ``family`` does not apply to ``spec`` (None when it does):
     the family's ``applies_to`` (Theorem 1 holds only in the seed's setting; a family
     registered without one applies to every spec)."""
+    from sosalgo.spec.loading import operator_functions
+
+    operators = operator_functions(spec)
+    if operators:
+        return (f"{', '.join(operators)} is an operator class: no Lyapunov family of this "
+                "package certifies a rate for it yet (use sosalgo pep)")
     nonconvex = nonconvex_functions(spec)
     if nonconvex:
         return (f"{', '.join(nonconvex)} is nonconvex: no Lyapunov family certifies a "

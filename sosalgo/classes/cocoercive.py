@@ -1,0 +1,36 @@
+"""beta-cocoercive operators: <u_a - u_b, x_a - x_b> >= beta |u_a - u_b|^2 (single
+valued, 1/beta-Lipschitz, maximally monotone; the gradients of convex 1/beta-smooth
+functions are among them, the class is larger).
+
+Interpolation: M is beta-cocoercive iff M^{-1} - beta I is monotone, so the monotone
+interpolation theorem applies (Ryu, Taylor, Bergeling, Giselsson 2020, Prop. 2): exact.
+Calls: the evaluation M(y) (anywhere: M is defined everywhere), the resolvent J_{tM}.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from fractions import Fraction
+from typing import Any
+
+from sosalgo.classes.operator import OperatorClass, positive
+
+
+class Cocoercive(OperatorClass):
+    name = "cocoercive"
+    description = "beta-cocoercive operator (calls: M(y), resolvent)"
+    parameters = ("beta",)
+    defaults = {"beta": "1/L"}
+    oracles = frozenset({"gradient", "proximal"})
+    finite_everywhere = True
+    tilted_text = ("<u_a - u_b, x_a - x_b> >= beta |u_a - u_b|^2",
+                   r"\langle u_a - u_b, x_a - x_b\rangle \ge \beta \|u_a - u_b\|^2")
+
+    def check(self, params: Mapping[str, float]) -> None:
+        positive(params, "beta")
+
+    def forms(self, params: Mapping[str, Any]) -> list[tuple[Any, Any, Any]]:
+        return [(Fraction(1), Fraction(0), -params["beta"])]
+
+
+CLASS = Cocoercive()

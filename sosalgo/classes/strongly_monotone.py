@@ -1,0 +1,34 @@
+"""mu-strongly monotone, maximally monotone operators:
+<u_a - u_b, x_a - x_b> >= mu |x_a - x_b|^2.
+
+Interpolation: M is mu-strongly monotone iff M - mu I is monotone, so the monotone
+interpolation theorem applies (Ryu, Taylor, Bergeling, Giselsson 2020, Prop. 2): exact.
+Calls: an element of M(y), the resolvent J_{tM} (a contraction by 1/(1 + t mu)).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from fractions import Fraction
+from typing import Any
+
+from sosalgo.classes.operator import OperatorClass, positive
+
+
+class StronglyMonotone(OperatorClass):
+    name = "strongly_monotone"
+    description = "mu-strongly monotone maximally monotone operator (calls: M(y), resolvent)"
+    parameters = ("mu",)
+    defaults = {"mu": "m"}
+    oracles = frozenset({"subgradient", "proximal"})
+    tilted_text = ("<u_a - u_b, x_a - x_b> >= mu |x_a - x_b|^2",
+                   r"\langle u_a - u_b, x_a - x_b\rangle \ge \mu \|x_a - x_b\|^2")
+
+    def check(self, params: Mapping[str, float]) -> None:
+        positive(params, "mu")
+
+    def forms(self, params: Mapping[str, Any]) -> list[tuple[Any, Any, Any]]:
+        return [(Fraction(1), -params["mu"], Fraction(0))]
+
+
+CLASS = StronglyMonotone()
