@@ -46,15 +46,23 @@ def check_grid_points(points: Any, n_free: int, label: str = "--points") -> int:
 
 
 def refuse_nonconvex(spec: Any) -> None:
-    """InputError (one line) for a spec with a nonconvex function: no certificate family
-    certifies a rate for it (``sosalgo pep`` bounds its N-step worst case)."""
+    """InputError (one line) for a spec with a nonconvex function or an operator: no
+    certificate family certifies a rate for it (``sosalgo pep`` bounds its N-step worst
+    case)."""
     from sosalgo.certificates import nonconvex_functions
+
+    from sosalgo.spec.loading import operator_functions
 
     bad = nonconvex_functions(spec)
     if bad:
         raise InputError(f"{spec.source}: functions: {', '.join(bad)} is nonconvex: no "
                          "linear or sublinear rate is certified for it (no Lyapunov family "
                          "applies); sosalgo pep bounds its worst case after N steps")
+    ops = operator_functions(spec)
+    if ops:
+        raise InputError(f"{spec.source}: functions: {', '.join(ops)} is an operator class: "
+                         "no Lyapunov family of analyze, design, grid or pareto applies to "
+                         "it yet; sosalgo pep bounds its worst case after N steps")
 
 
 def check_tol(tol: Any, label: str = "tol") -> float:
