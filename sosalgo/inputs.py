@@ -50,7 +50,6 @@ def refuse_nonconvex(spec: Any) -> None:
     certificate family certifies a rate for it (``sosalgo pep`` bounds its N-step worst
     case)."""
     from sosalgo.certificates import nonconvex_functions
-
     from sosalgo.spec.loading import operator_functions
 
     bad = nonconvex_functions(spec)

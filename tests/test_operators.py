@@ -1,0 +1,236 @@
+"""Operator classes (monotone inclusions, fixed points): sosalgo pep on the shipped operator
+specs against closed forms and PEPit, random operators run through the methods (observed
+<= proven), and the refusals (no function values, no resolvent where the class has none)."""
+
+from __future__ import annotations
+
+from fractions import Fraction
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+import sosalgo
+from sosalgo.cli import cli
+from sosalgo.spec import spec_from_text
+from sosalgo.spec.overrides import apply_overrides
+
+SPECS = Path(__file__).resolve().parent.parent / "specs"
+
+# PEPit 0.5.1 with cvxpy's Clarabel, computed once (verbose=-1, wrapper="cvxpy",
+# solver="CLARABEL"):
+#   wc_proximal_point(alpha, n)  (examples/monotone_inclusions_variational_inequalities)
+#   wc_krasnoselskii_mann_constant_step_sizes(n, gamma)  (examples/fixed_point_problems)
+#   forward-backward: PEP() with A = MonotoneOperator, B = CocoerciveOperator(beta=1),
+#     xs = (A + B).stationary_point(), (x0 - xs)**2 <= 1, n times
+#     x = proximal_step(x - gamma * B.gradient(x), A, gamma)[0], metric (x - x_prev)**2
+PEPIT = {
+    ("operator-proximal-point", "alpha", "2", 10): 0.03874204906661205,
+    ("operator-proximal-point", "alpha", "1", 5): 0.08192000030192126,
+    ("operator-proximal-point", "alpha", "1/2", 3): 0.14814814106480861,
+    ("krasnoselskii-mann", "gamma", "3/4", 3): 0.14062499932591338,
+    ("krasnoselskii-mann", "gamma", "3/5", 5): 0.06977040976171957,
+    ("krasnoselskii-mann", "gamma", "9/10", 2): 0.4115226320223817,
+    ("forward-backward", "gamma", "1", 5): 0.15933892280166065,
+    ("forward-backward", "gamma", "1/2", 3): 0.1926057076087907,
+    ("forward-backward", "gamma", "3/2", 4): 0.39977968776832973,
+}
+PEPIT_ACCURACY = 1e-7  # Clarabel's relative accuracy on these (against the closed forms)
+
+
+def _spec(name: str, **values: str):
+    path = SPECS / f"{name}.yaml"
+    text = apply_overrides(path.read_text(), values, str(path))
+    return spec_from_text(text, str(path))
+
+
+def _proven(name: str, steps: int, **values: str):
+    res = sosalgo.pep(_spec(name, **values), None, steps)
+    assert res.status == "solved"
+    assert res.certificate["check_kind"].startswith("exact")
+    return res, Fraction(res.certificate["tau_proven"])
+
+
+def _proximal_point_closed_form(n: int) -> float:
+    """Gu, Yang (2020): |x_n - x_{n-1}|^2 <= (1 - 1/n)^(n-1)/n |x_0 - x*|^2, tight, any
+    step alpha > 0 (PEPit's example's theoretical value)."""
+    return (1 - 1 / n) ** (n - 1) / n
+
+
+def _km_closed_form(n: int, gamma: float) -> float:
+    """Lieder (2018), Thm. 4.9, as PEPit's example states it, on 1/2 <= gamma <= 1."""
+    if gamma <= 0.5 * (1 + np.sqrt(n / (n + 1))):
+        return (n / (n + 1)) ** n / ((n + 1) * 4 * gamma * (1 - gamma))
+    return (2 * gamma - 1) ** (2 * n)
+
+
+@pytest.mark.parametrize("key", list(PEPIT))
+def test_against_pepit_and_closed_forms(key):
+    """The proven bound agrees with PEPit within 1e-6 and is never below it (beyond its
+    solver's accuracy); with the closed form where one is known (tight: never below it);
+    the witness is checked exactly and stays at most the closed form."""
+    name, param, value, steps = key
+    res, proven = _proven(name, steps, **{param: value})
+    peer = PEPIT[key]
+    assert float(proven) >= peer * (1 - PEPIT_ACCURACY)
+    assert float(proven) == pytest.approx(peer, rel=1e-6)
+    closed = {"operator-proximal-point": lambda: _proximal_point_closed_form(steps),
+              "krasnoselskii-mann": lambda: _km_closed_form(steps, float(Fraction(value))),
+              }.get(name)
+    chk = res.witness["check"]
+    assert chk["verified"]
+    assert Fraction(chk["tau_lower"]) <= proven
+    assert chk["tau_lower_float"] >= float(proven) * (1 - 1e-3)
+    if closed is not None:
+        assert float(proven) >= closed() * (1 - 1e-12)
+        assert float(proven) == pytest.approx(closed(), rel=1e-6)
+        assert chk["tau_lower_float"] <= closed() * (1 + 1e-9)
+
+
+def test_difference_measure_against_a_gradient_norm():
+    """|x_N - x_{N-1}|^2 of gradient descent is h^2 |grad f(x_{N-1})|^2: the two measures
+    (a point difference and a gradient at x_N-1, different terms) give the same worst case."""
+    spec = SPECS / "gradient-convex.yaml"
+    diff = sosalgo.pep(spec, None, 3, measure="dist(x_N, x_N-1)", witness=False)
+    grad = sosalgo.pep(spec, None, 3, measure="grad(x_N-1)", witness=False)
+    h = 1.0  # the spec's step 1/L with L = 1
+    assert diff.tau == pytest.approx(h * h * grad.tau, rel=1e-6)
+    assert Fraction(diff.certificate["tau_proven"]) >= Fraction(diff.tau)
+
+
+def _rng_monotone(d: int, rng: np.random.Generator) -> np.ndarray:
+    """A random monotone matrix: a positive semidefinite part (often singular) plus a
+    skew part."""
+    P = rng.standard_normal((d, rng.integers(0, d + 1)))
+    K = rng.standard_normal((d, d))
+    return rng.uniform(0, 1) * P @ P.T + rng.uniform(0, 3) * (K - K.T)
+
+
+def _rotation(d: int, rng: np.random.Generator) -> np.ndarray:
+    q, r = np.linalg.qr(rng.standard_normal((d, d)))
+    return q * np.sign(np.diag(r))
+
+
+def _ratio_proximal_point(alpha: float, n: int, rng: np.random.Generator) -> float:
+    d = int(rng.integers(2, 5))
+    M0, c = _rng_monotone(d, rng), rng.standard_normal(d)
+    if rng.random() < 0.3:  # a rotation generator: where the worst case lives
+        w = rng.uniform(0, 3)
+        M0 = np.zeros((d, d))
+        M0[0, 1], M0[1, 0] = -w, w
+    x = x0 = c + rng.standard_normal(d)
+    J = np.linalg.inv(np.eye(d) + alpha * M0)  # M(x) = M0 (x - c): J(v) = c + J (v - c)
+    prev = x
+    for _ in range(n):
+        prev, x = x, c + J @ (x - c)
+    return float(np.sum((x - prev) ** 2) / np.sum((x0 - c) ** 2))
+
+
+def _ratio_km(gamma: float, n: int, rng: np.random.Generator) -> float:
+    """T(x) = P_box(c + Q (x - c)) with c in the box and Q orthogonal (or a contraction):
+    nonexpansive, T c = c; x* = c."""
+    d = int(rng.integers(2, 5))
+    Q = _rotation(d, rng) * (1.0 if rng.random() < 0.5 else rng.uniform(0.2, 1))
+    c = rng.uniform(-1, 1, d)
+    lo, hi = np.minimum(c, -1), np.maximum(c, 1) + rng.uniform(0, 2, d)
+
+    def T(z: np.ndarray) -> np.ndarray:
+        return np.clip(c + Q @ (z - c), lo, hi)
+
+    x = x0 = c + 3 * rng.standard_normal(d)
+    for _ in range(n):
+        x = (1 - gamma) * x + gamma * T(x)
+    return float(0.25 * np.sum((x - T(x)) ** 2) / np.sum((x0 - c) ** 2))
+
+
+def _ratio_forward_backward(gamma: float, n: int, rng: np.random.Generator) -> float:
+    """A(x) = M0 (x - c) + a (affine monotone), B = I - P_box (firmly nonexpansive:
+    1-cocoercive), a = -B(c) so that c is a zero of A + B."""
+    d = int(rng.integers(2, 5))
+    M0, c = _rng_monotone(d, rng), rng.uniform(-2, 2, d)
+    lo, hi = -np.ones(d), np.ones(d)
+
+    def B(z: np.ndarray) -> np.ndarray:
+        return z - np.clip(z, lo, hi)
+
+    a = -B(c)
+    J = np.linalg.inv(np.eye(d) + gamma * M0)  # J_{gamma A}(v) = c + J (v - c - gamma a)
+    x = x0 = c + 2 * rng.standard_normal(d)
+    prev = x
+    for _ in range(n):
+        prev, x = x, c + J @ (x - gamma * B(x) - c - gamma * a)
+    return float(np.sum((x - prev) ** 2) / np.sum((x0 - c) ** 2))
+
+
+@pytest.mark.parametrize("name, param, value, steps, run", [
+    ("operator-proximal-point", "alpha", "2", 4, _ratio_proximal_point),
+    ("krasnoselskii-mann", "gamma", "3/4", 3, _ratio_km),
+    ("forward-backward", "gamma", "1", 3, _ratio_forward_backward),
+    ("forward-backward", "gamma", "3/2", 2, _ratio_forward_backward),
+])
+def test_random_operators_stay_below_the_proven_bound(name, param, value, steps, run):
+    """Random operators of the class (independent numpy code), run through the method from
+    random starts: the observed measure never exceeds the proven bound."""
+    _, proven = _proven(name, steps, **{param: value})
+    rng = np.random.default_rng(7)
+    worst = max(run(float(Fraction(value)), steps, rng) for _ in range(400))
+    assert worst <= float(proven) * (1 + 1e-9)
+    assert worst > 0
+
+
+def _invoke(*args: str):
+    return CliRunner().invoke(cli, list(args))
+
+
+def _one_line_exit_2(r, field: str) -> None:
+    assert r.exit_code == 2, r.output
+    lines = [ln for ln in r.output.strip().splitlines() if ln]
+    assert len(lines) == 1 and field in lines[0], r.output
+    assert "Traceback" not in r.output
+
+
+def test_a_measure_in_f_on_an_operator_is_refused(tmp_path):
+    out = tmp_path / "o"
+    r = _invoke("pep", str(SPECS / "operator-proximal-point.yaml"), "--steps", "2",
+                "--measure", "f", "--out", str(out))
+    _one_line_exit_2(r, "no function values")
+    assert not out.exists()
+    r = _invoke("pep", str(SPECS / "krasnoselskii-mann.yaml"), "--steps", "2",
+                "--initial", "f(x_0) - f(x_N)", "--out", str(out))
+    _one_line_exit_2(r, "no function values")
+
+
+def test_measure_function_in_an_operator_spec_is_refused(tmp_path):
+    text = (SPECS / "krasnoselskii-mann.yaml").read_text().replace(
+        "measure: distance", "measure: function", 1)
+    path = tmp_path / "km.yaml"
+    path.write_text(text)
+    r = _invoke("pep", str(path), "--steps", "2", "--out", str(tmp_path / "o"))
+    _one_line_exit_2(r, "measure")
+
+
+def test_a_resolvent_of_an_evaluation_only_class_is_refused(tmp_path):
+    """A Lipschitz operator (not monotone) has no resolvent: a proximal call on it."""
+    text = (SPECS / "forward-backward.yaml").read_text().replace(
+        "A: {class: monotone}", "A: {class: lipschitz_operator}", 1)
+    path = tmp_path / "fb.yaml"
+    path.write_text(text)
+    r = _invoke("pep", str(path), "--steps", "2", "--out", str(tmp_path / "o"))
+    _one_line_exit_2(r, "no proximal oracle")
+
+
+def test_analyze_refuses_operator_specs(tmp_path):
+    out = tmp_path / "o"
+    r = _invoke("analyze", str(SPECS / "forward-backward.yaml"), "--out", str(out))
+    _one_line_exit_2(r, "operator class")
+    assert not out.exists()
+
+
+def test_lipschitz_strongly_monotone_needs_mu_at_most_L():
+    from sosalgo.classes import get_class
+
+    cls = get_class("lipschitz_strongly_monotone")
+    with pytest.raises(ValueError, match="mu"):
+        cls.check({"mu": 2.0, "L": 1.0})
+    cls.check({"mu": 0.0, "L": 1.0})
