@@ -13,7 +13,10 @@ from collections.abc import Mapping
 from fractions import Fraction
 from typing import Any
 
-from sosalgo.classes.operator import OperatorClass, positive
+import numpy as np
+
+from sosalgo.classes.members import ProxFunction
+from sosalgo.classes.operator import OperatorClass, linear_member, positive, rotation
 
 
 class Cocoercive(OperatorClass):
@@ -31,6 +34,16 @@ class Cocoercive(OperatorClass):
 
     def forms(self, params: Mapping[str, Any]) -> list[tuple[Any, Any, Any]]:
         return [(Fraction(1), Fraction(0), -params["beta"])]
+
+
+    def test_functions(self, params: Mapping[str, float], xs: np.ndarray,
+                       rng: np.random.Generator) -> list[ProxFunction]:
+        d, beta = len(xs), params["beta"]
+        R = rotation(d, rng)
+        return [linear_member((np.eye(d) + rotation(d, rng)) / (2 * beta), xs, rng,
+                              "(I+Q)/(2 beta)", "<Mv, v> = beta |Mv|^2 for Q orthogonal"),
+                linear_member((R * rng.uniform(0, 1 / beta, d)) @ R.T, xs, rng,
+                              "symmetric", "symmetric, eigenvalues in [0, 1/beta]")]
 
 
 CLASS = Cocoercive()

@@ -12,7 +12,10 @@ from collections.abc import Mapping
 from fractions import Fraction
 from typing import Any
 
-from sosalgo.classes.operator import OperatorClass, positive
+import numpy as np
+
+from sosalgo.classes.members import ProxFunction
+from sosalgo.classes.operator import OperatorClass, linear_member, positive, rotation
 
 
 class LipschitzOperator(OperatorClass):
@@ -31,6 +34,15 @@ class LipschitzOperator(OperatorClass):
     def forms(self, params: Mapping[str, Any]) -> list[tuple[Any, Any, Any]]:
         L = params["L"]
         return [(Fraction(0), L * L, Fraction(-1))]
+
+
+    def test_functions(self, params: Mapping[str, float], xs: np.ndarray,
+                       rng: np.random.Generator) -> list[ProxFunction]:
+        d, L = len(xs), params["L"]
+        return [linear_member(L * rotation(d, rng), xs, rng, "L*Q", "L times orthogonal",
+                              resolvent=False),
+                linear_member(-L * np.eye(d), xs, rng, "-L*I", "antimonotone, L-Lipschitz",
+                              resolvent=False)]
 
 
 CLASS = LipschitzOperator()

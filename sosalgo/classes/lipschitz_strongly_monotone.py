@@ -15,7 +15,10 @@ from collections.abc import Mapping
 from fractions import Fraction
 from typing import Any
 
-from sosalgo.classes.operator import OperatorClass, positive
+import numpy as np
+
+from sosalgo.classes.members import ProxFunction
+from sosalgo.classes.operator import OperatorClass, linear_member, positive, skew_unit
 
 
 class LipschitzStronglyMonotone(OperatorClass):
@@ -40,6 +43,15 @@ class LipschitzStronglyMonotone(OperatorClass):
     def forms(self, params: Mapping[str, Any]) -> list[tuple[Any, Any, Any]]:
         mu, L = params["mu"], params["L"]
         return [(Fraction(1), -mu, Fraction(0)), (Fraction(0), L * L, Fraction(-1))]
+
+
+    def test_functions(self, params: Mapping[str, float], xs: np.ndarray,
+                       rng: np.random.Generator) -> list[ProxFunction]:
+        d, mu, L = len(xs), params["mu"], params["L"]
+        w = float(np.sqrt(max(L * L - mu * mu, 0.0)))
+        return [linear_member(mu * np.eye(d) + w * skew_unit(d, rng), xs, rng, "mu+skew",
+                              "mu I plus skew, |M| = L"),
+                linear_member(L * np.eye(d), xs, rng, "L*I", "L I")]
 
 
 CLASS = LipschitzStronglyMonotone()

@@ -15,7 +15,10 @@ from collections.abc import Mapping
 from fractions import Fraction
 from typing import Any
 
-from sosalgo.classes.operator import OperatorClass
+import numpy as np
+
+from sosalgo.classes.members import ProxFunction
+from sosalgo.classes.operator import OperatorClass, linear_member, skew_unit
 
 
 class Monotone(OperatorClass):
@@ -27,6 +30,16 @@ class Monotone(OperatorClass):
 
     def forms(self, params: Mapping[str, Any]) -> list[tuple[Any, Any, Any]]:
         return [(Fraction(1), Fraction(0), Fraction(0))]
+
+
+    def test_functions(self, params: Mapping[str, float], xs: np.ndarray,
+                       rng: np.random.Generator) -> list[ProxFunction]:
+        d = len(xs)
+        P = rng.standard_normal((d, d))
+        return [linear_member(2 * skew_unit(d, rng), xs, rng, "rotation-generator",
+                              "skew linear: <Mx, x> = 0"),
+                linear_member(0.3 * P @ P.T + skew_unit(d, rng), xs, rng, "psd+skew",
+                              "positive semidefinite plus skew")]
 
 
 CLASS = Monotone()

@@ -17,7 +17,10 @@ from collections.abc import Mapping
 from fractions import Fraction
 from typing import Any
 
-from sosalgo.classes.operator import OperatorClass
+import numpy as np
+
+from sosalgo.classes.members import ProxFunction
+from sosalgo.classes.operator import OperatorClass, linear_member, rotation
 
 
 class Nonexpansive(OperatorClass):
@@ -32,6 +35,15 @@ class Nonexpansive(OperatorClass):
 
     def forms(self, params: Mapping[str, Any]) -> list[tuple[Any, Any, Any]]:
         return [(Fraction(1), Fraction(0), Fraction(-1, 2))]
+
+
+    def test_functions(self, params: Mapping[str, float], xs: np.ndarray,
+                       rng: np.random.Generator) -> list[ProxFunction]:
+        d = len(xs)
+        return [linear_member(np.eye(d) - rotation(d, rng), xs, rng, "I-Q",
+                              "T = Q orthogonal (an isometry)", resolvent=False),
+                linear_member(2 * np.eye(d), xs, rng, "2I", "T = -I (a reflection)",
+                              resolvent=False)]
 
 
 CLASS = Nonexpansive()

@@ -21,8 +21,9 @@ from typing import Any
 import numpy as np
 
 from sosalgo.classes.base import FunctionClass, Inequality
+from sosalgo.classes.members import ProxFunction
 
-__all__ = ["OperatorClass", "operator_form"]
+__all__ = ["OperatorClass", "linear_member", "operator_form", "positive", "rotation", "skew_unit"]
 
 
 def operator_form(cross: Any, xx: Any, uu: Any, exact: bool = False) -> np.ndarray:
@@ -40,6 +41,41 @@ def operator_form(cross: Any, xx: Any, uu: Any, exact: bool = False) -> np.ndarr
                 if k:
                     Q[i, j] = Q[i, j] + coef * k
     return Q
+
+
+def rotation(d: int, rng: np.random.Generator) -> np.ndarray:
+    """A random orthogonal matrix."""
+    q, r = np.linalg.qr(rng.standard_normal((d, d)))
+    return q * np.sign(np.diag(r))
+
+
+def skew_unit(d: int, rng: np.random.Generator) -> np.ndarray:
+    """A random skew matrix with every singular value 1 (0 once when d is odd): rotation
+    generators in orthogonal planes, so that |mu I + w K| = sqrt(mu^2 + w^2)."""
+    K = np.zeros((d, d))
+    for i in range(0, d - 1, 2):
+        K[i, i + 1], K[i + 1, i] = -1.0, 1.0
+    R = rotation(d, rng)
+    return R @ K @ R.T
+
+
+def linear_member(M0: np.ndarray, xs: np.ndarray, rng: np.random.Generator, name: str,
+                  note: str, resolvent: bool = True) -> ProxFunction:
+    """The affine operator M(x) = M0 (x - c) (c random) as a test member: ``grad`` its
+    evaluation, ``prox`` its resolvent (I + t M0)^{-1} (v + t M0 c) (``resolvent``: M0 is
+    monotone), ``s`` = M(x*); the value is 0 (an operator has none; unused)."""
+    d = len(xs)
+    c = xs + rng.standard_normal(d)
+
+    def prox(v: np.ndarray, t: float) -> np.ndarray:
+        return np.linalg.solve(np.eye(d) + t * M0, (v + t * (M0 @ c)).T).T
+
+    return ProxFunction(name, lambda x: np.zeros(len(x)), prox if resolvent else _no_prox,
+                        lambda x: (x - c) @ M0.T, M0 @ (xs - c), note)
+
+
+def _no_prox(v: np.ndarray, t: float) -> np.ndarray:
+    raise ValueError("this operator class has no resolvent")
 
 
 class OperatorClass(FunctionClass):

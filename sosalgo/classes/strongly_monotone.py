@@ -12,7 +12,10 @@ from collections.abc import Mapping
 from fractions import Fraction
 from typing import Any
 
-from sosalgo.classes.operator import OperatorClass, positive
+import numpy as np
+
+from sosalgo.classes.members import ProxFunction
+from sosalgo.classes.operator import OperatorClass, linear_member, positive, skew_unit
 
 
 class StronglyMonotone(OperatorClass):
@@ -29,6 +32,16 @@ class StronglyMonotone(OperatorClass):
 
     def forms(self, params: Mapping[str, Any]) -> list[tuple[Any, Any, Any]]:
         return [(Fraction(1), -params["mu"], Fraction(0))]
+
+
+    def test_functions(self, params: Mapping[str, float], xs: np.ndarray,
+                       rng: np.random.Generator) -> list[ProxFunction]:
+        d, mu = len(xs), params["mu"]
+        P = rng.standard_normal((d, d))
+        return [linear_member(mu * np.eye(d) + 3 * mu * skew_unit(d, rng), xs, rng,
+                              "mu+skew", "mu I plus skew: <Mx, x> = mu |x|^2"),
+                linear_member(mu * np.eye(d) + 0.3 * P @ P.T, xs, rng, "mu+psd",
+                              "mu I plus positive semidefinite")]
 
 
 CLASS = StronglyMonotone()
