@@ -4,6 +4,7 @@ specs against closed forms and PEPit, random operators run through the methods (
 
 from __future__ import annotations
 
+import json
 from fractions import Fraction
 from pathlib import Path
 
@@ -220,11 +221,67 @@ def test_a_resolvent_of_an_evaluation_only_class_is_refused(tmp_path):
     _one_line_exit_2(r, "no proximal oracle")
 
 
-def test_analyze_refuses_operator_specs(tmp_path):
+def test_analyze_refuses_operator_specs_without_a_linear_rate_family(tmp_path):
+    """m: 0 operator specs (no sublinear family for operators), and design on any."""
     out = tmp_path / "o"
     r = _invoke("analyze", str(SPECS / "forward-backward.yaml"), "--out", str(out))
     _one_line_exit_2(r, "operator class")
+    r = _invoke("design", str(SPECS / "forward-backward-strongly-monotone.yaml"),
+                "--kappa", "10", "--out", str(out))
+    _one_line_exit_2(r, "operator class")
     assert not out.exists()
+
+
+def _analyze_verified(tmp_path, name: str, kappa: str, *sets: str) -> dict:
+    """``analyze --verify --json`` (the row's certificate re-proven exactly, and the
+    method simulated on the class's test operators); the row."""
+    args = ["analyze", str(SPECS / f"{name}.yaml"), "--kappa", kappa, "--verify", "--json",
+            "--out", str(tmp_path), "--no-plot", "--quiet", "--workers", "1"]
+    for s in sets:
+        args += ["--set", s]
+    res = CliRunner().invoke(cli, args)
+    assert res.exit_code == 0, res.output
+    row = json.loads(res.stdout)["rows"][0]
+    assert row["certified"] and row["verified"] == "exact"
+    return row
+
+
+@pytest.mark.parametrize("gamma", ["1", "1/2", "19/10"])
+def test_forward_backward_linear_rate_closed_form(tmp_path, gamma):
+    """A m-strongly monotone, B 1/L-cocoercive, gamma in (0, 2/L]: the tight rate is
+    1/(1 + gamma m) (J_{gamma A} is 1/(1 + gamma m)-Lipschitz, I - gamma B nonexpansive;
+    B = 0, A = m I attain it). m = 1, L = 10: gamma in units of 1/L."""
+    g = float(Fraction(gamma)) / 10
+    row = _analyze_verified(tmp_path, "forward-backward-strongly-monotone", "10",
+                            f"gamma={gamma}/L")
+    closed = 1 / (1 + g)
+    assert row["rho"] >= closed * (1 - 1e-9)
+    assert row["rho"] == pytest.approx(closed, rel=1e-6)
+
+
+def _rtbg_contraction(L: float, mu: float, alpha: float, theta: float) -> float:
+    """Ryu, Taylor, Bergeling, Giselsson (2020), Thm. 4.3, first case (as PEPit's
+    douglas_rachford_splitting example computes it; its condition is checked here)."""
+    mu, L = alpha * mu, alpha * L
+    a = 2 * (theta - 1) * mu + theta - 2
+    b = theta - 2 * (mu + 1)
+    c = np.sqrt((a * a + L * L * b * b) / (L * L + 1))
+    cond = theta * (theta + c) / (mu + 1) ** 2 / c * (c + mu * (a - L * L * b) / (L * L + 1))
+    assert cond >= 0
+    return ((theta + c) / 2 / (mu + 1)) ** 2
+
+
+@pytest.mark.parametrize("kappa, alpha, theta", [("10", "13/10", "9/10"), ("10", "1", "1")])
+def test_douglas_rachford_rate_is_the_contraction_factor(tmp_path, kappa, alpha, theta):
+    """The certified rate of Douglas-Rachford on (Lipschitz monotone, strongly monotone)
+    is the square root of the tight contraction factor of RTBG (2020), to 1e-6, and never
+    below it (PEPit's example's values: m = 1/10, L = kappa m = 1)."""
+    row = _analyze_verified(tmp_path, "douglas-rachford-operators", kappa,
+                            f"alpha={alpha}", f"theta={theta}")
+    closed = np.sqrt(_rtbg_contraction(1.0, 0.1, float(Fraction(alpha)),
+                                       float(Fraction(theta))))
+    assert row["rho"] >= closed * (1 - 1e-9)
+    assert row["rho"] == pytest.approx(closed, rel=1e-6)
 
 
 def test_lipschitz_strongly_monotone_needs_mu_at_most_L():

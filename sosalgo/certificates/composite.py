@@ -389,7 +389,11 @@ def _unpack(st: CompositeStructure, lay: dict[str, slice], s: float, measure: st
     for k, (a, b) in enumerate(sym_basis(st.nz)):
         Pn[a, b] = Pn[b, a] = x[lay["P"]][k]
     dz = np.concatenate([np.ones(st.n), np.full(st.nz - st.n, 1.0 / s)])
-    pi = [float(t) * v / s for t in x[lay["pi"]]]
+    # an operator call's p multiplies no value (a zero row of F): 0, not the solver's
+    # arbitrary number, so that V reads the same wherever it is evaluated
+    idle = [not (np.any(st.pos.F[st.lag][r]) or any(np.any(F[r]) for F in st.dec.F.values()))
+            for r in range(st.npi)]
+    pi = [0.0 if idle[r] else float(t) * v / s for r, t in enumerate(x[lay["pi"]])]
     npv = st.npi - (1 if st.has_c else 0)
 
     def mult(labels: list[str], vals: np.ndarray, sig: np.ndarray) -> dict[str, float]:

@@ -40,8 +40,10 @@ class Cocoercive(OperatorClass):
                        rng: np.random.Generator) -> list[ProxFunction]:
         d, beta = len(xs), params["beta"]
         R = rotation(d, rng)
-        return [linear_member((np.eye(d) + rotation(d, rng)) / (2 * beta), xs, rng,
-                              "(I+Q)/(2 beta)", "<Mv, v> = beta |Mv|^2 for Q orthogonal"),
+        # 0.9 (I + Q)/(2 beta): <Mv, v> = (beta/0.9) |Mv|^2 for Q orthogonal, near the
+        # boundary but not on it (at gamma = beta a step would land exactly on x*)
+        return [linear_member(0.9 * (np.eye(d) + rotation(d, rng)) / (2 * beta), xs, rng,
+                              "0.9(I+Q)/(2 beta)", "<Mv, v> = beta/0.9 |Mv|^2, Q orthogonal"),
                 linear_member((R * rng.uniform(0, 1 / beta, d)) @ R.T, xs, rng,
                               "symmetric", "symmetric, eigenvalues in [0, 1/beta]")]
 
