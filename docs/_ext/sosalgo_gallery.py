@@ -133,11 +133,13 @@ def spec_numbers(path: Path, cache: Path) -> tuple[dict[str, Any], Path | None]:
     data_file, figure = cache / f"{path.stem}-{key}.json", cache / f"{path.stem}-{key}.png"
     spec = sosalgo.load_spec(path)
     from sosalgo.certificates import nonconvex_functions
+    from sosalgo.spec.loading import operator_functions
 
-    if spec.time_varying or nonconvex_functions(spec):  # sosalgo pep answers, no rate
+    operators = bool(operator_functions(spec)) and spec.sublinear  # no family: pep answers
+    if spec.time_varying or nonconvex_functions(spec) or operators:  # no rate: pep answers
         rows = varying_rows(spec)
         for row in rows if not spec.time_varying else ():
-            row["nonconvex"] = True
+            row["operator" if operators else "nonconvex"] = True
         return {"name": spec.name, "rows": rows}, None
     if data_file.exists() and figure.exists():
         return json.loads(data_file.read_text(encoding="utf-8")), figure
@@ -208,6 +210,7 @@ def summary(rows: list[dict[str, Any]]) -> str:
     the table), or the certified constant."""
     if "steps" in rows[0]:
         return ("nonconvex, no rate: `sosalgo pep --steps N`" if rows[0].get("nonconvex")
+                else "operators, no rate: `sosalgo pep --steps N`" if rows[0].get("operator")
                 else "changes with k: `sosalgo pep --steps N`")
     if "constant" in rows[0]:
         c = rows[0]["proven"]

@@ -290,10 +290,32 @@ def nonconvex(spec: Any) -> list[str]:
     return nonconvex_functions(spec)
 
 
+def operators_without_rate(spec: Any) -> list[str]:
+    """The spec's operators when no family certifies a rate for it (m: 0)."""
+    from sosalgo.spec.loading import operator_functions
+
+    return operator_functions(spec) if spec.sublinear else []
+
+
+def operator_section(spec: Any) -> list[str]:
+    """An m: 0 operator spec: sosalgo pep answers its question; its references."""
+    text = (f"{', '.join(operators_without_rate(spec))}: operator classes "
+            "({ref}`operators <operators>`), no sublinear rate family applies. Its "
+            "question, as the spec's `pep:` field asks it, is answered after $N$ steps "
+            "by `sosalgo pep SPEC --steps N`.")
+    from sosalgo.steps import reference_values
+
+    refs = [f"- reference: {md_text(r)} = {float(v):.6g}" for r, v in
+            reference_values(spec, None, 1).items()]
+    return ["## Operators", "", text, ""] + refs + ([""] if refs else [])
+
+
 def steps_section(spec: Any, rows: list[dict[str, Any]]) -> list[str]:
     """A method that changes with k, or on a nonconvex class: what its matrices use, and
     its references against the horizon N (its worst case is the finite-horizon PEP,
     ``sosalgo pep --steps N``)."""
+    if operators_without_rate(spec) and not spec.time_varying:
+        return operator_section(spec)
     if nonconvex(spec) and not spec.time_varying:
         text = (f"{', '.join(nonconvex(spec))} is nonconvex: no rate is certified (no "
                 "Lyapunov family applies). Its worst case after $N$ steps is a performance "
@@ -342,7 +364,7 @@ def page_markdown(spec: Any, rows: list[dict[str, Any]], yaml_path: str, image: 
              md_text(spec.description), ""]
     lines += update_rule(spec)
     command = f"sosalgo analyze {spec.name}.yaml"
-    if spec.time_varying or nonconvex(spec):
+    if spec.time_varying or nonconvex(spec) or operators_without_rate(spec):
         lines += steps_section(spec, rows)
         command = f"sosalgo pep {spec.name}.yaml --steps {rows[0]['steps']}"
     else:
