@@ -291,3 +291,32 @@ def test_lipschitz_strongly_monotone_needs_mu_at_most_L():
     with pytest.raises(ValueError, match="mu"):
         cls.check({"mu": 2.0, "L": 1.0})
     cls.check({"mu": 0.0, "L": 1.0})
+
+
+def test_witness_of_an_operator_is_checked_against_the_class(tmp_path):
+    """The forward-backward witness verifies (sosalgo verify on the pep document and on
+    the witness); with one operator value of A turned around (its call at step 0: u ->
+    -u, a pair that is no longer monotone, the trajectory recomputed from it), the
+    check fails."""
+    out = tmp_path / "o"
+    r = _invoke("pep", str(SPECS / "forward-backward.yaml"), "--steps", "2", "--json",
+                "--out", str(out))
+    assert r.exit_code == 0, r.output
+    doc_path = tmp_path / "pep.json"
+    doc_path.write_text(r.stdout)
+    witness = out / "forward-backward-pep-N2-witness.json"
+    for path in (doc_path, witness):
+        v = _invoke("verify", str(path), "--out", str(tmp_path / "v"))
+        assert v.exit_code == 0, v.output
+    from sosalgo.pep.check import check_witness
+
+    doc = json.loads(witness.read_text())
+    spec = sosalgo.load_spec(SPECS / "forward-backward.yaml")
+    assert check_witness(doc, spec)["verified"]
+    bad = json.loads(witness.read_text())
+    bad["calls"][0][1] = [str(-Fraction(v)) for v in bad["calls"][0][1]]  # A at y2_0
+    for pt in bad["functions"]["A"]["points"]:
+        if pt["label"] == "y2_0":
+            pt["g"] = list(bad["calls"][0][1])
+    res = check_witness(bad, spec)
+    assert not res["verified"] and "inequalities not proven" in res["detail"]

@@ -9,7 +9,7 @@ Calls: the evaluation M(y) (anywhere: M is defined everywhere), the resolvent J_
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from fractions import Fraction
 from typing import Any
 
@@ -35,6 +35,14 @@ class Cocoercive(OperatorClass):
     def forms(self, params: Mapping[str, Any]) -> list[tuple[Any, Any, Any]]:
         return [(Fraction(1), Fraction(0), -params["beta"])]
 
+
+
+    def curvatures(self, params: Mapping[str, float]) -> tuple[float, float]:
+        return (0.0, 1.0 / params["beta"])  # q I with 0 <= q <= 1/beta
+
+    def exact_curvatures(self, lower: Callable[[str], Fraction],
+                         upper: Callable[[str], Fraction]) -> tuple[Fraction, Fraction]:
+        return (Fraction(0), 1 / upper("beta"))
 
     def test_functions(self, params: Mapping[str, float], xs: np.ndarray,
                        rng: np.random.Generator) -> list[ProxFunction]:

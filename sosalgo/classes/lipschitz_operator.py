@@ -8,7 +8,7 @@ of the whole space, so a PEP over this class is exact. Calls: the evaluation M(y
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from fractions import Fraction
 from typing import Any
 
@@ -35,6 +35,14 @@ class LipschitzOperator(OperatorClass):
         L = params["L"]
         return [(Fraction(0), L * L, Fraction(-1))]
 
+
+
+    def curvatures(self, params: Mapping[str, float]) -> tuple[float, float]:
+        return (-params["L"], params["L"])  # q I with |q| <= L
+
+    def exact_curvatures(self, lower: Callable[[str], Fraction],
+                         upper: Callable[[str], Fraction]) -> tuple[Fraction, Fraction]:
+        return (-lower("L"), lower("L"))
 
     def test_functions(self, params: Mapping[str, float], xs: np.ndarray,
                        rng: np.random.Generator) -> list[ProxFunction]:

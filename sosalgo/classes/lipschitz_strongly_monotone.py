@@ -11,7 +11,7 @@ monotone and continuous).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from fractions import Fraction
 from typing import Any
 
@@ -44,6 +44,14 @@ class LipschitzStronglyMonotone(OperatorClass):
         mu, L = params["mu"], params["L"]
         return [(Fraction(1), -mu, Fraction(0)), (Fraction(0), L * L, Fraction(-1))]
 
+
+
+    def curvatures(self, params: Mapping[str, float]) -> tuple[float, float]:
+        return (params["mu"], params["L"])  # q I with mu <= q <= L
+
+    def exact_curvatures(self, lower: Callable[[str], Fraction],
+                         upper: Callable[[str], Fraction]) -> tuple[Fraction, Fraction]:
+        return (upper("mu"), lower("L"))
 
     def test_functions(self, params: Mapping[str, float], xs: np.ndarray,
                        rng: np.random.Generator) -> list[ProxFunction]:

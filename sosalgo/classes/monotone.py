@@ -11,7 +11,7 @@ J_{tM}.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from fractions import Fraction
 from typing import Any
 
@@ -31,6 +31,14 @@ class Monotone(OperatorClass):
     def forms(self, params: Mapping[str, Any]) -> list[tuple[Any, Any, Any]]:
         return [(Fraction(1), Fraction(0), Fraction(0))]
 
+
+
+    def curvatures(self, params: Mapping[str, float]) -> tuple[float, float]:
+        return (0.0, 0.0)  # the zero operator
+
+    def exact_curvatures(self, lower: Callable[[str], Fraction],
+                         upper: Callable[[str], Fraction]) -> tuple[Fraction, Fraction]:
+        return (Fraction(0), Fraction(0))
 
     def test_functions(self, params: Mapping[str, float], xs: np.ndarray,
                        rng: np.random.Generator) -> list[ProxFunction]:

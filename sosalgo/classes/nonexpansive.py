@@ -13,7 +13,7 @@ T (Ryu, Taylor, Bergeling, Giselsson 2020, Prop. 2): exact. The measure ``grad``
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from fractions import Fraction
 from typing import Any
 
@@ -36,6 +36,14 @@ class Nonexpansive(OperatorClass):
     def forms(self, params: Mapping[str, Any]) -> list[tuple[Any, Any, Any]]:
         return [(Fraction(1), Fraction(0), Fraction(-1, 2))]
 
+
+
+    def curvatures(self, params: Mapping[str, float]) -> tuple[float, float]:
+        return (0.0, 2.0)  # T = (1 - q) I with |1 - q| <= 1
+
+    def exact_curvatures(self, lower: Callable[[str], Fraction],
+                         upper: Callable[[str], Fraction]) -> tuple[Fraction, Fraction]:
+        return (Fraction(0), Fraction(2))
 
     def test_functions(self, params: Mapping[str, float], xs: np.ndarray,
                        rng: np.random.Generator) -> list[ProxFunction]:

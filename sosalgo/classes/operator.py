@@ -9,7 +9,9 @@ optimal "subgradients" s_j* in M_j(x*) sum to 0, exactly as for the functions of
 composite problem, so the oracle model and the PEP are unchanged. Every condition below
 is on differences (x_a - x_b, u_a - u_b) only, so it holds for M - s* too (tilt
 invariant), and has alpha = 0: an operator has no function values (``has_values``
-False), and a measure or initial condition in f is refused.
+False), and a measure or initial condition in f is refused. ``curvatures`` are the q with
+q I in the class (the gradients of the quadratics (q/2)|x|^2: the linear systems of the
+rate on quadratics are the same).
 """
 
 from __future__ import annotations

@@ -8,7 +8,7 @@ Calls: an element of M(y), the resolvent J_{tM} (a contraction by 1/(1 + t mu)).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from fractions import Fraction
 from typing import Any
 
@@ -33,6 +33,14 @@ class StronglyMonotone(OperatorClass):
     def forms(self, params: Mapping[str, Any]) -> list[tuple[Any, Any, Any]]:
         return [(Fraction(1), -params["mu"], Fraction(0))]
 
+
+
+    def curvatures(self, params: Mapping[str, float]) -> tuple[float, float]:
+        return (params["mu"], params["mu"])  # q I with q >= mu
+
+    def exact_curvatures(self, lower: Callable[[str], Fraction],
+                         upper: Callable[[str], Fraction]) -> tuple[Fraction, Fraction]:
+        return (upper("mu"), upper("mu"))
 
     def test_functions(self, params: Mapping[str, float], xs: np.ndarray,
                        rng: np.random.Generator) -> list[ProxFunction]:
