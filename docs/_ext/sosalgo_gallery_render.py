@@ -300,7 +300,7 @@ def operators_without_rate(spec: Any) -> list[str]:
 def operator_section(spec: Any) -> list[str]:
     """An m: 0 operator spec: sosalgo pep answers its question; its references."""
     text = (f"{', '.join(operators_without_rate(spec))}: operator classes "
-            "({ref}`operators <operators>`), no sublinear rate family applies. Its "
+            "(the operators page of the documentation), no sublinear rate family applies. Its "
             "question, as the spec's `pep:` field asks it, is answered after $N$ steps "
             "by `sosalgo pep SPEC --steps N`.")
     from sosalgo.steps import reference_values
