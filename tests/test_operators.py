@@ -89,6 +89,43 @@ def test_against_pepit_and_closed_forms(key):
         assert chk["tau_lower_float"] <= closed() * (1 + 1e-9)
 
 
+# PEPit 0.5.1, Clarabel as above: the two-trajectory contraction of one step,
+#   wc_douglas_rachford_splitting(L, mu, alpha, theta) and
+#   wc_three_operator_splitting(L, mu, beta=1, alpha, theta); the specs ask the one-trajectory
+#   |w_1 - w*|^2 / |w_0 - w*|^2 (never above it), equal at these parameters. kappa = L/m
+#   with m = 1/10 (L = 1 at kappa 10; (L, mu, alpha) = (1, 0.2, 0.5) is (0.5, 0.1, 1)
+#   rescaled: kappa 5, alpha 1).
+PEPIT_CONTRACTION = {
+    ("douglas-rachford-operators", "10", "13/10", "9/10"): 0.928770695303758,
+    ("douglas-rachford-operators", "10", "1", "1"): 0.9150975661183596,
+    ("douglas-rachford-operators", "5", "1", "3/2"): 0.8062363220799525,
+    ("davis-yin", "10", "9/10", "13/10"): 0.7796890019886871,
+    ("davis-yin", "10", "1/2", "1"): 0.9025000045602654,
+    ("davis-yin", "10", "3/2", "4/5"): 0.7744000064198635,
+}
+
+
+@pytest.mark.parametrize("key", list(PEPIT_CONTRACTION))
+def test_splitting_one_step_against_pepit_contraction(key):
+    """The proven one-step worst case of Douglas-Rachford and Davis-Yin is PEPit's
+    contraction factor (within 1e-6; never above it beyond its solver's accuracy, the
+    one-trajectory question being a special case), and the witness is checked."""
+    name, kappa, alpha, theta = key
+    res = sosalgo.pep(_spec(name, alpha=alpha, theta=theta), float(kappa), 1)
+    assert res.certificate["check_kind"].startswith("exact")
+    proven = float(Fraction(res.certificate["tau_proven"]))
+    peer = PEPIT_CONTRACTION[key]
+    assert proven >= peer * (1 - PEPIT_ACCURACY)  # equal here (see above)
+    assert proven == pytest.approx(peer, rel=1e-6)
+    chk = res.witness["check"]
+    assert chk["verified"] and chk["tau_lower_float"] <= peer * (1 + PEPIT_ACCURACY)
+    if name == "douglas-rachford-operators":
+        mu, L = 0.1, 0.1 * float(kappa)  # m = 1/10, L = kappa m
+        closed = _rtbg_contraction(L, mu, float(Fraction(alpha)), float(Fraction(theta)))
+        assert proven >= closed * (1 - 1e-12)
+        assert proven == pytest.approx(closed, rel=1e-6)
+
+
 def test_difference_measure_against_a_gradient_norm():
     """|x_N - x_{N-1}|^2 of gradient descent is h^2 |grad f(x_{N-1})|^2: the two measures
     (a point difference and a gradient at x_N-1, different terms) give the same worst case."""
@@ -291,6 +328,19 @@ def test_lipschitz_strongly_monotone_needs_mu_at_most_L():
     with pytest.raises(ValueError, match="mu"):
         cls.check({"mu": 2.0, "L": 1.0})
     cls.check({"mu": 0.0, "L": 1.0})
+
+
+def test_davis_yin_rate_against_pepit_and_its_scalar_bound(tmp_path):
+    """Davis-Yin mixes operators (A monotone, B cocoercive) and a function (C smooth
+    strongly convex): the certified rate is at least the rate on scalar operators (the
+    spec's reference, a lower bound) and at most the square root of PEPit's one-step
+    contraction factor (0.7796890019886871, as above), equal to both within 1e-6 here."""
+    row = _analyze_verified(tmp_path, "davis-yin", "10")
+    alpha, theta, mu, L = 0.9, 1.3, 0.1, 1.0
+    scalar = max(abs(1 - theta * alpha * (b + c) / (1 + alpha * b))
+                 for b in (0.0, 1.0) for c in (mu, L))
+    assert row["rho"] >= scalar * (1 - 1e-9)
+    assert row["rho"] == pytest.approx(np.sqrt(0.7796890019886871), rel=1e-6)
 
 
 def test_witness_of_an_operator_is_checked_against_the_class(tmp_path):
