@@ -60,10 +60,10 @@ def family_applies(spec: "Spec", family: str) -> str | None:
     from sosalgo.spec.loading import operator_functions
 
     operators = operator_functions(spec)
-    if operators and family != "interpolation":
+    if operators and (family != "interpolation" or spec.sublinear):
         return (f"{', '.join(operators)} is an operator class: only the interpolation "
-                "family certifies its rates (use sosalgo pep for a worst case after N "
-                "steps)")
+                "family certifies its rates, linear ones (m > 0; use sosalgo pep for a "
+                "worst case after N steps)")
     nonconvex = nonconvex_functions(spec)
     if nonconvex:
         return (f"{', '.join(nonconvex)} is nonconvex: no Lyapunov family certifies a "
