@@ -129,7 +129,7 @@ def _points(om: Any, steps: int, lag: int, s: float):
            for t in range(steps)}
     pts: list[list[_Point]] = [[] for _ in range(J)]
     npsi = 0
-    valued = [fn.cls.has_values for fn in om.functions]  # an operator: no value psi
+    valued = [getattr(fn.cls, "has_values", True) for fn in om.functions]  # operator: none
     for t in range(steps):
         for i, j in enumerate(om.oracles):
             pts[j].append(_Point(j, f"y{i + 1}[{t}]", Y[t][i], U[t][i],

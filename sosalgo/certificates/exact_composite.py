@@ -160,7 +160,7 @@ def _window_points(om: ExactOracleMethod, steps: int, lag: int):
            for t in range(steps)}
     pts: list[list[_Pt]] = [[] for _ in range(J)]
     k = 0
-    valued = [cls.has_values for _, cls, _ in om.functions]  # an operator: no value psi
+    valued = [getattr(cls, "has_values", True) for _, cls, _ in om.functions]  # operator: none
     for t in range(steps):
         for i, j in enumerate(om.oracles):
             pts[j].append(_Pt(j, f"y{i + 1}[{t}]", Y[t][i], U[t][i], k if valued[j] else None))
