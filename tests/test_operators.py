@@ -46,8 +46,8 @@ def _spec(name: str, **values: str):
     return spec_from_text(text, str(path))
 
 
-def _proven(name: str, steps: int, **values: str):
-    res = sosalgo.pep(_spec(name, **values), None, steps)
+def _proven(name: str, steps: int, kappa: float | None = None, **values: str):
+    res = sosalgo.pep(_spec(name, **values), kappa, steps)
     assert res.status == "solved"
     assert res.certificate["check_kind"].startswith("exact")
     return res, Fraction(res.certificate["tau_proven"])
@@ -201,16 +201,38 @@ def _ratio_forward_backward(gamma: float, n: int, rng: np.random.Generator) -> f
     return float(np.sum((x - prev) ** 2) / np.sum((x0 - c) ** 2))
 
 
+def _ratio_douglas_rachford(alpha: float, n: int, rng: np.random.Generator) -> float:
+    """A(x) = MA (x - c) + a with MA monotone and |MA| <= L = 1 (A L-Lipschitz monotone),
+    B(x) = MB (x - c) - a with MB - mu I monotone (mu = 1/10); c is the zero of A + B and
+    w* = c + alpha B(c) = c - alpha a the fixed point; theta = 9/10 (the spec's)."""
+    d, mu, theta = int(rng.integers(2, 5)), 0.1, 0.9
+    MA = _rng_monotone(d, rng)
+    MA /= max(1.0, float(np.linalg.norm(MA, 2)))
+    MB = mu * np.eye(d) + _rng_monotone(d, rng)
+    c, a = rng.standard_normal(d), rng.standard_normal(d)
+    JA = np.linalg.inv(np.eye(d) + alpha * MA)  # J_{alpha A}(v) = c + JA (v - c - alpha a)
+    JB = np.linalg.inv(np.eye(d) + alpha * MB)  # J_{alpha B}(v) = c + JB (v - c + alpha a)
+    ws = c - alpha * a
+    w = w0 = ws + rng.standard_normal(d)
+    for _ in range(n):
+        x = c + JB @ (w - c + alpha * a)
+        y = c + JA @ (2 * x - w - c - alpha * a)
+        w = w - theta * (x - y)
+    return float(np.sum((w - ws) ** 2) / np.sum((w0 - ws) ** 2))
+
+
 @pytest.mark.parametrize("name, param, value, steps, run", [
     ("operator-proximal-point", "alpha", "2", 4, _ratio_proximal_point),
     ("krasnoselskii-mann", "gamma", "3/4", 3, _ratio_km),
     ("forward-backward", "gamma", "1", 3, _ratio_forward_backward),
     ("forward-backward", "gamma", "3/2", 2, _ratio_forward_backward),
+    ("douglas-rachford-operators", "alpha", "13/10", 2, _ratio_douglas_rachford),
 ])
 def test_random_operators_stay_below_the_proven_bound(name, param, value, steps, run):
     """Random operators of the class (independent numpy code), run through the method from
     random starts: the observed measure never exceeds the proven bound."""
-    _, proven = _proven(name, steps, **{param: value})
+    kappa = 10.0 if name == "douglas-rachford-operators" else None  # m = 1/10, L = 1
+    _, proven = _proven(name, steps, kappa, **{param: value})
     rng = np.random.default_rng(7)
     worst = max(run(float(Fraction(value)), steps, rng) for _ in range(400))
     assert worst <= float(proven) * (1 + 1e-9)
