@@ -45,16 +45,27 @@ def check_grid_points(points: Any, n_free: int, label: str = "--points") -> int:
     return total
 
 
-def refuse_nonconvex(spec: Any) -> None:
-    """InputError (one line) for a spec with a nonconvex function: no certificate family
-    certifies a rate for it (``sosalgo pep`` bounds its N-step worst case)."""
+def refuse_nonconvex(spec: Any, linear_rates: bool = False) -> None:
+    """InputError (one line) for a spec with a nonconvex function or an operator: no
+    certificate family certifies a rate for it (``sosalgo pep`` bounds its N-step worst
+    case). ``linear_rates`` (``analyze``): an operator spec with m > 0 passes (the
+    interpolation family certifies its linear rates; no sublinear family applies to
+    operators)."""
     from sosalgo.certificates import nonconvex_functions
+    from sosalgo.spec.loading import operator_functions
 
     bad = nonconvex_functions(spec)
     if bad:
         raise InputError(f"{spec.source}: functions: {', '.join(bad)} is nonconvex: no "
                          "linear or sublinear rate is certified for it (no Lyapunov family "
                          "applies); sosalgo pep bounds its worst case after N steps")
+    ops = operator_functions(spec)
+    if ops and (spec.sublinear or not linear_rates):
+        what = ("no sublinear family applies to it (m: 0)" if linear_rates else
+                "analyze certifies its linear rates (m > 0); design, grid and pareto do "
+                "not take it yet")
+        raise InputError(f"{spec.source}: functions: {', '.join(ops)} is an operator class: "
+                         f"{what}; sosalgo pep bounds its worst case after N steps")
 
 
 def check_tol(tol: Any, label: str = "tol") -> float:

@@ -249,6 +249,9 @@ def _check_measure(spec: Spec, fail: Callable[[str, str], SpecError]) -> None:
     at_output = None if spec.output is None else spec.oracles[spec.output]
     for fname, decl in spec.functions.items():
         cls = CLASSES[decl.cls]
+        if not cls.has_values:
+            raise fail("measure", f"function: {fname} ({cls.name}) is an operator class, it "
+                       "has no function values; use measure: distance")
         if fname != at_output and not cls.finite_everywhere:
             where = "E xi" if spec.output is None else f"y{spec.output + 1}"
             raise fail("measure", f"function: {fname} ({cls.name}) is not evaluated at the "

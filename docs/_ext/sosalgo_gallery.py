@@ -152,14 +152,17 @@ def spec_numbers(path: Path, cache: Path) -> tuple[dict[str, Any], Path | None]:
     data_file, figure = cache / f"{path.stem}-{key}.json", cache / f"{path.stem}-{key}.png"
     spec = sosalgo.load_spec(path)
     from sosalgo.certificates import nonconvex_functions
+    from sosalgo.spec.loading import operator_functions
     from sosalgo.steps import changes_with_k
 
+    operators = bool(operator_functions(spec)) and spec.sublinear  # no family: pep answers
     if data_file.exists() and figure.exists():
         return json.loads(data_file.read_text(encoding="utf-8")), figure
-    if changes_with_k(spec) or nonconvex_functions(spec):  # the worst case after N steps
+    if changes_with_k(spec) or nonconvex_functions(spec) or operators:  # no rate: pep
         rows = pep_rows(spec)
         for row in rows:
             row["nonconvex"] = bool(nonconvex_functions(spec))
+            row["operator"] = operators
     else:
         rows = sublinear_rows(spec) if spec.sublinear else linear_rows(spec)
     data = {"name": spec.name, "rows": rows}
@@ -228,6 +231,7 @@ def summary(rows: list[dict[str, Any]]) -> str:
     the table), or the certified constant."""
     if "steps" in rows[0]:
         return ("nonconvex, no rate: `sosalgo pep --steps N`" if rows[0].get("nonconvex")
+                else "operators, no rate: `sosalgo pep --steps N`" if rows[0].get("operator")
                 else "changes with k: `sosalgo pep --steps N`")
     if "constant" in rows[0]:
         c = rows[0]["proven"]

@@ -290,12 +290,30 @@ def nonconvex(spec: Any) -> list[str]:
     return nonconvex_functions(spec)
 
 
+def operators_without_rate(spec: Any) -> list[str]:
+    """The spec's operators when no family certifies a rate for it (m: 0)."""
+    from sosalgo.spec.loading import operator_functions
+
+    return operator_functions(spec) if spec.sublinear else []
+
+
+def operator_section(spec: Any) -> list[str]:
+    """An m: 0 operator spec: sosalgo pep answers its question; its references."""
+    text = (f"{', '.join(operators_without_rate(spec))}: operator classes "
+            "(the operators page of the documentation), no sublinear rate family applies. Its "
+            "question, as the spec's `pep:` field asks it, is answered after $N$ steps "
+            "by `sosalgo pep SPEC --steps N`.")
+    return ["## Operators", "", text, ""]
+
+
 def steps_section(spec: Any, rows: list[dict[str, Any]]) -> list[str]:
     """A method that changes with k, or on a nonconvex class: what its matrices use, and
     its references against the horizon N (its worst case is the finite-horizon PEP,
     ``sosalgo pep --steps N``)."""
     from sosalgo.steps import changes_with_k
 
+    if operators_without_rate(spec) and not changes_with_k(spec):
+        return operator_section(spec)
     if not changes_with_k(spec):  # time-invariant on a nonconvex class
         text = (f"{', '.join(nonconvex(spec))} is nonconvex: no rate is certified (no "
                 "Lyapunov family applies). Its worst case after $N$ steps is a performance "
@@ -362,7 +380,7 @@ def page_markdown(spec: Any, rows: list[dict[str, Any]], yaml_path: str, image: 
              md_text(spec.description), ""]
     lines += update_rule(spec)
     command = f"sosalgo analyze {spec.name}.yaml"
-    if "steps" in rows[0]:  # changes with k, or a nonconvex class: sosalgo pep answers
+    if "steps" in rows[0]:  # changes with k, nonconvex or operators: sosalgo pep answers
         lines += steps_section(spec, rows)
         if "tau" in rows[0]:
             lines += pep_section(spec, rows, image)

@@ -57,6 +57,13 @@ def family_applies(spec: "Spec", family: str) -> str | None:
     """Why certificate family ``family`` does not apply to ``spec`` (None when it does):
     the family's ``applies_to`` (Theorem 1 holds only in the seed's setting; a family
     registered without one applies to every spec)."""
+    from sosalgo.spec.loading import operator_functions
+
+    operators = operator_functions(spec)
+    if operators and (family != "interpolation" or spec.sublinear):
+        return (f"{', '.join(operators)} is an operator class: only the interpolation "
+                "family certifies its rates, linear ones (m > 0; use sosalgo pep for a "
+                "worst case after N steps)")
     nonconvex = nonconvex_functions(spec)
     if nonconvex:
         return (f"{', '.join(nonconvex)} is nonconvex: no Lyapunov family certifies a "

@@ -51,7 +51,7 @@ class _Point:
     label: str
     x: np.ndarray  # row on w: the point minus x*
     g: np.ndarray  # row on w: the subgradient, in units of s
-    psi: int | None  # its psi in phi (None: the optimum or a zero-valued class)
+    psi: int | None  # its psi in phi (None: the optimum or an operator, no values)
 
 
 @dataclass
@@ -129,10 +129,12 @@ def _points(om: Any, steps: int, lag: int, s: float):
            for t in range(steps)}
     pts: list[list[_Point]] = [[] for _ in range(J)]
     npsi = 0
+    valued = [getattr(fn.cls, "has_values", True) for fn in om.functions]  # operator: none
     for t in range(steps):
         for i, j in enumerate(om.oracles):
-            pts[j].append(_Point(j, f"y{i + 1}[{t}]", Y[t][i], U[t][i], npsi))
-            npsi += 1
+            pts[j].append(_Point(j, f"y{i + 1}[{t}]", Y[t][i], U[t][i],
+                                 npsi if valued[j] else None))
+            npsi += valued[j]
     k = n + p * steps
     for t in x_times:
         for j in extra:
@@ -176,7 +178,7 @@ def _inequalities(om: Any, pts: list, nphi: int, s: float, rescale: bool):
                     Ms.append(quad / scale)
                     ms.append(lin / scale)
                     sig.append(scale)
-    return (labels, np.array(Ms).reshape(-1, width, width), np.array(ms).reshape(-1, nphi),
+    return (labels, np.array(Ms).reshape(-1, width, width), np.array(ms).reshape(len(ms), nphi),
             np.array(sig))
 
 
@@ -189,7 +191,8 @@ def _window(om: Any, lag: int, steps: int, s: float, rescale: bool) -> CWindow:
     Z, F = {}, {}
     for t in range(lag, steps):
         Z[t] = np.vstack([Xi[t]] + [U[t - tau] for tau in range(lag + 1)])
-        sel = [[psi_of[f"y{i + 1}[{t - tau}]"]] for tau in range(lag + 1) for i in valued]
+        sel = [[psi_of[lab]] if (lab := f"y{i + 1}[{t - tau}]") in psi_of else []
+               for tau in range(lag + 1) for i in valued]  # []: an operator's call
         xs = [pt.psi for fp in pts for pt in fp if pt.label == f"x[{t}]"]
         if any(pt.label.startswith("x[") for fp in pts for pt in fp):
             sel.append(xs)
@@ -386,7 +389,11 @@ def _unpack(st: CompositeStructure, lay: dict[str, slice], s: float, measure: st
     for k, (a, b) in enumerate(sym_basis(st.nz)):
         Pn[a, b] = Pn[b, a] = x[lay["P"]][k]
     dz = np.concatenate([np.ones(st.n), np.full(st.nz - st.n, 1.0 / s)])
-    pi = [float(t) * v / s for t in x[lay["pi"]]]
+    # an operator call's p multiplies no value (a zero row of F): 0, not the solver's
+    # arbitrary number, so that V reads the same wherever it is evaluated
+    idle = [not (np.any(st.pos.F[st.lag][r]) or any(np.any(F[r]) for F in st.dec.F.values()))
+            for r in range(st.npi)]
+    pi = [0.0 if idle[r] else float(t) * v / s for r, t in enumerate(x[lay["pi"]])]
     npv = st.npi - (1 if st.has_c else 0)
 
     def mult(labels: list[str], vals: np.ndarray, sig: np.ndarray) -> dict[str, float]:

@@ -160,10 +160,11 @@ def _window_points(om: ExactOracleMethod, steps: int, lag: int):
            for t in range(steps)}
     pts: list[list[_Pt]] = [[] for _ in range(J)]
     k = 0
+    valued = [getattr(cls, "has_values", True) for _, cls, _ in om.functions]  # operator: none
     for t in range(steps):
         for i, j in enumerate(om.oracles):
-            pts[j].append(_Pt(j, f"y{i + 1}[{t}]", Y[t][i], U[t][i], k))
-            k += 1
+            pts[j].append(_Pt(j, f"y{i + 1}[{t}]", Y[t][i], U[t][i], k if valued[j] else None))
+            k += valued[j]
     col = n + p * steps
     for t in x_times:
         for j in extra:
@@ -208,7 +209,8 @@ def exact_window(om: ExactOracleMethod, lag: int, steps: int,
     Z, F = {}, {}
     for t in range(lag, steps):
         Z[t] = np.vstack([rows["Xi"][t]] + [rows["U"][t - tau] for tau in range(lag + 1)])
-        sel = [[psi_of[f"y{i + 1}[{t - tau}]"]] for tau in range(lag + 1) for i in range(om.p)]
+        sel = [[psi_of[lab]] if (lab := f"y{i + 1}[{t - tau}]") in psi_of else []
+               for tau in range(lag + 1) for i in range(om.p)]  # []: an operator's call
         if has_x:
             sel.append([pt.psi for fp in pts for pt in fp if pt.label == f"x[{t}]"])
         Ft = _zeros(len(sel), nphi)

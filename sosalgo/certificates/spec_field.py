@@ -8,6 +8,7 @@ from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
 
 from sosalgo.certificates import FAMILIES, family_applies, get_family, nonconvex_functions
+from sosalgo.spec.loading import operator_functions
 
 if TYPE_CHECKING:  # only for annotations
     from sosalgo.spec.types import Spec
@@ -40,7 +41,8 @@ def check_certificate_field(spec: Spec, data: Mapping[str, Any],
     else:
         name, options = raw, {}
     problem = family_applies(spec, name)
-    if problem and ("certificate" in data or not nonconvex_functions(spec)):
-        raise fail("certificate", problem)  # a nonconvex class: refused where used
+    unfit = nonconvex_functions(spec) or operator_functions(spec)
+    if problem and ("certificate" in data or not unfit):
+        raise fail("certificate", problem)  # a nonconvex or operator class: refused where used
     return dataclasses.replace(spec, certificate=name, certificate_options=options,
                                certificate_given="certificate" in data)

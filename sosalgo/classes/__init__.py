@@ -10,7 +10,19 @@ and add it below (or call :func:`register_class`); docs/classes.md.
 
 from __future__ import annotations
 
-from sosalgo.classes import convex, indicator, smooth, smooth_strongly_convex, strongly_convex
+from sosalgo.classes import (
+    cocoercive,
+    convex,
+    indicator,
+    lipschitz_operator,
+    lipschitz_strongly_monotone,
+    monotone,
+    nonexpansive,
+    smooth,
+    smooth_strongly_convex,
+    strongly_convex,
+    strongly_monotone,
+)
 from sosalgo.classes.base import ORACLE_KINDS, FunctionClass, Inequality, convex_form
 
 CLASSES: dict[str, FunctionClass] = {}
@@ -47,6 +59,12 @@ register_class(convex.CLASS)
 register_class(strongly_convex.CLASS)
 register_class(indicator.CLASS)
 register_class(smooth.CLASS)
+register_class(monotone.CLASS)
+register_class(strongly_monotone.CLASS)
+register_class(cocoercive.CLASS)
+register_class(lipschitz_operator.CLASS)
+register_class(nonexpansive.CLASS)
+register_class(lipschitz_strongly_monotone.CLASS)
 _SHIPPED = tuple(CLASSES.values())
 
 SEED_CLASS: FunctionClass = smooth_strongly_convex.CLASS  # F(m, L): a spec without functions:

@@ -15,6 +15,9 @@ interpolation certificate family only reads the data declared here:
   linear functions);
 - ``convex``: every function of the class is convex (False: no Lyapunov family of
   ``analyze`` applies; ``pep`` answers);
+- ``has_values``: the members have function values (False: operators,
+  :mod:`sosalgo.classes.operator`: no values, every inequality has alpha = 0, and a
+  measure or initial condition in f is refused);
 - ``zero_values``: every function value is 0 (indicators: f = 0 on the set);
 - ``finite_everywhere``: the function has a (sub)gradient at every point, so it may be
   evaluated where the method never queries it (the output point of ``measure: function``);
@@ -68,6 +71,7 @@ class FunctionClass:
     defaults: Mapping[str, str] = {}
     oracles: frozenset[str] = frozenset()
     convex: bool = True
+    has_values: bool = True
     zero_values: bool = False
     finite_everywhere: bool = False
     tilt_invariant: bool = True

@@ -373,12 +373,19 @@ def pos_key(point: str, N: int, p: int) -> str:
 
 def _terms_value(terms: list[Term], doc: dict[str, Any], av: ArbView,
                  pos: dict[str, Any]) -> arb:
-    from sosalgo.pep.terms import MIN_KIND, STEP_POINT
+    from sosalgo.pep.terms import DIFF_KIND, MIN_KIND, STEP_POINT, at_steps
 
     mt, N = av.mt, int(doc["steps"])
     total = arb(0)
-    for t in terms:
+    for t in at_steps(terms, N, "measure"):
         c = av.coef(t)
+        if t.kind == DIFF_KIND:  # |P - Q|^2
+            P, Q = (pos[{"x": f"x{N}"}.get(q) or (q if STEP_POINT.match(q)
+                                                  else pos_key(q, N, mt.p))]
+                    for q in t.point.split("__"))
+            v = [a - b for a, b in zip(P, Q, strict=True)]
+            total += c * _dot(v, v)
+            continue
         if t.kind == MIN_KIND:  # min over the iterates x_0 .. x_N (x_N: point "x")
             each = [_terms_value([Term("grad", f"x{k}" if k < N else "x", t.coef)], doc, av,
                                  pos) for k in range(N + 1)]

@@ -47,7 +47,7 @@ import numpy as np
 
 from sosalgo.errors import InputError
 from sosalgo.oracles import CallShape
-from sosalgo.pep.terms import MIN_KIND, STEP_POINT, Term
+from sosalgo.pep.terms import DIFF_KIND, MIN_KIND, STEP_POINT, Term, at_steps
 
 __all__ = ["Method", "PEPPoint", "PEPStructure", "build_structure", "enclosure_bits",
            "enclosure_digits", "last_calls", "output_call", "pair_label", "radius_growth"]
@@ -314,7 +314,8 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
     free = any(t.kind == "sdist" for t in initial)
     origin = _check_nonconvex(mt, measure, initial, option)
     n0 = n if free else 1
-    needs_n = mt.output is not None or any(t.point.startswith("y") for t in measure)
+    needs_n = mt.output is not None or any(q.startswith("y") for t in measure
+                                                for q in t.point.split("__"))
     calls = steps + 1 if needs_n and mt.per_step is None else steps  # see last_calls
     extra_cap = J * (len(measure) + len(initial)) + J + 1
     g0 = mt.G0 is not None and not free
@@ -349,10 +350,12 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
         where.update({f"y{i + 1}": Yr[steps - 1][i] for i in range(p)})
     pts: list[list[PEPPoint]] = [[] for _ in range(J)]
     nF = 0
+    valued = [cls.has_values for _, cls, _ in mt.functions]  # an operator: no F entries
     for k in range(calls):
         for i, j in enumerate(mt.oracles):
-            pts[j].append(PEPPoint(_call_label(i, k, p), Yr[k][i], U[k][i], nF, k))
-            nF += 1
+            pts[j].append(PEPPoint(_call_label(i, k, p), Yr[k][i], U[k][i],
+                                   nF if valued[j] else None, k))
+            nF += valued[j]
     zero = eye[0] * 0
     at = {}
     if g0:  # the point x0 of the smooth function, with the gradient g0 of the start
@@ -366,19 +369,30 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
     forms = {}
     for key, terms, opt in (("m", measure, option[0]), ("i", initial, option[1])):
         forms[key] = []
-        for t in terms:
+        for t in at_steps(list(terms), steps, opt):
             if t.kind == MIN_KIND:
                 raise InputError(f"{opt}: {MIN_KIND}: expand it first (terms.expand_min)")
-            step = STEP_POINT.match(t.point)
-            if step and t.point not in where:
-                if int(step.group(1)) > steps:
-                    raise InputError(f"{opt}: x_{step.group(1)}: after the last step "
-                                     f"(N = {steps})")
-                where[t.point] = _output_row(mt, xi, Yr, int(step.group(1)))
-            if t.point not in where:
-                raise InputError(f"{opt}: {t.point}_N: no such point")
-            forms[key].append(_term(mt, t, where[t.point], pts, sstar, state, opt, steps))
+            rows = [_point_row(mt, xi, Yr, where, q, steps, opt) for q in t.point.split("__")]
+            if t.kind == DIFF_KIND:  # |P - Q|^2
+                v = rows[0] - rows[1]
+                forms[key].append((np.outer(v, v) * mt.coef(t), {}))
+                continue
+            forms[key].append(_term(mt, t, rows[0], pts, sstar, state, opt, steps))
     return _finish(mt, steps, calls, state, pts, forms, {"xi": xi, "y": Y, "u": U, "x": out})
+
+
+def _point_row(mt: Method, xi: list[np.ndarray], Yr: list[list[np.ndarray]],
+               where: dict[str, np.ndarray], point: str, steps: int, opt: str) -> np.ndarray:
+    """The row of a term's point (``where``: the points known so far, extended by the
+    outputs x_k a term names)."""
+    step = STEP_POINT.match(point)
+    if step and point not in where:
+        if int(step.group(1)) > steps:
+            raise InputError(f"{opt}: x_{step.group(1)}: after the last step (N = {steps})")
+        where[point] = _output_row(mt, xi, Yr, int(step.group(1)))
+    if point not in where:
+        raise InputError(f"{opt}: {point}_N: no such point")
+    return where[point]
 
 
 def _check_nonconvex(mt: Method, measure: Sequence[Term], initial: Sequence[Term],
@@ -497,8 +511,8 @@ def _point_at(mt: Method, j: int, row: np.ndarray, pts: list[list[PEPPoint]], la
     k = state["next"]
     state["next"] += 1
     state["cols"].append(f"g_{name}({label})/s")
-    pt = PEPPoint(label, row, state["eye"][k], state["nF"])
-    state["nF"] += 1
+    pt = PEPPoint(label, row, state["eye"][k], state["nF"] if cls.has_values else None)
+    state["nF"] += cls.has_values
     pts[j].insert(len(pts[j]) - 1, pt)  # x* stays last
     state["at"][(key, j)] = len(pts[j]) - 2
     return pt
@@ -517,6 +531,10 @@ def _term(mt: Method, t: Term, row: np.ndarray, pts: list[list[PEPPoint]],
         X = state["xi"][t.point]
         return sum(np.outer(r, r) for r in X) * c, {}
     if t.kind == "f":
+        valueless = [f"{n} ({cls.name})" for n, cls, _ in mt.functions if not cls.has_values]
+        if valueless:
+            raise InputError(f"{opt}: f: {valueless[0]} is an operator class, it has no "
+                             "function values (use dist, grad or dist(P, Q))")
         fs: dict[int, Any] = {}
         for j in range(len(mt.functions)):
             pt = _point_at(mt, j, row, pts, label, state, opt, t.point)

@@ -4,10 +4,12 @@
 part (the functions of a class with a gradient oracle), ``sdist`` = |xi - xi*|^2 over
 every state block (an initial ``sdist`` makes the start free), ``mingrad`` = the minimum
 over the iterates x_0, ..., x_N of |grad f(x_k)|^2 (measure only, coefficient > 0:
-:func:`expand_min`); ``c`` is an expression in m, L, kappa. A measure term may name its
-point: ``f(x_N)`` (the output, the default), ``grad(x_3)`` (the output after 3 steps),
-``dist(y_N)`` (the point of the single call), ``grad(y2_N)`` (the point of call 2); an
-initial term is at x_0 or at x_N (``f(x_0) - f(x_N)``). The string is parsed by
+:func:`expand_min`), ``dist(P, Q)`` = |P - Q|^2 between two points of the trajectory
+(``dist(x_N, x_N-1)``: the last step's length; kind ``diff``); ``c`` is an expression in
+m, L, kappa. A measure term may name its point: ``f(x_N)`` (the output, the default),
+``grad(x_3)`` (the output after 3 steps), ``dist(y_N)`` (the point of the single call),
+``grad(y2_N)`` (the point of call 2), ``grad(x_N-1)`` (the output one step before the
+last); an initial term is at x_0 or at x_N (``f(x_0) - f(x_N)``). The string is parsed by
 :mod:`sosalgo.kernel.expr` (never evaluated) and split into its linear terms; anything
 nonlinear in f, dist, grad is refused.
 """
@@ -25,20 +27,26 @@ from sosalgo.errors import InputError
 from sosalgo.kernel.expr.tree import Expr, ExprError, evaluate, parse_tree
 from sosalgo.spec.initial_state import linear_parts
 
-__all__ = ["KINDS", "MIN_KIND", "Term", "describe_terms", "dominates", "expand_min",
-           "parse_terms"]
+__all__ = ["BACK_POINT", "DIFF_KIND", "KINDS", "MIN_KIND", "Term", "at_steps",
+           "describe_terms", "dominates", "expand_min", "parse_terms"]
 
 MIN_KIND = "mingrad"  # min over k = 0..N of |grad f(x_k)|^2
-KINDS = ("f", "dist", "grad", "sdist", MIN_KIND)
-_AT = re.compile(r"\b(f|dist|grad)\s*\(\s*([A-Za-z0-9_]+)\s*\)")
+DIFF_KIND = "diff"  # |P - Q|^2 between two points: dist(P, Q)
+KINDS = ("f", "dist", "grad", "sdist", MIN_KIND, DIFF_KIND)
+_ARG = r"([A-Za-z0-9_]+(?:\s*-\s*\d+)?)"
+_AT = re.compile(r"\b(f|dist|grad)\s*\(\s*" + _ARG + r"\s*\)")
+_PAIR = re.compile(r"\bdist\s*\(\s*" + _ARG + r"\s*,\s*" + _ARG + r"\s*\)")
 _POINT = re.compile(r"^(x|y(\d*))_(N|\d+)$")
+_BEFORE = re.compile(r"^x_N\s*-\s*(\d+)$")  # x_N-j: the output j steps before the last
 STEP_POINT = re.compile(r"^x(\d+)$")  # a measure's x_k, k a number: the output at step k
+BACK_POINT = re.compile(r"^xm(\d+)$")  # a measure's x_N-j: the output at step N - j
 
 
 @dataclass(frozen=True)
 class Term:
     """``coef * kind(point)``: point "x" (the output at step N), "x<k>" (the output at step
-    k; "x0" is also the start), "y<i>" (call i at step N, 1-based)."""
+    k; "x0" is also the start), "xm<j>" (the output at step N - j), "y<i>" (call i at step
+    N, 1-based); a ``diff`` term's point is its two points joined by "__"."""
 
     kind: str
     point: str
@@ -61,29 +69,48 @@ def _rewrite(text: str, option: str, initial: bool, p: int) -> str:
     """Replace ``kind(point)`` by placeholder names; check the points."""
 
     def sub(mt: re.Match[str]) -> str:
-        kind, pt = mt.group(1), mt.group(2)
-        hit = _POINT.match(pt)
-        if hit is None:
-            raise InputError(f"{option}: unknown point {pt!r} (use "
-                             + ("x_0, x_N)" if initial else "x_N, x_<k>, y_N, y<i>_N)"))
-        step = hit.group(3)
-        if hit.group(1) == "x":
-            if step == "N":
-                return _placeholder(kind, "x")
-            if initial and step != "0":
-                raise InputError(f"{option}: {pt}: the initial condition is at x_0 or x_N")
-            return _placeholder(kind, f"x{int(step)}")
-        if initial or step != "N":
-            raise InputError(f"{option}: {pt}: " + ("the initial condition is at x_0 or x_N"
-                                                     if initial else "a call's point is at "
-                                                     "step N (y_N, y<i>_N)"))
-        i = int(hit.group(2) or (1 if p == 1 else 0))
-        if not 1 <= i <= p:
-            raise InputError(f"{option}: {pt}: the method has {p} oracle call(s) per step"
-                             + ("; name one: y1_N .. y{p}_N" if i == 0 else ""))
-        return _placeholder(kind, f"y{i}")
+        return _placeholder(mt.group(1), _point_key(mt.group(2), option, initial, p))
 
-    return _AT.sub(sub, text)
+    def pair(mt: re.Match[str]) -> str:
+        if initial:
+            raise InputError(f"{option}: dist(P, Q): a measure term (the initial condition "
+                             "is at x_0 or x_N)")
+        a, b = (_point_key(mt.group(k), option, False, p) for k in (1, 2))
+        if a == b:
+            raise InputError(f"{option}: dist(P, Q): two different points")
+        return _placeholder(DIFF_KIND, f"{a}__{b}")
+
+    return _AT.sub(sub, _PAIR.sub(pair, text))
+
+
+def _point_key(pt: str, option: str, initial: bool, p: int) -> str:
+    """The key of a point as written (x_N, x_<k>, x_N-<j>, y_N, y<i>_N): see :class:`Term`."""
+    pt = re.sub(r"\s+", "", pt)
+    back = _BEFORE.match(pt)
+    if back:
+        if initial:
+            raise InputError(f"{option}: {pt}: the initial condition is at x_0 or x_N")
+        return f"xm{int(back.group(1))}" if int(back.group(1)) else "x"
+    hit = _POINT.match(pt)
+    if hit is None:
+        raise InputError(f"{option}: unknown point {pt!r} (use "
+                         + ("x_0, x_N)" if initial else "x_N, x_<k>, x_N-<j>, y_N, y<i>_N)"))
+    step = hit.group(3)
+    if hit.group(1) == "x":
+        if step == "N":
+            return "x"
+        if initial and step != "0":
+            raise InputError(f"{option}: {pt}: the initial condition is at x_0 or x_N")
+        return f"x{int(step)}"
+    if initial or step != "N":
+        raise InputError(f"{option}: {pt}: " + ("the initial condition is at x_0 or x_N"
+                                                 if initial else "a call's point is at "
+                                                 "step N (y_N, y<i>_N)"))
+    i = int(hit.group(2) or (1 if p == 1 else 0))
+    if not 1 <= i <= p:
+        raise InputError(f"{option}: {pt}: the method has {p} oracle call(s) per step"
+                         + ("; name one: y1_N .. y{p}_N" if i == 0 else ""))
+    return f"y{i}"
 
 
 def parse_terms(text: object, option: str, initial: bool, p: int) -> list[Term]:
@@ -107,6 +134,23 @@ def parse_terms(text: object, option: str, initial: bool, p: int) -> list[Term]:
         kind, _, point = key.partition("__")
         out.append(Term(kind, point or ("x0" if initial else "x"), coef))
     return out
+
+
+def at_steps(terms: list[Term], steps: int, option: str) -> list[Term]:
+    """``terms`` with each point x_N-j (key "xm<j>") written as the output at step N - j
+    (key "x<N - j>") for N = ``steps`` (InputError naming ``option`` before step 0)."""
+
+    def key(point: str) -> str:
+        back = BACK_POINT.match(point)
+        if back is None:
+            return point
+        k = steps - int(back.group(1))
+        if k < 0:
+            raise InputError(f"{option}: x_N-{back.group(1)}: before the start (N = {steps})")
+        return "x" if k == steps else f"x{k}"
+
+    return [Term(t.kind, "__".join(key(q) for q in t.point.split("__")), t.coef)
+            for t in terms]
 
 
 def describe_terms(terms: list[Term]) -> str:

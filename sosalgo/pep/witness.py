@@ -324,8 +324,9 @@ def _document(spec: Spec, mt: Method, st: Any, V: np.ndarray, F: np.ndarray,
         for pt in st.points[j][:-1]:
             gt = [s * Fraction(float(v)) for v in pt.g @ V]
             g = [a + b for a, b in zip(gt, sstar[j], strict=True)]
-            pts.append({"label": pt.label, "g": list(map(_q, g)),
-                        "h": _q(s * Fraction(float(F[pt.f]))), "x": [float(v) for v in pt.x @ V]})
+            h = Fraction(0) if pt.f is None else s * Fraction(float(F[pt.f]))  # operator: 0
+            pts.append({"label": pt.label, "g": list(map(_q, g)), "h": _q(h),
+                        "x": [float(v) for v in pt.x @ V]})
         funcs[name] = {"class": cls.name, "params": {k: float(v) for k, v in params.items()},
                        "optimal_subgradient": list(map(_q, sstar[j])), "points": pts}
     p = mt.p

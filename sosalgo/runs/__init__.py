@@ -148,7 +148,7 @@ def analyze_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pa
     from sosalgo.report import analysis as rep
 
     spec, text = spec_with_text(spec, spec_text, overrides)
-    inputs.refuse_nonconvex(spec)
+    inputs.refuse_nonconvex(spec, linear_rates=True)
     if noise:  # one gradient call on F(m, L) only (sosalgo.sensitivity)
         from sosalgo.sensitivity.run import check_noise_spec
 

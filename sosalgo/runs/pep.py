@@ -344,12 +344,14 @@ PEP_LEGEND = ("tau: the SDP's worst case (floating point); tau_proven: proven up
               "witness_lower: witnessed lower bound (reached by an explicit function and start)")
 _TERM = re.compile(r"\b(f|dist|grad|sdist|mingrad)\b(\s*\(\s*([A-Za-z0-9_]+)\s*\))?")
 _DIFF = re.compile(r"\(f\(([A-Za-z0-9_]+)\) - f\*\) - \(f\(([A-Za-z0-9_]+)\) - f\*\)")
+_PAIR = re.compile(r"\bdist\s*\(\s*([A-Za-z0-9_]+(?:\s*-\s*\d+)?)\s*,"
+                   r"\s*([A-Za-z0-9_]+(?:\s*-\s*\d+)?)\s*\)")
 
 
 def term_words(text: str, initial: bool, several: bool) -> str:
-    """A measure or initial condition (``f``, ``2*dist``, ``f + L/2*grad(y_N)``) in words:
-    f(x_N) - f*, |x_0 - x*|^2, |grad f(y_N)|^2, |xi_N - xi*|^2 (``several``: a sum over
-    the functions)."""
+    """A measure or initial condition (``f``, ``2*dist``, ``f + L/2*grad(y_N)``,
+    ``dist(x_N, x_N-1)``) in words: f(x_N) - f*, |x_0 - x*|^2, |grad f(y_N)|^2,
+    |xi_N - xi*|^2, |x_N - x_N-1|^2 (``several``: a sum over the functions)."""
     def words(mt: re.Match[str]) -> str:
         kind, point = mt.group(1), mt.group(3) or ("x_0" if initial else "x_N")
         state = "xi_0" if initial else "xi_N"
@@ -358,7 +360,8 @@ def term_words(text: str, initial: bool, several: bool) -> str:
                 "sdist": f"|{state} - xi*|^2",
                 "mingrad": "min_{k <= N} |grad f(x_k)|^2"}[kind]
 
-    out = _DIFF.sub(r"f(\1) - f(\2)", _TERM.sub(words, str(text)))
+    out = _DIFF.sub(r"f(\1) - f(\2)", _TERM.sub(words, _PAIR.sub(r"|\1 - \2|^2",
+                                                                  str(text))))
     return out[1:-1] if out.startswith("(") and out.endswith(")") and out.count("(") == 2 \
         else out
 

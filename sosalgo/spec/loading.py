@@ -212,6 +212,15 @@ def _read_pipe(source: str) -> bytes:
         os.close(fd)
 
 
+def operator_functions(spec: Spec) -> list[str]:
+    """``name (class)`` of each function of ``spec`` whose class is an operator class (no
+    function values, :mod:`sosalgo.classes.operator`)."""
+    from sosalgo.classes import CLASSES
+
+    return [f"{name} ({decl.cls})" for name, decl in spec.functions.items()
+            if not CLASSES[decl.cls].has_values]
+
+
 def load_spec(path: str | Path) -> Spec:
     """Read and validate a YAML spec file."""
     return spec_from_text(read_spec_text(path), source=str(path))
@@ -383,8 +392,9 @@ class _Builder:
 
     def check_sublinear(self, spec: Spec) -> None:
         """A sublinear spec: no expression uses kappa (undefined when m = 0), and the
-        measure is a function value (the distance to a minimizer need not decrease)."""
-        if spec.measure != "function":
+        measure is a function value (the distance to a minimizer need not decrease; an
+        operator spec has no function value: ``measure: distance``)."""
+        if spec.measure != "function" and not operator_functions(spec):
             raise self.fail("measure", "distance has no rate when m: 0 (the minimizer need "
                             "not be unique): use measure: function")
         found = [(f"parameters.{p}", e) for p, par in spec.parameters.items()
