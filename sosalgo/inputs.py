@@ -60,7 +60,7 @@ def refuse_nonconvex(spec: Any, linear_rates: bool = False) -> None:
                          "linear or sublinear rate is certified for it (no Lyapunov family "
                          "applies); sosalgo pep bounds its worst case after N steps")
     ops = operator_functions(spec)
-    if ops and (spec.sublinear or not linear_rates):
+    if ops and (not spec.has_condition_number or not linear_rates):
         what = ("no sublinear family applies to it (m: 0)" if linear_rates else
                 "analyze certifies its linear rates (m > 0); design, grid and pareto do "
                 "not take it yet")

@@ -60,7 +60,7 @@ def family_applies(spec: "Spec", family: str) -> str | None:
     from sosalgo.spec.loading import operator_functions
 
     operators = operator_functions(spec)
-    if operators and (family != "interpolation" or spec.sublinear):
+    if operators and (family != "interpolation" or not spec.has_condition_number):
         return (f"{', '.join(operators)} is an operator class: only the interpolation "
                 "family certifies its rates, linear ones (m > 0; use sosalgo pep for a "
                 "worst case after N steps)")
