@@ -48,13 +48,19 @@ def check_grid_points(points: Any, n_free: int, label: str = "--points") -> int:
 def refuse_nonconvex(spec: Any) -> None:
     """InputError (one line) for a spec with a nonconvex function: no certificate family
     certifies a rate for it (``sosalgo pep`` bounds its N-step worst case)."""
-    from sosalgo.certificates import nonconvex_functions
+    from sosalgo.certificates import inhomogeneous_functions, nonconvex_functions
 
     bad = nonconvex_functions(spec)
     if bad:
         raise InputError(f"{spec.source}: functions: {', '.join(bad)} is nonconvex: no "
                          "linear or sublinear rate is certified for it (no Lyapunov family "
                          "applies); sosalgo pep bounds its worst case after N steps")
+    other = inhomogeneous_functions(spec)
+    if other:
+        raise InputError(f"{spec.source}: functions: {', '.join(other)}: its conditions are "
+                         "not pairwise homogeneous inequalities: no linear or sublinear rate "
+                         "is certified for it (no Lyapunov family applies); sosalgo pep "
+                         "bounds its worst case after N steps")
 
 
 def check_tol(tol: Any, label: str = "tol") -> float:

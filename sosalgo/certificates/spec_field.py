@@ -7,7 +7,13 @@ import dataclasses
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
 
-from sosalgo.certificates import FAMILIES, family_applies, get_family, nonconvex_functions
+from sosalgo.certificates import (
+    FAMILIES,
+    family_applies,
+    get_family,
+    inhomogeneous_functions,
+    nonconvex_functions,
+)
 
 if TYPE_CHECKING:  # only for annotations
     from sosalgo.spec.types import Spec
@@ -40,7 +46,8 @@ def check_certificate_field(spec: Spec, data: Mapping[str, Any],
     else:
         name, options = raw, {}
     problem = family_applies(spec, name)
-    if problem and ("certificate" in data or not nonconvex_functions(spec)):
+    if problem and ("certificate" in data or not (nonconvex_functions(spec)
+                                                  or inhomogeneous_functions(spec))):
         raise fail("certificate", problem)  # a nonconvex class: refused where used
     return dataclasses.replace(spec, certificate=name, certificate_options=options,
                                certificate_given="certificate" in data)

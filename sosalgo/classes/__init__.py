@@ -10,7 +10,14 @@ and add it below (or call :func:`register_class`); docs/classes.md.
 
 from __future__ import annotations
 
-from sosalgo.classes import convex, indicator, smooth, smooth_strongly_convex, strongly_convex
+from sosalgo.classes import (
+    convex,
+    convex_lipschitz,
+    indicator,
+    smooth,
+    smooth_strongly_convex,
+    strongly_convex,
+)
 from sosalgo.classes.base import ORACLE_KINDS, FunctionClass, Inequality, convex_form
 
 CLASSES: dict[str, FunctionClass] = {}
@@ -47,6 +54,7 @@ register_class(convex.CLASS)
 register_class(strongly_convex.CLASS)
 register_class(indicator.CLASS)
 register_class(smooth.CLASS)
+register_class(convex_lipschitz.CLASS)
 _SHIPPED = tuple(CLASSES.values())
 
 SEED_CLASS: FunctionClass = smooth_strongly_convex.CLASS  # F(m, L): a spec without functions:

@@ -202,6 +202,8 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
         params = {k: enclose(to_sympy(e).xreplace(base)) for k, e in decl.params.items()}
         funcs.append((fn.name, fn.cls, params))
         ineqs.append(exact_class_inequalities(fn.cls, params)[0])
+    extras = [class_extras(cls, params, len(fi)) for (_, cls, params), fi in zip(
+        funcs, ineqs, strict=True)]
     L = _scale(base[_sym("L")])
 
     def coef(t: Term) -> Any:
@@ -219,11 +221,36 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
                 bits=enclosure_bits(digits))
     mt.out_call = _exact_output_call(mats, om)
     mt.x0_call = _exact_start_call(mats, Xq, om)
+    if any(e is not None for e in extras):
+        mt.constants = [e[0] if e else [Fraction(0)] * len(fi)
+                        for e, fi in zip(extras, ineqs, strict=True)]
+        mt.scopes = [e[1] if e else ["pairs"] * len(fi)
+                     for e, fi in zip(extras, ineqs, strict=True)]
     g0, mt.smooth = initial_gradient(spec, om, float("nan") if kappa is None else kappa)
     if g0 is not None:  # the same start as the float method, exactly
         mt.G0 = np.array([enclose(to_sympy(b).xreplace(env))
                           for _, b in spec.initial_state], dtype=object)
     return mt
+
+
+def class_extras(cls: Any, params: Mapping[str, Any], count: int
+                 ) -> tuple[list[Any], list[str]] | None:
+    """(constants, scopes) of a class's ``count`` inequalities at exact parameters
+    (:meth:`~sosalgo.classes.base.FunctionClass.exact_constants`; scopes from its float
+    data), None for a homogeneous pairwise class; ValueError when the class has a
+    constant but no exact one (the proof would be about another class)."""
+    fl = cls.tilted({k: float(getattr(v, "c", v)) for k, v in params.items()})
+    if not any(i.constant or i.scope != "pairs" for i in fl):
+        return None
+    consts = cls.exact_constants(params)
+    if consts is None:
+        if any(i.constant for i in fl):
+            raise ValueError(f"class {cls.name}: no exact constants (exact_constants)")
+        consts = [Fraction(0)] * count
+    if len(consts) != count or len(fl) != count:
+        raise ValueError(f"class {cls.name}: {len(consts)} exact constants for {count} "
+                         "inequalities")
+    return list(consts), [i.scope for i in fl]
 
 
 def _proven_zero(v: sp.Expr) -> bool:
@@ -342,7 +369,8 @@ def _repaired(mt: Method, st: PEPStructure, lam: list[Fraction], tb: arb
 
     def residual(lq: list[Fraction]) -> tuple[arb_mat, list[arb]]:
         quad, lin = _residual_parts(mt, st, lq)
-        return quad, [tb * ball(st.init_f[k]) - ball(st.meas_f[k]) - lin[k]
+        t = coefficient(st, lq, tb)
+        return quad, [t * ball(st.init_f[k]) - ball(st.meas_f[k]) - lin[k]
                       for k in range(st.nF)]
 
     quad, cF = residual(lam)
@@ -365,6 +393,19 @@ def _repaired(mt: Method, st: PEPStructure, lam: list[Fraction], tb: arb
         return new, quad, cF
     quad, cF = residual(new)
     return new, quad, cF
+
+
+def coefficient(st: PEPStructure, lam: Sequence[Fraction], tb: arb) -> arb:
+    """The coefficient t of the initial condition in a certificate of the bound ``tb``:
+    tb itself for a homogeneous PEP; tb - sum_k lambda_k c_k with constants (then
+    measure <= t initial + sum_k lambda_k c_k <= tb when initial <= 1 and t >= 0)."""
+    if st.constants is None:
+        return tb
+    total = arb(0)
+    for lk, ck in zip(lam, st.constants, strict=True):
+        if lk:
+            total += ball(lk) * ball(ck)
+    return tb - total
 
 
 def _exact_fraction(v: Any) -> Fraction | None:
@@ -528,6 +569,8 @@ def prove_at(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
         I0 = arb_mat([[ball(v) for v in row] for row in st.init_q])
         M = arb_mat([[ball(v) for v in row] for row in st.meas_q])
         tb = ball(tq)
+        if st.free_values and st.constants is not None:
+            return False, list(lam), Fraction(0), "constants in a PEP without x*"
         if st.free_values:  # c_F = 0 exactly, in rationals (sosalgo.pep.structure)
             lam2, why = _balanced(mt, st, list(lam), tq, repair)
             if why:
@@ -539,25 +582,31 @@ def prove_at(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
         else:
             lam2 = list(lam)
             quad, lin = _residual_parts(mt, st, lam2)
-            cF = [tb * ball(st.init_f[k]) - ball(st.meas_f[k]) - lin[k]
-                  for k in range(st.nF)]
+            cF = [coefficient(st, lam2, tb) * ball(st.init_f[k]) - ball(st.meas_f[k])
+                  - lin[k] for k in range(st.nF)]
         bad = [k for k, c in enumerate(cF) if not c >= 0]
         if bad:
             return False, lam2, Fraction(0), f"value residual {bad[0]} is not proven >= 0"
-        ok, delta, why = prove_scaled_psd(I0 * tb - M - quad, w)
+        t = coefficient(st, lam2, tb)
+        if st.constants is not None and not t >= 0:
+            return False, lam2, Fraction(0), ("tau - sum of multipliers x constants is not "
+                                              "proven >= 0")
+        ok, delta, why = prove_scaled_psd(I0 * t - M - quad, w)
     if not ok:
         return False, lam2, Fraction(0), why
     return True, lam2, delta, (f"diag(w) S diag(w) ⪰ {float(delta):.3g} I: {why}; "
-                               + ("c_F = 0 (exact)" if st.free_values else "c_F >= 0"))
+                               + ("c_F = 0 (exact)" if st.free_values else "c_F >= 0")
+                               + ("" if st.constants is None else
+                                  "; tau = t + sum lambda_k c_k, t >= 0 (constants)"))
 
 
 def _bounding_terms(mt: Method, steps: int, mterms: list[Term], bound: Any) -> list[Term]:
     """The terms the proof is about: ``mterms``, or for a mingrad measure the proof's
     ``measure_bound`` once it is shown to bound the measure from above in exact rationals
     (:func:`sosalgo.pep.terms.dominates`); ValueError otherwise."""
-    from sosalgo.pep.terms import MIN_KIND, dominates, parse_terms
+    from sosalgo.pep.terms import MIN_OF, dominates, parse_terms
 
-    if not any(t.kind == MIN_KIND for t in mterms):
+    if not any(t.kind in MIN_OF for t in mterms):
         return mterms
     if not isinstance(bound, str):
         raise ValueError("a mingrad measure needs the proof's measure_bound")
@@ -760,6 +809,13 @@ def exact_step_method(spec: Any, kappa: float | None, sm: StepMethods, count: in
                 bits=enclosure_bits(digits), per_step=per)
     mt.x0_call = _step_start_call(mt, per[0])
     mt.out_call = _step_output_call(mt, per)
+    extras = [class_extras(cls, params, len(fi)) for (_, cls, params), fi in zip(
+        funcs, ineqs, strict=True)]
+    if any(e is not None for e in extras):
+        mt.constants = [e[0] if e else [Fraction(0)] * len(fi)
+                        for e, fi in zip(extras, ineqs, strict=True)]
+        mt.scopes = [e[1] if e else ["pairs"] * len(fi)
+                     for e, fi in zip(extras, ineqs, strict=True)]
     return mt
 
 
