@@ -111,13 +111,24 @@ def class_description(spec: Spec, kappa: float | None) -> dict[str, Any]:
     from sosalgo.pep.bind import class_kappa
 
     base = exact_base(spec, kappa)
+    env = _class_env(spec, base)
     out: dict[str, Any] = {str(k): str(v) for k, v in base.items()}
     if "kappa_enclosure" in (fields := kappa_fields(class_kappa(spec, kappa))):
         out["kappa_enclosure"] = fields["kappa_enclosure"]  # an irrational kappa's ball
     out["functions"] = {name: {"class": decl.cls, "params": {
-        k: str(to_sympy(e).xreplace(base)) for k, e in decl.params.items()}}
+        k: str(to_sympy(e).xreplace(env)) for k, e in decl.params.items()}}
         for name, decl in spec.functions.items()}
     return out
+
+
+def _class_env(spec: Spec, base: dict[sp.Symbol, sp.Expr]) -> dict[sp.Symbol, sp.Expr]:
+    """What the classes' parameters are evaluated at, exactly: m, L, kappa, and the
+    spec's parameters when a class names them (a class only ``pep`` answers may)."""
+    from sosalgo.kernel.expr.parse import to_sympy
+
+    named = {s for d in spec.functions.values() for e in d.params.values()
+             for s in to_sympy(e).free_symbols}
+    return _exact_env(spec, base) if named - set(base) else base
 
 
 def _scale(L: sp.Expr) -> Fraction:
@@ -197,9 +208,10 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
     X = _balls(Xq, digits)
     p = om.p
     funcs, ineqs = [], []
+    cenv = _class_env(spec, base)
     for fn in om.functions:
         decl = spec.functions[fn.name]
-        params = {k: enclose(to_sympy(e).xreplace(base)) for k, e in decl.params.items()}
+        params = {k: enclose(to_sympy(e).xreplace(cenv)) for k, e in decl.params.items()}
         funcs.append((fn.name, fn.cls, params))
         ineqs.append(exact_class_inequalities(fn.cls, params)[0])
     extras = [class_extras(cls, params, len(fi)) for (_, cls, params), fi in zip(
@@ -789,9 +801,11 @@ def exact_step_method(spec: Any, kappa: float | None, sm: StepMethods, count: in
     per = [(s["A"], s["B"], s["C"], s.get("D", zero)) for s in steps]
     base = exact_base(spec, kappa)
     funcs, ineqs = [], []
+    cenv = _class_env(spec, base)
     for fn in om.functions:
         decl = spec.functions[fn.name]
-        params = {k: enclose(to_sympy(e).xreplace(base), digits) for k, e in decl.params.items()}
+        params = {k: enclose(to_sympy(e).xreplace(cenv), digits)
+                  for k, e in decl.params.items()}
         funcs.append((fn.name, fn.cls, params))
         ineqs.append(exact_class_inequalities(fn.cls, params)[0])
 

@@ -299,7 +299,7 @@ class _Builder:
         tied_order(params, self.source)  # detects cycles
         value_order(params, self.source)
 
-        functions = self.functions(data.get("functions"))
+        functions = self.functions(data.get("functions"), frozenset(symbols))
         oracles = self.oracles(data.get("oracles", ["f"]), functions)
         measure = data.get("measure", "function")
         if measure not in MEASURES:
@@ -403,9 +403,12 @@ class _Builder:
                 raise self.fail(where, "uses kappa, undefined when m: 0 (use L)")
 
     # -- the oracle model ------------------------------------------------------------
-    def functions(self, raw: object) -> dict[str, FunctionDecl]:
+    def functions(self, raw: object, spec_names: frozenset[str] = frozenset()
+                  ) -> dict[str, FunctionDecl]:
         """``functions:`` name -> {class: NAME, <parameter>: expr}; default: one f in
-        F(m, L)."""
+        F(m, L). A class that no Lyapunov family takes (``homogeneous`` False: only
+        ``sosalgo pep`` answers) may name the spec's parameters ``spec_names`` too (M of
+        a Lipschitz class as the spec's parameter M)."""
         from sosalgo.classes import CLASSES, SEED_CLASS
 
         if raw is None:
@@ -433,7 +436,9 @@ class _Builder:
                 if key not in cls.parameters:
                     raise self.fail(f"{where}.{str(key)[:40]}", f"not a parameter of {cname} "
                                     f"(its parameters: {', '.join(cls.parameters) or 'none'})")
-                params[key] = self.expr(val, BASE_NAMES, f"{where}.{key}")
+                names = (frozenset(BASE_NAMES) | spec_names if not cls.homogeneous
+                         else BASE_NAMES)
+                params[key] = self.expr(val, names, f"{where}.{key}")
             given = frozenset(params)
             for key in cls.parameters:
                 if key not in params:
