@@ -132,12 +132,13 @@ def spec_numbers(path: Path, cache: Path) -> tuple[dict[str, Any], Path | None]:
     key = cache_key(text)
     data_file, figure = cache / f"{path.stem}-{key}.json", cache / f"{path.stem}-{key}.png"
     spec = sosalgo.load_spec(path)
-    from sosalgo.certificates import nonconvex_functions
+    from sosalgo.certificates import inhomogeneous_functions, nonconvex_functions
 
-    if spec.time_varying or nonconvex_functions(spec):  # sosalgo pep answers, no rate
+    pep_only = nonconvex_functions(spec) or inhomogeneous_functions(spec)
+    if spec.time_varying or pep_only:  # sosalgo pep answers, no rate
         rows = varying_rows(spec)
         for row in rows if not spec.time_varying else ():
-            row["nonconvex"] = True
+            row["nonconvex" if nonconvex_functions(spec) else "pep_only"] = True
         return {"name": spec.name, "rows": rows}, None
     if data_file.exists() and figure.exists():
         return json.loads(data_file.read_text(encoding="utf-8")), figure
@@ -208,7 +209,8 @@ def summary(rows: list[dict[str, Any]]) -> str:
     the table), or the certified constant."""
     if "steps" in rows[0]:
         return ("nonconvex, no rate: `sosalgo pep --steps N`" if rows[0].get("nonconvex")
-                else "changes with k: `sosalgo pep --steps N`")
+                else "no rate for its class: `sosalgo pep --steps N`"
+                if rows[0].get("pep_only") else "changes with k: `sosalgo pep --steps N`")
     if "constant" in rows[0]:
         c = rows[0]["proven"]
         return ("no constant certified" if c is None

@@ -290,12 +290,23 @@ def nonconvex(spec: Any) -> list[str]:
     return nonconvex_functions(spec)
 
 
+def inhomogeneous(spec: Any) -> list[str]:
+    """The spec's functions whose class has conditions no Lyapunov family takes (a
+    constant, a condition about x* alone; ``sosalgo pep`` answers)."""
+    from sosalgo.certificates import inhomogeneous_functions
+
+    return inhomogeneous_functions(spec)
+
+
 def steps_section(spec: Any, rows: list[dict[str, Any]]) -> list[str]:
     """A method that changes with k, or on a nonconvex class: what its matrices use, and
     its references against the horizon N (its worst case is the finite-horizon PEP,
     ``sosalgo pep --steps N``)."""
-    if nonconvex(spec) and not spec.time_varying:
-        text = (f"{', '.join(nonconvex(spec))} is nonconvex: no rate is certified (no "
+    if (nonconvex(spec) or inhomogeneous(spec)) and not spec.time_varying:
+        what = (f"{', '.join(nonconvex(spec))} is nonconvex" if nonconvex(spec) else
+                f"{', '.join(inhomogeneous(spec))}: its class's conditions are not "
+                "pairwise homogeneous inequalities")
+        text = (f"{what}: no rate is certified (no "
                 "Lyapunov family applies). Its worst case after $N$ steps is a performance "
                 "estimation problem: `sosalgo pep SPEC --steps N` (the pep command's "
                 "page: minimum over iterates and nonconvex classes).")
@@ -305,7 +316,8 @@ def steps_section(spec: Any, rows: list[dict[str, Any]]) -> list[str]:
         for row in rows:
             table.append(f"* - {row['steps']}")
             table += [f"  - {row['references'][r]:.6f}" for r in refs]
-        return ["## A nonconvex class", "", text, ""] + (table + ["```", ""] if refs else [])
+        head = "## A nonconvex class" if nonconvex(spec) else "## A class only pep answers"
+        return [head, "", text, ""] + (table + ["```", ""] if refs else [])
     text = (r"Its coefficients depend on the iteration $k = 0, \dots, N - 1$ (and the "
             "horizon $N$): the matrices above are those of step $k$")
     seqs = [f"${tex(sp.Symbol(s))}$" for s in spec.sequences]
@@ -342,7 +354,7 @@ def page_markdown(spec: Any, rows: list[dict[str, Any]], yaml_path: str, image: 
              md_text(spec.description), ""]
     lines += update_rule(spec)
     command = f"sosalgo analyze {spec.name}.yaml"
-    if spec.time_varying or nonconvex(spec):
+    if spec.time_varying or nonconvex(spec) or inhomogeneous(spec):
         lines += steps_section(spec, rows)
         command = f"sosalgo pep {spec.name}.yaml --steps {rows[0]['steps']}"
     else:

@@ -13,8 +13,11 @@ from __future__ import annotations
 from sosalgo.classes import (
     convex,
     convex_lipschitz,
+    convex_qg,
     indicator,
+    rsi_eb,
     smooth,
+    smooth_lojasiewicz,
     smooth_strongly_convex,
     strongly_convex,
 )
@@ -55,6 +58,9 @@ register_class(strongly_convex.CLASS)
 register_class(indicator.CLASS)
 register_class(smooth.CLASS)
 register_class(convex_lipschitz.CLASS)
+register_class(convex_qg.CLASS)
+register_class(rsi_eb.CLASS)
+register_class(smooth_lojasiewicz.CLASS)
 _SHIPPED = tuple(CLASSES.values())
 
 SEED_CLASS: FunctionClass = smooth_strongly_convex.CLASS  # F(m, L): a spec without functions:
