@@ -341,6 +341,24 @@ def _mixed(cand: SDPAnswer, inner: SDPAnswer, w: np.ndarray) -> SDPAnswer:
                    const=const)
 
 
+def _null_row_proof(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
+                    ans: SDPAnswer, mterms: list[Term], iterms: list[Term],
+                    ex: Method | None, cert: dict[str, Any]) -> None:
+    """The measure's own certificate with its near-zero rows of S made exactly zero in
+    rationals (a PEP with a free direction has no certificate with S ≻ 0, so no margin
+    proves it; :func:`sosalgo.pep.exact.null_row_multipliers`); ``cert`` updated when
+    proven."""
+    from sosalgo.pep.exact import prove_certificate
+
+    proof = prove_certificate(spec, kappa, data.st, mterms, iterms, float(ans.primal),
+                              ans.lam, data.w, ex, null=ans.S)  # type: ignore[arg-type]
+    if mt.bound is not None:
+        proof["measure_bound"] = mt.bound
+    if proof["proven"]:
+        cert.update(proof=proof, check_kind="exact (rational and ball arithmetic)",
+                    tau_proven=proof["tau_proven"], tau=ans.tau, margin=0.0)
+
+
 def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
                  ans: SDPAnswer, exact: bool, mterms: list[Term],
                  iterms: list[Term], ex: Method | None = None) -> dict[str, Any]:
@@ -381,6 +399,8 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
                         tau_proven=proof["tau_proven"], tau=cand.tau + cand.const,
                         margin=eps * tau)
             break
+    if exact and not cert.get("tau_proven") and ans.S is not None and not st.free_values:
+        _null_row_proof(spec, kappa, mt, data, ans, mterms, iterms, ex, cert)
     lam = best.lam
     S = best.S
     assert lam is not None and S is not None

@@ -487,10 +487,25 @@ def rational_up(x: Fraction, bits: int = 64) -> Fraction:
     return Fraction(math.ceil(x / Fraction(2) ** e)) * Fraction(2) ** e
 
 
-def prove_scaled_psd(S: arb_mat, w: np.ndarray) -> tuple[bool, Fraction, str]:
+def prove_scaled_psd(S: arb_mat, w: np.ndarray, zero: Sequence[int] = ()
+                     ) -> tuple[bool, Fraction, str]:
     """Prove D S D ⪰ delta I (D = diag(w), powers of two; so S ⪰ 0) for every matrix in
     the balls: a floating-point Cholesky factor L of mid(D S D) - t I, then
-    D S D - t I - L L' = E in ball arithmetic and |E|_F < t, so D S D ⪰ (t - |E|_F) I."""
+    D S D - t I - L L' = E in ball arithmetic and |E|_F < t, so D S D ⪰ (t - |E|_F) I.
+    ``zero``: rows of S proven exactly zero by the caller (in rationals: a direction the
+    certificate must leave free, :func:`null_row_multipliers`), dropped first: S ⪰ 0 if
+    and only if the rest is; delta is then 0 (the detail says how many)."""
+    keep = [i for i in range(S.nrows()) if i not in set(zero)]
+    if len(keep) == S.nrows():
+        return _prove_scaled_psd(S, w)
+    if not keep:
+        return True, Fraction(0), f"S = 0 exactly ({S.nrows()} rows)"
+    sub = arb_mat([[S[i, j] for j in keep] for i in keep])
+    ok, _, why = _prove_scaled_psd(sub, np.asarray(w)[keep])
+    return ok, Fraction(0), f"{S.nrows() - len(keep)} rows exactly 0, the rest: {why}"
+
+
+def _prove_scaled_psd(S: arb_mat, w: np.ndarray) -> tuple[bool, Fraction, str]:
     from sosalgo.kernel.arb import arb_fraction
     from sosalgo.kernel.exact import rational
 
@@ -527,11 +542,13 @@ def prove_scaled_psd(S: arb_mat, w: np.ndarray) -> tuple[bool, Fraction, str]:
 def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
                       mterms: list[Term], iterms: list[Term], tau: float,
                       lam: np.ndarray, w: np.ndarray | None = None,
-                      mt: Method | None = None) -> dict[str, Any]:
+                      mt: Method | None = None,
+                      null: np.ndarray | None = None) -> dict[str, Any]:
     """Prove measure <= tau' for a rational tau' >= tau (see the module); a dict with
     ``proven``, ``tau_proven`` (p/q), ``tau_proven_float``, ``detail``, ``seconds``.
     ``w``: the scale of the basis (powers of two, default 1); ``mt``: the exact method
-    (built here when not given)."""
+    (built here when not given); ``null``: the float S of a certificate whose rows near
+    zero are made exactly zero (:func:`null_row_multipliers`), nothing repaired."""
     from sosalgo.kernel.exact import fraction_str, rational
     from sosalgo.pep.bind import bound_method
 
@@ -554,7 +571,10 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
     detail = ""
     for step in TAU_STEPS:
         tq = decimal_up(Fraction(tau) * (1 + Fraction(step)))
-        ok, lq2, delta, why = prove_at(mt, st, lq, tq, w, repair=True)
+        if null is not None:
+            ok, lq2, delta, why = _prove_null_rows(mt, st, lam, tq, null[0], w)
+        else:
+            ok, lq2, delta, why = prove_at(mt, st, lq, tq, w, repair=True)
         if ok:
             return out | {"proven": True, "tau_proven": fraction_str(tq),
                           "tau_proven_float": float(tq), "delta": fraction_str(delta),
@@ -567,6 +587,130 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
                           "seconds": time.perf_counter() - t0}
         detail = why
     return out | {"detail": detail, "seconds": time.perf_counter() - t0}
+
+
+NULL_ROW = 1e-7  # a row of the scaled S this small (relative) is one the dual must zero
+
+
+SNAPS = ((100, 1e-6), (1000, 1e-7), (10 ** 4, 1e-8), None)  # (denominator, tolerance)
+
+
+def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Fraction,
+                         S: np.ndarray, w: np.ndarray,
+                         snap: tuple[int, float] | None = None) -> list[Fraction] | None:
+    """Exact multipliers, on the float ones' support, that make the rows of S the float
+    certificate leaves near zero exactly zero, the free coordinates at the float values
+    (``snap`` (q, tol): at the fraction of denominator <= q nearest each, when it is
+    within tol relative: an optimum with small denominators is then found exactly, with
+    its value residuals exactly 0); the value residuals that tq cannot raise (no initial
+    term on them) are set exactly to 0 too. None when the data are not exact rationals,
+    no such row exists, or the solution has a negative entry. A PEP whose
+    worst case leaves a direction free (x* far away under a condition on f alone) has no
+    certificate with S ≻ 0; these rows are then proven exactly zero
+    (:func:`prove_scaled_psd`)."""
+    import sympy as sp
+
+
+    Sh = S * np.outer(w, w)
+    scale = max(1.0, float(np.abs(Sh).max()))
+    null = [i for i in range(st.d) if np.abs(Sh[i]).max() <= NULL_ROW * scale]
+    top = float(np.max(lam, initial=0.0))
+    support = [k for k, v in enumerate(lam) if v > NULL_ROW * top]
+    if not null or not support or st.constants is not None or st.free_values:
+        return None
+    rows = _exact_pair_parts(mt, st, support)
+    if rows is None:
+        return None
+    quads, lins = rows
+    eqs, rhs = [], []
+    I0, M = _fraction_matrix(st.init_q), _fraction_matrix(st.meas_q)
+    fi, fm = _fraction_matrix([st.init_f]), _fraction_matrix([st.meas_f])
+    if I0 is None or M is None or fi is None or fm is None:
+        return None
+    for i in null:
+        for j in range(st.d):
+            eqs.append([q[i][j] for q in quads])
+            rhs.append(tq * I0[i][j] - M[i][j])
+    for i in range(st.nF):  # c_F[i] = -m_F[i] - sum lambda a_i: no tq to raise it
+        if fi[0][i] == 0:
+            eqs.append([a[i] for a in lins])
+            rhs.append(-fm[0][i])
+    A, b = sp.Matrix(eqs), sp.Matrix(rhs)
+    try:
+        sol, params, free = A.gauss_jordan_solve(b, freevar=True)
+    except ValueError:  # inconsistent: no exact certificate on this support
+        return None
+    guess = [_snapped(float(lam[support[i]]), snap) for i in free]
+    values = sol.xreplace({p: sp.Rational(g.numerator, g.denominator)
+                           for p, g in zip(params, guess, strict=True)})
+    out = [Fraction(0)] * len(lam)
+    for k, v in zip(support, values, strict=True):
+        q = Fraction(int(sp.Rational(v).p), int(sp.Rational(v).q))
+        if q < 0:
+            return None
+        out[k] = q
+    return out
+
+
+def _prove_null_rows(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Fraction,
+                     S: np.ndarray, w: np.ndarray
+                     ) -> tuple[bool, list[Fraction], Fraction, str]:
+    """:func:`prove_at` (nothing repaired) on the multipliers of
+    :func:`null_row_multipliers`, for each snap of :data:`SNAPS` until one proves."""
+    why = "no exact multipliers zero the certificate's null rows"
+    for snap in SNAPS:
+        exact_lam = null_row_multipliers(mt, st, lam, tq, S, w, snap)
+        if exact_lam is None:
+            continue
+        ok, lq2, delta, why = prove_at(mt, st, exact_lam, tq, w, repair=False)
+        if ok:
+            return ok, lq2, delta, why
+    return False, [], Fraction(0), why
+
+
+def _snapped(v: float, snap: tuple[int, float] | None) -> Fraction:
+    """The fraction of denominator <= q nearest v when within tol (relative; ``snap`` =
+    (q, tol)), else v's binary value."""
+    from sosalgo.kernel.exact import rational
+
+    if snap is None:
+        return rational(v)
+    short = Fraction(v).limit_denominator(snap[0])
+    return short if abs(short - Fraction(v)) <= snap[1] * abs(v) else rational(v)
+
+
+def _fraction_matrix(M: Any) -> list[list[Fraction]] | None:
+    """An exact matrix (rationals or radius-0 balls) as Fractions; None otherwise."""
+    out = []
+    for row in M:
+        vals = [_exact_fraction(v) for v in row]
+        if any(v is None for v in vals):
+            return None
+        out.append(vals)
+    return out
+
+
+def _exact_pair_parts(mt: Method, st: PEPStructure, support: list[int]
+                      ) -> tuple[list[list[list[Fraction]]], list[list[Fraction]]] | None:
+    """(X_k' Q_k X_k on G, a_k on F) of the pairs ``support`` in Fractions; None when some
+    entry is not an exact rational."""
+    s = _exact_fraction(mt.s)
+    if s is None:
+        return None
+    quads, lins = [], []
+    for k in support:
+        alpha, av, X = st.pair_rows(mt, k)
+        j, _, _, r = st.pairs[k]
+        Xf, Qf = _fraction_matrix(X), _fraction_matrix(mt.ineqs[j][r][1])
+        af = _fraction_matrix([av])
+        if Xf is None or Qf is None or af is None:
+            return None
+        XQ = [[sum(Qf[u][v] * Xf[v][c] for v in range(4)) for c in range(st.d)]
+              for u in range(4)]
+        quads.append([[sum(Xf[u][a] * XQ[u][c] for u in range(4)) for c in range(st.d)]
+                      for a in range(st.d)])
+        lins.append(af[0])
+    return quads, lins
 
 
 def prove_at(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
@@ -597,6 +741,8 @@ def prove_at(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
             cF = [coefficient(st, lam2, tb) * ball(st.init_f[k]) - ball(st.meas_f[k])
                   - lin[k] for k in range(st.nF)]
         bad = [k for k, c in enumerate(cF) if not c >= 0]
+        if bad and not repair and _rational_residuals_ok(mt, st, lam2, tq):
+            bad = []  # proven in rationals (a residual exactly 0: balls cannot say >= 0)
         if bad:
             return False, lam2, Fraction(0), f"value residual {bad[0]} is not proven >= 0"
         t = coefficient(st, lam2, tb)
@@ -604,12 +750,56 @@ def prove_at(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
             return False, lam2, Fraction(0), ("tau - sum of multipliers x constants is not "
                                               "proven >= 0")
         ok, delta, why = prove_scaled_psd(I0 * t - M - quad, w)
+        if not ok and not repair and st.constants is None:
+            zero = _rational_zero_rows(mt, st, lam2, tq)
+            if zero:
+                ok, delta, why = prove_scaled_psd(I0 * t - M - quad, w, zero)
     if not ok:
         return False, lam2, Fraction(0), why
     return True, lam2, delta, (f"diag(w) S diag(w) ⪰ {float(delta):.3g} I: {why}; "
                                + ("c_F = 0 (exact)" if st.free_values else "c_F >= 0")
                                + ("" if st.constants is None else
                                   "; tau = t + sum lambda_k c_k, t >= 0 (constants)"))
+
+
+def _rational_parts(mt: Method, st: PEPStructure, lam: Sequence[Fraction]
+                    ) -> tuple[list[list[Fraction]], list[Fraction]] | None:
+    """(sum_k lambda_k X_k' Q_k X_k, sum_k lambda_k a_k) in Fractions, None when some
+    datum is not an exact rational."""
+    support = [k for k, v in enumerate(lam) if v]
+    parts = _exact_pair_parts(mt, st, support)
+    if parts is None:
+        return None
+    quads, lins = parts
+    d = st.d
+    quad = [[sum((lam[k] * q[i][j] for k, q in zip(support, quads, strict=True)), Fraction(0))
+             for j in range(d)] for i in range(d)]
+    lin = [sum((lam[k] * a[i] for k, a in zip(support, lins, strict=True)), Fraction(0))
+           for i in range(st.nF)]
+    return quad, lin
+
+
+def _rational_residuals_ok(mt: Method, st: PEPStructure, lam: Sequence[Fraction],
+                           tq: Fraction) -> bool:
+    """c_F = tq i_F - m_F - sum lambda_k a_k >= 0 in exact rationals (homogeneous PEP)."""
+    fi, fm = _fraction_matrix([st.init_f]), _fraction_matrix([st.meas_f])
+    parts = _rational_parts(mt, st, lam) if st.constants is None else None
+    if parts is None or fi is None or fm is None:
+        return False
+    return all(tq * a - b - c >= 0 for a, b, c in zip(fi[0], fm[0], parts[1], strict=True))
+
+
+def _rational_zero_rows(mt: Method, st: PEPStructure, lam: Sequence[Fraction],
+                        tq: Fraction) -> list[int]:
+    """The rows of S = tq I0 - M - sum lambda_k Q_k that are exactly zero, in rationals
+    (none when some datum is irrational)."""
+    I0, M = _fraction_matrix(st.init_q), _fraction_matrix(st.meas_q)
+    parts = _rational_parts(mt, st, lam)
+    if parts is None or I0 is None or M is None:
+        return []
+    quad = parts[0]
+    return [i for i in range(st.d)
+            if all(tq * I0[i][j] - M[i][j] - quad[i][j] == 0 for j in range(st.d))]
 
 
 def _bounding_terms(mt: Method, steps: int, mterms: list[Term], bound: Any) -> list[Term]:
