@@ -590,6 +590,7 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
 
 
 NULL_ROW = 1e-7  # a row of the scaled S this small (relative) is one the dual must zero
+RATIONAL_MAX_D = 40  # the rational fallbacks of a proof: on PEPs of at most this basis
 
 
 SNAPS = ((100, 1e-6), (1000, 1e-7), (10 ** 4, 1e-8), None)  # (denominator, tolerance)
@@ -616,7 +617,8 @@ def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Frac
     null = [i for i in range(st.d) if np.abs(Sh[i]).max() <= NULL_ROW * scale]
     top = float(np.max(lam, initial=0.0))
     support = [k for k, v in enumerate(lam) if v > NULL_ROW * top]
-    if not null or not support or st.constants is not None or st.free_values:
+    if (not null or not support or st.constants is not None or st.free_values
+            or st.d > RATIONAL_MAX_D):
         return None
     rows = _exact_pair_parts(mt, st, support)
     if rows is None:
@@ -705,10 +707,14 @@ def _exact_pair_parts(mt: Method, st: PEPStructure, support: list[int]
         af = _fraction_matrix([av])
         if Xf is None or Qf is None or af is None:
             return None
-        XQ = [[sum(Qf[u][v] * Xf[v][c] for v in range(4)) for c in range(st.d)]
-              for u in range(4)]
-        quads.append([[sum(Xf[u][a] * XQ[u][c] for u in range(4)) for c in range(st.d)]
-                      for a in range(st.d)])
+        cols = [c for c in range(st.d) if any(Xf[u][c] for u in range(4))]
+        XQ = {c: [sum(Qf[u][v] * Xf[v][c] for v in range(4)) for u in range(4)]
+              for c in cols}
+        quad = [[Fraction(0)] * st.d for _ in range(st.d)]
+        for a in cols:
+            for c in cols:
+                quad[a][c] = sum(Xf[u][a] * XQ[c][u] for u in range(4))
+        quads.append(quad)
         lins.append(af[0])
     return quads, lins
 
@@ -741,7 +747,8 @@ def prove_at(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
             cF = [coefficient(st, lam2, tb) * ball(st.init_f[k]) - ball(st.meas_f[k])
                   - lin[k] for k in range(st.nF)]
         bad = [k for k, c in enumerate(cF) if not c >= 0]
-        if bad and not repair and _rational_residuals_ok(mt, st, lam2, tq):
+        small = st.d <= RATIONAL_MAX_D
+        if bad and not repair and small and _rational_residuals_ok(mt, st, lam2, tq):
             bad = []  # proven in rationals (a residual exactly 0: balls cannot say >= 0)
         if bad:
             return False, lam2, Fraction(0), f"value residual {bad[0]} is not proven >= 0"
@@ -750,7 +757,7 @@ def prove_at(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
             return False, lam2, Fraction(0), ("tau - sum of multipliers x constants is not "
                                               "proven >= 0")
         ok, delta, why = prove_scaled_psd(I0 * t - M - quad, w)
-        if not ok and not repair and st.constants is None:
+        if not ok and not repair and small and st.constants is None:
             zero = _rational_zero_rows(mt, st, lam2, tq)
             if zero:
                 ok, delta, why = prove_scaled_psd(I0 * t - M - quad, w, zero)
