@@ -1,10 +1,14 @@
 """Classes with conditions between a point and the minimizer (scope "optimum"):
-``convex_qg`` (PEPit's ConvexQGFunction, gradient_descent_qg_convex), ``rsi_eb``
-(RsiEbFunction, subgradient_method_rsi_eb) and ``smooth_lojasiewicz`` (the naive set of
-SmoothQuadraticLojasiewiczFunctionCheap, gradient_descent_quadratic_lojasiewicz_naive).
+``convex_qg`` (PEPit's ConvexQGFunction: gradient_descent_qg_convex, and the methods
+that change with k heavy_ball_momentum_qg_convex, gradient_descent_qg_convex_decreasing),
+``rsi_eb`` (RsiEbFunction, subgradient_method_rsi_eb) and ``smooth_lojasiewicz`` (the
+naive set of SmoothQuadraticLojasiewiczFunctionCheap,
+gradient_descent_quadratic_lojasiewicz_naive).
 
 PEPIT holds PEPit's own values, computed once outside sosalgo: PEPit 0.5.1 (pip, its own
 venv), cvxpy with Clarabel, calling ``wc_gradient_descent_qg_convex(L, gamma, n)``,
+``wc_heavy_ball_momentum_qg_convex(L, n)``,
+``wc_gradient_descent_qg_convex_decreasing(L, n)``,
 ``wc_subgradient_method_rsi_eb(mu, L, gamma, n)`` (PEPit.examples.
 unconstrained_convex_minimization) and ``wc_gradient_descent_quadratic_lojasiewicz_naive(
 L, mu, gamma, n)`` (PEPit.examples.nonconvex_optimization); the first of each is the
@@ -38,6 +42,11 @@ PEPIT = {
     "subgradient-rsi-eb": {(1, ("mu=0.1", "gamma=0.1"), 4): 0.9605949918596558,
                            (1, ("mu=0.2", "gamma=0.15"), 3): 0.8916660281348302,
                            (2, ("mu=0.5", "gamma=0.2"), 2): 0.9216131602018105},
+    "heavy-ball-qg": {(1, (), 5): 0.08333333333304546, (1, (), 3): 0.12499979408564711,
+                      (2, (), 4): 0.20000504799113414},
+    "gradient-qg-decreasing": {(1, (), 6): 0.10554774251597289,
+                               (1, (), 3): 0.15004835364547284,
+                               (2, (), 2): 0.3660323320162555},
     "gradient-pl": {(1, ("mu=0.2", "gamma=1"), 1): 0.727272663142927,
                     (1, ("mu=0.2", "gamma=1"), 3): 0.3846731780851856,
                     (2, ("mu=0.5", "gamma=0.3"), 2): 0.5807048288324516},
@@ -54,6 +63,13 @@ def _closed_form(name: str, L: float, sets: tuple[str, ...], n: int) -> float | 
     if name == "subgradient-rsi-eb":
         g, mu = v["gamma"], v["mu"]
         return (1 - 2 * g * mu + g * g * L * L) ** n
+    if name == "heavy-ball-qg":
+        return L / (2 * (n + 1))
+    if name == "gradient-qg-decreasing":  # PEPit's conjecture, which its PEP attains
+        u = 1.0
+        for _ in range(n):
+            u = u / 2 + (u * u / 4 + 2) ** 0.5
+        return L / (2 * u)
     return None
 
 
@@ -79,7 +95,7 @@ def _pep(tmp_path: Path, spec: Path, steps: int, sets: tuple[str, ...]) -> dict:
 
 @pytest.mark.parametrize("name,key", [(n, k) for n, cases in PEPIT.items() for k in cases])
 def test_pep_answers_pepits_question(tmp_path, name, key):
-    """PEPit's value (never below it beyond its solver's accuracy, 2e-5 relative here;
+    """PEPit's value (never below it beyond its solver's accuracy, 5e-5 relative here;
     never below its closed form where it has one), proven exactly from above (PL: its
     dual has S = 0 on whole basis rows, proven exactly zero in rationals; not at L = 2,
     where the null space is no set of rows), a verified witness from below."""
@@ -88,11 +104,11 @@ def test_pep_answers_pepits_question(tmp_path, name, key):
     pepit = PEPIT[name][key]
     ref = _closed_form(name, L, sets, steps)
     if ref is not None:
-        assert pepit == pytest.approx(ref, rel=2e-5)
+        assert pepit == pytest.approx(ref, rel=5e-5)
     else:
         ref = pepit
     assert doc["tau"] == pytest.approx(ref, rel=1e-6)
-    assert doc["tau"] >= pepit * (1 - 2e-5)
+    assert doc["tau"] >= pepit * (1 - 5e-5)
     check = doc["witness"]["check"]
     assert check["verified"] and Fraction(check["tau_lower"]) <= ref * (1 + 1e-7)
     assert Fraction(check["tau_lower"]) >= ref * (1 - 1e-4)
@@ -101,8 +117,9 @@ def test_pep_answers_pepits_question(tmp_path, name, key):
     upper = Fraction(doc["certificate"]["tau_proven"])
     # PEPit's own values carry its solver's error (0.1923078 at the first QG case, 8e-7
     # above the closed form L/2.6 = 0.1923077; 0.9216132 at the last RSI/EB case, 1.4e-5
-    # above 0.96^2 = 0.9216; both closed forms are proven and witnessed)
-    assert upper >= ref * (1 - 1e-9) and upper >= pepit * (1 - 2e-5)
+    # above 0.96^2 = 0.9216; 0.2000050 for heavy ball at L = 2, N = 4, 2.5e-5 above 1/5;
+    # the closed forms are proven and witnessed)
+    assert upper >= ref * (1 - 1e-9) and upper >= pepit * (1 - 5e-5)
     assert upper <= ref * (1 + 1e-4)
 
 
