@@ -11,12 +11,14 @@ and add it below (or call :func:`register_class`); docs/classes.md.
 from __future__ import annotations
 
 from sosalgo.classes import (
+    bounded_indicator,
     convex,
     convex_lipschitz,
     convex_qg,
     indicator,
     rsi_eb,
     smooth,
+    smooth_convex_lipschitz,
     smooth_lojasiewicz,
     smooth_strongly_convex,
     strongly_convex,
@@ -61,6 +63,8 @@ register_class(convex_lipschitz.CLASS)
 register_class(convex_qg.CLASS)
 register_class(rsi_eb.CLASS)
 register_class(smooth_lojasiewicz.CLASS)
+register_class(smooth_convex_lipschitz.CLASS)
+register_class(bounded_indicator.CLASS)
 _SHIPPED = tuple(CLASSES.values())
 
 SEED_CLASS: FunctionClass = smooth_strongly_convex.CLASS  # F(m, L): a spec without functions:
