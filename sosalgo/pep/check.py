@@ -502,7 +502,8 @@ def check_witness(doc: dict[str, Any], spec: Spec, mt: Method | ArbView | None =
                "the initial condition is not positive" if not init > 0 else "measure < 0")
         return out | {"detail": why, "seconds": time.perf_counter() - t0}
     lower = arb_fraction(meas.lower()) / arb_fraction(init.upper())
-    if av.mt.constants is not None:  # not scale invariant: see _inhomogeneous_lower
+    if av.mt.constants is not None and any(  # not scale invariant: _inhomogeneous_lower
+            not ball(c).is_zero() for fc in av.mt.constants for c in fc):
         lower = _inhomogeneous_lower(meas, init)
     return out | {"verified": True, "tau_lower": q_str(lower), "tau_lower_float": float(lower),
                   "detail": f"{checked} inequalities proven; the trajectory recomputed from "
