@@ -218,6 +218,11 @@ def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
     for the solver (about tau); the answer is in the original units. ``precise``: the
     measure's solves try tight tolerances first (:data:`ATTEMPTS`, not :data:`QUICK`)."""
     K = len(data.st.pairs)
+    # with constants the solver's problem is not scale invariant: the measure keeps its own
+    # unit (dividing it by tau alone left the projected gradient on a set of diameter 0.1
+    # "almost solved" at N = 2, and solved in unit 1)
+    fixed = bool(np.any(data.consts()))
+    unit = 1.0 if fixed else unit
     active, rounds, rescales, resolved = data.active, 0, 0, False
     exact_next = objective != "measure" or margin > 0  # a certificate: never rough
     while True:
@@ -236,7 +241,7 @@ def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
             # Nesterov at N = 80 solved its first margin twice: 60 s + 100 s)
             moved = _rescale(data, ans.G, ans.F)
             got = measure_value(data.st, ans.G, ans.F)
-            if got > 0 and abs(math.log2(got / unit)) > 2:
+            if got > 0 and abs(math.log2(got / unit)) > 2 and not fixed:
                 unit, moved = float(_pow2(np.array(got))), True
             if moved:
                 rescales += 1
@@ -256,7 +261,7 @@ def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
         bad = np.flatnonzero(viol < (0.5 * slack if slack > 0 else -data.violation))
         if not len(bad):
             if ans.status == "solved" and objective == "measure" and margin == 0 \
-                    and not resolved and _unit_off(data, ans, unit):
+                    and not resolved and not fixed and _unit_off(data, ans, unit):
                 unit, resolved = float(_pow2(np.array(measure_value(
                     data.st, ans.G, ans.F)))), True
                 continue  # the last answer, solved again in its own unit
