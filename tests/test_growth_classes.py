@@ -97,8 +97,8 @@ def _pep(tmp_path: Path, spec: Path, steps: int, sets: tuple[str, ...]) -> dict:
 def test_pep_answers_pepits_question(tmp_path, name, key):
     """PEPit's value (never below it beyond its solver's accuracy, 5e-5 relative here;
     never below its closed form where it has one), proven exactly from above (PL: its
-    dual has S = 0 on whole basis rows, proven exactly zero in rationals; not at L = 2,
-    where the null space is no set of rows), a verified witness from below."""
+    singular dual proven in exact rationals; not at L = 2, where its null space has no
+    short rational basis), a verified witness from below."""
     L, sets, steps = key
     doc = _pep(tmp_path, _spec(tmp_path, name, L), steps, sets)
     pepit = PEPIT[name][key]
@@ -113,7 +113,7 @@ def test_pep_answers_pepits_question(tmp_path, name, key):
     assert check["verified"] and Fraction(check["tau_lower"]) <= ref * (1 + 1e-7)
     assert Fraction(check["tau_lower"]) >= ref * (1 - 1e-4)
     if name == "gradient-pl" and L != 1:
-        return  # a dual whose null space is no set of basis rows: not proven (docs)
+        return  # a null space with no short rational basis: not proven (docs)
     upper = Fraction(doc["certificate"]["tau_proven"])
     # PEPit's own values carry its solver's error (0.1923078 at the first QG case, 8e-7
     # above the closed form L/2.6 = 0.1923077; 0.9216132 at the last RSI/EB case, 1.4e-5

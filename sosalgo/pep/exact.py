@@ -487,22 +487,12 @@ def rational_up(x: Fraction, bits: int = 64) -> Fraction:
     return Fraction(math.ceil(x / Fraction(2) ** e)) * Fraction(2) ** e
 
 
-def prove_scaled_psd(S: arb_mat, w: np.ndarray, zero: Sequence[int] = ()
-                     ) -> tuple[bool, Fraction, str]:
+def prove_scaled_psd(S: arb_mat, w: np.ndarray) -> tuple[bool, Fraction, str]:
     """Prove D S D ⪰ delta I (D = diag(w), powers of two; so S ⪰ 0) for every matrix in
     the balls: a floating-point Cholesky factor L of mid(D S D) - t I, then
     D S D - t I - L L' = E in ball arithmetic and |E|_F < t, so D S D ⪰ (t - |E|_F) I.
-    ``zero``: rows of S proven exactly zero by the caller (in rationals: a direction the
-    certificate must leave free, :func:`null_row_multipliers`), dropped first: S ⪰ 0 if
-    and only if the rest is; delta is then 0 (the detail says how many)."""
-    keep = [i for i in range(S.nrows()) if i not in set(zero)]
-    if len(keep) == S.nrows():
-        return _prove_scaled_psd(S, w)
-    if not keep:
-        return True, Fraction(0), f"S = 0 exactly ({S.nrows()} rows)"
-    sub = arb_mat([[S[i, j] for j in keep] for i in keep])
-    ok, _, why = _prove_scaled_psd(sub, np.asarray(w)[keep])
-    return ok, Fraction(0), f"{S.nrows() - len(keep)} rows exactly 0, the rest: {why}"
+    (A singular S is decided in exact rationals instead: :func:`prove_at`.)"""
+    return _prove_scaled_psd(S, w)
 
 
 def _prove_scaled_psd(S: arb_mat, w: np.ndarray) -> tuple[bool, Fraction, str]:
@@ -599,26 +589,26 @@ SNAPS = ((100, 1e-6), (1000, 1e-7), (10 ** 4, 1e-8), None)  # (denominator, tole
 def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Fraction,
                          S: np.ndarray, w: np.ndarray,
                          snap: tuple[int, float] | None = None) -> list[Fraction] | None:
-    """Exact multipliers, on the float ones' support, that make the rows of S the float
-    certificate leaves near zero exactly zero, the free coordinates at the float values
+    """Exact multipliers, on the float ones' support, with S v = 0 exactly for a rational
+    basis v of the float certificate's null space (:func:`rational_null_space`; a basis
+    row when S vanishes on a whole row), the free coordinates at the float values
     (``snap`` (q, tol): at the fraction of denominator <= q nearest each, when it is
     within tol relative: an optimum with small denominators is then found exactly, with
     its value residuals exactly 0); the value residuals that tq cannot raise (no initial
     term on them) are set exactly to 0 too. None when the data are not exact rationals,
-    no such row exists, or the solution has a negative entry. A PEP whose
-    worst case leaves a direction free (x* far away under a condition on f alone) has no
-    certificate with S ≻ 0; these rows are then proven exactly zero
-    (:func:`prove_scaled_psd`)."""
+    S has no null space, no rational basis is found, or the solution has a negative
+    entry. A PEP whose worst case leaves a direction free (x* far away under a condition
+    on f alone) has no certificate with S ≻ 0; S ⪰ 0 is then proven in exact rationals
+    (:func:`prove_at`)."""
     import sympy as sp
 
-
-    Sh = S * np.outer(w, w)
-    scale = max(1.0, float(np.abs(Sh).max()))
-    null = [i for i in range(st.d) if np.abs(Sh[i]).max() <= NULL_ROW * scale]
     top = float(np.max(lam, initial=0.0))
     support = [k for k, v in enumerate(lam) if v > NULL_ROW * top]
-    if (not null or not support or st.constants is not None or st.free_values
+    if (not support or st.constants is not None or st.free_values
             or st.d > RATIONAL_MAX_D):
+        return None
+    null = rational_null_space(S, w, snap)
+    if not null:
         return None
     rows = _exact_pair_parts(mt, st, support)
     if rows is None:
@@ -629,10 +619,11 @@ def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Frac
     fi, fm = _fraction_matrix([st.init_f]), _fraction_matrix([st.meas_f])
     if I0 is None or M is None or fi is None or fm is None:
         return None
-    for i in null:
-        for j in range(st.d):
-            eqs.append([q[i][j] for q in quads])
-            rhs.append(tq * I0[i][j] - M[i][j])
+    for v in null:  # (tq I0 - M - sum lambda_k C_k) v = 0, row by row
+        nz = [j for j in range(st.d) if v[j]]
+        for i in range(st.d):
+            eqs.append([sum(q[i][j] * v[j] for j in nz) for q in quads])
+            rhs.append(sum((tq * I0[i][j] - M[i][j]) * v[j] for j in nz))
     for i in range(st.nF):  # c_F[i] = -m_F[i] - sum lambda a_i: no tq to raise it
         if fi[0][i] == 0:
             eqs.append([a[i] for a in lins])
@@ -668,6 +659,51 @@ def _prove_null_rows(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Fraction
         if ok:
             return ok, lq2, delta, why
     return False, [], Fraction(0), why
+
+
+def rational_null_space(S: np.ndarray, w: np.ndarray,
+                        snap: tuple[int, float] | None) -> list[list[Fraction]] | None:
+    """A rational basis of the null space of the float S (eigenvalues of diag(w) S
+    diag(w) below NULL_ROW of its largest entry), in reduced row echelon form (the
+    identity on pivot coordinates) with its other entries snapped to fractions of
+    denominator <= q (``snap``; every basis row when None: a null space of whole rows
+    only); None when an entry does not snap."""
+    Sh = S * np.outer(w, w)
+    scale = max(1.0, float(np.abs(Sh).max()))
+    vals, vecs = np.linalg.eigh(0.5 * (Sh + Sh.T))
+    V = vecs[:, np.abs(vals) <= NULL_ROW * scale] * np.asarray(w)[:, None]  # S's null space
+    if not V.shape[1]:
+        return None
+    R = V.T.copy()  # rows span the null space: reduce to echelon form
+    pivots, r = [], 0
+    for c in range(R.shape[1]):
+        if r == R.shape[0]:
+            break
+        p = r + int(np.argmax(np.abs(R[r:, c])))
+        if abs(R[p, c]) <= 1e-8 * np.abs(R).max():
+            continue
+        R[[r, p]] = R[[p, r]]
+        R[r] /= R[r, c]
+        for i in range(R.shape[0]):
+            if i != r:
+                R[i] -= R[i, c] * R[r]
+        pivots.append(c)
+        r += 1
+    out = []
+    for row in R[:r]:
+        vec = []
+        for x in row:
+            if abs(x) <= 1e-9:
+                vec.append(Fraction(0))
+                continue
+            if snap is None:
+                return None
+            q = Fraction(float(x)).limit_denominator(snap[0])
+            if abs(q - Fraction(float(x))) > max(snap[1], 1e-9) * max(1.0, abs(x)):
+                return None
+            vec.append(q)
+        out.append(vec)
+    return out
 
 
 def _snapped(v: float, snap: tuple[int, float] | None) -> Fraction:
@@ -758,9 +794,8 @@ def prove_at(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
                                               "proven >= 0")
         ok, delta, why = prove_scaled_psd(I0 * t - M - quad, w)
         if not ok and not repair and small and st.constants is None:
-            zero = _rational_zero_rows(mt, st, lam2, tq)
-            if zero:
-                ok, delta, why = prove_scaled_psd(I0 * t - M - quad, w, zero)
+            ok, why = _rational_psd(mt, st, lam2, tq) or (ok, why)
+            delta = Fraction(0)
     if not ok:
         return False, lam2, Fraction(0), why
     return True, lam2, delta, (f"diag(w) S diag(w) ⪰ {float(delta):.3g} I: {why}; "
@@ -796,17 +831,23 @@ def _rational_residuals_ok(mt: Method, st: PEPStructure, lam: Sequence[Fraction]
     return all(tq * a - b - c >= 0 for a, b, c in zip(fi[0], fm[0], parts[1], strict=True))
 
 
-def _rational_zero_rows(mt: Method, st: PEPStructure, lam: Sequence[Fraction],
-                        tq: Fraction) -> list[int]:
-    """The rows of S = tq I0 - M - sum lambda_k Q_k that are exactly zero, in rationals
-    (none when some datum is irrational)."""
+def _rational_psd(mt: Method, st: PEPStructure, lam: Sequence[Fraction],
+                  tq: Fraction) -> tuple[bool, str] | None:
+    """S = tq I0 - M - sum lambda_k Q_k ⪰ 0 decided in exact rationals
+    (:func:`sosalgo.kernel.exact.prove_psd`: semidefinite allowed), None when some datum
+    is irrational or S is not proven."""
+    from sosalgo.kernel.exact import prove_psd
+
     I0, M = _fraction_matrix(st.init_q), _fraction_matrix(st.meas_q)
     parts = _rational_parts(mt, st, lam)
     if parts is None or I0 is None or M is None:
-        return []
+        return None
     quad = parts[0]
-    return [i for i in range(st.d)
-            if all(tq * I0[i][j] - M[i][j] - quad[i][j] == 0 for j in range(st.d))]
+    S = [[tq * I0[i][j] - M[i][j] - quad[i][j] for j in range(st.d)] for i in range(st.d)]
+    proof = prove_psd(S)
+    if not proof.psd:
+        return None
+    return True, f"S ⪰ 0 in exact rationals ({proof.kind}, {proof.method}: {proof.detail})"
 
 
 def _bounding_terms(mt: Method, steps: int, mterms: list[Term], bound: Any) -> list[Term]:
