@@ -492,10 +492,6 @@ def prove_scaled_psd(S: arb_mat, w: np.ndarray) -> tuple[bool, Fraction, str]:
     the balls: a floating-point Cholesky factor L of mid(D S D) - t I, then
     D S D - t I - L L' = E in ball arithmetic and |E|_F < t, so D S D ⪰ (t - |E|_F) I.
     (A singular S is decided in exact rationals instead: :func:`prove_at`.)"""
-    return _prove_scaled_psd(S, w)
-
-
-def _prove_scaled_psd(S: arb_mat, w: np.ndarray) -> tuple[bool, Fraction, str]:
     from sosalgo.kernel.arb import arb_fraction
     from sosalgo.kernel.exact import rational
 
