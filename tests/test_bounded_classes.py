@@ -133,6 +133,32 @@ def test_a_bounded_set_caps_the_distance(tmp_path):
     assert Fraction(two["certificate"]["tau_proven"]) <= Fraction(1, 100)
 
 
+@pytest.mark.parametrize("D,steps", [("1/10", 2), ("1/2", 3)])
+def test_projections_on_boxes_never_beat_the_proven_bound(tmp_path, D, steps):
+    """Projected gradient (h = 1/L, kappa = 10) on separable quadratics f = sum_i q_i/2
+    (x_i - c_i)^2, q_i in [m, L], over random boxes of diameter <= D (x* = the clipped
+    c), from starts at distance 1: |x_N - x*|^2 stays below the proven bound."""
+    doc = _pep(_projected(tmp_path, D), tmp_path, steps, "--kappa", "10")
+    upper = float(Fraction(doc["certificate"]["tau_proven"]))
+    m, L, diameter = 1.0, 10.0, float(Fraction(D))
+    rng = np.random.default_rng(8)
+    best = 0.0
+    for _ in range(300):
+        d = int(rng.integers(1, 4))
+        side = rng.uniform(0.1, 1, d)
+        side *= diameter * rng.uniform(0.5, 1) / np.linalg.norm(side)
+        lo = rng.uniform(-1, 1, d)
+        hi = lo + side
+        q, c = rng.uniform(m, L, d), rng.uniform(-2, 2, d)
+        xs = np.clip(c, lo, hi)
+        x0 = rng.standard_normal(d)
+        x = xs + x0 / np.linalg.norm(x0)
+        for _ in range(steps):
+            x = np.clip(x - q * (x - c) / L, lo, hi)
+        best = max(best, float((x - xs) @ (x - xs)))
+    assert 0 < best <= upper * (1 + 1e-9)
+
+
 @pytest.mark.parametrize("which", ["lipschitz", "bounded"])
 def test_analyze_refuses_in_one_line(tmp_path, which):
     spec = (_smooth_lipschitz(tmp_path, 1, "1", "1") if which == "lipschitz"
