@@ -216,17 +216,21 @@ def _two_functions(tmp_path: Path) -> Path:
     ("spec", ["pep", "--steps", "2", "--initial", "minf"], "--initial"),
     ("prox", ["pep", "--steps", "2"], "matrices.D"),
     ("two", ["pep", "--steps", "2", "--kappa", "2"], "functions"),
+    ("perstep", ["pep", "--steps", "2"], "functions.f.M"),
 ])
 def test_bad_input_one_line(tmp_path, case, args, field):
     """analyze refuses the class (no Lyapunov family takes an inhomogeneous condition);
     pep refuses a gradient measure (no gradient oracle), a minimum bounded from below or
     in the initial condition, a proximal step (no proximal oracle), and the class beside
-    another function (its conditions bound the function, not its tilt)."""
+    another function (its conditions bound the function, not its tilt), and a class
+    parameter naming a parameter that changes with k."""
     spec = {"spec": SPEC,
             "prox": _variant(tmp_path, matrices={"A": [[1]], "B": [["-gamma"]],
                                                  "C": [[1]], "D": [["-gamma"]],
                                                  "E": [[1]]}),
-            "two": _two_functions(tmp_path) if case == "two" else None}[case]
+            "two": _two_functions(tmp_path) if case == "two" else None,
+            "perstep": _variant(tmp_path, parameters={"M": {"value": "2 + k"},
+                                                      "gamma": {"value": "1/4"}})}[case]
     out = tmp_path / "o"
     r = CliRunner().invoke(cli, [args[0], str(spec), *args[1:], "--out", str(out)])
     assert r.exit_code == 2, r.output

@@ -64,6 +64,24 @@ __all__ = [
 # --------------------------------------------------------------------------- loading
 
 
+
+def constant_parameters(params: dict[str, Any]) -> frozenset[str]:
+    """The parameters whose value is one number for the whole run: not per step, and
+    (through ties) in m, L, kappa and such parameters only; a class only ``pep`` answers
+    may name them (its inequalities are the same at every step)."""
+    done: set[str] = set()
+    grew = True
+    while grew:
+        grew = False
+        for name, par in params.items():
+            if name in done or par.per_step or par.schedule is not None:
+                continue
+            names = set().union(*(e.names() for e in (par.value, par.tied) if e is not None))
+            if names <= set(BASE_NAMES) | done:
+                done.add(name)
+                grew = True
+    return frozenset(done)
+
 class _StrictLoader(yaml.SafeLoader):
     """SafeLoader that refuses duplicate keys and aliases (no billion-laughs tricks)."""
 
@@ -299,7 +317,7 @@ class _Builder:
         tied_order(params, self.source)  # detects cycles
         value_order(params, self.source)
 
-        functions = self.functions(data.get("functions"), frozenset(symbols))
+        functions = self.functions(data.get("functions"), constant_parameters(params))
         oracles = self.oracles(data.get("oracles", ["f"]), functions)
         measure = data.get("measure", "function")
         if measure not in MEASURES:
