@@ -224,13 +224,14 @@ def test_bad_input_one_line(tmp_path, case, args, field):
     in the initial condition, a proximal step (no proximal oracle), and the class beside
     another function (its conditions bound the function, not its tilt), and a class
     parameter naming a parameter that changes with k."""
-    spec = {"spec": SPEC,
-            "prox": _variant(tmp_path, matrices={"A": [[1]], "B": [["-gamma"]],
-                                                 "C": [[1]], "D": [["-gamma"]],
-                                                 "E": [[1]]}),
-            "two": _two_functions(tmp_path) if case == "two" else None,
-            "perstep": _variant(tmp_path, parameters={"M": {"value": "2 + k"},
-                                                      "gamma": {"value": "1/4"}})}[case]
+    spec = {"spec": lambda: SPEC,
+            "prox": lambda: _variant(tmp_path, matrices={"A": [[1]], "B": [["-gamma"]],
+                                                         "C": [[1]], "D": [["-gamma"]],
+                                                         "E": [[1]]}),
+            "two": lambda: _two_functions(tmp_path),
+            "perstep": lambda: _variant(tmp_path, parameters={"M": {"value": "2 + k"},
+                                                              "gamma": {"value": "1/4"}}),
+            }[case]()
     out = tmp_path / "o"
     r = CliRunner().invoke(cli, [args[0], str(spec), *args[1:], "--out", str(out)])
     assert r.exit_code == 2, r.output
