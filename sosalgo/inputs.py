@@ -51,7 +51,7 @@ def refuse_nonconvex(spec: Any, linear_rates: bool = False) -> None:
     case). ``linear_rates`` (``analyze``): an operator spec with m > 0 passes (the
     interpolation family certifies its linear rates; no sublinear family applies to
     operators)."""
-    from sosalgo.certificates import nonconvex_functions
+    from sosalgo.certificates import inhomogeneous_functions, nonconvex_functions
     from sosalgo.spec.loading import operator_functions
 
     bad = nonconvex_functions(spec)
@@ -66,6 +66,12 @@ def refuse_nonconvex(spec: Any, linear_rates: bool = False) -> None:
                 "not take it yet")
         raise InputError(f"{spec.source}: functions: {', '.join(ops)} is an operator class: "
                          f"{what}; sosalgo pep bounds its worst case after N steps")
+    other = inhomogeneous_functions(spec)
+    if other:
+        raise InputError(f"{spec.source}: functions: {', '.join(other)}: its conditions are "
+                         "not pairwise homogeneous inequalities: no linear or sublinear rate "
+                         "is certified for it (no Lyapunov family applies); sosalgo pep "
+                         "bounds its worst case after N steps")
 
 
 def check_tol(tol: Any, label: str = "tol") -> float:

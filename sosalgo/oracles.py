@@ -269,17 +269,23 @@ def _value(e) -> float:
     return constant_value(e)
 
 
-def bind_functions(spec: Spec, values: list[float]) -> tuple[BoundFunction, ...]:
-    """The spec's functions with their parameters at (m, L, kappa) = ``values``."""
+def bind_functions(spec: Spec, values: list[float],
+                   spec_params: Mapping[str, float] | None = None) -> tuple[BoundFunction, ...]:
+    """The spec's functions with their parameters at (m, L, kappa) = ``values`` and the
+    spec's parameter values ``spec_params`` (which a class that only ``pep`` answers may
+    name)."""
     from sosalgo.kernel.expr.compile import NumericError, compile_expression
     from sosalgo.spec.types import BASE_NAMES
 
+    extra = dict(spec_params or {})
+    names = (*BASE_NAMES, *extra)
+    full = list(values) + [float(v) for v in extra.values()]
     out = []
     for fname, decl in spec.functions.items():
         params = {}
         for key, expr in decl.params.items():
             try:
-                params[key] = float(compile_expression(expr, BASE_NAMES)(values))
+                params[key] = float(compile_expression(expr, names)(full))
             except NumericError as exc:
                 raise ModelError(f"functions.{fname}.{key}", str(exc)) from None
         out.append(BoundFunction(fname, CLASSES[decl.cls], params))
@@ -292,7 +298,7 @@ def make_method(spec: Spec, mats: Mapping[str, np.ndarray], m: float, L: float,
     names = list(spec.functions)
     D = mats.get("D", np.zeros((spec.p, spec.p)))
     return OracleMethod(mats["A"], mats["B"], mats["C"], D, mats.get("E"), m, L,
-                        bind_functions(spec, [m, L, kappa]),
+                        bind_functions(spec, [m, L, kappa], params),
                         tuple(names.index(f) for f in spec.oracles), spec.output,
                         spec.measure, params)
 

@@ -27,7 +27,8 @@ from sosalgo.steps import (
 )
 
 SPECS = Path(__file__).resolve().parents[1] / "specs"
-VARYING = ("ogm", "fista", "gradient-schedule", "momentum-schedule", "silver")
+VARYING = ("ogm", "fista", "gradient-schedule", "momentum-schedule", "silver", "heavy-ball-qg",
+           "gradient-qg-decreasing")
 GD = """
 name: t
 functions:

@@ -151,18 +151,20 @@ def spec_numbers(path: Path, cache: Path) -> tuple[dict[str, Any], Path | None]:
     key = cache_key(text)
     data_file, figure = cache / f"{path.stem}-{key}.json", cache / f"{path.stem}-{key}.png"
     spec = sosalgo.load_spec(path)
-    from sosalgo.certificates import nonconvex_functions
+    from sosalgo.certificates import inhomogeneous_functions, nonconvex_functions
     from sosalgo.spec.loading import operator_functions
     from sosalgo.steps import changes_with_k
 
     operators = bool(operator_functions(spec)) and spec.sublinear  # no family: pep answers
+    pep_only = bool(inhomogeneous_functions(spec))  # conditions no Lyapunov family takes
     if data_file.exists() and figure.exists():
         return json.loads(data_file.read_text(encoding="utf-8")), figure
-    if changes_with_k(spec) or nonconvex_functions(spec) or operators:  # no rate: pep
+    if changes_with_k(spec) or nonconvex_functions(spec) or operators or pep_only:  # no rate
         rows = pep_rows(spec)
         for row in rows:
             row["nonconvex"] = bool(nonconvex_functions(spec))
             row["operator"] = operators
+            row["pep_only"] = pep_only
     else:
         rows = sublinear_rows(spec) if spec.sublinear else linear_rows(spec)
     data = {"name": spec.name, "rows": rows}
@@ -232,7 +234,8 @@ def summary(rows: list[dict[str, Any]]) -> str:
     if "steps" in rows[0]:
         return ("nonconvex, no rate: `sosalgo pep --steps N`" if rows[0].get("nonconvex")
                 else "operators, no rate: `sosalgo pep --steps N`" if rows[0].get("operator")
-                else "changes with k: `sosalgo pep --steps N`")
+                else "no rate for its class: `sosalgo pep --steps N`"
+                if rows[0].get("pep_only") else "changes with k: `sosalgo pep --steps N`")
     if "constant" in rows[0]:
         c = rows[0]["proven"]
         return ("no constant certified" if c is None

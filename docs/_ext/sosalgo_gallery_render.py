@@ -306,6 +306,14 @@ def operator_section(spec: Any) -> list[str]:
     return ["## Operators", "", text, ""]
 
 
+def inhomogeneous(spec: Any) -> list[str]:
+    """The spec's functions whose class has conditions no Lyapunov family takes (a
+    constant, a condition about x* alone; ``sosalgo pep`` answers)."""
+    from sosalgo.certificates import inhomogeneous_functions
+
+    return inhomogeneous_functions(spec)
+
+
 def steps_section(spec: Any, rows: list[dict[str, Any]]) -> list[str]:
     """A method that changes with k, or on a nonconvex class: what its matrices use, and
     its references against the horizon N (its worst case is the finite-horizon PEP,
@@ -314,12 +322,16 @@ def steps_section(spec: Any, rows: list[dict[str, Any]]) -> list[str]:
 
     if operators_without_rate(spec) and not changes_with_k(spec):
         return operator_section(spec)
-    if not changes_with_k(spec):  # time-invariant on a nonconvex class
-        text = (f"{', '.join(nonconvex(spec))} is nonconvex: no rate is certified (no "
+    if not changes_with_k(spec):  # time-invariant on a class no Lyapunov family takes
+        what = (f"{', '.join(nonconvex(spec))} is nonconvex" if nonconvex(spec) else
+                f"{', '.join(inhomogeneous(spec))}: its class's conditions are not "
+                "pairwise homogeneous inequalities")
+        text = (f"{what}: no rate is certified (no "
                 "Lyapunov family applies). Its worst case after $N$ steps is a performance "
                 "estimation problem: `sosalgo pep SPEC --steps N` (the pep command's "
                 "page: minimum over iterates and nonconvex classes).")
-        return ["## A nonconvex class", "", text, ""]
+        head = "## A nonconvex class" if nonconvex(spec) else "## A class only pep answers"
+        return [head, "", text, ""]
     text = (r"Its coefficients depend on the iteration $k = 0, \dots, N - 1$ (and the "
             "horizon $N$): the matrices above are those of step $k$")
     seqs = [f"${tex(sp.Symbol(s))}$" for s in spec.sequences]

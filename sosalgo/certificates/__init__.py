@@ -68,6 +68,10 @@ def family_applies(spec: "Spec", family: str) -> str | None:
     if nonconvex:
         return (f"{', '.join(nonconvex)} is nonconvex: no Lyapunov family certifies a "
                 "linear or sublinear rate for it (use sosalgo pep)")
+    other = inhomogeneous_functions(spec)
+    if other:
+        return (f"{', '.join(other)}: its conditions are not pairwise homogeneous "
+                "inequalities: no Lyapunov family certifies a rate for it (use sosalgo pep)")
     applies_to = getattr(FAMILIES.get(family), "applies_to", None)
     return None if applies_to is None else applies_to(spec)
 
@@ -79,6 +83,16 @@ def nonconvex_functions(spec: "Spec") -> list[str]:
 
     return [f"{name} ({decl.cls})" for name, decl in spec.functions.items()
             if not get_class(decl.cls).convex]
+
+
+def inhomogeneous_functions(spec: "Spec") -> list[str]:
+    """``name (class)`` of each function of ``spec`` whose class has conditions other than
+    pairwise homogeneous inequalities (a constant, a condition about x* alone: no family
+    of this package takes them)."""
+    from sosalgo.classes import get_class
+
+    return [f"{name} ({decl.cls})" for name, decl in spec.functions.items()
+            if not get_class(decl.cls).homogeneous]
 
 
 def spec_family(spec: "Spec") -> CertificateFamily | None:
@@ -148,6 +162,7 @@ __all__ = [
     "DECLARED_COMMANDS", "LOWER_BOUND_COMMANDS", "SPEC_FAMILIES", "TIGHTEST_FIRST",
     "default_family",
     "default_family_name", "describe_family", "family_applies", "family_from_description",
+    "inhomogeneous_functions",
     "nonconvex_functions",
     "get_family",
     "register_family", "spec_family",

@@ -7,7 +7,13 @@ import dataclasses
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
 
-from sosalgo.certificates import FAMILIES, family_applies, get_family, nonconvex_functions
+from sosalgo.certificates import (
+    FAMILIES,
+    family_applies,
+    get_family,
+    inhomogeneous_functions,
+    nonconvex_functions,
+)
 from sosalgo.spec.loading import operator_functions
 
 if TYPE_CHECKING:  # only for annotations
@@ -41,8 +47,9 @@ def check_certificate_field(spec: Spec, data: Mapping[str, Any],
     else:
         name, options = raw, {}
     problem = family_applies(spec, name)
-    unfit = nonconvex_functions(spec) or operator_functions(spec)
+    unfit = (nonconvex_functions(spec) or operator_functions(spec)
+             or inhomogeneous_functions(spec))
     if problem and ("certificate" in data or not unfit):
-        raise fail("certificate", problem)  # a nonconvex or operator class: refused where used
+        raise fail("certificate", problem)  # a class no family takes: refused where used
     return dataclasses.replace(spec, certificate=name, certificate_options=options,
                                certificate_given="certificate" in data)

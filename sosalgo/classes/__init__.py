@@ -11,14 +11,20 @@ and add it below (or call :func:`register_class`); docs/classes.md.
 from __future__ import annotations
 
 from sosalgo.classes import (
+    bounded_indicator,
     cocoercive,
     convex,
+    convex_lipschitz,
+    convex_qg,
     indicator,
     lipschitz_operator,
     lipschitz_strongly_monotone,
     monotone,
     nonexpansive,
+    rsi_eb,
     smooth,
+    smooth_convex_lipschitz,
+    smooth_lojasiewicz,
     smooth_strongly_convex,
     strongly_convex,
     strongly_monotone,
@@ -65,6 +71,12 @@ register_class(cocoercive.CLASS)
 register_class(lipschitz_operator.CLASS)
 register_class(nonexpansive.CLASS)
 register_class(lipschitz_strongly_monotone.CLASS)
+register_class(convex_lipschitz.CLASS)
+register_class(convex_qg.CLASS)
+register_class(rsi_eb.CLASS)
+register_class(smooth_lojasiewicz.CLASS)
+register_class(smooth_convex_lipschitz.CLASS)
+register_class(bounded_indicator.CLASS)
 _SHIPPED = tuple(CLASSES.values())
 
 SEED_CLASS: FunctionClass = smooth_strongly_convex.CLASS  # F(m, L): a spec without functions:

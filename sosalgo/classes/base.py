@@ -18,6 +18,11 @@ interpolation certificate family only reads the data declared here:
 - ``has_values``: the members have function values (False: operators,
   :mod:`sosalgo.classes.operator`: no values, every inequality has alpha = 0, and a
   measure or initial condition in f is refused);
+- inhomogeneous and optimum-only conditions (:class:`Inequality` ``constant`` and
+  ``scope``; :meth:`FunctionClass.exact_constants`), with ``homogeneous`` False (no
+  Lyapunov family applies), ``alone`` (conditions on the function itself, not the tilted
+  one: the only function of its spec), ``minimizer`` (a nonconvex class whose PEP keeps
+  x*), ``interpolating`` (False: necessary conditions only, the PEP an upper bound);
 - ``zero_values``: every function value is 0 (indicators: f = 0 on the set);
 - ``finite_everywhere``: the function has a (sub)gradient at every point, so it may be
   evaluated where the method never queries it (the output point of ``measure: function``);
@@ -49,17 +54,29 @@ import numpy as np
 
 from sosalgo.classes.members import ProxFunction, quadratic
 
-__all__ = ["FunctionClass", "Inequality", "ORACLE_KINDS", "convex_form", "exact_convex_form"]
+__all__ = ["FunctionClass", "Inequality", "ORACLE_KINDS", "PAIR_SCOPES", "convex_form",
+           "exact_convex_form"]
 
 ORACLE_KINDS = ("gradient", "subgradient", "proximal")
 
 
+PAIR_SCOPES = ("pairs", "optimum")
+
+
 @dataclass(frozen=True)
 class Inequality:
-    """``alpha (f_a - f_b) + X' Q X >= 0`` on ``X = (x_a, x_b, g_a, g_b)`` (Q 4 x 4)."""
+    """``alpha (f_a - f_b) + X' Q X + constant >= 0`` on ``X = (x_a, x_b, g_a, g_b)``
+    (Q 4 x 4), required for every ordered pair of points (``scope`` "pairs") or only for
+    each point a with b = x*, the minimizer (``scope`` "optimum": quadratic growth, error
+    bounds, Lojasiewicz conditions; a condition on the point alone, such as |g_a|^2 <=
+    M^2, is one of these with Q on g_a only). ``constant`` >= 0, in the units of f (an
+    inhomogeneous condition: M^2, D^2); the PEP of a class with a constant is no longer
+    scale invariant, its worst case is the one under ``initial <= 1``."""
 
     alpha: float
     Q: np.ndarray
+    constant: float = 0.0
+    scope: str = "pairs"
 
 
 class FunctionClass:
@@ -77,6 +94,19 @@ class FunctionClass:
     tilt_invariant: bool = True
     noisy_gradients: bool = False
     tilted_text: tuple[str, str] | None = None  # (plain, LaTeX); None: listed by its data
+    # every condition is a pairwise homogeneous inequality (no constant, no condition
+    # about x* alone): False, no Lyapunov family of ``analyze`` applies; ``pep`` answers
+    homogeneous: bool = True
+    # its conditions hold for the function itself, not for the tilted one (a bound on
+    # |g|, on f - f*): the PEP takes it as the only function of the spec, whose optimal
+    # subgradient is then 0 (tilted = own data)
+    alone: bool = False
+    # its conditions are necessary but not sufficient for interpolation: a PEP over them
+    # is an upper bound of the worst case, not necessarily tight (said in the output)
+    interpolating: bool = True
+    # the PEP keeps a minimizer x* for it although it is not convex (the class has a
+    # global minimizer by assumption: PL, RSI/EB)
+    minimizer: bool = False
 
     def check(self, params: Mapping[str, float]) -> None:
         """Raise ValueError('<parameter>: what is wrong') for invalid values."""
@@ -108,6 +138,12 @@ class FunctionClass:
         """The exact twin of :meth:`tilted`: (alpha, Q) of each inequality, computed from the
         exact parameters (balls) with rational constants, so that every entry encloses the
         exact value; None: no exact data (the float data are enclosed instead)."""
+        return None
+
+    def exact_constants(self, params: Mapping[str, Any]) -> list[Any] | None:
+        """The exact twin of each inequality's ``constant`` (balls or rationals, from the
+        exact parameters), in the order of :meth:`exact_tilted`; None: every constant is
+        0 (a class with a nonzero constant must give them)."""
         return None
 
     def strong_convexity(self, params: Mapping[str, float]) -> float:

@@ -255,14 +255,17 @@ def pair_forms(doc: dict[str, Any], av: ArbView, pos: dict[str, Any]
         gram = Vm * Vm.transpose()
         npts = len(vecs) // 2
         rows = []
-        ends = npts if cls.convex else npts - 1  # a nonconvex class: no x* in its PEP
+        # a nonconvex class: no x* in its PEP (unless the class assumes a minimizer)
+        ends = npts if cls.convex or cls.minimizer else npts - 1
         for a in range(ends):
             for b in range(ends):
                 if a == b:
                     continue
                 idx = (2 * a, 2 * b, 2 * a + 1, 2 * b + 1)  # x_a, x_b, g_a, g_b
-                for alpha, Q in av.ineqs[j]:
-                    q = arb(0)
+                for r, (alpha, Q) in enumerate(av.ineqs[j]):
+                    if av.mt.scope(j, r) == "optimum" and b != npts - 1:
+                        continue  # a condition between a point and x* only
+                    q = ball(av.mt.constant(j, r))
                     for u in range(4):
                         for v in range(4):
                             if not Q[u][v].is_zero():
@@ -373,7 +376,7 @@ def pos_key(point: str, N: int, p: int) -> str:
 
 def _terms_value(terms: list[Term], doc: dict[str, Any], av: ArbView,
                  pos: dict[str, Any]) -> arb:
-    from sosalgo.pep.terms import DIFF_KIND, MIN_KIND, STEP_POINT, at_steps
+    from sosalgo.pep.terms import DIFF_KIND, MIN_OF, STEP_POINT, at_steps
 
     mt, N = av.mt, int(doc["steps"])
     total = arb(0)
@@ -386,9 +389,9 @@ def _terms_value(terms: list[Term], doc: dict[str, Any], av: ArbView,
             v = [a - b for a, b in zip(P, Q, strict=True)]
             total += c * _dot(v, v)
             continue
-        if t.kind == MIN_KIND:  # min over the iterates x_0 .. x_N (x_N: point "x")
-            each = [_terms_value([Term("grad", f"x{k}" if k < N else "x", t.coef)], doc, av,
-                                 pos) for k in range(N + 1)]
+        if t.kind in MIN_OF:  # min over the iterates x_0 .. x_N (x_N: point "x")
+            each = [_terms_value([Term(MIN_OF[t.kind], f"x{k}" if k < N else "x", t.coef)],
+                                 doc, av, pos) for k in range(N + 1)]
             total += arb_min(each)
             continue
         if t.kind == "sdist":
@@ -451,7 +454,7 @@ def _measure_initial(doc: dict[str, Any], spec: Spec, av: ArbView
     iterms = parse_terms(doc["initial"], "initial", True, p)
     if any(t.kind == "sdist" for t in iterms) != (doc.get("xi0") is not None):
         raise ValueError("an initial sdist needs the free start xi0, and only it")
-    if not all(cls.convex for _, cls, _ in av.mt.functions):
+    if not all(cls.convex or cls.minimizer for _, cls, _ in av.mt.functions):
         _differences_only(mterms, av)
         _differences_only(iterms, av)
     pos = positions(doc, av)
@@ -461,6 +464,14 @@ def _measure_initial(doc: dict[str, Any], spec: Spec, av: ArbView
             for c in range(int(doc["dimension"]))]
     return (checked, bad, not any(ssum), _terms_value(mterms, doc, av, pos),
             _terms_value(iterms, doc, av, pos))
+
+
+def _inhomogeneous_lower(meas: arb, init: arb) -> Fraction:
+    """The lower bound a witness gives on a PEP with constants (every one >= 0): its
+    measure when initial <= 1; else the witness scaled by r = initial^-1/2 < 1 (points,
+    subgradients by r, values by r^2) still satisfies every inequality (its homogeneous
+    part times r^2, plus a constant >= 0) and has initial 1: measure / initial."""
+    return arb_fraction(meas.lower()) / max(Fraction(1), arb_fraction(init.upper()))
 
 
 def check_witness(doc: dict[str, Any], spec: Spec, mt: Method | ArbView | None = None
@@ -498,6 +509,9 @@ def check_witness(doc: dict[str, Any], spec: Spec, mt: Method | ArbView | None =
                "the initial condition is not positive" if not init > 0 else "measure < 0")
         return out | {"detail": why, "seconds": time.perf_counter() - t0}
     lower = arb_fraction(meas.lower()) / arb_fraction(init.upper())
+    if av.mt.constants is not None and any(  # not scale invariant: _inhomogeneous_lower
+            not ball(c).is_zero() for fc in av.mt.constants for c in fc):
+        lower = _inhomogeneous_lower(meas, init)
     return out | {"verified": True, "tau_lower": q_str(lower), "tau_lower_float": float(lower),
                   "detail": f"{checked} inequalities proven; the trajectory recomputed from "
                             "the start and the calls", "seconds": time.perf_counter() - t0}

@@ -113,12 +113,18 @@ def float_method(om: Any, kappa: float) -> Method:
     def same(a: np.ndarray, b: np.ndarray) -> bool:
         return bool(np.abs(a - b).max(initial=0.0) <= 1e-12 * scale * (1 + np.abs(a).max()))
 
-    ineqs = [[(float(i.alpha), np.asarray(i.Q, float)) for i in fn.cls.tilted(fn.params)]
-             for fn in om.functions]
+    tilted = [fn.cls.tilted(fn.params) for fn in om.functions]
+    ineqs = [[(float(i.alpha), np.asarray(i.Q, float)) for i in fi] for fi in tilted]
     mt = Method(om.A, om.B, om.C, om.D, om.E, om.output,
                 [(fn.name, fn.cls, fn.params) for fn in om.functions], tuple(om.oracles),
                 X[:, 0], X[:, 1:], float(om.L), ineqs, coef, same,
                 deadbeat_gain(om.A, om.B, float(om.L)))
+    if any(i.constant or i.scope != "pairs" for fi in tilted for i in fi):
+        mt.constants = [[float(i.constant) for i in fi] for fi in tilted]
+        mt.scopes = [[i.scope for i in fi] for fi in tilted]
+        if any(c < 0 or not math.isfinite(c) for fc in mt.constants for c in fc):
+            raise InputError("functions: a class inequality has a negative or infinite "
+                             "constant (must be >= 0)")
     if om.output is None:
         mt.out_call = output_call(om.E, np.asarray(om.C, float), np.asarray(om.D, float),
                                   same)
@@ -203,14 +209,14 @@ def _resolve_min(mt: Method, steps: int, mterms: list[Term], iterms: list[Term],
                  kappa: float, solve_min: bool) -> list[Term]:
     """``mterms`` with a mingrad term replaced by its weighted sum (see
     :func:`pep_problem`); the text is kept as ``mt.bound``."""
-    from sosalgo.pep.terms import MIN_KIND, expand_min
+    from sosalgo.pep.terms import MIN_OF, expand_min
 
-    mins = [t for t in mterms if t.kind == MIN_KIND]
+    mins = [t for t in mterms if t.kind in MIN_OF]
     if not mins:
         return mterms
     if len(mins) > 1 or not mt.coef(mins[0]) > 0:
-        raise InputError(f"--measure: {MIN_KIND}: one term, with a positive coefficient (a "
-                         "minimum is bounded from above, not from below)")
+        raise InputError(f"--measure: {mins[0].kind}: one minimum term, with a positive "
+                         "coefficient (a minimum is bounded from above, not from below)")
     if solve_min:
         from sosalgo.pep.minimum import min_weights, rational_weights
 
@@ -329,7 +335,27 @@ def _mixed(cand: SDPAnswer, inner: SDPAnswer, w: np.ndarray) -> SDPAnswer:
     theta = min(1.0, 2 * (floor - a) / (b - a))
     lam = (1 - theta) * cand.lam + theta * inner.lam  # type: ignore[operator]
     tau = (1 - theta) * float(cand.tau) + theta * float(inner.tau)  # type: ignore[arg-type]
-    return replace(cand, tau=tau, lam=lam, S=(1 - theta) * cand.S + theta * inner.S)
+    const = (1 - theta) * cand.const + theta * inner.const
+    return replace(cand, tau=tau, lam=lam, S=(1 - theta) * cand.S + theta * inner.S,
+                   const=const)
+
+
+def _null_row_proof(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
+                    ans: SDPAnswer, mterms: list[Term], iterms: list[Term],
+                    ex: Method | None, cert: dict[str, Any]) -> None:
+    """The measure's own certificate with its near-zero rows of S made exactly zero in
+    rationals (a PEP with a free direction has no certificate with S ≻ 0, so no margin
+    proves it; :func:`sosalgo.pep.exact.null_row_multipliers`); ``cert`` updated when
+    proven."""
+    from sosalgo.pep.exact import prove_certificate
+
+    proof = prove_certificate(spec, kappa, data.st, mterms, iterms, float(ans.primal),
+                              ans.lam, data.w, ex, null=ans.S)  # type: ignore[arg-type]
+    if mt.bound is not None:
+        proof["measure_bound"] = mt.bound
+    if proof["proven"]:
+        cert.update(proof=proof, check_kind="exact (rational and ball arithmetic)",
+                    tau_proven=proof["tau_proven"], tau=ans.tau, margin=0.0)
 
 
 def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
@@ -341,7 +367,7 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
     st = data.st
     tau = float(ans.primal)  # type: ignore[arg-type]
     scale = max(1.0, ans.size)  # tr H + sum F': the margin's units
-    cert: dict[str, Any] = {"tau": ans.tau, "check_kind": "floating-point check",
+    cert: dict[str, Any] = {"tau": ans.tau + ans.const, "check_kind": "floating-point check",
                             "tau_proven": None, "proof": None}
     best = ans
     inner = _interior_certificate(data, tau, scale) if exact and data.strong else None
@@ -362,15 +388,18 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
                              "detail": "floating-point pre-check: S is not PSD (scaled)"}
             continue  # the exact proof would fail: the next margin
         # at least the reported tau (its float value, up to the solver's accuracy)
-        proof = prove_certificate(spec, kappa, st, mterms, iterms, max(cand.tau, tau),
-                                  cand.lam, data.w, ex)
+        proof = prove_certificate(spec, kappa, st, mterms, iterms,
+                                  max(cand.tau + cand.const, tau), cand.lam, data.w, ex)
         if mt.bound is not None:  # what the proof is about (a mingrad measure's bound)
             proof["measure_bound"] = mt.bound
         cert["proof"] = proof
         if proof["proven"]:
             cert.update(check_kind="exact (rational and ball arithmetic)",
-                        tau_proven=proof["tau_proven"], tau=cand.tau, margin=eps * tau)
+                        tau_proven=proof["tau_proven"], tau=cand.tau + cand.const,
+                        margin=eps * tau)
             break
+    if exact and not cert.get("tau_proven") and ans.S is not None and not st.free_values:
+        _null_row_proof(spec, kappa, mt, data, ans, mterms, iterms, ex, cert)
     lam = best.lam
     S = best.S
     assert lam is not None and S is not None

@@ -111,13 +111,24 @@ def class_description(spec: Spec, kappa: float | None) -> dict[str, Any]:
     from sosalgo.pep.bind import class_kappa
 
     base = exact_base(spec, kappa)
+    env = _class_env(spec, base)
     out: dict[str, Any] = {str(k): str(v) for k, v in base.items()}
     if "kappa_enclosure" in (fields := kappa_fields(class_kappa(spec, kappa))):
         out["kappa_enclosure"] = fields["kappa_enclosure"]  # an irrational kappa's ball
     out["functions"] = {name: {"class": decl.cls, "params": {
-        k: str(to_sympy(e).xreplace(base)) for k, e in decl.params.items()}}
+        k: str(to_sympy(e).xreplace(env)) for k, e in decl.params.items()}}
         for name, decl in spec.functions.items()}
     return out
+
+
+def _class_env(spec: Spec, base: dict[sp.Symbol, sp.Expr]) -> dict[sp.Symbol, sp.Expr]:
+    """What the classes' parameters are evaluated at, exactly: m, L, kappa, and the
+    spec's parameters when a class names them (a class only ``pep`` answers may)."""
+    from sosalgo.kernel.expr.parse import to_sympy
+
+    named = {s for d in spec.functions.values() for e in d.params.values()
+             for s in to_sympy(e).free_symbols}
+    return _exact_env(spec, base) if named - set(base) else base
 
 
 def _scale(L: sp.Expr) -> Fraction:
@@ -197,11 +208,14 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
     X = _balls(Xq, digits)
     p = om.p
     funcs, ineqs = [], []
+    cenv = _class_env(spec, base)
     for fn in om.functions:
         decl = spec.functions[fn.name]
-        params = {k: enclose(to_sympy(e).xreplace(base)) for k, e in decl.params.items()}
+        params = {k: enclose(to_sympy(e).xreplace(cenv)) for k, e in decl.params.items()}
         funcs.append((fn.name, fn.cls, params))
         ineqs.append(exact_class_inequalities(fn.cls, params)[0])
+    extras = [class_extras(cls, params, len(fi)) for (_, cls, params), fi in zip(
+        funcs, ineqs, strict=True)]
     L = _scale(base[_sym("L")])
 
     def coef(t: Term) -> Any:
@@ -219,11 +233,36 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
                 bits=enclosure_bits(digits))
     mt.out_call = _exact_output_call(mats, om)
     mt.x0_call = _exact_start_call(mats, Xq, om)
+    if any(e is not None for e in extras):
+        mt.constants = [e[0] if e else [Fraction(0)] * len(fi)
+                        for e, fi in zip(extras, ineqs, strict=True)]
+        mt.scopes = [e[1] if e else ["pairs"] * len(fi)
+                     for e, fi in zip(extras, ineqs, strict=True)]
     g0, mt.smooth = initial_gradient(spec, om, float("nan") if kappa is None else kappa)
     if g0 is not None:  # the same start as the float method, exactly
         mt.G0 = np.array([enclose(to_sympy(b).xreplace(env))
                           for _, b in spec.initial_state], dtype=object)
     return mt
+
+
+def class_extras(cls: Any, params: Mapping[str, Any], count: int
+                 ) -> tuple[list[Any], list[str]] | None:
+    """(constants, scopes) of a class's ``count`` inequalities at exact parameters
+    (:meth:`~sosalgo.classes.base.FunctionClass.exact_constants`; scopes from its float
+    data), None for a homogeneous pairwise class; ValueError when the class has a
+    constant but no exact one (the proof would be about another class)."""
+    fl = cls.tilted({k: float(getattr(v, "c", v)) for k, v in params.items()})
+    if not any(i.constant or i.scope != "pairs" for i in fl):
+        return None
+    consts = cls.exact_constants(params)
+    if consts is None:
+        if any(i.constant for i in fl):
+            raise ValueError(f"class {cls.name}: no exact constants (exact_constants)")
+        consts = [Fraction(0)] * count
+    if len(consts) != count or len(fl) != count:
+        raise ValueError(f"class {cls.name}: {len(consts)} exact constants for {count} "
+                         "inequalities")
+    return list(consts), [i.scope for i in fl]
 
 
 def _proven_zero(v: sp.Expr) -> bool:
@@ -343,7 +382,8 @@ def _repaired(mt: Method, st: PEPStructure, lam: list[Fraction], tb: arb
 
     def residual(lq: list[Fraction]) -> tuple[arb_mat, list[arb]]:
         quad, lin = _residual_parts(mt, st, lq)
-        return quad, [tb * ball(st.init_f[k]) - ball(st.meas_f[k]) - lin[k]
+        t = coefficient(st, lq, tb)
+        return quad, [t * ball(st.init_f[k]) - ball(st.meas_f[k]) - lin[k]
                       for k in range(st.nF)]
 
     quad, cF = residual(lam)
@@ -366,6 +406,19 @@ def _repaired(mt: Method, st: PEPStructure, lam: list[Fraction], tb: arb
         return new, quad, cF
     quad, cF = residual(new)
     return new, quad, cF
+
+
+def coefficient(st: PEPStructure, lam: Sequence[Fraction], tb: arb) -> arb:
+    """The coefficient t of the initial condition in a certificate of the bound ``tb``:
+    tb itself for a homogeneous PEP; tb - sum_k lambda_k c_k with constants (then
+    measure <= t initial + sum_k lambda_k c_k <= tb when initial <= 1 and t >= 0)."""
+    if st.constants is None:
+        return tb
+    total = arb(0)
+    for lk, ck in zip(lam, st.constants, strict=True):
+        if lk:
+            total += ball(lk) * ball(ck)
+    return tb - total
 
 
 def _exact_fraction(v: Any) -> Fraction | None:
@@ -438,7 +491,8 @@ def rational_up(x: Fraction, bits: int = 64) -> Fraction:
 def prove_scaled_psd(S: arb_mat, w: np.ndarray) -> tuple[bool, Fraction, str]:
     """Prove D S D ⪰ delta I (D = diag(w), powers of two; so S ⪰ 0) for every matrix in
     the balls: a floating-point Cholesky factor L of mid(D S D) - t I, then
-    D S D - t I - L L' = E in ball arithmetic and |E|_F < t, so D S D ⪰ (t - |E|_F) I."""
+    D S D - t I - L L' = E in ball arithmetic and |E|_F < t, so D S D ⪰ (t - |E|_F) I.
+    (A singular S is decided in exact rationals instead: :func:`prove_at`.)"""
     from sosalgo.kernel.arb import arb_fraction
     from sosalgo.kernel.exact import rational
 
@@ -475,11 +529,13 @@ def prove_scaled_psd(S: arb_mat, w: np.ndarray) -> tuple[bool, Fraction, str]:
 def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
                       mterms: list[Term], iterms: list[Term], tau: float,
                       lam: np.ndarray, w: np.ndarray | None = None,
-                      mt: Method | None = None) -> dict[str, Any]:
+                      mt: Method | None = None,
+                      null: np.ndarray | None = None) -> dict[str, Any]:
     """Prove measure <= tau' for a rational tau' >= tau (see the module); a dict with
     ``proven``, ``tau_proven`` (p/q), ``tau_proven_float``, ``detail``, ``seconds``.
     ``w``: the scale of the basis (powers of two, default 1); ``mt``: the exact method
-    (built here when not given)."""
+    (built here when not given); ``null``: the float S of a certificate whose rows near
+    zero are made exactly zero (:func:`null_row_multipliers`), nothing repaired."""
     from sosalgo.kernel.exact import fraction_str, rational
     from sosalgo.pep.bind import bound_method
 
@@ -502,7 +558,10 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
     detail = ""
     for step in TAU_STEPS:
         tq = decimal_up(Fraction(tau) * (1 + Fraction(step)))
-        ok, lq2, delta, why = prove_at(mt, st, lq, tq, w, repair=True)
+        if null is not None:
+            ok, lq2, delta, why = _prove_null_rows(mt, st, lam, tq, null[0], w)
+        else:
+            ok, lq2, delta, why = prove_at(mt, st, lq, tq, w, repair=True)
         if ok:
             return out | {"proven": True, "tau_proven": fraction_str(tq),
                           "tau_proven_float": float(tq), "delta": fraction_str(delta),
@@ -517,6 +576,182 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
     return out | {"detail": detail, "seconds": time.perf_counter() - t0}
 
 
+NULL_ROW = 1e-7  # a row of the scaled S this small (relative) is one the dual must zero
+RATIONAL_MAX_D = 40  # the rational fallbacks of a proof: on PEPs of at most this basis
+
+
+SNAPS = ((100, 1e-6), (1000, 1e-7), (10 ** 4, 1e-8), None)  # (denominator, tolerance)
+
+
+def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Fraction,
+                         S: np.ndarray, w: np.ndarray,
+                         snap: tuple[int, float] | None = None) -> list[Fraction] | None:
+    """Exact multipliers, on the float ones' support, with S v = 0 exactly for a rational
+    basis v of the float certificate's null space (:func:`rational_null_space`; a basis
+    row when S vanishes on a whole row), the free coordinates at the float values
+    (``snap`` (q, tol): at the fraction of denominator <= q nearest each, when it is
+    within tol relative: an optimum with small denominators is then found exactly, with
+    its value residuals exactly 0); the value residuals that tq cannot raise (no initial
+    term on them) are set exactly to 0 too. None when the data are not exact rationals,
+    S has no null space, no rational basis is found, or the solution has a negative
+    entry. A PEP whose worst case leaves a direction free (x* far away under a condition
+    on f alone) has no certificate with S ≻ 0; S ⪰ 0 is then proven in exact rationals
+    (:func:`prove_at`)."""
+    import sympy as sp
+
+    top = float(np.max(lam, initial=0.0))
+    support = [k for k, v in enumerate(lam) if v > NULL_ROW * top]
+    if (not support or st.constants is not None or st.free_values
+            or st.d > RATIONAL_MAX_D):
+        return None
+    null = rational_null_space(S, w, snap)
+    if not null:
+        return None
+    rows = _exact_pair_parts(mt, st, support)
+    if rows is None:
+        return None
+    quads, lins = rows
+    eqs, rhs = [], []
+    I0, M = _fraction_matrix(st.init_q), _fraction_matrix(st.meas_q)
+    fi, fm = _fraction_matrix([st.init_f]), _fraction_matrix([st.meas_f])
+    if I0 is None or M is None or fi is None or fm is None:
+        return None
+    for v in null:  # (tq I0 - M - sum lambda_k C_k) v = 0, row by row
+        nz = [j for j in range(st.d) if v[j]]
+        for i in range(st.d):
+            eqs.append([sum(q[i][j] * v[j] for j in nz) for q in quads])
+            rhs.append(sum((tq * I0[i][j] - M[i][j]) * v[j] for j in nz))
+    for i in range(st.nF):  # c_F[i] = -m_F[i] - sum lambda a_i: no tq to raise it
+        if fi[0][i] == 0:
+            eqs.append([a[i] for a in lins])
+            rhs.append(-fm[0][i])
+    A, b = sp.Matrix(eqs), sp.Matrix(rhs)
+    try:
+        sol, params, free = A.gauss_jordan_solve(b, freevar=True)
+    except ValueError:  # inconsistent: no exact certificate on this support
+        return None
+    guess = [_snapped(float(lam[support[i]]), snap) for i in free]
+    values = sol.xreplace({p: sp.Rational(g.numerator, g.denominator)
+                           for p, g in zip(params, guess, strict=True)})
+    out = [Fraction(0)] * len(lam)
+    for k, v in zip(support, values, strict=True):
+        q = Fraction(int(sp.Rational(v).p), int(sp.Rational(v).q))
+        if q < 0:
+            return None
+        out[k] = q
+    return out
+
+
+def _prove_null_rows(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Fraction,
+                     S: np.ndarray, w: np.ndarray
+                     ) -> tuple[bool, list[Fraction], Fraction, str]:
+    """:func:`prove_at` (nothing repaired) on the multipliers of
+    :func:`null_row_multipliers`, for each snap of :data:`SNAPS` until one proves."""
+    why = "no exact multipliers zero the certificate's null rows"
+    for snap in SNAPS:
+        exact_lam = null_row_multipliers(mt, st, lam, tq, S, w, snap)
+        if exact_lam is None:
+            continue
+        ok, lq2, delta, why = prove_at(mt, st, exact_lam, tq, w, repair=False)
+        if ok:
+            return ok, lq2, delta, why
+    return False, [], Fraction(0), why
+
+
+def rational_null_space(S: np.ndarray, w: np.ndarray,
+                        snap: tuple[int, float] | None) -> list[list[Fraction]] | None:
+    """A rational basis of the null space of the float S (eigenvalues of diag(w) S
+    diag(w) below NULL_ROW of its largest entry), in reduced row echelon form (the
+    identity on pivot coordinates) with its other entries snapped to fractions of
+    denominator <= q (``snap``; every basis row when None: a null space of whole rows
+    only); None when an entry does not snap."""
+    Sh = S * np.outer(w, w)
+    scale = max(1.0, float(np.abs(Sh).max()))
+    vals, vecs = np.linalg.eigh(0.5 * (Sh + Sh.T))
+    V = vecs[:, np.abs(vals) <= NULL_ROW * scale] * np.asarray(w)[:, None]  # S's null space
+    if not V.shape[1]:
+        return None
+    R = V.T.copy()  # rows span the null space: reduce to echelon form
+    pivots, r = [], 0
+    for c in range(R.shape[1]):
+        if r == R.shape[0]:
+            break
+        p = r + int(np.argmax(np.abs(R[r:, c])))
+        if abs(R[p, c]) <= 1e-8 * np.abs(R).max():
+            continue
+        R[[r, p]] = R[[p, r]]
+        R[r] /= R[r, c]
+        for i in range(R.shape[0]):
+            if i != r:
+                R[i] -= R[i, c] * R[r]
+        pivots.append(c)
+        r += 1
+    out = []
+    for row in R[:r]:
+        vec = []
+        for x in row:
+            if abs(x) <= 1e-9:
+                vec.append(Fraction(0))
+                continue
+            if snap is None:
+                return None
+            q = Fraction(float(x)).limit_denominator(snap[0])
+            if abs(q - Fraction(float(x))) > max(snap[1], 1e-9) * max(1.0, abs(x)):
+                return None
+            vec.append(q)
+        out.append(vec)
+    return out
+
+
+def _snapped(v: float, snap: tuple[int, float] | None) -> Fraction:
+    """The fraction of denominator <= q nearest v when within tol (relative; ``snap`` =
+    (q, tol)), else v's binary value."""
+    from sosalgo.kernel.exact import rational
+
+    if snap is None:
+        return rational(v)
+    short = Fraction(v).limit_denominator(snap[0])
+    return short if abs(short - Fraction(v)) <= snap[1] * abs(v) else rational(v)
+
+
+def _fraction_matrix(M: Any) -> list[list[Fraction]] | None:
+    """An exact matrix (rationals or radius-0 balls) as Fractions; None otherwise."""
+    out = []
+    for row in M:
+        vals = [_exact_fraction(v) for v in row]
+        if any(v is None for v in vals):
+            return None
+        out.append(vals)
+    return out
+
+
+def _exact_pair_parts(mt: Method, st: PEPStructure, support: list[int]
+                      ) -> tuple[list[list[list[Fraction]]], list[list[Fraction]]] | None:
+    """(X_k' Q_k X_k on G, a_k on F) of the pairs ``support`` in Fractions; None when some
+    entry is not an exact rational."""
+    s = _exact_fraction(mt.s)
+    if s is None:
+        return None
+    quads, lins = [], []
+    for k in support:
+        alpha, av, X = st.pair_rows(mt, k)
+        j, _, _, r = st.pairs[k]
+        Xf, Qf = _fraction_matrix(X), _fraction_matrix(mt.ineqs[j][r][1])
+        af = _fraction_matrix([av])
+        if Xf is None or Qf is None or af is None:
+            return None
+        cols = [c for c in range(st.d) if any(Xf[u][c] for u in range(4))]
+        XQ = {c: [sum(Qf[u][v] * Xf[v][c] for v in range(4)) for u in range(4)]
+              for c in cols}
+        quad = [[Fraction(0)] * st.d for _ in range(st.d)]
+        for a in cols:
+            for c in cols:
+                quad[a][c] = sum(Xf[u][a] * XQ[c][u] for u in range(4))
+        quads.append(quad)
+        lins.append(af[0])
+    return quads, lins
+
+
 def prove_at(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
              w: np.ndarray, repair: bool = True
              ) -> tuple[bool, list[Fraction], Fraction, str]:
@@ -529,6 +764,8 @@ def prove_at(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
         I0 = arb_mat([[ball(v) for v in row] for row in st.init_q])
         M = arb_mat([[ball(v) for v in row] for row in st.meas_q])
         tb = ball(tq)
+        if st.free_values and st.constants is not None:
+            return False, list(lam), Fraction(0), "constants in a PEP without x*"
         if st.free_values:  # c_F = 0 exactly, in rationals (sosalgo.pep.structure)
             lam2, why = _balanced(mt, st, list(lam), tq, repair)
             if why:
@@ -540,25 +777,83 @@ def prove_at(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
         else:
             lam2 = list(lam)
             quad, lin = _residual_parts(mt, st, lam2)
-            cF = [tb * ball(st.init_f[k]) - ball(st.meas_f[k]) - lin[k]
-                  for k in range(st.nF)]
+            cF = [coefficient(st, lam2, tb) * ball(st.init_f[k]) - ball(st.meas_f[k])
+                  - lin[k] for k in range(st.nF)]
         bad = [k for k, c in enumerate(cF) if not c >= 0]
+        small = st.d <= RATIONAL_MAX_D
+        if bad and not repair and small and _rational_residuals_ok(mt, st, lam2, tq):
+            bad = []  # proven in rationals (a residual exactly 0: balls cannot say >= 0)
         if bad:
             return False, lam2, Fraction(0), f"value residual {bad[0]} is not proven >= 0"
-        ok, delta, why = prove_scaled_psd(I0 * tb - M - quad, w)
+        t = coefficient(st, lam2, tb)
+        if st.constants is not None and not t >= 0:
+            return False, lam2, Fraction(0), ("tau - sum of multipliers x constants is not "
+                                              "proven >= 0")
+        ok, delta, why = prove_scaled_psd(I0 * t - M - quad, w)
+        if not ok and not repair and small and st.constants is None:
+            ok, why = _rational_psd(mt, st, lam2, tq) or (ok, why)
+            delta = Fraction(0)
     if not ok:
         return False, lam2, Fraction(0), why
     return True, lam2, delta, (f"diag(w) S diag(w) ⪰ {float(delta):.3g} I: {why}; "
-                               + ("c_F = 0 (exact)" if st.free_values else "c_F >= 0"))
+                               + ("c_F = 0 (exact)" if st.free_values else "c_F >= 0")
+                               + ("" if st.constants is None else
+                                  "; tau = t + sum lambda_k c_k, t >= 0 (constants)"))
+
+
+def _rational_parts(mt: Method, st: PEPStructure, lam: Sequence[Fraction]
+                    ) -> tuple[list[list[Fraction]], list[Fraction]] | None:
+    """(sum_k lambda_k X_k' Q_k X_k, sum_k lambda_k a_k) in Fractions, None when some
+    datum is not an exact rational."""
+    support = [k for k, v in enumerate(lam) if v]
+    parts = _exact_pair_parts(mt, st, support)
+    if parts is None:
+        return None
+    quads, lins = parts
+    d = st.d
+    quad = [[sum((lam[k] * q[i][j] for k, q in zip(support, quads, strict=True)), Fraction(0))
+             for j in range(d)] for i in range(d)]
+    lin = [sum((lam[k] * a[i] for k, a in zip(support, lins, strict=True)), Fraction(0))
+           for i in range(st.nF)]
+    return quad, lin
+
+
+def _rational_residuals_ok(mt: Method, st: PEPStructure, lam: Sequence[Fraction],
+                           tq: Fraction) -> bool:
+    """c_F = tq i_F - m_F - sum lambda_k a_k >= 0 in exact rationals (homogeneous PEP)."""
+    fi, fm = _fraction_matrix([st.init_f]), _fraction_matrix([st.meas_f])
+    parts = _rational_parts(mt, st, lam) if st.constants is None else None
+    if parts is None or fi is None or fm is None:
+        return False
+    return all(tq * a - b - c >= 0 for a, b, c in zip(fi[0], fm[0], parts[1], strict=True))
+
+
+def _rational_psd(mt: Method, st: PEPStructure, lam: Sequence[Fraction],
+                  tq: Fraction) -> tuple[bool, str] | None:
+    """S = tq I0 - M - sum lambda_k Q_k ⪰ 0 decided in exact rationals
+    (:func:`sosalgo.kernel.exact.prove_psd`: semidefinite allowed), None when some datum
+    is irrational or S is not proven."""
+    from sosalgo.kernel.exact import prove_psd
+
+    I0, M = _fraction_matrix(st.init_q), _fraction_matrix(st.meas_q)
+    parts = _rational_parts(mt, st, lam)
+    if parts is None or I0 is None or M is None:
+        return None
+    quad = parts[0]
+    S = [[tq * I0[i][j] - M[i][j] - quad[i][j] for j in range(st.d)] for i in range(st.d)]
+    proof = prove_psd(S)
+    if not proof.psd:
+        return None
+    return True, f"S ⪰ 0 in exact rationals ({proof.kind}, {proof.method}: {proof.detail})"
 
 
 def _bounding_terms(mt: Method, steps: int, mterms: list[Term], bound: Any) -> list[Term]:
     """The terms the proof is about: ``mterms``, or for a mingrad measure the proof's
     ``measure_bound`` once it is shown to bound the measure from above in exact rationals
     (:func:`sosalgo.pep.terms.dominates`); ValueError otherwise."""
-    from sosalgo.pep.terms import MIN_KIND, dominates, parse_terms
+    from sosalgo.pep.terms import MIN_OF, dominates, parse_terms
 
-    if not any(t.kind == MIN_KIND for t in mterms):
+    if not any(t.kind in MIN_OF for t in mterms):
         return mterms
     if not isinstance(bound, str):
         raise ValueError("a mingrad measure needs the proof's measure_bound")
@@ -743,9 +1038,11 @@ def exact_step_method(spec: Any, kappa: float | None, sm: StepMethods, count: in
     per = [(s["A"], s["B"], s["C"], s.get("D", zero)) for s in steps]
     base = exact_base(spec, kappa)
     funcs, ineqs = [], []
+    cenv = _class_env(spec, base)
     for fn in om.functions:
         decl = spec.functions[fn.name]
-        params = {k: enclose(to_sympy(e).xreplace(base), digits) for k, e in decl.params.items()}
+        params = {k: enclose(to_sympy(e).xreplace(cenv), digits)
+                  for k, e in decl.params.items()}
         funcs.append((fn.name, fn.cls, params))
         ineqs.append(exact_class_inequalities(fn.cls, params)[0])
 
@@ -763,6 +1060,13 @@ def exact_step_method(spec: Any, kappa: float | None, sm: StepMethods, count: in
                 bits=enclosure_bits(digits), per_step=per)
     mt.x0_call = _step_start_call(mt, per[0])
     mt.out_call = _step_output_call(mt, per)
+    extras = [class_extras(cls, params, len(fi)) for (_, cls, params), fi in zip(
+        funcs, ineqs, strict=True)]
+    if any(e is not None for e in extras):
+        mt.constants = [e[0] if e else [Fraction(0)] * len(fi)
+                        for e, fi in zip(extras, ineqs, strict=True)]
+        mt.scopes = [e[1] if e else ["pairs"] * len(fi)
+                     for e, fi in zip(extras, ineqs, strict=True)]
     return mt
 
 

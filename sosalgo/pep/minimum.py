@@ -1,4 +1,5 @@
-"""The ``mingrad`` measure: c min_{0<=k<=N} |grad f(x_k)|^2 + (linear terms).
+"""The ``mingrad`` measure: c min_{0<=k<=N} |grad f(x_k)|^2 + (linear terms) (``minf``:
+the same with f(x_k) - f*).
 
 The worst case max over the PEP of c min_k q_k(G) + l(G, F) equals min over weights w in
 the simplex of max over the PEP of c sum_k w_k q_k(G) + l(G, F) (a bilinear saddle over a
@@ -24,7 +25,7 @@ from sosalgo.kernel.conic import svec
 from sosalgo.kernel.solvers import SolverStatus, solve_attempts
 from sosalgo.pep.sdp import pep_data
 from sosalgo.pep.structure import Method, build_structure
-from sosalgo.pep.terms import MIN_KIND, Term, parse_terms
+from sosalgo.pep.terms import Term, parse_terms
 
 __all__ = ["min_floors", "min_weights", "rational_weights"]
 
@@ -46,7 +47,8 @@ def _forms(mt: Method, steps: int, mterms: list[Term], iterms: list[Term],
             whole = expand_min(mterms, steps, [Fraction(1, steps + 1)] * (steps + 1))
             base = build_structure(mt, steps, parse_terms(whole, option, False, mt.p), iterms)
         if st.labels != base.labels or st.basis != base.basis:
-            raise InputError(f"{option}: {MIN_KIND}: the iterates' points differ by step")
+            raise InputError(f"{option}: the minimum over the iterates: their points differ "
+                             "by step")
         forms.append((st.meas_q, st.meas_f))
     return base, forms
 
@@ -81,10 +83,11 @@ def min_weights(mt: Method, steps: int, mterms: list[Term], iterms: list[Term],
     b = np.concatenate([[1.0], np.zeros(K + M + nF + nG)])
     q = np.zeros(nv)
     q[0] = 1.0
+    q[1:1 + K] = data.consts() / sig  # the inequalities' constants (0: homogeneous)
     cones = [("zero", 1), ("nonneg", K + M + nF), ("psd", d)]
     sol, raw, status = solve_attempts(A, q, b, cones, ATTEMPTS)
     if sol is None or status != SolverStatus.SOLVED:
-        raise InputError(f"{option}: {MIN_KIND}: the PEP's minimum over the iterates was not "
+        raise InputError(f"{option}: the PEP's minimum over the iterates was not "
                          f"solved ({raw}; unbounded for this initial condition?)")
     w = np.clip(np.array(sol.x)[1 + K:], 0.0, None)
     return list(w / w.sum())

@@ -80,6 +80,8 @@ class PEPData:
     # an omitted pair violated by more (relative) joins the next solve; the constraint
     # generation ends when none is
     violation: float = 1e-9
+    # the constant of each pair's inequality (0: homogeneous; :attr:`PEPStructure.constants`)
+    c: np.ndarray | None = None
     _svec: dict[int, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
 
     def q(self, idx: np.ndarray, scaled: bool = False) -> np.ndarray:
@@ -114,11 +116,18 @@ class PEPData:
         """Every inequality at (G, F), relative to a bound on its largest coefficient in
         the solver's units, without forming the Q_k."""
         M = np.einsum("kui,kvi->kuv", self.X @ G, self.X)
-        val = np.einsum("kuv,kuv->k", self.Qc, M) + self.a @ F
+        val = np.einsum("kuv,kuv->k", self.Qc, M) + self.a @ F + self.consts()
         xw = np.abs(self.X * self.w).max(axis=2)
         size = (np.abs(self.Qc).max(axis=(1, 2)) * xw.max(axis=1) ** 2
                 + np.abs(self.a * self.v).max(axis=1, initial=0.0))
         return val / np.where(size > 0, size, 1.0)
+
+    def consts(self) -> np.ndarray:
+        """The constant of every pair's inequality (zeros for a homogeneous PEP)."""
+        if self.c is None:
+            self.c = (np.zeros(len(self.st.pairs)) if self.st.constants is None
+                      else self.st.constants.astype(float))
+        return self.c
 
 
 def _pair_svec(X: np.ndarray, Qc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -166,8 +175,9 @@ class SDPAnswer:
     dual: float | None = None
     G: np.ndarray | None = None
     F: np.ndarray | None = None
-    tau: float | None = None
+    tau: float | None = None  # the dual's coefficient of the initial condition
     lam: np.ndarray | None = None  # in the units of the unscaled inequalities
+    const: float = 0.0  # sum_k lambda_k c_k: the bound is tau + const (constants)
     S: np.ndarray | None = None
     size: float = 1.0  # tr H + sum F' (the solver's units): the margin's scale
     rounds: int = 0  # solves of the constraint generation
@@ -208,6 +218,11 @@ def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
     for the solver (about tau); the answer is in the original units. ``precise``: the
     measure's solves try tight tolerances first (:data:`ATTEMPTS`, not :data:`QUICK`)."""
     K = len(data.st.pairs)
+    # with constants the solver's problem is not scale invariant: the measure keeps its own
+    # unit (dividing it by tau alone left the projected gradient on a set of diameter 0.1
+    # "almost solved" at N = 2, and solved in unit 1)
+    fixed = bool(np.any(data.consts()))
+    unit = 1.0 if fixed else unit
     active, rounds, rescales, resolved = data.active, 0, 0, False
     exact_next = objective != "measure" or margin > 0  # a certificate: never rough
     while True:
@@ -226,7 +241,7 @@ def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
             # Nesterov at N = 80 solved its first margin twice: 60 s + 100 s)
             moved = _rescale(data, ans.G, ans.F)
             got = measure_value(data.st, ans.G, ans.F)
-            if got > 0 and abs(math.log2(got / unit)) > 2:
+            if got > 0 and abs(math.log2(got / unit)) > 2 and not fixed:
                 unit, moved = float(_pow2(np.array(got))), True
             if moved:
                 rescales += 1
@@ -246,7 +261,7 @@ def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
         bad = np.flatnonzero(viol < (0.5 * slack if slack > 0 else -data.violation))
         if not len(bad):
             if ans.status == "solved" and objective == "measure" and margin == 0 \
-                    and not resolved and _unit_off(data, ans, unit):
+                    and not resolved and not fixed and _unit_off(data, ans, unit):
                 unit, resolved = float(_pow2(np.array(measure_value(
                     data.st, ans.G, ans.F)))), True
                 continue  # the last answer, solved again in its own unit
@@ -324,7 +339,7 @@ def _solve_active(data: PEPData, active: np.ndarray, margin: float, objective: s
     if objective == "measure":
         return _solve_dual(data, active, margin, unit, attempts, rough)
     st, w, v = data.st, data.w, data.v
-    d, nF, K = st.d, st.nF, len(active)
+    d, nF = st.d, st.nF
     nG = d * (d + 1) // 2
     meas = _scaled_form(data, st.meas_q, st.meas_f) / unit
     init = _scaled_form(data, st.init_q, st.init_f)
@@ -334,7 +349,7 @@ def _solve_active(data: PEPData, active: np.ndarray, margin: float, objective: s
     sig = _row_scale(ineq)
     rows = [sps.csr_matrix(init[None, :]), -sps.diags(1.0 / sig) @ ineq,
             sps.hstack([sps.csr_matrix((nF, nG)), -sps.identity(nF)])]
-    b = [np.ones(1), np.full(K, -slack), np.zeros(nF)]
+    b = [np.ones(1), data.consts()[active] / sig - slack, np.zeros(nF)]
     if floor is not None:  # a mingrad measure: each of its forms (st.floors) at the floor
         for form in ([meas] if st.floors is None else
                      [_scaled_form(data, fq, ff) / unit for fq, ff in st.floors]):
@@ -403,6 +418,7 @@ def _solve_dual(data: PEPData, active: np.ndarray, margin: float, unit: float,
     b = np.concatenate([np.zeros(K), -(meas + eye)[nG:], -(meas + eye)[:nG]])
     q = np.zeros(1 + K)
     q[0] = 1.0
+    q[1:] = data.consts()[active] / sig  # bound / unit = tau' + sum_k x_k c_k / sig_k
     cones = [("nonneg", K + nF), ("psd", d)]
     sol, raw, st_ = solve_attempts(A, q, b, cones, attempts, final=(
         "PrimalInfeasible", "DualInfeasible") + (("AlmostSolved",) if rough else ()))
@@ -425,7 +441,8 @@ def _solve_dual(data: PEPData, active: np.ndarray, margin: float, unit: float,
     lam[active] = np.maximum(x[1:], 0.0) / sig * unit
     ans = SDPAnswer("solved", raw, float(sol.obj_val_dual) * unit, float(sol.obj_val) * unit,
                     G, F, float(x[0]) * unit, lam,
-                    size=float(np.trace(H)) + float(np.clip(Fs, 0, None).sum()))
+                    size=float(np.trace(H)) + float(np.clip(Fs, 0, None).sum()),
+                    const=float(lam @ data.consts()))
     ans.S = residual(data, ans.tau, lam)
     return ans
 

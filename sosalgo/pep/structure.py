@@ -47,7 +47,7 @@ import numpy as np
 
 from sosalgo.errors import InputError
 from sosalgo.oracles import CallShape
-from sosalgo.pep.terms import DIFF_KIND, MIN_KIND, STEP_POINT, Term, at_steps
+from sosalgo.pep.terms import DIFF_KIND, MIN_OF, STEP_POINT, Term, at_steps
 
 __all__ = ["Method", "PEPPoint", "PEPStructure", "build_structure", "enclosure_bits",
            "enclosure_digits", "last_calls", "output_call", "pair_label", "radius_growth"]
@@ -96,6 +96,18 @@ class Method(CallShape):
     # from xi_k to xi_{k+1}); None: A, B, C, D at every step (:meth:`step`)
     per_step: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] | None = None
     per_gain: list[np.ndarray] | None = None  # K_k of step k's basis (None: K at every step)
+    # per function, per inequality: its constant (>= 0, in the units of f) and its scope
+    # ("pairs" or "optimum", :class:`sosalgo.classes.base.Inequality`); None: 0, "pairs"
+    constants: list[list[Any]] | None = None
+    scopes: list[list[str]] | None = None
+
+    def constant(self, j: int, r: int) -> Any:
+        """The constant of function j's inequality r (0 when none)."""
+        return 0 if self.constants is None else self.constants[j][r]
+
+    def scope(self, j: int, r: int) -> str:
+        """The pairs function j's inequality r holds for: "pairs" or "optimum"."""
+        return "pairs" if self.scopes is None else self.scopes[j][r]
 
     def gain(self, k: int) -> np.ndarray:
         """The gain K_k of step k's basis vectors (:func:`_trajectory`)."""
@@ -143,6 +155,10 @@ class PEPStructure:
     # a mingrad measure: the forms c |grad f(x_k)|^2 + (linear terms), k = 0..N (the
     # witness keeps each at its floor, so that their minimum is; :mod:`sosalgo.pep.minimum`)
     floors: list[tuple[np.ndarray, np.ndarray]] | None = None
+    # the constant of each pair's inequality (None: all 0, the homogeneous PEP); with
+    # constants the worst case is the one under initial <= 1, and a dual certificate
+    # (tau, lambda) bounds the measure by tau + sum_k lambda_k c_k (:mod:`sosalgo.pep.sdp`)
+    constants: np.ndarray | None = None
 
     @property
     def d(self) -> int:
@@ -312,6 +328,7 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
                      initial: Sequence[Term], option: tuple[str, str]) -> PEPStructure:
     p, J, n = mt.p, len(mt.functions), mt.n
     free = any(t.kind == "sdist" for t in initial)
+    _check_alone(mt)
     origin = _check_nonconvex(mt, measure, initial, option)
     n0 = n if free else 1
     needs_n = mt.output is not None or any(q.startswith("y") for t in measure
@@ -370,8 +387,8 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
     for key, terms, opt in (("m", measure, option[0]), ("i", initial, option[1])):
         forms[key] = []
         for t in at_steps(list(terms), steps, opt):
-            if t.kind == MIN_KIND:
-                raise InputError(f"{opt}: {MIN_KIND}: expand it first (terms.expand_min)")
+            if t.kind in MIN_OF:
+                raise InputError(f"{opt}: {t.kind}: expand it first (terms.expand_min)")
             rows = [_point_row(mt, xi, Yr, where, q, steps, opt) for q in t.point.split("__")]
             if t.kind == DIFF_KIND:  # |P - Q|^2
                 v = rows[0] - rows[1]
@@ -395,13 +412,25 @@ def _point_row(mt: Method, xi: list[np.ndarray], Yr: list[list[np.ndarray]],
     return where[point]
 
 
+def _check_alone(mt: Method) -> None:
+    """InputError unless a class whose conditions hold for the function itself (not the
+    tilted one: ``alone``) is the only function, started at x_0 (its optimal subgradient
+    is then 0, so its tilted data are its own)."""
+    alone = [f"{name} ({cls.name})" for name, cls, _ in mt.functions if cls.alone]
+    if alone and (len(mt.functions) > 1 or mt.G0 is not None):
+        raise InputError(f"functions: {alone[0]}: its conditions bound the function itself "
+                         "(not up to a linear term): its PEP takes it as the only function, "
+                         "started at x_0 (no initial_state gradient)")
+
+
 def _check_nonconvex(mt: Method, measure: Sequence[Term], initial: Sequence[Term],
                      option: tuple[str, str]) -> bool:
     """Whether the PEP has no x* (a nonconvex class: a stationary point below the points
     is not a minimizer, :mod:`sosalgo.classes.smooth`): then one function, no term about
     x* (dist, sdist), and f only in differences (the f terms' coefficients sum to 0, so
     that f* cancels; checked on floats). InputError naming the option otherwise."""
-    bad = [f"{name} ({cls.name})" for name, cls, _ in mt.functions if not cls.convex]
+    bad = [f"{name} ({cls.name})" for name, cls, _ in mt.functions
+           if not cls.convex and not cls.minimizer]
     if not bad:
         return False
     if len(mt.functions) > 1 or mt.G0 is not None:
@@ -471,21 +500,28 @@ def _finish(mt: Method, steps: int, calls: int, state: dict[str, Any],
                                 keep, nF, dt)
     init_q, init_f = _sum_forms([q for q, _ in forms["i"]], [f for _, f in forms["i"]],
                                 keep, nF, dt)
-    pairs, labels = [], []
+    pairs, labels, consts = [], [], []
     for j, (fname, cls, _) in enumerate(mt.functions):
         many = len(mt.ineqs[j]) > 1
-        star = cls.convex  # a nonconvex class has no minimizer in its PEP: no x* pairs
+        # a nonconvex class has no minimizer in its PEP (unless it assumes one): no x* pairs
+        star = cls.convex or cls.minimizer
         for a, pa in enumerate(pts[j]):
             for b, pb in enumerate(pts[j]):
                 if a != b and (star or "x*" not in (pa.label, pb.label)):
                     for r in range(len(mt.ineqs[j])):
+                        if mt.scope(j, r) == "optimum" and pb.label != "x*":
+                            continue  # a condition between a point and x* only
                         pairs.append((j, a, b, r))
                         labels.append(pair_label(fname, pa.label, pb.label, r, many))
+                        consts.append(mt.constant(j, r))
     cut = {"xi": [x[:, keep] for x in rows["xi"]], "y": [y[:, keep] for y in rows["y"]],
            "u": [u[:, keep] for u in rows["u"]], "x": rows["x"][keep]}
-    return PEPStructure(steps, calls, [state["cols"][c] for c in keep], pts, nF, pairs,
-                        labels, meas_q, meas_f, init_q, init_f, cut, state["at"],
-                        state["origin"])
+    st = PEPStructure(steps, calls, [state["cols"][c] for c in keep], pts, nF, pairs,
+                      labels, meas_q, meas_f, init_q, init_f, cut, state["at"],
+                      state["origin"])
+    if mt.constants is not None and any(_nonzero(c) for c in consts):
+        st.constants = np.array(consts, dtype=dt)
+    return st
 
 
 def _obj_eye(k: int) -> np.ndarray:

@@ -3,15 +3,15 @@
 ``f`` = sum_j f_j(x) - f_j*, ``dist`` = |x - x*|^2, ``grad`` = |grad f(x)|^2 of the smooth
 part (the functions of a class with a gradient oracle), ``sdist`` = |xi - xi*|^2 over
 every state block (an initial ``sdist`` makes the start free), ``mingrad`` = the minimum
-over the iterates x_0, ..., x_N of |grad f(x_k)|^2 (measure only, coefficient > 0:
-:func:`expand_min`), ``dist(P, Q)`` = |P - Q|^2 between two points of the trajectory
-(``dist(x_N, x_N-1)``: the last step's length; kind ``diff``); ``c`` is an expression in
-m, L, kappa. A measure term may name its point: ``f(x_N)`` (the output, the default),
-``grad(x_3)`` (the output after 3 steps), ``dist(y_N)`` (the point of the single call),
-``grad(y2_N)`` (the point of call 2), ``grad(x_N-1)`` (the output one step before the
-last); an initial term is at x_0 or at x_N (``f(x_0) - f(x_N)``). The string is parsed by
-:mod:`sosalgo.kernel.expr` (never evaluated) and split into its linear terms; anything
-nonlinear in f, dist, grad is refused.
+over the iterates x_0, ..., x_N of |grad f(x_k)|^2 and ``minf`` = the minimum over them of
+f(x_k) - f* (measures only, coefficient > 0: :func:`expand_min`), ``dist(P, Q)`` =
+|P - Q|^2 between two points of the trajectory (``dist(x_N, x_N-1)``: the last step's
+length; kind ``diff``); ``c`` is an expression in m, L, kappa. A measure term may name its
+point: ``f(x_N)`` (the output, the default), ``grad(x_3)`` (the output after 3 steps),
+``dist(y_N)`` (the point of the single call), ``grad(y2_N)`` (the point of call 2),
+``grad(x_N-1)`` (the output one step before the last); an initial term is at x_0 or at x_N
+(``f(x_0) - f(x_N)``). The string is parsed by :mod:`sosalgo.kernel.expr` (never
+evaluated) and split into its linear terms; anything nonlinear in f, dist, grad is refused.
 """
 
 from __future__ import annotations
@@ -27,12 +27,14 @@ from sosalgo.errors import InputError
 from sosalgo.kernel.expr.tree import Expr, ExprError, evaluate, parse_tree
 from sosalgo.spec.initial_state import linear_parts
 
-__all__ = ["BACK_POINT", "DIFF_KIND", "KINDS", "MIN_KIND", "Term", "at_steps",
-           "describe_terms", "dominates", "expand_min", "parse_terms"]
+__all__ = ["BACK_POINT", "DIFF_KIND", "KINDS", "MINF_KIND", "MIN_KIND", "MIN_OF", "Term",
+           "at_steps", "describe_terms", "dominates", "expand_min", "parse_terms"]
 
 MIN_KIND = "mingrad"  # min over k = 0..N of |grad f(x_k)|^2
+MINF_KIND = "minf"  # min over k = 0..N of f(x_k) - f*
+MIN_OF = {MIN_KIND: "grad", MINF_KIND: "f"}  # a minimum over the iterates, of which kind
 DIFF_KIND = "diff"  # |P - Q|^2 between two points: dist(P, Q)
-KINDS = ("f", "dist", "grad", "sdist", MIN_KIND, DIFF_KIND)
+KINDS = ("f", "dist", "grad", "sdist", MIN_KIND, MINF_KIND, DIFF_KIND)
 _ARG = r"([A-Za-z0-9_]+(?:\s*-\s*\d+)?)"
 _AT = re.compile(r"\b(f|dist|grad)\s*\(\s*" + _ARG + r"\s*\)")
 _PAIR = re.compile(r"\bdist\s*\(\s*" + _ARG + r"\s*,\s*" + _ARG + r"\s*\)")
@@ -127,8 +129,9 @@ def parse_terms(text: object, option: str, initial: bool, p: int) -> list[Term]:
     parts = linear_parts(tree, frozenset({"m", "L", "kappa"}), option)
     if "1" in parts:
         raise InputError(f"{option}: a constant term; every term multiplies f, dist or grad")
-    if MIN_KIND in parts and initial:
-        raise InputError(f"{option}: {MIN_KIND} is a measure (the initial condition is linear)")
+    mins = [k for k in MIN_OF if k in parts]
+    if mins and initial:
+        raise InputError(f"{option}: {mins[0]} is a measure (the initial condition is linear)")
     out = []
     for key, coef in parts.items():
         kind, _, point = key.partition("__")
@@ -175,18 +178,18 @@ def _term_text(t: Term, weight: Fraction = Fraction(1), point: str | None = None
 
 def expand_min(terms: list[Term], steps: int, weights: list[Fraction]) -> str:
     """The measure with its ``mingrad`` term c min_k |grad f(x_k)|^2 replaced by
-    c sum_k w_k |grad f(x_k)|^2 (x_N written x_N): an upper bound of it when the weights
-    are >= 0 and sum to 1, and its worst case equals the minimum's at the minimax weights
-    (max over the PEP of min_k = min over the weights of the max; the weights are found
-    by :mod:`sosalgo.pep.minimum`)."""
+    c sum_k w_k |grad f(x_k)|^2 (x_N written x_N; ``minf`` likewise with f(x_k) - f*): an
+    upper bound of it when the weights are >= 0 and sum to 1, and its worst case equals the
+    minimum's at the minimax weights (max over the PEP of min_k = min over the weights of
+    the max; the weights are found by :mod:`sosalgo.pep.minimum`)."""
     if len(weights) != steps + 1 or any(w < 0 for w in weights) or sum(weights) != 1:
         raise ValueError("weights: steps + 1 rationals >= 0 summing to 1")
     out = []
     for t in terms:
-        if t.kind != MIN_KIND:
+        if t.kind not in MIN_OF:
             out.append(_term_text(t))
             continue
-        out += [_term_text(t, w, "x_N" if k == steps else f"x_{k}", "grad")
+        out += [_term_text(t, w, "x_N" if k == steps else f"x_{k}", MIN_OF[t.kind])
                 for k, w in enumerate(weights)]
     return " + ".join(out)
 
@@ -197,10 +200,11 @@ def dominates(measure: list[Term], bound: list[Term], steps: int,
     it is): the terms other than ``mingrad`` equal, and the mingrad term's coefficient c
     (value > 0) covered by c w_k grad(x_k), w_k >= 0 summing to at least 1 (exact
     values: ``value`` of a term's coefficient, rationals or balls)."""
-    mins = [t for t in measure if t.kind == MIN_KIND]
-    rest = [t for t in measure if t.kind != MIN_KIND]
+    mins = [t for t in measure if t.kind in MIN_OF]
+    rest = [t for t in measure if t.kind not in MIN_OF]
     if len(mins) != 1:
-        return "the measure has no mingrad term"
+        return "the measure has no mingrad or minf term"
+    inner = MIN_OF[mins[0].kind]
     c = value(mins[0])
     if not c > 0:
         return "the mingrad coefficient is not positive"
@@ -211,7 +215,7 @@ def dominates(measure: list[Term], bound: list[Term], steps: int,
         if (t.kind, t.point) in key:
             if value(t) != value(key.pop((t.kind, t.point))):
                 return f"{t.kind}({t.point}): a coefficient differs from the measure's"
-        elif t.kind == "grad" and t.point in points:
+        elif t.kind == inner and t.point in points:
             w = value(t)
             if not w >= 0:
                 return f"grad({t.point}): a negative weight"

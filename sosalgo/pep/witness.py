@@ -239,6 +239,7 @@ def plausible(data: PEPData, coef: np.ndarray, V: np.ndarray,
     st = data.st
     G = V @ V.T
     q = np.einsum("kuv,kuv->k", data.Qc, np.einsum("kui,kvi->kuv", data.X @ G, data.X))
+    q = q + data.consts()
     xw = np.abs(data.X * data.w).max(axis=2).max(axis=1)
     size = (np.abs(data.Qc).max(axis=(1, 2)) * xw ** 2
             + np.abs(data.a * data.v).max(axis=1, initial=0.0))

@@ -342,7 +342,7 @@ def pep_summary(doc: dict[str, Any], details: bool = True) -> str:
 PEP_LEGEND = ("tau: the SDP's worst case (floating point); tau_proven: proven upper bound "
               "(exact dual certificate)",
               "witness_lower: witnessed lower bound (reached by an explicit function and start)")
-_TERM = re.compile(r"\b(f|dist|grad|sdist|mingrad)\b(\s*\(\s*([A-Za-z0-9_]+)\s*\))?")
+_TERM = re.compile(r"\b(f|dist|grad|sdist|mingrad|minf)\b(\s*\(\s*([A-Za-z0-9_]+)\s*\))?")
 _DIFF = re.compile(r"\(f\(([A-Za-z0-9_]+)\) - f\*\) - \(f\(([A-Za-z0-9_]+)\) - f\*\)")
 _PAIR = re.compile(r"\bdist\s*\(\s*([A-Za-z0-9_]+(?:\s*-\s*\d+)?)\s*,"
                    r"\s*([A-Za-z0-9_]+(?:\s*-\s*\d+)?)\s*\)")
@@ -358,7 +358,8 @@ def term_words(text: str, initial: bool, several: bool) -> str:
         return {"f": (f"(sum_j f_j({point}) - f_j*)" if several else f"(f({point}) - f*)"),
                 "dist": f"|{point} - x*|^2", "grad": f"|grad f({point})|^2",
                 "sdist": f"|{state} - xi*|^2",
-                "mingrad": "min_{k <= N} |grad f(x_k)|^2"}[kind]
+                "mingrad": "min_{k <= N} |grad f(x_k)|^2",
+                "minf": "min_{k <= N} f(x_k) - f*"}[kind]
 
     out = _DIFF.sub(r"f(\1) - f(\2)", _TERM.sub(words, _PAIR.sub(r"|\1 - \2|^2",
                                                                   str(text))))

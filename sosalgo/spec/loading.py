@@ -64,6 +64,24 @@ __all__ = [
 # --------------------------------------------------------------------------- loading
 
 
+
+def constant_parameters(params: dict[str, Any]) -> frozenset[str]:
+    """The parameters whose value is one number for the whole run: not per step, and
+    (through ties) in m, L, kappa and such parameters only; a class only ``pep`` answers
+    may name them (its inequalities are the same at every step)."""
+    done: set[str] = set()
+    grew = True
+    while grew:
+        grew = False
+        for name, par in params.items():
+            if name in done or par.per_step or par.schedule is not None:
+                continue
+            names = set().union(*(e.names() for e in (par.value, par.tied) if e is not None))
+            if names <= set(BASE_NAMES) | done:
+                done.add(name)
+                grew = True
+    return frozenset(done)
+
 class _StrictLoader(yaml.SafeLoader):
     """SafeLoader that refuses duplicate keys and aliases (no billion-laughs tricks)."""
 
@@ -308,7 +326,7 @@ class _Builder:
         tied_order(params, self.source)  # detects cycles
         value_order(params, self.source)
 
-        functions = self.functions(data.get("functions"))
+        functions = self.functions(data.get("functions"), constant_parameters(params))
         oracles = self.oracles(data.get("oracles", ["f"]), functions)
         measure = data.get("measure", "function")
         if measure not in MEASURES:
@@ -413,9 +431,12 @@ class _Builder:
                 raise self.fail(where, "uses kappa, undefined when m: 0 (use L)")
 
     # -- the oracle model ------------------------------------------------------------
-    def functions(self, raw: object) -> dict[str, FunctionDecl]:
+    def functions(self, raw: object, spec_names: frozenset[str] = frozenset()
+                  ) -> dict[str, FunctionDecl]:
         """``functions:`` name -> {class: NAME, <parameter>: expr}; default: one f in
-        F(m, L)."""
+        F(m, L). A class that no Lyapunov family takes (``homogeneous`` False: only
+        ``sosalgo pep`` answers) may name the spec's parameters ``spec_names`` too (M of
+        a Lipschitz class as the spec's parameter M)."""
         from sosalgo.classes import CLASSES, SEED_CLASS
 
         if raw is None:
@@ -443,7 +464,9 @@ class _Builder:
                 if key not in cls.parameters:
                     raise self.fail(f"{where}.{str(key)[:40]}", f"not a parameter of {cname} "
                                     f"(its parameters: {', '.join(cls.parameters) or 'none'})")
-                params[key] = self.expr(val, BASE_NAMES, f"{where}.{key}")
+                names = (frozenset(BASE_NAMES) | spec_names if not cls.homogeneous
+                         else BASE_NAMES)
+                params[key] = self.expr(val, names, f"{where}.{key}")
             given = frozenset(params)
             for key in cls.parameters:
                 if key not in params:
