@@ -1,0 +1,115 @@
+"""The conformance suite against PEPit's examples (bench/conformance): one well-formed case
+file per example, every expressed case's command accepted by sosalgo, and sosalgo's proven
+value against PEPit's committed one (a peer's number, computed by PEPit 0.5.1 with Clarabel:
+``python -m bench.conformance``)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from bench.conformance import read_results
+from bench.conformance.cases import CASES, CaseError, case_files, listed_examples, load, load_all
+from bench.conformance.table import DOCS, END, START, table
+
+ROOT = Path(__file__).resolve().parents[1]
+EXPRESSED = [c for c in load_all() if c.expressed]
+
+
+def test_every_pepit_example_has_exactly_one_case_file():
+    listed = listed_examples()
+    assert len(listed) == 96 and len({p for p, _ in listed}) == 96
+    files = {str(p.relative_to(CASES).with_suffix("")) for p in case_files()}
+    assert files == {p for p, _ in listed}
+    functions = dict(listed)
+    for case in load_all():
+        assert case.function == functions[case.example], case.example
+
+
+def test_every_case_is_well_formed():
+    for case in load_all():  # load refuses a malformed file
+        assert len(case.arguments) >= 3
+        if case.expressed:
+            assert case.scale_reason and len(case.commands) == len(case.arguments)
+        else:
+            assert case.reason.strip() and case.needs
+
+
+def test_a_malformed_case_names_its_file_and_field(tmp_path):
+    bad = CASES / "tutorials" / "gradient_descent_contraction.yaml"
+    text = bad.read_text()
+    for old, new, field in [("status: not expressible", "status: maybe", "status"),
+                            ("reason:", "because:", "because"),
+                            ("example: tutorials/", "example: other/", "example")]:
+        path = CASES / "tutorials" / "malformed-case-test.yaml"
+        try:
+            path.write_text(text.replace(old, new).replace(
+                "tutorials/gradient_descent_contraction", "tutorials/malformed-case-test"))
+            with pytest.raises(CaseError, match=f"malformed-case-test.yaml: {field}"):
+                load(path)
+        finally:
+            path.unlink()
+
+
+@pytest.mark.parametrize("case", EXPRESSED, ids=[c.example for c in EXPRESSED])
+def test_every_expressed_command_is_accepted(case):
+    from sosalgo.cli import pep
+    from sosalgo.runs import spec_with_text
+    from sosalgo.spec.overrides import parse_set_options
+
+    for i in range(len(case.arguments)):
+        argv = case.command(i)
+        assert argv[0] == "pep"
+        ctx = pep.make_context("pep", argv[1:])
+        assert (ROOT / ctx.params["spec_path"]).is_file()
+        spec, _ = spec_with_text(str(ROOT / ctx.params["spec_path"]),
+                                 overrides=parse_set_options(ctx.params["overrides"]),
+                                 varying=True)
+        assert spec.m == 0 or ctx.params["kappa"], "an m > 0 spec needs --kappa"
+
+
+def _proven(case, index, tmp_path) -> float:
+    from sosalgo.cli import cli
+
+    args = case.command(index) + ["--json", "--out", str(tmp_path), "--no-plot", "--quiet",
+                                  "--no-witness"]
+    out = CliRunner().invoke(cli, args, catch_exceptions=False)
+    assert out.exit_code == 0, out.output
+    doc = json.loads(out.output)
+    row = doc["rows"][-1] if "rows" in doc else doc
+    from fractions import Fraction
+
+    return float(Fraction(row["certificate"]["tau_proven"])) * case.scale_at(index)
+
+
+def _check_against_pepit(case, index, tmp_path):
+    committed = read_results()[(case.example, index)]
+    pepit = float(committed["pepit_tau"])
+    proven = _proven(case, index, tmp_path)
+    assert proven >= pepit * (1 - 1e-7), (proven, pepit)
+    assert abs(proven - pepit) <= 1e-6 * pepit, (proven, pepit)
+    if case.tight[index] and committed["theoretical_tau"]:
+        assert proven >= float(committed["theoretical_tau"]) * (1 - 1e-12)
+
+
+FAST = [c for c in EXPRESSED if c.fast]
+REST = [(c, i) for c in EXPRESSED for i in range(len(c.arguments)) if not (c.fast and i == 0)]
+
+
+@pytest.mark.parametrize("case", FAST, ids=[c.example for c in FAST])
+def test_proven_value_against_pepit_fast(case, tmp_path):
+    _check_against_pepit(case, 0, tmp_path)
+
+
+@pytest.mark.deep
+@pytest.mark.parametrize("case,index", REST, ids=[f"{c.example}[{i}]" for c, i in REST])
+def test_proven_value_against_pepit(case, index, tmp_path):
+    _check_against_pepit(case, index, tmp_path)
+
+
+def test_docs_table_is_generated_from_cases_and_results():
+    text = DOCS.read_text()
+    assert text.split(START, 1)[1].split(END, 1)[0].strip() == table().strip()
