@@ -19,40 +19,59 @@ def agreeing(case: Case, results: dict) -> bool:
         and r["above_theoretical"] in ("yes", "") for r in rows)
 
 
-def _num(text: str) -> str:
-    return f"{float(text):.7g}" if text else "—"
+def _num(value: float | None) -> str:
+    return f"{value:.7g}" if value is not None else "—"
+
+
+def _cell(text: str) -> str:
+    """Text in a Markdown table cell (a bar would end the cell)."""
+    return text.replace("|", "\\|")
+
+
+def _text(text: str) -> str:
+    """Prose in a Markdown table cell: bars and asterisks (x*, f*) escaped."""
+    return _cell(text).replace("*", "\\*")
+
+
+def _scaled(r: dict, key: str) -> float | None:
+    return float(r[key]) * float(r["scale"]) if r[key] else None
 
 
 def case_lines(case: Case, results: dict) -> list[str]:
     name = f"`{case.example}`"
     if not case.expressed:
-        return [f"| {name} | not expressible: {case.reason} | | | | | |"]
+        return [f"| {name} | not expressible: {_text(case.reason)} | | | | | | |"]
     lines = []
     for i in range(len(case.arguments)):
         r = results.get((case.example, i))
         label = name if i == 0 else "″"
         if r is None:
-            lines.append(f"| {label} | `{' '.join(case.command(i))}` | not run | | | | |")
+            lines.append(f"| {label} | `{' '.join(case.command(i))}` | not run | | | | | |")
             continue
         ratio = f"{float(r['time_ratio']):.1f}" if r["time_ratio"] else "—"
         if r["time_ratio"] and r["pepit_process_seconds"]:
             whole = float(r["sosalgo_seconds"]) / float(r["pepit_process_seconds"])
             ratio += f" ({whole:.1f})"
-        proven = _num(f"{float(r['tau_proven']) * float(r['scale'])!r}" if r["tau_proven"] else "")
-        lines.append(f"| {label} | `{r['command'].removeprefix('sosalgo ')}` ({r['arguments']}) | "
-                     f"{_num(r['pepit_tau'])} | {proven} | {r['witness_verified'] or '—'} | "
-                     f"{ratio} | {verdict(r)} |")
+        command = _cell(r["command"].removeprefix("sosalgo "))
+        lines.append(f"| {label} | `{command}` ({r['arguments']}) | "
+                     f"{_num(float(r['pepit_tau']) if r['pepit_tau'] else None)} | "
+                     f"{_num(_scaled(r, 'tau'))} | {_num(_scaled(r, 'tau_proven'))} | "
+                     f"{r['witness_verified'] or '—'} | {ratio} | {verdict(r)} |")
     return lines
 
 
 def verdict(r: dict) -> str:
+    """The row's verdict in words; an agreeing proof further than 1e-6 above PEPit says so."""
     if r["pepit_error"] or r["sosalgo_error"]:
-        return f"error: {r['pepit_error'] or r['sosalgo_error']}"
+        return f"error: {_text(r['pepit_error'] or r['sosalgo_error'])}"
     if not r["tau_proven"]:
         return "agrees, not proven" if r["agree"] == "yes" else "differs, not proven"
     if r["above_theoretical"] == "no":
-        return "below the tight theoretical value"
-    return "agrees" if r["agree"] == "yes" and r["not_below"] == "yes" else "differs"
+        return "proven below the tight theoretical value"
+    if r["agree"] != "yes" or r["not_below"] != "yes":
+        return "differs"
+    gap = _scaled(r, "tau_proven") / float(r["pepit_tau"]) - 1
+    return "agrees" if gap <= 1e-6 else f"agrees (proof {gap:.1e} above)"
 
 
 def table() -> str:
@@ -60,9 +79,9 @@ def table() -> str:
     good = sum(agreeing(c, results) for c in cases)
     head = [f"**{good} of {len(cases)} expressed and agreeing** "
             f"({sum(c.expressed for c in cases)} expressed).", "",
-            "| example | sosalgo command (PEPit's arguments), or why not | PEPit τ | "
-            "ours proven (× scale) | witness verified | time ratio | verdict |",
-            "|---|---|---:|---:|---|---:|---|"]
+            "| example | sosalgo command (PEPit's arguments), or why not | PEPit τ | ours τ | "
+            "ours proven | witness verified | time ratio | verdict |",
+            "|---|---|---:|---:|---:|---|---:|---|"]
     body = [line for case in cases for line in case_lines(case, results)]
     return "\n".join(head + body + [""] + needs_tally(cases))
 
