@@ -173,3 +173,27 @@ def test_schedules_against_closed_forms():
     beta, gamma = ogm_g(2)
     assert beta[-1] == pytest.approx((t - 1) / (t * (2 * t - 1)))
     assert gamma[-1] == pytest.approx(1 / (2 * t - 1))
+
+
+def test_verdicts_flag_a_proof_below_pepit_or_below_a_tight_value():
+    from bench.conformance import verdicts
+
+    case = next(c for c in EXPRESSED if c.example.endswith("/proximal_gradient"))
+    pepit = {"tau": 0.6561, "theoretical": 0.6561}  # 0.9^4, tight
+    good = verdicts(case, 0, pepit, {"tau": 0.6561000001, "tau_proven": 0.6561000082})
+    assert good == {"agree": "yes", "not_below": "yes", "above_theoretical": "yes"}
+    low = verdicts(case, 0, pepit, {"tau": 0.6560999, "tau_proven": 0.6560999})
+    assert low["not_below"] == "no" and low["above_theoretical"] == "no"
+    far = verdicts(case, 0, pepit, {"tau": 0.6562, "tau_proven": 0.6562})
+    assert far["agree"] == "no" and far["not_below"] == "yes"
+    unproven = verdicts(case, 0, pepit, {"tau": 0.6561, "tau_proven": None})
+    assert unproven["not_below"] == "" and unproven["above_theoretical"] == ""
+
+
+def test_command_placeholders_are_parsed_not_evaluated():
+    from bench.conformance.cases import fill
+
+    assert fill("--kappa {L/mu} --set h={gamma*L}/L", {"L": 1, "mu": 0.1, "gamma": 1.5}) \
+        == "--kappa 10 --set h=1.5/L"
+    with pytest.raises(ValueError):
+        fill("{__import__('os').getcwd()}", {"L": 1})
