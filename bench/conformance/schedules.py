@@ -41,3 +41,14 @@ def ogm_g(n: int) -> tuple[list[float], list[float]]:
             for k in range(n)]
     gamma = [(2 * theta[k + 1] - 1) / (2 * theta[k] - 1) for k in range(n)]
     return beta, gamma
+
+
+def accelerated_proximal_point(a0: float, gammas: list[float]) -> list[float]:
+    """alpha_k of the accelerated proximal point method (Guler) with steps gammas and A_0 = a0:
+    alpha_k = (sqrt((A_k g_k)^2 + 4 A_k g_k) - A_k g_k)/2, A_{k+1} = (1 - alpha_k) A_k."""
+    alphas, a = [], a0
+    for g in gammas:
+        alpha = (sqrt((a * g) ** 2 + 4 * a * g) - a * g) / 2
+        alphas.append(alpha)
+        a *= 1 - alpha
+    return alphas
