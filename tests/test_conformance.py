@@ -40,19 +40,19 @@ def test_every_case_is_well_formed():
 
 
 def test_a_malformed_case_names_its_file_and_field(tmp_path):
-    bad = CASES / "tutorials" / "gradient_descent_contraction.yaml"
-    text = bad.read_text()
+    text = (CASES / "tutorials" / "gradient_descent_contraction.yaml").read_text()
+    path = tmp_path / "tutorials" / "gradient_descent_contraction.yaml"
+    path.parent.mkdir()
+    path.write_text(text)
+    assert load(path, root=tmp_path).reason  # the copy itself is well-formed
     for old, new, field in [("status: not expressible", "status: maybe", "status"),
                             ("reason:", "because:", "because"),
-                            ("example: tutorials/", "example: other/", "example")]:
-        path = CASES / "tutorials" / "malformed-case-test.yaml"
-        try:
-            path.write_text(text.replace(old, new).replace(
-                "tutorials/gradient_descent_contraction", "tutorials/malformed-case-test"))
-            with pytest.raises(CaseError, match=f"malformed-case-test.yaml: {field}"):
-                load(path)
-        finally:
-            path.unlink()
+                            ("example: tutorials/", "example: other/", "example"),
+                            ("  - {L: 1, mu: 0.2, gamma: 1.5, n: 2}\n", "", "arguments")]:
+        assert old in text
+        path.write_text(text.replace(old, new))
+        with pytest.raises(CaseError, match=f"gradient_descent_contraction.yaml: {field}"):
+            load(path, root=tmp_path)
 
 
 @pytest.mark.parametrize("case", EXPRESSED, ids=[c.example for c in EXPRESSED])

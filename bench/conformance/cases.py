@@ -80,8 +80,9 @@ def load_all() -> list[Case]:
     return [load(p) for p in case_files()]
 
 
-def load(path: Path) -> Case:
-    path = Path(path).resolve()
+def load(path: Path, root: Path = CASES) -> Case:
+    """The case in ``path``, a file under ``root`` (its example is its path there)."""
+    path, root = Path(path).resolve(), Path(root).resolve()
     where = str(path.relative_to(HERE.parents[1])) if path.is_relative_to(HERE.parents[1]) \
         else str(path)
     data = yaml.safe_load(path.read_text())
@@ -93,7 +94,7 @@ def load(path: Path) -> Case:
     for key in ("example", "function", "question", "arguments", "status"):
         if key not in data:
             raise CaseError(f"{where}: {key}: missing")
-    example = str(path.relative_to(CASES).with_suffix(""))
+    example = str(path.relative_to(root).with_suffix(""))
     if data["example"] != example:
         raise CaseError(f"{where}: example: {data['example']!r} is not the file's path {example!r}")
     args = data["arguments"]
