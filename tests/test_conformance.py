@@ -13,7 +13,15 @@ import pytest
 from click.testing import CliRunner
 
 from bench.conformance import read_results
-from bench.conformance.cases import CASES, CaseError, case_files, listed_examples, load, load_all
+from bench.conformance.cases import (
+    CASES,
+    CaseError,
+    case_files,
+    listed_examples,
+    listed_parameters,
+    load,
+    load_all,
+)
 from bench.conformance.table import DOCS, END, START, table
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -31,8 +39,12 @@ def test_every_pepit_example_has_exactly_one_case_file():
 
 
 def test_every_case_is_well_formed():
+    parameters = listed_parameters()
     for case in load_all():  # load refuses a malformed file
         assert len(case.arguments) >= 3
+        required, optional = parameters[case.example]
+        for args in case.arguments:  # PEPit's function accepts every argument set
+            assert required <= set(args) <= required | optional, (case.example, args)
         if case.expressed:
             assert case.scale_reason and len(case.commands) == len(case.arguments)
         else:

@@ -38,12 +38,14 @@ SECONDS = float(os.environ.get("SOSALGO_CONFORMANCE_SECONDS", "600"))
 
 # Runs in PEPit's interpreter: one example at one argument set, one JSON line out.
 PEPIT_WORKER = r'''
-import importlib, json, sys, time, warnings
+import importlib, inspect, json, sys, time, warnings
 warnings.simplefilter("ignore")
 path, function, args, solver = json.loads(sys.argv[1])
 fn = getattr(importlib.import_module("PEPit.examples." + path.replace("/", ".")), function)
+accepted = inspect.signature(fn).parameters  # one example takes neither wrapper nor solver
+extra = {"wrapper": "cvxpy", "solver": solver, "verbose": -1}
 t0 = time.perf_counter()
-tau, theoretical = fn(**args, wrapper="cvxpy", solver=solver, verbose=-1)
+tau, theoretical = fn(**args, **{k: v for k, v in extra.items() if k in accepted})
 print(json.dumps({"tau": tau, "theoretical": theoretical, "seconds": time.perf_counter() - t0}))
 '''
 
@@ -102,6 +104,8 @@ def pep_values(row: dict) -> dict:
 
 def verdicts(case: Case, index: int, pepit: dict, ours: dict) -> dict:
     """agree, not_below, above_theoretical ("yes", "no", or "" when not applicable)."""
+    if not case.expressed:
+        return {"agree": "", "not_below": "", "above_theoretical": ""}
     scale = case.scale_at(index)
     p, tau, proven = pepit.get("tau"), ours.get("tau"), ours.get("tau_proven")
     out = {"agree": "", "not_below": "", "above_theoretical": ""}
@@ -124,17 +128,23 @@ def result_row(case: Case, index: int, pepit: dict, ours: dict) -> dict:
              if ours.get("seconds") and pepit.get("seconds") else None)
     return {"example": case.example, "set": index,
             "arguments": arguments_text(case.arguments[index]),
-            "command": "sosalgo " + " ".join(_quote(a) for a in case.command(index)),
+            "command": _command_text(case, index),
             "pepit_tau": pepit.get("tau"), "theoretical_tau": pepit.get("theoretical"),
             "pepit_seconds": pepit.get("seconds"),
             "pepit_process_seconds": pepit.get("process_seconds"),
             "pepit_error": pepit.get("error", ""),
-            "scale": case.scale_at(index), "tau": ours.get("tau"),
+            "scale": case.scale_at(index) if case.expressed else None, "tau": ours.get("tau"),
             "tau_proven": ours.get("tau_proven"), "check_kind": ours.get("check_kind", ""),
             "witness_verified": ours.get("witness_verified", ""),
             "tau_lower": ours.get("tau_lower"),
             "sosalgo_seconds": ours.get("seconds"), "sosalgo_error": ours.get("error", ""),
             **verdicts(case, index, pepit, ours), "time_ratio": ratio}
+
+
+def _command_text(case: Case, index: int) -> str:
+    if not case.expressed:
+        return ""
+    return "sosalgo " + " ".join(_quote(a) for a in case.command(index))
 
 
 def _quote(arg: str) -> str:
@@ -149,6 +159,8 @@ def read_results(path: Path = RESULTS) -> dict[tuple[str, int], dict]:
 
 
 def run_cases(cases: list[Case], python: str, path: Path, restart: bool, quick: bool) -> None:
+    """Each case at each argument set (``quick``: the defaults), sosalgo only on expressed
+    ones; a row already in ``path`` for the same arguments is kept (unless ``restart``)."""
     done = {} if restart else read_results(path)
     out_dir = Path(os.environ.get("SOSALGO_CONFORMANCE_OUT", "/tmp/sosalgo-conformance"))
     rows = dict(done)
@@ -157,10 +169,12 @@ def run_cases(cases: list[Case], python: str, path: Path, restart: bool, quick: 
             key = (case.example, index)
             old = done.get(key)
             if old and old["arguments"] == arguments_text(case.arguments[index]) \
+                    and old["command"] == _command_text(case, index) \
                     and not old["pepit_error"] and not old["sosalgo_error"]:
                 continue
             pepit = run_pepit(python, case, index)
-            ours = run_sosalgo(case, index, out_dir / case.example.replace("/", "-") / str(index))
+            ours = (run_sosalgo(case, index, out_dir / case.example.replace("/", "-") / str(index))
+                    if case.expressed else {})
             rows[key] = result_row(case, index, pepit, ours)
             write_results(rows, path)
             print(summary(rows[key]), flush=True)
@@ -186,6 +200,8 @@ def _cell(value: object) -> str:
 
 def summary(row: dict) -> str:
     """One line per finished pair: PEPit's tau, ours proven (times the scale), verdicts."""
+    if not row["command"]:
+        return f"{row['example']} [{row['set']}] PEPit {row['pepit_tau'] or row['pepit_error']}"
     proven = row["tau_proven"]
     ours = f"{proven * row['scale']:.9g}" if proven is not None else row["sosalgo_error"]
     pepit = f"{row['pepit_tau']:.9g}" if row["pepit_tau"] is not None else row["pepit_error"]
@@ -195,16 +211,20 @@ def summary(row: dict) -> str:
 
 
 def run(quick: bool = False, restart: bool = False, only: str | None = None,
-        path: Path = RESULTS) -> None:
-    """The bench suite: every expressed case (``quick``: the defaults only)."""
+        path: Path = RESULTS, every: bool = False) -> None:
+    """The bench suite: every expressed case (``quick``: the defaults only; ``every``: PEPit
+    alone on the examples not expressed too, so that their values are on record)."""
     from bench.pepit import pepit_python
 
     python, origin = pepit_python()
     if python is None:
         print(f"skipped: {origin}")
         return
-    cases = [c for c in load_all() if c.expressed and (not only or only in c.example)]
-    print(f"PEPit from {origin}; {len(cases)} expressed cases; results in {path}", flush=True)
+    cases = [c for c in load_all()
+             if (c.expressed or every) and (not only or only in c.example)]
+    expressed = sum(c.expressed for c in cases)
+    print(f"PEPit from {origin}; {len(cases)} cases ({expressed} expressed); results in {path}",
+          flush=True)
     run_cases(cases, python, path, restart, quick)
     from bench.conformance.table import write_docs
 
@@ -216,6 +236,8 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="the examples' defaults only")
     parser.add_argument("--restart", action="store_true", help="run again every row")
     parser.add_argument("--only", default=None, help="the examples whose path contains this")
+    parser.add_argument("--all", action="store_true", dest="every",
+                        help="also run PEPit alone on the examples not expressed")
     parser.add_argument("--table", action="store_true",
                         help="only rewrite the docs table from the case files and results")
     args = parser.parse_args()
@@ -224,4 +246,4 @@ def main() -> None:
 
         write_docs()
         return
-    run(quick=args.quick, restart=args.restart, only=args.only)
+    run(quick=args.quick, restart=args.restart, only=args.only, every=args.every)

@@ -28,7 +28,9 @@ import yaml
 
 HERE = Path(__file__).resolve().parent
 CASES = HERE / "cases"
-EXAMPLES = HERE / "examples.txt"  # the PEPit 0.5.1 examples: "path function", one a line
+# the PEPit 0.5.1 examples, one a line: "path function parameters" (comma-separated, the
+# optional ones marked "?"; wrapper, solver and verbose left out)
+EXAMPLES = HERE / "examples.txt"
 EXPRESSED, NOT_EXPRESSIBLE = "expressed", "not expressible"
 _FIELDS = {"example", "function", "question", "arguments", "status", "command", "commands",
            "scale", "scale_reason", "theoretical_tight", "fast", "needs", "reason"}
@@ -70,6 +72,18 @@ def listed_examples() -> list[tuple[str, str]]:
     """The committed list of PEPit's examples: (path, function)."""
     rows = [line.split() for line in EXAMPLES.read_text().splitlines() if line.strip()]
     return [(r[0], r[1]) for r in rows]
+
+
+def listed_parameters() -> dict[str, tuple[set[str], set[str]]]:
+    """Each example's (required, optional) keyword parameters, from the committed list."""
+    out = {}
+    for line in EXAMPLES.read_text().splitlines():
+        if line.strip():
+            path, _, names = line.split()
+            names = names.split(",")
+            out[path] = ({n for n in names if not n.endswith("?")},
+                         {n[:-1] for n in names if n.endswith("?")})
+    return out
 
 
 def case_files() -> list[Path]:

@@ -40,7 +40,9 @@ def _scaled(r: dict, key: str) -> float | None:
 def case_lines(case: Case, results: dict) -> list[str]:
     name = f"`{case.example}`"
     if not case.expressed:
-        return [f"| {name} | not expressible: {_text(case.reason)} | | | | | | |"]
+        r = results.get((case.example, 0))
+        pepit = _num(float(r["pepit_tau"])) if r and r["pepit_tau"] else ""
+        return [f"| {name} | not expressible: {_text(case.reason)} | {pepit} | | | | | |"]
     lines = []
     for i in range(len(case.arguments)):
         r = results.get((case.example, i))
