@@ -22,6 +22,7 @@ help:
 	@echo "make bench    - benchmarks in bench/ (prints a table)"
 	@echo "make bench-autolyap - the AutoLyap comparison, AutoLyap (GPL) in its own $(AUTOLYAP_VENV)/"
 	@echo "make bench-pepit - the PEP comparison with PEPit, PEPit in its own $(PEPIT_VENV)/"
+	@echo "make conformance - every PEPit example sosalgo expresses, against PEPit (docs/conformance.md)"
 	@echo "make fig1     - Figure 1: gradient step designed over kappa, with a proven bound"
 	@echo "make fig2     - Figure 2: Nesterov momentum designed over kappa, with a proven bound"
 	@echo "make fig3     - Figure 3: certified rate on an (h, beta) grid at kappa = 10"
@@ -100,6 +101,11 @@ $(PEPIT_VENV)/.installed:
 	touch $@
 bench-pepit: $(VENV)/.installed-dev $(PEPIT_VENV)/.installed
 	SOSALGO_PEPIT_PYTHON=$(abspath $(PEPIT_VENV))/bin/python $(BIN)/python -m bench --only pepit $(BENCH_OPTS)
+
+# PEPit's examples against sosalgo's commands (bench/conformance/): results.csv and the docs table.
+.PHONY: conformance
+conformance: $(VENV)/.installed-dev $(PEPIT_VENV)/.installed
+	SOSALGO_PEPIT_PYTHON=$${SOSALGO_PEPIT_PYTHON:-$(abspath $(PEPIT_VENV))/bin/python} $(BIN)/python -m bench.conformance $(CONFORMANCE_OPTS)
 
 clean:
 	rm -rf $(OUT)/*.csv $(OUT)/*.png $(OUT)/*.pdf $(OUT)/*.json

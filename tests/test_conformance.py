@@ -1,0 +1,232 @@
+"""The conformance suite against PEPit's examples (bench/conformance): one well-formed case
+file per example, every expressed case's command accepted by sosalgo, and sosalgo's proven
+value against PEPit's committed one (a peer's number, computed by PEPit 0.5.1 with Clarabel:
+``python -m bench.conformance``)."""
+
+from __future__ import annotations
+
+import json
+from fractions import Fraction
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from bench.conformance import read_results
+from bench.conformance.cases import (
+    CASES,
+    CaseError,
+    case_files,
+    listed_examples,
+    listed_parameters,
+    load,
+    load_all,
+)
+from bench.conformance.table import DOCS, END, START, table
+
+ROOT = Path(__file__).resolve().parents[1]
+EXPRESSED = [c for c in load_all() if c.expressed]
+
+
+def test_every_pepit_example_has_exactly_one_case_file():
+    listed = listed_examples()
+    assert len(listed) == 96 and len({p for p, _ in listed}) == 96
+    files = {str(p.relative_to(CASES).with_suffix("")) for p in case_files()}
+    assert files == {p for p, _ in listed}
+    functions = dict(listed)
+    for case in load_all():
+        assert case.function == functions[case.example], case.example
+
+
+def test_every_case_is_well_formed():
+    parameters = listed_parameters()
+    for case in load_all():  # load refuses a malformed file
+        assert len(case.arguments) >= 3
+        required, optional = parameters[case.example]
+        for args in case.arguments:  # PEPit's function accepts every argument set
+            assert required <= set(args) <= required | optional, (case.example, args)
+        if case.expressed:
+            assert case.scale_reason and len(case.commands) == len(case.arguments)
+        else:
+            assert case.reason.strip() and case.needs
+
+
+def test_a_malformed_case_names_its_file_and_field(tmp_path):
+    text = (CASES / "tutorials" / "gradient_descent_contraction.yaml").read_text()
+    path = tmp_path / "tutorials" / "gradient_descent_contraction.yaml"
+    path.parent.mkdir()
+    path.write_text(text)
+    assert load(path, root=tmp_path).reason  # the copy itself is well-formed
+    for old, new, field in [("status: not expressible", "status: maybe", "status"),
+                            ("reason:", "because:", "because"),
+                            ("example: tutorials/", "example: other/", "example"),
+                            ("  - {L: 1, mu: 0.2, gamma: 1.5, n: 2}\n", "", "arguments")]:
+        assert old in text
+        path.write_text(text.replace(old, new))
+        with pytest.raises(CaseError, match=f"gradient_descent_contraction.yaml: {field}"):
+            load(path, root=tmp_path)
+
+
+@pytest.mark.parametrize("case", EXPRESSED, ids=[c.example for c in EXPRESSED])
+def test_every_expressed_command_is_accepted(case):
+    from sosalgo.cli import pep
+    from sosalgo.runs import spec_with_text
+    from sosalgo.spec.overrides import parse_set_options
+
+    for i in range(len(case.arguments)):
+        argv = case.command(i)
+        assert argv[0] == "pep"
+        ctx = pep.make_context("pep", argv[1:])
+        assert (ROOT / ctx.params["spec_path"]).is_file()
+        spec, _ = spec_with_text(str(ROOT / ctx.params["spec_path"]),
+                                 overrides=parse_set_options(ctx.params["overrides"]),
+                                 varying=True)
+        assert spec.m == 0 or ctx.params["kappa"], "an m > 0 spec needs --kappa"
+
+
+def _proven(case, index, tmp_path) -> float:
+    from sosalgo.cli import cli
+
+    args = case.command(index) + ["--json", "--out", str(tmp_path), "--no-plot", "--quiet",
+                                  "--no-witness"]
+    out = CliRunner().invoke(cli, args, catch_exceptions=False)
+    assert out.exit_code == 0, out.output
+    doc = json.loads(out.output)
+    row = doc["rows"][-1] if "rows" in doc else doc
+    proven = row["certificate"].get("tau_proven")
+    assert proven, f"not proven ({row['certificate'].get('check_kind')})"
+    return float(Fraction(proven)) * case.scale_at(index)
+
+
+def _check_against_pepit(case, index, tmp_path):
+    committed = read_results()[(case.example, index)]
+    pepit = float(committed["pepit_tau"])
+    proven = _proven(case, index, tmp_path)
+    assert proven >= pepit * (1 - 1e-7), (proven, pepit)
+    assert abs(proven - pepit) <= 1e-6 * pepit, (proven, pepit)
+    if case.tight[index] and committed["theoretical_tau"]:
+        assert proven >= float(committed["theoretical_tau"]) * (1 - 1e-12)
+
+
+FAST = [c for c in EXPRESSED if c.fast]
+# Expressed and agreeing in floating point, where the proof misses the 1e-6 of the test: kept
+# as strict expected failures, so that a fix shows up here.
+_LOOSE = "the exact proof is {} above PEPit's value (the certificate's margin), more than 1e-6"
+KNOWN_GAPS = {
+    ("composite_convex_minimization/accelerated_proximal_gradient", 2): _LOOSE.format("1.4e-4"),
+    ("composite_convex_minimization/accelerated_proximal_gradient_simplified", 2):
+        _LOOSE.format("4.6e-5"),
+    **{("unconstrained_convex_minimization/optimized_gradient_for_gradient", i):
+       "OGM-G on momentum-schedule.yaml: tau agrees, no exact proof (floating-point check)"
+       for i in range(3)},
+    **{("unconstrained_convex_minimization/accelerated_proximal_point", i):
+       "tau agrees, no exact proof: the spec's extra call (so that f(x_0) may enter the "
+       "initial condition) has subgradients nothing else uses" for i in range(3)},
+}
+REST = [pytest.param(c, i, id=f"{c.example}[{i}]", marks=(
+            [pytest.mark.xfail(strict=True, reason=KNOWN_GAPS[(c.example, i)])]
+            if (c.example, i) in KNOWN_GAPS else []))
+        for c in EXPRESSED for i in range(len(c.arguments)) if not (c.fast and i == 0)]
+
+
+@pytest.mark.parametrize("case", FAST, ids=[c.example for c in FAST])
+def test_proven_value_against_pepit_fast(case, tmp_path):
+    _check_against_pepit(case, 0, tmp_path)
+
+
+@pytest.mark.deep
+@pytest.mark.parametrize("case,index", REST)
+def test_proven_value_against_pepit(case, index, tmp_path):
+    _check_against_pepit(case, index, tmp_path)
+
+
+def test_docs_table_is_generated_from_cases_and_results():
+    text = DOCS.read_text()
+    assert text.split(START, 1)[1].split(END, 1)[0].strip() == table().strip()
+
+
+def _set_lists(argv: list[str]) -> dict[str, list[float]]:
+    sets = [argv[i + 1] for i, a in enumerate(argv) if a == "--set"]
+    out = {}
+    for item in sets:
+        name, value = item.split("=", 1)
+        if value.startswith("["):
+            out[name] = [float(v.strip().removesuffix("/L")) for v in value[1:-1].split(",")]
+    return out
+
+
+def test_per_step_coefficients_in_case_files_are_the_schedules():
+    from bench.conformance.schedules import (
+        accelerated_proximal_point,
+        ogm_g,
+        silver_strongly_convex,
+    )
+
+    cases = {c.example: c for c in load_all()}
+    silver = cases["unconstrained_convex_minimization/"
+                   "gradient_descent_silver_stepsize_strongly_convex"]
+    for i, args in enumerate(silver.arguments):
+        steps = _set_lists(silver.command(i))["h"]
+        assert steps == pytest.approx(silver_strongly_convex(args["L"] / args["mu"], args["n"]),
+                                      rel=1e-15)
+    app = cases["unconstrained_convex_minimization/accelerated_proximal_point"]
+    for i, args in enumerate(app.arguments):
+        lists = _set_lists(app.command(i))
+        assert lists["gamma"] == pytest.approx(args["gammas"], rel=1e-15)
+        assert lists["alpha"] == pytest.approx(
+            accelerated_proximal_point(args["A0"], args["gammas"]), rel=1e-15)
+    ogmg = cases["unconstrained_convex_minimization/optimized_gradient_for_gradient"]
+    for i, args in enumerate(ogmg.arguments):
+        lists = _set_lists(ogmg.command(i))
+        beta, gamma = ogm_g(args["n"])
+        assert lists["beta"] == pytest.approx(beta, rel=1e-15)
+        assert lists["gamma"] == pytest.approx(gamma, rel=1e-15)
+
+
+def test_schedules_against_closed_forms():
+    from bench.conformance.schedules import ogm_g, silver_strongly_convex
+
+    # one silver step at kappa: psi(1/kappa) = (1 + 1)/(1 + 1/kappa) = 2 kappa/(kappa + 1)
+    assert silver_strongly_convex(10, 1) == pytest.approx([20 / 11])
+    # as kappa grows, a block of 8 steps begins with the convex schedule 1 + rho^(nu(i) - 1),
+    # i = 1..7 (its last step grows with kappa)
+    rho = 1 + 2 ** 0.5
+    assert silver_strongly_convex(1e12, 8)[:7] == pytest.approx(
+        [1 + rho ** (v - 1) for v in (0, 1, 0, 2, 0, 1, 0)], rel=1e-5)
+    # OGM-G's last step: theta_n = 1, theta_{n-1} = (1 + sqrt 5)/2: beta = (t - 1)/(t (2t - 1))
+    t = (1 + 5 ** 0.5) / 2
+    beta, gamma = ogm_g(2)
+    assert beta[-1] == pytest.approx((t - 1) / (t * (2 * t - 1)))
+    assert gamma[-1] == pytest.approx(1 / (2 * t - 1))
+    # accelerated proximal point: alpha_0 solves alpha^2 = (1 - alpha) A_0 gamma_0 (A0 g = 1:
+    # the golden ratio's inverse), and the next A is (1 - alpha) A
+    from bench.conformance.schedules import accelerated_proximal_point
+
+    alphas = accelerated_proximal_point(1, [1, 2])
+    assert alphas[0] == pytest.approx(1 / t)
+    a1 = 1 - 1 / t
+    assert alphas[1] ** 2 == pytest.approx((1 - alphas[1]) * a1 * 2)
+
+
+def test_verdicts_flag_a_proof_below_pepit_or_below_a_tight_value():
+    from bench.conformance import verdicts
+
+    case = next(c for c in EXPRESSED if c.example.endswith("/proximal_gradient"))
+    pepit = {"tau": 0.6561, "theoretical": 0.6561}  # 0.9^4, tight
+    good = verdicts(case, 0, pepit, {"tau": 0.6561000001, "tau_proven": 0.6561000082})
+    assert good == {"agree": "yes", "not_below": "yes", "above_theoretical": "yes"}
+    low = verdicts(case, 0, pepit, {"tau": 0.6560999, "tau_proven": 0.6560999})
+    assert low["not_below"] == "no" and low["above_theoretical"] == "no"
+    far = verdicts(case, 0, pepit, {"tau": 0.6562, "tau_proven": 0.6562})
+    assert far["agree"] == "no" and far["not_below"] == "yes"
+    unproven = verdicts(case, 0, pepit, {"tau": 0.6561, "tau_proven": None})
+    assert unproven["not_below"] == "" and unproven["above_theoretical"] == ""
+
+
+def test_command_placeholders_are_parsed_not_evaluated():
+    from bench.conformance.cases import fill
+
+    assert fill("--kappa {L/mu} --set h={gamma*L}/L", {"L": 1, "mu": 0.1, "gamma": 1.5}) \
+        == "--kappa 10 --set h=1.5/L"
+    with pytest.raises(ValueError):
+        fill("{__import__('os').getcwd()}", {"L": 1})
