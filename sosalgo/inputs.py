@@ -46,10 +46,16 @@ def check_grid_points(points: Any, n_free: int, label: str = "--points") -> int:
 
 
 def refuse_nonconvex(spec: Any) -> None:
-    """InputError (one line) for a spec with a nonconvex function: no certificate family
-    certifies a rate for it (``sosalgo pep`` bounds its N-step worst case)."""
+    """InputError (one line) for a spec with a nonconvex function or an inexact oracle
+    call: no certificate family certifies a rate for it (``sosalgo pep`` bounds its N-step
+    worst case)."""
     from sosalgo.certificates import nonconvex_functions
 
+    inexact = sorted(getattr(spec, "inexact", None) or ())
+    if inexact:
+        raise InputError(f"{spec.source}: oracles[{inexact[0]}].relative_error: an inexact "
+                         "gradient: no Lyapunov family models it (no rate is certified); "
+                         "sosalgo pep bounds its worst case after N steps")
     bad = nonconvex_functions(spec)
     if bad:
         raise InputError(f"{spec.source}: functions: {', '.join(bad)} is nonconvex: no "

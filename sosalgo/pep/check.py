@@ -449,6 +449,10 @@ def _measure_initial(doc: dict[str, Any], spec: Spec, av: ArbView
         _differences_only(iterms, av)
     pos = positions(doc, av)
     checked, bad = _pairs_ok(doc, av, pos)
+    from sosalgo.pep.inexact import call_checks
+
+    calls, wrong = call_checks(doc, av)  # each answer is its point's gradient (or near it)
+    checked, bad = checked + calls, bad + wrong
     ssum = [sum(Fraction(v[c]) for v in (f["optimal_subgradient"] for f in
                                           doc["functions"].values()))
             for c in range(int(doc["dimension"]))]

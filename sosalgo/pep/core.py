@@ -118,7 +118,8 @@ def float_method(om: Any, kappa: float) -> Method:
     mt = Method(om.A, om.B, om.C, om.D, om.E, om.output,
                 [(fn.name, fn.cls, fn.params) for fn in om.functions], tuple(om.oracles),
                 X[:, 0], X[:, 1:], float(om.L), ineqs, coef, same,
-                deadbeat_gain(om.A, om.B, float(om.L)))
+                deadbeat_gain(om.A, om.B, float(om.L)),
+                errors=dict(getattr(om, "errors", None) or {}))
     if om.output is None:
         mt.out_call = output_call(om.E, np.asarray(om.C, float), np.asarray(om.D, float),
                                   same)
@@ -236,7 +237,7 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
                                                 schedule)
     data = pep_data(mt, st)
     if schedule is not None:  # dense rows (the plain basis): every pair from the start
-        data.active, data.strong = np.arange(len(st.pairs)), True
+        data.active, data.strong = np.arange(st.count), True
     if steps > LONG:  # its proof is about LONG_MARGINS above tau anyway
         data.violation = LONG_VIOLATION
     show_phase("solving the PEP", f"{len(st.pairs)} interpolation pairs")

@@ -219,11 +219,20 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
                 bits=enclosure_bits(digits))
     mt.out_call = _exact_output_call(mats, om)
     mt.x0_call = _exact_start_call(mats, Xq, om)
+    mt.errors = _exact_errors(spec, env, enclose)
     g0, mt.smooth = initial_gradient(spec, om, float("nan") if kappa is None else kappa)
     if g0 is not None:  # the same start as the float method, exactly
         mt.G0 = np.array([enclose(to_sympy(b).xreplace(env))
                           for _, b in spec.initial_state], dtype=object)
     return mt
+
+
+def _exact_errors(spec: Spec, env: dict[sp.Symbol, sp.Expr], enclose: Any) -> dict[int, Any]:
+    """The relative error of each inexact call as written (enclosed), exactly."""
+    from sosalgo.kernel.expr.parse import to_sympy
+
+    return {i: enclose(to_sympy(e).xreplace(env)) for i, e in
+            getattr(spec, "inexact", {}).items()}
 
 
 def _proven_zero(v: sp.Expr) -> bool:
@@ -311,7 +320,7 @@ def _residual_parts(mt: Method, st: PEPStructure, lam: list[Fraction]
     aF = [arb(0)] * st.nF
     forms = [[(ball(al), [[ball(v) for v in row] for row in Q]) for al, Q in fi]
              for fi in mt.ineqs]
-    for k, lk in enumerate(lam):
+    for k, lk in enumerate(lam[:len(st.pairs)]):
         if lk == 0:
             continue
         j, a, b, r = st.pairs[k]
@@ -329,7 +338,13 @@ def _residual_parts(mt: Method, st: PEPStructure, lam: list[Fraction]
         if pb.f is not None:
             aF[pb.f] -= alpha * lb * s
     R = arb_mat([[ball(v) for v in row] for row in rows])
-    return R.transpose() * arb_mat(W) * R, aF
+    quad = R.transpose() * arb_mat(W) * R
+    for (_, Xe, Qe), lk in zip(st.extras, lam[len(st.pairs):], strict=True):
+        if lk:  # an extra constraint (:mod:`sosalgo.pep.inexact`): + lambda X' Qc X
+            Xb = arb_mat([[ball(v) for v in row] for row in Xe])
+            Qb = arb_mat([[ball(v) * ball(lk) for v in row] for row in Qe])
+            quad += Xb.transpose() * Qb * Xb
+    return quad, aF
 
 
 def _repaired(mt: Method, st: PEPStructure, lam: list[Fraction], tb: arb
@@ -760,6 +775,8 @@ def exact_step_method(spec: Any, kappa: float | None, sm: StepMethods, count: in
                 bits=enclosure_bits(digits), per_step=per)
     mt.x0_call = _step_start_call(mt, per[0])
     mt.out_call = _step_output_call(mt, per)
+    mt.errors = _exact_errors(spec, _exact_env(spec, base),
+                              lambda e: enclose(e, digits))
     return mt
 
 

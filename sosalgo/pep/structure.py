@@ -96,6 +96,8 @@ class Method(CallShape):
     # from xi_k to xi_{k+1}); None: A, B, C, D at every step (:meth:`step`)
     per_step: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] | None = None
     per_gain: list[np.ndarray] | None = None  # K_k of step k's basis (None: K at every step)
+    # inexact gradient calls: call index -> eps (|d - g| <= eps |g|, :mod:`sosalgo.pep.inexact`)
+    errors: dict[int, Any] = field(default_factory=dict)
 
     def gain(self, k: int) -> np.ndarray:
         """The gain K_k of step k's basis vectors (:func:`_trajectory`)."""
@@ -143,10 +145,18 @@ class PEPStructure:
     # a mingrad measure: the forms c |grad f(x_k)|^2 + (linear terms), k = 0..N (the
     # witness keeps each at its floor, so that their minimum is; :mod:`sosalgo.pep.minimum`)
     floors: list[tuple[np.ndarray, np.ndarray]] | None = None
+    # constraints beyond the class inequalities, after the pairs (their multipliers follow
+    # the pairs'): (label, X (4 x d), Qc (4 x 4)) with tr(Qc X G X') >= 0 (no values)
+    extras: list[tuple[str, np.ndarray, np.ndarray]] = field(default_factory=list)
 
     @property
     def d(self) -> int:
         return len(self.basis)
+
+    @property
+    def count(self) -> int:
+        """The constraints with a multiplier: the pairs, then the extras."""
+        return len(self.pairs) + len(self.extras)
 
     def pair_rows(self, method: Method, k: int) -> tuple[Any, np.ndarray, np.ndarray]:
         """(alpha, a on F, X (4 x d)) of pair k: alpha (F_a - F_b) + X' Q X >= 0."""
@@ -318,7 +328,7 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
     calls = steps + 1 if needs_n and mt.per_step is None else steps  # see last_calls
     extra_cap = J * (len(measure) + len(initial)) + J + 1
     g0 = mt.G0 is not None and not free
-    dmax = n0 + (J - 1) + p * calls + extra_cap
+    dmax = n0 + (J - 1) + p * calls + extra_cap + len(mt.errors) * calls
     eye = np.eye(dmax) if not mt.exact else _obj_eye(dmax)
     cols = [f"xi0_{a + 1}-xi*" for a in range(n)] if free else ["x0-x*"]
     cols += [f"s*_{mt.functions[j][0]}/s" for j in range(J - 1)]
@@ -359,10 +369,13 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
         pts[mt.smooth].append(PEPPoint("x0", eye[0], eye[len(cols) - 1], nF))
         at[("x0", mt.smooth)] = len(pts[mt.smooth]) - 1
         nF += 1
+    from sosalgo.pep.inexact import inexact_calls
+
+    extras = inexact_calls(mt, pts, U, sstar, cols, eye)
     for j in range(J):
         pts[j].append(PEPPoint("x*", zero, zero, None))
     state = {"nF": nF, "next": len(cols), "cols": cols, "eye": eye, "at": at, "origin": origin,
-             "xi": {"x": xi[steps], "x0": xi[0]}}
+             "xi": {"x": xi[steps], "x0": xi[0]}, "extras": extras}
     forms = {}
     for key, terms, opt in (("m", measure, option[0]), ("i", initial, option[1])):
         forms[key] = []
@@ -467,11 +480,13 @@ def _finish(mt: Method, steps: int, calls: int, state: dict[str, Any],
                     for r in range(len(mt.ineqs[j])):
                         pairs.append((j, a, b, r))
                         labels.append(pair_label(fname, pa.label, pb.label, r, many))
+    extras = [(lab, X[:, keep], Qc) for lab, X, Qc in state["extras"]]
+    labels += [lab for lab, _, _ in extras]
     cut = {"xi": [x[:, keep] for x in rows["xi"]], "y": [y[:, keep] for y in rows["y"]],
            "u": [u[:, keep] for u in rows["u"]], "x": rows["x"][keep]}
     return PEPStructure(steps, calls, [state["cols"][c] for c in keep], pts, nF, pairs,
                         labels, meas_q, meas_f, init_q, init_f, cut, state["at"],
-                        state["origin"])
+                        state["origin"], extras=extras)
 
 
 def _obj_eye(k: int) -> np.ndarray:

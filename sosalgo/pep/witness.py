@@ -130,6 +130,9 @@ def quadratic_point(mt: Method, st: Any) -> np.ndarray | None:
             c = col.get(f"b_{'y' + str(k) if p == 1 else f'y{i + 1}_{k}'}")
             if c is not None:
                 v[c] = u[i] - K[i] @ xi
+            c = col.get(f"g_{'y' + str(k) if p == 1 else f'y{i + 1}_{k}'}/s")
+            if c is not None:  # an inexact call's true gradient: the exact one here
+                v[c] = u[i]
         xi = A @ xi + s * (B @ u)
     for j, fp in enumerate(st.points):
         for pt in fp:
@@ -153,7 +156,8 @@ def make_witness(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
     exact_mt = (exact_mt if exact_mt is not None
                 else exact_or_none(spec, kappa, data.st.steps))
     ex: ArbView | None = None if exact_mt is None else arb_view(exact_mt)
-    coef = np.array([float(mt.ineqs[j][r][0]) * float(mt.s) for j, _, _, r in data.st.pairs])
+    coef = np.array([float(mt.ineqs[j][r][0]) * float(mt.s) for j, _, _, r in data.st.pairs]
+                    + [0.0] * len(data.st.extras))  # the extra constraints: no values
     inner: list[np.ndarray | None] = []
 
     def interior() -> np.ndarray | None:
@@ -218,8 +222,8 @@ def interior_point(data: PEPData, unit: float) -> np.ndarray | None:
     Up to :data:`ALL_PAIRS` pairs, every pair is in the solve from the start (one solve,
     and a lower rank than constraint generation gives)."""
     saved = data.active
-    if len(data.st.pairs) <= ALL_PAIRS:
-        data.active = np.arange(len(data.st.pairs))
+    if data.st.count <= ALL_PAIRS:
+        data.active = np.arange(data.st.count)
     try:
         for slack in INTERIOR:
             ans = solve_pep(data, objective="trace", slack=slack, unit=unit)
@@ -244,8 +248,9 @@ def plausible(data: PEPData, coef: np.ndarray, V: np.ndarray,
             + np.abs(data.a * data.v).max(axis=1, initial=0.0))
     q = q - margin * size
     first = np.cumsum([0] + [len(fp) for fp in st.points])
-    na = np.array([first[j] + a for j, a, _, _ in st.pairs])
-    nb = np.array([first[j] + b for j, _, b, _ in st.pairs])
+    extra = [0] * len(st.extras)  # no values (coef 0): q >= 0 alone
+    na = np.array([first[j] + a for j, a, _, _ in st.pairs] + extra, dtype=int)
+    nb = np.array([first[j] + b for j, _, b, _ in st.pairs] + extra, dtype=int)
     if np.any((coef == 0) & (q < 0)):
         return False
     on = coef != 0

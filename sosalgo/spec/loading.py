@@ -300,7 +300,9 @@ class _Builder:
         value_order(params, self.source)
 
         functions = self.functions(data.get("functions"))
-        oracles = self.oracles(data.get("oracles", ["f"]), functions)
+        raw_oracles = data.get("oracles", ["f"])
+        inexact = self.oracle_errors(raw_oracles, names)
+        oracles = self.oracles(_oracle_names(raw_oracles), functions)
         measure = data.get("measure", "function")
         if measure not in MEASURES:
             raise self.fail("measure", f"must be one of {', '.join(MEASURES)}")
@@ -331,7 +333,8 @@ class _Builder:
         spec = Spec(
             name=name, description=description, source=self.source, parameters=params,
             matrices=matrices, references=references, kappa=kappa, m=m,
-            functions=functions, oracles=oracles, output=output, measure=measure, L=L,
+            functions=functions, oracles=oracles, inexact=inexact, output=output,
+            measure=measure, L=L,
             initial_state=initial_state, m_expr=parse_tree(data.get("m", 1), ()),
             L_expr=parse_tree(data["L"], ()) if L is not None else None,
             sequences=sequences, time_varying=varies,
@@ -456,6 +459,26 @@ class _Builder:
                 raise self.fail(f"functions.{fname}", "no oracle queries it (list it in "
                                 "oracles)")
         return tuple(raw)
+
+    def oracle_errors(self, raw: object, names: frozenset[str]) -> dict[int, Expr]:
+        """The inexact calls of ``oracles:``: an entry ``{function: f, relative_error:
+        eps}`` is a gradient call answering some d with |d - grad f(y)| <= eps |grad f(y)|
+        (eps an expression of m, L, kappa and the parameters; its value, in [0, 1), is
+        checked where the method is bound)."""
+        out: dict[int, Expr] = {}
+        for i, entry in enumerate(raw if isinstance(raw, list) else ()):
+            if not isinstance(entry, dict):
+                continue
+            extra = [str(k)[:40] for k in entry if k not in ("function", "relative_error")]
+            if extra:
+                raise self.fail(f"oracles[{i}].{extra[0]}", "unknown key (an oracle entry is "
+                                "a function name or {function: NAME, relative_error: EPS})")
+            if "function" not in entry:
+                raise self.fail(f"oracles[{i}]", "missing function: (the function queried)")
+            if "relative_error" in entry:
+                out[i] = self.expr(entry["relative_error"], names,
+                                   f"oracles[{i}].relative_error")
+        return out
 
     def output(self, data: dict, raw_matrices: object, p: int) -> int | None:
         """``output: y<i>`` (top level or under matrices): the output is the point of oracle
@@ -741,3 +764,8 @@ def _shape(mat: ExprMatrix) -> str:
     return "{}x{}".format(*_dims(mat))
 
 
+def _oracle_names(raw: object) -> object:
+    """``oracles:`` with each ``{function: NAME, ...}`` entry replaced by its NAME."""
+    if not isinstance(raw, list):
+        return raw
+    return [e.get("function") if isinstance(e, dict) else e for e in raw]

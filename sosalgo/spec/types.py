@@ -165,6 +165,9 @@ class Spec:
     # seed's setting: one smooth strongly convex f queried by its gradient
     functions: dict[str, FunctionDecl] = field(default_factory=dict)
     oracles: tuple[str, ...] = ("f",)
+    # inexact gradient calls (``oracles: [{function: f, relative_error: eps}]``): call index
+    # (0-based) -> eps, the call answering some d with |d - grad f(y)| <= eps |grad f(y)|
+    inexact: dict[int, Expr] = field(default_factory=dict)
     output: int | None = None  # 0-based oracle index of ``output: y<i>``; None: x = E xi
     measure: str = "function"
     # sublinear specs (``m: 0``, ``L`` given, no kappa): L's value; None otherwise
@@ -198,6 +201,8 @@ class Spec:
         L, one gradient call, no D, x = E xi, ``measure: function``): the only setting of
         Theorem 1; True for every other spec."""
         if self.oracles != ("f",) or self.output is not None or self.measure != "function":
+            return True
+        if self.inexact:  # an inexact oracle: outside Theorem 1's setting
             return True
         if self.sublinear:  # no kappa: outside Theorem 1's setting
             return True
