@@ -46,11 +46,15 @@ def check_grid_points(points: Any, n_free: int, label: str = "--points") -> int:
 
 
 def refuse_nonconvex(spec: Any) -> None:
-    """InputError (one line) for a spec with a nonconvex function or an inexact oracle
-    call: no certificate family certifies a rate for it (``sosalgo pep`` bounds its N-step
+    """InputError (one line) for a spec with a nonconvex function, an inexact oracle
+    call or an exact line search: no certificate family certifies a rate for it (``sosalgo pep`` bounds its N-step
     worst case)."""
     from sosalgo.certificates import nonconvex_functions
 
+    if getattr(spec, "line_search", None):
+        raise InputError(f"{spec.source}: line_search: a step chosen by exact line search: "
+                         "no Lyapunov family models it (no rate is certified); sosalgo pep "
+                         "bounds its worst case after N steps")
     inexact = sorted(getattr(spec, "inexact", None) or ())
     if inexact:
         raise InputError(f"{spec.source}: oracles[{inexact[0]}].relative_error: an inexact "

@@ -109,9 +109,13 @@ def test_adversarial_runs_stay_below_the_proven_bound(docs, key):
         H = Q @ np.diag(lam) @ Q.T
         worst = max(worst, adversarial_ratio(H, rng.standard_normal(dim), gamma, eps, n, rng))
     # a Huber-like 1-d function: curvature L near 0, mu beyond 1 (smooth, mu-convex)
-    f = (lambda x: 0.5 * mu * x @ x + (L - mu) * float(np.where(abs(x[0]) <= 1, 0.5 * x[0] ** 2,
-                                                                  abs(x[0]) - 0.5)))
-    grad = (lambda x: mu * x + (L - mu) * np.clip(x, -1, 1))
+    def f(x):
+        t = abs(x[0])
+        return 0.5 * mu * x @ x + (L - mu) * (0.5 * t ** 2 if t <= 1 else t - 0.5)
+
+    def grad(x):
+        return mu * x + (L - mu) * np.clip(x, -1, 1)
+
     for x0 in np.linspace(0.2, 6, 30):
         worst = max(worst, adversarial_ratio(None, np.array([x0]), gamma, eps, n, rng,
                                              grad, f))

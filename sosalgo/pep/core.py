@@ -188,6 +188,9 @@ def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None
     if schedule is not None:
         mt = float_step_method(schedule, mt, steps)
     mt.G0, mt.smooth = initial_gradient(spec, om, kq)
+    mt.line_search = bool(spec.line_search)
+    if mt.line_search and schedule is not None:
+        raise InputError(f"{spec.source}: line_search: not for a method that changes with k")
     try:
         bound = _resolve_min(mt, steps, mterms, iterms, kq, solve_min)
         st = build_structure(mt, steps, bound, iterms, (mopt, iopt))
@@ -268,7 +271,10 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
                 res.extra["note"] = "no exact per-step matrices: the certificate is not proven"
         show_phase("proving the certificate" if exact else "checking the certificate")
         res.certificate = _certificate(spec, kappa, mt, data, ans, exact, mterms, iterms, ex)
-        if witness:
+        if witness and mt.line_search:  # rationals meet its equalities only up to rounding
+            res.extra["note"] = ("no witness for an exact line search (its orthogonality "
+                                 "equalities hold in floating point only)")
+        elif witness:
             from sosalgo.pep.witness import make_witness
 
             show_phase("worst-case witness")

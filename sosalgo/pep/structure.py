@@ -98,6 +98,8 @@ class Method(CallShape):
     per_gain: list[np.ndarray] | None = None  # K_k of step k's basis (None: K at every step)
     # inexact gradient calls: call index -> eps (|d - g| <= eps |g|, :mod:`sosalgo.pep.inexact`)
     errors: dict[int, Any] = field(default_factory=dict)
+    # x+ = x - gamma_k u with gamma_k by exact line search (:mod:`sosalgo.pep.linesearch`)
+    line_search: bool = False
 
     def gain(self, k: int) -> np.ndarray:
         """The gain K_k of step k's basis vectors (:func:`_trajectory`)."""
@@ -326,9 +328,11 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
     n0 = n if free else 1
     needs_n = mt.output is not None or any(t.point.startswith("y") for t in measure)
     calls = steps + 1 if needs_n and mt.per_step is None else steps  # see last_calls
+    if mt.line_search:  # a call at x_N: its gradient enters the last step's equalities
+        calls = steps + 1
     extra_cap = J * (len(measure) + len(initial)) + J + 1
     g0 = mt.G0 is not None and not free
-    dmax = n0 + (J - 1) + p * calls + extra_cap + len(mt.errors) * calls
+    dmax = n0 + (J - 1) + p * calls + extra_cap + (len(mt.errors) + mt.line_search) * calls
     eye = np.eye(dmax) if not mt.exact else _obj_eye(dmax)
     cols = [f"xi0_{a + 1}-xi*" for a in range(n)] if free else ["x0-x*"]
     cols += [f"s*_{mt.functions[j][0]}/s" for j in range(J - 1)]
@@ -346,8 +350,16 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
         if g0:  # + G0 g0, g0 / s = its tilted column + s_j* / s
             xi0 = xi0 + np.outer(mt.G0, (eye[len(cols) - 1] + sstar[mt.smooth]) * mt.s)
     base = n0 + J - 1
-    xi, Y, U = _trajectory(mt, xi0, [eye[base + p * k: base + p * (k + 1)]
-                                     for k in range(calls)], calls)
+    new = [eye[base + p * k: base + p * (k + 1)] for k in range(calls)]
+    if mt.line_search:
+        from sosalgo.pep.linesearch import line_search_trajectory
+
+        if g0 or free or origin:
+            raise InputError(f"{option[1]}: a line search starts at x_0 (no initial_state "
+                             "gradient, no sdist, a convex class)")
+        xi, Y, U = line_search_trajectory(mt, xi0, new, calls, steps, cols, eye)
+    else:
+        xi, Y, U = _trajectory(mt, xi0, new, calls)
     Yr = [[Y[k][i] for i in range(p)] for k in range(calls)]  # one object per call point
     out = _output_row(mt, xi, Yr, steps)
     x0 = _output_row(mt, xi, Yr, 0) if free else eye[0] * 0 if origin else eye[0]
@@ -372,6 +384,10 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
     from sosalgo.pep.inexact import inexact_calls
 
     extras = inexact_calls(mt, pts, U, sstar, cols, eye)
+    if mt.line_search:
+        from sosalgo.pep.linesearch import line_search_rows
+
+        extras += line_search_rows(mt, pts, Y, U, steps)
     for j in range(J):
         pts[j].append(PEPPoint("x*", zero, zero, None))
     state = {"nF": nF, "next": len(cols), "cols": cols, "eye": eye, "at": at, "origin": origin,

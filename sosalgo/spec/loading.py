@@ -339,6 +339,7 @@ class _Builder:
             L_expr=parse_tree(data["L"], ()) if L is not None else None,
             sequences=sequences, time_varying=varies,
             pep=self.pep_terms(data.get("pep")),
+            line_search=self.line_search(data.get("line_search"), params, matrices, output),
         )
         if spec.sublinear:
             self.check_sublinear(spec)
@@ -479,6 +480,27 @@ class _Builder:
                 out[i] = self.expr(entry["relative_error"], names,
                                    f"oracles[{i}].relative_error")
         return out
+
+    def line_search(self, raw: object, params: dict[str, Parameter],
+                    matrices: dict[str, ExprMatrix], output: int | None) -> str | None:
+        """``line_search: NAME``: the parameter gamma of a gradient method x+ = x - gamma u
+        (A = C = E = [[1]], B = [[b]] with b an expression of gamma, no D) chosen at every
+        step by exact line search (the next gradient orthogonal to u)."""
+        if raw is None:
+            return None
+        if not isinstance(raw, str) or raw not in params:
+            raise self.fail("line_search", f"{str(raw)[:40]!r} names no parameter (the step "
+                            "chosen by exact line search)")
+        ones = [("A", matrices["A"]), ("C", matrices["C"])]
+        ones += [] if output is not None else [("E", matrices.get("E"))]
+        shape = all(M is not None and len(M) == 1 and len(M[0]) == 1 and M[0][0].is_constant
+                    and constant_value(M[0][0]) == 1 for _, M in ones)
+        B = matrices["B"]
+        if not (shape and len(B) == 1 and len(B[0]) == 1 and raw in B[0][0].names()
+                and "D" not in matrices):
+            raise self.fail("line_search", "exact line search is for x+ = x - gamma u: one "
+                            "state and one call, A = C = E = [[1]], B = [[-gamma]], no D")
+        return raw
 
     def output(self, data: dict, raw_matrices: object, p: int) -> int | None:
         """``output: y<i>`` (top level or under matrices): the output is the point of oracle
