@@ -47,8 +47,8 @@ def check_grid_points(points: Any, n_free: int, label: str = "--points") -> int:
 
 def refuse_nonconvex(spec: Any) -> None:
     """InputError (one line) for a spec with a nonconvex function, an inexact oracle
-    call or an exact line search: no certificate family certifies a rate for it (``sosalgo pep`` bounds its N-step
-    worst case)."""
+    call or an exact line search: no certificate family certifies a rate for it
+    (``sosalgo pep`` bounds its N-step worst case)."""
     from sosalgo.certificates import nonconvex_functions
 
     if getattr(spec, "line_search", None):

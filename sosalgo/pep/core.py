@@ -271,9 +271,11 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
                 res.extra["note"] = "no exact per-step matrices: the certificate is not proven"
         show_phase("proving the certificate" if exact else "checking the certificate")
         res.certificate = _certificate(spec, kappa, mt, data, ans, exact, mterms, iterms, ex)
-        if witness and mt.line_search:  # rationals meet its equalities only up to rounding
-            res.extra["note"] = ("no witness for an exact line search (its orthogonality "
-                                 "equalities hold in floating point only)")
+        if witness and mt.line_search:  # a run on the class's extremal quadratic
+            from sosalgo.pep.linesearch import line_search_witness
+
+            show_phase("worst-case witness")
+            res.witness = line_search_witness(spec, kappa, mt, st, res, ex)
         elif witness:
             from sosalgo.pep.witness import make_witness
 

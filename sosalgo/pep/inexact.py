@@ -89,6 +89,26 @@ def call_checks(doc: dict[str, Any], av: Any) -> tuple[int, int]:
                 continue
             e = ball(mt.errors[i])
             gb = [ball(v) for v in g]
-            diff = sum(((ball(a) - b) ** 2 for a, b in zip(d, gb, strict=True)), ball(0))
+            gap = [ball(a) - b for a, b in zip(d, gb, strict=True)]
+            diff = sum((v * v for v in gap), ball(0))  # (arb 0) ** 2 is nan
             bad += not (e * e * sum((b * b for b in gb), ball(0)) - diff >= 0)
+    if getattr(mt, "line_search", False):
+        c, b = _line_search_checks(doc, mt)
+        checked, bad = checked + c, bad + b
     return checked, bad
+
+
+def _line_search_checks(doc: dict[str, Any], mt: Any) -> tuple[int, int]:
+    """(steps checked, not proven): <g_{k+1}, d_k> = 0 exactly for every step (the
+    point x_{k+1} = x_k + t_k d_k minimizes the convex f on the line: an exact line
+    search), g_{k+1} the gradient of the point of call k + 1, d_k the answer of call k."""
+    name = mt.functions[0][0]
+    grads = {q["label"]: q["g"] for q in doc["functions"][name]["points"]}
+    bad = 0
+    N = int(doc["steps"])
+    for k in range(N):
+        g = grads.get(_label(0, k + 1, mt.p))
+        d = doc["calls"][k][0]
+        bad += g is None or sum((Fraction(a) * Fraction(b) for a, b in zip(g, d, strict=True)),
+                                Fraction(0)) != 0
+    return N, bad
