@@ -104,7 +104,7 @@ def simulated_ratio(f, grad, x0, n, eps, rng) -> float:
         cands = [g] if not eps else [(1 + eps) * g, (1 - eps) * g] + [
             g + eps * np.linalg.norm(g) * e / np.linalg.norm(e)
             for e in rng.standard_normal((30, len(g)))]
-        nxt = [x - line_min(lambda t, d=d: f(x - t * d)) * d for d in cands]
+        nxt = [x - line_min(lambda t, d=d, x=x: f(x - t * d)) * d for d in cands]
         x = max(nxt, key=f)
     return f(x) / f(x0)
 
