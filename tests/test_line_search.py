@@ -117,7 +117,7 @@ def test_simulated_line_searches_stay_below_the_proven_bound(docs, key):
     proven = docs[key]["certificate"]["proof"]["tau_proven_float"]
     rng = np.random.default_rng(11)
     worst = 0.0
-    for trial in range(12):
+    for _ in range(12):
         lam = np.array([mu, L])  # the extremal quadratic, random starts
         H = np.diag(lam)
         a = rng.uniform(0, np.pi)
