@@ -177,7 +177,8 @@ def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None
     mopt = "--measure" if measure or "measure" not in spec.pep else "pep.measure"
     iopt = "--initial" if initial or "initial" not in spec.pep else "pep.initial"
     measure = measure or spec.pep.get("measure") or _default_measure(spec)
-    initial = initial or spec.pep.get("initial") or default_initial(om)
+    initial = initial or spec.pep.get("initial") or (
+        "contraction" if measure.strip() == "contraction" else default_initial(om))
     try:
         mterms = parse_terms(measure, mopt, False, om.p)
         iterms = parse_terms(initial, iopt, True, om.p)
@@ -271,7 +272,9 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
                 res.extra["note"] = "no exact per-step matrices: the certificate is not proven"
         show_phase("proving the certificate" if exact else "checking the certificate")
         res.certificate = _certificate(spec, kappa, mt, data, ans, exact, mterms, iterms, ex)
-        if witness and mt.line_search:  # a run on the class's extremal quadratic
+        if witness and any(t.kind == "contraction" for t in mterms):
+            res.extra["note"] = "no witness for the contraction measure (two runs)"
+        elif witness and mt.line_search:  # a run on the class's extremal quadratic
             from sosalgo.pep.linesearch import line_search_witness
 
             show_phase("worst-case witness")

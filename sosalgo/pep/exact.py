@@ -338,8 +338,11 @@ def _residual_parts(mt: Method, st: PEPStructure, lam: list[Fraction]
             aF[pa.f] += alpha * lb * s
         if pb.f is not None:
             aF[pb.f] -= alpha * lb * s
-    R = arb_mat([[ball(v) for v in row] for row in rows])
-    quad = R.transpose() * arb_mat(W) * R
+    if rows:
+        R = arb_mat([[ball(v) for v in row] for row in rows])
+        quad = R.transpose() * arb_mat(W) * R
+    else:  # no points (the contraction measure: extra constraints only)
+        quad = arb_mat(st.d, st.d)
     for (_, Xe, Qe), lk in zip(st.extras, lam[len(st.pairs):], strict=True):
         if lk:  # an extra constraint (:mod:`sosalgo.pep.inexact`): + lambda X' Qc X
             Xb = arb_mat([[ball(v) for v in row] for row in Xe])

@@ -311,10 +311,15 @@ def build_structure(mt: Method, steps: int, measure: Sequence[Term],
                     ) -> PEPStructure:
     """The PEP of ``steps`` steps (see the module docstring); on an exact method, built
     once per (steps, terms) and kept on the method (nothing downstream changes it)."""
+    from sosalgo.pep.contraction import build_contraction, is_contraction
+
     key = (steps, repr(list(measure)), repr(list(initial)), option)
     if mt.exact and key in mt.structures:
         return mt.structures[key]
-    st = _build_structure(mt, steps, measure, initial, option)
+    if is_contraction(measure, initial):  # two runs (:mod:`sosalgo.pep.contraction`)
+        st = build_contraction(mt, steps, measure, initial)
+    else:
+        st = _build_structure(mt, steps, measure, initial, option)
     if mt.exact:
         mt.structures[key] = st
     return st

@@ -29,7 +29,8 @@ __all__ = ["KINDS", "MIN_KIND", "Term", "describe_terms", "dominates", "expand_m
            "parse_terms"]
 
 MIN_KIND = "mingrad"  # min over k = 0..N of |grad f(x_k)|^2
-KINDS = ("f", "dist", "grad", "sdist", MIN_KIND)
+KINDS = ("f", "dist", "grad", "sdist", MIN_KIND, "contraction")  # contraction: |xi_N -
+# xi'_N|^2 of two runs (:mod:`sosalgo.pep.contraction`; alone, measure and initial)
 _AT = re.compile(r"\b(f|dist|grad)\s*\(\s*([A-Za-z0-9_]+)\s*\)")
 _POINT = re.compile(r"^(x|y(\d*))_(N|\d+)$")
 STEP_POINT = re.compile(r"^x(\d+)$")  # a measure's x_k, k a number: the output at step k
