@@ -493,6 +493,12 @@ def check_witness(doc: dict[str, Any], spec: Spec, mt: Method | ArbView | None =
             om, _ = bound_method(spec, class_kappa(spec, kappa))
             mt = exact_method(spec, kappa, om, int(doc["steps"]))
         av = mt if isinstance(mt, ArbView) else arb_view(mt)
+        if "xi0_second" in doc:  # two runs (:mod:`sosalgo.pep.contraction`)
+            from sosalgo.pep.contraction import check_contraction_witness
+
+            if str(doc.get("measure")).strip() != "contraction":
+                raise ValueError("a second run is a witness of the contraction measure")
+            return check_contraction_witness(doc, spec, av)
         with precision(PREC):
             checked, bad, zero_sum, meas, init = _measure_initial(doc, spec, av)
     except (KeyError, ValueError, TypeError, IndexError, ZeroDivisionError, StopIteration,

@@ -272,8 +272,11 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
                 res.extra["note"] = "no exact per-step matrices: the certificate is not proven"
         show_phase("proving the certificate" if exact else "checking the certificate")
         res.certificate = _certificate(spec, kappa, mt, data, ans, exact, mterms, iterms, ex)
-        if witness and any(t.kind == "contraction" for t in mterms):
-            res.extra["note"] = "no witness for the contraction measure (two runs)"
+        if witness and any(t.kind == "contraction" for t in mterms):  # two runs
+            from sosalgo.pep.contraction import contraction_witness
+
+            show_phase("worst-case witness")
+            res.witness = contraction_witness(spec, kappa, mt, res, ex)
         elif witness and mt.line_search:  # a run on the class's extremal quadratic
             from sosalgo.pep.linesearch import line_search_witness
 
