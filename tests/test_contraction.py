@@ -191,3 +191,32 @@ def test_contraction_of_an_inexact_method_is_refused(tmp_path):
                "--measure", "contraction", "--out", tmp_path])
     assert res.exit_code == 2, res.output
     assert len(res.output.strip().splitlines()) == 1 and "contraction" in res.output
+
+
+def test_witnesses_verify_and_tampering_is_refused(tmp_path, dr_spec):
+    from fractions import Fraction
+
+    from sosalgo.pep.check import check_witness
+    from sosalgo.spec import load_spec
+
+    doc = pep_doc(tmp_path, dr_spec, 10, 2)
+    wit = doc["witness"]
+    tau = proven(doc)
+    check = wit["check"]
+    assert check["verified"], check
+    assert DR[(10, "3", 2)] * (1 - 1e-4) <= check["tau_lower_float"] <= tau
+    path = tmp_path / "doc.json"
+    path.write_text(json.dumps(doc))
+    res = run(["verify", path, "--spec", dr_spec, "--out", tmp_path / "v"])
+    assert res.exit_code == 0, res.output
+    spec = load_spec(dr_spec)
+    bad = json.loads(json.dumps(wit))  # an answer that is not its point's gradient
+    u = Fraction(bad["calls_second"][1][1][0])
+    bad["calls_second"][1][1] = [str(u * Fraction(11, 10) + Fraction(1, 1000))]
+    assert not check_witness(bad, spec)["verified"]
+    bad = json.loads(json.dumps(wit))  # a start farther out than the runs say
+    bad["xi0_second"] = [[str(Fraction(v[0]) * 2)] for v in bad["xi0_second"]]
+    assert not check_witness(bad, spec)["verified"]
+    bad = json.loads(json.dumps(wit))  # a contraction witness for another measure
+    bad["measure"] = "dist"
+    assert not check_witness(bad, spec)["verified"]

@@ -460,7 +460,7 @@ def _measure_initial(doc: dict[str, Any], spec: Spec, av: ArbView
         _differences_only(iterms, av)
     pos = positions(doc, av)
     checked, bad = _pairs_ok(doc, av, pos)
-    from sosalgo.pep.inexact import call_checks
+    from sosalgo.pep.call_checks import call_checks
 
     calls, wrong = call_checks(doc, av)  # each answer is its point's gradient (or near it)
     checked, bad = checked + calls, bad + wrong
@@ -493,12 +493,13 @@ def check_witness(doc: dict[str, Any], spec: Spec, mt: Method | ArbView | None =
             om, _ = bound_method(spec, class_kappa(spec, kappa))
             mt = exact_method(spec, kappa, om, int(doc["steps"]))
         av = mt if isinstance(mt, ArbView) else arb_view(mt)
-        if "xi0_second" in doc:  # two runs (:mod:`sosalgo.pep.contraction`)
-            from sosalgo.pep.contraction import check_contraction_witness
+        if "xi0_second" in doc:  # two runs (:mod:`sosalgo.pep.contraction_witness`)
+            from sosalgo.pep.contraction_witness import check_contraction_witness
 
             if str(doc.get("measure")).strip() != "contraction":
                 raise ValueError("a second run is a witness of the contraction measure")
-            return check_contraction_witness(doc, spec, av)
+            with precision(PREC):
+                return check_contraction_witness(doc, spec, av)
         with precision(PREC):
             checked, bad, zero_sum, meas, init = _measure_initial(doc, spec, av)
     except (KeyError, ValueError, TypeError, IndexError, ZeroDivisionError, StopIteration,

@@ -456,7 +456,7 @@ def _contraction_coordinates(claims: _Claims, mt: Any, doc: Mapping[str, Any],
     to the largest) of both runs recomputed (:mod:`sosalgo.pep.contraction`)."""
     from sosalgo.kernel.arb import precision
     from sosalgo.pep.check import PREC, arb_view
-    from sosalgo.pep.contraction import contraction_positions
+    from sosalgo.pep.contraction_witness import contraction_positions
 
     try:
         with precision(PREC):

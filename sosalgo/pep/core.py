@@ -273,12 +273,16 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
         show_phase("proving the certificate" if exact else "checking the certificate")
         res.certificate = _certificate(spec, kappa, mt, data, ans, exact, mterms, iterms, ex)
         if witness and any(t.kind == "contraction" for t in mterms):  # two runs
-            from sosalgo.pep.contraction import contraction_witness
+            from sosalgo.pep.contraction_witness import contraction_witness
+            from sosalgo.pep.witness import check_witness, finish_witness
 
             show_phase("worst-case witness")
             res.witness = contraction_witness(spec, kappa, mt, res, ex)
+            if res.witness is not None:
+                res.witness["check"] = check_witness(res.witness, spec, ex)
+                res.witness = finish_witness(res.witness, spec, kappa, None, res)
         elif witness and mt.line_search:  # a run on the class's extremal quadratic
-            from sosalgo.pep.linesearch import line_search_witness
+            from sosalgo.pep.linesearch_witness import line_search_witness
 
             show_phase("worst-case witness")
             res.witness = line_search_witness(spec, kappa, mt, st, res, ex)

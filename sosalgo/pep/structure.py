@@ -311,18 +311,35 @@ def build_structure(mt: Method, steps: int, measure: Sequence[Term],
                     ) -> PEPStructure:
     """The PEP of ``steps`` steps (see the module docstring); on an exact method, built
     once per (steps, terms) and kept on the method (nothing downstream changes it)."""
-    from sosalgo.pep.contraction import build_contraction, is_contraction
+    from sosalgo.pep.contraction import is_contraction
 
     key = (steps, repr(list(measure)), repr(list(initial)), option)
     if mt.exact and key in mt.structures:
         return mt.structures[key]
     if is_contraction(measure, initial):  # two runs (:mod:`sosalgo.pep.contraction`)
-        st = build_contraction(mt, steps, measure, initial)
+        st = _contraction_structure(mt, steps, measure, initial)
     else:
         st = _build_structure(mt, steps, measure, initial, option)
     if mt.exact:
         mt.structures[key] = st
     return st
+
+
+def _contraction_structure(mt: Method, steps: int, measure: Sequence[Term],
+                           initial: Sequence[Term]) -> PEPStructure:
+    """The PEP of the contraction measure (:mod:`sosalgo.pep.contraction`): no points,
+    no values, the two-point conditions as extra rows."""
+    from sosalgo.pep.contraction import contraction_parts, contraction_size
+
+    d = contraction_size(mt, steps)
+    eye = np.eye(d) if not mt.exact else _obj_eye(d)
+    c = contraction_parts(mt, steps, measure, initial, eye)
+    dt = object if mt.exact else float
+    return PEPStructure(steps, steps, c["basis"], [[] for _ in mt.functions], 0, [],
+                        [lab for lab, _, _ in c["extras"]], c["meas"], np.zeros(0, dtype=dt),
+                        c["init"], np.zeros(0, dtype=dt),
+                        {k: c[k] for k in ("xi", "y", "u", "x")}, {}, True,
+                        extras=c["extras"])
 
 
 def _build_structure(mt: Method, steps: int, measure: Sequence[Term],

@@ -46,8 +46,8 @@ from sosalgo.pep.structure import Method, last_calls
 from sosalgo.pep.terms import Term
 from sosalgo.spec import Spec
 
-__all__ = ["WITNESS_KIND", "check_witness", "fit_values", "interior_point", "make_witness",
-           "plausible"]
+__all__ = ["WITNESS_KIND", "check_witness", "finish_witness", "fit_values", "interior_point",
+           "make_witness", "plausible"]
 
 # (slack, eta) of the reduced solves, in order: every inequality >= slack (scaled rows),
 # the measure kept at (1 - eta) tau_N; a larger eta leaves room for a larger slack
@@ -187,14 +187,14 @@ def make_witness(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
             if low is not None and (best is None or low > best["check"]["tau_lower_float"]):
                 best = doc
             if low is not None and low >= (1 - ACCEPT) * tau:
-                return _finish(doc, spec, kappa, exact_mt, res)
+                return finish_witness(doc, spec, kappa, exact_mt, res)
     if best is not None:  # verified, but further below tau than ACCEPT
-        return _finish(best, spec, kappa, exact_mt, res)
+        return finish_witness(best, spec, kappa, exact_mt, res)
     if last is not None and "check" not in last:
         last["check"] = check_witness(last, spec, ex)
     if last is not None:  # not verified: what the search tried, and why each failed
         last["search"]["interior_point"] = bool(inner and inner[0] is not None)
-    return None if last is None else _finish(last, spec, kappa, exact_mt, res)
+    return None if last is None else finish_witness(last, spec, kappa, exact_mt, res)
 
 
 def _sources(data: PEPData, ans: SDPAnswer, tau: float, unit: float
@@ -269,7 +269,7 @@ def plausible(data: PEPData, coef: np.ndarray, V: np.ndarray,
     return False
 
 
-def _finish(doc: dict[str, Any], spec: Spec, kappa: float | None,
+def finish_witness(doc: dict[str, Any], spec: Spec, kappa: float | None,
             exact_mt: Method | None, res: Any) -> dict[str, Any]:
     """The chosen witness: the class it is about (exact strings), the proven upper bound
     of the same PEP (``upper``: its exact multipliers, re-proven by ``sosalgo verify``),
