@@ -105,7 +105,8 @@ def exact_base(spec: Spec, kappa: float | None) -> dict[sp.Symbol, sp.Expr]:
 
 def class_description(spec: Spec, kappa: float | None) -> dict[str, Any]:
     """Which class a proof is about, as exact strings: ``m``, ``L`` (``kappa``) and each
-    function's class and parameters (sympy's exact form: ``1/10``, ``sqrt(2)/10``)."""
+    function's class and parameters (sympy's exact form: ``1/10``, ``sqrt(2)/10``); the
+    relative error of each inexact oracle call and the line search parameter, if any."""
     from sosalgo.kernel.expr.parse import to_sympy
     from sosalgo.kernel.kappa import kappa_fields
     from sosalgo.pep.bind import class_kappa
@@ -117,6 +118,12 @@ def class_description(spec: Spec, kappa: float | None) -> dict[str, Any]:
     out["functions"] = {name: {"class": decl.cls, "params": {
         k: str(to_sympy(e).xreplace(base)) for k, e in decl.params.items()}}
         for name, decl in spec.functions.items()}
+    if getattr(spec, "inexact", None):  # the oracles' relative errors, as written
+        env = _exact_env(spec, base)
+        out["relative_errors"] = {f"oracles[{i}]": str(to_sympy(e).xreplace(env))
+                                  for i, e in spec.inexact.items()}
+    if getattr(spec, "line_search", None):
+        out["line_search"] = spec.line_search
     return out
 
 

@@ -15,30 +15,43 @@ __all__ = ["line_search_witness"]
 # <g_{k+1}, d_k> = 0 holds exactly; an inexact answer d_k (inside its error ball, checked
 # in rationals) and the start are chosen by a float search (greedy per step).
 
-START_GRID = 2001  # start angles tried
+START_GRID = 201  # start angles tried (twice: coarse, then around the best)
 TURN_GRID = 721  # directions of an inexact answer's error tried per step
 INSIDE = Fraction(1, 10 ** 7)  # the curvatures' distance inside [m, L] (relative to L - m)
 
 
 def _run(H: np.ndarray, x: np.ndarray, steps: int, eps: float | None
          ) -> tuple[float, list[float]]:
-    """(f(x_N)/f(x_0), error angles) of the float run from x (greedy inexact answers)."""
+    """(f(x_N)/f(x_0), error angles) of the float run from x (greedy inexact answers, all
+    TURN_GRID directions of the error at once)."""
     f0 = 0.5 * x @ H @ x
+    ths = np.linspace(0, 2 * np.pi, TURN_GRID) if eps else np.zeros(1)
     turns = []
     for _ in range(steps):
         g = H @ x
-        best = (-1.0, 0.0, x)
-        for th in (np.linspace(0, 2 * np.pi, TURN_GRID) if eps else (0.0,)):
-            d = g + (eps or 0.0) * _rotate(g, th)
-            den = d @ H @ d
-            if not den > 0:
-                continue
-            xn = x - (g @ d) / den * d
-            if 0.5 * xn @ H @ xn > best[0]:
-                best = (0.5 * xn @ H @ xn, th, xn)
-        turns.append(best[1])
-        x = best[2]
+        c, s = np.cos(ths), np.sin(ths)
+        d = g[None, :] + (eps or 0.0) * np.stack([c * g[0] - s * g[1], s * g[0] + c * g[1]], 1)
+        den = np.einsum("ti,ij,tj->t", d, H, d)
+        with np.errstate(all="ignore"):
+            xn = x[None, :] - ((d @ g) / den)[:, None] * d
+            val = np.where(den > 0, 0.5 * np.einsum("ti,ij,tj->t", xn, H, xn), -1.0)
+        best = int(np.argmax(val))
+        turns.append(float(ths[best]))
+        x = xn[best]
     return (0.5 * x @ H @ x) / f0 if f0 > 0 else 0.0, turns
+
+
+def _best_start(H: np.ndarray, N: int, eps: float | None
+                ) -> tuple[tuple[float, list[float]], float]:
+    """((ratio, error angles), start angle) of the worst start: a grid of START_GRID
+    angles, then START_GRID more around the best."""
+    width = np.pi / START_GRID
+    grid = np.linspace(1e-3, np.pi - 1e-3, START_GRID)
+    for _ in range(2):
+        best = max(((_run(H, np.array([np.cos(a), np.sin(a)]), N, eps), a) for a in grid),
+                   key=lambda r: r[0][0])
+        grid = np.linspace(best[1] - width, best[1] + width, START_GRID)
+    return best
 
 
 def _rotate(g: np.ndarray, th: float) -> np.ndarray:
@@ -95,11 +108,7 @@ def line_search_witness(spec: Any, kappa: Any, mt: Any, st: Any, res: Any,
     eps = None if eps is None else Fraction(getattr(eps, "c", eps))
     H = np.diag([float(m), float(L)])
     N = st.steps
-    best = max(((_run(H, np.array([np.cos(a), np.sin(a)]), N,
-                      None if eps is None else float(eps)), a)
-                for a in np.linspace(1e-3, np.pi - 1e-3, START_GRID)),
-               key=lambda r: r[0][0])
-    (_, turns), a = best
+    (_, turns), a = _best_start(H, N, None if eps is None else float(eps))
     x = [_q(np.cos(a)), _q(np.sin(a))]
     ys, ds, ts = [], [], []
     for k in range(N + 1):
