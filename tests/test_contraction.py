@@ -220,3 +220,26 @@ def test_witnesses_verify_and_tampering_is_refused(tmp_path, dr_spec):
     bad = json.loads(json.dumps(wit))  # a contraction witness for another measure
     bad["measure"] = "dist"
     assert not check_witness(bad, spec)["verified"]
+
+
+# the shipped specs named after PEPit's examples, at the examples' parameters and others
+SHIPPED = {  # (spec, kappa, N, --set ...): PEPit's value
+    # wc_gradient_descent_contraction(L=1, mu=.1, gamma=1, n=1): the example's
+    ("gradient-descent-contraction", 10, 1, ()): 0.8100000058232638,
+    # wc_douglas_rachford_splitting_contraction(mu=.1, L=1, alpha=3, theta=1, n=2): the
+    # example's; theta=1.5; alpha=1, theta=.5
+    ("douglas-rachford-contraction", 10, 2, ()): 0.3501278218595927,
+    ("douglas-rachford-contraction", 10, 2, ("theta=1.5",)): 0.18276889977697766,
+    ("douglas-rachford-contraction", 10, 2, ("theta=0.5", "alpha=1")): 0.8302071263040188,
+}
+
+
+@pytest.mark.parametrize("key", list(SHIPPED))
+def test_shipped_contraction_specs_agree_with_pepit(tmp_path, key):
+    spec, kappa, n, sets = key
+    extra = [a for s in sets for a in ("--set", s)]
+    doc = pep_doc(tmp_path, SPECS / f"{spec}.yaml", kappa, n, *extra)
+    tau = proven(doc)
+    assert SHIPPED[key] * (1 - 1e-7) <= tau <= SHIPPED[key] * (1 + 1e-6)
+    assert doc["witness"]["check"]["verified"]
+    assert doc["witness"]["check"]["tau_lower_float"] >= SHIPPED[key] * (1 - 1e-3)
