@@ -183,3 +183,22 @@ def test_epsilon_set_outside_the_range_and_analyze_are_refused(tmp_path):
     res = run(["analyze", SPEC, "--kappa", "10", "--out", tmp_path / "a"])
     assert res.exit_code == 2 and "relative_error" in res.output, res.output
     assert len(res.output.strip().splitlines()) == 1
+
+
+def test_minimum_over_iterates_with_inexact_calls(tmp_path):
+    """mingrad's minimax weights are solved on the PEP with its extra rows: proven, and a
+    verified witness below the proof."""
+    res = run(["pep", SPEC, "--kappa", "10", "--steps", "2", "--measure", "mingrad",
+               "--initial", "f(x_0)", "--out", tmp_path, "--json", "--no-plot"])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    proof = doc["certificate"]["proof"]
+    assert proof["proven"], proof
+    check = doc["witness"]["check"]
+    assert check["verified"] and check["tau_lower_float"] <= proof["tau_proven_float"]
+    # an exact oracle can only do better (the inexact worst case contains it)
+    exact = run(["pep", _exact_twin(tmp_path), "--kappa", "10", "--steps", "2", "--measure",
+                 "mingrad", "--initial", "f(x_0)", "--out", tmp_path / "e", "--json",
+                 "--no-plot"])
+    assert exact.exit_code == 0, exact.output
+    assert json.loads(exact.stdout)["tau"] <= doc["tau"] * (1 + 1e-6)
