@@ -202,3 +202,34 @@ def test_minimum_over_iterates_with_inexact_calls(tmp_path):
                  "--no-plot"])
     assert exact.exit_code == 0, exact.output
     assert json.loads(exact.stdout)["tau"] <= doc["tau"] * (1 + 1e-6)
+
+
+CONVEX = """name: inexact-convex
+description: inexact gradient steps h = 1/L on L-smooth convex f
+functions:
+  f: {class: smooth_strongly_convex}
+oracles:
+  - {function: f, relative_error: 1/10}
+parameters:
+  h: {value: 1/L, range: [0, 3/L]}
+matrices: {A: [[1]], B: [[-h]], C: [[1]], E: [[1]]}
+m: 0
+L: 1
+"""
+# PEPit 0.5.1: PEP() with SmoothConvexFunction(L=1), (x0 - xs)^2 <= 1, two
+# inexact_gradient_step(x, f, gamma=1, epsilon=.1, notion='relative'), metric f(x) - fs
+# (wrapper="cvxpy", solver="CLARABEL")
+PEPIT_CONVEX = 0.10869565648646215
+
+
+@pytest.mark.parametrize("extra", [(), ("--set", "h=[1, 1]")])  # and as a schedule
+def test_smooth_convex_and_schedules_carry_the_relative_error(tmp_path, extra):
+    path = tmp_path / "convex.yaml"
+    path.write_text(CONVEX)
+    res = run(["pep", path, "--steps", "2", "--out", tmp_path / "o", "--json", "--no-plot",
+               *extra])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    proven = doc["certificate"]["proof"]["tau_proven_float"]
+    assert PEPIT_CONVEX * (1 - 1e-7) <= proven <= PEPIT_CONVEX * (1 + 1e-5)
+    assert doc["witness"]["check"]["verified"]
