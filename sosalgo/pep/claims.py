@@ -452,20 +452,28 @@ def _coordinate_claims(claims: _Claims, spec: Spec, kappa: float | None,
 
 def _contraction_coordinates(claims: _Claims, mt: Any, doc: Mapping[str, Any],
                              where: str) -> None:
-    """Each point's ``x`` of a contraction witness within :data:`FLOAT_REL` (relative
-    to the largest) of both runs recomputed (:mod:`sosalgo.pep.contraction`)."""
+    """Each point's ``x`` and the ``iterates`` (the second run's states) of a contraction
+    witness within :data:`FLOAT_REL` (relative to the largest) of both runs recomputed
+    (:mod:`sosalgo.pep.contraction_witness`)."""
     from sosalgo.kernel.arb import precision
     from sosalgo.pep.check import PREC, arb_view
     from sosalgo.pep.contraction_witness import contraction_positions
 
     try:
         with precision(PREC):
-            pos, _ = contraction_positions(dict(doc), arb_view(mt))
+            pos, states = contraction_positions(dict(doc), arb_view(mt))
         want = {k: float(v[0].mid()) for k, v in pos.items()}
+        its = [float(xi[0, 0].mid()) for xi in states[1]]
     except (KeyError, ValueError, TypeError, IndexError, ArithmeticError):
         claims.add(f"{where}", "contradicted", "the two runs cannot be recomputed")
         return
-    scale = max([abs(v) for v in want.values()] + [1e-300])
+    scale = max([abs(v) for v in [*want.values(), *its]] + [1e-300])
+    got = doc.get("iterates")
+    if not (isinstance(got, list) and len(got) == len(its) and all(
+            isinstance(x, list) and len(x) == 1 and isinstance(x[0], int | float)
+            and not isinstance(x[0], bool) and abs(x[0] - w) <= FLOAT_REL * scale
+            for x, w in zip(got, its, strict=True))):
+        claims.add(f"{where}.iterates", "contradicted", "not the second run's states")
     for name, fd in doc["functions"].items():
         for i, pt in enumerate(fd.get("points") or []):
             x, w = pt.get("x"), want.get(pt.get("label"))

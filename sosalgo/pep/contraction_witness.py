@@ -92,7 +92,7 @@ def contraction_witness(spec: Any, kappa: Any, mt: Any, res: Any, exact_mt: Any
                                 "h": fraction_str(qf[j] * y * y / 2), "x": [float(y)]})
         funcs[name] = {"class": cls.name, "params": {k: float(getattr(v, "c", v))
                                                      for k, v in params.items()},
-                       "curvature": fraction_str(qf[j]), "optimal_subgradient": ["0"],
+                       "optimal_subgradient": ["0"],
                        "points": pts}
     doc = {"kind": WITNESS_KIND, "spec": spec.name, "kappa": res.kappa, "steps": N,
            "calls_per_step": p, "call_steps": N, "measure": res.measure,
@@ -101,27 +101,20 @@ def contraction_witness(spec: Any, kappa: Any, mt: Any, res: Any, exact_mt: Any
            "calls": [[[fraction_str(u)] for u in row] for row in runs[0][1]],
            "calls_second": [[[fraction_str(u)] for u in row] for row in runs[1][1]],
            "functions": funcs, "evaluations": {}, "tau_float": res.tau,
-           "iterates": _iterates(ex, start, runs[1][1], mt, N)}
+           "iterates": _states(ex, start, runs[1][1], N)}
     return doc  # the caller checks it (:func:`sosalgo.pep.check.check_witness`)
 
 
-def _iterates(steps: list[list[np.ndarray]], xi0: list[Fraction], us: list[list[Fraction]],
-              mt: Any, N: int) -> list[list[float]]:
-    """The second run's outputs x_0 .. x_N (floats): E xi_k, or the output call's point."""
+def _states(steps: list[list[np.ndarray]], xi0: list[Fraction], us: list[list[Fraction]],
+            N: int) -> list[list[float]]:
+    """The second run's first state entry xi'_k[0], k = 0..N (floats; ``iterates``)."""
     xi = np.array([float(x) for x in xi0])
-    out = []
-    for k in range(N + 1):
-        A, B, C, D = (np.array([[float(_centre(v)) for v in row] for row in M])
-                      for M in steps[min(k, N - 1)])
-        if k < N:
-            u = np.array([float(v) for v in us[k]])
-            x = (np.array([float(_centre(v)) for v in mt.E[0]]) @ xi if mt.E is not None
-                 else (C @ xi + D @ u)[mt.output])
-            xi = A @ xi + B @ u
-        else:
-            x = (np.array([float(_centre(v)) for v in mt.E[0]]) @ xi if mt.E is not None
-                 else float("nan"))
-        out.append([float(x)])
+    out = [[float(xi[0])]]
+    for k in range(N):
+        A, B = (np.array([[float(_centre(v)) for v in row] for row in M])
+                for M in steps[k][:2])
+        xi = A @ xi + B @ np.array([float(v) for v in us[k]])
+        out.append([float(xi[0])])
     return out
 
 
@@ -169,22 +162,30 @@ def _arb_mat(rows: Any) -> Any:
 
 
 def contraction_positions(doc: dict[str, Any], av: Any) -> tuple[dict[str, Any], list[Any]]:
-    """(label -> (point ball, answer text), [(xi_0, xi_N)] of each run) of a contraction
-    witness, recomputed from its starts and answers (arb, at the current precision)."""
+    """(label -> (point ball, answer text), [xi_0, ..., xi_N] of each run) of a contraction
+    witness, recomputed from its starts and answers (arb, at the current precision);
+    ValueError when its sizes are not the method's."""
     N, p = int(doc["steps"]), av.mt.p
     states, pos = [], {}
+    if (int(doc["call_steps"]) != N or int(doc["dimension"]) != 1
+            or int(doc["calls_per_step"]) != p):
+        raise ValueError("call_steps, calls_per_step, dimension: expected N, p and 1")
     for key, calls, tag in (("xi0", "calls", ""), ("xi0_second", "calls_second", "'")):
         xi = _arb_mat(doc[key])
         if xi.nrows() != av.mt.n or xi.ncols() != 1 or len(doc[calls]) != N:
             raise ValueError(f"{key}, {calls}: expected {av.mt.n} states and {N} steps")
+        run = [xi]
         for k in range(N):
+            if len(doc[calls][k]) != p or any(len(u) != 1 for u in doc[calls][k]):
+                raise ValueError(f"{calls}[{k}]: expected {p} answers of 1 coordinate")
             u = _arb_mat(doc[calls][k])
             A, B, C, D = av.step(k)
             y = C * xi + D * u
             for i in range(p):
                 pos[_label(i, k, p) + tag] = (y[i, 0], doc[calls][k][i][0])
             xi = A * xi + B * u
-        states.append((_arb_mat(doc[key]), xi))
+            run.append(xi)
+        states.append(run)
     return pos, states
 
 
@@ -223,7 +224,10 @@ def check_contraction_witness(doc: dict[str, Any], spec: Any, av: Any) -> dict[s
                                  if not Q[r][c].is_zero()), arb(0))
                         checked += 1
                         bad += not (alpha * (ha - hb) + q >= 0)
-        (s0, sN), (t0_, tN) = states
+        (s0, sN), (t0_, tN) = (states[0][0], states[0][-1]), (states[1][0], states[1][-1])
+        for name, _, _ in mt.functions:
+            if any(Fraction(v) != 0 for v in doc["functions"][name]["optimal_subgradient"]):
+                raise ValueError(f"{name}: optimal_subgradient: no minimizer here (0)")
         meas = sum(((sN[a, 0] - tN[a, 0]) * (sN[a, 0] - tN[a, 0]) for a in range(mt.n)),
                    arb(0))
         init = sum(((s0[a, 0] - t0_[a, 0]) * (s0[a, 0] - t0_[a, 0]) for a in range(mt.n)),
