@@ -66,8 +66,9 @@ def run(args):
 
 
 def pep_doc(tmp_path, spec, kappa, n, *extra):
-    res = run(["pep", spec, "--kappa", kappa, "--steps", n, "--out", tmp_path, "--json",
-               "--no-plot", *extra])
+    kap = [] if kappa is None else ["--kappa", kappa]
+    res = run(["pep", spec, *kap, "--steps", n, "--out", tmp_path, "--json", "--no-plot",
+               *extra])
     assert res.exit_code == 0, res.output
     return json.loads(res.stdout)
 
@@ -243,3 +244,16 @@ def test_shipped_contraction_specs_agree_with_pepit(tmp_path, key):
     assert SHIPPED[key] * (1 - 1e-7) <= tau <= SHIPPED[key] * (1 + 1e-6)
     assert doc["witness"]["check"]["verified"]
     assert doc["witness"]["check"]["tau_lower_float"] >= SHIPPED[key] * (1 - 1e-3)
+
+
+def test_a_nonconvex_class_and_the_spec_initial_yielding(tmp_path):
+    """Class-agnostic: on L-smooth nonconvex f, gradient steps 1/L expand by
+    max_{q in [-L, L]} |1 - q/L| = 2 per step (the spec's own pep.initial, a difference of
+    values, gives way to the contraction's)."""
+    doc = pep_doc(tmp_path, SPECS / "gradient-nonconvex.yaml", None, 2, "--measure",
+                  "contraction")
+    assert doc["initial"] == "contraction"
+    tau = proven(doc)
+    assert 16 * (1 - 1e-9) <= tau <= 16 * (1 + 1e-6)
+    assert doc["witness"]["check"]["verified"]
+    assert doc["witness"]["check"]["tau_lower_float"] >= 16 * (1 - 1e-3)

@@ -175,10 +175,11 @@ def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None
     else:
         om, kq = bound_method(spec, kappa)
     mopt = "--measure" if measure or "measure" not in spec.pep else "pep.measure"
-    iopt = "--initial" if initial or "initial" not in spec.pep else "pep.initial"
     measure = measure or spec.pep.get("measure") or _default_measure(spec)
-    initial = initial or spec.pep.get("initial") or (
-        "contraction" if measure.strip() == "contraction" else default_initial(om))
+    if not initial and measure.strip() == "contraction":  # two runs: its own start
+        initial = "contraction"
+    iopt = "--initial" if initial or "initial" not in spec.pep else "pep.initial"
+    initial = initial or spec.pep.get("initial") or default_initial(om)
     try:
         mterms = parse_terms(measure, mopt, False, om.p)
         iterms = parse_terms(initial, iopt, True, om.p)
