@@ -46,7 +46,8 @@ def check_grid_points(points: Any, n_free: int, label: str = "--points") -> int:
 
 
 def refuse_nonconvex(spec: Any, linear_rates: bool = False) -> None:
-    """InputError (one line) for a spec with a nonconvex function or an operator: no
+    """InputError (one line) for a spec with a nonconvex function, an operator, an inexact
+    oracle call or an exact line search: no
     certificate family certifies a rate for it (``sosalgo pep`` bounds its N-step worst
     case). ``linear_rates`` (``analyze``): an operator spec with m > 0 passes (the
     interpolation family certifies its linear rates; no sublinear family applies to
@@ -54,6 +55,15 @@ def refuse_nonconvex(spec: Any, linear_rates: bool = False) -> None:
     from sosalgo.certificates import inhomogeneous_functions, nonconvex_functions
     from sosalgo.spec.loading import operator_functions
 
+    if getattr(spec, "line_search", None):
+        raise InputError(f"{spec.source}: line_search: a step chosen by exact line search: "
+                         "no Lyapunov family models it (no rate is certified); sosalgo pep "
+                         "bounds its worst case after N steps")
+    inexact = sorted(getattr(spec, "inexact", None) or ())
+    if inexact:
+        raise InputError(f"{spec.source}: oracles[{inexact[0]}].relative_error: an inexact "
+                         "gradient: no Lyapunov family models it (no rate is certified); "
+                         "sosalgo pep bounds its worst case after N steps")
     bad = nonconvex_functions(spec)
     if bad:
         raise InputError(f"{spec.source}: functions: {', '.join(bad)} is nonconvex: no "

@@ -31,7 +31,8 @@ from sosalgo.errors import ModelError
 from sosalgo.spec.types import Spec, SpecError
 
 __all__ = ["BoundFunction", "CallShape", "OracleMethod", "as_oracle_method", "check_oracle_spec",
-           "check_magnitudes", "composite_quadratic_rate", "consistent_solution",
+           "check_magnitudes", "check_relative_error", "composite_quadratic_rate",
+           "consistent_solution", "relative_errors",
            "fixed_point_basis", "fixed_point_system", "seed_functions"]
 
 FIXED_POINT_TOL = 1e-8
@@ -94,6 +95,9 @@ class OracleMethod(CallShape):
     output: int | None = None
     measure: str = "function"
     params: dict[str, float] = field(default_factory=dict)
+    # inexact gradient calls: call index -> eps in [0, 1) (the answer d of the call has
+    # |d - grad f(y)| <= eps |grad f(y)|); only ``sosalgo pep`` models them
+    errors: dict[int, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         for k in ("A", "B", "C", "D", "E"):
@@ -235,6 +239,8 @@ def check_oracle_spec(spec: Spec, fail: Callable[[str, str], SpecError]) -> None
             raise fail(f"matrices.D[{i}][{i}]", "a diagonal entry must be -t with t >= 0 (a "
                        f"proximal step), got {_value(diag):g}")
         prox = diag is not None and not _is_zero(diag)
+        if i in spec.inexact:
+            _check_inexact(spec, i, cls, prox, fail)
         if prox and not cls.proximal:
             raise fail(f"matrices.D[{i}][{i}]", f"a proximal step on {fname}, whose class "
                        f"{cls.name} has no proximal oracle")
@@ -243,6 +249,34 @@ def check_oracle_spec(spec: Spec, fail: Callable[[str, str], SpecError]) -> None
                        f"make D[{i}][{i}] = -t")
     if spec.measure == "function":
         _check_measure(spec, fail)
+
+
+def _check_inexact(spec: Spec, i: int, cls: FunctionClass, prox: bool,
+                   fail: Callable[[str, str], SpecError]) -> None:
+    """An inexact call is a gradient call (D_ii = 0) on a class with gradients, its
+    relative error (when a constant) in [0, 1)."""
+    where = f"oracles[{i}].relative_error"
+    if prox or "gradient" not in cls.oracles:
+        raise fail(where, f"an inexact gradient of {spec.oracles[i]}, whose class {cls.name} "
+                   "has no gradient oracle" if "gradient" not in cls.oracles else
+                   f"an inexact gradient is a gradient call: make D[{i}][{i}] = 0")
+    eps = spec.inexact[i]
+    if eps.is_constant and _relative_error_issue(_value(eps)):
+        raise fail(where, _relative_error_issue(_value(eps)))
+
+
+def _relative_error_issue(eps: float) -> str:
+    """Why eps is not a relative error ("" when 0 <= eps < 1; at eps >= 1 the answer
+    may be 0 anywhere, and nothing converges)."""
+    if 0 <= eps < 1:
+        return ""
+    return f"must be in [0, 1) (|d - grad f| <= eps |grad f|), got {eps:g}"
+
+
+def check_relative_error(where: str, eps: float) -> None:
+    """ModelError naming ``where`` unless 0 <= eps < 1."""
+    if _relative_error_issue(eps):
+        raise ModelError(where, _relative_error_issue(eps))
 
 
 def _check_measure(spec: Spec, fail: Callable[[str, str], SpecError]) -> None:
@@ -300,7 +334,25 @@ def make_method(spec: Spec, mats: Mapping[str, np.ndarray], m: float, L: float,
     return OracleMethod(mats["A"], mats["B"], mats["C"], D, mats.get("E"), m, L,
                         bind_functions(spec, [m, L, kappa], params),
                         tuple(names.index(f) for f in spec.oracles), spec.output,
-                        spec.measure, params)
+                        spec.measure, params, relative_errors(spec, m, L, kappa, params))
+
+
+def relative_errors(spec: Spec, m: float, L: float, kappa: float,
+                    params: Mapping[str, float]) -> dict[int, float]:
+    """The relative error of each inexact call at these values (ModelError naming the
+    field when it is not in [0, 1))."""
+    from sosalgo.kernel.expr.tree import evaluate
+
+    out = {}
+    for i, expr in spec.inexact.items():
+        where = f"oracles[{i}].relative_error"
+        try:
+            eps = float(evaluate(expr, {"m": m, "L": L, "kappa": kappa, **params}))
+        except (ValueError, ZeroDivisionError, OverflowError) as exc:
+            raise ModelError(where, str(exc)) from None
+        check_relative_error(where, eps)
+        out[i] = eps
+    return out
 
 
 def seed_functions(m: float, L: float) -> tuple[BoundFunction, ...]:

@@ -136,7 +136,7 @@ def positions(doc: dict[str, Any], av: ArbView) -> dict[str, Any]:
             pos[_label(i, k, p)] = (pos["x0"] if k == 0 and i == start
                                     else [y[i, c] for c in range(r)])
         if k < N:
-            xi = A * xi + B * u
+            xi = A * xi + B * u if not mt.line_search else xi + _ls_step(doc, k) * u
             states.append(xi)
     pos["xiN"] = xi
     call = mt.output if mt.output is not None else mt.out_call  # x_k is that call's point
@@ -161,6 +161,15 @@ def positions(doc: dict[str, Any], av: ArbView) -> dict[str, Any]:
             if p == 1:
                 pos.setdefault(f"y{N}", pos[_label(i, N - 1, p)])
     return pos
+
+
+def _ls_step(doc: dict[str, Any], k: int) -> arb:
+    """The step t_k of a line search witness (x_{k+1} = x_k + t_k d_k), exactly: the
+    line search is proven by <g_{k+1}, d_k> = 0 (:func:`sosalgo.pep.inexact.call_checks`)."""
+    steps = doc["line_search_steps"]
+    if not isinstance(steps, list) or len(steps) != int(doc["steps"]):
+        raise ValueError("line_search_steps: expected one step per iteration")
+    return ball(steps[k])
 
 
 def _q_mat(rows: Any) -> np.ndarray:
@@ -199,7 +208,9 @@ def exact_points(doc: dict[str, Any], mt: Method) -> tuple[dict[str, list[Any]],
             pts[_label(i, k, p)] = ([Fraction(v) for v in doc["x0"]] if k == 0 and i == start
                                     else list(y[i]))
         if k < N:
-            xi = np.vectorize(shorter, otypes=[object])(A.dot(xi) + B.dot(u))
+            nxt = (A.dot(xi) + B.dot(u) if not mt.line_search
+                   else xi + Fraction(doc["line_search_steps"][k]) * u)
+            xi = np.vectorize(shorter, otypes=[object])(nxt)
             states.append(xi)
     x0 = [Fraction(v) for v in doc["x0"]] if doc.get("xi0") is None else None
     its = []  # x_k as the float ``iterates``: the output call's point, else E xi_k
@@ -459,6 +470,10 @@ def _measure_initial(doc: dict[str, Any], spec: Spec, av: ArbView
         _differences_only(iterms, av)
     pos = positions(doc, av)
     checked, bad = _pairs_ok(doc, av, pos)
+    from sosalgo.pep.call_checks import call_checks
+
+    calls, wrong = call_checks(doc, av)  # each answer is its point's gradient (or near it)
+    checked, bad = checked + calls, bad + wrong
     ssum = [sum(Fraction(v[c]) for v in (f["optimal_subgradient"] for f in
                                           doc["functions"].values()))
             for c in range(int(doc["dimension"]))]
@@ -496,6 +511,13 @@ def check_witness(doc: dict[str, Any], spec: Spec, mt: Method | ArbView | None =
             om, _ = bound_method(spec, class_kappa(spec, kappa))
             mt = exact_method(spec, kappa, om, int(doc["steps"]))
         av = mt if isinstance(mt, ArbView) else arb_view(mt)
+        if "xi0_second" in doc:  # two runs (:mod:`sosalgo.pep.contraction_witness`)
+            from sosalgo.pep.contraction_witness import check_contraction_witness
+
+            if str(doc.get("measure")).strip() != "contraction":
+                raise ValueError("a second run is a witness of the contraction measure")
+            with precision(PREC):
+                return check_contraction_witness(doc, spec, av)
         with precision(PREC):
             checked, bad, zero_sum, meas, init = _measure_initial(doc, spec, av)
     except (KeyError, ValueError, TypeError, IndexError, ZeroDivisionError, StopIteration,

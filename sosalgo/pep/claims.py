@@ -426,6 +426,9 @@ def _coordinate_claims(claims: _Claims, spec: Spec, kappa: float | None,
                        isinstance(steps, bool) and 0 <= steps <= 10_000 else 0)
     if mt is None:
         return
+    if "xi0_second" in doc:  # two runs: each point's float x against the recomputed one
+        _contraction_coordinates(claims, mt, doc, where)
+        return
     try:
         pts, its = exact_points(dict(doc), mt)
     except (KeyError, ValueError, TypeError, IndexError, ArithmeticError, StopIteration):
@@ -446,6 +449,40 @@ def _coordinate_claims(claims: _Claims, spec: Spec, kappa: float | None,
         for k, (x, want) in enumerate(zip(got, its, strict=True)):
             _coord_list(claims, f"{where}.{key}[{k}]", x, want, key.endswith("exact"),
                         scale)
+
+
+def _contraction_coordinates(claims: _Claims, mt: Any, doc: Mapping[str, Any],
+                             where: str) -> None:
+    """Each point's ``x`` and the ``iterates`` (the second run's states) of a contraction
+    witness within :data:`FLOAT_REL` (relative to the largest) of both runs recomputed
+    (:mod:`sosalgo.pep.contraction_witness`)."""
+    from sosalgo.kernel.arb import precision
+    from sosalgo.pep.check import PREC, arb_view
+    from sosalgo.pep.contraction_witness import contraction_positions
+
+    try:
+        with precision(PREC):
+            pos, states = contraction_positions(dict(doc), arb_view(mt))
+        want = {k: float(v[0].mid()) for k, v in pos.items()}
+        its = [float(xi[0, 0].mid()) for xi in states[1]]
+    except (KeyError, ValueError, TypeError, IndexError, ArithmeticError):
+        claims.add(f"{where}", "contradicted", "the two runs cannot be recomputed")
+        return
+    scale = max([abs(v) for v in [*want.values(), *its]] + [1e-300])
+    got = doc.get("iterates")
+    if not (isinstance(got, list) and len(got) == len(its) and all(
+            isinstance(x, list) and len(x) == 1 and isinstance(x[0], int | float)
+            and not isinstance(x[0], bool) and abs(x[0] - w) <= FLOAT_REL * scale
+            for x, w in zip(got, its, strict=True))):
+        claims.add(f"{where}.iterates", "contradicted", "not the second run's states")
+    for name, fd in doc["functions"].items():
+        for i, pt in enumerate(fd.get("points") or []):
+            x, w = pt.get("x"), want.get(pt.get("label"))
+            if w is None or not isinstance(x, list) or len(x) != 1 or isinstance(
+                    x[0], bool) or not isinstance(x[0], int | float) or abs(
+                    x[0] - w) > FLOAT_REL * scale:
+                claims.add(f"{where}.functions.{name}.points[{i}].x", "contradicted",
+                           "not the recomputed point")
 
 
 def _mid(v: Any) -> Fraction:

@@ -118,7 +118,8 @@ def float_method(om: Any, kappa: float) -> Method:
     mt = Method(om.A, om.B, om.C, om.D, om.E, om.output,
                 [(fn.name, fn.cls, fn.params) for fn in om.functions], tuple(om.oracles),
                 X[:, 0], X[:, 1:], float(om.L), ineqs, coef, same,
-                deadbeat_gain(om.A, om.B, float(om.L)))
+                deadbeat_gain(om.A, om.B, float(om.L)),
+                errors=dict(getattr(om, "errors", None) or {}))
     if any(i.constant or i.scope != "pairs" for fi in tilted for i in fi):
         mt.constants = [[float(i.constant) for i in fi] for fi in tilted]
         mt.scopes = [[i.scope for i in fi] for fi in tilted]
@@ -179,8 +180,10 @@ def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None
     else:
         om, kq = bound_method(spec, kappa)
     mopt = "--measure" if measure or "measure" not in spec.pep else "pep.measure"
-    iopt = "--initial" if initial or "initial" not in spec.pep else "pep.initial"
     measure = measure or spec.pep.get("measure") or _default_measure(spec)
+    if not initial and measure.strip() == "contraction":  # two runs: its own start
+        initial = "contraction"
+    iopt = "--initial" if initial or "initial" not in spec.pep else "pep.initial"
     initial = initial or spec.pep.get("initial") or default_initial(om)
     try:
         mterms = parse_terms(measure, mopt, False, om.p)
@@ -192,6 +195,9 @@ def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None
     if schedule is not None:
         mt = float_step_method(schedule, mt, steps)
     mt.G0, mt.smooth = initial_gradient(spec, om, kq)
+    mt.line_search = bool(spec.line_search)
+    if mt.line_search and schedule is not None:
+        raise InputError(f"{spec.source}: line_search: not for a method that changes with k")
     try:
         bound = _resolve_min(mt, steps, mterms, iterms, kq, solve_min)
         st = build_structure(mt, steps, bound, iterms, (mopt, iopt))
@@ -241,7 +247,7 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
                                                 schedule)
     data = pep_data(mt, st)
     if schedule is not None:  # dense rows (the plain basis): every pair from the start
-        data.active, data.strong = np.arange(len(st.pairs)), True
+        data.active, data.strong = np.arange(st.count), True
     if steps > LONG:  # its proof is about LONG_MARGINS above tau anyway
         data.violation = LONG_VIOLATION
     show_phase("solving the PEP", f"{len(st.pairs)} interpolation pairs")
@@ -272,7 +278,21 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
                 res.extra["note"] = "no exact per-step matrices: the certificate is not proven"
         show_phase("proving the certificate" if exact else "checking the certificate")
         res.certificate = _certificate(spec, kappa, mt, data, ans, exact, mterms, iterms, ex)
-        if witness:
+        if witness and any(t.kind == "contraction" for t in mterms):  # two runs
+            from sosalgo.pep.contraction_witness import contraction_witness
+            from sosalgo.pep.witness import check_witness, finish_witness
+
+            show_phase("worst-case witness")
+            res.witness = contraction_witness(spec, kappa, mt, res, ex)
+            if res.witness is not None:
+                res.witness["check"] = check_witness(res.witness, spec, ex)
+                res.witness = finish_witness(res.witness, spec, kappa, None, res)
+        elif witness and mt.line_search:  # a run on the class's extremal quadratic
+            from sosalgo.pep.linesearch_witness import line_search_witness
+
+            show_phase("worst-case witness")
+            res.witness = line_search_witness(spec, kappa, mt, st, res, ex)
+        elif witness:
             from sosalgo.pep.witness import make_witness
 
             show_phase("worst-case witness")

@@ -105,7 +105,8 @@ def exact_base(spec: Spec, kappa: float | None) -> dict[sp.Symbol, sp.Expr]:
 
 def class_description(spec: Spec, kappa: float | None) -> dict[str, Any]:
     """Which class a proof is about, as exact strings: ``m``, ``L`` (``kappa``) and each
-    function's class and parameters (sympy's exact form: ``1/10``, ``sqrt(2)/10``)."""
+    function's class and parameters (sympy's exact form: ``1/10``, ``sqrt(2)/10``); the
+    relative error of each inexact oracle call and the line search parameter, if any."""
     from sosalgo.kernel.expr.parse import to_sympy
     from sosalgo.kernel.kappa import kappa_fields
     from sosalgo.pep.bind import class_kappa
@@ -118,6 +119,12 @@ def class_description(spec: Spec, kappa: float | None) -> dict[str, Any]:
     out["functions"] = {name: {"class": decl.cls, "params": {
         k: str(to_sympy(e).xreplace(env)) for k, e in decl.params.items()}}
         for name, decl in spec.functions.items()}
+    if getattr(spec, "inexact", None):  # the oracles' relative errors, as written
+        env = _exact_env(spec, base)
+        out["relative_errors"] = {f"oracles[{i}]": str(to_sympy(e).xreplace(env))
+                                  for i, e in spec.inexact.items()}
+    if getattr(spec, "line_search", None):
+        out["line_search"] = spec.line_search
     return out
 
 
@@ -233,6 +240,8 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
                 bits=enclosure_bits(digits))
     mt.out_call = _exact_output_call(mats, om)
     mt.x0_call = _exact_start_call(mats, Xq, om)
+    mt.errors = _exact_errors(spec, env, enclose)
+    mt.line_search = bool(getattr(spec, "line_search", None))
     if any(e is not None for e in extras):
         mt.constants = [e[0] if e else [Fraction(0)] * len(fi)
                         for e, fi in zip(extras, ineqs, strict=True)]
@@ -263,6 +272,14 @@ def class_extras(cls: Any, params: Mapping[str, Any], count: int
         raise ValueError(f"class {cls.name}: {len(consts)} exact constants for {count} "
                          "inequalities")
     return list(consts), [i.scope for i in fl]
+
+
+def _exact_errors(spec: Spec, env: dict[sp.Symbol, sp.Expr], enclose: Any) -> dict[int, Any]:
+    """The relative error of each inexact call as written (enclosed), exactly."""
+    from sosalgo.kernel.expr.parse import to_sympy
+
+    return {i: enclose(to_sympy(e).xreplace(env)) for i, e in
+            getattr(spec, "inexact", {}).items()}
 
 
 def _proven_zero(v: sp.Expr) -> bool:
@@ -351,7 +368,7 @@ def _residual_parts(mt: Method, st: PEPStructure, lam: list[Fraction]
     aF = [arb(0)] * st.nF
     forms = [[(ball(al), [[ball(v) for v in row] for row in Q]) for al, Q in fi]
              for fi in mt.ineqs]
-    for k, lk in enumerate(lam):
+    for k, lk in enumerate(lam[:len(st.pairs)]):
         if lk == 0:
             continue
         j, a, b, r = st.pairs[k]
@@ -368,8 +385,17 @@ def _residual_parts(mt: Method, st: PEPStructure, lam: list[Fraction]
             aF[pa.f] += alpha * lb * s
         if pb.f is not None:
             aF[pb.f] -= alpha * lb * s
-    R = arb_mat([[ball(v) for v in row] for row in rows])
-    return R.transpose() * arb_mat(W) * R, aF
+    if rows:
+        R = arb_mat([[ball(v) for v in row] for row in rows])
+        quad = R.transpose() * arb_mat(W) * R
+    else:  # no points (the contraction measure: extra constraints only)
+        quad = arb_mat(st.d, st.d)
+    for (_, Xe, Qe), lk in zip(st.extras, lam[len(st.pairs):], strict=True):
+        if lk:  # an extra constraint (:mod:`sosalgo.pep.inexact`): + lambda X' Qc X
+            Xb = arb_mat([[ball(v) for v in row] for row in Xe])
+            Qb = arb_mat([[ball(v) * ball(lk) for v in row] for row in Qe])
+            quad += Xb.transpose() * Qb * Xb
+    return quad, aF
 
 
 def _repaired(mt: Method, st: PEPStructure, lam: list[Fraction], tb: arb
@@ -1067,6 +1093,8 @@ def exact_step_method(spec: Any, kappa: float | None, sm: StepMethods, count: in
                         for e, fi in zip(extras, ineqs, strict=True)]
         mt.scopes = [e[1] if e else ["pairs"] * len(fi)
                      for e, fi in zip(extras, ineqs, strict=True)]
+    mt.errors = _exact_errors(spec, _exact_env(spec, base),
+                              lambda e: enclose(e, digits))
     return mt
 
 

@@ -65,7 +65,7 @@ def min_weights(mt: Method, steps: int, mterms: list[Term], iterms: list[Term],
     InputError when the epigraph PEP is unbounded or fails."""
     st, forms = _forms(mt, steps, mterms, iterms, option)
     data = pep_data(mt, st)
-    d, nF, K, M = st.d, st.nF, len(st.pairs), len(forms)
+    d, nF, K, M = st.d, st.nF, st.count, len(forms)  # the pairs and the extra rows
     nG = d * (d + 1) // 2
     ineq = sps.hstack([data.svec_rows(np.arange(K)), sps.csr_matrix(data.a)]).tocsr()
     sig = np.asarray(abs(ineq).max(axis=1).todense()).ravel() if K else np.ones(0)

@@ -125,7 +125,7 @@ class PEPData:
     def consts(self) -> np.ndarray:
         """The constant of every pair's inequality (zeros for a homogeneous PEP)."""
         if self.c is None:
-            self.c = (np.zeros(len(self.st.pairs)) if self.st.constants is None
+            self.c = (np.zeros(self.st.count) if self.st.constants is None
                       else self.st.constants.astype(float))
         return self.c
 
@@ -145,14 +145,16 @@ def _pair_svec(X: np.ndarray, Qc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def pep_data(mt: Method, st: PEPStructure) -> PEPData:
-    K, d = len(st.pairs), st.d
+    K, d = st.count, st.d
     X = np.zeros((K, 4, d))
     a = np.zeros((K, st.nF))
     Qc = np.zeros((K, 4, 4))
-    for k in range(K):
+    for k in range(len(st.pairs)):
         _, a[k], X[k] = st.pair_rows(mt, k)
         j, _, _, r = st.pairs[k]
         Qc[k] = mt.ineqs[j][r][1]
+    for k, (_, Xe, Qe) in enumerate(st.extras, len(st.pairs)):  # no function values
+        X[k], Qc[k] = np.asarray(Xe, float), np.asarray(Qe, float)
     return PEPData(st, X, Qc, a, seed_pairs(st), np.ones(d), np.ones(st.nF))
 
 
@@ -164,6 +166,7 @@ def seed_pairs(st: PEPStructure) -> np.ndarray:
         ta, tb = st.points[j][a].t, st.points[j][b].t
         if ta is None or tb is None or abs(ta - tb) <= 1:
             keep.append(k)
+    keep += range(len(st.pairs), st.count)  # the extra constraints: every one
     return np.array(keep, dtype=int)
 
 
@@ -217,7 +220,7 @@ def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
     coefficient: the rank reduction of the witness). The measure is divided by ``unit``
     for the solver (about tau); the answer is in the original units. ``precise``: the
     measure's solves try tight tolerances first (:data:`ATTEMPTS`, not :data:`QUICK`)."""
-    K = len(data.st.pairs)
+    K = data.st.count
     # with constants the solver's problem is not scale invariant: the measure keeps its own
     # unit (dividing it by tau alone left the projected gradient on a set of diameter 0.1
     # "almost solved" at N = 2, and solved in unit 1)
@@ -437,7 +440,7 @@ def _solve_dual(data: PEPData, active: np.ndarray, margin: float, unit: float,
         # solve's almost solved multipliers are a candidate: the exact check decides)
         return SDPAnswer("almost" if almost and rough else "failed", raw,
                          G=G if almost else None, F=F)
-    lam = np.zeros(len(st.pairs))
+    lam = np.zeros(st.count)
     lam[active] = np.maximum(x[1:], 0.0) / sig * unit
     ans = SDPAnswer("solved", raw, float(sol.obj_val_dual) * unit, float(sol.obj_val) * unit,
                     G, F, float(x[0]) * unit, lam,

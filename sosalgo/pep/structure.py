@@ -108,6 +108,10 @@ class Method(CallShape):
     def scope(self, j: int, r: int) -> str:
         """The pairs function j's inequality r holds for: "pairs" or "optimum"."""
         return "pairs" if self.scopes is None else self.scopes[j][r]
+    # inexact gradient calls: call index -> eps (|d - g| <= eps |g|, :mod:`sosalgo.pep.inexact`)
+    errors: dict[int, Any] = field(default_factory=dict)
+    # x+ = x - gamma_k u with gamma_k by exact line search (:mod:`sosalgo.pep.linesearch`)
+    line_search: bool = False
 
     def gain(self, k: int) -> np.ndarray:
         """The gain K_k of step k's basis vectors (:func:`_trajectory`)."""
@@ -159,10 +163,18 @@ class PEPStructure:
     # constants the worst case is the one under initial <= 1, and a dual certificate
     # (tau, lambda) bounds the measure by tau + sum_k lambda_k c_k (:mod:`sosalgo.pep.sdp`)
     constants: np.ndarray | None = None
+    # constraints beyond the class inequalities, after the pairs (their multipliers follow
+    # the pairs'): (label, X (4 x d), Qc (4 x 4)) with tr(Qc X G X') >= 0 (no values)
+    extras: list[tuple[str, np.ndarray, np.ndarray]] = field(default_factory=list)
 
     @property
     def d(self) -> int:
         return len(self.basis)
+
+    @property
+    def count(self) -> int:
+        """The constraints with a multiplier: the pairs, then the extras."""
+        return len(self.pairs) + len(self.extras)
 
     def pair_rows(self, method: Method, k: int) -> tuple[Any, np.ndarray, np.ndarray]:
         """(alpha, a on F, X (4 x d)) of pair k: alpha (F_a - F_b) + X' Q X >= 0."""
@@ -315,13 +327,35 @@ def build_structure(mt: Method, steps: int, measure: Sequence[Term],
                     ) -> PEPStructure:
     """The PEP of ``steps`` steps (see the module docstring); on an exact method, built
     once per (steps, terms) and kept on the method (nothing downstream changes it)."""
+    from sosalgo.pep.contraction import is_contraction
+
     key = (steps, repr(list(measure)), repr(list(initial)), option)
     if mt.exact and key in mt.structures:
         return mt.structures[key]
-    st = _build_structure(mt, steps, measure, initial, option)
+    if is_contraction(measure, initial):  # two runs (:mod:`sosalgo.pep.contraction`)
+        st = _contraction_structure(mt, steps, measure, initial)
+    else:
+        st = _build_structure(mt, steps, measure, initial, option)
     if mt.exact:
         mt.structures[key] = st
     return st
+
+
+def _contraction_structure(mt: Method, steps: int, measure: Sequence[Term],
+                           initial: Sequence[Term]) -> PEPStructure:
+    """The PEP of the contraction measure (:mod:`sosalgo.pep.contraction`): no points,
+    no values, the two-point conditions as extra rows."""
+    from sosalgo.pep.contraction import contraction_parts, contraction_size
+
+    d = contraction_size(mt, steps)
+    eye = np.eye(d) if not mt.exact else _obj_eye(d)
+    c = contraction_parts(mt, steps, measure, initial, eye)
+    dt = object if mt.exact else float
+    return PEPStructure(steps, steps, c["basis"], [[] for _ in mt.functions], 0, [],
+                        [lab for lab, _, _ in c["extras"]], c["meas"], np.zeros(0, dtype=dt),
+                        c["init"], np.zeros(0, dtype=dt),
+                        {k: c[k] for k in ("xi", "y", "u", "x")}, {}, True,
+                        extras=c["extras"])
 
 
 def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
@@ -334,9 +368,11 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
     needs_n = mt.output is not None or any(q.startswith("y") for t in measure
                                                 for q in t.point.split("__"))
     calls = steps + 1 if needs_n and mt.per_step is None else steps  # see last_calls
+    if mt.line_search:  # a call at x_N: its gradient enters the last step's equalities
+        calls = steps + 1
     extra_cap = J * (len(measure) + len(initial)) + J + 1
     g0 = mt.G0 is not None and not free
-    dmax = n0 + (J - 1) + p * calls + extra_cap
+    dmax = n0 + (J - 1) + p * calls + extra_cap + (len(mt.errors) + mt.line_search) * calls
     eye = np.eye(dmax) if not mt.exact else _obj_eye(dmax)
     cols = [f"xi0_{a + 1}-xi*" for a in range(n)] if free else ["x0-x*"]
     cols += [f"s*_{mt.functions[j][0]}/s" for j in range(J - 1)]
@@ -354,8 +390,16 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
         if g0:  # + G0 g0, g0 / s = its tilted column + s_j* / s
             xi0 = xi0 + np.outer(mt.G0, (eye[len(cols) - 1] + sstar[mt.smooth]) * mt.s)
     base = n0 + J - 1
-    xi, Y, U = _trajectory(mt, xi0, [eye[base + p * k: base + p * (k + 1)]
-                                     for k in range(calls)], calls)
+    new = [eye[base + p * k: base + p * (k + 1)] for k in range(calls)]
+    if mt.line_search:
+        from sosalgo.pep.linesearch import line_search_trajectory
+
+        if g0 or free or origin:
+            raise InputError(f"{option[1]}: a line search starts at x_0 (no initial_state "
+                             "gradient, no sdist, a convex class)")
+        xi, Y, U = line_search_trajectory(mt, xi0, new, calls, steps, cols, eye)
+    else:
+        xi, Y, U = _trajectory(mt, xi0, new, calls)
     Yr = [[Y[k][i] for i in range(p)] for k in range(calls)]  # one object per call point
     out = _output_row(mt, xi, Yr, steps)
     x0 = _output_row(mt, xi, Yr, 0) if free else eye[0] * 0 if origin else eye[0]
@@ -379,10 +423,17 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
         pts[mt.smooth].append(PEPPoint("x0", eye[0], eye[len(cols) - 1], nF))
         at[("x0", mt.smooth)] = len(pts[mt.smooth]) - 1
         nF += 1
+    from sosalgo.pep.inexact import inexact_calls
+
+    extras = inexact_calls(mt, pts, U, sstar, cols, eye)
+    if mt.line_search:
+        from sosalgo.pep.linesearch import line_search_rows
+
+        extras += line_search_rows(mt, pts, Y, U, steps)
     for j in range(J):
         pts[j].append(PEPPoint("x*", zero, zero, None))
     state = {"nF": nF, "next": len(cols), "cols": cols, "eye": eye, "at": at, "origin": origin,
-             "xi": {"x": xi[steps], "x0": xi[0]}}
+             "xi": {"x": xi[steps], "x0": xi[0]}, "extras": extras}
     forms = {}
     for key, terms, opt in (("m", measure, option[0]), ("i", initial, option[1])):
         forms[key] = []
@@ -514,12 +565,17 @@ def _finish(mt: Method, steps: int, calls: int, state: dict[str, Any],
                         pairs.append((j, a, b, r))
                         labels.append(pair_label(fname, pa.label, pb.label, r, many))
                         consts.append(mt.constant(j, r))
+    extras = [(lab, X[:, keep], Qc) for lab, X, Qc in state["extras"]]
+    labels += [lab for lab, _, _ in extras]
     cut = {"xi": [x[:, keep] for x in rows["xi"]], "y": [y[:, keep] for y in rows["y"]],
            "u": [u[:, keep] for u in rows["u"]], "x": rows["x"][keep]}
     st = PEPStructure(steps, calls, [state["cols"][c] for c in keep], pts, nF, pairs,
                       labels, meas_q, meas_f, init_q, init_f, cut, state["at"],
-                      state["origin"])
+                      state["origin"], extras=extras)
     if mt.constants is not None and any(_nonzero(c) for c in consts):
+        if extras:
+            raise InputError("functions: a class with constant terms together with inexact "
+                             "calls or a line search is not supported")
         st.constants = np.array(consts, dtype=dt)
     return st
 

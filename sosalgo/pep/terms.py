@@ -34,7 +34,8 @@ MIN_KIND = "mingrad"  # min over k = 0..N of |grad f(x_k)|^2
 MINF_KIND = "minf"  # min over k = 0..N of f(x_k) - f*
 MIN_OF = {MIN_KIND: "grad", MINF_KIND: "f"}  # a minimum over the iterates, of which kind
 DIFF_KIND = "diff"  # |P - Q|^2 between two points: dist(P, Q)
-KINDS = ("f", "dist", "grad", "sdist", MIN_KIND, MINF_KIND, DIFF_KIND)
+KINDS = ("f", "dist", "grad", "sdist", MIN_KIND, MINF_KIND, DIFF_KIND, "contraction")
+# contraction: |xi_N - xi'_N|^2 of two runs (:mod:`sosalgo.pep.contraction`; alone)
 _ARG = r"([A-Za-z0-9_]+(?:\s*-\s*\d+)?)"
 _AT = re.compile(r"\b(f|dist|grad)\s*\(\s*" + _ARG + r"\s*\)")
 _PAIR = re.compile(r"\bdist\s*\(\s*" + _ARG + r"\s*,\s*" + _ARG + r"\s*\)")

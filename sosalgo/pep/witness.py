@@ -46,8 +46,8 @@ from sosalgo.pep.structure import Method, last_calls
 from sosalgo.pep.terms import Term
 from sosalgo.spec import Spec
 
-__all__ = ["WITNESS_KIND", "check_witness", "fit_values", "interior_point", "make_witness",
-           "plausible"]
+__all__ = ["WITNESS_KIND", "check_witness", "finish_witness", "fit_values", "interior_point",
+           "make_witness", "plausible"]
 
 # (slack, eta) of the reduced solves, in order: every inequality >= slack (scaled rows),
 # the measure kept at (1 - eta) tau_N; a larger eta leaves room for a larger slack
@@ -130,6 +130,9 @@ def quadratic_point(mt: Method, st: Any) -> np.ndarray | None:
             c = col.get(f"b_{'y' + str(k) if p == 1 else f'y{i + 1}_{k}'}")
             if c is not None:
                 v[c] = u[i] - K[i] @ xi
+            c = col.get(f"g_{'y' + str(k) if p == 1 else f'y{i + 1}_{k}'}/s")
+            if c is not None:  # an inexact call's true gradient: the exact one here
+                v[c] = u[i]
         xi = A @ xi + s * (B @ u)
     for j, fp in enumerate(st.points):
         for pt in fp:
@@ -153,7 +156,8 @@ def make_witness(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
     exact_mt = (exact_mt if exact_mt is not None
                 else exact_or_none(spec, kappa, data.st.steps))
     ex: ArbView | None = None if exact_mt is None else arb_view(exact_mt)
-    coef = np.array([float(mt.ineqs[j][r][0]) * float(mt.s) for j, _, _, r in data.st.pairs])
+    coef = np.array([float(mt.ineqs[j][r][0]) * float(mt.s) for j, _, _, r in data.st.pairs]
+                    + [0.0] * len(data.st.extras))  # the extra constraints: no values
     inner: list[np.ndarray | None] = []
 
     def interior() -> np.ndarray | None:
@@ -183,14 +187,14 @@ def make_witness(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
             if low is not None and (best is None or low > best["check"]["tau_lower_float"]):
                 best = doc
             if low is not None and low >= (1 - ACCEPT) * tau:
-                return _finish(doc, spec, kappa, exact_mt, res)
+                return finish_witness(doc, spec, kappa, exact_mt, res)
     if best is not None:  # verified, but further below tau than ACCEPT
-        return _finish(best, spec, kappa, exact_mt, res)
+        return finish_witness(best, spec, kappa, exact_mt, res)
     if last is not None and "check" not in last:
         last["check"] = check_witness(last, spec, ex)
     if last is not None:  # not verified: what the search tried, and why each failed
         last["search"]["interior_point"] = bool(inner and inner[0] is not None)
-    return None if last is None else _finish(last, spec, kappa, exact_mt, res)
+    return None if last is None else finish_witness(last, spec, kappa, exact_mt, res)
 
 
 def _sources(data: PEPData, ans: SDPAnswer, tau: float, unit: float
@@ -218,8 +222,8 @@ def interior_point(data: PEPData, unit: float) -> np.ndarray | None:
     Up to :data:`ALL_PAIRS` pairs, every pair is in the solve from the start (one solve,
     and a lower rank than constraint generation gives)."""
     saved = data.active
-    if len(data.st.pairs) <= ALL_PAIRS:
-        data.active = np.arange(len(data.st.pairs))
+    if data.st.count <= ALL_PAIRS:
+        data.active = np.arange(data.st.count)
     try:
         for slack in INTERIOR:
             ans = solve_pep(data, objective="trace", slack=slack, unit=unit)
@@ -245,8 +249,9 @@ def plausible(data: PEPData, coef: np.ndarray, V: np.ndarray,
             + np.abs(data.a * data.v).max(axis=1, initial=0.0))
     q = q - margin * size
     first = np.cumsum([0] + [len(fp) for fp in st.points])
-    na = np.array([first[j] + a for j, a, _, _ in st.pairs])
-    nb = np.array([first[j] + b for j, _, b, _ in st.pairs])
+    extra = [0] * len(st.extras)  # no values (coef 0): q >= 0 alone
+    na = np.array([first[j] + a for j, a, _, _ in st.pairs] + extra, dtype=int)
+    nb = np.array([first[j] + b for j, _, b, _ in st.pairs] + extra, dtype=int)
     if np.any((coef == 0) & (q < 0)):
         return False
     on = coef != 0
@@ -265,7 +270,7 @@ def plausible(data: PEPData, coef: np.ndarray, V: np.ndarray,
     return False
 
 
-def _finish(doc: dict[str, Any], spec: Spec, kappa: float | None,
+def finish_witness(doc: dict[str, Any], spec: Spec, kappa: float | None,
             exact_mt: Method | None, res: Any) -> dict[str, Any]:
     """The chosen witness: the class it is about (exact strings), the proven upper bound
     of the same PEP (``upper``: its exact multipliers, re-proven by ``sosalgo verify``),

@@ -342,7 +342,8 @@ def pep_summary(doc: dict[str, Any], details: bool = True) -> str:
 PEP_LEGEND = ("tau: the SDP's worst case (floating point); tau_proven: proven upper bound "
               "(exact dual certificate)",
               "witness_lower: witnessed lower bound (reached by an explicit function and start)")
-_TERM = re.compile(r"\b(f|dist|grad|sdist|mingrad|minf)\b(\s*\(\s*([A-Za-z0-9_]+)\s*\))?")
+_TERM = re.compile(r"\b(f|dist|grad|sdist|mingrad|minf|contraction)\b"
+                   r"(\s*\(\s*([A-Za-z0-9_]+)\s*\))?")
 _DIFF = re.compile(r"\(f\(([A-Za-z0-9_]+)\) - f\*\) - \(f\(([A-Za-z0-9_]+)\) - f\*\)")
 _PAIR = re.compile(r"\bdist\s*\(\s*([A-Za-z0-9_]+(?:\s*-\s*\d+)?)\s*,"
                    r"\s*([A-Za-z0-9_]+(?:\s*-\s*\d+)?)\s*\)")
@@ -359,7 +360,8 @@ def term_words(text: str, initial: bool, several: bool) -> str:
                 "dist": f"|{point} - x*|^2", "grad": f"|grad f({point})|^2",
                 "sdist": f"|{state} - xi*|^2",
                 "mingrad": "min_{k <= N} |grad f(x_k)|^2",
-                "minf": "min_{k <= N} f(x_k) - f*"}[kind]
+                "minf": "min_{k <= N} f(x_k) - f*",
+                "contraction": f"|{state} - {state}'|^2 (two runs)"}[kind]
 
     out = _DIFF.sub(r"f(\1) - f(\2)", _TERM.sub(words, _PAIR.sub(r"|\1 - \2|^2",
                                                                   str(text))))
@@ -379,6 +381,8 @@ def pep_heading(rows: list[dict[str, Any]]) -> list[str]:
     several = len(funcs) > 1
     many = len({r["kappa"] for r in rows}) > 1
     start = ("any xi_0 (the whole state is free)" if "sdist" in str(d["initial"])
+             else "any two xi_0, xi_0' (two runs on the same functions)"
+             if "contraction" in str(d["initial"])
              else "x_0 (the method at rest there, or as its initial_state says)")
     lines = [f"{d['spec']}: tau = worst case of {term_words(d['measure'], False, several)} "
              f"when {term_words(d['initial'], True, several)} <= 1, over"]
@@ -389,6 +393,10 @@ def pep_heading(rows: list[dict[str, Any]]) -> list[str]:
         shown = ", ".join(f"{k} = {v}" for k, v in params.items())
         lines.append(f"  {name}: {fn.get('class')} ({what})" + (f" with {shown}" if shown
                                                                  else ""))
+    for call, eps in (cls.get("relative_errors") or {}).items():
+        lines.append(f"  {call}: an inexact gradient d, |d - grad f| <= {eps} |grad f|")
+    if cls.get("line_search"):
+        lines.append(f"  {cls['line_search']}: chosen at every step by exact line search")
     return lines + [f"  start: {start}",
                     "  N steps: N iterations xi+ = A xi + B u (each with its oracle calls); "
                     "x_N: the output after them"]

@@ -327,7 +327,9 @@ class _Builder:
         value_order(params, self.source)
 
         functions = self.functions(data.get("functions"), constant_parameters(params))
-        oracles = self.oracles(data.get("oracles", ["f"]), functions)
+        raw_oracles = data.get("oracles", ["f"])
+        inexact = self.oracle_errors(raw_oracles, names)
+        oracles = self.oracles(_oracle_names(raw_oracles), functions)
         measure = data.get("measure", "function")
         if measure not in MEASURES:
             raise self.fail("measure", f"must be one of {', '.join(MEASURES)}")
@@ -358,11 +360,13 @@ class _Builder:
         spec = Spec(
             name=name, description=description, source=self.source, parameters=params,
             matrices=matrices, references=references, kappa=kappa, m=m,
-            functions=functions, oracles=oracles, output=output, measure=measure, L=L,
+            functions=functions, oracles=oracles, inexact=inexact, output=output,
+            measure=measure, L=L,
             initial_state=initial_state, m_expr=parse_tree(data.get("m", 1), ()),
             L_expr=parse_tree(data["L"], ()) if L is not None else None,
             sequences=sequences, time_varying=varies,
             pep=self.pep_terms(data.get("pep")),
+            line_search=self.line_search(data.get("line_search"), params, matrices, output),
         )
         if spec.sublinear:
             self.check_sublinear(spec)
@@ -489,6 +493,47 @@ class _Builder:
                 raise self.fail(f"functions.{fname}", "no oracle queries it (list it in "
                                 "oracles)")
         return tuple(raw)
+
+    def oracle_errors(self, raw: object, names: frozenset[str]) -> dict[int, Expr]:
+        """The inexact calls of ``oracles:``: an entry ``{function: f, relative_error:
+        eps}`` is a gradient call answering some d with |d - grad f(y)| <= eps |grad f(y)|
+        (eps an expression of m, L, kappa and the parameters; its value, in [0, 1), is
+        checked where the method is bound)."""
+        out: dict[int, Expr] = {}
+        for i, entry in enumerate(raw if isinstance(raw, list) else ()):
+            if not isinstance(entry, dict):
+                continue
+            extra = [str(k)[:40] for k in entry if k not in ("function", "relative_error")]
+            if extra:
+                raise self.fail(f"oracles[{i}].{extra[0]}", "unknown key (an oracle entry is "
+                                "a function name or {function: NAME, relative_error: EPS})")
+            if "function" not in entry:
+                raise self.fail(f"oracles[{i}]", "missing function: (the function queried)")
+            if "relative_error" in entry:
+                out[i] = self.expr(entry["relative_error"], names,
+                                   f"oracles[{i}].relative_error")
+        return out
+
+    def line_search(self, raw: object, params: dict[str, Parameter],
+                    matrices: dict[str, ExprMatrix], output: int | None) -> str | None:
+        """``line_search: NAME``: the parameter gamma of a gradient method x+ = x - gamma u
+        (A = C = E = [[1]], B = [[b]] with b an expression of gamma, no D) chosen at every
+        step by exact line search (the next gradient orthogonal to u)."""
+        if raw is None:
+            return None
+        if not isinstance(raw, str) or raw not in params:
+            raise self.fail("line_search", f"{str(raw)[:40]!r} names no parameter (the step "
+                            "chosen by exact line search)")
+        ones = [("A", matrices["A"]), ("C", matrices["C"])]
+        ones += [] if output is not None else [("E", matrices.get("E"))]
+        shape = all(M is not None and len(M) == 1 and len(M[0]) == 1 and M[0][0].is_constant
+                    and constant_value(M[0][0]) == 1 for _, M in ones)
+        B = matrices["B"]
+        if not (shape and len(B) == 1 and len(B[0]) == 1 and raw in B[0][0].names()
+                and "D" not in matrices):
+            raise self.fail("line_search", "exact line search is for x+ = x - gamma u: one "
+                            "state and one call, A = C = E = [[1]], B = [[-gamma]], no D")
+        return raw
 
     def output(self, data: dict, raw_matrices: object, p: int) -> int | None:
         """``output: y<i>`` (top level or under matrices): the output is the point of oracle
@@ -774,3 +819,8 @@ def _shape(mat: ExprMatrix) -> str:
     return "{}x{}".format(*_dims(mat))
 
 
+def _oracle_names(raw: object) -> object:
+    """``oracles:`` with each ``{function: NAME, ...}`` entry replaced by its NAME."""
+    if not isinstance(raw, list):
+        return raw
+    return [e.get("function") if isinstance(e, dict) else e for e in raw]

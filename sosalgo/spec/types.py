@@ -36,6 +36,7 @@ MEASURES = ("function", "distance")
 TOP_KEYS = {
     "name", "description", "parameters", "matrices", "references", "kappa", "m", "certificate",
     "functions", "oracles", "measure", "output", "L", "initial_state", "sequences", "pep",
+    "line_search",
 }
 NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,79}$")
 PARAM_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,31}$")
@@ -165,6 +166,12 @@ class Spec:
     # seed's setting: one smooth strongly convex f queried by its gradient
     functions: dict[str, FunctionDecl] = field(default_factory=dict)
     oracles: tuple[str, ...] = ("f",)
+    # inexact gradient calls (``oracles: [{function: f, relative_error: eps}]``): call index
+    # (0-based) -> eps, the call answering some d with |d - grad f(y)| <= eps |grad f(y)|
+    inexact: dict[int, Expr] = field(default_factory=dict)
+    # ``line_search: gamma``: the step parameter of x+ = x - gamma u chosen at every step by
+    # exact line search (``sosalgo pep`` only; :mod:`sosalgo.pep.linesearch`); None: none
+    line_search: str | None = None
     output: int | None = None  # 0-based oracle index of ``output: y<i>``; None: x = E xi
     measure: str = "function"
     # sublinear specs (``m: 0``, ``L`` given, no kappa): L's value; None otherwise
@@ -198,6 +205,8 @@ class Spec:
         L, one gradient call, no D, x = E xi, ``measure: function``): the only setting of
         Theorem 1; True for every other spec."""
         if self.oracles != ("f",) or self.output is not None or self.measure != "function":
+            return True
+        if self.inexact or self.line_search:  # outside Theorem 1's setting
             return True
         if self.sublinear:  # no kappa: outside Theorem 1's setting
             return True
