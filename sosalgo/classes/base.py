@@ -94,6 +94,8 @@ class FunctionClass:
     tilt_invariant: bool = True
     noisy_gradients: bool = False
     tilted_text: tuple[str, str] | None = None  # (plain, LaTeX); None: listed by its data
+    # every (q/2)|x|^2 with q >= 0 is in the class (witnesses may pick any curvature)
+    free_curvature: bool = False
     # every condition is a pairwise homogeneous inequality (no constant, no condition
     # about x* alone): False, no Lyapunov family of ``analyze`` applies; ``pep`` answers
     homogeneous: bool = True

@@ -30,6 +30,8 @@ class Convex(FunctionClass):
     def exact_tilted(self, params: Mapping[str, Any]) -> list[tuple[Any, Any]]:
         return [(Fraction(1), exact_convex_form())]
 
+    free_curvature = True
+
     def curvatures(self, params: Mapping[str, float]) -> tuple[float, float]:
         return 0.0, 0.0
 

@@ -33,7 +33,7 @@ def _curvature_choices(mt: Any) -> list[list[float]] | None:
         if cur is None:
             return None
         lo, hi = cur
-        if cls.name == "convex":
+        if cls.free_curvature:
             out.append([q * float(mt.s) for q in CONVEX_Q])
         elif hi > lo:
             out.append([lo + INSIDE * (hi - lo), hi - INSIDE * (hi - lo)])

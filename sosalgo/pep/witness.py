@@ -311,6 +311,11 @@ def add_exact_points(doc: dict[str, Any], exact_mt: Method) -> None:
     doc["iterates_exact"] = [[exact_str(v) for v in x] for x in its]
 
 
+def _call_of(label: str, p: int) -> int:
+    """The call index of a call point's label (``y3``, ``y2_3``)."""
+    return 0 if p == 1 else int(label[1:].split("_")[0]) - 1
+
+
 def _document(spec: Spec, mt: Method, st: Any, V: np.ndarray, F: np.ndarray,
               res: Any) -> dict[str, Any]:
     """The witness JSON of the factor V (see the module docstring)."""
@@ -324,17 +329,6 @@ def _document(spec: Spec, mt: Method, st: Any, V: np.ndarray, F: np.ndarray,
                      else [Fraction(0)] * V.shape[1])
     sstar.append([-sum(col_) for col_ in zip(*sstar, strict=True)] if sstar
                  else [Fraction(0)] * V.shape[1])
-    funcs: dict[str, Any] = {}
-    for j, (name, cls, params) in enumerate(mt.functions):
-        pts = []
-        for pt in st.points[j][:-1]:
-            gt = [s * Fraction(float(v)) for v in pt.g @ V]
-            g = [a + b for a, b in zip(gt, sstar[j], strict=True)]
-            h = Fraction(0) if pt.f is None else s * Fraction(float(F[pt.f]))  # operator: 0
-            pts.append({"label": pt.label, "g": list(map(_q, g)), "h": _q(h),
-                        "x": [float(v) for v in pt.x @ V]})
-        funcs[name] = {"class": cls.name, "params": {k: float(v) for k, v in params.items()},
-                       "optimal_subgradient": list(map(_q, sstar[j])), "points": pts}
     p = mt.p
     calls = []
     for k in range(st.calls):
@@ -343,6 +337,23 @@ def _document(spec: Spec, mt: Method, st: Any, V: np.ndarray, F: np.ndarray,
             u = [s * Fraction(float(v)) for v in st.rows["u"][k][i] @ V]
             row.append([_q(a + b) for a, b in zip(u, sstar[j], strict=True)])
         calls.append(row)
+    # a call's point answers what the method was given (the same rationals, not the
+    # point's own row rounded apart from the call's)
+    answered = {(f"y{k}" if p == 1 else f"y{i + 1}_{k}"): row[i]
+                for k, row in enumerate(calls) for i in range(p)}
+    funcs: dict[str, Any] = {}
+    for j, (name, cls, params) in enumerate(mt.functions):
+        pts = []
+        for pt in st.points[j][:-1]:
+            gt = [s * Fraction(float(v)) for v in pt.g @ V]
+            g = [a + b for a, b in zip(gt, sstar[j], strict=True)]
+            if pt.label in answered and mt.oracles[_call_of(pt.label, p)] == j:
+                g = [Fraction(v) for v in answered[pt.label]]
+            h = Fraction(0) if pt.f is None else s * Fraction(float(F[pt.f]))  # operator: 0
+            pts.append({"label": pt.label, "g": list(map(_q, g)), "h": _q(h),
+                        "x": [float(v) for v in pt.x @ V]})
+        funcs[name] = {"class": cls.name, "params": {k: float(v) for k, v in params.items()},
+                       "optimal_subgradient": list(map(_q, sstar[j])), "points": pts}
     doc: dict[str, Any] = {}
     if st.basis[0].startswith("xi0_"):  # a free start: xi_0 = xi~_0 + X_s s~ (x* = 0)
         xs = np.asarray(mt.Xs, float) @ np.array([[float(v) for v in r] for r in sstar[:-1]]
