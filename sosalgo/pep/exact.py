@@ -830,7 +830,10 @@ def prove_at(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
 def _rational_parts(mt: Method, st: PEPStructure, lam: Sequence[Fraction]
                     ) -> tuple[list[list[Fraction]], list[Fraction]] | None:
     """(sum_k lambda_k X_k' Q_k X_k, sum_k lambda_k a_k) in Fractions, None when some
-    datum is not an exact rational."""
+    datum is not an exact rational or the PEP has extra rows (inexact calls, line search:
+    the ball arithmetic proves those)."""
+    if st.extras:
+        return None
     support = [k for k, v in enumerate(lam) if v]
     parts = _exact_pair_parts(mt, st, support)
     if parts is None:

@@ -340,7 +340,7 @@ def _document(spec: Spec, mt: Method, st: Any, V: np.ndarray, F: np.ndarray,
     # a call's point answers what the method was given (the same rationals, not the
     # point's own row rounded apart from the call's)
     answered = {(f"y{k}" if p == 1 else f"y{i + 1}_{k}"): row[i]
-                for k, row in enumerate(calls) for i in range(p)}
+                for k, row in enumerate(calls) for i in range(p) if i not in mt.errors}
     funcs: dict[str, Any] = {}
     for j, (name, cls, params) in enumerate(mt.functions):
         pts = []
