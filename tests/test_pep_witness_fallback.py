@@ -4,7 +4,8 @@ search no geometry of the SDP's answer: the last resort is a quadratic f = q/2 x
 strictly inside [m, L], whose lower bound is proven whatever the solver's accuracy; it is
 judged against the worst case over the same quadratics computed here by plain
 recursion, and it is never taken for a proof that tau is tight: the output says so, and
-verify leaves tau unsupported from below."""
+verify leaves tau unsupported from below. And a witness is a run of the method on its
+functions: every call must be its function's gradient at that call's point."""
 
 from __future__ import annotations
 
@@ -91,3 +92,24 @@ def test_an_unverified_witness_is_said_plainly(monkeypatch):
     text = pep_summary(res.to_dict())
     assert "no witness verified" in text and "no proven lower bound" in text
     assert "proving only" not in text
+
+
+def test_a_call_that_is_not_the_functions_gradient_is_refused():
+    """Gradient descent, h = 1/L, kappa 10, N = 3: tau_3 = (1 - 1/kappa)^6 exactly. A
+    witness whose last call is scaled (the method run with a gradient its function does
+    not have there) would 'prove' more than that; the check refuses it, and the honest
+    witness proves at most the closed form."""
+    import copy
+
+    from sosalgo.pep.check import check_witness
+
+    gspec = load_spec(SPEC.with_name("gradient.yaml"))
+    res = sosalgo.pep(gspec, 10, steps=3, measure="dist")
+    closed = Fraction(9, 10) ** 6
+    honest = res.witness
+    assert honest["check"]["verified"] and Fraction(honest["check"]["tau_lower"]) <= closed
+    for k, factor in ((2, Fraction(9, 10)), (2, Fraction(1001, 1000)), (1, Fraction(11, 10))):
+        bad = copy.deepcopy(honest)
+        bad["calls"][k] = [[str(Fraction(v) * factor) for v in u] for u in bad["calls"][k]]
+        chk = check_witness(bad, gspec)
+        assert chk["verified"] is False and "not the gradient" in chk["detail"], chk

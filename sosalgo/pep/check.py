@@ -434,6 +434,23 @@ def _differences_only(terms: list[Term], av: ArbView) -> None:
         raise ValueError("f - f* about a nonconvex class: the f coefficients do not cancel")
 
 
+def _calls_are_gradients(doc: dict[str, Any], av: ArbView) -> None:
+    """Every call u_{k,i} (what the method is run with) is exactly the gradient its
+    function f_j (j the oracle of call i) has at that call's point in the witness
+    (ValueError otherwise): else the trajectory would not be the method's on f."""
+    mt, p = av.mt, av.mt.p
+    grads = {name: {pt["label"]: pt["g"] for pt in doc["functions"][name]["points"]}
+             for name, _, _ in mt.functions}
+    for k in range(int(doc["call_steps"])):
+        for i, j in enumerate(mt.oracles):
+            name, label = mt.functions[j][0], _label(i, k, p)
+            g = grads[name].get(label)
+            if g is None or [Fraction(v) for v in g] != [Fraction(v)
+                                                         for v in doc["calls"][k][i]]:
+                raise ValueError(f"calls[{k}][{i}] is not the gradient of {name} at "
+                                 f"{label} in the witness")
+
+
 def _measure_initial(doc: dict[str, Any], spec: Spec, av: ArbView
                      ) -> tuple[int, int, bool, arb, arb]:
     """(pairs checked, not proven, optimal subgradients sum to 0, measure, initial)."""
@@ -447,6 +464,7 @@ def _measure_initial(doc: dict[str, Any], spec: Spec, av: ArbView
     if not all(cls.convex for _, cls, _ in av.mt.functions):
         _differences_only(mterms, av)
         _differences_only(iterms, av)
+    _calls_are_gradients(doc, av)
     pos = positions(doc, av)
     checked, bad = _pairs_ok(doc, av, pos)
     ssum = [sum(Fraction(v[c]) for v in (f["optimal_subgradient"] for f in
