@@ -40,7 +40,14 @@ from typing import Any
 import numpy as np
 
 from sosalgo.kinds import WITNESS_KIND
-from sosalgo.pep.check import ArbView, arb_view, check_witness, fit_values, q_str
+from sosalgo.pep.check import (
+    ArbView,
+    arb_view,
+    check_witness,
+    fit_values,
+    q_str,
+    set_quadratic_calls,
+)
 from sosalgo.pep.sdp import PEPData, SDPAnswer, solve_pep
 from sosalgo.pep.structure import Method, last_calls
 from sosalgo.pep.terms import Term
@@ -154,20 +161,22 @@ def quadratic_point(mt: Method, st: Any, at: float = 0.5) -> np.ndarray | None:
 
 
 def quadratic_candidates(mt: Method, st: Any, tries: int = QUADRATIC_TRIES
-                         ) -> list[np.ndarray]:
+                         ) -> list[tuple[list[Fraction], np.ndarray]]:
     """The one-dimensional trajectories (d x 1) of the quadratics f_j = q_j/2 x^2, q_j at
     one position of every class's interval (:data:`QUADRATIC_AT`), the ``tries`` with the
-    largest measure (floating point) first. A quadratic strictly inside its class meets
-    every inequality with a slack of its own scale at every step, however small the
-    iterates get: its exact check does not depend on the solver's accuracy."""
+    largest measure (floating point) first, each with its curvatures q_j (exact: the
+    floats'). A quadratic strictly inside its class meets every inequality with a slack
+    of its own scale at every step, however small the iterates get: its exact check
+    does not depend on the solver's accuracy."""
     scored = []
     for at in QUADRATIC_AT:
         v = quadratic_point(mt, st, float(at))
         ratio = None if v is None else _quadratic_ratio(mt, st, v, float(at))
         if ratio is not None:
-            scored.append((ratio, v))
+            scored.append((ratio, float(at), v))
     scored.sort(key=lambda e: -e[0])
-    return [v[:, None] for _, v in scored[:tries]]
+    return [([Fraction(q) for q in _curvatures(mt, at)], v[:, None])
+            for _, at, v in scored[:tries]]
 
 
 def _quadratic_ratio(mt: Method, st: Any, v: np.ndarray, at: float) -> float | None:
@@ -254,9 +263,13 @@ def _quadratic_witness(spec: Spec, mt: Method, st: Any, ex: ArbView | None,
     tau, res = solved
     if ex is None:
         return None
-    for V in quadratic_candidates(mt, st):
+    for q, V in quadratic_candidates(mt, st):
         tally["candidates"] += 1
         doc = _document(spec, mt, st, V, np.zeros(st.nF), res)
+        try:  # the calls of the quadratic itself, in ball arithmetic (not V's floats)
+            set_quadratic_calls(doc, ex, q)
+        except (ValueError, ArithmeticError, ZeroDivisionError, KeyError, IndexError):
+            continue
         doc.update(tau_float=tau, objective_floor=0.0, slack=0.0, mixed=1.0, search=tally)
         if not fit_values(doc, ex):
             tally["no_exact_values"] += 1
