@@ -13,7 +13,10 @@ violations and the rounding, for a measure (1 - theta) as large. A floating-poin
 pre-check (:func:`plausible`: values exist with a margin, Bellman-Ford on the difference
 constraints) skips hopeless candidates; the others are rounded to binary rationals, the
 trajectory recomputed exactly, the values fitted exactly (:func:`fit_values`), and the
-first that passes the exact check is kept. The trace solves are capped
+first that passes the exact check is kept. When none does (the float answer is not
+accurate enough: Nesterov past N = 50), the last resort is a quadratic strictly inside
+the class (:func:`quadratic_candidates`), its calls computed in ball arithmetic: a
+proven, weaker bound. The trace solves are capped
 (:data:`sosalgo.pep.sdp.TRACE_ITER` iterations per attempt, a failed one is not retried
 on every pair): a rank reduction that does not converge costs about a second, and the
 PEP's own answer mixed with the interior point takes over.
