@@ -117,7 +117,8 @@ def pareto_rows(doc: Mapping[str, Any], where: str = "result") -> list[dict[str,
             pts = f.get(key)
             if not isinstance(pts, list) or not all(isinstance(p, Mapping) for p in pts):
                 raise InputError(f"{where}: fronts[{i}].{key}: expected a list of points")
-            rows += [{"kappa": f.get("kappa"), "rho_certified": p.get("rho"),
+            rows += [{"kappa": f.get("kappa"), "kappa_exact": f.get("kappa_exact"),
+                      "rho_certified": p.get("rho"),
                       "certificate": p.get("certificate"), "theta": p.get("theta"),
                       "family": f.get("family"), "noise": p.get("noise"),
                       "noise_check": p.get("noise_check"), "name": p.get("name"),

@@ -156,3 +156,121 @@ def test_shipped_spec_plain_kappas_unchanged():
     """Plain numbers are their decimals: the shipped list is exactly the integers."""
     spec = load_spec(SPECS / "gradient.yaml")
     assert [exact_kappa(k) for k in spec.kappa] == [2, 5, 10, 20, 50, 100]
+
+
+# ----------------------------------------------------------- pareto, fig4, table1, grid
+def _spy_exact_kappa(monkeypatch) -> list:
+    """Every exact value the proofs take kappa at (:func:`exact_kappa`, which each exact
+    check calls on the kappa it is given), recorded as they run (one process)."""
+    import sosalgo.kernel.kappa as kmod
+
+    seen: list = []
+    real = kmod.exact_kappa
+
+    def spy(kappa):
+        val = real(kappa)
+        seen.append(val)
+        return val
+
+    monkeypatch.setattr(kmod, "exact_kappa", spy)
+    return seen
+
+
+def _about_ten_thirds(seen: list) -> None:
+    """Some proof ran near kappa = 10/3, and every one about 10/3 itself (the float
+    3.3333333333333335 would read as its shortest decimal, another rational)."""
+    near = [v for v in seen if abs(float(v) - 10 / 3) < 1e-9]
+    assert near, "no exact check saw the kappa"
+    assert all(v == TENTHIRDS for v in near), {str(v) for v in near}
+
+
+def test_pareto_kappa_ten_thirds(tmp_path, monkeypatch):
+    """gradient descent's front at kappa = 10/3: the fast end is h = 2/(m+L), rate 7/13;
+    every exact proof is about 10/3; verify re-proves about kappa_exact."""
+    seen = _spy_exact_kappa(monkeypatch)
+    res = _run("pareto", str(SPECS / "gradient.yaml"), "--kappa", "10/3", "--points", "2",
+               "--time-limit", "60", "--workers", "1", "--json", "--quiet", "--no-plot",
+               "--out", str(tmp_path / "par"))
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.output)
+    _about_ten_thirds(seen)
+    assert doc["kappa_exact"] == "10/3"
+    fast = doc["points"][0]
+    assert fast["rho_check"] == "exact"
+    proven = Fraction(fast["rho_proven"])
+    assert proven >= Fraction(7, 13) and float(proven) == pytest.approx(7 / 13, rel=1e-5)
+    settings = json.loads(Path(doc["csv"] + ".settings.json").read_text())
+    assert settings["kappa_exact"] == ["10/3"]  # a rerun at the float does not resume it
+    path = tmp_path / "pareto.json"
+    path.write_text(json.dumps(doc))
+    seen.clear()
+    ok = _run("verify", str(path), "--out", str(tmp_path / "v"))
+    assert ok.exit_code == 0, ok.output
+    _about_ten_thirds(seen)
+    doc["kappa_exact"] = "3"  # not the number kappa is the float of
+    path.write_text(json.dumps(doc))
+    bad = _run("verify", str(path), "--out", str(tmp_path / "v"))
+    assert bad.exit_code != 0 and "kappa_exact" in bad.output
+
+
+def test_grid_and_table1_kappa_ten_thirds(tmp_path, monkeypatch):
+    """grid and table1 at --kappa 10/3: every point is analysed at the Kappa as written
+    (the float for the solver, 10/3 for anything exact), and the documents record it;
+    gradient descent's rate at h = 2/(m+L) is 7/13 (the spec's closed form, for h = 1/L,
+    is 1 - 1/kappa)."""
+    import sosalgo.batch.sweeps as sweeps
+    import sosalgo.runs.table1 as t1
+
+    given: list = []
+
+    def spy(real):
+        def analyze(spec, kappa, *args, **kw):
+            given.append(exact_kappa(kappa))
+            return real(spec, kappa, *args, **kw)
+        return analyze
+
+    monkeypatch.setattr(sweeps, "analyze_spec", spy(sweeps.analyze_spec))
+    monkeypatch.setattr(t1, "analyze_spec", spy(t1.analyze_spec))
+    res = _run("grid", str(SPECS / "gradient.yaml"), "--kappa", "10/3", "--points", "3",
+               "--workers", "1", "--json", "--quiet", "--out", str(tmp_path / "grid"))
+    assert res.exit_code == 0, res.output
+    (grid,) = json.loads(res.output)["grids"]
+    assert grid["kappa_exact"] == "10/3" and len(given) == 3
+    assert all(v == TENTHIRDS for v in given)
+    settings = json.loads(Path(grid["csv"] + ".settings.json").read_text())
+    assert settings["kappa_exact"] == ["10/3"]
+    given.clear()
+    path = tmp_path / "gradient.yaml"
+    path.write_text(_gradient_text("[2]"))
+    from sosalgo.runs import table1_run
+
+    doc = table1_run([str(path)], ["10/3"], out_dir=tmp_path / "t1")
+    (row,) = doc["rows"]
+    assert row["kappa_exact"] == "10/3" and given == [TENTHIRDS]
+    assert row["closed_form_rate"] == pytest.approx(1 - 3 / 10, rel=1e-12)  # 1 - 1/kappa
+    assert row["rho_certified"] == pytest.approx(7 / 13, rel=1e-5)
+
+
+def test_fig4_carries_kappa_as_written(tmp_path, monkeypatch):
+    """fig4's sweeps get the Kappa as written (the design's lower bound and the exact
+    checks prove about it) and its data record the exact values."""
+    import sosalgo.runs.fig4 as f4
+
+    given: list = []
+
+    def design(name, family, kappas, *a, **kw):
+        given.append([exact_kappa(k) for k in kappas])
+        return [{"rho_certified": 0.5, "theta": {}} for _ in kappas]
+
+    def analysis(name, family, kappas, *a, **kw):
+        given.append([exact_kappa(k) for k in kappas])
+        return [{"rho": 0.5} for _ in kappas]
+
+    monkeypatch.setattr(f4, "_design", design)
+    monkeypatch.setattr(f4, "_analysis", analysis)
+    monkeypatch.setattr(f4, "fig4_figure", lambda stem, data: [])
+    spec = spec_from_text(_gradient_text('[10/3, 2, "7/2"]'))
+    _, data = f4.fig4(tmp_path, spec.kappa)
+    assert data["kappa"] == [2.0, 10 / 3, 3.5]
+    assert data["kappa_exact"] == ["2", "10/3", "7/2"]
+    assert given == [[2, TENTHIRDS, Fraction(7, 2)]] * 4

@@ -557,7 +557,8 @@ def run_grid(
                                   scheduler, restart, progress)
     options = {"tol": tol, "free": list(free), "certificate": family_options(fam)}
     settings = {"job": "grid", "spec": spec_text, "tol": tol, "kappa": float(kappa),
-                "free": list(free), "points": points, "box": [list(b) for b in box]}
+                "free": list(free), "points": points, "box": [list(b) for b in box]
+                } | kappa_settings([kappa])
     if _family_settings(fam) is not None:
         settings["certificate"] = _family_settings(fam)
     values = parameter_values(spec, kappa)
@@ -567,7 +568,8 @@ def run_grid(
     tasks = []
     for vals in grid_points(box, points):
         theta = dict(zip(free, vals, strict=True))
-        tasks.append({"kappa": float(kappa), "theta": theta, "extra": {**theta, **fixed},
+        tasks.append({"kappa": kappa if isinstance(kappa, Kappa) else float(kappa),
+                      "theta": theta, "extra": {**theta, **fixed},
                       **theta})
     seed_spec(spec, spec_text)
     run_store(store, tasks, f"grid {spec.name} k={kappa_label(kappa)}", progress, grid_chunk,

@@ -21,7 +21,7 @@ from fractions import Fraction
 from typing import Any
 
 import numpy as np
-from flint import arb, arb_mat
+from flint import arb, arb_mat, fmpq
 
 from sosalgo.kernel.arb import arb_fraction, precision
 from sosalgo.pep.exact import ball, exact_method, exact_steps_or_none
@@ -165,7 +165,7 @@ def positions(doc: dict[str, Any], av: ArbView) -> dict[str, Any]:
 
 def _ls_step(doc: dict[str, Any], k: int) -> arb:
     """The step t_k of a line search witness (x_{k+1} = x_k + t_k d_k), exactly: the
-    line search is proven by <g_{k+1}, d_k> = 0 (:func:`sosalgo.pep.inexact.call_checks`)."""
+    line search is proven by <g_{k+1}, d_k> = 0 (:func:`sosalgo.pep.call_checks.call_checks`)."""
     steps = doc["line_search_steps"]
     if not isinstance(steps, list) or len(steps) != int(doc["steps"]):
         raise ValueError("line_search_steps: expected one step per iteration")
@@ -453,6 +453,48 @@ def _differences_only(terms: list[Term], av: ArbView) -> None:
     total = sum((av.coef(t) for t in terms if t.kind == "f"), arb(0))
     if not total.is_zero():
         raise ValueError("f - f* about a nonconvex class: the f coefficients do not cancel")
+
+
+def set_quadratic_calls(doc: dict[str, Any], av: ArbView, q: list[Fraction],
+                        bits: int = 2 * PREC) -> None:
+    """Make the one-dimensional ``doc`` the run of the method on f_j = q_j/2 x^2 (each
+    least at x* = 0) from its x_0: each call u_{k,i} = q_j y_{k,i} (j its oracle), with
+    y_k = C xi_k + D u_k solved in ball arithmetic at ``bits`` bits and rounded to a
+    rational, and every point's gradient q_j x (a call's point: the call itself). The
+    exactly recomputed trajectory is then the quadratic's up to about 2^-bits, not up to
+    the rounding of the floats (about 1e-16 absolute, more than the late iterates of a
+    long horizon)."""
+    mt, p = av.mt, av.mt.p
+    funcs = doc["functions"]
+    with precision(bits):
+        if av.G0 is not None:  # initial_state: g0 = q_j x_0, j the smooth function
+            j = mt.smooth
+            for pt in funcs[mt.functions[j][0]]["points"]:
+                if pt["label"] == "x0":
+                    pt["g"] = [q_str(q[j] * Fraction(doc["x0"][0]))]
+        xi = _start(doc, av, 1)
+        qs = arb_mat(p, p)
+        for i, j in enumerate(mt.oracles):
+            qs[i, i] = arb(fmpq(q[j].numerator, q[j].denominator))
+        eye = arb_mat(p, p)
+        for i in range(p):
+            eye[i, i] = arb(1)
+        for k in range(int(doc["call_steps"])):
+            A, B, C, D = av.step(k)
+            y = (eye - D * qs).solve(C * xi)
+            u = [arb_fraction((qs[i, i] * y[i, 0]).mid()) for i in range(p)]
+            doc["calls"][k] = [[q_str(v)] for v in u]
+            if k < int(doc["steps"]):
+                xi = A * xi + B * _mat(doc["calls"][k])
+    calls = {(mt.functions[j][0], _label(i, k, p)): doc["calls"][k][i]
+             for k in range(int(doc["call_steps"])) for i, j in enumerate(mt.oracles)}
+    pos = positions(doc, av)
+    with precision(bits):
+        for j, (name, _, _) in enumerate(mt.functions):
+            qj = arb(fmpq(q[j].numerator, q[j].denominator))
+            for pt in funcs[name]["points"]:
+                pt["g"] = list(calls.get((name, pt["label"])) or
+                               [q_str(arb_fraction((qj * pos[pt["label"]][0]).mid()))])
 
 
 def _measure_initial(doc: dict[str, Any], spec: Spec, av: ArbView

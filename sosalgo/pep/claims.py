@@ -16,7 +16,8 @@ when every claim is backed. The claims:
   ``params`` must be the spec's at its kappa.
 * ``tau`` (the float SDP value; ``tau_float`` in a witness, ``certificate.tau``): inside
   [tau_lower, tau_proven] up to :data:`TAU_REL` (the solver's accuracy); a side with no
-  proof leaves it unsupported, a value outside the proven bracket is contradicted. A
+  proof, or a witness more than :data:`LOOSE_REL` below it, leaves it unsupported, a
+  value outside the proven bracket is contradicted. A
   proven tau_proven more than :data:`UPPER_REL` above its tau is true but not what the
   document's proof gives: inconsistent (so is a tau_lower below what its witness proves).
 * labels that say a proof exists (``check_kind`` exact, ``proof.proven``,
@@ -47,6 +48,10 @@ __all__ = ["FLOAT_REL", "LOWER_REL", "TAU_REL", "is_pep_document", "passed",
 TAU_REL = 1e-6  # a float tau may sit this far (relative) outside the proven bracket
 LOWER_REL = 1e-9  # a claimed tau_lower may sit this far below what its witness proves
 UPPER_REL = 1e-3  # a proven tau_proven is this close (relative) above its own tau
+# a witness further below tau than this (relative) does not pin tau from below (the
+# quadratic witness of a long horizon, sosalgo.pep.witness.quadratic_candidates: 1e-3
+# of tau and less; a verified mix of the SDP's geometry sits within a few percent)
+LOOSE_REL = 0.5
 FLOAT_REL = 1e-8  # float coordinates against the exact ones (relative to the largest)
 EXACT = "exact (rational and ball arithmetic)"
 
@@ -115,6 +120,9 @@ def _bracket(claims: _Claims, field: str, tau: float | None, lower: Fraction | N
         side = "no witness proves it from below" if lower is None else \
             "no certificate proves it from above"
         claims.add(field, "unsupported", f"{tau:.10g}: {side}")
+    elif float(lower) < tau * (1 - LOOSE_REL):
+        claims.add(field, "unsupported", f"{tau:.10g}: the witness proves only tau_N >= "
+                   f"{float(lower):.10g} ({float(lower) / tau:.3g} of it)")
     else:
         claims.backed(field, f"within [{float(lower):.10g}, {float(upper):.10g}]")
     if upper is not None and float(upper) > tau * (1 + UPPER_REL):

@@ -13,7 +13,10 @@ violations and the rounding, for a measure (1 - theta) as large. A floating-poin
 pre-check (:func:`plausible`: values exist with a margin, Bellman-Ford on the difference
 constraints) skips hopeless candidates; the others are rounded to binary rationals, the
 trajectory recomputed exactly, the values fitted exactly (:func:`fit_values`), and the
-first that passes the exact check is kept. The trace solves are capped
+first that passes the exact check is kept. When none does (the float answer is not
+accurate enough: Nesterov past N = 50), the last resort is a quadratic strictly inside
+the class (:func:`quadratic_candidates`), its calls computed in ball arithmetic: a
+proven, weaker bound. The trace solves are capped
 (:data:`sosalgo.pep.sdp.TRACE_ITER` iterations per attempt, a failed one is not retried
 on every pair): a rank reduction that does not converge costs about a second, and the
 PEP's own answer mixed with the interior point takes over.
@@ -40,7 +43,14 @@ from typing import Any
 import numpy as np
 
 from sosalgo.kinds import WITNESS_KIND
-from sosalgo.pep.check import ArbView, arb_view, check_witness, fit_values, q_str
+from sosalgo.pep.check import (
+    ArbView,
+    arb_view,
+    check_witness,
+    fit_values,
+    q_str,
+    set_quadratic_calls,
+)
 from sosalgo.pep.sdp import PEPData, SDPAnswer, solve_pep
 from sosalgo.pep.structure import Method, last_calls
 from sosalgo.pep.terms import Term
@@ -55,6 +65,12 @@ LADDER = ((1e-9, 1e-6), (1e-8, 1e-5), (1e-7, 1e-4), (1e-6, 1e-3))
 MAX_TRIES = 3  # dimensions tried per reduced solve (then the full rank)
 THETAS = (1e-6, 1e-4)  # weights of the strictly feasible quadratic mixed in
 MIX = (1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1)  # weights of the interior point mixed in
+# positions of the quadratics' curvatures in each class's interval [m, L] (the last
+# resort of the search: :func:`quadratic_candidates`), and how many are checked exactly;
+# never the ends (there a quadratic meets some inequalities with equality, and the
+# rounding of its calls could break them), close to them (often the slowest mode)
+QUADRATIC_AT = np.concatenate([[1e-4, 1e-3], np.linspace(0.02, 0.98, 49), [0.999, 0.9999]])
+QUADRATIC_TRIES = 2
 INTERIOR = (1e-3, 1e-4, 1e-5, 1e-6)  # slacks tried for the interior point
 ALL_PAIRS = 2000  # the interior point's solve takes every pair up to this many
 ACCEPT = 1e-3  # a verified witness this close to tau (relative) ends the search
@@ -99,15 +115,23 @@ def _candidates(mt: Method, st: Any, G: np.ndarray, slack: float,
             yield np.hstack([math.sqrt(1 - theta) * V, math.sqrt(theta) * V0]), theta
 
 
-def quadratic_point(mt: Method, st: Any) -> np.ndarray | None:
-    """The basis coordinates (one dimension) of the method run from x_0 = 1 (xi_0 = u, or
-    the fixed-point direction for a free start) on f_j = q_j/2 x^2, q_j strictly inside
-    its class (the middle of [m, L], or lo + s/2); None when a prox step is singular."""
-    p, s = mt.p, float(mt.s)
-    q = []
+def _curvatures(mt: Method, at: float) -> list[float]:
+    """q_j strictly inside each function's class: lo + at (hi - lo) of [m, L] (or lo + s/2
+    for a class without an upper curvature)."""
+    s, q = float(mt.s), []
     for _, cls, params in mt.functions:
         lo, hi = cls.curvatures({k: float(v) for k, v in params.items()}) or (0.0, 0.0)
-        q.append((lo + hi) / 2 if hi > lo else lo + s / 2)
+        q.append(lo + at * (hi - lo) if hi > lo else lo + s / 2)
+    return q
+
+
+def quadratic_point(mt: Method, st: Any, at: float = 0.5) -> np.ndarray | None:
+    """The basis coordinates (one dimension) of the method run from x_0 = 1 (xi_0 = u, or
+    the fixed-point direction for a free start) on f_j = q_j/2 x^2, q_j strictly inside
+    its class (:func:`_curvatures`: the middle of [m, L] by default); None when a prox step
+    is singular."""
+    p, s = mt.p, float(mt.s)
+    q = _curvatures(mt, at)
     qc = np.array([q[j] for j in mt.oracles])
     col = {name: c for c, name in enumerate(st.basis)}
     if st.free_values:
@@ -140,6 +164,40 @@ def quadratic_point(mt: Method, st: Any) -> np.ndarray | None:
                 c = int(np.argmax(np.abs(pt.g)))
                 v[c] = q[j] * float(pt.x @ v) / s
     return v
+
+
+def quadratic_candidates(mt: Method, st: Any, tries: int = QUADRATIC_TRIES
+                         ) -> list[tuple[list[Fraction], np.ndarray]]:
+    """The one-dimensional trajectories (d x 1) of the quadratics f_j = q_j/2 x^2, q_j at
+    one position of every class's interval (:data:`QUADRATIC_AT`), the ``tries`` with the
+    largest measure (floating point) first, each with its curvatures q_j (exact: the
+    floats'). A quadratic strictly inside its class meets every inequality with a slack
+    of its own scale at every step, however small the iterates get: its exact check
+    does not depend on the solver's accuracy."""
+    scored = []
+    for at in QUADRATIC_AT:
+        v = quadratic_point(mt, st, float(at))
+        ratio = None if v is None else _quadratic_ratio(mt, st, v, float(at))
+        if ratio is not None:
+            scored.append((ratio, float(at), v))
+    scored.sort(key=lambda e: -e[0])
+    return [([Fraction(q) for q in _curvatures(mt, at)], v[:, None])
+            for _, at, v in scored[:tries]]
+
+
+def _quadratic_ratio(mt: Method, st: Any, v: np.ndarray, at: float) -> float | None:
+    """measure / initial of the quadratic trajectory ``v`` (values q_j/2 x^2, tilted by
+    nothing: every f_j is least at x* = 0), None when it is not finite and positive."""
+    q, s = _curvatures(mt, at), float(mt.s)
+    G, F = np.outer(v, v), np.zeros(st.nF)
+    for j, fp in enumerate(st.points):
+        for pt in fp:
+            if pt.f is not None:
+                F[pt.f] = q[j] / 2 * float(pt.x @ v) ** 2 / s
+    meas = float(np.sum(st.meas_q.astype(float) * G) + st.meas_f.astype(float) @ F)
+    init = float(np.sum(st.init_q.astype(float) * G) + st.init_f.astype(float) @ F)
+    ratio = meas / init if init > 0 else math.nan
+    return ratio if math.isfinite(ratio) and ratio > 0 else None
 
 
 def make_witness(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
@@ -190,11 +248,45 @@ def make_witness(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
                 return finish_witness(doc, spec, kappa, exact_mt, res)
     if best is not None:  # verified, but further below tau than ACCEPT
         return finish_witness(best, spec, kappa, exact_mt, res)
+    quad = _quadratic_witness(spec, mt, data.st, ex, (tau, res), tally)
+    if quad is not None:  # a weaker lower bound, proven whatever the solver's accuracy
+        return finish_witness(quad, spec, kappa, exact_mt, res)
     if last is not None and "check" not in last:
         last["check"] = check_witness(last, spec, ex)
     if last is not None:  # not verified: what the search tried, and why each failed
         last["search"]["interior_point"] = bool(inner and inner[0] is not None)
     return None if last is None else finish_witness(last, spec, kappa, exact_mt, res)
+
+
+def _quadratic_witness(spec: Spec, mt: Method, st: Any, ex: ArbView | None,
+                       solved: tuple[float, Any], tally: dict[str, Any]
+                       ) -> dict[str, Any] | None:
+    """When no geometry of the SDP's answer passes the exact check (its float answer is
+    not accurate enough: at N = 60 the late iterates are far below the solver's
+    tolerance): the quadratics of :func:`quadratic_candidates`, the first that passes
+    the exact check, marked ``search.quadratic`` (its lower bound is the worst case
+    over those quadratics, usually well below tau); None when none does. ``solved``:
+    (tau, the PEP's result)."""
+    tau, res = solved
+    if ex is None:
+        return None
+    for q, V in quadratic_candidates(mt, st):
+        tally["candidates"] += 1
+        doc = _document(spec, mt, st, V, np.zeros(st.nF), res)
+        try:  # the calls of the quadratic itself, in ball arithmetic (not V's floats)
+            set_quadratic_calls(doc, ex, q)
+        except (ValueError, ArithmeticError, ZeroDivisionError, KeyError, IndexError):
+            continue
+        doc.update(tau_float=tau, objective_floor=0.0, slack=0.0, mixed=1.0, search=tally)
+        if not fit_values(doc, ex):
+            tally["no_exact_values"] += 1
+            continue
+        doc["check"] = check_witness(doc, spec, ex)
+        tally["checked_exactly"] += 1
+        if doc["check"]["verified"]:
+            doc["search"] = tally | {"quadratic": True}
+            return doc
+    return None
 
 
 def _sources(data: PEPData, ans: SDPAnswer, tau: float, unit: float

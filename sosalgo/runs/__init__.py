@@ -446,6 +446,7 @@ def grid_run(spec: Spec | str | Path, kappa: Kappas, out_dir: str | Path = "outp
     free, with their values at each kappa in the grid entries; ``set``: the ``--set``
     overrides, when given)."""
     from sosalgo.batch.sweeps import run_grid
+    from sosalgo.kernel.kappa import kappa_fields
     from sosalgo.model import parameter_values
     from sosalgo.report import grid as rep
     from sosalgo.schema import GRID_COLUMNS, grid_fixed
@@ -483,7 +484,8 @@ def grid_run(spec: Spec | str | Path, kappa: Kappas, out_dir: str | Path = "outp
             figs = ([] if len(names) > 2 else
                     rep.grid_plot(spec, k, names, boxes[k], points, rho, stem))
         values = parameter_values(spec, k)
-        docs.append(rep.grid_document(k, csv_path, figs, rows, rho, names)
+        docs.append(rep.grid_document(float(k), csv_path, figs, rows, rho, names)
+                    | kappa_fields(k)
                     | {"fixed": {p: values[p] for p in grid_fixed(spec, names)}})
     return {"kind": GRID_KIND, "spec": spec.name, "free": names, "fixed": grid_fixed(spec, names),
             "grids": docs, "estimate": est.to_dict()} | set_field(overrides)
@@ -508,6 +510,7 @@ def table1_run(specs: Sequence[str | Path] = (), kappa: Sequence[float] = (),
     """``sosalgo table1``: each spec's certified rate beside its closed form, written to
     ``table1.csv``; returns ``{"rows", "columns", "csv"}``. Default specs: ``specs/*.yaml``,
     else the shipped examples."""
+    from sosalgo.batch.sweeps import kappa_settings
     from sosalgo.runs.table1 import table1_rows, write_table1
     from sosalgo.spec import read_spec_text, spec_from_text
 
@@ -528,12 +531,14 @@ def table1_run(specs: Sequence[str | Path] = (), kappa: Sequence[float] = (),
     if not kept:
         raise InputError("--specs: no spec files given and none in specs/")
     parsed = kept
-    kappas = [float(k) for k in kappa] or [2.0, 10.0, 100.0]
+    kappas = [kappa_value(k) for k in kappa] or [2.0, 10.0, 100.0]
     chosen = certificate is not None or any(v is not None for v in (options or {}).values())
     fams = [inputs.select_families(s, certificate, options, applicable_only=True) if chosen
             else [None] for s in parsed]
     rows, cols = table1_rows(parsed, kappas, tol, fams)
-    settings = {"job": "table1", "specs": texts, "kappa": kappas, "tol": tol,  # lag: None
-                "certificate": certificate, "lag": None, **dict(options or {})}  # unless given
+    settings = {"job": "table1", "specs": texts, "kappa": [float(k) for k in kappas],
+                "tol": tol, "certificate": certificate, "lag": None,  # lag: None unless given
+                **dict(options or {})} | kappa_settings(kappas)
     path = write_table1(inputs.out_dir(out_dir), rows, cols, settings)
-    return {"kind": TABLE1_KIND, "rows": rows, "columns": cols, "csv": str(path)}
+    return {"kind": TABLE1_KIND, "rows": record_kappas(rows, kappas), "columns": cols,
+            "csv": str(path)}

@@ -189,7 +189,10 @@ def _check(spec: Spec, kappa: Any, points: Any, time_limit: Any) -> list[float]:
     check_noise_spec_for(spec, "pareto")
     if kappa in (None, [], ()):
         raise InputError("--kappa: required (one or more condition numbers)")
-    kappas = [float(kappa)] if isinstance(kappa, int | float) else [float(k) for k in kappa]
+    from sosalgo.runs import kappa_value  # as written (sosalgo.kernel.kappa)
+
+    kappas = ([kappa_value(kappa)] if isinstance(kappa, int | float | str)
+              else [kappa_value(k) for k in kappa])
     if isinstance(points, bool) or not isinstance(points, int) or not 2 <= points <= MAX_POINTS:
         raise InputError(f"--points {points}: must be an integer in 2..{MAX_POINTS} (the "
                          "front needs its two ends)")
@@ -300,6 +303,7 @@ def _one_kappa(spec: Spec, text: str, kappa: float, names: list[str], fam: Any,
     """The front at one kappa into ``<name>-pareto-k<kappa>.csv`` (resumable), its
     figure, and the ``--json`` document."""
     from sosalgo.batch.executor import Progress, run_batch
+    from sosalgo.batch.sweeps import kappa_settings
     from sosalgo.certificates import describe_family
     from sosalgo.schema import PARETO_COLUMNS, kappa_label, pareto_stem
     from sosalgo.store import ResumableCSV, output_lock
@@ -309,7 +313,8 @@ def _one_kappa(spec: Spec, text: str, kappa: float, names: list[str], fam: Any,
     csv_path = stem.with_name(stem.name + ".csv")
     figures = [stem.with_name(f"{stem.name}.{ext}") for ext in ("png", "pdf")]
     settings = {"job": "pareto", "spec": text, "kappa": kappa, "points": points,
-                "free": names, "time_limit": time_limit, "certificate": describe_family(fam)}
+                "free": names, "time_limit": time_limit, "certificate": describe_family(fam)
+                } | kappa_settings([kappa])
     with output_lock(csv_path):
         store = ResumableCSV(csv_path, PARETO_COLUMNS, ["index"], settings,
                              restart=run["restart"], companions=figures)
@@ -346,9 +351,12 @@ def _document(spec: Spec, text: str, kappa: float, fam: Any, names: list[str],
     """The ``--json`` document: ``{"spec", "kappa", "front": [{"rho", "noise", "theta",
     ...}]}`` (a contract), with every front point computed (``points``), the known
     tunings, the family and the files."""
+    from sosalgo.kernel.kappa import kappa_fields
+
     parsed = sorted((_parse(r) for r in rows), key=lambda p: p["index"])
     mine = [p for p in parsed if p["kind"] == "front"]
-    return {"spec": spec.name, "kappa": float(kappa), "front": pareto_filter(mine),
+    return {"spec": spec.name, "kappa": float(kappa), **kappa_fields(kappa),
+            "front": pareto_filter(mine),
             "source": spec.source, "spec_text": text, "kind": PARETO_KIND,
             "points": mine, "tunings": [p for p in parsed if p["kind"] != "front"],
             "family": fam.name, "lag": fam.options().get("lag"), "free": names,

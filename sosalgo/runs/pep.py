@@ -336,7 +336,27 @@ def pep_summary(doc: dict[str, Any], details: bool = True) -> str:
     files = doc.get("files") or []
     return "\n".join([*pep_heading(rows), *set_lines(doc),
                       format_table(table, printed_columns(cols, details)),
-                      *PEP_LEGEND] + [f"wrote {f}" for f in files])
+                      *PEP_LEGEND, *witness_notes(rows)] + [f"wrote {f}" for f in files])
+
+
+def witness_notes(rows: list[dict[str, Any]]) -> list[str]:
+    """One plain line per row whose witness does not pin tau from below: not verified
+    (no lower bound at all), or the quadratic of the search's last resort (a lower bound
+    far below tau)."""
+    out = []
+    for d in rows:
+        w = d.get("witness") or {}
+        chk, where = w.get("check") or {}, f"kappa {d.get('kappa')}, N = {d.get('steps')}"
+        if w and not chk.get("verified"):
+            out.append(f"{where}: no witness verified ({chk.get('detail', 'not checked')}): "
+                       "tau has no proven lower bound here (the witness file's search says "
+                       "what was tried)")
+        elif (w.get("search") or {}).get("quadratic"):
+            low, tau = chk.get("tau_lower_float"), d.get("tau")
+            ratio = f", {low / tau:.2g} of tau" if low and tau else ""
+            out.append(f"{where}: the SDP's worst case could not be made exact; the "
+                       f"witness is a quadratic, proving only tau_N >= {low:.6g}{ratio}")
+    return out
 
 
 PEP_LEGEND = ("tau: the SDP's worst case (floating point); tau_proven: proven upper bound "

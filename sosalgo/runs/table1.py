@@ -28,7 +28,7 @@ def table1_rows(specs: Sequence[Spec], kappas: Sequence[float], tol: float,
     extra_cols: list[str] = []
     for spec, fams in zip(specs, families, strict=True):
         for k in kappas:
-            row = _row(spec, float(k), tol, fams)
+            row = _row(spec, k, tol, fams)
             extra_cols += [c for c in row if c not in extra_cols]
             rows.append(row)
     return rows, TABLE1_COLUMNS + [c for c in extra_cols if c not in TABLE1_COLUMNS]
@@ -38,7 +38,7 @@ def _row(spec: Spec, kappa: float, tol: float,
          fams: Sequence[CertificateFamily | None]) -> dict[str, Any]:
     refs = reference_values(spec, kappa)
     name, val = next(iter(refs.items()), ("", None))
-    row: dict[str, Any] = {"spec": spec.name, "kappa": kappa}
+    row: dict[str, Any] = {"spec": spec.name, "kappa": float(kappa)}
     for i, fam in enumerate(fams):
         res = analyze_spec(spec, kappa, tol=tol, family=fam)
         diff = None if (res.rho is None or val is None) else res.rho - val

@@ -132,7 +132,8 @@ def _pareto(spec: Spec, doc: Mapping[str, Any], checks: Sequence[Any]) -> list[d
             s = reference_spec() if key == "tunings" else spec
             for p in pts:
                 show_phase("claims", f"{key} row {total + 1} of {len(checks)}")
-                view = {"kappa": kappa, "family": f.get("family"), **p}
+                view = {"kappa": kappa, "family": f.get("family"), **p} | {
+                    k: f[k] for k in ("kappa_exact",) if k in f}
                 out += row_ledger(s, total, view, next(it), extra)
                 total += 1
     if total == 0:
