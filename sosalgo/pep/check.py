@@ -515,7 +515,11 @@ def _measure_initial(doc: dict[str, Any], spec: Spec, av: ArbView
     from sosalgo.pep.call_checks import call_checks
 
     calls, wrong = call_checks(doc, av)  # each answer is its point's gradient (or near it)
-    checked, bad = checked + calls, bad + wrong
+    if wrong:
+        raise ValueError(f"{wrong} of {calls} calls: the answer is not the gradient of its "
+                         "function at its point in the witness (nor within its relative "
+                         "error)")
+    checked += calls
     ssum = [sum(Fraction(v[c]) for v in (f["optimal_subgradient"] for f in
                                           doc["functions"].values()))
             for c in range(int(doc["dimension"]))]
