@@ -33,6 +33,7 @@ shared by the search and the proof) and the search (:func:`search`).
 from __future__ import annotations
 
 import itertools
+import warnings
 from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import TYPE_CHECKING, Any
@@ -45,7 +46,7 @@ if TYPE_CHECKING:
     from sosalgo.spec.types import Spec
 
 __all__ = ["AllKSystem", "Conditions", "Search", "closed_form_system", "conditions",
-           "offset_bounds", "search", "why_not_closed_form"]
+           "margin_point", "offset_bounds", "search", "why_not_closed_form"]
 
 SMOOTH_CONVEX = "smooth_strongly_convex"  # with m = 0: L-smooth convex
 MAX_STATES = 4  # the proof checks every principal minor of windows of n + 2 rows
@@ -449,86 +450,148 @@ def _sos_constraints(arrays: list[tuple[np.ndarray, np.ndarray]], s: int, y: Any
     return cons
 
 
-def _margin_weight(arrays: list[tuple[np.ndarray, np.ndarray]], s: int, y: np.ndarray,
-                   v: np.ndarray, in_kernel: bool) -> list[np.ndarray]:
-    """W(k) = T^-T diag((1 + k)^(2 e_i)) T^-1 in the basis T = (v, e_1, ..., e_{s-1}) (v:
-    the minimizer's direction), e_i half the degree of the i-th diagonal entry of
-    T' M(k) T at ``y`` (0 weight on v when it is a kernel): a margin that grows as each
-    direction does."""
-    from math import comb
+# --------------------------------------------------------------------------- growth in k
+@dataclass
+class Growth:
+    """How a block grows with k at the search's point: a basis T(k) (polynomial columns,
+    det constant: v first, then directions along which the leading terms cancel, found
+    and snapped to small fractions), the degree of each diagonal entry of T' M T (-1: an
+    entry at 0), ``zeros`` (coefficients the point must have at exactly 0 to keep that
+    growth) and ``weight`` (W(k) = T^-T diag((1 + k)^d_i) T^-1: the margin's shape)."""
 
-    T = np.eye(s)
-    T[:, 0] = v
-    coeffs = np.array([(T.T @ (F @ y + f).reshape(s, s) @ T).diagonal() for F, f in arrays])
-    scale = max(1.0, float(np.abs(coeffs).max()))
-    degs = [max([t for t in range(len(arrays)) if abs(coeffs[t, i]) > 1e-6 * scale],
-                default=0) // 2 for i in range(s)]
-    Tinv = np.linalg.inv(T)
-    out = []
-    for t in range(2 * max(degs) + 1):
-        diag = np.array([comb(2 * e, t) if t <= 2 * e else 0 for e in degs], dtype=float)
-        if in_kernel:
-            diag[0] = 0.0
-        out.append(Tinv.T @ np.diag(diag) @ Tinv)
-    return out
+    T: Any
+    degrees: list[int]
+    zeros: list[Any]
+    weight: Any
+
+
+def _numeric_polys(M: Any, k: Any, sub: dict[Any, float]) -> list[list[list[float]]]:
+    import sympy as sp
+
+    s = M.shape[0]
+    return [[[float(c.xreplace(sub)) for c in reversed(sp.Poly(M[i, j], k).all_coeffs())]
+             for j in range(s)] for i in range(s)]
+
+
+def _degrees(num: list[list[list[float]]]) -> list[int]:
+    scale = max(1e-300, max(abs(c) for row in num for cs in row for c in cs))
+    return [max([t for t, c in enumerate(num[i][i]) if abs(c) > 1e-7 * scale], default=-1)
+            for i in range(len(num))]
+
+
+def _cancelling_direction(num: list[list[list[float]]], deg: list[int]
+                          ) -> tuple[int, int, Fraction, int] | None:
+    """Two directions i, j (d_i <= d_j, same parity) whose leading terms in -M (PSD) form
+    a singular 2 x 2 block: (i, j, q, e) with e_j + q k^e e_i the direction along which
+    they cancel (q snapped to a small fraction); None when there is none."""
+    act = [i for i in range(len(deg)) if deg[i] >= 0]
+    for i, j in itertools.permutations(act, 2):
+        if deg[i] > deg[j] or (deg[i] == deg[j] and i > j) or (deg[i] + deg[j]) % 2:
+            continue
+        mid = (deg[i] + deg[j]) // 2
+        a, c = -num[i][i][deg[i]], -num[j][j][deg[j]]
+        b = -num[i][j][mid] if mid < len(num[i][j]) else 0.0
+        if a <= 0 or c <= 0 or abs(b) < 1e-9 * np.sqrt(a * c):
+            continue
+        if abs(a * c - b * b) > 1e-4 * a * c:
+            continue
+        q = Fraction(-b / a).limit_denominator(64)
+        if abs(float(q) + b / a) <= 1e-4 * abs(b / a):
+            return i, j, q, (deg[j] - deg[i]) // 2
+    return None
+
+
+def block_growth(cond: Conditions, name: str, y: np.ndarray) -> Growth:
+    """The :class:`Growth` of block ``name`` at the point ``y``."""
+    import sympy as sp
+
+    k, M = cond.extra["k"], cond.blocks[name]
+    s = M.shape[0]
+    sub = dict(zip(cond.variables, (float(x) for x in y), strict=True))
+    T = sp.eye(s)
+    if name in cond.kernels:
+        T[:, 0] = cond.kernels[name]
+    for _ in range(s):
+        num = _numeric_polys((T.T * M * T).applyfunc(sp.expand), k, sub)
+        deg = _degrees(num)
+        found = _cancelling_direction(num, deg)
+        if found is None:
+            break
+        i, j, q, e = found
+        T[:, j] = T[:, j] + q * k**e * T[:, i]
+    Mt = (T.T * M * T).applyfunc(sp.expand)
+    deg = _degrees(_numeric_polys(Mt, k, sub))
+    zeros = []
+    for i, j in itertools.combinations_with_replacement(range(s), 2):
+        limit = deg[i] if i == j else (deg[i] + deg[j]) // 2
+        coeffs = list(reversed(sp.Poly(Mt[i, j], k).all_coeffs()))
+        zeros += [c for c in coeffs[max(limit + 1, 0):] if c != 0]
+    Tinv = T.inv().applyfunc(sp.expand)
+    D = sp.diag(*[(1 + k) ** max(d, 0) if d >= 0 else 0 for d in deg])
+    return Growth(T, deg, zeros, (Tinv.T * D * Tinv).applyfunc(sp.expand))
+
+
+def _weight_arrays(W: Any, k: Any) -> list[np.ndarray]:
+    import sympy as sp
+
+    s = W.shape[0]
+    polys = [[list(reversed(sp.Poly(W[i, j], k).all_coeffs())) for j in range(s)]
+             for i in range(s)]
+    top = max(len(p) for row in polys for p in row)
+    return [np.array([[float(polys[i][j][t]) if t < len(polys[i][j]) else 0.0
+                       for j in range(s)] for i in range(s)]) for t in range(top)]
 
 
 @dataclass
 class Search:
-    """The SDP's point (floats over ``conditions.variables``), its status and constant."""
+    """The SDP's point (floats over ``conditions.variables``), its status and constant,
+    the blocks whose kernel it imposed and the coefficients it set to 0 (the proof's
+    rounding imposes them too)."""
 
     values: np.ndarray | None
     constant: float | None
     status: str
     solves: int = 0
     kernels: tuple[str, ...] = ("decrease",)
+    zeros: list[Any] = field(default_factory=list)
+    context: dict[str, Any] = field(default_factory=dict)
 
 
 def _problem_data(cond: Conditions) -> dict[str, Any]:
-    import sympy as sp
-
     index = {v: i for i, v in enumerate(cond.variables)}
-    k = sp.Symbol("k", real=True)
+    k = cond.extra["k"]
     blocks = {name: (M.shape[0], _block_arrays(M, k, index)) for name, M in cond.blocks.items()}
     return {"index": index, "blocks": blocks}
 
 
-def _equalities(cond: Conditions, index: dict[Any, int], kernels: tuple[str, ...]
-                ) -> tuple[np.ndarray, np.ndarray]:
-    import sympy as sp
-
-    k = sp.Symbol("k", real=True)
+def _equalities(cond: Conditions, index: dict[Any, int], kernels: tuple[str, ...],
+                zeros: list[Any]) -> tuple[np.ndarray, np.ndarray]:
+    k = cond.extra["k"]
     rows, rhs = [], []
-    for e in cond.all_identities(kernels):
+    for e in [*cond.all_identities(kernels), *zeros]:
         for vec, const in _linear_rows(e, k, index).values():
             rows.append(vec)
             rhs.append(-const)
     return np.array(rows), np.array(rhs)
 
 
-def _direction(cond: Conditions, name: str) -> np.ndarray:
-    """The minimizer's direction in a block's window (a unit vector for the initial one)."""
-    if name in cond.kernels:
-        return np.array([float(x) for x in cond.kernels[name]])
-    return np.eye(cond.blocks[name].shape[0])[0]
-
-
 def _solve(data: dict[str, Any], cond: Conditions, cap: float | None, offset: Fraction,
-           y0: np.ndarray | None = None, kernels: tuple[str, ...] = ("decrease",)
+           growth: dict[str, Growth] | None = None, kernels: tuple[str, ...] = ("decrease",)
            ) -> tuple[str, Any, Any]:
     import cvxpy as cp
 
     index = data["index"]
     y = cp.Variable(len(index))
     margin = cp.Variable() if cap is not None else 0.0
-    Aeq, beq = _equalities(cond, index, kernels)
+    zeros = [z for g in (growth or {}).values() for z in g.zeros]
+    Aeq, beq = _equalities(cond, index, kernels, zeros)
     cons = [Aeq @ y == beq]
     cons += [y[index[cond.names[name]]] >= float(low)
              for name, low in offset_bounds(cond.degree, offset).items()]
     cons += [y[index[v]] >= 0 for v in cond.nonnegative]
     for name, (s, arrays) in data["blocks"].items():
-        weight = None if y0 is None else _margin_weight(
-            arrays, s, y0, _direction(cond, name), name in kernels)
+        weight = (None if growth is None
+                  else _weight_arrays(growth[name].weight, cond.extra["k"]))
         cons += _sos_constraints(arrays, s, y, margin, weight)
     C = y[index[cond.names["C"]]]
     if cap is None:
@@ -537,8 +600,10 @@ def _solve(data: dict[str, Any], cond: Conditions, cap: float | None, offset: Fr
         cons += [C <= cap, margin <= 1]
         prob = cp.Problem(cp.Maximize(margin), cons)
     try:
-        prob.solve(solver="CLARABEL", tol_gap_abs=1e-11, tol_gap_rel=1e-11, tol_feas=1e-11,
-                   max_iter=400)
+        with warnings.catch_warnings():  # "inaccurate": the proof decides
+            warnings.simplefilter("ignore", UserWarning)
+            prob.solve(solver="CLARABEL", tol_gap_abs=1e-11, tol_gap_rel=1e-11,
+                       tol_feas=1e-11, max_iter=400)
     except cp.error.SolverError as exc:
         return f"solver error: {exc}", None, None
     return prob.status, y.value, (margin.value if cap is not None else None)
@@ -551,22 +616,34 @@ def offset_bounds(degree: int, offset: Fraction) -> dict[str, Fraction]:
     return {"a_0": offset}
 
 
-def search(cond: Conditions, offset: Fraction = Fraction(1), slack: float = 1e-6) -> Search:
-    """Minimize C over the conditions with a(N) >= (N + offset)^degree (one SDP), then at
-    C <= C* (1 + slack) maximize a margin on the Gram matrices (so that the rounded
-    certificate keeps the inequalities): the point the proof rounds. Floating point:
-    certifies nothing by itself."""
+def search(cond: Conditions, offset: Fraction = Fraction(1)) -> Search:
+    """Minimize C over the conditions with a(N) >= (N + offset)^degree (one SDP) and read
+    the growth in k of each block at the optimum (:func:`block_growth`). Floating point:
+    certifies nothing by itself (its constant is where :func:`margin_point` starts)."""
     data = _problem_data(cond)
     status, y, _ = _solve(data, cond, None, offset)
     if status not in ("optimal", "optimal_inaccurate") or y is None:
         return Search(None, None, status, 1)
-    c_star = float(y[data["index"][cond.names["C"]]])
-    kernels = ("decrease", *_kernels_at(cond, np.asarray(y)))
-    status2, y2, margin = _solve(data, cond, c_star * (1 + slack) + 1e-12, offset,
-                                 np.asarray(y), kernels)
-    if status2 in ("optimal", "optimal_inaccurate") and y2 is not None and margin > 0:
-        return Search(np.asarray(y2), c_star, status2, 2, kernels)
-    return Search(np.asarray(y), c_star, status, 2, kernels)
+    y = np.asarray(y)
+    kernels = ("decrease", *_kernels_at(cond, y))
+    growth = {name: block_growth(cond, name, y) for name in cond.blocks}
+    return Search(y, float(y[data["index"][cond.names["C"]]]), status, 1, kernels,
+                  [z for g in growth.values() for z in g.zeros],
+                  {"data": data, "growth": growth, "offset": offset})
+
+
+def margin_point(cond: Conditions, found: Search, slack: float) -> np.ndarray | None:
+    """At C <= C* (1 + slack), the point with the largest margin on every block (in the
+    shape of its growth): the point the proof rounds; None when no positive margin."""
+    if found.values is None or found.constant is None:
+        return None
+    ctx = found.context
+    status, y, margin = _solve(ctx["data"], cond, found.constant * (1 + slack) + 1e-12,
+                               ctx["offset"], ctx["growth"], found.kernels)
+    found.solves += 1
+    if status in ("optimal", "optimal_inaccurate") and y is not None and margin > 0:
+        return np.asarray(y)
+    return None
 
 
 def _kernels_at(cond: Conditions, y: np.ndarray) -> list[str]:

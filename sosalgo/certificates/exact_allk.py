@@ -31,7 +31,9 @@ import numpy as np
 
 from sosalgo.certificates.allk import Conditions, offset_bounds
 
-__all__ = ["AllKProof", "check_certificate", "nonnegative_on_halfline",
+__all__ = ["SLACKS", "AllKProof", "AllKResult", "check_certificate", "prove_all_k",
+           "verify_allk_document",
+           "nonnegative_on_halfline",
            "principal_minors", "round_certificate"]
 
 ZERO_TOL = 1e-7  # a nonnegative unknown below this (relative) is taken as 0
@@ -173,12 +175,18 @@ def _signs_and_identities(cond: Conditions, cert: dict[str, Fraction], sub: dict
 
 
 # --------------------------------------------------------------------------- rounding
-def _fraction(x: float) -> Fraction:
+def _fraction(x: float, snap: float = 1e-6) -> Fraction:
+    """x as a fraction: a small-denominator one (<= 64) when within ``snap`` of it (the
+    structural values of an optimum: 1/2, -1, ...), else a close one."""
+    small = Fraction(float(x)).limit_denominator(64)
+    if abs(float(small) - float(x)) <= snap:
+        return small
     return Fraction(float(x)).limit_denominator(MAX_DEN)
 
 
 def round_certificate(cond: Conditions, values: np.ndarray, k: Any,
-                      kernels: tuple[str, ...] = ("decrease",)) -> dict[str, Fraction]:
+                      kernels: tuple[str, ...] = ("decrease",), zeros: list[Any] | None = None
+                      ) -> dict[str, Fraction]:
     """Rational values near the search's ``values`` that satisfy the identities exactly
     (the nonnegative unknowns found at 0 set to 0): a minimal-norm exact correction."""
     import flint
@@ -192,7 +200,7 @@ def round_certificate(cond: Conditions, values: np.ndarray, k: Any,
         if values[index[v]] <= ZERO_TOL * scale:
             rows.append([Fraction(int(i == index[v])) for i in range(len(y))])
             rhs.append(Fraction(0))
-    for e in cond.all_identities(kernels):
+    for e in [*cond.all_identities(kernels), *(zeros or [])]:
         for vec, const in _exact_rows(e, k, index):
             rows.append(vec)
             rhs.append(-const)
@@ -242,3 +250,98 @@ def _independent_rows(A: Any) -> list[int]:
                 keep.append(j)
                 break
     return keep
+
+
+# --------------------------------------------------------------------------- the driver
+SLACKS = (1e-3, 3e-3, 1e-2, 3e-2, 1e-1)  # C <= C* (1 + slack) tried in turn
+
+
+@dataclass
+class AllKResult:
+    """A search and its proof: the proof (``proof.verified == "exact"`` when proven), the
+    rational certificate (unknown name -> Fraction), the SDP's constant C* (unchecked),
+    the slack of the proven point, the degree and the solves."""
+
+    proof: AllKProof
+    certificate: dict[str, Fraction] | None
+    estimate: float | None
+    slack: float | None
+    degree: int
+    solves: int
+
+
+def prove_all_k(system: Any, degree: int = 2, offset: Fraction = Fraction(1)) -> AllKResult:
+    """Search a potential of ``degree`` with a(N) >= (N + offset)^degree and prove it
+    exactly: the SDP's optimum, then points with a margin at C <= C* (1 + slack) for
+    each slack of :data:`SLACKS`, rounded and checked until one is proven."""
+    from sosalgo.certificates.allk import conditions, margin_point, search
+
+    cond = conditions(system, degree)
+    found = search(cond, offset)
+    if found.values is None:
+        return AllKResult(AllKProof("failed", reason=f"the search found no potential of "
+                                    f"degree {degree} ({found.status})"),
+                          None, None, None, degree, found.solves)
+    last = AllKProof("failed", reason="no point with a margin")
+    for slack in SLACKS:
+        y = margin_point(cond, found, slack)
+        if y is None:
+            continue
+        cert = round_certificate(cond, y, system.k, found.kernels, found.zeros)
+        last = check_certificate(cond, cert, offset, system.k)
+        if last.verified == "exact":
+            return AllKResult(last, cert, found.constant, slack, degree, found.solves)
+    return AllKResult(last, None, found.constant, None, degree, found.solves)
+
+
+# --------------------------------------------------------------------------- verify
+def _fractions(cert: Any, where: str) -> dict[str, Fraction]:
+    if not isinstance(cert, dict) or not cert:
+        raise ValueError(f"{where}.certificate: expected an object of fractions")
+    out = {}
+    for name, text in cert.items():
+        try:
+            out[str(name)] = Fraction(str(text))
+        except (ValueError, ZeroDivisionError):
+            raise ValueError(f"{where}.certificate.{name}: {str(text)[:40]!r} is not a "
+                             "fraction") from None
+    return out
+
+
+def _claims_differ(doc: dict[str, Any], proof: AllKProof) -> str | None:
+    """Why the document's claims are not what the proof proves (None when they are)."""
+    assert proof.constant is not None
+    if str(doc.get("constant_proven")) != str(proof.constant):
+        return f"constant_proven {doc.get('constant_proven')} is not the certificate's C"
+    const = doc.get("constant")
+    if not isinstance(const, int | float) or Fraction(const) < proof.constant:
+        return f"constant {const} is below the proven {float(proof.constant):.10g}"
+    if [str(c) for c in proof.a] != [str(c) for c in doc.get("a", [])]:
+        return "a: not the certificate's a(N)"
+    if doc.get("verified") != "exact" or doc.get("certified") is not True:
+        return "the document does not claim the bound it carries"
+    return None
+
+
+def verify_allk_document(doc: dict[str, Any], spec: Any, where: str) -> list[dict[str, Any]]:
+    """Re-prove an ``all-k`` document's bound from its certificate, about ``spec``: one
+    check (``verified`` "exact" when its every claim is proven, else "failed" and
+    ``reason``). A document claiming nothing (no proven bound) fails."""
+    from sosalgo.certificates.allk import closed_form_system, conditions
+
+    head = {"spec": doc.get("spec"), "kappa": None, "steps": None}
+    if not doc.get("certified"):
+        return [head | {"verified": "failed", "reason": f"{where}: no bound is claimed"}]
+    try:
+        cert = _fractions(doc.get("certificate"), where)
+        degree, offset = int(doc.get("degree", 0)), Fraction(str(doc.get("offset")))
+        if degree not in (1, 2):
+            raise ValueError(f"{where}.degree: {degree!r} is not 1 or 2")
+    except (ValueError, TypeError) as exc:
+        return [head | {"verified": "failed", "reason": str(exc)}]
+    system = closed_form_system(spec)
+    proof = check_certificate(conditions(system, degree), cert, offset, system.k)
+    why = proof.reason if proof.verified != "exact" else _claims_differ(doc, proof)
+    if why is not None:
+        return [head | {"verified": "failed", "reason": f"{where}: {why}"}]
+    return [head | proof.to_dict() | {"verified": "exact"}]

@@ -48,6 +48,18 @@ def spec_with_text(spec: Spec | str | Path, spec_text: str | None = None,
     return spec, text
 
 
+def changes_with_k(spec: Spec | str | Path, overrides: Mapping[str, str] | None = None
+                   ) -> bool:
+    """Whether ``sosalgo analyze`` takes the spec as a method that changes with k (then
+    :func:`sosalgo.runs.allk.allk_run` answers it, or refuses it in one line)."""
+    if isinstance(spec, Spec):
+        return spec.time_varying
+    if str(spec) == "-":  # a pipe is read once, by the run
+        return False
+    found, _ = _spec_and_text(spec, None, overrides)
+    return found.time_varying
+
+
 def _spec_and_text(spec: Spec | str | Path, spec_text: str | None,
                    overrides: Mapping[str, str] | None) -> tuple[Spec, str]:
     from sosalgo.spec import read_spec_text, spec_from_text
