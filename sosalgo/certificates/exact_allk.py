@@ -253,7 +253,7 @@ def _independent_rows(A: Any) -> list[int]:
 
 
 # --------------------------------------------------------------------------- the driver
-SLACKS = (1e-3, 3e-3, 1e-2, 3e-2, 1e-1)  # C <= C* (1 + slack) tried in turn
+SLACKS = (5e-4, 1e-3, 3e-3, 1e-2, 3e-2, 1e-1)  # C <= C* (1 + slack) tried in turn
 
 
 @dataclass
@@ -326,7 +326,8 @@ def _claims_differ(doc: dict[str, Any], proof: AllKProof) -> str | None:
 def verify_allk_document(doc: dict[str, Any], spec: Any, where: str) -> list[dict[str, Any]]:
     """Re-prove an ``all-k`` document's bound from its certificate, about ``spec``: one
     check (``verified`` "exact" when its every claim is proven, else "failed" and
-    ``reason``). A document claiming nothing (no proven bound) fails."""
+    ``reason``). A document claiming nothing (no proven bound) fails; a malformed
+    certificate raises InputError naming the field."""
     from sosalgo.certificates.allk import closed_form_system, conditions
 
     head = {"spec": doc.get("spec"), "kappa": None, "steps": None}
@@ -337,8 +338,10 @@ def verify_allk_document(doc: dict[str, Any], spec: Any, where: str) -> list[dic
         degree, offset = int(doc.get("degree", 0)), Fraction(str(doc.get("offset")))
         if degree not in (1, 2):
             raise ValueError(f"{where}.degree: {degree!r} is not 1 or 2")
-    except (ValueError, TypeError) as exc:
-        return [head | {"verified": "failed", "reason": str(exc)}]
+    except (ValueError, TypeError) as exc:  # malformed: exit code 2, naming the field
+        from sosalgo.errors import InputError
+
+        raise InputError(str(exc)) from None
     system = closed_form_system(spec)
     proof = check_certificate(conditions(system, degree), cert, offset, system.k)
     why = proof.reason if proof.verified != "exact" else _claims_differ(doc, proof)
