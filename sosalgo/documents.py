@@ -449,7 +449,8 @@ KINDS: dict[str, ResultKind] = {k.name: k for k in [
         _has("calls_per_step", "iterates", "tau_float"), _verify_witness, "claims"),
     ResultKind(
         ALLK_KIND, "a bound for every N of a spec whose matrices are closed forms in k, "
-        "its potential and its exact proof", "sosalgo analyze --json (sosalgo.allk_run)",
+        "its potential and its exact proof",
+        "sosalgo analyze --json of such a spec (sosalgo.runs.allk.allk_run)",
         "<name>-allk.json",
         ("kind", "spec", "source", "spec_text", "rate_type", "degree", "bound", "constant",
          "constant_proven", "a", "offset", "weights", "certificate", "verified"), "",

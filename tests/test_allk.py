@@ -307,4 +307,4 @@ def test_refusals_name_the_field(tmp_path):
     assert "parameters.h" in schedule and "schedule" in schedule
     assert "rational function of k" in _refusal(tmp_path, _spec(tmp_path, "sqrt(k)/(k + 3)"))
     assert "horizon N" in _refusal(tmp_path, _spec(tmp_path, "k/(k + N)"))
-    assert "functions" in _refusal(tmp_path, SPECS / "fista.yaml")
+    assert "sequences." in _refusal(tmp_path, SPECS / "fista.yaml")

@@ -27,7 +27,7 @@ from sosalgo.steps import (
 )
 
 SPECS = Path(__file__).resolve().parents[1] / "specs"
-VARYING = ("ogm", "fista", "gradient-schedule", "momentum-schedule", "silver")
+VARYING = ("ogm", "fista", "gradient-schedule", "momentum-schedule", "silver", "accelerated-k")
 GD = """
 name: t
 functions:

@@ -97,6 +97,28 @@ def _sequence_names(spec: Spec) -> dict[Any, str]:
     return out
 
 
+def _recurrence_error(spec: Spec, s: str) -> SpecError:
+    return SpecError(spec.source, f"sequences.{s}",
+                     f"{s} is given by a recurrence, not as a closed form in k (the all-k "
+                     "bound needs parameters that are rational functions of k)")
+
+
+def _refuse_recurrences(spec: Spec) -> None:
+    """SpecError naming the first sequence the method's parameters or matrices use."""
+    from sosalgo.kernel.expr.parse import to_sympy
+
+    seqs = _sequence_names(spec)
+    exprs = [par.tied if par.is_tied else par.value for par in spec.parameters.values()
+             if par.schedule is None]
+    exprs += [e for rows in spec.matrices.values() for row in rows for e in row]
+    for expr in exprs:
+        if expr is None:
+            continue
+        for sym in sorted(to_sympy(expr).free_symbols, key=str):
+            if sym in seqs:
+                raise _recurrence_error(spec, seqs[sym])
+
+
 def _closed_form(value: Any, where: str, spec: Spec, k: Any) -> Any:
     """``value`` as a rational function of k with rational coefficients, or SpecError."""
     import sympy as sp
@@ -104,11 +126,7 @@ def _closed_form(value: Any, where: str, spec: Spec, k: Any) -> Any:
     seqs = _sequence_names(spec)
     for sym in sorted(value.free_symbols, key=str):
         if sym in seqs:
-            s = seqs[sym]
-            raise SpecError(spec.source, f"sequences.{s}",
-                            f"{s} is given by a recurrence, not as a closed form in k: the "
-                            "all-k bound needs parameters that are rational functions of k "
-                            f"(use `sosalgo pep {spec.source} --steps N`)")
+            raise _recurrence_error(spec, seqs[sym])
         if str(sym) == "N":
             raise SpecError(spec.source, where, "depends on the horizon N: the all-k bound "
                             "needs the same method for every N")
@@ -144,11 +162,25 @@ def _parameter_values(spec: Spec, env: dict[Any, Any], k: Any) -> None:
 
 def closed_form_system(spec: Spec) -> AllKSystem:
     """The spec's method as closed forms in k (:class:`AllKSystem`); SpecError (one line
-    naming the field) when the spec is not of that form."""
+    naming the field, then where a bound after N steps is: ``sosalgo pep``) when the
+    spec is not of that form."""
+    from sosalgo.spec.types import VARIES
+
+    try:
+        return _closed_form_system(spec)
+    except SpecError as exc:
+        if not spec.time_varying:
+            raise
+        raise SpecError(spec.source, exc.field, f"{exc.message}; it "
+                        + VARIES.format(source=spec.source)) from None
+
+
+def _closed_form_system(spec: Spec) -> AllKSystem:
     import sympy as sp
 
     from sosalgo.kernel.expr.parse import sympy_symbol, to_sympy
 
+    _refuse_recurrences(spec)
     problem = _setting_problem(spec)
     if problem is not None:
         raise SpecError(spec.source, problem[0], problem[1])

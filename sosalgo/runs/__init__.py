@@ -54,8 +54,9 @@ def changes_with_k(spec: Spec | str | Path, overrides: Mapping[str, str] | None 
     :func:`sosalgo.runs.allk.allk_run` answers it, or refuses it in one line)."""
     if isinstance(spec, Spec):
         return spec.time_varying
-    if str(spec) == "-":  # a pipe is read once, by the run
-        return False
+    path = Path(spec)
+    if str(spec) == "-" or (path.exists() and not path.is_file()):
+        return False  # a pipe (/dev/stdin) is read once, by the run
     found, _ = _spec_and_text(spec, None, overrides)
     return found.time_varying
 

@@ -33,13 +33,15 @@ def allk_run(spec: Spec | str | Path, out_dir: str | Path = "outputs",
     system = closed_form_system(spec)
     out = inputs.out_dir(out_dir) if write else None
     start = time.perf_counter()
-    result = None
+    tried = []
     for degree in DEGREES:
         result = prove_all_k(system, degree)
+        tried.append({"degree": degree, "verified": result.proof.verified,
+                      "reason": result.proof.reason})
         if result.proof.verified == "exact":
             break
-    assert result is not None
     doc = allk_document(spec, text, result, time.perf_counter() - start)
+    doc["attempts"] = tried
     if overrides:
         doc["set"] = dict(overrides)
     if out is not None:
@@ -108,7 +110,8 @@ def allk_lines(doc: Mapping[str, Any]) -> list[str]:
     """What ``sosalgo analyze`` prints for an ``all-k`` document."""
     d = doc["degree"]
     if not doc["certified"]:
-        return [f"{doc['spec']}: no bound for every N proven ({doc['reason']})"]
+        why = "; ".join(f"degree {t['degree']}: {t['reason']}" for t in doc.get("attempts", []))
+        return [f"{doc['spec']}: no bound for every N proven ({why or doc['reason']})"]
     a = doc["a_float"]
     a_text = _poly_text(a, "N")
     lines = [f"{doc['spec']}: a bound for every N >= 1, proved (exact)",
