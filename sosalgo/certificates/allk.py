@@ -45,8 +45,9 @@ from sosalgo.spec.types import NEXT_SUFFIX, SpecError, value_order
 if TYPE_CHECKING:
     from sosalgo.spec.types import Spec
 
-__all__ = ["AllKSystem", "Conditions", "Search", "closed_form_system", "conditions",
-           "margin_point", "offset_bounds", "search", "why_not_closed_form"]
+__all__ = ["ALLK", "AllKFamily", "AllKSystem", "Conditions", "Growth", "Search",
+           "block_growth", "closed_form_system", "conditions", "margin_point",
+           "offset_bounds", "search", "why_not_closed_form"]
 
 SMOOTH_CONVEX = "smooth_strongly_convex"  # with m = 0: L-smooth convex
 MAX_STATES = 4  # the proof checks every principal minor of windows of n + 2 rows
@@ -235,6 +236,26 @@ def why_not_closed_form(spec: Spec) -> str | None:
     except SpecError as exc:
         return str(exc)
     return None
+
+
+class AllKFamily:
+    """The all-k potentials in the certificate registry: the family that answers a spec
+    whose coefficients change with k (``sosalgo analyze``: one bound for every N)."""
+
+    name = "all-k"
+    label = "all-k potential"
+    description = ("f(x_N) - f* <= C |x_0 - x*|^2 / a(N) for every N, by a potential whose "
+                   "weights are polynomials in k (docs/all-k.md)")
+
+    def applies_to(self, spec: Spec) -> str | None:
+        """Why the family refuses ``spec`` (one line), None when it takes it."""
+        if not spec.time_varying:
+            return (f"{spec.source}: does not change with k (the all-k bound is for "
+                    "methods whose coefficients do)")
+        return why_not_closed_form(spec)
+
+
+ALLK = AllKFamily()
 
 
 # --------------------------------------------------------------------------- conditions
