@@ -308,3 +308,7 @@ def test_refusals_name_the_field(tmp_path):
     assert "rational function of k" in _refusal(tmp_path, _spec(tmp_path, "sqrt(k)/(k + 3)"))
     assert "horizon N" in _refusal(tmp_path, _spec(tmp_path, "k/(k + N)"))
     assert "sequences." in _refusal(tmp_path, SPECS / "fista.yaml")
+    assert "degree 4 in k" in _refusal(tmp_path, _spec(tmp_path, "k**4/(k + 3)**4"))
+    assert "vanishes" in _refusal(tmp_path, _spec(tmp_path, "(k - 1)/(k - 1/2)"))
+    line = _refusal(tmp_path, SPECS / "ogm.yaml")
+    assert f"varies with k: use `sosalgo pep {SPECS / 'ogm.yaml'} --steps N`" in line

@@ -51,6 +51,7 @@ __all__ = ["ALLK", "AllKFamily", "AllKSystem", "Conditions", "Growth", "Search",
 
 SMOOTH_CONVEX = "smooth_strongly_convex"  # with m = 0: L-smooth convex
 MAX_STATES = 4  # the proof checks every principal minor of windows of n + 2 rows
+MAX_K_DEGREE = 3  # of the numerators and denominators of the matrices' entries in k
 
 
 @dataclass
@@ -136,13 +137,16 @@ def _closed_form(value: Any, where: str, spec: Spec, k: Any) -> Any:
     value = sp.cancel(sp.together(value))
     num, den = sp.fraction(value)
     try:
-        sp.Poly(num, k, domain="QQ")
-        sp.Poly(den, k, domain="QQ")
+        degree = max(sp.Poly(num, k, domain="QQ").degree(),
+                     sp.Poly(den, k, domain="QQ").degree())
     except (sp.PolynomialError, sp.CoercionFailed, sp.GeneratorsNeeded):
         if not value.free_symbols and value.is_rational:
             return value
         raise SpecError(spec.source, where, f"{value} is not a rational function of k "
                         "with rational coefficients") from None
+    if degree > MAX_K_DEGREE:
+        raise SpecError(spec.source, where, f"{value}: degree {degree} in k (the all-k bound "
+                        f"takes numerators and denominators of degree <= {MAX_K_DEGREE})")
     return value
 
 
@@ -204,6 +208,10 @@ def _closed_form_system(spec: Spec) -> AllKSystem:
     if system.n > MAX_STATES:
         raise SpecError(spec.source, "matrices.A", f"{system.n} states: the all-k bound "
                         f"takes at most {MAX_STATES}")
+    den = sp.Poly(denominator(system), k, domain="QQ")
+    if den.count_roots(0, None):
+        raise SpecError(spec.source, "matrices", f"the denominator {den.as_expr()} vanishes "
+                        "at some real k >= 0: the all-k bound needs one that does not")
     system.u = _rest_state(system, spec)
     return system
 

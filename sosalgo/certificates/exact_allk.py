@@ -185,10 +185,12 @@ def _fraction(x: float, snap: float = 1e-6) -> Fraction:
 
 
 def round_certificate(cond: Conditions, values: np.ndarray, k: Any,
-                      kernels: tuple[str, ...] = ("decrease",), zeros: list[Any] | None = None
-                      ) -> dict[str, Fraction]:
+                      kernels: tuple[str, ...] = ("decrease",), zeros: list[Any] | None = None,
+                      pivots: bool = True) -> dict[str, Fraction]:
     """Rational values near the search's ``values`` that satisfy the identities exactly
-    (the nonnegative unknowns found at 0 set to 0): a minimal-norm exact correction."""
+    (the nonnegative unknowns found at 0 set to 0): with ``pivots``, the free unknowns of
+    the identities' echelon form keep their rounded values and the others are solved
+    (small fractions); else (or when that fails) a minimal-norm exact correction."""
     import flint
 
     index = {v: i for i, v in enumerate(cond.variables)}
@@ -208,6 +210,10 @@ def round_certificate(cond: Conditions, values: np.ndarray, k: Any,
         return {str(v): y[i] for v, i in index.items()}
     A = flint.fmpq_mat(len(rows), len(y), [flint.fmpq(c.numerator, c.denominator)
                                           for r in rows for c in r])
+    if pivots:
+        solved = _solve_on_pivots(A, rhs, y)
+        if solved is not None:
+            return {str(v): solved[i] for v, i in index.items()}
     keep = _independent_rows(A)
     A = flint.fmpq_mat([[A[i, j] for j in range(len(y))] for i in keep])
     b = flint.fmpq_mat([[flint.fmpq(rhs[i].numerator, rhs[i].denominator)] for i in keep])
@@ -218,6 +224,32 @@ def round_certificate(cond: Conditions, values: np.ndarray, k: Any,
     for v, i in index.items():
         q = y_new[i, 0]
         out[str(v)] = Fraction(int(q.p), int(q.q))
+    return out
+
+
+def _solve_on_pivots(A: Any, rhs: list[Fraction], y: list[Fraction]) -> list[Fraction] | None:
+    """y with its pivot unknowns (reduced echelon form of A y = rhs) solved exactly from
+    the others; None when the system has no solution."""
+    import flint
+
+    n = len(y)
+    aug = flint.fmpq_mat(A.nrows(), n + 1, [
+        (A[i, j] if j < n else flint.fmpq(rhs[i].numerator, rhs[i].denominator))
+        for i in range(A.nrows()) for j in range(n + 1)])
+    R, rank = aug.rref()
+    out = list(y)
+    pivots = []
+    for i in range(rank):
+        col = next(j for j in range(n + 1) if R[i, j] != 0)
+        if col == n:
+            return None
+        pivots.append((i, col))
+    cols = {c for _, c in pivots}
+    for i, col in pivots:
+        value = R[i, n] - sum((R[i, j] * flint.fmpq(out[j].numerator, out[j].denominator)
+                               for j in range(n) if j not in cols and R[i, j] != 0),
+                              flint.fmpq(0))
+        out[col] = Fraction(int(value.p), int(value.q))
     return out
 
 
@@ -287,10 +319,11 @@ def prove_all_k(system: Any, degree: int = 2, offset: Fraction = Fraction(1)) ->
         y = margin_point(cond, found, slack)
         if y is None:
             continue
-        cert = round_certificate(cond, y, system.k, found.kernels, found.zeros)
-        last = check_certificate(cond, cert, offset, system.k)
-        if last.verified == "exact":
-            return AllKResult(last, cert, found.constant, slack, degree, found.solves)
+        for pivots in (True, False):
+            cert = round_certificate(cond, y, system.k, found.kernels, found.zeros, pivots)
+            last = check_certificate(cond, cert, offset, system.k)
+            if last.verified == "exact":
+                return AllKResult(last, cert, found.constant, slack, degree, found.solves)
     return AllKResult(last, None, found.constant, None, degree, found.solves)
 
 
