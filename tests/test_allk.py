@@ -84,6 +84,20 @@ def test_bound_is_above_the_pep_worst_case_up_to_ten_steps(acc_doc):
         assert r["tau"] <= float(_bound(acc_doc, r["steps"]))
 
 
+def test_bound_scales_with_L_between_the_closed_forms(tmp_path):
+    """L = 1/2 (the proof is about f/L): the bound stays between the exact worst case
+    2L/((N + 2)(N + 3)) and the classical 2L/(N + 1)^2."""
+    from sosalgo.runs.allk import allk_run
+
+    path = tmp_path / "acc.yaml"
+    path.write_text(ACC.read_text().replace("\nL: 1\n", "\nL: 1/2\n"))
+    doc = allk_run(path, tmp_path)
+    assert doc["certified"] and doc["L"] == 0.5
+    L = Fraction(1, 2)
+    for N in range(1, 1000):
+        assert 2 * L / ((N + 2) * (N + 3)) <= _bound(doc, N) <= 2 * L / (N + 1) ** 2
+
+
 def test_gradient_method_gets_the_classical_order_1_bound(tmp_path):
     """Gradient descent with h_k = 1/L (a per-step parameter): no degree-2 potential, a
     degree-1 one: C/a(N) with a(N) >= N + 1, never below the tight L/(4N + 2) and within

@@ -58,7 +58,8 @@ MAX_K_DEGREE = 3  # of the numerators and denominators of the matrices' entries 
 class AllKSystem:
     """The method as closed forms in k: A(k), B(k), C(k) (rational functions of the
     symbol ``k`` with rational coefficients), E constant, L rational, and the state at
-    rest u (A(k) u = u, C(k) u = E u = 1 for every k)."""
+    rest u (A(k) u = u, C(k) u = E u = 1 for every k). :func:`closed_form_system` gives
+    it in units L = 1 (f/L, whose gradient is g/L: B times the spec's L, ``scale``)."""
 
     k: Any
     A: Any
@@ -68,6 +69,7 @@ class AllKSystem:
     L: Any
     u: Any
     source: str = ""
+    scale: Any = 1  # the spec's L: the system is f/L's (1-smooth), C scales back by it
 
     @property
     def n(self) -> int:
@@ -204,7 +206,9 @@ def _closed_form_system(spec: Spec) -> AllKSystem:
         raise SpecError(spec.source, "matrices.E", "required (x = E xi)")
     if mats["E"].has(k):
         raise SpecError(spec.source, "matrices.E", "the all-k bound needs E constant in k")
-    system = AllKSystem(k, mats["A"], mats["B"], mats["C"], mats["E"], L, None, spec.source)
+    # in units L = 1 (f/L is 1-smooth, its gradient g/L): B L; the bound scales back by L
+    system = AllKSystem(k, mats["A"], (mats["B"] * L).applyfunc(sp.cancel), mats["C"],
+                        mats["E"], sp.Integer(1), None, spec.source, L)
     if system.n > MAX_STATES:
         raise SpecError(spec.source, "matrices.A", f"{system.n} states: the all-k bound "
                         f"takes at most {MAX_STATES}")
@@ -419,7 +423,7 @@ def conditions(system: AllKSystem, degree: int = 2) -> Conditions:
     identities = [*linD, *linB, *linI]
     return Conditions(degree, var, {str(s): s for s in var}, blocks,
                       [sp.expand(e) for e in identities], nonneg, kernels, den,
-                      {"a": a, "P": P, "p": p, "k": k})
+                      {"a": a, "P": P, "p": p, "k": k, "scale": system.scale})
 
 
 def _initial(system: AllKSystem, P: Any, p: Any, C0: Any, var: list[Any],
@@ -535,8 +539,10 @@ def _numeric_polys(M: Any, k: Any, sub: dict[Any, float]) -> list[list[list[floa
 
 
 def _degrees(num: list[list[list[float]]]) -> list[int]:
+    """The degree of each diagonal entry of M (<= 0): its last clearly negative
+    coefficient (a positive one above it is the solver's noise: M <= 0 forbids it)."""
     scale = max(1e-300, max(abs(c) for row in num for cs in row for c in cs))
-    return [max([t for t, c in enumerate(num[i][i]) if abs(c) > 1e-7 * scale], default=-1)
+    return [max([t for t, c in enumerate(num[i][i]) if c < -1e-7 * scale], default=-1)
             for i in range(len(num))]
 
 

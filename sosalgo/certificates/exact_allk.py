@@ -42,7 +42,8 @@ MAX_DEN = 2**40
 
 @dataclass
 class AllKProof:
-    """The outcome: ``verified`` ("exact" or "failed"), the proven constant C and a(k)'s
+    """The outcome: ``verified`` ("exact" or "failed"), the proven constant C (in the
+    spec's units: the certificate's C times L) and a(k)'s
     coefficients (Fractions), the offset c (a(N) >= (N + c)^degree), ``reason`` when not
     proven, and per block the number of principal minors decided."""
 
@@ -154,7 +155,8 @@ def check_certificate(cond: Conditions, cert: dict[str, Fraction], offset: Fract
         if not ok:
             return AllKProof("failed", reason=f"{name}: {why}", minors=minors)
     a = [cert[f"a_{j}"] for j in range(cond.degree)] + [Fraction(1)]
-    return AllKProof("exact", cert["C"], a, offset, None, minors)
+    return AllKProof("exact", cert["C"] * Fraction(str(cond.extra["scale"])), a, offset,
+                     None, minors)
 
 
 def _signs_and_identities(cond: Conditions, cert: dict[str, Fraction], sub: dict[Any, Any],
@@ -315,6 +317,7 @@ def prove_all_k(system: Any, degree: int = 2, offset: Fraction = Fraction(1)) ->
                                     f"degree {degree} ({found.status})"),
                           None, None, None, degree, found.solves)
     last = AllKProof("failed", reason="no point with a margin")
+    estimate = found.constant * float(system.scale)
     for slack in SLACKS:
         y = margin_point(cond, found, slack)
         if y is None:
@@ -323,8 +326,8 @@ def prove_all_k(system: Any, degree: int = 2, offset: Fraction = Fraction(1)) ->
             cert = round_certificate(cond, y, system.k, found.kernels, found.zeros, pivots)
             last = check_certificate(cond, cert, offset, system.k)
             if last.verified == "exact":
-                return AllKResult(last, cert, found.constant, slack, degree, found.solves)
-    return AllKResult(last, None, found.constant, None, degree, found.solves)
+                return AllKResult(last, cert, estimate, slack, degree, found.solves)
+    return AllKResult(last, None, estimate, None, degree, found.solves)
 
 
 # --------------------------------------------------------------------------- verify

@@ -122,7 +122,8 @@ def allk_lines(doc: Mapping[str, Any]) -> list[str]:
              f"  so f(x_N) - f* <= {doc['constant']:.7g} |x_0 - x*|^2 / "
              f"(N + {doc['offset']})^{d}",
              "  potential phi_k = z_k' P(k) z_k + p(k) (f(q_k) - f*), z_k = (xi_k - xi*, g_k), "
-             "q_k = C(k) xi_k:",
+             "q_k = C(k) xi_k" + ("" if doc["L"] == 1 else " (of f/L, whose gradient is g/L)")
+             + ":",
              f"    p(k) = {doc['weights']['p']}"]
     for i, row in enumerate(doc["weights"]["P"]):
         lines.append(f"    P(k)[{i}] = [" + ", ".join(row) + "]")
