@@ -345,6 +345,14 @@ def _quadratic_and_linear(expr: Any, w: list[Any], fs: list[Any]) -> tuple[Any, 
     return Q, lin
 
 
+def output_at_query(system: AllKSystem) -> bool:
+    """Whether the output is the gradient's point at every step (E = C(k) for all k):
+    then (B) reads a(k) (f(x_k) - f*) <= phi_k, without the smoothness step."""
+    import sympy as sp
+
+    return all(sp.cancel(e) == 0 for e in system.E - system.C)
+
+
 def denominator(system: AllKSystem) -> Any:
     """A common denominator of A(k), B(k), C(k), C(k+1) (a polynomial in k; the proof
     checks it has no root on k >= 0 and a positive value there)."""
@@ -381,7 +389,9 @@ def _scaled(Q: Any, den: Any) -> Any:
 
 def conditions(system: AllKSystem, degree: int = 2) -> Conditions:
     """(D), (B), (I) of the module's docstring for potentials of ``degree`` (2: P, p,
-    multipliers of degree 2 and a(k) = k^2 + a1 k + a0; 1: degree 1, a(k) = k + a0)."""
+    multipliers of degree 2 and a(k) = k^2 + a1 k + a0; 1: degree 1, a(k) = k + a0); (B)
+    as a(k) (f(q_k) - f*) <= phi_k for k >= 1 when the output is the gradient's point
+    (:func:`output_at_query`)."""
     import sympy as sp
 
     k, L, n = system.k, system.L, system.n
@@ -409,11 +419,13 @@ def conditions(system: AllKSystem, degree: int = 2) -> Conditions:
     phi1 = (z1.T * P.subs(k, k + 1) * z1)[0] + p.subs(k, k + 1) * w["f1"]
     pts = [(w["q0"], w["g0"], w["f0"]), (w["q1"], w["g1"], w["f1"]), star]
     dec = phi1 - phi0 + sum(mult(f"lam{ij}") * ineq for ij, ineq in _interpolation(pts, L))
-    gap = w["o1"] - w["q0"]
-    bound = w["f0"] + w["g0"] * gap + L / 2 * gap**2
     pts_b = [(w["q0"], w["g0"], w["f0"]), star]
-    bnd = (a.subs(k, k + 1) * bound - phi0
-           + sum(mult(f"mu{ij}") * ineq for ij, ineq in _interpolation(pts_b, L)))
+    mus = sum(mult(f"mu{ij}") * ineq for ij, ineq in _interpolation(pts_b, L))
+    if output_at_query(system):  # a(k) (f(q_k) - f*) <= phi_k at k + 1 >= 1
+        bnd = (a * w["f0"] - phi0 + mus).xreplace({k: k + 1})
+    else:
+        gap = w["o1"] - w["q0"]
+        bnd = a.subs(k, k + 1) * (w["f0"] + w["g0"] * gap + L / 2 * gap**2) - phi0 + mus
     den = denominator(system)
     QD, linD = _quadratic_and_linear(dec, [*w["xs"], w["g0"], w["g1"]], [w["f0"], w["f1"]])
     QB, linB = _quadratic_and_linear(bnd, [*w["xs"], w["g0"]], [w["f0"]])
