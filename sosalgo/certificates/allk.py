@@ -6,19 +6,21 @@ x = E xi) is certified for every N >= 1 at once:
 
     f(x_N) - f* <= C |x_0 - x*|^2 / a(N),   a(N) = N^2 + a1 N + a0   (degree 2)
 
-by a potential phi_k = z_k' P(k) z_k + p(k) (f(y_k) - f*), z_k = (xi_k - xi*, g_k),
-y_k = C(k) xi_k the gradient's point, P(k), p(k) polynomials in k, such that for every
+by a potential phi_k = z_k' P(k) z_k + p(k) (f(q_k) - f*), z_k = (xi_k - xi*, g_k),
+q_k = C(k) xi_k the gradient's point, P(k), p(k) polynomials in k, such that for every
 real k >= 0
 
     (D)  phi_{k+1} <= phi_k,
-    (B)  a(k + 1) (f(y_k) - f* + g_k'(x_{k+1} - y_k) + L/2 |x_{k+1} - y_k|^2) <= phi_k,
+    (B)  a(k + 1) (f(q_k) - f* + g_k'(x_{k+1} - q_k) + L/2 |x_{k+1} - q_k|^2) <= phi_k,
     (I)  phi_0 <= C |x_0 - x*|^2   (the method started at rest, xi_0 = u x_0),
 
 each written as a quadratic form in the window plus linear terms in the function values
 minus nonnegative combinations (multipliers polynomials in k with nonnegative
 coefficients) of the interpolation inequalities of L-smooth convex functions, with the
 linear terms identically 0. The bracket in (B) bounds f(x_{k+1}) - f* (L-smoothness), so
-a(N) (f(x_N) - f*) <= phi_{N-1} <= phi_0 <= C |x_0 - x*|^2. (D) and (B), multiplied by a
+a(N) (f(x_N) - f*) <= phi_{N-1} <= phi_0 <= C |x_0 - x*|^2 (when the output is the
+gradient's point, (B) is a(k) (f(x_k) - f*) <= phi_k for k >= 1 instead; everything is
+written for f/L, 1-smooth, and C scaled back by L). (D) and (B), multiplied by a
 denominator of the method's matrices that has no root on k >= 0, are matrix polynomials
 that must be negative semidefinite for every k >= 0: the search asks -M(k) =
 Z(k)' G0 Z(k) + k Z(k)' G1 Z(k), G0, G1 >= 0 (Z(k) = [I; kI; k^2 I; ...]), one SDP
@@ -27,7 +29,11 @@ use the Gram matrices.
 
 This module holds the method as closed forms in k (:func:`closed_form_system`, which
 refuses every other spec in one line), the conditions in symbols (:func:`conditions`,
-shared by the search and the proof) and the search (:func:`search`).
+shared by the search and the proof) and the search (:func:`search`, then
+:func:`margin_point`): at the SDP's optimum it reads how each block grows with k
+(:func:`block_growth`: coefficients forced to 0, leading terms that cancel along a
+direction polynomial in k) and asks for a margin of that shape, so that the point
+rounded to fractions keeps every inequality.
 """
 
 from __future__ import annotations
@@ -684,7 +690,7 @@ def _solve(data: dict[str, Any], cond: Conditions, cap: float | None, offset: Fr
             prob.solve(solver="CLARABEL", tol_gap_abs=1e-11, tol_gap_rel=1e-11,
                        tol_feas=1e-11, max_iter=400)
     except cp.error.SolverError as exc:
-        return f"solver error: {exc}", None, None
+        return f"the solver failed ({type(exc).__name__})", None, None
     return prob.status, y.value, (margin.value if cap is not None else None)
 
 
