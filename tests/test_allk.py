@@ -324,5 +324,8 @@ def test_refusals_name_the_field(tmp_path):
     assert "sequences." in _refusal(tmp_path, SPECS / "fista.yaml")
     assert "degree 4 in k" in _refusal(tmp_path, _spec(tmp_path, "k**4/(k + 3)**4"))
     assert "vanishes" in _refusal(tmp_path, _spec(tmp_path, "(k - 1)/(k - 1/2)"))
+    res = CliRunner().invoke(cli, ["analyze", str(ACC), "--kappa", "10", "--out",
+                                   str(tmp_path / "k")])
+    assert res.exit_code == 2 and "--kappa" in res.stderr and not (tmp_path / "k").exists()
     line = _refusal(tmp_path, SPECS / "ogm.yaml")
     assert f"varies with k: use `sosalgo pep {SPECS / 'ogm.yaml'} --steps N`" in line
