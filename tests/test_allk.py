@@ -270,10 +270,15 @@ def test_tampered_weights_are_judged_as_an_independent_check_judges_them(acc_doc
 
 
 def test_cli_analyze_and_verify(tmp_path, acc_doc):
-    path = tmp_path / "acc.json"
-    path.write_text(json.dumps(acc_doc))
+    res = CliRunner().invoke(cli, ["analyze", str(ACC), "--json", "--out", str(tmp_path / "a")])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    assert doc["kind"] == "all-k" and doc["constant_proven"] == acc_doc["constant_proven"]
+    path = tmp_path / "a" / "accelerated-k-allk.json"
+    assert json.loads(path.read_text())["certificate"] == doc["certificate"]
     ver = CliRunner().invoke(cli, ["verify", str(path)])
     assert ver.exit_code == 0 and "verified" in ver.stdout, ver.output
+    path = tmp_path / "acc.json"
     bad = copy.deepcopy(acc_doc)
     bad["constant"] = 1.5
     path.write_text(json.dumps(bad))
@@ -283,6 +288,24 @@ def test_cli_analyze_and_verify(tmp_path, acc_doc):
     path.write_text(json.dumps(bad))
     ver = CliRunner().invoke(cli, ["verify", str(path)])
     assert ver.exit_code == 2 and ver.stderr.count("\n") == 1 and "certificate" in ver.stderr
+
+
+def test_unproven_bound_is_said_and_exits_3_with_verify(tmp_path, monkeypatch):
+    """A spec the search finds no proof for: one line saying so, exit 0 (3 with
+    --verify); its document claims nothing, and verify exits 3 on it."""
+    import sosalgo.certificates.exact_allk as ex
+
+    def failing(system, degree=2, offset=Fraction(1)):
+        return ex.AllKResult(ex.AllKProof("failed", reason="no point with a margin"), None,
+                             None, None, degree, 1)
+
+    monkeypatch.setattr(ex, "prove_all_k", failing)
+    res = CliRunner().invoke(cli, ["analyze", str(ACC), "--out", str(tmp_path / "a")])
+    assert res.exit_code == 0 and "no bound for every N proven" in res.stdout
+    res = CliRunner().invoke(cli, ["analyze", str(ACC), "--verify", "--out", str(tmp_path / "a")])
+    assert res.exit_code == 3
+    ver = CliRunner().invoke(cli, ["verify", str(tmp_path / "a" / "accelerated-k-allk.json")])
+    assert ver.exit_code == 3 and "no bound is claimed" in ver.stdout
 
 
 # --------------------------------------------------------------------------- refusals
