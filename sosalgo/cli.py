@@ -180,9 +180,11 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
 
     if changes_with_k(spec_path, _overrides(overrides)):  # one bound for every N
         if kappa or noise:
-            raise InputError(f"{'--kappa' if kappa else '--noise'}: {spec_path} changes "
-                             "with k: its bound for every N is on smooth convex f (m: 0), "
-                             "without kappa or noise")
+            from sosalgo.spec.types import VARIES
+
+            raise InputError(f"{'--kappa' if kappa else '--noise'}: the bound for every N "
+                             "is on smooth convex f (m: 0), without kappa or noise; "
+                             f"{spec_path} " + VARIES.format(source=spec_path))
         _analyze_all_k(spec_path, out, as_json, _overrides(overrides), verify_)
         return
     doc = analyze_run(spec_path, _kappas(kappa), out, tol, certificate, {"lag": lag},
