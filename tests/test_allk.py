@@ -57,8 +57,8 @@ def test_bound_is_proven_and_sits_between_the_worst_case_and_the_classical_bound
         bound = _bound(doc, N)
         # never below the exact worst case 2L/((N + 2)(N + 3)) (the PEP's values below)
         assert bound >= Fraction(2, (N + 2) * (N + 3))
-        # at most the classical 2L/(N + 1)^2 up to N = 2000 (asymptotically C/2 of it)
-        assert bound <= Fraction(2, (N + 1) ** 2)
+        # at most the classical 2L/(N + 1)^2 up to N = 1000, at most C/2 times it after
+        assert bound <= Fraction(2, (N + 1) ** 2) * (1 if N <= 1000 else C / 2)
 
 
 def test_bound_is_above_the_pep_worst_case(acc_doc):
@@ -110,6 +110,22 @@ def test_gradient_method_gets_the_classical_order_1_bound(tmp_path):
     assert Fraction(1, 2) <= C <= Fraction(5005, 10000)
     for N in range(1, 3000):
         assert Fraction(1, 4 * N + 2) <= _bound(doc, N) <= Fraction(1, 2 * N) * Fraction(1001, 1000)
+
+
+@pytest.mark.deep
+def test_bound_at_the_extrapolated_point_is_above_the_pep(tmp_path):
+    """momentum-schedule (the same method, f at the gradient's point x_N: the second form
+    of (B)): proven, and above the PEP's worst case at N = 1..5."""
+    from sosalgo.runs.allk import allk_run
+    from sosalgo.runs.pep import pep_run
+
+    spec = SPECS / "momentum-schedule.yaml"
+    doc = allk_run(spec, tmp_path)
+    assert doc["certified"] and doc["degree"] == 2
+    pep = pep_run(spec, steps="1..5", out_dir=None, progress=False, plot=False,
+                  witness=False)
+    for r in pep["rows"]:
+        assert r["tau"] <= float(_bound(doc, r["steps"]))
 
 
 # --------------------------------------------------------------------------- independent

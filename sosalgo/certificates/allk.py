@@ -58,6 +58,8 @@ __all__ = ["ALLK", "AllKFamily", "AllKSystem", "Conditions", "Growth", "Search",
 SMOOTH_CONVEX = "smooth_strongly_convex"  # with m = 0: L-smooth convex
 MAX_STATES = 4  # the proof checks every principal minor of windows of n + 2 rows
 MAX_K_DEGREE = 3  # of the numerators and denominators of the matrices' entries in k
+DEGREE_TOL = 1e-5  # a diagonal coefficient below this (relative) is the solver's noise
+CANCEL_TOL = 1e-3  # leading terms cancel when their 2 x 2 determinant is below this
 
 
 @dataclass
@@ -560,7 +562,7 @@ def _degrees(num: list[list[list[float]]]) -> list[int]:
     """The degree of each diagonal entry of M (<= 0): its last clearly negative
     coefficient (a positive one above it is the solver's noise: M <= 0 forbids it)."""
     scale = max(1e-300, max(abs(c) for row in num for cs in row for c in cs))
-    return [max([t for t, c in enumerate(num[i][i]) if c < -1e-7 * scale], default=-1)
+    return [max([t for t, c in enumerate(num[i][i]) if c < -DEGREE_TOL * scale], default=-1)
             for i in range(len(num))]
 
 
@@ -578,10 +580,10 @@ def _cancelling_direction(num: list[list[list[float]]], deg: list[int]
         b = -num[i][j][mid] if mid < len(num[i][j]) else 0.0
         if a <= 0 or c <= 0 or abs(b) < 1e-9 * np.sqrt(a * c):
             continue
-        if abs(a * c - b * b) > 1e-4 * a * c:
+        if abs(a * c - b * b) > CANCEL_TOL * a * c:
             continue
         q = Fraction(-b / a).limit_denominator(64)
-        if abs(float(q) + b / a) <= 1e-4 * abs(b / a):
+        if abs(float(q) + b / a) <= CANCEL_TOL * abs(b / a):
             return i, j, q, (deg[j] - deg[i]) // 2
     return None
 
