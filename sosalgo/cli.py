@@ -176,8 +176,17 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
     tightest certificate family that applies (interpolation; --certificate theorem1 for
     the paper's Theorem 1). Python: sosalgo.analyze_run (files) or sosalgo.analyze."""
     from sosalgo.report import analysis as rep
-    from sosalgo.runs import analyze_run
+    from sosalgo.runs import analyze_run, changes_with_k
 
+    if changes_with_k(spec_path, _overrides(overrides)):  # one bound for every N
+        if kappa or noise:
+            from sosalgo.spec.types import VARIES
+
+            raise InputError(f"{'--kappa' if kappa else '--noise'}: the bound for every N "
+                             "is on smooth convex f (m: 0), without kappa or noise; "
+                             f"{spec_path} " + VARIES.format(source=spec_path))
+        _analyze_all_k(spec_path, out, as_json, _overrides(overrides), verify_)
+        return
     doc = analyze_run(spec_path, _kappas(kappa), out, tol, certificate, {"lag": lag},
                       workers, scheduler, restart, not quiet, not no_plot, verify_,
                       noise=noise, brackets=brackets, cycle_seconds=cycle_seconds,
@@ -192,6 +201,18 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
                 click.echo(f"warning at kappa {r['kappa']:g}: {r['warning']}", err=True)
         _claims_line(doc)
     _exit_if_unverified([r.get("verification") for r in rows], doc=doc)
+
+
+def _analyze_all_k(spec_path: str, out: str, as_json: bool,
+                   overrides: dict[str, str] | None, verify_: bool) -> None:
+    """``analyze`` of a spec whose matrices are closed forms in k (docs/all-k.md): the
+    bound is proven exactly by the run itself; with ``--verify`` an unproven one exits 3."""
+    from sosalgo.runs.allk import allk_lines, allk_run
+
+    doc = allk_run(spec_path, out, overrides)
+    click.echo(json.dumps(doc, indent=2) if as_json else "\n".join(allk_lines(doc)))
+    if verify_ and not doc["certified"]:
+        raise VerificationError(f"{spec_path}: no bound for every N proven (exit code 3)")
 
 
 # --------------------------------------------------------------------------- design

@@ -23,6 +23,7 @@ from typing import Any
 from sosalgo.errors import InputError, VerificationError
 from sosalgo.kernel.phases import show_phase
 from sosalgo.kinds import (
+    ALLK_KIND,
     ANALYSIS_KIND,
     CERTIFICATE_KIND,
     DESIGN_CERTIFICATES_KIND,
@@ -252,6 +253,18 @@ def _verify_steps(doc: dict[str, Any], where: str, spec: Spec | str | Path | Non
             "notes": [] if note is None else [note]}
 
 
+def _verify_allk(doc: dict[str, Any], where: str, spec: Spec | str | Path | None,
+                 *_: Any) -> dict[str, Any]:
+    """The bound of an ``all-k`` document, re-proven from its certificate
+    (:func:`sosalgo.certificates.exact_allk.verify_allk_document`)."""
+    from sosalgo.certificates.exact_allk import verify_allk_document
+
+    chosen, src, note = result_spec(doc, where, spec)
+    return {"spec": chosen.name, "source": src,
+            "results": verify_allk_document(doc, chosen, where),
+            "notes": [] if note is None else [note]}
+
+
 def _verify_witness(doc: dict[str, Any], where: str, spec: Spec | str | Path | None,
                     *_: Any) -> dict[str, Any]:
     """The claims of a pep witness file (:func:`sosalgo.pep.claims.verify_witness_file`)."""
@@ -435,6 +448,15 @@ KINDS: dict[str, ResultKind] = {k.name: k for k in [
          "upper", "spec_text"), "", "written whole (sosalgo.pep.witness.make_witness)",
         _has("calls_per_step", "iterates", "tau_float"), _verify_witness, "claims"),
     ResultKind(
+        ALLK_KIND, "a bound for every N of a spec whose matrices are closed forms in k, "
+        "its potential and its exact proof",
+        "sosalgo analyze --json of such a spec (sosalgo.runs.allk.allk_run)",
+        "<name>-allk.json",
+        ("kind", "spec", "source", "spec_text", "rate_type", "degree", "bound", "constant",
+         "constant_proven", "a", "offset", "weights", "certificate", "verified"), "",
+        "written whole (sosalgo.runs.allk)", lambda doc: doc.get("rate_type") == "all-k",
+        _verify_allk, "claims"),
+    ResultKind(
         GRID_KIND, "the certified rate (or constant) on a grid of the free parameters",
         "sosalgo grid --json (sosalgo.grid_run)", "<name>-grid-k<kappa>[-<family>...].csv",
         ("kind", "spec", "free", "fixed", "grids", "rate_type", "best", "csv", "estimate"),
@@ -470,7 +492,7 @@ KINDS: dict[str, ResultKind] = {k.name: k for k in [
 ]}
 
 # the order content is recognised in (the most specific first)
-_SNIFF_ORDER = (WITNESS_KIND, PEP_KIND, PARETO_KIND, GRID_KIND, TABLE1_KIND, FIG4_KIND,
+_SNIFF_ORDER = (ALLK_KIND, WITNESS_KIND, PEP_KIND, PARETO_KIND, GRID_KIND, TABLE1_KIND, FIG4_KIND,
                 CERTIFICATE_KIND, DESIGN_CERTIFICATES_KIND, VERIFICATION_KIND,
                 DESIGN_STEPS_KIND, DESIGN_KIND, ANALYSIS_KIND)
 

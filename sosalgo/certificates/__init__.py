@@ -10,6 +10,7 @@ Theorem 1 by adding a module and an entry in :data:`FAMILIES`.
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
+from sosalgo.certificates.allk import ALLK
 from sosalgo.certificates.base import CertificateFamily
 from sosalgo.certificates.interpolation import INTERPOLATION
 from sosalgo.certificates.sublinear import SUBLINEAR
@@ -24,6 +25,8 @@ FAMILIES: dict[str, CertificateFamily] = {
 # families a spec selects by itself (:func:`spec_family`), not choices of
 # ``--certificate``: their question is not a linear rate (the sublinear family's constant)
 SPEC_FAMILIES: tuple[CertificateFamily, ...] = (SUBLINEAR,)
+# families that answer a spec whose coefficients change with k (one bound for every N)
+K_FAMILIES = (ALLK,)
 # the option names of each family (its ``option_names``; kept as a table for old callers)
 FAMILY_OPTIONS: dict[str, tuple[str, ...]] = {n: tuple(f.option_names)
                                                for n, f in FAMILIES.items()}
@@ -159,7 +162,8 @@ def family_from_description(desc: Mapping[str, Any] | None) -> CertificateFamily
 
 __all__ = [
     "CertificateFamily", "FAMILIES", "FAMILY_OPTIONS",
-    "DECLARED_COMMANDS", "LOWER_BOUND_COMMANDS", "SPEC_FAMILIES", "TIGHTEST_FIRST",
+    "DECLARED_COMMANDS", "K_FAMILIES", "LOWER_BOUND_COMMANDS", "SPEC_FAMILIES",
+    "TIGHTEST_FIRST",
     "default_family",
     "default_family_name", "describe_family", "family_applies", "family_from_description",
     "inhomogeneous_functions",

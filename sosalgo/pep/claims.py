@@ -554,7 +554,9 @@ def pep_check_lines(name: str, checks: list[dict[str, Any]]) -> list[str]:
         if passed(c):
             bounds = [f"tau_N >= {c['tau_lower_float']:.10g}" if c.get("tau_lower") else "",
                       f"tau_N <= {float(Fraction(c['tau_proven'])):.10g}"
-                      if c.get("tau_proven") else ""]
+                      if c.get("tau_proven") else "",
+                      f"C = {float(Fraction(c['constant_proven'])):.10g}"
+                      if c.get("constant_proven") else ""]
             lines.append(f"{head}: verified (every claim backed; "
                          + ", ".join(b for b in bounds if b) + ")")
         else:
