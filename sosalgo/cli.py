@@ -176,9 +176,9 @@ def analyze(spec_path: str, kappa: tuple[str, ...], tol: float, out: str, as_jso
     tightest certificate family that applies (interpolation; --certificate theorem1 for
     the paper's Theorem 1). Python: sosalgo.analyze_run (files) or sosalgo.analyze."""
     from sosalgo.report import analysis as rep
-    from sosalgo.runs import analyze_run, changes_with_k
+    from sosalgo.runs import analyze_run, analyzed_for_every_n
 
-    if changes_with_k(spec_path, _overrides(overrides)):  # one bound for every N
+    if analyzed_for_every_n(spec_path, _overrides(overrides)):  # one bound for every N
         if kappa or noise:
             from sosalgo.spec.types import VARIES
 

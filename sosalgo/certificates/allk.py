@@ -46,7 +46,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from sosalgo.classes import SEED_CLASS
 from sosalgo.spec.types import NEXT_SUFFIX, SpecError, value_order
+from sosalgo.steps import changes_with_k
 
 if TYPE_CHECKING:
     from sosalgo.spec.types import Spec
@@ -55,7 +57,7 @@ __all__ = ["ALLK", "AllKFamily", "AllKSystem", "Conditions", "Growth", "Search",
            "block_growth", "closed_form_system", "conditions", "margin_point",
            "offset_bounds", "search", "why_not_closed_form"]
 
-SMOOTH_CONVEX = "smooth_strongly_convex"  # with m = 0: L-smooth convex
+SMOOTH_CONVEX = SEED_CLASS.name  # F(m, L), with m = 0: L-smooth convex
 MAX_STATES = 4  # the proof checks every principal minor of windows of n + 2 rows
 MAX_K_DEGREE = 3  # of the numerators and denominators of the matrices' entries in k
 DEGREE_TOL = 1e-5  # a diagonal coefficient below this (relative) is the solver's noise
@@ -87,7 +89,7 @@ class AllKSystem:
 # --------------------------------------------------------------------------- the spec
 def _setting_problem(spec: Spec) -> tuple[str, str] | None:
     """(field, why) when the spec is outside the setting of the all-k potentials."""
-    if not spec.sublinear:
+    if spec.has_condition_number:
         return "m", "the all-k bound is for m: 0 (smooth convex f; give L)"
     decl = spec.functions.get("f")
     if (len(spec.functions) != 1 or decl is None or decl.cls != SMOOTH_CONVEX
@@ -184,7 +186,7 @@ def closed_form_system(spec: Spec) -> AllKSystem:
     try:
         return _closed_form_system(spec)
     except SpecError as exc:
-        if not spec.time_varying:
+        if not changes_with_k(spec):
             raise
         raise SpecError(spec.source, exc.field, f"{exc.message}; it "
                         + VARIES.format(source=spec.source)) from None
@@ -269,7 +271,7 @@ class AllKFamily:
 
     def applies_to(self, spec: Spec) -> str | None:
         """Why the family refuses ``spec`` (one line), None when it takes it."""
-        if not spec.time_varying:
+        if not changes_with_k(spec):
             return (f"{spec.source}: does not change with k (the all-k bound is for "
                     "methods whose coefficients do)")
         return why_not_closed_form(spec)

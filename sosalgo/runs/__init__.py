@@ -46,17 +46,19 @@ def spec_with_text(spec: Spec | str | Path, spec_text: str | None = None,
     return (spec if varying else one_method(spec)), text
 
 
-def changes_with_k(spec: Spec | str | Path, overrides: Mapping[str, str] | None = None
-                   ) -> bool:
+def analyzed_for_every_n(spec: Spec | str | Path,
+                         overrides: Mapping[str, str] | None = None) -> bool:
     """Whether ``sosalgo analyze`` takes the spec as a method that changes with k (then
     :func:`sosalgo.runs.allk.allk_run` answers it, or refuses it in one line)."""
+    from sosalgo.steps import changes_with_k
+
     if isinstance(spec, Spec):
-        return spec.time_varying
+        return changes_with_k(spec)
     path = Path(spec)
     if str(spec) == "-" or (path.exists() and not path.is_file()):
         return False  # a pipe (/dev/stdin) is read once, by the run
     found, _ = _spec_and_text(spec, None, overrides)
-    return found.time_varying
+    return changes_with_k(found)
 
 
 def _spec_and_text(spec: Spec | str | Path, spec_text: str | None,
