@@ -23,14 +23,13 @@ class Convex(FunctionClass):
     oracles = frozenset({"subgradient", "proximal"})
     tilted_text = ("h_a >= h_b + <g_b, x_a - x_b>",
                    r"h_a \ge h_b + \langle g_b, x_a - x_b\rangle")
+    free_curvature = True
 
     def inequalities(self, params: Mapping[str, float]) -> list[Inequality]:
         return [Inequality(1.0, convex_form())]
 
     def exact_tilted(self, params: Mapping[str, Any]) -> list[tuple[Any, Any]]:
         return [(Fraction(1), exact_convex_form())]
-
-    free_curvature = True
 
     def curvatures(self, params: Mapping[str, float]) -> tuple[float, float]:
         return 0.0, 0.0
