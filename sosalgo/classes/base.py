@@ -54,14 +54,23 @@ import numpy as np
 
 from sosalgo.classes.members import ProxFunction, quadratic
 
-__all__ = ["FunctionClass", "Inequality", "ORACLE_KINDS", "PAIR_SCOPES", "convex_form",
-           "exact_convex_form"]
+__all__ = ["FunctionClass", "Inequality", "ORACLE_KINDS", "PAIR_SCOPES", "check_mu_below_L",
+           "convex_form", "exact_convex_form"]
 
 ORACLE_KINDS = ("gradient", "subgradient", "proximal")
 
 
 PAIR_SCOPES = ("pairs", "optimum")
 
+
+def check_mu_below_L(params: Mapping[str, float]) -> None:
+    """ValueError('<parameter>: ...') unless 0 < mu <= L < inf (the classes with a
+    growth modulus mu below a smoothness L)."""
+    mu, L = params["mu"], params["L"]
+    if not (np.isfinite(L) and L > 0):
+        raise ValueError(f"L: must be positive and finite, got {L:g}")
+    if not (np.isfinite(mu) and 0 < mu <= L):
+        raise ValueError(f"mu: must be in (0, L] = (0, {L:g}], got {mu:g}")
 
 @dataclass(frozen=True)
 class Inequality:

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.classes.base import FunctionClass, Inequality
+from sosalgo.classes.base import FunctionClass, Inequality, check_mu_below_L
 
 
 def secant_form(mu: Any) -> np.ndarray:
@@ -67,11 +67,7 @@ class RsiEb(FunctionClass):
                    r" \|g_a\|^2 \le L^2\|x_a - x_\star\|^2")
 
     def check(self, params: Mapping[str, float]) -> None:
-        mu, L = params["mu"], params["L"]
-        if not (np.isfinite(L) and L > 0):
-            raise ValueError(f"L: must be positive and finite, got {L:g}")
-        if not (np.isfinite(mu) and 0 < mu <= L):
-            raise ValueError(f"mu: must be in (0, L] = (0, {L:g}], got {mu:g}")
+        check_mu_below_L(params)
 
     def inequalities(self, params: Mapping[str, float]) -> list[Inequality]:
         mu, L = float(params["mu"]), float(params["L"])
