@@ -122,11 +122,14 @@ KNOWN_GAPS = {
     **{("unconstrained_convex_minimization/accelerated_proximal_point", i):
        "tau agrees, no exact proof: the spec's extra call (so that f(x_0) may enter the "
        "initial condition) has subgradients nothing else uses" for i in range(3)},
-    **{key: "PEPit's value (Clarabel) is above the exact worst case (2/(n + 1))^2 (tight, "
-            "Lieder) by more than 1e-7: ours is proven between the two"
+    **{key: "PEPit's value (Clarabel) is above the exact worst case (tight: Halpern "
+            "(2/(n + 1))^2, Lieder; 1/n^2, Kim) by more than 1e-7: ours is proven between "
+            "the two (test_proven_against_tight_closed_form)"
        for key in [("fixed_point_problems/halpern_iteration", 0),
                    ("fixed_point_problems/halpern_iteration", 1),
-                   ("low_dimensional_worst_cases_scenarios/halpern_iteration", 1)]},
+                   ("low_dimensional_worst_cases_scenarios/halpern_iteration", 1),
+                   ("monotone_inclusions_variational_inequalities/accelerated_proximal_point",
+                    0)]},
 }
 REST = [pytest.param(c, i, id=f"{c.example}[{i}]", marks=(
             [pytest.mark.xfail(strict=True, reason=KNOWN_GAPS[(c.example, i)])]
@@ -237,15 +240,26 @@ def test_command_placeholders_are_parsed_not_evaluated():
         fill("{__import__('os').getcwd()}", {"L": 1})
 
 
-@pytest.mark.parametrize("n", [3, 5])
-def test_halpern_proven_against_lieder_closed_form(n, tmp_path):
-    """Where PEPit's float is off (the Halpern rows above), the closed form decides: Halpern's
-    iteration on a nonexpansive T has the tight worst case |x_n - T x_n|^2 <= (2/(n + 1))^2
-    |x_0 - x*|^2 (Lieder 2021)."""
+
+# (example, arguments, the tight worst case): Halpern (2/(n + 1))^2 (Lieder 2021), the
+# accelerated proximal point on a monotone operator 1/n^2 (Kim 2021)
+CLOSED_FORMS = [("fixed_point_problems/halpern_iteration", {"n": 3}, Fraction(1, 4)),
+                ("fixed_point_problems/halpern_iteration", {"n": 5}, Fraction(1, 9)),
+                ("monotone_inclusions_variational_inequalities/accelerated_proximal_point",
+                 {"alpha": 2, "n": 10}, Fraction(1, 100)),
+                ("monotone_inclusions_variational_inequalities/accelerated_proximal_point",
+                 {"alpha": 1, "n": 3}, Fraction(1, 9))]
+
+
+@pytest.mark.parametrize("example,args,exact", CLOSED_FORMS,
+                         ids=[f"{e.rsplit('/', 1)[1]}-{a}" for e, a, _ in CLOSED_FORMS])
+def test_proven_against_tight_closed_form(example, args, exact, tmp_path):
+    """Where PEPit's float is above the exact worst case by more than its tolerance (the rows
+    of KNOWN_GAPS that say so), the closed form decides: proven, never below it, within
+    1e-6 of it."""
     from dataclasses import replace
 
-    case = next(c for c in EXPRESSED if c.example == "fixed_point_problems/halpern_iteration")
-    proven = _proven(replace(case, arguments=({"n": n},)), 0, tmp_path)
-    exact = Fraction(2, n + 1) ** 2
+    case = next(c for c in EXPRESSED if c.example == example)
+    proven = _proven(replace(case, arguments=(args,)), 0, tmp_path)
     assert proven >= float(exact) * (1 - 1e-12)
     assert proven <= float(exact) * (1 + 1e-6)
