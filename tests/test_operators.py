@@ -393,3 +393,103 @@ def test_witness_of_an_operator_is_checked_against_the_class(tmp_path):
             pt["g"] = list(bad["calls"][0][1])
     res = check_witness(bad, spec)
     assert not res["verified"] and "inequalities not proven" in res["detail"]
+
+
+# PEPit 0.5.1, Clarabel as above: wc_halpern_iteration(n) (examples/fixed_point_problems),
+# |x_n - T x_n|^2 against |x_0 - x*|^2, T 1-Lipschitz; its theoretical value (2/(n+1))^2
+# (Lieder 2021, Thm. 2.1) is tight.
+PEPIT_HALPERN = {10: 0.03305785531759651, 5: 0.11111112947873802, 3: 0.2500000119703254}
+
+
+@pytest.mark.parametrize("steps", list(PEPIT_HALPERN))
+def test_halpern_against_pepit_and_lieder(steps):
+    """Halpern (anchoring 1/(k+2), a method that changes with k): the proven bound is
+    Lieder's tight (2/(N+1))^2 within 1e-6 and never below it, PEPit's value within 1e-6;
+    the witness is checked exactly and lies between 1 - 1e-3 of the bound and the closed
+    form."""
+    res, proven = _proven("halpern", steps)
+    closed = (2 / (steps + 1)) ** 2
+    assert float(proven) >= closed * (1 - 1e-12)
+    assert float(proven) == pytest.approx(closed, rel=1e-6)
+    assert float(proven) == pytest.approx(PEPIT_HALPERN[steps], rel=1e-6)
+    chk = res.witness["check"]
+    assert chk["verified"] and Fraction(chk["tau_lower"]) <= proven
+    assert float(proven) * (1 - 1e-3) <= chk["tau_lower_float"] <= closed * (1 + 1e-9)
+
+
+def _ratio_halpern(n: int, rng: np.random.Generator) -> float:
+    """The KM test's T(x) = P_box(c + Q (x - c)) (nonexpansive, T c = c), run through
+    x_{k+1} = x_0/(k+2) + (1 - 1/(k+2)) T x_k: |x_n - T x_n|^2 / |x_0 - c|^2."""
+    d = int(rng.integers(2, 5))
+    Q = _rotation(d, rng) * (1.0 if rng.random() < 0.5 else rng.uniform(0.2, 1))
+    c = rng.uniform(-1, 1, d)
+    lo, hi = np.minimum(c, -1), np.maximum(c, 1) + rng.uniform(0, 2, d)
+
+    def T(z: np.ndarray) -> np.ndarray:
+        return np.clip(c + Q @ (z - c), lo, hi)
+
+    x = x0 = c + 3 * rng.standard_normal(d)
+    for k in range(n):
+        x = x0 / (k + 2) + (1 - 1 / (k + 2)) * T(x)
+    return float(np.sum((x - T(x)) ** 2) / np.sum((x0 - c) ** 2))
+
+
+def test_halpern_random_operators_stay_below_the_proven_bound():
+    _, proven = _proven("halpern", 4)
+    rng = np.random.default_rng(11)
+    worst = max(_ratio_halpern(4, rng) for _ in range(400))
+    assert 0 < worst <= float(proven) * (1 + 1e-9)
+
+
+# PEPit 0.5.1, Clarabel as above, no PEPit example of Tseng's method: PEP() with
+# A = MonotoneOperator, B = LipschitzStronglyMonotoneOperatorCheap(mu=0, L=1),
+# xs = (A + B).stationary_point(), (x0 - xs)**2 <= 1, n times
+#   Bx = B.gradient(x); y = proximal_step(x - gamma*Bx, A, gamma)[0];
+#   x = y - gamma*(B.gradient(y) - Bx), metric (x_n - x_{n-1})**2.
+PEPIT_FBF = {("1/2", 3): 0.4095818100953556, ("1/2", 1): 1.5624999925694716,
+             ("9/10", 2): 2.325820370586162, ("1/4", 4): 0.13883437331546802}
+
+
+@pytest.mark.parametrize("key", list(PEPIT_FBF))
+def test_forward_backward_forward_against_pepit(key):
+    """Tseng's FBF over (monotone, Lipschitz monotone): the proven bound is PEPit's value
+    on the same (necessary, not interpolating) conditions within 1e-6 and not below it
+    beyond its solver's accuracy; the witness satisfies the pairwise conditions exactly."""
+    gamma, steps = key
+    res, proven = _proven("forward-backward-forward", steps, gamma=gamma)
+    peer = PEPIT_FBF[key]
+    assert float(proven) >= peer * (1 - PEPIT_ACCURACY)
+    assert float(proven) == pytest.approx(peer, rel=1e-6)
+    chk = res.witness["check"]
+    assert chk["verified"] and Fraction(chk["tau_lower"]) <= proven
+    assert chk["tau_lower_float"] >= float(proven) * (1 - 1e-3)
+
+
+def _ratio_fbf(gamma: float, n: int, rng: np.random.Generator) -> float:
+    """A(x) = MA (x - c) - B(c) (affine monotone), B(z) = s MB z + (1 - s)(z - P_box z)
+    with |MB| <= 1 monotone (B monotone, 1-Lipschitz): c is a zero of A + B."""
+    d = int(rng.integers(2, 5))
+    MA, c, s = _rng_monotone(d, rng), rng.uniform(-2, 2, d), rng.uniform(0, 1)
+    MB = _rng_monotone(d, rng)
+    MB /= max(1.0, float(np.linalg.norm(MB, 2)))
+
+    def B(z: np.ndarray) -> np.ndarray:
+        return s * MB @ z + (1 - s) * (z - np.clip(z, -1, 1))
+
+    a = -B(c)
+    J = np.linalg.inv(np.eye(d) + gamma * MA)  # J_{gamma A}(v) = c + J (v - c - gamma a)
+    x = x0 = c + 2 * rng.standard_normal(d)
+    prev = x
+    for _ in range(n):
+        Bx = B(x)
+        y = c + J @ (x - gamma * Bx - c - gamma * a)
+        prev, x = x, y - gamma * (B(y) - Bx)
+    return float(np.sum((x - prev) ** 2) / np.sum((x0 - c) ** 2))
+
+
+@pytest.mark.parametrize("gamma, steps", [("1/2", 3), ("9/10", 2)])
+def test_forward_backward_forward_random_operators_stay_below(gamma, steps):
+    _, proven = _proven("forward-backward-forward", steps, gamma=gamma)
+    rng = np.random.default_rng(5)
+    worst = max(_ratio_fbf(float(Fraction(gamma)), steps, rng) for _ in range(400))
+    assert 0 < worst <= float(proven) * (1 + 1e-9)
