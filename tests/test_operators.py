@@ -457,10 +457,13 @@ PEPIT_FBF = {("1/2", 3): 0.4095818100953556, ("1/2", 1): 1.5624999925694716,
 def test_forward_backward_forward_against_pepit(key):
     """Tseng's FBF over (monotone, Lipschitz monotone): the proven bound is PEPit's value
     on the same (necessary, not interpolating) conditions within 1e-6 and not below it
-    beyond its solver's accuracy; the witness satisfies the pairwise conditions exactly."""
+    beyond its solver's accuracy, and at most Tseng's (1 + gamma L)/(1 - gamma L); the
+    witness satisfies the pairwise conditions exactly."""
     gamma, steps = key
     res, proven = _proven("forward-backward-forward", steps, gamma=gamma)
     peer = PEPIT_FBF[key]
+    g = Fraction(gamma)  # L = 1
+    assert proven <= (1 + g) / (1 - g)
     assert float(proven) >= peer * (1 - PEPIT_ACCURACY)
     assert float(proven) == pytest.approx(peer, rel=1e-6)
     chk = res.witness["check"]
