@@ -607,3 +607,30 @@ def test_design_command_on_an_operator_spec_says_there_is_no_lower_bound(tmp_pat
     ver = doc["verification"]
     assert ver["verified"] == "exact"
     assert Fraction(ver["rho_proven"]) >= Fraction(doc["rho_certified"]) * (1 - Fraction(1, 10**6))
+
+
+# PEPit 0.5.1, Clarabel as above: wc_douglas_rachford_splitting_2(beta=1, mu=0.1, alpha,
+# theta) (A beta-cocoercive, B mu-strongly monotone) minimized over (alpha, theta) in
+# [0, 10] x [0, 2]: a 20 x 19 grid, then Nelder-Mead on PEPit's values. (Its theoretical
+# value, RTBG 2020 Thm. 4.1 as the example codes it, is not this worst case away from the
+# example's own parameters: 1.23 at this optimum, where PEPit finds 0.4914.)
+PEPIT_DR_COCOERCIVE_OPTIMUM = (0.4914346104865204, 3.16227786, 1.56501441)
+
+
+@pytest.mark.deep
+def test_douglas_rachford_design_on_a_cocoercive_pair_is_pepits_optimum():
+    """A cocoercive (beta = 1/L = 1), B strongly monotone (mu = 1/10): the designed
+    (alpha, theta) certifies the square root of PEPit's contraction factor minimized over
+    the box, at the same point (alpha* = sqrt(beta/mu))."""
+    from sosalgo.design import design
+
+    path = SPECS / "douglas-rachford-operators.yaml"
+    text = path.read_text().replace("A: {class: lipschitz_strongly_monotone, mu: 0}",
+                                    "A: {class: cocoercive}")
+    res = design(spec_from_text(text, "dr-cocoercive.yaml"), 10.0, time_limit=60)
+    assert res.lower_bound is None and res.floor is None
+    tau, alpha, theta = PEPIT_DR_COCOERCIVE_OPTIMUM
+    assert res.rho_certified == pytest.approx(np.sqrt(tau), rel=1e-6)
+    assert alpha == pytest.approx(np.sqrt(10), rel=1e-6)
+    assert res.theta["alpha"] == pytest.approx(alpha, rel=1e-3)
+    assert res.theta["theta"] == pytest.approx(theta, rel=1e-3)
