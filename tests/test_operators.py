@@ -562,7 +562,8 @@ def test_douglas_rachford_design_of_theta_is_the_closed_form_optimum():
 
 
 @pytest.mark.parametrize("kappa, closed", [
-    pytest.param(2.0, (0.64, 2.5, 1.5), id="kappa2"),  # (mu, L) = (1/10, 1/5)
+    pytest.param(2.0, (0.64, 2.5, 1.5), id="kappa2",  # (mu, L) = (1/10, 1/5)
+                 marks=pytest.mark.deep),  # about 20 s each (theta alone: the fast test)
     pytest.param(10.0, None, id="kappa10", marks=pytest.mark.deep),
 ])
 def test_douglas_rachford_design_of_step_and_relaxation(kappa, closed):
