@@ -49,8 +49,8 @@ def refuse_nonconvex(spec: Any, linear_rates: bool = False) -> None:
     """InputError (one line) for a spec with a nonconvex function, an operator, an inexact
     oracle call or an exact line search: no
     certificate family certifies a rate for it (``sosalgo pep`` bounds its N-step worst
-    case). ``linear_rates`` (``analyze``): an operator spec with m > 0 passes (the
-    interpolation family certifies its linear rates; no sublinear family applies to
+    case). ``linear_rates`` (``analyze``, ``design``): an operator spec with m > 0 passes
+    (the interpolation family certifies its linear rates; no sublinear family applies to
     operators)."""
     from sosalgo.certificates import inhomogeneous_functions, nonconvex_functions
     from sosalgo.spec.loading import operator_functions
@@ -72,7 +72,7 @@ def refuse_nonconvex(spec: Any, linear_rates: bool = False) -> None:
     ops = operator_functions(spec)
     if ops and (not spec.has_condition_number or not linear_rates):
         what = ("no sublinear family applies to it (m: 0)" if linear_rates else
-                "analyze certifies its linear rates (m > 0); design, grid and pareto do "
+                "analyze and design certify its linear rates (m > 0); grid and pareto do "
                 "not take it yet")
         raise InputError(f"{spec.source}: functions: {', '.join(ops)} is an operator class: "
                          f"{what}; sosalgo pep bounds its worst case after N steps")

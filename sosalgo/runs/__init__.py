@@ -288,7 +288,7 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
     from sosalgo.report import design as rep
 
     spec, text = spec_with_text(spec, spec_text, overrides)
-    inputs.refuse_nonconvex(spec)
+    inputs.refuse_nonconvex(spec, linear_rates=True)  # operators with m > 0: no lower bound
     own = spec_family(spec)  # m: 0: the sublinear family's constant (no kappa)
     check_objective(spec, [] if own is not None else _kappa_list(spec, kappa), objective,
                     max_rate, max_noise)
