@@ -52,18 +52,18 @@ def test_every_case_is_well_formed():
 
 
 def test_a_malformed_case_names_its_file_and_field(tmp_path):
-    text = (CASES / "tutorials" / "gradient_descent_contraction.yaml").read_text()
-    path = tmp_path / "tutorials" / "gradient_descent_contraction.yaml"
+    text = (CASES / "continuous_time_models" / "gradient_flow_convex.yaml").read_text()
+    path = tmp_path / "continuous_time_models" / "gradient_flow_convex.yaml"
     path.parent.mkdir()
     path.write_text(text)
     assert load(path, root=tmp_path).reason  # the copy itself is well-formed
     for old, new, field in [("status: not expressible", "status: maybe", "status"),
                             ("reason:", "because:", "because"),
-                            ("example: tutorials/", "example: other/", "example"),
-                            ("  - {L: 1, mu: 0.2, gamma: 1.5, n: 2}\n", "", "arguments")]:
+                            ("example: continuous_time_models/", "example: other/", "example"),
+                            ("  - {t: 5.0}\n", "", "arguments")]:
         assert old in text
         path.write_text(text.replace(old, new))
-        with pytest.raises(CaseError, match=f"gradient_descent_contraction.yaml: {field}"):
+        with pytest.raises(CaseError, match=f"gradient_flow_convex.yaml: {field}"):
             load(path, root=tmp_path)
 
 
@@ -116,6 +116,7 @@ KNOWN_GAPS = {
     ("composite_convex_minimization/accelerated_proximal_gradient", 2): _LOOSE.format("1.4e-4"),
     ("composite_convex_minimization/accelerated_proximal_gradient_simplified", 2):
         _LOOSE.format("4.6e-5"),
+    ("unconstrained_convex_minimization/inexact_gradient_descent", 1): _LOOSE.format("1.2e-6"),
     **{("unconstrained_convex_minimization/optimized_gradient_for_gradient", i):
        "OGM-G on momentum-schedule.yaml: tau agrees, no exact proof (floating-point check)"
        for i in range(3)},
