@@ -117,6 +117,12 @@ KNOWN_GAPS = {
     ("composite_convex_minimization/accelerated_proximal_gradient_simplified", 2):
         _LOOSE.format("4.6e-5"),
     ("unconstrained_convex_minimization/inexact_gradient_descent", 1): _LOOSE.format("1.2e-6"),
+    ("low_dimensional_worst_cases_scenarios/inexact_gradient", 0):
+        "no value on either side at n = 6: PEPit's logdet solves fail (Clarabel), and "
+        "sosalgo's PEP solve ends almost solved (status failed, nothing claimed)",
+    ("low_dimensional_worst_cases_scenarios/inexact_gradient", 1):
+        "PEPit's logdet solves fail (Clarabel): no committed value to compare with",
+    ("low_dimensional_worst_cases_scenarios/inexact_gradient", 2): _LOOSE.format("1.6e-6"),
     **{("unconstrained_convex_minimization/optimized_gradient_for_gradient", i):
        "OGM-G on momentum-schedule.yaml: tau agrees, no exact proof (floating-point check)"
        for i in range(3)},
