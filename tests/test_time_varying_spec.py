@@ -28,7 +28,7 @@ from sosalgo.steps import (
 
 SPECS = Path(__file__).resolve().parents[1] / "specs"
 VARYING = ("ogm", "fista", "gradient-schedule", "momentum-schedule", "silver", "heavy-ball-qg",
-           "gradient-qg-decreasing", "accelerated-k")
+           "gradient-qg-decreasing", "accelerated-k", "ogm-k")
 GD = """
 name: t
 functions:

@@ -321,6 +321,10 @@ def prove_all_k(system: Any, degree: int = 2, offset: Fraction | None = None) ->
                           None, None, None, degree, found.solves)
     last = AllKProof("failed", reason="no point with a margin")
     estimate = found.constant * float(system.scale)
+    # a sequence's potentials are often tight (OGM's): the snapped C is tried first
+    tight = _tight(cond, found, system, offset) if system.recurrence is not None else None
+    if tight is not None:
+        return AllKResult(tight[0], tight[1], estimate, 0.0, degree, found.solves)
     for slack in SLACKS:
         y = margin_point(cond, found, slack)
         if y is None:
@@ -330,7 +334,7 @@ def prove_all_k(system: Any, degree: int = 2, offset: Fraction | None = None) ->
             last = check_certificate(cond, cert, offset, system.k)
             if last.verified == "exact":
                 return AllKResult(last, cert, estimate, slack, degree, found.solves)
-    tight = _tight(cond, found, system, offset)
+    tight = _tight(cond, found, system, offset) if system.recurrence is None else None
     if tight is not None:
         return AllKResult(tight[0], tight[1], estimate, 0.0, degree, found.solves)
     return AllKResult(last, None, estimate, None, degree, found.solves)
