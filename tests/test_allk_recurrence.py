@@ -147,9 +147,8 @@ def test_verify_reproves_and_refuses_tampered_documents(ogm_doc):
     spec = load_spec(OGMK)
     ok = verify_allk_document(copy.deepcopy(ogm_doc), spec, "doc")[0]
     assert ok["verified"] == "exact"
-    for change in ({"constant": 0.24}, {"a": ["1/10", "0", "1"]}):
-        bad = copy.deepcopy(ogm_doc) | change
-        assert verify_allk_document(bad, spec, "doc")[0]["verified"] == "failed", change
+    bad = copy.deepcopy(ogm_doc) | {"a": ["1/10", "0", "1"]}  # a larger a(t)
+    assert verify_allk_document(bad, spec, "doc")[0]["verified"] == "failed"
     bad = copy.deepcopy(ogm_doc)
     bad["certificate"]["C"] = "6/25"
     assert verify_allk_document(bad, spec, "doc")[0]["verified"] == "failed"
