@@ -354,13 +354,13 @@ L: 1
 
 
 def test_refusals_name_the_field(tmp_path):
-    assert "sequences.theta" in _refusal(tmp_path, SPECS / "ogm.yaml")
-    assert "recurrence" in _refusal(tmp_path, SPECS / "ogm.yaml")
+    assert "sequences.theta.last" in _refusal(tmp_path, SPECS / "ogm.yaml")
+    assert "last-step rule" in _refusal(tmp_path, SPECS / "ogm.yaml")
     schedule = _refusal(tmp_path, _spec(tmp_path, "k/(k + 3)", "[1/L, 1/L, 1/L]"))
     assert "parameters.h" in schedule and "schedule" in schedule
     assert "rational function of k" in _refusal(tmp_path, _spec(tmp_path, "sqrt(k)/(k + 3)"))
     assert "horizon N" in _refusal(tmp_path, _spec(tmp_path, "k/(k + N)"))
-    assert "sequences." in _refusal(tmp_path, SPECS / "fista.yaml")
+    assert "functions" in _refusal(tmp_path, SPECS / "fista.yaml")  # f + g
     assert "degree 4 in k" in _refusal(tmp_path, _spec(tmp_path, "k**4/(k + 3)**4"))
     assert "vanishes" in _refusal(tmp_path, _spec(tmp_path, "(k - 1)/(k - 1/2)"))
     res = CliRunner().invoke(cli, ["analyze", str(ACC), "--kappa", "10", "--out",

@@ -51,11 +51,12 @@ from sosalgo.spec.types import NEXT_SUFFIX, SpecError, value_order
 from sosalgo.steps import changes_with_k
 
 if TYPE_CHECKING:
+    from sosalgo.certificates.allk_recurrence import Recurrence
     from sosalgo.spec.types import Spec
 
 __all__ = ["ALLK", "AllKFamily", "AllKSystem", "Conditions", "Growth", "Search",
-           "block_growth", "closed_form_system", "conditions", "margin_point",
-           "offset_bounds", "search", "why_not_closed_form"]
+           "block_growth", "bound_argument", "closed_form_system", "conditions", "margin_point",
+           "offset_bounds", "pinned_point", "search", "why_not_closed_form"]
 
 SMOOTH_CONVEX = SEED_CLASS.name  # F(m, L), with m = 0: L-smooth convex
 MAX_STATES = 4  # the proof checks every principal minor of windows of n + 2 rows
@@ -80,6 +81,25 @@ class AllKSystem:
     u: Any
     source: str = ""
     scale: Any = 1  # the spec's L: the system is f/L's (1-smooth), C scales back by it
+    recurrence: Recurrence | None = None  # the sequence the method runs on, if any
+
+    def weight_at(self) -> Any:
+        """The weights' argument at step k, as an expression of ``k`` (k itself, or the
+        sequence's value theta_k)."""
+        return self.k if self.recurrence is None else self.recurrence.at
+
+    def weight_next(self) -> Any:
+        """The weights' argument at step k + 1 (k + 1, or theta_{k+1})."""
+        return self.k + 1 if self.recurrence is None else self.recurrence.next
+
+    def weight_first(self) -> Any:
+        """The weights' argument at step 0 (0, or theta_0 = 1)."""
+        return 0 if self.recurrence is None else 1
+
+    def offset(self) -> Fraction:
+        """c of a >= (argument + c)^degree: 1 (a(N) >= (N + 1)^2), or 0 for a sequence
+        (a(t) >= t^2, and theta_{N-1} >= (N + 1)/2)."""
+        return Fraction(1) if self.recurrence is None else Fraction(0)
 
     @property
     def n(self) -> int:
@@ -117,20 +137,20 @@ def _recurrence_error(spec: Spec, s: str) -> SpecError:
                      "bound needs parameters that are rational functions of k)")
 
 
-def _refuse_recurrences(spec: Spec) -> None:
-    """SpecError naming the first sequence the method's parameters or matrices use."""
+def _used_sequences(spec: Spec) -> list[str]:
+    """The sequences the method's parameters or matrices use (in the spec's order)."""
     from sosalgo.kernel.expr.parse import to_sympy
 
     seqs = _sequence_names(spec)
     exprs = [par.tied if par.is_tied else par.value for par in spec.parameters.values()
              if par.schedule is None]
     exprs += [e for rows in spec.matrices.values() for row in rows for e in row]
+    used = set()
     for expr in exprs:
         if expr is None:
             continue
-        for sym in sorted(to_sympy(expr).free_symbols, key=str):
-            if sym in seqs:
-                raise _recurrence_error(spec, seqs[sym])
+        used |= {seqs[sym] for sym in to_sympy(expr).free_symbols if sym in seqs}
+    return [s for s in spec.sequences if s in used]
 
 
 def _closed_form(value: Any, where: str, spec: Spec, k: Any) -> Any:
@@ -144,6 +164,9 @@ def _closed_form(value: Any, where: str, spec: Spec, k: Any) -> Any:
         if str(sym) == "N":
             raise SpecError(spec.source, where, "depends on the horizon N: the all-k bound "
                             "needs the same method for every N")
+        if str(sym) == "k" and sym != k:
+            raise SpecError(spec.source, where, "uses k beside a sequence (the all-k bound "
+                            "takes one or the other)")
         if sym != k:
             raise SpecError(spec.source, where, f"{sym} has no value")
     value = sp.cancel(sp.together(value))
@@ -195,18 +218,21 @@ def closed_form_system(spec: Spec) -> AllKSystem:
 def _closed_form_system(spec: Spec) -> AllKSystem:
     import sympy as sp
 
+    from sosalgo.certificates.allk_recurrence import check_lemma, recognize
     from sosalgo.kernel.expr.parse import sympy_symbol, to_sympy
 
-    _refuse_recurrences(spec)
     problem = _setting_problem(spec)
     if problem is not None:
         raise SpecError(spec.source, problem[0], problem[1])
-    k = sympy_symbol("k")
+    rec = recognize(spec, _used_sequences(spec), sp.Symbol("s", real=True))
+    k = sympy_symbol("k") if rec is None else rec.var
     L = (sp.nsimplify(to_sympy(spec.L_expr)) if spec.L_expr is not None
          else sp.Rational(Fraction(repr(float(spec.L)))))
     if not (L.is_rational and L > 0):
         raise SpecError(spec.source, "L", f"{L} is not a positive rational number")
     env: dict[Any, Any] = {sympy_symbol("m"): sp.Integer(0), sympy_symbol("L"): L}
+    if rec is not None:
+        env |= {sympy_symbol(rec.name): rec.at, sympy_symbol(rec.name + NEXT_SUFFIX): rec.next}
     _parameter_values(spec, env, k)
     mats = {}
     for key, M in spec.sympy_matrices().items():
@@ -217,8 +243,14 @@ def _closed_form_system(spec: Spec) -> AllKSystem:
     if mats["E"].has(k):
         raise SpecError(spec.source, "matrices.E", "the all-k bound needs E constant in k")
     # in units L = 1 (f/L is 1-smooth, its gradient g/L): B L; the bound scales back by L
+    if rec is not None and mats["C"].has(k):
+        raise SpecError(spec.source, "matrices.C", f"uses {rec.name}: the gradient's point "
+                        "must not depend on the sequence (the all-k bound with a sequence)")
     system = AllKSystem(k, mats["A"], (mats["B"] * L).applyfunc(sp.cancel), mats["C"],
-                        mats["E"], sp.Integer(1), None, spec.source, L)
+                        mats["E"], sp.Integer(1), None, spec.source, L, rec)
+    why = None if rec is None else check_lemma(rec)
+    if why is not None:
+        raise SpecError(spec.source, f"sequences.{rec.name}", why)
     if system.n > MAX_STATES:
         raise SpecError(spec.source, "matrices.A", f"{system.n} states: the all-k bound "
                         f"takes at most {MAX_STATES}")
@@ -363,6 +395,19 @@ def output_at_query(system: AllKSystem) -> bool:
     return all(sp.cancel(e) == 0 for e in system.E - system.C)
 
 
+def bound_argument(system: AllKSystem) -> dict[str, str]:
+    """How the bound reads: a's ``argument`` (N, or the sequence's theta_{N-1}; theta_N
+    when the output is the gradient's point), the ``floor`` it is at least (N, or
+    (N + 1)/2, (N + 2)/2 by theta_k >= 1 + k/2) and the weights' ``variable``."""
+    rec = system.recurrence
+    if rec is None:
+        return {"argument": "N", "floor": "N", "variable": "k"}
+    if output_at_query(system):
+        return {"argument": f"{rec.name}_N", "floor": "(N + 2)/2", "variable": f"{rec.name}_k"}
+    return {"argument": f"{rec.name}_{{N-1}}", "floor": "(N + 1)/2",
+            "variable": f"{rec.name}_k"}
+
+
 def denominator(system: AllKSystem) -> Any:
     """A common denominator of A(k), B(k), C(k), C(k+1) (a polynomial in k; the proof
     checks it has no root on k >= 0 and a positive value there)."""
@@ -373,6 +418,8 @@ def denominator(system: AllKSystem) -> Any:
     den = sp.Integer(1)
     for e in entries:
         den = sp.lcm(den, sp.fraction(sp.cancel(e))[1])
+    if system.recurrence is not None:  # the weights' denominators: powers of w
+        den = den * system.recurrence.w
     den = sp.expand(den)
     return -den if den.subs(k, 0) < 0 else den
 
@@ -417,25 +464,34 @@ def conditions(system: AllKSystem, degree: int = 2) -> Conditions:
     w = _window(system)
     star = (sp.Integer(0), sp.Integer(0), sp.Integer(0))
 
-    def mult(name: str) -> Any:
+    at, nxt = system.weight_at(), system.weight_next()
+
+    def mult(name: str) -> Any:  # with a sequence: + terms in theta_{k+1} (>= 0 too)
         before = len(var)
-        poly = _poly_var(name, degree, k, var)
+        poly = _poly_var(name, degree, k, var).xreplace({k: at})
+        if system.recurrence is not None:
+            poly += _poly_var(f"{name}n", degree, k, var).xreplace({k: nxt})
+            var.remove(sp.Symbol(f"{name}n_0", real=True))
+            poly = poly.xreplace({sp.Symbol(f"{name}n_0", real=True): 0})
         nonneg.extend(var[before:])
         return poly
 
     z0 = sp.Matrix([*w["xs"], w["g0"]])
     z1 = sp.Matrix([*w["xi1"], w["g1"]])
-    phi0 = (z0.T * P * z0)[0] + p * w["f0"]
-    phi1 = (z1.T * P.subs(k, k + 1) * z1)[0] + p.subs(k, k + 1) * w["f1"]
+    phi0 = (z0.T * P.xreplace({k: at}) * z0)[0] + p.xreplace({k: at}) * w["f0"]
+    phi1 = (z1.T * P.xreplace({k: nxt}) * z1)[0] + p.xreplace({k: nxt}) * w["f1"]
     pts = [(w["q0"], w["g0"], w["f0"]), (w["q1"], w["g1"], w["f1"]), star]
     dec = phi1 - phi0 + sum(mult(f"lam{ij}") * ineq for ij, ineq in _interpolation(pts, L))
     pts_b = [(w["q0"], w["g0"], w["f0"]), star]
     mus = sum(mult(f"mu{ij}") * ineq for ij, ineq in _interpolation(pts_b, L))
-    if output_at_query(system):  # a(k) (f(q_k) - f*) <= phi_k at k + 1 >= 1
+    if output_at_query(system) and system.recurrence is not None:
+        bnd = a.xreplace({k: at}) * w["f0"] - phi0 + mus  # a(theta_k) f(q_k) <= phi_k
+    elif output_at_query(system):  # a(k) (f(q_k) - f*) <= phi_k at k + 1 >= 1
         bnd = (a * w["f0"] - phi0 + mus).xreplace({k: k + 1})
-    else:
+    else:  # a(k + 1), or a(theta_k) with a sequence, times f(x_{k+1})'s upper bound
         gap = w["o1"] - w["q0"]
-        bnd = a.subs(k, k + 1) * (w["f0"] + w["g0"] * gap + L / 2 * gap**2) - phi0 + mus
+        a_at = a.subs(k, k + 1) if system.recurrence is None else a.xreplace({k: at})
+        bnd = a_at * (w["f0"] + w["g0"] * gap + L / 2 * gap**2) - phi0 + mus
     den = denominator(system)
     QD, linD = _quadratic_and_linear(dec, [*w["xs"], w["g0"], w["g1"]], [w["f0"], w["f1"]])
     QB, linB = _quadratic_and_linear(bnd, [*w["xs"], w["g0"]], [w["f0"]])
@@ -443,6 +499,8 @@ def conditions(system: AllKSystem, degree: int = 2) -> Conditions:
     kernels = {"decrease": sp.Matrix([*system.u, 0, 0]), "bound": sp.Matrix([*system.u, 0])}
     blocks = {"decrease": _scaled(QD, den), "bound": _scaled(QB, den), "initial": QI}
     identities = [*linD, *linB, *linI]
+    if system.recurrence is not None:  # polynomials in k once multiplied by w^2
+        identities = [sp.cancel(e * system.recurrence.w**2) for e in identities]
     return Conditions(degree, var, {str(s): s for s in var}, blocks,
                       [sp.expand(e) for e in identities], nonneg, kernels, den,
                       {"a": a, "P": P, "p": p, "k": k, "scale": system.scale})
@@ -460,7 +518,8 @@ def _initial(system: AllKSystem, P: Any, p: Any, C0: Any, var: list[Any],
     var += nus
     nonneg += nus
     z = sp.Matrix([*(system.u * x0), g0])
-    phi = (z.T * P.subs(k, 0) * z)[0] + p.subs(k, 0) * f0
+    first = system.weight_first()
+    phi = (z.T * P.subs(k, first) * z)[0] + p.subs(k, first) * f0
     zero = sp.Integer(0)
     ineqs = _interpolation([(x0, g0, f0), (zero, zero, zero)], system.L)
     expr = phi - C0 * x0**2 + sum(nu * ineq for nu, (_, ineq) in zip(nus, ineqs, strict=True))
@@ -665,8 +724,8 @@ def _equalities(cond: Conditions, index: dict[Any, int], kernels: tuple[str, ...
 
 
 def _solve(data: dict[str, Any], cond: Conditions, cap: float | None, offset: Fraction,
-           growth: dict[str, Growth] | None = None, kernels: tuple[str, ...] = ("decrease",)
-           ) -> tuple[str, Any, Any]:
+           growth: dict[str, Growth] | None = None, kernels: tuple[str, ...] = ("decrease",),
+           pinned: Fraction | None = None) -> tuple[str, Any, Any]:
     import cvxpy as cp
 
     index = data["index"]
@@ -683,7 +742,11 @@ def _solve(data: dict[str, Any], cond: Conditions, cap: float | None, offset: Fr
                   else _weight_arrays(growth[name].weight, cond.extra["k"]))
         cons += _sos_constraints(arrays, s, y, margin, weight)
     C = y[index[cond.names["C"]]]
-    if cap is None:
+    if pinned is not None:  # C fixed, the multipliers as small as they go (sparse)
+        cons.append(C == float(pinned))
+        mults = [index[v] for v in cond.nonnegative if not str(v).startswith("a_")]
+        prob = cp.Problem(cp.Minimize(cp.sum(y[mults])), cons)
+    elif cap is None:
         prob = cp.Problem(cp.Minimize(C), cons)
     else:
         cons += [C <= cap, margin <= 1]
@@ -732,6 +795,26 @@ def margin_point(cond: Conditions, found: Search, slack: float) -> np.ndarray | 
     found.solves += 1
     if status in ("optimal", "optimal_inaccurate") and y is not None and margin > 0:
         return np.asarray(y)
+    return None
+
+
+def pinned_point(cond: Conditions, found: Search, rel: float = 1e-2, den: int = 16
+                 ) -> tuple[Fraction, np.ndarray] | None:
+    """For a potential that is tight (no margin: OGM's decrease is an identity): C* snapped
+    to a fraction of denominator <= ``den`` (None unless within ``rel`` of it), and the
+    point at that C with the multipliers as small as they go (a sparse face, whose
+    values the rounding snaps to small fractions)."""
+    if found.values is None or found.constant is None:
+        return None
+    pinned = Fraction(found.constant).limit_denominator(den)
+    if abs(float(pinned) - found.constant) > rel * abs(found.constant):
+        return None
+    ctx = found.context
+    status, y, _ = _solve(ctx["data"], cond, None, ctx["offset"], None, found.kernels,
+                          pinned=pinned)
+    found.solves += 1
+    if status in ("optimal", "optimal_inaccurate") and y is not None:
+        return pinned, np.asarray(y)
     return None
 
 

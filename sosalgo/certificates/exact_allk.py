@@ -177,10 +177,10 @@ def _signs_and_identities(cond: Conditions, cert: dict[str, Fraction], sub: dict
 
 
 # --------------------------------------------------------------------------- rounding
-def _fraction(x: float, snap: float = 1e-6) -> Fraction:
-    """x as a fraction: a small-denominator one (<= 64) when within ``snap`` of it (the
-    structural values of an optimum: 1/2, -1, ...), else a close one."""
-    small = Fraction(float(x)).limit_denominator(64)
+def _fraction(x: float, snap: float = 1e-6, small_den: int = 64) -> Fraction:
+    """x as a fraction: a small-denominator one (<= ``small_den``) when within ``snap``
+    of it (the structural values of an optimum: 1/2, -1, ...), else a close one."""
+    small = Fraction(float(x)).limit_denominator(small_den)
     if abs(float(small) - float(x)) <= snap:
         return small
     return Fraction(float(x)).limit_denominator(MAX_DEN)
@@ -188,7 +188,8 @@ def _fraction(x: float, snap: float = 1e-6) -> Fraction:
 
 def round_certificate(cond: Conditions, values: np.ndarray, k: Any,
                       kernels: tuple[str, ...] = ("decrease",), zeros: list[Any] | None = None,
-                      pivots: bool = True) -> dict[str, Fraction]:
+                      pivots: bool = True, snap: tuple[float, int] = (1e-6, 64)
+                      ) -> dict[str, Fraction]:
     """Rational values near the search's ``values`` that satisfy the identities exactly
     (the nonnegative unknowns found at 0 set to 0): with ``pivots``, the free unknowns of
     the identities' echelon form keep their rounded values and the others are solved
@@ -197,7 +198,7 @@ def round_certificate(cond: Conditions, values: np.ndarray, k: Any,
 
     index = {v: i for i, v in enumerate(cond.variables)}
     scale = max(1.0, float(np.max(np.abs(values))))
-    y = [_fraction(x) for x in values]
+    y = [_fraction(x, *snap) for x in values]
     rows: list[list[Fraction]] = []
     rhs: list[Fraction] = []
     for v in cond.nonnegative:
@@ -304,12 +305,14 @@ class AllKResult:
     solves: int
 
 
-def prove_all_k(system: Any, degree: int = 2, offset: Fraction = Fraction(1)) -> AllKResult:
+def prove_all_k(system: Any, degree: int = 2, offset: Fraction | None = None) -> AllKResult:
     """Search a potential of ``degree`` with a(N) >= (N + offset)^degree and prove it
     exactly: the SDP's optimum, then points with a margin at C <= C* (1 + slack) for
-    each slack of :data:`SLACKS`, rounded and checked until one is proven."""
+    each slack of :data:`SLACKS`, rounded and checked until one is proven. ``offset``:
+    the system's own (1; 0 for a sequence, a(t) >= t^degree) unless given."""
     from sosalgo.certificates.allk import conditions, margin_point, search
 
+    offset = system.offset() if offset is None else offset
     cond = conditions(system, degree)
     found = search(cond, offset)
     if found.values is None:
@@ -318,6 +321,10 @@ def prove_all_k(system: Any, degree: int = 2, offset: Fraction = Fraction(1)) ->
                           None, None, None, degree, found.solves)
     last = AllKProof("failed", reason="no point with a margin")
     estimate = found.constant * float(system.scale)
+    # a sequence's potentials are often tight (OGM's): the snapped C is tried first
+    tight = _tight(cond, found, system, offset) if system.recurrence is not None else None
+    if tight is not None:
+        return AllKResult(tight[0], tight[1], estimate, 0.0, degree, found.solves)
     for slack in SLACKS:
         y = margin_point(cond, found, slack)
         if y is None:
@@ -327,7 +334,32 @@ def prove_all_k(system: Any, degree: int = 2, offset: Fraction = Fraction(1)) ->
             last = check_certificate(cond, cert, offset, system.k)
             if last.verified == "exact":
                 return AllKResult(last, cert, estimate, slack, degree, found.solves)
+    tight = _tight(cond, found, system, offset) if system.recurrence is None else None
+    if tight is not None:
+        return AllKResult(tight[0], tight[1], estimate, 0.0, degree, found.solves)
     return AllKResult(last, None, estimate, None, degree, found.solves)
+
+
+TIGHT_SNAPS = ((1e-2, 8), (1e-2, 16), (1e-6, 64))  # (distance, denominator) of the snap
+
+
+def _tight(cond: Conditions, found: Any, system: Any, offset: Fraction
+           ) -> tuple[AllKProof, dict[str, Fraction]] | None:
+    """A potential with no margin (every condition tight somewhere, as OGM's): at C*
+    snapped to a small fraction, the sparse point rounded to small fractions."""
+    from sosalgo.certificates.allk import pinned_point
+
+    point = pinned_point(cond, found)
+    if point is None:
+        return None
+    _, y = point
+    for snap in TIGHT_SNAPS:
+        for pivots in (True, False):
+            cert = round_certificate(cond, y, system.k, found.kernels, None, pivots, snap)
+            proof = check_certificate(cond, cert, offset, system.k)
+            if proof.verified == "exact":
+                return proof, cert
+    return None
 
 
 # --------------------------------------------------------------------------- verify
