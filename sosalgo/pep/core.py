@@ -288,6 +288,9 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
             if res.witness is not None:
                 res.witness["check"] = check_witness(res.witness, spec, ex)
                 res.witness = finish_witness(res.witness, spec, kappa, None, res)
+        elif witness and mt.lmo:  # no witness construction for a linear minimization call
+            res.extra["note"] = ("no worst-case witness for a linear minimization oracle "
+                                 "(tau_proven is the proven upper bound)")
         elif witness and mt.line_search:  # a run on the class's extremal quadratic
             from sosalgo.pep.linesearch_witness import line_search_witness
 

@@ -416,7 +416,7 @@ def _solve_dual(data: PEPData, active: np.ndarray, margin: float, unit: float,
     # with constants the bound is tau initial + sum lambda_k c_k <= tau + ... only for
     # tau >= 0: the PEP under initial <= 1, not = 1 (where its sup may be below)
     t = int(bool(np.any(data.consts())))
-    sign = sps.csr_matrix(([-1.0], ([0], [0])), shape=(t, 1 + K))
+    sign = sps.csr_matrix(([-1.0] * t, ([0] * t, [0] * t)), shape=(t, 1 + K))
     A = sps.vstack([sign, sps.hstack([sps.csr_matrix((K, 1)), -sps.identity(K)]),
                     body[nG:], body[:nG]]).tocsc()
     A.eliminate_zeros()
