@@ -658,8 +658,8 @@ def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Frac
         for i in range(st.d):
             eqs.append([sum(q[i][j] * v[j] for j in nz) for q in quads])
             rhs.append(sum((tq * I0[i][j] - M[i][j]) * v[j] for j in nz))
-    for i in range(st.nF):  # c_F[i] = -m_F[i] - sum lambda a_i: no tq to raise it
-        if fi[0][i] == 0:
+    for i in range(st.nF if not units else 0):  # c_F[i] = -m_F[i] - sum lambda a_i: no
+        if fi[0][i] == 0:  # tq to raise it (with ``units``: a margin solve's c_F > 0)
             eqs.append([a[i] for a in lins])
             rhs.append(-fm[0][i])
     A, b = sp.Matrix(eqs), sp.Matrix(rhs)

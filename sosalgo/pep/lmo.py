@@ -73,8 +73,6 @@ def _add_point(mt: Any, pts: list[list[Any]], j: int, row: np.ndarray, label: st
     set; tilted: -s_j*) and a value of its own, before x*."""
     from sosalgo.pep.structure import PEPPoint
 
-    if any(p.label != "x*" and (p.x is row or mt.same(p.x, row)) for p in pts[j]):
-        return  # already a point of h (x_1 = s_0 at a first step of length 1)
     pt = PEPPoint(label, row, -sstar[j], state["nF"])
     state["nF"] += 1
     pts[j].insert(len(pts[j]) - 1, pt)  # x* stays last
