@@ -152,8 +152,9 @@ class OracleMethod(CallShape):
         s_{J-1}*), s_J* = -(s_1* + ... + s_{J-1}*)."""
         J = len(self.functions)
         S = np.zeros((self.p, max(J - 1, 0)))
+        lmo = getattr(self, "lmo", None) or {}  # the seed's Algorithm has none
         for i, j in enumerate(self.oracles):
-            if i in self.lmo:  # answers s - y: 0 at the fixed point (s = y = x*)
+            if i in lmo:  # answers s - y: 0 at the fixed point (s = y = x*)
                 continue
             if j < J - 1:
                 S[i, j] = 1.0
