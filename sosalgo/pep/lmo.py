@@ -71,9 +71,8 @@ def _add_point(mt: Any, pts: list[list[Any]], j: int, row: np.ndarray, label: st
                sstar: list[np.ndarray], state: dict[str, Any]) -> None:
     """Function j's point at ``row`` with the subgradient 0 (in every normal cone of the
     set; tilted: -s_j*) and a value of its own, before x*."""
-    from sosalgo.pep.structure import PEPPoint
-
-    pt = PEPPoint(label, row, -sstar[j], state["nF"])
+    point = type(pts[j][-1])  # the structure's PEPPoint (x*'s): no import cycle
+    pt = point(label, row, -sstar[j], state["nF"])
     state["nF"] += 1
     pts[j].insert(len(pts[j]) - 1, pt)  # x* stays last
 
