@@ -112,3 +112,17 @@ def test_iterates_outside_the_set_are_not_evaluated(tmp_path):
                                  str(tmp_path / "o")])
     assert r.exit_code == 2, r.output
     assert "h (bounded_indicator) is not evaluated" in r.output
+
+
+def test_a_constant_step_below_one_is_unbounded(tmp_path):
+    """x+ = (x + s)/2 on C = [0, 1], f = L/2 (x + M)^2: x* = 0, from x_0 = 1 the LMO gives
+    s_0 = 0 and x_1 = 1/2, f(x_1) - f* = L/2 (M + 1/4): no bound (Frank-Wolfe needs its
+    first step of length 1). The PEP says unbounded, and refuses the contraction measure
+    (its two-run PEP does not model the oracle)."""
+    path = _write(tmp_path, ["f", {"function": "h", "lmo": 1}],
+                  parameters={"D": 1, "lam": "1/2"})
+    doc = _pep(path, tmp_path, 2, "--no-witness")
+    assert doc["status"] == "unbounded" and doc["tau"] == float("inf")
+    r = CliRunner().invoke(cli, ["pep", str(path), "--steps", "2", "--measure", "contraction",
+                                 "--out", str(tmp_path / "c")])
+    assert r.exit_code == 2 and "linear minimization call" in r.output, r.output
