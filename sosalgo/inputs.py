@@ -59,6 +59,11 @@ def refuse_nonconvex(spec: Any, linear_rates: bool = False) -> None:
         raise InputError(f"{spec.source}: line_search: a step chosen by exact line search: "
                          "no Lyapunov family models it (no rate is certified); sosalgo pep "
                          "bounds its worst case after N steps")
+    lmo = sorted(getattr(spec, "lmo", None) or ())
+    if lmo:
+        raise InputError(f"{spec.source}: oracles[{lmo[0]}].lmo: a linear minimization "
+                         "oracle: no Lyapunov family models it (no rate is certified); "
+                         "sosalgo pep bounds its worst case after N steps")
     inexact = sorted(getattr(spec, "inexact", None) or ())
     if inexact:
         raise InputError(f"{spec.source}: oracles[{inexact[0]}].relative_error: an inexact "

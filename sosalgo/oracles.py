@@ -98,6 +98,9 @@ class OracleMethod(CallShape):
     # inexact gradient calls: call index -> eps in [0, 1) (the answer d of the call has
     # |d - grad f(y)| <= eps |grad f(y)|); only ``sosalgo pep`` models them
     errors: dict[int, float] = field(default_factory=dict)
+    # linear minimization calls: call index -> the gradient call giving the direction (the
+    # call answers s - y, 0 at the fixed point; only ``sosalgo pep`` models them)
+    lmo: dict[int, int] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         for k in ("A", "B", "C", "D", "E"):
@@ -149,7 +152,10 @@ class OracleMethod(CallShape):
         s_{J-1}*), s_J* = -(s_1* + ... + s_{J-1}*)."""
         J = len(self.functions)
         S = np.zeros((self.p, max(J - 1, 0)))
+        lmo = getattr(self, "lmo", None) or {}  # the seed's Algorithm has none
         for i, j in enumerate(self.oracles):
+            if i in lmo:  # answers s - y: 0 at the fixed point (s = y = x*)
+                continue
             if j < J - 1:
                 S[i, j] = 1.0
             else:
@@ -239,6 +245,9 @@ def check_oracle_spec(spec: Spec, fail: Callable[[str, str], SpecError]) -> None
             raise fail(f"matrices.D[{i}][{i}]", "a diagonal entry must be -t with t >= 0 (a "
                        f"proximal step), got {_value(diag):g}")
         prox = diag is not None and not _is_zero(diag)
+        if i in spec.lmo:
+            _check_lmo(spec, i, cls, prox, fail)
+            continue
         if i in spec.inexact:
             _check_inexact(spec, i, cls, prox, fail)
         if prox and not cls.proximal:
@@ -249,6 +258,29 @@ def check_oracle_spec(spec: Spec, fail: Callable[[str, str], SpecError]) -> None
                        f"make D[{i}][{i}] = -t")
     if spec.measure == "function":
         _check_measure(spec, fail)
+
+
+def _check_lmo(spec: Spec, i: int, cls: FunctionClass, prox: bool,
+                fail: Callable[[str, str], SpecError]) -> None:
+    """A linear minimization call queries an indicator (its set), with D_ii = 0; its
+    direction is a gradient call (D_jj = 0) of a class with a gradient oracle."""
+    where = f"oracles[{i}].lmo"
+    if cls.name not in LMO_CLASSES:
+        raise fail(where, f"a linear minimization oracle of {spec.oracles[i]}, whose class "
+                   f"{cls.name} is not an indicator ({', '.join(LMO_CLASSES)})")
+    if prox:
+        raise fail(f"matrices.D[{i}][{i}]", "a linear minimization call is no proximal step: "
+                   "make it 0")
+    j = spec.lmo[i]
+    D = spec.matrices.get("D")
+    direction = CLASSES[spec.functions[spec.oracles[j]].cls]
+    if ("gradient" not in direction.oracles or j in spec.inexact
+            or (D is not None and not _is_zero(D[j][j]))):
+        raise fail(where, f"call {j + 1} must be an exact gradient call (its answer is the "
+                   "direction)")
+
+
+LMO_CLASSES = ("indicator", "bounded_indicator")
 
 
 def _check_inexact(spec: Spec, i: int, cls: FunctionClass, prox: bool,
@@ -281,8 +313,11 @@ def check_relative_error(where: str, eps: float) -> None:
 
 def _check_measure(spec: Spec, fail: Callable[[str, str], SpecError]) -> None:
     at_output = None if spec.output is None else spec.oracles[spec.output]
+    sets = {spec.oracles[i] for i in spec.lmo}  # in the set when the steps keep it there
     for fname, decl in spec.functions.items():
         cls = CLASSES[decl.cls]
+        if fname in sets:  # decided by the PEP (:mod:`sosalgo.pep.lmo`)
+            continue
         if not cls.has_values:
             raise fail("measure", f"function: {fname} ({cls.name}) is an operator class, it "
                        "has no function values; use measure: distance")
@@ -334,7 +369,8 @@ def make_method(spec: Spec, mats: Mapping[str, np.ndarray], m: float, L: float,
     return OracleMethod(mats["A"], mats["B"], mats["C"], D, mats.get("E"), m, L,
                         bind_functions(spec, [m, L, kappa], params),
                         tuple(names.index(f) for f in spec.oracles), spec.output,
-                        spec.measure, params, relative_errors(spec, m, L, kappa, params))
+                        spec.measure, params, relative_errors(spec, m, L, kappa, params),
+                        dict(getattr(spec, "lmo", None) or {}))
 
 
 def relative_errors(spec: Spec, m: float, L: float, kappa: float,

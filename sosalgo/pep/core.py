@@ -119,7 +119,8 @@ def float_method(om: Any, kappa: float) -> Method:
                 [(fn.name, fn.cls, fn.params) for fn in om.functions], tuple(om.oracles),
                 X[:, 0], X[:, 1:], float(om.L), ineqs, coef, same,
                 deadbeat_gain(om.A, om.B, float(om.L)),
-                errors=dict(getattr(om, "errors", None) or {}))
+                errors=dict(getattr(om, "errors", None) or {}),
+                lmo=dict(getattr(om, "lmo", None) or {}))
     if any(i.constant or i.scope != "pairs" for fi in tilted for i in fi):
         mt.constants = [[float(i.constant) for i in fi] for fi in tilted]
         mt.scopes = [[i.scope for i in fi] for fi in tilted]
@@ -287,6 +288,9 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
             if res.witness is not None:
                 res.witness["check"] = check_witness(res.witness, spec, ex)
                 res.witness = finish_witness(res.witness, spec, kappa, None, res)
+        elif witness and mt.lmo:  # no witness construction for a linear minimization call
+            res.extra["note"] = ("no worst-case witness for a linear minimization oracle "
+                                 "(tau_proven is the proven upper bound)")
         elif witness and mt.line_search:  # a run on the class's extremal quadratic
             from sosalgo.pep.linesearch_witness import line_search_witness
 
@@ -378,6 +382,18 @@ def _null_row_proof(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
                     tau_proven=proof["tau_proven"], tau=ans.tau, margin=0.0)
 
 
+def _linear_only(data: PEPData) -> list[int] | None:
+    """With constants, the basis directions no form has a square of (S is 0 on their
+    diagonal: its rows there are made exactly zero in the proof,
+    :func:`sosalgo.pep.sdp.linear_only`); None when there are none or no constants (the
+    margin proofs as they are)."""
+    from sosalgo.pep.sdp import linear_only
+
+    if data.st.constants is None:
+        return None
+    return [c for c, v in enumerate(linear_only(data)) if v == 0] or None
+
+
 def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
                  ans: SDPAnswer, exact: bool, mterms: list[Term],
                  iterms: list[Term], ex: Method | None = None) -> dict[str, Any]:
@@ -390,6 +406,7 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
     cert: dict[str, Any] = {"tau": ans.tau + ans.const, "check_kind": "floating-point check",
                             "tau_proven": None, "proof": None}
     best = ans
+    units = _linear_only(data)
     inner = _interior_certificate(data, tau, scale) if exact and data.strong else None
     for rel, precise in _ladder(st.steps, inner is not None) if exact else ():
         eps = rel / scale  # relative to tau: the measure is divided by tau
@@ -403,13 +420,14 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
         from sosalgo.pep.exact import prove_certificate
 
         Sh = cand.S * np.outer(data.w, data.w)  # type: ignore[operator]
-        if np.linalg.eigvalsh(Sh)[0] < -1e-9 * max(1.0, float(np.abs(Sh).max())):
+        if not units and np.linalg.eigvalsh(Sh)[0] < -1e-9 * max(1.0, float(np.abs(Sh).max())):
             cert["proof"] = {"proven": False, "tau_proven": None,
                              "detail": "floating-point pre-check: S is not PSD (scaled)"}
             continue  # the exact proof would fail: the next margin
         # at least the reported tau (its float value, up to the solver's accuracy)
         proof = prove_certificate(spec, kappa, st, mterms, iterms,
-                                  max(cand.tau + cand.const, tau), cand.lam, data.w, ex)
+                                  max(cand.tau + cand.const, tau), cand.lam, data.w, ex,
+                                  units=units)
         if mt.bound is not None:  # what the proof is about (a mingrad measure's bound)
             proof["measure_bound"] = mt.bound
         cert["proof"] = proof

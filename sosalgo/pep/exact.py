@@ -242,6 +242,7 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
     mt.x0_call = _exact_start_call(mats, Xq, om)
     mt.errors = _exact_errors(spec, env, enclose)
     mt.line_search = bool(getattr(spec, "line_search", None))
+    mt.lmo = dict(getattr(spec, "lmo", None) or {})
     if any(e is not None for e in extras):
         mt.constants = [e[0] if e else [Fraction(0)] * len(fi)
                         for e, fi in zip(extras, ineqs, strict=True)]
@@ -556,12 +557,15 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
                       mterms: list[Term], iterms: list[Term], tau: float,
                       lam: np.ndarray, w: np.ndarray | None = None,
                       mt: Method | None = None,
-                      null: np.ndarray | None = None) -> dict[str, Any]:
+                      null: np.ndarray | None = None,
+                      units: list[int] | None = None) -> dict[str, Any]:
     """Prove measure <= tau' for a rational tau' >= tau (see the module); a dict with
     ``proven``, ``tau_proven`` (p/q), ``tau_proven_float``, ``detail``, ``seconds``.
     ``w``: the scale of the basis (powers of two, default 1); ``mt``: the exact method
     (built here when not given); ``null``: the float S of a certificate whose rows near
-    zero are made exactly zero (:func:`null_row_multipliers`), nothing repaired."""
+    zero are made exactly zero (:func:`null_row_multipliers`), nothing repaired;
+    ``units``: the basis directions whose rows of S are made exactly zero instead (the
+    directions no form has a square of, :func:`sosalgo.pep.sdp.linear_only`)."""
     from sosalgo.kernel.exact import fraction_str, rational
     from sosalgo.pep.bind import bound_method
 
@@ -584,7 +588,9 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
     detail = ""
     for step in TAU_STEPS:
         tq = decimal_up(Fraction(tau) * (1 + Fraction(step)))
-        if null is not None:
+        if units:
+            ok, lq2, delta, why = _prove_null_rows(mt, st, lam, tq, None, w, units)
+        elif null is not None:
             ok, lq2, delta, why = _prove_null_rows(mt, st, lam, tq, null[0], w)
         else:
             ok, lq2, delta, why = prove_at(mt, st, lq, tq, w, repair=True)
@@ -610,8 +616,9 @@ SNAPS = ((100, 1e-6), (1000, 1e-7), (10 ** 4, 1e-8), None)  # (denominator, tole
 
 
 def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Fraction,
-                         S: np.ndarray, w: np.ndarray,
-                         snap: tuple[int, float] | None = None) -> list[Fraction] | None:
+                         S: np.ndarray | None, w: np.ndarray,
+                         snap: tuple[int, float] | None = None,
+                         units: list[int] | None = None) -> list[Fraction] | None:
     """Exact multipliers, on the float ones' support, with S v = 0 exactly for a rational
     basis v of the float certificate's null space (:func:`rational_null_space`; a basis
     row when S vanishes on a whole row), the free coordinates at the float values
@@ -627,11 +634,15 @@ def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Frac
 
     top = float(np.max(lam, initial=0.0))
     support = [k for k, v in enumerate(lam) if v > NULL_ROW * top]
-    if (not support or st.constants is not None or st.free_values
-            or st.d > RATIONAL_MAX_D):
+    if not support or st.free_values or st.d > RATIONAL_MAX_D:
         return None
-    null = rational_null_space(S, w, snap)
+    null = ([[Fraction(int(j == c)) for j in range(st.d)] for c in units] if units
+            else rational_null_space(S, w, snap))
     if not null:
+        return None
+    if st.constants is not None and any(  # I0's coefficient is tq - sum lambda_k c_k:
+            _nonzero_fraction(v[j]) and _nonzero_fraction(st.init_q[i][j])  # off the null
+            for v in null for i in range(st.d) for j in range(st.d)):  # space only
         return None
     rows = _exact_pair_parts(mt, st, support)
     if rows is None:
@@ -647,8 +658,8 @@ def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Frac
         for i in range(st.d):
             eqs.append([sum(q[i][j] * v[j] for j in nz) for q in quads])
             rhs.append(sum((tq * I0[i][j] - M[i][j]) * v[j] for j in nz))
-    for i in range(st.nF):  # c_F[i] = -m_F[i] - sum lambda a_i: no tq to raise it
-        if fi[0][i] == 0:
+    for i in range(st.nF if not units else 0):  # c_F[i] = -m_F[i] - sum lambda a_i: no
+        if fi[0][i] == 0:  # tq to raise it (with ``units``: a margin solve's c_F > 0)
             eqs.append([a[i] for a in lins])
             rhs.append(-fm[0][i])
     A, b = sp.Matrix(eqs), sp.Matrix(rhs)
@@ -668,14 +679,18 @@ def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Frac
     return out
 
 
+def _nonzero_fraction(v: Any) -> bool:
+    return bool(Fraction(v) != 0) if not hasattr(v, "c") else bool(v.c != 0 or v.r != 0)
+
+
 def _prove_null_rows(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Fraction,
-                     S: np.ndarray, w: np.ndarray
+                     S: np.ndarray | None, w: np.ndarray, units: list[int] | None = None
                      ) -> tuple[bool, list[Fraction], Fraction, str]:
     """:func:`prove_at` (nothing repaired) on the multipliers of
     :func:`null_row_multipliers`, for each snap of :data:`SNAPS` until one proves."""
     why = "no exact multipliers zero the certificate's null rows"
     for snap in SNAPS:
-        exact_lam = null_row_multipliers(mt, st, lam, tq, S, w, snap)
+        exact_lam = null_row_multipliers(mt, st, lam, tq, S, w, snap, units)
         if exact_lam is None:
             continue
         ok, lq2, delta, why = prove_at(mt, st, exact_lam, tq, w, repair=False)
@@ -816,7 +831,7 @@ def prove_at(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
             return False, lam2, Fraction(0), ("tau - sum of multipliers x constants is not "
                                               "proven >= 0")
         ok, delta, why = prove_scaled_psd(I0 * t - M - quad, w)
-        if not ok and not repair and small and st.constants is None:
+        if not ok and not repair and small:
             ok, why = _rational_psd(mt, st, lam2, tq) or (ok, why)
             delta = Fraction(0)
     if not ok:
@@ -849,27 +864,43 @@ def _rational_parts(mt: Method, st: PEPStructure, lam: Sequence[Fraction]
 
 def _rational_residuals_ok(mt: Method, st: PEPStructure, lam: Sequence[Fraction],
                            tq: Fraction) -> bool:
-    """c_F = tq i_F - m_F - sum lambda_k a_k >= 0 in exact rationals (homogeneous PEP)."""
+    """c_F = t i_F - m_F - sum lambda_k a_k >= 0 in exact rationals (t: :func:`_rational_t`)."""
     fi, fm = _fraction_matrix([st.init_f]), _fraction_matrix([st.meas_f])
-    parts = _rational_parts(mt, st, lam) if st.constants is None else None
-    if parts is None or fi is None or fm is None:
+    parts = _rational_parts(mt, st, lam)
+    t = _rational_t(st, lam, tq)
+    if parts is None or fi is None or fm is None or t is None:
         return False
-    return all(tq * a - b - c >= 0 for a, b, c in zip(fi[0], fm[0], parts[1], strict=True))
+    return all(t * a - b - c >= 0 for a, b, c in zip(fi[0], fm[0], parts[1], strict=True))
+
+
+def _rational_t(st: PEPStructure, lam: Sequence[Fraction], tq: Fraction) -> Fraction | None:
+    """The initial term's coefficient t = tq - sum_k lambda_k c_k in exact rationals (tq
+    for a homogeneous PEP); None when a constant is irrational or t < 0 (the bound tq =
+    t initial + sum lambda_k c_k needs t >= 0 under initial <= 1)."""
+    if st.constants is None:
+        return tq
+    c = _fraction_matrix([list(st.constants)])
+    if c is None:
+        return None
+    t = tq - sum((Fraction(v) * ck for v, ck in zip(lam, c[0], strict=True) if v),
+                 Fraction(0))
+    return t if t >= 0 else None
 
 
 def _rational_psd(mt: Method, st: PEPStructure, lam: Sequence[Fraction],
                   tq: Fraction) -> tuple[bool, str] | None:
-    """S = tq I0 - M - sum lambda_k Q_k ⪰ 0 decided in exact rationals
+    """S = t I0 - M - sum lambda_k Q_k ⪰ 0 (t: :func:`_rational_t`) decided in exact rationals
     (:func:`sosalgo.kernel.exact.prove_psd`: semidefinite allowed), None when some datum
     is irrational or S is not proven."""
     from sosalgo.kernel.exact import prove_psd
 
     I0, M = _fraction_matrix(st.init_q), _fraction_matrix(st.meas_q)
     parts = _rational_parts(mt, st, lam)
-    if parts is None or I0 is None or M is None:
+    t = _rational_t(st, lam, tq)
+    if parts is None or I0 is None or M is None or t is None:
         return None
     quad = parts[0]
-    S = [[tq * I0[i][j] - M[i][j] - quad[i][j] for j in range(st.d)] for i in range(st.d)]
+    S = [[t * I0[i][j] - M[i][j] - quad[i][j] for j in range(st.d)] for i in range(st.d)]
     proof = prove_psd(S)
     if not proof.psd:
         return None
@@ -1098,6 +1129,7 @@ def exact_step_method(spec: Any, kappa: float | None, sm: StepMethods, count: in
                      for e, fi in zip(extras, ineqs, strict=True)]
     mt.errors = _exact_errors(spec, _exact_env(spec, base),
                               lambda e: enclose(e, digits))
+    mt.lmo = dict(getattr(spec, "lmo", None) or {})
     return mt
 
 

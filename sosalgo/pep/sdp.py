@@ -413,16 +413,21 @@ def _solve_dual(data: PEPData, active: np.ndarray, margin: float, unit: float,
     sig = _row_scale(ineq)
     cols = (sps.diags(1.0 / sig) @ ineq).T.tocsr()  # (nG + nF) x K: lambda_k's column
     body = sps.hstack([sps.csr_matrix(-init[:, None]), cols]).tocsr()
-    A = sps.vstack([sps.hstack([sps.csr_matrix((K, 1)), -sps.identity(K)]),
+    # with constants the bound is tau initial + sum lambda_k c_k <= tau + ... only for
+    # tau >= 0: the PEP under initial <= 1, not = 1 (where its sup may be below)
+    t = int(bool(np.any(data.consts())))
+    sign = sps.csr_matrix(([-1.0] * t, ([0] * t, [0] * t)), shape=(t, 1 + K))
+    A = sps.vstack([sign, sps.hstack([sps.csr_matrix((K, 1)), -sps.identity(K)]),
                     body[nG:], body[:nG]]).tocsc()
     A.eliminate_zeros()
-    eye = np.concatenate([svec(np.eye(d)), np.full(nF, 0.0 if st.free_values else 1.0)]
+    seen = linear_only(data) if t else np.ones(d)  # with constants: no margin where S is 0
+    eye = np.concatenate([svec(np.diag(seen)), np.full(nF, 0.0 if st.free_values else 1.0)]
                          ) * margin  # free values: c_F = 0 (no margin there)
-    b = np.concatenate([np.zeros(K), -(meas + eye)[nG:], -(meas + eye)[:nG]])
+    b = np.concatenate([np.zeros(t + K), -(meas + eye)[nG:], -(meas + eye)[:nG]])
     q = np.zeros(1 + K)
     q[0] = 1.0
     q[1:] = data.consts()[active] / sig  # bound / unit = tau' + sum_k x_k c_k / sig_k
-    cones = [("nonneg", K + nF), ("psd", d)]
+    cones = [("nonneg", t + K + nF), ("psd", d)]
     sol, raw, st_ = solve_attempts(A, q, b, cones, attempts, final=(
         "PrimalInfeasible", "DualInfeasible") + (("AlmostSolved",) if rough else ()))
     if raw == "PrimalInfeasible":  # no certificate: the measure is unbounded
@@ -431,7 +436,7 @@ def _solve_dual(data: PEPData, active: np.ndarray, margin: float, unit: float,
         return SDPAnswer("infeasible", raw)
     if sol is None:
         return SDPAnswer("failed", raw)
-    x, z = np.array(sol.x), np.array(sol.z)
+    x, z = np.array(sol.x), np.array(sol.z)[t:]
     H, Fs = unsvec(z[K + nF:], d), z[K:K + nF]
     G, F = H * np.outer(data.w, data.w), Fs * data.v
     almost = raw.startswith("Almost")
@@ -448,6 +453,18 @@ def _solve_dual(data: PEPData, active: np.ndarray, margin: float, unit: float,
                     const=float(lam @ data.consts()))
     ans.S = residual(data, ans.tau, lam)
     return ans
+
+
+def linear_only(data: PEPData) -> np.ndarray:
+    """1.0 for each basis direction some form has a square of (some pair's Q_k, I0 or M
+    has a nonzero diagonal entry there), 0.0 for the others: S is 0 on those
+    diagonals, so a certificate's S vanishes on their rows and no margin can hold there
+    (a subgradient fixed at 0 in a tilted indicator enters as -s*, linearly only)."""
+    st = data.st
+    XQX = np.einsum("kui,kuv,kvi->i", np.abs(data.X), np.abs(data.Qc), np.abs(data.X))
+    seen = (XQX + np.abs(np.diag(st.init_q.astype(float)))
+            + np.abs(np.diag(st.meas_q.astype(float)))) > 0
+    return seen.astype(float)
 
 
 def residual(data: PEPData, tau: float, lam: np.ndarray) -> np.ndarray:

@@ -112,6 +112,8 @@ class Method(CallShape):
     errors: dict[int, Any] = field(default_factory=dict)
     # x+ = x - gamma_k u with gamma_k by exact line search (:mod:`sosalgo.pep.linesearch`)
     line_search: bool = False
+    # linear minimization calls: call index -> its direction's call (:mod:`sosalgo.pep.lmo`)
+    lmo: dict[int, int] = field(default_factory=dict)
 
     def gain(self, k: int) -> np.ndarray:
         """The gain K_k of step k's basis vectors (:func:`_trajectory`)."""
@@ -434,6 +436,10 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
         pts[j].append(PEPPoint("x*", zero, zero, None))
     state = {"nF": nF, "next": len(cols), "cols": cols, "eye": eye, "at": at, "origin": origin,
              "xi": {"x": xi[steps], "x0": xi[0]}, "extras": extras}
+    if mt.lmo:
+        from sosalgo.pep.lmo import lmo_points
+
+        lmo_points(mt, pts, Yr, U, sstar, state, where, steps)
     forms = {}
     for key, terms, opt in (("m", measure, option[0]), ("i", initial, option[1])):
         forms[key] = []

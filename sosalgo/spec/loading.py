@@ -329,6 +329,7 @@ class _Builder:
         functions = self.functions(data.get("functions"), constant_parameters(params))
         raw_oracles = data.get("oracles", ["f"])
         inexact = self.oracle_errors(raw_oracles, names)
+        lmo = self.oracle_lmo(raw_oracles)
         oracles = self.oracles(_oracle_names(raw_oracles), functions)
         measure = data.get("measure", "function")
         if measure not in MEASURES:
@@ -360,7 +361,7 @@ class _Builder:
         spec = Spec(
             name=name, description=description, source=self.source, parameters=params,
             matrices=matrices, references=references, kappa=kappa, m=m,
-            functions=functions, oracles=oracles, inexact=inexact, output=output,
+            functions=functions, oracles=oracles, inexact=inexact, lmo=lmo, output=output,
             measure=measure, L=L,
             initial_state=initial_state, m_expr=parse_tree(data.get("m", 1), ()),
             L_expr=parse_tree(data["L"], ()) if L is not None else None,
@@ -503,15 +504,39 @@ class _Builder:
         for i, entry in enumerate(raw if isinstance(raw, list) else ()):
             if not isinstance(entry, dict):
                 continue
-            extra = [str(k)[:40] for k in entry if k not in ("function", "relative_error")]
+            extra = [str(k)[:40] for k in entry
+                     if k not in ("function", "relative_error", "lmo")]
             if extra:
                 raise self.fail(f"oracles[{i}].{extra[0]}", "unknown key (an oracle entry is "
-                                "a function name or {function: NAME, relative_error: EPS})")
+                                "a function name, {function: NAME, relative_error: EPS} or "
+                                "{function: NAME, lmo: CALL})")
             if "function" not in entry:
                 raise self.fail(f"oracles[{i}]", "missing function: (the function queried)")
             if "relative_error" in entry:
                 out[i] = self.expr(entry["relative_error"], names,
                                    f"oracles[{i}].relative_error")
+        return out
+
+    def oracle_lmo(self, raw: object) -> dict[int, int]:
+        """The linear minimization calls of ``oracles:``: an entry ``{function: h, lmo:
+        j}`` answers u = s - y, s a minimizer of <g, .> over the set h indicates, g the
+        answer of call j (1-based, as ``y<j>``: an earlier gradient call of the same step).
+        Returns call index -> direction call index (0-based)."""
+        out: dict[int, int] = {}
+        for i, entry in enumerate(raw if isinstance(raw, list) else ()):
+            if not isinstance(entry, dict) or "lmo" not in entry:
+                continue
+            j = entry["lmo"]
+            where = f"oracles[{i}].lmo"
+            if "relative_error" in entry:
+                raise self.fail(where, "a linear minimization call has no relative error")
+            if isinstance(j, bool) or not isinstance(j, int) or not 1 <= j <= i:
+                raise self.fail(where, f"{str(j)[:40]!r}: the number (1..{i}) of an earlier "
+                                "call of the step whose answer is the direction")
+            if isinstance(raw[j - 1], dict) and "lmo" in raw[j - 1]:
+                raise self.fail(where, f"call {j} is a linear minimization call: the "
+                                "direction is a gradient call's answer")
+            out[i] = j - 1
         return out
 
     def line_search(self, raw: object, params: dict[str, Parameter],

@@ -169,6 +169,10 @@ class Spec:
     # inexact gradient calls (``oracles: [{function: f, relative_error: eps}]``): call index
     # (0-based) -> eps, the call answering some d with |d - grad f(y)| <= eps |grad f(y)|
     inexact: dict[int, Expr] = field(default_factory=dict)
+    # linear minimization calls (``oracles: [f, {function: h, lmo: 1}]``): call index
+    # (0-based) -> the index of the gradient call whose answer g is the direction; the call
+    # answers u = s - y with s in argmin over the set of <g, s> (:mod:`sosalgo.pep.lmo`)
+    lmo: dict[int, int] = field(default_factory=dict)
     # ``line_search: gamma``: the step parameter of x+ = x - gamma u chosen at every step by
     # exact line search (``sosalgo pep`` only; :mod:`sosalgo.pep.linesearch`); None: none
     line_search: str | None = None
@@ -206,7 +210,7 @@ class Spec:
         Theorem 1; True for every other spec."""
         if self.oracles != ("f",) or self.output is not None or self.measure != "function":
             return True
-        if self.inexact or self.line_search:  # outside Theorem 1's setting
+        if self.inexact or self.line_search or self.lmo:  # outside Theorem 1's setting
             return True
         if self.sublinear:  # no kappa: outside Theorem 1's setting
             return True
