@@ -396,7 +396,7 @@ def test_schedule_outside_the_parametric_model_is_proven_by_pep(tmp_path):
     text = text.replace("B: [[-h]]", "B: [[-h*c]]")
     path = tmp_path / "gs-seq.yaml"
     path.write_text(text)
-    (row,) = steps_design_run(str(path), None, 1, tmp_path / "o", time_limit=15, workers=1,
+    (row,) = steps_design_run(str(path), None, 1, tmp_path / "o", time_limit=90, workers=1,
                               progress=False, plot=False)["rows"]
     assert 0.125 <= row["tau_certified"] <= 0.125 * (1 + 1e-5)
     assert row["lower_bound"] is None and "not a polynomial" in row["log"][0]
