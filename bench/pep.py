@@ -46,6 +46,8 @@ print(json.dumps({"tau": r.tau, "seconds": time.perf_counter() - t0,
                   "proven": cert.get("check_kind", "").startswith("exact"),
                   "tau_proven": proof.get("tau_proven_float") if proof.get("proven") else None,
                   "witness": chk.get("verified"), "solves": dict(solves),
+                  "tau_lower": chk.get("tau_lower_float"),
+                  "search": (r.witness or {}).get("search") or {},
                   "mb": hwm / 1024}))
 """
 

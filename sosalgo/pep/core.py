@@ -240,7 +240,7 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
     """The PEP of ``spec`` at ``kappa`` over ``steps`` steps (see the module);
     ``schedule``: the per-step methods of a method that changes with k
     (:mod:`sosalgo.pep.steps`), the spec giving the class, the units and the terms."""
-    t0 = time.perf_counter()
+    t0, cpu0 = time.perf_counter(), time.process_time()
     spec = _load(spec)
     if schedule is None:  # the problem layer's per-step methods (None: one method)
         schedule = spec_steps(spec, kappa, steps)
@@ -300,7 +300,8 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
             from sosalgo.pep.witness import make_witness
 
             show_phase("worst-case witness")
-            res.witness = make_witness(spec, kappa, mt, data, ans, mterms, iterms, res, ex)
+            res.witness = make_witness(spec, kappa, mt, data, ans, mterms, iterms, res, ex,
+                                       spent=time.process_time() - cpu0)
     res.seconds = time.perf_counter() - t0
     return res
 

@@ -36,6 +36,7 @@ ball arithmetic.
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable, Iterator
 from fractions import Fraction
 from typing import Any
@@ -74,10 +75,22 @@ QUADRATIC_TRIES = 2
 INTERIOR = (1e-3, 1e-4, 1e-5, 1e-6)  # slacks tried for the interior point
 ALL_PAIRS = 2000  # the interior point's solve takes every pair up to this many
 ACCEPT = 1e-3  # a verified witness this close to tau (relative) ends the search
+# the search's own solves (the rank reductions, the interior point) start only within a
+# share of the run, in CPU seconds of this process (the machine's load does not spend
+# it): SHARE times what the PEP itself took, at least FLOOR; past it the candidates at
+# hand are checked, then the quadratics (a long horizon's solves do not converge:
+# Nesterov at N = 60 spent over 40 minutes in them, for no geometry; at N = 40 the
+# search takes about 60 s, its interior point the verified witness)
+SHARE, FLOOR = 2.0, 150.0
+# a source whose candidates failed the exact check this many times is left for the next
+# (its float answer is not accurate enough: the other mixes of it fail as well)
+SOURCE_FAILS = 3
 PRECHECK = 1e-9  # margin of the floating-point pre-check (relative to each row's scale)
 # the witness's ``search``: candidate geometries tried, refused by the floating-point
 # pre-check (:func:`plausible`), with no exact values (:func:`fit_values`), checked
-# exactly; an unverified witness adds whether an interior point of the PEP was found
+# exactly; an unverified witness adds whether an interior point of the PEP was found;
+# when they happen, ``sources_left`` counts the sources given up after SOURCE_FAILS exact
+# failures and ``out_of_time`` says the search's share of the run ended its solves
 SEARCH = ("candidates", "refused_in_floating_point", "no_exact_values", "checked_exactly")
 _q = q_str
 
@@ -202,11 +215,14 @@ def _quadratic_ratio(mt: Method, st: Any, v: np.ndarray, at: float) -> float | N
 
 def make_witness(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
                  ans: SDPAnswer, mterms: list[Term], iterms: list[Term],
-                 res: Any, exact_mt: Method | None = None) -> dict[str, Any] | None:
+                 res: Any, exact_mt: Method | None = None, spent: float = 0.0
+                 ) -> dict[str, Any] | None:
     """The witness document in the smallest dimension that passes the exact check with a
     lower bound within :data:`ACCEPT` of tau (else the best verified one, else the last
     one tried, not verified), or None when no reduction solves (see the module).
-    ``exact_mt``: the exact method (built here when not given)."""
+    ``exact_mt``: the exact method (built here when not given). The search's solves
+    start only within its share of the run: :data:`SHARE` times ``spent`` (the CPU
+    seconds the PEP took), at least :data:`FLOOR` CPU seconds."""
     from sosalgo.pep.exact import exact_or_none
 
     tau = float(ans.primal)  # type: ignore[arg-type]
@@ -217,35 +233,19 @@ def make_witness(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
     coef = np.array([float(mt.ineqs[j][r][0]) * float(mt.s) for j, _, _, r in data.st.pairs]
                     + [0.0] * len(data.st.extras))  # the extra constraints: no values
     inner: list[np.ndarray | None] = []
+    search = _Search(spec, mt, data, res, ex, tau, coef)
+    search.deadline = time.process_time() + max(FLOOR, SHARE * spent)
 
     def interior() -> np.ndarray | None:
         if not inner:
-            inner.append(interior_point(data, unit))
+            inner.append(None if search.late() else interior_point(data, unit, search.late))
         return inner[0]
 
-    last: dict[str, Any] | None = None
-    best: dict[str, Any] | None = None
-    tally = dict.fromkeys(SEARCH, 0)
-    for G, F, slack, eta in _sources(data, ans, tau, unit):
-        for V, theta in _candidates(mt, data.st, G, slack, interior):
-            tally["candidates"] += 1
-            if last is not None and not plausible(data, coef, V):
-                tally["refused_in_floating_point"] += 1
-                continue  # no values fit this geometry in floating point: skip it
-            doc = _document(spec, mt, data.st, V, F, res)
-            doc.update(tau_float=tau, objective_floor=1 - eta, slack=slack, mixed=theta,
-                       search=tally)
-            last = doc
-            if ex is None or not fit_values(doc, ex):
-                tally["no_exact_values"] += 1
-                continue  # no values fit this geometry: the check would fail
-            doc["check"] = check_witness(doc, spec, ex)
-            tally["checked_exactly"] += 1
-            low = doc["check"]["tau_lower_float"]
-            if low is not None and (best is None or low > best["check"]["tau_lower_float"]):
-                best = doc
-            if low is not None and low >= (1 - ACCEPT) * tau:
-                return finish_witness(doc, spec, kappa, exact_mt, res)
+    for G, F, slack, eta in _sources(data, ans, tau, unit, search.late):
+        found = search.source(G, F, slack, eta, interior)
+        if found is not None:
+            return finish_witness(found, spec, kappa, exact_mt, res)
+    last, best, tally = search.last, search.best, search.tally
     if best is not None:  # verified, but further below tau than ACCEPT
         return finish_witness(best, spec, kappa, exact_mt, res)
     quad = _quadratic_witness(spec, mt, data.st, ex, (tau, res), tally)
@@ -256,6 +256,60 @@ def make_witness(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
     if last is not None:  # not verified: what the search tried, and why each failed
         last["search"]["interior_point"] = bool(inner and inner[0] is not None)
     return None if last is None else finish_witness(last, spec, kappa, exact_mt, res)
+
+
+class _Search:
+    """The state of :func:`make_witness`'s search: the counts (:data:`SEARCH`), the last
+    document tried, the best verified one, and the time its solves may start by."""
+
+    def __init__(self, spec: Spec, mt: Method, data: PEPData, res: Any,
+                 ex: ArbView | None, tau: float, coef: np.ndarray) -> None:
+        self.spec, self.mt, self.data, self.res, self.ex = spec, mt, data, res, ex
+        self.tau, self.coef = tau, coef
+        self.tally: dict[str, Any] = dict.fromkeys(SEARCH, 0)
+        self.last: dict[str, Any] | None = None
+        self.best: dict[str, Any] | None = None
+        self.deadline = math.inf
+
+    def late(self) -> bool:
+        """Whether the search's share of the run is spent (then said in ``search``)."""
+        if time.process_time() <= self.deadline:
+            return False
+        self.tally["out_of_time"] = True
+        return True
+
+    def source(self, G: np.ndarray, F: np.ndarray, slack: float, eta: float,
+               interior: Callable[[], np.ndarray | None]) -> dict[str, Any] | None:
+        """The candidates of one source (:func:`_candidates`) in turn: the first whose
+        exact lower bound is within :data:`ACCEPT` of tau, or None; the source is left
+        after :data:`SOURCE_FAILS` candidates that fail the exact check."""
+        tally, fails = self.tally, 0
+        for V, theta in _candidates(self.mt, self.data.st, G, slack, interior):
+            if fails >= SOURCE_FAILS:
+                tally["sources_left"] = tally.get("sources_left", 0) + 1
+                return None
+            tally["candidates"] += 1
+            if self.last is not None and not plausible(self.data, self.coef, V):
+                tally["refused_in_floating_point"] += 1
+                continue  # no values fit this geometry in floating point: skip it
+            doc = _document(self.spec, self.mt, self.data.st, V, F, self.res)
+            doc.update(tau_float=self.tau, objective_floor=1 - eta, slack=slack,
+                       mixed=theta, search=tally)
+            self.last = doc
+            if self.ex is None or not fit_values(doc, self.ex):
+                tally["no_exact_values"] += 1
+                fails += 1
+                continue  # no values fit this geometry: the check would fail
+            doc["check"] = check_witness(doc, self.spec, self.ex)
+            tally["checked_exactly"] += 1
+            low = doc["check"]["tau_lower_float"]
+            if low is None:
+                fails += 1
+            elif self.best is None or low > self.best["check"]["tau_lower_float"]:
+                self.best = doc
+            if low is not None and low >= (1 - ACCEPT) * self.tau:
+                return doc
+        return None
 
 
 def _quadratic_witness(spec: Spec, mt: Method, st: Any, ex: ArbView | None,
@@ -289,14 +343,18 @@ def _quadratic_witness(spec: Spec, mt: Method, st: Any, ex: ArbView | None,
     return None
 
 
-def _sources(data: PEPData, ans: SDPAnswer, tau: float, unit: float
+def _sources(data: PEPData, ans: SDPAnswer, tau: float, unit: float,
+             late: Callable[[], bool] = lambda: False
              ) -> Iterator[tuple[np.ndarray, np.ndarray, float, float]]:
     """(G, F, slack, eta) to take candidates from: the reduced solves of :data:`LADDER`
     that solve, and the PEP's own answer (full rank; mixed with the interior point it
     still gives a witness when a reduced solve fails — then it comes next, before the
-    other rungs, each of which costs several solver attempts)."""
+    other rungs, each of which costs several solver attempts). No rung is solved once
+    ``late()`` (the search's share of the run spent): the PEP's own answer alone."""
     own = ans.G is not None and ans.F is not None
     for slack, eta in LADDER:
+        if late():
+            break
         red = solve_pep(data, objective="trace", floor=(1 - eta) * tau, slack=slack,
                         unit=unit)
         if red.status == "solved" and red.G is not None and red.F is not None:
@@ -308,9 +366,11 @@ def _sources(data: PEPData, ans: SDPAnswer, tau: float, unit: float
         yield ans.G, ans.F, 0.0, 0.0  # type: ignore[misc]
 
 
-def interior_point(data: PEPData, unit: float) -> np.ndarray | None:
+def interior_point(data: PEPData, unit: float,
+                   late: Callable[[], bool] = lambda: False) -> np.ndarray | None:
     """A factor V0 (d x rank) of a point of the PEP where every inequality holds with a
-    slack of its scale (the first of :data:`INTERIOR` that solves; least trace), or None.
+    slack of its scale (the first of :data:`INTERIOR` that solves; least trace), or None
+    (also when ``late()`` before a solve: the search's share of the run spent).
     Up to :data:`ALL_PAIRS` pairs, every pair is in the solve from the start (one solve,
     and a lower rank than constraint generation gives)."""
     saved = data.active
@@ -318,6 +378,8 @@ def interior_point(data: PEPData, unit: float) -> np.ndarray | None:
         data.active = np.arange(data.st.count)
     try:
         for slack in INTERIOR:
+            if late():
+                return None
             ans = solve_pep(data, objective="trace", slack=slack, unit=unit)
             if ans.status == "solved" and ans.G is not None:
                 return _factors(ans.G, slack)[-1]
