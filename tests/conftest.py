@@ -26,3 +26,18 @@ def timeless(value):
     if isinstance(value, list):
         return [timeless(v) for v in value]
     return value
+
+
+def pep_json(spec: Path, out: Path, steps: int, *extra: str) -> dict:
+    """``sosalgo pep SPEC --steps N ... --json`` through the CLI (exit code 0 asserted):
+    the printed document."""
+    import json
+
+    from click.testing import CliRunner
+
+    from sosalgo.cli import cli
+
+    r = CliRunner().invoke(cli, ["pep", str(spec), "--steps", str(steps), *extra, "--json",
+                                 "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    return json.loads(r.stdout)

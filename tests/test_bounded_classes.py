@@ -12,7 +12,6 @@ construction), written here.
 
 from __future__ import annotations
 
-import json
 from fractions import Fraction
 from pathlib import Path
 
@@ -22,6 +21,8 @@ import yaml
 from click.testing import CliRunner
 
 from sosalgo.cli import cli
+
+from .conftest import pep_json
 
 SPECS = Path(__file__).resolve().parents[1] / "specs"
 
@@ -41,10 +42,7 @@ def _variant(tmp_path: Path, base: str, **changes) -> Path:
 
 
 def _pep(spec: Path, tmp_path: Path, steps: int, *extra: str) -> dict:
-    r = CliRunner().invoke(cli, ["pep", str(spec), "--steps", str(steps), *extra, "--json",
-                                 "--out", str(tmp_path / "o")])
-    assert r.exit_code == 0, r.output
-    return json.loads(r.stdout)
+    return pep_json(spec, tmp_path / "o", steps, *extra)
 
 
 def _smooth_lipschitz(tmp_path: Path, L: int, M: str, h: str) -> Path:

@@ -9,7 +9,6 @@ The one-step value is worked out by hand in its test.
 
 from __future__ import annotations
 
-import json
 from fractions import Fraction
 from pathlib import Path
 
@@ -18,6 +17,8 @@ import yaml
 from click.testing import CliRunner
 
 from sosalgo.cli import cli
+
+from .conftest import pep_json
 
 SPEC = Path(__file__).resolve().parents[1] / "specs" / "frank-wolfe.yaml"
 
@@ -36,10 +37,7 @@ def _variant(tmp_path: Path, **changes) -> Path:
 
 
 def _pep(spec: Path, tmp_path: Path, steps: int, *extra: str) -> dict:
-    r = CliRunner().invoke(cli, ["pep", str(spec), "--steps", str(steps), *extra, "--json",
-                                 "--out", str(tmp_path / "o")])
-    assert r.exit_code == 0, r.output
-    return json.loads(r.stdout)
+    return pep_json(spec, tmp_path / "o", steps, *extra)
 
 
 @pytest.mark.parametrize("L,D,steps", sorted(PEPIT))
