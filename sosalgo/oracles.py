@@ -265,9 +265,10 @@ def _check_lmo(spec: Spec, i: int, cls: FunctionClass, prox: bool,
     """A linear minimization call queries an indicator (its set), with D_ii = 0; its
     direction is a gradient call (D_jj = 0) of a class with a gradient oracle."""
     where = f"oracles[{i}].lmo"
-    if cls.name not in LMO_CLASSES:
+    if not cls.zero_values:  # an indicator: the LMO minimizes over its set
+        sets = ", ".join(c.name for c in CLASSES.values() if c.zero_values)
         raise fail(where, f"a linear minimization oracle of {spec.oracles[i]}, whose class "
-                   f"{cls.name} is not an indicator ({', '.join(LMO_CLASSES)})")
+                   f"{cls.name} is not an indicator ({sets})")
     if prox:
         raise fail(f"matrices.D[{i}][{i}]", "a linear minimization call is no proximal step: "
                    "make it 0")
@@ -279,8 +280,6 @@ def _check_lmo(spec: Spec, i: int, cls: FunctionClass, prox: bool,
         raise fail(where, f"call {j + 1} must be an exact gradient call (its answer is the "
                    "direction)")
 
-
-LMO_CLASSES = ("indicator", "bounded_indicator")
 
 
 def _check_inexact(spec: Spec, i: int, cls: FunctionClass, prox: bool,

@@ -29,7 +29,7 @@ from sosalgo.steps import (
 SPECS = Path(__file__).resolve().parents[1] / "specs"
 VARYING = ("ogm", "fista", "gradient-schedule", "momentum-schedule", "silver", "heavy-ball-qg",
            "gradient-qg-decreasing", "accelerated-k", "halpern",
-           "operator-accelerated-proximal-point", "ogm-k")
+           "operator-accelerated-proximal-point", "ogm-k", "frank-wolfe")
 GD = """
 name: t
 functions:
