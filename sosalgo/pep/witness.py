@@ -84,7 +84,7 @@ ACCEPT = 1e-3  # a verified witness this close to tau (relative) ends the search
 SHARE, FLOOR = 2.0, 150.0
 # a source whose candidates failed the exact check this many times is left for the next
 # (its float answer is not accurate enough: the other mixes of it fail as well)
-SOURCE_FAILS = 3
+SOURCE_FAILS = 6
 PRECHECK = 1e-9  # margin of the floating-point pre-check (relative to each row's scale)
 # the witness's ``search``: candidate geometries tried, refused by the floating-point
 # pre-check (:func:`plausible`), with no exact values (:func:`fit_values`), checked
