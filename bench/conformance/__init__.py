@@ -33,6 +33,7 @@ COLUMNS = ("example", "set", "arguments", "command", "pepit_tau", "theoretical_t
            "agree", "not_below", "above_theoretical", "time_ratio")
 AGREE_REL = 1e-6     # sosalgo's tau and PEPit's agree within this (relative)
 BELOW_REL = 1e-7     # a proven bound may be below PEPit's float value by its solver's accuracy
+ZERO_ABS = 1e-6     # where the worst case is exactly 0: agreement within this (absolute)
 TIGHT_REL = 1e-12    # a proven bound is never below a tight theoretical value (float rounding)
 SECONDS = float(os.environ.get("SOSALGO_CONFORMANCE_SECONDS", "600"))
 
@@ -109,10 +110,12 @@ def verdicts(case: Case, index: int, pepit: dict, ours: dict) -> dict:
     scale = case.scale_at(index)
     p, tau, proven = pepit.get("tau"), ours.get("tau"), ours.get("tau_proven")
     out = {"agree": "", "not_below": "", "above_theoretical": ""}
+    # a worst case of exactly 0 (case.zero): PEPit's float is its solver's accuracy
+    floor = ZERO_ABS if case.zero else 1e-300
     if p is not None and tau is not None:
-        out["agree"] = _yes(abs(scale * tau - p) <= AGREE_REL * max(abs(p), 1e-300))
+        out["agree"] = _yes(abs(scale * tau - p) <= max(AGREE_REL * abs(p), floor))
     if p is not None and proven is not None:
-        out["not_below"] = _yes(scale * proven >= p - BELOW_REL * abs(p))
+        out["not_below"] = _yes(scale * proven >= p - max(BELOW_REL * abs(p), floor))
     theo = pepit.get("theoretical")
     if case.tight[index] and theo is not None and proven is not None:
         out["above_theoretical"] = _yes(scale * proven >= theo * (1 - TIGHT_REL))

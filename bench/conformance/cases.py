@@ -33,7 +33,7 @@ CASES = HERE / "cases"
 EXAMPLES = HERE / "examples.txt"
 EXPRESSED, NOT_EXPRESSIBLE = "expressed", "not expressible"
 _FIELDS = {"example", "function", "question", "arguments", "status", "command", "commands",
-           "scale", "scale_reason", "theoretical_tight", "fast", "needs", "reason"}
+           "scale", "scale_reason", "theoretical_tight", "fast", "needs", "reason", "zero"}
 _PLACEHOLDER = re.compile(r"\{([^{}]+)\}")
 
 
@@ -55,6 +55,7 @@ class Case:
     fast: bool = False
     needs: tuple[str, ...] = ()
     reason: str = ""
+    zero: bool = False  # the worst case is exactly 0 (a question with no initial condition)
 
     @property
     def expressed(self) -> bool:
@@ -147,7 +148,8 @@ def _expressed(where: str, data: dict, common: dict) -> Case:
         raise CaseError(f"{where}: theoretical_tight: one value, or one per argument set")
     case = Case(status=EXPRESSED, commands=tuple(c or command for c in per_set),
                 scale=str(data.get("scale", "1")), scale_reason=str(data.get("scale_reason", "")),
-                tight=tight, fast=bool(data.get("fast", False)), **common)
+                tight=tight, fast=bool(data.get("fast", False)),
+                zero=bool(data.get("zero", False)), **common)
     for i in range(n):
         try:
             case.command(i)

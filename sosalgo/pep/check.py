@@ -503,8 +503,8 @@ def _measure_initial(doc: dict[str, Any], spec: Spec, av: ArbView
     from sosalgo.pep.terms import parse_terms
 
     p = av.mt.p
-    mterms = parse_terms(doc["measure"], "measure", False, p)
-    iterms = parse_terms(doc["initial"], "initial", True, p)
+    mterms = parse_terms(doc["measure"], "measure", False, p, spec.parameters)
+    iterms = parse_terms(doc["initial"], "initial", True, p, spec.parameters)
     if any(t.kind == "sdist" for t in iterms) != (doc.get("xi0") is not None):
         raise ValueError("an initial sdist needs the free start xi0, and only it")
     if not all(cls.convex or cls.minimizer for _, cls, _ in av.mt.functions):

@@ -101,8 +101,10 @@ def float_method(om: Any, kappa: float) -> Method:
     X = fixed_point_basis(om)
     assert X is not None  # the OracleMethod checked it
 
+    params = dict(getattr(om, "params", None) or {})
+
     def coef(t: Term) -> float:
-        v = t.value(om.m, om.L, kappa)
+        v = t.value(om.m, om.L, kappa, params)
         if not math.isfinite(v):
             raise InputError(f"coefficient {t.coef} of {t.kind}: not a finite number here "
                              "(kappa is undefined on an m: 0 spec)")
@@ -187,8 +189,8 @@ def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None
     iopt = "--initial" if initial or "initial" not in spec.pep else "pep.initial"
     initial = initial or spec.pep.get("initial") or default_initial(om)
     try:
-        mterms = parse_terms(measure, mopt, False, om.p)
-        iterms = parse_terms(initial, iopt, True, om.p)
+        mterms = parse_terms(measure, mopt, False, om.p, spec.parameters)
+        iterms = parse_terms(initial, iopt, True, om.p, spec.parameters)
     except InputError as exc:  # a spec's field: named with its file
         raise (InputError(f"{spec.source}: {exc}") if str(exc).startswith("pep.")
                else exc) from None
@@ -252,7 +254,9 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
     if steps > LONG:  # its proof is about LONG_MARGINS above tau anyway
         data.violation = LONG_VIOLATION
     show_phase("solving the PEP", f"{len(st.pairs)} interpolation pairs")
-    ans = solve_pep(data)
+    ans = solve_pep(data, precise=st.bare)  # bare: its null space from a tight solve
+    if st.bare and ans.status != "solved":
+        ans = solve_pep(data)
     k = class_kappa(spec, kappa)
     kf = None if k is None else (  # a Kappa keeps its exact value
         k if isinstance(k, Kappa) else float(k))  # type: ignore[arg-type]
@@ -266,7 +270,9 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
                              "start does not control the method's fixed point)")
     if schedule is not None:
         res.extra["schedule"] = schedule.schedule
-    if ans.status == "solved":
+    if ans.status == "solved" and st.bare:  # no initial condition: 0 or unbounded
+        _bare_result(spec, kappa, steps, mt, data, ans, exact, mterms, iterms, res)
+    elif ans.status == "solved":
         res.gap = abs(float(ans.primal) - float(ans.dual))  # type: ignore[arg-type]
         from sosalgo.pep.exact import exact_or_none
 
@@ -304,6 +310,50 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
                                        spent=time.process_time() - cpu0)
     res.seconds = time.perf_counter() - t0
     return res
+
+
+BARE_TOL = 1e-6  # with no initial condition: a normalized worst case above this is > 0
+
+
+def _bare_result(spec: Spec, kappa: float | None, steps: int, mt: Method, data: PEPData,
+                 ans: SDPAnswer, exact: bool, mterms: list[Term], iterms: list[Term],
+                 res: PEPResult) -> None:
+    """A question with no initial condition (``--initial none``): the measure is
+    homogeneous in the instance, so its worst case is 0 (the instance at x*, every vector
+    0) when it is <= 0 everywhere, else unbounded. The solver's normalized worst case t
+    decides (t > BARE_TOL: unbounded); tau = 0 is then proven exactly at tau = 0
+    (:func:`sosalgo.pep.exact.prove_bare`). No witness: 0 is reached by x_0 = x*."""
+    t = float(ans.primal)  # type: ignore[arg-type]
+    res.extra["normalized_tau"] = t
+    if t > BARE_TOL:
+        res.status, res.tau = "unbounded", math.inf
+        res.extra["note"] = ("the measure is positive at some instance: with no initial "
+                             "condition it grows with the instance, unbounded")
+        return
+    res.tau, res.gap = 0.0, abs(float(ans.primal) - float(ans.dual))  # type: ignore[arg-type]
+    lam, S = ans.lam, ans.S
+    assert lam is not None and S is not None
+    cert: dict[str, Any] = {"tau": 0.0, "check_kind": "floating-point check",
+                            "tau_proven": None, "proof": None}
+    if exact:
+        from sosalgo.pep.exact import exact_or_none, prove_bare
+
+        show_phase("proving the certificate")
+        proof = prove_bare(spec, kappa, data.st, mterms, iterms, lam, S, data.w,
+                           exact_or_none(spec, kappa, steps))
+        cert["proof"] = proof
+        if proof["proven"]:
+            cert.update(check_kind="exact (rational and ball arithmetic)",
+                        tau_proven=proof["tau_proven"], margin=0.0)
+    top = float(lam.max(initial=0.0))
+    cert["multipliers"] = {lab: float(v) for lab, v in zip(data.st.labels, lam, strict=True)
+                           if v > 1e-12 * top}
+    cert["basis"] = data.st.basis
+    cert["slack"] = S.tolist()
+    cert["min_eig_slack"] = float(np.linalg.eigvalsh(S)[0])
+    res.certificate = cert
+    res.extra["note"] = ("no initial condition: the worst case 0 is reached at x_0 = x* "
+                         "(every vector 0); tau_proven = 0 proves measure <= 0 everywhere")
 
 
 def _exact_schedule(spec: Spec, kappa: float | None, schedule: StepMethods,

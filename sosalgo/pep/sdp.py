@@ -224,7 +224,7 @@ def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
     # with constants the solver's problem is not scale invariant: the measure keeps its own
     # unit (dividing it by tau alone left the projected gradient on a set of diameter 0.1
     # "almost solved" at N = 2, and solved in unit 1)
-    fixed = bool(np.any(data.consts()))
+    fixed = bool(np.any(data.consts())) or data.st.bare  # bare: a fixed normalization
     unit = 1.0 if fixed else unit
     active, rounds, rescales, resolved = data.active, 0, 0, False
     exact_next = objective != "measure" or margin > 0  # a certificate: never rough
@@ -239,7 +239,8 @@ def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
                             rough=not exact_next)
         rounds += 1
         if (objective == "measure" and margin == 0 and ans.G is not None
-                and rescales < MAX_RESCALES and np.all(np.isfinite(ans.G))):
+                and rescales < MAX_RESCALES and not data.st.bare  # bare: the measure is 0
+                and np.all(np.isfinite(ans.G))):
             # a margin solve keeps the scale its measure's solve ended with (rescaled,
             # Nesterov at N = 80 solved its first margin twice: 60 s + 100 s)
             moved = _rescale(data, ans.G, ans.F)
@@ -345,7 +346,7 @@ def _solve_active(data: PEPData, active: np.ndarray, margin: float, objective: s
     d, nF = st.d, st.nF
     nG = d * (d + 1) // 2
     meas = _scaled_form(data, st.meas_q, st.meas_f) / unit
-    init = _scaled_form(data, st.init_q, st.init_f)
+    init = _initial_form(data)
     q = np.concatenate([svec(np.eye(d)), np.zeros(nF)])
     ineq = sps.hstack([data.svec_rows(active, scaled=True),
                        sps.csr_matrix(data.a[active] * v)]).tocsr()
@@ -387,6 +388,17 @@ def _scaled_form(data: PEPData, Q: np.ndarray, f: np.ndarray) -> np.ndarray:
                            f.astype(float) * data.v])
 
 
+def _initial_form(data: PEPData) -> np.ndarray:
+    """The initial condition on (H, F'); with none (a homogeneous question, ``st.bare``)
+    the solver's normalization tr H instead (not on F: the dual's c_F >= 0 is then the
+    certificate's own): the worst case of the measure over it is <= 0 exactly when the
+    measure is <= 0 everywhere (its sup is then 0, else unbounded)."""
+    st = data.st
+    if not st.bare:
+        return _scaled_form(data, st.init_q, st.init_f)
+    return np.concatenate([svec(np.eye(st.d)), np.zeros(st.nF)])
+
+
 def _row_scale(M: sps.csr_matrix) -> np.ndarray:
     """The largest |entry| of each row (1 for an empty row)."""
     sig = np.asarray(abs(M).max(axis=1).todense()).ravel() if M.shape[0] else np.ones(0)
@@ -407,7 +419,7 @@ def _solve_dual(data: PEPData, active: np.ndarray, margin: float, unit: float,
     d, nF, K = st.d, st.nF, len(active)
     nG = d * (d + 1) // 2
     meas = _scaled_form(data, st.meas_q, st.meas_f) / unit
-    init = _scaled_form(data, st.init_q, st.init_f)
+    init = _initial_form(data)
     ineq = sps.hstack([data.svec_rows(active, scaled=True),
                        sps.csr_matrix(data.a[active] * data.v)]).tocsr()
     sig = _row_scale(ineq)

@@ -38,6 +38,7 @@ exact check rebuilds the same structure on exact numbers.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from fractions import Fraction
@@ -47,7 +48,18 @@ import numpy as np
 
 from sosalgo.errors import InputError
 from sosalgo.oracles import CallShape
-from sosalgo.pep.terms import DIFF_KIND, MIN_OF, STEP_POINT, Term, at_steps
+from sosalgo.pep.terms import (
+    CALL_AT,
+    DIFF_KIND,
+    FREE_KIND,
+    GRAD_OF,
+    INNER_KIND,
+    MIN_OF,
+    STEP_POINT,
+    Term,
+    at_steps,
+    free_start,
+)
 
 __all__ = ["Method", "PEPPoint", "PEPStructure", "build_structure", "enclosure_bits",
            "enclosure_digits", "last_calls", "output_call", "pair_label", "radius_growth"]
@@ -168,6 +180,10 @@ class PEPStructure:
     # constraints beyond the class inequalities, after the pairs (their multipliers follow
     # the pairs'): (label, X (4 x d), Qc (4 x 4)) with tr(Qc X G X') >= 0 (no values)
     extras: list[tuple[str, np.ndarray, np.ndarray]] = field(default_factory=list)
+    # no initial condition (``--initial none``): the question is homogeneous, its worst
+    # case 0 or unbounded; the solver normalizes it (:mod:`sosalgo.pep.sdp`), the proof is
+    # at tau = 0 exactly
+    bare: bool = False
 
     @property
     def d(self) -> int:
@@ -363,12 +379,13 @@ def _contraction_structure(mt: Method, steps: int, measure: Sequence[Term],
 def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
                      initial: Sequence[Term], option: tuple[str, str]) -> PEPStructure:
     p, J, n = mt.p, len(mt.functions), mt.n
-    free = any(t.kind == "sdist" for t in initial)
+    free = free_start(initial)
     _check_alone(mt)
     origin = _check_nonconvex(mt, measure, initial, option)
     n0 = n if free else 1
-    needs_n = mt.output is not None or any(q.startswith("y") for t in measure
-                                                for q in t.point.split("__"))
+    needs_n = mt.output is not None or any(
+        re.fullmatch(r"y\d+", q.removeprefix(GRAD_OF)) for t in [*measure, *initial]
+        for q in t.point.split("__"))
     calls = steps + 1 if needs_n and mt.per_step is None else steps  # see last_calls
     if mt.line_search:  # a call at x_N: its gradient enters the last step's equalities
         calls = steps + 1
@@ -446,19 +463,55 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
         for t in at_steps(list(terms), steps, opt):
             if t.kind in MIN_OF:
                 raise InputError(f"{opt}: {t.kind}: expand it first (terms.expand_min)")
-            rows = [_point_row(mt, xi, Yr, where, q, steps, opt) for q in t.point.split("__")]
+            rows = [_point_row(mt, xi, Yr, where, q.removeprefix(GRAD_OF), steps, opt)
+                    for q in t.point.split("__")]
             if t.kind == DIFF_KIND:  # |P - Q|^2
                 v = rows[0] - rows[1]
                 forms[key].append((np.outer(v, v) * mt.coef(t), {}))
                 continue
+            if t.kind == INNER_KIND:  # <P, Q>, each a point or a (sub)gradient there
+                a, b = (_inner_row(mt, q, r, pts, sstar, state, opt, steps)
+                        for q, r in zip(t.point.split("__"), rows, strict=True))
+                forms[key].append(((np.outer(a, b) + np.outer(b, a)) * (mt.coef(t) / 2), {}))
+                continue
+            if t.kind == FREE_KIND:  # frees the start only
+                forms[key].append((0 * np.outer(rows[0], rows[0]), {}))
+                continue
             forms[key].append(_term(mt, t, rows[0], pts, sstar, state, opt, steps))
-    return _finish(mt, steps, calls, state, pts, forms, {"xi": xi, "y": Y, "u": U, "x": out})
+    st = _finish(mt, steps, calls, state, pts, forms, {"xi": xi, "y": Y, "u": U, "x": out})
+    st.bare = not initial
+    return st
+
+
+def _inner_row(mt: Method, key: str, row: np.ndarray, pts: list[list[PEPPoint]],
+               sstar: list[np.ndarray], state: dict[str, Any], opt: str,
+               steps: int) -> np.ndarray:
+    """The vector of one side of an inner term: the point's row (x - x*), or for
+    ``G<point>`` the sum of the functions' (sub)gradients there (the call's own at a
+    call, else a new one where the function is finite everywhere)."""
+    if not key.startswith(GRAD_OF):
+        return row
+    point = key[len(GRAD_OF):]
+    label = {"x": f"x{steps}"}.get(point) or (
+        point if STEP_POINT.match(point) else f"{point}_{steps}")
+    v = 0 * row
+    for j in range(len(mt.functions)):
+        pt = _point_at(mt, j, row, pts, label, state, opt, point)
+        v = v + pt.g + sstar[j]
+    return v * mt.s
 
 
 def _point_row(mt: Method, xi: list[np.ndarray], Yr: list[list[np.ndarray]],
                where: dict[str, np.ndarray], point: str, steps: int, opt: str) -> np.ndarray:
     """The row of a term's point (``where``: the points known so far, extended by the
     outputs x_k a term names)."""
+    call = CALL_AT.match(point)
+    if call and point not in where:  # call i at step k
+        i, k = int(call.group(1)), int(call.group(2))
+        if k >= len(Yr):
+            raise InputError(f"{opt}: y{i}_{k}: the method makes its calls at steps "
+                             f"0..{len(Yr) - 1} here (N = {steps})")
+        where[point] = Yr[k][i - 1]
     step = STEP_POINT.match(point)
     if step and point not in where:
         if int(step.group(1)) > steps:

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any
@@ -34,12 +34,21 @@ MIN_KIND = "mingrad"  # min over k = 0..N of |grad f(x_k)|^2
 MINF_KIND = "minf"  # min over k = 0..N of f(x_k) - f*
 MIN_OF = {MIN_KIND: "grad", MINF_KIND: "f"}  # a minimum over the iterates, of which kind
 DIFF_KIND = "diff"  # |P - Q|^2 between two points: dist(P, Q)
-KINDS = ("f", "dist", "grad", "sdist", MIN_KIND, MINF_KIND, DIFF_KIND, "contraction")
+INNER_KIND = "inner"  # <P - x*, Q - x*> of two points or gradients: inner(P, Q)
+FREE_KIND = "free"  # an initial term that only frees the start (contributes nothing)
+NONE_TEXT = "none"  # --initial none: no initial condition (a homogeneous question)
+KINDS = ("f", "dist", "grad", "sdist", MIN_KIND, MINF_KIND, DIFF_KIND, "contraction",
+         INNER_KIND, FREE_KIND)
 # contraction: |xi_N - xi'_N|^2 of two runs (:mod:`sosalgo.pep.contraction`; alone)
 _ARG = r"([A-Za-z0-9_]+(?:\s*-\s*\d+)?)"
 _AT = re.compile(r"\b(f|dist|grad)\s*\(\s*" + _ARG + r"\s*\)")
 _PAIR = re.compile(r"\bdist\s*\(\s*" + _ARG + r"\s*,\s*" + _ARG + r"\s*\)")
+_ARGN = r"[A-Za-z0-9_]+(?:\s*-\s*\d+)?"
+_GARG = r"(g\s*\(\s*" + _ARGN + r"\s*\)|" + _ARGN + r")"  # a point or g(point)
+_INNER = re.compile(r"\binner\s*\(\s*" + _GARG + r"\s*,\s*" + _GARG + r"\s*\)")
 _POINT = re.compile(r"^(x|y(\d*))_(N|\d+)$")
+CALL_AT = re.compile(r"^y(\d+)t(\d+)$")  # a call's point at step k: y<i>t<k>
+GRAD_OF = "G"  # an inner term's gradient at a point: G<point key>
 _BEFORE = re.compile(r"^x_N\s*-\s*(\d+)$")  # x_N-j: the output j steps before the last
 STEP_POINT = re.compile(r"^x(\d+)$")  # a measure's x_k, k a number: the output at step k
 BACK_POINT = re.compile(r"^xm(\d+)$")  # a measure's x_N-j: the output at step N - j
@@ -55,10 +64,12 @@ class Term:
     point: str
     coef: Expr
 
-    def value(self, m: float, L: float, kappa: float) -> float:
-        """The coefficient in floating point (InputError when it is not finite)."""
+    def value(self, m: float, L: float, kappa: float,
+              params: Mapping[str, float] | None = None) -> float:
+        """The coefficient in floating point (NaN when it is not finite); ``params``:
+        the spec's parameter values, which a coefficient may name."""
         try:
-            v = evaluate(self.coef, {"m": m, "L": L, "kappa": kappa})
+            v = evaluate(self.coef, {**(params or {}), "m": m, "L": L, "kappa": kappa})
         except (ValueError, ZeroDivisionError, OverflowError):
             v = math.nan
         return v
@@ -75,69 +86,80 @@ def _rewrite(text: str, option: str, initial: bool, p: int) -> str:
         return _placeholder(mt.group(1), _point_key(mt.group(2), option, initial, p))
 
     def pair(mt: re.Match[str]) -> str:
-        if initial:
-            raise InputError(f"{option}: dist(P, Q): a measure term (the initial condition "
-                             "is at x_0 or x_N)")
-        a, b = (_point_key(mt.group(k), option, False, p) for k in (1, 2))
+        a, b = (_point_key(mt.group(k), option, initial, p) for k in (1, 2))
         if a == b:
             raise InputError(f"{option}: dist(P, Q): two different points")
         return _placeholder(DIFF_KIND, f"{a}__{b}")
 
-    return _AT.sub(sub, _PAIR.sub(pair, text))
+    def inner(mt: re.Match[str]) -> str:
+        keys = []
+        for k in (1, 2):
+            arg = re.sub(r"\s+", "", mt.group(k))
+            grad = arg.startswith("g(")
+            key = _point_key(arg[2:-1] if grad else arg, option, initial, p)
+            keys.append(GRAD_OF + key if grad else key)
+        return _placeholder(INNER_KIND, "__".join(sorted(keys)))
+
+    return _AT.sub(sub, _PAIR.sub(pair, _INNER.sub(inner, text)))
 
 
 def _point_key(pt: str, option: str, initial: bool, p: int) -> str:
-    """The key of a point as written (x_N, x_<k>, x_N-<j>, y_N, y<i>_N): see :class:`Term`."""
+    """The key of a point as written (x_N, x_<k>, x_N-<j>, y_N, y<i>_N, y_<k>, y<i>_<k>):
+    see :class:`Term`."""
     pt = re.sub(r"\s+", "", pt)
     back = _BEFORE.match(pt)
     if back:
-        if initial:
-            raise InputError(f"{option}: {pt}: the initial condition is at x_0 or x_N")
         return f"xm{int(back.group(1))}" if int(back.group(1)) else "x"
     hit = _POINT.match(pt)
     if hit is None:
-        raise InputError(f"{option}: unknown point {pt!r} (use "
-                         + ("x_0, x_N)" if initial else "x_N, x_<k>, x_N-<j>, y_N, y<i>_N)"))
+        raise InputError(f"{option}: unknown point {pt!r} (use x_N, x_<k>, x_N-<j>, y_N, "
+                         "y<i>_N, y_<k>, y<i>_<k>)")
     step = hit.group(3)
     if hit.group(1) == "x":
-        if step == "N":
-            return "x"
-        if initial and step != "0":
-            raise InputError(f"{option}: {pt}: the initial condition is at x_0 or x_N")
-        return f"x{int(step)}"
-    if initial or step != "N":
-        raise InputError(f"{option}: {pt}: " + ("the initial condition is at x_0 or x_N"
-                                                 if initial else "a call's point is at "
-                                                 "step N (y_N, y<i>_N)"))
+        return "x" if step == "N" else f"x{int(step)}"
     i = int(hit.group(2) or (1 if p == 1 else 0))
     if not 1 <= i <= p:
         raise InputError(f"{option}: {pt}: the method has {p} oracle call(s) per step"
                          + ("; name one: y1_N .. y{p}_N" if i == 0 else ""))
-    return f"y{i}"
+    return f"y{i}" if step == "N" else f"y{i}t{int(step)}"
 
 
-def parse_terms(text: object, option: str, initial: bool, p: int) -> list[Term]:
-    """The terms of ``text`` (an InputError naming ``option`` for anything else)."""
+def parse_terms(text: object, option: str, initial: bool, p: int,
+                params: Collection[str] = ()) -> list[Term]:
+    """The terms of ``text`` (an InputError naming ``option`` for anything else);
+    ``params``: the spec's parameter names, which coefficients may use besides m, L,
+    kappa. An initial condition ``none`` has no terms (a homogeneous question)."""
+    if initial and isinstance(text, str) and text.strip() == NONE_TEXT:
+        return []
     if not isinstance(text, str) or not text.strip():
         raise InputError(f"{option}: expected terms such as 'f', '2*dist', 'L/2*grad'")
     src = _rewrite(text, option, initial, p)
-    names = {"m", "L", "kappa", *KINDS}
+    consts = frozenset({"m", "L", "kappa", *params}) - set(KINDS)
+    names = {*consts, *KINDS}
     names |= {w for w in re.findall(r"\b\w+__\w+\b", src)}
     try:
         tree = parse_tree(src, names)
     except ExprError as exc:
         raise InputError(f"{option}: {exc}") from None
-    parts = linear_parts(tree, frozenset({"m", "L", "kappa"}), option)
+    parts = linear_parts(tree, consts, option)
     if "1" in parts:
         raise InputError(f"{option}: a constant term; every term multiplies f, dist or grad")
     mins = [k for k in MIN_OF if k in parts]
     if mins and initial:
         raise InputError(f"{option}: {mins[0]} is a measure (the initial condition is linear)")
+    if FREE_KIND in parts and not initial:
+        raise InputError(f"{option}: free: an initial term (it frees the start)")
     out = []
     for key, coef in parts.items():
         kind, _, point = key.partition("__")
         out.append(Term(kind, point or ("x0" if initial else "x"), coef))
     return out
+
+
+def free_start(initial: Sequence[Term]) -> bool:
+    """Whether ``initial`` leaves the start free: ``none`` (no terms), ``free`` or an
+    ``sdist`` term."""
+    return not initial or any(t.kind in ("sdist", FREE_KIND) for t in initial)
 
 
 def at_steps(terms: list[Term], steps: int, option: str) -> list[Term]:
@@ -153,8 +175,15 @@ def at_steps(terms: list[Term], steps: int, option: str) -> list[Term]:
             raise InputError(f"{option}: x_N-{back.group(1)}: before the start (N = {steps})")
         return "x" if k == steps else f"x{k}"
 
-    return [Term(t.kind, "__".join(key(q) for q in t.point.split("__")), t.coef)
+    return [Term(t.kind, "__".join(_grad_key(q, key) for q in t.point.split("__")), t.coef)
             for t in terms]
+
+
+def _grad_key(point: str, key: Callable[[str], str]) -> str:
+    """``key`` of a point, through an inner term's gradient marker."""
+    if point.startswith(GRAD_OF):
+        return GRAD_OF + key(point[len(GRAD_OF):])
+    return key(point)
 
 
 def describe_terms(terms: list[Term]) -> str:
