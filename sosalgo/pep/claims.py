@@ -289,6 +289,10 @@ def _verify_row(row: Mapping[str, Any], spec: Spec, where: str) -> dict[str, Any
         sub = verify_witness_file(wit, spec, f"{where}.witness", own_upper=False)
         claims.items += sub["claims"]
         lower = None if sub["tau_lower"] is None else Fraction(sub["tau_lower"])
+    from sosalgo.pep.terms import NONE_TEXT
+
+    if lower is None and str(row.get("initial", "")).strip() == NONE_TEXT:
+        lower = Fraction(0)  # no initial condition: every vector and value 0 is an instance
     if tau is None and (upper is not None or lower is not None):
         claims.add(f"{where}.tau", "contradicted", "null with a proven bound")
     _bracket(claims, f"{where}.tau", tau, lower, upper)
