@@ -254,8 +254,9 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
     if steps > LONG:  # its proof is about LONG_MARGINS above tau anyway
         data.violation = LONG_VIOLATION
     show_phase("solving the PEP", f"{len(st.pairs)} interpolation pairs")
-    ans = solve_pep(data, precise=st.bare)  # bare: its null space from a tight solve
-    if st.bare and ans.status != "solved":
+    if st.bare:  # no initial condition: its own solves
+        st, data, ans = _bare_solve(mt, st, data, steps, mterms, iterms)
+    else:
         ans = solve_pep(data)
     k = class_kappa(spec, kappa)
     kf = None if k is None else (  # a Kappa keeps its exact value
@@ -312,6 +313,28 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
     return res
 
 
+def _bare_solve(mt: Method, st: PEPStructure, data: PEPData, steps: int,
+                mterms: list[Term], iterms: list[Term]
+                ) -> tuple[PEPStructure, PEPData, SDPAnswer]:
+    """The solves of a question with no initial condition: tight tolerances first (the
+    proof needs the null space of S), then the default ones; in the deadbeat basis, then
+    in the plain one (K = 0: the accelerated potential ends "almost solved" in the
+    first, the second gradient potential in the second)."""
+    for plain in (False, True):
+        if plain:
+            if not np.any(mt.K):
+                break
+            mt.K = np.zeros_like(mt.K)
+            st = build_structure(mt, steps, mterms, iterms)
+            st.bare = True
+            data = pep_data(mt, st)
+        for precise in (True, False):
+            ans = solve_pep(data, precise=precise)
+            if ans.status == "solved":
+                return st, data, ans
+    return st, data, ans
+
+
 BARE_TOL = 1e-6  # with no initial condition: a normalized worst case above this is > 0
 
 
@@ -340,7 +363,7 @@ def _bare_result(spec: Spec, kappa: float | None, steps: int, mt: Method, data: 
 
         show_phase("proving the certificate")
         proof = prove_bare(spec, kappa, data.st, mterms, iterms, lam, S, data.w,
-                           exact_or_none(spec, kappa, steps))
+                           exact_or_none(spec, kappa, steps), plain=not np.any(mt.K))
         cert["proof"] = proof
         if proof["proven"]:
             cert.update(check_kind="exact (rational and ball arithmetic)",

@@ -472,7 +472,9 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
             if t.kind == INNER_KIND:  # <P, Q>, each a point or a (sub)gradient there
                 a, b = (_inner_row(mt, q, r, pts, sstar, state, opt, steps)
                         for q, r in zip(t.point.split("__"), rows, strict=True))
-                forms[key].append(((np.outer(a, b) + np.outer(b, a)) * (mt.coef(t) / 2), {}))
+                half = Fraction(1, 2) if mt.exact else 0.5
+                forms[key].append(((np.outer(a, b) + np.outer(b, a)) * (mt.coef(t) * half),
+                                   {}))
                 continue
             if t.kind == FREE_KIND:  # frees the start only
                 forms[key].append((0 * np.outer(rows[0], rows[0]), {}))
