@@ -258,6 +258,13 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
         st, data, ans = _bare_solve(mt, st, data, steps, mterms, iterms)
     else:
         ans = solve_pep(data)
+        if ans.status == "failed" and schedule is None and np.any(mt.K):
+            # a direction of G the question leaves free (a free start under a Lyapunov
+            # function) drifts: the plain basis, no rescaling (the robust momentum method)
+            mt.K = np.zeros_like(mt.K)
+            st = build_structure(mt, steps, mterms, iterms)
+            data = pep_data(mt, st)
+            ans = solve_pep(data, rescale=False)
     k = class_kappa(spec, kappa)
     kf = None if k is None else (  # a Kappa keeps its exact value
         k if isinstance(k, Kappa) else float(k))  # type: ignore[arg-type]
@@ -295,6 +302,9 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
             if res.witness is not None:
                 res.witness["check"] = check_witness(res.witness, spec, ex)
                 res.witness = finish_witness(res.witness, spec, kappa, None, res)
+        elif witness and _quadratic_terms(mterms + iterms):  # not in the witness file
+            res.extra["note"] = ("no worst-case witness for inner, free or call-point terms "
+                                 "(tau_proven is the proven upper bound)")
         elif witness and mt.lmo:  # no witness construction for a linear minimization call
             res.extra["note"] = ("no worst-case witness for a linear minimization oracle "
                                  "(tau_proven is the proven upper bound)")
@@ -377,6 +387,15 @@ def _bare_result(spec: Spec, kappa: float | None, steps: int, mt: Method, data: 
     res.certificate = cert
     res.extra["note"] = ("no initial condition: the worst case 0 is reached at x_0 = x* "
                          "(every vector 0); tau_proven = 0 proves measure <= 0 everywhere")
+
+
+def _quadratic_terms(terms: list[Term]) -> bool:
+    """Whether a term is one the witness file does not evaluate: ``inner``, ``free`` or a
+    call's point at a given step (:mod:`sosalgo.pep.terms`)."""
+    from sosalgo.pep.terms import CALL_AT, FREE_KIND, GRAD_OF, INNER_KIND
+
+    return any(t.kind in (INNER_KIND, FREE_KIND) or any(
+        CALL_AT.match(q.removeprefix(GRAD_OF)) for q in t.point.split("__")) for t in terms)
 
 
 def _exact_schedule(spec: Spec, kappa: float | None, schedule: StepMethods,

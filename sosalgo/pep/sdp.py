@@ -213,13 +213,15 @@ TRACE = tuple((precise, reg, TRACE_ITER) for precise, reg in ATTEMPTS)
 
 def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
               floor: float | None = None, slack: float = 0.0,
-              unit: float = 1.0, precise: bool = False) -> SDPAnswer:
+              unit: float = 1.0, precise: bool = False, rescale: bool = True) -> SDPAnswer:
     """The PEP by constraint generation and rescaling (see the module). ``objective``:
     "measure" (the PEP; ``margin`` eps as in the module) or "trace" (minimize tr H with
     measure >= ``floor`` and every inequality >= ``slack`` relative to its largest
     coefficient: the rank reduction of the witness). The measure is divided by ``unit``
     for the solver (about tau); the answer is in the original units. ``precise``: the
-    measure's solves try tight tolerances first (:data:`ATTEMPTS`, not :data:`QUICK`)."""
+    measure's solves try tight tolerances first (:data:`ATTEMPTS`, not :data:`QUICK`).
+    ``rescale`` False: W, V stay as they are (a PEP whose worst case leaves a direction
+    of G free: the rescaling chases it as it drifts)."""
     K = data.st.count
     # with constants the solver's problem is not scale invariant: the measure keeps its own
     # unit (dividing it by tau alone left the projected gradient on a set of diameter 0.1
@@ -239,7 +241,8 @@ def solve_pep(data: PEPData, margin: float = 0.0, objective: str = "measure",
                             rough=not exact_next)
         rounds += 1
         if (objective == "measure" and margin == 0 and ans.G is not None
-                and rescales < MAX_RESCALES and not data.st.bare  # bare: the measure is 0
+                and rescales < MAX_RESCALES and rescale
+                and not data.st.bare  # bare: the measure is 0
                 and np.all(np.isfinite(ans.G))):
             # a margin solve keeps the scale its measure's solve ended with (rescaled,
             # Nesterov at N = 80 solved its first margin twice: 60 s + 100 s)

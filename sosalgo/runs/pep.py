@@ -93,9 +93,10 @@ def _check(spec: Spec, kappas: list[float | None], steps: list[int], measure: st
     than :data:`ISOLATE_SECONDS`, so that SIGTERM or Ctrl-C need not wait for its solve)."""
     from sosalgo.kernel import budget
     from sosalgo.pep.core import pep_problem
-    from sosalgo.steps import changes_with_k
 
-    small = steps[0] if changes_with_k(spec) else 1  # a schedule's horizon is its length
+    # the first horizon asked: a schedule's is its length, and a term may name a step
+    # (x_2, y_1) that a shorter one has not reached
+    small = steps[0]
     for k in kappas:
         pep_problem(spec, k, small, measure, initial, solve_min=False)
     top = max(steps)
