@@ -118,7 +118,7 @@ def verdicts(case: Case, index: int, pepit: dict, ours: dict) -> dict:
         out["not_below"] = _yes(scale * proven >= p - max(BELOW_REL * abs(p), floor))
     theo = pepit.get("theoretical")
     if case.tight[index] and theo is not None and proven is not None:
-        out["above_theoretical"] = _yes(scale * proven >= theo * (1 - TIGHT_REL))
+        out["above_theoretical"] = _yes(scale * proven >= theo - TIGHT_REL * abs(theo))
     return out
 
 

@@ -110,10 +110,10 @@ def _bracket(claims: _Claims, field: str, tau: float | None, lower: Fraction | N
     if not math.isfinite(tau):
         claims.add(field, "unsupported", f"{tau}: an unbounded worst case is not proven")
         return
-    if lower is not None and tau < float(lower) * (1 - TAU_REL):
+    if lower is not None and tau < float(lower) - TAU_REL * abs(float(lower)):
         claims.add(field, "contradicted", f"{tau:.10g} is below the proven lower bound "
                    f"{float(lower):.10g}")
-    elif upper is not None and tau > float(upper) * (1 + TAU_REL):
+    elif upper is not None and tau > float(upper) + TAU_REL * abs(float(upper)):
         claims.add(field, "contradicted", f"{tau:.10g} is above the proven upper bound "
                    f"{float(upper):.10g}")
     elif lower is None or upper is None:
@@ -125,7 +125,7 @@ def _bracket(claims: _Claims, field: str, tau: float | None, lower: Fraction | N
                    f"{float(lower):.10g} ({float(lower) / tau:.3g} of it)")
     else:
         claims.backed(field, f"within [{float(lower):.10g}, {float(upper):.10g}]")
-    if upper is not None and float(upper) > tau * (1 + UPPER_REL):
+    if upper is not None and float(upper) > tau + UPPER_REL * abs(tau):
         claims.add(field.rsplit(".", 1)[0] + ".tau_proven", "inconsistent",
                    f"{float(upper):.10g} is not the bound of this worst case ({tau:.10g}): "
                    f"a proof of it is at most {UPPER_REL:g} above")

@@ -509,6 +509,17 @@ def decimal_up(x: Fraction, digits: int = 12) -> Fraction:
     return Fraction(math.ceil(x * scale)) / scale
 
 
+def above(tau: Fraction, step: Fraction) -> Fraction:
+    """A short decimal at least ``tau`` by about the relative ``step`` (a negative tau, a
+    rate of decrease, moves towards 0)."""
+    if tau >= 0:
+        return decimal_up(tau * (1 + step))
+    x = -tau * (1 - step)  # > 0: its decimal rounded down, so -x rounds up
+    e = 12 - math.floor(math.log10(x))
+    scale = Fraction(10) ** e
+    return -Fraction(math.floor(x * scale)) / scale
+
+
 def rational_up(x: Fraction, bits: int = 64) -> Fraction:
     """A binary rational >= x > 0 with about ``bits`` significant bits."""
     e = x.numerator.bit_length() - x.denominator.bit_length() - bits
@@ -587,11 +598,11 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
     w = np.ones(st.d) if w is None else w
     detail = ""
     for step in TAU_STEPS:
-        tq = decimal_up(Fraction(tau) * (1 + Fraction(step)))
+        tq = above(Fraction(tau), Fraction(step))
         if units:
             ok, lq2, delta, why = _prove_null_rows(mt, st, lam, tq, None, w, units)
         elif null is not None:
-            ok, lq2, delta, why = _prove_null_rows(mt, st, lam, tq, null[0], w)
+            ok, lq2, delta, why = _prove_null_rows(mt, st, lam, tq, null, w, coarse=True)
         else:
             ok, lq2, delta, why = prove_at(mt, st, lq, tq, w, repair=True)
         if ok:
@@ -684,19 +695,33 @@ def _nonzero_fraction(v: Any) -> bool:
 
 
 def _prove_null_rows(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Fraction,
-                     S: np.ndarray | None, w: np.ndarray, units: list[int] | None = None
-                     ) -> tuple[bool, list[Fraction], Fraction, str]:
+                     S: np.ndarray | None, w: np.ndarray, units: list[int] | None = None,
+                     coarse: bool = False) -> tuple[bool, list[Fraction], Fraction, str]:
     """:func:`prove_at` (nothing repaired) on the multipliers of
-    :func:`null_row_multipliers`, for each snap of :data:`SNAPS` until one proves."""
+    :func:`null_row_multipliers`, for each snap of :data:`SNAPS` until one proves
+    (``coarse``: also the coarser snaps of :data:`COARSE_SNAPS`, on the float multipliers
+    with those below each of :data:`COARSE_CUTS` of the largest dropped)."""
     why = "no exact multipliers zero the certificate's null rows"
-    for snap in SNAPS:
-        exact_lam = null_row_multipliers(mt, st, lam, tq, S, w, snap, units)
+    tries = [(0.0, snap) for snap in SNAPS]
+    if coarse:
+        tries += [(cut, snap) for cut in COARSE_CUTS for snap in COARSE_SNAPS
+                  if (cut, snap) not in tries]
+    for cut, snap in tries:
+        kept = np.where(lam > cut * float(np.max(lam, initial=0.0)), lam, 0.0)
+        exact_lam = null_row_multipliers(mt, st, kept, tq, S, w, snap, units)
         if exact_lam is None:
             continue
         ok, lq2, delta, why = prove_at(mt, st, exact_lam, tq, w, repair=False)
         if ok:
             return ok, lq2, delta, why
     return False, [], Fraction(0), why
+
+
+# a singular certificate's null space from an interior-point answer on a degenerate face:
+# its float eigenvectors up to 1e-3 off, a few 1e-5 spread on pairs the exact certificate
+# does not use; coarse snaps and cuts (prove_at decides, so any guess is safe)
+COARSE_SNAPS = ((100, 1e-4), (1000, 1e-5), (100, 1e-3), (12, 1e-2), *SNAPS)
+COARSE_CUTS = (0.0, 1e-4, 1e-3)
 
 
 def rational_null_space(S: np.ndarray, w: np.ndarray,
@@ -1172,14 +1197,6 @@ def symbolic_fixed_point(spec: Any, om: Any) -> sp.Matrix | None:
     return X
 
 
-# the null space of a bare question's S: its float eigenvectors are up to 1e-3 off (an
-# interior-point answer on a degenerate face); coarse snaps first (prove_at decides)
-BARE_SNAPS = ((100, 1e-4), (1000, 1e-5), (100, 1e-3), (12, 1e-2), *SNAPS)
-# and the multipliers below this (relative) dropped: the interior point spreads a few
-# 1e-5 on pairs the exact certificate does not use
-BARE_CUTS = (0.0, 1e-4, 1e-3)
-
-
 def prove_bare(spec: Spec, kappa: float | None, st_float: PEPStructure,
                mterms: list[Term], iterms: list[Term], lam: np.ndarray, S: np.ndarray,
                w: np.ndarray, mt: Method | None = None, plain: bool = False
@@ -1212,14 +1229,8 @@ def prove_bare(spec: Spec, kappa: float | None, st_float: PEPStructure,
     zero = Fraction(0)
     lq = [rational(v) if v > 0 else zero for v in lam]
     ok, lq2, delta, why = prove_at(mt, st, lq, zero, w, repair=True)
-    tries = [(cut, snap) for cut in BARE_CUTS for snap in BARE_SNAPS] if not ok else []
-    for cut, snap in tries:  # the null rows made exactly zero, on a support
-        lam_cut = np.where(lam > cut * float(np.max(lam, initial=0.0)), lam, 0.0)
-        exact_lam = null_row_multipliers(mt, st, lam_cut, zero, S, w, snap)
-        if exact_lam is not None:
-            ok, lq2, delta, why = prove_at(mt, st, exact_lam, zero, w, repair=False)
-            if ok:
-                break
+    if not ok:  # the null rows made exactly zero
+        ok, lq2, delta, why = _prove_null_rows(mt, st, lam, zero, S, w, coarse=True)
     if not ok:
         return out | {"detail": why, "seconds": time.perf_counter() - t0}
     return out | {"proven": True, "tau_proven": "0", "tau_proven_float": 0.0,

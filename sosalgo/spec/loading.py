@@ -31,6 +31,7 @@ import yaml
 from sosalgo.kernel.expr import Expr, ExprError, constant_value, parse_tree
 from sosalgo.kernel.expr.tree import Measure, check_measure, measure
 from sosalgo.spec.checks import run_checks
+from sosalgo.spec.flow import FLOW_KEY, flow_spec
 from sosalgo.spec.types import (
     BASE_NAMES,
     MAX_FILE_BYTES,
@@ -293,6 +294,8 @@ class _Builder:
     def build(self, data: object) -> Spec:
         if not isinstance(data, dict):
             raise self.fail("", "a spec must be a YAML mapping (name, parameters, matrices, ...)")
+        if FLOW_KEY in data:  # a continuous-time question: its equivalent method
+            data = flow_spec(data, self.fail)
         for key in data:
             if not isinstance(key, str) or key not in TOP_KEYS:
                 known = ", ".join(sorted(TOP_KEYS))
