@@ -190,8 +190,8 @@ def test_flows_on_explicit_functions() -> None:
         for _ in range(200):
             p, v = z[:d], z[d:]
             vals.append(t ** 2 * (f(p) - fs) + 2 * np.sum((p + t / 2 * v) ** 2))
-            z, t = _rk4(lambda s, w: np.concatenate([w[d:], -3 / s * w[d:] - g(w[:d])]),
-                        z, t, h), t + h
+            z, t = _rk4(lambda s, w, d=d, g=g: np.concatenate(
+                [w[d:], -3 / s * w[d:] - g(w[:d])]), z, t, h), t + h
         assert np.all(np.diff(vals) <= 1e-8 * (1 + np.abs(vals[:-1]))), trial
 
 
