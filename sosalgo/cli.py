@@ -588,11 +588,12 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
               help="Steps N, or a range such as 1..10 (one row per N).")
 @click.option("--measure", default=None, metavar="TERMS",
               help="Sum of c*f, c*dist, c*grad (points x_N, y_N, y<i>_N), c*sdist "
-                   "(|xi_N - xi*|^2); default: the spec's measure (f, or dist for "
-                   "measure: distance).")
+                   "(|xi_N - xi*|^2), c*inner(P, Q); default: the spec's measure (f, or "
+                   "dist for measure: distance).")
 @click.option("--initial", default=None, metavar="TERMS",
               help="Sum of c*f, c*dist, c*grad at x_0, c*sdist (|xi_0 - xi*|^2: a free "
-                   "start); default sdist when the fixed point moves with the optimal "
+                   "start), or none (no initial condition: the worst case is 0 or "
+                   "unbounded); default sdist when the fixed point moves with the optimal "
                    "subgradients (Douglas-Rachford), dist otherwise.")
 @click.option("--out", default="outputs", show_default=True, metavar="DIR",
               help="Directory for <name>-pep.csv, its rows' documents, witness JSON files "

@@ -9,9 +9,13 @@ f(x_k) - f* (measures only, coefficient > 0: :func:`expand_min`), ``dist(P, Q)``
 length; kind ``diff``); ``c`` is an expression in m, L, kappa. A measure term may name its
 point: ``f(x_N)`` (the output, the default), ``grad(x_3)`` (the output after 3 steps),
 ``dist(y_N)`` (the point of the single call), ``grad(y2_N)`` (the point of call 2),
-``grad(x_N-1)`` (the output one step before the last); an initial term is at x_0 or at x_N
-(``f(x_0) - f(x_N)``). The string is parsed by :mod:`sosalgo.kernel.expr` (never
-evaluated) and split into its linear terms; anything nonlinear in f, dist, grad is refused.
+``grad(x_N-1)`` (the output one step before the last), ``f(y_k)`` / ``grad(y<i>_k)``
+(a call's point at step k); ``inner(P, Q)`` = <P - x*, Q - x*>, a side ``g(P)`` the sum of
+the functions' (sub)gradients at P; an initial term may name any point too, and
+``free`` (initial only) frees the start. ``--initial none``: no initial condition (no
+terms: a homogeneous question, worst case 0 or unbounded). Coefficients may name the
+spec's parameters. The string is parsed by :mod:`sosalgo.kernel.expr` (never evaluated)
+and split into its linear terms; anything nonlinear in the terms is refused.
 """
 
 from __future__ import annotations
@@ -58,7 +62,8 @@ BACK_POINT = re.compile(r"^xm(\d+)$")  # a measure's x_N-j: the output at step N
 class Term:
     """``coef * kind(point)``: point "x" (the output at step N), "x<k>" (the output at step
     k; "x0" is also the start), "xm<j>" (the output at step N - j), "y<i>" (call i at step
-    N, 1-based); a ``diff`` term's point is its two points joined by "__"."""
+    N, 1-based), "y<i>t<k>" (call i at step k); a ``diff`` or ``inner`` term's point is its
+    two points joined by "__" (an inner side "G<point>": the (sub)gradient there)."""
 
     kind: str
     point: str
