@@ -194,6 +194,11 @@ def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None
     except InputError as exc:  # a spec's field: named with its file
         raise (InputError(f"{spec.source}: {exc}") if str(exc).startswith("pep.")
                else exc) from None
+    from sosalgo.pep.terms import MIN_OF
+
+    if not iterms and any(t.kind in MIN_OF for t in mterms):
+        raise InputError(f"{spec.source}: {iopt}: none: a minimum over the iterates needs an "
+                         "initial condition (with none it is 0 or unbounded as its terms are)")
     mt = float_method(om, kq)
     if schedule is not None:
         mt = float_step_method(schedule, mt, steps)
