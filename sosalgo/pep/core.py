@@ -263,7 +263,8 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
         st, data, ans = _bare_solve(mt, st, data, steps, mterms, iterms)
     else:
         ans = solve_pep(data)
-        if ans.status == "failed" and schedule is None and np.any(mt.K):
+        if ans.status == "failed" and schedule is None and np.any(mt.K) \
+                and steps <= PLAIN_RETRY_STEPS:
             # a direction of G the question leaves free (a free start under a Lyapunov
             # function) drifts: the plain basis, no rescaling (the robust momentum method)
             mt.K = np.zeros_like(mt.K)
@@ -392,6 +393,9 @@ def _bare_result(spec: Spec, kappa: float | None, steps: int, mt: Method, data: 
     res.certificate = cert
     res.extra["note"] = ("no initial condition: the worst case 0 is reached at x_0 = x* "
                          "(every vector 0); tau_proven = 0 proves measure <= 0 everywhere")
+
+
+PLAIN_RETRY_STEPS = 5  # a failed solve is retried in the plain basis up to this horizon
 
 
 def _quadratic_terms(terms: list[Term]) -> bool:
