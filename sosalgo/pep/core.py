@@ -392,7 +392,8 @@ def _bare_result(spec: Spec, kappa: float | None, steps: int, mt: Method, data: 
     cert["min_eig_slack"] = float(np.linalg.eigvalsh(S)[0])
     res.certificate = cert
     res.extra["note"] = ("no initial condition: the worst case 0 is reached at x_0 = x* "
-                         "(every vector 0); tau_proven = 0 proves measure <= 0 everywhere")
+                         "(every vector 0)" + ("; tau_proven = 0 proves measure <= 0 "
+                                               "everywhere" if cert["tau_proven"] else ""))
 
 
 PLAIN_RETRY_STEPS = 5  # a failed solve is retried in the plain basis up to this horizon
