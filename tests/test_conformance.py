@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from bench.conformance import read_results
+from bench.conformance import ZERO_ABS, read_results
 from bench.conformance.cases import (
     CASES,
     CaseError,
@@ -102,10 +102,12 @@ def _check_against_pepit(case, index, tmp_path):
     committed = read_results()[(case.example, index)]
     pepit = float(committed["pepit_tau"])
     proven = _proven(case, index, tmp_path)
-    assert proven >= pepit * (1 - 1e-7), (proven, pepit)
-    assert abs(proven - pepit) <= 1e-6 * pepit, (proven, pepit)
+    assert proven >= pepit - 1e-7 * abs(pepit), (proven, pepit)  # a rate may be < 0
+    assert abs(proven - pepit) <= max(1e-6 * abs(pepit), ZERO_ABS if case.zero else 0), \
+        (proven, pepit)
     if case.tight[index] and committed["theoretical_tau"]:
-        assert proven >= float(committed["theoretical_tau"]) * (1 - 1e-12)
+        theo = float(committed["theoretical_tau"])
+        assert proven >= theo - 1e-12 * abs(theo)
 
 
 FAST = [c for c in EXPRESSED if c.fast]
@@ -125,6 +127,12 @@ KNOWN_GAPS = {
     ("low_dimensional_worst_cases_scenarios/inexact_gradient", 2): _LOOSE.format("1.6e-6"),
     **{("unconstrained_convex_minimization/optimized_gradient_for_gradient", i):
        "OGM-G on momentum-schedule.yaml: tau agrees, no exact proof (floating-point check)"
+       for i in range(3)},
+    **{(example, i): "tau agrees, no exact proof: a singular certificate (the Lyapunov "
+                     "inequality is tight along a family of instances) on irrational data"
+       for example in ("potential_functions/accelerated_gradient_method",
+                       "unconstrained_convex_minimization/robust_momentum",
+                       "continuous_time_models/accelerated_gradient_flow_strongly_convex")
        for i in range(3)},
     ("composite_convex_minimization/frank_wolfe", 0): _LOOSE.format("2.3e-4"),
     ("composite_convex_minimization/frank_wolfe", 1): _LOOSE.format("5.2e-4"),
