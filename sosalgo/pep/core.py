@@ -292,6 +292,9 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
 
         if schedule is None:
             ex = exact_or_none(spec, kappa, steps) if exact or witness else None  # built once
+            if ex is not None and not np.any(mt.K):  # the float solve's basis (K = 0)
+                ex.K = np.full(ex.K.shape, Fraction(0), dtype=object)
+                ex.structures.clear()
         else:
             ex = _exact_schedule(spec, kappa, schedule, len(mt.per_step or ()))
             exact, witness = exact and ex is not None, witness and ex is not None
