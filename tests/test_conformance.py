@@ -51,8 +51,21 @@ def test_every_case_is_well_formed():
             assert case.reason.strip() and case.needs
 
 
+NOT_EXPRESSIBLE_CASE = """example: continuous_time_models/gradient_flow_convex
+function: wc_gradient_flow_convex
+question: "for a gradient flow."
+arguments:  # PEPit's keyword arguments; the example's own first
+  - {t: 2.5}
+  - {t: 1.0}
+  - {t: 5.0}
+status: not expressible
+needs: ["continuous time"]
+reason: "a continuous-time flow"
+"""
+
+
 def test_a_malformed_case_names_its_file_and_field(tmp_path):
-    text = (CASES / "continuous_time_models" / "gradient_flow_convex.yaml").read_text()
+    text = NOT_EXPRESSIBLE_CASE  # a well-formed case file of a listed example
     path = tmp_path / "continuous_time_models" / "gradient_flow_convex.yaml"
     path.parent.mkdir()
     path.write_text(text)
