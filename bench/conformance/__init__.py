@@ -186,7 +186,7 @@ def run_cases(cases: list[Case], python: str, path: Path, restart: bool, quick: 
 def write_results(rows: dict, path: Path) -> None:
     tmp = path.with_suffix(".tmp")
     with tmp.open("w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=COLUMNS)
+        writer = csv.DictWriter(fh, fieldnames=COLUMNS, lineterminator="\n")
         writer.writeheader()
         for key in sorted(rows):
             writer.writerow({k: _cell(rows[key].get(k)) for k in COLUMNS})
