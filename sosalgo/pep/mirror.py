@@ -1,0 +1,719 @@
+"""Bregman (mirror) steps in the PEP: a spec with ``mirror: {kernel: {class: ...}}``.
+
+The method's one state is the mirror variable z = grad h(x) of the kernel h, the call
+is made at the point x whose mirror variable is C z + D u, and z+ = A z + B u
+(A = C = E = 1, B = -gamma): a point is defined implicitly by the kernel's gradient,
+as a proximal step's point is by its subgradient. Two steps:
+
+* gradient step (D = 0; NoLips, mirror descent): with g_k = grad f(x_k),
+  grad h(x_{k+1}) + s_{k+1} = grad h(x_k) - gamma g_k;
+* proximal step (D = B; Bregman proximal point): with g_{k+1} a subgradient of f at
+  x_{k+1}, grad h(x_{k+1}) + s_{k+1} = grad h(x_k) - gamma g_{k+1};
+
+s_{k+1} a normal vector of the set C at x_{k+1} when ``set: true`` (the problem is then
+min f + i_C, the step over h + i_C), else 0. This is PEPit's ``bregman_gradient_step``
+and ``bregman_proximal_step``.
+
+The PEP (Dragomir, Taylor, d'Aspremont and Bolte 2021): the points x* (when f is convex:
+the minimizer, grad f(x*) + s* = 0), x_0, ..., x_N are free vectors; f and h get a value
+and a subgradient at each, those fixed by the step equations combined from the others.
+Conditions between every ordered pair of points: the convex blocks cf f + ch h of a
+class relative to the kernel (:mod:`sosalgo.classes.relatively_smooth`), or the
+classes of f and of h; the kernel's own class; the set's normal vectors
+<s_b, x_a - x_b> <= 0. Values are free (no tilt): the dual's value coefficients must
+vanish exactly. A minimum over iterates (``min D_h(...)``) is bounded by a weighted sum,
+the weights w >= 0 (sum 1) chosen by the SDP:
+
+    min_k m_k <= sum_k w_k m_k <= tau initial     when
+    S = tau I0 - sum_k w_k M_k - sum_p lam_p Q_p ⪰ 0,
+    tau i_F - sum_k w_k m_F,k - sum_p lam_p a_p = 0,   lam >= 0.
+
+The proof: the SDP is solved with a margin (S ⪰ eps I), the multipliers and weights made
+rationals, the value equations solved exactly on the multipliers' support (a square
+system of independent rows), then S ⪰ 0 is decided in exact rationals
+(:func:`sosalgo.kernel.exact.prove_psd`). Every datum is an exact rational of the spec
+as written (parameters, classes); an irrational one leaves the bound unproven.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from fractions import Fraction
+from typing import Any
+
+import numpy as np
+
+from sosalgo.errors import InputError
+
+__all__ = ["MEASURES", "INITIALS", "MirrorPEP", "build_mirror", "mirror_pep",
+           "prove_mirror", "solve_mirror"]
+
+# the terms a mirror spec's PEP takes (whitespace ignored)
+MEASURES = ("f", "D_h(x_*,x_N)", "minD_h(x_{k-1},x_k)", "minD_h(x_k,x_{k-1})")
+INITIALS = ("D_h(x_*,x_0)", "f(x_0)-f(x_N)")
+
+
+@dataclass
+class MirrorPEP:
+    """The PEP as data: Gram forms on ``basis`` (d x d), value forms on ``values``;
+    ``pairs``: (label, a on F, Q on G) with a.F + <Q, G> >= 0; ``measures``: the forms
+    whose minimum is bounded; ``initial``: the form bounded by 1."""
+
+    basis: list[str]
+    values: list[str]
+    pairs: list[tuple[str, np.ndarray, np.ndarray]] = field(default_factory=list)
+    measures: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
+    initial: tuple[np.ndarray, np.ndarray] | None = None
+
+    @property
+    def d(self) -> int:
+        return len(self.basis)
+
+
+class _Builder:
+    """Rows (on the basis) and value indices, built on Fractions or floats."""
+
+    def __init__(self, one: Any) -> None:
+        self.one = one
+        self.cols: list[str] = []
+        self.vals: list[str] = []
+        self.rows: list[np.ndarray] = []  # pending rows are padded at the end
+
+    def vector(self, label: str) -> dict[int, Any]:
+        self.cols.append(label)
+        return {len(self.cols) - 1: self.one}
+
+    def value(self, label: str) -> int:
+        self.vals.append(label)
+        return len(self.vals) - 1
+
+
+def _lin(*terms: tuple[Any, dict[int, Any]]) -> dict[int, Any]:
+    """sum c v over (c, v) of sparse rows."""
+    out: dict[int, Any] = {}
+    for c, v in terms:
+        for k, x in v.items():
+            out[k] = out.get(k, 0) + c * x
+    return out
+
+
+@dataclass
+class _Point:
+    label: str
+    x: dict[int, Any]
+    gf: dict[int, Any] | None = None
+    gh: dict[int, Any] | None = None
+    s: dict[int, Any] | None = None  # a normal vector of the set (None: not in the set)
+    f: int | None = None
+    h: int | None = None
+
+
+def _dense(v: dict[int, Any], d: int, zero: Any) -> np.ndarray:
+    out = np.array([zero] * d, dtype=object)
+    for k, x in v.items():
+        out[k] = x
+    return out
+
+
+def build_mirror(data: dict[str, Any], steps: int, measure: str, initial: str) -> MirrorPEP:
+    """The PEP of a mirror spec's method (``data``: :func:`_method_data`) after ``steps``
+    steps; exact when its numbers are Fractions."""
+    one = data["one"]
+    zero = one * 0
+    b = _Builder(one)
+    convex = data["convex"]
+    use_set = data["set"]
+    x0_in_set = use_set and "f(x_0)" in initial
+    pts: list[_Point] = []
+    if convex:  # x* = 0; grad f(x*) + s* = 0
+        star = _Point("x*", {}, f=b.value("f(x*)"), h=b.value("h(x*)"))
+        star.gh = {}  # h - <grad h(x*), .> is as good a kernel: the same steps and D_h
+        star.gf = b.vector("gf(x*)") if use_set else {}
+        star.s = _lin((-one, star.gf)) if use_set else None
+        pts.append(star)
+    # without x*, the origin at x_0 and grad h(x_0) = 0 (a translation, a linear tilt of h)
+    x0 = _Point("x0", b.vector("x0-x*") if convex else {}, f=b.value("f(x0)"),
+                h=b.value("h(x0)"))
+    x0.gf, x0.gh = b.vector("gf(x0)"), b.vector("gh(x0)") if convex else {}
+    if x0_in_set:
+        x0.s = b.vector("s(x0)")
+    pts.append(x0)
+    gamma, prox = data["gamma"], data["prox"]
+    for k in range(1, steps + 1):
+        prev = pts[-1]
+        p = _Point(f"x{k}", b.vector(f"x{k}"), f=b.value(f"f(x{k})"), h=b.value(f"h(x{k})"))
+        p.gf = b.vector(f"gf(x{k})")
+        z = _lin((one, prev.gh), (-gamma, p.gf if prox else prev.gf))
+        if use_set:  # grad h(x+) + s+ = z
+            p.gh = b.vector(f"gh(x{k})")
+            p.s = _lin((one, z), (-one, p.gh))
+        else:
+            p.gh = z
+        pts.append(p)
+    d = len(b.cols)
+    pep = MirrorPEP(list(b.cols), list(b.vals))
+    dense = [(p, {key: (None if getattr(p, key) is None else
+                        _dense(getattr(p, key), d, zero)) for key in ("x", "gf", "gh", "s")})
+             for p in pts]
+    _pairs(pep, data, dense, zero)
+    nF = len(b.vals)
+    rows = {p.label: r for p, r in dense}
+    vals = {p.label: p for p, _ in dense}
+    pep.measures = _measure_forms(measure, steps, rows, vals, nF, zero, convex)
+    init = _measure_forms(initial, steps, rows, vals, nF, zero, convex, True)
+    pep.initial = init[0]
+    return pep
+
+
+def _outer(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """The symmetric Gram form of <u, v>."""
+    M = np.outer(u, v)
+    return (M + M.T) / 2
+
+
+def _convex_pair(xa, xb, ga, gb) -> np.ndarray:  # noqa: ANN001
+    """Gram part of f_a - f_b - <g_b, x_a - x_b> (>= 0 for a convex f)."""
+    return -_outer(gb, xa - xb)
+
+
+def _pairs(pep: MirrorPEP, data: dict[str, Any], dense: list[Any], zero: Any) -> None:
+    """Every ordered pair's conditions: f's blocks (or class), the kernel's class, the set."""
+    nF = len(pep.values)
+
+    def fvec(entries: dict[int, Any]) -> np.ndarray:
+        out = np.array([zero] * nF, dtype=object)
+        for k, v in entries.items():
+            if k is not None:
+                out[k] = out[k] + v
+        return out
+
+    for pa, ra in dense:
+        for pb, rb in dense:
+            if pa is pb:
+                continue
+            lab = f"{pa.label},{pb.label}"
+            for r, (cf, ch) in enumerate(data["blocks"]):
+                ga, gb = ra["gf"] * cf + ra["gh"] * ch, rb["gf"] * cf + rb["gh"] * ch
+                a = fvec({pa.f: cf}) + fvec({pa.h: ch}) - fvec({pb.f: cf}) - fvec({pb.h: ch})
+                pep.pairs.append((f"block{r}:{lab}", a, _convex_pair(ra["x"], rb["x"], ga, gb)))
+            for name, g, key, ineqs in (("f", "gf", "f", data["f_ineqs"]),
+                                        ("h", "gh", "h", data["h_ineqs"])):
+                for r, (alpha, Q) in enumerate(ineqs):
+                    X = [ra["x"], rb["x"], ra[g], rb[g]]
+                    G = sum((Q[u][v] * _outer(X[u], X[v]) for u in range(4) for v in range(4)
+                             if Q[u][v] != 0), np.outer(ra["x"], ra["x"]) * 0)
+                    a = fvec({getattr(pa, key): alpha}) - fvec({getattr(pb, key): alpha})
+                    pep.pairs.append((f"{name}#{r}:{lab}", a, G))
+            if ra["s"] is not None and rb["s"] is not None:  # <s_b, x_a - x_b> <= 0
+                pep.pairs.append((f"set:{lab}", fvec({}),
+                                  _convex_pair(ra["x"], rb["x"], ra["s"], rb["s"])))
+
+
+def _bregman(rows: dict[str, Any], vals: dict[str, Any], a: str, b: str, nF: int,
+             zero: Any) -> tuple[np.ndarray, np.ndarray]:
+    """D_h(a, b) = h(a) - h(b) - <grad h(b), a - b> as (Gram form, value form)."""
+    f = np.array([zero] * nF, dtype=object)
+    f[vals[a].h] = f[vals[a].h] + 1
+    f[vals[b].h] = f[vals[b].h] - 1
+    return -_outer(rows[b]["gh"], rows[a]["x"] - rows[b]["x"]), f
+
+
+def _fdiff(rows: dict[str, Any], vals: dict[str, Any], a: str, b: str, nF: int,
+           zero: Any) -> tuple[np.ndarray, np.ndarray]:
+    """f(a) - f(b) as (Gram form, value form)."""
+    f = np.array([zero] * nF, dtype=object)
+    f[vals[a].f] = f[vals[a].f] + 1
+    f[vals[b].f] = f[vals[b].f] - 1
+    d = len(rows[a]["x"])
+    return np.array([[zero] * d] * d, dtype=object), f
+
+
+def _measure_forms(text: str, steps: int, rows: dict[str, Any], vals: dict[str, Any],
+                   nF: int, zero: Any, convex: bool, initial: bool = False) -> list[Any]:
+    """The forms of a measure (several: their minimum) or of the initial condition."""
+    key = "".join(text.split())
+    N = f"x{steps}"
+    forms = {"f": lambda: [_fdiff(rows, vals, N, "x*", nF, zero)],
+             "D_h(x_*,x_N)": lambda: [_bregman(rows, vals, "x*", N, nF, zero)],
+             "minD_h(x_{k-1},x_k)": lambda: [_bregman(rows, vals, f"x{k - 1}", f"x{k}", nF,
+                                                      zero) for k in range(1, steps + 1)],
+             "minD_h(x_k,x_{k-1})": lambda: [_bregman(rows, vals, f"x{k}", f"x{k - 1}", nF,
+                                                      zero) for k in range(1, steps + 1)],
+             "D_h(x_*,x_0)": lambda: [_bregman(rows, vals, "x*", "x0", nF, zero)],
+             "f(x_0)-f(x_N)": lambda: [_fdiff(rows, vals, "x0", N, nF, zero)]}
+    return forms[key]()
+
+
+def check_terms(spec: Any, measure: str, initial: str, mopt: str, iopt: str,
+                convex: bool) -> None:
+    """InputError naming the option unless the terms are ones a mirror PEP takes (no x*
+    when f is nonconvex)."""
+    for text, opt, known in ((measure, mopt, MEASURES), (initial, iopt, INITIALS)):
+        key = "".join(text.split())
+        if key not in known:
+            raise InputError(f"{spec.source}: {opt}: {text!r}: a Bregman step's PEP takes "
+                             + ", ".join(repr(k) for k in known))
+        if not convex and ("x_*" in key or key == "f"):
+            raise InputError(f"{spec.source}: {opt}: {text!r}: f is nonconvex, its PEP has "
+                             "no minimizer x* (use min D_h(...) and f(x_0) - f(x_N))")
+
+
+# --------------------------------------------------------------------------- the method
+
+
+def _fraction(v: Any) -> Fraction | None:
+    """A sympy number as a Fraction (None when irrational)."""
+    return Fraction(int(v.p), int(v.q)) if getattr(v, "is_Rational", False) else None
+
+
+def method_data(spec: Any, exact: bool) -> dict[str, Any] | None:
+    """gamma, the step kind, the classes' data of a mirror spec, in floats, or exact
+    rationals (``exact``; None when a number is irrational). InputError naming the field
+    for a method that is not a Bregman step."""
+    import sympy as sp
+
+    from sosalgo.classes import CLASSES
+    from sosalgo.kernel.expr.parse import to_sympy
+    from sosalgo.pep.exact import _exact_env, _exact_matrices, exact_base
+
+    env = _exact_env(spec, exact_base(spec, None))
+    mats = _exact_matrices(spec, env)
+    A, B, C, E = (mats[k][0, 0] for k in "ABCE")
+    D = mats["D"][0, 0] if "D" in mats else sp.Integer(0)
+    if not (A == 1 and C == 1 and E == 1 and sp.simplify(B) < 0
+            and (D == 0 or sp.simplify(D - B) == 0)):
+        raise InputError(f"{spec.source}: matrices: a Bregman step is z+ = z - gamma u with "
+                         "A = C = E = [[1]], B = [[-gamma]] (gamma > 0) and D = [[0]] (gradient "
+                         "step) or D = B (proximal step)")
+    (fname, fdecl), = spec.functions.items()
+    fcls, kdecl = CLASSES[fdecl.cls], spec.mirror["kernel"]
+    kcls = CLASSES[kdecl.cls]
+    prox = D != 0
+    relative = bool(getattr(fcls, "relative", False))
+    if prox == relative:
+        raise InputError(f"{spec.source}: functions.{fname}.class: " + (
+            f"{fdecl.cls} is relative to the kernel: its step is a Bregman gradient step "
+            "(D = [[0]])" if relative else f"a Bregman gradient step needs f smooth relative "
+            "to the kernel (a class with L h - f convex), not {fdecl.cls}"))
+    if prox and "proximal" not in fcls.oracles:
+        raise InputError(f"{spec.source}: functions.{fname}.class: {fdecl.cls} has no "
+                         "proximal oracle")
+
+    def number(v: Any) -> Any:
+        return _fraction(sp.nsimplify(v) if not v.is_Rational else v) if exact else float(v)
+
+    def params(decl: Any) -> dict[str, Any]:
+        return {k: number(to_sympy(e).xreplace(env)) for k, e in decl.params.items()}
+
+    fp, kp = params(fdecl), params(kdecl)
+    gamma = number(-B)
+    if exact and (gamma is None or None in fp.values() or None in kp.values()):
+        return None
+    fl = {k: float(v) for k, v in fp.items()}
+    try:
+        fcls.check(fl)
+        kcls.check({k: float(v) for k, v in kp.items()})
+    except ValueError as exc:
+        raise InputError(f"{spec.source}: functions.{fname}.{exc}") from None
+    return {"one": Fraction(1) if exact else 1.0, "gamma": gamma, "prox": bool(prox),
+            "set": spec.mirror["set"], "convex": fcls.convex,
+            "blocks": fcls.blocks(fp) if relative else [],
+            "f_ineqs": [] if relative else _ineqs(fcls, fp, exact),
+            "h_ineqs": _ineqs(kcls, kp, exact)}
+
+
+def _ineqs(cls: Any, params: dict[str, Any], exact: bool) -> list[tuple[Any, Any]]:
+    """(alpha, Q 4 x 4) of a class's inequalities (exact ones from its exact data)."""
+    if exact:
+        return [(Fraction(a), [[Fraction(v) for v in row] for row in Q])
+                for a, Q in cls.exact_tilted(params)]
+    return [(float(i.alpha), np.asarray(i.Q, float).tolist())
+            for i in cls.inequalities(params)]
+
+
+# --------------------------------------------------------------------------- solve
+
+
+def _floats(M: np.ndarray) -> np.ndarray:
+    return np.array(M, dtype=float)
+
+
+def solve_mirror(pep: MirrorPEP, margin: float = 0.0) -> dict[str, Any] | None:
+    """The dual SDP (see the module): min tau over (tau, w, lam) with S ⪰ margin I; None
+    when the solver fails."""
+    import cvxpy as cp
+
+    d, nF, P, K = pep.d, len(pep.values), len(pep.pairs), len(pep.measures)
+    Qs = np.array([_floats(Q).ravel() for _, _, Q in pep.pairs]).reshape(P, d * d)
+    As = np.array([_floats(a) for _, a, _ in pep.pairs]).reshape(P, nF)
+    Ms = np.array([_floats(M).ravel() for M, _ in pep.measures]).reshape(K, d * d)
+    mF = np.array([_floats(f) for _, f in pep.measures]).reshape(K, nF)
+    assert pep.initial is not None
+    I0, iF = _floats(pep.initial[0]).ravel(), _floats(pep.initial[1])
+    tau, w, lam = cp.Variable(), cp.Variable(K, nonneg=True), cp.Variable(P, nonneg=True)
+    S = cp.Variable((d, d), PSD=True)
+    expr = tau * I0 - Ms.T @ w - Qs.T @ lam
+    cons = [cp.vec(S, order="C") == expr, cp.sum(w) == 1, tau * iF - mF.T @ w - As.T @ lam == 0]
+    if margin > 0:
+        cons.append(S >> margin * np.eye(d))
+    prob = cp.Problem(cp.Minimize(tau), cons)
+    try:
+        prob.solve(solver=cp.CLARABEL)
+    except cp.SolverError:
+        return None
+    if prob.status not in ("optimal", "optimal_inaccurate") or tau.value is None:
+        return None
+    return {"tau": float(tau.value), "w": np.maximum(np.asarray(w.value, float), 0),
+            "lam": np.maximum(np.asarray(lam.value, float), 0),
+            "S": np.asarray(S.value, float), "status": prob.status}
+
+
+# --------------------------------------------------------------------------- exact proof
+
+
+def prove_mirror(pep: MirrorPEP, tau: float, w: np.ndarray, lam: np.ndarray
+                 ) -> tuple[bool, dict[str, Any]]:
+    """Prove min_k m_k <= tau' (a decimal just above ``tau``) on the exact PEP from the
+    float weights and multipliers (see the module): (proven, detail)."""
+    from sosalgo.kernel.exact import fraction_str, prove_psd, rational
+    from sosalgo.pep.exact import decimal_up
+
+    t0 = time.perf_counter()
+    wq = [rational(float(v)) if v > 1e-12 * max(w.max(), 1e-300) else Fraction(0) for v in w]
+    total = sum(wq, Fraction(0))
+    if total <= 0:
+        return False, {"detail": "no positive weight"}
+    wq = [v / total for v in wq]
+    top = float(lam.max(initial=0.0))
+    support = [p for p, v in enumerate(lam) if v > 1e-9 * top]
+    lq = [rational(float(v)) if p in set(support) else Fraction(0) for p, v in enumerate(lam)]
+    assert pep.initial is not None
+    for rel in (Fraction(1, 10 ** 9), Fraction(1, 10 ** 7), Fraction(1, 10 ** 5)):
+        tq = decimal_up(rational(tau) * (1 + rel))
+        lam2 = _balance(pep, tq, wq, lq, support)
+        if lam2 is None:
+            why = "the value equations have no nonnegative exact solution on the support"
+            continue
+        S = _slack(pep, tq, wq, lam2)
+        proof = prove_psd(S)
+        if proof.psd:
+            return True, {"tau_proven": fraction_str(tq), "tau_proven_float": float(tq),
+                          "detail": f"value coefficients 0 (exact); S ⪰ 0 in exact "
+                                    f"rationals ({proof.kind}, {proof.method})",
+                          "multipliers_exact": {pep.pairs[p][0]: fraction_str(v)
+                                                for p, v in enumerate(lam2) if v},
+                          "weights_exact": [fraction_str(v) for v in wq],
+                          "seconds": time.perf_counter() - t0}
+        why = f"S is not proven PSD: {proof.detail}"
+    return False, {"detail": why, "seconds": time.perf_counter() - t0}
+
+
+def _value_residual(pep: MirrorPEP, tq: Fraction, wq: list[Fraction],
+                    lq: list[Fraction]) -> list[Fraction]:
+    """tau i_F - sum_k w_k m_F,k - sum_p lam_p a_p, exactly."""
+    assert pep.initial is not None
+    r = [tq * Fraction(v) for v in pep.initial[1]]
+    for wk, (_, f) in zip(wq, pep.measures, strict=True):
+        if wk:
+            r = [a - wk * Fraction(b) for a, b in zip(r, f, strict=True)]
+    for lp, (_, a, _) in zip(lq, pep.pairs, strict=True):
+        if lp:
+            r = [x - lp * Fraction(y) for x, y in zip(r, a, strict=True)]
+    return r
+
+
+def _balance(pep: MirrorPEP, tq: Fraction, wq: list[Fraction], lq: list[Fraction],
+             support: list[int]) -> list[Fraction] | None:
+    """The multipliers with the value equations exact: a correction on independent
+    support columns solving independent rows exactly (flint), checked on every row;
+    None when it fails or makes a multiplier negative."""
+    from flint import fmpq, fmpq_mat
+
+    r = _value_residual(pep, tq, wq, lq)
+    if not any(r):
+        return lq
+    A = np.array([[float(pep.pairs[p][1][i]) for p in support] for i in range(len(r))])
+    rows, cols = _independent(A)
+    if not rows:
+        return None
+    sub = fmpq_mat(len(rows), len(rows), [fmpq(int(Fraction(pep.pairs[support[c]][1][i]).numerator),
+                                              int(Fraction(pep.pairs[support[c]][1][i]).denominator))
+                                         for i in rows for c in cols])
+    rhs = fmpq_mat(len(rows), 1, [fmpq(r[i].numerator, r[i].denominator) for i in rows])
+    try:
+        sol = sub.solve(rhs)
+    except ZeroDivisionError:
+        return None
+    out = list(lq)
+    for k, c in enumerate(cols):
+        v = sol[k, 0]
+        out[support[c]] += Fraction(int(v.p), int(v.q))
+        if out[support[c]] < 0:
+            return None
+    if any(_value_residual(pep, tq, wq, out)):
+        return None
+    return out
+
+
+def _independent(A: np.ndarray) -> tuple[list[int], list[int]]:
+    """Rows and as many columns of A forming a well-conditioned square submatrix (QR with
+    column pivoting, on the rows first, then on the columns of those rows)."""
+    from scipy.linalg import qr
+
+    if A.size == 0:
+        return [], []
+    _, R, prow = qr(A.T, pivoting=True, mode="economic")
+    diag = np.abs(np.diag(R))
+    rank = int(np.sum(diag > 1e-9 * diag.max())) if diag.size else 0
+    rows = sorted(prow[:rank].tolist())
+    _, R2, pcol = qr(A[rows], pivoting=True, mode="economic")
+    return rows, sorted(pcol[:rank].tolist())
+
+
+def _slack(pep: MirrorPEP, tq: Fraction, wq: list[Fraction], lq: list[Fraction]
+           ) -> list[list[Fraction]]:
+    """S = tau I0 - sum_k w_k M_k - sum_p lam_p Q_p in exact rationals."""
+    assert pep.initial is not None
+    S = np.array([[tq * Fraction(v) for v in row] for row in pep.initial[0]], dtype=object)
+    for wk, (M, _) in zip(wq, pep.measures, strict=True):
+        if wk:
+            S = S - np.array([[wk * Fraction(v) for v in row] for row in M], dtype=object)
+    for lp, (_, _, Q) in zip(lq, pep.pairs, strict=True):
+        if lp:
+            S = S - np.array([[lp * Fraction(v) for v in row] for row in Q], dtype=object)
+    return [list(row) for row in S]
+
+
+# --------------------------------------------------------------------------- the run
+
+MARGINS = (1e-8, 1e-7, 1e-6, 1e-5)  # relative margins of the certificate solves, in order
+
+
+def _problem(spec: Any, kappa: float | None, steps: int, measure: str | None,
+             initial: str | None) -> tuple[MirrorPEP, dict[str, Any], bool, str, str]:
+    """(PEP, data, whether the data are exact, measure, initial): every input error
+    first, naming its option."""
+    from sosalgo.pep.core import MAX_STEPS
+
+    if kappa is not None:
+        raise InputError(f"{spec.source}: --kappa: a mirror spec (m: 0) has no condition "
+                         "number")
+    if isinstance(steps, bool) or not isinstance(steps, int) or not 1 <= steps <= MAX_STEPS:
+        raise InputError(f"--steps: must be an integer in 1..{MAX_STEPS}, got {steps!r}")
+    mopt = "--measure" if measure or "measure" not in spec.pep else "pep.measure"
+    iopt = "--initial" if initial or "initial" not in spec.pep else "pep.initial"
+    measure = measure or spec.pep.get("measure") or "f"
+    initial = initial or spec.pep.get("initial") or "D_h(x_*, x_0)"
+    data = method_data(spec, exact=True)
+    exact_data = data is not None
+    if data is None:
+        data = method_data(spec, exact=False)
+    assert data is not None
+    check_terms(spec, measure, initial, mopt, iopt, data["convex"])
+    return build_mirror(data, steps, measure, initial), data, exact_data, measure, initial
+
+
+def mirror_problem(spec: Any, kappas: list[float | None], steps: int, measure: str | None,
+                   initial: str | None) -> tuple[int, int]:
+    """(pairs, basis size) of the PEP after ``steps`` steps, every input error raised
+    first (InputError naming the option)."""
+    for k in kappas:
+        pep, *_ = _problem(spec, k, steps, measure, initial)
+    return len(pep.pairs), pep.d
+
+
+def mirror_pep(spec: Any, kappa: float | None, steps: int, measure: str | None,
+               initial: str | None, exact: bool = True) -> Any:
+    """``sosalgo pep`` of a mirror spec: a :class:`~sosalgo.pep.core.PEPResult` whose
+    certificate is proven in exact rationals (no witness: said in ``note``)."""
+    from sosalgo.pep.core import PEPResult
+
+    t0 = time.perf_counter()
+    pep, data, exact_data, measure, initial = _problem(spec, kappa, steps, measure, initial)
+    ans = solve_linear(pep) if no_squares(pep) else solve_mirror(pep)
+    res = PEPResult(spec.name, None, steps, measure, initial,
+                    "solved" if ans is not None else "failed",
+                    None if ans is None else ans["tau"])
+    res.extra["note"] = ("no worst-case witness for a Bregman step (tau_proven is the "
+                         "proven upper bound)")
+    if ans is None:
+        res.seconds = time.perf_counter() - t0
+        return res
+    res.gap = 0.0
+    res.certificate = _certificate(pep, ans, exact and exact_data)
+    if not exact_data and exact:
+        res.certificate["proof"] = {"proven": False, "detail": "a parameter is irrational: "
+                                    "no exact data"}
+    res.seconds = time.perf_counter() - t0
+    return res
+
+
+def _certificate(pep: MirrorPEP, ans: dict[str, Any], exact: bool) -> dict[str, Any]:
+    """The certificate of the solve ``ans``: proven at the first margin that works."""
+    tau = ans["tau"]
+    cert: dict[str, Any] = {"tau": tau, "check_kind": "floating-point check",
+                            "tau_proven": None, "proof": None, "bregman": True}
+    best = ans
+    if "system" in ans:  # S = 0: a vertex of the linear program, proven as it is
+        if exact:
+            ans["labels"] = [lab for lab, _, _ in pep.pairs]
+            ok, proof = prove_linear(ans)
+            cert["proof"] = {"proven": ok, **proof}
+            if ok:
+                cert.update(check_kind="exact (rational arithmetic)",
+                            tau_proven=proof["tau_proven"], margin=0.0)
+        exact = False  # no margin helps: S = 0 is the only PSD slack
+    scale = max(1.0, float(np.abs(_floats(pep.initial[0])).max()))  # type: ignore[index]
+    for rel in MARGINS if exact else ():
+        cand = solve_mirror(pep, margin=rel * max(abs(tau), 1e-12) / scale)
+        if cand is None:
+            continue
+        best = cand
+        ok, proof = prove_mirror(pep, max(cand["tau"], tau), cand["w"], cand["lam"])
+        cert["proof"] = {"proven": ok, **proof}
+        if ok:
+            cert.update(check_kind="exact (rational arithmetic)",
+                        tau_proven=proof["tau_proven"], margin=rel)
+            break
+    top = float(best["lam"].max(initial=0.0))
+    cert["multipliers"] = {lab: float(v) for (lab, _, _), v in zip(pep.pairs, best["lam"],
+                                                                   strict=True)
+                           if v > 1e-12 * top}
+    cert["weights"] = [float(v) for v in best["w"]]
+    cert["basis"] = pep.basis
+    cert["values"] = pep.values
+    cert["slack"] = best["S"].tolist()
+    cert["min_eig_slack"] = float(np.linalg.eigvalsh(best["S"])[0])
+    return cert
+
+
+def no_squares(pep: MirrorPEP) -> bool:
+    """Whether no form has a diagonal entry (only products <g, x>: convex classes, no
+    modulus): S ⪰ 0 with a zero diagonal is S = 0, and the certificate is linear
+    (:func:`prove_linear`)."""
+    forms = [Q for _, _, Q in pep.pairs] + [M for M, _ in pep.measures]
+    forms.append(pep.initial[0])  # type: ignore[index]
+    return all(not any(Q[i][i] for i in range(pep.d)) for Q in forms)
+
+
+def solve_linear(pep: MirrorPEP) -> dict[str, Any] | None:
+    """The dual with S = 0 (:func:`no_squares`) as a linear program (HiGHS): a vertex,
+    whose support is a basis; None when it fails."""
+    from scipy.optimize import linprog
+
+    K, P = len(pep.measures), len(pep.pairs)
+    cols = ["tau"] + [("w", k) for k in range(K)] + [("lam", p) for p in range(P)]
+    A, rhs = _linear_system(pep, cols)
+    Af = np.array([[float(v) for v in row] for row in A])
+    c = np.zeros(len(cols))
+    c[0] = 1.0
+    res = linprog(c, A_eq=Af, b_eq=np.array([float(v) for v in rhs]),
+                  bounds=[(None, None)] + [(0, None)] * (K + P), method="highs-ds")
+    if res.status != 0:
+        return None
+    u = np.asarray(res.x, float)
+    d = pep.d
+    return {"tau": float(u[0]), "w": np.maximum(u[1:K + 1], 0),
+            "lam": np.maximum(u[K + 1:], 0), "S": np.zeros((d, d)), "status": "optimal",
+            "system": (A, rhs, cols)}
+
+
+def prove_linear(ans: dict[str, Any]) -> tuple[bool, dict[str, Any]]:
+    """The certificate with S = 0 exactly from the vertex ``ans`` of
+    :func:`solve_linear`: tau and the weights and multipliers of its support solve the
+    equations (S = 0, the value coefficients 0, sum w = 1) in exact rationals
+    (independent rows chosen in floating point), then every equation is checked exactly
+    and every multiplier and weight is >= 0. (proven, detail)."""
+    from sosalgo.kernel.exact import fraction_str
+
+    t0 = time.perf_counter()
+    A, rhs, cols = ans["system"]
+    u = np.concatenate([[ans["tau"]], ans["w"], ans["lam"]])
+    top = float(np.abs(u).max())
+    piv = [0] + [c for c in range(1, len(cols)) if u[c] > 1e-10 * top]
+    Af = np.array([[float(A[r][c]) for c in piv] for r in range(len(A))])
+    rows, sub = _independent(Af)
+    if len(sub) != len(piv):
+        return False, {"detail": "the vertex's columns are dependent",
+                       "seconds": time.perf_counter() - t0}
+    zero = [Fraction(0)] * len(cols)
+    sol = _exact_solve(A, rhs, rows, piv, [], zero)
+    if sol is None:
+        return False, {"detail": "the vertex's equations are singular",
+                       "seconds": time.perf_counter() - t0}
+    bad = [cols[c] for c in range(1, len(cols)) if sol[c] < 0]
+    if bad or any(sum((a * x for a, x in zip(row, sol, strict=True) if x), Fraction(0)) != r
+                  for row, r in zip(A, rhs, strict=True)):
+        return False, {"detail": "exact solve: a negative multiplier or an equation off",
+                       "seconds": time.perf_counter() - t0}
+    tq = sol[0]
+    return True, {"tau_proven": fraction_str(tq), "tau_proven_float": float(tq),
+                  "detail": "S = 0 and the value coefficients 0 in exact rationals "
+                            "(multipliers and weights >= 0)",
+                  "multipliers_exact": {pep_label: fraction_str(v) for (kind, pep_label), v
+                                        in _labelled(ans, sol) if kind == "lam" and v},
+                  "weights_exact": [fraction_str(v) for (kind, _), v in _labelled(ans, sol)
+                                    if kind == "w"],
+                  "seconds": time.perf_counter() - t0}
+
+
+def _labelled(ans: dict[str, Any], sol: list[Fraction]) -> list[tuple[tuple[str, Any],
+                                                                       Fraction]]:
+    """((kind, label), value) of every unknown but tau."""
+    labels = ans["labels"]
+    return [((c[0], labels[c[1]] if c[0] == "lam" else c[1]), v)
+            for c, v in zip(ans["system"][2][1:], sol[1:], strict=True)]
+
+
+def _linear_system(pep: MirrorPEP, cols: list[Any]) -> tuple[list[list[Fraction]],
+                                                              list[Fraction]]:
+    """Rows: S[i][j] = 0 (i <= j), the value coefficients = 0, sum w = 1; columns
+    ``cols`` (tau, weights, multipliers)."""
+    assert pep.initial is not None
+    d, nF = pep.d, len(pep.values)
+
+    def column(c: Any) -> list[Fraction]:
+        if c == "tau":
+            Q, f, sign = pep.initial[0], pep.initial[1], 1  # type: ignore[index]
+        elif c[0] == "w":
+            (Q, f), sign = pep.measures[c[1]], -1
+        else:
+            _, f, Q = pep.pairs[c[1]]
+            sign = -1
+        out = [sign * Fraction(Q[i][j]) for i in range(d) for j in range(i, d)]
+        out += [sign * Fraction(v) for v in f]
+        out.append(Fraction(1 if c != "tau" and c[0] == "w" else 0))
+        return out
+
+    colv = [column(c) for c in cols]
+    n = len(colv[0])
+    A = [[colv[c][r] for c in range(len(cols))] for r in range(n)]
+    rhs = [Fraction(0)] * (n - 1) + [Fraction(1)]
+    keep = [r for r in range(n) if any(A[r]) or rhs[r]]
+    return [A[r] for r in keep], [rhs[r] for r in keep]
+
+
+def _exact_solve(A: list[list[Fraction]], rhs: list[Fraction], rows: list[int],
+                 piv: list[int], fixed: list[int], guess: list[Fraction]
+                 ) -> list[Fraction] | None:
+    """Solve rows ``rows`` for the columns ``piv`` exactly (flint), the ``fixed`` columns
+    at their ``guess``; None when singular."""
+    from flint import fmpq, fmpq_mat
+
+    if len(rows) != len(piv) or not rows:
+        return None
+    sub = fmpq_mat(len(rows), len(piv), [fmpq(A[r][c].numerator, A[r][c].denominator)
+                                         for r in rows for c in piv])
+    b = []
+    for r in rows:
+        v = rhs[r] - sum((A[r][c] * guess[c] for c in fixed), Fraction(0))
+        b.append(fmpq(v.numerator, v.denominator))
+    try:
+        x = sub.solve(fmpq_mat(len(rows), 1, b))
+    except ZeroDivisionError:
+        return None
+    sol = list(guess)
+    for k, c in enumerate(piv):
+        sol[c] = Fraction(int(x[k, 0].p), int(x[k, 0].q))
+    return sol
