@@ -49,9 +49,14 @@ from sosalgo.errors import InputError
 __all__ = ["MEASURES", "INITIALS", "MirrorPEP", "build_mirror", "mirror_pep",
            "prove_mirror", "solve_mirror"]
 
-# the terms a mirror spec's PEP takes (whitespace ignored)
-MEASURES = ("f", "D_h(x_*,x_N)", "minD_h(x_{k-1},x_k)", "minD_h(x_k,x_{k-1})")
-INITIALS = ("D_h(x_*,x_0)", "f(x_0)-f(x_N)")
+# the terms a mirror spec's PEP takes (whitespace ignored; x_(k-1) is x_{k-1})
+MEASURES = ("f", "D_h(x_*, x_N)", "min D_h(x_{k-1}, x_k)", "min D_h(x_k, x_{k-1})")
+INITIALS = ("D_h(x_*, x_0)", "f(x_0) - f(x_N)")
+
+
+def _key(text: str) -> str:
+    """A term without whitespace, x_(k-1) written x_{k-1}."""
+    return "".join(text.split()).replace("x_(k-1)", "x_{k-1}")
 
 
 @dataclass
@@ -109,13 +114,6 @@ class _Point:
     h: int | None = None
 
 
-def _dense(v: dict[int, Any], d: int, zero: Any) -> np.ndarray:
-    out = np.array([zero] * d, dtype=object)
-    for k, x in v.items():
-        out[k] = x
-    return out
-
-
 def build_mirror(data: dict[str, Any], steps: int, measure: str, initial: str) -> MirrorPEP:
     """The PEP of a mirror spec's method (``data``: :func:`_method_data`) after ``steps``
     steps; exact when its numbers are Fractions."""
@@ -151,11 +149,8 @@ def build_mirror(data: dict[str, Any], steps: int, measure: str, initial: str) -
         else:
             p.gh = z
         pts.append(p)
-    d = len(b.cols)
     pep = MirrorPEP(list(b.cols), list(b.vals))
-    dense = [(p, {key: (None if getattr(p, key) is None else
-                        _dense(getattr(p, key), d, zero)) for key in ("x", "gf", "gh", "s")})
-             for p in pts]
+    dense = [(p, {key: getattr(p, key) for key in ("x", "gf", "gh", "s")}) for p in pts]
     _pairs(pep, data, dense, zero)
     nF = len(b.vals)
     rows = {p.label: r for p, r in dense}
@@ -166,15 +161,44 @@ def build_mirror(data: dict[str, Any], steps: int, measure: str, initial: str) -
     return pep
 
 
-def _outer(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """The symmetric Gram form of <u, v>."""
-    M = np.outer(u, v)
-    return (M + M.T) / 2
+Form = dict  # a symmetric Gram form: {(i, j): v} with i <= j (S[i][j] = S[j][i] = v)
 
 
-def _convex_pair(xa, xb, ga, gb) -> np.ndarray:  # noqa: ANN001
+def _outer(u: dict[int, Any], v: dict[int, Any]) -> Form:
+    """The symmetric Gram form of <u, v> (sparse rows)."""
+    out: Form = {}
+    for i, a in u.items():
+        for j, b in v.items():
+            key = (i, j) if i <= j else (j, i)
+            out[key] = out.get(key, 0) + (a * b if i == j else a * b / 2)
+    return out
+
+
+def _add(*terms: tuple[Any, Form]) -> Form:
+    """sum c F over (c, F)."""
+    out: Form = {}
+    for c, F in terms:
+        for k, v in F.items():
+            out[k] = out.get(k, 0) + c * v
+    return {k: v for k, v in out.items() if v != 0}
+
+
+def _sub(u: dict[int, Any], v: dict[int, Any]) -> dict[int, Any]:
+    return _lin((1, u), (-1, v))
+
+
+def _convex_pair(xa, xb, ga, gb) -> Form:  # noqa: ANN001
     """Gram part of f_a - f_b - <g_b, x_a - x_b> (>= 0 for a convex f)."""
-    return -_outer(gb, xa - xb)
+    return _add((-1, _outer(gb, _sub(xa, xb))))
+
+
+def dense_form(F: Form, d: int, zero: Any = 0.0) -> np.ndarray:
+    """The d x d matrix of a form (floats by default)."""
+    out = np.full((d, d), zero, dtype=object if not isinstance(zero, float) else float)
+    for (i, j), v in F.items():
+        out[i, j] = v
+        out[j, i] = v
+    return out
 
 
 def _pairs(pep: MirrorPEP, data: dict[str, Any], dense: list[Any], zero: Any) -> None:
@@ -194,15 +218,16 @@ def _pairs(pep: MirrorPEP, data: dict[str, Any], dense: list[Any], zero: Any) ->
                 continue
             lab = f"{pa.label},{pb.label}"
             for r, (cf, ch) in enumerate(data["blocks"]):
-                ga, gb = ra["gf"] * cf + ra["gh"] * ch, rb["gf"] * cf + rb["gh"] * ch
+                ga = _lin((cf, ra["gf"]), (ch, ra["gh"]))
+                gb = _lin((cf, rb["gf"]), (ch, rb["gh"]))
                 a = fvec({pa.f: cf}) + fvec({pa.h: ch}) - fvec({pb.f: cf}) - fvec({pb.h: ch})
                 pep.pairs.append((f"block{r}:{lab}", a, _convex_pair(ra["x"], rb["x"], ga, gb)))
             for name, g, key, ineqs in (("f", "gf", "f", data["f_ineqs"]),
                                         ("h", "gh", "h", data["h_ineqs"])):
                 for r, (alpha, Q) in enumerate(ineqs):
                     X = [ra["x"], rb["x"], ra[g], rb[g]]
-                    G = sum((Q[u][v] * _outer(X[u], X[v]) for u in range(4) for v in range(4)
-                             if Q[u][v] != 0), np.outer(ra["x"], ra["x"]) * 0)
+                    G = _add(*((Q[u][v], _outer(X[u], X[v])) for u in range(4)
+                               for v in range(4) if Q[u][v] != 0))
                     a = fvec({getattr(pa, key): alpha}) - fvec({getattr(pb, key): alpha})
                     pep.pairs.append((f"{name}#{r}:{lab}", a, G))
             if ra["s"] is not None and rb["s"] is not None:  # <s_b, x_a - x_b> <= 0
@@ -216,7 +241,7 @@ def _bregman(rows: dict[str, Any], vals: dict[str, Any], a: str, b: str, nF: int
     f = np.array([zero] * nF, dtype=object)
     f[vals[a].h] = f[vals[a].h] + 1
     f[vals[b].h] = f[vals[b].h] - 1
-    return -_outer(rows[b]["gh"], rows[a]["x"] - rows[b]["x"]), f
+    return _add((-1, _outer(rows[b]["gh"], _sub(rows[a]["x"], rows[b]["x"])))), f
 
 
 def _fdiff(rows: dict[str, Any], vals: dict[str, Any], a: str, b: str, nF: int,
@@ -225,14 +250,13 @@ def _fdiff(rows: dict[str, Any], vals: dict[str, Any], a: str, b: str, nF: int,
     f = np.array([zero] * nF, dtype=object)
     f[vals[a].f] = f[vals[a].f] + 1
     f[vals[b].f] = f[vals[b].f] - 1
-    d = len(rows[a]["x"])
-    return np.array([[zero] * d] * d, dtype=object), f
+    return {}, f
 
 
 def _measure_forms(text: str, steps: int, rows: dict[str, Any], vals: dict[str, Any],
                    nF: int, zero: Any, convex: bool, initial: bool = False) -> list[Any]:
     """The forms of a measure (several: their minimum) or of the initial condition."""
-    key = "".join(text.split())
+    key = _key(text)
     N = f"x{steps}"
     forms = {"f": lambda: [_fdiff(rows, vals, N, "x*", nF, zero)],
              "D_h(x_*,x_N)": lambda: [_bregman(rows, vals, "x*", N, nF, zero)],
@@ -250,8 +274,8 @@ def check_terms(spec: Any, measure: str, initial: str, mopt: str, iopt: str,
     """InputError naming the option unless the terms are ones a mirror PEP takes (no x*
     when f is nonconvex)."""
     for text, opt, known in ((measure, mopt, MEASURES), (initial, iopt, INITIALS)):
-        key = "".join(text.split())
-        if key not in known:
+        key = _key(text)
+        if key not in {_key(k) for k in known}:
             raise InputError(f"{spec.source}: {opt}: {text!r}: a Bregman step's PEP takes "
                              + ", ".join(repr(k) for k in known))
         if not convex and ("x_*" in key or key == "f"):
@@ -294,8 +318,8 @@ def method_data(spec: Any, exact: bool) -> dict[str, Any] | None:
     if prox == relative:
         raise InputError(f"{spec.source}: functions.{fname}.class: " + (
             f"{fdecl.cls} is relative to the kernel: its step is a Bregman gradient step "
-            "(D = [[0]])" if relative else f"a Bregman gradient step needs f smooth relative "
-            "to the kernel (a class with L h - f convex), not {fdecl.cls}"))
+            "(D = [[0]])" if relative else "a Bregman gradient step needs f smooth relative "
+            f"to the kernel (a class with L h - f convex), not {fdecl.cls}"))
     if prox and "proximal" not in fcls.oracles:
         raise InputError(f"{spec.source}: functions.{fname}.class: {fdecl.cls} has no "
                          "proximal oracle")
@@ -345,12 +369,12 @@ def solve_mirror(pep: MirrorPEP, margin: float = 0.0) -> dict[str, Any] | None:
     import cvxpy as cp
 
     d, nF, P, K = pep.d, len(pep.values), len(pep.pairs), len(pep.measures)
-    Qs = np.array([_floats(Q).ravel() for _, _, Q in pep.pairs]).reshape(P, d * d)
+    Qs = np.array([dense_form(Q, d).ravel() for _, _, Q in pep.pairs]).reshape(P, d * d)
     As = np.array([_floats(a) for _, a, _ in pep.pairs]).reshape(P, nF)
-    Ms = np.array([_floats(M).ravel() for M, _ in pep.measures]).reshape(K, d * d)
+    Ms = np.array([dense_form(M, d).ravel() for M, _ in pep.measures]).reshape(K, d * d)
     mF = np.array([_floats(f) for _, f in pep.measures]).reshape(K, nF)
     assert pep.initial is not None
-    I0, iF = _floats(pep.initial[0]).ravel(), _floats(pep.initial[1])
+    I0, iF = dense_form(pep.initial[0], d).ravel(), _floats(pep.initial[1])
     tau, w, lam = cp.Variable(), cp.Variable(K, nonneg=True), cp.Variable(P, nonneg=True)
     S = cp.Variable((d, d), PSD=True)
     expr = tau * I0 - Ms.T @ w - Qs.T @ lam
@@ -475,13 +499,10 @@ def _slack(pep: MirrorPEP, tq: Fraction, wq: list[Fraction], lq: list[Fraction]
            ) -> list[list[Fraction]]:
     """S = tau I0 - sum_k w_k M_k - sum_p lam_p Q_p in exact rationals."""
     assert pep.initial is not None
-    S = np.array([[tq * Fraction(v) for v in row] for row in pep.initial[0]], dtype=object)
-    for wk, (M, _) in zip(wq, pep.measures, strict=True):
-        if wk:
-            S = S - np.array([[wk * Fraction(v) for v in row] for row in M], dtype=object)
-    for lp, (_, _, Q) in zip(lq, pep.pairs, strict=True):
-        if lp:
-            S = S - np.array([[lp * Fraction(v) for v in row] for row in Q], dtype=object)
+    S = _add((tq, pep.initial[0]), *((-wk, M) for wk, (M, _) in zip(wq, pep.measures,
+                                                                       strict=True) if wk),
+             *((-lp, Q) for lp, (_, _, Q) in zip(lq, pep.pairs, strict=True) if lp))
+    S = dense_form({k: Fraction(v) for k, v in S.items()}, pep.d, Fraction(0))
     return [list(row) for row in S]
 
 
@@ -564,7 +585,7 @@ def _certificate(pep: MirrorPEP, ans: dict[str, Any], exact: bool) -> dict[str, 
                 cert.update(check_kind="exact (rational arithmetic)",
                             tau_proven=proof["tau_proven"], margin=0.0)
         exact = False  # no margin helps: S = 0 is the only PSD slack
-    scale = max(1.0, float(np.abs(_floats(pep.initial[0])).max()))  # type: ignore[index]
+    scale = max([1.0] + [abs(float(v)) for v in pep.initial[0].values()])  # type: ignore[index]
     for rel in MARGINS if exact else ():
         cand = solve_mirror(pep, margin=rel * max(abs(tau), 1e-12) / scale)
         if cand is None:
@@ -594,7 +615,7 @@ def no_squares(pep: MirrorPEP) -> bool:
     (:func:`prove_linear`)."""
     forms = [Q for _, _, Q in pep.pairs] + [M for M, _ in pep.measures]
     forms.append(pep.initial[0])  # type: ignore[index]
-    return all(not any(Q[i][i] for i in range(pep.d)) for Q in forms)
+    return all(not any(v for (i, j), v in Q.items() if i == j) for Q in forms)
 
 
 def solve_linear(pep: MirrorPEP) -> dict[str, Any] | None:
@@ -671,7 +692,7 @@ def _linear_system(pep: MirrorPEP, cols: list[Any]) -> tuple[list[list[Fraction]
     """Rows: S[i][j] = 0 (i <= j), the value coefficients = 0, sum w = 1; columns
     ``cols`` (tau, weights, multipliers)."""
     assert pep.initial is not None
-    d, nF = pep.d, len(pep.values)
+    d = pep.d
 
     def column(c: Any) -> list[Fraction]:
         if c == "tau":
@@ -681,7 +702,7 @@ def _linear_system(pep: MirrorPEP, cols: list[Any]) -> tuple[list[list[Fraction]
         else:
             _, f, Q = pep.pairs[c[1]]
             sign = -1
-        out = [sign * Fraction(Q[i][j]) for i in range(d) for j in range(i, d)]
+        out = [sign * Fraction(Q.get((i, j), 0)) for i in range(d) for j in range(i, d)]
         out += [sign * Fraction(v) for v in f]
         out.append(Fraction(1 if c != "tau" and c[0] == "w" else 0))
         return out

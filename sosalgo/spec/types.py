@@ -214,7 +214,7 @@ class Spec:
         Theorem 1; True for every other spec."""
         if self.oracles != ("f",) or self.output is not None or self.measure != "function":
             return True
-        if self.inexact or self.line_search or self.lmo or self.mirror:  # outside Theorem 1's setting
+        if self.inexact or self.line_search or self.lmo or self.mirror:  # not Theorem 1
             return True
         if self.sublinear:  # no kappa: outside Theorem 1's setting
             return True
