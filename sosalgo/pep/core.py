@@ -245,7 +245,9 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
     if spec.mirror:  # Bregman steps: their own PEP (sosalgo.pep.mirror)
         from sosalgo.pep.mirror import mirror_pep
 
-        return mirror_pep(spec, kappa, steps, measure, initial, exact)
+        if isinstance(steps, bool) or not isinstance(steps, int) or not 1 <= steps <= MAX_STEPS:
+            raise InputError(f"--steps: must be an integer in 1..{MAX_STEPS}, got {steps!r}")
+        return mirror_pep(spec, kappa, steps, measure, initial, exact, PEPResult)
     if schedule is None:  # the problem layer's per-step methods (None: one method)
         schedule = spec_steps(spec, kappa, steps)
     mt, st, mterms, iterms, names = pep_problem(spec, kappa, steps, measure, initial,

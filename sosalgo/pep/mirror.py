@@ -120,7 +120,7 @@ def build_mirror(data: dict[str, Any], steps: int, measure: str, initial: str) -
     one = data["one"]
     zero = one * 0
     b = _Builder(one)
-    convex = data["convex"]
+    convex = data["minimizer"]
     use_set = data["set"]
     x0_in_set = use_set and "f(x_0)" in initial
     pts: list[_Point] = []
@@ -299,10 +299,9 @@ def method_data(spec: Any, exact: bool) -> dict[str, Any] | None:
 
     from sosalgo.classes import CLASSES
     from sosalgo.kernel.expr.parse import to_sympy
-    from sosalgo.pep.exact import _exact_env, _exact_matrices, exact_base
+    from sosalgo.pep.exact import exact_values
 
-    env = _exact_env(spec, exact_base(spec, None))
-    mats = _exact_matrices(spec, env)
+    env, mats = exact_values(spec)
     A, B, C, E = (mats[k][0, 0] for k in "ABCE")
     D = mats["D"][0, 0] if "D" in mats else sp.Integer(0)
     if not (A == 1 and C == 1 and E == 1 and sp.simplify(B) < 0
@@ -341,7 +340,7 @@ def method_data(spec: Any, exact: bool) -> dict[str, Any] | None:
     except ValueError as exc:
         raise InputError(f"{spec.source}: functions.{fname}.{exc}") from None
     return {"one": Fraction(1) if exact else 1.0, "gamma": gamma, "prox": bool(prox),
-            "set": spec.mirror["set"], "convex": fcls.convex,
+            "set": spec.mirror["set"], "minimizer": fcls.convex,
             "blocks": fcls.blocks(fp) if relative else [],
             "f_ineqs": [] if relative else _ineqs(fcls, fp, exact),
             "h_ineqs": _ineqs(kcls, kp, exact)}
@@ -515,13 +514,9 @@ def _problem(spec: Any, kappa: float | None, steps: int, measure: str | None,
              initial: str | None) -> tuple[MirrorPEP, dict[str, Any], bool, str, str]:
     """(PEP, data, whether the data are exact, measure, initial): every input error
     first, naming its option."""
-    from sosalgo.pep.core import MAX_STEPS
-
     if kappa is not None:
         raise InputError(f"{spec.source}: --kappa: a mirror spec (m: 0) has no condition "
                          "number")
-    if isinstance(steps, bool) or not isinstance(steps, int) or not 1 <= steps <= MAX_STEPS:
-        raise InputError(f"--steps: must be an integer in 1..{MAX_STEPS}, got {steps!r}")
     mopt = "--measure" if measure or "measure" not in spec.pep else "pep.measure"
     iopt = "--initial" if initial or "initial" not in spec.pep else "pep.initial"
     measure = measure or spec.pep.get("measure") or "f"
@@ -531,7 +526,7 @@ def _problem(spec: Any, kappa: float | None, steps: int, measure: str | None,
     if data is None:
         data = method_data(spec, exact=False)
     assert data is not None
-    check_terms(spec, measure, initial, mopt, iopt, data["convex"])
+    check_terms(spec, measure, initial, mopt, iopt, data["minimizer"])
     return build_mirror(data, steps, measure, initial), data, exact_data, measure, initial
 
 
@@ -545,11 +540,11 @@ def mirror_problem(spec: Any, kappas: list[float | None], steps: int, measure: s
 
 
 def mirror_pep(spec: Any, kappa: float | None, steps: int, measure: str | None,
-               initial: str | None, exact: bool = True) -> Any:
-    """``sosalgo pep`` of a mirror spec: a :class:`~sosalgo.pep.core.PEPResult` whose
-    certificate is proven in exact rationals (no witness: said in ``note``)."""
-    from sosalgo.pep.core import PEPResult
-
+               initial: str | None, exact: bool, result: Any) -> Any:
+    """``sosalgo pep`` of a mirror spec (``steps`` checked by the caller): a ``result``
+    (:class:`~sosalgo.pep.core.PEPResult`) whose certificate is proven in exact
+    rationals (no witness: said in ``note``)."""
+    PEPResult = result
     t0 = time.perf_counter()
     pep, data, exact_data, measure, initial = _problem(spec, kappa, steps, measure, initial)
     ans = solve_linear(pep) if no_squares(pep) else solve_mirror(pep)
