@@ -236,3 +236,39 @@ def test_bad_mirror_measures_exit_2(tmp_path, spec, measure):
 def test_analyze_refuses_a_mirror_spec(tmp_path):
     r = CliRunner().invoke(cli, ["analyze", str(MIRROR), "--out", str(tmp_path / "o")])
     assert r.exit_code == 2 and "mirror" in r.output
+
+
+def _verify(tmp_path, doc: dict) -> dict:
+    import json
+
+    p = tmp_path / "doc.json"
+    p.write_text(json.dumps(doc))
+    r = CliRunner().invoke(cli, ["verify", str(p), "--out", str(tmp_path / "v"), "--json"])
+    assert r.exit_code == 3  # tau itself has no witness from below
+    return {c["field"].rsplit(".json.", 1)[-1]: c["status"]
+            for c in json.loads(r.stdout)["results"][0]["claims"]}
+
+
+def test_verify_reproves_and_refuses_tampered(tmp_path):
+    """`sosalgo verify` re-proves a mirror document's tau_proven from its exact
+    multipliers; a changed multiplier or a smaller tau_proven is contradicted."""
+    from .conftest import pep_json
+
+    doc = pep_json(MIRROR, tmp_path / "o", 3)
+    assert doc["certificate"]["tau_proven"] == "2/3"
+    assert _verify(tmp_path, doc)["certificate.tau_proven"] == "backed"
+    bad = json_copy(doc)
+    proof = bad["certificate"]["proof"]
+    first = next(iter(proof["multipliers_exact"]))
+    proof["multipliers_exact"][first] = "1/7"
+    assert _verify(tmp_path, bad)["certificate.tau_proven"] == "contradicted"
+    low = json_copy(doc)
+    low["tau"] = low["certificate"]["tau"] = 0.5
+    low["certificate"]["tau_proven"] = low["certificate"]["proof"]["tau_proven"] = "1/2"
+    assert _verify(tmp_path, low)["certificate.tau_proven"] == "contradicted"
+
+
+def json_copy(doc: dict) -> dict:
+    import json
+
+    return json.loads(json.dumps(doc))

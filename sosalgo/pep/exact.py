@@ -126,6 +126,11 @@ def class_description(spec: Spec, kappa: float | None) -> dict[str, Any]:
                                   for i, e in spec.inexact.items()}
     if getattr(spec, "line_search", None):
         out["line_search"] = spec.line_search
+    if getattr(spec, "mirror", None):  # the kernel of the Bregman steps and the set
+        k = spec.mirror["kernel"]
+        out["mirror"] = {"kernel": {"class": k.cls, "params": {
+            key: str(to_sympy(e).xreplace(env)) for key, e in k.params.items()}},
+            "set": spec.mirror["set"]}
     return out
 
 

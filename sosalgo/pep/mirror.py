@@ -733,3 +733,44 @@ def _exact_solve(A: list[list[Fraction]], rhs: list[Fraction], rows: list[int],
     for k, c in enumerate(piv):
         sol[c] = Fraction(int(x[k, 0].p), int(x[k, 0].q))
     return sol
+
+
+def reprove_mirror(spec: Any, steps: int, measure: str, initial: str,
+                   proof: dict[str, Any]) -> tuple[bool, str]:
+    """(proven, detail): the claim min measure <= ``proof["tau_proven"]`` proven again
+    from the proof's own exact multipliers (by pair label) and weights, on the exact PEP
+    of ``spec`` rebuilt here: multipliers and weights >= 0, sum w = 1, the value
+    coefficients exactly 0 and S ⪰ 0 in exact rationals; nothing is solved."""
+    from sosalgo.kernel.exact import prove_psd
+
+    lab, wts = proof.get("multipliers_exact"), proof.get("weights_exact")
+    if not isinstance(lab, dict) or not isinstance(wts, list) \
+            or not isinstance(proof.get("tau_proven"), str):
+        return False, "the proof carries no exact multipliers and weights"
+    try:
+        tq = Fraction(proof["tau_proven"])
+        data = method_data(spec, exact=True)
+        if data is None:
+            return False, "the exact data cannot be built (an irrational parameter)"
+        check_terms(spec, measure, initial, "measure", "initial", data["minimizer"])
+        pep = build_mirror(data, int(steps), measure, initial)
+        index = {name: k for k, (name, _, _) in enumerate(pep.pairs)}
+        unknown = [k for k in lab if k not in index]
+        if unknown:
+            return False, f"multiplier {unknown[0]!r} is not a pair of this PEP"
+        lam = [Fraction(0)] * len(pep.pairs)
+        for name, v in lab.items():
+            lam[index[name]] = Fraction(v)
+        w = [Fraction(v) for v in wts]
+    except (ValueError, TypeError, ZeroDivisionError, ArithmeticError, InputError) as exc:
+        return False, f"malformed proof: {type(exc).__name__}: {exc}"
+    if len(w) != len(pep.measures) or any(v < 0 for v in w) or sum(w) != 1:
+        return False, f"weights: expected {len(pep.measures)} numbers >= 0 summing to 1"
+    if any(v < 0 for v in lam):
+        return False, "a negative multiplier"
+    if any(_value_residual(pep, tq, w, lam)):
+        return False, "a value coefficient is not 0"
+    psd = prove_psd(_slack(pep, tq, w, lam))
+    if not psd.psd:
+        return False, f"S is not PSD: {psd.detail}"
+    return True, f"S ⪰ 0 ({psd.kind}) and the value coefficients 0, in exact rationals"
