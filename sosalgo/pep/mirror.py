@@ -362,9 +362,19 @@ def _floats(M: np.ndarray) -> np.ndarray:
     return np.array(M, dtype=float)
 
 
+def linear_directions(pep: MirrorPEP) -> list[int]:
+    """The basis directions no form has a square of (a zero diagonal everywhere): a
+    slack S ⪰ 0 is zero on their rows."""
+    forms = [Q for _, _, Q in pep.pairs] + [M for M, _ in pep.measures]
+    forms.append(pep.initial[0])  # type: ignore[index]
+    squared = {i for Q in forms for (i, j), v in Q.items() if i == j and v}
+    return [i for i in range(pep.d) if i not in squared]
+
+
 def solve_mirror(pep: MirrorPEP, margin: float = 0.0) -> dict[str, Any] | None:
-    """The dual SDP (see the module): min tau over (tau, w, lam) with S ⪰ margin I; None
-    when the solver fails."""
+    """The dual SDP (see the module): min tau over (tau, w, lam) with S zero on the
+    :func:`linear_directions` and S ⪰ margin I on the others; None when the solver
+    fails."""
     import cvxpy as cp
 
     d, nF, P, K = pep.d, len(pep.values), len(pep.pairs), len(pep.measures)
@@ -374,12 +384,17 @@ def solve_mirror(pep: MirrorPEP, margin: float = 0.0) -> dict[str, Any] | None:
     mF = np.array([_floats(f) for _, f in pep.measures]).reshape(K, nF)
     assert pep.initial is not None
     I0, iF = dense_form(pep.initial[0], d).ravel(), _floats(pep.initial[1])
+    zero = linear_directions(pep)
+    rest = [i for i in range(d) if i not in zero]
     tau, w, lam = cp.Variable(), cp.Variable(K, nonneg=True), cp.Variable(P, nonneg=True)
-    S = cp.Variable((d, d), PSD=True)
-    expr = tau * I0 - Ms.T @ w - Qs.T @ lam
-    cons = [cp.vec(S, order="C") == expr, cp.sum(w) == 1, tau * iF - mF.T @ w - As.T @ lam == 0]
+    S = cp.Variable((len(rest), len(rest)), PSD=True)
+    expr = cp.reshape(tau * I0 - Ms.T @ w - Qs.T @ lam, (d, d), order="C")
+    cons = [cp.sum(w) == 1, tau * iF - mF.T @ w - As.T @ lam == 0,
+            expr[rest, :][:, rest] == S]
+    if zero:
+        cons.append(expr[zero, :] == 0)
     if margin > 0:
-        cons.append(S >> margin * np.eye(d))
+        cons.append(S >> margin * np.eye(len(rest)))
     prob = cp.Problem(cp.Minimize(tau), cons)
     try:
         prob.solve(solver=cp.CLARABEL)
@@ -387,9 +402,11 @@ def solve_mirror(pep: MirrorPEP, margin: float = 0.0) -> dict[str, Any] | None:
         return None
     if prob.status not in ("optimal", "optimal_inaccurate") or tau.value is None:
         return None
+    full = np.zeros((d, d))
+    full[np.ix_(rest, rest)] = np.asarray(S.value, float)
     return {"tau": float(tau.value), "w": np.maximum(np.asarray(w.value, float), 0),
-            "lam": np.maximum(np.asarray(lam.value, float), 0),
-            "S": np.asarray(S.value, float), "status": prob.status}
+            "lam": np.maximum(np.asarray(lam.value, float), 0), "S": full,
+            "status": prob.status}
 
 
 # --------------------------------------------------------------------------- exact proof
@@ -398,7 +415,9 @@ def solve_mirror(pep: MirrorPEP, margin: float = 0.0) -> dict[str, Any] | None:
 def prove_mirror(pep: MirrorPEP, tau: float, w: np.ndarray, lam: np.ndarray
                  ) -> tuple[bool, dict[str, Any]]:
     """Prove min_k m_k <= tau' (a decimal just above ``tau``) on the exact PEP from the
-    float weights and multipliers (see the module): (proven, detail)."""
+    float weights and multipliers (see the module): the value coefficients and the rows
+    of S on the :func:`linear_directions` made exactly zero by a correction of the
+    multipliers on their support, then S ⪰ 0 in exact rationals. (proven, detail)."""
     from sosalgo.kernel.exact import fraction_str, prove_psd, rational
     from sosalgo.pep.exact import decimal_up
 
@@ -410,20 +429,26 @@ def prove_mirror(pep: MirrorPEP, tau: float, w: np.ndarray, lam: np.ndarray
     wq = [v / total for v in wq]
     top = float(lam.max(initial=0.0))
     support = [p for p, v in enumerate(lam) if v > 1e-9 * top]
-    lq = [rational(float(v)) if p in set(support) else Fraction(0) for p, v in enumerate(lam)]
-    assert pep.initial is not None
+    keep = set(support)
+    lq = [rational(float(v)) if p in keep else Fraction(0) for p, v in enumerate(lam)]
+    zero = linear_directions(pep)
+    rest = [i for i in range(pep.d) if i not in zero]
+    why = "no margin"
     for rel in (Fraction(1, 10 ** 9), Fraction(1, 10 ** 7), Fraction(1, 10 ** 5)):
         tq = decimal_up(rational(tau) * (1 + rel))
-        lam2 = _balance(pep, tq, wq, lq, support)
+        lam2 = _balance(pep, tq, wq, lq, support, zero)
         if lam2 is None:
-            why = "the value equations have no nonnegative exact solution on the support"
+            why = "the equations have no nonnegative exact solution on the support"
             continue
         S = _slack(pep, tq, wq, lam2)
-        proof = prove_psd(S)
+        if any(S[i][j] for i in zero for j in range(pep.d)):
+            why = "a row of S on a linear direction is not zero"
+            continue
+        proof = prove_psd([[S[i][j] for j in rest] for i in rest])
         if proof.psd:
             return True, {"tau_proven": fraction_str(tq), "tau_proven_float": float(tq),
-                          "detail": f"value coefficients 0 (exact); S ⪰ 0 in exact "
-                                    f"rationals ({proof.kind}, {proof.method})",
+                          "detail": "value coefficients and the linear directions' rows of "
+                                    f"S exactly 0; S ⪰ 0 in exact rationals ({proof.kind})",
                           "multipliers_exact": {pep.pairs[p][0]: fraction_str(v)
                                                 for p, v in enumerate(lam2) if v},
                           "weights_exact": [fraction_str(v) for v in wq],
@@ -447,36 +472,37 @@ def _value_residual(pep: MirrorPEP, tq: Fraction, wq: list[Fraction],
 
 
 def _balance(pep: MirrorPEP, tq: Fraction, wq: list[Fraction], lq: list[Fraction],
-             support: list[int]) -> list[Fraction] | None:
-    """The multipliers with the value equations exact: a correction on independent
-    support columns solving independent rows exactly (flint), checked on every row;
+             support: list[int], zero: list[int]) -> list[Fraction] | None:
+    """The multipliers with the value equations and the rows of S on the directions
+    ``zero`` exact (tau fixed at ``tq``, the weights ``wq`` kept): a correction on
+    independent columns, the largest multipliers first (every pair may enter, a small
+    one last), solving independent rows exactly (flint), then checked on every row;
     None when it fails or makes a multiplier negative."""
-    from flint import fmpq, fmpq_mat
-
-    r = _value_residual(pep, tq, wq, lq)
+    P, K = len(pep.pairs), len(wq)
+    cols = ["tau"] + [("w", k) for k in range(K)] + [("lam", p) for p in range(P)]
+    A, rhs = _linear_system(pep, cols, zero)
+    u = [tq] + list(wq) + list(lq)
+    r = [b - sum((a * x for a, x in zip(row, u, strict=True) if a and x), Fraction(0))
+         for row, b in zip(A, rhs, strict=True)]
     if not any(r):
         return lq
-    A = np.array([[float(pep.pairs[p][1][i]) for p in support] for i in range(len(r))])
-    rows, cols = _independent(A)
+    lamcols = list(range(1 + K, len(cols)))
+    top = float(max(lq, default=Fraction(0)))
+    size = np.array([max(float(u[c]), 1e-6 * top) for c in lamcols])
+    Af = np.array([[float(A[i][c]) for c in lamcols] for i in range(len(A))]) * size
+    rows, sub = _independent(Af)
     if not rows:
         return None
-    sub = fmpq_mat(len(rows), len(rows), [fmpq(int(Fraction(pep.pairs[support[c]][1][i]).numerator),
-                                              int(Fraction(pep.pairs[support[c]][1][i]).denominator))
-                                         for i in rows for c in cols])
-    rhs = fmpq_mat(len(rows), 1, [fmpq(r[i].numerator, r[i].denominator) for i in rows])
-    try:
-        sol = sub.solve(rhs)
-    except ZeroDivisionError:
+    piv = [lamcols[c] for c in sub]
+    delta = _exact_solve(A, r, rows, piv, [], [Fraction(0)] * len(cols))
+    if delta is None:
         return None
-    out = list(lq)
-    for k, c in enumerate(cols):
-        v = sol[k, 0]
-        out[support[c]] += Fraction(int(v.p), int(v.q))
-        if out[support[c]] < 0:
-            return None
-    if any(_value_residual(pep, tq, wq, out)):
+    new = [x + dx for x, dx in zip(u, delta, strict=True)]
+    if any(v < 0 for v in new[1:]) or any(
+            sum((a * x for a, x in zip(row, new, strict=True) if a and x), Fraction(0)) != b
+            for row, b in zip(A, rhs, strict=True)):
         return None
-    return out
+    return new[1 + K:]
 
 
 def _independent(A: np.ndarray) -> tuple[list[int], list[int]]:
@@ -682,12 +708,14 @@ def _labelled(ans: dict[str, Any], sol: list[Fraction]) -> list[tuple[tuple[str,
             for c, v in zip(ans["system"][2][1:], sol[1:], strict=True)]
 
 
-def _linear_system(pep: MirrorPEP, cols: list[Any]) -> tuple[list[list[Fraction]],
-                                                              list[Fraction]]:
-    """Rows: S[i][j] = 0 (i <= j), the value coefficients = 0, sum w = 1; columns
-    ``cols`` (tau, weights, multipliers)."""
+def _linear_system(pep: MirrorPEP, cols: list[Any], only: list[int] | None = None
+                   ) -> tuple[list[list[Fraction]], list[Fraction]]:
+    """Rows: S[i][j] = 0 (i <= j; with ``only``, the entries with i or j in it), the
+    value coefficients = 0, sum w = 1; columns ``cols`` (tau, weights, multipliers)."""
     assert pep.initial is not None
     d = pep.d
+    entries = [(i, j) for i in range(d) for j in range(i, d)
+               if only is None or i in only or j in only]
 
     def column(c: Any) -> list[Fraction]:
         if c == "tau":
@@ -697,7 +725,7 @@ def _linear_system(pep: MirrorPEP, cols: list[Any]) -> tuple[list[list[Fraction]
         else:
             _, f, Q = pep.pairs[c[1]]
             sign = -1
-        out = [sign * Fraction(Q.get((i, j), 0)) for i in range(d) for j in range(i, d)]
+        out = [sign * Fraction(Q.get((i, j), 0)) for i, j in entries]
         out += [sign * Fraction(v) for v in f]
         out.append(Fraction(1 if c != "tau" and c[0] == "w" else 0))
         return out
