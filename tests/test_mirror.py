@@ -272,3 +272,15 @@ def json_copy(doc: dict) -> dict:
     import json
 
     return json.loads(json.dumps(doc))
+
+
+def test_a_step_too_long_is_unbounded():
+    """NoLips at gamma = 3/L: the dual has no solution, the worst case is unbounded
+    (PEPit's solve fails there too); nothing is claimed."""
+    from sosalgo.spec import spec_from_text
+    from sosalgo.spec.overrides import apply_overrides
+
+    text = apply_overrides(MIRROR.read_text(), {"gamma": "3"}, str(MIRROR))
+    res = sosalgo.pep(spec_from_text(text, str(MIRROR)), None, 3)
+    assert res.status == "unbounded" and res.tau == float("inf")
+    assert res.certificate is None

@@ -574,12 +574,16 @@ def mirror_pep(spec: Any, kappa: float | None, steps: int, measure: str | None,
     t0 = time.perf_counter()
     pep, data, exact_data, measure, initial = _problem(spec, kappa, steps, measure, initial)
     ans = solve_linear(pep) if no_squares(pep) else solve_mirror(pep)
-    res = PEPResult(spec.name, None, steps, measure, initial,
-                    "solved" if ans is not None else "failed",
-                    None if ans is None else ans["tau"])
+    status = "failed" if ans is None else ans["status"]
+    status = "solved" if status.startswith("optimal") else status
+    res = PEPResult(spec.name, None, steps, measure, initial, status,
+                    ans["tau"] if status == "solved" else None)
     res.extra["note"] = ("no worst-case witness for a Bregman step (tau_proven is the "
                          "proven upper bound)")
-    if ans is None:
+    if status == "unbounded":
+        res.tau = float("inf")
+        res.extra["note"] = "the measure is unbounded for this initial condition"
+    if status != "solved":
         res.seconds = time.perf_counter() - t0
         return res
     res.gap = 0.0
@@ -652,6 +656,8 @@ def solve_linear(pep: MirrorPEP) -> dict[str, Any] | None:
     c[0] = 1.0
     res = linprog(c, A_eq=Af, b_eq=np.array([float(v) for v in rhs]),
                   bounds=[(None, None)] + [(0, None)] * (K + P), method="highs-ds")
+    if res.status == 2:  # the dual is infeasible: no bound, the worst case is unbounded
+        return {"status": "unbounded"}
     if res.status != 0:
         return None
     u = np.asarray(res.x, float)
