@@ -218,6 +218,10 @@ def _without_mirror(text: str) -> str:
     (lambda t: t.replace("kernel: {class: convex}", "kernel: {class: indicator}"),
      "mirror.kernel.class"),
     (lambda t: t.replace("B: [[-gamma]]", "B: [[gamma]]"), "matrices"),
+    (lambda t: t.replace("kernel: {class: convex}", "kernel: {class: nope}"),
+     "mirror.kernel.class"),
+    (lambda t: t.replace("set: true", "set: 3"), "mirror.set"),
+    (lambda t: t.replace("set: true", "sett: true"), "mirror"),
 ])
 def test_bad_mirror_specs_exit_2(tmp_path, edit, field):
     r = _cli(tmp_path, edit(MIRROR.read_text()))

@@ -437,8 +437,8 @@ class _Builder:
                 raise self.fail(where, "uses kappa, undefined when m: 0 (use L)")
 
     # -- the oracle model ------------------------------------------------------------
-    def functions(self, raw: object, spec_names: frozenset[str] = frozenset()
-                  ) -> dict[str, FunctionDecl]:
+    def functions(self, raw: object, spec_names: frozenset[str] = frozenset(),
+                  field: str = "functions") -> dict[str, FunctionDecl]:
         """``functions:`` name -> {class: NAME, <parameter>: expr}; default: one f in
         F(m, L). A class that no Lyapunov family takes (``homogeneous`` False: only
         ``sosalgo pep`` answers) may name the spec's parameters ``spec_names`` too (M of
@@ -453,7 +453,7 @@ class _Builder:
             raise self.fail("functions", f"more than {MAX_FUNCTIONS} functions")
         out = {}
         for fname, body in raw.items():
-            where = f"functions.{str(fname)[:40]}"
+            where = f"{field}.{str(fname)[:40]}"
             if not isinstance(fname, str) or not PARAM_RE.fullmatch(fname):
                 raise self.fail(where, "not a valid function name")
             if not isinstance(body, dict) or "class" not in body:
@@ -558,7 +558,7 @@ class _Builder:
             return None
         if not isinstance(raw, dict) or "kernel" not in raw or set(raw) - {"kernel", "set"}:
             raise self.fail("mirror", "expected {kernel: {class: NAME, ...}, set: true|false}")
-        kernel = self.functions({"h": raw["kernel"]}, frozenset())["h"]
+        kernel = self.functions({"kernel": raw["kernel"]}, frozenset(), "mirror")["kernel"]
         kcls = CLASSES[kernel.cls]
         if (getattr(kcls, "relative", False) or not kcls.convex or not kcls.has_values
                 or kcls.zero_values or not kcls.tilt_invariant or not kcls.homogeneous):
