@@ -480,27 +480,24 @@ def _balance(pep: MirrorPEP, tq: Fraction, wq: list[Fraction], lq: list[Fraction
     None when it fails or makes a multiplier negative."""
     P, K = len(pep.pairs), len(wq)
     cols = ["tau"] + [("w", k) for k in range(K)] + [("lam", p) for p in range(P)]
-    A, rhs = _linear_system(pep, cols, zero)
+    A = _linear_system(pep, cols, zero)
     u = [tq] + list(wq) + list(lq)
-    r = [b - sum((a * x for a, x in zip(row, u, strict=True) if a and x), Fraction(0))
-         for row, b in zip(A, rhs, strict=True)]
+    r = A.residual(u)
     if not any(r):
         return lq
     lamcols = list(range(1 + K, len(cols)))
     top = float(max(lq, default=Fraction(0)))
     size = np.array([max(float(u[c]), 1e-6 * top) for c in lamcols])
-    Af = np.array([[float(A[i][c]) for c in lamcols] for i in range(len(A))]) * size
-    rows, sub = _independent(Af)
+    rows, sub = _independent(A.dense(lamcols) * size)
     if not rows:
         return None
-    piv = [lamcols[c] for c in sub]
-    delta = _exact_solve(A, r, rows, piv, [], [Fraction(0)] * len(cols))
+    delta = _exact_solve(A, r, rows, [lamcols[c] for c in sub])
     if delta is None:
         return None
-    new = [x + dx for x, dx in zip(u, delta, strict=True)]
-    if any(v < 0 for v in new[1:]) or any(
-            sum((a * x for a, x in zip(row, new, strict=True) if a and x), Fraction(0)) != b
-            for row, b in zip(A, rhs, strict=True)):
+    new = list(u)
+    for c, dx in delta.items():
+        new[c] += dx
+    if any(v < 0 for v in new[1:]) or any(A.residual(new)):
         return None
     return new[1 + K:]
 
@@ -510,12 +507,13 @@ def _independent(A: np.ndarray) -> tuple[list[int], list[int]]:
     column pivoting, on the rows first, then on the columns of those rows)."""
     from scipy.linalg import qr
 
-    if A.size == 0:
+    live = np.flatnonzero(np.abs(A).max(axis=1) > 0) if A.size else np.zeros(0, int)
+    if live.size == 0:
         return [], []
-    _, R, prow = qr(A.T, pivoting=True, mode="economic")
+    _, R, prow = qr(A[live].T, pivoting=True, mode="economic")
     diag = np.abs(np.diag(R))
     rank = int(np.sum(diag > 1e-9 * diag.max())) if diag.size else 0
-    rows = sorted(prow[:rank].tolist())
+    rows = sorted(live[prow[:rank]].tolist())
     _, R2, pcol = qr(A[rows], pivoting=True, mode="economic")
     return rows, sorted(pcol[:rank].tolist())
 
@@ -650,11 +648,10 @@ def solve_linear(pep: MirrorPEP) -> dict[str, Any] | None:
 
     K, P = len(pep.measures), len(pep.pairs)
     cols = ["tau"] + [("w", k) for k in range(K)] + [("lam", p) for p in range(P)]
-    A, rhs = _linear_system(pep, cols)
-    Af = np.array([[float(v) for v in row] for row in A])
+    A = _linear_system(pep, cols)
     c = np.zeros(len(cols))
     c[0] = 1.0
-    res = linprog(c, A_eq=Af, b_eq=np.array([float(v) for v in rhs]),
+    res = linprog(c, A_eq=A.sparse(), b_eq=np.array([float(v) for v in A.rhs]),
                   bounds=[(None, None)] + [(0, None)] * (K + P), method="highs-ds")
     if res.status == 2:  # the dual is infeasible: no bound, the worst case is unbounded
         return {"status": "unbounded"}
@@ -664,7 +661,7 @@ def solve_linear(pep: MirrorPEP) -> dict[str, Any] | None:
     d = pep.d
     return {"tau": float(u[0]), "w": np.maximum(u[1:K + 1], 0),
             "lam": np.maximum(u[K + 1:], 0), "S": np.zeros((d, d)), "status": "optimal",
-            "system": (A, rhs, cols)}
+            "system": (A, cols)}
 
 
 def prove_linear(ans: dict[str, Any]) -> tuple[bool, dict[str, Any]]:
@@ -676,23 +673,20 @@ def prove_linear(ans: dict[str, Any]) -> tuple[bool, dict[str, Any]]:
     from sosalgo.kernel.exact import fraction_str
 
     t0 = time.perf_counter()
-    A, rhs, cols = ans["system"]
+    A, cols = ans["system"]
     u = np.concatenate([[ans["tau"]], ans["w"], ans["lam"]])
     top = float(np.abs(u).max())
     piv = [0] + [c for c in range(1, len(cols)) if u[c] > 1e-10 * top]
-    Af = np.array([[float(A[r][c]) for c in piv] for r in range(len(A))])
-    rows, sub = _independent(Af)
+    rows, sub = _independent(A.dense(piv))
     if len(sub) != len(piv):
         return False, {"detail": "the vertex's columns are dependent",
                        "seconds": time.perf_counter() - t0}
-    zero = [Fraction(0)] * len(cols)
-    sol = _exact_solve(A, rhs, rows, piv, [], zero)
-    if sol is None:
+    found = _exact_solve(A, A.rhs, rows, piv)
+    if found is None:
         return False, {"detail": "the vertex's equations are singular",
                        "seconds": time.perf_counter() - t0}
-    bad = [cols[c] for c in range(1, len(cols)) if sol[c] < 0]
-    if bad or any(sum((a * x for a, x in zip(row, sol, strict=True) if x), Fraction(0)) != r
-                  for row, r in zip(A, rhs, strict=True)):
+    sol = [found.get(c, Fraction(0)) for c in range(len(cols))]
+    if any(sol[c] < 0 for c in range(1, len(cols))) or any(A.residual(sol)):
         return False, {"detail": "exact solve: a negative multiplier or an equation off",
                        "seconds": time.perf_counter() - t0}
     tq = sol[0]
@@ -711,19 +705,62 @@ def _labelled(ans: dict[str, Any], sol: list[Fraction]) -> list[tuple[tuple[str,
     """((kind, label), value) of every unknown but tau."""
     labels = ans["labels"]
     return [((c[0], labels[c[1]] if c[0] == "lam" else c[1]), v)
-            for c, v in zip(ans["system"][2][1:], sol[1:], strict=True)]
+            for c, v in zip(ans["system"][1][1:], sol[1:], strict=True)]
+
+
+@dataclass
+class _System:
+    """Sparse linear equations sum_c A[r][c] u_c = rhs[r]: ``cols`` one {row: value}
+    per unknown (exact rationals)."""
+
+    cols: list[dict[int, Fraction]]
+    rhs: list[Fraction]
+
+    def dense(self, which: list[int]) -> np.ndarray:
+        """The float submatrix of the columns ``which`` (every row)."""
+        out = np.zeros((len(self.rhs), len(which)))
+        for k, c in enumerate(which):
+            for r, v in self.cols[c].items():
+                out[r, k] = float(v)
+        return out
+
+    def apply(self, u: list[Fraction]) -> list[Fraction]:
+        """A u, exactly."""
+        out = [Fraction(0)] * len(self.rhs)
+        for c, x in enumerate(u):
+            if x:
+                for r, v in self.cols[c].items():
+                    out[r] += v * x
+        return out
+
+    def sparse(self) -> Any:
+        """The float matrix (scipy CSR)."""
+        import scipy.sparse as sps
+
+        rows, cols, vals = [], [], []
+        for c, col in enumerate(self.cols):
+            for r, v in col.items():
+                rows.append(r)
+                cols.append(c)
+                vals.append(float(v))
+        return sps.csr_matrix((vals, (rows, cols)), shape=(len(self.rhs), len(self.cols)))
+
+    def residual(self, u: list[Fraction]) -> list[Fraction]:
+        return [b - a for a, b in zip(self.apply(u), self.rhs, strict=True)]
 
 
 def _linear_system(pep: MirrorPEP, cols: list[Any], only: list[int] | None = None
-                   ) -> tuple[list[list[Fraction]], list[Fraction]]:
+                   ) -> _System:
     """Rows: S[i][j] = 0 (i <= j; with ``only``, the entries with i or j in it), the
     value coefficients = 0, sum w = 1; columns ``cols`` (tau, weights, multipliers)."""
     assert pep.initial is not None
-    d = pep.d
+    d, nF = pep.d, len(pep.values)
     entries = [(i, j) for i in range(d) for j in range(i, d)
                if only is None or i in only or j in only]
+    index = {e: k for k, e in enumerate(entries)}
+    n = len(entries) + nF + 1
 
-    def column(c: Any) -> list[Fraction]:
+    def column(c: Any) -> dict[int, Fraction]:
         if c == "tau":
             Q, f, sign = pep.initial[0], pep.initial[1], 1  # type: ignore[index]
         elif c[0] == "w":
@@ -731,42 +768,38 @@ def _linear_system(pep: MirrorPEP, cols: list[Any], only: list[int] | None = Non
         else:
             _, f, Q = pep.pairs[c[1]]
             sign = -1
-        out = [sign * Fraction(Q.get((i, j), 0)) for i, j in entries]
-        out += [sign * Fraction(v) for v in f]
-        out.append(Fraction(1 if c != "tau" and c[0] == "w" else 0))
+        out = {index[e]: sign * Fraction(v) for e, v in Q.items() if v and e in index}
+        out.update({len(entries) + k: sign * Fraction(v) for k, v in enumerate(f) if v})
+        if c != "tau" and c[0] == "w":
+            out[n - 1] = Fraction(1)
         return out
 
-    colv = [column(c) for c in cols]
-    n = len(colv[0])
-    A = [[colv[c][r] for c in range(len(cols))] for r in range(n)]
     rhs = [Fraction(0)] * (n - 1) + [Fraction(1)]
-    keep = [r for r in range(n) if any(A[r]) or rhs[r]]
-    return [A[r] for r in keep], [rhs[r] for r in keep]
+    return _System([column(c) for c in cols], rhs)
 
 
-def _exact_solve(A: list[list[Fraction]], rhs: list[Fraction], rows: list[int],
-                 piv: list[int], fixed: list[int], guess: list[Fraction]
-                 ) -> list[Fraction] | None:
-    """Solve rows ``rows`` for the columns ``piv`` exactly (flint), the ``fixed`` columns
-    at their ``guess``; None when singular."""
+def _exact_solve(A: _System, rhs: list[Fraction], rows: list[int], piv: list[int]
+                 ) -> dict[int, Fraction] | None:
+    """Solve the rows ``rows`` of A x = rhs for the columns ``piv`` exactly (flint), the
+    other unknowns 0: {column: value}; None when singular."""
     from flint import fmpq, fmpq_mat
 
     if len(rows) != len(piv) or not rows:
         return None
-    sub = fmpq_mat(len(rows), len(piv), [fmpq(A[r][c].numerator, A[r][c].denominator)
-                                         for r in rows for c in piv])
-    b = []
-    for r in rows:
-        v = rhs[r] - sum((A[r][c] * guess[c] for c in fixed), Fraction(0))
-        b.append(fmpq(v.numerator, v.denominator))
+    at = {r: k for k, r in enumerate(rows)}
+    sub = [[Fraction(0)] * len(piv) for _ in rows]
+    for k, c in enumerate(piv):
+        for r, v in A.cols[c].items():
+            if r in at:
+                sub[at[r]][k] = v
+    M = fmpq_mat(len(rows), len(piv), [fmpq(v.numerator, v.denominator)
+                                        for row in sub for v in row])
+    b = fmpq_mat(len(rows), 1, [fmpq(rhs[r].numerator, rhs[r].denominator) for r in rows])
     try:
-        x = sub.solve(fmpq_mat(len(rows), 1, b))
+        x = M.solve(b)
     except ZeroDivisionError:
         return None
-    sol = list(guess)
-    for k, c in enumerate(piv):
-        sol[c] = Fraction(int(x[k, 0].p), int(x[k, 0].q))
-    return sol
+    return {c: Fraction(int(x[k, 0].p), int(x[k, 0].q)) for k, c in enumerate(piv)}
 
 
 def reprove_mirror(spec: Any, steps: int, measure: str, initial: str,
