@@ -122,7 +122,7 @@ def build_mirror(data: dict[str, Any], steps: int, measure: str, initial: str) -
     b = _Builder(one)
     convex = data["minimizer"]
     use_set = data["set"]
-    x0_in_set = use_set and "f(x_0)" in initial
+    x0_in_set = use_set and "f(x_0)" in _key(initial)
     pts: list[_Point] = []
     if convex:  # x* = 0; grad f(x*) + s* = 0
         star = _Point("x*", {}, f=b.value("f(x*)"), h=b.value("h(x*)"))
