@@ -59,6 +59,10 @@ def refuse_nonconvex(spec: Any, linear_rates: bool = False) -> None:
         raise InputError(f"{spec.source}: line_search: a step chosen by exact line search: "
                          "no Lyapunov family models it (no rate is certified); sosalgo pep "
                          "bounds its worst case after N steps")
+    if getattr(spec, "mirror", None):
+        raise InputError(f"{spec.source}: mirror: Bregman steps: no Lyapunov family models "
+                         "them (no rate is certified); sosalgo pep bounds their worst case "
+                         "after N steps")
     lmo = sorted(getattr(spec, "lmo", None) or ())
     if lmo:
         raise InputError(f"{spec.source}: oracles[{lmo[0]}].lmo: a linear minimization "

@@ -256,7 +256,7 @@ def check_oracle_spec(spec: Spec, fail: Callable[[str, str], SpecError]) -> None
         if not prox and not cls.explicit:
             raise fail(f"oracles[{i}]", f"{fname} ({cls.name}) answers proximal steps only: "
                        f"make D[{i}][{i}] = -t")
-    if spec.measure == "function":
+    if spec.measure == "function" and not getattr(spec, "mirror", None):  # mirror: its own
         _check_measure(spec, fail)
 
 

@@ -156,7 +156,8 @@ def spec_numbers(path: Path, cache: Path) -> tuple[dict[str, Any], Path | None]:
     from sosalgo.steps import changes_with_k
 
     operators = bool(operator_functions(spec)) and spec.sublinear  # no family: pep answers
-    pep_only = bool(inhomogeneous_functions(spec))  # conditions no Lyapunov family takes
+    # conditions or steps no Lyapunov family takes (a mirror spec's Bregman steps)
+    pep_only = bool(inhomogeneous_functions(spec)) or bool(spec.mirror)
     if data_file.exists() and figure.exists():
         return json.loads(data_file.read_text(encoding="utf-8")), figure
     if changes_with_k(spec) or nonconvex_functions(spec) or operators or pep_only:  # no rate

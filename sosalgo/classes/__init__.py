@@ -21,6 +21,7 @@ from sosalgo.classes import (
     lipschitz_strongly_monotone,
     monotone,
     nonexpansive,
+    relatively_smooth,
     rsi_eb,
     smooth,
     smooth_convex_lipschitz,
@@ -77,6 +78,8 @@ register_class(rsi_eb.CLASS)
 register_class(smooth_lojasiewicz.CLASS)
 register_class(smooth_convex_lipschitz.CLASS)
 register_class(bounded_indicator.CLASS)
+register_class(relatively_smooth.CLASS)
+register_class(relatively_smooth.ADAPTABLE)
 _SHIPPED = tuple(CLASSES.values())
 
 SEED_CLASS: FunctionClass = smooth_strongly_convex.CLASS  # F(m, L): a spec without functions:

@@ -54,6 +54,7 @@ UPPER_REL = 1e-3  # a proven tau_proven is this close (relative) above its own t
 LOOSE_REL = 0.5
 FLOAT_REL = 1e-8  # float coordinates against the exact ones (relative to the largest)
 EXACT = "exact (rational and ball arithmetic)"
+EXACT_RATIONAL = "exact (rational arithmetic)"  # a mirror spec's proof (no balls needed)
 
 
 def is_pep_document(doc: Mapping[str, Any]) -> bool:
@@ -142,8 +143,14 @@ def _upper(claims: _Claims, spec: Spec, ctx: Mapping[str, Any], proof: Any,
     if not isinstance(proof, dict):
         claims.add(f"{where}.tau_proven", "unsupported", "no proof in the document")
         return None
-    ok, why = reprove_certificate(spec, ctx["kappa"], ctx["steps"], ctx["measure"],
-                                  ctx["initial"], dict(proof) | {"tau_proven": claimed})
+    if spec.mirror:  # Bregman steps: their own exact PEP
+        from sosalgo.pep.mirror import reprove_mirror
+
+        ok, why = reprove_mirror(spec, ctx["steps"], ctx["measure"], ctx["initial"],
+                                 dict(proof) | {"tau_proven": claimed})
+    else:
+        ok, why = reprove_certificate(spec, ctx["kappa"], ctx["steps"], ctx["measure"],
+                                      ctx["initial"], dict(proof) | {"tau_proven": claimed})
     if not ok:
         claims.add(f"{where}.tau_proven", "contradicted" if "multipliers_exact" in proof
                    else "unsupported", f"{claimed} not proven: {why}")
@@ -235,7 +242,7 @@ def _certificate(claims: _Claims, spec: Spec, ctx: Mapping[str, Any], cert: Any,
         raise InputError(f"{where}.certificate: expected an object")
     proof = cert.get("proof")
     upper = _upper(claims, spec, ctx, proof, cert.get("tau_proven"), f"{where}.certificate")
-    exact_kind = cert.get("check_kind") == EXACT
+    exact_kind = cert.get("check_kind") in (EXACT, EXACT_RATIONAL)
     if exact_kind != (cert.get("tau_proven") is not None):
         claims.add(f"{where}.certificate.check_kind", "contradicted",
                    f"{cert.get('check_kind')!r} with tau_proven {cert.get('tau_proven')}")

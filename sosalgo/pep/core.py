@@ -249,6 +249,12 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
     (:mod:`sosalgo.pep.steps`), the spec giving the class, the units and the terms."""
     t0, cpu0 = time.perf_counter(), time.process_time()
     spec = _load(spec)
+    if spec.mirror:  # Bregman steps: their own PEP (sosalgo.pep.mirror)
+        from sosalgo.pep.mirror import mirror_pep
+
+        if isinstance(steps, bool) or not isinstance(steps, int) or not 1 <= steps <= MAX_STEPS:
+            raise InputError(f"--steps: must be an integer in 1..{MAX_STEPS}, got {steps!r}")
+        return mirror_pep(spec, kappa, steps, measure, initial, exact, PEPResult)
     if schedule is None:  # the problem layer's per-step methods (None: one method)
         schedule = spec_steps(spec, kappa, steps)
     mt, st, mterms, iterms, names = pep_problem(spec, kappa, steps, measure, initial,

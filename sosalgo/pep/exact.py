@@ -51,6 +51,7 @@ from sosalgo.pep.terms import Term
 from sosalgo.spec import Spec
 
 __all__ = ["ball", "class_description", "exact_base", "exact_method", "exact_or_none",
+           "exact_values",
            "exact_step_method", "exact_steps_or_none", "prove_at", "prove_certificate",
            "prove_scaled_psd", "reprove_certificate", "symbolic_fixed_point"]
 
@@ -125,6 +126,11 @@ def class_description(spec: Spec, kappa: float | None) -> dict[str, Any]:
                                   for i, e in spec.inexact.items()}
     if getattr(spec, "line_search", None):
         out["line_search"] = spec.line_search
+    if getattr(spec, "mirror", None):  # the kernel of the Bregman steps and the set
+        k = spec.mirror["kernel"]
+        out["mirror"] = {"kernel": {"class": k.cls, "params": {
+            key: str(to_sympy(e).xreplace(env)) for key, e in k.params.items()}},
+            "set": spec.mirror["set"]}
     return out
 
 
@@ -156,6 +162,14 @@ def _exact_env(spec: Spec, base: dict[sp.Symbol, sp.Expr]) -> dict[sp.Symbol, sp
         par = spec.parameters[p]
         env[spec.symbols[p]] = to_sympy(par.tied if par.is_tied else par.value).xreplace(env)
     return env
+
+
+def exact_values(spec: Spec, kappa: float | None = None
+                 ) -> tuple[dict[sp.Symbol, sp.Expr], dict[str, sp.Matrix]]:
+    """(every parameter's exact value, the spec's matrices at them) of the class as
+    written (:func:`exact_base`)."""
+    env = _exact_env(spec, exact_base(spec, kappa))
+    return env, _exact_matrices(spec, env)
 
 
 def _exact_matrices(spec: Spec, env: dict[sp.Symbol, sp.Expr]) -> dict[str, sp.Matrix]:

@@ -97,12 +97,18 @@ def _check(spec: Spec, kappas: list[float | None], steps: list[int], measure: st
     # the first horizon asked: a schedule's is its length, and a term may name a step
     # (x_2, y_1) that a shorter one has not reached
     small = steps[0]
-    for k in kappas:
-        pep_problem(spec, k, small, measure, initial, solve_min=False)
     top = max(steps)
-    _, st, *_ = pep_problem(spec, kappas[0], top, measure, initial, solve_min=False)
-    sizes = [(round(len(st.pairs) * ((n + 1) / (top + 1)) ** 2),
-              max(1, round(st.d * (n + 1) / (top + 1)))) for n in steps] * len(kappas)
+    if spec.mirror:  # Bregman steps: their own PEP (sosalgo.pep.mirror)
+        from sosalgo.pep.mirror import mirror_problem
+
+        npairs, d = mirror_problem(spec, kappas, top, measure, initial)
+    else:
+        for k in kappas:
+            pep_problem(spec, k, small, measure, initial, solve_min=False)
+        _, st, *_ = pep_problem(spec, kappas[0], top, measure, initial, solve_min=False)
+        npairs, d = len(st.pairs), st.d
+    sizes = [(round(npairs * ((n + 1) / (top + 1)) ** 2),
+              max(1, round(d * (n + 1) / (top + 1)))) for n in steps] * len(kappas)
     span = f"N={steps[0]}" if len(steps) == 1 else f"N={steps[0]}..{top}"
     what = f"pep {spec.name} {span}" + (f" at {len(kappas)} kappas" if len(kappas) > 1 else "")
     est, w = budget.pep_estimate(what, f"--steps {top}", sizes, workers, witness)

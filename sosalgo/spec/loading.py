@@ -371,6 +371,7 @@ class _Builder:
             sequences=sequences, time_varying=varies,
             pep=self.pep_terms(data.get("pep")),
             line_search=self.line_search(data.get("line_search"), params, matrices, output),
+            mirror=self.mirror(data, functions, matrices, output, inexact or lmo),
         )
         if spec.sublinear:
             self.check_sublinear(spec)
@@ -439,8 +440,8 @@ class _Builder:
                 raise self.fail(where, "uses kappa, undefined when m: 0 (use L)")
 
     # -- the oracle model ------------------------------------------------------------
-    def functions(self, raw: object, spec_names: frozenset[str] = frozenset()
-                  ) -> dict[str, FunctionDecl]:
+    def functions(self, raw: object, spec_names: frozenset[str] = frozenset(),
+                  field: str = "functions") -> dict[str, FunctionDecl]:
         """``functions:`` name -> {class: NAME, <parameter>: expr}; default: one f in
         F(m, L). A class that no Lyapunov family takes (``homogeneous`` False: only
         ``sosalgo pep`` answers) may name the spec's parameters ``spec_names`` too (M of
@@ -455,7 +456,7 @@ class _Builder:
             raise self.fail("functions", f"more than {MAX_FUNCTIONS} functions")
         out = {}
         for fname, body in raw.items():
-            where = f"functions.{str(fname)[:40]}"
+            where = f"{field}.{str(fname)[:40]}"
             if not isinstance(fname, str) or not PARAM_RE.fullmatch(fname):
                 raise self.fail(where, "not a valid function name")
             if not isinstance(body, dict) or "class" not in body:
@@ -541,6 +542,41 @@ class _Builder:
                                 "direction is a gradient call's answer")
             out[i] = j - 1
         return out
+
+    def mirror(self, data: dict[str, Any], functions: dict[str, FunctionDecl],
+               matrices: dict[str, ExprMatrix], output: int | None,
+               special: object) -> dict[str, Any] | None:
+        """``mirror: {kernel: {class: NAME, ...}, set: BOOL}``: Bregman steps with the
+        kernel h (:mod:`sosalgo.pep.mirror`): one function, one call, one state (the
+        mirror variable). A class relative to a kernel is refused without it."""
+        from sosalgo.classes import CLASSES
+
+        raw = data.get("mirror")
+        relative = [f for f, d in functions.items() if getattr(CLASSES[d.cls], "relative", 0)]
+        if raw is None:
+            if relative:
+                decl = functions[relative[0]]
+                raise self.fail(f"functions.{relative[0]}.class", f"{decl.cls} is relative "
+                                "to a kernel h: give mirror: {kernel: {class: ...}}")
+            return None
+        if not isinstance(raw, dict) or "kernel" not in raw or set(raw) - {"kernel", "set"}:
+            raise self.fail("mirror", "expected {kernel: {class: NAME, ...}, set: true|false}")
+        kernel = self.functions({"kernel": raw["kernel"]}, frozenset(), "mirror")["kernel"]
+        kcls = CLASSES[kernel.cls]
+        if (getattr(kcls, "relative", False) or not kcls.convex or not kcls.has_values
+                or kcls.zero_values or not kcls.tilt_invariant or not kcls.homogeneous):
+            raise self.fail("mirror.kernel.class", f"{kernel.cls}: the kernel must be a convex "
+                            "function class with values (convex, strongly_convex, ...)")
+        if not isinstance(raw.get("set", False), bool):
+            raise self.fail("mirror.set", "must be true or false")
+        if len(functions) != 1 or len(matrices["A"]) != 1 or len(matrices["B"][0]) != 1:
+            raise self.fail("mirror", "a Bregman step is one function, one call, one state "
+                            "(the mirror variable z = grad h(x))")
+        if output is not None or special or data.get("line_search") is not None \
+                or data.get("initial_state") is not None or data.get("sequences"):
+            raise self.fail("mirror", "not with output, inexact or linear minimization "
+                            "calls, line_search, initial_state or sequences")
+        return {"kernel": kernel, "set": bool(raw.get("set", False))}
 
     def line_search(self, raw: object, params: dict[str, Parameter],
                     matrices: dict[str, ExprMatrix], output: int | None) -> str | None:

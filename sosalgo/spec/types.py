@@ -36,7 +36,7 @@ MEASURES = ("function", "distance")
 TOP_KEYS = {
     "name", "description", "parameters", "matrices", "references", "kappa", "m", "certificate",
     "functions", "oracles", "measure", "output", "L", "initial_state", "sequences", "pep",
-    "line_search",
+    "line_search", "mirror",
 }
 NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,79}$")
 PARAM_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,31}$")
@@ -176,6 +176,10 @@ class Spec:
     # ``line_search: gamma``: the step parameter of x+ = x - gamma u chosen at every step by
     # exact line search (``sosalgo pep`` only; :mod:`sosalgo.pep.linesearch`); None: none
     line_search: str | None = None
+    # ``mirror: {kernel: {class: ...}, set: true}``: the state and the call points are
+    # mirror variables grad h(x) (+ a normal vector of the set): Bregman steps, ``sosalgo
+    # pep`` only (:mod:`sosalgo.pep.mirror`); {"kernel": FunctionDecl, "set": bool}
+    mirror: dict[str, Any] | None = None
     output: int | None = None  # 0-based oracle index of ``output: y<i>``; None: x = E xi
     measure: str = "function"
     # sublinear specs (``m: 0``, ``L`` given, no kappa): L's value; None otherwise
@@ -210,7 +214,7 @@ class Spec:
         Theorem 1; True for every other spec."""
         if self.oracles != ("f",) or self.output is not None or self.measure != "function":
             return True
-        if self.inexact or self.line_search or self.lmo:  # outside Theorem 1's setting
+        if self.inexact or self.line_search or self.lmo or self.mirror:  # not Theorem 1
             return True
         if self.sublinear:  # no kappa: outside Theorem 1's setting
             return True
