@@ -95,6 +95,13 @@ def _check(spec: Spec, kappas: list[float | None], steps: list[int], measure: st
     from sosalgo.pep.core import pep_problem
     from sosalgo.steps import changes_with_k
 
+    if spec.finite_sum is not None:  # a tree of outcomes (sosalgo.pep.finite_sum)
+        from sosalgo.pep.finite_sum import finite_sum_sizes
+
+        sizes = finite_sum_sizes(spec, kappas, steps, measure, initial)
+        est, w = budget.pep_estimate(f"pep {spec.name}", f"--steps {max(steps)}", sizes,
+                                     workers, False)
+        return budget.check(est), w, False
     small = steps[0] if changes_with_k(spec) else 1  # a schedule's horizon is its length
     for k in kappas:
         pep_problem(spec, k, small, measure, initial, solve_min=False)
