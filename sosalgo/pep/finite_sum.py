@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from fractions import Fraction
 from typing import Any
 
@@ -126,7 +127,9 @@ def _solve(pb: Problem, margin: float) -> tuple[str, float | None, np.ndarray | 
         cons.append(q.T @ lam + mv == 0)
     prob = cp.Problem(cp.Minimize(r @ lam + m0), cons)
     try:
-        prob.solve(solver="CLARABEL")
+        with warnings.catch_warnings():  # an inaccurate solve is reported by its status
+            warnings.simplefilter("ignore")
+            prob.solve(solver="CLARABEL")
     except cp.error.SolverError:
         return "failed", None, None
     if prob.status in ("infeasible", "infeasible_inaccurate"):
