@@ -186,7 +186,7 @@ def test_saga_never_exceeds_its_proof(saga):
         for _ in range(5000):  # proximal gradient to x* of h + mean f
             xs = _soft(xs - np.mean([g(xs) for _, g, _ in fns], axis=0) / L, lam / L)
 
-        def V(x, phi):
+        def V(x, phi, fns=fns, xs=xs):
             out = c * np.sum((x - xs) ** 2)
             for (f, g, _), p in zip(fns, phi, strict=True):
                 out += (f(p) - f(xs) - g(xs) @ (p - xs)) / n

@@ -260,7 +260,14 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
         from sosalgo.pep.finite_sum import finite_sum_pep
 
         _check_kappa(spec, kappa)
-        return finite_sum_pep(spec, kappa, steps, measure, initial, exact)
+        got = finite_sum_pep(spec, kappa, steps, measure, initial, exact)
+        k = class_kappa(spec, kappa)
+        res = PEPResult(spec.name, None if k is None else (
+            k if isinstance(k, Kappa) else float(k)),  # type: ignore[arg-type]
+            steps, got["measure"], got["initial"], got["status"], got["tau"], got["gap"],
+            got["certificate"], None, extra=got["extra"])
+        res.seconds = time.perf_counter() - t0
+        return res
     if schedule is None:  # the problem layer's per-step methods (None: one method)
         schedule = spec_steps(spec, kappa, steps)
     mt, st, mterms, iterms, names = pep_problem(spec, kappa, steps, measure, initial,

@@ -938,10 +938,6 @@ def reprove_certificate(spec: Spec, kappa: float | None, steps: int, measure: st
     ``spec`` at ``kappa`` rebuilt here; nothing is repaired or solved."""
     from sosalgo.pep.terms import parse_terms
 
-    if spec.finite_sum is not None:  # a tree of outcomes: its own exact PEP
-        from sosalgo.pep.finite_sum import reprove_finite_sum
-
-        return reprove_finite_sum(spec, kappa, steps, measure, initial, proof)
     lab = proof.get("multipliers_exact")
     if not isinstance(lab, dict) or not isinstance(proof.get("tau_proven"), str):
         return False, "the proof carries no exact multipliers (multipliers_exact)"

@@ -280,31 +280,26 @@ def _certificate(pb: Problem, tau: float, spec: Spec, kappa: float | None
 
 
 def finite_sum_pep(spec: Spec, kappa: float | None, steps: int, measure: str | None,
-                   initial: str | None, exact: bool = True) -> Any:
-    """The PEP of the finite-sum ``spec`` (a :class:`~sosalgo.pep.core.PEPResult`)."""
-    from sosalgo.kernel.kappa import Kappa
-    from sosalgo.pep.bind import class_kappa
-    from sosalgo.pep.core import PEPResult
-
-    t0 = time.perf_counter()
+                   initial: str | None, exact: bool = True) -> dict[str, Any]:
+    """The PEP of the finite-sum ``spec``: the fields of a
+    :class:`~sosalgo.pep.core.PEPResult` (measure, initial, status, tau, gap,
+    certificate, extra)."""
     measure, initial = _terms(spec, measure, initial)
     pb = exact_problem(spec, kappa, steps, measure, initial)
     status, tau, _ = _solve(pb, 0.0)
-    k = class_kappa(spec, kappa)
-    kf = None if k is None else (k if isinstance(k, Kappa) else float(k))
-    res = PEPResult(spec.name, kf, steps, measure, initial, status, tau)  # type: ignore[arg-type]
+    out: dict[str, Any] = {"measure": measure, "initial": initial, "status": status,
+                           "tau": tau, "gap": None, "certificate": None,
+                           "extra": {"outcomes": pb.leaves}}
     if status == "unbounded":
-        res.tau = math.inf
-        res.extra["note"] = "the measure is unbounded for this initial condition"
+        out["tau"] = math.inf
+        out["extra"]["note"] = "the measure is unbounded for this initial condition"
     elif status == "solved" and tau is not None:
-        res.gap = 0.0
-        res.certificate = _certificate(pb, tau, spec, kappa) if exact else {
+        out["gap"] = 0.0
+        out["certificate"] = _certificate(pb, tau, spec, kappa) if exact else {
             "tau": tau, "check_kind": "floating-point check", "tau_proven": None,
             "proof": None, "basis": pb.basis}
-        res.extra["note"] = NO_WITNESS
-    res.extra["outcomes"] = pb.leaves
-    res.seconds = time.perf_counter() - t0
-    return res
+        out["extra"]["note"] = NO_WITNESS
+    return out
 
 
 def finite_sum_sizes(spec: Spec, kappas: list[float | None], steps: list[int],
