@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import math
 import time
-import warnings
 from fractions import Fraction
 from typing import Any
 
@@ -111,32 +110,53 @@ def _vector(form: Form, nv: int) -> np.ndarray:
 
 
 def _solve(pb: Problem, margin: float) -> tuple[str, float | None, np.ndarray | None]:
-    """(status, t, lambda) of the dual with S ⪰ margin I."""
-    import cvxpy as cp
+    """:func:`_solve_once` at Clarabel's default tolerances, then at 1e-10."""
+    got = _solve_once(pb, margin, False)
+    return got if got[0] != "failed" else _solve_once(pb, margin, True)
 
-    K, d = len(pb.forms), pb.d
-    Q = np.array([_matrix(f, d).ravel() for f in pb.forms])
-    q = np.array([_vector(f, pb.nv) for f in pb.forms])
+
+def _solve_once(pb: Problem, margin: float, precise: bool
+                ) -> tuple[str, float | None, np.ndarray | None]:
+    """(status, t, lambda) of the dual with S ⪰ margin I; "unbounded" when no
+    certificate exists. Clarabel on (lambda, svec S): min r'lambda with the value
+    equalities, svec(S) + sum lambda svec(Q) = svec(-M - margin I), lambda >= 0, S in the
+    PSD cone (S a variable of its own: the form with S eliminated stalls on degenerate
+    duals, point SAGA's)."""
+    import scipy.sparse as sps
+
+    from sosalgo.kernel.conic import svec
+    from sosalgo.kernel.solvers import (
+        SolverStatus,
+        clarabel_solve,
+        quiet_settings,
+        solver_status,
+    )
+
+    K, d, nv = len(pb.forms), pb.d, pb.nv
+    T = d * (d + 1) // 2
+    Q = np.array([_matrix(f, d) for f in pb.forms])
+    qv = np.array([_vector(f, nv) for f in pb.forms]).reshape(K, nv)
     r = np.array([float(f.const.c) for f in pb.forms])
-    M, mv, m0 = _matrix(pb.measure, d), _vector(pb.measure, pb.nv), float(pb.measure.const.c)
-    lam = cp.Variable(K, nonneg=True)
-    S = cp.Variable((d, d), symmetric=True)
-    cons = [cp.vec(S, order="C") == -M.ravel() - Q.T @ lam,
-            S >> margin * np.eye(d)]
-    if pb.nv:
-        cons.append(q.T @ lam + mv == 0)
-    prob = cp.Problem(cp.Minimize(r @ lam + m0), cons)
-    try:
-        with warnings.catch_warnings():  # an inaccurate solve is reported by its status
-            warnings.simplefilter("ignore")
-            prob.solve(solver="CLARABEL")
-    except cp.error.SolverError:
-        return "failed", None, None
-    if prob.status in ("infeasible", "infeasible_inaccurate"):
+    M, mv = _matrix(pb.measure, d), _vector(pb.measure, nv)
+    csc = sps.csc_matrix
+    A = sps.vstack([sps.hstack([csc(qv.T), csc((nv, T))]),
+                    sps.hstack([csc(svec(Q).T), sps.eye(T)]),
+                    sps.hstack([-sps.eye(K), csc((K, T))]),
+                    sps.hstack([csc((T, K)), -sps.eye(T)])]).tocsc()
+    b = np.concatenate([-mv, svec(-M - margin * np.eye(d)), np.zeros(K + T)])
+    settings = quiet_settings()
+    if precise:
+        settings.tol_gap_abs = settings.tol_gap_rel = settings.tol_feas = 1e-10
+        settings.tol_ktratio = 1e-10
+    sol = clarabel_solve(csc((K + T, K + T)), np.concatenate([r, np.zeros(T)]), A, b,
+                         [("zero", nv + T), ("nonneg", K), ("psd", d)], settings)
+    st = solver_status(str(sol.status))
+    if st == SolverStatus.INFEASIBLE:
         return "unbounded", None, None
-    if prob.status not in ("optimal", "optimal_inaccurate") or lam.value is None:
+    if st not in (SolverStatus.SOLVED, SolverStatus.ALMOST_SOLVED):
         return "failed", None, None
-    return "solved", float(prob.value), np.asarray(lam.value, float)
+    lam = np.maximum(np.asarray(sol.x, float)[:K], 0.0)
+    return "solved", float(r @ lam) + float(pb.measure.const.c), lam
 
 
 def _pivots(rows: list[list[Fraction]], order: list[int]) -> list[int]:

@@ -32,13 +32,12 @@ ZERO = Ball(0)
 
 @dataclass
 class Vec:
-    """A vector: coefficient (ball) per basis index."""
+    """A vector: its exact coefficient (a sympy number) per basis index."""
 
-    c: dict[int, Ball]
+    c: dict[int, sp.Expr]
 
     def key(self) -> tuple[tuple[int, float], ...]:
-        return tuple(sorted((k, round(float(v.c), 12)) for k, v in self.c.items()
-                            if v.c or v.r))
+        return tuple(sorted((k, round(float(v), 12)) for k, v in self.c.items() if v != 0))
 
 
 def _add(a: dict, b: dict, s: int = 1) -> dict:
@@ -49,7 +48,7 @@ def _add(a: dict, b: dict, s: int = 1) -> dict:
     return out
 
 
-def _scale(a: dict, s: Ball) -> dict:
+def _scale(a: dict, s: Any) -> dict:
     return {k: s * v for k, v in a.items()}
 
 
@@ -69,12 +68,21 @@ class Form:
         return Form(_scale(self.g, s), _scale(self.v, s), s * self.const)
 
 
-def inner(a: Vec, b: Vec) -> Form:
+def _enclosed(x: sp.Expr, cache: dict[Any, Ball]) -> Ball:
+    if x not in cache:
+        cache[x] = enclose(x)
+    return cache[x]
+
+
+def inner(a: Vec, b: Vec, cache: dict[Any, Ball], used: list[Vec]) -> Form:
+    """<a, b> as a form (its coefficients enclosed); both vectors go to ``used``."""
+    used += [a, b]
     g: dict[tuple[int, int], Ball] = {}
     for i, x in a.c.items():
         for j, y in b.c.items():
             k = (min(i, j), max(i, j))
-            g[k] = g[k] + x * y if k in g else x * y
+            xy = _enclosed(x, cache) * _enclosed(y, cache)
+            g[k] = g[k] + xy if k in g else xy
     return Form(g)
 
 
@@ -100,6 +108,7 @@ class Problem:
     measure: Form
     basis: list[str]
     leaves: int
+    used: list[Vec] = field(default_factory=list)  # every vector of an inner product
 
 
 class _Builder:
@@ -113,31 +122,34 @@ class _Builder:
         self.d, self.nv, self.basis = 0, 0, []
         self.cache: dict[Any, Ball] = {}
         self.weights = weights
+        self.used: list[Vec] = []
+
+    def inner(self, a: Vec, b: Vec) -> Form:
+        return inner(a, b, self.cache, self.used)
 
     # -- basis -----------------------------------------------------------------------
     def new(self, label: str) -> Vec:
         self.basis.append(label)
         self.d += 1
-        return Vec({self.d - 1: Ball(1)})
+        return Vec({self.d - 1: sp.Integer(1)})
 
     def value(self) -> int:
         self.nv += 1
         return self.nv - 1
 
     def ball(self, x: sp.Expr) -> Ball:
-        if x not in self.cache:
-            if not x.is_real or x.free_symbols:
-                raise InputError(f"{self.source}: finite_sum: {x} is not a real number here")
-            self.cache[x] = enclose(x)
-        return self.cache[x]
+        if not x.is_real or x.free_symbols:
+            raise InputError(f"{self.source}: finite_sum: {x} is not a real number here")
+        return _enclosed(x, self.cache)
 
     def optimum(self) -> None:
         """x* = 0 for every function, gradients summing (weighted) to 0."""
         gs = [self.new(f"g*_{ps.name}") for ps in self.functions[:-1]]
-        acc: dict[int, Ball] = {}
+        acc: dict[int, sp.Expr] = {}
         for w, g in zip(self.weights, gs, strict=False):
-            acc = _add(acc, _scale(g.c, Ball(w)))
-        last = Vec(_scale(acc, Ball(-1 / self.weights[-1])))
+            acc = _add(acc, _scale(g.c, sp.Rational(w.numerator, w.denominator)))
+        wl = self.weights[-1]
+        last = Vec(_scale(acc, sp.Rational(-wl.denominator, wl.numerator)))
         for ps, g in zip(self.functions, [*gs, last], strict=True):
             ps.points.append((Vec({}), g, self.value()))
 
@@ -278,7 +290,7 @@ class _Eval:
             raise self.fail(ctx, f"prox({ps.name}, t, w): needs a class with a proximal "
                                  "oracle and a step t > 0")
         y = self.b.new(f"prox_{ps.name}{len(ps.points)}")
-        g = Vec(_scale(_add(w.c, y.c, -1), self.b.ball(1 / t)))
+        g = Vec(_scale(_add(w.c, y.c, -1), 1 / t))
         ps.points.append((y, g, self.b.value()))
         return y
 
@@ -326,14 +338,14 @@ class _Eval:
             return self.add(a, b, 1 if isinstance(op, ast.Add) else -1, ctx)
         if isinstance(op, ast.Mult):
             if isinstance(a, Vec) and isinstance(b, Vec):
-                return inner(a, b)
+                return self.b.inner(a, b)
             return self.mul(a, b, ctx) if isinstance(a, sp.Expr) else self.mul(b, a, ctx)
         if isinstance(op, ast.Div):
             if not isinstance(b, sp.Expr) or b.is_zero is not False:
                 raise self.fail(ctx, "division by a nonzero number only")
             return self.mul(1 / b, a, ctx)
         if isinstance(a, Vec) and b == 2:
-            return inner(a, a)
+            return self.b.inner(a, a)
         if isinstance(a, sp.Expr) and isinstance(b, sp.Expr):
             return a ** b
         raise self.fail(ctx, "** is v**2 (a squared norm) or a power of numbers")
@@ -359,7 +371,8 @@ class _Eval:
         if isinstance(a, sp.Expr):
             return s * a
         if isinstance(a, Vec):
-            return Vec(_scale(a.c, self.b.ball(s)))
+            self.b.ball(s)  # a real number
+            return Vec(_scale(a.c, s))
         return a.times(self.b.ball(s))
 
 
@@ -441,13 +454,14 @@ def build_problem(fs: FiniteSum, n: int, env: dict[str, sp.Expr], functions: lis
             for c, (xb, gb, fb) in enumerate(ps.points):
                 if a == c:
                     continue
-                for r, form in enumerate(_pair(ps, (xa, xb, ga, gb), fa, fb)):
+                for r, form in enumerate(_pair(b, ps, (xa, xb, ga, gb), fa, fb)):
                     forms.append(form)
                     labels.append(f"{ps.name}:{a},{c}#{r}")
-    return Problem(b.d, b.nv, labels, forms, mform, b.basis, len(leaves))
+    return Problem(b.d, b.nv, labels, forms, mform, b.basis, len(leaves), b.used)
 
 
-def _pair(ps: PointSet, X: tuple[Vec, Vec, Vec, Vec], fa: int, fb: int) -> list[Form]:
+def _pair(b: _Builder, ps: PointSet, X: tuple[Vec, Vec, Vec, Vec], fa: int, fb: int
+          ) -> list[Form]:
     out = []
     for alpha, Q in ps.cls.exact_tilted(ps.params):
         form = Form(v={fa: Ball.of(alpha)}).plus(Form(v={fb: Ball.of(alpha)}), -1) \
@@ -456,6 +470,6 @@ def _pair(ps: PointSet, X: tuple[Vec, Vec, Vec, Vec], fa: int, fb: int) -> list[
             for s in range(4):
                 q = Ball.of(Q[r][s])
                 if q.c or q.r:
-                    form = form.plus(inner(X[r], X[s]).times(q))
+                    form = form.plus(b.inner(X[r], X[s]).times(q))
         out.append(form)
     return out
