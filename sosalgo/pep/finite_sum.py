@@ -306,7 +306,7 @@ def finite_sum_pep(spec: Spec, kappa: float | None, steps: int, measure: str | N
     certificate, extra)."""
     measure, initial = _terms(spec, measure, initial)
     pb = exact_problem(spec, kappa, steps, measure, initial)
-    status, tau, _ = _solve(pb, 0.0)
+    status, tau, lam = _solve(pb, 0.0)
     out: dict[str, Any] = {"measure": measure, "initial": initial, "status": status,
                            "tau": tau, "gap": None, "certificate": None,
                            "extra": {"outcomes": pb.leaves}}
@@ -318,6 +318,11 @@ def finite_sum_pep(spec: Spec, kappa: float | None, steps: int, measure: str | N
         out["certificate"] = _certificate(pb, tau, spec, kappa) if exact else {
             "tau": tau, "check_kind": "floating-point check", "tau_proven": None,
             "proof": None, "basis": pb.basis}
+        if "multipliers" not in out["certificate"] and lam is not None:
+            top = float(lam.max(initial=0.0))
+            out["certificate"]["multipliers"] = {
+                lab: float(v) for lab, v in zip(pb.labels, lam, strict=True)
+                if v > 1e-12 * top}
         out["extra"]["note"] = NO_WITNESS
     return out
 

@@ -26,7 +26,7 @@ from sosalgo.spec.finite_sum import FiniteSum, check_program_text
 
 __all__ = ["Form", "MAX_LEAVES", "PointSet", "Problem", "build_problem"]
 
-MAX_LEAVES = 256  # n**N leaves at most (the tree of outcomes after N steps)
+MAX_LEAVES = 64  # n**N leaves at most (the tree of outcomes after N steps)
 ZERO = Ball(0)
 
 
