@@ -267,6 +267,7 @@ def test_analyze_refuses_a_finite_sum(tmp_path):
      "finite_sum.step[0]"),
     (('measure: "E[(x - xs)**2]"', 'measure: "(x - xs)**2"'), "measure"),
     (("n: 5 ", "n: 1/2 "), "count"),
+    (('initial: "(x - xs)**2 <= R**2"', 'initial: "(x - xs)**2 <= 2**10**10"'), "initial"),
 ])
 def test_bad_finite_sum_input_is_one_line(tmp_path, change, field):
     text = (SPECS / "sgd.yaml").read_text()

@@ -27,6 +27,7 @@ from sosalgo.spec.finite_sum import FiniteSum, check_program_text
 __all__ = ["Form", "MAX_LEAVES", "PointSet", "Problem", "build_problem"]
 
 MAX_LEAVES = 64  # n**N leaves at most (the tree of outcomes after N steps)
+MAX_POWER = 64  # |exponent| of a power of numbers at most
 ZERO = Ball(0)
 
 
@@ -347,6 +348,9 @@ class _Eval:
         if isinstance(a, Vec) and b == 2:
             return self.b.inner(a, a)
         if isinstance(a, sp.Expr) and isinstance(b, sp.Expr):
+            if not (b.is_Rational and abs(b) <= MAX_POWER):
+                raise self.fail(ctx, f"a power of numbers: the exponent must be a rational "
+                                     f"number of at most {MAX_POWER} in absolute value")
             return a ** b
         raise self.fail(ctx, "** is v**2 (a squared norm) or a power of numbers")
 
