@@ -31,6 +31,7 @@ __all__ = ["MAX_COUNT", "exact_problem", "finite_sum_pep", "finite_sum_sizes",
 
 MAX_COUNT = 64  # functions in the sum at most
 MARGINS = (1e-9, 1e-8, 1e-7, 1e-6, 1e-5)  # S ⪰ margin * tau * I, in order
+LOOSE = 1e-4  # a proof further above tau (relative) is not taken
 NO_WITNESS = ("no worst-case witness for a finite sum (tau_proven is the proven upper "
               "bound)")
 
@@ -153,6 +154,7 @@ def _solve_once(pb: Problem, margin: float, precise: bool
     if precise:
         settings.tol_gap_abs = settings.tol_gap_rel = settings.tol_feas = 1e-10
         settings.tol_ktratio = 1e-10
+        settings.max_iter = 60  # a degenerate dual stalls there: the defaults next
     sol = clarabel_solve(csc((K + T, K + T)), np.concatenate([r, np.zeros(T)]), A, b,
                          [("zero", nv + T), ("nonneg", K), ("psd", d)], settings)
     st = solver_status(str(sol.status))
@@ -273,6 +275,7 @@ def _certificate(pb: Problem, tau: float, spec: Spec, kappa: float | None
                             "tau_proven": None, "proof": None}
     t0 = time.perf_counter()
     detail = "no certificate solved"
+    inexact = any(v.r for f in [*pb.forms, pb.measure] for v in f.g.values())
     for rel in MARGINS:
         status, t, lam = _solve(pb, rel * max(tau, 1e-12))
         if status != "solved" or lam is None:
@@ -283,8 +286,19 @@ def _certificate(pb: Problem, tau: float, spec: Spec, kappa: float | None
         if lq2 is None:
             detail = "the value equalities cannot be made exact with multipliers >= 0"
             continue
+        S = -_matrix(pb.measure, pb.d) - sum(
+            (float(v) * _matrix(f, pb.d) for v, f in zip(lq2, pb.forms, strict=True) if v),
+            np.zeros((pb.d, pb.d)))
+        low = float(np.linalg.eigvalsh(S)[0])
+        # the exact proof would fail: a semidefinite S is proven only in rationals
+        if low < (1e-12 if inexact else -1e-12) * max(1.0, float(np.abs(S).max())):
+            detail = f"floating-point pre-check: S is not PSD (least eigenvalue {low:.3g})"
+            continue
         ok, upper, detail = prove(pb, lq2)
         if not ok or upper is None:
+            continue
+        if float(upper) > tau * (1 + LOOSE):  # true, but not this worst case's bound
+            detail = f"the certificate proves only {float(upper):.10g}"
             continue
         tq = decimal_up(upper)
         cert["multipliers"] = {lab: float(v) for lab, v in zip(pb.labels, lq2, strict=True)
