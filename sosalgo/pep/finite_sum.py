@@ -56,8 +56,9 @@ def _count(spec: Spec, env: dict[Any, sp.Expr]) -> int:
     n = to_sympy(fs.count).xreplace(env)
     n = sp.nsimplify(n) if getattr(n, "is_Float", False) else n
     if not (n.is_Integer and 1 <= int(n) <= MAX_COUNT):
-        raise InputError(f"{spec.source}: functions.{fs.function}.count: must be an integer "
-                         f"in 1..{MAX_COUNT} here, got {n}")
+        where = "finite_sum.blocks" if fs.blocks else f"functions.{fs.function}.count"
+        raise InputError(f"{spec.source}: {where}: must be an integer in 1..{MAX_COUNT} "
+                         f"here, got {n}")
     return int(n)
 
 
@@ -67,7 +68,7 @@ def _point_sets(spec: Spec, subs: dict[Any, sp.Expr], n: int) -> list[PointSet]:
 
     fs = spec.finite_sum
     out = []
-    drawn = [fs.function] + [f for f in spec.functions if f != fs.function]
+    drawn = [f for f in [fs.function] if f] + [f for f in spec.functions if f != fs.function]
     for name in drawn:
         decl = spec.functions[name]
         cls = CLASSES[decl.cls]

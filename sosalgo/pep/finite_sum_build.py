@@ -124,6 +124,8 @@ class _Builder:
         self.cache: dict[Any, Ball] = {}
         self.weights = weights
         self.used: list[Vec] = []
+        self.blocks: dict[Any, list[Vec]] = {}  # the decomposed vectors' blocks
+        self.extra: list[tuple[str, Form]] = []  # their orthogonality (two rows each)
 
     def inner(self, a: Vec, b: Vec) -> Form:
         return inner(a, b, self.cache, self.used)
@@ -153,6 +155,29 @@ class _Builder:
         last = Vec(_scale(acc, sp.Rational(-wl.denominator, wl.numerator)))
         for ps, g in zip(self.functions, [*gs, last], strict=True):
             ps.points.append((Vec({}), g, self.value()))
+
+    def block(self, v: Vec, k: int) -> Vec:
+        """The k-th of v's n orthogonal blocks (n - 1 new basis vectors, the last the
+        rest), orthogonal to every other block of every decomposed vector (PEPit's block
+        partition: <P_a u, P_b w> = 0 for a != b)."""
+        key = v.key()
+        if key not in self.blocks:
+            tag = len(self.blocks) + 1
+            parts = [self.new(f"block{tag}_{a + 1}") for a in range(self.n - 1)]
+            rest = dict(v.c)
+            for p in parts:
+                rest = _add(rest, p.c, -1)
+            parts.append(Vec(rest))
+            for t, other in enumerate([*self.blocks.values(), parts]):
+                for a in range(self.n):
+                    for b in range(self.n):
+                        if a == b or (other is parts and b < a):
+                            continue
+                        form = self.inner(parts[a], other[b])
+                        lab = f"block{tag}.{a + 1}:block{t + 1}.{b + 1}"
+                        self.extra += [(lab + "+", form), (lab + "-", form.times(Ball(-1)))]
+            self.blocks[key] = parts
+        return self.blocks[key][k]
 
     def point(self, k: int, x: Vec) -> tuple[Vec, int]:
         """The gradient and value index of function k at x (registered when new)."""
@@ -266,7 +291,7 @@ class _Eval:
                                              and fn.id in self.b.index):
             return self.value_call(node, ctx)
         name, args = fn.id, node.args  # type: ignore[union-attr]
-        arity = {"grad": 2, "prox": 3, "mean": 1, "sqrt": 1}
+        arity = {"grad": 2, "prox": 3, "mean": 1, "sqrt": 1, "block": 2}
         if name not in arity or len(args) != arity[name] or node.keywords:
             raise self.fail(ctx, f"{name}(): unknown or wrong number of arguments "
                                  "(grad(f, x), prox(f, t, w), mean(e), sqrt(c))")
@@ -274,6 +299,10 @@ class _Eval:
             return self.mean(args[0], ctx)
         if name == "sqrt":
             return sp.sqrt(self.scalar(args[0], ctx))
+        if name == "block":
+            if not self.b.fs.blocks:
+                raise self.fail(ctx, "block(v, i): only with finite_sum.blocks")
+            return self.b.block(self.vector(args[0], ctx), self.index(args[1], ctx))
         k = self.function(args[0], ctx)
         if name == "grad":
             return self.grad(k, self.vector(args[1], ctx), ctx)
@@ -439,7 +468,8 @@ def build_problem(fs: FiniteSum, n: int, env: dict[str, sp.Expr], functions: lis
     if n ** steps > MAX_LEAVES:
         raise InputError(f"--steps: {n}**{steps} outcomes exceed {MAX_LEAVES} (the tree "
                          "of draws); ask fewer steps or a smaller count")
-    weights = [Fraction(1, n)] * n + [Fraction(1)] * (len(functions) - n)
+    copies = 0 if fs.blocks else n
+    weights = [Fraction(1, n)] * copies + [Fraction(1)] * (len(functions) - copies)
     b = _Builder(fs, n, env, functions, weights, source)
     start = _start(b)
     b.optimum()
@@ -453,6 +483,8 @@ def build_problem(fs: FiniteSum, n: int, env: dict[str, sp.Expr], functions: lis
     labels.append("initial")
     leaves = _steps(b, ev, start, steps)
     mform = term_form(b, measure, "measure", leaves, False)
+    labels += [lab for lab, _ in b.extra]
+    forms += [f for _, f in b.extra]
     for ps in functions:
         for a, (xa, ga, fa) in enumerate(ps.points):
             for c, (xb, gb, fb) in enumerate(ps.points):

@@ -23,7 +23,7 @@ from typing import Any
 
 __all__ = ["FiniteSum", "VECTOR_CALLS", "check_program_text", "parse_finite_sum"]
 
-VECTOR_CALLS = ("grad", "prox", "mean", "sqrt")  # the calls the program and terms may use
+VECTOR_CALLS = ("grad", "prox", "mean", "sqrt", "block")  # the calls the program and terms may use
 MAX_STATEMENTS = 20
 MAX_TEXT = 2000
 _ALLOWED = (ast.Expression, ast.BinOp, ast.UnaryOp, ast.Add, ast.Sub, ast.Mult, ast.Div,
@@ -37,11 +37,14 @@ class FiniteSum:
     parameters), the state (name, one per function?), the step as (target, indexed by
     the draw i, expression text) in order, and the constraints (texts ``a <= b``)."""
 
-    function: str
+    function: str | None
     count: Any
     state: tuple[tuple[str, bool], ...]
     step: tuple[tuple[str, bool, str], ...]
     constraints: tuple[str, ...] = ()
+    # ``blocks: d`` instead of a function with count: the space is cut in d orthogonal
+    # blocks, ``block(v, i)`` is v's i-th, and the step draws a block (count is d)
+    blocks: bool = False
 
     def memory(self) -> frozenset[str]:
         return frozenset(name for name, per in self.state if per)
@@ -80,14 +83,19 @@ def check_program_text(text: object, where: str, fail: Callable[[str, str], Exce
 
 
 def parse_finite_sum(raw: object, counts: dict[str, Any], names: Collection[str],
-                     fail: Callable[[str, str], Exception]) -> FiniteSum:
+                     fail: Callable[[str, str], Exception],
+                     blocks: Callable[[object], Any] | None = None) -> FiniteSum:
     """``finite_sum:`` checked against the functions' counts (exactly one function with
     ``count``) and the spec's names (parameters, m, L, kappa)."""
-    if not isinstance(raw, dict) or set(raw) - {"state", "step", "constraints"}:
-        raise fail("finite_sum", "expected a mapping with state, step (and constraints)")
-    if len(counts) != 1:
-        raise fail("finite_sum", "exactly one function must have count: n (the drawn one)")
-    (function, count), = counts.items()
+    if not isinstance(raw, dict) or set(raw) - {"state", "step", "constraints", "blocks"}:
+        raise fail("finite_sum", "expected a mapping with state, step (and constraints, "
+                                 "blocks)")
+    if len(counts) + ("blocks" in raw) != 1:
+        raise fail("finite_sum", "exactly one function must have count: n (the drawn one), "
+                                 "or blocks: d (a block of coordinates drawn) be given")
+    function, count = next(iter(counts.items())) if counts else (None, None)
+    if "blocks" in raw:
+        count = blocks(raw["blocks"])
     state = _state(raw.get("state"), names, fail)
     step = _step(raw.get("step"), {s for s, _ in state}, dict(state), fail)
     cons = raw.get("constraints", [])
@@ -96,7 +104,8 @@ def parse_finite_sum(raw: object, counts: dict[str, Any], names: Collection[str]
                                              "comparisons a <= b")
     for k, c in enumerate(cons):
         check_program_text(c, f"finite_sum.constraints[{k}]", fail, compare=True)
-    return FiniteSum(function, count, tuple(state), tuple(step), tuple(str(c) for c in cons))
+    return FiniteSum(function, count, tuple(state), tuple(step), tuple(str(c) for c in cons),
+                     "blocks" in raw)
 
 
 def _state(raw: object, names: Collection[str], fail: Callable[[str, str], Exception]

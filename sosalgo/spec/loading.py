@@ -391,7 +391,8 @@ class _Builder:
         if "finite_sum" not in data:
             raise self.fail("finite_sum", "missing: a function with count: is drawn by "
                                           "the step of finite_sum:")
-        fs = parse_finite_sum(data["finite_sum"], self.counts, names, self.fail)
+        fs = parse_finite_sum(data["finite_sum"], self.counts, names, self.fail,
+                              lambda raw: self.expr(raw, names, "finite_sum.blocks"))
         references = self.references(data.get("references", {}))
         kappa = () if m == 0 else self.kappa(data.get("kappa", [10]))
         return Spec(
