@@ -277,3 +277,25 @@ def test_bad_finite_sum_input_is_one_line(tmp_path, change, field):
     code, lines = _run(["pep", str(bad), "--kappa", "10", "--steps", "1"], tmp_path)
     assert code == 2 and len(lines) == 1 and field in lines[0], lines
     assert not (tmp_path / "o").exists()
+
+
+def test_random_block_coordinate_descent_never_exceeds_its_proof():
+    """x+ = x - gamma P_i grad f(x), i one of d = 2 blocks of R^4 (coordinates 0-1 and
+    2-3), on random quadratics and log-sum-exp functions of F(mu, L): the average over the
+    two blocks of |x_1 - x*|^2 / |x_0 - x*|^2 <= tau_proven (gamma = 2/(mu + L), PEPit's
+    example; the closed form max(((mu gamma - 1)^2 + 1)/2, ((L gamma - 1)^2 + 1)/2))."""
+    path = SPECS.parent / "bench" / "conformance" / "specs" / "randomized-coordinate-descent.yaml"
+    res = sosalgo.pep(path, 10, 1)
+    gamma = 2 / (MU + L)
+    want = max(((MU * gamma - 1) ** 2 + 1) / 2, ((L * gamma - 1) ** 2 + 1) / 2)
+    assert res.tau == pytest.approx(want, rel=1e-6)
+    bound = _proven(res)
+    assert want <= bound <= want * (1 + 1e-6)
+    rng = np.random.default_rng(5)
+    blocks = [np.array([1, 1, 0, 0.0]), np.array([0, 0, 1, 1.0])]
+    for trial in range(40):
+        _, g, _ = (_quadratic if trial % 2 else _logsumexp)(rng, 4)
+        xs = _minimizer([g], 4)
+        x0 = xs + rng.standard_normal(4)
+        e = np.mean([np.sum((x0 - gamma * P * g(x0) - xs) ** 2) for P in blocks])
+        assert e / np.sum((x0 - xs) ** 2) <= bound * (1 + 1e-9)
