@@ -37,8 +37,11 @@ class Vec:
 
     c: dict[int, sp.Expr]
 
-    def key(self) -> tuple[tuple[int, float], ...]:
-        return tuple(sorted((k, round(float(v), 12)) for k, v in self.c.items() if v != 0))
+    def key(self) -> tuple[tuple[int, sp.Expr], ...]:
+        """The exact coefficients: two points are one only when they are equal as
+        written (merging two points that differ would force equal gradients: a PEP
+        below the truth; two names for one point only weaken it)."""
+        return tuple(sorted((k, v) for k, v in self.c.items() if v != 0))
 
 
 def _add(a: dict, b: dict, s: int = 1) -> dict:
