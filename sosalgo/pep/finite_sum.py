@@ -32,6 +32,7 @@ __all__ = ["MAX_COUNT", "exact_problem", "finite_sum_pep", "finite_sum_sizes",
 MAX_COUNT = 64  # functions in the sum at most
 MARGINS = (1e-9, 1e-8, 1e-7, 1e-6, 1e-5)  # S ⪰ margin * tau * I, in order
 LOOSE = 1e-4  # a proof further above tau (relative) is not taken
+MAX_MISSES = 2  # margins whose S fails the floating-point pre-check before giving up
 NO_WITNESS = ("no worst-case witness for a finite sum (tau_proven is the proven upper "
               "bound)")
 
@@ -277,6 +278,7 @@ def _certificate(pb: Problem, tau: float, spec: Spec, kappa: float | None
     t0 = time.perf_counter()
     detail = "no certificate solved"
     inexact = any(v.r for f in [*pb.forms, pb.measure] for v in f.g.values())
+    misses = 0
     for rel in MARGINS:
         status, t, lam = _solve(pb, rel * max(tau, 1e-12))
         if status != "solved" or lam is None:
@@ -294,6 +296,9 @@ def _certificate(pb: Problem, tau: float, spec: Spec, kappa: float | None
         # the exact proof would fail: a semidefinite S is proven only in rationals
         if low < (1e-12 if inexact else -1e-12) * max(1.0, float(np.abs(S).max())):
             detail = f"floating-point pre-check: S is not PSD (least eigenvalue {low:.3g})"
+            misses += 1
+            if misses >= MAX_MISSES:  # S singular whatever the margin: no S > 0 exists
+                break
             continue
         ok, upper, detail = prove(pb, lq2)
         if not ok or upper is None:
@@ -313,7 +318,7 @@ def _certificate(pb: Problem, tau: float, spec: Spec, kappa: float | None
         cert.update(check_kind="exact (rational and ball arithmetic)",
                     tau_proven=proof["tau_proven"], proof=proof, margin=rel * tau)
         break
-    else:
+    if cert["tau_proven"] is None:
         cert["proof"] = {"proven": False, "tau_proven": None, "detail": detail}
     cert["basis"] = pb.basis
     return cert
