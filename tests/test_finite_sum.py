@@ -299,3 +299,23 @@ def test_random_block_coordinate_descent_never_exceeds_its_proof():
         x0 = xs + rng.standard_normal(4)
         e = np.mean([np.sum((x0 - gamma * P * g(x0) - xs) ** 2) for P in blocks])
         assert e / np.sum((x0 - xs) ** 2) <= bound * (1 + 1e-9)
+
+
+def test_two_steps_of_sgd_never_exceed_their_proof():
+    """Two steps: the tree of 5 x 5 outcomes; E|x_2 - x*|^2, the average over the 25
+    pairs of draws (numpy), is at most the proven bound."""
+    res = sosalgo.pep(_spec("sgd"), 10, 2)
+    assert res.extra["outcomes"] == 25
+    bound = _proven(res)
+    rng = np.random.default_rng(9)
+    for trial in range(25):
+        fns = [KINDS[(trial + k) % 3](rng, 3) for k in range(5)]
+        grads = [g for _, g, _ in fns]
+        xs = _minimizer(grads, 3)
+        x0 = xs + rng.standard_normal(3) * rng.uniform(0.1, 3)
+        R = np.linalg.norm(x0 - xs)
+        v = np.sqrt(np.mean([g(xs) @ g(xs) for g in grads]))
+        s = max(R / 2, v)
+        e = np.mean([np.sum((x1 - 0.7 * h(x1) - xs) ** 2)
+                     for x1 in (x0 - 0.7 * g(x0) for g in grads) for h in grads]) / s ** 2
+        assert e <= bound * (1 + 1e-9), (trial, e, bound)
