@@ -55,6 +55,10 @@ def refuse_nonconvex(spec: Any, linear_rates: bool = False) -> None:
     from sosalgo.certificates import inhomogeneous_functions, nonconvex_functions
     from sosalgo.spec.loading import operator_functions
 
+    if getattr(spec, "finite_sum", None) is not None:
+        raise InputError(f"{spec.source}: finite_sum: one of n functions drawn per step: no "
+                         "Lyapunov family models it (no rate is certified); sosalgo pep "
+                         "bounds the expectation of its measure")
     if getattr(spec, "line_search", None):
         raise InputError(f"{spec.source}: line_search: a step chosen by exact line search: "
                          "no Lyapunov family models it (no rate is certified); sosalgo pep "

@@ -132,7 +132,9 @@ def pep_rows(spec: Any) -> list[dict[str, Any]]:
     listed = any(par.schedule is not None for par in spec.parameters.values())
     kappa = pep_kappa(spec)
     rows = []
-    for n in [horizon(spec, None)] if listed else PEP_STEPS:
+    # a finite sum's question is one step (a tree of n**N outcomes beyond)
+    steps = [1] if spec.finite_sum is not None else PEP_STEPS
+    for n in [horizon(spec, None)] if listed else steps:
         res = sosalgo.pep(spec, kappa, n, witness=False)
         cert = res.certificate or {}
         rows.append({"steps": n, "kappa": kappa, "tau": res.tau,
@@ -156,8 +158,10 @@ def spec_numbers(path: Path, cache: Path) -> tuple[dict[str, Any], Path | None]:
     from sosalgo.steps import changes_with_k
 
     operators = bool(operator_functions(spec)) and spec.sublinear  # no family: pep answers
-    # conditions or steps no Lyapunov family takes (a mirror spec's Bregman steps)
-    pep_only = bool(inhomogeneous_functions(spec)) or bool(spec.mirror)
+    # conditions or steps no Lyapunov family takes (a mirror spec's Bregman steps, a finite
+    # sum with one function drawn per step)
+    pep_only = (bool(inhomogeneous_functions(spec)) or bool(spec.mirror)
+                or spec.finite_sum is not None)
     if data_file.exists() and figure.exists():
         return json.loads(data_file.read_text(encoding="utf-8")), figure
     if changes_with_k(spec) or nonconvex_functions(spec) or operators or pep_only:  # no rate

@@ -202,6 +202,8 @@ def update_rule(spec: Any) -> list[str]:
     names = list(spec.functions) or list(dict.fromkeys(spec.oracles))
     for fname in names:
         lines.append(f"- ${fname}$: {function_words(spec, fname)}")
+    if spec.finite_sum is not None:  # a program, one function (or block) drawn per step
+        return lines + finite_sum_lines(spec) + parameter_table(spec) + [""]
     objective = " + ".join(names)
     lines += ["", f"Iteration $k$ of the method on ${objective}$, "
               "as the spec's matrices and oracles define it:", ""]
@@ -214,6 +216,20 @@ def update_rule(spec: Any) -> list[str]:
               "$$", matrix_form(spec), "$$", ""]
     lines += parameter_table(spec)
     return lines + [""]
+
+
+def finite_sum_lines(spec: Any) -> list[str]:
+    """A finite sum's step as its spec writes it (docs/oracles.md, stochastic finite
+    sums): the state, the assignments, the constraints."""
+    fs = spec.finite_sum
+    drawn = ("one of the blocks of coordinates" if fs.blocks
+             else f"one of the functions ${fs.function}_1, \\dots, {fs.function}_n$")
+    state = ", ".join(f"{name}[j]" if per else name for name, per in fs.state)
+    body = [f"state: [{state}]", "step:"]
+    body += [f"  - {target}{'[i]' if ix else ''} = {expr}" for target, ix, expr in fs.step]
+    body += ["constraints:"] + [f"  - {c}" for c in fs.constraints] if fs.constraints else []
+    return ["", f"Every step draws {drawn} uniformly (index $i$) and runs the spec's "
+            "`finite_sum:` program:", "", "```yaml", *body, "```", ""]
 
 
 def measure_sentence(spec: Any) -> str:

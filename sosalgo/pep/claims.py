@@ -136,7 +136,10 @@ def _upper(claims: _Claims, spec: Spec, ctx: Mapping[str, Any], proof: Any,
            claimed: Any, where: str) -> Fraction | None:
     """Re-prove a claimed tau_proven (None: no claim); the proven value or None."""
     from sosalgo.pep.exact import reprove_certificate
+    from sosalgo.pep.finite_sum import reprove_finite_sum
 
+    # a finite sum is a tree of outcomes: its own exact PEP
+    reprove = reprove_finite_sum if spec.finite_sum is not None else reprove_certificate
     if claimed is None:
         return None
     q = _fraction(claimed, f"{where}.tau_proven")
@@ -149,8 +152,8 @@ def _upper(claims: _Claims, spec: Spec, ctx: Mapping[str, Any], proof: Any,
         ok, why = reprove_mirror(spec, ctx["steps"], ctx["measure"], ctx["initial"],
                                  dict(proof) | {"tau_proven": claimed})
     else:
-        ok, why = reprove_certificate(spec, ctx["kappa"], ctx["steps"], ctx["measure"],
-                                      ctx["initial"], dict(proof) | {"tau_proven": claimed})
+        ok, why = reprove(spec, ctx["kappa"], ctx["steps"], ctx["measure"],
+                          ctx["initial"], dict(proof) | {"tau_proven": claimed})
     if not ok:
         claims.add(f"{where}.tau_proven", "contradicted" if "multipliers_exact" in proof
                    else "unsupported", f"{claimed} not proven: {why}")

@@ -175,6 +175,7 @@ def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None
     text."""
     if isinstance(steps, bool) or not isinstance(steps, int) or not 1 <= steps <= MAX_STEPS:
         raise InputError(f"--steps: must be an integer in 1..{MAX_STEPS}, got {steps!r}")
+    _no_expectation(spec, measure, initial)
     if schedule is None:  # the problem layer's per-step methods (None: one method)
         schedule = spec_steps(spec, kappa, steps)
     if schedule is not None:
@@ -219,6 +220,19 @@ def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None
     return mt, st, mterms, iterms, (measure, initial)
 
 
+def _no_expectation(spec: Spec, measure: str | None, initial: str | None) -> None:
+    """An expectation ``E[...]`` needs a drawn oracle (a finite-sum spec): InputError
+    naming the field otherwise."""
+    for opt, text, key in (("--measure", measure, "measure"), ("--initial", initial,
+                                                                "initial")):
+        field_ = opt if text else f"pep.{key}"
+        text = text or spec.pep.get(key) or ""
+        if re.search(r"\bE\s*\[", text):
+            raise InputError(f"{spec.source}: {field_}: E[...] is an expectation over a "
+                             "stochastic oracle; this spec draws none (a function with "
+                             "count: and finite_sum:)")
+
+
 def _resolve_min(mt: Method, steps: int, mterms: list[Term], iterms: list[Term],
                  kappa: float, solve_min: bool) -> list[Term]:
     """``mterms`` with a mingrad term replaced by its weighted sum (see
@@ -255,6 +269,18 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
         if isinstance(steps, bool) or not isinstance(steps, int) or not 1 <= steps <= MAX_STEPS:
             raise InputError(f"--steps: must be an integer in 1..{MAX_STEPS}, got {steps!r}")
         return mirror_pep(spec, kappa, steps, measure, initial, exact, PEPResult)
+    if spec.finite_sum is not None:  # one of n functions drawn per step: a tree of outcomes
+        from sosalgo.pep.finite_sum import finite_sum_pep
+
+        _check_kappa(spec, kappa)
+        got = finite_sum_pep(spec, kappa, steps, measure, initial, exact)
+        k = class_kappa(spec, kappa)
+        res = PEPResult(spec.name, None if k is None else (
+            k if isinstance(k, Kappa) else float(k)),  # type: ignore[arg-type]
+            steps, got["measure"], got["initial"], got["status"], got["tau"], got["gap"],
+            got["certificate"], None, extra=got["extra"])
+        res.seconds = time.perf_counter() - t0
+        return res
     if schedule is None:  # the problem layer's per-step methods (None: one method)
         schedule = spec_steps(spec, kappa, steps)
     mt, st, mterms, iterms, names = pep_problem(spec, kappa, steps, measure, initial,

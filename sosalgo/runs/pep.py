@@ -94,6 +94,13 @@ def _check(spec: Spec, kappas: list[float | None], steps: list[int], measure: st
     from sosalgo.kernel import budget
     from sosalgo.pep.core import pep_problem
 
+    if spec.finite_sum is not None:  # a tree of outcomes (sosalgo.pep.finite_sum)
+        from sosalgo.pep.finite_sum import finite_sum_sizes
+
+        sizes = finite_sum_sizes(spec, kappas, steps, measure, initial)
+        est, w = budget.pep_estimate(f"pep {spec.name}", f"--steps {max(steps)}", sizes,
+                                     workers, False)
+        return budget.check(est), w, False
     # the first horizon asked: a schedule's is its length, and a term may name a step
     # (x_2, y_1) that a shorter one has not reached
     small = steps[0]
@@ -411,8 +418,10 @@ def pep_heading(rows: list[dict[str, Any]]) -> list[str]:
              else "any two xi_0, xi_0' (two runs on the same functions)"
              if "contraction" in str(d["initial"])
              else "x_0 (the method at rest there, or as its initial_state says)")
+    drawn = d.get("outcomes") is not None  # a finite sum: one function drawn per step
+    bound = "" if drawn and "<=" in str(d["initial"]) else " <= 1"
     lines = [f"{d['spec']}: tau = worst case of {term_words(d['measure'], False, several)} "
-             f"when {term_words(d['initial'], True, several)} <= 1, over"]
+             f"when {term_words(d['initial'], True, several)}{bound}, over"]
     for name, fn in funcs.items():
         what = getattr(CLASSES.get(fn.get("class")), "description", "") or fn.get("class")
         params = {k: ("kappa m" if many and k == "L" else v)
@@ -424,6 +433,10 @@ def pep_heading(rows: list[dict[str, Any]]) -> list[str]:
         lines.append(f"  {call}: an inexact gradient d, |d - grad f| <= {eps} |grad f|")
     if cls.get("line_search"):
         lines.append(f"  {cls['line_search']}: chosen at every step by exact line search")
+    if drawn:
+        return lines + ["  start: every vector of finite_sum.state free",
+                        "  N steps: N runs of finite_sum.step, each drawing its index i "
+                        f"uniformly ({d['outcomes']} outcomes); E[...]: their average"]
     return lines + [f"  start: {start}",
                     "  N steps: N iterations xi+ = A xi + B u (each with its oracle calls); "
                     "x_N: the output after them"]

@@ -329,7 +329,11 @@ class _Builder:
         tied_order(params, self.source)  # detects cycles
         value_order(params, self.source)
 
+        self.counts: dict[str, Any] = {}
         functions = self.functions(data.get("functions"), constant_parameters(params))
+        if "finite_sum" in data or self.counts:
+            return self.finite_sum_spec(data, name, description, m, L, params, functions,
+                                        names)
         raw_oracles = data.get("oracles", ["f"])
         inexact = self.oracle_errors(raw_oracles, names)
         lmo = self.oracle_lmo(raw_oracles)
@@ -376,6 +380,31 @@ class _Builder:
         if spec.sublinear:
             self.check_sublinear(spec)
         return run_checks(spec, data, self.fail)
+
+    def finite_sum_spec(self, data: dict, name: str, description: str, m: float,
+                        L: float | None, params: dict[str, Parameter],
+                        functions: dict[str, FunctionDecl], names: frozenset[str]) -> Spec:
+        """A spec whose method is a ``finite_sum:`` program (no matrices; ``sosalgo pep``
+        only, :mod:`sosalgo.spec.finite_sum`)."""
+        from sosalgo.spec.finite_sum import parse_finite_sum
+
+        for key in ("matrices", "oracles", "output", "initial_state", "sequences",
+                    "line_search", "certificate", "measure"):
+            if key in data:
+                raise self.fail(key, "not with finite_sum: (the step is its program)")
+        if "finite_sum" not in data:
+            raise self.fail("finite_sum", "missing: a function with count: is drawn by "
+                                          "the step of finite_sum:")
+        fs = parse_finite_sum(data["finite_sum"], self.counts, names, self.fail,
+                              lambda raw: self.expr(raw, names, "finite_sum.blocks"))
+        references = self.references(data.get("references", {}))
+        kappa = () if m == 0 else self.kappa(data.get("kappa", [10]))
+        return Spec(
+            name=name, description=description, source=self.source, parameters=params,
+            matrices={}, references=references, kappa=kappa, m=m, functions=functions,
+            oracles=(), measure="function", L=L, m_expr=parse_tree(data.get("m", 1), ()),
+            L_expr=parse_tree(data["L"], ()) if L is not None else None,
+            pep=self.pep_terms(data.get("pep")), finite_sum=fs)
 
     def name(self, raw: object) -> str:
         if raw is None:
@@ -469,6 +498,10 @@ class _Builder:
             params = {}
             for key, val in body.items():
                 if key == "class":
+                    continue
+                if key == "count":  # one of n functions drawn per step (finite_sum:)
+                    self.counts[fname] = self.expr(val, spec_names | set(BASE_NAMES),
+                                                   f"{where}.count")
                     continue
                 if key not in cls.parameters:
                     raise self.fail(f"{where}.{str(key)[:40]}", f"not a parameter of {cname} "

@@ -36,7 +36,7 @@ MEASURES = ("function", "distance")
 TOP_KEYS = {
     "name", "description", "parameters", "matrices", "references", "kappa", "m", "certificate",
     "functions", "oracles", "measure", "output", "L", "initial_state", "sequences", "pep",
-    "line_search", "mirror",
+    "line_search", "mirror", "finite_sum",
 }
 NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,79}$")
 PARAM_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,31}$")
@@ -199,6 +199,9 @@ class Spec:
     # ``pep: {measure, initial}``: the PEP's default terms (sosalgo.pep.terms), when the
     # command line gives none
     pep: dict[str, str] = field(default_factory=dict)
+    # ``finite_sum:`` a method on a finite sum, one function drawn per step
+    # (:class:`sosalgo.spec.finite_sum.FiniteSum`; ``sosalgo pep`` only); None: none
+    finite_sum: Any = None
     _sympy: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     @property
