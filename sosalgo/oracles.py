@@ -284,13 +284,13 @@ def _check_lmo(spec: Spec, i: int, cls: FunctionClass, prox: bool,
 
 def _check_inexact(spec: Spec, i: int, cls: FunctionClass, prox: bool,
                    fail: Callable[[str, str], SpecError]) -> None:
-    """An inexact call is a gradient call (D_ii = 0) on a class with gradients, its
-    relative error (when a constant) in [0, 1)."""
+    """An inexact call is a gradient call (D_ii = 0) on a class with gradients or a
+    proximal step (D_ii = -t, on a class with a proximal oracle: checked with the other
+    proximal steps), its relative error (when a constant) in [0, 1)."""
     where = f"oracles[{i}].relative_error"
-    if prox or "gradient" not in cls.oracles:
+    if not prox and "gradient" not in cls.oracles:
         raise fail(where, f"an inexact gradient of {spec.oracles[i]}, whose class {cls.name} "
-                   "has no gradient oracle" if "gradient" not in cls.oracles else
-                   f"an inexact gradient is a gradient call: make D[{i}][{i}] = 0")
+                   "has no gradient oracle")
     eps = spec.inexact[i]
     if eps.is_constant and _relative_error_issue(_value(eps)):
         raise fail(where, _relative_error_issue(_value(eps)))

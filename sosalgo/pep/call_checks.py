@@ -1,6 +1,6 @@
 """The witness check of the oracle calls themselves: every exact call's answer is the
 gradient its function has at the call's point (exact rationals), every inexact one within
-its relative error of it (ball arithmetic; :mod:`sosalgo.pep.inexact`), and every exact
+its relative error of it (of the answer itself for a proximal call) (ball arithmetic; :mod:`sosalgo.pep.inexact`), and every exact
 line search step ends where the next gradient is orthogonal to the step's direction
 (:mod:`sosalgo.pep.linesearch`). Used by :func:`sosalgo.pep.check.check_witness`."""
 
@@ -20,8 +20,10 @@ def call_checks(doc: dict[str, Any], av: Any) -> tuple[int, int]:
     """(calls checked, calls not proven) of a witness: the answer d of every call
     (``calls``) against the gradient g its function has at the call's point: d = g
     exactly for an exact call, eps^2 |g|^2 - |d - g|^2 >= 0 in ball arithmetic for an
-    inexact one (eps of the exact method)."""
+    inexact gradient call and eps^2 |d|^2 - |d - g|^2 >= 0 for an inexact proximal one
+    (the error y - prox within eps of the step y - v; eps of the exact method)."""
     from sosalgo.pep.exact import ball
+    from sosalgo.pep.inexact import is_prox_call
 
     mt = av.mt
     p = mt.p
@@ -44,7 +46,8 @@ def call_checks(doc: dict[str, Any], av: Any) -> tuple[int, int]:
             gb = [ball(v) for v in g]
             gap = [ball(a) - b for a, b in zip(d, gb, strict=True)]
             diff = sum((v * v for v in gap), ball(0))  # (arb 0) ** 2 is nan
-            bad += not (e * e * sum((b * b for b in gb), ball(0)) - diff >= 0)
+            ref = [ball(a) for a in d] if is_prox_call(mt, i, k) else gb  # prox: |d|
+            bad += not (e * e * sum((b * b for b in ref), ball(0)) - diff >= 0)
     if getattr(mt, "line_search", False):
         c, b = _line_search_checks(doc, mt)
         checked, bad = checked + c, bad + b

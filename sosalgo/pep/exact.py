@@ -107,6 +107,7 @@ def class_description(spec: Spec, kappa: float | None) -> dict[str, Any]:
     """Which class a proof is about, as exact strings: ``m``, ``L`` (``kappa``) and each
     function's class and parameters (sympy's exact form: ``1/10``, ``sqrt(2)/10``); the
     relative error of each inexact oracle call and the line search parameter, if any."""
+    from sosalgo.kernel.expr import constant_value
     from sosalgo.kernel.expr.parse import to_sympy
     from sosalgo.kernel.kappa import kappa_fields
     from sosalgo.pep.bind import class_kappa
@@ -123,6 +124,11 @@ def class_description(spec: Spec, kappa: float | None) -> dict[str, Any]:
         env = _exact_env(spec, base)
         out["relative_errors"] = {f"oracles[{i}]": str(to_sympy(e).xreplace(env))
                                   for i, e in spec.inexact.items()}
+        D = spec.matrices.get("D")
+        prox = [f"oracles[{i}]" for i in spec.inexact if D is not None
+                and not (D[i][i].is_constant and constant_value(D[i][i]) == 0)]
+        if prox:  # relatively inexact proximal steps (:mod:`sosalgo.pep.inexact`)
+            out["inexact_proximal"] = prox
     if getattr(spec, "line_search", None):
         out["line_search"] = spec.line_search
     return out

@@ -413,8 +413,12 @@ def pep_heading(rows: list[dict[str, Any]]) -> list[str]:
         shown = ", ".join(f"{k} = {v}" for k, v in params.items())
         lines.append(f"  {name}: {fn.get('class')} ({what})" + (f" with {shown}" if shown
                                                                  else ""))
+    prox = set(cls.get("inexact_proximal") or ())
     for call, eps in (cls.get("relative_errors") or {}).items():
-        lines.append(f"  {call}: an inexact gradient d, |d - grad f| <= {eps} |grad f|")
+        lines.append(f"  {call}: an inexact proximal step y = v - t d, d within {eps} |d| "
+                     "of a subgradient at y (|y - prox| <= "
+                     f"{eps} |y - v|)" if call in prox else
+                     f"  {call}: an inexact gradient d, |d - grad f| <= {eps} |grad f|")
     if cls.get("line_search"):
         lines.append(f"  {cls['line_search']}: chosen at every step by exact line search")
     return lines + [f"  start: {start}",
