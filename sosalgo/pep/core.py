@@ -253,6 +253,12 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
         data.violation = LONG_VIOLATION
     show_phase("solving the PEP", f"{len(st.pairs)} interpolation pairs")
     ans = solve_pep(data)
+    if ans.status == "failed" and not data.strong:
+        # every attempt "almost solved" (the inexact gradient method at N = 5, 6 on all
+        # its pairs): again with the strong regularization, whose multipliers the exact
+        # proof accepts or refuses as ever
+        data.strong = True
+        ans = solve_pep(data)
     k = class_kappa(spec, kappa)
     kf = None if k is None else (  # a Kappa keeps its exact value
         k if isinstance(k, Kappa) else float(k))  # type: ignore[arg-type]
