@@ -15,9 +15,11 @@ from typing import Any
 import numpy as np
 
 from sosalgo.errors import InputError
+from sosalgo.kernel.expr.tree import evaluate
 from sosalgo.kernel.kappa import Kappa, kappa_fields
 from sosalgo.kernel.phases import show_phase
 from sosalgo.pep.bind import bound_method, class_kappa, initial_gradient
+from sosalgo.pep.constraints import spec_constraints
 from sosalgo.pep.sdp import PEPData, SDPAnswer, pep_data, solve_pep, value_residual
 from sosalgo.pep.steps import StepMethods, float_step_method, spec_steps
 from sosalgo.pep.structure import Method, PEPStructure, build_structure, deadbeat_gain, output_call
@@ -101,8 +103,13 @@ def float_method(om: Any, kappa: float) -> Method:
     X = fixed_point_basis(om)
     assert X is not None  # the OracleMethod checked it
 
+    params = dict(getattr(om, "params", None) or {})
+
     def coef(t: Term) -> float:
-        v = t.value(om.m, om.L, kappa)
+        try:  # a constraint's coefficient may name the spec's parameters
+            v = float(evaluate(t.coef, {**params, "m": om.m, "L": om.L, "kappa": kappa}))
+        except (ValueError, ZeroDivisionError, OverflowError):
+            v = math.nan
         if not math.isfinite(v):
             raise InputError(f"coefficient {t.coef} of {t.kind}: not a finite number here "
                              "(kappa is undefined on an m: 0 spec)")
@@ -195,6 +202,10 @@ def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None
     mt = float_method(om, kq)
     if schedule is not None:
         mt = float_step_method(schedule, mt, steps)
+    mt.constraints = spec_constraints(spec, om.p)
+    if mt.constraints and schedule is not None:
+        raise InputError(f"{spec.source}: pep.constraints: not for a method that changes "
+                         "with k")
     mt.G0, mt.smooth = initial_gradient(spec, om, kq)
     mt.line_search = bool(spec.line_search)
     if mt.line_search and schedule is not None:
@@ -297,6 +308,9 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
         elif witness and mt.lmo:  # no witness construction for a linear minimization call
             res.extra["note"] = ("no worst-case witness for a linear minimization oracle "
                                  "(tau_proven is the proven upper bound)")
+        elif witness and mt.constraints:  # the witness check does not prove constraints
+            res.extra["note"] = ("no worst-case witness for a PEP with constraints on the "
+                                 "instance (tau_proven is the proven upper bound)")
         elif witness and mt.line_search:  # a run on the class's extremal quadratic
             from sosalgo.pep.linesearch_witness import line_search_witness
 

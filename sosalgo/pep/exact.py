@@ -206,6 +206,7 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
     from sosalgo.kernel.exact import Ball
     from sosalgo.kernel.exact import enclose as enclose_at
     from sosalgo.kernel.expr.parse import to_sympy
+    from sosalgo.pep.constraints import spec_constraints
 
     K = np.array([[Fraction(float(v)) for v in row]
                   for row in deadbeat_gain(om.A, om.B, float(om.L))], dtype=object)
@@ -231,8 +232,8 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
         funcs, ineqs, strict=True)]
     L = _scale(base[_sym("L")])
 
-    def coef(t: Term) -> Any:
-        return enclose(to_sympy(t.coef).xreplace(base))
+    def coef(t: Term) -> Any:  # a constraint's coefficient may name the parameters
+        return enclose(to_sympy(t.coef).xreplace(env))
 
     def same(a: np.ndarray, b: np.ndarray) -> bool:
         return all(Ball.of(v).c == 0 and Ball.of(v).r == 0 for v in a - b)
@@ -248,6 +249,7 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
     mt.x0_call = _exact_start_call(mats, Xq, om)
     mt.errors = _exact_errors(spec, env, enclose)
     mt.line_search = bool(getattr(spec, "line_search", None))
+    mt.constraints = spec_constraints(spec, p)
     mt.lmo = dict(getattr(spec, "lmo", None) or {})
     if any(e is not None for e in extras):
         mt.constants = [e[0] if e else [Fraction(0)] * len(fi)
@@ -397,12 +399,19 @@ def _residual_parts(mt: Method, st: PEPStructure, lam: list[Fraction]
         quad = R.transpose() * arb_mat(W) * R
     else:  # no points (the contraction measure: extra constraints only)
         quad = arb_mat(st.d, st.d)
-    for (_, Xe, Qe), lk in zip(st.extras, lam[len(st.pairs):], strict=True):
+    for e, ((_, Xe, Qe), lk) in enumerate(zip(st.extras, lam[len(st.pairs):], strict=True)):
         if lk:  # an extra constraint (:mod:`sosalgo.pep.inexact`): + lambda X' Qc X
             Xb = arb_mat([[ball(v) for v in row] for row in Xe])
             Qb = arb_mat([[ball(v) * ball(lk) for v in row] for row in Qe])
             quad += Xb.transpose() * Qb * Xb
+            for i, v in enumerate(st.extra_values.get(e, ())):  # a constraint's values
+                if _nonzero_value(v):
+                    aF[i] += ball(v) * ball(lk)
     return quad, aF
+
+
+def _nonzero_value(v: Any) -> bool:
+    return bool(v.c != 0 or v.r != 0) if hasattr(v, "c") else bool(v != 0)
 
 
 def _repaired(mt: Method, st: PEPStructure, lam: list[Fraction], tb: arb

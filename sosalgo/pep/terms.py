@@ -28,7 +28,8 @@ from sosalgo.kernel.expr.tree import Expr, ExprError, evaluate, parse_tree
 from sosalgo.spec.initial_state import linear_parts
 
 __all__ = ["BACK_POINT", "DIFF_KIND", "KINDS", "MINF_KIND", "MIN_KIND", "MIN_OF", "Term",
-           "at_steps", "describe_terms", "dominates", "expand_min", "parse_terms"]
+           "at_steps", "describe_terms", "dominates", "expand_min", "parse_constraint",
+           "parse_terms"]
 
 MIN_KIND = "mingrad"  # min over k = 0..N of |grad f(x_k)|^2
 MINF_KIND = "minf"  # min over k = 0..N of f(x_k) - f*
@@ -116,18 +117,21 @@ def _point_key(pt: str, option: str, initial: bool, p: int) -> str:
     return f"y{i}"
 
 
-def parse_terms(text: object, option: str, initial: bool, p: int) -> list[Term]:
-    """The terms of ``text`` (an InputError naming ``option`` for anything else)."""
+def parse_terms(text: object, option: str, initial: bool, p: int,
+                scalars: frozenset[str] = frozenset()) -> list[Term]:
+    """The terms of ``text`` (an InputError naming ``option`` for anything else);
+    ``scalars``: names besides m, L, kappa a coefficient may use (a constraint's: the
+    spec's parameters)."""
     if not isinstance(text, str) or not text.strip():
         raise InputError(f"{option}: expected terms such as 'f', '2*dist', 'L/2*grad'")
     src = _rewrite(text, option, initial, p)
-    names = {"m", "L", "kappa", *KINDS}
+    names = {"m", "L", "kappa", *KINDS, *scalars}
     names |= {w for w in re.findall(r"\b\w+__\w+\b", src)}
     try:
         tree = parse_tree(src, names)
     except ExprError as exc:
         raise InputError(f"{option}: {exc}") from None
-    parts = linear_parts(tree, frozenset({"m", "L", "kappa"}), option)
+    parts = linear_parts(tree, frozenset({"m", "L", "kappa", *scalars}), option)
     if "1" in parts:
         raise InputError(f"{option}: a constant term; every term multiplies f, dist or grad")
     mins = [k for k in MIN_OF if k in parts]
@@ -138,6 +142,30 @@ def parse_terms(text: object, option: str, initial: bool, p: int) -> list[Term]:
         kind, _, point = key.partition("__")
         out.append(Term(kind, point or ("x0" if initial else "x"), coef))
     return out
+
+
+RELATIONS = ("==", "<=", ">=")
+
+
+def parse_constraint(text: object, option: str, p: int, scalars: frozenset[str]
+                     ) -> tuple[str, list[Term]]:
+    """``LEFT REL RIGHT`` (REL one of ==, <=, >=; each side terms as a measure's, at any
+    point a measure may name, x_0 included) as (REL, the terms of LEFT - RIGHT)."""
+    if not isinstance(text, str):
+        raise InputError(f"{option}: expected a relation such as 'grad(x_0) <= 2*f(x_0)'")
+    found = [r for r in RELATIONS if r in text]
+    if len(found) != 1 or text.count(found[0]) != 1:
+        raise InputError(f"{option}: expected one relation ==, <= or >= between two sums of "
+                         "terms")
+    left, _, right = text.partition(found[0])
+    if not left.strip() or not right.strip():
+        raise InputError(f"{option}: a term on each side of {found[0]} (write 0 as 0*f)")
+    terms = parse_terms(f"{left} - ({right})", option, False, p, scalars)
+    bad = [t.kind for t in terms if t.kind in (*MIN_OF, "sdist", "contraction")]
+    if bad:
+        raise InputError(f"{option}: {bad[0]}: not in a constraint (f, dist, grad, "
+                         "dist(P, Q))")
+    return found[0], terms
 
 
 def at_steps(terms: list[Term], steps: int, option: str) -> list[Term]:

@@ -279,15 +279,28 @@ class _Builder:
         return SpecError(self.source, field_, message)
 
     def pep_terms(self, raw: object) -> dict[str, str]:
-        """``pep: {measure: TERMS, initial: TERMS}`` (the terms are parsed by ``sosalgo
-        pep``, :mod:`sosalgo.pep.terms`, which names pep.measure or pep.initial)."""
+        """``pep: {measure: TERMS, initial: TERMS, constraints: [RELATION, ...]}`` (the
+        terms are parsed by ``sosalgo pep``, :mod:`sosalgo.pep.terms`, which names
+        pep.measure, pep.initial or pep.constraints[i]; constraints are kept as a list)."""
         if raw is None:
             return {}
-        if (not isinstance(raw, dict) or not raw or set(raw) - {"measure", "initial"}
-                or not all(isinstance(v, str) and v.strip() for v in raw.values())):
-            raise self.fail("pep", "expected a mapping with measure and/or initial, each "
-                                   "terms such as 'mingrad', 'f(x_0) - f(x_N)'")
-        return {str(k): str(v) for k, v in raw.items()}
+        cons = raw.get("constraints") if isinstance(raw, dict) else None
+        if cons is not None and (not isinstance(cons, list) or not cons or len(cons) > 100
+                                 or not all(isinstance(c, str) and c.strip() for c in cons)):
+            raise self.fail("pep.constraints", "expected a list of relations such as "
+                            "'gamma*grad(x_0) == 2*f(x_0)' (==, <= or >=)")
+        text = {k: v for k, v in raw.items() if k != "constraints"} if isinstance(
+            raw, dict) else raw
+        if (not isinstance(text, dict) or not raw
+                or set(text) - {"measure", "initial"}
+                or not all(isinstance(v, str) and v.strip() for v in text.values())):
+            raise self.fail("pep", "expected a mapping with measure, initial and/or "
+                                   "constraints, the first two terms such as 'mingrad', "
+                                   "'f(x_0) - f(x_N)'")
+        out: dict[str, Any] = {str(k): str(v) for k, v in text.items()}
+        if cons is not None:
+            out["constraints"] = [str(c) for c in cons]
+        return out
 
     # -- top level -------------------------------------------------------------------
     def build(self, data: object) -> Spec:

@@ -193,8 +193,9 @@ class Spec:
     sequences: dict[str, SequenceDecl] = field(default_factory=dict)
     time_varying: bool = False
     # ``pep: {measure, initial}``: the PEP's default terms (sosalgo.pep.terms), when the
-    # command line gives none
-    pep: dict[str, str] = field(default_factory=dict)
+    # command line gives none; ``constraints``: a list of relations on the instance
+    # (sosalgo.pep.constraints)
+    pep: dict[str, Any] = field(default_factory=dict)
     _sympy: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     @property
