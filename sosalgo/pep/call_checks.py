@@ -1,8 +1,9 @@
 """The witness check of the oracle calls themselves: every exact call's answer is the
 gradient its function has at the call's point (exact rationals), every inexact one within
-its relative error of it (of the answer itself for a proximal call) (ball arithmetic; :mod:`sosalgo.pep.inexact`), and every exact
-line search step ends where the next gradient is orthogonal to the step's direction
-(:mod:`sosalgo.pep.linesearch`). Used by :func:`sosalgo.pep.check.check_witness`."""
+its relative error of it, or of the answer itself for a proximal call (ball arithmetic;
+:mod:`sosalgo.pep.inexact`), and every exact line search step ends where the next
+gradient is orthogonal to the step's direction (:mod:`sosalgo.pep.linesearch`). Used by
+:func:`sosalgo.pep.check.check_witness`."""
 
 from __future__ import annotations
 
