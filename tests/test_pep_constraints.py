@@ -164,3 +164,29 @@ def test_bad_constraints_are_one_line_exit_2(tmp_path, new, field):
     lines = res.output.strip().splitlines()
     assert len(lines) == 1 and field in lines[0] and "bad.yaml" in lines[0], res.output
     assert not (tmp_path / "o").exists() or not any((tmp_path / "o").iterdir())
+
+
+@pytest.mark.parametrize("rel,expected", [
+    # the quadratic mu/2 x^2 has gamma |g|^2 = gamma mu^2 x^2 <= mu x^2 = 2 f: it meets
+    # "<=" and attains the step's unconstrained worst case (1 - gamma mu)^2
+    ("<=", (1 - 0.8 * 0.1) ** 2),
+    # ">=" holds at the Polyak step itself: the equality's tight value bounds it below,
+    # the unconstrained one above; with "<=" also listed it is the equality
+    (">=", None),
+])
+def test_inequalities_take_their_side(tmp_path, rel, expected):
+    old = "    - gamma*grad(x_0) == 2*f(x_0)"
+    text = DIST.read_text()
+    one = tmp_path / "one.yaml"
+    one.write_text(text.replace(old, f"    - gamma*grad(x_0) {rel} 2*f(x_0)"))
+    proven = pep_doc(tmp_path / "a", one, *SETS[2])["certificate"]["proof"]["tau_proven_float"]
+    eq = theory(DIST, *SETS[2])
+    if expected is not None:
+        assert abs(proven / expected - 1) <= 1e-6
+        return
+    assert eq * (1 - 1e-9) <= proven <= 0.8464
+    both = tmp_path / "both.yaml"
+    both.write_text(text.replace(old, "    - gamma*grad(x_0) <= 2*f(x_0)\n"
+                                      "    - gamma*grad(x_0) >= 2*f(x_0)"))
+    proven = pep_doc(tmp_path / "b", both, *SETS[2])["certificate"]["proof"]["tau_proven_float"]
+    assert eq * (1 - 1e-9) <= proven <= eq * (1 + 1e-6)
