@@ -24,15 +24,16 @@ def call_checks(doc: dict[str, Any], av: Any) -> tuple[int, int]:
     inexact gradient call and eps^2 |d|^2 - |d - g|^2 >= 0 for an inexact proximal one
     (the error y - prox within eps of the step y - v; eps of the exact method)."""
     from sosalgo.pep.exact import ball
-    from sosalgo.pep.inexact import is_prox_call
 
     mt = av.mt
     p = mt.p
     checked = bad = 0
+    twins = getattr(mt, "twins", None) or {}
     for k in range(int(doc["call_steps"])):
         for i, j in enumerate(mt.oracles):
             name = mt.functions[j][0]
-            label = _label(i, k, p)
+            # a gradient_of call answers the true subgradient of its source's point
+            label = _label(twins.get(i, i), k, p)
             pt = next((q for q in doc["functions"][name]["points"] if q["label"] == label),
                       None)
             checked += 1
@@ -47,12 +48,26 @@ def call_checks(doc: dict[str, Any], av: Any) -> tuple[int, int]:
             gb = [ball(v) for v in g]
             gap = [ball(a) - b for a, b in zip(d, gb, strict=True)]
             diff = sum((v * v for v in gap), ball(0))  # (arb 0) ** 2 is nan
-            ref = [ball(a) for a in d] if is_prox_call(mt, i, k) else gb  # prox: |d|
+            ref = _reference(doc, mt, k, i, gb)
             bad += not (e * e * sum((b * b for b in ref), ball(0)) - diff >= 0)
     if getattr(mt, "line_search", False):
         c, b = _line_search_checks(doc, mt)
         checked, bad = checked + c, bad + b
     return checked, bad
+
+
+def _reference(doc: dict[str, Any], mt: Any, k: int, i: int, g: list[Any]) -> list[Any]:
+    """The vector inexact call i's error is relative to, in balls: ``relative_to``'s
+    combination of the step's answers, else the answer (a proximal call) or g."""
+    from sosalgo.pep.exact import ball
+    from sosalgo.pep.inexact import is_prox_call
+
+    refs = getattr(mt, "error_refs", None) or {}
+    if i in refs:
+        rows = doc["calls"][k]
+        return [sum((ball(Fraction(c)) * ball(rows[a][r]) for a, c in enumerate(refs[i])
+                     if c), ball(0)) for r in range(len(g))]
+    return [ball(a) for a in doc["calls"][k][i]] if is_prox_call(mt, i, k) else g
 
 
 def _line_search_checks(doc: dict[str, Any], mt: Any) -> tuple[int, int]:

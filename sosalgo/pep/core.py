@@ -203,6 +203,9 @@ def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None
     if schedule is not None:
         mt = float_step_method(schedule, mt, steps)
     mt.constraints = spec_constraints(spec, om.p)
+    mt.error_refs = {i: tuple(float(c) for c in ref)
+                     for i, ref in (getattr(spec, "error_refs", None) or {}).items()}
+    mt.twins = dict(getattr(spec, "twins", None) or {})
     if mt.constraints and schedule is not None:
         raise InputError(f"{spec.source}: pep.constraints: not for a method that changes "
                          "with k")

@@ -129,6 +129,13 @@ def class_description(spec: Spec, kappa: float | None) -> dict[str, Any]:
                 and not (D[i][i].is_constant and constant_value(D[i][i]) == 0)]
         if prox:  # relatively inexact proximal steps (:mod:`sosalgo.pep.inexact`)
             out["inexact_proximal"] = prox
+        refs = getattr(spec, "error_refs", None) or {}
+        if refs:  # relative to a combination of the step's answers
+            out["relative_to"] = {f"oracles[{i}]": [str(c) for c in ref]
+                                  for i, ref in refs.items()}
+    twins = getattr(spec, "twins", None) or {}
+    if twins:
+        out["gradient_of"] = {f"oracles[{i}]": f"oracles[{j}]" for i, j in twins.items()}
     if getattr(spec, "line_search", None):
         out["line_search"] = spec.line_search
     return out
@@ -250,6 +257,9 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
     mt.errors = _exact_errors(spec, env, enclose)
     mt.line_search = bool(getattr(spec, "line_search", None))
     mt.constraints = spec_constraints(spec, p)
+    mt.error_refs = {i: tuple(Fraction(c) for c in ref)
+                     for i, ref in (getattr(spec, "error_refs", None) or {}).items()}
+    mt.twins = dict(getattr(spec, "twins", None) or {})
     mt.lmo = dict(getattr(spec, "lmo", None) or {})
     if any(e is not None for e in extras):
         mt.constants = [e[0] if e else [Fraction(0)] * len(fi)

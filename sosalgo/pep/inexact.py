@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["inexact_calls", "is_prox_call"]
+__all__ = ["inexact_calls", "is_prox_call", "reference"]
 
 
 def _label(i: int, k: int, p: int) -> str:
@@ -49,6 +49,22 @@ def is_prox_call(mt: Any, i: int, k: int) -> bool:
     numbers."""
     v = mt.step(k)[3][i][i]
     return bool(v.c != 0 or v.r != 0) if hasattr(v, "c") else bool(v != 0)
+
+
+def reference(mt: Any, i: int, pt: Any, U: list[np.ndarray],
+              sstar: list[np.ndarray]) -> np.ndarray:
+    """The row of the vector call i's error is relative to: ``relative_to``'s combination
+    of the step's answers, else the answer d itself (a proximal call) or the true
+    gradient g (a gradient call)."""
+    if i in mt.error_refs:
+        out = 0 * U[pt.t][i]
+        for c, (row, j) in zip(mt.error_refs[i], zip(U[pt.t], mt.oracles, strict=True),
+                               strict=True):
+            if c:
+                out = out + (row + sstar[j]) * c
+        return out
+    j = mt.oracles[i]
+    return (U[pt.t][i] if is_prox_call(mt, i, pt.t) else pt.g) + sstar[j]
 
 
 def inexact_calls(mt: Any, pts: list[list[Any]], U: list[np.ndarray],
@@ -70,12 +86,15 @@ def inexact_calls(mt: Any, pts: list[list[Any]], U: list[np.ndarray],
                       and _label(i, pt.t, p) == pt.label), None)
             if i is None or i not in mt.errors:
                 continue
-            c = len(cols)
-            cols.append(f"g_{pt.label}/s")
-            pt.g = eye[c]
+            twin = next((t for t, src in mt.twins.items() if src == i), None)
+            if twin is None:
+                c = len(cols)
+                cols.append(f"g_{pt.label}/s")
+                pt.g = eye[c]
+            else:  # a call answers this point's true subgradient: its answer is it
+                pt.g = U[pt.t][twin]
             eps = mt.errors[i]
-            ref = U[pt.t][i] if is_prox_call(mt, i, pt.t) else pt.g  # |d| or |g|
-            X = np.vstack([U[pt.t][i] - pt.g, ref + sstar[j], zero, zero])
+            X = np.vstack([U[pt.t][i] - pt.g, reference(mt, i, pt, U, sstar), zero, zero])
             Qc = np.zeros((4, 4), dtype=object if mt.exact else float)
             Qc[0, 0] = -1
             Qc[1, 1] = eps * eps

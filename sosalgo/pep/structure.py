@@ -110,6 +110,10 @@ class Method(CallShape):
         return "pairs" if self.scopes is None else self.scopes[j][r]
     # inexact gradient calls: call index -> eps (|d - g| <= eps |g|, :mod:`sosalgo.pep.inexact`)
     errors: dict[int, Any] = field(default_factory=dict)
+    # an inexact call's reference vector (coefficients on the step's answers) and the
+    # calls answering an inexact call's true subgradient (call -> that call; no point)
+    error_refs: dict[int, tuple[Any, ...]] = field(default_factory=dict)
+    twins: dict[int, int] = field(default_factory=dict)
     # x+ = x - gamma_k u with gamma_k by exact line search (:mod:`sosalgo.pep.linesearch`)
     line_search: bool = False
     # linear minimization calls: call index -> its direction's call (:mod:`sosalgo.pep.lmo`)
@@ -422,6 +426,8 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
     valued = [cls.has_values for _, cls, _ in mt.functions]  # an operator: no F entries
     for k in range(calls):
         for i, j in enumerate(mt.oracles):
+            if i in mt.twins:  # the true subgradient of another call's point: no point
+                continue
             pts[j].append(PEPPoint(_call_label(i, k, p), Yr[k][i], U[k][i],
                                    nF if valued[j] else None, k))
             nF += valued[j]

@@ -173,6 +173,11 @@ class Spec:
     # (0-based) -> the index of the gradient call whose answer g is the direction; the call
     # answers u = s - y with s in argmin over the set of <g, s> (:mod:`sosalgo.pep.lmo`)
     lmo: dict[int, int] = field(default_factory=dict)
+    # an inexact proximal call's reference vector (``relative_to``: rational coefficients
+    # on the step's answers) and the calls whose answer is an inexact call's true
+    # subgradient (``gradient_of``), 0-based (:mod:`sosalgo.pep.inexact`)
+    error_refs: dict[int, tuple[Any, ...]] = field(default_factory=dict)
+    twins: dict[int, int] = field(default_factory=dict)
     # ``line_search: gamma``: the step parameter of x+ = x - gamma u chosen at every step by
     # exact line search (``sosalgo pep`` only; :mod:`sosalgo.pep.linesearch`); None: none
     line_search: str | None = None
