@@ -164,3 +164,110 @@ def test_analyze_refuses_an_inexact_prox(tmp_path):
     res = run(["analyze", SPEC, "--out", tmp_path / "a"])
     assert res.exit_code == 2 and "inexact-proximal-point.yaml" in res.output, res.output
     assert len(res.output.strip().splitlines()) == 1
+
+
+# ----------------------------------------------------------- partially inexact Douglas-Rachford
+DRS = ROOT / "specs" / "partially-inexact-douglas-rachford.yaml"
+DRS_SETS = [(0.1, 5, 5, 1.4, 0.2), (0.1, 5, 3, 1.4, 0.2), (0.2, 2, 2, 1, 0.5)]  # PEPit's
+
+
+def drs_theory(mu, L, n, gamma, sigma):
+    """Barre, Taylor, Bach (2020), Thm. 5.1 (tight; PEPit's theoretical value)."""
+    return max(((1 - sigma + gamma * mu * sigma) / (1 - sigma + gamma * mu)) ** 2,
+               ((sigma + (1 - sigma) * gamma * L) / (1 + (1 - sigma) * gamma * L)) ** 2) ** n
+
+
+@pytest.fixture(scope="module")
+def drs_docs(tmp_path_factory):
+    out = {}
+    for mu, L, n, gamma, sigma in DRS_SETS:  # the spec's mu = 1/10: f, g scaled by 1/(10 mu)
+        res = run(["pep", DRS, "--kappa", L / mu, "--steps", n, "--set",
+                   f"gamma={gamma * 10 * mu!r}", "--set", f"sigma={sigma}", "--out",
+                   tmp_path_factory.mktemp("drs"), "--json", "--no-plot"])
+        assert res.exit_code == 0, res.output
+        out[(mu, L, n, gamma, sigma)] = json.loads(res.stdout)
+    return out
+
+
+@pytest.mark.parametrize("key", DRS_SETS)
+def test_douglas_rachford_proves_the_tight_rate(drs_docs, key):
+    doc = drs_docs[key]
+    proof = doc["certificate"]["proof"]
+    assert proof["proven"], proof
+    closed = drs_theory(*key)
+    assert closed * (1 - 1e-9) <= proof["tau_proven_float"] <= closed * (1 + 1e-6)
+    check = doc["witness"]["check"]
+    assert check["verified"], check
+    assert closed * (1 - 1e-3) <= check["tau_lower_float"] <= proof["tau_proven_float"]
+
+
+def _drs_run(a, b, c, z0, mu_gamma_sigma_n, rng):
+    """|z_n - z*|^2 / |z_0 - z*|^2 of the method on f = a/2 (x - b)^2, g = c |x|, every
+    inexact prox x = z - gamma d chosen (greedily or at random) among grid points with
+    |grad f(x) - d| <= sigma |d + h|, h = (x - gamma grad f(x) - y)/gamma, y the exact
+    prox of g there."""
+    gamma, sigma, n = mu_gamma_sigma_n
+    xs = np.sign(b) * max(abs(b) - c / a, 0.0)  # the minimizer of f + g
+    zs = xs + gamma * a * (xs - b)
+    z = zs + z0
+    for _ in range(n):
+        p = (z + gamma * a * b) / (1 + gamma * a)  # the exact prox of f
+        best = []
+        for x in p + np.linspace(-1, 1, 1201) * max(abs(z - p), 1e-9):
+            d, gf = (z - x) / gamma, a * (x - b)
+            w = x - gamma * gf
+            y = np.sign(w) * max(abs(w) - gamma * c, 0.0)
+            h = (w - y) / gamma
+            if abs(gf - d) <= sigma * abs(d + h) + 1e-12:
+                best.append(z + y - x)
+        z = (max(best, key=lambda v: abs(v - zs)) if rng.random() < 0.7
+             else best[rng.integers(len(best))])
+    return (z - zs) ** 2 / z0 ** 2
+
+
+@pytest.mark.parametrize("key", DRS_SETS[1:])
+def test_douglas_rachford_runs_stay_below_the_proof(drs_docs, key):
+    mu, L, n, gamma, sigma = key
+    proven = drs_docs[key]["certificate"]["proof"]["tau_proven_float"]
+    rng = np.random.default_rng(5)
+    worst = 0.0
+    for a in (mu, L, (mu + L) / 2):
+        for b, c in ((0.0, 0.0), (1.0, 0.3), (-2.0, 1.0), (0.5, 5.0)):
+            for z0 in (1.0, -1.0):
+                worst = max(worst, _drs_run(a, b, c, z0, (gamma, sigma, n), rng))
+    assert worst <= proven * (1 + 1e-9)
+    assert worst >= 0.5 * proven  # the runs come near the worst case
+
+
+def test_gradient_of_a_call_elsewhere_and_relative_to_bad_input(tmp_path):
+    text = DRS.read_text()
+    cases = [
+        ("  - {function: f, gradient_of: 1}", "  - {function: f, gradient_of: 3}",
+         "oracles[1].gradient_of"),
+        ("  - {function: f, gradient_of: 1}", "  - {function: g, gradient_of: 1}",
+         "oracles[1].gradient_of"),
+        ("relative_to: [1, 0, 1]", "relative_to: [1, 0]", "oracles[0].relative_to"),
+        ("relative_to: [1, 0, 1]", "relative_to: [0, 0, 0]", "oracles[0].relative_to"),
+        ("[-gamma, 0, 0], [-gamma, 0, 0]", "[-gamma, 0, 0], [-2*gamma, 0, 0]",
+         "oracles[1].gradient_of"),
+    ]
+    for old, new, field in cases:
+        assert old in text, old
+        path = tmp_path / "bad.yaml"
+        path.write_text(text.replace(old, new))
+        res = run(["pep", path, "--kappa", 50, "--steps", 1, "--out", tmp_path / "o"])
+        assert res.exit_code == 2, (new, res.output)
+        lines = res.output.strip().splitlines()
+        assert len(lines) == 1 and field in lines[0] and "bad.yaml" in lines[0], res.output
+
+
+def test_douglas_rachford_witness_tampered_is_refused(drs_docs):
+    from sosalgo.pep.check import check_witness
+    from sosalgo.spec import load_spec
+
+    wit = drs_docs[DRS_SETS[0]]["witness"]  # the spec's own gamma, sigma and kappa
+    spec = load_spec(DRS)
+    assert check_witness(wit, spec)["verified"]
+    bad = json.loads(json.dumps(wit))  # the true gradient's call answers something else
+    bad["calls"][0][1] = [str(Fraction(v) * 2) for v in bad["calls"][0][1]]
+    assert not check_witness(bad, spec)["verified"]
