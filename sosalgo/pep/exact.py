@@ -257,9 +257,7 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
     mt.errors = _exact_errors(spec, env, enclose)
     mt.line_search = bool(getattr(spec, "line_search", None))
     mt.constraints = spec_constraints(spec, p)
-    mt.error_refs = {i: tuple(Fraction(c) for c in ref)
-                     for i, ref in (getattr(spec, "error_refs", None) or {}).items()}
-    mt.twins = dict(getattr(spec, "twins", None) or {})
+    _call_links(mt, spec)
     mt.lmo = dict(getattr(spec, "lmo", None) or {})
     if any(e is not None for e in extras):
         mt.constants = [e[0] if e else [Fraction(0)] * len(fi)
@@ -1155,7 +1153,16 @@ def exact_step_method(spec: Any, kappa: float | None, sm: StepMethods, count: in
     mt.errors = _exact_errors(spec, _exact_env(spec, base),
                               lambda e: enclose(e, digits))
     mt.lmo = dict(getattr(spec, "lmo", None) or {})
+    _call_links(mt, spec)
     return mt
+
+
+def _call_links(mt: Method, spec: Spec) -> None:
+    """The inexact calls' reference vectors and the ``gradient_of`` calls, exactly
+    (:mod:`sosalgo.pep.inexact`)."""
+    mt.error_refs = {i: tuple(Fraction(c) for c in ref)
+                     for i, ref in (getattr(spec, "error_refs", None) or {}).items()}
+    mt.twins = dict(getattr(spec, "twins", None) or {})
 
 
 def _step_start_call(mt: Method, step0: tuple[np.ndarray, ...]) -> int | None:
