@@ -271,3 +271,14 @@ def test_douglas_rachford_witness_tampered_is_refused(drs_docs):
     bad = json.loads(json.dumps(wit))  # the true gradient's call answers something else
     bad["calls"][0][1] = [str(Fraction(v) * 2) for v in bad["calls"][0][1]]
     assert not check_witness(bad, spec)["verified"]
+
+
+def test_the_api_refuses_a_rate_for_inexact_calls():
+    """A Lyapunov rate of the exact method would not bound the inexact one (the gallery
+    shows these specs' PEP values instead)."""
+    import sosalgo
+    from sosalgo.errors import InputError
+
+    for spec, kappa in ((DRS, 50), (ROOT / "specs" / "inexact-gradient.yaml", 10)):
+        with pytest.raises(InputError, match="relative_error"):
+            sosalgo.analyze(spec, kappa=kappa)

@@ -157,6 +157,8 @@ def spec_numbers(path: Path, cache: Path) -> tuple[dict[str, Any], Path | None]:
 
     operators = bool(operator_functions(spec)) and spec.sublinear  # no family: pep answers
     pep_only = bool(inhomogeneous_functions(spec))  # conditions no Lyapunov family takes
+    # inexact calls, line searches, linear minimization: steps no Lyapunov family models
+    pep_only = pep_only or bool(spec.inexact or spec.line_search or spec.lmo)
     if data_file.exists() and figure.exists():
         return json.loads(data_file.read_text(encoding="utf-8")), figure
     if changes_with_k(spec) or nonconvex_functions(spec) or operators or pep_only:  # no rate
