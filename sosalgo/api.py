@@ -86,10 +86,16 @@ def analyze(
     ``brackets="quadratic", cycle_seconds=5``); the defaults here compute no witness.
     """
     from sosalgo.analysis import analyze_spec
-    from sosalgo.inputs import check_kappa_points, check_tol, select_families
+    from sosalgo.inputs import (
+        check_kappa_points,
+        check_tol,
+        refuse_oracle_options,
+        select_families,
+    )
     from sosalgo.witnesses.rows import check_witness_options, with_witnesses
 
     s = as_spec(spec)
+    refuse_oracle_options(s)  # a rate of the exact method would not bound these
     kappas, single = _kappas(s, kappa)
     check_tol(tol)
     check_witness_options(brackets, cycle_seconds)

@@ -55,28 +55,7 @@ def refuse_nonconvex(spec: Any, linear_rates: bool = False) -> None:
     from sosalgo.certificates import inhomogeneous_functions, nonconvex_functions
     from sosalgo.spec.loading import operator_functions
 
-    if getattr(spec, "finite_sum", None) is not None:
-        raise InputError(f"{spec.source}: finite_sum: one of n functions drawn per step: no "
-                         "Lyapunov family models it (no rate is certified); sosalgo pep "
-                         "bounds the expectation of its measure")
-    if getattr(spec, "line_search", None):
-        raise InputError(f"{spec.source}: line_search: a step chosen by exact line search: "
-                         "no Lyapunov family models it (no rate is certified); sosalgo pep "
-                         "bounds its worst case after N steps")
-    if getattr(spec, "mirror", None):
-        raise InputError(f"{spec.source}: mirror: Bregman steps: no Lyapunov family models "
-                         "them (no rate is certified); sosalgo pep bounds their worst case "
-                         "after N steps")
-    lmo = sorted(getattr(spec, "lmo", None) or ())
-    if lmo:
-        raise InputError(f"{spec.source}: oracles[{lmo[0]}].lmo: a linear minimization "
-                         "oracle: no Lyapunov family models it (no rate is certified); "
-                         "sosalgo pep bounds its worst case after N steps")
-    inexact = sorted(getattr(spec, "inexact", None) or ())
-    if inexact:
-        raise InputError(f"{spec.source}: oracles[{inexact[0]}].relative_error: an inexact "
-                         "gradient: no Lyapunov family models it (no rate is certified); "
-                         "sosalgo pep bounds its worst case after N steps")
+    refuse_oracle_options(spec)
     bad = nonconvex_functions(spec)
     if bad:
         raise InputError(f"{spec.source}: functions: {', '.join(bad)} is nonconvex: no "
@@ -95,6 +74,34 @@ def refuse_nonconvex(spec: Any, linear_rates: bool = False) -> None:
                          "not pairwise homogeneous inequalities: no linear or sublinear rate "
                          "is certified for it (no Lyapunov family applies); sosalgo pep "
                          "bounds its worst case after N steps")
+
+
+def refuse_oracle_options(spec: Any) -> None:
+    """InputError (one line) for a spec with a finite sum, Bregman steps, an exact line
+    search, a linear minimization call or an inexact call: no Lyapunov family models them
+    (``sosalgo pep`` bounds their N-step worst case); the API's ``analyze`` refuses them as the command does."""
+    if getattr(spec, "finite_sum", None) is not None:
+        raise InputError(f"{spec.source}: finite_sum: one of n functions drawn per step: no "
+                         "Lyapunov family models it (no rate is certified); sosalgo pep "
+                         "bounds the expectation of its measure")
+    if getattr(spec, "mirror", None):
+        raise InputError(f"{spec.source}: mirror: Bregman steps: no Lyapunov family models "
+                         "them (no rate is certified); sosalgo pep bounds their worst case "
+                         "after N steps")
+    if getattr(spec, "line_search", None):
+        raise InputError(f"{spec.source}: line_search: a step chosen by exact line search: "
+                         "no Lyapunov family models it (no rate is certified); sosalgo pep "
+                         "bounds its worst case after N steps")
+    lmo = sorted(getattr(spec, "lmo", None) or ())
+    if lmo:
+        raise InputError(f"{spec.source}: oracles[{lmo[0]}].lmo: a linear minimization "
+                         "oracle: no Lyapunov family models it (no rate is certified); "
+                         "sosalgo pep bounds its worst case after N steps")
+    inexact = sorted(getattr(spec, "inexact", None) or ())
+    if inexact:
+        raise InputError(f"{spec.source}: oracles[{inexact[0]}].relative_error: an inexact "
+                         "call: no Lyapunov family models it (no rate is certified); "
+                         "sosalgo pep bounds its worst case after N steps")
 
 
 def check_tol(tol: Any, label: str = "tol") -> float:

@@ -245,6 +245,9 @@ def check_oracle_spec(spec: Spec, fail: Callable[[str, str], SpecError]) -> None
             raise fail(f"matrices.D[{i}][{i}]", "a diagonal entry must be -t with t >= 0 (a "
                        f"proximal step), got {_value(diag):g}")
         prox = diag is not None and not _is_zero(diag)
+        if i in getattr(spec, "twins", {}):  # no call of its own: its source's point
+            _check_twin(spec, i, fail)
+            continue
         if i in spec.lmo:
             _check_lmo(spec, i, cls, prox, fail)
             continue
@@ -258,6 +261,26 @@ def check_oracle_spec(spec: Spec, fail: Callable[[str, str], SpecError]) -> None
                        f"make D[{i}][{i}] = -t")
     if spec.measure == "function" and not getattr(spec, "mirror", None):  # mirror: its own
         _check_measure(spec, fail)
+
+
+def _check_twin(spec: Spec, i: int, fail: Callable[[str, str], SpecError]) -> None:
+    """A ``gradient_of: j`` call is at call j's point: the same rows of C and D (D_ij =
+    D_jj, D_ii = 0), so that its answer, the true subgradient there, is where the
+    method uses it."""
+    import sympy as sp
+
+    j = spec.twins[i]
+    M = spec.sympy_matrices()
+    D = M.get("D", sp.zeros(spec.p, spec.p))
+    same = all(sp.simplify(M["C"][i, c] - M["C"][j, c]) == 0 for c in range(M["C"].shape[1]))
+    same = same and all(sp.simplify(D[i, c] - D[j, c]) == 0 for c in range(spec.p)
+                        if c not in (i, j))
+    same = same and sp.simplify(D[i, j] - D[j, j]) == 0 and D[i, i] == 0
+    if not same:
+        raise fail(f"oracles[{i}].gradient_of", f"its point must be call {j + 1}'s: the "
+                   f"same row of C, D[{i}][{j}] = D[{j}][{j}], D[{i}][{i}] = 0")
+    if j in spec.lmo:
+        raise fail(f"oracles[{i}].gradient_of", "not of a linear minimization call")
 
 
 def _check_lmo(spec: Spec, i: int, cls: FunctionClass, prox: bool,
@@ -284,13 +307,13 @@ def _check_lmo(spec: Spec, i: int, cls: FunctionClass, prox: bool,
 
 def _check_inexact(spec: Spec, i: int, cls: FunctionClass, prox: bool,
                    fail: Callable[[str, str], SpecError]) -> None:
-    """An inexact call is a gradient call (D_ii = 0) on a class with gradients, its
-    relative error (when a constant) in [0, 1)."""
+    """An inexact call is a gradient call (D_ii = 0) on a class with gradients or a
+    proximal step (D_ii = -t, on a class with a proximal oracle: checked with the other
+    proximal steps), its relative error (when a constant) in [0, 1)."""
     where = f"oracles[{i}].relative_error"
-    if prox or "gradient" not in cls.oracles:
+    if not prox and "gradient" not in cls.oracles:
         raise fail(where, f"an inexact gradient of {spec.oracles[i]}, whose class {cls.name} "
-                   "has no gradient oracle" if "gradient" not in cls.oracles else
-                   f"an inexact gradient is a gradient call: make D[{i}][{i}] = 0")
+                   "has no gradient oracle")
     eps = spec.inexact[i]
     if eps.is_constant and _relative_error_issue(_value(eps)):
         raise fail(where, _relative_error_issue(_value(eps)))

@@ -29,7 +29,8 @@ from sosalgo.steps import (
 SPECS = Path(__file__).resolve().parents[1] / "specs"
 VARYING = ("ogm", "fista", "gradient-schedule", "momentum-schedule", "silver", "heavy-ball-qg",
            "gradient-qg-decreasing", "accelerated-k", "halpern",
-           "operator-accelerated-proximal-point", "ogm-k", "frank-wolfe")
+           "operator-accelerated-proximal-point", "ogm-k", "frank-wolfe",
+           "inexact-proximal-point")
 GD = """
 name: t
 functions:

@@ -159,9 +159,10 @@ def spec_numbers(path: Path, cache: Path) -> tuple[dict[str, Any], Path | None]:
 
     operators = bool(operator_functions(spec)) and spec.sublinear  # no family: pep answers
     # conditions or steps no Lyapunov family takes (a mirror spec's Bregman steps, a finite
-    # sum with one function drawn per step)
+    # sum with one function drawn per step, inexact calls, line searches, linear minimization)
     pep_only = (bool(inhomogeneous_functions(spec)) or bool(spec.mirror)
-                or spec.finite_sum is not None)
+                or spec.finite_sum is not None
+                or bool(spec.inexact or spec.line_search or spec.lmo))
     if data_file.exists() and figure.exists():
         return json.loads(data_file.read_text(encoding="utf-8")), figure
     if changes_with_k(spec) or nonconvex_functions(spec) or operators or pep_only:  # no rate

@@ -547,6 +547,9 @@ def check_witness(doc: dict[str, Any], spec: Spec, mt: Method | ArbView | None =
     out: dict[str, Any] = {"verified": False, "check_kind": "exact (rational and ball "
                            "arithmetic)", "tau_lower": None, "tau_lower_float": None}
     try:
+        if (getattr(spec, "pep", None) or {}).get("constraints"):
+            raise ValueError("a witness of a PEP with constraints on the instance "
+                             "(pep.constraints) is not checked: no lower bound")
         if mt is None and changes_with_k(spec):  # the per-step methods, exactly
             kappa = document_kappa(doc.get("kappa"), doc.get("kappa_exact"), "witness")
             mt = exact_steps_or_none(spec, kappa, int(doc["steps"]))

@@ -71,10 +71,10 @@ def contraction_parts(mt: Any, steps: int, measure: Any, initial: Any, eye: np.n
     ``x`` (the output's difference after N steps), ``extras`` (the two-point conditions),
     the measure's and initial condition's forms ``meas``, ``init``."""
     if (mt.errors or mt.line_search or mt.lmo or mt.per_step is not None
-            or mt.G0 is not None):
+            or mt.G0 is not None or mt.constraints):
         raise InputError("--measure: contraction: not with inexact calls, a line search, a "
-                         "linear minimization call, a method that changes with k or an "
-                         "initial_state")
+                         "linear minimization call, a method that changes with k, an "
+                         "initial_state or pep.constraints")
     n, p = mt.n, mt.p
     cols = [f"dxi0_{a + 1}" for a in range(n)]
     cols += [f"du_{_label(i, k, p)}" for k in range(steps) for i in range(p)]

@@ -18,6 +18,7 @@ from sosalgo.errors import InputError
 from sosalgo.kernel.kappa import Kappa, kappa_fields
 from sosalgo.kernel.phases import show_phase
 from sosalgo.pep.bind import bound_method, class_kappa, initial_gradient
+from sosalgo.pep.constraints import spec_constraints
 from sosalgo.pep.sdp import PEPData, SDPAnswer, pep_data, solve_pep, value_residual
 from sosalgo.pep.steps import StepMethods, float_step_method, spec_steps
 from sosalgo.pep.structure import Method, PEPStructure, build_structure, deadbeat_gain, output_call
@@ -203,6 +204,13 @@ def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None
     mt = float_method(om, kq)
     if schedule is not None:
         mt = float_step_method(schedule, mt, steps)
+    mt.constraints = spec_constraints(spec, om.p)
+    mt.error_refs = {i: tuple(float(c) for c in ref)
+                     for i, ref in (getattr(spec, "error_refs", None) or {}).items()}
+    mt.twins = dict(getattr(spec, "twins", None) or {})
+    if mt.constraints and schedule is not None:
+        raise InputError(f"{spec.source}: pep.constraints: not for a method that changes "
+                         "with k")
     mt.G0, mt.smooth = initial_gradient(spec, om, kq)
     mt.line_search = bool(spec.line_search)
     if mt.line_search and schedule is not None:
@@ -295,6 +303,12 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
         st, data, ans = _bare_solve(mt, st, data, steps, mterms, iterms)
     else:
         ans = solve_pep(data)
+        if ans.status == "failed" and not data.strong:
+            # every attempt "almost solved" (the inexact gradient method at N = 5, 6 on all
+            # its pairs): again with the strong regularization, whose multipliers the exact
+            # proof accepts or refuses as ever
+            data.strong = True
+            ans = solve_pep(data)
         if ans.status == "failed" and schedule is None and np.any(mt.K) \
                 and steps <= PLAIN_RETRY_STEPS:
             # a direction of G the question leaves free (a free start under a Lyapunov
@@ -349,6 +363,9 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
         elif witness and mt.lmo:  # no witness construction for a linear minimization call
             res.extra["note"] = ("no worst-case witness for a linear minimization oracle "
                                  "(tau_proven is the proven upper bound)")
+        elif witness and mt.constraints:  # the witness check does not prove constraints
+            res.extra["note"] = ("no worst-case witness for a PEP with constraints on the "
+                                 "instance (tau_proven is the proven upper bound)")
         elif witness and mt.line_search:  # a run on the class's extremal quadratic
             from sosalgo.pep.linesearch_witness import line_search_witness
 

@@ -108,6 +108,7 @@ def class_description(spec: Spec, kappa: float | None) -> dict[str, Any]:
     """Which class a proof is about, as exact strings: ``m``, ``L`` (``kappa``) and each
     function's class and parameters (sympy's exact form: ``1/10``, ``sqrt(2)/10``); the
     relative error of each inexact oracle call and the line search parameter, if any."""
+    from sosalgo.kernel.expr import constant_value
     from sosalgo.kernel.expr.parse import to_sympy
     from sosalgo.kernel.kappa import kappa_fields
     from sosalgo.pep.bind import class_kappa
@@ -124,6 +125,18 @@ def class_description(spec: Spec, kappa: float | None) -> dict[str, Any]:
         env = _exact_env(spec, base)
         out["relative_errors"] = {f"oracles[{i}]": str(to_sympy(e).xreplace(env))
                                   for i, e in spec.inexact.items()}
+        D = spec.matrices.get("D")
+        prox = [f"oracles[{i}]" for i in spec.inexact if D is not None
+                and not (D[i][i].is_constant and constant_value(D[i][i]) == 0)]
+        if prox:  # relatively inexact proximal steps (:mod:`sosalgo.pep.inexact`)
+            out["inexact_proximal"] = prox
+        refs = getattr(spec, "error_refs", None) or {}
+        if refs:  # relative to a combination of the step's answers
+            out["relative_to"] = {f"oracles[{i}]": [str(c) for c in ref]
+                                  for i, ref in refs.items()}
+    twins = getattr(spec, "twins", None) or {}
+    if twins:
+        out["gradient_of"] = {f"oracles[{i}]": f"oracles[{j}]" for i, j in twins.items()}
     if getattr(spec, "line_search", None):
         out["line_search"] = spec.line_search
     if getattr(spec, "mirror", None):  # the kernel of the Bregman steps and the set
@@ -214,6 +227,7 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
     from sosalgo.kernel.exact import Ball
     from sosalgo.kernel.exact import enclose as enclose_at
     from sosalgo.kernel.expr.parse import to_sympy
+    from sosalgo.pep.constraints import spec_constraints
 
     K = np.array([[Fraction(float(v)) for v in row]
                   for row in deadbeat_gain(om.A, om.B, float(om.L))], dtype=object)
@@ -256,6 +270,8 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
     mt.x0_call = _exact_start_call(mats, Xq, om)
     mt.errors = _exact_errors(spec, env, enclose)
     mt.line_search = bool(getattr(spec, "line_search", None))
+    mt.constraints = spec_constraints(spec, p)
+    _call_links(mt, spec)
     mt.lmo = dict(getattr(spec, "lmo", None) or {})
     if any(e is not None for e in extras):
         mt.constants = [e[0] if e else [Fraction(0)] * len(fi)
@@ -405,12 +421,19 @@ def _residual_parts(mt: Method, st: PEPStructure, lam: list[Fraction]
         quad = R.transpose() * arb_mat(W) * R
     else:  # no points (the contraction measure: extra constraints only)
         quad = arb_mat(st.d, st.d)
-    for (_, Xe, Qe), lk in zip(st.extras, lam[len(st.pairs):], strict=True):
+    for e, ((_, Xe, Qe), lk) in enumerate(zip(st.extras, lam[len(st.pairs):], strict=True)):
         if lk:  # an extra constraint (:mod:`sosalgo.pep.inexact`): + lambda X' Qc X
             Xb = arb_mat([[ball(v) for v in row] for row in Xe])
             Qb = arb_mat([[ball(v) * ball(lk) for v in row] for row in Qe])
             quad += Xb.transpose() * Qb * Xb
+            for i, v in enumerate(st.extra_values.get(e, ())):  # a constraint's values
+                if _nonzero_value(v):
+                    aF[i] += ball(v) * ball(lk)
     return quad, aF
+
+
+def _nonzero_value(v: Any) -> bool:
+    return bool(v.c != 0 or v.r != 0) if hasattr(v, "c") else bool(v != 0)
 
 
 def _repaired(mt: Method, st: PEPStructure, lam: list[Fraction], tb: arb
@@ -1170,7 +1193,16 @@ def exact_step_method(spec: Any, kappa: float | None, sm: StepMethods, count: in
     mt.errors = _exact_errors(spec, _exact_env(spec, base),
                               lambda e: enclose(e, digits))
     mt.lmo = dict(getattr(spec, "lmo", None) or {})
+    _call_links(mt, spec)
     return mt
+
+
+def _call_links(mt: Method, spec: Spec) -> None:
+    """The inexact calls' reference vectors and the ``gradient_of`` calls, exactly
+    (:mod:`sosalgo.pep.inexact`)."""
+    mt.error_refs = {i: tuple(Fraction(c) for c in ref)
+                     for i, ref in (getattr(spec, "error_refs", None) or {}).items()}
+    mt.twins = dict(getattr(spec, "twins", None) or {})
 
 
 def _step_start_call(mt: Method, step0: tuple[np.ndarray, ...]) -> int | None:

@@ -153,8 +153,11 @@ def pep_data(mt: Method, st: PEPStructure) -> PEPData:
         _, a[k], X[k] = st.pair_rows(mt, k)
         j, _, _, r = st.pairs[k]
         Qc[k] = mt.ineqs[j][r][1]
-    for k, (_, Xe, Qe) in enumerate(st.extras, len(st.pairs)):  # no function values
+    for e, (_, Xe, Qe) in enumerate(st.extras):  # values: a constraint's only
+        k = len(st.pairs) + e
         X[k], Qc[k] = np.asarray(Xe, float), np.asarray(Qe, float)
+        if e in st.extra_values:
+            a[k] = np.asarray(st.extra_values[e], float)
     return PEPData(st, X, Qc, a, seed_pairs(st), np.ones(d), np.ones(st.nF))
 
 

@@ -122,10 +122,17 @@ class Method(CallShape):
         return "pairs" if self.scopes is None else self.scopes[j][r]
     # inexact gradient calls: call index -> eps (|d - g| <= eps |g|, :mod:`sosalgo.pep.inexact`)
     errors: dict[int, Any] = field(default_factory=dict)
+    # an inexact call's reference vector (coefficients on the step's answers) and the
+    # calls answering an inexact call's true subgradient (call -> that call; no point)
+    error_refs: dict[int, tuple[Any, ...]] = field(default_factory=dict)
+    twins: dict[int, int] = field(default_factory=dict)
     # x+ = x - gamma_k u with gamma_k by exact line search (:mod:`sosalgo.pep.linesearch`)
     line_search: bool = False
     # linear minimization calls: call index -> its direction's call (:mod:`sosalgo.pep.lmo`)
     lmo: dict[int, int] = field(default_factory=dict)
+    # constraints on the instance: (relation, terms of left - right), relation ==, <= or >=
+    # (:mod:`sosalgo.pep.constraints`)
+    constraints: list[tuple[str, list[Term]]] = field(default_factory=list)
 
     def gain(self, k: int) -> np.ndarray:
         """The gain K_k of step k's basis vectors (:func:`_trajectory`)."""
@@ -178,12 +185,15 @@ class PEPStructure:
     # (tau, lambda) bounds the measure by tau + sum_k lambda_k c_k (:mod:`sosalgo.pep.sdp`)
     constants: np.ndarray | None = None
     # constraints beyond the class inequalities, after the pairs (their multipliers follow
-    # the pairs'): (label, X (4 x d), Qc (4 x 4)) with tr(Qc X G X') >= 0 (no values)
+    # the pairs'): (label, X (4 x d), Qc (4 x 4)) with tr(Qc X G X') + a F >= 0
     extras: list[tuple[str, np.ndarray, np.ndarray]] = field(default_factory=list)
     # no initial condition (``--initial none``): the question is homogeneous, its worst
     # case 0 or unbounded; the solver normalizes it (:mod:`sosalgo.pep.sdp`), the proof is
     # at tau = 0 exactly
     bare: bool = False
+    # the value coefficients a (on F) of the extras that have some (index in extras -> a;
+    # the others have none: :mod:`sosalgo.pep.constraints`)
+    extra_values: dict[int, np.ndarray] = field(default_factory=dict)
 
     @property
     def d(self) -> int:
@@ -433,6 +443,8 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
     valued = [cls.has_values for _, cls, _ in mt.functions]  # an operator: no F entries
     for k in range(calls):
         for i, j in enumerate(mt.oracles):
+            if i in mt.twins:  # the true subgradient of another call's point: no point
+                continue
             pts[j].append(PEPPoint(_call_label(i, k, p), Yr[k][i], U[k][i],
                                    nF if valued[j] else None, k))
             nF += valued[j]
@@ -480,6 +492,8 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
                 forms[key].append((0 * np.outer(rows[0], rows[0]), {}))
                 continue
             forms[key].append(_term(mt, t, rows[0], pts, sstar, state, opt, steps))
+    if mt.constraints:
+        _constraints(mt, steps, xi, Yr, where, pts, sstar, state)
     st = _finish(mt, steps, calls, state, pts, forms, {"xi": xi, "y": Y, "u": U, "x": out})
     st.bare = not initial
     return st
@@ -501,6 +515,33 @@ def _inner_row(mt: Method, key: str, row: np.ndarray, pts: list[list[PEPPoint]],
         pt = _point_at(mt, j, row, pts, label, state, opt, point)
         v = v + pt.g + sstar[j]
     return v * mt.s
+
+
+def _constraints(mt: Method, steps: int, xi: list[np.ndarray], Yr: list[list[np.ndarray]],
+                 where: dict[str, np.ndarray], pts: list[list[PEPPoint]],
+                 sstar: list[np.ndarray], state: dict[str, Any]) -> None:
+    """The rows of the constraints on the instance (:mod:`sosalgo.pep.constraints`)."""
+    from sosalgo.pep.constraints import constraint_rows
+
+    def label(key: str) -> str:
+        return {"x": f"x{steps}"}.get(key) or (key if STEP_POINT.match(key)
+                                                else f"{key}_{steps}")
+
+    def value_at(row: np.ndarray, key: str, opt: str) -> dict[int, Any]:
+        out: dict[int, Any] = {}
+        for j, (name, cls, _) in enumerate(mt.functions):
+            if not cls.has_values:
+                raise InputError(f"{opt}: f: {name} ({cls.name}) is an operator class, it "
+                                 "has no function values")
+            pt = _point_at(mt, j, row, pts, label(key), state, opt, key)
+            out[pt.f] = out.get(pt.f, 0) + mt.s
+        return out
+
+    state["extra_values"] = {}
+    constraint_rows(mt, steps, lambda q, opt: _point_row(mt, xi, Yr, where, q, steps, opt),
+                    lambda row, key, opt: _grad_row(mt, row, pts, sstar, state, opt,
+                                                    label(key), key),
+                    value_at, state)
 
 
 def _point_row(mt: Method, xi: list[np.ndarray], Yr: list[list[np.ndarray]],
@@ -601,7 +642,9 @@ def _finish(mt: Method, steps: int, calls: int, state: dict[str, Any],
     J = len(mt.functions)
     d = state["next"]
     n0 = sum(1 for c in state["cols"] if c.startswith(("xi0_", "x0-")))
-    used = _used_columns(pts, [q for q, _ in forms["m"] + forms["i"]], n0, J, d)
+    cons = [X.T @ X for k, (_, X, _) in enumerate(state["extras"])
+            if k in state.get("extra_values", {})]  # a constraint's squared terms
+    used = _used_columns(pts, [q for q, _ in forms["m"] + forms["i"]] + cons, n0, J, d)
     keep = [c for c in range(d) if used[c]]
     nF = state["nF"]
     dt = object if mt.exact else float
@@ -627,12 +670,17 @@ def _finish(mt: Method, steps: int, calls: int, state: dict[str, Any],
                         labels.append(pair_label(fname, pa.label, pb.label, r, many))
                         consts.append(mt.constant(j, r))
     extras = [(lab, X[:, keep], Qc) for lab, X, Qc in state["extras"]]
+    values = {}
+    for k, fs in state.get("extra_values", {}).items():  # constraints' values, on F
+        values[k] = np.zeros(nF, dtype=dt)
+        for f, v in fs.items():
+            values[k][f] = values[k][f] + v
     labels += [lab for lab, _, _ in extras]
     cut = {"xi": [x[:, keep] for x in rows["xi"]], "y": [y[:, keep] for y in rows["y"]],
            "u": [u[:, keep] for u in rows["u"]], "x": rows["x"][keep]}
     st = PEPStructure(steps, calls, [state["cols"][c] for c in keep], pts, nF, pairs,
                       labels, meas_q, meas_f, init_q, init_f, cut, state["at"],
-                      state["origin"], extras=extras)
+                      state["origin"], extras=extras, extra_values=values)
     if mt.constants is not None and any(_nonzero(c) for c in consts):
         if extras:
             raise InputError("functions: a class with constant terms together with inexact "
@@ -693,16 +741,24 @@ def _term(mt: Method, t: Term, row: np.ndarray, pts: list[list[PEPPoint]],
             pt = _point_at(mt, j, row, pts, label, state, opt, t.point)
             fs[pt.f] = fs.get(pt.f, 0) + c * mt.s
         return 0 * np.outer(row, row), fs
+    v = _grad_row(mt, row, pts, sstar, state, opt, label, t.point)
+    return np.outer(v, v) * c, {}
+
+
+def _grad_row(mt: Method, row: np.ndarray, pts: list[list[PEPPoint]],
+              sstar: list[np.ndarray], state: dict[str, Any], opt: str, label: str,
+              key: str) -> np.ndarray:
+    """The row of the gradient of the smooth part (the functions with a gradient oracle)
+    at the point ``row``."""
     smooth = [j for j, (_, cls, _) in enumerate(mt.functions) if "gradient" in cls.oracles]
     if not smooth:
         raise InputError(f"{opt}: grad: no smooth function (a class with a gradient "
                          "oracle) in this spec")
     v = 0 * row
     for j in smooth:
-        pt = _point_at(mt, j, row, pts, label, state, opt, t.point)
+        pt = _point_at(mt, j, row, pts, label, state, opt, key)
         v = v + pt.g + sstar[j]
-    v = v * mt.s
-    return np.outer(v, v) * c, {}
+    return v * mt.s
 
 
 def _used_columns(pts: list[list[PEPPoint]], forms: list[np.ndarray], n0: int, J: int,

@@ -32,7 +32,8 @@ from sosalgo.kernel.expr.tree import Expr, ExprError, evaluate, parse_tree
 from sosalgo.spec.initial_state import linear_parts
 
 __all__ = ["BACK_POINT", "DIFF_KIND", "KINDS", "MINF_KIND", "MIN_KIND", "MIN_OF", "Term",
-           "at_steps", "describe_terms", "dominates", "expand_min", "parse_terms"]
+           "at_steps", "describe_terms", "dominates", "expand_min", "parse_constraint",
+           "parse_terms"]
 
 MIN_KIND = "mingrad"  # min over k = 0..N of |grad f(x_k)|^2
 MINF_KIND = "minf"  # min over k = 0..N of f(x_k) - f*
@@ -165,6 +166,30 @@ def free_start(initial: Sequence[Term]) -> bool:
     """Whether ``initial`` leaves the start free: ``none`` (no terms), ``free`` or an
     ``sdist`` term."""
     return not initial or any(t.kind in ("sdist", FREE_KIND) for t in initial)
+
+
+RELATIONS = ("==", "<=", ">=")
+
+
+def parse_constraint(text: object, option: str, p: int, scalars: frozenset[str]
+                     ) -> tuple[str, list[Term]]:
+    """``LEFT REL RIGHT`` (REL one of ==, <=, >=; each side terms as a measure's, at any
+    point a measure may name, x_0 included) as (REL, the terms of LEFT - RIGHT)."""
+    if not isinstance(text, str):
+        raise InputError(f"{option}: expected a relation such as 'grad(x_0) <= 2*f(x_0)'")
+    found = [r for r in RELATIONS if r in text]
+    if len(found) != 1 or text.count(found[0]) != 1:
+        raise InputError(f"{option}: expected one relation ==, <= or >= between two sums of "
+                         "terms")
+    left, _, right = text.partition(found[0])
+    if not left.strip() or not right.strip():
+        raise InputError(f"{option}: a term on each side of {found[0]} (write 0 as 0*f)")
+    terms = parse_terms(f"{left} - ({right})", option, False, p, scalars)
+    bad = [t.kind for t in terms if t.kind in (*MIN_OF, "sdist", "contraction")]
+    if bad:
+        raise InputError(f"{option}: {bad[0]}: not in a constraint (f, dist, grad, "
+                         "dist(P, Q))")
+    return found[0], terms
 
 
 def at_steps(terms: list[Term], steps: int, option: str) -> list[Term]:

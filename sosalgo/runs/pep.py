@@ -429,8 +429,21 @@ def pep_heading(rows: list[dict[str, Any]]) -> list[str]:
         shown = ", ".join(f"{k} = {v}" for k, v in params.items())
         lines.append(f"  {name}: {fn.get('class')} ({what})" + (f" with {shown}" if shown
                                                                  else ""))
+    prox = set(cls.get("inexact_proximal") or ())
+    refs = cls.get("relative_to") or {}
     for call, eps in (cls.get("relative_errors") or {}).items():
-        lines.append(f"  {call}: an inexact gradient d, |d - grad f| <= {eps} |grad f|")
+        if call in refs:
+            ref = " + ".join(f"{c}*u{i + 1}" for i, c in enumerate(refs[call]) if c != "0")
+            lines.append(f"  {call}: an inexact {'proximal step' if call in prox else 'call'}"
+                         f" answering d, |d - g| <= {eps} |{ref}| (g the true subgradient, "
+                         "u the step's answers)")
+            continue
+        lines.append(f"  {call}: an inexact proximal step y = v - t d, d within {eps} |d| "
+                     "of a subgradient at y (|y - prox| <= "
+                     f"{eps} |y - v|)" if call in prox else
+                     f"  {call}: an inexact gradient d, |d - grad f| <= {eps} |grad f|")
+    for call, src in (cls.get("gradient_of") or {}).items():
+        lines.append(f"  {call}: the true subgradient at {src}'s point")
     if cls.get("line_search"):
         lines.append(f"  {cls['line_search']}: chosen at every step by exact line search")
     if drawn:

@@ -22,6 +22,7 @@ import select
 import stat
 import time
 from collections.abc import Collection
+from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
@@ -280,15 +281,28 @@ class _Builder:
         return SpecError(self.source, field_, message)
 
     def pep_terms(self, raw: object) -> dict[str, str]:
-        """``pep: {measure: TERMS, initial: TERMS}`` (the terms are parsed by ``sosalgo
-        pep``, :mod:`sosalgo.pep.terms`, which names pep.measure or pep.initial)."""
+        """``pep: {measure: TERMS, initial: TERMS, constraints: [RELATION, ...]}`` (the
+        terms are parsed by ``sosalgo pep``, :mod:`sosalgo.pep.terms`, which names
+        pep.measure, pep.initial or pep.constraints[i]; constraints are kept as a list)."""
         if raw is None:
             return {}
-        if (not isinstance(raw, dict) or not raw or set(raw) - {"measure", "initial"}
-                or not all(isinstance(v, str) and v.strip() for v in raw.values())):
-            raise self.fail("pep", "expected a mapping with measure and/or initial, each "
-                                   "terms such as 'mingrad', 'f(x_0) - f(x_N)'")
-        return {str(k): str(v) for k, v in raw.items()}
+        cons = raw.get("constraints") if isinstance(raw, dict) else None
+        if cons is not None and (not isinstance(cons, list) or not cons or len(cons) > 100
+                                 or not all(isinstance(c, str) and c.strip() for c in cons)):
+            raise self.fail("pep.constraints", "expected a list of relations such as "
+                            "'gamma*grad(x_0) == 2*f(x_0)' (==, <= or >=)")
+        text = {k: v for k, v in raw.items() if k != "constraints"} if isinstance(
+            raw, dict) else raw
+        if (not isinstance(text, dict) or not raw
+                or set(text) - {"measure", "initial"}
+                or not all(isinstance(v, str) and v.strip() for v in text.values())):
+            raise self.fail("pep", "expected a mapping with measure, initial and/or "
+                                   "constraints, the first two terms such as 'mingrad', "
+                                   "'f(x_0) - f(x_N)'")
+        out: dict[str, Any] = {str(k): str(v) for k, v in text.items()}
+        if cons is not None:
+            out["constraints"] = [str(c) for c in cons]
+        return out
 
     # -- top level -------------------------------------------------------------------
     def build(self, data: object) -> Spec:
@@ -336,6 +350,7 @@ class _Builder:
                                         names)
         raw_oracles = data.get("oracles", ["f"])
         inexact = self.oracle_errors(raw_oracles, names)
+        error_refs, twins = self.oracle_links(raw_oracles)
         lmo = self.oracle_lmo(raw_oracles)
         oracles = self.oracles(_oracle_names(raw_oracles), functions)
         measure = data.get("measure", "function")
@@ -369,6 +384,7 @@ class _Builder:
             name=name, description=description, source=self.source, parameters=params,
             matrices=matrices, references=references, kappa=kappa, m=m,
             functions=functions, oracles=oracles, inexact=inexact, lmo=lmo, output=output,
+            error_refs=error_refs, twins=twins,
             measure=measure, L=L,
             initial_state=initial_state, m_expr=parse_tree(data.get("m", 1), ()),
             L_expr=parse_tree(data["L"], ()) if L is not None else None,
@@ -542,7 +558,8 @@ class _Builder:
             if not isinstance(entry, dict):
                 continue
             extra = [str(k)[:40] for k in entry
-                     if k not in ("function", "relative_error", "lmo")]
+                     if k not in ("function", "relative_error", "lmo", "relative_to",
+                                  "gradient_of")]
             if extra:
                 raise self.fail(f"oracles[{i}].{extra[0]}", "unknown key (an oracle entry is "
                                 "a function name, {function: NAME, relative_error: EPS} or "
@@ -552,6 +569,54 @@ class _Builder:
             if "relative_error" in entry:
                 out[i] = self.expr(entry["relative_error"], names,
                                    f"oracles[{i}].relative_error")
+        return out
+
+    def oracle_links(self, raw: object) -> tuple[dict[int, tuple[Fraction, ...]],
+                                                 dict[int, int]]:
+        """(``relative_to``, ``gradient_of``) of ``oracles:``: an inexact proximal call's
+        reference vector as rational coefficients on the step's answers (one per call;
+        default: the call's own answer), and a call ``{function: f, gradient_of: j}``
+        whose answer is the true subgradient of call j's point (an earlier inexact
+        proximal call of f in the step): no point of its own (:mod:`sosalgo.pep.inexact`).
+        Both are 0-based here."""
+        refs: dict[int, tuple[Fraction, ...]] = {}
+        twins: dict[int, int] = {}
+        entries = raw if isinstance(raw, list) else []
+        for i, entry in enumerate(entries):
+            if not isinstance(entry, dict):
+                continue
+            if "relative_to" in entry:
+                refs[i] = self._reference(entry, i, len(entries))
+            if "gradient_of" in entry:
+                j, where = entry["gradient_of"], f"oracles[{i}].gradient_of"
+                if set(entry) - {"function", "gradient_of"}:
+                    raise self.fail(where, "a gradient_of call has no other key")
+                if isinstance(j, bool) or not isinstance(j, int) or not 1 <= j <= i:
+                    raise self.fail(where, f"{str(j)[:40]!r}: the number (1..{i}) of an "
+                                    "earlier call of the step")
+                src = entries[j - 1]
+                if (not isinstance(src, dict) or "relative_error" not in src
+                        or src.get("function") != entry.get("function")):
+                    raise self.fail(where, f"call {j} must be an inexact call "
+                                    "(relative_error) of the same function")
+                twins[i] = j - 1
+        return refs, twins
+
+    def _reference(self, entry: dict[str, Any], i: int, p: int) -> tuple[Fraction, ...]:
+        where = f"oracles[{i}].relative_to"
+        ref = entry["relative_to"]
+        if "relative_error" not in entry:
+            raise self.fail(where, "a reference vector is for an inexact call "
+                            "(relative_error)")
+        if not isinstance(ref, list) or len(ref) != p:
+            raise self.fail(where, f"a list of {p} rational coefficients, one per call of "
+                            "the step (the answers the error is relative to)")
+        try:
+            out = tuple(Fraction(str(v)) for v in ref if not isinstance(v, bool))
+        except (ValueError, ZeroDivisionError):
+            out = ()
+        if len(out) != p or not any(out):
+            raise self.fail(where, f"a list of {p} rational coefficients, not all 0")
         return out
 
     def oracle_lmo(self, raw: object) -> dict[int, int]:

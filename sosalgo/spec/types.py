@@ -173,6 +173,11 @@ class Spec:
     # (0-based) -> the index of the gradient call whose answer g is the direction; the call
     # answers u = s - y with s in argmin over the set of <g, s> (:mod:`sosalgo.pep.lmo`)
     lmo: dict[int, int] = field(default_factory=dict)
+    # an inexact proximal call's reference vector (``relative_to``: rational coefficients
+    # on the step's answers) and the calls whose answer is an inexact call's true
+    # subgradient (``gradient_of``), 0-based (:mod:`sosalgo.pep.inexact`)
+    error_refs: dict[int, tuple[Any, ...]] = field(default_factory=dict)
+    twins: dict[int, int] = field(default_factory=dict)
     # ``line_search: gamma``: the step parameter of x+ = x - gamma u chosen at every step by
     # exact line search (``sosalgo pep`` only; :mod:`sosalgo.pep.linesearch`); None: none
     line_search: str | None = None
@@ -197,8 +202,9 @@ class Spec:
     sequences: dict[str, SequenceDecl] = field(default_factory=dict)
     time_varying: bool = False
     # ``pep: {measure, initial}``: the PEP's default terms (sosalgo.pep.terms), when the
-    # command line gives none
-    pep: dict[str, str] = field(default_factory=dict)
+    # command line gives none; ``constraints``: a list of relations on the instance
+    # (sosalgo.pep.constraints)
+    pep: dict[str, Any] = field(default_factory=dict)
     # ``finite_sum:`` a method on a finite sum, one function drawn per step
     # (:class:`sosalgo.spec.finite_sum.FiniteSum`; ``sosalgo pep`` only); None: none
     finite_sum: Any = None
