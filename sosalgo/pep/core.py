@@ -411,8 +411,8 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
         eps = rel / scale  # relative to tau: the measure is divided by tau
         cand = ans if rel == 0 else solve_pep(data, margin=eps, unit=tau if tau > 1e-200
                                               else 1.0, precise=precise)
-        if cand.status != "solved" or cand.tau + cand.const > tau * (1 + 10 * rel) + 1e-12:
-            continue  # not solved, or solved far above tau + margin (a solver's bad answer)
+        if cand.status != "solved" or cand.tau + cand.const > 2 * abs(tau) + 1e-9:
+            continue  # not solved, or "solved" at twice tau or more (a solver's bad answer)
         if inner is not None:
             cand = _mixed(cand, inner, data.w)
         best = cand
