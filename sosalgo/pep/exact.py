@@ -685,9 +685,12 @@ def st_value_residual(st: PEPStructure, lam: np.ndarray, lins: list[Any],
                       support: list[int]) -> np.ndarray:
     """The float value residuals -m_F - sum lambda_k a_k of the multipliers on
     ``support`` (``lins``: their exact rows on F)."""
-    cf = -np.asarray([float(v) for v in st.meas_f], dtype=float)
+    def flt(v: Any) -> float:  # a ball: its center
+        return float(v.c) if hasattr(v, "c") else float(v)
+
+    cf = -np.asarray([flt(v) for v in st.meas_f], dtype=float)
     for k, a in zip(support, lins, strict=True):
-        cf -= float(lam[k]) * np.asarray([float(v) for v in a], dtype=float)
+        cf -= float(lam[k]) * np.asarray([flt(v) for v in a], dtype=float)
     return cf
 
 
