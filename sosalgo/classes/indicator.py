@@ -1,6 +1,9 @@
 """Indicators of closed convex sets: f = 0 on the set, subgradients are normal vectors,
 so <g_b, x_a - x_b> <= 0 for points a, b of the set; the proximal step is the projection.
-Only proximal steps are answered (a subgradient call would need its point in the set).
+A subgradient call answers a normal vector at its point, which says that the point lies in
+the set: a method may make it only where its point is in the set by construction (a
+projection already made, such as the start P_C(x_0) of a method that projects x_0 first:
+docs/operators.md, "A first step unlike the others").
 
 The tilted indicator h = f - <s*, . - x*> (s* a normal vector at x*) is convex, h >= 0,
 h(x*) = 0, and its values on the set are -<s*, x - x*>: the certificate keeps them as free
@@ -27,7 +30,7 @@ from sosalgo.classes.members import ProxFunction, ball, box, zero
 class Indicator(FunctionClass):
     name = "indicator"
     description = "indicator of a closed convex set (prox = projection)"
-    oracles = frozenset({"proximal"})
+    oracles = frozenset({"proximal", "subgradient"})
     zero_values = True
     tilt_invariant = False
     tilted_text = ("h_a >= h_b + <g_b, x_a - x_b>, values h >= 0 kept free (tilted "

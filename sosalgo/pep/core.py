@@ -544,8 +544,6 @@ def _linear_only(data: PEPData) -> list[int] | None:
     margin proofs as they are)."""
     from sosalgo.pep.sdp import linear_only
 
-    if data.st.constants is None:
-        return None
     return [c for c, v in enumerate(linear_only(data)) if v == 0] or None
 
 
@@ -567,8 +565,8 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
         eps = rel / scale  # relative to tau: the measure is divided by tau
         cand = ans if rel == 0 else solve_pep(data, margin=eps, unit=tau if tau > 1e-200
                                               else 1.0, precise=precise)
-        if cand.status != "solved":
-            continue
+        if cand.status != "solved" or cand.tau + cand.const > 2 * abs(tau) + 1e-9:
+            continue  # not solved, or "solved" at twice tau or more (a solver's bad answer)
         if inner is not None:
             cand = _mixed(cand, inner, data.w)
         best = cand

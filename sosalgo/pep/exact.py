@@ -706,8 +706,10 @@ def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Frac
         for i in range(st.d):
             eqs.append([sum(q[i][j] * v[j] for j in nz) for q in quads])
             rhs.append(sum((tq * I0[i][j] - M[i][j]) * v[j] for j in nz))
-    for i in range(st.nF if not units else 0):  # c_F[i] = -m_F[i] - sum lambda a_i: no
-        if fi[0][i] == 0:  # tq to raise it (with ``units``: a margin solve's c_F > 0)
+    cf = None if not units else st_value_residual(st, lam, lins, support)
+    for i in range(st.nF):  # c_F[i] = -m_F[i] - sum lambda a_i: no tq to raise it (with
+        # ``units``: where the float c_F is not clearly positive, a margin solve's c_F > 0)
+        if fi[0][i] == 0 and (cf is None or cf[i] <= NULL_ROW * (1.0 + abs(cf).max())):
             eqs.append([a[i] for a in lins])
             rhs.append(-fm[0][i])
     A, b = sp.Matrix(eqs), sp.Matrix(rhs)
@@ -725,6 +727,19 @@ def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Frac
             return None
         out[k] = q
     return out
+
+
+def st_value_residual(st: PEPStructure, lam: np.ndarray, lins: list[Any],
+                      support: list[int]) -> np.ndarray:
+    """The float value residuals -m_F - sum lambda_k a_k of the multipliers on
+    ``support`` (``lins``: their exact rows on F)."""
+    def flt(v: Any) -> float:  # a ball: its center
+        return float(v.c) if hasattr(v, "c") else float(v)
+
+    cf = -np.asarray([flt(v) for v in st.meas_f], dtype=float)
+    for k, a in zip(support, lins, strict=True):
+        cf -= float(lam[k]) * np.asarray([flt(v) for v in a], dtype=float)
+    return cf
 
 
 def _nonzero_fraction(v: Any) -> bool:
