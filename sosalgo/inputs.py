@@ -79,7 +79,8 @@ def refuse_nonconvex(spec: Any, linear_rates: bool = False) -> None:
 def refuse_oracle_options(spec: Any) -> None:
     """InputError (one line) for a spec with a finite sum, Bregman steps, an exact line
     search, a linear minimization call or an inexact call: no Lyapunov family models them
-    (``sosalgo pep`` bounds their N-step worst case); the API's ``analyze`` refuses them as the command does."""
+    (``sosalgo pep`` bounds their N-step worst case); the API's ``analyze`` refuses them
+    as the command does."""
     if getattr(spec, "finite_sum", None) is not None:
         raise InputError(f"{spec.source}: finite_sum: one of n functions drawn per step: no "
                          "Lyapunov family models it (no rate is certified); sosalgo pep "
