@@ -26,6 +26,7 @@ from sosalgo.classes import (
     smooth_convex_lipschitz,
     smooth_lojasiewicz,
     smooth_strongly_convex,
+    smooth_strongly_convex_quadratic,
     strongly_convex,
     strongly_monotone,
 )
@@ -77,6 +78,7 @@ register_class(rsi_eb.CLASS)
 register_class(smooth_lojasiewicz.CLASS)
 register_class(smooth_convex_lipschitz.CLASS)
 register_class(bounded_indicator.CLASS)
+register_class(smooth_strongly_convex_quadratic.CLASS)
 _SHIPPED = tuple(CLASSES.values())
 
 SEED_CLASS: FunctionClass = smooth_strongly_convex.CLASS  # F(m, L): a spec without functions:

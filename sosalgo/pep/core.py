@@ -121,6 +121,7 @@ def float_method(om: Any, kappa: float) -> Method:
                 deadbeat_gain(om.A, om.B, float(om.L)),
                 errors=dict(getattr(om, "errors", None) or {}),
                 lmo=dict(getattr(om, "lmo", None) or {}))
+    mt.blocks = [list(fn.cls.blocks(fn.params)) for fn in om.functions]
     if any(i.constant or i.scope != "pairs" for fi in tilted for i in fi):
         mt.constants = [[float(i.constant) for i in fi] for fi in tilted]
         mt.scopes = [[i.scope for i in fi] for fi in tilted]
@@ -253,6 +254,10 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
         data.violation = LONG_VIOLATION
     show_phase("solving the PEP", f"{len(st.pairs)} interpolation pairs")
     ans = solve_pep(data)
+    if data.blocks and ans.status == "solved":  # Gram-level conditions: their cuts
+        from sosalgo.pep.blocks import cut_pep
+
+        st, data, ans = cut_pep(mt, st, data, ans)
     k = class_kappa(spec, kappa)
     kf = None if k is None else (  # a Kappa keeps its exact value
         k if isinstance(k, Kappa) else float(k))  # type: ignore[arg-type]

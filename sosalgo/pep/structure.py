@@ -114,6 +114,9 @@ class Method(CallShape):
     line_search: bool = False
     # linear minimization calls: call index -> its direction's call (:mod:`sosalgo.pep.lmo`)
     lmo: dict[int, int] = field(default_factory=dict)
+    # per function: the K (2 x 2) of each Gram-level condition of its class
+    # (:meth:`sosalgo.classes.base.FunctionClass.blocks`; :mod:`sosalgo.pep.blocks`)
+    blocks: list[list[np.ndarray]] = field(default_factory=list)
 
     def gain(self, k: int) -> np.ndarray:
         """The gain K_k of step k's basis vectors (:func:`_trajectory`)."""
@@ -168,6 +171,11 @@ class PEPStructure:
     # constraints beyond the class inequalities, after the pairs (their multipliers follow
     # the pairs'): (label, X (4 x d), Qc (4 x 4)) with tr(Qc X G X') >= 0 (no values)
     extras: list[tuple[str, np.ndarray, np.ndarray]] = field(default_factory=list)
+    # Gram-level conditions (:mod:`sosalgo.pep.blocks`): (function, condition, its points)
+    blocks: list[tuple[int, int, list[int]]] = field(default_factory=list)
+    # the rank-one cuts of the blocks' multipliers, appended to the extras:
+    # (function, condition, vector over the block's points)
+    cuts: list[tuple[int, int, list[Any]]] = field(default_factory=list)
 
     @property
     def d(self) -> int:
@@ -578,6 +586,8 @@ def _finish(mt: Method, steps: int, calls: int, state: dict[str, Any],
     st = PEPStructure(steps, calls, [state["cols"][c] for c in keep], pts, nF, pairs,
                       labels, meas_q, meas_f, init_q, init_f, cut, state["at"],
                       state["origin"], extras=extras)
+    st.blocks = [(j, r, [a for a, pt in enumerate(pts[j]) if pt.label != "x*"])
+                 for j, fb in enumerate(mt.blocks) for r in range(len(fb))]
     if mt.constants is not None and any(_nonzero(c) for c in consts):
         if extras:
             raise InputError("functions: a class with constant terms together with inexact "

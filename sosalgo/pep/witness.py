@@ -138,13 +138,14 @@ def _curvatures(mt: Method, at: float) -> list[float]:
     return q
 
 
-def quadratic_point(mt: Method, st: Any, at: float = 0.5) -> np.ndarray | None:
+def quadratic_point(mt: Method, st: Any, at: float = 0.5,
+                    curvatures: list[float] | None = None) -> np.ndarray | None:
     """The basis coordinates (one dimension) of the method run from x_0 = 1 (xi_0 = u, or
     the fixed-point direction for a free start) on f_j = q_j/2 x^2, q_j strictly inside
     its class (:func:`_curvatures`: the middle of [m, L] by default); None when a prox step
-    is singular."""
+    is singular; ``curvatures``: the q_j themselves)."""
     p, s = mt.p, float(mt.s)
-    q = _curvatures(mt, at)
+    q = _curvatures(mt, at) if curvatures is None else curvatures
     qc = np.array([q[j] for j in mt.oracles])
     col = {name: c for c, name in enumerate(st.basis)}
     if st.free_values:
@@ -241,6 +242,11 @@ def make_witness(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
             inner.append(None if search.late() else interior_point(data, unit, search.late))
         return inner[0]
 
+    if any(mt.blocks):  # Gram-level conditions: an explicit quadratic per function
+        from sosalgo.pep.member_witness import member_witness
+
+        found = member_witness(spec, mt, data.st, ex, exact_mt, (tau, res))
+        return None if found is None else finish_witness(found, spec, kappa, exact_mt, res)
     for G, F, slack, eta in _sources(data, ans, tau, unit, search.late):
         found = search.source(G, F, slack, eta, interior)
         if found is not None:
