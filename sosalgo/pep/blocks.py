@@ -36,7 +36,7 @@ import scipy.sparse as sps
 from sosalgo.kernel.conic import svec, unsvec
 from sosalgo.pep.structure import Method, PEPStructure
 
-__all__ = ["block_columns", "block_data", "cut_vectors", "with_cuts"]
+__all__ = ["block_columns", "block_data", "block_form", "cut_vectors", "with_cuts"]
 
 CUT_BITS = 40  # significant bits of a cut vector's entries
 
@@ -123,14 +123,3 @@ def with_cuts(mt: Method, st: PEPStructure, cuts: list[tuple[int, int, list[Any]
         labels.append(lab)
     return replace(st, extras=extras, labels=labels, cuts=list(st.cuts) + list(cuts))
 
-
-def cut_pep(mt: Method, st: PEPStructure, data: Any, ans: Any) -> tuple[Any, Any, Any]:
-    """(structure, data, answer) of the PEP with the rank-one cuts of the block
-    multipliers of ``ans`` (see the module), solved again from the same pairs and scale."""
-    from sosalgo.pep.sdp import pep_data, solve_pep
-
-    cut = with_cuts(mt, st, cut_vectors(st, ans.blocks))
-    new = pep_data(mt, cut)
-    new.w, new.v, new.strong, new.violation = data.w, data.v, data.strong, data.violation
-    new.active = np.union1d(data.active, np.arange(len(cut.pairs), cut.count))
-    return cut, new, solve_pep(new)

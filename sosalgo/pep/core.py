@@ -255,9 +255,7 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
     show_phase("solving the PEP", f"{len(st.pairs)} interpolation pairs")
     ans = solve_pep(data)
     if data.blocks and ans.status == "solved":  # Gram-level conditions: their cuts
-        from sosalgo.pep.blocks import cut_pep
-
-        st, data, ans = cut_pep(mt, st, data, ans)
+        st, data, ans = _cut_pep(mt, st, data, ans)
     k = class_kappa(spec, kappa)
     kf = None if k is None else (  # a Kappa keeps its exact value
         k if isinstance(k, Kappa) else float(k))  # type: ignore[arg-type]
@@ -309,6 +307,20 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
                                        spent=time.process_time() - cpu0)
     res.seconds = time.perf_counter() - t0
     return res
+
+
+def _cut_pep(mt: Method, st: PEPStructure, data: PEPData, ans: SDPAnswer
+             ) -> tuple[PEPStructure, PEPData, SDPAnswer]:
+    """(structure, data, answer) of the PEP with the rank-one cuts of the block
+    multipliers of ``ans`` (:mod:`sosalgo.pep.blocks`), solved again from the same pairs
+    and scale."""
+    from sosalgo.pep.blocks import cut_vectors, with_cuts
+
+    cut = with_cuts(mt, st, cut_vectors(st, ans.blocks))
+    new = pep_data(mt, cut)
+    new.w, new.v, new.strong, new.violation = data.w, data.v, data.strong, data.violation
+    new.active = np.union1d(data.active, np.arange(len(cut.pairs), cut.count))
+    return cut, new, solve_pep(new)
 
 
 def _exact_schedule(spec: Spec, kappa: float | None, schedule: StepMethods,

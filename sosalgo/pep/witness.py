@@ -49,6 +49,7 @@ from sosalgo.pep.check import (
     arb_view,
     check_witness,
     fit_values,
+    member_interval,
     q_str,
     set_quadratic_calls,
 )
@@ -243,8 +244,6 @@ def make_witness(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
         return inner[0]
 
     if any(mt.blocks):  # Gram-level conditions: an explicit quadratic per function
-        from sosalgo.pep.member_witness import member_witness
-
         found = member_witness(spec, mt, data.st, ex, exact_mt, (tau, res))
         return None if found is None else finish_witness(found, spec, kappa, exact_mt, res)
     for G, F, slack, eta in _sources(data, ans, tau, unit, search.late):
@@ -561,3 +560,74 @@ def interpolant_1d(doc: dict[str, Any]) -> dict[str, Any]:
         out[name] = {"x": xs.tolist(), "h": lo.tolist(),
                      "points": [[p[0], p[2]] for p in pts]}
     return out
+
+
+# ------------------------------------------------------------ explicit members
+MEMBER_AT = np.linspace(0.0, 1.0, 201)  # positions in each class's curvature interval
+MEMBER_TRIES = 3  # the best ones checked exactly
+
+
+def _member_curvatures(exact_mt: Method, at: float) -> list[Fraction] | None:
+    """q_j = lo + at (hi - lo) of each function's exact interval (a binary rational,
+    clamped into it), None when a class has none."""
+    out = []
+    for _, cls, params in exact_mt.functions:
+        iv = member_interval(cls, params)
+        if iv is None or iv[0] > iv[1]:
+            return None
+        lo, hi = iv
+        q = Fraction(float(lo + Fraction(at) * (hi - lo)))
+        out.append(min(max(q, lo), hi))
+    return out
+
+
+def member_witness(spec: Any, mt: Method, st: Any, ex: Any, exact_mt: Method | None,
+                   solved: tuple[float, Any]) -> dict[str, Any] | None:
+    """The witness of explicit quadratics with the largest proven measure / initial
+    among the :data:`MEMBER_TRIES` best of :data:`MEMBER_AT` (floating point first);
+    None when none is proven."""
+    tau, res = solved
+    if ex is None or exact_mt is None or mt.G0 is not None or mt.line_search:
+        return None
+    scored = []
+    for at in MEMBER_AT:
+        q = _member_curvatures(exact_mt, float(at))
+        if q is None:
+            return None
+        qf = [float(v) for v in q]
+        v = quadratic_point(mt, st, curvatures=qf)
+        if v is None:
+            continue
+        ratio = _member_ratio(mt, st, v, qf)
+        if ratio is not None:
+            scored.append((ratio, q, v))
+    scored.sort(key=lambda e: -e[0])
+    best = None
+    for _, q, v in scored[:MEMBER_TRIES]:
+        doc = _document(spec, mt, st, v[:, None], np.zeros(st.nF), res)
+        try:
+            set_quadratic_calls(doc, ex, q)  # the calls as stored (the check recomputes)
+        except (ValueError, ArithmeticError, ZeroDivisionError, KeyError, IndexError):
+            continue
+        doc["members"] = {name: q_str(qj) for (name, _, _), qj in zip(
+            mt.functions, q, strict=True)}
+        doc.update(tau_float=tau, objective_floor=0.0, slack=0.0, mixed=1.0)
+        doc["check"] = check_witness(doc, spec, ex)
+        if doc["check"]["verified"] and (best is None or doc["check"]["tau_lower_float"]
+                                         > best["check"]["tau_lower_float"]):
+            best = doc
+    return best
+
+
+def _member_ratio(mt: Method, st: Any, v: np.ndarray, q: list[float]) -> float | None:
+    """measure / initial of the quadratics' one-dimensional run (floating point)."""
+    s = float(mt.s)
+    G, F = np.outer(v, v), np.zeros(st.nF)
+    for j, fp in enumerate(st.points):
+        for pt in fp:
+            if pt.f is not None:
+                F[pt.f] = q[j] / 2 * float(pt.x @ v) ** 2 / s
+    meas = float(np.sum(st.meas_q.astype(float) * G) + st.meas_f.astype(float) @ F)
+    init = float(np.sum(st.init_q.astype(float) * G) + st.init_f.astype(float) @ F)
+    ratio = meas / init if init > 0 else float("nan")
+    return ratio if np.isfinite(ratio) and ratio > 0 else None
