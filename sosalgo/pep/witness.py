@@ -565,6 +565,8 @@ def interpolant_1d(doc: dict[str, Any]) -> dict[str, Any]:
 # ------------------------------------------------------------ explicit members
 MEMBER_AT = np.linspace(0.0, 1.0, 201)  # positions in each class's curvature interval
 MEMBER_TRIES = 3  # the best ones checked exactly
+MEMBER_STEP = 1.0 / 200  # the spacing of MEMBER_AT: the refinement's bracket
+GOLD = (np.sqrt(5.0) - 1) / 2
 
 
 def _member_curvatures(exact_mt: Method, at: float) -> list[Fraction] | None:
@@ -589,19 +591,28 @@ def member_witness(spec: Any, mt: Method, st: Any, ex: Any, exact_mt: Method | N
     tau, res = solved
     if ex is None or exact_mt is None or mt.G0 is not None or mt.line_search:
         return None
-    scored = []
-    for at in MEMBER_AT:
-        q = _member_curvatures(exact_mt, float(at))
-        if q is None:
-            return None
-        qf = [float(v) for v in q]
-        v = quadratic_point(mt, st, curvatures=qf)
-        if v is None:
-            continue
-        ratio = _member_ratio(mt, st, v, qf)
-        if ratio is not None:
-            scored.append((ratio, q, v))
-    scored.sort(key=lambda e: -e[0])
+    def score(at: float) -> tuple[float, list[Fraction], np.ndarray] | None:
+        q = _member_curvatures(exact_mt, at)  # type: ignore[arg-type]
+        v = None if q is None else quadratic_point(mt, st, curvatures=[float(t) for t in q])
+        ratio = None if v is None else _member_ratio(mt, st, v, [float(t) for t in q])
+        return None if ratio is None else (ratio, q, v)  # type: ignore[return-value]
+
+    if _member_curvatures(exact_mt, 0.0) is None:
+        return None
+    scored = [(e, float(at)) for at in MEMBER_AT if (e := score(float(at))) is not None]
+    if scored:  # the best position refined between its neighbours (golden section)
+        top = max(scored, key=lambda e: e[0][0])[1]
+        lo, hi = max(0.0, top - MEMBER_STEP), min(1.0, top + MEMBER_STEP)
+        for _ in range(60):
+            a, b = hi - GOLD * (hi - lo), lo + GOLD * (hi - lo)
+            ea, eb = score(a), score(b)
+            if ea is None or eb is None:
+                break
+            lo, hi = (lo, b) if ea[0] >= eb[0] else (a, hi)
+        if (e := score(0.5 * (lo + hi))) is not None:
+            scored.append((e, 0.5 * (lo + hi)))
+    scored.sort(key=lambda e: -e[0][0])
+    scored = [e for e, _ in scored]
     best = None
     for _, q, v in scored[:MEMBER_TRIES]:
         doc = _document(spec, mt, st, v[:, None], np.zeros(st.nF), res)
