@@ -164,3 +164,26 @@ def test_analyze_refuses_the_quadratic_class(tmp_path):
                                    str(tmp_path)])
     assert out.exit_code == 2
     assert "smooth_strongly_convex_quadratic" in out.output
+
+
+def test_verify_backs_the_pep_document_and_refuses_a_bent_member(tmp_path):
+    import json
+
+    from click.testing import CliRunner
+
+    from sosalgo.cli import cli
+
+    run = CliRunner()
+    out = run.invoke(cli, ["pep", str(GD), "--kappa", "10", "--steps", "3", "--out",
+                           str(tmp_path), "--no-plot", "--quiet"])
+    assert out.exit_code == 0, out.output
+    doc, wit = (tmp_path / "gradient-quadratics-pep-k10-N3.json",
+                tmp_path / "gradient-quadratics-pep-k10-N3-witness.json")
+    for path in (doc, wit):
+        res = run.invoke(cli, ["verify", str(path), "--out", str(tmp_path / "v")])
+        assert res.exit_code == 0, res.output
+    bent = json.loads(wit.read_text())
+    bent["members"]["f"] = "21/2"  # curvature 10.5 > L = 10
+    wit.write_text(json.dumps(bent))
+    res = run.invoke(cli, ["verify", str(wit), "--out", str(tmp_path / "v")])
+    assert res.exit_code == 3

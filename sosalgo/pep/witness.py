@@ -444,7 +444,8 @@ def finish_witness(doc: dict[str, Any], spec: Spec, kappa: float | None,
     doc |= kappa_fields(kappa)  # the exact kappa the witness is about
     proof = ((getattr(res, "certificate", None) or {}).get("proof")) or {}
     if proof.get("proven"):
-        doc["upper"] = {k: proof[k] for k in ("tau_proven", "multipliers_exact", "scale")}
+        doc["upper"] = {k: proof[k] for k in ("tau_proven", "multipliers_exact", "scale",
+                                              "cuts") if k in proof}
     if exact_mt is not None:
         add_exact_points(doc, exact_mt)
     if doc["dimension"] == 1:
