@@ -1145,6 +1145,7 @@ def exact_step_method(spec: Any, kappa: float | None, sm: StepMethods, count: in
                 bits=enclosure_bits(digits), per_step=per)
     mt.x0_call = _step_start_call(mt, per[0])
     mt.out_call = _step_output_call(mt, per)
+    mt.blocks = [list(cls.exact_blocks(params) or []) for _, cls, params in funcs]
     extras = [class_extras(cls, params, len(fi)) for (_, cls, params), fi in zip(
         funcs, ineqs, strict=True)]
     if any(e is not None for e in extras):
