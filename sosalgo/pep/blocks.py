@@ -100,7 +100,9 @@ def with_cuts(mt: Method, st: PEPStructure, cuts: list[tuple[int, int, list[Any]
     index = {(j, r): idx for j, r, idx in st.blocks}
     count: dict[tuple[int, int], int] = {}
     for j, r, vec in cuts:
-        idx = index[(j, r)]
+        idx = index.get((j, r))
+        if idx is None or j >= len(mt.blocks) or r >= len(mt.blocks[j]):
+            raise ValueError(f"cut of block {j}.{r}: the PEP has no such block")
         if len(vec) != len(idx):
             raise ValueError(f"cut of block {j}.{r}: {len(vec)} entries for {len(idx)} points")
         K = mt.blocks[j][r]
