@@ -17,18 +17,22 @@ from sosalgo.classes import (
     convex_lipschitz,
     convex_qg,
     indicator,
+    linear_operator,
     lipschitz_operator,
     lipschitz_strongly_monotone,
     monotone,
     nonexpansive,
     relatively_smooth,
     rsi_eb,
+    skew_symmetric_linear_operator,
     smooth,
     smooth_convex_lipschitz,
     smooth_lojasiewicz,
     smooth_strongly_convex,
+    smooth_strongly_convex_quadratic,
     strongly_convex,
     strongly_monotone,
+    symmetric_linear_operator,
 )
 from sosalgo.classes.base import ORACLE_KINDS, FunctionClass, Inequality, convex_form
 
@@ -80,6 +84,10 @@ register_class(smooth_convex_lipschitz.CLASS)
 register_class(bounded_indicator.CLASS)
 register_class(relatively_smooth.CLASS)
 register_class(relatively_smooth.ADAPTABLE)
+register_class(smooth_strongly_convex_quadratic.CLASS)
+register_class(linear_operator.CLASS)
+register_class(symmetric_linear_operator.CLASS)
+register_class(skew_symmetric_linear_operator.CLASS)
 _SHIPPED = tuple(CLASSES.values())
 
 SEED_CLASS: FunctionClass = smooth_strongly_convex.CLASS  # F(m, L): a spec without functions:

@@ -38,7 +38,12 @@ interpolation certificate family only reads the data declared here:
   ``noisy_gradients``: its gradient calls may carry noise (noise sensitivity);
 - ``tilted_text``: its tilted inequality as text and LaTeX (``sosalgo lmi`` listings);
 - :meth:`FunctionClass.test_functions`: functions of the class with closed-form proximal
-  steps (:mod:`sosalgo.classes.members`), for simulations.
+  steps (:mod:`sosalgo.classes.members`), for simulations;
+- :meth:`FunctionClass.blocks`: Gram-level conditions (linear operators, quadratics): a
+  matrix over all the points of one function that must be positive semidefinite, each
+  entry ``[x_a; g_a]' K [x_b; g_b]`` (K 2 x 2, tilted data); :meth:`exact_blocks` their
+  exact twin. A class with blocks is not ``homogeneous`` (no Lyapunov family takes
+  them; ``pep`` answers, :mod:`sosalgo.pep.blocks`).
 
 :data:`sosalgo.classes.SEED_CLASS` is F(m, L), the class of a spec without ``functions:``.
 """
@@ -155,6 +160,17 @@ class FunctionClass:
         """The exact twin of each inequality's ``constant`` (balls or rationals, from the
         exact parameters), in the order of :meth:`exact_tilted`; None: every constant is
         0 (a class with a nonzero constant must give them)."""
+        return None
+
+    def blocks(self, params: Mapping[str, float]) -> list[np.ndarray]:
+        """The Gram-level conditions: each a symmetric 2 x 2 K such that the matrix
+        T[a, b] = [x_a; g_a]' K [x_b; g_b] over every point of one function (tilted data,
+        x* a zero row) is positive semidefinite ([] by default: pairwise conditions only)."""
+        return []
+
+    def exact_blocks(self, params: Mapping[str, Any]) -> list[np.ndarray] | None:
+        """The exact twin of :meth:`blocks` (object arrays of rationals or balls, from
+        the exact parameters); None: no blocks."""
         return None
 
     def strong_convexity(self, params: Mapping[str, float]) -> float:

@@ -30,8 +30,8 @@ from sosalgo.pep.terms import Term
 from sosalgo.spec import Spec
 from sosalgo.steps import changes_with_k
 
-__all__ = ["PREC", "ArbView", "arb_view", "check_witness", "fit_values", "pair_forms",
-           "positions", "q_str"]
+__all__ = ["PREC", "ArbView", "arb_view", "check_witness", "fit_values", "member_interval",
+           "member_measure", "pair_forms", "positions", "q_str"]
 
 PREC = 384  # bits: far below every slack a witness keeps, and cheap
 
@@ -568,7 +568,15 @@ def check_witness(doc: dict[str, Any], spec: Spec, mt: Method | ArbView | None =
             with precision(PREC):
                 return check_contraction_witness(doc, spec, av)
         with precision(PREC):
-            checked, bad, zero_sum, meas, init = _measure_initial(doc, spec, av)
+            if doc.get("members") is not None:  # explicit quadratics, not points
+                from sosalgo.pep.terms import parse_terms
+
+                meas, init = member_measure(
+                    doc, av, parse_terms(doc["measure"], "measure", False, av.mt.p),
+                    parse_terms(doc["initial"], "initial", True, av.mt.p))
+                checked, bad, zero_sum = len(doc["members"]), 0, True
+            else:
+                checked, bad, zero_sum, meas, init = _measure_initial(doc, spec, av)
     except (KeyError, ValueError, TypeError, IndexError, ZeroDivisionError, StopIteration,
             ArithmeticError) as exc:
         return out | {"detail": f"malformed or inconsistent witness: {type(exc).__name__}: "
@@ -583,6 +591,93 @@ def check_witness(doc: dict[str, Any], spec: Spec, mt: Method | ArbView | None =
     if av.mt.constants is not None and any(  # not scale invariant: _inhomogeneous_lower
             not ball(c).is_zero() for fc in av.mt.constants for c in fc):
         lower = _inhomogeneous_lower(meas, init)
+    detail = (f"{checked} inequalities proven; the trajectory recomputed from the start "
+              "and the calls" if doc.get("members") is None else
+              f"{checked} explicit quadratics q/2 |x|^2 inside their classes; their run "
+              "recomputed from the start")
     return out | {"verified": True, "tau_lower": q_str(lower), "tau_lower_float": float(lower),
-                  "detail": f"{checked} inequalities proven; the trajectory recomputed from "
-                            "the start and the calls", "seconds": time.perf_counter() - t0}
+                  "detail": detail, "seconds": time.perf_counter() - t0}
+
+
+# ------------------------------------------------------------ explicit members
+# Witnesses that are explicit members of the classes: one quadratic f_j = q_j/2 |x|^2
+# per function (for an operator class, the linear operator q_j I), each least at x* = 0.
+#
+# A class with Gram-level conditions (:mod:`sosalgo.pep.blocks`) has equalities among its
+# pairwise conditions (symmetry, the values of a quadratic), which no rounded trajectory
+# meets exactly. Its witness is therefore not a list of points checked against the
+# pairwise inequalities but the functions themselves: the document's ``members`` gives each
+# q_j (a rational), and the check (:func:`member_measure`) trusts nothing else than the
+# spec and x_0:
+#
+# - every q_j lies in its class's exact curvature interval
+#   (:meth:`~sosalgo.classes.base.FunctionClass.exact_curvatures`, from rational bounds of
+#   the exact parameters): q_j/2 |x|^2 is a member;
+# - x* = 0 solves the problem (every f_j is least there: the optimal subgradients are 0);
+# - the run of the method on those functions is recomputed from x_0 in ball arithmetic
+#   (each call's answer q_j y, a proximal call solved from (I - D q) y = C xi), and the
+#   measure and the initial condition evaluated on it.
+#
+# So the measure over the initial condition is a proven lower bound of the worst case.
+# The candidates scan each class's interval (its ends included: no inequality is checked
+# with a slack) and keep the largest proven ratio.
+
+
+def member_interval(cls: Any, params: dict[str, Any]) -> tuple[Fraction, Fraction] | None:
+    """The class's exact curvature interval at exact parameters (balls or rationals)."""
+    from sosalgo.kernel.exact import Ball
+
+    def lower(name: str) -> Fraction:
+        b = Ball.of(params[name])
+        return b.c - b.r
+
+    def upper(name: str) -> Fraction:
+        b = Ball.of(params[name])
+        return b.c + b.r
+
+    return cls.exact_curvatures(lower, upper)
+
+
+def member_measure(doc: dict[str, Any], av: Any, mterms: list[Any], iterms: list[Any]
+                   ) -> tuple[arb, arb]:
+    """(measure, initial) of the explicit members' run (see the module); ValueError when
+    a member is not in its class or the document is not such a witness."""
+    mt = av.mt
+    if av.G0 is not None or mt.line_search or doc.get("xi0") is not None:
+        raise ValueError("members: a run from x_0 without an initial gradient or line "
+                         "search")
+    q = []
+    for name, cls, params in mt.functions:
+        qj = Fraction(doc["members"][name])
+        iv = member_interval(cls, params)
+        if iv is None or not iv[0] <= qj <= iv[1]:
+            raise ValueError(f"members: {name}: {qj} is outside the curvatures of "
+                             f"{cls.name} at these parameters")
+        if any(Fraction(v) != 0 for v in doc["functions"][name]["optimal_subgradient"]):
+            raise ValueError(f"members: {name}: its optimal subgradient must be 0")
+        q.append(qj)
+    r, p, N = int(doc["dimension"]), mt.p, int(doc["steps"])
+    Qs, eye = arb_mat(p, p), arb_mat(p, p)
+    for i, j in enumerate(mt.oracles):
+        Qs[i, i], eye[i, i] = ball(q[j]), arb(1)
+    xi, calls = _start(doc, av, r), []
+    for k in range(int(doc["call_steps"])):
+        A, B, C, D = av.step(k)
+        y = (eye - D * Qs).solve(C * xi)
+        u = Qs * y
+        calls.append([[u[i, c] for c in range(r)] for i in range(p)])
+        if k < N:
+            xi = A * xi + B * u
+    run = dict(doc, calls=calls)
+    pos = positions(run, av)
+    funcs = {}
+    for j, (name, _, _) in enumerate(mt.functions):
+        qb = ball(q[j])
+        pts = []
+        for pt in doc["functions"][name]["points"]:
+            x = pos[pt["label"]]
+            pts.append({"label": pt["label"], "g": [qb * v for v in x],
+                        "h": qb * sum((v * v for v in x), arb(0)) / 2})
+        funcs[name] = {"points": pts}
+    run["functions"] = funcs
+    return _terms_value(mterms, run, av, pos), _terms_value(iterms, run, av, pos)

@@ -124,6 +124,7 @@ def float_method(om: Any, kappa: float) -> Method:
                 deadbeat_gain(om.A, om.B, float(om.L)),
                 errors=dict(getattr(om, "errors", None) or {}),
                 lmo=dict(getattr(om, "lmo", None) or {}))
+    mt.blocks = [list(fn.cls.blocks(fn.params)) for fn in om.functions]
     if any(i.constant or i.scope != "pairs" for fi in tilted for i in fi):
         mt.constants = [[float(i.constant) for i in fi] for fi in tilted]
         mt.scopes = [[i.scope for i in fi] for fi in tilted]
@@ -317,6 +318,8 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
             st = build_structure(mt, steps, mterms, iterms)
             data = pep_data(mt, st)
             ans = solve_pep(data, rescale=False)
+        if data.blocks and ans.status == "solved":  # Gram-level conditions: their cuts
+            st, data, ans = _cut_pep(mt, st, data, ans)
     k = class_kappa(spec, kappa)
     kf = None if k is None else (  # a Kappa keeps its exact value
         k if isinstance(k, Kappa) else float(k))  # type: ignore[arg-type]
@@ -458,6 +461,20 @@ def _quadratic_terms(terms: list[Term]) -> bool:
 
     return any(t.kind in (INNER_KIND, FREE_KIND) or any(
         CALL_AT.match(q.removeprefix(GRAD_OF)) for q in t.point.split("__")) for t in terms)
+
+
+def _cut_pep(mt: Method, st: PEPStructure, data: PEPData, ans: SDPAnswer
+             ) -> tuple[PEPStructure, PEPData, SDPAnswer]:
+    """(structure, data, answer) of the PEP with the rank-one cuts of the block
+    multipliers of ``ans`` (:mod:`sosalgo.pep.blocks`), solved again from the same pairs
+    and scale."""
+    from sosalgo.pep.blocks import cut_vectors, with_cuts
+
+    cut = with_cuts(mt, st, cut_vectors(st, ans.blocks))
+    new = pep_data(mt, cut)
+    new.w, new.v, new.strong, new.violation = data.w, data.v, data.strong, data.violation
+    new.active = np.union1d(data.active, np.arange(len(cut.pairs), cut.count))
+    return cut, new, solve_pep(new)
 
 
 def _exact_schedule(spec: Spec, kappa: float | None, schedule: StepMethods,

@@ -273,6 +273,7 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
     mt.constraints = spec_constraints(spec, p)
     _call_links(mt, spec)
     mt.lmo = dict(getattr(spec, "lmo", None) or {})
+    mt.blocks = [list(cls.exact_blocks(params) or []) for _, cls, params in funcs]
     if any(e is not None for e in extras):
         mt.constants = [e[0] if e else [Fraction(0)] * len(fi)
                         for e, fi in zip(extras, ineqs, strict=True)]
@@ -350,7 +351,10 @@ def _exact_start_call(mats: dict[str, sp.Matrix], X: sp.Matrix, om: Any) -> int 
 
 def ball(v: Any) -> arb:
     """The arb enclosure of an exact number (int, Fraction, str ``p/q``, or a rational
-    :class:`~sosalgo.kernel.exact.Ball`: centre and radius, the radius rounded up)."""
+    :class:`~sosalgo.kernel.exact.Ball`: centre and radius, the radius rounded up; an
+    arb as it is)."""
+    if isinstance(v, arb):
+        return v
     if hasattr(v, "c"):
         c = ball(v.c)
         if not v.r:
@@ -624,6 +628,10 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
             om, _ = bound_method(spec, class_kappa(spec, kappa))
             mt = exact_method(spec, kappa, om, st_float.steps)
         st = build_structure(mt, st_float.steps, mterms, iterms)
+        if st_float.cuts:  # the blocks' rank-one cuts, the same rationals
+            from sosalgo.pep.blocks import with_cuts
+
+            st = with_cuts(mt, st, st_float.cuts)
     except (ValueError, ArithmeticError) as exc:
         return out | {"detail": f"exact method: {exc}", "seconds": time.perf_counter() - t0}
     if st.labels != st_float.labels or st.basis != st_float.basis:
@@ -651,9 +659,21 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
                                                 zip(st.labels, lq2, strict=True) if v},
                           "scale": [fraction_str(rational(float(v))) for v in w],
                           "class": class_description(spec, kappa),
+                          **_cuts_field(mt, st),
                           "seconds": time.perf_counter() - t0}
         detail = why
     return out | {"detail": detail, "seconds": time.perf_counter() - t0}
+
+
+def _cuts_field(mt: Method, st: PEPStructure) -> dict[str, Any]:
+    """``cuts``: the rank-one cuts of the blocks' multipliers (function, condition,
+    vector over the block's points; :mod:`sosalgo.pep.blocks`), for ``verify``."""
+    from sosalgo.kernel.exact import fraction_str
+
+    if not st.cuts:
+        return {}
+    return {"cuts": [[j, r, [fraction_str(Fraction(v)) for v in vec]]
+                     for j, r, vec in st.cuts]}
 
 
 NULL_ROW = 1e-7  # a row of the scaled S this small (relative) is one the dual must zero
@@ -1028,6 +1048,11 @@ def reprove_certificate(spec: Spec, kappa: float | None, steps: int, measure: st
                                  proof.get("measure_bound"))
         st = build_structure(mt, int(steps), mterms, parse_terms(initial, "initial", True,
                                                                    mt.p, spec.parameters))
+        if proof.get("cuts"):  # the blocks' rank-one cuts, as the proof gives them
+            from sosalgo.pep.blocks import with_cuts
+
+            st = with_cuts(mt, st, [(int(j), int(r), [Fraction(v) for v in vec])
+                                    for j, r, vec in proof["cuts"]])
         index = {name: k for k, name in enumerate(st.labels)}
         unknown = [k for k in lab if k not in index]
         if unknown:
@@ -1198,6 +1223,7 @@ def exact_step_method(spec: Any, kappa: float | None, sm: StepMethods, count: in
                 bits=enclosure_bits(digits), per_step=per)
     mt.x0_call = _step_start_call(mt, per[0])
     mt.out_call = _step_output_call(mt, per)
+    mt.blocks = [list(cls.exact_blocks(params) or []) for _, cls, params in funcs]
     extras = [class_extras(cls, params, len(fi)) for (_, cls, params), fi in zip(
         funcs, ineqs, strict=True)]
     if any(e is not None for e in extras):

@@ -82,6 +82,9 @@ class PEPData:
     violation: float = 1e-9
     # the constant of each pair's inequality (0: homogeneous; :attr:`PEPStructure.constants`)
     c: np.ndarray | None = None
+    # Gram-level conditions (K, Zx, Zg) with a matrix multiplier in the dual
+    # (:mod:`sosalgo.pep.blocks`; empty once the PEP carries their rank-one cuts)
+    blocks: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=list)
     _svec: dict[int, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
 
     def q(self, idx: np.ndarray, scaled: bool = False) -> np.ndarray:
@@ -158,7 +161,10 @@ def pep_data(mt: Method, st: PEPStructure) -> PEPData:
         X[k], Qc[k] = np.asarray(Xe, float), np.asarray(Qe, float)
         if e in st.extra_values:
             a[k] = np.asarray(st.extra_values[e], float)
-    return PEPData(st, X, Qc, a, seed_pairs(st), np.ones(d), np.ones(st.nF))
+    from sosalgo.pep.blocks import block_data
+
+    return PEPData(st, X, Qc, a, seed_pairs(st), np.ones(d), np.ones(st.nF),
+                   blocks=block_data(mt, st))
 
 
 def seed_pairs(st: PEPStructure) -> np.ndarray:
@@ -187,6 +193,7 @@ class SDPAnswer:
     S: np.ndarray | None = None
     size: float = 1.0  # tr H + sum F' (the solver's units): the margin's scale
     rounds: int = 0  # solves of the constraint generation
+    blocks: list[np.ndarray] = field(default_factory=list)  # the blocks' multipliers
 
 
 # tight tolerances; Clarabel's defaults; then a stronger static regularization, which
@@ -434,18 +441,27 @@ def _solve_dual(data: PEPData, active: np.ndarray, margin: float, unit: float,
     # with constants the bound is tau initial + sum lambda_k c_k <= tau + ... only for
     # tau >= 0: the PEP under initial <= 1, not = 1 (where its sup may be below)
     t = int(bool(np.any(data.consts())))
-    sign = sps.csr_matrix(([-1.0] * t, ([0] * t, [0] * t)), shape=(t, 1 + K))
-    A = sps.vstack([sign, sps.hstack([sps.csr_matrix((K, 1)), -sps.identity(K)]),
-                    body[nG:], body[:nG]]).tocsc()
+    from sosalgo.pep.blocks import block_columns
+
+    blk = block_columns(data.blocks, data.w)
+    nb = sum(c.shape[1] for c, _ in blk)
+    sign = sps.csr_matrix(([-1.0] * t, ([0] * t, [0] * t)), shape=(t, 1 + K + nb))
+    pad = sps.csr_matrix((K + nF, nb))
+    Sblk = sps.hstack([body[:nG]] + [c for c, _ in blk]).tocsr()
+    A = sps.vstack([sign, sps.hstack([sps.csr_matrix((K, 1)), -sps.identity(K),
+                                      pad[:K]]),
+                    sps.hstack([body[nG:], pad[K:]]), Sblk,
+                    sps.hstack([sps.csr_matrix((nb, 1 + K)), -sps.identity(nb)])]).tocsc()
     A.eliminate_zeros()
     seen = linear_only(data) if t else np.ones(d)  # with constants: no margin where S is 0
     eye = np.concatenate([svec(np.diag(seen)), np.full(nF, 0.0 if st.free_values else 1.0)]
                          ) * margin  # free values: c_F = 0 (no margin there)
-    b = np.concatenate([np.zeros(t + K), -(meas + eye)[nG:], -(meas + eye)[:nG]])
-    q = np.zeros(1 + K)
+    b = np.concatenate([np.zeros(t + K), -(meas + eye)[nG:], -(meas + eye)[:nG],
+                        np.zeros(nb)])
+    q = np.zeros(1 + K + nb)
     q[0] = 1.0
-    q[1:] = data.consts()[active] / sig  # bound / unit = tau' + sum_k x_k c_k / sig_k
-    cones = [("nonneg", t + K + nF), ("psd", d)]
+    q[1:1 + K] = data.consts()[active] / sig  # bound / unit = tau' + sum_k x_k c_k / sig_k
+    cones = [("nonneg", t + K + nF), ("psd", d)] + [("psd", n) for _, n in blk]
     sol, raw, st_ = solve_attempts(A, q, b, cones, attempts, final=(
         "PrimalInfeasible", "DualInfeasible") + (("AlmostSolved",) if rough else ()))
     if raw == "PrimalInfeasible":  # no certificate: the measure is unbounded
@@ -455,7 +471,7 @@ def _solve_dual(data: PEPData, active: np.ndarray, margin: float, unit: float,
     if sol is None:
         return SDPAnswer("failed", raw)
     x, z = np.array(sol.x), np.array(sol.z)[t:]
-    H, Fs = unsvec(z[K + nF:], d), z[K:K + nF]
+    H, Fs = unsvec(z[K + nF:K + nF + nG], d), z[K:K + nF]
     G, F = H * np.outer(data.w, data.w), Fs * data.v
     almost = raw.startswith("Almost")
     if st_ != SolverStatus.SOLVED and not (almost and margin > 0 and data.strong):
@@ -464,12 +480,17 @@ def _solve_dual(data: PEPData, active: np.ndarray, margin: float, unit: float,
         return SDPAnswer("almost" if almost and rough else "failed", raw,
                          G=G if almost else None, F=F)
     lam = np.zeros(st.count)
-    lam[active] = np.maximum(x[1:], 0.0) / sig * unit
+    lam[active] = np.maximum(x[1:1 + K], 0.0) / sig * unit
     ans = SDPAnswer("solved", raw, float(sol.obj_val_dual) * unit, float(sol.obj_val) * unit,
                     G, F, float(x[0]) * unit, lam,
                     size=float(np.trace(H)) + float(np.clip(Fs, 0, None).sum()),
                     const=float(lam @ data.consts()))
     ans.S = residual(data, ans.tau, lam)
+    at = 1 + K
+    for _, n in blk:  # the blocks' multipliers, in the original units
+        m = n * (n + 1) // 2
+        ans.blocks.append(unsvec(x[at:at + m], n) * unit)
+        at += m
     return ans
 
 

@@ -133,6 +133,9 @@ class Method(CallShape):
     # constraints on the instance: (relation, terms of left - right), relation ==, <= or >=
     # (:mod:`sosalgo.pep.constraints`)
     constraints: list[tuple[str, list[Term]]] = field(default_factory=list)
+    # per function: the K (2 x 2) of each Gram-level condition of its class
+    # (:meth:`sosalgo.classes.base.FunctionClass.blocks`; :mod:`sosalgo.pep.blocks`)
+    blocks: list[list[np.ndarray]] = field(default_factory=list)
 
     def gain(self, k: int) -> np.ndarray:
         """The gain K_k of step k's basis vectors (:func:`_trajectory`)."""
@@ -194,6 +197,11 @@ class PEPStructure:
     # the value coefficients a (on F) of the extras that have some (index in extras -> a;
     # the others have none: :mod:`sosalgo.pep.constraints`)
     extra_values: dict[int, np.ndarray] = field(default_factory=dict)
+    # Gram-level conditions (:mod:`sosalgo.pep.blocks`): (function, condition, its points)
+    blocks: list[tuple[int, int, list[int]]] = field(default_factory=list)
+    # the rank-one cuts of the blocks' multipliers, appended to the extras:
+    # (function, condition, vector over the block's points)
+    cuts: list[tuple[int, int, list[Any]]] = field(default_factory=list)
 
     @property
     def d(self) -> int:
@@ -681,6 +689,8 @@ def _finish(mt: Method, steps: int, calls: int, state: dict[str, Any],
     st = PEPStructure(steps, calls, [state["cols"][c] for c in keep], pts, nF, pairs,
                       labels, meas_q, meas_f, init_q, init_f, cut, state["at"],
                       state["origin"], extras=extras, extra_values=values)
+    st.blocks = [(j, r, [a for a, pt in enumerate(pts[j]) if pt.label != "x*"])
+                 for j, fb in enumerate(mt.blocks) for r in range(len(fb))]
     if mt.constants is not None and any(_nonzero(c) for c in consts):
         if extras:
             raise InputError("functions: a class with constant terms together with inexact "

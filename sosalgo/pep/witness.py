@@ -49,6 +49,7 @@ from sosalgo.pep.check import (
     arb_view,
     check_witness,
     fit_values,
+    member_interval,
     q_str,
     set_quadratic_calls,
 )
@@ -138,13 +139,14 @@ def _curvatures(mt: Method, at: float) -> list[float]:
     return q
 
 
-def quadratic_point(mt: Method, st: Any, at: float = 0.5) -> np.ndarray | None:
+def quadratic_point(mt: Method, st: Any, at: float = 0.5,
+                    curvatures: list[float] | None = None) -> np.ndarray | None:
     """The basis coordinates (one dimension) of the method run from x_0 = 1 (xi_0 = u, or
     the fixed-point direction for a free start) on f_j = q_j/2 x^2, q_j strictly inside
     its class (:func:`_curvatures`: the middle of [m, L] by default); None when a prox step
-    is singular."""
+    is singular; ``curvatures``: the q_j themselves)."""
     p, s = mt.p, float(mt.s)
-    q = _curvatures(mt, at)
+    q = _curvatures(mt, at) if curvatures is None else curvatures
     qc = np.array([q[j] for j in mt.oracles])
     col = {name: c for c, name in enumerate(st.basis)}
     if st.free_values:
@@ -241,6 +243,9 @@ def make_witness(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
             inner.append(None if search.late() else interior_point(data, unit, search.late))
         return inner[0]
 
+    if any(mt.blocks):  # Gram-level conditions: an explicit quadratic per function
+        found = member_witness(spec, mt, data.st, ex, exact_mt, (tau, res))
+        return None if found is None else finish_witness(found, spec, kappa, exact_mt, res)
     for G, F, slack, eta in _sources(data, ans, tau, unit, search.late):
         found = search.source(G, F, slack, eta, interior)
         if found is not None:
@@ -439,7 +444,8 @@ def finish_witness(doc: dict[str, Any], spec: Spec, kappa: float | None,
     doc |= kappa_fields(kappa)  # the exact kappa the witness is about
     proof = ((getattr(res, "certificate", None) or {}).get("proof")) or {}
     if proof.get("proven"):
-        doc["upper"] = {k: proof[k] for k in ("tau_proven", "multipliers_exact", "scale")}
+        doc["upper"] = {k: proof[k] for k in ("tau_proven", "multipliers_exact", "scale",
+                                              "cuts") if k in proof}
     if exact_mt is not None:
         add_exact_points(doc, exact_mt)
     if doc["dimension"] == 1:
@@ -555,3 +561,85 @@ def interpolant_1d(doc: dict[str, Any]) -> dict[str, Any]:
         out[name] = {"x": xs.tolist(), "h": lo.tolist(),
                      "points": [[p[0], p[2]] for p in pts]}
     return out
+
+
+# ------------------------------------------------------------ explicit members
+MEMBER_AT = np.linspace(0.0, 1.0, 201)  # positions in each class's curvature interval
+MEMBER_TRIES = 3  # the best ones checked exactly
+MEMBER_STEP = 1.0 / 200  # the spacing of MEMBER_AT: the refinement's bracket
+GOLD = (np.sqrt(5.0) - 1) / 2
+
+
+def _member_curvatures(exact_mt: Method, at: float) -> list[Fraction] | None:
+    """q_j = lo + at (hi - lo) of each function's exact interval (a binary rational,
+    clamped into it), None when a class has none."""
+    out = []
+    for _, cls, params in exact_mt.functions:
+        iv = member_interval(cls, params)
+        if iv is None or iv[0] > iv[1]:
+            return None
+        lo, hi = iv
+        q = Fraction(float(lo + Fraction(at) * (hi - lo)))
+        out.append(min(max(q, lo), hi))
+    return out
+
+
+def member_witness(spec: Any, mt: Method, st: Any, ex: Any, exact_mt: Method | None,
+                   solved: tuple[float, Any]) -> dict[str, Any] | None:
+    """The witness of explicit quadratics with the largest proven measure / initial
+    among the :data:`MEMBER_TRIES` best of :data:`MEMBER_AT` (floating point first);
+    None when none is proven."""
+    tau, res = solved
+    if ex is None or exact_mt is None or mt.G0 is not None or mt.line_search:
+        return None
+    def score(at: float) -> tuple[float, list[Fraction], np.ndarray] | None:
+        q = _member_curvatures(exact_mt, at)  # type: ignore[arg-type]
+        v = None if q is None else quadratic_point(mt, st, curvatures=[float(t) for t in q])
+        ratio = None if v is None else _member_ratio(mt, st, v, [float(t) for t in q])
+        return None if ratio is None else (ratio, q, v)  # type: ignore[return-value]
+
+    if _member_curvatures(exact_mt, 0.0) is None:
+        return None
+    scored = [(e, float(at)) for at in MEMBER_AT if (e := score(float(at))) is not None]
+    if scored:  # the best position refined between its neighbours (golden section)
+        top = max(scored, key=lambda e: e[0][0])[1]
+        lo, hi = max(0.0, top - MEMBER_STEP), min(1.0, top + MEMBER_STEP)
+        for _ in range(60):
+            a, b = hi - GOLD * (hi - lo), lo + GOLD * (hi - lo)
+            ea, eb = score(a), score(b)
+            if ea is None or eb is None:
+                break
+            lo, hi = (lo, b) if ea[0] >= eb[0] else (a, hi)
+        if (e := score(0.5 * (lo + hi))) is not None:
+            scored.append((e, 0.5 * (lo + hi)))
+    scored.sort(key=lambda e: -e[0][0])
+    scored = [e for e, _ in scored]
+    best = None
+    for _, q, v in scored[:MEMBER_TRIES]:
+        doc = _document(spec, mt, st, v[:, None], np.zeros(st.nF), res)
+        try:
+            set_quadratic_calls(doc, ex, q)  # the calls as stored (the check recomputes)
+        except (ValueError, ArithmeticError, ZeroDivisionError, KeyError, IndexError):
+            continue
+        doc["members"] = {name: q_str(qj) for (name, _, _), qj in zip(
+            mt.functions, q, strict=True)}
+        doc.update(tau_float=tau, objective_floor=0.0, slack=0.0, mixed=1.0)
+        doc["check"] = check_witness(doc, spec, ex)
+        if doc["check"]["verified"] and (best is None or doc["check"]["tau_lower_float"]
+                                         > best["check"]["tau_lower_float"]):
+            best = doc
+    return best
+
+
+def _member_ratio(mt: Method, st: Any, v: np.ndarray, q: list[float]) -> float | None:
+    """measure / initial of the quadratics' one-dimensional run (floating point)."""
+    s = float(mt.s)
+    G, F = np.outer(v, v), np.zeros(st.nF)
+    for j, fp in enumerate(st.points):
+        for pt in fp:
+            if pt.f is not None:
+                F[pt.f] = q[j] / 2 * float(pt.x @ v) ** 2 / s
+    meas = float(np.sum(st.meas_q.astype(float) * G) + st.meas_f.astype(float) @ F)
+    init = float(np.sum(st.init_q.astype(float) * G) + st.init_f.astype(float) @ F)
+    ratio = meas / init if init > 0 else float("nan")
+    return ratio if np.isfinite(ratio) and ratio > 0 else None
