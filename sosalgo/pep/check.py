@@ -338,6 +338,9 @@ def fit_values(doc: dict[str, Any], mt: Method | ArbView) -> bool:
             new = []
             for labels, rows in forms:
                 edges = _edges(rows)
+                if edges == [] and rows:  # no value enters (an indicator's own
+                    new.append([Fraction(0)] * len(labels))  # conditions): its values 0
+                    continue
                 dist = None if edges is None else _shortest(len(labels), len(labels) - 1,
                                                             edges)
                 if dist is None:

@@ -96,7 +96,7 @@ def _load(spec: Spec | str | Path) -> Spec:
 
 def float_method(om: Any, kappa: float) -> Method:
     """The float :class:`Method` of an OracleMethod."""
-    from sosalgo.oracles import fixed_point_basis
+    from sosalgo.oracles import fixed_point_basis, pinned_optimum
 
     X = fixed_point_basis(om)
     assert X is not None  # the OracleMethod checked it
@@ -113,7 +113,9 @@ def float_method(om: Any, kappa: float) -> Method:
     def same(a: np.ndarray, b: np.ndarray) -> bool:
         return bool(np.abs(a - b).max(initial=0.0) <= 1e-12 * scale * (1 + np.abs(a).max()))
 
-    tilted = [fn.cls.tilted(fn.params) for fn in om.functions]
+    pinned = pinned_optimum(om.functions)  # s_j* = 0: the classes' own conditions
+    tilted = [fn.cls.pinned(fn.params) if pinned else fn.cls.tilted(fn.params)
+              for fn in om.functions]
     ineqs = [[(float(i.alpha), np.asarray(i.Q, float)) for i in fi] for fi in tilted]
     mt = Method(om.A, om.B, om.C, om.D, om.E, om.output,
                 [(fn.name, fn.cls, fn.params) for fn in om.functions], tuple(om.oracles),

@@ -197,6 +197,7 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
     its irrational entries enclosed precisely enough for a trajectory of ``steps`` steps
     (:func:`sosalgo.pep.structure.enclosure_digits`)."""
     from sosalgo.certificates.exact_composite import exact_class_inequalities
+    from sosalgo.oracles import pinned_optimum
     from sosalgo.kernel.exact import Ball
     from sosalgo.kernel.exact import enclose as enclose_at
     from sosalgo.kernel.expr.parse import to_sympy
@@ -220,7 +221,8 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
         decl = spec.functions[fn.name]
         params = {k: enclose(to_sympy(e).xreplace(cenv)) for k, e in decl.params.items()}
         funcs.append((fn.name, fn.cls, params))
-        ineqs.append(exact_class_inequalities(fn.cls, params)[0])
+        ineqs.append(exact_class_inequalities(fn.cls, params,
+                                              pinned_optimum(om.functions))[0])
     extras = [class_extras(cls, params, len(fi)) for (_, cls, params), fi in zip(
         funcs, ineqs, strict=True)]
     L = _scale(base[_sym("L")])
@@ -1077,6 +1079,7 @@ def exact_step_method(spec: Any, kappa: float | None, sm: StepMethods, count: in
     the per-step matrices exact (sympy ones enclosed at ``digits`` decimals), K = 0.
     ValueError when they are missing or their fixed point is not proven."""
     from sosalgo.certificates.exact_composite import exact_class_inequalities
+    from sosalgo.oracles import pinned_optimum
     from sosalgo.kernel.exact import Ball, enclose
     from sosalgo.kernel.expr.parse import to_sympy
     from sosalgo.pep.structure import enclosure_bits
@@ -1104,7 +1107,8 @@ def exact_step_method(spec: Any, kappa: float | None, sm: StepMethods, count: in
         params = {k: enclose(to_sympy(e).xreplace(cenv), digits)
                   for k, e in decl.params.items()}
         funcs.append((fn.name, fn.cls, params))
-        ineqs.append(exact_class_inequalities(fn.cls, params)[0])
+        ineqs.append(exact_class_inequalities(fn.cls, params,
+                                              pinned_optimum(om.functions))[0])
 
     def coef(t: Any) -> Any:
         return enclose(to_sympy(t.coef).xreplace(base), digits)

@@ -568,6 +568,8 @@ def _finish(mt: Method, steps: int, calls: int, state: dict[str, Any],
                     for r in range(len(mt.ineqs[j])):
                         if mt.scope(j, r) == "optimum" and pb.label != "x*":
                             continue  # a condition between a point and x* only
+                        if _vanishes(mt, j, r, pa, pb):
+                            continue  # 0 >= 0 (an indicator's own condition at x*)
                         pairs.append((j, a, b, r))
                         labels.append(pair_label(fname, pa.label, pb.label, r, many))
                         consts.append(mt.constant(j, r))
@@ -584,6 +586,18 @@ def _finish(mt: Method, steps: int, calls: int, state: dict[str, Any],
                              "calls or a line search is not supported")
         st.constants = np.array(consts, dtype=dt)
     return st
+
+
+def _vanishes(mt: Method, j: int, r: int, pa: PEPPoint, pb: PEPPoint) -> bool:
+    """Whether function j's inequality r between points a and b is 0 >= 0 whatever G
+    and F: no value (alpha 0), no constant, and each entry of its Q meets a zero row of
+    (x_a, x_b, g_a, g_b) (a subgradient pinned at 0 at x*: indicators alone)."""
+    alpha, Q = mt.ineqs[j][r]
+    if _nonzero(alpha) or _nonzero(mt.constant(j, r)):
+        return False
+    live = [any(_nonzero(v) for v in row) for row in (pa.x, pb.x, pa.g, pb.g)]
+    return not any(_nonzero(Q[u][v]) and live[u] and live[v]
+                   for u in range(4) for v in range(4))
 
 
 def _obj_eye(k: int) -> np.ndarray:
@@ -658,10 +672,16 @@ def _used_columns(pts: list[list[PEPPoint]], forms: list[np.ndarray], n0: int, J
     if n0 == 1:  # x0-x*: unused when the PEP has no x* (its origin at x_0)
         used[0] = (any(_nonzero(pt.x[0]) or _nonzero(pt.g[0]) for fp in pts for pt in fp)
                    or any(_nonzero(v) for q in forms for v in q[0]))
-    for c in range(n0, n0 + J - 1):
-        used[c] = (any(_nonzero(pt.x[c]) or _nonzero(pt.g[c]) for fp in pts for pt in fp)
-                   or any(_nonzero(v) for q in forms for v in q[c]))
+    for c in range(n0, n0 + J - 1):  # (floats: a rounding residue of a column that
+        # cancels exactly, e.g. -X_s s* + G0 s* of a start x0 + t g0, is no use)
+        used[c] = (any(_live(pt.x[c]) or _live(pt.g[c]) for fp in pts for pt in fp)
+                   or any(_live(v) for q in forms for v in q[c]))
     return used
+
+
+def _live(v: Any) -> bool:
+    """A nonzero entry (exact), or a float entry above rounding residue (1e-13)."""
+    return _nonzero(v) if not isinstance(v, float | np.floating) else bool(abs(v) > 1e-13)
 
 
 def _nonzero(v: Any) -> bool:

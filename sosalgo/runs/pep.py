@@ -95,7 +95,8 @@ def _check(spec: Spec, kappas: list[float | None], steps: list[int], measure: st
     from sosalgo.pep.core import pep_problem
     from sosalgo.steps import changes_with_k
 
-    small = steps[0] if changes_with_k(spec) else 1  # a schedule's horizon is its length
+    # a schedule's horizon is its length; a term such as f(x_N-1) needs N >= 2
+    small = steps[0] if changes_with_k(spec) else min(steps)
     for k in kappas:
         pep_problem(spec, k, small, measure, initial, solve_min=False)
     top = max(steps)
