@@ -197,10 +197,10 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
     its irrational entries enclosed precisely enough for a trajectory of ``steps`` steps
     (:func:`sosalgo.pep.structure.enclosure_digits`)."""
     from sosalgo.certificates.exact_composite import exact_class_inequalities
-    from sosalgo.oracles import pinned_optimum
     from sosalgo.kernel.exact import Ball
     from sosalgo.kernel.exact import enclose as enclose_at
     from sosalgo.kernel.expr.parse import to_sympy
+    from sosalgo.oracles import pinned_optimum
 
     K = np.array([[Fraction(float(v)) for v in row]
                   for row in deadbeat_gain(om.A, om.B, float(om.L))], dtype=object)
@@ -1079,9 +1079,9 @@ def exact_step_method(spec: Any, kappa: float | None, sm: StepMethods, count: in
     the per-step matrices exact (sympy ones enclosed at ``digits`` decimals), K = 0.
     ValueError when they are missing or their fixed point is not proven."""
     from sosalgo.certificates.exact_composite import exact_class_inequalities
-    from sosalgo.oracles import pinned_optimum
     from sosalgo.kernel.exact import Ball, enclose
     from sosalgo.kernel.expr.parse import to_sympy
+    from sosalgo.oracles import pinned_optimum
     from sosalgo.pep.structure import enclosure_bits
     from sosalgo.steps import changes_with_k
 
