@@ -25,7 +25,7 @@ from flint import arb, arb_mat, fmpq
 
 from sosalgo.kernel.arb import arb_fraction, precision
 from sosalgo.pep.exact import ball, exact_method, exact_steps_or_none
-from sosalgo.pep.structure import Method, last_calls
+from sosalgo.pep.structure import Method, frees_start, last_calls
 from sosalgo.pep.terms import Term
 from sosalgo.spec import Spec
 from sosalgo.steps import changes_with_k
@@ -409,7 +409,7 @@ def _terms_value(terms: list[Term], doc: dict[str, Any], av: ArbView,
             total += arb_min(each)
             continue
         if t.kind == "sdist":
-            total += c * _sdist(doc, av, pos["xi0" if t.point == "x0" else "xiN"])
+            total += c * _sdist(doc, av, pos["xiN" if t.point == "x" else "xi0"])
             continue
         key = {"x": f"x{N}"}.get(t.point) or (t.point if STEP_POINT.match(t.point)
                                                else pos_key(t.point, N, mt.p))
@@ -508,7 +508,7 @@ def _measure_initial(doc: dict[str, Any], spec: Spec, av: ArbView
     p = av.mt.p
     mterms = parse_terms(doc["measure"], "measure", False, p)
     iterms = parse_terms(doc["initial"], "initial", True, p)
-    if any(t.kind == "sdist" for t in iterms) != (doc.get("xi0") is not None):
+    if frees_start(iterms) != (doc.get("xi0") is not None):
         raise ValueError("an initial sdist needs the free start xi0, and only it")
     if not all(cls.convex or cls.minimizer for _, cls, _ in av.mt.functions):
         _differences_only(mterms, av)

@@ -369,15 +369,16 @@ def _mixed(cand: SDPAnswer, inner: SDPAnswer, w: np.ndarray) -> SDPAnswer:
 
 def _null_row_proof(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
                     ans: SDPAnswer, mterms: list[Term], iterms: list[Term],
-                    ex: Method | None, cert: dict[str, Any]) -> None:
+                    ex: Method | None, cert: dict[str, Any], tau: float,
+                    null_tol: float | None = None) -> None:
     """The measure's own certificate with its near-zero rows of S made exactly zero in
     rationals (a PEP with a free direction has no certificate with S ≻ 0, so no margin
     proves it; :func:`sosalgo.pep.exact.null_row_multipliers`); ``cert`` updated when
     proven."""
     from sosalgo.pep.exact import prove_certificate
 
-    proof = prove_certificate(spec, kappa, data.st, mterms, iterms, float(ans.primal),
-                              ans.lam, data.w, ex, null=ans.S)  # type: ignore[arg-type]
+    proof = prove_certificate(spec, kappa, data.st, mterms, iterms, tau, ans.lam, data.w,
+                              ex, null=ans.S, null_tol=null_tol)  # type: ignore[arg-type]
     if mt.bound is not None:
         proof["measure_bound"] = mt.bound
     if proof["proven"]:
@@ -409,6 +410,7 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
     cert: dict[str, Any] = {"tau": ans.tau + ans.const, "check_kind": "floating-point check",
                             "tau_proven": None, "proof": None}
     best = ans
+    raw: list[tuple[SDPAnswer, float]] = []  # the margin solves before any mixing
     units = _linear_only(data)
     inner = _interior_certificate(data, tau, scale) if exact and data.strong else None
     for rel, precise in _ladder(st.steps, inner is not None) if exact else ():
@@ -417,6 +419,8 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
                                               else 1.0, precise=precise)
         if cand.status != "solved":
             continue
+        if rel > 0:
+            raw.append((cand, eps))
         if inner is not None:
             cand = _mixed(cand, inner, data.w)
         best = cand
@@ -439,8 +443,15 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
                         tau_proven=proof["tau_proven"], tau=cand.tau + cand.const,
                         margin=eps * tau)
             break
-    if exact and not cert.get("tau_proven") and ans.S is not None and not st.free_values:
-        _null_row_proof(spec, kappa, mt, data, ans, mterms, iterms, ex, cert)
+    # the measure's own answer, then each margin solve as it came (S >= its margin but
+    # on the free directions, which no margin and no mix with an interior certificate
+    # can lift: their rows are made exactly zero)
+    for cand, eps in [(ans, None), *raw]:
+        if exact and not cert.get("tau_proven") and cand.S is not None \
+                and not st.free_values:
+            _null_row_proof(spec, kappa, mt, data, cand, mterms, iterms, ex, cert,
+                            tau if eps is None else max(cand.tau + cand.const, tau),
+                            None if eps is None else 0.1 * eps)
     lam = best.lam
     S = best.S
     assert lam is not None and S is not None

@@ -47,9 +47,9 @@ import numpy as np
 
 from sosalgo.errors import InputError
 from sosalgo.oracles import CallShape
-from sosalgo.pep.terms import DIFF_KIND, MIN_OF, STEP_POINT, Term, at_steps
+from sosalgo.pep.terms import DIFF_KIND, MIN_OF, REST, STEP_POINT, Term, at_steps
 
-__all__ = ["Method", "PEPPoint", "PEPStructure", "build_structure", "enclosure_bits",
+__all__ = ["Method", "PEPPoint", "PEPStructure", "build_structure", "enclosure_bits", "frees_start",
            "enclosure_digits", "last_calls", "output_call", "pair_label", "radius_growth"]
 
 
@@ -363,7 +363,7 @@ def _contraction_structure(mt: Method, steps: int, measure: Sequence[Term],
 def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
                      initial: Sequence[Term], option: tuple[str, str]) -> PEPStructure:
     p, J, n = mt.p, len(mt.functions), mt.n
-    free = any(t.kind == "sdist" for t in initial)
+    free = frees_start(initial)
     _check_alone(mt)
     origin = _check_nonconvex(mt, measure, initial, option)
     n0 = n if free else 1
@@ -407,7 +407,7 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
     x0 = _output_row(mt, xi, Yr, 0) if free else eye[0] * 0 if origin else eye[0]
     if not free and not g0 and mt.x0_call is not None:  # the same point, proven exactly
         Yr[0][mt.x0_call] = x0
-    where = {"x": out, "x0": x0}
+    where = {"x": out, "x0": x0, REST: x0}  # REST: sdist(x_0), at the start
     where.update({f"y{i + 1}": Yr[steps][i] for i in range(p)} if calls > steps else {})
     if last_calls(mt):  # the calls of the last step
         where.update({f"y{i + 1}": Yr[steps - 1][i] for i in range(p)})
@@ -435,7 +435,7 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
     for j in range(J):
         pts[j].append(PEPPoint("x*", zero, zero, None))
     state = {"nF": nF, "next": len(cols), "cols": cols, "eye": eye, "at": at, "origin": origin,
-             "xi": {"x": xi[steps], "x0": xi[0]}, "extras": extras}
+             "xi": {"x": xi[steps], "x0": xi[0], REST: xi[0]}, "extras": extras}
     if mt.lmo:
         from sosalgo.pep.lmo import lmo_points
 
@@ -453,6 +453,11 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
                 continue
             forms[key].append(_term(mt, t, rows[0], pts, sstar, state, opt, steps))
     return _finish(mt, steps, calls, state, pts, forms, {"xi": xi, "y": Y, "u": U, "x": out})
+
+
+def frees_start(initial: Sequence[Term]) -> bool:
+    """Whether an initial ``sdist`` makes the start free (``sdist(x_0)`` does not)."""
+    return any(t.kind == "sdist" and t.point != REST for t in initial)
 
 
 def _point_row(mt: Method, xi: list[np.ndarray], Yr: list[list[np.ndarray]],

@@ -10,8 +10,10 @@ length; kind ``diff``); ``c`` is an expression in m, L, kappa. A measure term ma
 point: ``f(x_N)`` (the output, the default), ``grad(x_3)`` (the output after 3 steps),
 ``dist(y_N)`` (the point of the single call), ``grad(y2_N)`` (the point of call 2),
 ``grad(x_N-1)`` (the output one step before the last); an initial term is at x_0 or at x_N
-(``f(x_0) - f(x_N)``). The string is parsed by :mod:`sosalgo.kernel.expr` (never
-evaluated) and split into its linear terms; anything nonlinear in f, dist, grad is refused.
+(``f(x_0) - f(x_N)``). ``sdist(x_0)`` (initial only) is |xi_0 - xi*|^2 at the method's own
+start (at rest at x_0, or its ``initial_state``), which it does not free. The string is
+parsed by :mod:`sosalgo.kernel.expr` (never evaluated) and split into its linear terms;
+anything nonlinear in f, dist, grad is refused.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ from sosalgo.errors import InputError
 from sosalgo.kernel.expr.tree import Expr, ExprError, evaluate, parse_tree
 from sosalgo.spec.initial_state import linear_parts
 
-__all__ = ["BACK_POINT", "DIFF_KIND", "KINDS", "MINF_KIND", "MIN_KIND", "MIN_OF", "Term",
+__all__ = ["BACK_POINT", "DIFF_KIND", "KINDS", "MINF_KIND", "MIN_KIND", "MIN_OF", "REST", "Term",
            "at_steps", "describe_terms", "dominates", "expand_min", "parse_terms"]
 
 MIN_KIND = "mingrad"  # min over k = 0..N of |grad f(x_k)|^2
@@ -38,6 +40,8 @@ KINDS = ("f", "dist", "grad", "sdist", MIN_KIND, MINF_KIND, DIFF_KIND, "contract
 # contraction: |xi_N - xi'_N|^2 of two runs (:mod:`sosalgo.pep.contraction`; alone)
 _ARG = r"([A-Za-z0-9_]+(?:\s*-\s*\d+)?)"
 _AT = re.compile(r"\b(f|dist|grad)\s*\(\s*" + _ARG + r"\s*\)")
+_REST = re.compile(r"\bsdist\s*\(\s*x_0\s*\)")  # sdist(x_0): at the method's own start
+REST = "rest"  # the point of sdist(x_0): |xi_0 - xi*|^2, the start not freed
 _PAIR = re.compile(r"\bdist\s*\(\s*" + _ARG + r"\s*,\s*" + _ARG + r"\s*\)")
 _POINT = re.compile(r"^(x|y(\d*))_(N|\d+)$")
 _BEFORE = re.compile(r"^x_N\s*-\s*(\d+)$")  # x_N-j: the output j steps before the last
@@ -83,7 +87,13 @@ def _rewrite(text: str, option: str, initial: bool, p: int) -> str:
             raise InputError(f"{option}: dist(P, Q): two different points")
         return _placeholder(DIFF_KIND, f"{a}__{b}")
 
-    return _AT.sub(sub, _PAIR.sub(pair, text))
+    def rest(mt: re.Match[str]) -> str:
+        if not initial:
+            raise InputError(f"{option}: sdist(x_0): an initial term (the measure's sdist "
+                             "is at x_N)")
+        return _placeholder("sdist", REST)
+
+    return _AT.sub(sub, _PAIR.sub(pair, _REST.sub(rest, text)))
 
 
 def _point_key(pt: str, option: str, initial: bool, p: int) -> str:

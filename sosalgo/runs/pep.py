@@ -401,7 +401,8 @@ def pep_heading(rows: list[dict[str, Any]]) -> list[str]:
         "m": cls.get("m"), "L": cls.get("L")}}}  # a row written before rows named classes
     several = len(funcs) > 1
     many = len({r["kappa"] for r in rows}) > 1
-    start = ("any xi_0 (the whole state is free)" if "sdist" in str(d["initial"])
+    free = re.search(r"\bsdist\b(?!\s*\()", str(d["initial"]))  # sdist(x_0): not free
+    start = ("any xi_0 (the whole state is free)" if free
              else "any two xi_0, xi_0' (two runs on the same functions)"
              if "contraction" in str(d["initial"])
              else "x_0 (the method at rest there, or as its initial_state says)")
