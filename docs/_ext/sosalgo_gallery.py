@@ -156,7 +156,10 @@ def spec_numbers(path: Path, cache: Path) -> tuple[dict[str, Any], Path | None]:
     from sosalgo.steps import changes_with_k
 
     operators = bool(operator_functions(spec)) and spec.sublinear  # no family: pep answers
-    pep_only = bool(inhomogeneous_functions(spec))  # conditions no Lyapunov family takes
+    from sosalgo_gallery_render import sublinear_refused
+
+    # conditions no Lyapunov family takes, or an m: 0 method no sublinear family takes
+    pep_only = bool(inhomogeneous_functions(spec)) or bool(sublinear_refused(spec))
     if data_file.exists() and figure.exists():
         return json.loads(data_file.read_text(encoding="utf-8")), figure
     if changes_with_k(spec) or nonconvex_functions(spec) or operators or pep_only:  # no rate

@@ -47,7 +47,7 @@ import numpy as np
 
 from sosalgo.errors import InputError
 from sosalgo.oracles import CallShape
-from sosalgo.pep.terms import DIFF_KIND, MIN_OF, REST, STEP_POINT, Term, at_steps
+from sosalgo.pep.terms import DIFF_KIND, MIN_OF, OUT0, REST, STEP_POINT, Term, at_steps
 
 __all__ = ["Method", "PEPPoint", "PEPStructure", "build_structure", "enclosure_bits", "frees_start",
            "enclosure_digits", "last_calls", "output_call", "pair_label", "radius_growth"]
@@ -464,6 +464,8 @@ def _point_row(mt: Method, xi: list[np.ndarray], Yr: list[list[np.ndarray]],
                where: dict[str, np.ndarray], point: str, steps: int, opt: str) -> np.ndarray:
     """The row of a term's point (``where``: the points known so far, extended by the
     outputs x_k a term names)."""
+    if point == OUT0 and point not in where:  # the output at step 0 (x_N-j at N = j)
+        where[point] = where["x0"] if last_calls(mt) else _output_row(mt, xi, Yr, 0)
     step = STEP_POINT.match(point)
     if step and point not in where:
         if int(step.group(1)) > steps:
@@ -641,7 +643,7 @@ def _term(mt: Method, t: Term, row: np.ndarray, pts: list[list[PEPPoint]],
     """(quadratic form on the basis, {F index: coefficient}) of one term."""
     c = mt.coef(t)
     label = {"x": f"x{steps}"}.get(t.point) or (
-        t.point if STEP_POINT.match(t.point) else f"{t.point}_{steps}")
+        t.point if STEP_POINT.match(t.point) or t.point == OUT0 else f"{t.point}_{steps}")
     if t.kind == "dist":
         return np.outer(row, row) * c, {}
     if t.kind == "sdist":

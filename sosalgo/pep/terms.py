@@ -29,7 +29,8 @@ from sosalgo.errors import InputError
 from sosalgo.kernel.expr.tree import Expr, ExprError, evaluate, parse_tree
 from sosalgo.spec.initial_state import linear_parts
 
-__all__ = ["BACK_POINT", "DIFF_KIND", "KINDS", "MINF_KIND", "MIN_KIND", "MIN_OF", "REST", "Term",
+__all__ = ["BACK_POINT", "DIFF_KIND", "KINDS", "MINF_KIND", "MIN_KIND", "MIN_OF", "OUT0", "REST",
+           "Term",
            "at_steps", "describe_terms", "dominates", "expand_min", "parse_terms"]
 
 MIN_KIND = "mingrad"  # min over k = 0..N of |grad f(x_k)|^2
@@ -47,6 +48,7 @@ _POINT = re.compile(r"^(x|y(\d*))_(N|\d+)$")
 _BEFORE = re.compile(r"^x_N\s*-\s*(\d+)$")  # x_N-j: the output j steps before the last
 STEP_POINT = re.compile(r"^x(\d+)$")  # a measure's x_k, k a number: the output at step k
 BACK_POINT = re.compile(r"^xm(\d+)$")  # a measure's x_N-j: the output at step N - j
+OUT0 = "x0out"  # x_N-j at step 0: the output there (the start x_0 unless an output call)
 
 
 @dataclass(frozen=True)
@@ -152,7 +154,9 @@ def parse_terms(text: object, option: str, initial: bool, p: int) -> list[Term]:
 
 def at_steps(terms: list[Term], steps: int, option: str) -> list[Term]:
     """``terms`` with each point x_N-j (key "xm<j>") written as the output at step N - j
-    (key "x<N - j>") for N = ``steps`` (InputError naming ``option`` before step 0)."""
+    (key "x<N - j>"; at step 0 :data:`OUT0`, the output there, which an output call
+    makes another point than the start) for N = ``steps`` (InputError naming ``option``
+    before step 0)."""
 
     def key(point: str) -> str:
         back = BACK_POINT.match(point)
@@ -161,7 +165,7 @@ def at_steps(terms: list[Term], steps: int, option: str) -> list[Term]:
         k = steps - int(back.group(1))
         if k < 0:
             raise InputError(f"{option}: x_N-{back.group(1)}: before the start (N = {steps})")
-        return "x" if k == steps else f"x{k}"
+        return "x" if k == steps else f"x{k}" if k else OUT0
 
     return [Term(t.kind, "__".join(key(q) for q in t.point.split("__")), t.coef)
             for t in terms]
@@ -176,6 +180,8 @@ def _point_text(t: Term) -> str:
     """The point of a term as written: x_N, x_<k>, y<i>_N."""
     if t.point == "x":
         return "x_N"
+    if t.point == OUT0:
+        return "x_0"
     hit = STEP_POINT.match(t.point)
     return f"x_{hit.group(1)}" if hit else f"{t.point}_N"
 
