@@ -40,15 +40,17 @@ PEPIT = [
     (SPECS / "alternate-projections.yaml", 3, (), 0.06697959566815895),  # n = 3
     (SPECS / "averaged-projections.yaml", 3, (), 0.1963479604951259),  # n = 3
     (SUITE / "dykstra.yaml", 3, (), 0.08771254510788705),  # n = 3
-    # L = 1, alpha = 1, theta = 1, n = 3 (PESTO: 0.0838)
+    # L = 1, alpha = 1, theta = 1, n = 3 (PESTO: 0.0838); n = 1: PESTO's 1/4 (the
+    # measure f(x_N-1) at N = 1 is g's prox point of step 0, not the start)
     (SPECS / "douglas-rachford-convex.yaml", 3, (), 0.08383964120882736),
+    (SPECS / "douglas-rachford-convex.yaml", 1, (), 0.25),
     # mu = 0.1, L = 1, alpha = 0.9, n = 2: |w_0 - w*|^2 from rest
     (SUITE / "accelerated-douglas-rachford.yaml", 2, ("--kappa", "10"), 0.19291481839341718),
 ]
 
 
 @pytest.mark.parametrize("spec,steps,extra,pepit", PEPIT,
-                         ids=[p[0].stem for p in PEPIT])
+                         ids=[f"{p[0].stem}-N{p[1]}" for p in PEPIT])
 def test_agrees_with_pepit_and_is_proven(spec, steps, extra, pepit, tmp_path):
     doc = pep_json(spec, tmp_path, steps, *extra, "--no-plot", "--no-witness")
     assert _row(doc)["tau"] == pytest.approx(pepit, rel=1e-6)
