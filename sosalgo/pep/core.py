@@ -367,6 +367,9 @@ def _mixed(cand: SDPAnswer, inner: SDPAnswer, w: np.ndarray) -> SDPAnswer:
                    const=const)
 
 
+NULL_DIRECTIONS = 3  # the null-row proof on S with at most this many free directions
+
+
 def _null_row_proof(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
                     ans: SDPAnswer, mterms: list[Term], iterms: list[Term],
                     ex: Method | None, cert: dict[str, Any], tau: float,
@@ -375,8 +378,14 @@ def _null_row_proof(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
     rationals (a PEP with a free direction has no certificate with S ≻ 0, so no margin
     proves it; :func:`sosalgo.pep.exact.null_row_multipliers`); ``cert`` updated when
     proven."""
-    from sosalgo.pep.exact import prove_certificate
+    from sosalgo.pep.exact import NULL_ROW, prove_certificate
 
+    Sh = ans.S * np.outer(data.w, data.w)  # type: ignore[operator]
+    scale = max(1.0, float(np.abs(Sh).max()))
+    free = int(np.sum(np.abs(np.linalg.eigvalsh(0.5 * (Sh + Sh.T)))
+                      <= (NULL_ROW * scale if null_tol is None else null_tol)))
+    if not 1 <= free <= NULL_DIRECTIONS:  # none, or a tight worst case's (a margin's job;
+        return  # each null vector multiplies the exact system's rows)
     proof = prove_certificate(spec, kappa, data.st, mterms, iterms, tau, ans.lam, data.w,
                               ex, null=ans.S, null_tol=null_tol)  # type: ignore[arg-type]
     if mt.bound is not None:
