@@ -39,7 +39,7 @@ def _proven(doc: dict) -> float:
 PEPIT = [
     (SPECS / "alternate-projections.yaml", 3, (), 0.06697959566815895),  # n = 3
     (SPECS / "averaged-projections.yaml", 3, (), 0.1963479604951259),  # n = 3
-    (SUITE / "dykstra.yaml", 3, (), 0.08771254510788705),  # n = 3
+    (SUITE / "dykstra.yaml", 2, (), 0.08771254510788705),  # n = 3 (--steps n - 1)
     # L = 1, alpha = 1, theta = 1, n = 3 (PESTO: 0.0838); n = 1: PESTO's 1/4 (the
     # measure f(x_N-1) at N = 1 is g's prox point of step 0, not the start)
     (SPECS / "douglas-rachford-convex.yaml", 3, (), 0.08383964120882736),
@@ -98,9 +98,9 @@ def _averaged(p1, p2, x, n):
     return np.sum((p1(x) - p2(x)) ** 2)
 
 
-def _dykstra(p1, p2, x, n):
+def _dykstra(p1, p2, x, n):  # the spec's N steps: PEPit's n = N + 1
     p = q = np.zeros_like(x)
-    for _ in range(n):
+    for _ in range(n + 1):
         y = p1(x + p)
         p = x + p - y
         x_new = p2(y + q)
