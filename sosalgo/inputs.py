@@ -53,7 +53,7 @@ def refuse_nonconvex(spec: Any, linear_rates: bool = False) -> None:
     (the interpolation family certifies its linear rates; no sublinear family applies to
     operators)."""
     from sosalgo.certificates import inhomogeneous_functions, nonconvex_functions
-    from sosalgo.spec.loading import operator_functions
+    from sosalgo.spec.loading import operator_functions, set_functions
 
     refuse_oracle_options(spec)
     bad = nonconvex_functions(spec)
@@ -68,6 +68,11 @@ def refuse_nonconvex(spec: Any, linear_rates: bool = False) -> None:
                 "not take it yet")
         raise InputError(f"{spec.source}: functions: {', '.join(ops)} is an operator class: "
                          f"{what}; sosalgo pep bounds its worst case after N steps")
+    sets = set_functions(spec)
+    if sets and not spec.has_condition_number:
+        raise InputError(f"{spec.source}: functions: {', '.join(sets)}: indicators alone with "
+                         "m: 0 (a feasibility problem): no sublinear family bounds a "
+                         "distance; sosalgo pep bounds its worst case after N steps")
     other = inhomogeneous_functions(spec)
     if other:
         raise InputError(f"{spec.source}: functions: {', '.join(other)}: its conditions are "

@@ -258,9 +258,13 @@ def fixed_point(alg: OracleMethod, tol: float = FIXED_POINT_TOL) -> np.ndarray |
     return None if basis is None else basis[:, 0]
 
 
-def bind_sublinear(spec: Spec, theta: Mapping[str, float] | None = None) -> OracleMethod:
+def bind_sublinear(spec: Spec, theta: Mapping[str, float] | None = None,
+                   moving_optimum: bool = False) -> OracleMethod:
     """The :class:`OracleMethod` of a sublinear spec (``m: 0``, L given, no kappa) at its
-    parameter values (``theta`` overrides input parameters); ModelError names the field."""
+    parameter values (``theta`` overrides input parameters); ModelError names the field.
+    ``moving_optimum``: a state at the optimum that moves with the optimal subgradients
+    (Douglas-Rachford) is accepted (the PEP takes it; the sublinear potentials, started
+    at rest at x_0, do not)."""
     if spec.has_condition_number or spec.L is None:
         raise ModelError("m", "not a sublinear spec (m: 0, L given)")
     comp = _compiled(spec)
@@ -269,7 +273,8 @@ def bind_sublinear(spec: Spec, theta: Mapping[str, float] | None = None) -> Orac
     mats = _matrices(comp, [0.0, spec.L, nan] + [params[p] for p in comp.names])
     om = make_method(spec, mats, 0.0, spec.L, nan, params)
     basis = fixed_point_basis(om)
-    if basis is not None and basis.shape[1] > 1 and np.abs(basis[:, 1:]).max() > 1e-12:
+    if (not moving_optimum and basis is not None and basis.shape[1] > 1
+            and np.abs(basis[:, 1:]).max() > 1e-12):
         raise ModelError("functions", "m: 0 (sublinear rates) needs a state at the optimum "
                          "that does not depend on the optimal subgradients (the potential "
                          "starts the method at rest at x_0); this method's does (e.g. "

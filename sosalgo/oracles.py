@@ -20,7 +20,7 @@ J functions; none for one function).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -149,9 +149,13 @@ class OracleMethod(CallShape):
 
     def optimal_map(self) -> np.ndarray:
         """S (p x (J - 1)): u* = S s~ for the free optimal subgradients s~ = (s_1*, ...,
-        s_{J-1}*), s_J* = -(s_1* + ... + s_{J-1}*)."""
+        s_{J-1}*), s_J* = -(s_1* + ... + s_{J-1}*). Indicators alone (a feasibility
+        problem): x* lies in every set, where 0 is a normal vector of each, so s_j* = 0
+        (S = 0: the fixed point does not move with them, and the PEP leaves them out)."""
         J = len(self.functions)
         S = np.zeros((self.p, max(J - 1, 0)))
+        if pinned_optimum(self.functions):
+            return S
         lmo = getattr(self, "lmo", None) or {}  # the seed's Algorithm has none
         for i, j in enumerate(self.oracles):
             if i in lmo:  # answers s - y: 0 at the fixed point (s = y = x*)
@@ -168,6 +172,15 @@ class OracleMethod(CallShape):
             assert self.E is not None
             return self.E[0], np.zeros(self.p)
         return self.C[self.output], self.D[self.output]
+
+
+def pinned_optimum(functions: Sequence[Any]) -> bool:
+    """Whether every optimal subgradient is 0: indicators alone (x* lies in every set, and
+    0 is a normal vector of each there), so each class's :meth:`pinned` inequalities
+    (its own, not the tilted relaxation) hold at x*. ``functions``: objects with ``cls``
+    (bound functions) or (name, class, params) triples."""
+    classes = [getattr(f, "cls", None) or f[1] for f in functions]
+    return bool(classes) and all(c.zero_values for c in classes)
 
 
 def fixed_point_basis(om: OracleMethod, tol: float = FIXED_POINT_TOL) -> np.ndarray | None:

@@ -81,7 +81,7 @@ def check_sublinear_values(spec: Spec, fail: Fail) -> None:
             if not lo - slack <= values[pname] <= hi + slack:
                 raise fail(f"parameters.{pname}.value", f"{values[pname]:.6g} is "
                            f"outside its range [{lo:.6g}, {hi:.6g}]")
-        bind_sublinear(spec)
+        bind_sublinear(spec, moving_optimum=True)  # analyze refuses it, pep takes it
     except ModelError as exc:
         raise fail(exc.field, exc.message) from None
     check_initial_state(spec, [nan], fail)
@@ -117,7 +117,8 @@ def check_initial_state(spec: Spec, kappas: Collection[float], fail: Fail) -> No
             raise fail(FIELD, f"not a number at kappa={k:g}: {exc}") from None
         if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
             raise fail(FIELD, f"not a finite number at kappa={k:g}")
-        om = as_oracle_method(bind_sublinear(spec) if spec.sublinear else bind(spec, k))
+        om = as_oracle_method(bind_sublinear(spec, moving_optimum=True) if spec.sublinear
+                          else bind(spec, k))
         X = fixed_point_basis(om)
         u = X[:, 0] if X is not None else None
         if u is not None and np.abs(a - u).max() > 1e-9 * (1 + np.abs(u).max()):

@@ -282,6 +282,25 @@ def test_verdicts_flag_a_proof_below_pepit_or_below_a_tight_value():
     assert unproven["not_below"] == "" and unproven["above_theoretical"] == ""
 
 
+def test_verdicts_take_a_tight_value_below_pepits_float_as_the_reference():
+    # Halpern, n = 25: (2/26)^2 = 1/169 is the worst case (Lieder 2021); PEPit's float is
+    # 2.9e-6 above it (its solver's accuracy), a proof between the two is neither wrong
+    # nor below the true value; one below 1/169 still is
+    from bench.conformance import verdicts
+
+    case = next(c for c in EXPRESSED if c.example == "fixed_point_problems/halpern_iteration")
+    pepit = {"tau": 0.005917176830520356, "theoretical": 1 / 169}
+    between = verdicts(case, 0, pepit, {"tau": 0.0059171597833, "tau_proven": 0.0059171674182})
+    assert between == {"agree": "yes", "not_below": "yes", "above_theoretical": "yes"}
+    below = verdicts(case, 0, pepit, {"tau": 0.00591714, "tau_proven": 0.00591714})
+    assert below["not_below"] == "no" and below["above_theoretical"] == "no"
+    # where the theoretical value is not tight, PEPit's float stays the reference
+    loose = next(c for c in EXPRESSED if not any(c.tight))
+    far = verdicts(loose, 0, {"tau": 0.0059171768, "theoretical": 1 / 169},
+                   {"tau": 0.0059171597833, "tau_proven": 0.0059171674182})
+    assert far["agree"] == "no" and far["not_below"] == "no"
+
+
 def test_command_placeholders_are_parsed_not_evaluated():
     from bench.conformance.cases import fill
 

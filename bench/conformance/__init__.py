@@ -104,21 +104,30 @@ def pep_values(row: dict) -> dict:
 
 
 def verdicts(case: Case, index: int, pepit: dict, ours: dict) -> dict:
-    """agree, not_below, above_theoretical ("yes", "no", or "" when not applicable)."""
+    """agree, not_below, above_theoretical ("yes", "no", or "" when not applicable).
+
+    Where the theoretical value is tight it is the true worst case and PEPit's float is
+    an approximation of it: our tau agrees when it is within AGREE_REL of either, and a
+    proven bound is not below when it is not below the lower of the two (beyond
+    BELOW_REL; above_theoretical still asks for the tight value itself)."""
     if not case.expressed:
         return {"agree": "", "not_below": "", "above_theoretical": ""}
     scale = case.scale_at(index)
     p, tau, proven = pepit.get("tau"), ours.get("tau"), ours.get("tau_proven")
+    theo = pepit.get("theoretical")
+    tight = theo if case.tight[index] and theo is not None else None
+    refs = [r for r in (p, tight) if r is not None]
     out = {"agree": "", "not_below": "", "above_theoretical": ""}
     # a worst case of exactly 0 (case.zero): PEPit's float is its solver's accuracy
     floor = ZERO_ABS if case.zero else 1e-300
     if p is not None and tau is not None:
-        out["agree"] = _yes(abs(scale * tau - p) <= max(AGREE_REL * abs(p), floor))
+        out["agree"] = _yes(any(abs(scale * tau - r) <= max(AGREE_REL * abs(r), floor)
+                                for r in refs))
     if p is not None and proven is not None:
-        out["not_below"] = _yes(scale * proven >= p - max(BELOW_REL * abs(p), floor))
-    theo = pepit.get("theoretical")
-    if case.tight[index] and theo is not None and proven is not None:
-        out["above_theoretical"] = _yes(scale * proven >= theo - TIGHT_REL * abs(theo))
+        low = min(refs)
+        out["not_below"] = _yes(scale * proven >= low - max(BELOW_REL * abs(low), floor))
+    if tight is not None and proven is not None:
+        out["above_theoretical"] = _yes(scale * proven >= tight - TIGHT_REL * abs(tight))
     return out
 
 

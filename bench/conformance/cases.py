@@ -13,7 +13,9 @@ set (``null``: ``command``). ``scale`` (an expression of the arguments, default 
 what sosalgo's tau is multiplied by to be PEPit's: sosalgo's classes have m = 1 (or L = 1
 for ``m: 0`` specs), and the measures are homogeneous in f (``scale_reason`` says how).
 ``theoretical_tight`` (one value, or one per argument set) says where the example's
-theoretical value is the exact worst case, so that a proven bound must be above it.
+theoretical value is the exact worst case, so that a proven bound must be above it; that
+value is then also a reference of the verdicts beside PEPit's float (``pepit_accuracy``
+says where PEPit's float is above it by its solver's accuracy).
 """
 
 from __future__ import annotations
@@ -33,7 +35,8 @@ CASES = HERE / "cases"
 EXAMPLES = HERE / "examples.txt"
 EXPRESSED, NOT_EXPRESSIBLE = "expressed", "not expressible"
 _FIELDS = {"example", "function", "question", "arguments", "status", "command", "commands",
-           "scale", "scale_reason", "theoretical_tight", "fast", "needs", "reason", "zero"}
+           "scale", "scale_reason", "theoretical_tight", "pepit_accuracy", "fast", "needs",
+           "reason", "zero"}
 _PLACEHOLDER = re.compile(r"\{([^{}]+)\}")
 
 

@@ -158,11 +158,15 @@ def spec_numbers(path: Path, cache: Path) -> tuple[dict[str, Any], Path | None]:
     from sosalgo.steps import changes_with_k
 
     operators = bool(operator_functions(spec)) and spec.sublinear  # no family: pep answers
+    from sosalgo_gallery_render import sublinear_refused
+
     # conditions or steps no Lyapunov family takes (a mirror spec's Bregman steps, a finite
-    # sum with one function drawn per step, inexact calls, line searches, linear minimization)
+    # sum with one function drawn per step, inexact calls, line searches, linear
+    # minimization), or an m: 0 method no sublinear family takes
     pep_only = (bool(inhomogeneous_functions(spec)) or bool(spec.mirror)
                 or spec.finite_sum is not None
-                or bool(spec.inexact or spec.line_search or spec.lmo))
+                or bool(spec.inexact or spec.line_search or spec.lmo)
+                or bool(sublinear_refused(spec)))
     if data_file.exists() and figure.exists():
         return json.loads(data_file.read_text(encoding="utf-8")), figure
     if changes_with_k(spec) or nonconvex_functions(spec) or operators or pep_only:  # no rate

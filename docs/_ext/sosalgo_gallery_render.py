@@ -322,6 +322,29 @@ def operator_section(spec: Any) -> list[str]:
     return ["## Operators", "", text, ""]
 
 
+def sublinear_refused(spec: Any) -> str:
+    """Why no sublinear family takes an m: 0 spec whose classes it would ("" when it
+    does): indicators alone, or a state at the optimum that moves with the optimal
+    subgradients (Douglas-Rachford); ``sosalgo pep`` answers."""
+    from sosalgo.errors import ModelError
+    from sosalgo.model import bind_sublinear
+    from sosalgo.spec.loading import set_functions
+    from sosalgo.steps import changes_with_k
+
+    if not spec.sublinear or changes_with_k(spec):  # (those: pep answers in any case)
+        return ""
+    if set_functions(spec):
+        return (f"{', '.join(set_functions(spec))}: indicators alone (a feasibility "
+                "problem), with m: 0 no sublinear family bounds a distance")
+    try:
+        bind_sublinear(spec)
+    except ModelError:
+        return ("its state at the optimum moves with the optimal subgradients (as "
+                "Douglas-Rachford's), which the sublinear families, started at rest at "
+                "x_0, do not take")
+    return ""
+
+
 def inhomogeneous(spec: Any) -> list[str]:
     """The spec's functions whose class has conditions no Lyapunov family takes (a
     constant, a condition about x* alone; ``sosalgo pep`` answers)."""
@@ -341,7 +364,8 @@ def steps_section(spec: Any, rows: list[dict[str, Any]]) -> list[str]:
     if not changes_with_k(spec):  # time-invariant on a class no Lyapunov family takes
         what = (f"{', '.join(nonconvex(spec))} is nonconvex" if nonconvex(spec) else
                 f"{', '.join(inhomogeneous(spec))}: its class's conditions are not "
-                "pairwise homogeneous inequalities")
+                "pairwise homogeneous inequalities" if inhomogeneous(spec) else
+                sublinear_refused(spec))
         text = (f"{what}: no rate is certified (no "
                 "Lyapunov family applies). Its worst case after $N$ steps is a performance "
                 "estimation problem: `sosalgo pep SPEC --steps N` (the pep command's "

@@ -82,16 +82,17 @@ class CompositeExactResult(InterpolationExactResult):
 # --------------------------------------------------------------------------- class data
 
 
-def exact_class_inequalities(cls: Any, params: Mapping[str, Ball],
+def exact_class_inequalities(cls: Any, params: Mapping[str, Ball], pinned: bool = False,
                              ) -> tuple[list[tuple[Ball, np.ndarray]], str]:
     """(alpha, Q) of every tilted inequality of a class at exact parameters (the class's
     :meth:`~sosalgo.classes.base.FunctionClass.exact_tilted`, every entry as a ball), and
-    where they come from ("exact" or the float enclosure)."""
-    exact = cls.exact_tilted(params)
+    where they come from ("exact" or the float enclosure). ``pinned``: its optimal
+    subgradient is 0 (:meth:`~sosalgo.classes.base.FunctionClass.exact_pinned`)."""
+    exact = cls.exact_pinned(params) if pinned else cls.exact_tilted(params)
     if exact is not None:
         return [(Ball.of(a), np.vectorize(Ball.of, otypes=[object])(np.asarray(Q, object)))
                 for a, Q in exact], "exact"
-    fl = cls.tilted({k: float(b.c) for k, b in params.items()})
+    fl = (cls.pinned if pinned else cls.tilted)({k: float(b.c) for k, b in params.items()})
 
     def widen(v: float) -> Ball:
         q = Fraction(float(v))

@@ -138,6 +138,17 @@ class FunctionClass:
             raise NotImplementedError(f"class {self.name}: not tilt invariant, give tilted()")
         return self.inequalities(params)
 
+    def pinned(self, params: Mapping[str, float]) -> list[Inequality]:
+        """The inequalities where the PEP pins the function's optimal subgradient at 0
+        (indicators alone, :func:`sosalgo.oracles.pinned_optimum`): the tilted function is
+        then the function itself; by default :meth:`tilted` (a class whose own
+        conditions are tighter gives them)."""
+        return self.tilted(params)
+
+    def exact_pinned(self, params: Mapping[str, Any]) -> list[tuple[Any, Any]] | None:
+        """The exact twin of :meth:`pinned` (as :meth:`exact_tilted` is of :meth:`tilted`)."""
+        return self.exact_tilted(params)
+
     def curvatures(self, params: Mapping[str, float]) -> tuple[float, float] | None:
         """[lo, hi] such that (q/2)|x|^2 is in the class for q in [lo, hi] (None: none)."""
         return None

@@ -44,6 +44,15 @@ class Indicator(FunctionClass):
     def inequalities(self, params: Mapping[str, float]) -> list[Inequality]:
         return [Inequality(0.0, convex_form())]  # the values are 0: alpha plays no role
 
+    def pinned(self, params: Mapping[str, float]) -> list[Inequality]:
+        """With the optimal normal vector 0 (x* in the set; indicators alone) the values
+        are the indicator's own, 0 on the set: its interpolation conditions
+        <g_b, x_a - x_b> <= 0 exactly, no relaxation (Taylor, Hendrickx, Glineur 2017)."""
+        return self.inequalities(params)
+
+    def exact_pinned(self, params: Mapping[str, Any]) -> list[tuple[Any, Any]]:
+        return [(Fraction(0), Q) for _, Q in self.exact_tilted(params)]
+
     def curvatures(self, params: Mapping[str, float]) -> tuple[float, float]:
         return 0.0, 0.0  # the indicator of the whole space
 

@@ -38,7 +38,7 @@ def bound_method(spec: Spec, kappa: float | None) -> tuple[Any, float]:
         if kappa is not None:
             raise InputError(f"{spec.source}: --kappa: an m: 0 spec has no condition number "
                              f"(L = {spec.L:g} is given)")
-        return bind_sublinear(spec), math.nan
+        return bind_sublinear(spec, moving_optimum=True), math.nan
     if kappa is None:
         raise InputError(f"{spec.source}: --kappa: required (the condition number L/m)")
     return as_oracle_method(evaluate_algorithm(spec, float(kappa))), float(kappa)

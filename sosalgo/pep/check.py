@@ -26,7 +26,7 @@ from flint import arb, arb_mat, fmpq
 from sosalgo.kernel.arb import arb_fraction, precision
 from sosalgo.pep.exact import ball, exact_method, exact_steps_or_none
 from sosalgo.pep.structure import Method, last_calls
-from sosalgo.pep.terms import Term
+from sosalgo.pep.terms import OUT0, Term, free_start
 from sosalgo.spec import Spec
 from sosalgo.steps import changes_with_k
 
@@ -153,6 +153,14 @@ def positions(doc: dict[str, Any], av: ArbView) -> dict[str, Any]:
             pos[key] = [row[0, c] for c in range(r)]
         elif _label(mt.output, k, p) in pos:
             pos[key] = pos[_label(mt.output, k, p)]
+    # the output at step 0 (x_N-j at N = j): the start, or the output call's point there
+    if last_calls(mt):  # x_0, the start
+        pos[OUT0] = pos.get("x0")
+    elif call is not None:
+        pos[OUT0] = pos.get(_label(call, 0, p))
+    else:  # E xi_0 (x_0 at rest; an initial_state may move it)
+        row0 = av.E * states[0]  # type: ignore[operator]
+        pos[OUT0] = [row0[0, c] for c in range(r)]
     for i in range(p):
         pos.setdefault(f"y{i + 1}_{N}", pos.get(_label(i, N, p)))
     if last_calls(mt):  # the y terms after N steps: the calls of step N - 1
@@ -338,6 +346,9 @@ def fit_values(doc: dict[str, Any], mt: Method | ArbView) -> bool:
             new = []
             for labels, rows in forms:
                 edges = _edges(rows)
+                if edges == [] and rows:  # no value enters (an indicator's own
+                    new.append([Fraction(0)] * len(labels))  # conditions): its values 0
+                    continue
                 dist = None if edges is None else _shortest(len(labels), len(labels) - 1,
                                                             edges)
                 if dist is None:
@@ -394,7 +405,7 @@ def _terms_value(terms: list[Term], doc: dict[str, Any], av: ArbView,
     for t in at_steps(terms, N, "measure"):
         c = av.coef(t)
         if t.kind == DIFF_KIND:  # |P - Q|^2
-            P, Q = (pos[{"x": f"x{N}"}.get(q) or (q if STEP_POINT.match(q)
+            P, Q = (pos[{"x": f"x{N}"}.get(q) or (q if STEP_POINT.match(q) or q == OUT0
                                                   else pos_key(q, N, mt.p))]
                     for q in t.point.split("__"))
             v = [a - b for a, b in zip(P, Q, strict=True)]
@@ -406,9 +417,10 @@ def _terms_value(terms: list[Term], doc: dict[str, Any], av: ArbView,
             total += arb_min(each)
             continue
         if t.kind == "sdist":
-            total += c * _sdist(doc, av, pos["xi0" if t.point == "x0" else "xiN"])
+            total += c * _sdist(doc, av, pos["xiN" if t.point == "x" else "xi0"])
             continue
         key = {"x": f"x{N}"}.get(t.point) or (t.point if STEP_POINT.match(t.point)
+                                               or t.point == OUT0
                                                else pos_key(t.point, N, mt.p))
         P = pos[key]
         if t.kind == "dist":
@@ -505,7 +517,7 @@ def _measure_initial(doc: dict[str, Any], spec: Spec, av: ArbView
     p = av.mt.p
     mterms = parse_terms(doc["measure"], "measure", False, p, spec.parameters)
     iterms = parse_terms(doc["initial"], "initial", True, p, spec.parameters)
-    if any(t.kind == "sdist" for t in iterms) != (doc.get("xi0") is not None):
+    if free_start(iterms) != (doc.get("xi0") is not None):
         raise ValueError("an initial sdist needs the free start xi0, and only it")
     if not all(cls.convex or cls.minimizer for _, cls, _ in av.mt.functions):
         _differences_only(mterms, av)

@@ -97,7 +97,7 @@ def _load(spec: Spec | str | Path) -> Spec:
 
 def float_method(om: Any, kappa: float) -> Method:
     """The float :class:`Method` of an OracleMethod."""
-    from sosalgo.oracles import fixed_point_basis
+    from sosalgo.oracles import fixed_point_basis, pinned_optimum
 
     X = fixed_point_basis(om)
     assert X is not None  # the OracleMethod checked it
@@ -116,7 +116,9 @@ def float_method(om: Any, kappa: float) -> Method:
     def same(a: np.ndarray, b: np.ndarray) -> bool:
         return bool(np.abs(a - b).max(initial=0.0) <= 1e-12 * scale * (1 + np.abs(a).max()))
 
-    tilted = [fn.cls.tilted(fn.params) for fn in om.functions]
+    pinned = pinned_optimum(om.functions)  # s_j* = 0: the classes' own conditions
+    tilted = [fn.cls.pinned(fn.params) if pinned else fn.cls.tilted(fn.params)
+              for fn in om.functions]
     ineqs = [[(float(i.alpha), np.asarray(i.Q, float)) for i in fi] for fi in tilted]
     mt = Method(om.A, om.B, om.C, om.D, om.E, om.output,
                 [(fn.name, fn.cls, fn.params) for fn in om.functions], tuple(om.oracles),
@@ -536,17 +538,27 @@ def _mixed(cand: SDPAnswer, inner: SDPAnswer, w: np.ndarray) -> SDPAnswer:
                    const=const)
 
 
+NULL_DIRECTIONS = 3  # the null-row proof on S with at most this many free directions
+
+
 def _null_row_proof(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
                     ans: SDPAnswer, mterms: list[Term], iterms: list[Term],
-                    ex: Method | None, cert: dict[str, Any]) -> None:
+                    ex: Method | None, cert: dict[str, Any], tau: float,
+                    null_tol: float | None = None) -> None:
     """The measure's own certificate with its near-zero rows of S made exactly zero in
     rationals (a PEP with a free direction has no certificate with S ≻ 0, so no margin
     proves it; :func:`sosalgo.pep.exact.null_row_multipliers`); ``cert`` updated when
     proven."""
-    from sosalgo.pep.exact import prove_certificate
+    from sosalgo.pep.exact import NULL_ROW, prove_certificate
 
-    proof = prove_certificate(spec, kappa, data.st, mterms, iterms, float(ans.primal),
-                              ans.lam, data.w, ex, null=ans.S)  # type: ignore[arg-type]
+    Sh = ans.S * np.outer(data.w, data.w)  # type: ignore[operator]
+    scale = max(1.0, float(np.abs(Sh).max()))
+    free = int(np.sum(np.abs(np.linalg.eigvalsh(0.5 * (Sh + Sh.T)))
+                      <= (NULL_ROW * scale if null_tol is None else null_tol)))
+    if not 1 <= free <= NULL_DIRECTIONS:  # none, or a tight worst case's (a margin's job;
+        return  # each null vector multiplies the exact system's rows)
+    proof = prove_certificate(spec, kappa, data.st, mterms, iterms, tau, ans.lam, data.w,
+                              ex, null=ans.S, null_tol=null_tol)  # type: ignore[arg-type]
     if mt.bound is not None:
         proof["measure_bound"] = mt.bound
     if proof["proven"]:
@@ -576,6 +588,7 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
     cert: dict[str, Any] = {"tau": ans.tau + ans.const, "check_kind": "floating-point check",
                             "tau_proven": None, "proof": None}
     best = ans
+    raw: list[tuple[SDPAnswer, float]] = []  # the margin solves before any mixing
     units = _linear_only(data)
     inner = _interior_certificate(data, tau, scale) if exact and data.strong else None
     for rel, precise in _ladder(st.steps, inner is not None) if exact else ():
@@ -584,6 +597,8 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
                                               else 1.0, precise=precise)
         if cand.status != "solved" or cand.tau + cand.const > 2 * abs(tau) + 1e-9:
             continue  # not solved, or "solved" at twice tau or more (a solver's bad answer)
+        if rel > 0:
+            raw.append((cand, eps))
         if inner is not None:
             cand = _mixed(cand, inner, data.w)
         best = cand
@@ -606,8 +621,15 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
                         tau_proven=proof["tau_proven"], tau=cand.tau + cand.const,
                         margin=eps * tau)
             break
-    if exact and not cert.get("tau_proven") and ans.S is not None and not st.free_values:
-        _null_row_proof(spec, kappa, mt, data, ans, mterms, iterms, ex, cert)
+    # the measure's own answer, then each margin solve as it came (S >= its margin but
+    # on the free directions, which no margin and no mix with an interior certificate
+    # can lift: their rows are made exactly zero)
+    for cand, eps in [(ans, None), *raw]:
+        if exact and not cert.get("tau_proven") and cand.S is not None \
+                and not st.free_values:
+            _null_row_proof(spec, kappa, mt, data, cand, mterms, iterms, ex, cert,
+                            tau if eps is None else max(cand.tau + cand.const, tau),
+                            None if eps is None else 0.1 * eps)
     lam = best.lam
     S = best.S
     assert lam is not None and S is not None

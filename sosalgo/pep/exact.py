@@ -227,6 +227,7 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
     from sosalgo.kernel.exact import Ball
     from sosalgo.kernel.exact import enclose as enclose_at
     from sosalgo.kernel.expr.parse import to_sympy
+    from sosalgo.oracles import pinned_optimum
     from sosalgo.pep.constraints import spec_constraints
 
     K = np.array([[Fraction(float(v)) for v in row]
@@ -248,7 +249,8 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
         decl = spec.functions[fn.name]
         params = {k: enclose(to_sympy(e).xreplace(cenv)) for k, e in decl.params.items()}
         funcs.append((fn.name, fn.cls, params))
-        ineqs.append(exact_class_inequalities(fn.cls, params)[0])
+        ineqs.append(exact_class_inequalities(fn.cls, params,
+                                              pinned_optimum(om.functions))[0])
     extras = [class_extras(cls, params, len(fi)) for (_, cls, params), fi in zip(
         funcs, ineqs, strict=True)]
     L = _scale(base[_sym("L")])
@@ -610,14 +612,18 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
                       lam: np.ndarray, w: np.ndarray | None = None,
                       mt: Method | None = None,
                       null: np.ndarray | None = None,
-                      units: list[int] | None = None) -> dict[str, Any]:
+                      units: list[int] | None = None,
+                      null_tol: float | None = None) -> dict[str, Any]:
     """Prove measure <= tau' for a rational tau' >= tau (see the module); a dict with
     ``proven``, ``tau_proven`` (p/q), ``tau_proven_float``, ``detail``, ``seconds``.
     ``w``: the scale of the basis (powers of two, default 1); ``mt``: the exact method
     (built here when not given); ``null``: the float S of a certificate whose rows near
     zero are made exactly zero (:func:`null_row_multipliers`), nothing repaired;
     ``units``: the basis directions whose rows of S are made exactly zero instead (the
-    directions no form has a square of, :func:`sosalgo.pep.sdp.linear_only`)."""
+    directions no form has a square of, :func:`sosalgo.pep.sdp.linear_only`);
+    ``null_tol``: the eigenvalues of the scaled ``null`` that count as its null space
+    (default :data:`NULL_ROW` of its largest entry; a margin certificate's: below its
+    margin)."""
     from sosalgo.kernel.exact import fraction_str, rational
     from sosalgo.pep.bind import bound_method
 
@@ -647,7 +653,8 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
         if units:
             ok, lq2, delta, why = _prove_null_rows(mt, st, lam, tq, None, w, units)
         elif null is not None:
-            ok, lq2, delta, why = _prove_null_rows(mt, st, lam, tq, null, w, coarse=True)
+            ok, lq2, delta, why = _prove_null_rows(mt, st, lam, tq, null, w, coarse=True,
+                                                   null_tol=null_tol)
         else:
             ok, lq2, delta, why = prove_at(mt, st, lq, tq, w, repair=True)
         if ok:
@@ -686,7 +693,8 @@ SNAPS = ((100, 1e-6), (1000, 1e-7), (10 ** 4, 1e-8), None)  # (denominator, tole
 def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Fraction,
                          S: np.ndarray | None, w: np.ndarray,
                          snap: tuple[int, float] | None = None,
-                         units: list[int] | None = None) -> list[Fraction] | None:
+                         units: list[int] | None = None,
+                         null_tol: float | None = None) -> list[Fraction] | None:
     """Exact multipliers, on the float ones' support, with S v = 0 exactly for a rational
     basis v of the float certificate's null space (:func:`rational_null_space`; a basis
     row when S vanishes on a whole row), the free coordinates at the float values
@@ -705,7 +713,7 @@ def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Frac
     if not support or st.free_values or st.d > RATIONAL_MAX_D:
         return None
     null = ([[Fraction(int(j == c)) for j in range(st.d)] for c in units] if units
-            else rational_null_space(S, w, snap))
+            else rational_null_space(S, w, snap, null_tol))
     if not null:
         return None
     if st.constants is not None and any(  # I0's coefficient is tq - sum lambda_k c_k:
@@ -768,7 +776,8 @@ def _nonzero_fraction(v: Any) -> bool:
 
 def _prove_null_rows(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Fraction,
                      S: np.ndarray | None, w: np.ndarray, units: list[int] | None = None,
-                     coarse: bool = False) -> tuple[bool, list[Fraction], Fraction, str]:
+                     coarse: bool = False, null_tol: float | None = None
+                     ) -> tuple[bool, list[Fraction], Fraction, str]:
     """:func:`prove_at` (nothing repaired) on the multipliers of
     :func:`null_row_multipliers`, for each snap of :data:`SNAPS` until one proves
     (``coarse``: also the coarser snaps of :data:`COARSE_SNAPS`, on the float multipliers
@@ -780,7 +789,7 @@ def _prove_null_rows(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Fraction
                   if (cut, snap) not in tries]
     for cut, snap in tries:
         kept = np.where(lam > cut * float(np.max(lam, initial=0.0)), lam, 0.0)
-        exact_lam = null_row_multipliers(mt, st, kept, tq, S, w, snap, units)
+        exact_lam = null_row_multipliers(mt, st, kept, tq, S, w, snap, units, null_tol)
         if exact_lam is None:
             continue
         ok, lq2, delta, why = prove_at(mt, st, exact_lam, tq, w, repair=False)
@@ -796,8 +805,8 @@ COARSE_SNAPS = ((100, 1e-4), (1000, 1e-5), (100, 1e-3), (12, 1e-2), *SNAPS)
 COARSE_CUTS = (0.0, 1e-4, 1e-3)
 
 
-def rational_null_space(S: np.ndarray, w: np.ndarray,
-                        snap: tuple[int, float] | None) -> list[list[Fraction]] | None:
+def rational_null_space(S: np.ndarray, w: np.ndarray, snap: tuple[int, float] | None,
+                        null_tol: float | None = None) -> list[list[Fraction]] | None:
     """A rational basis of the null space of the float S (eigenvalues of diag(w) S
     diag(w) below NULL_ROW of its largest entry), in reduced row echelon form (the
     identity on pivot coordinates) with its other entries snapped to fractions of
@@ -806,7 +815,8 @@ def rational_null_space(S: np.ndarray, w: np.ndarray,
     Sh = S * np.outer(w, w)
     scale = max(1.0, float(np.abs(Sh).max()))
     vals, vecs = np.linalg.eigh(0.5 * (Sh + Sh.T))
-    V = vecs[:, np.abs(vals) <= NULL_ROW * scale] * np.asarray(w)[:, None]  # S's null space
+    tol = NULL_ROW * scale if null_tol is None else null_tol
+    V = vecs[:, np.abs(vals) <= tol] * np.asarray(w)[:, None]  # S's null space
     if not V.shape[1]:
         return None
     R = V.T.copy()  # rows span the null space: reduce to echelon form
@@ -1182,6 +1192,7 @@ def exact_step_method(spec: Any, kappa: float | None, sm: StepMethods, count: in
     from sosalgo.certificates.exact_composite import exact_class_inequalities
     from sosalgo.kernel.exact import Ball, enclose
     from sosalgo.kernel.expr.parse import to_sympy
+    from sosalgo.oracles import pinned_optimum
     from sosalgo.pep.structure import enclosure_bits
     from sosalgo.steps import changes_with_k
 
@@ -1207,7 +1218,8 @@ def exact_step_method(spec: Any, kappa: float | None, sm: StepMethods, count: in
         params = {k: enclose(to_sympy(e).xreplace(cenv), digits)
                   for k, e in decl.params.items()}
         funcs.append((fn.name, fn.cls, params))
-        ineqs.append(exact_class_inequalities(fn.cls, params)[0])
+        ineqs.append(exact_class_inequalities(fn.cls, params,
+                                              pinned_optimum(om.functions))[0])
 
     def coef(t: Any) -> Any:
         return enclose(to_sympy(t.coef).xreplace(base), digits)

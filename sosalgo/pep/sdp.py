@@ -366,7 +366,11 @@ def _solve_active(data: PEPData, active: np.ndarray, margin: float, objective: s
     sig = _row_scale(ineq)
     rows = [sps.csr_matrix(init[None, :]), -sps.diags(1.0 / sig) @ ineq,
             sps.hstack([sps.csr_matrix((nF, nG)), -sps.identity(nF)])]
-    b = [np.ones(1), data.consts()[active] / sig - slack, np.zeros(nF)]
+    # a row with no entry (an indicator's own condition at x*, its normal vector pinned
+    # at 0: 0 >= 0) has no slack to give
+    live = (np.asarray(abs(ineq).max(axis=1).todense()).ravel() > 0 if ineq.shape[0]
+            else np.ones(0))
+    b = [np.ones(1), data.consts()[active] / sig - slack * live, np.zeros(nF)]
     if floor is not None:  # a mingrad measure: each of its forms (st.floors) at the floor
         for form in ([meas] if st.floors is None else
                      [_scaled_form(data, fq, ff) / unit for fq, ff in st.floors]):

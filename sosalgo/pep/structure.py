@@ -55,6 +55,8 @@ from sosalgo.pep.terms import (
     GRAD_OF,
     INNER_KIND,
     MIN_OF,
+    OUT0,
+    REST,
     STEP_POINT,
     Term,
     at_steps,
@@ -442,7 +444,7 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
     x0 = _output_row(mt, xi, Yr, 0) if free else eye[0] * 0 if origin else eye[0]
     if not free and not g0 and mt.x0_call is not None:  # the same point, proven exactly
         Yr[0][mt.x0_call] = x0
-    where = {"x": out, "x0": x0}
+    where = {"x": out, "x0": x0, REST: x0}  # REST: sdist(x_0), at the start
     where.update({f"y{i + 1}": Yr[steps][i] for i in range(p)} if calls > steps else {})
     if last_calls(mt):  # the calls of the last step
         where.update({f"y{i + 1}": Yr[steps - 1][i] for i in range(p)})
@@ -472,7 +474,7 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
     for j in range(J):
         pts[j].append(PEPPoint("x*", zero, zero, None))
     state = {"nF": nF, "next": len(cols), "cols": cols, "eye": eye, "at": at, "origin": origin,
-             "xi": {"x": xi[steps], "x0": xi[0]}, "extras": extras}
+             "xi": {"x": xi[steps], "x0": xi[0], REST: xi[0]}, "extras": extras}
     if mt.lmo:
         from sosalgo.pep.lmo import lmo_points
 
@@ -563,6 +565,8 @@ def _point_row(mt: Method, xi: list[np.ndarray], Yr: list[list[np.ndarray]],
             raise InputError(f"{opt}: y{i}_{k}: the method makes its calls at steps "
                              f"0..{len(Yr) - 1} here (N = {steps})")
         where[point] = Yr[k][i - 1]
+    if point == OUT0 and point not in where:  # the output at step 0 (x_N-j at N = j)
+        where[point] = where["x0"] if last_calls(mt) else _output_row(mt, xi, Yr, 0)
     step = STEP_POINT.match(point)
     if step and point not in where:
         if int(step.group(1)) > steps:
@@ -674,6 +678,8 @@ def _finish(mt: Method, steps: int, calls: int, state: dict[str, Any],
                     for r in range(len(mt.ineqs[j])):
                         if mt.scope(j, r) == "optimum" and pb.label != "x*":
                             continue  # a condition between a point and x* only
+                        if _vanishes(mt, j, r, pa, pb):
+                            continue  # 0 >= 0 (an indicator's own condition at x*)
                         pairs.append((j, a, b, r))
                         labels.append(pair_label(fname, pa.label, pb.label, r, many))
                         consts.append(mt.constant(j, r))
@@ -697,6 +703,18 @@ def _finish(mt: Method, steps: int, calls: int, state: dict[str, Any],
                              "calls or a line search is not supported")
         st.constants = np.array(consts, dtype=dt)
     return st
+
+
+def _vanishes(mt: Method, j: int, r: int, pa: PEPPoint, pb: PEPPoint) -> bool:
+    """Whether function j's inequality r between points a and b is 0 >= 0 whatever G
+    and F: no value (alpha 0), no constant, and each entry of its Q meets a zero row of
+    (x_a, x_b, g_a, g_b) (a subgradient pinned at 0 at x*: indicators alone)."""
+    alpha, Q = mt.ineqs[j][r]
+    if _nonzero(alpha) or _nonzero(mt.constant(j, r)):
+        return False
+    live = [any(_nonzero(v) for v in row) for row in (pa.x, pb.x, pa.g, pb.g)]
+    return not any(_nonzero(Q[u][v]) and live[u] and live[v]
+                   for u in range(4) for v in range(4))
 
 
 def _obj_eye(k: int) -> np.ndarray:
@@ -735,7 +753,7 @@ def _term(mt: Method, t: Term, row: np.ndarray, pts: list[list[PEPPoint]],
     """(quadratic form on the basis, {F index: coefficient}) of one term."""
     c = mt.coef(t)
     label = {"x": f"x{steps}"}.get(t.point) or (
-        t.point if STEP_POINT.match(t.point) else f"{t.point}_{steps}")
+        t.point if STEP_POINT.match(t.point) or t.point == OUT0 else f"{t.point}_{steps}")
     if t.kind == "dist":
         return np.outer(row, row) * c, {}
     if t.kind == "sdist":
@@ -779,10 +797,16 @@ def _used_columns(pts: list[list[PEPPoint]], forms: list[np.ndarray], n0: int, J
     if n0 == 1:  # x0-x*: unused when the PEP has no x* (its origin at x_0)
         used[0] = (any(_nonzero(pt.x[0]) or _nonzero(pt.g[0]) for fp in pts for pt in fp)
                    or any(_nonzero(v) for q in forms for v in q[0]))
-    for c in range(n0, n0 + J - 1):
-        used[c] = (any(_nonzero(pt.x[c]) or _nonzero(pt.g[c]) for fp in pts for pt in fp)
-                   or any(_nonzero(v) for q in forms for v in q[c]))
+    for c in range(n0, n0 + J - 1):  # (floats: a rounding residue of a column that
+        # cancels exactly, e.g. -X_s s* + G0 s* of a start x0 + t g0, is no use)
+        used[c] = (any(_live(pt.x[c]) or _live(pt.g[c]) for fp in pts for pt in fp)
+                   or any(_live(v) for q in forms for v in q[c]))
     return used
+
+
+def _live(v: Any) -> bool:
+    """A nonzero entry (exact), or a float entry above rounding residue (1e-13)."""
+    return _nonzero(v) if not isinstance(v, float | np.floating) else bool(abs(v) > 1e-13)
 
 
 def _nonzero(v: Any) -> bool:

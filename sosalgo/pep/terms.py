@@ -12,10 +12,12 @@ point: ``f(x_N)`` (the output, the default), ``grad(x_3)`` (the output after 3 s
 ``grad(x_N-1)`` (the output one step before the last), ``f(y_k)`` / ``grad(y<i>_k)``
 (a call's point at step k); ``inner(P, Q)`` = <P - x*, Q - x*>, a side ``g(P)`` the sum of
 the functions' (sub)gradients at P; an initial term may name any point too, and
-``free`` (initial only) frees the start. ``--initial none``: no initial condition (no
-terms: a homogeneous question, worst case 0 or unbounded). Coefficients may name the
-spec's parameters. The string is parsed by :mod:`sosalgo.kernel.expr` (never evaluated)
-and split into its linear terms; anything nonlinear in the terms is refused.
+``free`` (initial only) frees the start. ``sdist(x_0)`` (initial only) is |xi_0 - xi*|^2
+at the method's own start (at rest at x_0, or its ``initial_state``), which it does not
+free. ``--initial none``: no initial condition (no terms: a homogeneous question, worst
+case 0 or unbounded). Coefficients may name the spec's parameters. The string is parsed
+by :mod:`sosalgo.kernel.expr` (never evaluated) and split into its linear terms; anything
+nonlinear in the terms is refused.
 """
 
 from __future__ import annotations
@@ -31,9 +33,9 @@ from sosalgo.errors import InputError
 from sosalgo.kernel.expr.tree import Expr, ExprError, evaluate, parse_tree
 from sosalgo.spec.initial_state import linear_parts
 
-__all__ = ["BACK_POINT", "DIFF_KIND", "KINDS", "MINF_KIND", "MIN_KIND", "MIN_OF", "Term",
-           "at_steps", "describe_terms", "dominates", "expand_min", "parse_constraint",
-           "parse_terms"]
+__all__ = ["BACK_POINT", "DIFF_KIND", "KINDS", "MINF_KIND", "MIN_KIND", "MIN_OF", "OUT0", "REST",
+           "Term", "at_steps", "describe_terms", "dominates", "expand_min", "free_start",
+           "parse_constraint", "parse_terms"]
 
 MIN_KIND = "mingrad"  # min over k = 0..N of |grad f(x_k)|^2
 MINF_KIND = "minf"  # min over k = 0..N of f(x_k) - f*
@@ -47,6 +49,8 @@ KINDS = ("f", "dist", "grad", "sdist", MIN_KIND, MINF_KIND, DIFF_KIND, "contract
 # contraction: |xi_N - xi'_N|^2 of two runs (:mod:`sosalgo.pep.contraction`; alone)
 _ARG = r"([A-Za-z0-9_]+(?:\s*-\s*\d+)?)"
 _AT = re.compile(r"\b(f|dist|grad)\s*\(\s*" + _ARG + r"\s*\)")
+_REST = re.compile(r"\bsdist\s*\(\s*x_0\s*\)")  # sdist(x_0): at the method's own start
+REST = "rest"  # the point of sdist(x_0): |xi_0 - xi*|^2, the start not freed
 _PAIR = re.compile(r"\bdist\s*\(\s*" + _ARG + r"\s*,\s*" + _ARG + r"\s*\)")
 _ARGN = r"[A-Za-z0-9_]+(?:\s*-\s*\d+)?"
 _GARG = r"(g\s*\(\s*" + _ARGN + r"\s*\)|" + _ARGN + r")"  # a point or g(point)
@@ -57,6 +61,7 @@ GRAD_OF = "G"  # an inner term's gradient at a point: G<point key>
 _BEFORE = re.compile(r"^x_N\s*-\s*(\d+)$")  # x_N-j: the output j steps before the last
 STEP_POINT = re.compile(r"^x(\d+)$")  # a measure's x_k, k a number: the output at step k
 BACK_POINT = re.compile(r"^xm(\d+)$")  # a measure's x_N-j: the output at step N - j
+OUT0 = "x0out"  # x_N-j at step 0: the output there (the start x_0 unless an output call)
 
 
 @dataclass(frozen=True)
@@ -106,7 +111,13 @@ def _rewrite(text: str, option: str, initial: bool, p: int) -> str:
             keys.append(GRAD_OF + key if grad else key)
         return _placeholder(INNER_KIND, "__".join(sorted(keys)))
 
-    return _AT.sub(sub, _PAIR.sub(pair, _INNER.sub(inner, text)))
+    def rest(mt: re.Match[str]) -> str:
+        if not initial:
+            raise InputError(f"{option}: sdist(x_0): an initial term (the measure's sdist "
+                             "is at x_N)")
+        return _placeholder("sdist", REST)
+
+    return _AT.sub(sub, _PAIR.sub(pair, _INNER.sub(inner, _REST.sub(rest, text))))
 
 
 def _point_key(pt: str, option: str, initial: bool, p: int) -> str:
@@ -164,8 +175,9 @@ def parse_terms(text: object, option: str, initial: bool, p: int,
 
 def free_start(initial: Sequence[Term]) -> bool:
     """Whether ``initial`` leaves the start free: ``none`` (no terms), ``free`` or an
-    ``sdist`` term."""
-    return not initial or any(t.kind in ("sdist", FREE_KIND) for t in initial)
+    ``sdist`` term other than ``sdist(x_0)`` (at the method's own start)."""
+    return not initial or any(t.kind == FREE_KIND or (t.kind == "sdist" and t.point != REST)
+                              for t in initial)
 
 
 RELATIONS = ("==", "<=", ">=")
@@ -194,7 +206,9 @@ def parse_constraint(text: object, option: str, p: int, scalars: frozenset[str]
 
 def at_steps(terms: list[Term], steps: int, option: str) -> list[Term]:
     """``terms`` with each point x_N-j (key "xm<j>") written as the output at step N - j
-    (key "x<N - j>") for N = ``steps`` (InputError naming ``option`` before step 0)."""
+    (key "x<N - j>"; at step 0 :data:`OUT0`, the output there, which an output call
+    makes another point than the start) for N = ``steps`` (InputError naming ``option``
+    before step 0)."""
 
     def key(point: str) -> str:
         back = BACK_POINT.match(point)
@@ -203,7 +217,7 @@ def at_steps(terms: list[Term], steps: int, option: str) -> list[Term]:
         k = steps - int(back.group(1))
         if k < 0:
             raise InputError(f"{option}: x_N-{back.group(1)}: before the start (N = {steps})")
-        return "x" if k == steps else f"x{k}"
+        return "x" if k == steps else f"x{k}" if k else OUT0
 
     return [Term(t.kind, "__".join(_grad_key(q, key) for q in t.point.split("__")), t.coef)
             for t in terms]
@@ -225,6 +239,8 @@ def _point_text(t: Term) -> str:
     """The point of a term as written: x_N, x_<k>, y<i>_N."""
     if t.point == "x":
         return "x_N"
+    if t.point == OUT0:
+        return "x_0"
     hit = STEP_POINT.match(t.point)
     return f"x_{hit.group(1)}" if hit else f"{t.point}_N"
 

@@ -102,8 +102,8 @@ def _check(spec: Spec, kappas: list[float | None], steps: list[int], measure: st
                                      workers, False)
         return budget.check(est), w, False
     # the first horizon asked: a schedule's is its length, and a term may name a step
-    # (x_2, y_1) that a shorter one has not reached
-    small = steps[0]
+    # (x_2, y_1, x_N-1) that a shorter one has not reached
+    small = min(steps)
     top = max(steps)
     if spec.mirror:  # Bregman steps: their own PEP (sosalgo.pep.mirror)
         from sosalgo.pep.mirror import mirror_problem
@@ -414,7 +414,8 @@ def pep_heading(rows: list[dict[str, Any]]) -> list[str]:
         "m": cls.get("m"), "L": cls.get("L")}}}  # a row written before rows named classes
     several = len(funcs) > 1
     many = len({r["kappa"] for r in rows}) > 1
-    start = ("any xi_0 (the whole state is free)" if "sdist" in str(d["initial"])
+    free = re.search(r"\bsdist\b(?!\s*\()", str(d["initial"]))  # sdist(x_0): not free
+    start = ("any xi_0 (the whole state is free)" if free
              else "any two xi_0, xi_0' (two runs on the same functions)"
              if "contraction" in str(d["initial"])
              else "x_0 (the method at rest there, or as its initial_state says)")

@@ -241,6 +241,16 @@ def operator_functions(spec: Spec) -> list[str]:
             if not CLASSES[decl.cls].has_values]
 
 
+def set_functions(spec: Spec) -> list[str]:
+    """``name (class)`` of each function of ``spec`` when every one is an indicator of a
+    set (zero values: a feasibility problem, no function value to measure), else []."""
+    from sosalgo.classes import CLASSES
+
+    found = [f"{name} ({decl.cls})" for name, decl in spec.functions.items()
+             if CLASSES[decl.cls].zero_values]
+    return found if len(found) == len(spec.functions) else []
+
+
 def load_spec(path: str | Path) -> Spec:
     """Read and validate a YAML spec file."""
     return spec_from_text(read_spec_text(path), source=str(path))
@@ -466,7 +476,8 @@ class _Builder:
         """A sublinear spec: no expression uses kappa (undefined when m = 0), and the
         measure is a function value (the distance to a minimizer need not decrease; an
         operator spec has no function value: ``measure: distance``)."""
-        if spec.measure != "function" and not operator_functions(spec):
+        if spec.measure != "function" and not (operator_functions(spec)
+                                               or set_functions(spec)):
             raise self.fail("measure", "distance has no rate when m: 0 (the minimizer need "
                             "not be unique): use measure: function")
         found = [(f"parameters.{p}", e) for p, par in spec.parameters.items()
