@@ -403,10 +403,12 @@ def _linear_only(data: PEPData) -> list[int] | None:
 POLISH_FLOORS = (1e-12, 1e-9)  # a polished candidate's floor on S, relative to |S|
 
 
-def _polished(data: PEPData, ans: SDPAnswer) -> SDPAnswer | None:
+def _polished(data: PEPData, ans: SDPAnswer, tau: float) -> SDPAnswer | None:
+    """The measure's answer polished (:mod:`sosalgo.pep.polish`), its tau held at the
+    reported ``tau`` first; None when it does not converge."""
     from sosalgo.pep.polish import polished
 
-    return polished(data, ans) if ans.status == "solved" else None
+    return polished(data, ans, tau) if ans.status == "solved" else None
 
 
 def _prove_candidate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
@@ -450,7 +452,7 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
     best = ans
     units = _linear_only(data)
     inner = _interior_certificate(data, tau, scale) if exact and data.strong else None
-    polish = _polished(data, ans) if exact and units is None else None
+    polish = _polished(data, ans, tau) if exact and units is None else None
     for rel, precise in _ladder(st.steps, inner is not None) if exact else ():
         eps = rel / scale  # relative to tau: the measure is divided by tau
         cand = ans if rel == 0 else solve_pep(data, margin=eps, unit=tau if tau > 1e-200

@@ -9,9 +9,14 @@ answer is refined by Gauss-Newton on the square system
 
     S(tau, lambda) = U U',   c_F(tau, lambda)_i = 0 (tight i),
 
-unknowns tau, the multipliers of the pairs the answer uses and U (d x s), from the
-answer's own (tau, lambda) and the top s eigenvectors of S. Its solution has the other
-d - s eigenvalues of S zero to double precision, so the mix with an interior
+unknowns the multipliers of the pairs the answer uses and U (d x s), from the answer's
+own lambda and the top s eigenvectors of S (s at the largest gap of S's spectrum); when
+S's null space is the smaller (r = d - s < s), the same system as S(tau, lambda) V = 0
+with V (d x r) the null space (its gauge fixed by V0' V = I). tau is first held at the
+answer's reported value (a proof never goes below it, and a system with many more
+unknowns than equations, such as gradient descent's S of rank d - 1, would otherwise
+drift along its solutions), then left free. The solution has the other eigenvalues of S
+zero to double precision, so the mix with an interior
 certificate (or the margin) that makes S positive definite costs tau about 1e-16 |S|
 tr H instead of 1e-8. The result is only a candidate: the exact proof checks S ⪰ 0,
 lambda >= 0 and c_F >= 0 in rational and ball arithmetic as for any other candidate,
@@ -30,16 +35,16 @@ from sosalgo.pep.sdp import PEPData, SDPAnswer, residual, value_residual
 __all__ = ["polished"]
 
 SUPPORT = 1e-7  # a multiplier below this times the largest (in S's units) is dropped
-RANKS = (1e-5, 1e-3)  # S's rank: its eigenvalues above this times the largest
 TIGHT = 1e-6  # c_F_i below this times |S| is made exactly 0 (the worst case's F_i > 0)
-ITERATIONS = 8
+ITERATIONS = 12
+CONVERGED = 1e-13  # the system's residual, relative to |S|, of a polished answer
 MAX_ENTRIES = 10_000_000  # a Jacobian with more entries is not formed (80 MB): not polished
 CHUNK = 256  # pairs per dense block of Q_k
 
 
-def polished(data: PEPData, ans: SDPAnswer) -> SDPAnswer | None:
-    """``ans`` with (tau, lambda, S) refined as in the module, or None when no rank of
-    :data:`RANKS` converges to a residual below the answer's own."""
+def polished(data: PEPData, ans: SDPAnswer, tau: float | None = None) -> SDPAnswer | None:
+    """``ans`` with (tau, lambda, S) refined as in the module (``tau``: the value to hold
+    first, the answer's own by default), or None when the refinement does not converge."""
     if ans.lam is None or ans.S is None or ans.tau is None or np.any(data.consts()):
         return None
     w = data.w
@@ -47,94 +52,129 @@ def polished(data: PEPData, ans: SDPAnswer) -> SDPAnswer | None:
     top = float(np.abs(Sh).max())
     if not top > 0:
         return None
-    lam = ans.lam
+    supp = _support(data, ans.lam)
+    cF = value_residual(data, float(ans.tau), ans.lam) * data.v
+    tight = np.arange(data.st.nF) if data.st.free_values else \
+        np.flatnonzero(np.abs(cF) < TIGHT * top)
+    ev, vec = np.linalg.eigh(Sh)
+    s = _rank(ev)
+    d = data.st.d
+    if not 0 < s < d:
+        return None
+    sys_ = _System(data, supp, tight, top, vec[:, ev.argsort()[::-1][:s]] * np.sqrt(
+        np.sort(ev)[::-1][:s]) if s <= d - s else vec[:, ev.argsort()[:d - s]], s <= d - s)
+    if sys_.entries() > MAX_ENTRIES:
+        return None
+    held = float(ans.tau) if tau is None else tau
+    for fixed in (True, False):
+        got = sys_.solve(held, ans.lam, fixed)
+        if got is not None:
+            t, lam = got
+            return replace(ans, tau=t, lam=lam, S=residual(data, t, lam), primal=t,
+                           const=0.0)
+    return None
+
+
+def _support(data: PEPData, lam: np.ndarray) -> np.ndarray:
+    """The pairs whose lambda_k times its largest entry of Q_k (on H) is at least
+    SUPPORT times the largest such product."""
     weight = np.zeros_like(lam)
     used = np.flatnonzero(lam > 0)
-    for at in range(0, len(used), CHUNK):  # lambda_k times its largest entry of Q_k on H
+    for at in range(0, len(used), CHUNK):
         idx = used[at:at + CHUNK]
         weight[idx] = lam[idx] * np.abs(data.q(idx, scaled=True)).max(axis=(1, 2))
-    supp = np.flatnonzero(weight > SUPPORT * max(float(weight.max(initial=0.0)), 1e-300))
-    cF = value_residual(data, float(ans.tau), lam) * data.v
-    tight = np.flatnonzero(np.abs(cF) < TIGHT * top)
-    if data.st.free_values:
-        tight = np.arange(data.st.nF)
-    start = _residual_norm(data, float(ans.tau), lam, None, tight, top)
-    best = None
-    for rank_tol in RANKS:
-        got = _newton(data, ans, supp, tight, rank_tol, top)
-        if got is not None and (best is None or got[2] < best[2]):
-            best = got
-    if best is None or not best[2] < start:
-        return None
-    tau, new, _ = best
-    S = residual(data, tau, new)
-    return replace(ans, tau=tau, lam=new, S=S, primal=tau, const=0.0)
+    return np.flatnonzero(weight > SUPPORT * max(float(weight.max(initial=0.0)), 1e-300))
 
 
-def _residual_norm(data: PEPData, tau: float, lam: np.ndarray, U: np.ndarray | None,
-                   tight: np.ndarray, top: float) -> float:
-    """max |S - U U'| (scaled; U None: the negative part of S) and max |c_F| on ``tight``,
-    relative to |S|."""
-    w = data.w
-    Sh = residual(data, tau, lam) * np.outer(w, w)
-    if U is None:
-        ev = np.linalg.eigvalsh(Sh)
-        off = float(-ev.min(initial=0.0))
-    else:
-        off = float(np.abs(Sh - U @ U.T).max())
-    cF = value_residual(data, tau, lam) * data.v
-    return max(off, float(np.abs(cF[tight]).max(initial=0.0))) / top
+def _rank(ev: np.ndarray) -> int:
+    """S's numerical rank: the count above the largest ratio between consecutive
+    eigenvalues (those below 1e-16 of the largest counted as that)."""
+    top = float(ev.max(initial=0.0))
+    if not top > 0:
+        return 0
+    e = np.maximum(np.sort(ev)[::-1], 1e-16 * top)
+    return int(np.argmax(e[:-1] / e[1:])) + 1 if len(e) > 1 else 1
 
 
-def _newton(data: PEPData, ans: SDPAnswer, supp: np.ndarray, tight: np.ndarray,
-            rank_tol: float, top: float) -> tuple[float, np.ndarray, float] | None:
-    """(tau, lambda, relative residual) of Gauss-Newton on the module's system with
-    S's rank from ``rank_tol``; None when it does not converge or a multiplier of the
-    support turns negative."""
-    d, w = data.st.d, data.w
-    ev, vec = np.linalg.eigh(ans.S * np.outer(w, w))  # type: ignore[operator]
-    keep = ev > rank_tol * ev.max()
-    s = int(keep.sum())
-    nsv = d * (d + 1) // 2
-    if not 0 < s < d or (nsv + len(tight)) * (1 + len(supp) + d * s) > MAX_ENTRIES:
-        return None
-    U = vec[:, keep] * np.sqrt(ev[keep])
-    tau = float(ans.tau)  # type: ignore[arg-type]
-    lam = np.zeros_like(ans.lam)
-    lam[supp] = ans.lam[supp]  # type: ignore[index]
-    Qh = data.q(supp, scaled=True)
-    I0h = data.st.init_q.astype(float) * np.outer(w, w)
-    aT = data.a[supp][:, tight] * data.v[tight]  # (len supp, len tight)
-    iF = data.st.init_f.astype(float)[tight] * data.v[tight]
-    cols = np.concatenate([svec(I0h)[None], -svec(Qh)])  # tau, then lambda
-    fcols = np.concatenate([iF[None], -aT])
-    ucols = _outer_columns(U, d)
-    J = np.zeros((nsv + len(tight), 1 + len(supp) + d * s))
-    J[:nsv, :1 + len(supp)] = cols.T
-    J[nsv:, :1 + len(supp)] = fcols.T
-    J[:nsv, 1 + len(supp):] = -ucols.T
-    res, kept = np.inf, (tau, lam.copy())
-    for _ in range(ITERATIONS):
-        Sh = residual(data, tau, lam) * np.outer(w, w)
-        cF = value_residual(data, tau, lam) * data.v
-        r = np.concatenate([svec(Sh - U @ U.T), cF[tight]]) / top
-        new_res = float(np.abs(r).max())
-        if not new_res < 0.5 * res:
-            break
-        res, kept = new_res, (tau, lam.copy())
-        if res < 1e-15:
-            break
-        J[:nsv, 1 + len(supp):] = -_outer_columns(U, d).T
-        norm = np.linalg.norm(J, axis=0)
-        norm[norm == 0] = 1.0
-        step = np.linalg.lstsq(J / norm, -r * top, rcond=None)[0] / norm
-        tau += float(step[0])
-        lam[supp] += step[1:1 + len(supp)]
-        U = U + step[1 + len(supp):].reshape(d, s)
-    tau, lam = kept
-    if np.any(lam[supp] <= 0) or not np.isfinite(res):
-        return None
-    return tau, lam, _residual_norm(data, tau, lam, None, tight, top)
+class _System:
+    """The module's system on the pairs ``supp``: U U' form (``outer``, B = U, d x s) or
+    null-space form (B = V, d x r)."""
+
+    def __init__(self, data: PEPData, supp: np.ndarray, tight: np.ndarray, top: float,
+                 B: np.ndarray, outer: bool) -> None:
+        self.data, self.supp, self.tight, self.top = data, supp, tight, top
+        self.B0, self.outer = B, outer
+        w = data.w
+        self.ww = np.outer(w, w)
+        self.Qh = data.q(supp, scaled=True)
+        self.I0h = data.st.init_q.astype(float) * self.ww
+        self.fcols = np.concatenate([  # c_F's rows: tau, then lambda
+            (data.st.init_f.astype(float)[tight] * data.v[tight])[None],
+            -(data.a[supp][:, tight] * data.v[tight])])
+
+    def entries(self) -> int:
+        d, b = self.B0.shape
+        rows = (d * (d + 1) // 2 if self.outer else d * b + b * b) + len(self.tight)
+        return rows * (1 + len(self.supp) + d * b)
+
+    def residual(self, tau: float, lam: np.ndarray, B: np.ndarray) -> np.ndarray:
+        data = self.data
+        Sh = residual(data, tau, lam) * self.ww
+        cF = (value_residual(data, tau, lam) * data.v)[self.tight]
+        if self.outer:
+            body = svec(Sh - B @ B.T)
+        else:
+            body = np.concatenate([(Sh @ B).ravel(), self.top * (  # the gauge, unitless
+                self.B0.T @ B - np.eye(B.shape[1])).ravel()])
+        return np.concatenate([body, cF]) / self.top
+
+    def jacobian(self, tau: float, lam: np.ndarray, B: np.ndarray) -> np.ndarray:
+        d, b = B.shape
+        if self.outer:
+            coef = np.concatenate([svec(self.I0h)[None], -svec(self.Qh)]).T
+            dB = -_outer_columns(B, d).T
+        else:
+            Sh = residual(self.data, tau, lam) * self.ww
+            coef = np.concatenate([(self.I0h @ B).ravel()[None],
+                                   -(self.Qh @ B).reshape(len(self.supp), -1)]).T
+            coef = np.vstack([coef, np.zeros((b * b, coef.shape[1]))])
+            dB = np.vstack([np.kron(Sh, np.eye(b)), self.top * np.kron(self.B0.T, np.eye(b))])
+        top = np.hstack([coef, dB])
+        fl = np.hstack([self.fcols.T, np.zeros((len(self.tight), d * b))])
+        return np.vstack([top, fl]) / self.top
+
+    def solve(self, tau: float, lam0: np.ndarray, fixed: bool
+              ) -> tuple[float, np.ndarray] | None:
+        """Gauss-Newton from (tau, lam0 on the support, B0); (tau, lambda) when the
+        residual falls below CONVERGED with every multiplier of the support positive."""
+        lam = np.zeros_like(lam0)
+        lam[self.supp] = lam0[self.supp]
+        B, m = self.B0.copy(), len(self.supp)
+        for _ in range(ITERATIONS):
+            r = self.residual(tau, lam, B)
+            if float(np.abs(r).max()) < CONVERGED:
+                break
+            J = self.jacobian(tau, lam, B)
+            if fixed:  # tau held: its column out
+                J = J[:, 1:]
+            # the multipliers' columns in relative units (a small one changes little and
+            # stays positive), the others normalized
+            norm = np.linalg.norm(self.jacobian(tau, lam, B) if fixed else J, axis=0)
+            norm[norm == 0] = 1.0
+            unit = 1.0 / norm
+            unit[1:1 + m] = lam[self.supp]
+            if fixed:
+                unit = unit[1:]
+            step = np.linalg.lstsq(J * unit, -r, rcond=None)[0] * unit
+            if fixed:
+                step = np.concatenate([[0.0], step])
+            tau += float(step[0])
+            lam[self.supp] += step[1:1 + m]
+            B = B + step[1 + m:].reshape(B.shape)
+        r = self.residual(tau, lam, B)
+        if not float(np.abs(r).max()) < CONVERGED or np.any(lam[self.supp] <= 0):
+            return None
+        return tau, lam
 
 
 def _outer_columns(U: np.ndarray, d: int) -> np.ndarray:
