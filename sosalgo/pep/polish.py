@@ -150,10 +150,14 @@ class _System:
         lam = np.zeros_like(lam0)
         lam[self.supp] = lam0[self.supp]
         B, m = self.B0.copy(), len(self.supp)
+        last, slow = np.inf, 0
         for _ in range(ITERATIONS):
             r = self.residual(tau, lam, B)
-            if float(np.abs(r).max()) < CONVERGED:
+            now = float(np.abs(r).max())
+            slow = slow + 1 if now > 0.5 * last else 0
+            if now < CONVERGED or slow >= 2:  # converged, or not converging
                 break
+            last = now
             J = self.jacobian(tau, lam, B)
             if fixed:  # tau held: its column out
                 J = J[:, 1:]
