@@ -38,7 +38,7 @@ SUPPORT = 1e-7  # a multiplier below this times the largest (in S's units) is dr
 TIGHT = 1e-6  # c_F_i below this times |S| is made exactly 0 (the worst case's F_i > 0)
 ITERATIONS = 12
 CONVERGED = 1e-13  # the system's residual, relative to |S|, of a polished answer
-MAX_ENTRIES = 10_000_000  # a Jacobian with more entries is not formed (80 MB): not polished
+MAX_ENTRIES = 3_000_000  # a Jacobian with more entries is not formed (24 MB): not polished
 CHUNK = 256  # pairs per dense block of Q_k
 
 
