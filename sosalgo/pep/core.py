@@ -411,6 +411,19 @@ def _polished(data: PEPData, ans: SDPAnswer, tau: float) -> SDPAnswer | None:
     return polished(data, ans, tau) if ans.status == "solved" else None
 
 
+def _polish_tries(polish: SDPAnswer | None, toward: SDPAnswer, w: np.ndarray,
+                  raw: bool) -> list[SDPAnswer]:
+    """The polished answer's candidates: mixed toward ``toward`` (the interior
+    certificate or this margin's answer) when its S is positive definite, at each floor
+    of :data:`POLISH_FLOORS`; else, when ``raw``, as it is (rounding tau up may be all it
+    needs: S's null space meets I0)."""
+    if polish is None:
+        return []
+    if _min_eig(toward.S, w) > 0:
+        return [_mixed(polish, toward, w, rel_floor) for rel_floor in POLISH_FLOORS]
+    return [polish] if raw else []
+
+
 def _prove_candidate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
                      cand: SDPAnswer, tau: float, eps: float, mterms: list[Term],
                      iterms: list[Term], ex: Method | None, units: list[int] | None,
@@ -453,15 +466,15 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
     units = _linear_only(data)
     inner = _interior_certificate(data, tau, scale) if exact and data.strong else None
     polish = _polished(data, ans, tau) if exact and units is None else None
+    raw = True  # the polished answer as it is: tried once
     for rel, precise in _ladder(st.steps, inner is not None) if exact else ():
         eps = rel / scale  # relative to tau: the measure is divided by tau
         cand = ans if rel == 0 else solve_pep(data, margin=eps, unit=tau if tau > 1e-200
                                               else 1.0, precise=precise)
         if cand.status != "solved":
             continue
-        tries = [] if polish is None else [  # the polished answer toward an interior one
-            _mixed(polish, inner if inner is not None else cand, data.w, rel_floor)
-            for rel_floor in POLISH_FLOORS]
+        tries = _polish_tries(polish, inner if inner is not None else cand, data.w, raw)
+        raw = False
         tries.append(cand if inner is None else _mixed(cand, inner, data.w))
         for cand in tries:
             best = cand
