@@ -454,3 +454,18 @@ def test_set_range_replaces_the_design_box(tmp_path):
         lines = res.output.strip().splitlines()
         assert res.exit_code == 2 and len(lines) == 1, res.output
         assert "--set" in lines[0] and word in lines[0]
+
+
+def test_long_step_start_is_the_silver_pattern():
+    """The design's long-step start: Altschuler and Parrilo's silver steps 1 + rho^(nu(i)
+    - 1), rho = 1 + sqrt 2, nu(i) the 2-adic valuation of i = k + 1."""
+    import math
+
+    from sosalgo.design.steps import long_step
+
+    rho = 1 + math.sqrt(2)
+    for i in range(1, 33):
+        nu = 0
+        while i % 2 ** (nu + 1) == 0:
+            nu += 1
+        assert long_step(i - 1) == pytest.approx(1 + rho ** (nu - 1), rel=1e-14)
