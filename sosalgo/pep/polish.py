@@ -37,7 +37,9 @@ __all__ = ["polished"]
 SUPPORT = 1e-7  # a multiplier below this times the largest (in S's units) is dropped
 TIGHT = 1e-6  # c_F_i below this times |S| is made exactly 0 (the worst case's F_i > 0)
 ITERATIONS = 12
-CONVERGED = 1e-13  # the system's residual, relative to |S|, of a polished answer
+CONVERGED = 1e-13  # the system's residual, relative to |S|: the iterations stop there
+ACCEPTED = 1e-10  # a polished answer's residual at most this (the solver's is about 1e-8;
+# OGM at N = 50 stalls near 1e-12, the mix with an interior certificate covers the rest)
 MAX_ENTRIES = 3_000_000  # a Jacobian with more entries is not formed (24 MB): not polished
 CHUNK = 256  # pairs per dense block of Q_k
 
@@ -145,8 +147,9 @@ class _System:
 
     def solve(self, tau: float, lam0: np.ndarray, fixed: bool
               ) -> tuple[float, np.ndarray] | None:
-        """Gauss-Newton from (tau, lam0 on the support, B0); (tau, lambda) when the
-        residual falls below CONVERGED with every multiplier of the support positive."""
+        """Gauss-Newton from (tau, lam0 on the support, B0) until the residual is below
+        CONVERGED or stalls; (tau, lambda) when it ends below ACCEPTED with every
+        multiplier of the support positive."""
         lam = np.zeros_like(lam0)
         lam[self.supp] = lam0[self.supp]
         B, m = self.B0.copy(), len(self.supp)
@@ -176,7 +179,7 @@ class _System:
             lam[self.supp] += step[1:1 + m]
             B = B + step[1 + m:].reshape(B.shape)
         r = self.residual(tau, lam, B)
-        if not float(np.abs(r).max()) < CONVERGED or np.any(lam[self.supp] <= 0):
+        if not float(np.abs(r).max()) < ACCEPTED or np.any(lam[self.supp] <= 0):
             return None
         return tau, lam
 
