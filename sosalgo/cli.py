@@ -89,8 +89,9 @@ def set_option(fn: Callable[..., Any]) -> Callable[..., Any]:
     return click.option(
         "--set", "overrides", multiple=True, metavar="NAME=EXPR",
         help="Fix a parameter of the spec, e.g. --set h=1/L (repeatable; an expression of "
-             "m, L, kappa and the other parameters, parsed like the spec's). The result "
-             "records it in 'set'; verify applies it again.")(fn)
+             "m, L, kappa and the other parameters, parsed like the spec's); "
+             "--set h.range=[0, 7/L] replaces the range a design searches instead. The "
+             "result records it in 'set'; verify applies it again.")(fn)
 
 
 def details_option(fn: Callable[..., Any]) -> Callable[..., Any]:

@@ -423,3 +423,49 @@ def test_a_model_that_disagrees_with_pep_is_set_aside():
         "E": sp.Matrix([[1]])})
     steps_evaluator(spec, text, None, 2, prob)
     assert prob.model is None and "differs from sosalgo pep" in prob.reason
+
+
+def test_set_range_replaces_the_design_box(tmp_path):
+    """--set h.range=[LO, HI] replaces the box a design searches: one step of gradient
+    descent on L-smooth convex f has the worst case max(L/(2(2h + 1)), L(1 - h)^2/2)
+    (h in units of 1/L), decreasing on [0, 1], so with the box [0, 1/L] the optimum is
+    h = 1, 1/6: certified above it, proven below it; verify re-applies the range (exit 0).
+    A malformed range or an unknown parameter: exit 2, one line naming the option."""
+    from click.testing import CliRunner
+
+    from sosalgo.cli import cli
+
+    runner = CliRunner()
+    out = tmp_path / "o"
+    res = runner.invoke(cli, ["design", str(spec_path("gradient-schedule")), "--steps", "1",
+                              "--set", "h.range=[0, 1/L]", "--time-limit", "60", "--out",
+                              str(out), "--json", "--quiet", "--workers", "1"])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    assert doc["set"] == {"h.range": "[0, 1/L]"}
+    assert float(doc["schedule"]["h"][0]) == pytest.approx(1.0, abs=1e-4)
+    assert doc["lower_bound"] <= 1 / 6 <= doc["tau_certified"] <= (1 / 6) * (1 + 1e-4)
+    good = tmp_path / "good.json"
+    good.write_text(json.dumps(doc))
+    assert runner.invoke(cli, ["verify", str(good)]).exit_code == 0
+    for bad, word in (("h.range=[0]", "[LO, HI]"), ("q.range=[0, 1]", "unknown parameter")):
+        res = runner.invoke(cli, ["design", str(spec_path("gradient-schedule")), "--steps",
+                                  "1", "--set", bad, "--out", str(out)])
+        lines = res.output.strip().splitlines()
+        assert res.exit_code == 2 and len(lines) == 1, res.output
+        assert "--set" in lines[0] and word in lines[0]
+
+
+def test_long_step_start_is_the_silver_pattern():
+    """The design's long-step start: Altschuler and Parrilo's silver steps 1 + rho^(nu(i)
+    - 1), rho = 1 + sqrt 2, nu(i) the 2-adic valuation of i = k + 1."""
+    import math
+
+    from sosalgo.design.steps import long_step
+
+    rho = 1 + math.sqrt(2)
+    for i in range(1, 33):
+        nu = 0
+        while i % 2 ** (nu + 1) == 0:
+            nu += 1
+        assert long_step(i - 1) == pytest.approx(1 + rho ** (nu - 1), rel=1e-14)

@@ -521,13 +521,18 @@ def _min_eig(S: np.ndarray, w: np.ndarray) -> float:
     return float(np.linalg.eigvalsh(S * np.outer(w, w))[0])
 
 
-def _mixed(cand: SDPAnswer, inner: SDPAnswer, w: np.ndarray) -> SDPAnswer:
+def _mixed(cand: SDPAnswer, inner: SDPAnswer, w: np.ndarray,
+           floor_rel: float | None = None) -> SDPAnswer:
     """cand mixed with the interior certificate: (tau, lambda) = (1 - theta) cand +
     theta inner (S and c_F are affine in them), theta the smallest that makes the scaled S
     clearly positive definite in floating point (min eig at least cand.s
-    deficit): tau grows by theta (tau_inner - tau). cand itself when already so."""
+    deficit): tau grows by theta (tau_inner - tau). cand itself when already so.
+    ``floor_rel``: that floor relative to the largest entry of the scaled S (a polished
+    candidate, :mod:`sosalgo.pep.polish`, is that accurate); else 1e-12, absolute for
+    entries below 1."""
     a, b = _min_eig(cand.S, w), _min_eig(inner.S, w)  # type: ignore[arg-type]
-    floor = 1e-12 * max(1.0, float(np.abs(cand.S * np.outer(w, w)).max()))  # type: ignore[operator]
+    top = float(np.abs(cand.S * np.outer(w, w)).max())  # type: ignore[operator]
+    floor = 1e-12 * max(1.0, top) if floor_rel is None else floor_rel * top
     if a >= floor or b <= 0:
         return cand
     theta = min(1.0, 2 * (floor - a) / (b - a))
@@ -576,6 +581,57 @@ def _linear_only(data: PEPData) -> list[int] | None:
     return [c for c, v in enumerate(linear_only(data)) if v == 0] or None
 
 
+POLISH_FLOORS = (1e-12, 1e-9)  # a polished candidate's floor on S, relative to |S|
+
+
+def _polished(data: PEPData, ans: SDPAnswer, tau: float) -> SDPAnswer | None:
+    """The measure's answer polished (:mod:`sosalgo.pep.polish`), its tau held at the
+    reported ``tau`` first; None when it does not converge."""
+    from sosalgo.pep.polish import polished
+
+    return polished(data, ans, tau) if ans.status == "solved" else None
+
+
+def _polish_tries(polish: SDPAnswer | None, toward: SDPAnswer, w: np.ndarray,
+                  raw: bool) -> list[SDPAnswer]:
+    """The polished answer's candidates: mixed toward ``toward`` (the interior
+    certificate or this margin's answer) when its S is positive definite, at each floor
+    of :data:`POLISH_FLOORS`; else, when ``raw``, as it is (rounding tau up may be all it
+    needs: S's null space meets I0)."""
+    if polish is None:
+        return []
+    if _min_eig(toward.S, w) > 0:
+        return [_mixed(polish, toward, w, rel_floor) for rel_floor in POLISH_FLOORS]
+    return [polish] if raw else []
+
+
+def _prove_candidate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
+                     cand: SDPAnswer, tau: float, eps: float, mterms: list[Term],
+                     iterms: list[Term], ex: Method | None, units: list[int] | None,
+                     cert: dict[str, Any]) -> bool:
+    """Prove one candidate certificate exactly; ``cert`` updated (its ``proof``, and the
+    proven bound when proven)."""
+    from sosalgo.pep.exact import prove_certificate
+
+    Sh = cand.S * np.outer(data.w, data.w)  # type: ignore[operator]
+    if not units and np.linalg.eigvalsh(Sh)[0] < -1e-9 * max(1.0, float(np.abs(Sh).max())):
+        cert["proof"] = {"proven": False, "tau_proven": None,
+                         "detail": "floating-point pre-check: S is not PSD (scaled)"}
+        return False  # the exact proof would fail: the next candidate
+    # at least the reported tau (its float value, up to the solver's accuracy)
+    proof = prove_certificate(spec, kappa, data.st, mterms, iterms,
+                              max(cand.tau + cand.const, tau), cand.lam, data.w, ex,
+                              units=units)
+    if mt.bound is not None:  # what the proof is about (a mingrad measure's bound)
+        proof["measure_bound"] = mt.bound
+    cert["proof"] = proof
+    if proof["proven"]:
+        cert.update(check_kind="exact (rational and ball arithmetic)",
+                    tau_proven=proof["tau_proven"], tau=cand.tau + cand.const,
+                    margin=eps * tau)
+    return bool(proof["proven"])
+
+
 def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
                  ans: SDPAnswer, exact: bool, mterms: list[Term],
                  iterms: list[Term], ex: Method | None = None) -> dict[str, Any]:
@@ -591,6 +647,8 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
     raw: list[tuple[SDPAnswer, float]] = []  # the margin solves before any mixing
     units = _linear_only(data)
     inner = _interior_certificate(data, tau, scale) if exact and data.strong else None
+    polish = _polished(data, ans, tau) if exact and units is None else None
+    polish_raw = True  # the polished answer as it is: tried once
     for rel, precise in _ladder(st.steps, inner is not None) if exact else ():
         eps = rel / scale  # relative to tau: the measure is divided by tau
         cand = ans if rel == 0 else solve_pep(data, margin=eps, unit=tau if tau > 1e-200
@@ -599,27 +657,16 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
             continue  # not solved, or "solved" at twice tau or more (a solver's bad answer)
         if rel > 0:
             raw.append((cand, eps))
-        if inner is not None:
-            cand = _mixed(cand, inner, data.w)
-        best = cand
-        from sosalgo.pep.exact import prove_certificate
-
-        Sh = cand.S * np.outer(data.w, data.w)  # type: ignore[operator]
-        if not units and np.linalg.eigvalsh(Sh)[0] < -1e-9 * max(1.0, float(np.abs(Sh).max())):
-            cert["proof"] = {"proven": False, "tau_proven": None,
-                             "detail": "floating-point pre-check: S is not PSD (scaled)"}
-            continue  # the exact proof would fail: the next margin
-        # at least the reported tau (its float value, up to the solver's accuracy)
-        proof = prove_certificate(spec, kappa, st, mterms, iterms,
-                                  max(cand.tau + cand.const, tau), cand.lam, data.w, ex,
-                                  units=units)
-        if mt.bound is not None:  # what the proof is about (a mingrad measure's bound)
-            proof["measure_bound"] = mt.bound
-        cert["proof"] = proof
-        if proof["proven"]:
-            cert.update(check_kind="exact (rational and ball arithmetic)",
-                        tau_proven=proof["tau_proven"], tau=cand.tau + cand.const,
-                        margin=eps * tau)
+        tries = _polish_tries(polish, inner if inner is not None else cand, data.w,
+                              polish_raw)
+        polish_raw = False
+        tries.append(cand if inner is None else _mixed(cand, inner, data.w))
+        for cand in tries:
+            best = cand
+            if _prove_candidate(spec, kappa, mt, data, cand, tau, eps, mterms, iterms, ex,
+                                units, cert):
+                break
+        if cert.get("tau_proven"):
             break
     # the measure's own answer, then each margin solve as it came (S >= its margin but
     # on the free directions, which no margin and no mix with an interior certificate

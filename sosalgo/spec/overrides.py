@@ -1,17 +1,21 @@
 """Parameter overrides: ``--set NAME=EXPR`` fixes a parameter. The spec's text is
 rewritten with ``NAME: EXPR`` (a tie, so the parameter is neither analysed at its
 ``value`` nor free in a design), parsed by the same expression parser as the spec.
+``--set NAME.range=[LO, HI]`` instead replaces the range a design searches (the
+parameter keeps its value and stays free; a per-step parameter stays per step).
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from typing import Any
 
 from sosalgo.errors import InputError
 
 __all__ = ["apply_overrides", "parse_set_options", "same_overrides_applied"]
 
 MAX_OVERRIDES = 64
+RANGE = ".range"  # --set NAME.range=[LO, HI]: the design range of NAME
 
 
 def parse_set_options(values: Sequence[str] | Mapping[str, str] | None) -> dict[str, str]:
@@ -61,6 +65,9 @@ def apply_overrides(text: str, overrides: Mapping[str, str], source: str) -> str
     names = (frozenset(BASE_NAMES) | frozenset(base.parameters)
              | frozenset(index_names(base.parameters)) | frozenset(sequence_names(base.sequences)))
     for name, expr in overrides.items():
+        if name.endswith(RANGE):
+            _set_range(params, base, name, expr, names)
+            continue
         if name not in base.parameters:
             known = ", ".join(base.parameters) or "none"
             raise InputError(f"--set {name}: unknown parameter of {source} (parameters: "
@@ -82,6 +89,34 @@ def apply_overrides(text: str, overrides: Mapping[str, str], source: str) -> str
         which = ", ".join(overrides)
         raise InputError(f"--set {which}: {exc.field}: {exc.message}") from None
     return new
+
+
+def _set_range(params: dict, base: Any, name: str, expr: str, names: frozenset) -> None:
+    """``params`` with the range of ``NAME`` (``name`` is ``NAME.range``) set to the two
+    expressions of ``expr`` (``[LO, HI]``); one InputError naming the option else."""
+    from sosalgo.kernel.expr import ExprError, parse_tree
+
+    pname = name[:-len(RANGE)]
+    if pname not in base.parameters:
+        known = ", ".join(base.parameters) or "none"
+        raise InputError(f"--set {name}: unknown parameter {pname!r} of {base.source} "
+                         f"(parameters: {known})")
+    text = expr.strip()
+    ends = [e.strip() for e in text[1:-1].split(",")] if text[:1] + text[-1:] == "[]" else []
+    if len(ends) != 2 or not all(ends):
+        raise InputError(f"--set {name}: expected [LO, HI], e.g. --set {pname}.range=[0, 7/L]")
+    try:
+        for e in ends:
+            parse_tree(e, names)
+    except ExprError as exc:
+        raise InputError(f"--set {name}: {exc}") from None
+    raw = params.get(pname)
+    entry = dict(raw) if isinstance(raw, dict) else {"value": raw}
+    if isinstance(raw, list) or entry.get("value") is None:
+        raise InputError(f"--set {name}: {pname} has no value to keep (give it a value "
+                         f"in the spec, or fix it with --set {pname}=EXPR)")
+    entry["range"] = ends
+    params[pname] = entry
 
 
 def _schedule(name: str, expr: str) -> str | list[str]:
