@@ -115,12 +115,17 @@ def _check_against_pepit(case, index, tmp_path):
     committed = read_results()[(case.example, index)]
     pepit = float(committed["pepit_tau"])
     proven = _proven(case, index, tmp_path)
-    assert proven >= pepit - 1e-7 * abs(pepit), (proven, pepit)  # a rate may be < 0
-    assert abs(proven - pepit) <= max(1e-6 * abs(pepit), ZERO_ABS if case.zero else 0), \
-        (proven, pepit)
-    if case.tight[index] and committed["theoretical_tau"]:
-        theo = float(committed["theoretical_tau"])
-        assert proven >= theo - 1e-12 * abs(theo)
+    tight = (float(committed["theoretical_tau"])
+             if case.tight[index] and committed["theoretical_tau"] else None)
+    # where the theoretical value is tight it is the true worst case, and PEPit's float
+    # an approximation of it (its solver's accuracy): either is a reference
+    refs = [pepit] if tight is None else [pepit, tight]
+    low = min(refs)
+    assert proven >= low - 1e-7 * abs(low), (proven, refs)  # a rate may be < 0
+    assert any(abs(proven - r) <= max(1e-6 * abs(r), ZERO_ABS if case.zero else 0)
+               for r in refs), (proven, refs)
+    if tight is not None:
+        assert proven >= tight - 1e-12 * abs(tight)
 
 
 FAST = [c for c in EXPRESSED if c.fast]
@@ -163,24 +168,9 @@ KNOWN_GAPS = {
        "PEPit's value (Clarabel, default tolerances) is above its own value at tolerance "
        "1e-12 by 1.6e-7: ours is proven between the two "
        "(test_proven_against_pepit_at_tight_tolerance)" for i in range(2)},
-    **{key: "PEPit's value (Clarabel) is above the exact worst case (tight: Halpern "
-            "(2/(n + 1))^2, Lieder; 1/n^2, Kim; (2 mu/((1 + 2 mu)^n - 1))^2, Park and "
-            "Ryu) by more than 1e-7: ours is proven between "
-            "the two (test_proven_against_tight_closed_form)"
-       for key in [("fixed_point_problems/halpern_iteration", 0),
-                   ("fixed_point_problems/halpern_iteration", 1),
-                   ("low_dimensional_worst_cases_scenarios/halpern_iteration", 1),
-                   ("monotone_inclusions_variational_inequalities/accelerated_proximal_point",
-                    0),
-                   ("monotone_inclusions_variational_inequalities/"
-                    "optimal_strongly_monotone_proximal_point", 0),
-                   ("composite_convex_minimization/proximal_gradient_quadratics", 1),
-                   ("composite_convex_minimization/proximal_gradient_quadratics", 2)]},
-    **{("unconstrained_convex_minimization/gradient_descent_quadratics", i):
-       "PEPit's value (Clarabel) is below the exact worst case max over q in [mu, L] of "
-       "q/2 (1 - gamma q)^(2n) (attained by a one-dimensional quadratic, our verified "
-       "witness) by 1.7e-5 to 7.4e-5: ours is proven and within 1e-6 of the closed form "
-       "(test_proven_against_tight_closed_form)" for i in range(3)},
+    ("low_dimensional_worst_cases_scenarios/dykstra", 0):
+        "tau agrees with PEPit within 9e-7, but the proven bound is 1.2e-6 above PEPit's "
+        "value (no closed form to judge which is nearer the worst case)",
 }
 REST = [pytest.param(c, i, id=f"{c.example}[{i}]", marks=(
             [pytest.mark.xfail(strict=True, reason=KNOWN_GAPS[(c.example, i)])]

@@ -243,6 +243,25 @@ def run(quick: bool = False, restart: bool = False, only: str | None = None,
     write_docs()
 
 
+def rejudge(path: Path = RESULTS) -> None:
+    """The verdicts of every committed row again, from its stored values, by the current
+    :func:`verdicts` (nothing is run)."""
+    cases = {c.example: c for c in load_all()}
+    rows = read_results(path)
+    for (example, index), row in rows.items():
+        case = cases.get(example)
+        if case is None or index >= len(case.arguments):
+            continue
+        pepit = {"tau": _number(row["pepit_tau"]), "theoretical": _number(row["theoretical_tau"])}
+        ours = {"tau": _number(row["tau"]), "tau_proven": _number(row["tau_proven"])}
+        row.update(verdicts(case, index, pepit, ours))
+    write_results(rows, path)
+
+
+def _number(cell: str) -> float | None:
+    return float(cell) if cell not in ("", None) else None
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(prog="python -m bench.conformance")
     parser.add_argument("--quick", action="store_true", help="the examples' defaults only")
@@ -252,8 +271,12 @@ def main() -> None:
                         help="also run PEPit alone on the examples not expressed")
     parser.add_argument("--table", action="store_true",
                         help="only rewrite the docs table from the case files and results")
+    parser.add_argument("--rejudge", action="store_true",
+                        help="only recompute the verdicts of the committed rows")
     args = parser.parse_args()
-    if args.table:
+    if args.rejudge:
+        rejudge()
+    if args.table or args.rejudge:
         from bench.conformance.table import write_docs
 
         write_docs()
