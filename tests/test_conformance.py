@@ -154,9 +154,6 @@ KNOWN_GAPS = {
        for i in range(3)},
     ("composite_convex_minimization/frank_wolfe", 0): _LOOSE.format("2.3e-4"),
     ("composite_convex_minimization/frank_wolfe", 1): _LOOSE.format("5.2e-4"),
-    **{("unconstrained_convex_minimization/accelerated_proximal_point", i):
-       "tau agrees, no exact proof: the spec's extra call (so that f(x_0) may enter the "
-       "initial condition) has subgradients nothing else uses" for i in range(3)},
     **{("unconstrained_convex_minimization/inexact_accelerated_gradient", i):
        "PEPit's value (Clarabel, default tolerances) is above its own value at tolerance "
        "1e-12 by more than 1e-7: ours is proven between the two "
@@ -168,9 +165,9 @@ KNOWN_GAPS = {
        "PEPit's value (Clarabel, default tolerances) is above its own value at tolerance "
        "1e-12 by 1.6e-7: ours is proven between the two "
        "(test_proven_against_pepit_at_tight_tolerance)" for i in range(2)},
-    ("low_dimensional_worst_cases_scenarios/dykstra", 0):
-        "tau agrees with PEPit within 9e-7, but the proven bound is 1.2e-6 above PEPit's "
-        "value (no closed form to judge which is nearer the worst case)",
+    **{("low_dimensional_worst_cases_scenarios/dykstra", i):
+       "tau agrees with PEPit within 1e-6, but the proven bound is 1.2e-6 above PEPit's "
+       "value (no closed form to judge which is nearer the worst case)" for i in range(2)},
 }
 REST = [pytest.param(c, i, id=f"{c.example}[{i}]", marks=(
             [pytest.mark.xfail(strict=True, reason=KNOWN_GAPS[(c.example, i)])]
