@@ -37,9 +37,10 @@ from typing import Any
 
 import sympy as sp
 
-__all__ = ["FLOW_KEY", "flow_spec"]
+from sosalgo.spec.types import FLOW_KEY
 
-FLOW_KEY = "flow"
+__all__ = ["flow_spec"]
+
 _FIELDS = {"time", "velocity", "acceleration", "lyapunov", "question"}
 _VECTORS = ("x", "v", "g")
 _QUESTIONS = ("decrease", "rate")

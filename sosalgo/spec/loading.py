@@ -32,9 +32,9 @@ import yaml
 from sosalgo.kernel.expr import Expr, ExprError, constant_value, parse_tree
 from sosalgo.kernel.expr.tree import Measure, check_measure, measure
 from sosalgo.spec.checks import run_checks
-from sosalgo.spec.flow import FLOW_KEY, flow_spec
 from sosalgo.spec.types import (
     BASE_NAMES,
+    FLOW_KEY,
     MAX_FILE_BYTES,
     MAX_FUNCTIONS,
     MAX_KAPPA_POINTS,
@@ -292,7 +292,7 @@ class _Builder:
 
     def pep_terms(self, raw: object) -> dict[str, str]:
         """``pep: {measure: TERMS, initial: TERMS, constraints: [RELATION, ...]}`` (the
-        terms are parsed by ``sosalgo pep``, :mod:`sosalgo.pep.terms`, which names
+        terms are parsed by ``sosalgo pep``, :mod:`sosalgo.worstcase.terms`, which names
         pep.measure, pep.initial or pep.constraints[i]; constraints are kept as a list)."""
         if raw is None:
             return {}
@@ -319,6 +319,8 @@ class _Builder:
         if not isinstance(data, dict):
             raise self.fail("", "a spec must be a YAML mapping (name, parameters, matrices, ...)")
         if FLOW_KEY in data:  # a continuous-time question: its equivalent method
+            from sosalgo.spec.flow import flow_spec  # sympy: only for flow specs
+
             data = flow_spec(data, self.fail)
         for key in data:
             if not isinstance(key, str) or key not in TOP_KEYS:
@@ -588,7 +590,7 @@ class _Builder:
         reference vector as rational coefficients on the step's answers (one per call;
         default: the call's own answer), and a call ``{function: f, gradient_of: j}``
         whose answer is the true subgradient of call j's point (an earlier inexact
-        proximal call of f in the step): no point of its own (:mod:`sosalgo.pep.inexact`).
+        proximal call of f in the step): no point of its own (:mod:`sosalgo.worstcase.inexact`).
         Both are 0-based here."""
         refs: dict[int, tuple[Fraction, ...]] = {}
         twins: dict[int, int] = {}
@@ -656,7 +658,7 @@ class _Builder:
                matrices: dict[str, ExprMatrix], output: int | None,
                special: object) -> dict[str, Any] | None:
         """``mirror: {kernel: {class: NAME, ...}, set: BOOL}``: Bregman steps with the
-        kernel h (:mod:`sosalgo.pep.mirror`): one function, one call, one state (the
+        kernel h (:mod:`sosalgo.worstcase.mirror`): one function, one call, one state (the
         mirror variable). A class relative to a kernel is refused without it."""
         from sosalgo.classes import CLASSES
 

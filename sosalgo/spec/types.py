@@ -33,6 +33,7 @@ VARIES = "varies with k: use `sosalgo pep {source} --steps N`"
 MATRIX_NAMES = ("A", "B", "C", "E")
 ORACLE_MATRIX_NAMES = ("A", "B", "C", "D", "E")  # D optional; E absent with ``output``
 MEASURES = ("function", "distance")
+FLOW_KEY = "flow"  # a continuous-time question (:mod:`sosalgo.spec.flow`)
 TOP_KEYS = {
     "name", "description", "parameters", "matrices", "references", "kappa", "m", "certificate",
     "functions", "oracles", "measure", "output", "L", "initial_state", "sequences", "pep",
@@ -171,19 +172,19 @@ class Spec:
     inexact: dict[int, Expr] = field(default_factory=dict)
     # linear minimization calls (``oracles: [f, {function: h, lmo: 1}]``): call index
     # (0-based) -> the index of the gradient call whose answer g is the direction; the call
-    # answers u = s - y with s in argmin over the set of <g, s> (:mod:`sosalgo.pep.lmo`)
+    # answers u = s - y with s in argmin over the set of <g, s> (:mod:`sosalgo.worstcase.lmo`)
     lmo: dict[int, int] = field(default_factory=dict)
     # an inexact proximal call's reference vector (``relative_to``: rational coefficients
     # on the step's answers) and the calls whose answer is an inexact call's true
-    # subgradient (``gradient_of``), 0-based (:mod:`sosalgo.pep.inexact`)
+    # subgradient (``gradient_of``), 0-based (:mod:`sosalgo.worstcase.inexact`)
     error_refs: dict[int, tuple[Any, ...]] = field(default_factory=dict)
     twins: dict[int, int] = field(default_factory=dict)
     # ``line_search: gamma``: the step parameter of x+ = x - gamma u chosen at every step by
-    # exact line search (``sosalgo pep`` only; :mod:`sosalgo.pep.linesearch`); None: none
+    # exact line search (``sosalgo pep`` only; :mod:`sosalgo.worstcase.linesearch`); None: none
     line_search: str | None = None
     # ``mirror: {kernel: {class: ...}, set: true}``: the state and the call points are
     # mirror variables grad h(x) (+ a normal vector of the set): Bregman steps, ``sosalgo
-    # pep`` only (:mod:`sosalgo.pep.mirror`); {"kernel": FunctionDecl, "set": bool}
+    # pep`` only (:mod:`sosalgo.worstcase.mirror`); {"kernel": FunctionDecl, "set": bool}
     mirror: dict[str, Any] | None = None
     output: int | None = None  # 0-based oracle index of ``output: y<i>``; None: x = E xi
     measure: str = "function"
@@ -201,9 +202,9 @@ class Spec:
     # sosalgo.steps binds such a spec step by step
     sequences: dict[str, SequenceDecl] = field(default_factory=dict)
     time_varying: bool = False
-    # ``pep: {measure, initial}``: the PEP's default terms (sosalgo.pep.terms), when the
+    # ``pep: {measure, initial}``: the PEP's default terms (sosalgo.worstcase.terms), when the
     # command line gives none; ``constraints``: a list of relations on the instance
-    # (sosalgo.pep.constraints)
+    # (sosalgo.worstcase.constraints)
     pep: dict[str, Any] = field(default_factory=dict)
     # ``finite_sum:`` a method on a finite sum, one function drawn per step
     # (:class:`sosalgo.spec.finite_sum.FiniteSum`; ``sosalgo pep`` only); None: none
