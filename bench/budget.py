@@ -28,7 +28,7 @@ QUICK_PEP = (("gradient", "dist", (10, 50), False), ("nesterov", None, (20,), Fa
 
 PEP_CHILD = """
 import json, sys, time
-from sosalgo.pep.core import pep, pep_problem
+from sosalgo.worstcase.core import pep, pep_problem
 from sosalgo.spec import load_spec
 spec, N = load_spec(f"specs/{sys.argv[1]}.yaml"), int(sys.argv[2])
 measure, witness = sys.argv[3] or None, sys.argv[4] == "1"

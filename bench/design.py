@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 from tempfile import TemporaryDirectory
 
-from sosalgo.design import design
+from sosalgo.design_search import design
 from sosalgo.spec import load_spec
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -34,7 +34,7 @@ class Spy:
         solves[str(sol.status)] += 1
         return sol
 clarabel.DefaultSolver = Spy
-from sosalgo.pep import pep
+from sosalgo.worstcase import pep
 spec, kappa, N, measure, exact, witness = json.loads(sys.argv[1])
 t0 = time.perf_counter()
 r = pep(f"specs/{spec}.yaml", kappa, N, measure, exact=exact, witness=witness)

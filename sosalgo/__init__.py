@@ -10,39 +10,12 @@ Everything is imported on first use, so ``import sosalgo`` stays fast.
 
 from __future__ import annotations
 
-import sys
-import types
 from importlib import import_module
 from typing import Any
 
 from sosalgo.spec.checks import provide_checks
 
 __version__ = "0.1.0"
-
-
-class _CallableModule(types.ModuleType):
-    """``sosalgo.design`` and ``sosalgo.verify`` are both submodules and API functions: the
-    module objects stay modules (attributes, ``import sosalgo.verify.exact``) and calling
-    them calls :func:`sosalgo.api.design` / :func:`sosalgo.api.verify`."""
-
-    def __call__(self, *args: Any, **kwargs: Any) -> Any:
-        api = import_module("sosalgo.api")
-        return getattr(api, self.__name__.rsplit(".", 1)[1])(*args, **kwargs)
-
-
-_CALLABLE = ("design", "verify", "pep")
-
-
-class _Package(types.ModuleType):
-    """The package module: makes the design/verify submodules callable when imported."""
-
-    def __setattr__(self, name: str, value: Any) -> None:
-        if name in _CALLABLE and type(value) is types.ModuleType:
-            value.__class__ = _CallableModule
-        super().__setattr__(name, value)
-
-
-sys.modules[__name__].__class__ = _Package
 
 
 def _spec_checks() -> dict[str, Any]:
@@ -80,26 +53,27 @@ _EXPORTS = {
     "read_result": "sosalgo.documents",
     "InputError": "sosalgo.errors",
     "set_max_memory": "sosalgo.kernel.budget",
-    "prove_bound": "sosalgo.design",
-    "design": "sosalgo.design",  # the module, callable (see _CallableModule)
-    "verify": "sosalgo.verify",
-    "pep": "sosalgo.pep",  # the package, callable: sosalgo.pep(...) -> PEPResult
+    "prove_bound": "sosalgo.design_search",
+    "design": "sosalgo.api",
+    "verify": "sosalgo.api",
+    "pep": "sosalgo.api",
+    "verify_exact": "sosalgo.proofs.exact",
+    "simulate_check": "sosalgo.proofs",
+    "write_certificate": "sosalgo.proofs",
     "pep_run": "sosalgo.runs.pep",
     "pareto_run": "sosalgo.runs.pareto",
     "steps_design_run": "sosalgo.runs.steps_design",
     "noise": "sosalgo.api",
     "AnalysisResult": "sosalgo.analysis",
     "analyze_algorithm": "sosalgo.analysis",
-    "DesignResult": "sosalgo.design",
-    "ExactResult": "sosalgo.verify.exact",
+    "DesignResult": "sosalgo.design_search",
+    "ExactResult": "sosalgo.proofs.exact",
 }
 
 __all__ = ["__version__", *_EXPORTS]
 
 
 def __getattr__(name: str) -> Any:
-    if name in _CALLABLE:
-        return import_module(f"sosalgo.{name}")  # the import sets the (callable) attribute
     if name in _EXPORTS:
         value = getattr(import_module(_EXPORTS[name]), name)
         globals()[name] = value

@@ -24,7 +24,7 @@ from sosalgo.spec import Spec, load_spec
 
 if TYPE_CHECKING:  # pragma: no cover
     from sosalgo.analysis import AnalysisResult
-    from sosalgo.design import DesignResult
+    from sosalgo.design_search import DesignResult
 
 __all__ = ["analyze", "as_spec", "copy_examples", "design", "example", "lmi", "noise",
            "pep", "verify"]
@@ -112,19 +112,19 @@ def design(
     spec: Spec | str | Path, kappa: float | Sequence[float] | None = None, **options: Any
 ) -> DesignResult | list[DesignResult]:
     """Design the free parameters by sum-of-squares (eq. 17) at each kappa; ``options``
-    are those of :func:`sosalgo.design.design` (free, scalarize, order, gap, time_limit,
+    are those of :func:`sosalgo.design_search.design` (free, scalarize, order, gap, time_limit,
     method, family), checked as ``sosalgo design`` checks them (ValueError).
     ``objective="noise", max_rate=R`` (or ``max_noise=G``) designs with the noise
-    sensitivity instead (:func:`sosalgo.design.objectives.objective_design`: options free,
+    sensitivity instead (:func:`sosalgo.design_search.objectives.objective_design`: options free,
     family, time_limit, workers; an ObjectiveDesignResult per kappa)."""
-    from sosalgo.design import design as design_one
+    from sosalgo.design_search import design as design_one
 
     s = as_spec(spec)
     kappas, single = _kappas(s, kappa)
     objective, caps = options.pop("objective", "rate"), {
         k: options.pop(k) for k in ("max_rate", "max_noise") if k in options}
     if objective != "rate" or any(v is not None for v in caps.values()):
-        from sosalgo.design.objectives import check_objective, objective_design
+        from sosalgo.design_search.objectives import check_objective, objective_design
 
         check_objective(s, kappas, objective, caps.get("max_rate"), caps.get("max_noise"))
         extra = sorted(set(options) - {"free", "family", "time_limit", "workers", "on_step"})
@@ -144,7 +144,7 @@ def verify(spec: Spec | str | Path, result: Any, simulate: bool = True,
     """Exact proof (and simulation) of the certificate in ``result``: an AnalysisResult,
     a DesignResult or a row/document dict of ``--json`` output. None when the result
     claims no certificate; ``verified == "exact"`` when proven."""
-    from sosalgo.verify.results import verify_document_rows
+    from sosalgo.proofs.results import verify_document_rows
 
     s = as_spec(spec)
     row = result.to_dict() if hasattr(result, "to_dict") else dict(result)
@@ -155,9 +155,9 @@ def verify(spec: Spec | str | Path, result: Any, simulate: bool = True,
 def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
         measure: str | None = None, initial: str | None = None, exact: bool = True,
         witness: bool = True) -> Any:
-    """The worst case after ``steps`` steps (:class:`sosalgo.pep.PEPResult`): tau_N, its
+    """The worst case after ``steps`` steps (:class:`sosalgo.worstcase.PEPResult`): tau_N, its
     dual certificate (proven exactly), the worst-case witness (checked exactly)."""
-    from sosalgo.pep.core import pep as run
+    from sosalgo.worstcase.core import pep as run
 
     return run(as_spec(spec, varying=True), kappa, steps, measure, initial, exact, witness)
 

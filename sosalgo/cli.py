@@ -115,7 +115,7 @@ def _exit_if_unverified(checks: list[Any], what: str = "some certificate",
     in the one line (as ``sosalgo verify`` does)."""
     if all(c is None for c in checks) and not (doc or {}).get("unbacked"):
         return  # nothing was verified (no --verify): nothing to import or report
-    from sosalgo.verify.results import check_failed
+    from sosalgo.proofs.results import check_failed
 
     if any(check_failed(c) for c in checks):
         raise VerificationError(f"{what} failed verification (exit code 3)")
@@ -356,7 +356,7 @@ def _design_steps(spec_path: str, kappa: tuple[str, ...], free: str | None,
         click.echo("\n".join(steps_design_lines(doc, details)))
         for r in rows:
             if "verification" in r:
-                from sosalgo.pep.claims import pep_check_lines
+                from sosalgo.worstcase.claims import pep_check_lines
 
                 click.echo("\n".join(pep_check_lines("verify", [r["verification"]])))
     bad = [r for r in rows if (r.get("verification") or {}).get("verified") == "failed"]
@@ -514,12 +514,12 @@ def verify(result_path: str, spec_override: str | None, out: str, as_json: bool,
     from sosalgo.batch.executor import Progress
     from sosalgo.documents import document_kind, read_result, result_rows, verify_document
     from sosalgo.inputs import writable
-    from sosalgo.verify.results import check_failed
+    from sosalgo.proofs.results import check_failed
 
     doc = read_result(result_path)
     kind = document_kind(doc, result_path)  # a kind its content contradicts: exit code 3
     if kind.checks == "claims":  # from `sosalgo pep`
-        from sosalgo.pep.claims import passed, pep_check_lines
+        from sosalgo.worstcase.claims import passed, pep_check_lines
 
         res = verify_document(doc, spec_override, name=result_path)
         for note in res["notes"]:
@@ -610,7 +610,7 @@ def pep(spec_path: str, kappa: tuple[str, ...], steps: str, measure: str | None,
         scheduler: str | None, restart: bool, quiet: bool, max_memory: str | None,
         no_plot: bool, no_witness: bool, overrides: tuple[str, ...], details: bool) -> None:
     """Worst case after N steps (performance estimation), its dual certificate proven
-    exactly and a checked worst-case witness. Python: sosalgo.pep_run or sosalgo.pep."""
+    exactly and a checked worst-case witness. Python: sosalgo.pep_run or sosalgo.worstcase."""
     from sosalgo.runs.pep import pep_run, pep_summary
 
     ks = _kappas(kappa)

@@ -176,7 +176,7 @@ def _verify_rows(spec: Spec, rows: list[dict[str, Any]], out_dir: Path | None,
     the spec they are written in (:func:`sosalgo.pareto.reference_spec`). Only a pareto
     document has such rows: elsewhere ``reference`` is ignored (the row is checked
     against the document's spec, and the ledger refuses the field)."""
-    from sosalgo.verify.results import verify_document_rows
+    from sosalgo.proofs.results import verify_document_rows
 
     if not pareto or not any(r.get("reference") for r in rows):
         return verify_document_rows(spec, rows, out_dir, simulate, family=fam)
@@ -213,13 +213,13 @@ def verify_document(result: str | Path | Mapping[str, Any], spec: Spec | str | P
     None for a row that claims no certificate), ``notes`` (e.g. that ``spec`` differs from
     the embedded one), and for analyze, design and pareto documents the claim ledger:
     ``ledger`` (every field of every row: backed, recomputed, contradicted, unsupported or
-    context, :mod:`sosalgo.verify.ledger`), ``claims`` (the count per status) and
+    context, :mod:`sosalgo.proofs.ledger`), ``claims`` (the count per status) and
     ``vouched`` (True only when every claim is backed; ``sosalgo verify`` exits 3
     otherwise). The document's ``kind`` chooses the check (:func:`document_kind`: a kind
     its content contradicts raises VerificationError, exit code 3).
     Rational certificates go to ``out_dir`` when given (nothing is written otherwise).
     A malformed document raises InputError naming it (its path, or ``name``); failed
-    checks are results, not errors (:func:`sosalgo.verify.results.check_failed`)."""
+    checks are results, not errors (:func:`sosalgo.proofs.results.check_failed`)."""
     where = name or (str(result) if isinstance(result, str | Path) else "result")
     doc = read_result(result) if isinstance(result, str | Path) else dict(result)
     kind = document_kind(doc, where)
@@ -233,8 +233,8 @@ def verify_document(result: str | Path | Mapping[str, Any], spec: Spec | str | P
 
 def _verify_pep(doc: dict[str, Any], where: str, spec: Spec | str | Path | None,
                 *_: Any) -> dict[str, Any]:
-    """The claims of a ``pep --json`` document (:mod:`sosalgo.pep.claims`)."""
-    from sosalgo.pep.claims import verify_pep_document
+    """The claims of a ``pep --json`` document (:mod:`sosalgo.worstcase.claims`)."""
+    from sosalgo.worstcase.claims import verify_pep_document
 
     chosen, src, note = result_spec(doc, where, spec)
     return {"spec": chosen.name, "source": src,
@@ -244,8 +244,8 @@ def _verify_pep(doc: dict[str, Any], where: str, spec: Spec | str | Path | None,
 
 def _verify_steps(doc: dict[str, Any], where: str, spec: Spec | str | Path | None,
                   *_: Any) -> dict[str, Any]:
-    """The claims of a ``design --steps`` document (:mod:`sosalgo.verify.steps_design`)."""
-    from sosalgo.verify.steps_design import verify_steps_document
+    """The claims of a ``design --steps`` document (:mod:`sosalgo.proofs.steps_design`)."""
+    from sosalgo.proofs.steps_design import verify_steps_document
 
     chosen, src, note = result_spec(doc, where, spec)
     return {"spec": chosen.name, "source": src,
@@ -267,8 +267,8 @@ def _verify_allk(doc: dict[str, Any], where: str, spec: Spec | str | Path | None
 
 def _verify_witness(doc: dict[str, Any], where: str, spec: Spec | str | Path | None,
                     *_: Any) -> dict[str, Any]:
-    """The claims of a pep witness file (:func:`sosalgo.pep.claims.verify_witness_file`)."""
-    from sosalgo.pep.claims import verify_witness_file
+    """The claims of a pep witness file (:func:`sosalgo.worstcase.claims.verify_witness_file`)."""
+    from sosalgo.worstcase.claims import verify_witness_file
 
     chosen, src, note = result_spec(doc, where, spec)
     return {"spec": chosen.name, "source": src,
@@ -283,7 +283,7 @@ def _verify_ledger(doc: dict[str, Any], where: str, spec: Spec | str | Path | No
     rows' checks and the claim ledger."""
     from sosalgo.inputs import select_families
     from sosalgo.pareto import is_pareto_document
-    from sosalgo.verify.results import ResultError
+    from sosalgo.proofs.results import ResultError
 
     check_numbers(doc, where)
     rows = result_rows(doc, where)
@@ -303,10 +303,10 @@ def _verify_ledger(doc: dict[str, Any], where: str, spec: Spec | str | Path | No
 def claim_ledger(spec: Spec, doc: Mapping[str, Any], rows: list[dict[str, Any]],
                  checks: list[dict[str, Any] | None]) -> dict[str, Any]:
     """The claim ledger of a document whose rows have their ``checks``
-    (:mod:`sosalgo.verify.document_ledger`): ``ledger`` (every entry), ``claims`` (the
+    (:mod:`sosalgo.proofs.document_ledger`): ``ledger`` (every entry), ``claims`` (the
     count per status) and ``vouched`` (True only when every claim is backed)."""
-    from sosalgo.verify.document_ledger import document_ledger
-    from sosalgo.verify.ledger import ledger_counts, vouched
+    from sosalgo.proofs.document_ledger import document_ledger
+    from sosalgo.proofs.ledger import ledger_counts, vouched
 
     ledger = document_ledger(spec, doc, rows, checks)
     return {"ledger": ledger, "claims": ledger_counts(ledger), "vouched": vouched(ledger)}
@@ -317,7 +317,7 @@ def vouch_run(spec: Spec, doc: Mapping[str, Any]) -> dict[str, Any]:
     got their checks (``verification``): the claim ledger that ``sosalgo verify`` runs
     on that document (:func:`claim_ledger`), as ``claims`` (the count per status),
     ``vouched`` and ``unbacked`` (the entries contradicted or unsupported)."""
-    from sosalgo.verify.ledger import BAD
+    from sosalgo.proofs.ledger import BAD
 
     rows = result_rows(doc, doc.get("spec") or "result")
     res = claim_ledger(spec, doc, rows, [r.get("verification") for r in rows])
@@ -379,7 +379,7 @@ def _looks_steps(doc: Mapping[str, Any]) -> bool:
 
 
 def _looks_pep(doc: Mapping[str, Any]) -> bool:
-    from sosalgo.pep.claims import is_pep_document
+    from sosalgo.worstcase.claims import is_pep_document
 
     return is_pep_document(doc)
 
@@ -445,7 +445,7 @@ KINDS: dict[str, ResultKind] = {k.name: k for k in [
         WITNESS_KIND, "a worst-case function set and trajectory for N steps",
         "sosalgo pep (beside its CSV)", "<name>-pep[-k<kappa>]-N<steps>-witness.json",
         ("kind", "spec", "kappa", "steps", "iterates", "tau_float", "check", "class",
-         "upper", "spec_text"), "", "written whole (sosalgo.pep.witness.make_witness)",
+         "upper", "spec_text"), "", "written whole (sosalgo.worstcase.witness.make_witness)",
         _has("calls_per_step", "iterates", "tau_float"), _verify_witness, "claims"),
     ResultKind(
         ALLK_KIND, "a bound for every N of a spec whose matrices are closed forms in k, "
@@ -477,7 +477,7 @@ KINDS: dict[str, ResultKind] = {k.name: k for k in [
                      "sosalgo", "sosalgo verify (and --verify)",
         "DIR/certificates/<name>-k<kappa>[-<family>][-<digest>]-certificate.json",
         ("kind", "spec", "verified", "rho_proven", "inputs_hash"), "",
-        "written whole (sosalgo.verify.exact.write_certificate)",
+        "written whole (sosalgo.proofs.exact.write_certificate)",
         _has("inputs_hash", "verified")),
     ResultKind(
         DESIGN_CERTIFICATES_KIND, "the certificates of a design row too large for a CSV cell",

@@ -351,7 +351,7 @@ def _check_measure(spec: Spec, fail: Callable[[str, str], SpecError]) -> None:
     sets = {spec.oracles[i] for i in spec.lmo}  # in the set when the steps keep it there
     for fname, decl in spec.functions.items():
         cls = CLASSES[decl.cls]
-        if fname in sets:  # decided by the PEP (:mod:`sosalgo.pep.lmo`)
+        if fname in sets:  # decided by the PEP (:mod:`sosalgo.worstcase.lmo`)
             continue
         if not cls.has_values:
             raise fail("measure", f"function: {fname} ({cls.name}) is an operator class, it "

@@ -4,8 +4,8 @@ form of eq. (9) (:func:`known_tunings`: gradient descent, Nesterov, heavy ball, 
 momentum method, the robust momentum family), the front of certified points
 (:func:`pareto_filter`), and the points of a pareto document for ``sosalgo verify``
 (:func:`pareto_rows`). The search under each cap is
-:func:`sosalgo.design.objectives.min_noise`, its proof
-:func:`~sosalgo.design.objectives.certify_point`.
+:func:`sosalgo.design_search.objectives.min_noise`, its proof
+:func:`~sosalgo.design_search.objectives.certify_point`.
 """
 
 from __future__ import annotations

@@ -218,7 +218,7 @@ def test_a_design_on_workers_keeps_its_time_limit(tmp_path):
     pool's work, and no worker outlives the design."""
     import multiprocessing
 
-    from sosalgo.design import design
+    from sosalgo.design_search import design
 
     spec = load_spec(SPECS / "three-parameter.yaml")
     limit = 6.0

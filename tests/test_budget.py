@@ -77,8 +77,8 @@ def test_the_longest_gradient_pep_without_witness_fits_half_of_a_24_gib_machine(
     default budget of a 24 GiB machine. Its witness (the primal form, a dense KKT block
     of d^4 entries) passed 9 GB when measured: with it, the run is refused there, naming
     the option."""
-    from sosalgo.pep.core import pep_problem
     from sosalgo.spec import load_spec
+    from sosalgo.worstcase.core import pep_problem
 
     budget.set_max_memory("12G")
     _, st, *_ = pep_problem(load_spec(SPECS / "gradient.yaml"), 10.0, 200, "dist")
@@ -110,8 +110,8 @@ def test_raising_the_budget_lets_the_same_run_start(tmp_path):
 def test_no_witness_counts_the_proof_only(tmp_path):
     """A budget between the proof's estimate and the proof-and-witness estimate: the run
     with ``--no-witness`` starts, the one with its witness is refused."""
-    from sosalgo.pep.core import pep_problem
     from sosalgo.spec import load_spec
+    from sosalgo.worstcase.core import pep_problem
 
     spec = SPECS / "gradient-convex.yaml"
     _, st, *_ = pep_problem(load_spec(spec), None, 12)
@@ -203,7 +203,7 @@ def _pep_peak_in_child(spec: str, steps: int, measure: str | None, witness: bool
     """Peak RSS (bytes) of one PEP run (the exact proof, and the witness with
     ``witness``) in a fresh process: VmHWM of its own address space (``ru_maxrss`` is
     kept across exec, so it would count the forking pytest worker's size)."""
-    code = ("from sosalgo.pep.core import pep; "
+    code = ("from sosalgo.worstcase.core import pep; "
             f"pep({str(SPECS / spec)!r}, 10.0, {steps}, {measure!r}, witness={witness}); "
             "print([l.split()[1] for l in open('/proc/self/status') "
             "if l.startswith('VmHWM:')][0])")
@@ -229,8 +229,8 @@ def test_pep_memory_model_against_a_measured_peak(spec, steps, measure, witness,
     run): within a factor of two of a method whose pattern turns dense (Nesterov, the
     composite accelerated method), above a banded one (gradient descent) by up to the
     ratio of the dense to the banded case."""
-    from sosalgo.pep.core import pep_problem
     from sosalgo.spec import load_spec
+    from sosalgo.worstcase.core import pep_problem
 
     _, st, *_ = pep_problem(load_spec(SPECS / spec), 10.0, steps, measure)
     model = budget.pep_task(len(st.pairs), st.d, witness)[0]  # the process that solves it

@@ -197,8 +197,8 @@ def test_contraction_of_an_inexact_method_is_refused(tmp_path):
 def test_witnesses_verify_and_tampering_is_refused(tmp_path, dr_spec):
     from fractions import Fraction
 
-    from sosalgo.pep.check import check_witness
     from sosalgo.spec import load_spec
+    from sosalgo.worstcase.check import check_witness
 
     doc = pep_doc(tmp_path, dr_spec, 10, 2)
     wit = doc["witness"]

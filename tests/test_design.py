@@ -10,7 +10,7 @@ from click.testing import CliRunner
 
 from sosalgo.analysis import analyze_spec
 from sosalgo.cli import cli
-from sosalgo.design import design, design_problem
+from sosalgo.design_search import design, design_problem
 from sosalgo.model import bind, parameter_box
 from sosalgo.spec import load_spec
 
@@ -400,7 +400,7 @@ def test_moment_method_is_guarded_and_consistent():
     assert res.method == "moment"
     # a valid bound: below the rate an independent Theorem 1 code certifies at h = 1/L
     assert res.lower_bound is None or res.lower_bound <= _judge_rate(spec, 10.0, {}) + 1e-6
-    from sosalgo.design.moment import relaxation_bound
+    from sosalgo.design_search.moment import relaxation_bound
 
     box = parameter_box(spec, 10.0, ["h", "beta"])
     b = relaxation_bound(spec, 10.0, ["h", "beta"], box, order=8, scalarize="pmi")

@@ -21,8 +21,8 @@ from click.testing import CliRunner
 
 from sosalgo.analysis import analyze_spec
 from sosalgo.cli import cli
-from sosalgo.design import design
-from sosalgo.design.floor import class_floor
+from sosalgo.design_search import design
+from sosalgo.design_search.floor import class_floor
 from sosalgo.model import parameter_box
 from sosalgo.spec import load_spec, spec_from_dict
 

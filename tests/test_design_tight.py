@@ -11,7 +11,7 @@ from click.testing import CliRunner
 from sosalgo.analysis import analyze_spec
 from sosalgo.certificates import get_family
 from sosalgo.cli import cli
-from sosalgo.design import design
+from sosalgo.design_search import design
 from sosalgo.spec import load_spec
 
 from .conftest import SPECS

@@ -12,9 +12,9 @@ import pytest
 
 from sosalgo.analysis import analyze_algorithm
 from sosalgo.certificates import get_family
-from sosalgo.design import bound_model, prove_bound
-from sosalgo.design.dualbound import _Box, dual_structure
-from sosalgo.design.polymodel import evaluate_tensor
+from sosalgo.design_search import bound_model, prove_bound
+from sosalgo.design_search.dualbound import _Box, dual_structure
+from sosalgo.design_search.polymodel import evaluate_tensor
 from sosalgo.model import evaluate_algorithm
 from sosalgo.spec import load_spec
 

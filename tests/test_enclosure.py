@@ -1,4 +1,4 @@
-"""Ball-arithmetic proofs of the design bound (sosalgo.design.enclosure, .modes): each
+"""Ball-arithmetic proofs of the design bound (sosalgo.design_search.enclosure, .modes): each
 "proven" answer is checked against dense sampling with numpy, and statements that are
 false (by a hair) are refused."""
 
@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from flint import arb
 
-from sosalgo.design import enclosure as enc
-from sosalgo.design.modes import ModeTest
-from sosalgo.design.polymodel import exact_method
+from sosalgo.design_search import enclosure as enc
+from sosalgo.design_search.modes import ModeTest
+from sosalgo.design_search.polymodel import exact_method
 from sosalgo.spec.loading import spec_from_text
 
 

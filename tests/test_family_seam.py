@@ -94,7 +94,7 @@ def test_design_cli_csv_json_and_verify(tmp_path):
 
 def test_never_below_theorem1_and_design_bound(tmp_path):
     from sosalgo.analysis import analyze_spec
-    from sosalgo.design import design
+    from sosalgo.design_search import design
     from sosalgo.spec import load_spec
 
     spec = load_spec(_spec(tmp_path, "nesterov"))

@@ -16,8 +16,8 @@ from click.testing import CliRunner
 
 import sosalgo
 from sosalgo.cli import cli
-from sosalgo.pep.finite_sum import reprove_finite_sum
 from sosalgo.spec import spec_from_text
+from sosalgo.worstcase.finite_sum import reprove_finite_sum
 
 from .conftest import SPECS
 

@@ -125,9 +125,9 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("problem", ("classes", "spec", "oracles", "model", "exact_method", "steps",
                  "spec_values")),
     ("families", ("certificates",)),
-    ("questions", ("symbolic", "analysis", "inputs", "sensitivity", "witnesses", "design",
-                   "sublinear_design", "pep", "pareto")),
-    ("results", ("schema", "store", "verify", "documents")),
+    ("questions", ("symbolic", "analysis", "inputs", "sensitivity", "witnesses", "design_search",
+                   "sublinear_design", "worstcase", "pareto")),
+    ("results", ("schema", "store", "proofs", "documents")),
     ("report", ("report",)),
     ("runs", ("batch", "runs")),
     ("faces", ("api", "__init__", "cli_errors", "cli")),
@@ -188,7 +188,7 @@ def test_no_private_names_across_modules():
     "sosalgo.spec.SpecError", "sosalgo.model.ModelError", "sosalgo.kernel.expr.ExprError",
     "sosalgo.kernel.expr.NumericError", "sosalgo.store.OutputError",
     "sosalgo.batch.executor.BatchError",
-    "sosalgo.verify.results.ResultError",
+    "sosalgo.proofs.results.ResultError",
 ])
 def test_input_errors_share_one_base(name):
     import importlib
@@ -203,7 +203,7 @@ def test_input_errors_share_one_base(name):
 
 @pytest.mark.parametrize("name, values", [
     ("sosalgo.kernel.solvers.Feasibility", {"feasible", "infeasible", "failed"}),
-    ("sosalgo.design.dualbound.BoundStatus", {"proved", "partial", "unsupported"}),
+    ("sosalgo.design_search.dualbound.BoundStatus", {"proved", "partial", "unsupported"}),
     ("sosalgo.kernel.exact.Verdict", {"exact", "failed"}),
     ("sosalgo.polyopt.RelaxationStatus",
      {"optimal", "inaccurate", "infeasible", "failed", "skipped", "inconsistent"}),

@@ -126,8 +126,8 @@ def test_adversarial_runs_stay_below_the_proven_bound(docs, key):
 def test_witness_answers_outside_the_error_ball_are_refused(tmp_path, docs):
     from fractions import Fraction
 
-    from sosalgo.pep.check import check_witness
     from sosalgo.spec import load_spec
+    from sosalgo.worstcase.check import check_witness
 
     wit = docs[(10, "1/10", 2)]["witness"]
     spec = load_spec(SPEC)

@@ -118,8 +118,8 @@ def test_adversarial_runs_stay_below_the_proven_bound(docs, key):
 
 
 def test_witness_answers_outside_the_error_ball_are_refused(tmp_path, docs):
-    from sosalgo.pep.check import check_witness
     from sosalgo.spec import load_spec
+    from sosalgo.worstcase.check import check_witness
 
     wit = docs[(10, "13/20", 4)]["witness"]  # the spec's own gamma and sigma
     spec = load_spec(SPEC)
@@ -262,8 +262,8 @@ def test_gradient_of_a_call_elsewhere_and_relative_to_bad_input(tmp_path):
 
 
 def test_douglas_rachford_witness_tampered_is_refused(drs_docs):
-    from sosalgo.pep.check import check_witness
     from sosalgo.spec import load_spec
+    from sosalgo.worstcase.check import check_witness
 
     wit = drs_docs[DRS_SETS[0]]["witness"]  # the spec's own gamma, sigma and kappa
     spec = load_spec(DRS)

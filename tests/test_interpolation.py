@@ -14,9 +14,9 @@ from sosalgo.analysis import analyze_algorithm, analyze_spec
 from sosalgo.certificates import get_family
 from sosalgo.certificates.interpolation import Interpolation
 from sosalgo.model import Algorithm, bind
+from sosalgo.proofs import lrp_counterexample, simulate_check
+from sosalgo.proofs.results import verify_family_certificate
 from sosalgo.spec import SpecError, load_spec, spec_from_text
-from sosalgo.verify import lrp_counterexample, simulate_check
-from sosalgo.verify.results import verify_family_certificate
 
 from .conftest import SPECS
 
@@ -374,7 +374,7 @@ def test_cli_reports_the_chosen_lag_and_verify_proves_it(tmp_path):
 
 
 def test_design_keeps_lag_n_minus_1_and_reports_it():
-    from sosalgo.design import design
+    from sosalgo.design_search import design
 
     spec = _spec("gradient-optimal")  # n = 1: lag 0; its best rate is (kappa-1)/(kappa+1)
     res = design(spec, 10.0, family=TIGHT, time_limit=60)

@@ -142,8 +142,8 @@ def test_simulated_line_searches_stay_below_the_proven_bound(docs, key):
 def test_tampered_line_search_steps_are_refused(docs):
     from fractions import Fraction
 
-    from sosalgo.pep.check import check_witness
     from sosalgo.spec import load_spec
+    from sosalgo.worstcase.check import check_witness
 
     spec = load_spec(SPECS / "gradient-line-search.yaml")
     wit = docs[("gradient-line-search", 10, None, 2)]["witness"]

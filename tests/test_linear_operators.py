@@ -137,7 +137,7 @@ def test_witness_with_norm_above_L_is_refused(tmp_path):
     same witness with |q| > L is refused by the exact check."""
     import copy
 
-    from sosalgo.pep.check import check_witness
+    from sosalgo.worstcase.check import check_witness
 
     spec = _spec(tmp_path, "linear_operator", "1/2", ", L: 1")
     doc = sosalgo.pep(spec, None, 2).witness

@@ -88,7 +88,7 @@ def test_potential_decrease_on_explicit_functions() -> None:
 
 
 def test_inner_and_call_points_parse() -> None:
-    from sosalgo.pep.terms import parse_terms
+    from sosalgo.worstcase.terms import parse_terms
 
     terms = parse_terms("2*inner(x_0, g(y_0)) - grad(y_0) + inner(y_1, x_N)", "--measure",
                         False, 1)

@@ -184,8 +184,8 @@ def test_nonconvex_nolips_entropy_box_never_above_the_proof(seed):
 
 def test_tampered_certificate_is_refused():
     """The exact check of a vertex certificate fails when a multiplier is changed."""
-    from sosalgo.pep import mirror as M
     from sosalgo.spec import load_spec
+    from sosalgo.worstcase import mirror as M
 
     pep, *_ = M._problem(load_spec(MIRROR), None, 3, None, None)
     ans = M.solve_linear(pep)

@@ -14,10 +14,10 @@ from scipy.linalg import solve_discrete_lyapunov
 import sosalgo
 from sosalgo.cli import cli
 from sosalgo.model import bind
+from sosalgo.proofs.functions import huber_like
 from sosalgo.sensitivity.exact import verify_noise
 from sosalgo.sensitivity.quadratic import noise_quadratic
 from sosalgo.sensitivity.sdp import noise_certificate
-from sosalgo.verify.functions import huber_like
 
 SPECS = "specs"
 SEED_SPECS = ["gradient", "gradient-optimal", "nesterov", "nesterov-quadratic", "heavy-ball",

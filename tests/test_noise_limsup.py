@@ -14,9 +14,9 @@ from scipy.linalg import solve_discrete_lyapunov
 import sosalgo
 from sosalgo.cli import cli
 from sosalgo.model import bind
+from sosalgo.proofs.functions import huber_like
 from sosalgo.sensitivity.exact import verify_noise
 from sosalgo.sensitivity.limsup import noise_limsup_certificate
-from sosalgo.verify.functions import huber_like
 
 SPECS = "specs"
 

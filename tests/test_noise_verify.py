@@ -1,5 +1,5 @@
 """Noise certificates in ``sosalgo verify`` and rates proven exactly on both axes
-(sosalgo.verify.results, sosalgo.design.objectives, sosalgo.api.design), checked against
+(sosalgo.proofs.results, sosalgo.design_search.objectives, sosalgo.api.design), checked against
 the closed forms of gradient descent x+ = x - h (grad f(x) + w) on F(m, L):
 rate max(|1 - hm|, |1 - hL|) and gamma^2 = max over q in {m, L} of h/(q(2 - hq))."""
 
@@ -13,7 +13,7 @@ from click.testing import CliRunner
 
 import sosalgo
 from sosalgo.cli import cli
-from sosalgo.design import objectives
+from sosalgo.design_search import objectives
 from sosalgo.pareto import pareto_filter
 
 from .conftest import spec_path

@@ -275,7 +275,7 @@ def test_a_witness_about_f_star_of_a_nonconvex_class_is_refused(tmp_path):
     whose initial condition is f(x_0) - f* is not verified (else shifting h would make
     any ratio)."""
     from sosalgo import load_spec
-    from sosalgo.pep import check_witness
+    from sosalgo.worstcase import check_witness
 
     wit = _pep(tmp_path, 2)["witness"]
     assert check_witness(dict(wit), load_spec(SPEC))["verified"]

@@ -384,7 +384,7 @@ def test_witness_of_an_operator_is_checked_against_the_class(tmp_path):
     for path in (doc_path, witness):
         v = _invoke("verify", str(path), "--out", str(tmp_path / "v"))
         assert v.exit_code == 0, v.output
-    from sosalgo.pep.check import check_witness
+    from sosalgo.worstcase.check import check_witness
 
     doc = json.loads(witness.read_text())
     spec = sosalgo.load_spec(SPECS / "forward-backward.yaml")
@@ -536,7 +536,7 @@ def _rtbg_optimum(L: float, mu: float, alphas: np.ndarray, thetas: np.ndarray):
 
 
 def _design_douglas_rachford(kappa: float, free: list[str], alpha: str | None = None):
-    from sosalgo.design import design
+    from sosalgo.design_search import design
 
     spec = _spec("douglas-rachford-operators", **({"alpha": alpha} if alpha else {}))
     res = design(spec, kappa, free=free, time_limit=60)
@@ -586,7 +586,7 @@ def test_douglas_rachford_design_of_step_and_relaxation(kappa, closed):
 def test_forward_backward_design_takes_the_largest_step():
     """1/(1 + gamma m) decreases in gamma on [0, 2/L]: the design is gamma = 2/L, rate
     1/(1 + 2/kappa), no lower bound and no floor."""
-    from sosalgo.design import design
+    from sosalgo.design_search import design
 
     spec = _spec("forward-backward-strongly-monotone")
     res = design(spec, 10.0, time_limit=30)
@@ -623,7 +623,7 @@ def test_douglas_rachford_design_on_a_cocoercive_pair_is_pepits_optimum():
     """A cocoercive (beta = 1/L = 1), B strongly monotone (mu = 1/10): the designed
     (alpha, theta) certifies the square root of PEPit's contraction factor minimized over
     the box, at the same point (alpha* = sqrt(beta/mu))."""
-    from sosalgo.design import design
+    from sosalgo.design_search import design
 
     path = SPECS / "douglas-rachford-operators.yaml"
     text = path.read_text().replace("A: {class: lipschitz_strongly_monotone, mu: 0}",

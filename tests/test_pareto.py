@@ -1,4 +1,4 @@
-"""Design with two objectives and the speed–robustness front (sosalgo.design.objectives,
+"""Design with two objectives and the speed–robustness front (sosalgo.design_search.objectives,
 sosalgo.pareto), checked against closed forms of gradient descent, an independent Theorem 1
 judge and an independent Lyapunov solver (tests/independent.py, scipy)."""
 
@@ -16,7 +16,7 @@ from scipy.linalg import solve_discrete_lyapunov
 
 import sosalgo
 from sosalgo.cli import cli
-from sosalgo.design.objectives import objective_design
+from sosalgo.design_search.objectives import objective_design
 from sosalgo.pareto import front_caps, pareto_filter, robust_momentum
 from sosalgo.runs.pareto import pareto_run
 
@@ -309,7 +309,7 @@ def test_noise_design_beats_robust_momentum_inside_the_family():
     certified (measured: 3.8 %). The margin is not the same along the family: 0.9 % at
     2/5 of the range, and near rho = 0.864 the design (60 s) and robust momentum agree to
     0.2 %, so only this member is asserted."""
-    from sosalgo.design.objectives import certify_point
+    from sosalgo.design_search.objectives import certify_point
     from sosalgo.runs.pareto import _base_family
 
     spec = sosalgo.load_spec(spec_path("three-parameter"))

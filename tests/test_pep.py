@@ -305,9 +305,9 @@ def test_ten_step_witnesses_bracket_the_closed_form():
 def test_exact_certificate_refuses_a_smaller_tau():
     """The ball-arithmetic proof of S ⪰ 0, c_F >= 0 fails for tau 0.1% below the SDP's
     (the true worst case is above it) and for a perturbed largest multiplier."""
-    from sosalgo.pep.core import pep_problem
-    from sosalgo.pep.exact import prove_certificate
-    from sosalgo.pep.sdp import pep_data, solve_pep
+    from sosalgo.worstcase.core import pep_problem
+    from sosalgo.worstcase.exact import prove_certificate
+    from sosalgo.worstcase.sdp import pep_data, solve_pep
 
     spec = sosalgo.load_spec(SPECS / "gradient.yaml")
     mt, st, mterms, iterms, _ = pep_problem(spec, 10.0, 3, "dist", None)

@@ -128,8 +128,8 @@ def test_a_certificate_without_its_constraint_multipliers_is_refused(tmp_path):
 def test_a_witness_of_a_constrained_spec_is_refused(tmp_path):
     """A run of the plain gradient step (no constraint) checked against the constrained
     spec: refused, whatever it holds."""
-    from sosalgo.pep.check import check_witness
     from sosalgo.spec import load_spec
+    from sosalgo.worstcase.check import check_witness
 
     free = tmp_path / "free.yaml"
     free.write_text(DIST.read_text().replace(

@@ -1,4 +1,4 @@
-"""The polish of a float dual certificate (:mod:`sosalgo.pep.polish`) against closed
+"""The polish of a float dual certificate (:mod:`sosalgo.worstcase.polish`) against closed
 forms: the refined (tau, lambda) is a certificate to double precision, its tau the true
 worst case, where the solver's answer is only accurate to its tolerance."""
 
@@ -9,11 +9,11 @@ import math
 import numpy as np
 import pytest
 
-from sosalgo.pep.core import pep_problem
-from sosalgo.pep.polish import polished
-from sosalgo.pep.sdp import pep_data, solve_pep, value_residual
-from sosalgo.pep.steps import spec_steps
 from sosalgo.spec import load_spec
+from sosalgo.worstcase.core import pep_problem
+from sosalgo.worstcase.polish import polished
+from sosalgo.worstcase.sdp import pep_data, solve_pep, value_residual
+from sosalgo.worstcase.steps import spec_steps
 from tests.conftest import spec_path
 
 

@@ -92,8 +92,8 @@ def test_pair_rows_are_sparse_and_match_the_dense_forms(spec, N):
     X_k' Qc_k X_k (einsum) on a sample, and its entries grow like the pairs, not like
     pairs times d^2 (the memory of a long horizon)."""
     from sosalgo.kernel.conic import svec
-    from sosalgo.pep.core import pep_problem
-    from sosalgo.pep.sdp import pep_data
+    from sosalgo.worstcase.core import pep_problem
+    from sosalgo.worstcase.sdp import pep_data
 
     loaded = sosalgo.load_spec(SPECS / spec)
     mt, st, *_ = pep_problem(loaded, 10.0, N, None, None)
@@ -129,7 +129,7 @@ def _nesterov_balls(N: int, digits: int):
     import sympy as sp
 
     from sosalgo.kernel.exact import Ball, enclose
-    from sosalgo.pep.structure import coarsen, deadbeat_gain, enclosure_bits
+    from sosalgo.worstcase.structure import coarsen, deadbeat_gain, enclosure_bits
 
     beta_s = (sp.sqrt(10) - 1) / (sp.sqrt(10) + 1)
     beta = enclose(beta_s, digits)
@@ -162,7 +162,7 @@ def test_enclosure_precision_grows_with_the_horizon():
     exact proof at N = 70 needs (tau ~ 2e-17); with :func:`enclosure_digits` it ends
     below 10^-ENCLOSURE_TARGET at N = 70 and N = 150, and every ball still holds the
     value computed independently with mpmath at 400 digits."""
-    from sosalgo.pep.structure import ENCLOSURE_TARGET, enclosure_digits, radius_growth
+    from sosalgo.worstcase.structure import ENCLOSURE_TARGET, enclosure_digits, radius_growth
 
     wide, ref, Kf = _nesterov_balls(70, 50)
     assert max(b.r for b in wide) > Fraction(1, 10**23)

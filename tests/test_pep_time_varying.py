@@ -1,6 +1,6 @@
 """sosalgo pep on methods that change with k, against closed forms and PEPit's values.
 
-The per-step methods are built here by hand (:class:`sosalgo.pep.steps.StepMethods`):
+The per-step methods are built here by hand (:class:`sosalgo.worstcase.steps.StepMethods`):
 gradient descent with a per-step step size, OGM from Kim and Fessler's theta_k (computed
 here in outward-rounded ball arithmetic), FISTA from Beck and Teboulle's t_k. The spec
 only gives the class (L-smooth convex f, and a convex g for FISTA), the units and the
@@ -22,9 +22,9 @@ from sosalgo.classes import CLASSES
 from sosalgo.kernel.arb import arb_fraction
 from sosalgo.kernel.exact import Ball
 from sosalgo.oracles import BoundFunction, OracleMethod
-from sosalgo.pep.core import pep
-from sosalgo.pep.steps import StepMethods
 from sosalgo.spec import load_spec, spec_from_text
+from sosalgo.worstcase.core import pep
+from sosalgo.worstcase.steps import StepMethods
 from tests.conftest import spec_path
 
 SMOOTH = CLASSES["smooth_strongly_convex"]

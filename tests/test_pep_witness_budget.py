@@ -9,7 +9,7 @@ from fractions import Fraction
 from pathlib import Path
 
 import sosalgo
-import sosalgo.pep.witness as wit
+import sosalgo.worstcase.witness as wit
 
 SPEC = Path(__file__).resolve().parent.parent / "specs" / "nesterov.yaml"
 KAPPA, STEPS = 10, 6

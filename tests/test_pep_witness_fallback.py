@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 
 import sosalgo
-import sosalgo.pep.witness as wit
-from sosalgo.pep.claims import passed, verify_pep_document, verify_witness_file
+import sosalgo.worstcase.witness as wit
 from sosalgo.runs.pep import pep_summary
 from sosalgo.spec import load_spec
+from sosalgo.worstcase.claims import passed, verify_pep_document, verify_witness_file
 
 SPEC = Path(__file__).resolve().parent.parent / "specs" / "nesterov.yaml"
 KAPPA, STEPS = 10, 6
@@ -101,7 +101,7 @@ def test_a_call_that_is_not_the_functions_gradient_is_refused():
     witness proves at most the closed form."""
     import copy
 
-    from sosalgo.pep.check import check_witness
+    from sosalgo.worstcase.check import check_witness
 
     gspec = load_spec(SPEC.with_name("gradient.yaml"))
     res = sosalgo.pep(gspec, 10, steps=3, measure="dist")

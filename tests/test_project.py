@@ -126,7 +126,7 @@ def test_api_analyze_a_list_and_verify():
         assert res.rho == pytest.approx((k - 1) / (k + 1), abs=1e-5)
     one = sosalgo.analyze(SPECS / "gradient-optimal.yaml", kappa=10)
     assert one.rho == pytest.approx(9 / 11, abs=1e-5)
-    from sosalgo.verify.exact import verify_exact  # the submodule stays importable
+    from sosalgo.proofs.exact import verify_exact  # the submodule stays importable
 
     assert callable(verify_exact)
     check = sosalgo.verify(spec, one, simulate=False)
@@ -158,8 +158,8 @@ def _loaded_after(args: list[str], modules: tuple[str, ...], tmp_path) -> list[s
 
 
 def test_one_kappa_analyze_imports_no_plotting_cvxpy_dask_or_sympy(tmp_path):
-    modules = ("matplotlib", "cvxpy", "dask", "distributed", "sympy", "sosalgo.verify",
-               "sosalgo.design", "sosalgo.polyopt")
+    modules = ("matplotlib", "cvxpy", "dask", "distributed", "sympy", "sosalgo.proofs",
+               "sosalgo.design_search", "sosalgo.polyopt")
     args = ["analyze", str(SPECS / "nesterov.yaml"), "--kappa", "10"]
     assert _loaded_after(args, modules, tmp_path) == []
 

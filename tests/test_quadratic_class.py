@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 import sosalgo
-from sosalgo.pep.exact import reprove_certificate
 from sosalgo.spec import load_spec
+from sosalgo.worstcase.exact import reprove_certificate
 
 SPECS = Path(__file__).resolve().parents[1] / "specs"
 GD, PGM = SPECS / "gradient-quadratics.yaml", SPECS / "proximal-gradient-quadratics.yaml"
@@ -139,7 +139,7 @@ def test_tampered_cuts_and_multipliers_are_refused():
 
 
 def test_member_witness_outside_the_class_is_refused():
-    from sosalgo.pep.check import check_witness
+    from sosalgo.worstcase.check import check_witness
 
     spec = load_spec(GD)
     res = sosalgo.pep(spec, 10, 2)

@@ -312,7 +312,7 @@ def _refusal_skips(fn, *args, **kwargs):
 
 
 def _prove(key: int | str, tmp_path: Path, limit: float = PROVE_LIMIT) -> None:
-    from sosalgo.design import prove_bound
+    from sosalgo.design_search import prove_bound
 
     case, best = judged(key)
     _check_certificate(case, best)
@@ -326,7 +326,7 @@ def _prove(key: int | str, tmp_path: Path, limit: float = PROVE_LIMIT) -> None:
 
 
 def _design(key: int | str, tmp_path: Path, limit: float = DESIGN_LIMIT) -> None:
-    from sosalgo.design import design
+    from sosalgo.design_search import design
 
     case, best = judged(key)
     spec = _load(case, best, tmp_path)

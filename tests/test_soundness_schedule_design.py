@@ -1,4 +1,4 @@
-"""Soundness of the N-step design's box-wide lower bound (sosalgo.design.steps_bound).
+"""Soundness of the N-step design's box-wide lower bound (sosalgo.design_search.steps_bound).
 
 Every proven bound of a box must be at most the worst case at every θ of the box. The
 worst case is computed here independently: a small cvxpy PEP on the Gram matrix of
@@ -20,8 +20,8 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from sosalgo.design.steps_bound import BoxSolver, huber_bound, prove_box, quadratic_bound
-from sosalgo.design.steps_model import parametric_pep
+from sosalgo.design_search.steps_bound import BoxSolver, huber_bound, prove_box, quadratic_bound
+from sosalgo.design_search.steps_model import parametric_pep
 from sosalgo.spec import load_spec
 from tests.conftest import spec_path
 
@@ -157,8 +157,8 @@ def test_per_step_schedule_boxes():
     and the point box's bound is close to it (so the comparison can fail)."""
     import sympy as sp
 
-    from sosalgo.pep.evaluate import worst_case_evaluator
     from sosalgo.spec import read_spec_text
+    from sosalgo.worstcase.evaluate import worst_case_evaluator
 
     spec = load_spec(str(spec_path("gradient-convex")))
     hs = [sp.Symbol("h_0"), sp.Symbol("h_1")]
@@ -213,10 +213,10 @@ def test_design_reaches_the_optimal_constant_step():
     """N = 1: the best constant step is h = 3/2 with worst case 1/8 (the closed form's
     two branches meet), which is also Drori's floor L/(2 theta_1^2) = 1/8. Its progress
     phases leave N to the task's label (a phase repeating it read "N 1: searching N = 1")."""
-    from sosalgo.design.steps import design_steps, exact_box
+    from sosalgo.design_search.steps import design_steps, exact_box
     from sosalgo.kernel.phases import set_sink
-    from sosalgo.pep.evaluate import worst_case_evaluator
     from sosalgo.spec import read_spec_text
+    from sosalgo.worstcase.evaluate import worst_case_evaluator
 
     path = str(spec_path("gradient-convex"))
     spec, text = load_spec(path), read_spec_text(path)
@@ -236,7 +236,7 @@ def test_design_reaches_the_optimal_constant_step():
 
 
 def test_ogm_theta_and_floor():
-    from sosalgo.design.steps import ogm_theta
+    from sosalgo.design_search.steps import ogm_theta
 
     th = [1.0]
     for _ in range(3):
@@ -286,9 +286,9 @@ def test_gd_constant_step_gap_target(steps):
     designed worst case within 1e-3 of the closed form's minimum over h."""
     from scipy.optimize import minimize_scalar
 
-    from sosalgo.design.steps import design_steps, exact_box
-    from sosalgo.pep.evaluate import worst_case_evaluator
+    from sosalgo.design_search.steps import design_steps, exact_box
     from sosalgo.spec import read_spec_text
+    from sosalgo.worstcase.evaluate import worst_case_evaluator
 
     path = str(spec_path("gradient-convex"))
     spec, text = load_spec(path), read_spec_text(path)
@@ -324,7 +324,7 @@ def test_momentum_schedule_one_step_reaches_the_floor(tmp_path):
 @pytest.mark.deep
 @pytest.mark.parametrize("steps", [2, 3, 4])
 def test_momentum_schedule_rediscovers_ogm(tmp_path, steps):
-    from sosalgo.design.steps import ogm_theta
+    from sosalgo.design_search.steps import ogm_theta
 
     (row,) = _design_rows(tmp_path, "momentum-schedule", str(steps), 180)
     ogm = 1 / (2 * ogm_theta(steps) ** 2)
@@ -408,9 +408,9 @@ def test_a_model_that_disagrees_with_pep_is_set_aside():
     the reason, before any bound is computed."""
     import sympy as sp
 
-    from sosalgo.design.steps import steps_problem
-    from sosalgo.pep.evaluate import steps_evaluator
+    from sosalgo.design_search.steps import steps_problem
     from sosalgo.spec import read_spec_text
+    from sosalgo.worstcase.evaluate import steps_evaluator
 
     path = str(spec_path("gradient-schedule"))
     spec, text = load_spec(path), read_spec_text(path)
@@ -461,7 +461,7 @@ def test_long_step_start_is_the_silver_pattern():
     - 1), rho = 1 + sqrt 2, nu(i) the 2-adic valuation of i = k + 1."""
     import math
 
-    from sosalgo.design.steps import long_step
+    from sosalgo.design_search.steps import long_step
 
     rho = 1 + math.sqrt(2)
     for i in range(1, 33):

@@ -151,7 +151,7 @@ def test_certified_constant_never_below_the_huber_and_quadratic_floors(h):
 def test_simulation_is_sharp_for_gradient_descent():
     """The simulation passes the certified c and catches 0.9 c (Huber is a worst case)."""
     from sosalgo.model import bind_sublinear
-    from sosalgo.verify.simulate_sublinear import simulate_sublinear
+    from sosalgo.proofs.simulate_sublinear import simulate_sublinear
 
     spec = spec_from_dict(_gd())
     c = analyze_sublinear(spec).constant

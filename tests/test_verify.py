@@ -21,8 +21,7 @@ from sosalgo.analysis import analyze_spec
 from sosalgo.certificates.theorem1 import THEOREM1, theorem1_terms
 from sosalgo.kernel.exact import _pivoted_ldl, enclose, prove_psd, psd_by_minors, rational_at_least
 from sosalgo.model import Algorithm, bind
-from sosalgo.spec import load_spec
-from sosalgo.verify import (
+from sosalgo.proofs import (
     function_suite,
     lrp_counterexample,
     simulate_check,
@@ -30,6 +29,7 @@ from sosalgo.verify import (
     verify_exact,
     write_certificate,
 )
+from sosalgo.spec import load_spec
 
 SPECS = sorted((Path(__file__).resolve().parents[1] / "specs").glob("*.yaml"))
 KAPPAS = (2, 10, 100)

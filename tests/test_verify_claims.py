@@ -14,8 +14,8 @@ from click.testing import CliRunner
 
 from sosalgo.analysis import analyze_spec
 from sosalgo.cli import cli
+from sosalgo.proofs.functions import _lse_excess, _softmax_minus_p, logsumexp
 from sosalgo.spec import spec_from_text
-from sosalgo.verify.functions import _lse_excess, _softmax_minus_p, logsumexp
 
 from .conftest import SPECS
 
@@ -125,7 +125,7 @@ def test_large_kappa_certificate_passes_both_commands_alike(tmp_path):
 
 
 def test_analyze_verify_exits_3_like_verify_on_a_failing_check(tmp_path, monkeypatch):
-    import sosalgo.verify.results as verification
+    import sosalgo.proofs.results as verification
 
     def fake(*a, **k):
         return {"kappa": 10.0, "rho": 0.5, "verified": "failed", "rho_proven": None,

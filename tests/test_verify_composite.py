@@ -20,9 +20,9 @@ from sosalgo.classes.members import ProxFunction
 from sosalgo.cli import cli
 from sosalgo.kernel.exact import Ball
 from sosalgo.model import bind
+from sosalgo.proofs.prox_functions import ProxProblem
+from sosalgo.proofs.simulate_composite import run_method, simulate_composite
 from sosalgo.spec import load_spec
-from sosalgo.verify.prox_functions import ProxProblem
-from sosalgo.verify.simulate_composite import run_method, simulate_composite
 from tests.conftest import spec_path
 
 SPECS = ["proximal-gradient", "projected-gradient", "proximal-point", "douglas-rachford",

@@ -270,9 +270,9 @@ def run_analysis_sweep(
 def sublinear_simulation(spec: Spec, constant: float | None,
                          theta: dict[str, float] | None = None) -> dict[str, Any] | None:
     """The simulation check of a certified constant (evidence, not proof:
-    :mod:`sosalgo.verify.simulate_sublinear`), or None when nothing is certified."""
+    :mod:`sosalgo.proofs.simulate_sublinear`), or None when nothing is certified."""
     from sosalgo.model import bind_sublinear
-    from sosalgo.verify.simulate_sublinear import simulate_sublinear
+    from sosalgo.proofs.simulate_sublinear import simulate_sublinear
 
     if constant is None:
         return None
@@ -388,7 +388,7 @@ RUNTIME_OPTIONS = ("progress_steps", "inner_workers")  # how to run, not what: n
 
 
 def design_row(spec: Spec, res: Any, family: CertificateFamily | None = None) -> dict[str, Any]:
-    """A CSV row from a :class:`sosalgo.design.DesignResult`."""
+    """A CSV row from a :class:`sosalgo.design_search.DesignResult`."""
     row: dict[str, Any] = {
         "kappa": res.kappa, "lower_bound": res.lower_bound, "rho_certified": res.rho_certified,
         "gap": res.gap, "gap_met": res.gap_met, "rho_at_values": res.rho_at_values,
@@ -410,7 +410,7 @@ def design_chunk(
     spec_text: str, source: str, options: dict[str, Any], chunk: list[dict[str, Any]]
 ) -> list[dict[str, Any]]:
     """Worker: one design per task's kappa."""
-    from sosalgo.design import design
+    from sosalgo.design_search import design
 
     def one(spec: Spec, fam: CertificateFamily, kappa: float, task: dict) -> dict[str, Any]:
         on_step = None
@@ -418,7 +418,7 @@ def design_chunk(
             def on_step(msg: str) -> None:
                 note(f"  [kappa {kappa:g}] {msg}")
         if "objective" in options:  # --objective noise / --max-noise: design.objectives
-            from sosalgo.design.objectives import objective_design
+            from sosalgo.design_search.objectives import objective_design
 
             res = objective_design(spec, kappa, options["objective"], options["max_rate"],
                                    options["max_noise"], options["free"], fam,
@@ -511,7 +511,7 @@ def _objective_json(row: dict[str, str]) -> dict[str, Any]:
     """The fields of a design with a noise objective or cap (none for other rows)."""
     if "objective" not in row:
         return {}
-    from sosalgo.design.objectives import objective_json
+    from sosalgo.design_search.objectives import objective_json
 
     return objective_json(row)
 

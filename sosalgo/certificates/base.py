@@ -91,11 +91,11 @@ class CertificateFamily(Protocol):
                     theta: Mapping[str, float] | None = None) -> Any:
         """Proof in exact arithmetic that ``cert`` certifies ``rho`` (an object with
         ``verified``, ``rho_proven``, ``rho_proven_float``, ``delta``, ``reason`` and
-        ``to_dict()``; see :mod:`sosalgo.verify`)."""
+        ``to_dict()``; see :mod:`sosalgo.proofs`)."""
         ...
 
     def lyapunov(self, cert: Mapping[str, Any]) -> dict[str, Any]:
-        """The keyword arguments of :func:`sosalgo.verify.simulate_check` that make it follow
+        """The keyword arguments of :func:`sosalgo.proofs.simulate_check` that make it follow
         this certificate's Lyapunov function (``P`` and, when it has more, ``lyapunov``)."""
         ...
 

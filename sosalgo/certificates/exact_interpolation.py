@@ -16,7 +16,7 @@ The certificate (rho, P, p, c, multipliers eta, lambda) is checked in original u
 
 The window algebra (row maps, interpolation pairs) is the family's own builder run on
 exact numbers (the family's ``exact_structure``/``exact_parts``); the simulation check
-(:mod:`sosalgo.verify.simulate`) evaluates the Lyapunov function independently along
+(:mod:`sosalgo.proofs.simulate`) evaluates the Lyapunov function independently along
 trajectories of actual functions.
 """
 

@@ -504,7 +504,7 @@ class SublinearFamily(CertificateFamily):
 
     def lyapunov(self, cert: Mapping[str, Any]) -> dict[str, Any]:
         """The potential's weights at k = 0 (P, p): the simulation of a constant follows the
-        bound itself (:mod:`sosalgo.verify.simulate_sublinear`), not a decrease."""
+        bound itself (:mod:`sosalgo.proofs.simulate_sublinear`), not a decrease."""
         return {"P": np.asarray(cert["P"], dtype=float),
                 "lyapunov": {"p": [float(v) for v in cert["p"]]}}
 

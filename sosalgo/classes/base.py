@@ -43,7 +43,7 @@ interpolation certificate family only reads the data declared here:
   matrix over all the points of one function that must be positive semidefinite, each
   entry ``[x_a; g_a]' K [x_b; g_b]`` (K 2 x 2, tilted data); :meth:`exact_blocks` their
   exact twin. A class with blocks is not ``homogeneous`` (no Lyapunov family takes
-  them; ``pep`` answers, :mod:`sosalgo.pep.blocks`).
+  them; ``pep`` answers, :mod:`sosalgo.worstcase.blocks`).
 
 :data:`sosalgo.classes.SEED_CLASS` is F(m, L), the class of a spec without ``functions:``.
 """

@@ -2,7 +2,7 @@
 :meth:`~sosalgo.classes.base.FunctionClass.test_functions`.
 
 A composite problem min_x sum_j f_j(x) is simulated with actual functions
-(:mod:`sosalgo.verify.prox_functions`): each :class:`ProxFunction` has its value, a
+(:mod:`sosalgo.proofs.prox_functions`): each :class:`ProxFunction` has its value, a
 (sub)gradient selection (None: proximal steps only) and prox_{t f}(v) = argmin_y f(y) +
 |y - v|^2 / (2 t) in closed form, all on batches (shape (batch, d)), and a subgradient
 ``s`` at the problem's minimizer x*. The functions are built around a given x* (kinks, set

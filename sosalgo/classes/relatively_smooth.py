@@ -10,7 +10,7 @@ f is L-smooth and mu-strongly convex relative to h when
     L h - f   and   L h + f   are convex.
 
 Both are conditions on the pair (f, h), not on f alone: they are only meaningful in a
-spec with ``mirror:`` (its kernel is h, :mod:`sosalgo.pep.mirror`), and a spec without one
+spec with ``mirror:`` (its kernel is h, :mod:`sosalgo.worstcase.mirror`), and a spec without one
 is refused. Each is written as *blocks* (cf, ch): the function cf f + ch h is convex. The
 PEP writes the convex interpolation inequalities of every block between every pair of
 points where f and h are both evaluated (value cf f_a + ch h_a, subgradient cf g_a + ch

@@ -14,7 +14,7 @@ optimization", Thm. 3.10; for the hypoconvex range, Rotaru, Glineur, Patrinos 20
 are necessary and sufficient: a PEP over this class is exact.
 
 The PEP keeps a point x* with gradient 0 where h = f - f* = 0 and h >= 0 at the points
-(:mod:`sosalgo.pep.structure`): for a nonconvex class x* is then a stationary point below
+(:mod:`sosalgo.worstcase.structure`): for a nonconvex class x* is then a stationary point below
 the points, not provably a global minimizer, so a measure that involves f* or x* (f - f*,
 dist) is bounded over a larger set than the functions with a global minimizer (still an
 upper bound). A measure and initial condition free of f* and x* (gradient norms,

@@ -7,14 +7,14 @@ Two numbers come out, never mixed:
   from a global search over Θ (a grid of certified rates, then local polishing of the
   best points, then every point the bound search finds better).
 * ``lower_bound``: a proof that no θ ∈ Θ is certified below it. Default (``method="dual"``,
-  :mod:`sosalgo.design.dualbound`): Θ × [0, T²] is covered by boxes, each carrying a dual
+  :mod:`sosalgo.design_search.dualbound`): Θ × [0, T²] is covered by boxes, each carrying a dual
   certificate of infeasibility valid on the whole box, with T = rho_certified - gap/2.
   ``method="moment"`` uses the paper's moment (sum-of-squares) relaxation of the
-  homogenized problem (:mod:`sosalgo.design.moment`).
+  homogenized problem (:mod:`sosalgo.design_search.moment`).
 
 ``floor`` = 1 - 1/√κ is reported beside them: no first-order method has a smaller
 worst-case rate on F(m, L) (a theorem, not a computed bound); on composite specs only
-where it is a theorem for the problem class (:mod:`sosalgo.design.floor`), else None.
+where it is a theorem for the problem class (:mod:`sosalgo.design_search.floor`), else None.
 
 Every phase respects ``time_limit`` (wall clock per κ): no step starts that the remaining
 time cannot cover, and the best proven results so far are returned.
@@ -34,10 +34,10 @@ import numpy as np
 
 from sosalgo.analysis import AnalysisResult, analyze_spec, jsonable, spec_family
 from sosalgo.certificates import CertificateFamily, get_family
-from sosalgo.design.boundcheck import bound_certificate
-from sosalgo.design.dualbound import ARITHMETIC, BoundSearch, BoundStatus, dual_structure
-from sosalgo.design.floor import class_floor
-from sosalgo.design.polymodel import check_polynomial
+from sosalgo.design_search.boundcheck import bound_certificate
+from sosalgo.design_search.dualbound import ARITHMETIC, BoundSearch, BoundStatus, dual_structure
+from sosalgo.design_search.floor import class_floor
+from sosalgo.design_search.polymodel import check_polynomial
 from sosalgo.kernel.phases import show_phase
 from sosalgo.kernel.solvers import solve_margin
 from sosalgo.model import ModelError, bind, design_box
@@ -51,7 +51,7 @@ def __getattr__(name: str) -> Any:
     """``design_problem`` and ``relaxation_bound`` (the paper's relaxation, which imports
     cvxpy) load on first use."""
     if name in ("design_problem", "relaxation_bound"):
-        from sosalgo.design import moment
+        from sosalgo.design_search import moment
 
         return getattr(moment, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
@@ -64,7 +64,8 @@ GRID_TOL = 1e-5  # tolerance of the screening grid
 METHODS = ("dual", "moment")
 GRID_POINTS = {1: 21, 2: 13, 3: 7}  # per axis, by number of free parameters
 POLISH_TOL = 1e-6  # tolerance of the analyses inside local polishing
-POOL_PRELOAD = ("sosalgo.design", "clarabel", "scipy.optimize")  # imported by its fork server
+# imported by its fork server
+POOL_PRELOAD = ("sosalgo.design_search", "clarabel", "scipy.optimize")
 
 
 @dataclass
@@ -562,10 +563,10 @@ def bound_model(spec: Spec, kappa: float, free: list[str],
                  ) -> BoundModel | None:
     """The exact data of the family over Θ, or None when the family has no dual bound
     (no exact form, or variables outside θ-free cones). ``deadline``
-    (``time.perf_counter``): :class:`~sosalgo.design.polymodel.ModelTimeout` once the
+    (``time.perf_counter``): :class:`~sosalgo.design_search.polymodel.ModelTimeout` once the
     symbolic expansion passes it."""
-    from sosalgo.design.modes import ModeTest
-    from sosalgo.design.polymodel import exact_method, numeric_template, poly_lmi
+    from sosalgo.design_search.modes import ModeTest
+    from sosalgo.design_search.polymodel import exact_method, numeric_template, poly_lmi
     from sosalgo.kernel.kappa import exact_kappa
 
     if not spec.has_seed_form:  # the exact form is the seed's (A, B, C, E); no family has one here
@@ -584,7 +585,7 @@ def _timed_bound_model(spec: Spec, kappa: float, free: list[str], family: Certif
                        deadline: float) -> tuple[BoundModel | None, str | None]:
     """(the bound model, None), or (None, what was done) when its symbolic expansion
     did not end by ``deadline``."""
-    from sosalgo.design.polymodel import ModelTimeout
+    from sosalgo.design_search.polymodel import ModelTimeout
 
     try:
         return bound_model(spec, kappa, free, family, deadline), None
@@ -706,7 +707,7 @@ def _moment_bound(run: _Run, scalarize: str, order: int | None, max_order: int |
                   gap: float) -> tuple[float | None, dict[str, Any]]:
     """The paper's moment relaxation over Θ (order raised once if the gap is not met)."""
     # imported here: the relaxation needs cvxpy (about 2 s to import), the default bound not
-    from sosalgo.design.moment import relaxation_bound
+    from sosalgo.design_search.moment import relaxation_bound
     from sosalgo.polyopt import RelaxationStatus
 
     lb: float | None = None

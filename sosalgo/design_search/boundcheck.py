@@ -1,15 +1,16 @@
 """The certificate of a design's dual lower bound, and its re-proof from scratch.
 
-A dual bound (:mod:`sosalgo.design.dualbound`) is a cover of Θ × [0, T²] by boxes, each
+A dual bound (:mod:`sosalgo.design_search.dualbound`) is a cover of Θ × [0, T²] by boxes, each
 proven to hold no certificate of the family for ρ² in [0, r_box]. Its certificate lists
 every proof made: the box (centre and half-widths in the scaled coordinates z ∈ [-1, 1]^k
-of :mod:`sosalgo.design.polymodel`), its r, and how it was proven — ``dual`` with the
+of :mod:`sosalgo.design_search.polymodel`), its r, and how it was proven — ``dual`` with the
 dual matrices Z (and the SDP's covers and bounds, only hints for the enclosures) or
 ``mode``. Matrices are stored as their exact binary64 values (:func:`encode`).
 
 :func:`check_bound_certificate` trusts none of it: it rebuilds the exact polynomial data
 from the spec, re-runs every box proof in ball arithmetic
-(:class:`~sosalgo.design.boxproof.BoxProver`, :class:`~sosalgo.design.modes.ModeTest`),
+(:class:`~sosalgo.design_search.boxproof.BoxProver`,
+:class:`~sosalgo.design_search.modes.ModeTest`),
 drops the proofs that fail, and computes what the remaining ones cover: walking the
 dyadic splits of the root box [-1, 1]^k (the search's own splitting rule: halve the
 widest side), a box is covered up to the largest of its own proven r and the smallest
@@ -188,9 +189,9 @@ def _cover(best: dict[tuple, float], boxes: np.ndarray, z: np.ndarray, w: np.nda
 
 def check_bound_certificate(model: Any, cert: Mapping[str, Any]) -> BoundCheck:
     """Re-prove a bound certificate on ``model``, the exact data of the family over Θ
-    rebuilt from the spec (:func:`sosalgo.design.bound_model`; module docstring).
+    rebuilt from the spec (:func:`sosalgo.design_search.bound_model`; module docstring).
     ValueError when the certificate is malformed."""
-    from sosalgo.design.boxproof import BoxProver
+    from sosalgo.design_search.boxproof import BoxProver
 
     if not isinstance(cert, Mapping) or cert.get("kind") != BOUND_CERTIFICATE_KIND:
         raise ValueError(f"kind: expected {BOUND_CERTIFICATE_KIND!r}")

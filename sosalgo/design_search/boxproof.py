@@ -1,16 +1,16 @@
 """The proof that a box of θ holds no certificate: condition (F) of
-:mod:`sosalgo.design.dualbound` checked in ball arithmetic over the whole box.
+:mod:`sosalgo.design_search.dualbound` checked in ball arithmetic over the whole box.
 
 Given float dual matrices Z_d(u) = Z_d0 + Σ_j u_j Z_dj (their exact binary values are the
 certificate) for the θ-dependent blocks, this module proves, for every u ∈ [-1, 1]^k:
 
-1. Z_d(u) ⪰ 0 (:func:`sosalgo.design.enclosure.psd_on_box` on the affine terms);
+1. Z_d(u) ⪰ 0 (:func:`sosalgo.design_search.enclosure.psd_on_box` on the affine terms);
 2. h(u, r) = Σ_d <Z_d(u), C_d(u, r)> > 0 and
 3. Z_c(u, r) = -Φ_c⁻¹ g(u, r) ⪰ 0 for every cone block c, with
    g_i(u, r) = Σ_d <Z_d(u), L_di(u, r)>,
 
 at both ends of an r-interval (both conditions are affine in r, so the ends suffice),
-from the exact polynomial data of :mod:`sosalgo.design.polymodel` shifted to the box in
+from the exact polynomial data of :mod:`sosalgo.design_search.polymodel` shifted to the box in
 ball arithmetic. Every arithmetic step is outward rounded, so a True is a proof that the
 family's inequalities have no solution at any (θ, r) of the box × the r-interval.
 """
@@ -22,8 +22,8 @@ from collections.abc import Sequence
 import numpy as np
 from flint import arb, arb_mat
 
-import sosalgo.design.enclosure as enc
-from sosalgo.design.polymodel import PolyLMI
+import sosalgo.design_search.enclosure as enc
+from sosalgo.design_search.polymodel import PolyLMI
 
 __all__ = ["BoxProver"]
 
@@ -77,7 +77,7 @@ class BoxProver:
                covers: list[list[np.ndarray]] | None = None) -> bool:
         """(F) on the box center zc ± w for every r between min(rs) and max(rs).
         ``bounds`` (per r) and ``covers`` (per block: S_j of Z_j) are the SDP's
-        candidate matrices for the covers of :func:`~sosalgo.design.enclosure.psd_on_box`."""
+        candidate matrices for the covers of :func:`~sosalgo.design_search.enclosure.psd_on_box`."""
         for d, terms in enumerate(Zs):
             if not self._z_psd(terms, None if covers is None else covers[d]):
                 return False

@@ -19,11 +19,11 @@ What is floating point and what is proven:
   Z (Clarabel), the repair of Z and of its covers S, the screening of (F) with a safety
   margin (``_holds``) and the bisection on r that picks the r to prove;
 * proven in ball arithmetic (python-flint ``arb``, outward rounding) on the exact
-  polynomial data (:mod:`sosalgo.design.polymodel`): every box counted as proven, by
-  :mod:`sosalgo.design.boxproof` (the data shifted to the box, both ends of the r-interval
+  polynomial data (:mod:`sosalgo.design_search.polymodel`): every box counted as proven, by
+  :mod:`sosalgo.design_search.boxproof` (the data shifted to the box, both ends of the r-interval
   since the conditions are affine in r, the θ-variation bounded by the box's Taylor
   coefficients) or, near degenerate faces, by the mode argument of
-  :mod:`sosalgo.design.modes` (a visible mode slower than T on a quadratic);
+  :mod:`sosalgo.design_search.modes` (a visible mode slower than T on a quadratic);
 * the reported bound is the square root of the smallest proven r, rounded down.
 
 A proven box contains no θ that the family certifies at any ρ² in the box's r-range.
@@ -46,9 +46,9 @@ from enum import StrEnum
 import numpy as np
 import scipy.sparse as sps
 
-from sosalgo.design.boxproof import BoxProver
-from sosalgo.design.modes import ModeTest
-from sosalgo.design.polymodel import PolyLMI
+from sosalgo.design_search.boxproof import BoxProver
+from sosalgo.design_search.modes import ModeTest
+from sosalgo.design_search.polymodel import PolyLMI
 from sosalgo.kernel.solvers import (
     SolverStatus,
     clarabel_solve,
@@ -153,7 +153,7 @@ class BoundState:
                covers=None) -> None:
         """Keep a proof that the box holds no certificate for ρ² in [0, r] (``how``:
         dual, with its dual matrices and covers, or mode): the bound's certificate
-        (:func:`sosalgo.design.boundcheck.bound_certificate`)."""
+        (:func:`sosalgo.design_search.boundcheck.bound_certificate`)."""
         self.proofs.append({"z": box.zc.copy(), "w": box.w.copy(), "r": float(r),
                             "how": how, "Z": Zs, "bounds": bounds, "covers": covers})
 
@@ -175,7 +175,7 @@ class BoundState:
 class BoundSearch:
     """Best-first branch and bound over Θ: each box needs one dual point Z valid on the
     whole box for every r in [0, T²] (found by a robust SDP, screened in floats, proven in
-    ball arithmetic by :class:`~sosalgo.design.boxproof.BoxProver`), or the mode argument
+    ball arithmetic by :class:`~sosalgo.design_search.boxproof.BoxProver`), or the mode argument
     (``modes``)."""
 
     def __init__(self, model: PolyLMI, structure: DualStructure, target_r: float,

@@ -6,7 +6,7 @@ X_q = A + q B C. If X_q has an eigenvalue μ with |μ| > T whose eigenvector v i
 the output (E v ≠ 0), the trajectories from Re v and Im v have |x_k|² summing to
 |μ|^{2k} |E v|², so no certificate of any family proves f(x_k) − f* ≤ ρ^{2k} V_0 with
 ρ ≤ T there. Over a box of θ this is proven in ball arithmetic from the exact
-polynomials (:mod:`sosalgo.design.polymodel`), every part for every θ of the box:
+polynomials (:mod:`sosalgo.design_search.polymodel`), every part for every θ of the box:
 
 * a root outside the disc of radius T: with c(t) = det(t I − X_q) = Σ_j c_j(θ) t^j,
   c(T) < 0 (a real root > T), or (−1)^n c(−T) < 0 (a real root < −T), or
@@ -27,8 +27,8 @@ import numpy as np
 import sympy as sp
 from flint import arb, arb_mat
 
-import sosalgo.design.enclosure as enc
-from sosalgo.design.polymodel import ExactMethod, ball_coefficients
+import sosalgo.design_search.enclosure as enc
+from sosalgo.design_search.polymodel import ExactMethod, ball_coefficients
 
 __all__ = ["ModeTest"]
 

@@ -6,7 +6,8 @@ as a polynomial optimization problem and relaxed with the moment hierarchy of
 so that ``c + tr P + lambda = 1`` makes the feasible set compact. That keeps every Theorem 1
 certificate, so the value is a valid lower bound, but it also admits degenerate points
 with c = 0 and singular P (no certificate of anything) that can sit far below the design
-optimum: the bound is valid, and can be loose. :mod:`sosalgo.design.dualbound` has no such face.
+optimum: the bound is valid, and can be loose. :mod:`sosalgo.design_search.dualbound` has
+no such face.
 
 All matrices are written for the normalized class F(m/L, 1) with B scaled by L.
 """

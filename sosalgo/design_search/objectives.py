@@ -31,7 +31,7 @@ import numpy as np
 
 from sosalgo.analysis import AnalysisResult, analyze_spec, jsonable, spec_family
 from sosalgo.certificates import CertificateFamily, get_family
-from sosalgo.design import DesignResult
+from sosalgo.design_search import DesignResult
 from sosalgo.errors import InputError
 from sosalgo.model import ModelError, bind, design_box
 from sosalgo.spec import Spec
@@ -541,9 +541,9 @@ def objective_design(spec: Spec, kappa: float, objective: str = "noise",
 def _fast_start(spec: Spec, kappa: float, names: list[str], fam: CertificateFamily,
                 ev: Evaluator, time_limit: float, workers: int | None,
                 log: Callable[[str], None]) -> list[tuple[float, ...]]:
-    """No cloud point meets the rate cap: the rate design (:func:`sosalgo.design.design`)
+    """No cloud point meets the rate cap: the rate design (:func:`sosalgo.design_search.design`)
     with half the time left gives the fastest θ it finds."""
-    from sosalgo.design import design
+    from sosalgo.design_search import design
 
     left = ev.deadline - time.perf_counter()
     if left < 2.0:
@@ -580,7 +580,7 @@ def _objective_result(spec: Spec, kappa: float, names: list[str], fam: Certifica
                       pt: Point | None, objective: str, max_rate: float | None,
                       max_noise: float | None, steps: list[str], seconds: float,
                       timed_out: bool) -> ObjectiveDesignResult:
-    from sosalgo.design.floor import class_floor
+    from sosalgo.design_search.floor import class_floor
 
     res = None if pt is None else pt.analysis
     cert: dict[str, Any] = {}

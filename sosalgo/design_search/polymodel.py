@@ -12,7 +12,7 @@ products such as A'PA, eq. 14). This module
 * builds the family's blocks from its exact form (``exact_problem``) in scaled
   coordinates z ∈ [-1, 1]^k (θ = mid + half·z) and expands every entry (sympy), so the
   degrees and coefficients are exact; each coefficient is then enclosed in a ball
-  (:mod:`sosalgo.design.enclosure`). The SDPs use the balls' midpoints; proofs use the
+  (:mod:`sosalgo.design_search.enclosure`). The SDPs use the balls' midpoints; proofs use the
   balls.
 * re-expands the polynomial around any sub-box (a Taylor shift), in floats for the SDP
   and in ball arithmetic for proofs.
@@ -29,7 +29,7 @@ import numpy as np
 import sympy as sp
 from flint import arb, arb_mat
 
-import sosalgo.design.enclosure as enc
+import sosalgo.design_search.enclosure as enc
 from sosalgo.certificates.base import CertificateFamily
 from sosalgo.kernel.conic import ExactBlock, LMIProblem
 from sosalgo.kernel.expr.parse import to_sympy

@@ -3,12 +3,12 @@
 Three numbers come out, never mixed:
 
 * ``tau_certified``: the worst case at the designed θ (``schedule``, decimals), its dual
-  certificate proven exactly as ``sosalgo pep`` proves it (:func:`sosalgo.pep.pep`), so
+  certificate proven exactly as ``sosalgo pep`` proves it (:func:`sosalgo.worstcase.pep`), so
   tau_N(schedule) <= tau_certified. θ comes from a local search of the float PEP value
-  (the ``evaluator`` given: :func:`sosalgo.pep.evaluate.worst_case_evaluator`) from
+  (the ``evaluator`` given: :func:`sosalgo.worstcase.evaluate.worst_case_evaluator`) from
   a grid, polished, and from the centres of the boxes the bound search splits.
 * ``lower_bound``: proven over the whole box: tau_N(θ) >= lower_bound for every θ in Θ
-  (:mod:`sosalgo.design.steps_bound`: branch and bound over boxes, each proven in exact
+  (:mod:`sosalgo.design_search.steps_bound`: branch and bound over boxes, each proven in exact
   rational arithmetic).
 * ``floor``: only where a theorem gives it: for m = 0, one L-smooth convex f queried by
   its gradient and a method whose iterates stay in x_0 + span(g_0, ...) (every linear
@@ -27,8 +27,8 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.design.steps_bound import BranchResult, branch_and_bound
-from sosalgo.design.steps_model import Unsupported, parametric_pep
+from sosalgo.design_search.steps_bound import BranchResult, branch_and_bound
+from sosalgo.design_search.steps_model import Unsupported, parametric_pep
 from sosalgo.errors import InputError
 from sosalgo.kernel.phases import show_phase
 from sosalgo.spec import Spec
@@ -103,7 +103,7 @@ def drori_floor(spec: Spec, steps: int) -> float | None:
     """L / (2 theta_N^2) where the theorem applies (see the module), else None."""
     if spec.has_condition_number or spec.L is None:
         return None
-    from sosalgo.design.steps_model import check_setting
+    from sosalgo.design_search.steps_model import check_setting
 
     try:
         check_setting(spec)  # one smooth convex f by its gradient, linear, at rest
@@ -133,7 +133,7 @@ Layout = Sequence[tuple[str, int | None]]  # (parameter, N values per step, or N
 
 def flat_names(layout: Layout) -> list[str]:
     """The names of the free values: ``h`` for one value, ``h_0, ..., h_{N-1}`` per step."""
-    from sosalgo.design.steps_model import step_symbol
+    from sosalgo.design_search.steps_model import step_symbol
 
     return [step_symbol(p, None if n is None else k) for p, n in layout for k in range(n or 1)]
 
@@ -155,7 +155,7 @@ class _Stop(Exception):
 class _Search:
     """The best θ found (float PEP values), over the box [lo, hi] of the flat values;
     ``point``: the parametric model's float PEP at a point (value and gradient,
-    :class:`sosalgo.design.steps_model.PointSearch`), else the evaluator's value alone."""
+    :class:`sosalgo.design_search.steps_model.PointSearch`), else the evaluator's value alone."""
 
     def __init__(self, layout: Layout, lo: np.ndarray, hi: np.ndarray,
                  value: Callable[[Values], float], point: Any = None):
@@ -292,8 +292,8 @@ def design_steps(spec: Spec, text: str, kappa: float | None, steps: int, layout:
     """The N-step design of ``spec`` over ``box`` (exact ends, one per flat free value,
     :func:`flat_names` of ``layout``): schedule, tau_certified, lower_bound, floor (see
     the module). ``evaluator``: (float worst case at θ, proven worst case at θ), θ a dict
-    of parameter values (:func:`sosalgo.pep.evaluate.worst_case_evaluator`); ``model``:
-    the parametric PEP (:func:`sosalgo.design.steps_model.parametric_pep`; built here for
+    of parameter values (:func:`sosalgo.worstcase.evaluate.worst_case_evaluator`); ``model``:
+    the parametric PEP (:func:`sosalgo.design_search.steps_model.parametric_pep`; built here for
     a time-invariant spec when None, unless ``no_model`` says why there is none: then no
     box-wide bound, and the search uses the evaluator's values); ``gap``: the relative
     gap at which the bound search stops."""
@@ -313,7 +313,7 @@ def design_steps(spec: Spec, text: str, kappa: float | None, steps: int, layout:
             log.append(f"no box-wide lower bound: {exc}")
     point = None
     if model is not None:
-        from sosalgo.design.steps_model import PointSearch
+        from sosalgo.design_search.steps_model import PointSearch
 
         point = PointSearch(model)
     search = _Search(layout, lo, hi, value, point)
@@ -422,7 +422,7 @@ def exact_box(spec: Spec, kappa: float | None, names: Sequence[str]
     ``parameters.<name>.range`` when missing or empty."""
     import sympy as sp
 
-    from sosalgo.design.steps_model import exact_class
+    from sosalgo.design_search.steps_model import exact_class
     from sosalgo.kernel.expr.parse import to_sympy
     from sosalgo.spec.types import BASE_SYMBOLS
 
@@ -481,7 +481,7 @@ def steps_problem(spec: Spec, kappa: float | None, steps: int, names: Sequence[s
     """The problem of ``design --steps`` (see :class:`StepsProblem`): a parameter that
     varies with k (``per_step``) is free at every step k = 0..N-1 of a spec that varies
     with k, one value otherwise."""
-    from sosalgo.design.steps_model import step_symbol, varying_matrices
+    from sosalgo.design_search.steps_model import step_symbol, varying_matrices
 
     ranges = exact_box(spec, kappa, names)
     from sosalgo.steps import changes_with_k

@@ -3,7 +3,7 @@
 For a sub-box B of θ, three sound bounds of min_{θ in B} tau_N(θ):
 
 * **robust PEP point** (:class:`BoxSolver`, :func:`prove_point`): one (G, F) feasible for
-  the PEP of every θ in B (:mod:`sosalgo.design.steps_model`: each inequality is
+  the PEP of every θ in B (:mod:`sosalgo.design_search.steps_model`: each inequality is
   F_i - F_j + sum_alpha θ^alpha c_alpha >= 0 with c_alpha = <Q_alpha, G>; it holds on B
   when c_0 + sum_alpha min(lo_alpha c_alpha, hi_alpha c_alpha) >= 0, lo/hi the exact
   range of θ^alpha on B). The SDP maximizing F_N over such points is solved in floating
@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.design.steps_model import ParametricPEP, Poly, poly_range
+from sosalgo.design_search.steps_model import ParametricPEP, Poly, poly_range
 from sosalgo.kernel.solvers import SolverStatus, cvxpy_solve
 
 __all__ = ["BoxBound", "BoxSolver", "BranchResult", "branch_and_bound", "huber_bound",

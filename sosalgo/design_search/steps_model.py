@@ -9,7 +9,7 @@ interpolation inequality of an L-smooth, m-strongly convex f is
 
 with exact rational matrices Q_alpha (:class:`ParametricPEP`). The measure is
 f(x_N) - f* = F_N, the initial condition |x_0 - x*|^2 = G_00. Everything here is exact
-(fractions); :mod:`sosalgo.design.steps_bound` solves and proves boxes of θ with it.
+(fractions); :mod:`sosalgo.design_search.steps_bound` solves and proves boxes of θ with it.
 
 Supported: one ``smooth_strongly_convex`` function queried by its gradient, no D, x = E xi,
 the start at rest (no ``initial_state``), xi* = 1 x* (every row of A sums to 1 and
@@ -391,9 +391,9 @@ def varying_matrices(spec: Spec, kappa: float | None, steps: int,
 
 class PointSearch:
     """The float PEP of ``pp`` at one θ (cvxpy, Clarabel): its value and its gradient in θ,
-    which steer the schedule search (:mod:`sosalgo.design.steps`). It proves nothing: the
+    which steer the schedule search (:mod:`sosalgo.design_search.steps`). It proves nothing: the
     worst case of a schedule and its proof are ``sosalgo pep``'s
-    (:func:`sosalgo.pep.evaluate.worst_case_evaluator`).
+    (:func:`sosalgo.worstcase.evaluate.worst_case_evaluator`).
 
     Primal: max F_N subject to G_00 <= 1, G ⪰ 0 and, for every pair k = (i, j),
     F_i - F_j + <P_k(θ), G> >= 0 with P_k(θ) = sum_alpha θ^alpha Q_{k,alpha}. The gradient

@@ -6,7 +6,7 @@
   and checks V_{k+1} <= rho^2 V_k along trajectories (evidence, or a counterexample).
 """
 
-from sosalgo.verify.exact import (
+from sosalgo.proofs.exact import (
     ExactAlgorithm,
     ExactResult,
     exact_algorithm,
@@ -14,7 +14,7 @@ from sosalgo.verify.exact import (
     verify_exact,
     write_certificate,
 )
-from sosalgo.verify.functions import (
+from sosalgo.proofs.functions import (
     Objective,
     function_suite,
     huber_like,
@@ -22,7 +22,7 @@ from sosalgo.verify.functions import (
     lrp_counterexample,
     quadratic,
 )
-from sosalgo.verify.simulate import SimulationResult, Violation, simulate_check
+from sosalgo.proofs.simulate import SimulationResult, Violation, simulate_check
 
 __all__ = [
     "ExactAlgorithm",

@@ -1,5 +1,5 @@
 """What each field of a result row claims and how ``sosalgo verify`` backs it (the
-handlers of :class:`sosalgo.verify.ledger.RowLedger`; docs/verify.md lists them).
+handlers of :class:`sosalgo.proofs.ledger.RowLedger`; docs/verify.md lists them).
 
 Directions (a claim is backed when the proof is at least as good as claimed):
 
@@ -21,7 +21,7 @@ from collections.abc import Mapping
 from fractions import Fraction
 from typing import Any
 
-from sosalgo.verify.ledger import (
+from sosalgo.proofs.ledger import (
     BACKED,
     CONTEXT,
     CONTRADICTED,
@@ -79,7 +79,7 @@ def rho_proven(L: RowLedger, field: str) -> None:
 def exact_at(L: RowLedger, rho: Fraction) -> bool:
     """The row's certificate proven exactly at the rational ``rho`` (cached)."""
     from sosalgo.certificates import get_family
-    from sosalgo.verify.results import row_kappa
+    from sosalgo.proofs.results import row_kappa
 
     cache = L.cache.setdefault("exact_at", {})
     if rho not in cache:
@@ -300,9 +300,9 @@ def params(L: RowLedger, field: str) -> None:
 
 
 def floor(L: RowLedger, field: str) -> None:
-    """A theorem: 1 - 1/sqrt(kappa) where it holds (:func:`~sosalgo.design.floor.
+    """A theorem: 1 - 1/sqrt(kappa) where it holds (:func:`~sosalgo.design_search.floor.
     class_floor`); the claim must not exceed it."""
-    from sosalgo.design.floor import class_floor
+    from sosalgo.design_search.floor import class_floor
 
     v = L.row.get(field)
     if v is None:
@@ -321,7 +321,7 @@ def floor(L: RowLedger, field: str) -> None:
 
 
 def witness(L: RowLedger, field: str) -> None:
-    from sosalgo.verify.lowers import check_rho_lower
+    from sosalgo.proofs.lowers import check_rho_lower
 
     status, reason, proven = check_rho_lower(L.spec, L.row)
     L.add(field, status, reason, proven)

@@ -1,5 +1,5 @@
 """The claims of a design document that no single certificate backs: the lower bound
-(re-proven from ``bound_certificate``, :mod:`sosalgo.design.boundcheck`), the
+(re-proven from ``bound_certificate``, :mod:`sosalgo.design_search.boundcheck`), the
 relaxation's status, gaps, θ inside Θ, the rate at the spec's values
 (``values_certificate``) and ``bound_status``."""
 
@@ -11,7 +11,7 @@ from fractions import Fraction
 from typing import Any
 
 from sosalgo.kernel.phases import show_phase
-from sosalgo.verify.ledger import (
+from sosalgo.proofs.ledger import (
     BACKED,
     CONTEXT,
     CONTRADICTED,
@@ -34,9 +34,9 @@ def _bound(L: RowLedger) -> Any:
 
 def _reprove(L: RowLedger) -> Any:
     from sosalgo.certificates import get_family
-    from sosalgo.design import bound_model
-    from sosalgo.design.boundcheck import check_bound_certificate
-    from sosalgo.verify.results import row_kappa
+    from sosalgo.design_search import bound_model
+    from sosalgo.design_search.boundcheck import check_bound_certificate
+    from sosalgo.proofs.results import row_kappa
 
     row = L.row
     cert = row.get("bound_certificate")
@@ -133,7 +133,7 @@ def theta(L: RowLedger, field: str) -> None:
 
 
 def rho_at_values(L: RowLedger, field: str) -> None:
-    from sosalgo.verify.results import verify_document_rows
+    from sosalgo.proofs.results import verify_document_rows
 
     v = L.row.get(field)
     cert = L.row.get("values_certificate")

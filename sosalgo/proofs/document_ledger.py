@@ -1,5 +1,5 @@
 """The claim ledger of a whole result document (analyze, design, objective design,
-sublinear, pareto): each row's entries (:mod:`sosalgo.verify.ledger`) and the
+sublinear, pareto): each row's entries (:mod:`sosalgo.proofs.ledger`) and the
 document's own fields (a pareto front, its floor, the tunings bound to their names)."""
 
 from __future__ import annotations
@@ -9,10 +9,9 @@ from typing import Any
 
 from sosalgo.certificates import spec_family
 from sosalgo.kernel.phases import show_phase
-from sosalgo.spec import Spec
-from sosalgo.verify.claims import HANDLERS, SUBLINEAR
-from sosalgo.verify.design_claims import DESIGN_HANDLERS
-from sosalgo.verify.ledger import (
+from sosalgo.proofs.claims import HANDLERS, SUBLINEAR
+from sosalgo.proofs.design_claims import DESIGN_HANDLERS
+from sosalgo.proofs.ledger import (
     BACKED,
     CONTEXT,
     CONTRADICTED,
@@ -21,6 +20,7 @@ from sosalgo.verify.ledger import (
     entry,
     row_ledger,
 )
+from sosalgo.spec import Spec
 
 __all__ = ["document_ledger"]
 

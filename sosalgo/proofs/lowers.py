@@ -19,7 +19,7 @@ from collections.abc import Mapping
 from fractions import Fraction
 from typing import Any
 
-from sosalgo.verify.ledger import BACKED, CONTEXT, CONTRADICTED, UNSUPPORTED, frac
+from sosalgo.proofs.ledger import BACKED, CONTEXT, CONTRADICTED, UNSUPPORTED, frac
 
 __all__ = ["check_rho_lower"]
 

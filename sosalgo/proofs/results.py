@@ -1,4 +1,4 @@
-"""Glue between results (analysis rows, design documents) and :mod:`sosalgo.verify`:
+"""Glue between results (analysis rows, design documents) and :mod:`sosalgo.proofs`:
 exact proof and simulation for each certificate, rational certificates written to files.
 
 A result is checked only for what it claims: a row that claims a certificate (``certified:
@@ -31,11 +31,11 @@ from sosalgo.kernel.exact import Verdict
 from sosalgo.kernel.phases import show_phase
 from sosalgo.kinds import CERTIFICATE_KIND
 from sosalgo.model import bind
+from sosalgo.proofs import simulate_check
+from sosalgo.proofs.exact import write_certificate
 from sosalgo.schema import certificate_name
 from sosalgo.spec import Spec
 from sosalgo.store import output_lock
-from sosalgo.verify import simulate_check
-from sosalgo.verify.exact import write_certificate
 
 __all__ = [
     "ResultError", "check_failed", "verify_document_rows", "verify_family_certificate",
@@ -86,7 +86,7 @@ def _simulation(spec: Spec, family: CertificateFamily, kappa: float, rho: float,
     functions cannot be built in floating point (e.g. m = 1e-300: m L underflows)."""
     check = simulate_check
     if not spec.has_seed_form:  # proximal steps on test functions with closed-form proxes
-        from sosalgo.verify.simulate_composite import simulate_composite as check
+        from sosalgo.proofs.simulate_composite import simulate_composite as check
     try:
         sim = check(bind(spec, kappa, theta), rho, **family.lyapunov(cert))
     except (ValueError, FloatingPointError, OverflowError, np.linalg.LinAlgError) as exc:
@@ -412,9 +412,9 @@ def _sublinear_check(spec: Spec, fam: CertificateFamily, C: float | None,
 
 def _sublinear_simulation(spec: Spec, C: float | None,
                           theta: dict[str, float] | None) -> dict[str, Any] | None:
-    """The simulation check of the constant (:mod:`sosalgo.verify.simulate_sublinear`)."""
+    """The simulation check of the constant (:mod:`sosalgo.proofs.simulate_sublinear`)."""
     from sosalgo.model import ModelError, bind_sublinear
-    from sosalgo.verify.simulate_sublinear import simulate_sublinear
+    from sosalgo.proofs.simulate_sublinear import simulate_sublinear
 
     if C is None:
         return None

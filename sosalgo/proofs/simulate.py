@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from sosalgo.model import Algorithm, fixed_point
-from sosalgo.verify.functions import Objective, function_suite
+from sosalgo.proofs.functions import Objective, function_suite
 
 __all__ = ["SimulationResult", "Violation", "simulate_check"]
 
@@ -198,7 +198,7 @@ def simulate_check(
 ) -> SimulationResult:
     """Run the method on functions of F(m, L) and check eq. (13) and (16) along trajectories.
 
-    ``functions``: None (the default :func:`~sosalgo.verify.functions.function_suite`), a
+    ``functions``: None (the default :func:`~sosalgo.proofs.functions.function_suite`), a
     callable ``(m, L, d, rng) -> list[Objective]`` used for every d in ``dims``, or a list of
     Objective (their own dimensions are used and ``dims`` is ignored). ``lam`` does not enter
     V; it is accepted so a whole certificate can be passed. ``lyapunov`` (lag, p, c) selects

@@ -1,5 +1,5 @@
 """Simulation check of a composite certificate: run the method with its proximal steps on
-test functions (:mod:`sosalgo.verify.prox_functions`) and watch the Lyapunov function.
+test functions (:mod:`sosalgo.proofs.prox_functions`) and watch the Lyapunov function.
 
 The method xi+ = A xi + B u, y = C xi + D u is run in d dimensions in absolute
 coordinates; D is lower triangular, so the calls are made in order: with
@@ -29,8 +29,8 @@ from typing import Any
 import numpy as np
 
 from sosalgo.oracles import fixed_point_basis
-from sosalgo.verify.prox_functions import ProxProblem, composite_problems
-from sosalgo.verify.simulate import SimulationResult, Tally, Violation
+from sosalgo.proofs.prox_functions import ProxProblem, composite_problems
+from sosalgo.proofs.simulate import SimulationResult, Tally, Violation
 
 __all__ = ["fixed_point_state", "run_method", "simulate_composite"]
 

@@ -2,7 +2,7 @@
 
 The method (oracle model, proximal steps included: :func:`run_method`) is started at rest,
 xi_0 = xi* + u (x_0 - x*) (u the fixed point of x* = 1), on the test problems of its
-classes (:mod:`sosalgo.verify.prox_functions`, with m = 0: quadratics with curvatures in
+classes (:mod:`sosalgo.proofs.prox_functions`, with m = 0: quadratics with curvatures in
 [0, L] (a zero curvature among them), Huber functions, l1, boxes, balls), from random
 starts at several distances, and every k = 1..iters is compared with the bound, allowing
 1e-11 of the size of the values involved (rounding). For gradient descent with h = 1/L
@@ -19,9 +19,9 @@ from typing import Any
 import numpy as np
 
 from sosalgo.oracles import fixed_point_basis
-from sosalgo.verify.prox_functions import ProxProblem, composite_problems
-from sosalgo.verify.simulate import SimulationResult, Tally, Violation
-from sosalgo.verify.simulate_composite import fixed_point_state, run_method
+from sosalgo.proofs.prox_functions import ProxProblem, composite_problems
+from sosalgo.proofs.simulate import SimulationResult, Tally, Violation
+from sosalgo.proofs.simulate_composite import fixed_point_state, run_method
 
 __all__ = ["simulate_sublinear"]
 

@@ -1,7 +1,7 @@
 """``sosalgo verify`` on a ``design --steps`` document: each row's ``tau_certified`` is
 proven again (the PEP's dual certificate at the row's exact schedule, as ``sosalgo pep``
 proves it) and its ``lower_bound`` too (the leaves cover the spec's box, each leaf's
-bound re-proven by its argument, :func:`sosalgo.design.steps_bound.reprove`). A row
+bound re-proven by its argument, :func:`sosalgo.design_search.steps_bound.reprove`). A row
 without a lower bound, or with leaves that do not cover the box, is "unsupported": verify
 cannot back it and exits 3. ``floor`` is recomputed from its theorem."""
 
@@ -60,9 +60,9 @@ def verify_steps_row(row: Mapping[str, Any], spec: Spec, where: str = "result"
 
 def _upper(items: list[dict[str, str]], row: Mapping[str, Any], spec: Spec,
            kappa: float | None, steps: int, where: str) -> Fraction | None:
-    from sosalgo.design.steps import steps_problem
-    from sosalgo.pep.evaluate import steps_evaluator
+    from sosalgo.design_search.steps import steps_problem
     from sosalgo.spec import read_spec_text
+    from sosalgo.worstcase.evaluate import steps_evaluator
 
     field = f"{where}.tau_certified"
     claim, sched = row.get("tau_certified"), row.get("schedule_exact")
@@ -101,9 +101,9 @@ def _lower(items: list[dict[str, str]], row: Mapping[str, Any], spec: Spec,
     if not isinstance(leaves, list) or not leaves or len(leaves) > MAX_LEAVES:
         _claim(items, field, "unsupported", "no leaves to re-prove (or too many)")
         return None
-    from sosalgo.design.steps import flat_names, steps_problem
-    from sosalgo.design.steps_bound import reprove
-    from sosalgo.design.steps_model import Unsupported, parametric_pep
+    from sosalgo.design_search.steps import flat_names, steps_problem
+    from sosalgo.design_search.steps_bound import reprove
+    from sosalgo.design_search.steps_model import Unsupported, parametric_pep
 
     prob = steps_problem(spec, kappa, steps, list(row.get("free") or []))
     boxes = [(_fracs(lf["lo"]), _fracs(lf["hi"])) for lf in leaves]
@@ -180,7 +180,7 @@ def _covers(boxes: list[tuple], root: list[tuple[Fraction, Fraction]]) -> bool:
 
 def _floor(items: list[dict[str, str]], row: Mapping[str, Any], spec: Spec, steps: int,
            where: str) -> None:
-    from sosalgo.design.steps import drori_floor
+    from sosalgo.design_search.steps import drori_floor
 
     claim = row.get("floor")
     want = drori_floor(spec, steps)

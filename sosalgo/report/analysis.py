@@ -112,9 +112,9 @@ _EXTRA_CURVES = {  # drawn beside the spec's references when comparing families
 
 def attach_checks(spec: Spec, rows: list[dict[str, Any]], out_dir: Path,
                   family: CertificateFamily | None = None) -> None:
-    """Verify every row (exact proof and simulation, :mod:`sosalgo.verify.results`) and
+    """Verify every row (exact proof and simulation, :mod:`sosalgo.proofs.results`) and
     store the check in ``verification`` and its verdict in ``verified``."""
-    from sosalgo.verify.results import verify_document_rows
+    from sosalgo.proofs.results import verify_document_rows
 
     checks = verify_document_rows(spec, rows, out_dir, family=family)
     for r, v in zip(rows, checks, strict=True):
@@ -126,7 +126,7 @@ def attach_constant_checks(spec: Spec, rows: list[dict[str, Any]], out_dir: Path
     """Verify every row of a sublinear spec (the exact proof of
     :mod:`sosalgo.certificates.exact_sublinear`; the simulation is the row's own) and store
     the check in ``verification`` and its verdict in ``verified``."""
-    from sosalgo.verify.results import verify_sublinear_rows
+    from sosalgo.proofs.results import verify_sublinear_rows
 
     checks = verify_sublinear_rows(spec, rows, out_dir, simulate=False,
                                    family=spec_family(spec))

@@ -252,7 +252,7 @@ def _design_options(spec: Spec, kappas: list[float], free: str | Sequence[str] |
     """The design options checked (free names, gap, time limit, method), as the sweep
     takes them; nothing is computed or written."""
     from sosalgo.batch.sweeps import family_options
-    from sosalgo.design.polymodel import check_polynomial
+    from sosalgo.design_search.polymodel import check_polynomial
 
     inputs.check_method(settings["method"], settings["scalarize"], fam, "--method")
     names = inputs.free_names(spec, free)
@@ -279,12 +279,12 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
     returns ``{"spec", "source", "spec_text", "csv", "figures", "rows"}``, one design
     document per kappa (``--json`` prints the single document for one kappa).
     ``objective="noise"`` with ``max_rate`` (or ``max_noise`` with the default objective)
-    designs with the noise sensitivity (:mod:`sosalgo.design.objectives`) into
+    designs with the noise sensitivity (:mod:`sosalgo.design_search.objectives`) into
     ``<name>-design[...]-min-noise.csv`` (``-min-rate.csv``). ``overrides`` (``--set``)
     fix parameters (a fixed parameter is not free); every document records them in
     ``set``."""
     from sosalgo.batch.sweeps import design_csv_to_json, run_design_sweep
-    from sosalgo.design.objectives import check_objective
+    from sosalgo.design_search.objectives import check_objective
     from sosalgo.report import design as rep
 
     spec, text = spec_with_text(spec, spec_text, overrides)
@@ -335,7 +335,7 @@ def design_run(spec: Spec | str | Path, kappa: Kappas = None, out_dir: str | Pat
         figs = (rep.design_figure(spec, opts["free"], rows, docs, stem, fam, how)
                 if len(docs) > 1 else [])
     if verify:
-        from sosalgo.verify.results import verify_document_rows
+        from sosalgo.proofs.results import verify_document_rows
 
         checks = verify_document_rows(spec, docs, out / "certificates")
         for d, v in zip(docs, checks, strict=True):
@@ -431,8 +431,8 @@ def _design_certificates(csv_path: Path, doc: dict[str, Any]) -> None:
     again to a result read back from the CSV when they are for its numbers (``sosalgo
     verify`` re-proves them either way). Called under the CSV's output lock."""
     from sosalgo.kinds import DESIGN_CERTIFICATES_KIND
+    from sosalgo.proofs.exact import write_certificate
     from sosalgo.schema import kappa_label
-    from sosalgo.verify.exact import write_certificate
 
     path = csv_path.with_name(f"{csv_path.stem}-k{kappa_label(doc['kappa'])}"
                               "-certificates.json")

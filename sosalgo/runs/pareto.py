@@ -3,17 +3,17 @@ sensitivity) over Θ, written as it is computed; its pieces are :mod:`sosalgo.pa
 
 At one kappa (docs/noise.md, "Design on the speed–robustness front"):
 
-1. the fast end: today's rate design (:func:`sosalgo.design.design`) gives the fastest
+1. the fast end: today's rate design (:func:`sosalgo.design_search.design`) gives the fastest
    certified rate rho_0 it finds on the box;
 2. N - 1 rate caps R_i = 1 - (1 - rho_0)^(1 + i/(N - 1)), i = 1 .. N - 1, evenly spaced in
    log(1 - rho) from rho_0 to the slow end 1 - (1 - rho_0)^2 (1 - 1/kappa when rho_0 is the
    floor 1 - 1/sqrt(kappa): the rate of gradient descent with h = 1/L); for each, the least
-   sensitive θ found with certified rate <= R_i (:func:`sosalgo.design.objectives.min_noise`,
+   sensitive θ found with certified rate <= R_i (:func:`sosalgo.design_search.objectives.min_noise`,
    started from the points already solved under smaller caps, the fast end and the best
    points of a grid over Θ);
 3. every point certified on both axes and proven in exact arithmetic (the rate by the
    family's exact verifier, the noise by :mod:`sosalgo.sensitivity.exact`;
-   :func:`sosalgo.design.objectives.certify_point`), written to
+   :func:`sosalgo.design_search.objectives.certify_point`), written to
    ``<name>-pareto-k<kappa>.csv`` with its certificates as it is done (resumable, batch
    layer); the front keeps the points proven on both axes that no other dominates
    (:func:`sosalgo.pareto.pareto_filter`); ``sosalgo verify`` re-checks the ``--json`` document
@@ -98,7 +98,7 @@ def _starts(options: Mapping[str, Any], cap: float) -> list[tuple[dict[str, floa
     """Where a cap's search starts, least sensitive first (noise as known: certified for
     solved points, screened for the grid): the solved points below it
     (:func:`_solved_below`), the fast end, and the best grid points under the cap."""
-    from sosalgo.design.objectives import CAP_SLACK
+    from sosalgo.design_search.objectives import CAP_SLACK
 
     free = options["free"]
     grid = sorted((s for s in options.get("cloud", []) if s[1] <= cap - CAP_SLACK
@@ -113,7 +113,7 @@ def _cap_point(spec: Spec, options: Mapping[str, Any], task: Mapping[str, Any]) 
     search runs in two halves: the second restarts from its own best and from any better
     point another worker has solved meanwhile under a smaller cap. Out of time, the least
     sensitive start is certified."""
-    from sosalgo.design.objectives import Evaluator, certify_first, design_family, min_noise
+    from sosalgo.design_search.objectives import Evaluator, certify_first, design_family, min_noise
 
     fam = design_family(spec, _base_family(spec, options))
     now = time.perf_counter()
@@ -153,7 +153,7 @@ def pareto_chunk(spec_text: str, source: str, options: dict[str, Any],
     """Worker: one row per task, a front point (kind "front": the least sensitive θ under
     the task's cap) or a known tuning (certified in the form of eq. (9))."""
     from sosalgo.batch.sweeps import cached_spec
-    from sosalgo.design.objectives import certify_point, design_family
+    from sosalgo.design_search.objectives import certify_point, design_family
     from sosalgo.model import ModelError
 
     spec = cached_spec(spec_text, source)
@@ -184,7 +184,7 @@ pareto_chunk.max_chunk = 1  # type: ignore[attr-defined]  # a front point takes 
 # --------------------------------------------------------------------------- parent side
 def _check(spec: Spec, kappa: Any, points: Any, time_limit: Any) -> list[float]:
     """The kappas, after the checks of ``sosalgo pareto`` (InputError naming the option)."""
-    from sosalgo.design.objectives import check_noise_spec_for
+    from sosalgo.design_search.objectives import check_noise_spec_for
 
     check_noise_spec_for(spec, "pareto")
     if kappa in (None, [], ()):
@@ -204,8 +204,8 @@ def _check(spec: Spec, kappa: Any, points: Any, time_limit: Any) -> list[float]:
 def _fast_end(store: Any, spec: Spec, kappa: float, names: list[str], fam: Any,
               time_limit: float, workers: int | None) -> dict[str, str]:
     """Row 0: the rate design's θ certified on both axes (read back when resumed)."""
-    from sosalgo.design import design
-    from sosalgo.design.objectives import certify_point, design_family
+    from sosalgo.design_search import design
+    from sosalgo.design_search.objectives import certify_point, design_family
 
     key = store.row_key({"index": 0})
     if key not in store.done:
@@ -275,7 +275,7 @@ def _search_options(spec: Spec, kappa: float, names: list[str], fam: Any, store:
     solved, and each cap's time (:func:`_cap_seconds`)."""
     from sosalgo.batch.executor import SERIAL_BELOW
     from sosalgo.certificates import describe_family
-    from sosalgo.design.objectives import Evaluator, cloud, design_family
+    from sosalgo.design_search.objectives import Evaluator, cloud, design_family
     from sosalgo.kernel.parallel import default_workers
 
     todo = [t for t in tasks if not store.is_done(t)]

@@ -1,6 +1,6 @@
 """``sosalgo pep`` as a Python function: :func:`pep_run` (CSV, witness JSON, figure,
 resumable sweeps over kappa and N through the batch layer). The PEP itself is
-:func:`sosalgo.pep.pep`; the figure is :func:`sosalgo.report.pep.pep_figure`."""
+:func:`sosalgo.worstcase.pep`; the figure is :func:`sosalgo.report.pep.pep_figure`."""
 
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ def pep_row(res: Any, cls: dict[str, Any] | None = None) -> dict[str, Any]:
     """The row of a result (columns :data:`sosalgo.schema.PEP_COLUMNS`) as a worker hands
     it over, ``document`` the whole document's JSON text; the run stores that text in its
     own file and the cell names the file (:func:`document_file`). ``cls``: the class its
-    proofs are about (:func:`sosalgo.pep.exact.class_description`), added to the document
+    proofs are about (:func:`sosalgo.worstcase.exact.class_description`), added to the document
     as ``class``."""
     cert = res.certificate or {}
     chk = (res.witness or {}).get("check") or {}
@@ -63,9 +63,9 @@ def task_kappa(task: dict[str, Any]) -> float | None:
 def pep_chunk(spec_text: str, source: str, options: dict[str, Any],
               chunk: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Worker: the PEP at each task's (kappa, steps)."""
-    from sosalgo.pep.core import pep
-    from sosalgo.pep.exact import class_description
     from sosalgo.spec import spec_from_text
+    from sosalgo.worstcase.core import pep
+    from sosalgo.worstcase.exact import class_description
 
     spec = spec_from_text(spec_text, source)
     rows = []
@@ -92,10 +92,10 @@ def _check(spec: Spec, kappas: list[float | None], steps: list[int], measure: st
     workers allowed, whether each PEP runs in a worker process: one that may take longer
     than :data:`ISOLATE_SECONDS`, so that SIGTERM or Ctrl-C need not wait for its solve)."""
     from sosalgo.kernel import budget
-    from sosalgo.pep.core import pep_problem
+    from sosalgo.worstcase.core import pep_problem
 
-    if spec.finite_sum is not None:  # a tree of outcomes (sosalgo.pep.finite_sum)
-        from sosalgo.pep.finite_sum import finite_sum_sizes
+    if spec.finite_sum is not None:  # a tree of outcomes (sosalgo.worstcase.finite_sum)
+        from sosalgo.worstcase.finite_sum import finite_sum_sizes
 
         sizes = finite_sum_sizes(spec, kappas, steps, measure, initial)
         est, w = budget.pep_estimate(f"pep {spec.name}", f"--steps {max(steps)}", sizes,
@@ -105,8 +105,8 @@ def _check(spec: Spec, kappas: list[float | None], steps: list[int], measure: st
     # (x_2, y_1, x_N-1) that a shorter one has not reached
     small = min(steps)
     top = max(steps)
-    if spec.mirror:  # Bregman steps: their own PEP (sosalgo.pep.mirror)
-        from sosalgo.pep.mirror import mirror_problem
+    if spec.mirror:  # Bregman steps: their own PEP (sosalgo.worstcase.mirror)
+        from sosalgo.worstcase.mirror import mirror_problem
 
         npairs, d = mirror_problem(spec, kappas, top, measure, initial)
     else:
@@ -139,10 +139,10 @@ def pep_run(spec: Spec | str | Path, kappa: float | Sequence[float] | None = Non
     from sosalgo import inputs
     from sosalgo.batch.executor import Progress, check_scheduler, run_batch
     from sosalgo.batch.sweeps import kappa_settings
-    from sosalgo.pep.core import parse_steps
     from sosalgo.runs import kappa_value, set_field, spec_with_text
     from sosalgo.schema import PEP_COLUMNS, pep_csv
     from sosalgo.store import ResumableCSV
+    from sosalgo.worstcase.core import parse_steps
 
     spec, text = spec_with_text(spec, spec_text, overrides, varying=True)
     recorded = set_field(overrides)

@@ -1,6 +1,6 @@
 """``sosalgo design SPEC --steps N`` as a Python function: :func:`steps_design_run` (one CSV
 row per (kappa, N), resumable, through the batch layer; figures of the schedule and of
-the worst case against N). The design itself is :func:`sosalgo.design.steps.design_steps`.
+the worst case against N). The design itself is :func:`sosalgo.design_search.steps.design_steps`.
 """
 
 from __future__ import annotations
@@ -20,10 +20,10 @@ __all__ = ["steps_design_chunk", "steps_design_run"]
 def steps_design_chunk(spec_text: str, source: str, options: dict[str, Any],
                        chunk: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Worker: the design at each task's (kappa, steps)."""
-    from sosalgo.design.steps import design_steps, steps_problem
-    from sosalgo.pep.evaluate import steps_evaluator
+    from sosalgo.design_search.steps import design_steps, steps_problem
     from sosalgo.runs.pep import task_kappa
     from sosalgo.spec import spec_from_text
+    from sosalgo.worstcase.evaluate import steps_evaluator
 
     spec = spec_from_text(spec_text, source)
     rows = []
@@ -77,12 +77,12 @@ def steps_design_run(spec: Spec | str | Path, kappa: float | Sequence[float] | N
     from sosalgo import inputs
     from sosalgo.batch.executor import Progress, check_scheduler, run_batch
     from sosalgo.batch.sweeps import kappa_settings
-    from sosalgo.design.steps import steps_problem
-    from sosalgo.pep.core import parse_steps
-    from sosalgo.pep.evaluate import steps_evaluator
+    from sosalgo.design_search.steps import steps_problem
     from sosalgo.runs import set_field, spec_with_text
     from sosalgo.schema import STEPS_DESIGN_COLUMNS, steps_design_csv
     from sosalgo.store import ResumableCSV
+    from sosalgo.worstcase.core import parse_steps
+    from sosalgo.worstcase.evaluate import steps_evaluator
 
     spec, text = spec_with_text(spec, spec_text, overrides, varying=True)
     ks = _kappas(spec, kappa)
@@ -126,7 +126,7 @@ def steps_design_run(spec: Spec | str | Path, kappa: float | Sequence[float] | N
                      | set_field(overrides))
         figs = _figures(spec, docs, out) if plot else []
     if verify:
-        from sosalgo.verify.steps_design import verify_steps_row
+        from sosalgo.proofs.steps_design import verify_steps_row
 
         for d in docs:
             d["verification"] = verify_steps_row(d, spec)

@@ -5,7 +5,7 @@ The certificate (P, p, s, c and the multipliers, original units) of
 proof path, as the interpolation family's certificates are
 (:mod:`sosalgo.certificates.exact_interpolation`):
 
-1. the method is made exact (:func:`sosalgo.verify.exact.exact_algorithm`: rational kappa,
+1. the method is made exact (:func:`sosalgo.proofs.exact.exact_algorithm`: rational kappa,
    m, L, rational balls around irrational entries) and its fixed point proven;
 2. every number of the certificate is read as the exact rational value of its float;
    negative multipliers become 0;

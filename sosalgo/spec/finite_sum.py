@@ -12,7 +12,7 @@ program (parsed by :mod:`ast`, node by node, never evaluated as code).
       constraints: ["mean(grad(f[j], xs)**2) <= v**2"]
     pep: {measure: "E[(x - xs)**2]", initial: "(x - xs)**2 <= R**2"}
 
-The PEP itself is :mod:`sosalgo.pep.finite_sum`; this module checks the text only."""
+The PEP itself is :mod:`sosalgo.worstcase.finite_sum`; this module checks the text only."""
 
 from __future__ import annotations
 

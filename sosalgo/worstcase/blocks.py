@@ -5,13 +5,13 @@ estimation problems").
 
 A class gives each such condition as a symmetric 2 x 2 K
 (:meth:`sosalgo.classes.base.FunctionClass.blocks`): over the function's points a, b
-(tilted data, in the units of :mod:`sosalgo.pep.structure`: g/s times s),
+(tilted data, in the units of :mod:`sosalgo.worstcase.structure`: g/s times s),
 
     T[a, b] = [x_a; g_a]' K [x_b; g_b],      T ⪰ 0.
 
 In the dual the condition takes a matrix multiplier Lambda ⪰ 0 and S gains
 - sum_ab Lambda_ab T_ab(G) (:func:`block_columns`, the dual solve of
-:mod:`sosalgo.pep.sdp`). A positive semidefinite Lambda = sum_i e_i v_i v_i' (its
+:mod:`sosalgo.worstcase.sdp`). A positive semidefinite Lambda = sum_i e_i v_i v_i' (its
 eigenvalues e_i >= 0, eigenvectors v_i) is exactly the sum of the scalar conditions
 v_i' T v_i >= 0 (each valid on every member of the class, since T ⪰ 0) with multipliers
 e_i. After the first solve the PEP keeps those rank-one cuts (:func:`with_cuts`; the
@@ -34,7 +34,7 @@ import numpy as np
 import scipy.sparse as sps
 
 from sosalgo.kernel.conic import svec, unsvec
-from sosalgo.pep.structure import Method, PEPStructure
+from sosalgo.worstcase.structure import Method, PEPStructure
 
 __all__ = ["block_columns", "block_data", "block_form", "cut_vectors", "with_cuts"]
 

@@ -1,9 +1,9 @@
 """The witness check of the oracle calls themselves: every exact call's answer is the
 gradient its function has at the call's point (exact rationals), every inexact one within
 its relative error of it, or of the answer itself for a proximal call (ball arithmetic;
-:mod:`sosalgo.pep.inexact`), and every exact line search step ends where the next
-gradient is orthogonal to the step's direction (:mod:`sosalgo.pep.linesearch`). Used by
-:func:`sosalgo.pep.check.check_witness`."""
+:mod:`sosalgo.worstcase.inexact`), and every exact line search step ends where the next
+gradient is orthogonal to the step's direction (:mod:`sosalgo.worstcase.linesearch`). Used by
+:func:`sosalgo.worstcase.check.check_witness`."""
 
 from __future__ import annotations
 
@@ -23,7 +23,7 @@ def call_checks(doc: dict[str, Any], av: Any) -> tuple[int, int]:
     exactly for an exact call, eps^2 |g|^2 - |d - g|^2 >= 0 in ball arithmetic for an
     inexact gradient call and eps^2 |d|^2 - |d - g|^2 >= 0 for an inexact proximal one
     (the error y - prox within eps of the step y - v; eps of the exact method)."""
-    from sosalgo.pep.exact import ball
+    from sosalgo.worstcase.exact import ball
 
     mt = av.mt
     p = mt.p
@@ -59,8 +59,8 @@ def call_checks(doc: dict[str, Any], av: Any) -> tuple[int, int]:
 def _reference(doc: dict[str, Any], mt: Any, k: int, i: int, g: list[Any]) -> list[Any]:
     """The vector inexact call i's error is relative to, in balls: ``relative_to``'s
     combination of the step's answers, else the answer (a proximal call) or g."""
-    from sosalgo.pep.exact import ball
-    from sosalgo.pep.inexact import is_prox_call
+    from sosalgo.worstcase.exact import ball
+    from sosalgo.worstcase.inexact import is_prox_call
 
     refs = getattr(mt, "error_refs", None) or {}
     if i in refs:

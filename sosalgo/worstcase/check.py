@@ -1,7 +1,7 @@
 """The exact check of a PEP witness (:func:`check_witness`) and the exact fit of its
 function values (:func:`fit_values`), in ball arithmetic: python-flint's ``arb``
 (outward rounded, :data:`PREC` bits) around the exact rationals of the document and the
-exact method of :func:`sosalgo.pep.exact.exact_method` (its rational balls enclosed
+exact method of :func:`sosalgo.worstcase.exact.exact_method` (its rational balls enclosed
 outward). A claim holds only when every ball says so (``x >= 0`` of an ``arb`` is true
 only for the whole ball).
 
@@ -24,11 +24,11 @@ import numpy as np
 from flint import arb, arb_mat, fmpq
 
 from sosalgo.kernel.arb import arb_fraction, precision
-from sosalgo.pep.exact import ball, exact_method, exact_steps_or_none
-from sosalgo.pep.structure import Method, last_calls
-from sosalgo.pep.terms import OUT0, Term, free_start
 from sosalgo.spec import Spec
 from sosalgo.steps import changes_with_k
+from sosalgo.worstcase.exact import ball, exact_method, exact_steps_or_none
+from sosalgo.worstcase.structure import Method, last_calls
+from sosalgo.worstcase.terms import OUT0, Term, free_start
 
 __all__ = ["PREC", "ArbView", "arb_view", "check_witness", "fit_values", "member_interval",
            "member_measure", "pair_forms", "positions", "q_str"]
@@ -68,7 +68,7 @@ class ArbView:
         return ball(self.mt.coef(t))
 
     def step(self, k: int) -> tuple[arb_mat, arb_mat, arb_mat, arb_mat]:
-        """(A, B, C, D) of step k (:meth:`sosalgo.pep.structure.Method.step`)."""
+        """(A, B, C, D) of step k (:meth:`sosalgo.worstcase.structure.Method.step`)."""
         if self.per_step is None:
             return self.A, self.B, self.C, self.D
         if k >= len(self.per_step):
@@ -173,7 +173,8 @@ def positions(doc: dict[str, Any], av: ArbView) -> dict[str, Any]:
 
 def _ls_step(doc: dict[str, Any], k: int) -> arb:
     """The step t_k of a line search witness (x_{k+1} = x_k + t_k d_k), exactly: the
-    line search is proven by <g_{k+1}, d_k> = 0 (:func:`sosalgo.pep.call_checks.call_checks`)."""
+    line search is proven by <g_{k+1}, d_k> = 0
+    (:func:`sosalgo.worstcase.call_checks.call_checks`)."""
     steps = doc["line_search_steps"]
     if not isinstance(steps, list) or len(steps) != int(doc["steps"]):
         raise ValueError("line_search_steps: expected one step per iteration")
@@ -190,7 +191,7 @@ def exact_points(doc: dict[str, Any], mt: Method) -> tuple[dict[str, list[Any]],
     rational balls (:class:`~sosalgo.kernel.exact.Ball`, when the method has irrational
     entries), recomputed from the start and the calls as :func:`positions` does, in
     exact arithmetic instead of arb."""
-    from sosalgo.pep.structure import coarsen
+    from sosalgo.worstcase.structure import coarsen
 
     def shorter(v: Any) -> Any:  # a ball's long centre rounded outward; rationals stay
         return coarsen(v, mt.bits) if getattr(v, "r", 0) else v
@@ -398,7 +399,7 @@ def pos_key(point: str, N: int, p: int) -> str:
 
 def _terms_value(terms: list[Term], doc: dict[str, Any], av: ArbView,
                  pos: dict[str, Any]) -> arb:
-    from sosalgo.pep.terms import DIFF_KIND, MIN_OF, STEP_POINT, at_steps
+    from sosalgo.worstcase.terms import DIFF_KIND, MIN_OF, STEP_POINT, at_steps
 
     mt, N = av.mt, int(doc["steps"])
     total = arb(0)
@@ -512,7 +513,7 @@ def set_quadratic_calls(doc: dict[str, Any], av: ArbView, q: list[Fraction],
 def _measure_initial(doc: dict[str, Any], spec: Spec, av: ArbView
                      ) -> tuple[int, int, bool, arb, arb]:
     """(pairs checked, not proven, optimal subgradients sum to 0, measure, initial)."""
-    from sosalgo.pep.terms import parse_terms
+    from sosalgo.worstcase.terms import parse_terms
 
     p = av.mt.p
     mterms = parse_terms(doc["measure"], "measure", False, p, spec.parameters)
@@ -524,7 +525,7 @@ def _measure_initial(doc: dict[str, Any], spec: Spec, av: ArbView
         _differences_only(iterms, av)
     pos = positions(doc, av)
     checked, bad = _pairs_ok(doc, av, pos)
-    from sosalgo.pep.call_checks import call_checks
+    from sosalgo.worstcase.call_checks import call_checks
 
     calls, wrong = call_checks(doc, av)  # each answer is its point's gradient (or near it)
     if wrong:
@@ -552,8 +553,8 @@ def check_witness(doc: dict[str, Any], spec: Spec, mt: Method | ArbView | None =
     """Check a witness against ``spec`` (see the module; ``mt``: its exact method, built
     here when not given); never raises on a bad witness: ``verified`` False with the
     reason."""
-    from sosalgo.pep.bind import bound_method, class_kappa
-    from sosalgo.pep.exact import document_kappa
+    from sosalgo.worstcase.bind import bound_method, class_kappa
+    from sosalgo.worstcase.exact import document_kappa
 
     t0 = time.perf_counter()
     out: dict[str, Any] = {"verified": False, "check_kind": "exact (rational and ball "
@@ -572,8 +573,8 @@ def check_witness(doc: dict[str, Any], spec: Spec, mt: Method | ArbView | None =
             om, _ = bound_method(spec, class_kappa(spec, kappa))
             mt = exact_method(spec, kappa, om, int(doc["steps"]))
         av = mt if isinstance(mt, ArbView) else arb_view(mt)
-        if "xi0_second" in doc:  # two runs (:mod:`sosalgo.pep.contraction_witness`)
-            from sosalgo.pep.contraction_witness import check_contraction_witness
+        if "xi0_second" in doc:  # two runs (:mod:`sosalgo.worstcase.contraction_witness`)
+            from sosalgo.worstcase.contraction_witness import check_contraction_witness
 
             if str(doc.get("measure")).strip() != "contraction":
                 raise ValueError("a second run is a witness of the contraction measure")
@@ -581,7 +582,7 @@ def check_witness(doc: dict[str, Any], spec: Spec, mt: Method | ArbView | None =
                 return check_contraction_witness(doc, spec, av)
         with precision(PREC):
             if doc.get("members") is not None:  # explicit quadratics, not points
-                from sosalgo.pep.terms import parse_terms
+                from sosalgo.worstcase.terms import parse_terms
 
                 meas, init = member_measure(
                     doc, av, parse_terms(doc["measure"], "measure", False, av.mt.p),
@@ -615,7 +616,7 @@ def check_witness(doc: dict[str, Any], spec: Spec, mt: Method | ArbView | None =
 # Witnesses that are explicit members of the classes: one quadratic f_j = q_j/2 |x|^2
 # per function (for an operator class, the linear operator q_j I), each least at x* = 0.
 #
-# A class with Gram-level conditions (:mod:`sosalgo.pep.blocks`) has equalities among its
+# A class with Gram-level conditions (:mod:`sosalgo.worstcase.blocks`) has equalities among its
 # pairwise conditions (symmetry, the values of a quadratic), which no rounded trajectory
 # meets exactly. Its witness is therefore not a list of points checked against the
 # pairwise inequalities but the functions themselves: the document's ``members`` gives each

@@ -8,8 +8,8 @@ when every claim is backed. The claims:
 
 * ``tau_proven`` (a certificate's upper bound): proven again from the proof's exact
   multipliers (``multipliers_exact``, by pair label) and scale on the exact PEP rebuilt
-  from the spec (:func:`sosalgo.pep.exact.reprove_certificate`); nothing is solved.
-* a witness's ``tau_lower``: the witness checked again (:func:`sosalgo.pep.check.
+  from the spec (:func:`sosalgo.worstcase.exact.reprove_certificate`); nothing is solved.
+* a witness's ``tau_lower``: the witness checked again (:func:`sosalgo.worstcase.check.
   check_witness`); the claimed value must be what its data proves (not above it, and
   not below it by more than :data:`LOWER_REL`), about the class it claims: its ``class``
   (exact m, L, kappa, each function's parameters) and each function's class and float
@@ -49,7 +49,7 @@ TAU_REL = 1e-6  # a float tau may sit this far (relative) outside the proven bra
 LOWER_REL = 1e-9  # a claimed tau_lower may sit this far below what its witness proves
 UPPER_REL = 1e-3  # a proven tau_proven is this close (relative) above its own tau
 # a witness further below tau than this (relative) does not pin tau from below (the
-# quadratic witness of a long horizon, sosalgo.pep.witness.quadratic_candidates: 1e-3
+# quadratic witness of a long horizon, sosalgo.worstcase.witness.quadratic_candidates: 1e-3
 # of tau and less; a verified mix of the SDP's geometry sits within a few percent)
 LOOSE_REL = 0.5
 FLOAT_REL = 1e-8  # float coordinates against the exact ones (relative to the largest)
@@ -135,8 +135,8 @@ def _bracket(claims: _Claims, field: str, tau: float | None, lower: Fraction | N
 def _upper(claims: _Claims, spec: Spec, ctx: Mapping[str, Any], proof: Any,
            claimed: Any, where: str) -> Fraction | None:
     """Re-prove a claimed tau_proven (None: no claim); the proven value or None."""
-    from sosalgo.pep.exact import reprove_certificate
-    from sosalgo.pep.finite_sum import reprove_finite_sum
+    from sosalgo.worstcase.exact import reprove_certificate
+    from sosalgo.worstcase.finite_sum import reprove_finite_sum
 
     # a finite sum is a tree of outcomes: its own exact PEP
     reprove = reprove_finite_sum if spec.finite_sum is not None else reprove_certificate
@@ -147,7 +147,7 @@ def _upper(claims: _Claims, spec: Spec, ctx: Mapping[str, Any], proof: Any,
         claims.add(f"{where}.tau_proven", "unsupported", "no proof in the document")
         return None
     if spec.mirror:  # Bregman steps: their own exact PEP
-        from sosalgo.pep.mirror import reprove_mirror
+        from sosalgo.worstcase.mirror import reprove_mirror
 
         ok, why = reprove_mirror(spec, ctx["steps"], ctx["measure"], ctx["initial"],
                                  dict(proof) | {"tau_proven": claimed})
@@ -163,9 +163,9 @@ def _upper(claims: _Claims, spec: Spec, ctx: Mapping[str, Any], proof: Any,
 
 
 def _spec_class(spec: Spec, kappa: float | None) -> dict[str, Any] | None:
-    """The spec's class at kappa (:func:`sosalgo.pep.exact.class_description`), None
+    """The spec's class at kappa (:func:`sosalgo.worstcase.exact.class_description`), None
     when it cannot be written exactly (then no claimed class matches it)."""
-    from sosalgo.pep.exact import class_description
+    from sosalgo.worstcase.exact import class_description
 
     try:
         return class_description(spec, kappa)
@@ -193,7 +193,7 @@ def _check_schedule(claims: _Claims, spec: Spec, ctx: Mapping[str, Any],
     must be the spec's over the row's steps, to 1e-12."""
     if "schedule" not in row:
         return
-    from sosalgo.pep.steps import spec_steps
+    from sosalgo.worstcase.steps import spec_steps
 
     said = row["schedule"]
     try:
@@ -214,9 +214,9 @@ def _check_schedule(claims: _Claims, spec: Spec, ctx: Mapping[str, Any],
 
 def _ctx(row: Mapping[str, Any], spec: Spec, where: str) -> dict[str, Any]:
     """kappa, steps, measure, initial of a row or witness, checked against the spec."""
-    from sosalgo.pep.bind import has_kappa
-    from sosalgo.pep.core import MAX_STEPS
-    from sosalgo.pep.exact import document_kappa
+    from sosalgo.worstcase.bind import has_kappa
+    from sosalgo.worstcase.core import MAX_STEPS
+    from sosalgo.worstcase.exact import document_kappa
 
     kappa = document_kappa(_num(row.get("kappa"), f"{where}.kappa"), row.get("kappa_exact"),
                            where)
@@ -299,7 +299,7 @@ def _verify_row(row: Mapping[str, Any], spec: Spec, where: str) -> dict[str, Any
         sub = verify_witness_file(wit, spec, f"{where}.witness", own_upper=False)
         claims.items += sub["claims"]
         lower = None if sub["tau_lower"] is None else Fraction(sub["tau_lower"])
-    from sosalgo.pep.terms import NONE_TEXT
+    from sosalgo.worstcase.terms import NONE_TEXT
 
     if lower is None and str(row.get("initial", "")).strip() == NONE_TEXT:
         lower = Fraction(0)  # no initial condition: every vector and value 0 is an instance
@@ -332,11 +332,11 @@ def _verdict(claims: _Claims, ctx: Mapping[str, Any], tau: float | None,
 
 def verify_witness_file(doc: Mapping[str, Any], spec: Spec, where: str = "witness",
                         own_upper: bool = True) -> dict[str, Any]:
-    """The claims of a witness (see the module): the check of :func:`sosalgo.pep.check.
+    """The claims of a witness (see the module): the check of :func:`sosalgo.worstcase.check.
     check_witness` plus every claim the file makes. ``verified`` True (``verdict``
     "exact") only when all are backed; ``tau_lower`` the proven lower bound (None when
     the check fails)."""
-    from sosalgo.pep.check import check_witness
+    from sosalgo.worstcase.check import check_witness
 
     if doc.get("kind") != WITNESS_KIND:
         raise InputError(f"{where}.kind: expected '{WITNESS_KIND}'")
@@ -440,8 +440,8 @@ def _coordinate_claims(claims: _Claims, spec: Spec, kappa: float | None,
                        doc: Mapping[str, Any], where: str) -> None:
     """``x_exact``/``iterates_exact`` equal to the recomputed trajectory; ``x`` and
     ``iterates`` (floats) within :data:`FLOAT_REL` of it."""
-    from sosalgo.pep.check import exact_points
-    from sosalgo.pep.exact import exact_or_none
+    from sosalgo.worstcase.check import exact_points
+    from sosalgo.worstcase.exact import exact_or_none
 
     steps = doc.get("steps")
     mt = exact_or_none(spec, kappa, steps if isinstance(steps, int) and not
@@ -477,10 +477,10 @@ def _contraction_coordinates(claims: _Claims, mt: Any, doc: Mapping[str, Any],
                              where: str) -> None:
     """Each point's ``x`` and the ``iterates`` (the second run's states) of a contraction
     witness within :data:`FLOAT_REL` (relative to the largest) of both runs recomputed
-    (:mod:`sosalgo.pep.contraction_witness`)."""
+    (:mod:`sosalgo.worstcase.contraction_witness`)."""
     from sosalgo.kernel.arb import precision
-    from sosalgo.pep.check import PREC, arb_view
-    from sosalgo.pep.contraction_witness import contraction_positions
+    from sosalgo.worstcase.check import PREC, arb_view
+    from sosalgo.worstcase.contraction_witness import contraction_positions
 
     try:
         with precision(PREC):

@@ -13,8 +13,8 @@ inequalities, X = (v_1, ..., v_4), Qc = diag(c_i), with its values a (``extra_va
 each with a multiplier >= 0 (an equality's free-sign multiplier is the difference of its
 two), entering the dual certificate like an interpolation pair's: S = tau I0 - M -
 sum_k lambda_k Q_k - sum_c mu_c X_c' Qc_c X_c, c_F = tau i_F - m_F - sum lambda_k a_k -
-sum_c mu_c a_c (:func:`sosalgo.pep.sdp.pep_data`, the exact proof
-:func:`sosalgo.pep.exact.prove_at`). No witness is built for a constrained PEP, and the
+sum_c mu_c a_c (:func:`sosalgo.worstcase.sdp.pep_data`, the exact proof
+:func:`sosalgo.worstcase.exact.prove_at`). No witness is built for a constrained PEP, and the
 witness check refuses one (it would have to prove the constraints too).
 """
 
@@ -34,7 +34,7 @@ MAX_SQUARES = 4  # squared terms per constraint (the rows X of a PEP row)
 def spec_constraints(spec: Any, p: int) -> list[tuple[str, list[Any]]]:
     """The spec's ``pep.constraints``, parsed (an InputError naming the file and the
     entry)."""
-    from sosalgo.pep.terms import parse_constraint
+    from sosalgo.worstcase.terms import parse_constraint
 
     names = frozenset(getattr(spec, "parameters", None) or ())
     out = []
@@ -52,7 +52,7 @@ def constraint_rows(mt: Any, steps: int, point_row: Any, grad_row: Any, value_at
     coefficient) to ``state["extra_values"]`` (by extras index). ``point_row(q, opt)``:
     the row of a term's point; ``grad_row(row, key, opt)``: the gradient's row there;
     ``value_at(row, key, opt)``: {F index: s} of f there."""
-    from sosalgo.pep.terms import DIFF_KIND, at_steps
+    from sosalgo.worstcase.terms import DIFF_KIND, at_steps
 
     for i, (rel, terms) in enumerate(mt.constraints):
         opt = f"pep.constraints[{i}]"

@@ -19,7 +19,7 @@ have a solution iff alpha_r' Q^r_ab + alpha_r Q^r'_ba >= 0 (every pair of inequa
 r, r' with alpha > 0; Q^r >= 0 both ways when alpha_r = 0), and these forms depend on
 the differences alone (the classes are invariant under adding a linear function). They
 are the PEP's rows (``contraction:<call>#r,r'``, extra constraints without values,
-:mod:`sosalgo.pep.inexact`).
+:mod:`sosalgo.worstcase.inexact`).
 
 This keeps the conditions between the two points of the same call and drops those
 between different calls: an upper bound of the PEP over the union of both runs' points

@@ -1,4 +1,4 @@
-"""The witness of the contraction measure (:mod:`sosalgo.pep.contraction`) and its check.
+"""The witness of the contraction measure (:mod:`sosalgo.worstcase.contraction`) and its check.
 
 Two runs on quadratics f_j = (q_j/2) x^2 (one dimension), q_j just inside each class's
 curvatures (or a few curvatures for a merely convex class), the first run at rest at 0,
@@ -102,7 +102,7 @@ def contraction_witness(spec: Any, kappa: Any, mt: Any, res: Any, exact_mt: Any
            "calls_second": [[[fraction_str(u)] for u in row] for row in runs[1][1]],
            "functions": funcs, "evaluations": {}, "tau_float": res.tau,
            "iterates": _states(ex, start, runs[1][1], N)}
-    return doc  # the caller checks it (:func:`sosalgo.pep.check.check_witness`)
+    return doc  # the caller checks it (:func:`sosalgo.worstcase.check.check_witness`)
 
 
 def _states(steps: list[list[np.ndarray]], xi0: list[Fraction], us: list[list[Fraction]],
@@ -155,7 +155,7 @@ def _exact_run(steps: list[list[np.ndarray]], xi0: list[Fraction], q: list[Fract
 def _arb_mat(rows: Any) -> Any:
     from flint import arb_mat
 
-    from sosalgo.pep.exact import ball
+    from sosalgo.worstcase.exact import ball
 
     vals = [[ball(v) for v in row] for row in rows]
     return arb_mat(len(vals), len(vals[0]) if vals else 0, [v for r in vals for v in r])
@@ -199,13 +199,13 @@ def check_contraction_witness(doc: dict[str, Any], spec: Any, av: Any) -> dict[s
     from flint import arb
 
     from sosalgo.kernel.arb import arb_fraction
-    from sosalgo.pep.exact import ball
+    from sosalgo.worstcase.exact import ball
 
     t0 = time.perf_counter()
     out: dict[str, Any] = {"verified": False, "check_kind": "exact (rational and ball "
                            "arithmetic)", "tau_lower": None, "tau_lower_float": None}
     mt = av.mt
-    try:  # at the caller's precision (:data:`sosalgo.pep.check.PREC`)
+    try:  # at the caller's precision (:data:`sosalgo.worstcase.check.PREC`)
         pos, states = contraction_positions(doc, av)
         checked = bad = 0
         for j, (name, _, _) in enumerate(mt.functions):

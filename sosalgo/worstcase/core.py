@@ -1,6 +1,6 @@
 """``sosalgo.pep(spec, kappa, steps)``: the worst case after N steps, its dual certificate
-(checked exactly, :mod:`sosalgo.pep.exact`) and its worst-case trajectory
-(:mod:`sosalgo.pep.witness`). See :mod:`sosalgo.pep.structure` for the problem."""
+(checked exactly, :mod:`sosalgo.worstcase.exact`) and its worst-case trajectory
+(:mod:`sosalgo.worstcase.witness`). See :mod:`sosalgo.worstcase.structure` for the problem."""
 
 from __future__ import annotations
 
@@ -17,13 +17,19 @@ import numpy as np
 from sosalgo.errors import InputError
 from sosalgo.kernel.kappa import Kappa, kappa_fields
 from sosalgo.kernel.phases import show_phase
-from sosalgo.pep.bind import bound_method, class_kappa, initial_gradient
-from sosalgo.pep.constraints import spec_constraints
-from sosalgo.pep.sdp import PEPData, SDPAnswer, pep_data, solve_pep, value_residual
-from sosalgo.pep.steps import StepMethods, float_step_method, spec_steps
-from sosalgo.pep.structure import Method, PEPStructure, build_structure, deadbeat_gain, output_call
-from sosalgo.pep.terms import Term, parse_terms
 from sosalgo.spec import Spec
+from sosalgo.worstcase.bind import bound_method, class_kappa, initial_gradient
+from sosalgo.worstcase.constraints import spec_constraints
+from sosalgo.worstcase.sdp import PEPData, SDPAnswer, pep_data, solve_pep, value_residual
+from sosalgo.worstcase.steps import StepMethods, float_step_method, spec_steps
+from sosalgo.worstcase.structure import (
+    Method,
+    PEPStructure,
+    build_structure,
+    deadbeat_gain,
+    output_call,
+)
+from sosalgo.worstcase.terms import Term, parse_terms
 
 __all__ = ["MAX_STEPS", "PEPResult", "float_method", "parse_steps", "pep", "pep_problem"]
 
@@ -141,7 +147,7 @@ def float_method(om: Any, kappa: float) -> Method:
 
 def _check_kappa(spec: Spec, kappa: float | None) -> None:
     """A kappa exactly when the spec's class has one (as :func:`bound_method` asks)."""
-    from sosalgo.pep.bind import has_kappa
+    from sosalgo.worstcase.bind import has_kappa
 
     if not has_kappa(spec) and kappa is not None:
         raise InputError(f"{spec.source}: --kappa: an m: 0 spec has no condition number "
@@ -172,9 +178,9 @@ def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None
                 ) -> tuple[Method, PEPStructure, list[Term], list[Term], tuple[str, str]]:
     """The float method, structure, terms and the (measure, initial) texts, defaults
     resolved (InputError naming the option for bad input). ``schedule``: a method that
-    changes with k (:mod:`sosalgo.pep.steps`; the spec gives its class and terms). A
+    changes with k (:mod:`sosalgo.worstcase.steps`; the spec gives its class and terms). A
     ``mingrad`` measure is replaced by its weighted sum at the minimax weights
-    (:mod:`sosalgo.pep.minimum`; uniform weights when not ``solve_min``: the structure's
+    (:mod:`sosalgo.worstcase.minimum`; uniform weights when not ``solve_min``: the structure's
     size only); the returned terms are then the weighted sum's, and ``mt.bound`` its
     text."""
     if isinstance(steps, bool) or not isinstance(steps, int) or not 1 <= steps <= MAX_STEPS:
@@ -199,7 +205,7 @@ def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None
     except InputError as exc:  # a spec's field: named with its file
         raise (InputError(f"{spec.source}: {exc}") if str(exc).startswith("pep.")
                else exc) from None
-    from sosalgo.pep.terms import MIN_OF
+    from sosalgo.worstcase.terms import MIN_OF
 
     if not iterms and any(t.kind in MIN_OF for t in mterms):
         raise InputError(f"{spec.source}: {iopt}: none: a minimum over the iterates needs an "
@@ -222,7 +228,7 @@ def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None
         bound = _resolve_min(mt, steps, mterms, iterms, kq, solve_min)
         st = build_structure(mt, steps, bound, iterms, (mopt, iopt))
         if bound is not mterms and solve_min:
-            from sosalgo.pep.minimum import min_floors
+            from sosalgo.worstcase.minimum import min_floors
 
             st.floors = min_floors(mt, steps, mterms, iterms)
         mterms = bound
@@ -248,7 +254,7 @@ def _resolve_min(mt: Method, steps: int, mterms: list[Term], iterms: list[Term],
                  kappa: float, solve_min: bool) -> list[Term]:
     """``mterms`` with a mingrad term replaced by its weighted sum (see
     :func:`pep_problem`); the text is kept as ``mt.bound``."""
-    from sosalgo.pep.terms import MIN_OF, expand_min
+    from sosalgo.worstcase.terms import MIN_OF, expand_min
 
     mins = [t for t in mterms if t.kind in MIN_OF]
     if not mins:
@@ -257,7 +263,7 @@ def _resolve_min(mt: Method, steps: int, mterms: list[Term], iterms: list[Term],
         raise InputError(f"--measure: {mins[0].kind}: one minimum term, with a positive "
                          "coefficient (a minimum is bounded from above, not from below)")
     if solve_min:
-        from sosalgo.pep.minimum import min_weights, rational_weights
+        from sosalgo.worstcase.minimum import min_weights, rational_weights
 
         w = rational_weights(min_weights(mt, steps, mterms, iterms))
     else:
@@ -271,17 +277,17 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
         witness: bool = True, schedule: StepMethods | None = None) -> PEPResult:
     """The PEP of ``spec`` at ``kappa`` over ``steps`` steps (see the module);
     ``schedule``: the per-step methods of a method that changes with k
-    (:mod:`sosalgo.pep.steps`), the spec giving the class, the units and the terms."""
+    (:mod:`sosalgo.worstcase.steps`), the spec giving the class, the units and the terms."""
     t0, cpu0 = time.perf_counter(), time.process_time()
     spec = _load(spec)
-    if spec.mirror:  # Bregman steps: their own PEP (sosalgo.pep.mirror)
-        from sosalgo.pep.mirror import mirror_pep
+    if spec.mirror:  # Bregman steps: their own PEP (sosalgo.worstcase.mirror)
+        from sosalgo.worstcase.mirror import mirror_pep
 
         if isinstance(steps, bool) or not isinstance(steps, int) or not 1 <= steps <= MAX_STEPS:
             raise InputError(f"--steps: must be an integer in 1..{MAX_STEPS}, got {steps!r}")
         return mirror_pep(spec, kappa, steps, measure, initial, exact, PEPResult)
     if spec.finite_sum is not None:  # one of n functions drawn per step: a tree of outcomes
-        from sosalgo.pep.finite_sum import finite_sum_pep
+        from sosalgo.worstcase.finite_sum import finite_sum_pep
 
         _check_kappa(spec, kappa)
         got = finite_sum_pep(spec, kappa, steps, measure, initial, exact)
@@ -339,7 +345,7 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
         _bare_result(spec, kappa, steps, mt, data, ans, exact, mterms, iterms, res)
     elif ans.status == "solved":
         res.gap = abs(float(ans.primal) - float(ans.dual))  # type: ignore[arg-type]
-        from sosalgo.pep.exact import exact_or_none
+        from sosalgo.worstcase.exact import exact_or_none
 
         if schedule is None:
             ex = exact_or_none(spec, kappa, steps) if exact or witness else None  # built once
@@ -354,8 +360,8 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
         show_phase("proving the certificate" if exact else "checking the certificate")
         res.certificate = _certificate(spec, kappa, mt, data, ans, exact, mterms, iterms, ex)
         if witness and any(t.kind == "contraction" for t in mterms):  # two runs
-            from sosalgo.pep.contraction_witness import contraction_witness
-            from sosalgo.pep.witness import check_witness, finish_witness
+            from sosalgo.worstcase.contraction_witness import contraction_witness
+            from sosalgo.worstcase.witness import check_witness, finish_witness
 
             show_phase("worst-case witness")
             res.witness = contraction_witness(spec, kappa, mt, res, ex)
@@ -372,12 +378,12 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
             res.extra["note"] = ("no worst-case witness for a PEP with constraints on the "
                                  "instance (tau_proven is the proven upper bound)")
         elif witness and mt.line_search:  # a run on the class's extremal quadratic
-            from sosalgo.pep.linesearch_witness import line_search_witness
+            from sosalgo.worstcase.linesearch_witness import line_search_witness
 
             show_phase("worst-case witness")
             res.witness = line_search_witness(spec, kappa, mt, st, res, ex)
         elif witness:
-            from sosalgo.pep.witness import make_witness
+            from sosalgo.worstcase.witness import make_witness
 
             show_phase("worst-case witness")
             res.witness = make_witness(spec, kappa, mt, data, ans, mterms, iterms, res, ex,
@@ -418,7 +424,7 @@ def _bare_result(spec: Spec, kappa: float | None, steps: int, mt: Method, data: 
     homogeneous in the instance, so its worst case is 0 (the instance at x*, every vector
     0) when it is <= 0 everywhere, else unbounded. The solver's normalized worst case t
     decides (t > BARE_TOL: unbounded); tau = 0 is then proven exactly at tau = 0
-    (:func:`sosalgo.pep.exact.prove_bare`). No witness: 0 is reached by x_0 = x*."""
+    (:func:`sosalgo.worstcase.exact.prove_bare`). No witness: 0 is reached by x_0 = x*."""
     t = float(ans.primal)  # type: ignore[arg-type]
     res.extra["normalized_tau"] = t
     if t > BARE_TOL:
@@ -432,7 +438,7 @@ def _bare_result(spec: Spec, kappa: float | None, steps: int, mt: Method, data: 
     cert: dict[str, Any] = {"tau": 0.0, "check_kind": "floating-point check",
                             "tau_proven": None, "proof": None}
     if exact:
-        from sosalgo.pep.exact import exact_or_none, prove_bare
+        from sosalgo.worstcase.exact import exact_or_none, prove_bare
 
         show_phase("proving the certificate")
         proof = prove_bare(spec, kappa, data.st, mterms, iterms, lam, S, data.w,
@@ -458,8 +464,8 @@ PLAIN_RETRY_STEPS = 5  # a failed solve is retried in the plain basis up to this
 
 def _quadratic_terms(terms: list[Term]) -> bool:
     """Whether a term is one the witness file does not evaluate: ``inner``, ``free`` or a
-    call's point at a given step (:mod:`sosalgo.pep.terms`)."""
-    from sosalgo.pep.terms import CALL_AT, FREE_KIND, GRAD_OF, INNER_KIND
+    call's point at a given step (:mod:`sosalgo.worstcase.terms`)."""
+    from sosalgo.worstcase.terms import CALL_AT, FREE_KIND, GRAD_OF, INNER_KIND
 
     return any(t.kind in (INNER_KIND, FREE_KIND) or any(
         CALL_AT.match(q.removeprefix(GRAD_OF)) for q in t.point.split("__")) for t in terms)
@@ -468,9 +474,9 @@ def _quadratic_terms(terms: list[Term]) -> bool:
 def _cut_pep(mt: Method, st: PEPStructure, data: PEPData, ans: SDPAnswer
              ) -> tuple[PEPStructure, PEPData, SDPAnswer]:
     """(structure, data, answer) of the PEP with the rank-one cuts of the block
-    multipliers of ``ans`` (:mod:`sosalgo.pep.blocks`), solved again from the same pairs
+    multipliers of ``ans`` (:mod:`sosalgo.worstcase.blocks`), solved again from the same pairs
     and scale."""
-    from sosalgo.pep.blocks import cut_vectors, with_cuts
+    from sosalgo.worstcase.blocks import cut_vectors, with_cuts
 
     cut = with_cuts(mt, st, cut_vectors(st, ans.blocks))
     new = pep_data(mt, cut)
@@ -483,7 +489,7 @@ def _exact_schedule(spec: Spec, kappa: float | None, schedule: StepMethods,
                     count: int) -> Method | None:
     """The exact method of a schedule's first ``count`` steps, None when it cannot be
     built (no exact matrices, or their fixed point not proven)."""
-    from sosalgo.pep.exact import exact_step_method
+    from sosalgo.worstcase.exact import exact_step_method
 
     try:
         return exact_step_method(spec, kappa, schedule, count)
@@ -528,7 +534,7 @@ def _mixed(cand: SDPAnswer, inner: SDPAnswer, w: np.ndarray,
     clearly positive definite in floating point (min eig at least cand.s
     deficit): tau grows by theta (tau_inner - tau). cand itself when already so.
     ``floor_rel``: that floor relative to the largest entry of the scaled S (a polished
-    candidate, :mod:`sosalgo.pep.polish`, is that accurate); else 1e-12, absolute for
+    candidate, :mod:`sosalgo.worstcase.polish`, is that accurate); else 1e-12, absolute for
     entries below 1."""
     a, b = _min_eig(cand.S, w), _min_eig(inner.S, w)  # type: ignore[arg-type]
     top = float(np.abs(cand.S * np.outer(w, w)).max())  # type: ignore[operator]
@@ -552,9 +558,9 @@ def _null_row_proof(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
                     null_tol: float | None = None) -> None:
     """The measure's own certificate with its near-zero rows of S made exactly zero in
     rationals (a PEP with a free direction has no certificate with S ≻ 0, so no margin
-    proves it; :func:`sosalgo.pep.exact.null_row_multipliers`); ``cert`` updated when
+    proves it; :func:`sosalgo.worstcase.exact.null_row_multipliers`); ``cert`` updated when
     proven."""
-    from sosalgo.pep.exact import NULL_ROW, prove_certificate
+    from sosalgo.worstcase.exact import NULL_ROW, prove_certificate
 
     Sh = ans.S * np.outer(data.w, data.w)  # type: ignore[operator]
     scale = max(1.0, float(np.abs(Sh).max()))
@@ -574,9 +580,9 @@ def _null_row_proof(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
 def _linear_only(data: PEPData) -> list[int] | None:
     """With constants, the basis directions no form has a square of (S is 0 on their
     diagonal: its rows there are made exactly zero in the proof,
-    :func:`sosalgo.pep.sdp.linear_only`); None when there are none or no constants (the
+    :func:`sosalgo.worstcase.sdp.linear_only`); None when there are none or no constants (the
     margin proofs as they are)."""
-    from sosalgo.pep.sdp import linear_only
+    from sosalgo.worstcase.sdp import linear_only
 
     return [c for c, v in enumerate(linear_only(data)) if v == 0] or None
 
@@ -585,9 +591,9 @@ POLISH_FLOORS = (1e-12, 1e-9)  # a polished candidate's floor on S, relative to 
 
 
 def _polished(data: PEPData, ans: SDPAnswer, tau: float) -> SDPAnswer | None:
-    """The measure's answer polished (:mod:`sosalgo.pep.polish`), its tau held at the
+    """The measure's answer polished (:mod:`sosalgo.worstcase.polish`), its tau held at the
     reported ``tau`` first; None when it does not converge."""
-    from sosalgo.pep.polish import polished
+    from sosalgo.worstcase.polish import polished
 
     return polished(data, ans, tau) if ans.status == "solved" else None
 
@@ -611,7 +617,7 @@ def _prove_candidate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
                      cert: dict[str, Any]) -> bool:
     """Prove one candidate certificate exactly; ``cert`` updated (its ``proof``, and the
     proven bound when proven)."""
-    from sosalgo.pep.exact import prove_certificate
+    from sosalgo.worstcase.exact import prove_certificate
 
     Sh = cand.S * np.outer(data.w, data.w)  # type: ignore[operator]
     if not units and np.linalg.eigvalsh(Sh)[0] < -1e-9 * max(1.0, float(np.abs(Sh).max())):

@@ -1,5 +1,5 @@
 """The worst case after N steps at given parameter values: the one function the N-step
-design (:mod:`sosalgo.design.steps`) and its verification evaluate and prove. It is the
+design (:mod:`sosalgo.design_search.steps`) and its verification evaluate and prove. It is the
 PEP of ``sosalgo pep`` at the spec with the values fixed (``--set``): one per-step PEP
 and one dual proof for ``pep``, ``design --steps`` and ``verify``."""
 
@@ -10,7 +10,7 @@ from collections.abc import Callable
 from fractions import Fraction
 from typing import Any
 
-from sosalgo.design.steps import value_text
+from sosalgo.design_search.steps import value_text
 from sosalgo.errors import InputError
 from sosalgo.spec import Spec
 
@@ -25,9 +25,9 @@ def worst_case_evaluator(spec: Spec, text: str, kappa: float | None, steps: int,
     """(float tau_N at θ, proven tau_N at θ): the PEP of ``sosalgo pep`` at the spec
     with the parameters fixed to θ's values (``--set``). The proven one returns
     (tau_proven or None, float tau). The values are written as given (decimals)."""
-    from sosalgo.pep.core import pep
     from sosalgo.spec import spec_from_text
     from sosalgo.spec.overrides import apply_overrides
+    from sosalgo.worstcase.core import pep
 
     def at(values: Values) -> Spec:
         over = {k: value_text(v) for k, v in values.items()}
@@ -58,8 +58,8 @@ def steps_evaluator(spec: Spec, text: str, kappa: float | None, steps: int,
     with ``sosalgo pep`` on the spec as written (its own values, to 1e-6), else it is
     dropped (``prob.model`` None, ``prob.reason`` says why): a bound about another method
     is never reported. InputError when ``sosalgo pep`` cannot bind the spec."""
-    from sosalgo.design.steps_model import PointSearch
-    from sosalgo.pep.core import pep
+    from sosalgo.design_search.steps_model import PointSearch
+    from sosalgo.worstcase.core import pep
 
     evaluator = worst_case_evaluator(spec, text, kappa, steps)
     if prob.model is None and prob.reason is None:  # time-invariant: same matrices

@@ -8,7 +8,7 @@ enclosed in rational balls (:func:`sosalgo.kernel.exact.enclose`), the classes' 
 inequalities from exact formulas
 (:func:`sosalgo.certificates.exact_composite.exact_class_inequalities`), the fixed points
 (u and the optimal-subgradient fixed points) solved exactly with sympy, and the PEP
-structure (:func:`sosalgo.pep.structure.build_structure`) built again on those numbers,
+structure (:func:`sosalgo.worstcase.structure.build_structure`) built again on those numbers,
 with the same labels and the same basis as the float one (the gain K that defines the
 basis is the float one, read as binary rationals: any K gives the same PEP). The
 multipliers become rationals (their binary values; negative ones 0), tau a decimal
@@ -19,9 +19,9 @@ rounded, :data:`PREC` bits),
     D S D ⪰ delta I, S = tau I0 - M - sum lambda_k Q_k   (:func:`prove_scaled_psd`)
 
 are proven (D = diag(w) > 0, the solver's scale); then measure <= tau for every function
-of the classes (weak duality, :mod:`sosalgo.pep.sdp`). Long horizons: an entry whose
+of the classes (weak duality, :mod:`sosalgo.worstcase.sdp`). Long horizons: an entry whose
 denominators grow past a few hundred bits is replaced by a ball around a short binary
-rational that holds it (:func:`sosalgo.pep.structure.coarsen`, outward).
+rational that holds it (:func:`sosalgo.worstcase.structure.coarsen`, outward).
 """
 
 from __future__ import annotations
@@ -36,9 +36,10 @@ import numpy as np
 import sympy as sp
 from flint import arb, arb_mat, fmpq
 
-from sosalgo.pep.bind import class_kappa, has_kappa, initial_gradient
-from sosalgo.pep.steps import StepMethods, spec_steps
-from sosalgo.pep.structure import (
+from sosalgo.spec import Spec
+from sosalgo.worstcase.bind import class_kappa, has_kappa, initial_gradient
+from sosalgo.worstcase.steps import StepMethods, spec_steps
+from sosalgo.worstcase.structure import (
     Method,
     PEPStructure,
     build_structure,
@@ -47,8 +48,7 @@ from sosalgo.pep.structure import (
     enclosure_digits,
     radius_growth,
 )
-from sosalgo.pep.terms import Term
-from sosalgo.spec import Spec
+from sosalgo.worstcase.terms import Term
 
 __all__ = ["ball", "class_description", "exact_base", "exact_method", "exact_or_none",
            "exact_values",
@@ -111,7 +111,7 @@ def class_description(spec: Spec, kappa: float | None) -> dict[str, Any]:
     from sosalgo.kernel.expr import constant_value
     from sosalgo.kernel.expr.parse import to_sympy
     from sosalgo.kernel.kappa import kappa_fields
-    from sosalgo.pep.bind import class_kappa
+    from sosalgo.worstcase.bind import class_kappa
 
     base = exact_base(spec, kappa)
     env = _class_env(spec, base)
@@ -128,7 +128,7 @@ def class_description(spec: Spec, kappa: float | None) -> dict[str, Any]:
         D = spec.matrices.get("D")
         prox = [f"oracles[{i}]" for i in spec.inexact if D is not None
                 and not (D[i][i].is_constant and constant_value(D[i][i]) == 0)]
-        if prox:  # relatively inexact proximal steps (:mod:`sosalgo.pep.inexact`)
+        if prox:  # relatively inexact proximal steps (:mod:`sosalgo.worstcase.inexact`)
             out["inexact_proximal"] = prox
         refs = getattr(spec, "error_refs", None) or {}
         if refs:  # relative to a combination of the step's answers
@@ -222,13 +222,13 @@ def _fixed_points(mats: dict[str, sp.Matrix], om: Any) -> sp.Matrix:
 def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Method:
     """The exact :class:`Method` of ``spec`` (``om``: its float OracleMethod, for shapes),
     its irrational entries enclosed precisely enough for a trajectory of ``steps`` steps
-    (:func:`sosalgo.pep.structure.enclosure_digits`)."""
+    (:func:`sosalgo.worstcase.structure.enclosure_digits`)."""
     from sosalgo.certificates.exact_composite import exact_class_inequalities
     from sosalgo.kernel.exact import Ball
     from sosalgo.kernel.exact import enclose as enclose_at
     from sosalgo.kernel.expr.parse import to_sympy
     from sosalgo.oracles import pinned_optimum
-    from sosalgo.pep.constraints import spec_constraints
+    from sosalgo.worstcase.constraints import spec_constraints
 
     K = np.array([[Fraction(float(v)) for v in row]
                   for row in deadbeat_gain(om.A, om.B, float(om.L))], dtype=object)
@@ -325,7 +325,7 @@ def _proven_zero(v: sp.Expr) -> bool:
 
 
 def _exact_output_call(mats: dict[str, sp.Matrix], om: Any) -> int | None:
-    """:func:`sosalgo.pep.structure.output_call` decided symbolically: the first call i
+    """:func:`sosalgo.worstcase.structure.output_call` decided symbolically: the first call i
     with E - C_i = 0 and D_i = 0 exactly (sympy), None otherwise (or with an output call)."""
     if om.output is not None or "E" not in mats:
         return None
@@ -368,10 +368,10 @@ def ball(v: Any) -> arb:
 
 
 def exact_or_none(spec: Spec, kappa: float | None, steps: int = 0) -> Method | None:
-    """The exact method (:func:`sosalgo.pep.exact.exact_method`) for ``steps`` steps, None
+    """The exact method (:func:`sosalgo.worstcase.exact.exact_method`) for ``steps`` steps, None
     when it cannot be built (the proofs then say why)."""
-    from sosalgo.pep.bind import bound_method
     from sosalgo.steps import changes_with_k
+    from sosalgo.worstcase.bind import bound_method
 
     if changes_with_k(spec):
         return exact_steps_or_none(spec, kappa, steps)
@@ -428,7 +428,7 @@ def _residual_parts(mt: Method, st: PEPStructure, lam: list[Fraction]
     else:  # no points (the contraction measure: extra constraints only)
         quad = arb_mat(st.d, st.d)
     for e, ((_, Xe, Qe), lk) in enumerate(zip(st.extras, lam[len(st.pairs):], strict=True)):
-        if lk:  # an extra constraint (:mod:`sosalgo.pep.inexact`): + lambda X' Qc X
+        if lk:  # an extra constraint (:mod:`sosalgo.worstcase.inexact`): + lambda X' Qc X
             Xb = arb_mat([[ball(v) for v in row] for row in Xe])
             Qb = arb_mat([[ball(v) * ball(lk) for v in row] for row in Qe])
             quad += Xb.transpose() * Qb * Xb
@@ -620,12 +620,12 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
     (built here when not given); ``null``: the float S of a certificate whose rows near
     zero are made exactly zero (:func:`null_row_multipliers`), nothing repaired;
     ``units``: the basis directions whose rows of S are made exactly zero instead (the
-    directions no form has a square of, :func:`sosalgo.pep.sdp.linear_only`);
+    directions no form has a square of, :func:`sosalgo.worstcase.sdp.linear_only`);
     ``null_tol``: the eigenvalues of the scaled ``null`` that count as its null space
     (default :data:`NULL_ROW` of its largest entry; a margin certificate's: below its
     margin)."""
     from sosalgo.kernel.exact import fraction_str, rational
-    from sosalgo.pep.bind import bound_method
+    from sosalgo.worstcase.bind import bound_method
 
     t0 = time.perf_counter()
     out: dict[str, Any] = {"proven": False, "tau_proven": None, "tau_proven_float": None}
@@ -635,7 +635,7 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
             mt = exact_method(spec, kappa, om, st_float.steps)
         st = build_structure(mt, st_float.steps, mterms, iterms)
         if st_float.cuts:  # the blocks' rank-one cuts, the same rationals
-            from sosalgo.pep.blocks import with_cuts
+            from sosalgo.worstcase.blocks import with_cuts
 
             st = with_cuts(mt, st, st_float.cuts)
     except (ValueError, ArithmeticError) as exc:
@@ -674,7 +674,7 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
 
 def _cuts_field(mt: Method, st: PEPStructure) -> dict[str, Any]:
     """``cuts``: the rank-one cuts of the blocks' multipliers (function, condition,
-    vector over the block's points; :mod:`sosalgo.pep.blocks`), for ``verify``."""
+    vector over the block's points; :mod:`sosalgo.worstcase.blocks`), for ``verify``."""
     from sosalgo.kernel.exact import fraction_str
 
     if not st.cuts:
@@ -914,7 +914,7 @@ def prove_at(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
         tb = ball(tq)
         if st.free_values and st.constants is not None:
             return False, list(lam), Fraction(0), "constants in a PEP without x*"
-        if st.free_values:  # c_F = 0 exactly, in rationals (sosalgo.pep.structure)
+        if st.free_values:  # c_F = 0 exactly, in rationals (sosalgo.worstcase.structure)
             lam2, why = _balanced(mt, st, list(lam), tq, repair)
             if why:
                 return False, lam2, Fraction(0), why
@@ -1017,8 +1017,8 @@ def _rational_psd(mt: Method, st: PEPStructure, lam: Sequence[Fraction],
 def _bounding_terms(mt: Method, steps: int, mterms: list[Term], bound: Any) -> list[Term]:
     """The terms the proof is about: ``mterms``, or for a mingrad measure the proof's
     ``measure_bound`` once it is shown to bound the measure from above in exact rationals
-    (:func:`sosalgo.pep.terms.dominates`); ValueError otherwise."""
-    from sosalgo.pep.terms import MIN_OF, dominates, parse_terms
+    (:func:`sosalgo.worstcase.terms.dominates`); ValueError otherwise."""
+    from sosalgo.worstcase.terms import MIN_OF, dominates, parse_terms
 
     if not any(t.kind in MIN_OF for t in mterms):
         return mterms
@@ -1043,7 +1043,7 @@ def reprove_certificate(spec: Spec, kappa: float | None, steps: int, measure: st
     """(proven, detail): the claim measure <= ``proof["tau_proven"]`` proven again from
     the proof's own exact multipliers (by pair label) and scale, on the exact PEP of
     ``spec`` at ``kappa`` rebuilt here; nothing is repaired or solved."""
-    from sosalgo.pep.terms import parse_terms
+    from sosalgo.worstcase.terms import parse_terms
 
     lab = proof.get("multipliers_exact")
     if not isinstance(lab, dict) or not isinstance(proof.get("tau_proven"), str):
@@ -1059,7 +1059,7 @@ def reprove_certificate(spec: Spec, kappa: float | None, steps: int, measure: st
         st = build_structure(mt, int(steps), mterms, parse_terms(initial, "initial", True,
                                                                    mt.p, spec.parameters))
         if proof.get("cuts"):  # the blocks' rank-one cuts, as the proof gives them
-            from sosalgo.pep.blocks import with_cuts
+            from sosalgo.worstcase.blocks import with_cuts
 
             st = with_cuts(mt, st, [(int(j), int(r), [Fraction(v) for v in vec])
                                     for j, r, vec in proof["cuts"]])
@@ -1082,13 +1082,13 @@ def reprove_certificate(spec: Spec, kappa: float | None, steps: int, measure: st
     return ok, why
 
 # --------------------------------------------------------------------------- changes with k
-# The exact method of per-step methods (:mod:`sosalgo.pep.steps`): the same class, units
+# The exact method of per-step methods (:mod:`sosalgo.worstcase.steps`): the same class, units
 # and terms as :func:`exact_method`, the per-step matrices exact, the plain basis (K = 0).
 
 
 def exact_steps_or_none(spec: Spec, kappa: float | None, steps: int) -> Method | None:
     """The exact method of a spec that changes with k over ``steps`` steps
-    (:func:`sosalgo.pep.steps.spec_steps`), None when it cannot be built."""
+    (:func:`sosalgo.worstcase.steps.spec_steps`), None when it cannot be built."""
     from sosalgo.errors import InputError
 
     try:
@@ -1186,15 +1186,15 @@ def _call_at(rows_a: list[np.ndarray], rows_b: list[np.ndarray]) -> bool:
 def exact_step_method(spec: Any, kappa: float | None, sm: StepMethods, count: int,
                       digits: int = 60) -> Method:
     """The exact :class:`Method` of the first ``count`` per-step methods of ``sm``: the
-    class, units and terms of ``spec`` as written (:func:`sosalgo.pep.exact.exact_base`),
+    class, units and terms of ``spec`` as written (:func:`sosalgo.worstcase.exact.exact_base`),
     the per-step matrices exact (sympy ones enclosed at ``digits`` decimals), K = 0.
     ValueError when they are missing or their fixed point is not proven."""
     from sosalgo.certificates.exact_composite import exact_class_inequalities
     from sosalgo.kernel.exact import Ball, enclose
     from sosalgo.kernel.expr.parse import to_sympy
     from sosalgo.oracles import pinned_optimum
-    from sosalgo.pep.structure import enclosure_bits
     from sosalgo.steps import changes_with_k
+    from sosalgo.worstcase.structure import enclosure_bits
 
     if callable(sm.exact):  # built when first needed (:func:`spec_steps`)
         sm.exact = sm.exact()
@@ -1252,7 +1252,7 @@ def exact_step_method(spec: Any, kappa: float | None, sm: StepMethods, count: in
 
 def _call_links(mt: Method, spec: Spec) -> None:
     """The inexact calls' reference vectors and the ``gradient_of`` calls, exactly
-    (:mod:`sosalgo.pep.inexact`)."""
+    (:mod:`sosalgo.worstcase.inexact`)."""
     mt.error_refs = {i: tuple(Fraction(c) for c in ref)
                      for i, ref in (getattr(spec, "error_refs", None) or {}).items()}
     mt.twins = dict(getattr(spec, "twins", None) or {})
@@ -1308,7 +1308,7 @@ def prove_bare(spec: Spec, kappa: float | None, st_float: PEPStructure,
     in the basis of K = 0, as the float solve was. The same dict as
     :func:`prove_certificate` (the multipliers, by pair, hold in any basis)."""
     from sosalgo.kernel.exact import fraction_str, rational
-    from sosalgo.pep.bind import bound_method
+    from sosalgo.worstcase.bind import bound_method
 
     t0 = time.perf_counter()
     out: dict[str, Any] = {"proven": False, "tau_proven": None, "tau_proven_float": None}

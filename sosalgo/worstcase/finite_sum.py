@@ -1,5 +1,5 @@
 """``sosalgo pep`` of a finite-sum spec (``finite_sum:``): the worst case of the measure,
-an expectation over the draws, after N steps (:mod:`sosalgo.pep.finite_sum_build` builds
+an expectation over the draws, after N steps (:mod:`sosalgo.worstcase.finite_sum_build` builds
 the tree of outcomes exactly), its dual certificate proven in exact arithmetic, and
 :func:`reprove_finite_sum` for ``sosalgo verify``.
 
@@ -23,8 +23,8 @@ import sympy as sp
 
 from sosalgo.errors import InputError
 from sosalgo.kernel.exact import Ball, enclose, fraction_str, prove_definite, rational
-from sosalgo.pep.finite_sum_build import Form, PointSet, Problem, build_problem
 from sosalgo.spec import Spec
+from sosalgo.worstcase.finite_sum_build import Form, PointSet, Problem, build_problem
 
 __all__ = ["MAX_COUNT", "exact_problem", "finite_sum_pep", "finite_sum_sizes",
            "reprove_finite_sum"]
@@ -40,8 +40,8 @@ NO_WITNESS = ("no worst-case witness for a finite sum (tau_proven is the proven 
 def _env(spec: Spec, kappa: float | None) -> dict[Any, sp.Expr]:
     """m, L, kappa and every parameter's value, exactly, by symbol."""
     from sosalgo.kernel.expr.parse import to_sympy
-    from sosalgo.pep.exact import exact_base
     from sosalgo.spec.types import value_order
+    from sosalgo.worstcase.exact import exact_base
 
     env = dict(exact_base(spec, kappa))
     for p in value_order(spec.parameters, spec.source):
@@ -271,7 +271,7 @@ def prove(pb: Problem, lam: list[Fraction]) -> tuple[bool, Fraction | None, str]
 
 def _certificate(pb: Problem, tau: float, spec: Spec, kappa: float | None
                  ) -> dict[str, Any]:
-    from sosalgo.pep.exact import class_description, decimal_up
+    from sosalgo.worstcase.exact import class_description, decimal_up
 
     cert: dict[str, Any] = {"tau": tau, "check_kind": "floating-point check",
                             "tau_proven": None, "proof": None}
@@ -327,7 +327,7 @@ def _certificate(pb: Problem, tau: float, spec: Spec, kappa: float | None
 def finite_sum_pep(spec: Spec, kappa: float | None, steps: int, measure: str | None,
                    initial: str | None, exact: bool = True) -> dict[str, Any]:
     """The PEP of the finite-sum ``spec``: the fields of a
-    :class:`~sosalgo.pep.core.PEPResult` (measure, initial, status, tau, gap,
+    :class:`~sosalgo.worstcase.core.PEPResult` (measure, initial, status, tau, gap,
     certificate, extra)."""
     measure, initial = _terms(spec, measure, initial)
     pb = exact_problem(spec, kappa, steps, measure, initial)
@@ -356,7 +356,7 @@ def finite_sum_sizes(spec: Spec, kappas: list[float | None], steps: list[int],
                      measure: str | None, initial: str | None) -> list[tuple[int, int]]:
     """Every input error before anything is written, and the (constraints, basis) sizes
     of each PEP of a run (for the memory budget)."""
-    from sosalgo.pep.bind import has_kappa
+    from sosalgo.worstcase.bind import has_kappa
 
     m, i = _terms(spec, measure, initial)
     out = []

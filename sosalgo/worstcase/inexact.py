@@ -13,8 +13,8 @@ with one homogeneous quadratic constraint per call (PEPit's ``inexact_gradient_s
 It is a row (label ``inexact:<call>``) after the class inequalities, X = (d~ - g~, g~ +
 s_j*, 0, 0) / s and Qc = diag(-1, eps^2, 0, 0): its multiplier mu >= 0 enters S = tau I0
 - M - sum lambda_k Q_k - sum mu_c X_c' Qc_c X_c like a pair's (no function values), in the
-float SDP, in the exact proof (:func:`sosalgo.pep.exact.prove_at`, eps as written,
-enclosed) and in the witness check (:mod:`sosalgo.pep.call_checks`: every exact call's
+float SDP, in the exact proof (:func:`sosalgo.worstcase.exact.prove_at`, eps as written,
+enclosed) and in the witness check (:mod:`sosalgo.worstcase.call_checks`: every exact call's
 answer is the gradient of its point, every inexact one within eps of it, in ball
 arithmetic).
 

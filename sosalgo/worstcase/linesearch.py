@@ -10,14 +10,15 @@ Taylor 2017), every iterate x_{k+1} is a free point of its own (a basis vector
     <g_{k+1}, x_{k+1} - x_k> = 0,    <g_{k+1}, u_k> = 0,
 
 g_{k+1} the (true) gradient at x_{k+1} and u_k the answer that set the direction (the
-gradient, or an inexact one: :mod:`sosalgo.pep.inexact`). Every exact line search step
+gradient, or an inexact one: :mod:`sosalgo.worstcase.inexact`). Every exact line search step
 satisfies them, so the PEP bounds the method (a relaxation: x_{k+1} - x_k need not be
 parallel to u_k; de Klerk et al. show it is tight for gradient descent). Each equality is
 two rows of the extra constraints (``>= 0`` both ways, multipliers >= 0), in the float
 SDP and the exact proof alike. The PEP makes a call at x_N (its gradient enters the last
-equalities). The witness (:mod:`sosalgo.pep.linesearch_witness`) is a run on the class's extremal
+equalities). The witness (:mod:`sosalgo.worstcase.linesearch_witness`) is a run on the
+class's extremal
 quadratic, whose exact line search steps are rational: the check
-(:func:`sosalgo.pep.check.check_witness`) moves x_{k+1} = x_k + t_k d_k with the
+(:func:`sosalgo.worstcase.check.check_witness`) moves x_{k+1} = x_k + t_k d_k with the
 document's steps t_k and proves <g_{k+1}, d_k> = 0 exactly (the step minimizes f on the
 line: an exact line search).
 """

@@ -1,4 +1,4 @@
-"""The witness of an exact line search PEP (:mod:`sosalgo.pep.linesearch`): a run on the
+"""The witness of an exact line search PEP (:mod:`sosalgo.worstcase.linesearch`): a run on the
 class's own extremal function in exact rationals, checked exactly."""
 
 from __future__ import annotations
@@ -84,12 +84,12 @@ def _exact_answer(g: list[Fraction], eps: Fraction | None, th: float) -> list[Fr
 def line_search_witness(spec: Any, kappa: Any, mt: Any, st: Any, res: Any,
                         exact_mt: Any) -> dict[str, Any] | None:
     """The witness document of a line search PEP: f = (m' x_1^2 + L' x_2^2)/2 with m', L'
-    just inside [m, L], in the format of :mod:`sosalgo.pep.witness` plus
+    just inside [m, L], in the format of :mod:`sosalgo.worstcase.witness` plus
     ``line_search_steps`` (x_{k+1} = x_k + t_k d_k), checked exactly; None when the
     class's m or L is not rational."""
     from sosalgo.kinds import WITNESS_KIND
-    from sosalgo.pep.check import arb_view, check_witness, q_str
-    from sosalgo.pep.witness import finish_witness
+    from sosalgo.worstcase.check import arb_view, check_witness, q_str
+    from sosalgo.worstcase.witness import finish_witness
 
     if exact_mt is None:
         return None

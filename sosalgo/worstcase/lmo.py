@@ -13,7 +13,7 @@ other points are the whole constraint. At the fixed point y = x* the answer s - 
 one valid answer (x* minimizes <grad f(x*), .> over C), so the call's optimal answer is
 0 (:meth:`sosalgo.oracles.OracleMethod.optimal_map`) and the deviations are the points.
 
-In the tilted coordinates (:mod:`sosalgo.pep.structure`): the answer row is u/s, the
+In the tilted coordinates (:mod:`sosalgo.worstcase.structure`): the answer row is u/s, the
 point s = y + s u/s, the tilted subgradient of h there -(g~/s + s_f*/s) - s_h*/s.
 
 The start x_0 is a point of the set (the method starts feasible, as PEPit's

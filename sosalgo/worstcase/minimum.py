@@ -7,7 +7,7 @@ convex feasible set and the compact simplex: Sion's minimax theorem). This modul
 the weights: the dual of the PEP with an epigraph variable t <= q_k, whose multipliers are
 the w_k (minimize tau over tau, lambda >= 0, w >= 0, sum w = 1 with tau I0 - c sum w_k M_k
 - M_l - sum lambda Q ⪰ 0 and the same on the values). Rounded to rationals summing to 1
-exactly, they give a linear measure (:func:`sosalgo.pep.terms.expand_min`) whose every
+exactly, they give a linear measure (:func:`sosalgo.worstcase.terms.expand_min`) whose every
 value bounds the minimum's from above, and whose worst case is the minimum's up to the
 solver's accuracy: its certificate is proven exactly as for any linear measure.
 """
@@ -23,9 +23,9 @@ import scipy.sparse as sps
 from sosalgo.errors import InputError
 from sosalgo.kernel.conic import svec
 from sosalgo.kernel.solvers import SolverStatus, solve_attempts
-from sosalgo.pep.sdp import pep_data
-from sosalgo.pep.structure import Method, build_structure
-from sosalgo.pep.terms import Term, parse_terms
+from sosalgo.worstcase.sdp import pep_data
+from sosalgo.worstcase.structure import Method, build_structure
+from sosalgo.worstcase.terms import Term, parse_terms
 
 __all__ = ["min_floors", "min_weights", "rational_weights"]
 
@@ -36,7 +36,7 @@ def _forms(mt: Method, steps: int, mterms: list[Term], iterms: list[Term],
            option: str) -> tuple[Any, list[tuple[np.ndarray, np.ndarray]]]:
     """(structure of the whole measure, [(form on G, form on F) of c |grad f(x_k)|^2
     plus the linear terms, k = 0..N]), every structure with the same pairs and basis."""
-    from sosalgo.pep.terms import expand_min
+    from sosalgo.worstcase.terms import expand_min
 
     forms, base = [], None
     for k in range(steps + 1):

@@ -299,7 +299,7 @@ def method_data(spec: Any, exact: bool) -> dict[str, Any] | None:
 
     from sosalgo.classes import CLASSES
     from sosalgo.kernel.expr.parse import to_sympy
-    from sosalgo.pep.exact import exact_values
+    from sosalgo.worstcase.exact import exact_values
 
     env, mats = exact_values(spec)
     A, B, C, E = (mats[k][0, 0] for k in "ABCE")
@@ -419,7 +419,7 @@ def prove_mirror(pep: MirrorPEP, tau: float, w: np.ndarray, lam: np.ndarray
     of S on the :func:`linear_directions` made exactly zero by a correction of the
     multipliers on their support, then S ⪰ 0 in exact rationals. (proven, detail)."""
     from sosalgo.kernel.exact import fraction_str, prove_psd, rational
-    from sosalgo.pep.exact import decimal_up
+    from sosalgo.worstcase.exact import decimal_up
 
     t0 = time.perf_counter()
     wq = [rational(float(v)) if v > 1e-12 * max(w.max(), 1e-300) else Fraction(0) for v in w]
@@ -566,7 +566,7 @@ def mirror_problem(spec: Any, kappas: list[float | None], steps: int, measure: s
 def mirror_pep(spec: Any, kappa: float | None, steps: int, measure: str | None,
                initial: str | None, exact: bool, result: Any) -> Any:
     """``sosalgo pep`` of a mirror spec (``steps`` checked by the caller): a ``result``
-    (:class:`~sosalgo.pep.core.PEPResult`) whose certificate is proven in exact
+    (:class:`~sosalgo.worstcase.core.PEPResult`) whose certificate is proven in exact
     rationals (no witness: said in ``note``)."""
     PEPResult = result
     t0 = time.perf_counter()

@@ -30,7 +30,7 @@ from dataclasses import replace
 import numpy as np
 
 from sosalgo.kernel.conic import svec, svec_index
-from sosalgo.pep.sdp import PEPData, SDPAnswer, residual, value_residual
+from sosalgo.worstcase.sdp import PEPData, SDPAnswer, residual, value_residual
 
 __all__ = ["polished"]
 

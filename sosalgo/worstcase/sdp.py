@@ -11,7 +11,7 @@ imply measure <= tau on every feasible (G, F), hence on every function of the cl
 
 The measure is solved in this dual form (variables tau, lambda; :func:`_solve_dual`), G
 and F read back as the dual variables of S and c_F. The entries of S that no Q_k, I0 or
-M touches are structurally zero, and with the basis of :mod:`sosalgo.pep.structure` the
+M touches are structurally zero, and with the basis of :mod:`sosalgo.worstcase.structure` the
 pairs one step apart touch a band only: Clarabel's chordal decomposition then splits the
 PSD cone into small blocks (gradient descent at N = 100: 4 solves, 0.6 s of solver time),
 where the primal form's cone is on every entry of G (a dense KKT block of d^2/2 rows, a
@@ -53,7 +53,7 @@ import scipy.sparse as sps
 
 from sosalgo.kernel.conic import svec, svec_index, unsvec
 from sosalgo.kernel.solvers import SolverStatus, solve_attempts
-from sosalgo.pep.structure import Method, PEPStructure
+from sosalgo.worstcase.structure import Method, PEPStructure
 
 __all__ = ["PEPData", "SDPAnswer", "pep_data", "solve_pep"]
 
@@ -83,7 +83,7 @@ class PEPData:
     # the constant of each pair's inequality (0: homogeneous; :attr:`PEPStructure.constants`)
     c: np.ndarray | None = None
     # Gram-level conditions (K, Zx, Zg) with a matrix multiplier in the dual
-    # (:mod:`sosalgo.pep.blocks`; empty once the PEP carries their rank-one cuts)
+    # (:mod:`sosalgo.worstcase.blocks`; empty once the PEP carries their rank-one cuts)
     blocks: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=list)
     _svec: dict[int, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
 
@@ -161,7 +161,7 @@ def pep_data(mt: Method, st: PEPStructure) -> PEPData:
         X[k], Qc[k] = np.asarray(Xe, float), np.asarray(Qe, float)
         if e in st.extra_values:
             a[k] = np.asarray(st.extra_values[e], float)
-    from sosalgo.pep.blocks import block_data
+    from sosalgo.worstcase.blocks import block_data
 
     return PEPData(st, X, Qc, a, seed_pairs(st), np.ones(d), np.ones(st.nF),
                    blocks=block_data(mt, st))
@@ -445,7 +445,7 @@ def _solve_dual(data: PEPData, active: np.ndarray, margin: float, unit: float,
     # with constants the bound is tau initial + sum lambda_k c_k <= tau + ... only for
     # tau >= 0: the PEP under initial <= 1, not = 1 (where its sup may be below)
     t = int(bool(np.any(data.consts())))
-    from sosalgo.pep.blocks import block_columns
+    from sosalgo.worstcase.blocks import block_columns
 
     blk = block_columns(data.blocks, data.w)
     nb = sum(c.shape[1] for c, _ in blk)

@@ -17,10 +17,10 @@ move xi_{k+1} = A_k xi_k + B_k u_k. :class:`StepMethods` holds them twice:
   matrices and checked exactly (sympy) on every step.
 
 N steps make N calls: an output call and the ``y`` terms after N steps are the calls of
-step N - 1 (:func:`sosalgo.pep.structure.last_calls`: the N-th prox point is x_N, as
+step N - 1 (:func:`sosalgo.worstcase.structure.last_calls`: the N-th prox point is x_N, as
 PEPit counts FISTA).
 
-The PEP is the one of :mod:`sosalgo.pep.structure` with the plain basis (K = 0: the
+The PEP is the one of :mod:`sosalgo.worstcase.structure` with the plain basis (K = 0: the
 oracle answers themselves are the basis vectors, as PEPit's): a deadbeat gain is a
 property of one (A, B), and a sublinear (m: 0) method's iterates do not shrink, so the
 late rows are not differences of large numbers. The exact check rebuilds the same
@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from sosalgo.errors import InputError
-from sosalgo.pep.structure import Method
+from sosalgo.worstcase.structure import Method
 
 __all__ = ["StepMethods", "float_step_method", "spec_steps"]
 

@@ -48,7 +48,7 @@ import numpy as np
 
 from sosalgo.errors import InputError
 from sosalgo.oracles import CallShape
-from sosalgo.pep.terms import (
+from sosalgo.worstcase.terms import (
     CALL_AT,
     DIFF_KIND,
     FREE_KIND,
@@ -104,7 +104,7 @@ class Method(CallShape):
     # exact methods: significant bits kept when a long centre is rounded outward
     # (:func:`coarsen`), matched to the decimals of the enclosures (:func:`enclosure_digits`)
     bits: int = 160
-    # a mingrad measure: the weighted sum that bounds it (:mod:`sosalgo.pep.minimum`)
+    # a mingrad measure: the weighted sum that bounds it (:mod:`sosalgo.worstcase.minimum`)
     bound: str | None = None
     # a method that changes with k: (A_k, B_k, C_k, D_k) of step k (call k and the move
     # from xi_k to xi_{k+1}); None: A, B, C, D at every step (:meth:`step`)
@@ -122,21 +122,22 @@ class Method(CallShape):
     def scope(self, j: int, r: int) -> str:
         """The pairs function j's inequality r holds for: "pairs" or "optimum"."""
         return "pairs" if self.scopes is None else self.scopes[j][r]
-    # inexact gradient calls: call index -> eps (|d - g| <= eps |g|, :mod:`sosalgo.pep.inexact`)
+    # inexact gradient calls: call index -> eps (|d - g| <= eps |g|,
+    # :mod:`sosalgo.worstcase.inexact`)
     errors: dict[int, Any] = field(default_factory=dict)
     # an inexact call's reference vector (coefficients on the step's answers) and the
     # calls answering an inexact call's true subgradient (call -> that call; no point)
     error_refs: dict[int, tuple[Any, ...]] = field(default_factory=dict)
     twins: dict[int, int] = field(default_factory=dict)
-    # x+ = x - gamma_k u with gamma_k by exact line search (:mod:`sosalgo.pep.linesearch`)
+    # x+ = x - gamma_k u with gamma_k by exact line search (:mod:`sosalgo.worstcase.linesearch`)
     line_search: bool = False
-    # linear minimization calls: call index -> its direction's call (:mod:`sosalgo.pep.lmo`)
+    # linear minimization calls: call index -> its direction's call (:mod:`sosalgo.worstcase.lmo`)
     lmo: dict[int, int] = field(default_factory=dict)
     # constraints on the instance: (relation, terms of left - right), relation ==, <= or >=
-    # (:mod:`sosalgo.pep.constraints`)
+    # (:mod:`sosalgo.worstcase.constraints`)
     constraints: list[tuple[str, list[Term]]] = field(default_factory=list)
     # per function: the K (2 x 2) of each Gram-level condition of its class
-    # (:meth:`sosalgo.classes.base.FunctionClass.blocks`; :mod:`sosalgo.pep.blocks`)
+    # (:meth:`sosalgo.classes.base.FunctionClass.blocks`; :mod:`sosalgo.worstcase.blocks`)
     blocks: list[list[np.ndarray]] = field(default_factory=list)
 
     def gain(self, k: int) -> np.ndarray:
@@ -180,26 +181,26 @@ class PEPStructure:
     rows: dict[str, Any] = field(default_factory=dict)  # xi, y, x rows by time
     at: dict[tuple[str, int], int] = field(default_factory=dict)  # (term point, j) -> point
     # no x* (a nonconvex class): values enter only as differences, the dual's c_F is 0
-    # (no margin on it; proven exactly zero, :func:`sosalgo.pep.exact.prove_at`)
+    # (no margin on it; proven exactly zero, :func:`sosalgo.worstcase.exact.prove_at`)
     free_values: bool = False
     # a mingrad measure: the forms c |grad f(x_k)|^2 + (linear terms), k = 0..N (the
-    # witness keeps each at its floor, so that their minimum is; :mod:`sosalgo.pep.minimum`)
+    # witness keeps each at its floor, so that their minimum is; :mod:`sosalgo.worstcase.minimum`)
     floors: list[tuple[np.ndarray, np.ndarray]] | None = None
     # the constant of each pair's inequality (None: all 0, the homogeneous PEP); with
     # constants the worst case is the one under initial <= 1, and a dual certificate
-    # (tau, lambda) bounds the measure by tau + sum_k lambda_k c_k (:mod:`sosalgo.pep.sdp`)
+    # (tau, lambda) bounds the measure by tau + sum_k lambda_k c_k (:mod:`sosalgo.worstcase.sdp`)
     constants: np.ndarray | None = None
     # constraints beyond the class inequalities, after the pairs (their multipliers follow
     # the pairs'): (label, X (4 x d), Qc (4 x 4)) with tr(Qc X G X') + a F >= 0
     extras: list[tuple[str, np.ndarray, np.ndarray]] = field(default_factory=list)
     # no initial condition (``--initial none``): the question is homogeneous, its worst
-    # case 0 or unbounded; the solver normalizes it (:mod:`sosalgo.pep.sdp`), the proof is
+    # case 0 or unbounded; the solver normalizes it (:mod:`sosalgo.worstcase.sdp`), the proof is
     # at tau = 0 exactly
     bare: bool = False
     # the value coefficients a (on F) of the extras that have some (index in extras -> a;
-    # the others have none: :mod:`sosalgo.pep.constraints`)
+    # the others have none: :mod:`sosalgo.worstcase.constraints`)
     extra_values: dict[int, np.ndarray] = field(default_factory=dict)
-    # Gram-level conditions (:mod:`sosalgo.pep.blocks`): (function, condition, its points)
+    # Gram-level conditions (:mod:`sosalgo.worstcase.blocks`): (function, condition, its points)
     blocks: list[tuple[int, int, list[int]]] = field(default_factory=list)
     # the rank-one cuts of the blocks' multipliers, appended to the extras:
     # (function, condition, vector over the block's points)
@@ -365,12 +366,12 @@ def build_structure(mt: Method, steps: int, measure: Sequence[Term],
                     ) -> PEPStructure:
     """The PEP of ``steps`` steps (see the module docstring); on an exact method, built
     once per (steps, terms) and kept on the method (nothing downstream changes it)."""
-    from sosalgo.pep.contraction import is_contraction
+    from sosalgo.worstcase.contraction import is_contraction
 
     key = (steps, repr(list(measure)), repr(list(initial)), option)
     if mt.exact and key in mt.structures:
         return mt.structures[key]
-    if is_contraction(measure, initial):  # two runs (:mod:`sosalgo.pep.contraction`)
+    if is_contraction(measure, initial):  # two runs (:mod:`sosalgo.worstcase.contraction`)
         st = _contraction_structure(mt, steps, measure, initial)
     else:
         st = _build_structure(mt, steps, measure, initial, option)
@@ -381,9 +382,9 @@ def build_structure(mt: Method, steps: int, measure: Sequence[Term],
 
 def _contraction_structure(mt: Method, steps: int, measure: Sequence[Term],
                            initial: Sequence[Term]) -> PEPStructure:
-    """The PEP of the contraction measure (:mod:`sosalgo.pep.contraction`): no points,
+    """The PEP of the contraction measure (:mod:`sosalgo.worstcase.contraction`): no points,
     no values, the two-point conditions as extra rows."""
-    from sosalgo.pep.contraction import contraction_parts, contraction_size
+    from sosalgo.worstcase.contraction import contraction_parts, contraction_size
 
     d = contraction_size(mt, steps)
     eye = np.eye(d) if not mt.exact else _obj_eye(d)
@@ -431,7 +432,7 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
     base = n0 + J - 1
     new = [eye[base + p * k: base + p * (k + 1)] for k in range(calls)]
     if mt.line_search:
-        from sosalgo.pep.linesearch import line_search_trajectory
+        from sosalgo.worstcase.linesearch import line_search_trajectory
 
         if g0 or free or origin:
             raise InputError(f"{option[1]}: a line search starts at x_0 (no initial_state "
@@ -464,11 +465,11 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
         pts[mt.smooth].append(PEPPoint("x0", eye[0], eye[len(cols) - 1], nF))
         at[("x0", mt.smooth)] = len(pts[mt.smooth]) - 1
         nF += 1
-    from sosalgo.pep.inexact import inexact_calls
+    from sosalgo.worstcase.inexact import inexact_calls
 
     extras = inexact_calls(mt, pts, U, sstar, cols, eye)
     if mt.line_search:
-        from sosalgo.pep.linesearch import line_search_rows
+        from sosalgo.worstcase.linesearch import line_search_rows
 
         extras += line_search_rows(mt, pts, Y, U, steps)
     for j in range(J):
@@ -476,7 +477,7 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
     state = {"nF": nF, "next": len(cols), "cols": cols, "eye": eye, "at": at, "origin": origin,
              "xi": {"x": xi[steps], "x0": xi[0], REST: xi[0]}, "extras": extras}
     if mt.lmo:
-        from sosalgo.pep.lmo import lmo_points
+        from sosalgo.worstcase.lmo import lmo_points
 
         lmo_points(mt, pts, Yr, U, sstar, state, where, steps)
     forms = {}
@@ -530,8 +531,8 @@ def _inner_row(mt: Method, key: str, row: np.ndarray, pts: list[list[PEPPoint]],
 def _constraints(mt: Method, steps: int, xi: list[np.ndarray], Yr: list[list[np.ndarray]],
                  where: dict[str, np.ndarray], pts: list[list[PEPPoint]],
                  sstar: list[np.ndarray], state: dict[str, Any]) -> None:
-    """The rows of the constraints on the instance (:mod:`sosalgo.pep.constraints`)."""
-    from sosalgo.pep.constraints import constraint_rows
+    """The rows of the constraints on the instance (:mod:`sosalgo.worstcase.constraints`)."""
+    from sosalgo.worstcase.constraints import constraint_rows
 
     def label(key: str) -> str:
         return {"x": f"x{steps}"}.get(key) or (key if STEP_POINT.match(key)

@@ -46,7 +46,7 @@ FREE_KIND = "free"  # an initial term that only frees the start (contributes not
 NONE_TEXT = "none"  # --initial none: no initial condition (a homogeneous question)
 KINDS = ("f", "dist", "grad", "sdist", MIN_KIND, MINF_KIND, DIFF_KIND, "contraction",
          INNER_KIND, FREE_KIND)
-# contraction: |xi_N - xi'_N|^2 of two runs (:mod:`sosalgo.pep.contraction`; alone)
+# contraction: |xi_N - xi'_N|^2 of two runs (:mod:`sosalgo.worstcase.contraction`; alone)
 _ARG = r"([A-Za-z0-9_]+(?:\s*-\s*\d+)?)"
 _AT = re.compile(r"\b(f|dist|grad)\s*\(\s*" + _ARG + r"\s*\)")
 _REST = re.compile(r"\bsdist\s*\(\s*x_0\s*\)")  # sdist(x_0): at the method's own start
@@ -257,7 +257,7 @@ def expand_min(terms: list[Term], steps: int, weights: list[Fraction]) -> str:
     c sum_k w_k |grad f(x_k)|^2 (x_N written x_N; ``minf`` likewise with f(x_k) - f*): an
     upper bound of it when the weights are >= 0 and sum to 1, and its worst case equals the
     minimum's at the minimax weights (max over the PEP of min_k = min over the weights of
-    the max; the weights are found by :mod:`sosalgo.pep.minimum`)."""
+    the max; the weights are found by :mod:`sosalgo.worstcase.minimum`)."""
     if len(weights) != steps + 1 or any(w < 0 for w in weights) or sum(weights) != 1:
         raise ValueError("weights: steps + 1 rationals >= 0 summing to 1")
     out = []

@@ -17,7 +17,7 @@ first that passes the exact check is kept. When none does (the float answer is n
 accurate enough: Nesterov past N = 50), the last resort is a quadratic strictly inside
 the class (:func:`quadratic_candidates`), its calls computed in ball arithmetic: a
 proven, weaker bound. The trace solves are capped
-(:data:`sosalgo.pep.sdp.TRACE_ITER` iterations per attempt, a failed one is not retried
+(:data:`sosalgo.worstcase.sdp.TRACE_ITER` iterations per attempt, a failed one is not retried
 on every pair): a rank reduction that does not converge costs about a second, and the
 PEP's own answer mixed with the interior point takes over.
 
@@ -28,7 +28,7 @@ points: ``at`` (where: ``y<i>_<k>``, ``x_0``, ``x_N``), the subgradient g there 
 tilted value h = f_j(x) - f_j(x*) - <s_j*, x - x*>; ``evaluations``: which point of each
 function a term reads. Numbers are exact rationals as strings ("p/q").
 
-The check (:func:`sosalgo.pep.check.check_witness`) trusts nothing but the spec: it
+The check (:func:`sosalgo.worstcase.check.check_witness`) trusts nothing but the spec: it
 recomputes the trajectory with the exact method and checks every class inequality in
 ball arithmetic.
 """
@@ -44,7 +44,8 @@ from typing import Any
 import numpy as np
 
 from sosalgo.kinds import WITNESS_KIND
-from sosalgo.pep.check import (
+from sosalgo.spec import Spec
+from sosalgo.worstcase.check import (
     ArbView,
     arb_view,
     check_witness,
@@ -53,10 +54,9 @@ from sosalgo.pep.check import (
     q_str,
     set_quadratic_calls,
 )
-from sosalgo.pep.sdp import PEPData, SDPAnswer, solve_pep
-from sosalgo.pep.structure import Method, last_calls
-from sosalgo.pep.terms import Term
-from sosalgo.spec import Spec
+from sosalgo.worstcase.sdp import PEPData, SDPAnswer, solve_pep
+from sosalgo.worstcase.structure import Method, last_calls
+from sosalgo.worstcase.terms import Term
 
 __all__ = ["WITNESS_KIND", "check_witness", "finish_witness", "fit_values", "interior_point",
            "make_witness", "plausible"]
@@ -225,7 +225,7 @@ def make_witness(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
     ``exact_mt``: the exact method (built here when not given). The search's solves
     start only within its share of the run: :data:`SHARE` times ``spent`` (the CPU
     seconds the PEP took), at least :data:`FLOOR` CPU seconds."""
-    from sosalgo.pep.exact import exact_or_none
+    from sosalgo.worstcase.exact import exact_or_none
 
     tau = float(ans.primal)  # type: ignore[arg-type]
     unit = tau if tau > 1e-200 else 1.0
@@ -435,7 +435,7 @@ def finish_witness(doc: dict[str, Any], spec: Spec, kappa: float | None,
     of the same PEP (``upper``: its exact multipliers, re-proven by ``sosalgo verify``),
     every point and iterate exactly (:func:`add_exact_points`), the 1-d interpolant."""
     from sosalgo.kernel.kappa import kappa_fields
-    from sosalgo.pep.exact import class_description
+    from sosalgo.worstcase.exact import class_description
 
     try:
         doc["class"] = class_description(spec, kappa)
@@ -458,7 +458,7 @@ def add_exact_points(doc: dict[str, Any], exact_mt: Method) -> None:
     the start and the calls in exact arithmetic (rationals ``p/q``; ``[lo, hi]`` where the
     method's irrational entries leave a ball), so that the class inequalities can be
     checked on the stored data alone (the float ``x`` and ``iterates`` stay)."""
-    from sosalgo.pep.check import exact_points, exact_str
+    from sosalgo.worstcase.check import exact_points, exact_str
 
     try:
         pts, its = exact_points(doc, exact_mt)
