@@ -117,6 +117,17 @@ def test_api_names():
         assert hasattr(sosalgo, name), name
 
 
+def test_api_functions_are_functions_after_their_packages_load():
+    import types
+
+    import sosalgo.design_search
+    import sosalgo.proofs
+    import sosalgo.worstcase  # noqa: F401  (the packages behind the functions)
+
+    for name in ("analyze", "design", "pep", "verify"):
+        assert isinstance(getattr(sosalgo, name), types.FunctionType), name
+
+
 def test_api_analyze_a_list_and_verify():
     spec = sosalgo.load_spec(SPECS / "gradient-optimal.yaml")
     results = sosalgo.analyze(spec, kappa=[2, 10])
