@@ -92,30 +92,14 @@ def _check(spec: Spec, kappas: list[float | None], steps: list[int], measure: st
     workers allowed, whether each PEP runs in a worker process: one that may take longer
     than :data:`ISOLATE_SECONDS`, so that SIGTERM or Ctrl-C need not wait for its solve)."""
     from sosalgo.kernel import budget
-    from sosalgo.worstcase.core import pep_problem
+    from sosalgo.worstcase.core import run_sizes
 
-    if spec.finite_sum is not None:  # a tree of outcomes (sosalgo.worstcase.finite_sum)
-        from sosalgo.worstcase.finite_sum import finite_sum_sizes
-
-        sizes = finite_sum_sizes(spec, kappas, steps, measure, initial)
+    sizes, per_step = run_sizes(spec, kappas, steps, measure, initial)
+    if not per_step:  # a tree of outcomes: no per-step estimate, no witness
         est, w = budget.pep_estimate(f"pep {spec.name}", f"--steps {max(steps)}", sizes,
                                      workers, False)
         return budget.check(est), w, False
-    # the first horizon asked: a schedule's is its length, and a term may name a step
-    # (x_2, y_1, x_N-1) that a shorter one has not reached
-    small = min(steps)
     top = max(steps)
-    if spec.mirror:  # Bregman steps: their own PEP (sosalgo.worstcase.mirror)
-        from sosalgo.worstcase.mirror import mirror_problem
-
-        npairs, d = mirror_problem(spec, kappas, top, measure, initial)
-    else:
-        for k in kappas:
-            pep_problem(spec, k, small, measure, initial, solve_min=False)
-        _, st, *_ = pep_problem(spec, kappas[0], top, measure, initial, solve_min=False)
-        npairs, d = len(st.pairs), st.d
-    sizes = [(round(npairs * ((n + 1) / (top + 1)) ** 2),
-              max(1, round(d * (n + 1) / (top + 1)))) for n in steps] * len(kappas)
     span = f"N={steps[0]}" if len(steps) == 1 else f"N={steps[0]}..{top}"
     what = f"pep {spec.name} {span}" + (f" at {len(kappas)} kappas" if len(kappas) > 1 else "")
     est, w = budget.pep_estimate(what, f"--steps {top}", sizes, workers, witness)

@@ -31,7 +31,8 @@ from sosalgo.worstcase.structure import (
 )
 from sosalgo.worstcase.terms import Term, parse_terms
 
-__all__ = ["MAX_STEPS", "PEPResult", "float_method", "parse_steps", "pep", "pep_problem"]
+__all__ = ["MAX_STEPS", "PEPResult", "float_method", "parse_steps", "pep", "pep_problem",
+           "run_sizes"]
 
 MAX_STEPS = 200
 
@@ -170,6 +171,33 @@ def default_initial(om: Any) -> str:
     scale = 1.0 + float(np.abs(X).max(initial=0.0)) if X is not None else 1.0
     moves = X is not None and float(np.abs(X[:, 1:]).max(initial=0.0)) > 1e-12 * scale
     return "sdist" if moves else "dist"
+
+
+def run_sizes(spec: Spec, kappas: list[float | None], steps: list[int],
+              measure: str | None, initial: str | None
+              ) -> tuple[list[tuple[int, int]], bool]:
+    """Every input error of a run (``steps`` x ``kappas``) before anything is written
+    (InputError naming the option), and the (constraints, basis) size of each of its
+    PEPs, for the memory budget; False with a finite sum's sizes (a tree of outcomes,
+    counted exactly), True with sizes scaled from the largest horizon's."""
+    if spec.finite_sum is not None:
+        from sosalgo.worstcase.finite_sum import finite_sum_sizes
+
+        return finite_sum_sizes(spec, kappas, steps, measure, initial), False
+    # the first horizon asked: a schedule's is its length, and a term may name a step
+    # (x_2, y_1, x_N-1) that a shorter one has not reached
+    top = max(steps)
+    if spec.mirror:  # Bregman steps: their own PEP (sosalgo.worstcase.mirror)
+        from sosalgo.worstcase.mirror import mirror_problem
+
+        npairs, d = mirror_problem(spec, kappas, top, measure, initial)
+    else:
+        for k in kappas:
+            pep_problem(spec, k, min(steps), measure, initial, solve_min=False)
+        _, st, *_ = pep_problem(spec, kappas[0], top, measure, initial, solve_min=False)
+        npairs, d = len(st.pairs), st.d
+    return [(round(npairs * ((n + 1) / (top + 1)) ** 2),
+             max(1, round(d * (n + 1) / (top + 1)))) for n in steps] * len(kappas), True
 
 
 def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None = None,
