@@ -68,13 +68,16 @@ ORACLE_KINDS = ("gradient", "subgradient", "proximal")
 PAIR_SCOPES = ("pairs", "optimum")
 
 
-def check_mu_below_L(params: Mapping[str, float]) -> None:
+def check_mu_below_L(params: Mapping[str, float], zero: bool = False) -> None:
     """ValueError('<parameter>: ...') unless 0 < mu <= L < inf (the classes with a
-    growth modulus mu below a smoothness L)."""
+    growth modulus mu below a smoothness L; ``zero``: mu = 0 allowed, a spectrum or a
+    modulus in [0, L])."""
     mu, L = params["mu"], params["L"]
     if not (np.isfinite(L) and L > 0):
         raise ValueError(f"L: must be positive and finite, got {L:g}")
-    if not (np.isfinite(mu) and 0 < mu <= L):
+    if zero and not (np.isfinite(mu) and 0 <= mu <= L):
+        raise ValueError(f"mu: must be in [0, L] = [0, {L:g}], got {mu:g}")
+    if not zero and not (np.isfinite(mu) and 0 < mu <= L):
         raise ValueError(f"mu: must be in (0, L] = (0, {L:g}], got {mu:g}")
 
 @dataclass(frozen=True)

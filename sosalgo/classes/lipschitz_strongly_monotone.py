@@ -17,8 +17,9 @@ from typing import Any
 
 import numpy as np
 
+from sosalgo.classes.base import check_mu_below_L
 from sosalgo.classes.members import ProxFunction
-from sosalgo.classes.operator import OperatorClass, linear_member, positive, skew_unit
+from sosalgo.classes.operator import OperatorClass, linear_member, skew_unit
 
 
 class LipschitzStronglyMonotone(OperatorClass):
@@ -35,10 +36,7 @@ class LipschitzStronglyMonotone(OperatorClass):
                    r"\|u_a - u_b\| \le L \|x_a - x_b\|\ \text{(necessary)}")
 
     def check(self, params: Mapping[str, float]) -> None:
-        positive(params, "L")
-        if not 0 <= params["mu"] <= params["L"]:
-            raise ValueError(f"mu: must be in [0, L] = [0, {params['L']:g}], got "
-                             f"{params['mu']:g}")
+        check_mu_below_L(params, zero=True)
 
     def forms(self, params: Mapping[str, Any]) -> list[tuple[Any, Any, Any]]:
         mu, L = params["mu"], params["L"]

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.classes.base import FunctionClass, Inequality
+from sosalgo.classes.base import FunctionClass, Inequality, check_mu_below_L
 from sosalgo.classes.members import ProxFunction, quadratic
 
 
@@ -73,11 +73,7 @@ class SmoothStronglyConvexQuadratic(FunctionClass):
         r" - \langle g_a, g_b\rangle - \mu L \langle x_a, x_b\rangle\big]_{a,b} \succeq 0")
 
     def check(self, params: Mapping[str, float]) -> None:
-        mu, L = params["mu"], params["L"]
-        if not (np.isfinite(L) and L > 0):
-            raise ValueError(f"L: must be positive and finite, got {L:g}")
-        if not (np.isfinite(mu) and 0 <= mu <= L):
-            raise ValueError(f"mu: must be in [0, L] = [0, {L:g}], got {mu:g}")
+        check_mu_below_L(params, zero=True)
 
     def inequalities(self, params: Mapping[str, float]) -> list[Inequality]:
         return [Inequality(1.0, value_form(0.0).astype(float)),

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.classes.base import Inequality
+from sosalgo.classes.base import Inequality, check_mu_below_L
 from sosalgo.classes.members import ProxFunction
 from sosalgo.classes.operator import OperatorClass, linear_member, rotation
 from sosalgo.classes.smooth_strongly_convex_quadratic import spectrum_block, symmetry_form
@@ -43,11 +43,7 @@ class SymmetricLinearOperator(OperatorClass):
                    r"\langle x_a, x_b\rangle\big]_{a,b} \succeq 0")
 
     def check(self, params: Mapping[str, float]) -> None:
-        mu, L = params["mu"], params["L"]
-        if not (np.isfinite(L) and L > 0):
-            raise ValueError(f"L: must be positive and finite, got {L:g}")
-        if not (np.isfinite(mu) and 0 <= mu <= L):
-            raise ValueError(f"mu: must be in [0, L] = [0, {L:g}], got {mu:g}")
+        check_mu_below_L(params, zero=True)
 
     def inequalities(self, params: Mapping[str, float]) -> list[Inequality]:
         return [Inequality(0.0, symmetry_form(0.0).astype(float))]

@@ -203,16 +203,7 @@ def quadratic_candidates(mt: Method, st: Any, tries: int = QUADRATIC_TRIES
 def _quadratic_ratio(mt: Method, st: Any, v: np.ndarray, at: float) -> float | None:
     """measure / initial of the quadratic trajectory ``v`` (values q_j/2 x^2, tilted by
     nothing: every f_j is least at x* = 0), None when it is not finite and positive."""
-    q, s = _curvatures(mt, at), float(mt.s)
-    G, F = np.outer(v, v), np.zeros(st.nF)
-    for j, fp in enumerate(st.points):
-        for pt in fp:
-            if pt.f is not None:
-                F[pt.f] = q[j] / 2 * float(pt.x @ v) ** 2 / s
-    meas = float(np.sum(st.meas_q.astype(float) * G) + st.meas_f.astype(float) @ F)
-    init = float(np.sum(st.init_q.astype(float) * G) + st.init_f.astype(float) @ F)
-    ratio = meas / init if init > 0 else math.nan
-    return ratio if math.isfinite(ratio) and ratio > 0 else None
+    return _member_ratio(mt, st, v, _curvatures(mt, at))
 
 
 def make_witness(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
