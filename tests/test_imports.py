@@ -267,3 +267,10 @@ def test_conic_solvers_are_imported_behind_one_door():
                 users[top].add(str(f.relative_to(PKG.parent)))
     assert "sosalgo/kernel/solvers.py" in users["clarabel"]
     assert all(len(mods) <= 2 for mods in users.values()), users
+
+
+def test_linear_programs_go_through_the_solver_door():
+    """scipy's linprog (HiGHS) is called in the solver door only (linear_program)."""
+    callers = sorted(str(f.relative_to(PKG.parent)) for f in PKG.rglob("*.py")
+                     if "linprog" in f.read_text(encoding="utf-8"))
+    assert callers == ["sosalgo/kernel/solvers.py"], callers

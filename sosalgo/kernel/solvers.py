@@ -48,7 +48,7 @@ __all__ = [
     "Feasibility", "Outcome", "solve_lmi", "solve_margin", "check_point", "Margin", "SOLVERS",
     "DEFAULT_SOLVERS", "margin_for", "SolverStatus", "solver_status", "SolverPanic",
     "clarabel_solve", "solve_or_raise", "clarabel_cones", "solve_attempts", "CHORDAL", "lmi_point",
-    "CvxpySolve", "cvxpy_solve",
+    "CvxpySolve", "cvxpy_solve", "linear_program",
 ]
 
 RELATIVE_MARGIN = 1e-9
@@ -126,6 +126,15 @@ def cvxpy_solve(problem: Any, solver: str, **options: Any) -> CvxpySolve:
         return CvxpySolve(SolverStatus.FAILED, None, err)
     raw = str(problem.status)
     return CvxpySolve(_CVXPY_STATUSES.get(raw, SolverStatus.FAILED), raw)
+
+
+def linear_program(c: Any, A_eq: Any, b_eq: Any, bounds: Any, method: str = "highs") -> Any:
+    """min c'x over A_eq x = b_eq and ``bounds`` with HiGHS (scipy's ``linprog``): its
+    result (``status`` 0 solved, 2 infeasible; ``x``). The one door of linear programs;
+    a caller proves or checks what it returns."""
+    from scipy.optimize import linprog
+
+    return linprog(c, A_eq=A_eq, b_eq=b_eq, bounds=bounds, method=method)
 
 
 def finite_data(*arrays: Any) -> bool:

@@ -191,7 +191,7 @@ def newton_keep(index: MomentIndex, support: list[tuple[int, ...]]) -> np.ndarra
     For an unconstrained problem every SOS decomposition of ``f - gamma`` uses only such
     monomials (Reznick 1978), so the others can be dropped from the Gram matrix.
     """
-    from scipy.optimize import linprog
+    from sosalgo.kernel.solvers import linear_program
 
     N = index.basis_size(index.order)
     P = np.array([*support, (0,) * index.n], dtype=float).T  # n x m vertices
@@ -199,8 +199,7 @@ def newton_keep(index: MomentIndex, support: list[tuple[int, ...]]) -> np.ndarra
     A_eq = np.vstack([P, np.ones((1, P.shape[1]))])
     for i, b in enumerate(index.exponents[:N]):
         rhs = np.concatenate([2.0 * b, [1.0]])
-        res = linprog(np.zeros(P.shape[1]), A_eq=A_eq, b_eq=rhs, bounds=(0, None),
-                      method="highs")
+        res = linear_program(np.zeros(P.shape[1]), A_eq, rhs, (0, None))
         keep[i] = res.status == 0
     keep[0] = True
     return keep

@@ -644,15 +644,15 @@ def no_squares(pep: MirrorPEP) -> bool:
 def solve_linear(pep: MirrorPEP) -> dict[str, Any] | None:
     """The dual with S = 0 (:func:`no_squares`) as a linear program (HiGHS): a vertex,
     whose support is a basis; None when it fails."""
-    from scipy.optimize import linprog
+    from sosalgo.kernel.solvers import linear_program
 
     K, P = len(pep.measures), len(pep.pairs)
     cols = ["tau"] + [("w", k) for k in range(K)] + [("lam", p) for p in range(P)]
     A = _linear_system(pep, cols)
     c = np.zeros(len(cols))
     c[0] = 1.0
-    res = linprog(c, A_eq=A.sparse(), b_eq=np.array([float(v) for v in A.rhs]),
-                  bounds=[(None, None)] + [(0, None)] * (K + P), method="highs-ds")
+    res = linear_program(c, A.sparse(), np.array([float(v) for v in A.rhs]),
+                         [(None, None)] + [(0, None)] * (K + P), method="highs-ds")
     if res.status == 2:  # the dual is infeasible: no bound, the worst case is unbounded
         return {"status": "unbounded"}
     if res.status != 0:
