@@ -535,9 +535,8 @@ class _Builder:
                 if key not in cls.parameters:
                     raise self.fail(f"{where}.{str(key)[:40]}", f"not a parameter of {cname} "
                                     f"(its parameters: {', '.join(cls.parameters) or 'none'})")
-                names = (frozenset(BASE_NAMES) | spec_names if not cls.homogeneous
-                         else BASE_NAMES)
-                params[key] = self.expr(val, names, f"{where}.{key}")
+                params[key] = self.expr(val, frozenset(BASE_NAMES) | spec_names,
+                                        f"{where}.{key}")
             given = frozenset(params)
             for key in cls.parameters:
                 if key not in params:
