@@ -41,7 +41,7 @@ def _document(out: Path, kappa: str) -> dict:
     return json.loads((out / f"davis-yin-pep-k{kappa}-N1.json").read_text())
 
 
-@pytest.mark.parametrize("args, pepit_args, pepit_tau", PEPIT, 
+@pytest.mark.parametrize("args, pepit_args, pepit_tau", PEPIT,
                          ids=["beta1/20", "beta2", "beta3/10"])
 def test_set_class_parameter_against_pepit(tmp_path, args, pepit_args, pepit_tau):
     """The scaled argument set agrees with PEPit's tau, proven not below it, and the
