@@ -173,7 +173,8 @@ def exact_oracle_method(spec: Spec, kappa: float, theta: Mapping[str, float] | N
     ex = exact_algorithm(spec, kappa, theta, digits)
     base = {BASE_SYMBOLS["m"]: sp.Rational(ex.m.numerator, ex.m.denominator),
             BASE_SYMBOLS["L"]: sp.Rational(ex.L.numerator, ex.L.denominator),
-            BASE_SYMBOLS["kappa"]: sp.Rational(ex.kappa.numerator, ex.kappa.denominator)}
+            BASE_SYMBOLS["kappa"]: sp.Rational(ex.kappa.numerator, ex.kappa.denominator),
+            **{spec.symbols[p]: v for p, v in ex.params.items()}}  # a class may name them
     funcs = []
     for fname, decl in spec.functions.items():
         params = {k: enclose(to_sympy(e).xreplace(base), digits) for k, e in decl.params.items()}

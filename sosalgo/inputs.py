@@ -81,6 +81,31 @@ def refuse_nonconvex(spec: Any, linear_rates: bool = False) -> None:
                          "bounds its worst case after N steps")
 
 
+def refuse_free_class_parameters(spec: Any, free: Sequence[str]) -> None:
+    """InputError (one line) for a class parameter that names a free parameter (or one
+    whose value is an expression of a free one): a class is one set of functions for the
+    whole search, so its parameters are fixed (``--set NAME=VALUE`` fixes one)."""
+    from sosalgo.spec.types import BASE_NAMES
+
+    free_set = set(free)
+    for fname, decl in spec.functions.items():
+        for key, expr in decl.params.items():
+            seen, todo = set(), list(expr.names() - set(BASE_NAMES))
+            while todo:
+                name = todo.pop()
+                if name in seen or name not in spec.parameters:
+                    continue
+                seen.add(name)
+                if name in free_set:
+                    raise InputError(
+                        f"{spec.source}: functions.{fname}.{key}: depends on the free "
+                        f"parameter {name}: a class parameter is fixed for the whole run "
+                        f"(fix it with --set {name}=VALUE, or leave it out of --free)")
+                par = spec.parameters[name]
+                todo += [n for e in (par.value, par.tied) if e is not None
+                         for n in e.names()]
+
+
 def refuse_oracle_options(spec: Any) -> None:
     """InputError (one line) for a spec with a finite sum, Bregman steps, an exact line
     search, a linear minimization call or an inexact call: no Lyapunov family models them
@@ -182,6 +207,7 @@ def free_names(spec: Spec, free: str | Sequence[str] | None,
         raise InputError(f"{spec.source}: parameters: no parameter has a range (use --free; "
                          "a parameter fixed by --set has none)")
     spec.check_free(names, need_range=need_range)
+    refuse_free_class_parameters(spec, names)
     return names
 
 

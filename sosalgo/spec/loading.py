@@ -69,8 +69,8 @@ __all__ = [
 
 def constant_parameters(params: dict[str, Any]) -> frozenset[str]:
     """The parameters whose value is one number for the whole run: not per step, and
-    (through ties) in m, L, kappa and such parameters only; a class only ``pep`` answers
-    may name them (its inequalities are the same at every step)."""
+    (through ties) in m, L, kappa and such parameters only; a class parameter may name
+    them (the class is the same at every step; ``--set`` reaches it)."""
     done: set[str] = set()
     grew = True
     while grew:
@@ -501,9 +501,9 @@ class _Builder:
     def functions(self, raw: object, spec_names: frozenset[str] = frozenset(),
                   field: str = "functions") -> dict[str, FunctionDecl]:
         """``functions:`` name -> {class: NAME, <parameter>: expr}; default: one f in
-        F(m, L). A class that no Lyapunov family takes (``homogeneous`` False: only
-        ``sosalgo pep`` answers) may name the spec's parameters ``spec_names`` too (M of
-        a Lipschitz class as the spec's parameter M)."""
+        F(m, L). A class parameter may name the spec's constant parameters ``spec_names``
+        too (B's beta as the spec's parameter beta, set by ``--set beta=VALUE``; a free
+        one is refused by :func:`sosalgo.inputs.refuse_free_class_parameters`)."""
         from sosalgo.classes import CLASSES, SEED_CLASS
 
         if raw is None:
@@ -535,9 +535,8 @@ class _Builder:
                 if key not in cls.parameters:
                     raise self.fail(f"{where}.{str(key)[:40]}", f"not a parameter of {cname} "
                                     f"(its parameters: {', '.join(cls.parameters) or 'none'})")
-                names = (frozenset(BASE_NAMES) | spec_names if not cls.homogeneous
-                         else BASE_NAMES)
-                params[key] = self.expr(val, names, f"{where}.{key}")
+                params[key] = self.expr(val, frozenset(BASE_NAMES) | spec_names,
+                                        f"{where}.{key}")
             given = frozenset(params)
             for key in cls.parameters:
                 if key not in params:
