@@ -98,9 +98,8 @@ def test_douglas_rachford_equals_giselsson_boyd_at_the_optimal_step():
 BAD = [
     (dict(functions={"f": {"class": "smooth_strongly_convex"}, "g": {"class": "nope"}}),
      "functions.g.class", "unknown class"),
-    (dict(functions={"f": {"class": "smooth_strongly_convex"}, "g": {"class": "indicator"}},
-          matrices={**PG["matrices"], "D": [[0, 0], [0, 0]]}),
-     "oracles[1]", "proximal steps only"),
+    (dict(functions={"f": {"class": "smooth_strongly_convex"}, "g": {"class": "smooth"}}),
+     "matrices.D[1][1]", "has no proximal oracle"),
     (dict(functions={"f": {"class": "smooth_strongly_convex"}, "g": {"class": "convex"}},
           matrices={**PG["matrices"], "D": [[0, "-h"], ["-h", "-h"]]}),
      "matrices.D[0][1]", "lower triangular"),

@@ -580,6 +580,23 @@ def _mixed(cand: SDPAnswer, inner: SDPAnswer, w: np.ndarray,
 NULL_DIRECTIONS = 3  # the null-row proof on S with at most this many free directions
 
 
+LOOSE_REL = 1e-7  # a proven bound further above tau than this invites a tighter proof
+
+
+LOOSE_RUNGS = 2  # rungs of the ladder tried further after a loose proof
+
+
+def _tighter(a: dict[str, Any], b: dict[str, Any]) -> bool:
+    """Whether certificate ``a`` proves a smaller bound than ``b`` (both proven)."""
+    return Fraction(a["tau_proven"]) < Fraction(b["tau_proven"])
+
+
+def _loose(cert: dict[str, Any], tau: float) -> bool:
+    """Whether ``cert`` is proven but more than LOOSE_REL (relative) above ``tau``."""
+    proven = cert.get("tau_proven")
+    return bool(proven) and float(Fraction(proven)) > tau + LOOSE_REL * abs(tau)
+
+
 def _null_row_proof(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
                     ans: SDPAnswer, mterms: list[Term], iterms: list[Term],
                     ex: Method | None, cert: dict[str, Any], tau: float,
@@ -683,6 +700,8 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
     inner = _interior_certificate(data, tau, scale) if exact and data.strong else None
     polish = _polished(data, ans, tau) if exact and units is None else None
     polish_raw = True  # the polished answer as it is: tried once
+    kept: tuple[dict[str, Any], SDPAnswer] | None = None  # a loose proof, while looking on
+    extra = LOOSE_RUNGS
     for rel, precise in _ladder(st.steps, inner is not None) if exact else ():
         eps = rel / scale  # relative to tau: the measure is divided by tau
         cand = ans if rel == 0 else solve_pep(data, margin=eps, unit=tau if tau > 1e-200
@@ -701,12 +720,23 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
                                 units, cert):
                 break
         if cert.get("tau_proven"):
-            break
+            if kept is None or _tighter(cert, kept[0]):
+                kept = dict(cert), best
+            if not _loose(cert, tau) or extra == 0:
+                break
+            extra -= 1  # a loose proof (a polished mix): the next rungs' own answers
+            cert["tau_proven"], polish = None, None  # may prove tighter
+    if kept is not None and (not cert.get("tau_proven") or _tighter(kept[0], cert)):
+        cert.update(kept[0])
+        best = kept[1]
     # the measure's own answer, then each margin solve as it came (S >= its margin but
     # on the free directions, which no margin and no mix with an interior certificate
     # can lift: their rows are made exactly zero)
     for cand, eps in [(ans, None), *raw]:
-        if exact and not cert.get("tau_proven") and cand.S is not None \
+        # a margin's proof above tau by more than LOOSE_REL: the own answer's null rows
+        # may prove tau itself (kept only when proven)
+        again = eps is None and _loose(cert, tau)
+        if exact and (again or not cert.get("tau_proven")) and cand.S is not None \
                 and not st.free_values:
             _null_row_proof(spec, kappa, mt, data, cand, mterms, iterms, ex, cert,
                             tau if eps is None else max(cand.tau + cand.const, tau),
