@@ -710,7 +710,8 @@ def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Frac
 
     top = float(np.max(lam, initial=0.0))
     support = [k for k, v in enumerate(lam) if v > NULL_ROW * top]
-    if not support or st.free_values or st.d > RATIONAL_MAX_D:
+    if not support or st.free_values or st.d > RATIONAL_MAX_D \
+            or max(support) >= len(st.pairs):  # rows beyond the pairs: not repaired here
         return None
     null = ([[Fraction(int(j == c)) for j in range(st.d)] for c in units] if units
             else rational_null_space(S, w, snap, null_tol))
