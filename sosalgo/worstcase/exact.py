@@ -721,26 +721,25 @@ def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Frac
             _nonzero_fraction(v[j]) and _nonzero_fraction(st.init_q[i][j])  # off the null
             for v in null for i in range(st.d) for j in range(st.d)):  # space only
         return None
-    rows = _exact_pair_parts(mt, st, support)
-    if rows is None:
+    parts = [_pair_part(mt, st, k) for k in support]
+    if _exact_fraction(mt.s) is None or any(part is None for part in parts):
         return None
-    quads, lins = rows
-    eqs, rhs = [], []
+    lins = [part[1] for part in parts]
     I0, M = _fraction_matrix(st.init_q), _fraction_matrix(st.meas_q)
     fi, fm = _fraction_matrix([st.init_f]), _fraction_matrix([st.meas_f])
     if I0 is None or M is None or fi is None or fm is None:
         return None
-    for v in null:  # (tq I0 - M - sum lambda_k C_k) v = 0, row by row
-        nz = [j for j in range(st.d) if v[j]]
-        for i in range(st.d):
-            eqs.append([sum(q[i][j] * v[j] for j in nz) for q in quads])
-            rhs.append(sum((tq * I0[i][j] - M[i][j]) * v[j] for j in nz))
+    eqs, rhs = _null_equations(st, [part[0] for part in parts], null, tq, I0, M)
+    if eqs is None:  # a row 0 = nonzero: no exact certificate on this support
+        return None
     cf = None if not units else st_value_residual(st, lam, lins, support)
     for i in range(st.nF):  # c_F[i] = -m_F[i] - sum lambda a_i: no tq to raise it (with
         # ``units``: where the float c_F is not clearly positive, a margin solve's c_F > 0)
         if fi[0][i] == 0 and (cf is None or cf[i] <= NULL_ROW * (1.0 + abs(cf).max())):
             eqs.append([a[i] for a in lins])
             rhs.append(-fm[0][i])
+    if not eqs:  # every multiplier free
+        eqs, rhs = [[Fraction(0)] * len(support)], [Fraction(0)]
     A, b = sp.Matrix(eqs), sp.Matrix(rhs)
     try:
         sol, params, free = A.gauss_jordan_solve(b, freevar=True)
@@ -756,6 +755,34 @@ def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Frac
             return None
         out[k] = q
     return out
+
+
+def _null_equations(st: PEPStructure, quads: list[Sparse], null: list[list[Fraction]],
+                    tq: Fraction, I0: list[list[Fraction]], M: list[list[Fraction]]
+                    ) -> tuple[list[list[Fraction]] | None, list[Fraction]]:
+    """The rows of (tq I0 - M - sum_k lambda_k C_k) v = 0 for each v of ``null``, linear in
+    the multipliers (C_k: the sparse ``quads``); the rows 0 = 0 left out, (None, []) when a
+    row reads 0 = nonzero."""
+    eqs, rhs = [], []
+    for v in null:
+        products = []  # C_k v, by row, sparse
+        for quad in quads:
+            prod: dict[int, Fraction] = {}
+            for (i, j), value in quad.items():
+                if v[j]:
+                    prod[i] = prod.get(i, Fraction(0)) + value * v[j]
+            products.append(prod)
+        nz = [j for j in range(st.d) if v[j]]
+        for i in range(st.d):
+            row = [prod.get(i, Fraction(0)) for prod in products]
+            right = sum(((tq * I0[i][j] - M[i][j]) * v[j] for j in nz), Fraction(0))
+            if not any(row):
+                if right:
+                    return None, []
+                continue
+            eqs.append(row)
+            rhs.append(right)
+    return eqs, rhs
 
 
 def st_value_residual(st: PEPStructure, lam: np.ndarray, lins: list[Any],
@@ -874,30 +901,66 @@ def _fraction_matrix(M: Any) -> list[list[Fraction]] | None:
     return out
 
 
+# the exact parts of the pairs of the last few (method, structure) pairs: the null-row
+# proof asks them for many supports and snaps of one PEP (each pair's part is the same)
+_PAIR_PARTS: dict[tuple[int, int], tuple[Method, PEPStructure, dict[int, Any]]] = {}
+_PAIR_PARTS_KEPT = 4
+
+Sparse = dict[tuple[int, int], Fraction]
+
+
+def _pair_part(mt: Method, st: PEPStructure, k: int
+               ) -> tuple[Sparse, list[Fraction]] | None:
+    """(X_k' Q_k X_k on G as its nonzero entries, a_k on F) of the pair ``k`` of ``st`` in
+    Fractions (cached per method and structure); None when an entry is not an exact
+    rational."""
+    key = (id(mt), id(st))
+    held = _PAIR_PARTS.get(key)
+    if held is None or held[0] is not mt or held[1] is not st:
+        while len(_PAIR_PARTS) >= _PAIR_PARTS_KEPT:
+            _PAIR_PARTS.pop(next(iter(_PAIR_PARTS)))
+        held = _PAIR_PARTS[key] = (mt, st, {})
+    parts = held[2]
+    if k not in parts:
+        parts[k] = _compute_pair_part(mt, st, k)
+    return parts[k]
+
+
+def _compute_pair_part(mt: Method, st: PEPStructure, k: int
+                       ) -> tuple[Sparse, list[Fraction]] | None:
+    _, av, X = st.pair_rows(mt, k)
+    j, _, _, r = st.pairs[k]
+    Xf, Qf = _fraction_matrix(X), _fraction_matrix(mt.ineqs[j][r][1])
+    af = _fraction_matrix([av])
+    if Xf is None or Qf is None or af is None:
+        return None
+    cols = [c for c in range(st.d) if any(Xf[u][c] for u in range(4))]
+    XQ = {c: [sum(Qf[u][v] * Xf[v][c] for v in range(4)) for u in range(4)] for c in cols}
+    quad: Sparse = {}
+    for a in cols:
+        for c in cols:
+            value = sum(Xf[u][a] * XQ[c][u] for u in range(4))
+            if value:
+                quad[a, c] = value
+    return quad, af[0]
+
+
 def _exact_pair_parts(mt: Method, st: PEPStructure, support: list[int]
                       ) -> tuple[list[list[list[Fraction]]], list[list[Fraction]]] | None:
     """(X_k' Q_k X_k on G, a_k on F) of the pairs ``support`` in Fractions; None when some
     entry is not an exact rational."""
-    s = _exact_fraction(mt.s)
-    if s is None:
+    if _exact_fraction(mt.s) is None:
         return None
     quads, lins = [], []
     for k in support:
-        alpha, av, X = st.pair_rows(mt, k)
-        j, _, _, r = st.pairs[k]
-        Xf, Qf = _fraction_matrix(X), _fraction_matrix(mt.ineqs[j][r][1])
-        af = _fraction_matrix([av])
-        if Xf is None or Qf is None or af is None:
+        part = _pair_part(mt, st, k)
+        if part is None:
             return None
-        cols = [c for c in range(st.d) if any(Xf[u][c] for u in range(4))]
-        XQ = {c: [sum(Qf[u][v] * Xf[v][c] for v in range(4)) for u in range(4)]
-              for c in cols}
         quad = [[Fraction(0)] * st.d for _ in range(st.d)]
-        for a in cols:
-            for c in cols:
-                quad[a][c] = sum(Xf[u][a] * XQ[c][u] for u in range(4))
+        for (a, c), value in part[0].items():
+            quad[a][c] = value
         quads.append(quad)
-        lins.append(af[0])
+        lins.append(part[1])
     return quads, lins
 
 
@@ -957,16 +1020,20 @@ def _rational_parts(mt: Method, st: PEPStructure, lam: Sequence[Fraction]
     the ball arithmetic proves those)."""
     if st.extras:
         return None
-    support = [k for k, v in enumerate(lam) if v]
-    parts = _exact_pair_parts(mt, st, support)
-    if parts is None:
+    if _exact_fraction(mt.s) is None:
         return None
-    quads, lins = parts
-    d = st.d
-    quad = [[sum((lam[k] * q[i][j] for k, q in zip(support, quads, strict=True)), Fraction(0))
-             for j in range(d)] for i in range(d)]
-    lin = [sum((lam[k] * a[i] for k, a in zip(support, lins, strict=True)), Fraction(0))
-           for i in range(st.nF)]
+    quad = [[Fraction(0)] * st.d for _ in range(st.d)]
+    lin = [Fraction(0)] * st.nF
+    for k, v in enumerate(lam):
+        part = _pair_part(mt, st, k) if v else None
+        if v and part is None:
+            return None
+        if not v:
+            continue
+        for (i, j), value in part[0].items():
+            quad[i][j] += v * value
+        for i, a in enumerate(part[1]):
+            lin[i] += v * a
     return quad, lin
 
 
