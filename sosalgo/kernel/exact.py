@@ -147,6 +147,41 @@ def _pivoted_ldl(a: Matrix) -> tuple[bool, list[Fraction], str]:
     return True, pivots, "all pivots > 0 or zero block"
 
 
+def solve_affine(eqs: Sequence[Sequence[Any]], rhs: Sequence[Any], n: int,
+                 free_value: Any) -> list[Fraction] | None:
+    """A solution x of ``eqs`` x = ``rhs`` (n unknowns, rational entries) in exact
+    rationals: the reduced row echelon form of the augmented system (python-flint's
+    ``fmpq_mat``), each free coordinate c at ``free_value(c)`` (a Fraction), the pivots
+    solved from them; None when the system is inconsistent."""
+    from flint import fmpq, fmpq_mat
+
+    def q(v: Any) -> Any:
+        f = Fraction(v)
+        return fmpq(f.numerator, f.denominator)
+
+    if not eqs:
+        return [Fraction(free_value(c)) for c in range(n)]
+    flat = [q(v) for row, b in zip(eqs, rhs, strict=True) for v in (*row, b)]
+    R, rank = fmpq_mat(len(eqs), n + 1, flat).rref()
+    pivots = []
+    for i in range(rank):
+        c = next(c for c in range(n + 1) if R[i, c] != 0)
+        if c == n:  # a row 0 = 1
+            return None
+        pivots.append(c)
+    x = [Fraction(0)] * n
+    free = [c for c in range(n) if c not in set(pivots)]
+    for c in free:
+        x[c] = Fraction(free_value(c))
+    for i, c in enumerate(pivots):
+        value = Fraction(int(R[i, n].p), int(R[i, n].q))
+        for f in free:
+            if x[f] and R[i, f] != 0:
+                value -= Fraction(int(R[i, f].p), int(R[i, f].q)) * x[f]
+        x[c] = value
+    return x
+
+
 def prove_psd(S: Sequence[Sequence[Any]]) -> PSDProof:
     """Decide S ⪰ 0 exactly for a rational symmetric S.
 

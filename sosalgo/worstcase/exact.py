@@ -706,7 +706,7 @@ def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Frac
     entry. A PEP whose worst case leaves a direction free (x* far away under a condition
     on f alone) has no certificate with S ≻ 0; S ⪰ 0 is then proven in exact rationals
     (:func:`prove_at`)."""
-    import sympy as sp
+    from sosalgo.kernel.exact import solve_affine
 
     top = float(np.max(lam, initial=0.0))
     support = [k for k, v in enumerate(lam) if v > NULL_ROW * top]
@@ -738,19 +738,12 @@ def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Frac
         if fi[0][i] == 0 and (cf is None or cf[i] <= NULL_ROW * (1.0 + abs(cf).max())):
             eqs.append([a[i] for a in lins])
             rhs.append(-fm[0][i])
-    if not eqs:  # every multiplier free
-        eqs, rhs = [[Fraction(0)] * len(support)], [Fraction(0)]
-    A, b = sp.Matrix(eqs), sp.Matrix(rhs)
-    try:
-        sol, params, free = A.gauss_jordan_solve(b, freevar=True)
-    except ValueError:  # inconsistent: no exact certificate on this support
+    values = solve_affine(eqs, rhs, len(support),
+                          lambda i: _snapped(float(lam[support[i]]), snap))
+    if values is None:  # inconsistent: no exact certificate on this support
         return None
-    guess = [_snapped(float(lam[support[i]]), snap) for i in free]
-    values = sol.xreplace({p: sp.Rational(g.numerator, g.denominator)
-                           for p, g in zip(params, guess, strict=True)})
     out = [Fraction(0)] * len(lam)
-    for k, v in zip(support, values, strict=True):
-        q = Fraction(int(sp.Rational(v).p), int(sp.Rational(v).q))
+    for k, q in zip(support, values, strict=True):
         if q < 0:
             return None
         out[k] = q
