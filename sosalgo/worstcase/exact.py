@@ -710,7 +710,7 @@ def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Frac
 
     top = float(np.max(lam, initial=0.0))
     support = [k for k, v in enumerate(lam) if v > NULL_ROW * top]
-    if not support or st.free_values or st.d > RATIONAL_MAX_D \
+    if not support or st.d > RATIONAL_MAX_D \
             or max(support) >= len(st.pairs):  # rows beyond the pairs: not repaired here
         return None
     null = ([[Fraction(int(j == c)) for j in range(st.d)] for c in units] if units
@@ -737,10 +737,12 @@ def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Frac
             rhs.append(sum((tq * I0[i][j] - M[i][j]) * v[j] for j in nz))
     cf = None if not units else st_value_residual(st, lam, lins, support)
     for i in range(st.nF):  # c_F[i] = -m_F[i] - sum lambda a_i: no tq to raise it (with
-        # ``units``: where the float c_F is not clearly positive, a margin solve's c_F > 0)
-        if fi[0][i] == 0 and (cf is None or cf[i] <= NULL_ROW * (1.0 + abs(cf).max())):
+        # ``units``: where the float c_F is not clearly positive, a margin solve's c_F > 0);
+        # no x* (``free_values``): every c_F[i] = tq i_F[i] - m_F[i] - sum lambda a_i is 0
+        if st.free_values or (fi[0][i] == 0 and (
+                cf is None or cf[i] <= NULL_ROW * (1.0 + abs(cf).max()))):
             eqs.append([a[i] for a in lins])
-            rhs.append(-fm[0][i])
+            rhs.append(tq * fi[0][i] - fm[0][i])
     A, b = sp.Matrix(eqs), sp.Matrix(rhs)
     try:
         sol, params, free = A.gauss_jordan_solve(b, freevar=True)
