@@ -113,6 +113,14 @@ def _start(doc: dict[str, Any], av: ArbView, r: int) -> arb_mat:
     return xi + av.G0 * _mat([g0])
 
 
+def _previous_call(mt: Method, av: ArbView) -> int | None:
+    """The call whose point at step k - 1 is x_k exactly (:attr:`Method.prev_call`), for
+    a method with the same matrices at every step and no line search."""
+    if av.per_step is not None or mt.line_search:
+        return None
+    return mt.prev_call
+
+
 def positions(doc: dict[str, Any], av: ArbView) -> dict[str, Any]:
     """Every point of the trajectory (a list of r balls), recomputed from the start and
     the calls; ``xi0``, ``xiN``: the states (arb_mat, n x r) at steps 0 and N."""
@@ -148,6 +156,8 @@ def positions(doc: dict[str, Any], av: ArbView) -> dict[str, Any]:
             pos.setdefault("x0", [ball(v) for v in doc["x0"]])
         elif call is not None and _label(call, k, p) in pos:
             pos[key] = pos[_label(call, k, p)]
+        elif k >= 1 and _previous_call(mt, av) is not None:  # the same point, proven
+            pos[key] = pos[_label(_previous_call(mt, av), k - 1, p)]
         elif mt.output is None:
             row = av.E * states[k]  # type: ignore[operator]
             pos[key] = [row[0, c] for c in range(r)]

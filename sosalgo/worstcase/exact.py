@@ -270,6 +270,7 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
                 bits=enclosure_bits(digits))
     mt.out_call = _exact_output_call(mats, om)
     mt.x0_call = _exact_start_call(mats, Xq, om)
+    mt.prev_call = _exact_previous_call(mats, om)
     mt.errors = _exact_errors(spec, env, enclose)
     mt.line_search = bool(getattr(spec, "line_search", None))
     mt.constraints = spec_constraints(spec, p)
@@ -332,6 +333,21 @@ def _exact_output_call(mats: dict[str, sp.Matrix], om: Any) -> int | None:
     D = mats.get("D", sp.zeros(om.p, om.p))
     for i in range(om.p):
         diff = list(mats["E"][0, :] - mats["C"][i, :]) + list(D[i, :])
+        if all(_proven_zero(sp.sympify(v)) for v in diff):
+            return i
+    return None
+
+
+def _exact_previous_call(mats: dict[str, sp.Matrix], om: Any) -> int | None:
+    """The first call i whose point at step k - 1 is the output x_k for every state and
+    answer (E A = C_i and E B = D_i exactly, sympy: x_k = E (A xi + B u) = C_i xi + D_i u),
+    None otherwise (or with an output call)."""
+    if om.output is not None or "E" not in mats:
+        return None
+    D = mats.get("D", sp.zeros(om.p, om.p))
+    EA, EB = mats["E"] * mats["A"], mats["E"] * mats["B"]
+    for i in range(om.p):
+        diff = list(EA[0, :] - mats["C"][i, :]) + list(EB[0, :] - D[i, :])
         if all(_proven_zero(sp.sympify(v)) for v in diff):
             return i
     return None

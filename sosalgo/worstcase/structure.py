@@ -98,6 +98,9 @@ class Method(CallShape):
     # D_i = 0 and C_i [X0 Xs] = [1 0] proven exactly: from xi_0 = X0 x_0 - Xs s~ the first
     # call i is at x_0 (set on exact methods; floats find the coincidence by ``same``)
     x0_call: int | None = None
+    # output None, E A = C_i and E B = D_i proven exactly: x_k (k >= 1) is the point of
+    # call i at step k - 1 (a proximal output; set on exact methods for the witness check)
+    prev_call: int | None = None
     # exact methods: the structures built on them (the proof of each margin's certificate
     # rebuilds the same one; built once, :func:`build_structure`)
     structures: dict[Any, Any] = field(default_factory=dict, repr=False, compare=False)
