@@ -16,6 +16,7 @@ from sosalgo.classes import (
     convex,
     convex_lipschitz,
     convex_qg,
+    convex_support,
     indicator,
     linear_operator,
     lipschitz_operator,
@@ -91,6 +92,7 @@ register_class(symmetric_linear_operator.CLASS)
 register_class(skew_symmetric_linear_operator.CLASS)
 register_class(weakly_convex.CLASS)
 register_class(weakly_convex.SMOOTH)
+register_class(convex_support.CLASS)
 _SHIPPED = tuple(CLASSES.values())
 
 SEED_CLASS: FunctionClass = smooth_strongly_convex.CLASS  # F(m, L): a spec without functions:

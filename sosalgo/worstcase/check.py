@@ -27,7 +27,7 @@ from sosalgo.kernel.arb import arb_fraction, precision
 from sosalgo.spec import Spec
 from sosalgo.steps import changes_with_k
 from sosalgo.worstcase.exact import ball, exact_method, exact_steps_or_none
-from sosalgo.worstcase.structure import Method, last_calls
+from sosalgo.worstcase.structure import Method, anchor_label, last_calls
 from sosalgo.worstcase.terms import OUT0, Term, free_start
 
 __all__ = ["PREC", "ArbView", "arb_view", "check_witness", "fit_values", "member_interval",
@@ -173,6 +173,11 @@ def positions(doc: dict[str, Any], av: ArbView) -> dict[str, Any]:
         pos[OUT0] = [row0[0, c] for c in range(r)]
     for i in range(p):
         pos.setdefault(f"y{i + 1}_{N}", pos.get(_label(i, N, p)))
+    for name, cls, _ in mt.functions:  # each origin o: where the witness puts it
+        if cls.anchored:
+            pt = next(q for q in doc["functions"][name]["points"]
+                      if q["label"] == anchor_label(name))
+            pos[pt["label"]] = _anchor_position(pt)
     if last_calls(mt):  # the y terms after N steps: the calls of step N - 1
         for i in range(p):
             pos[f"y{i + 1}_{N}"] = pos[_label(i, N - 1, p)]
@@ -284,7 +289,8 @@ def pair_forms(doc: dict[str, Any], av: ArbView, pos: dict[str, Any]
         Vm = arb_mat(len(vecs), r, [v for row in vecs for v in row])
         gram = Vm * Vm.transpose()
         npts = len(vecs) // 2
-        rows = []
+        rows = _anchor_rows(fd, name, npts) if cls.anchored else []
+        anchor = rows[0][0] if rows else None
         # a nonconvex class: no x* in its PEP (unless the class assumes a minimizer)
         ends = npts if cls.convex or cls.minimizer else npts - 1
         for a in range(ends):
@@ -295,6 +301,8 @@ def pair_forms(doc: dict[str, Any], av: ArbView, pos: dict[str, Any]
                 for r, (alpha, Q) in enumerate(av.ineqs[j]):
                     if av.mt.scope(j, r) == "optimum" and b != npts - 1:
                         continue  # a condition between a point and x* only
+                    if av.mt.scope(j, r) == "anchor" and (a == npts - 1 or b != anchor):
+                        continue  # a condition between a point and the origin o only
                     q = ball(av.mt.constant(j, r))
                     for u in range(4):
                         for v in range(4):
@@ -303,6 +311,45 @@ def pair_forms(doc: dict[str, Any], av: ArbView, pos: dict[str, Any]
                     rows.append((a, b, alpha, q))
         out.append(([pt["label"] for pt in fd["points"]] + ["x*"], rows))
     return out
+
+
+def _anchor_rows(fd: dict[str, Any], name: str, npts: int
+                 ) -> list[tuple[int, int, arb, arb]]:
+    """h_o - h* >= 0 and h* - h_o >= 0: the origin o of an anchored class has the value
+    of x*, 0 (ValueError when the function has no origin point)."""
+    labels = [pt["label"] for pt in fd["points"]]
+    if anchor_label(name) not in labels:
+        raise ValueError(f"{name}: no point {anchor_label(name)} (its origin)")
+    o = labels.index(anchor_label(name))
+    return [(o, npts - 1, arb(1), arb(0)), (npts - 1, o, arb(1), arb(0))]
+
+
+def _anchor_values(fd: dict[str, Any], name: str, pos: dict[str, Any]) -> list[Fraction]:
+    """The tilted values of a support function about its origin o, in rationals: h_a =
+    <g_a - s*, x_a - o> at each point, 0 at x* (ValueError where a position is not an
+    exact rational: a method with irrational or non-dyadic entries)."""
+    def exact(v: arb) -> Fraction:
+        if not v.rad() == 0:
+            raise ValueError(f"{name}: a point is not exact")
+        return arb_fraction(v.mid())
+
+    sj = [Fraction(v) for v in fd["optimal_subgradient"]]
+    o = [exact(v) for v in pos[anchor_label(name)]]
+    out = []
+    for pt in fd["points"]:
+        x = [exact(v) for v in pos[pt["label"]]]
+        out.append(sum(((Fraction(g) - s) * (a - b) for g, s, a, b
+                        in zip(pt["g"], sj, x, o, strict=True)), Fraction(0)))
+    return [*out, Fraction(0)]
+
+
+def _anchor_position(pt: dict[str, Any]) -> list[arb]:
+    """The stated position of an origin o (a free point: the witness gives it), its exact
+    coordinates the float ones (``x_exact``, when present, must say the same)."""
+    x = [Fraction(float(v)) for v in pt["x"]]
+    if "x_exact" in pt and [Fraction(v) for v in pt["x_exact"]] != x:
+        raise ValueError(f"{pt['label']}: x_exact differs from x")
+    return [ball(v) for v in x]
 
 
 def _round_down(w: Fraction, bits: int = 64) -> Fraction:
@@ -353,9 +400,13 @@ def fit_values(doc: dict[str, Any], mt: Method | ArbView) -> bool:
     av = mt if isinstance(mt, ArbView) else arb_view(mt)
     try:
         with precision(PREC):
-            forms = pair_forms(doc, av, positions(doc, av))
+            pos = positions(doc, av)
+            forms = pair_forms(doc, av, pos)
             new = []
-            for labels, rows in forms:
+            for (labels, rows), (name, cls, _) in zip(forms, av.mt.functions, strict=True):
+                if cls.anchored:  # its values are determined: h_a = <g_a, x_a - o>
+                    new.append(_anchor_values(doc["functions"][name], name, pos))
+                    continue
                 edges = _edges(rows)
                 if edges == [] and rows:  # no value enters (an indicator's own
                     new.append([Fraction(0)] * len(labels))  # conditions): its values 0
