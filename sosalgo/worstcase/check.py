@@ -24,6 +24,7 @@ import numpy as np
 from flint import arb, arb_mat, fmpq
 
 from sosalgo.kernel.arb import arb_fraction, precision
+from sosalgo.kernel.exact import Ball
 from sosalgo.spec import Spec
 from sosalgo.steps import changes_with_k
 from sosalgo.worstcase.exact import ball, exact_method, exact_steps_or_none
@@ -277,6 +278,9 @@ def pair_forms(doc: dict[str, Any], av: ArbView, pos: dict[str, Any]
     out = []
     for j, (name, cls, _) in enumerate(av.mt.functions):
         fd = doc["functions"][name]
+        if cls.anchored:  # an equality: in rationals
+            out.append(_anchored_forms(doc, av, j, pos))
+            continue
         sj = [ball(v) for v in fd["optimal_subgradient"]]
         r = len(sj)
         vecs = []
@@ -289,8 +293,7 @@ def pair_forms(doc: dict[str, Any], av: ArbView, pos: dict[str, Any]
         Vm = arb_mat(len(vecs), r, [v for row in vecs for v in row])
         gram = Vm * Vm.transpose()
         npts = len(vecs) // 2
-        rows = _anchor_rows(fd, name, npts) if cls.anchored else []
-        anchor = rows[0][0] if rows else None
+        rows = []
         # a nonconvex class: no x* in its PEP (unless the class assumes a minimizer)
         ends = npts if cls.convex or cls.minimizer else npts - 1
         for a in range(ends):
@@ -301,8 +304,6 @@ def pair_forms(doc: dict[str, Any], av: ArbView, pos: dict[str, Any]
                 for r, (alpha, Q) in enumerate(av.ineqs[j]):
                     if av.mt.scope(j, r) == "optimum" and b != npts - 1:
                         continue  # a condition between a point and x* only
-                    if av.mt.scope(j, r) == "anchor" and (a == npts - 1 or b != anchor):
-                        continue  # a condition between a point and the origin o only
                     q = ball(av.mt.constant(j, r))
                     for u in range(4):
                         for v in range(4):
@@ -313,34 +314,131 @@ def pair_forms(doc: dict[str, Any], av: ArbView, pos: dict[str, Any]
     return out
 
 
-def _anchor_rows(fd: dict[str, Any], name: str, npts: int
-                 ) -> list[tuple[int, int, arb, arb]]:
-    """h_o - h* >= 0 and h* - h_o >= 0: the origin o of an anchored class has the value
-    of x*, 0 (ValueError when the function has no origin point)."""
+def _anchored_forms(doc: dict[str, Any], av: ArbView, j: int, pos: dict[str, Any]
+                    ) -> tuple[list[str], list[tuple[int, int, Fraction, Fraction]]]:
+    """:func:`pair_forms` of an anchored class's function, in rationals (its conditions
+    with the origin o are equalities, which balls cannot prove): the rows of every
+    inequality, "anchor" ones with b = o only, and h_o - h* >= 0, h* - h_o >= 0 (o has
+    the value of x*, 0)."""
+    name = av.mt.functions[j][0]
+    fd = doc["functions"][name]
     labels = [pt["label"] for pt in fd["points"]]
     if anchor_label(name) not in labels:
         raise ValueError(f"{name}: no point {anchor_label(name)} (its origin)")
-    o = labels.index(anchor_label(name))
-    return [(o, npts - 1, arb(1), arb(0)), (npts - 1, o, arb(1), arb(0))]
-
-
-def _anchor_values(fd: dict[str, Any], name: str, pos: dict[str, Any]) -> list[Fraction]:
-    """The tilted values of a support function about its origin o, in rationals: h_a =
-    <g_a - s*, x_a - o> at each point, 0 at x* (ValueError where a position is not an
-    exact rational: a method with irrational or non-dyadic entries)."""
-    def exact(v: arb) -> Fraction:
-        if not v.rad() == 0:
-            raise ValueError(f"{name}: a point is not exact")
-        return arb_fraction(v.mid())
-
+    exact = _exact_anchor_positions(doc, av, name, pos)
     sj = [Fraction(v) for v in fd["optimal_subgradient"]]
-    o = [exact(v) for v in pos[anchor_label(name)]]
+    zero = [Fraction(0)] * len(sj)
+    vecs = [(exact[pt["label"]], [Fraction(g) - s for g, s in zip(pt["g"], sj, strict=True)])
+            for pt in fd["points"]] + [(zero, zero)]  # x*: point 0, tilted subgradient 0
+    o, star = labels.index(anchor_label(name)), len(vecs) - 1
+    rows = [(o, star, Fraction(1), Fraction(0)), (star, o, Fraction(1), Fraction(0))]
+    forms = []
+    for r, (alpha, Q) in enumerate(av.mt.ineqs[j]):
+        Qr, c = _rationals(Q), Ball.of(av.mt.constant(j, r))
+        if Qr is None or Ball.of(alpha).r != 0 or c.c != 0 or c.r != 0:
+            raise ValueError(f"{name}: inexact class data or a constant")
+        forms.append((Fraction(Ball.of(alpha).c), Qr))
+    for a, (xa, ga) in enumerate(vecs):
+        for b, (xb, gb) in enumerate(vecs):
+            if a == b:
+                continue
+            X = (xa, xb, ga, gb)
+            for r, (alpha, Q) in enumerate(forms):
+                if av.mt.scope(j, r) == "optimum" and b != star or \
+                        av.mt.scope(j, r) == "anchor" and (a == star or b != o):
+                    continue  # conditions with x* only, with the origin o only
+                q = sum((Q[u][v] * sum((s * t for s, t in zip(X[u], X[v], strict=True)),
+                                        Fraction(0))
+                         for u in range(4) for v in range(4) if Q[u][v]), Fraction(0))
+                rows.append((a, b, alpha, q))  # an anchored class has no constants
+    return [*labels, "x*"], rows
+
+
+def _anchor_values(fd: dict[str, Any], name: str, exact: dict[str, list[Fraction]]
+                   ) -> list[Fraction]:
+    """The tilted values of a support function about its origin o, in rationals: h_a =
+    <g_a - s*, x_a - o> at each point (``exact``: the rational positions), 0 at x*."""
+    sj = [Fraction(v) for v in fd["optimal_subgradient"]]
+    o = exact[anchor_label(name)]
     out = []
     for pt in fd["points"]:
-        x = [exact(v) for v in pos[pt["label"]]]
         out.append(sum(((Fraction(g) - s) * (a - b) for g, s, a, b
-                        in zip(pt["g"], sj, x, o, strict=True)), Fraction(0)))
+                        in zip(pt["g"], sj, exact[pt["label"]], o, strict=True)),
+                       Fraction(0)))
     return [*out, Fraction(0)]
+
+
+def _rationals(M: Any) -> list[list[Fraction]] | None:
+    """The exact method's matrix as rationals (None: some entry is a ball of radius > 0)."""
+    out = []
+    for row in np.atleast_2d(np.asarray(M, dtype=object)):
+        balls = [Ball.of(v) for v in row]
+        if any(b.r != 0 for b in balls):
+            return None
+        out.append([Fraction(b.c) for b in balls])
+    return out
+
+
+def _matvec(M: list[list[Fraction]], xs: list[list[Fraction]]) -> list[list[Fraction]]:
+    """M X for X given by rows (each a point's coordinates)."""
+    r = len(xs[0]) if xs else 0
+    return [[sum((m * x[c] for m, x in zip(row, xs, strict=True)), Fraction(0))
+             for c in range(r)] for row in M]
+
+
+def rational_positions(doc: dict[str, Any], av: ArbView) -> dict[str, list[Fraction]] | None:
+    """The start, the call points and each origin o in exact rationals, recomputed from the
+    start and the calls (as :func:`positions` does in balls) when every entry of the method
+    is rational; None otherwise (a line search, an ``initial_state``, a free start, an
+    irrational entry)."""
+    mt = av.mt
+    if mt.line_search or av.G0 is not None or doc.get("xi0") is not None:
+        return None
+    X0 = _rationals(np.asarray(mt.X0, dtype=object).reshape(-1, 1))
+    if X0 is None:
+        return None
+    x0 = [Fraction(v) for v in doc["x0"]]
+    xi = [[row[0] * v for v in x0] for row in X0]
+    out = {"x0": x0}
+    for k in range(int(doc["call_steps"])):
+        mats = [_rationals(M) for M in mt.step(k)]
+        if any(M is None for M in mats):
+            return None
+        A, B, C, D = mats
+        u = [[Fraction(v) for v in ui] for ui in doc["calls"][k]]
+        y = [[a + b for a, b in zip(cy, dy, strict=True)]
+             for cy, dy in zip(_matvec(C, xi), _matvec(D, u), strict=True)]
+        for i in range(mt.p):
+            out[_label(i, k, mt.p)] = y[i]
+        if k < int(doc["steps"]):
+            xi = [[a + b for a, b in zip(ax, bu, strict=True)]
+                  for ax, bu in zip(_matvec(A, xi), _matvec(B, u), strict=True)]
+    for name, cls, _ in mt.functions:
+        if cls.anchored:
+            pt = next(q for q in doc["functions"][name]["points"]
+                      if q["label"] == anchor_label(name))
+            out[pt["label"]] = [Fraction(float(v)) for v in pt["x"]]
+    return out
+
+
+def _exact_anchor_positions(doc: dict[str, Any], av: ArbView, name: str,
+                            pos: dict[str, Any]) -> dict[str, list[Fraction]]:
+    """Rational positions of every point of the anchored function ``name``, each inside
+    its ball of :func:`positions` (ValueError when there are none)."""
+    exact = rational_positions(doc, av)
+    out = {}
+    for pt in doc["functions"][name]["points"]:
+        label = pt["label"]
+        if exact is None or label not in exact:  # points as balls: exact when radius 0
+            if any(not v.rad() == 0 for v in pos[label]):
+                raise ValueError(f"{name} at {label}: not an exact point")
+            out[label] = [arb_fraction(v.mid()) for v in pos[label]]
+            continue
+        if not all(v.overlaps(ball(q)) for v, q in zip(pos[label], exact[label],
+                                                       strict=True)):
+            raise ValueError(f"{name} at {label}: the rational point is not the point")
+        out[label] = exact[label]
+    return out
 
 
 def _anchor_position(pt: dict[str, Any]) -> list[arb]:
@@ -405,7 +503,8 @@ def fit_values(doc: dict[str, Any], mt: Method | ArbView) -> bool:
             new = []
             for (labels, rows), (name, cls, _) in zip(forms, av.mt.functions, strict=True):
                 if cls.anchored:  # its values are determined: h_a = <g_a, x_a - o>
-                    new.append(_anchor_values(doc["functions"][name], name, pos))
+                    new.append(_anchor_values(doc["functions"][name], name,
+                                              _exact_anchor_positions(doc, av, name, pos)))
                     continue
                 edges = _edges(rows)
                 if edges == [] and rows:  # no value enters (an indicator's own
@@ -428,9 +527,11 @@ def fit_values(doc: dict[str, Any], mt: Method | ArbView) -> bool:
 def _pairs_ok(doc: dict[str, Any], av: ArbView, pos: dict[str, Any]) -> tuple[int, int]:
     """(pairs checked, pairs not proven): every tilted class inequality."""
     checked = bad = 0
-    for (name, _, _), (_, rows) in zip(av.mt.functions, pair_forms(doc, av, pos),
+    for (name, cls, _), (_, rows) in zip(av.mt.functions, pair_forms(doc, av, pos),
                                        strict=True):
-        h = [ball(pt["h"]) for pt in doc["functions"][name]["points"]] + [arb(0)]
+        h = [(Fraction if cls.anchored else ball)(pt["h"])  # anchored: rational rows
+             for pt in doc["functions"][name]["points"]]
+        h.append(Fraction(0) if cls.anchored else arb(0))
         for a, b, alpha, q in rows:
             checked += 1
             bad += not (alpha * (h[a] - h[b]) + q >= 0)
