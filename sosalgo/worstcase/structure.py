@@ -65,8 +65,8 @@ from sosalgo.worstcase.terms import (
 )
 
 __all__ = ["Method", "PEPPoint", "PEPStructure", "anchor_label", "build_structure",
-           "enclosure_bits",
-           "enclosure_digits", "last_calls", "output_call", "pair_label", "radius_growth"]
+           "enclosure_bits", "enclosure_digits", "last_calls", "output_call", "pair_label",
+           "radius_growth"]
 
 
 @dataclass
@@ -217,6 +217,15 @@ class PEPStructure:
     @property
     def d(self) -> int:
         return len(self.basis)
+
+    def equality_rows(self, n: int) -> np.ndarray:
+        """Which of the first n rows are half of an equality (False beyond ``equalities``:
+        rows added later, such as cuts)."""
+        out = np.zeros(n, dtype=bool)
+        if self.equalities is not None:
+            k = min(n, len(self.equalities))
+            out[:k] = self.equalities[:k]
+        return out
 
     @property
     def count(self) -> int:
