@@ -16,6 +16,7 @@ from sosalgo.classes import (
     convex,
     convex_lipschitz,
     convex_qg,
+    convex_support,
     indicator,
     linear_operator,
     lipschitz_operator,
@@ -33,6 +34,7 @@ from sosalgo.classes import (
     strongly_convex,
     strongly_monotone,
     symmetric_linear_operator,
+    weakly_convex,
 )
 from sosalgo.classes.base import ORACLE_KINDS, FunctionClass, Inequality, convex_form
 
@@ -88,6 +90,9 @@ register_class(smooth_strongly_convex_quadratic.CLASS)
 register_class(linear_operator.CLASS)
 register_class(symmetric_linear_operator.CLASS)
 register_class(skew_symmetric_linear_operator.CLASS)
+register_class(weakly_convex.CLASS)
+register_class(weakly_convex.SMOOTH)
+register_class(convex_support.CLASS)
 _SHIPPED = tuple(CLASSES.values())
 
 SEED_CLASS: FunctionClass = smooth_strongly_convex.CLASS  # F(m, L): a spec without functions:

@@ -59,13 +59,14 @@ import numpy as np
 
 from sosalgo.classes.members import ProxFunction, quadratic
 
-__all__ = ["FunctionClass", "Inequality", "ORACLE_KINDS", "PAIR_SCOPES", "check_mu_below_L",
-           "convex_form", "exact_convex_form"]
+__all__ = ["ANCHOR", "FunctionClass", "Inequality", "ORACLE_KINDS", "PAIR_SCOPES",
+           "check_mu_below_L", "convex_form", "exact_convex_form"]
 
 ORACLE_KINDS = ("gradient", "subgradient", "proximal")
 
 
-PAIR_SCOPES = ("pairs", "optimum")
+PAIR_SCOPES = ("pairs", "optimum", "anchor")
+ANCHOR = "o"  # the label prefix of an anchored class's origin point (``anchored``)
 
 
 def check_mu_below_L(params: Mapping[str, float], zero: bool = False) -> None:
@@ -86,7 +87,8 @@ class Inequality:
     (Q 4 x 4), required for every ordered pair of points (``scope`` "pairs") or only for
     each point a with b = x*, the minimizer (``scope`` "optimum": quadratic growth, error
     bounds, Lojasiewicz conditions; a condition on the point alone, such as |g_a|^2 <=
-    M^2, is one of these with Q on g_a only). ``constant`` >= 0, in the units of f (an
+    M^2, is one of these with Q on g_a only; ``scope`` "anchor": for each point a with b
+    = o, the origin of an ``anchored`` class). ``constant`` >= 0, in the units of f (an
     inhomogeneous condition: M^2, D^2); the PEP of a class with a constant is no longer
     scale invariant, its worst case is the one under ``initial <= 1``."""
 
@@ -126,6 +128,10 @@ class FunctionClass:
     # the PEP keeps a minimizer x* for it although it is not convex (the class has a
     # global minimizer by assumption: PL, RSI/EB)
     minimizer: bool = False
+    # its functions are positively homogeneous about an origin o (support functions): the
+    # PEP adds o as a free point of the function with tilted value and subgradient 0, and
+    # the inequalities of scope "anchor" hold between each point and o
+    anchored: bool = False
 
     def check(self, params: Mapping[str, float]) -> None:
         """Raise ValueError('<parameter>: what is wrong') for invalid values."""

@@ -24,10 +24,11 @@ import numpy as np
 from flint import arb, arb_mat, fmpq
 
 from sosalgo.kernel.arb import arb_fraction, precision
+from sosalgo.kernel.exact import Ball
 from sosalgo.spec import Spec
 from sosalgo.steps import changes_with_k
 from sosalgo.worstcase.exact import ball, exact_method, exact_steps_or_none
-from sosalgo.worstcase.structure import Method, last_calls
+from sosalgo.worstcase.structure import Method, anchor_label, last_calls
 from sosalgo.worstcase.terms import OUT0, Term, free_start
 
 __all__ = ["PREC", "ArbView", "arb_view", "check_witness", "fit_values", "member_interval",
@@ -113,6 +114,14 @@ def _start(doc: dict[str, Any], av: ArbView, r: int) -> arb_mat:
     return xi + av.G0 * _mat([g0])
 
 
+def _previous_call(mt: Method, av: ArbView) -> int | None:
+    """The call whose point at step k - 1 is x_k exactly (:attr:`Method.prev_call`), for
+    a method with the same matrices at every step and no line search."""
+    if av.per_step is not None or mt.line_search:
+        return None
+    return mt.prev_call
+
+
 def positions(doc: dict[str, Any], av: ArbView) -> dict[str, Any]:
     """Every point of the trajectory (a list of r balls), recomputed from the start and
     the calls; ``xi0``, ``xiN``: the states (arb_mat, n x r) at steps 0 and N."""
@@ -148,6 +157,8 @@ def positions(doc: dict[str, Any], av: ArbView) -> dict[str, Any]:
             pos.setdefault("x0", [ball(v) for v in doc["x0"]])
         elif call is not None and _label(call, k, p) in pos:
             pos[key] = pos[_label(call, k, p)]
+        elif k >= 1 and _previous_call(mt, av) is not None:  # the same point, proven
+            pos[key] = pos[_label(_previous_call(mt, av), k - 1, p)]
         elif mt.output is None:
             row = av.E * states[k]  # type: ignore[operator]
             pos[key] = [row[0, c] for c in range(r)]
@@ -163,6 +174,11 @@ def positions(doc: dict[str, Any], av: ArbView) -> dict[str, Any]:
         pos[OUT0] = [row0[0, c] for c in range(r)]
     for i in range(p):
         pos.setdefault(f"y{i + 1}_{N}", pos.get(_label(i, N, p)))
+    for name, cls, _ in mt.functions:  # each origin o: where the witness puts it
+        if cls.anchored:
+            pt = next(q for q in doc["functions"][name]["points"]
+                      if q["label"] == anchor_label(name))
+            pos[pt["label"]] = _anchor_position(pt)
     if last_calls(mt):  # the y terms after N steps: the calls of step N - 1
         for i in range(p):
             pos[f"y{i + 1}_{N}"] = pos[_label(i, N - 1, p)]
@@ -262,6 +278,9 @@ def pair_forms(doc: dict[str, Any], av: ArbView, pos: dict[str, Any]
     out = []
     for j, (name, cls, _) in enumerate(av.mt.functions):
         fd = doc["functions"][name]
+        if cls.anchored:  # an equality: in rationals
+            out.append(_anchored_forms(doc, av, j, pos))
+            continue
         sj = [ball(v) for v in fd["optimal_subgradient"]]
         r = len(sj)
         vecs = []
@@ -293,6 +312,142 @@ def pair_forms(doc: dict[str, Any], av: ArbView, pos: dict[str, Any]
                     rows.append((a, b, alpha, q))
         out.append(([pt["label"] for pt in fd["points"]] + ["x*"], rows))
     return out
+
+
+def _anchored_forms(doc: dict[str, Any], av: ArbView, j: int, pos: dict[str, Any]
+                    ) -> tuple[list[str], list[tuple[int, int, Fraction, Fraction]]]:
+    """:func:`pair_forms` of an anchored class's function, in rationals (its conditions
+    with the origin o are equalities, which balls cannot prove): the rows of every
+    inequality, "anchor" ones with b = o only, and h_o - h* >= 0, h* - h_o >= 0 (o has
+    the value of x*, 0)."""
+    name = av.mt.functions[j][0]
+    fd = doc["functions"][name]
+    labels = [pt["label"] for pt in fd["points"]]
+    if anchor_label(name) not in labels:
+        raise ValueError(f"{name}: no point {anchor_label(name)} (its origin)")
+    exact = _exact_anchor_positions(doc, av, name, pos)
+    sj = [Fraction(v) for v in fd["optimal_subgradient"]]
+    zero = [Fraction(0)] * len(sj)
+    vecs = [(exact[pt["label"]], [Fraction(g) - s for g, s in zip(pt["g"], sj, strict=True)])
+            for pt in fd["points"]] + [(zero, zero)]  # x*: point 0, tilted subgradient 0
+    o, star = labels.index(anchor_label(name)), len(vecs) - 1
+    rows = [(o, star, Fraction(1), Fraction(0)), (star, o, Fraction(1), Fraction(0))]
+    forms = []
+    for r, (alpha, Q) in enumerate(av.mt.ineqs[j]):
+        Qr, c = _rationals(Q), Ball.of(av.mt.constant(j, r))
+        if Qr is None or Ball.of(alpha).r != 0 or c.c != 0 or c.r != 0:
+            raise ValueError(f"{name}: inexact class data or a constant")
+        forms.append((Fraction(Ball.of(alpha).c), Qr))
+    for a, (xa, ga) in enumerate(vecs):
+        for b, (xb, gb) in enumerate(vecs):
+            if a == b:
+                continue
+            X = (xa, xb, ga, gb)
+            for r, (alpha, Q) in enumerate(forms):
+                if av.mt.scope(j, r) == "optimum" and b != star or \
+                        av.mt.scope(j, r) == "anchor" and (a == star or b != o):
+                    continue  # conditions with x* only, with the origin o only
+                q = sum((Q[u][v] * sum((s * t for s, t in zip(X[u], X[v], strict=True)),
+                                        Fraction(0))
+                         for u in range(4) for v in range(4) if Q[u][v]), Fraction(0))
+                rows.append((a, b, alpha, q))  # an anchored class has no constants
+    return [*labels, "x*"], rows
+
+
+def _anchor_values(fd: dict[str, Any], name: str, exact: dict[str, list[Fraction]]
+                   ) -> list[Fraction]:
+    """The tilted values of a support function about its origin o, in rationals: h_a =
+    <g_a - s*, x_a - o> at each point (``exact``: the rational positions), 0 at x*."""
+    sj = [Fraction(v) for v in fd["optimal_subgradient"]]
+    o = exact[anchor_label(name)]
+    out = []
+    for pt in fd["points"]:
+        out.append(sum(((Fraction(g) - s) * (a - b) for g, s, a, b
+                        in zip(pt["g"], sj, exact[pt["label"]], o, strict=True)),
+                       Fraction(0)))
+    return [*out, Fraction(0)]
+
+
+def _rationals(M: Any) -> list[list[Fraction]] | None:
+    """The exact method's matrix as rationals (None: some entry is a ball of radius > 0)."""
+    out = []
+    for row in np.atleast_2d(np.asarray(M, dtype=object)):
+        balls = [Ball.of(v) for v in row]
+        if any(b.r != 0 for b in balls):
+            return None
+        out.append([Fraction(b.c) for b in balls])
+    return out
+
+
+def _matvec(M: list[list[Fraction]], xs: list[list[Fraction]]) -> list[list[Fraction]]:
+    """M X for X given by rows (each a point's coordinates)."""
+    r = len(xs[0]) if xs else 0
+    return [[sum((m * x[c] for m, x in zip(row, xs, strict=True)), Fraction(0))
+             for c in range(r)] for row in M]
+
+
+def rational_positions(doc: dict[str, Any], av: ArbView) -> dict[str, list[Fraction]] | None:
+    """The start, the call points and each origin o in exact rationals, recomputed from the
+    start and the calls (as :func:`positions` does in balls) when every entry of the method
+    is rational; None otherwise (a line search, an ``initial_state``, a free start, an
+    irrational entry)."""
+    mt = av.mt
+    if mt.line_search or av.G0 is not None or doc.get("xi0") is not None:
+        return None
+    X0 = _rationals(np.asarray(mt.X0, dtype=object).reshape(-1, 1))
+    if X0 is None:
+        return None
+    x0 = [Fraction(v) for v in doc["x0"]]
+    xi = [[row[0] * v for v in x0] for row in X0]
+    out = {"x0": x0}
+    for k in range(int(doc["call_steps"])):
+        mats = [_rationals(M) for M in mt.step(k)]
+        if any(M is None for M in mats):
+            return None
+        A, B, C, D = mats
+        u = [[Fraction(v) for v in ui] for ui in doc["calls"][k]]
+        y = [[a + b for a, b in zip(cy, dy, strict=True)]
+             for cy, dy in zip(_matvec(C, xi), _matvec(D, u), strict=True)]
+        for i in range(mt.p):
+            out[_label(i, k, mt.p)] = y[i]
+        if k < int(doc["steps"]):
+            xi = [[a + b for a, b in zip(ax, bu, strict=True)]
+                  for ax, bu in zip(_matvec(A, xi), _matvec(B, u), strict=True)]
+    for name, cls, _ in mt.functions:
+        if cls.anchored:
+            pt = next(q for q in doc["functions"][name]["points"]
+                      if q["label"] == anchor_label(name))
+            out[pt["label"]] = [Fraction(float(v)) for v in pt["x"]]
+    return out
+
+
+def _exact_anchor_positions(doc: dict[str, Any], av: ArbView, name: str,
+                            pos: dict[str, Any]) -> dict[str, list[Fraction]]:
+    """Rational positions of every point of the anchored function ``name``, each inside
+    its ball of :func:`positions` (ValueError when there are none)."""
+    exact = rational_positions(doc, av)
+    out = {}
+    for pt in doc["functions"][name]["points"]:
+        label = pt["label"]
+        if exact is None or label not in exact:  # points as balls: exact when radius 0
+            if any(not v.rad() == 0 for v in pos[label]):
+                raise ValueError(f"{name} at {label}: not an exact point")
+            out[label] = [arb_fraction(v.mid()) for v in pos[label]]
+            continue
+        if not all(v.overlaps(ball(q)) for v, q in zip(pos[label], exact[label],
+                                                       strict=True)):
+            raise ValueError(f"{name} at {label}: the rational point is not the point")
+        out[label] = exact[label]
+    return out
+
+
+def _anchor_position(pt: dict[str, Any]) -> list[arb]:
+    """The stated position of an origin o (a free point: the witness gives it), its exact
+    coordinates the float ones (``x_exact``, when present, must say the same)."""
+    x = [Fraction(float(v)) for v in pt["x"]]
+    if "x_exact" in pt and [Fraction(v) for v in pt["x_exact"]] != x:
+        raise ValueError(f"{pt['label']}: x_exact differs from x")
+    return [ball(v) for v in x]
 
 
 def _round_down(w: Fraction, bits: int = 64) -> Fraction:
@@ -343,9 +498,14 @@ def fit_values(doc: dict[str, Any], mt: Method | ArbView) -> bool:
     av = mt if isinstance(mt, ArbView) else arb_view(mt)
     try:
         with precision(PREC):
-            forms = pair_forms(doc, av, positions(doc, av))
+            pos = positions(doc, av)
+            forms = pair_forms(doc, av, pos)
             new = []
-            for labels, rows in forms:
+            for (labels, rows), (name, cls, _) in zip(forms, av.mt.functions, strict=True):
+                if cls.anchored:  # its values are determined: h_a = <g_a, x_a - o>
+                    new.append(_anchor_values(doc["functions"][name], name,
+                                              _exact_anchor_positions(doc, av, name, pos)))
+                    continue
                 edges = _edges(rows)
                 if edges == [] and rows:  # no value enters (an indicator's own
                     new.append([Fraction(0)] * len(labels))  # conditions): its values 0
@@ -367,9 +527,11 @@ def fit_values(doc: dict[str, Any], mt: Method | ArbView) -> bool:
 def _pairs_ok(doc: dict[str, Any], av: ArbView, pos: dict[str, Any]) -> tuple[int, int]:
     """(pairs checked, pairs not proven): every tilted class inequality."""
     checked = bad = 0
-    for (name, _, _), (_, rows) in zip(av.mt.functions, pair_forms(doc, av, pos),
+    for (name, cls, _), (_, rows) in zip(av.mt.functions, pair_forms(doc, av, pos),
                                        strict=True):
-        h = [ball(pt["h"]) for pt in doc["functions"][name]["points"]] + [arb(0)]
+        h = [(Fraction if cls.anchored else ball)(pt["h"])  # anchored: rational rows
+             for pt in doc["functions"][name]["points"]]
+        h.append(Fraction(0) if cls.anchored else arb(0))
         for a, b, alpha, q in rows:
             checked += 1
             bad += not (alpha * (h[a] - h[b]) + q >= 0)

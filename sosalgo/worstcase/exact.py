@@ -270,6 +270,7 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
                 bits=enclosure_bits(digits))
     mt.out_call = _exact_output_call(mats, om)
     mt.x0_call = _exact_start_call(mats, Xq, om)
+    mt.prev_call = _exact_previous_call(mats, om)
     mt.errors = _exact_errors(spec, env, enclose)
     mt.line_search = bool(getattr(spec, "line_search", None))
     mt.constraints = spec_constraints(spec, p)
@@ -332,6 +333,21 @@ def _exact_output_call(mats: dict[str, sp.Matrix], om: Any) -> int | None:
     D = mats.get("D", sp.zeros(om.p, om.p))
     for i in range(om.p):
         diff = list(mats["E"][0, :] - mats["C"][i, :]) + list(D[i, :])
+        if all(_proven_zero(sp.sympify(v)) for v in diff):
+            return i
+    return None
+
+
+def _exact_previous_call(mats: dict[str, sp.Matrix], om: Any) -> int | None:
+    """The first call i whose point at step k - 1 is the output x_k for every state and
+    answer (E A = C_i and E B = D_i exactly, sympy: x_k = E (A xi + B u) = C_i xi + D_i u),
+    None otherwise (or with an output call)."""
+    if om.output is not None or "E" not in mats:
+        return None
+    D = mats.get("D", sp.zeros(om.p, om.p))
+    EA, EB = mats["E"] * mats["A"], mats["E"] * mats["B"]
+    for i in range(om.p):
+        diff = list(EA[0, :] - mats["C"][i, :]) + list(EB[0, :] - D[i, :])
         if all(_proven_zero(sp.sympify(v)) for v in diff):
             return i
     return None
@@ -710,7 +726,7 @@ def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Frac
 
     top = float(np.max(lam, initial=0.0))
     support = [k for k, v in enumerate(lam) if v > NULL_ROW * top]
-    if not support or st.free_values or st.d > RATIONAL_MAX_D \
+    if not support or st.d > RATIONAL_MAX_D \
             or max(support) >= len(st.pairs):  # rows beyond the pairs: not repaired here
         return None
     null = ([[Fraction(int(j == c)) for j in range(st.d)] for c in units] if units
@@ -734,10 +750,12 @@ def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Frac
         return None
     cf = None if not units else st_value_residual(st, lam, lins, support)
     for i in range(st.nF):  # c_F[i] = -m_F[i] - sum lambda a_i: no tq to raise it (with
-        # ``units``: where the float c_F is not clearly positive, a margin solve's c_F > 0)
-        if fi[0][i] == 0 and (cf is None or cf[i] <= NULL_ROW * (1.0 + abs(cf).max())):
+        # ``units``: where the float c_F is not clearly positive, a margin solve's c_F > 0);
+        # no x* (``free_values``): every c_F[i] = tq i_F[i] - m_F[i] - sum lambda a_i is 0
+        if st.free_values or (fi[0][i] == 0 and (
+                cf is None or cf[i] <= NULL_ROW * (1.0 + abs(cf).max()))):
             eqs.append([a[i] for a in lins])
-            rhs.append(-fm[0][i])
+            rhs.append(tq * fi[0][i] - fm[0][i])
     values = solve_affine(eqs, rhs, len(support),
                           lambda i: _snapped(float(lam[support[i]]), snap))
     if values is None:  # inconsistent: no exact certificate on this support

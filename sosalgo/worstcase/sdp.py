@@ -370,6 +370,8 @@ def _solve_active(data: PEPData, active: np.ndarray, margin: float, objective: s
     # at 0: 0 >= 0) has no slack to give
     live = (np.asarray(abs(ineq).max(axis=1).todense()).ravel() > 0 if ineq.shape[0]
             else np.ones(0))
+    if st.equalities is not None:  # half of an equality: no slack to give either
+        live = live & ~st.equality_rows(int(np.max(active, initial=-1)) + 1)[active]
     b = [np.ones(1), data.consts()[active] / sig - slack * live, np.zeros(nF)]
     if floor is not None:  # a mingrad measure: each of its forms (st.floors) at the floor
         for form in ([meas] if st.floors is None else

@@ -46,6 +46,7 @@ from typing import Any
 
 import numpy as np
 
+from sosalgo.classes.base import ANCHOR
 from sosalgo.errors import InputError
 from sosalgo.oracles import CallShape
 from sosalgo.worstcase.terms import (
@@ -63,8 +64,9 @@ from sosalgo.worstcase.terms import (
     free_start,
 )
 
-__all__ = ["Method", "PEPPoint", "PEPStructure", "build_structure", "enclosure_bits",
-           "enclosure_digits", "last_calls", "output_call", "pair_label", "radius_growth"]
+__all__ = ["Method", "PEPPoint", "PEPStructure", "anchor_label", "build_structure",
+           "enclosure_bits", "enclosure_digits", "last_calls", "output_call", "pair_label",
+           "radius_growth"]
 
 
 @dataclass
@@ -98,6 +100,9 @@ class Method(CallShape):
     # D_i = 0 and C_i [X0 Xs] = [1 0] proven exactly: from xi_0 = X0 x_0 - Xs s~ the first
     # call i is at x_0 (set on exact methods; floats find the coincidence by ``same``)
     x0_call: int | None = None
+    # output None, E A = C_i and E B = D_i proven exactly: x_k (k >= 1) is the point of
+    # call i at step k - 1 (a proximal output; set on exact methods for the witness check)
+    prev_call: int | None = None
     # exact methods: the structures built on them (the proof of each margin's certificate
     # rebuilds the same one; built once, :func:`build_structure`)
     structures: dict[Any, Any] = field(default_factory=dict, repr=False, compare=False)
@@ -120,7 +125,7 @@ class Method(CallShape):
         return 0 if self.constants is None else self.constants[j][r]
 
     def scope(self, j: int, r: int) -> str:
-        """The pairs function j's inequality r holds for: "pairs" or "optimum"."""
+        """The pairs function j's inequality r holds for: "pairs", "optimum" or "anchor"."""
         return "pairs" if self.scopes is None else self.scopes[j][r]
     # inexact gradient calls: call index -> eps (|d - g| <= eps |g|,
     # :mod:`sosalgo.worstcase.inexact`)
@@ -190,6 +195,9 @@ class PEPStructure:
     # constants the worst case is the one under initial <= 1, and a dual certificate
     # (tau, lambda) bounds the measure by tau + sum_k lambda_k c_k (:mod:`sosalgo.worstcase.sdp`)
     constants: np.ndarray | None = None
+    # the rows that are half of an equality (a support function's conditions with its
+    # origin o: h_a = <g_a, x_a - o>), which an interior point cannot hold with a slack
+    equalities: np.ndarray | None = None
     # constraints beyond the class inequalities, after the pairs (their multipliers follow
     # the pairs'): (label, X (4 x d), Qc (4 x 4)) with tr(Qc X G X') + a F >= 0
     extras: list[tuple[str, np.ndarray, np.ndarray]] = field(default_factory=list)
@@ -209,6 +217,15 @@ class PEPStructure:
     @property
     def d(self) -> int:
         return len(self.basis)
+
+    def equality_rows(self, n: int) -> np.ndarray:
+        """Which of the first n rows are half of an equality (False beyond ``equalities``:
+        rows added later, such as cuts)."""
+        out = np.zeros(n, dtype=bool)
+        if self.equalities is not None:
+            k = min(n, len(self.equalities))
+            out[:k] = self.equalities[:k]
+        return out
 
     @property
     def count(self) -> int:
@@ -413,6 +430,7 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
     extra_cap = J * (len(measure) + len(initial)) + J + 1
     g0 = mt.G0 is not None and not free
     dmax = n0 + (J - 1) + p * calls + extra_cap + (len(mt.errors) + mt.line_search) * calls
+    dmax += sum(cls.anchored for _, cls, _ in mt.functions)  # each origin o: a column
     eye = np.eye(dmax) if not mt.exact else _obj_eye(dmax)
     cols = [f"xi0_{a + 1}-xi*" for a in range(n)] if free else ["x0-x*"]
     cols += [f"s*_{mt.functions[j][0]}/s" for j in range(J - 1)]
@@ -472,6 +490,10 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
         from sosalgo.worstcase.linesearch import line_search_rows
 
         extras += line_search_rows(mt, pts, Y, U, steps)
+    for j, (fname, cls, _) in enumerate(mt.functions):
+        if cls.anchored:  # its origin o: a free point, tilted value 0 and subgradient 0
+            pts[j].append(PEPPoint(anchor_label(fname), eye[len(cols)], zero, None))
+            cols.append(f"{anchor_label(fname)}-x*")
     for j in range(J):
         pts[j].append(PEPPoint("x*", zero, zero, None))
     state = {"nF": nF, "next": len(cols), "cols": cols, "eye": eye, "at": at, "origin": origin,
@@ -630,6 +652,11 @@ def _output_row(mt: Method, xi: list[np.ndarray], Yr: list[list[np.ndarray]],
     return (mt.E @ xi[k])[0]
 
 
+def anchor_label(fname: str) -> str:
+    """The label of function ``fname``'s origin o (an ``anchored`` class)."""
+    return f"{ANCHOR}_{fname}"
+
+
 def last_calls(mt: Method) -> bool:
     """Whether the output call and the ``y`` terms after N steps are the calls of step
     N - 1 (a method that changes with k: its N per-step methods make N calls, the N-th
@@ -679,12 +706,17 @@ def _finish(mt: Method, steps: int, calls: int, state: dict[str, Any],
                     for r in range(len(mt.ineqs[j])):
                         if mt.scope(j, r) == "optimum" and pb.label != "x*":
                             continue  # a condition between a point and x* only
+                        if mt.scope(j, r) == "anchor" and (pa.label == "x*" or pb.label
+                                                           != anchor_label(fname)):
+                            continue  # a condition between a point and the origin o
                         if _vanishes(mt, j, r, pa, pb):
                             continue  # 0 >= 0 (an indicator's own condition at x*)
                         pairs.append((j, a, b, r))
                         labels.append(pair_label(fname, pa.label, pb.label, r, many))
                         consts.append(mt.constant(j, r))
     extras = [(lab, X[:, keep], Qc) for lab, X, Qc in state["extras"]]
+    anchors = {anchor_label(f) for f, cls, _ in mt.functions if cls.anchored}
+    equal = [bool(anchors & {pts[j][a].label, pts[j][b].label}) for j, a, b, _ in pairs]
     values = {}
     for k, fs in state.get("extra_values", {}).items():  # constraints' values, on F
         values[k] = np.zeros(nF, dtype=dt)
@@ -696,6 +728,8 @@ def _finish(mt: Method, steps: int, calls: int, state: dict[str, Any],
     st = PEPStructure(steps, calls, [state["cols"][c] for c in keep], pts, nF, pairs,
                       labels, meas_q, meas_f, init_q, init_f, cut, state["at"],
                       state["origin"], extras=extras, extra_values=values)
+    if any(equal):
+        st.equalities = np.array(equal + [False] * len(extras))
     st.blocks = [(j, r, [a for a, pt in enumerate(pts[j]) if pt.label != "x*"])
                  for j, fb in enumerate(mt.blocks) for r in range(len(fb))]
     if mt.constants is not None and any(_nonzero(c) for c in consts):

@@ -397,6 +397,8 @@ def plausible(data: PEPData, coef: np.ndarray, V: np.ndarray,
     xw = np.abs(data.X * data.w).max(axis=2).max(axis=1)
     size = (np.abs(data.Qc).max(axis=(1, 2)) * xw ** 2
             + np.abs(data.a * data.v).max(axis=1, initial=0.0))
+    if st.equalities is not None:  # half of an equality: held exactly by the values, no
+        size = np.where(st.equality_rows(len(size)), 0.0, size)  # margin (fit_values)
     q = q - margin * size
     first = np.cumsum([0] + [len(fp) for fp in st.points])
     extra = [0] * len(st.extras)  # no values (coef 0): q >= 0 alone
