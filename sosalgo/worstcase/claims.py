@@ -41,6 +41,7 @@ from typing import Any
 from sosalgo.errors import InputError
 from sosalgo.kinds import WITNESS_KIND
 from sosalgo.spec import Spec
+from sosalgo.worstcase.field_proof import FIELD_CHECK
 
 __all__ = ["FLOAT_REL", "LOWER_REL", "TAU_REL", "is_pep_document", "passed",
            "pep_check_lines", "verify_pep_document", "verify_witness_file"]
@@ -55,6 +56,7 @@ LOOSE_REL = 0.5
 FLOAT_REL = 1e-8  # float coordinates against the exact ones (relative to the largest)
 EXACT = "exact (rational and ball arithmetic)"
 EXACT_RATIONAL = "exact (rational arithmetic)"  # a mirror spec's proof (no balls needed)
+EXACT_FIELD = FIELD_CHECK  # a proof in Q(sqrt d) (:mod:`sosalgo.worstcase.field_proof`)
 
 
 def is_pep_document(doc: Mapping[str, Any]) -> bool:
@@ -245,7 +247,7 @@ def _certificate(claims: _Claims, spec: Spec, ctx: Mapping[str, Any], cert: Any,
         raise InputError(f"{where}.certificate: expected an object")
     proof = cert.get("proof")
     upper = _upper(claims, spec, ctx, proof, cert.get("tau_proven"), f"{where}.certificate")
-    exact_kind = cert.get("check_kind") in (EXACT, EXACT_RATIONAL)
+    exact_kind = cert.get("check_kind") in (EXACT, EXACT_RATIONAL, EXACT_FIELD)
     if exact_kind != (cert.get("tau_proven") is not None):
         claims.add(f"{where}.certificate.check_kind", "contradicted",
                    f"{cert.get('check_kind')!r} with tau_proven {cert.get('tau_proven')}")

@@ -304,6 +304,8 @@ def coarsen(v: Any, bits: int = 160) -> Any:
     its radius (outward: the ball still holds the number)."""
     from sosalgo.kernel.exact import Ball
 
+    if not isinstance(v, Ball | Fraction | int):  # an exact field element: kept as it is
+        return v
     b = Ball.of(v)
     if max(b.c.denominator.bit_length(), b.r.denominator.bit_length()) <= 2 * bits:
         return v
