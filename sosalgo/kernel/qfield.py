@@ -140,6 +140,8 @@ class QSqrt:
         return hash((self.a, self.b, self.d)) if self.b else hash(self.a)
 
     def __float__(self) -> float:
+        if (self.a > 0) != (self.b > 0) and self.a and self.b:  # cancellation: the norm
+            return float(self.norm() / (self.a - self.b * Fraction(math.sqrt(self.d))))
         return float(self.a) + float(self.b) * math.sqrt(self.d)
 
     def upper(self) -> Fraction:

@@ -475,6 +475,8 @@ def _bare_result(spec: Spec, kappa: float | None, steps: int, mt: Method, data: 
         if proof["proven"]:
             cert.update(check_kind="exact (rational and ball arithmetic)",
                         tau_proven=proof["tau_proven"], margin=0.0)
+        elif mt.per_step is None:  # a singular S along an irrational direction
+            _field_proof(spec, kappa, mt, data, ans, mterms, iterms, cert, 0.0)
     top = float(lam.max(initial=0.0))
     cert["multipliers"] = {lab: float(v) for lab, v in zip(data.st.labels, lam, strict=True)
                            if v > 1e-12 * top}
@@ -638,7 +640,9 @@ def _field_proof(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
     proof = prove_in_field(spec, kappa, mt, data.st, mterms, iterms, answers, data.w)
     if proof["proven"]:
         cert.update(proof=proof, check_kind=FIELD_CHECK, tau_proven=proof["tau_proven"],
-                    tau=ans.tau + ans.const, margin=0.0)
+                    margin=0.0)
+        if not data.st.bare:
+            cert["tau"] = ans.tau + ans.const
     elif cert.get("proof") is None:
         cert["proof"] = proof
 

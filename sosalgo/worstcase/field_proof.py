@@ -37,11 +37,13 @@ from sosalgo.worstcase.terms import Term
 FIELD_CHECK = "exact (quadratic field arithmetic)"
 NULL_TOLS = (1e-7, 1e-6, 1e-8)  # eigenvalues of the scaled S counted as its null space
 SUPPORT_CUTS = (1e-7, 1e-4, 1e-3)  # multipliers below this share of the largest: dropped
+ZERO_F = (1e-6, 1e-3)  # value residuals this small (relative) are made exactly 0
 # (max coefficient, relative tolerance) of the recognised entries, from short and exact to
 # coarse: an interior-point answer on a degenerate face spreads ~1e-5 on pairs the exact
 # certificate does not use (entries below 10 tol are taken as 0; the proof decides)
 RECOGNIZE = ((100, 1e-9), (10 ** 3, 1e-8), (100, 1e-6), (100, 1e-4), (10 ** 4, 1e-8))
 FIELD_MAX_D = 24  # basis size the field proof takes on (exact arithmetic grows fast)
+FIELD_SECONDS = 20.0  # CPU seconds the attempts may take before the search gives up
 
 
 def spec_radicand(spec: Any, kappa: float | None, terms: list[Term]) -> int | None:
@@ -85,7 +87,7 @@ def field_structure(spec: Any, kappa: float | None, steps: int, mterms: list[Ter
     except (ValueError, ArithmeticError, TypeError):
         return None
     if st.labels != st_float.labels or st.basis != st_float.basis or st.extras \
-            or st.constants is not None or st.free_values or st.bare or st.d > FIELD_MAX_D:
+            or st.constants is not None or st.free_values or st.d > FIELD_MAX_D:
         return None
     return mt, st, d
 
@@ -211,6 +213,9 @@ def _solve(st: PEPStructure, forms: list[tuple[np.ndarray, np.ndarray]],
     for i in zero_f:
         eqs.append([-a[i] for _, a in forms] + [st.init_f[i]])
         rhs.append(st.meas_f[i])
+    if st.bare:  # no initial condition: the proof is at tau = 0 exactly
+        eqs.append([Fraction(0)] * len(forms) + [Fraction(1)])
+        rhs.append(Fraction(0))
     system = solve_linear(eqs, rhs)
     if system is None:
         return None
@@ -238,6 +243,9 @@ def _prove(st: PEPStructure, forms: list[tuple[np.ndarray, np.ndarray]], tau_sta
     from sosalgo.worstcase.exact import TAU_STEPS, above
 
     star = _q(tau_star, _field_d(lam, tau_star))
+    if st.bare:  # tau = 0 exactly (measure <= 0 everywhere)
+        ok, why = proven_at(st, forms, Fraction(0), lam) if star == 0 else (False, "")
+        return (Fraction(0), why, False) if ok else None
     for step in TAU_STEPS:
         tq = above(star.upper(), Fraction(step))
         ok, why = proven_at(st, forms, tq, lam)
@@ -288,25 +296,30 @@ def prove_in_field(spec: Any, kappa: float | None, mt_float: Method, st_float: P
                       "seconds": time.perf_counter() - t0}
     mt, st, d = got
     detail = "no exact multipliers in the field make the certificate's null rows zero"
+    cpu0 = time.process_time()
     for S, tau, lam, cf in answers:
         top = float(np.max(lam, initial=0.0))
         cscale = 1.0 + float(np.abs(cf).max(initial=0.0))
-        zero_f = [i for i in range(st.nF) if abs(cf[i]) <= 1e-6 * cscale]
-        for null, rec in _attempts(S, w, d):
-            for cut in SUPPORT_CUTS:
-                support = [k for k, v in enumerate(lam[:len(st.pairs)]) if v > cut * top]
-                forms = _pair_forms(mt, st, support)
-                sol = _solve(st, forms, null, tau, [float(lam[k]) for k in support],
-                             zero_f, d, rec)
-                if sol is None:
-                    continue
-                done = _prove(st, forms, *sol)
-                if done is None:
-                    detail = "the field's certificate is not proven PSD"
-                    continue
-                return out | _proof_fields(spec, kappa, st, d, support, sol, done, w,
-                                           not np.any(mt_float.K)) | {
-                    "seconds": time.perf_counter() - t0}
+        for null, rec, cut, zero in ((n, r, c, z) for n, r in _attempts(S, w, d)
+                                     for c in SUPPORT_CUTS for z in ZERO_F):
+            if time.process_time() - cpu0 > FIELD_SECONDS:
+                return out | {"detail": f"{detail} (search stopped after "
+                                        f"{FIELD_SECONDS:g} CPU seconds)",
+                              "seconds": time.perf_counter() - t0}
+            zero_f = [i for i in range(st.nF) if abs(cf[i]) <= zero * cscale]
+            support = [k for k, v in enumerate(lam[:len(st.pairs)]) if v > cut * top]
+            forms = _pair_forms(mt, st, support)
+            sol = _solve(st, forms, null, tau, [float(lam[k]) for k in support],
+                         zero_f, d, rec)
+            if sol is None:
+                continue
+            done = _prove(st, forms, *sol)
+            if done is None:
+                detail = "the field's certificate is not proven PSD"
+                continue
+            return out | _proof_fields(spec, kappa, st, d, support, sol, done, w,
+                                       not np.any(mt_float.K)) | {
+                "seconds": time.perf_counter() - t0}
     return out | {"detail": detail, "seconds": time.perf_counter() - t0}
 
 
