@@ -43,7 +43,7 @@ ZERO_F = (1e-6, 1e-3)  # value residuals this small (relative) are made exactly 
 # certificate does not use (entries below 10 tol are taken as 0; the proof decides)
 RECOGNIZE = ((100, 1e-9), (10 ** 3, 1e-8), (100, 1e-6), (100, 1e-4), (10 ** 4, 1e-8))
 FIELD_MAX_D = 24  # basis size the field proof takes on (exact arithmetic grows fast)
-FIELD_SECONDS = 20.0  # CPU seconds the attempts may take before the search gives up
+FIELD_SECONDS = 10.0  # CPU seconds the attempts may take before the search gives up
 
 
 def spec_radicand(spec: Any, kappa: float | None, terms: list[Term]) -> int | None:
@@ -323,7 +323,7 @@ def prove_in_field(spec: Any, kappa: float | None, mt_float: Method, st_float: P
     return out | {"detail": detail, "seconds": time.perf_counter() - t0}
 
 
-TIGHT_RECOGNIZE = ((10 ** 4, 1e-11), (10 ** 5, 1e-10))  # tau, lambda of a polished answer
+TIGHT_RECOGNIZE = ((10 ** 4, 1e-11), (10 ** 5, 1e-11), (10 ** 5, 1e-10))  # of a polished answer
 
 
 def _attempts(S: np.ndarray, w: np.ndarray, d: int):  # type: ignore[no-untyped-def]
