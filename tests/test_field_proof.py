@@ -14,6 +14,7 @@ from fractions import Fraction
 from pathlib import Path
 
 import mpmath
+import numpy as np
 import pytest
 import sympy as sp
 from click.testing import CliRunner
@@ -116,6 +117,82 @@ def _claims(path: Path) -> dict[str, str]:
     return found
 
 
+def _quadratic(rng: np.random.Generator, dim: int, m: float, L: float) -> np.ndarray:
+    """A random Hessian with eigenvalues in [m, L] (ends included), rotated."""
+    Q, _ = np.linalg.qr(rng.standard_normal((dim, dim)))
+    ev = np.concatenate([[m, L], rng.uniform(m, L, dim - 2)])
+    return Q @ np.diag(ev) @ Q.T
+
+
+def _flow_never_above(tau: float, mu: float) -> None:
+    """dV/dt <= tau V for the flow x'' = -2 sqrt(mu) x' - grad f, V = f - f* +
+    |sqrt(mu) (x - x*) + x'|^2 / 2, on random mu-strongly convex quadratics f = x'Hx/2
+    (x* = 0) and random (x, x'), every third one on the extremal f = mu |x|^2 / 2 with a
+    small x' (where dV/dt = -sqrt(mu) V is reached as x' -> 0), computed in numpy alone."""
+    rng = np.random.default_rng(3)
+    s = np.sqrt(mu)
+    for k in range(300):
+        extremal = k % 3 == 0
+        H = mu * np.eye(4) if extremal else _quadratic(rng, 4, mu, rng.uniform(mu, 50 * mu))
+        x = rng.standard_normal(4)
+        v = rng.standard_normal(4) * (rng.uniform(0, 1e-3) if extremal
+                                      else rng.uniform(0.01, 10))
+        g = H @ x
+        acc = -2 * s * v - g
+        V = x @ H @ x / 2 + (s * x + v) @ (s * x + v) / 2
+        dV = g @ v + (s * x + v) @ (s * v + acc)
+        assert dV <= tau * V + 1e-9 * abs(V)
+
+
+def _robust_momentum_never_above(tau: float, m: float, L: float, lam: float) -> None:
+    """V_2 <= tau V_1 for the robust momentum method (Cyrus et al. 2018: its alpha, beta,
+    gamma from rho = r) on random quadratics of F(m, L) from two random start points, V_k
+    = l |z_k|^2 + (L - m)(f(y) - m/2 |y|^2) - |grad f(y) - m y|^2 / 2 as in its paper
+    (x* = 0), computed in numpy alone."""
+    kappa = L / m
+    r = lam * (1 - 1 / kappa) + (1 - lam) * (1 - 1 / np.sqrt(kappa))
+    alpha = kappa * (1 - r) ** 2 * (1 + r) / L
+    beta = kappa * r ** 3 / (kappa - 1)
+    gamma = r ** 3 / ((kappa - 1) * (1 - r) ** 2 * (1 + r))
+    ell = m ** 2 * (kappa - kappa * r ** 2 - 1) / (2 * r * (1 - r))
+    rng = np.random.default_rng(4)
+
+    def V(H: np.ndarray, x_new: np.ndarray, x_old: np.ndarray, y: np.ndarray) -> float:
+        z = (x_new - r ** 2 * x_old) / (1 - r ** 2)
+        g = H @ y
+        return float(ell * z @ z + (L - m) * (y @ H @ y / 2 - m / 2 * y @ y)
+                     - (g - m * y) @ (g - m * y) / 2)
+
+    for _ in range(300):
+        H = _quadratic(rng, 4, m, L)
+        xs = [rng.standard_normal(4), rng.standard_normal(4)]  # x_{-1}, x_0
+        ys = []
+        for _k in range(2):
+            y = -gamma * xs[-2] + (1 + gamma) * xs[-1]
+            ys.append(y)
+            xs.append(-beta * xs[-2] + (1 + beta) * xs[-1] - alpha * (H @ y))
+        v1, v2 = V(H, xs[2], xs[1], ys[0]), V(H, xs[3], xs[2], ys[1])
+        assert v2 <= tau * v1 + 1e-9 * abs(v1)
+
+
+def _potential_never_increases(lam: float, L: float) -> None:
+    """One step of the accelerated method of PEPit's potential example on random convex
+    L-smooth quadratics (x* = 0, f* = 0) never increases lam^2 f(x) + L/2 |z|^2 (the
+    value 0 proven), computed in numpy alone."""
+    rng = np.random.default_rng(5)
+    lam1 = (1 + np.sqrt(4 * lam ** 2 + 1)) / 2
+    tau, eta, gamma = 1 / lam1, (lam1 ** 2 - lam ** 2) / L, 1 / L
+    for _ in range(300):
+        H = _quadratic(rng, 4, 0.0, L)
+        x, z = rng.standard_normal(4), rng.standard_normal(4)
+        y = (1 - tau) * x + tau * z
+        g = H @ y
+        x1, z1 = y - gamma * g, z - eta * g
+        before = lam ** 2 * x @ H @ x / 2 + L / 2 * z @ z
+        after = lam1 ** 2 * x1 @ H @ x1 / 2 + L / 2 * z1 @ z1
+        assert after - before <= 1e-9 * before
+
+
 def _below(q: Fraction, closed: sp.Expr) -> bool:
     """q < closed, decided by sympy exactly (the closed form is a quadratic surd)."""
     return bool(sp.simplify(sp.Rational(q.numerator, q.denominator) - closed).is_negative)
@@ -138,6 +215,8 @@ def test_flow_rate_proven_at_its_closed_form(tmp_path, spec, mu, closed):
     assert not _below(q, tight)
     assert float(q) - float(tight) < 1e-9 * abs(float(tight))
     assert sp.simplify(sp.sympify(cert["proof"]["tau_exact_text"]) - tight) == 0
+    if "nonpsd" not in spec:
+        _flow_never_above(float(q), float(sp.Rational(mu)))
 
 
 def test_robust_momentum_proven_at_its_rate_and_verified(tmp_path):
@@ -151,6 +230,7 @@ def test_robust_momentum_proven_at_its_rate_and_verified(tmp_path):
     r = lam * (1 - sp.Rational(1, kappa)) + (1 - lam) * (1 - 1 / sp.sqrt(kappa))
     q = Fraction(row["certificate"]["tau_proven"])
     assert not _below(q, r ** 2) and float(q) - float(r ** 2) < 1e-9
+    _robust_momentum_never_above(float(q), 1.0, 10.0, 0.2)
     path = tmp_path / "robust-momentum-pep-k10-N2.json"
     assert _claims(path)["certificate.tau_proven"] == "backed"
     doc = json.loads(path.read_text())
@@ -202,3 +282,4 @@ def test_accelerated_potential_proven_zero(tmp_path):
     assert doc["certificate"]["proof"]["field"] == {"sqrt": 37}
     res = CliRunner().invoke(cli, ["verify", str(path)])
     assert res.exit_code == 0, res.output
+    _potential_never_increases(3.0, 1.0)
