@@ -632,6 +632,8 @@ def _field_proof(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
     ``cert`` updated when proven."""
     from sosalgo.worstcase.field_proof import FIELD_CHECK, prove_in_field
 
+    if mt.bound is not None:  # a mingrad measure's bound: not re-provable from the field
+        return
     answers = []
     for cand in (_polished(data, ans, tau), ans):  # the polished one is the most accurate
         if cand is not None and cand.S is not None and cand.lam is not None:
