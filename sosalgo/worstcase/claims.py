@@ -138,10 +138,14 @@ def _upper(claims: _Claims, spec: Spec, ctx: Mapping[str, Any], proof: Any,
            claimed: Any, where: str) -> Fraction | None:
     """Re-prove a claimed tau_proven (None: no claim); the proven value or None."""
     from sosalgo.worstcase.exact import reprove_certificate
+    from sosalgo.worstcase.field_proof import reprove_field_row
     from sosalgo.worstcase.finite_sum import reprove_finite_sum
 
-    # a finite sum is a tree of outcomes: its own exact PEP
+    # a finite sum is a tree of outcomes: its own exact PEP; a proof over Q(sqrt d) its own
     reprove = reprove_finite_sum if spec.finite_sum is not None else reprove_certificate
+    if isinstance(proof, dict) and proof.get("field") is not None \
+            and spec.finite_sum is None:
+        reprove = reprove_field_row
     if claimed is None:
         return None
     q = _fraction(claimed, f"{where}.tau_proven")

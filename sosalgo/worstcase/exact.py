@@ -1081,8 +1081,6 @@ def reprove_certificate(spec: Spec, kappa: float | None, steps: int, measure: st
     lab = proof.get("multipliers_exact")
     if not isinstance(lab, dict) or not isinstance(proof.get("tau_proven"), str):
         return False, "the proof carries no exact multipliers (multipliers_exact)"
-    if proof.get("field") is not None:  # a proof over a quadratic field Q(sqrt d)
-        return _reprove_field(spec, kappa, steps, measure, initial, proof)
     try:
         tq = Fraction(proof["tau_proven"])
         mt = exact_or_none(spec, kappa, int(steps))
@@ -1115,25 +1113,6 @@ def reprove_certificate(spec: Spec, kappa: float | None, steps: int, measure: st
         return False, f"malformed proof: {type(exc).__name__}: {exc}"
     ok, _, _, why = prove_at(mt, st, lam, tq, wf, repair=False)
     return ok, why
-
-def _reprove_field(spec: Spec, kappa: float | None, steps: int, measure: str, initial: str,
-                   proof: dict[str, Any]) -> tuple[bool, str]:
-    """:func:`sosalgo.worstcase.field_proof.reprove_field` on the terms of the row."""
-    from sosalgo.worstcase.field_proof import reprove_field
-    from sosalgo.worstcase.terms import parse_terms
-
-    if not isinstance(proof.get("field"), dict):
-        return False, "malformed proof: field: expected an object {\"sqrt\": d}"
-    try:
-        mt = exact_or_none(spec, kappa, int(steps))
-        if mt is None:
-            return False, "the exact method cannot be built"
-        mterms = parse_terms(measure, "measure", False, mt.p, spec.parameters)
-        iterms = parse_terms(initial, "initial", True, mt.p, spec.parameters)
-    except (ValueError, TypeError, ArithmeticError) as exc:
-        return False, f"malformed proof: {type(exc).__name__}: {exc}"
-    return reprove_field(spec, kappa, int(steps), mterms, iterms, proof)
-
 
 # --------------------------------------------------------------------------- changes with k
 # The exact method of per-step methods (:mod:`sosalgo.worstcase.steps`): the same class, units

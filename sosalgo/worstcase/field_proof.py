@@ -70,8 +70,7 @@ def field_structure(spec: Any, kappa: float | None, steps: int, mterms: list[Ter
     """(method, structure, d) of the PEP over Q(sqrt d); None when the spec is not in one
     quadratic field, or the structure differs from the float one. ``plain``: the float
     solve's basis had no deadbeat gain (K = 0)."""
-    from sosalgo.worstcase.bind import bound_method
-    from sosalgo.worstcase.core import class_kappa
+    from sosalgo.worstcase.bind import bound_method, class_kappa
     from sosalgo.worstcase.exact import exact_method
 
     d = spec_radicand(spec, kappa, mterms + iterms)
@@ -372,6 +371,25 @@ def _parts(v: Any, d: int) -> list[str]:
     return _q(v, d).parts()
 
 
+def reprove_field_row(spec: Any, kappa: float | None, steps: int, measure: str,
+                      initial: str, proof: dict[str, Any]) -> tuple[bool, str]:
+    """:func:`reprove_field` on the terms of a ``pep`` row (``sosalgo verify``)."""
+    from sosalgo.worstcase.exact import exact_or_none
+    from sosalgo.worstcase.terms import parse_terms
+
+    if not isinstance(proof.get("field"), dict):
+        return False, "malformed proof: field: expected an object {\"sqrt\": d}"
+    try:
+        mt = exact_or_none(spec, kappa, int(steps))
+        if mt is None:
+            return False, "the exact method cannot be built"
+        mterms = parse_terms(measure, "measure", False, mt.p, spec.parameters)
+        iterms = parse_terms(initial, "initial", True, mt.p, spec.parameters)
+    except (ValueError, TypeError, ArithmeticError) as exc:
+        return False, f"malformed proof: {type(exc).__name__}: {exc}"
+    return reprove_field(spec, kappa, int(steps), mterms, iterms, proof)
+
+
 def reprove_field(spec: Any, kappa: float | None, steps: int, mterms: list[Term],
                   iterms: list[Term], proof: dict[str, Any]) -> tuple[bool, str]:
     """(proven, detail): the proof's claim measure <= tau_proven re-proven from its
@@ -417,8 +435,7 @@ def _rebuilt(spec: Any, kappa: float | None, steps: int, mterms: list[Term],
     """The exact method and PEP over Q(sqrt d), in the basis the proof was made in
     (``plain``: no deadbeat gain, the basis :func:`sosalgo.worstcase.core.pep` falls back
     to when a free direction drifts)."""
-    from sosalgo.worstcase.bind import bound_method
-    from sosalgo.worstcase.core import class_kappa
+    from sosalgo.worstcase.bind import bound_method, class_kappa
     from sosalgo.worstcase.exact import exact_method
 
     om, _ = bound_method(spec, class_kappa(spec, kappa))
