@@ -146,12 +146,6 @@ KNOWN_GAPS = {
     **{("unconstrained_convex_minimization/optimized_gradient_for_gradient", i):
        "OGM-G on momentum-schedule.yaml: tau agrees, no exact proof (floating-point check)"
        for i in range(3)},
-    **{(example, i): "tau agrees, no exact proof: a singular certificate (the Lyapunov "
-                     "inequality is tight along a family of instances) on irrational data"
-       for example in ("potential_functions/accelerated_gradient_method",
-                       "unconstrained_convex_minimization/robust_momentum",
-                       "continuous_time_models/accelerated_gradient_flow_strongly_convex")
-       for i in range(3)},
     ("composite_convex_minimization/frank_wolfe", 0): _LOOSE.format("2.3e-4"),
     ("composite_convex_minimization/frank_wolfe", 1): _LOOSE.format("5.2e-4"),
     **{("unconstrained_convex_minimization/inexact_accelerated_gradient", i):

@@ -41,6 +41,7 @@ from typing import Any
 from sosalgo.errors import InputError
 from sosalgo.kinds import WITNESS_KIND
 from sosalgo.spec import Spec
+from sosalgo.worstcase.field_proof import FIELD_CHECK
 
 __all__ = ["FLOAT_REL", "LOWER_REL", "TAU_REL", "is_pep_document", "passed",
            "pep_check_lines", "verify_pep_document", "verify_witness_file"]
@@ -55,6 +56,7 @@ LOOSE_REL = 0.5
 FLOAT_REL = 1e-8  # float coordinates against the exact ones (relative to the largest)
 EXACT = "exact (rational and ball arithmetic)"
 EXACT_RATIONAL = "exact (rational arithmetic)"  # a mirror spec's proof (no balls needed)
+EXACT_FIELD = FIELD_CHECK  # a proof in Q(sqrt d) (:mod:`sosalgo.worstcase.field_proof`)
 
 
 def is_pep_document(doc: Mapping[str, Any]) -> bool:
@@ -136,10 +138,14 @@ def _upper(claims: _Claims, spec: Spec, ctx: Mapping[str, Any], proof: Any,
            claimed: Any, where: str) -> Fraction | None:
     """Re-prove a claimed tau_proven (None: no claim); the proven value or None."""
     from sosalgo.worstcase.exact import reprove_certificate
+    from sosalgo.worstcase.field_proof import reprove_field_row
     from sosalgo.worstcase.finite_sum import reprove_finite_sum
 
-    # a finite sum is a tree of outcomes: its own exact PEP
+    # a finite sum is a tree of outcomes: its own exact PEP; a proof over Q(sqrt d) its own
     reprove = reprove_finite_sum if spec.finite_sum is not None else reprove_certificate
+    if isinstance(proof, dict) and proof.get("field") is not None \
+            and spec.finite_sum is None:
+        reprove = reprove_field_row
     if claimed is None:
         return None
     q = _fraction(claimed, f"{where}.tau_proven")
@@ -245,7 +251,7 @@ def _certificate(claims: _Claims, spec: Spec, ctx: Mapping[str, Any], cert: Any,
         raise InputError(f"{where}.certificate: expected an object")
     proof = cert.get("proof")
     upper = _upper(claims, spec, ctx, proof, cert.get("tau_proven"), f"{where}.certificate")
-    exact_kind = cert.get("check_kind") in (EXACT, EXACT_RATIONAL)
+    exact_kind = cert.get("check_kind") in (EXACT, EXACT_RATIONAL, EXACT_FIELD)
     if exact_kind != (cert.get("tau_proven") is not None):
         claims.add(f"{where}.certificate.check_kind", "contradicted",
                    f"{cert.get('check_kind')!r} with tau_proven {cert.get('tau_proven')}")

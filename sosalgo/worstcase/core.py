@@ -475,6 +475,8 @@ def _bare_result(spec: Spec, kappa: float | None, steps: int, mt: Method, data: 
         if proof["proven"]:
             cert.update(check_kind="exact (rational and ball arithmetic)",
                         tau_proven=proof["tau_proven"], margin=0.0)
+        elif mt.per_step is None:  # a singular S along an irrational direction
+            _field_proof(spec, kappa, mt, data, ans, mterms, iterms, cert, 0.0)
     top = float(lam.max(initial=0.0))
     cert["multipliers"] = {lab: float(v) for lab, v in zip(data.st.labels, lam, strict=True)
                            if v > 1e-12 * top}
@@ -622,6 +624,31 @@ def _null_row_proof(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
                     tau_proven=proof["tau_proven"], tau=ans.tau, margin=0.0)
 
 
+def _field_proof(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
+                 ans: SDPAnswer, mterms: list[Term], iterms: list[Term],
+                 cert: dict[str, Any], tau: float) -> None:
+    """The measure's own certificate proven over the spec's quadratic field Q(sqrt d)
+    (:mod:`sosalgo.worstcase.field_proof`: a singular S along an irrational direction);
+    ``cert`` updated when proven."""
+    from sosalgo.worstcase.field_proof import FIELD_CHECK, prove_in_field
+
+    if mt.bound is not None:  # a mingrad measure's bound: not re-provable from the field
+        return
+    answers = []
+    for cand in (_polished(data, ans, tau), ans):  # the polished one is the most accurate
+        if cand is not None and cand.S is not None and cand.lam is not None:
+            answers.append((cand.S, float(cand.tau), cand.lam,  # type: ignore[arg-type]
+                            value_residual(data, float(cand.tau), cand.lam)))
+    proof = prove_in_field(spec, kappa, mt, data.st, mterms, iterms, answers, data.w)
+    if proof["proven"]:
+        cert.update(proof=proof, check_kind=FIELD_CHECK, tau_proven=proof["tau_proven"],
+                    margin=0.0)
+        if not data.st.bare:
+            cert["tau"] = ans.tau + ans.const
+    elif cert.get("proof") is None:
+        cert["proof"] = proof
+
+
 def _linear_only(data: PEPData) -> list[int] | None:
     """With constants, the basis directions no form has a square of (S is 0 on their
     diagonal: its rows there are made exactly zero in the proof,
@@ -741,6 +768,8 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
             _null_row_proof(spec, kappa, mt, data, cand, mterms, iterms, ex, cert,
                             tau if eps is None else max(cand.tau + cand.const, tau),
                             None if eps is None else 0.1 * eps)
+    if exact and not cert.get("tau_proven") and ans.S is not None and mt.per_step is None:
+        _field_proof(spec, kappa, mt, data, ans, mterms, iterms, cert, tau)
     lam = best.lam
     S = best.S
     assert lam is not None and S is not None

@@ -219,10 +219,13 @@ def _fixed_points(mats: dict[str, sp.Matrix], om: Any) -> sp.Matrix:
     return sol.xreplace({t: 0 for t in free})
 
 
-def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Method:
+def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0,
+                 field: int | None = None) -> Method:
     """The exact :class:`Method` of ``spec`` (``om``: its float OracleMethod, for shapes),
     its irrational entries enclosed precisely enough for a trajectory of ``steps`` steps
-    (:func:`sosalgo.worstcase.structure.enclosure_digits`)."""
+    (:func:`sosalgo.worstcase.structure.enclosure_digits`); ``field`` = d: every number
+    an exact element of Q(sqrt d) instead (:mod:`sosalgo.kernel.qfield`; ValueError when
+    one is not)."""
     from sosalgo.certificates.exact_composite import exact_class_inequalities
     from sosalgo.kernel.exact import Ball
     from sosalgo.kernel.exact import enclose as enclose_at
@@ -235,22 +238,37 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
     digits = enclosure_digits(radius_growth(om.A, om.B, K.astype(float), float(om.L)), steps)
 
     def enclose(expr: Any) -> Any:
+        if field is not None:
+            from sosalgo.kernel.qfield import to_field
+
+            return to_field(expr, field)
         return enclose_at(expr, digits)
+
+    def entries(M: sp.Matrix) -> np.ndarray:  # balls, or the field's numbers
+        out = np.empty(M.shape, dtype=object)
+        for i in range(M.shape[0]):
+            for j in range(M.shape[1]):
+                out[i, j] = enclose(M[i, j])
+        return out
 
     base = exact_base(spec, kappa)
     env = _exact_env(spec, base)
     mats = _exact_matrices(spec, env)
     Xq = _fixed_points(mats, om)
-    X = _balls(Xq, digits)
+    X = entries(Xq)
     p = om.p
     funcs, ineqs = [], []
     cenv = _class_env(spec, base)
     for fn in om.functions:
         decl = spec.functions[fn.name]
         params = {k: enclose(to_sympy(e).xreplace(cenv)) for k, e in decl.params.items()}
+        if field is not None:  # the class data as balls of radius 0: rational parameters
+            params = {k: Ball(_field_rational(v)) for k, v in params.items()}
         funcs.append((fn.name, fn.cls, params))
-        ineqs.append(exact_class_inequalities(fn.cls, params,
-                                              pinned_optimum(om.functions))[0])
+        fi = exact_class_inequalities(fn.cls, params, pinned_optimum(om.functions))[0]
+        ineqs.append(fi if field is None else [
+            (_field_rational(a), np.vectorize(_field_rational, otypes=[object])(Q))
+            for a, Q in fi])
     extras = [class_extras(cls, params, len(fi)) for (_, cls, params), fi in zip(
         funcs, ineqs, strict=True)]
     L = _scale(base[_sym("L")])
@@ -259,13 +277,15 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
         return enclose(to_sympy(t.coef).xreplace(env))
 
     def same(a: np.ndarray, b: np.ndarray) -> bool:
+        if field is not None:
+            return all(v == 0 for v in a - b)
         return all(Ball.of(v).c == 0 and Ball.of(v).r == 0 for v in a - b)
 
-    D = (_balls(mats["D"], digits) if "D" in mats
+    D = (entries(mats["D"]) if "D" in mats
          else np.full((p, p), Fraction(0), dtype=object))
-    mt = Method(_balls(mats["A"], digits), _balls(mats["B"], digits),
-                _balls(mats["C"], digits), D,
-                _balls(mats["E"], digits) if "E" in mats else None, om.output, funcs,
+    mt = Method(entries(mats["A"]), entries(mats["B"]),
+                entries(mats["C"]), D,
+                entries(mats["E"]) if "E" in mats else None, om.output, funcs,
                 tuple(om.oracles), X[:, 0], X[:, 1:], L, ineqs, coef, same, K, exact=True,
                 bits=enclosure_bits(digits))
     mt.out_call = _exact_output_call(mats, om)
@@ -287,6 +307,18 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
         mt.G0 = np.array([enclose(to_sympy(b).xreplace(env))
                           for _, b in spec.initial_state], dtype=object)
     return mt
+
+
+def _field_rational(v: Any) -> Fraction:
+    """An exact rational (a field element, a ball of radius 0) as a Fraction; ValueError
+    for an irrational class parameter (the field proof takes rational class data)."""
+    if hasattr(v, "r") and hasattr(v, "c") and v.r == 0:
+        return Fraction(v.c)
+    if hasattr(v, "b") and v.b == 0:
+        return Fraction(v.a)
+    if isinstance(v, int | Fraction):
+        return Fraction(v)
+    raise ValueError(f"class datum {v!r} is not rational")
 
 
 def class_extras(cls: Any, params: Mapping[str, Any], count: int

@@ -320,7 +320,10 @@ def coarsen(v: Any, bits: int = 160) -> Any:
     a binary rational with about ``bits`` significant bits, the rounding error added to
     its radius (outward: the ball still holds the number)."""
     from sosalgo.kernel.exact import Ball
+    from sosalgo.kernel.qfield import QSqrt
 
+    if isinstance(v, QSqrt):  # an exact element of Q(sqrt d): kept as it is
+        return v
     b = Ball.of(v)
     if max(b.c.denominator.bit_length(), b.r.denominator.bit_length()) <= 2 * bits:
         return v
