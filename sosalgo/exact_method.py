@@ -1,16 +1,15 @@
-"""The method made exact: the spec's templates at rational kappa, m, L (and rational
-parameter values), with exact sympy entries and rational ball enclosures of the irrational
-ones (:func:`exact_algorithm`), and its fixed point of eq. (11) proven exactly
-(:func:`exact_fixed_point`). The exact twin of :func:`sosalgo.model.bind`, used by every
-family's exact check and by the noise proofs; on the oracle model with every function's
-class parameters enclosed (:func:`exact_oracle_method`, the exact twin of
-:class:`sosalgo.oracles.OracleMethod`).
+"""The method made exact: the one :class:`~sosalgo.oracles.Method` over balls, the spec's
+templates at rational kappa, m, L (and rational parameter values), with exact sympy
+entries and rational ball enclosures of the irrational ones, every function's class
+parameters enclosed (:func:`exact_algorithm`), and its fixed point of eq. (11) proven
+exactly (:func:`exact_fixed_point`). The exact twin of :func:`sosalgo.model.bind`, used by
+every family's exact check and by the noise proofs.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from fractions import Fraction
 from typing import Any
 
@@ -21,50 +20,36 @@ from sosalgo.classes import CLASSES
 from sosalgo.kernel.exact import (
     DEFAULT_DIGITS,
     Ball,
-    BallMatrix,
     enclose,
-    fraction_str,
     is_zero,
     object_matrix,
     rational,
 )
 from sosalgo.kernel.expr.parse import to_sympy
-from sosalgo.oracles import CallShape
+from sosalgo.oracles import BoundFunction, Method
 from sosalgo.spec.types import BASE_SYMBOLS, ORACLE_MATRIX_NAMES, Spec, value_order
 
-__all__ = ["ExactAlgorithm", "ExactOracleMethod", "exact_algorithm", "exact_fixed_point",
-           "exact_oracle_method", "scaled_method", "units_far_from_one"]
+__all__ = ["ExactAlgorithm", "ExactOracleMethod", "ball_method", "exact_algorithm",
+           "exact_fixed_point", "exact_oracle_method", "scaled_method", "units_far_from_one"]
 
 
-@dataclass(frozen=True, eq=False)
-class ExactAlgorithm:
-    """The method at rational kappa, m, L: exact sympy entries and rational enclosures."""
-
-    name: str
-    kappa: Fraction
-    m: Fraction
-    L: Fraction
-    params: dict[str, sp.Expr]
-    matrices: dict[str, sp.Matrix]
-    balls: dict[str, BallMatrix]
-    theta: dict[str, Fraction] = field(default_factory=dict)
-
-    def enclosures(self) -> dict[str, list[list[list[str]]]]:
-        """[lo, hi] of every entry as exact decimal/rational strings (lo == hi if exact)."""
-        return {
-            k: [[[fraction_str(b.lo), fraction_str(b.hi)] for b in row] for row in mat]
-            for k, mat in self.balls.items()
-        }
+# the method over balls: the one :class:`~sosalgo.oracles.Method` (names kept for the
+# code and pages that call it by them)
+ExactAlgorithm = ExactOracleMethod = Method
 
 
 def exact_algorithm(
     spec: Spec, kappa: float | Fraction, theta: Mapping[str, float] | None = None,
     digits: int = DEFAULT_DIGITS,
-) -> ExactAlgorithm:
-    """Exact templates A, B, C, E (eq. 10; and D where the spec has one) at rational kappa
-    (as written: :func:`sosalgo.kernel.kappa.exact_kappa`; ``10/3`` is 10/3, a float its
-    shortest decimal, 3.3 is 33/10), m = spec.m, L = kappa m. ValueError for an irrational
-    kappa."""
+) -> Method:
+    """The spec's method over balls (``numbers="ball"``) at rational kappa (as written:
+    :func:`sosalgo.kernel.kappa.exact_kappa`; ``10/3`` is 10/3, a float its shortest
+    decimal, 3.3 is 33/10), m = spec.m, L = kappa m, and ``theta`` (rational): exact sympy
+    entries in ``matrices`` (A, B, C, E of eq. 10; and D where the spec has one), their
+    rational ball enclosures as the matrices A, B, C, D (zero when the spec has none), E
+    (None with ``output: y<i>``), and every function's class parameters enclosed. The
+    exact twin of :func:`sosalgo.model.bind`. ValueError for an irrational kappa or when
+    it cannot be built."""
     kq = _rational_kappa(kappa)
     if not kq > 1:
         raise ValueError(f"condition number must be > 1, got {kappa}")
@@ -97,17 +82,41 @@ def exact_algorithm(
         params[p] = val
         values[spec.symbols[p]] = val
     mats: dict[str, sp.Matrix] = {}
-    balls: dict[str, BallMatrix] = {}
+    balls: dict[str, np.ndarray] = {}
     # A, B, C, E; on the oracle model also D, and no E with ``output: y<i>``
     for k in (k for k in ORACLE_MATRIX_NAMES if k in spec.sympy_matrices()):
         mat = spec.sympy_matrices()[k].xreplace(values)
         mats[k] = mat
-        balls[k] = [[enclose(mat[i, j], digits) for j in range(mat.shape[1])]
-                    for i in range(mat.shape[0])]
-    return ExactAlgorithm(spec.name, kq, mq, Lq, params, mats, balls, theta_q)
+        balls[k] = object_matrix([[enclose(mat[i, j], digits) for j in range(mat.shape[1])]
+                                  for i in range(mat.shape[0])])
+    functions = _ball_functions(spec, values, lambda e, _where: enclose(e, digits))
+    return ball_method(spec, balls, mq, Lq, functions, params, mats, theta_q)
 
 
-def scaled_method(ex: ExactAlgorithm, s: Fraction) -> ExactAlgorithm:
+def ball_method(spec: Spec, balls: Mapping[str, np.ndarray], m: Fraction, L: Fraction,
+                functions: tuple[BoundFunction, ...], params: dict[str, sp.Expr],
+                matrices: dict[str, sp.Matrix], theta: dict[str, Fraction]) -> Method:
+    """The method over balls from the enclosures ``balls`` of the spec's exact
+    ``matrices`` (object arrays; D zero when the spec has none)."""
+    p = spec.p
+    D = balls["D"] if "D" in balls else object_matrix([[Ball(0)] * p] * p)
+    names = list(spec.functions)
+    return Method(balls["A"], balls["B"], balls["C"], D, balls.get("E"), m, L, functions,
+                  tuple(names.index(f) for f in spec.oracles), spec.output, spec.measure,
+                  params, numbers="ball", matrices=matrices, theta=theta)
+
+
+def _ball_functions(spec: Spec, values: Mapping[sp.Symbol, sp.Expr],
+                    ball: Any) -> tuple[BoundFunction, ...]:
+    """The spec's functions with their class parameters (which may name m, L, kappa and
+    the spec's parameters, ``values``) as balls, ``ball(expr, field)``."""
+    return tuple(BoundFunction(fname, CLASSES[decl.cls],
+                               {k: ball(to_sympy(e).xreplace(values), f"functions.{fname}.{k}")
+                                for k, e in decl.params.items()})
+                 for fname, decl in spec.functions.items())
+
+
+def scaled_method(ex: Method, s: Fraction) -> Method:
     """The method run on f/s (s > 0 rational): f is in F(m, L) exactly when f/s is in
     F(m/s, L/s), and B s (and D s) applied to the gradients of f/s give the same iterates,
     so every rate is the same. Exact (the enclosures' radii scale with their centres)."""
@@ -115,11 +124,11 @@ def scaled_method(ex: ExactAlgorithm, s: Fraction) -> ExactAlgorithm:
     gain = [name for name in ("B", "D") if name in ex.matrices]  # the maps of the gradients
     return replace(ex, m=ex.m / s, L=ex.L / s,
                    matrices={**ex.matrices, **{g: ex.matrices[g] * k for g in gain}},
-                   balls={**ex.balls, **{g: [[b * s for b in row] for row in ex.balls[g]]
-                                         for g in gain}})
+                   **{g: object_matrix([[b * s for b in row] for row in ex.balls[g]])
+                      for g in gain})
 
 
-def units_far_from_one(ex: ExactAlgorithm) -> bool:
+def units_far_from_one(ex: Method) -> bool:
     """Whether m or L is far from 1 (m < 1/1024 or L > 2^20): a certificate written in
     such units may not round to rationals that prove it, where it would in units with
     L = 1 (:func:`scaled_method`). Near 1 a failed proof is not a matter of units."""
@@ -138,7 +147,7 @@ def _rational_kappa(kappa: float | Fraction) -> Fraction:
     return Fraction(int(val.p), int(val.q))
 
 
-def exact_fixed_point(ex: ExactAlgorithm, u_float: np.ndarray | None) -> list[sp.Expr] | None:
+def exact_fixed_point(ex: Method, u_float: np.ndarray | None) -> list[sp.Expr] | None:
     """u of eq. (11) with (I - A)u = 0, C u = 1, E u = 1 proven exactly, or None."""
     if u_float is None:
         return None
@@ -149,41 +158,5 @@ def exact_fixed_point(ex: ExactAlgorithm, u_float: np.ndarray | None) -> list[sp
     return u if all(is_zero(r) for r in res) else None
 
 
-@dataclass
-class ExactOracleMethod(CallShape):
-    """The method of the oracle model on exact numbers (object arrays of :class:`Ball`):
-    the exact twin of :class:`sosalgo.oracles.OracleMethod`."""
-
-    ex: ExactAlgorithm
-    A: np.ndarray
-    B: np.ndarray
-    C: np.ndarray
-    D: np.ndarray
-    E: np.ndarray | None
-    functions: list[tuple[str, Any, dict[str, Ball]]]  # (name, class, exact parameters)
-    oracles: tuple[int, ...]
-    output: int | None
-    measure: str
-
-
-def exact_oracle_method(spec: Spec, kappa: float, theta: Mapping[str, float] | None = None,
-                        digits: int = DEFAULT_DIGITS) -> ExactOracleMethod:
-    """The exact method of a composite spec at ``kappa`` and ``theta`` (ValueError when it
-    cannot be built)."""
-    ex = exact_algorithm(spec, kappa, theta, digits)
-    base = {BASE_SYMBOLS["m"]: sp.Rational(ex.m.numerator, ex.m.denominator),
-            BASE_SYMBOLS["L"]: sp.Rational(ex.L.numerator, ex.L.denominator),
-            BASE_SYMBOLS["kappa"]: sp.Rational(ex.kappa.numerator, ex.kappa.denominator),
-            **{spec.symbols[p]: v for p, v in ex.params.items()}}  # a class may name them
-    funcs = []
-    for fname, decl in spec.functions.items():
-        params = {k: enclose(to_sympy(e).xreplace(base), digits) for k, e in decl.params.items()}
-        funcs.append((fname, CLASSES[decl.cls], params))
-    p = spec.p
-    D = object_matrix(ex.balls["D"]) if "D" in ex.balls else object_matrix([[Ball(0)] * p] * p)
-    names = list(spec.functions)
-    return ExactOracleMethod(ex, object_matrix(ex.balls["A"]), object_matrix(ex.balls["B"]),
-                             object_matrix(ex.balls["C"]), D,
-                             object_matrix(ex.balls["E"]) if "E" in ex.balls else None, funcs,
-                             tuple(names.index(f) for f in spec.oracles), spec.output,
-                             spec.measure)
+# the exact method of a composite spec: the same binding
+exact_oracle_method = exact_algorithm
