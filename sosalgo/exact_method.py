@@ -8,8 +8,8 @@ every family's exact check and by the noise proofs.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from dataclasses import replace
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, replace
 from fractions import Fraction
 from typing import Any
 
@@ -17,6 +17,7 @@ import numpy as np
 import sympy as sp
 
 from sosalgo.classes import CLASSES
+from sosalgo.errors import ModelError
 from sosalgo.kernel.exact import (
     DEFAULT_DIGITS,
     Ball,
@@ -26,11 +27,18 @@ from sosalgo.kernel.exact import (
     rational,
 )
 from sosalgo.kernel.expr.parse import to_sympy
-from sosalgo.oracles import BoundFunction, Method
-from sosalgo.spec.types import BASE_SYMBOLS, ORACLE_MATRIX_NAMES, Spec, value_order
+from sosalgo.oracles import BoundFunction, Method, seed_functions
+from sosalgo.spec.types import (
+    BASE_SYMBOLS,
+    MATRIX_NAMES,
+    ORACLE_MATRIX_NAMES,
+    Spec,
+    value_order,
+)
 
-__all__ = ["ExactAlgorithm", "ExactOracleMethod", "ball_method", "exact_algorithm",
-           "exact_fixed_point", "exact_oracle_method", "scaled_method", "units_far_from_one"]
+__all__ = ["ExactAlgorithm", "ExactOracleMethod", "ParameterBox", "ball_method",
+           "check_polynomial", "exact_algorithm", "exact_fixed_point", "exact_oracle_method",
+           "polynomial_method", "scaled_method", "units_far_from_one"]
 
 
 # the method over balls: the one :class:`~sosalgo.oracles.Method` (names kept for the
@@ -135,15 +143,15 @@ def units_far_from_one(ex: Method) -> bool:
     return ex.m < Fraction(1, 1024) or ex.L > 2**20
 
 
-def _rational_kappa(kappa: float | Fraction) -> Fraction:
+def _rational_kappa(kappa: float | Fraction, takes: str = "the exact check takes a "
+                    "rational kappa (the PEP proofs enclose it in a ball)") -> Fraction:
     """kappa's exact value as written, a rational (ValueError when it is irrational: these
-    proofs take rational m and L)."""
+    proofs take rational m and L; ``takes`` says which)."""
     from sosalgo.kernel.kappa import exact_kappa
 
     val = exact_kappa(kappa)
     if not val.is_Rational:
-        raise ValueError(f"kappa {val} is irrational: the exact check takes a rational "
-                         "kappa (the PEP proofs enclose it in a ball)")
+        raise ValueError(f"kappa {val} is irrational: {takes}")
     return Fraction(int(val.p), int(val.q))
 
 
@@ -160,3 +168,118 @@ def exact_fixed_point(ex: Method, u_float: np.ndarray | None) -> list[sp.Expr] |
 
 # the exact method of a composite spec: the same binding
 exact_oracle_method = exact_algorithm
+
+
+# --------------------------------------------------------------------------- polynomials
+@dataclass(frozen=True)
+class ParameterBox:
+    """The box of the free parameters of a method over ``poly``: θ = mid + half·z for z
+    in [-1, 1]^k, the coordinates ``zs`` (sympy symbols); ``mid``/``half`` are exact
+    (dyadic) and the box mid ± half contains the parameters' ranges."""
+
+    free: list[str]
+    zs: list[sp.Symbol]
+    mid: list[Fraction]
+    half: list[Fraction]
+
+    @property
+    def k(self) -> int:
+        return len(self.free)
+
+    def theta(self, z: Sequence[float]) -> dict[str, float]:
+        """The parameter values at the box coordinates ``z``."""
+        return {p: float(mi + hi * Fraction(float(zi)))
+                for p, mi, hi, zi in zip(self.free, self.mid, self.half, z, strict=True)}
+
+
+def _rat(x: float | Fraction) -> sp.Rational:
+    q = Fraction(x)
+    return sp.Rational(q.numerator, q.denominator)
+
+
+def _outward(lo: sp.Expr, hi: sp.Expr) -> tuple[Fraction, Fraction]:
+    """Float ends lo_f <= lo and hi_f >= hi of an exact interval."""
+    a, b = enclose(lo), enclose(hi)
+    lo_f, hi_f = float(a.lo), float(b.hi)
+    if Fraction(lo_f) > a.lo:
+        lo_f = float(np.nextafter(lo_f, -np.inf))
+    if Fraction(hi_f) < b.hi:
+        hi_f = float(np.nextafter(hi_f, np.inf))
+    return Fraction(lo_f), Fraction(hi_f)
+
+
+def polynomial_method(spec: Spec, kappa: float, free: Sequence[str]) -> Method:
+    """The spec in the seed's form at ``kappa`` over ``poly``: the ``free`` parameters as
+    polynomials in the coordinates of their box (``box``, a :class:`ParameterBox`), exact
+    entries (A, B, C, E sympy matrices in ``box.zs``, also in ``matrices``); kappa and m
+    are the rationals of their binary values, fixed parameters keep their exact values
+    (e.g. (√κ − 1)/(√κ + 1)). ModelError when an entry is not polynomial in them,
+    ValueError for an irrational kappa."""
+    check_polynomial(spec, free)
+    free = list(free)
+    kq = _rational_kappa(kappa, "the lower bound takes a rational kappa")
+    mq = Fraction(float(spec.m))
+    base = {BASE_SYMBOLS["m"]: _rat(mq), BASE_SYMBOLS["L"]: _rat(kq * mq),
+            BASE_SYMBOLS["kappa"]: _rat(kq)}
+    sym = spec.symbols
+    values: dict[sp.Symbol, sp.Expr] = dict(base)
+    for p in value_order(spec.parameters, spec.source):
+        par = spec.parameters[p]
+        if p in free:
+            values[sym[p]] = sym[p]
+            continue
+        values[sym[p]] = to_sympy(par.tied if par.is_tied else par.value).xreplace(values)
+    zs = [sp.Symbol(f"z{i}", real=True) for i in range(len(free))]
+    mid, half = [], []
+    for p in free:
+        lo_e, hi_e = (to_sympy(e).xreplace(values) for e in spec.parameters[p].range)
+        lo, hi = _outward(lo_e, hi_e)
+        mid.append((lo + hi) / 2)
+        half.append((hi - lo) / 2)
+    scaled = {sym[p]: _rat(mi) + _rat(hi) * z
+              for p, mi, hi, z in zip(free, mid, half, zs, strict=True)}
+    mats = {k: spec.sympy_matrices()[k].xreplace(values).xreplace(scaled)
+            for k in MATRIX_NAMES}
+    m, L = _rat(mq), _rat(kq * mq)
+    return Method(mats["A"], mats["B"], mats["C"], sp.zeros(1, 1), mats["E"], m, L,
+                  seed_functions(m, L), (0,), numbers="poly", matrices=mats,
+                  box=ParameterBox(free, zs, mid, half))
+
+
+def check_polynomial(spec: Spec, free: Sequence[str]) -> None:
+    """Raise ModelError unless every template entry is a polynomial in the free parameters.
+
+    Tied parameters are checked first (naming the parameter and its expression), then the
+    matrix entries (other input parameters keep their ``value``).
+    """
+    syms = [spec.symbols[p] for p in free]
+    symset = set(syms)
+    for name, expr in spec.tied_closure().items():
+        if expr.free_symbols & symset and not expr.is_polynomial(*syms):
+            raise ModelError(
+                f"parameters.{name}",
+                f"{name} = {_show(to_sympy(spec.parameters[name].tied))} is not polynomial "
+                f"in the free parameter(s) {_names(free, syms, expr)}; design needs "
+                "polynomial dependence",
+            )
+    for key, mat in spec.templates(free).items():
+        for (i, j), entry in np.ndenumerate(np.array(mat.tolist(), dtype=object)):
+            entry = sp.sympify(entry)
+            if entry.free_symbols & symset and not entry.is_polynomial(*syms):
+                raise ModelError(
+                    f"matrices.{key}[{i}][{j}]",
+                    f"{_show(entry)} is not polynomial in the free parameter(s) "
+                    f"{_names(free, syms, entry)}; design needs polynomial dependence",
+                )
+
+
+def _names(free: Sequence[str], syms: Sequence[sp.Symbol], expr: sp.Expr) -> str:
+    return ", ".join(p for p, s in zip(free, syms, strict=True) if s in expr.free_symbols)
+
+
+def _show(expr: sp.Basic, n: int = 80) -> str:
+    """An expression as a spec would write it (min, max, abs in lower case)."""
+    text = str(expr)
+    for a, b in (("Min(", "min("), ("Max(", "max("), ("Abs(", "abs(")):
+        text = text.replace(a, b)
+    return text if len(text) <= n else text[: n - 3] + "..."

@@ -67,7 +67,9 @@ class CallShape:
 
     @property
     def n(self) -> int:
-        return int(self.A.shape[0])  # type: ignore[attr-defined]
+        A = self.A  # type: ignore[attr-defined]
+        shape = getattr(A, "shape", None)  # arb matrices have nrows() instead
+        return int(A.nrows() if shape is None else shape[0])
 
     @property
     def p(self) -> int:
