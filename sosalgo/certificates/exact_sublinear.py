@@ -617,13 +617,14 @@ def _setup(res: SublinearExactResult, spec: Spec, cert: Mapping[str, Any], C: fl
            theta: Any) -> _Setup:
     """The exact method, its windows, the conditions in the certificate's unknowns and the
     certificate's float values."""
-    from sosalgo.model import ModelError, bind_sublinear
+    from sosalgo.errors import ModelError
+    from sosalgo.method import bind
 
     om = exact_sublinear_method(spec, theta)
     res.L = fraction_str(om.L)
     res.params = {k: str(v) for k, v in om.params.items()}
     try:
-        fom = bind_sublinear(spec, theta)
+        fom = bind(spec, None, theta)
     except (ModelError, ValueError) as exc:
         raise Refused(f"the method cannot be evaluated: {exc}") from None
     for k in (k for k in ORACLE_MATRIX_NAMES if k in om.balls):
