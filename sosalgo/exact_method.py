@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from sosalgo.classes import CLASSES
+from sosalgo.classes import CLASSES, SEED_CLASS
 from sosalgo.errors import ModelError
 from sosalgo.kernel.exact import (
     DEFAULT_DIGITS,
@@ -127,10 +127,15 @@ def _ball_functions(spec: Spec, values: Mapping[sp.Symbol, sp.Expr],
 def scaled_method(ex: Method, s: Fraction) -> Method:
     """The method run on f/s (s > 0 rational): f is in F(m, L) exactly when f/s is in
     F(m/s, L/s), and B s (and D s) applied to the gradients of f/s give the same iterates,
-    so every rate is the same. Exact (the enclosures' radii scale with their centres)."""
+    so every rate is the same. Exact (the enclosures' radii scale with their centres). In
+    the seed's form only (ValueError otherwise: other classes' parameters scale otherwise)."""
+    if any(f.cls is not SEED_CLASS for f in ex.functions):
+        raise ValueError("a method in other units: the seed's form only (f in F(m, L))")
     k = sp.Rational(s.numerator, s.denominator)
     gain = [name for name in ("B", "D") if name in ex.matrices]  # the maps of the gradients
-    return replace(ex, m=ex.m / s, L=ex.L / s,
+    functions = tuple(BoundFunction(f.name, f.cls, {q: b * (1 / s) for q, b in f.params.items()})
+                      for f in ex.functions)  # m/s and L/s
+    return replace(ex, m=ex.m / s, L=ex.L / s, functions=functions,
                    matrices={**ex.matrices, **{g: ex.matrices[g] * k for g in gain}},
                    **{g: object_matrix([[b * s for b in row] for row in ex.balls[g]])
                       for g in gain})

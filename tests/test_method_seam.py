@@ -324,3 +324,21 @@ def test_bind_of_an_m0_spec_takes_no_kappa():
     om = bind_numbers(spec)
     assert isinstance(om, OracleMethod) and om.m == 0 and om.L == spec.L
     assert om.kappa == float("inf")
+
+
+def test_the_method_in_other_units_scales_its_class_too():
+    """f/s is in F(m/s, L/s) and B s on its gradients gives the same iterates: at kappa
+    10 (m = 1, L = 10, h = 1/10) and s = 10, m = 1/10, L = 1, f's class parameters are
+    the same, B = [[0], [-1]]; a class other than F(m, L) is refused."""
+    from fractions import Fraction
+
+    from sosalgo.exact_method import exact_algorithm, scaled_method
+
+    ex = scaled_method(exact_algorithm(load_spec(SPECS / "nesterov.yaml"), 10), Fraction(10))
+    (f,) = ex.functions
+    assert (ex.m, ex.L) == (Fraction(1, 10), 1)
+    assert (f.params["m"].lo, f.params["m"].hi, f.params["L"].lo) == (Fraction(1, 10),) * 2 + (1,)
+    assert [[b.c for b in row] for row in ex.balls["B"]] == [[0], [-1]]
+    composite = exact_algorithm(load_spec(SPECS / "proximal-gradient.yaml"), 10)
+    with pytest.raises(ValueError, match="seed's form"):
+        scaled_method(composite, Fraction(10))
