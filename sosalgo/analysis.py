@@ -1008,10 +1008,10 @@ def analyze_sublinear(spec: Spec, theta: Mapping[str, float] | None = None,
     (``m: 0``, L given): the SDP minimizes c, then c (1 + slack) is solved with a strict
     margin and its point checked in floating point; a solver status other than solved
     certifies nothing (an almost-solved optimum is only where the search starts)."""
-    from sosalgo.model import bind_sublinear
+    from sosalgo.method import bind
 
     start = time.perf_counter()
-    om = bind_sublinear(spec, theta)
+    om = bind(spec, None, theta)  # no condition number: bound at the spec's L
     count = [0]
     base = dict(L=float(om.L), params=dict(om.params), measure=om.measure)
     estimate = None

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -30,7 +30,8 @@ from sosalgo.classes import CLASSES, SEED_CLASS, FunctionClass
 from sosalgo.errors import ModelError
 from sosalgo.spec.types import Spec, SpecError
 
-__all__ = ["BoundFunction", "CallShape", "OracleMethod", "as_oracle_method", "check_oracle_spec",
+__all__ = ["NUMBER_TYPES", "BoundFunction", "CallShape", "Method", "OracleMethod",
+           "as_oracle_method", "check_oracle_spec",
            "check_magnitudes", "check_relative_error", "composite_quadratic_rate",
            "consistent_solution", "relative_errors",
            "fixed_point_basis", "fixed_point_system", "seed_functions"]
@@ -44,13 +45,20 @@ FIXED_POINT_TOL = 1e-8
 MAX_MAGNITUDE = 1e305
 
 
-@dataclass(frozen=True)
-class BoundFunction:
-    """One function of the problem: its name, class and numeric parameters."""
+# the number types a method's entries and class parameters may have: floats, balls
+# (:class:`sosalgo.kernel.exact.Ball`, exact rationals with rational radii, the exact
+# twin), arb balls (python-flint, outward rounded) and polynomials in the coordinates of a
+# box of parameter values (sympy, exact coefficients)
+NUMBER_TYPES = ("float", "ball", "arb", "poly")
+
+
+class BoundFunction(NamedTuple):
+    """One function of the problem: its name, class and parameters (numbers of the
+    method's number type); a triple ``(name, cls, params)`` as well."""
 
     name: str
     cls: FunctionClass
-    params: dict[str, float]
+    params: dict[str, Any]
 
 
 class CallShape:
@@ -59,29 +67,112 @@ class CallShape:
 
     @property
     def n(self) -> int:
-        return int(self.A.shape[0])  # type: ignore[attr-defined]
+        A = self.A  # type: ignore[attr-defined]
+        shape = getattr(A, "shape", None)  # arb matrices have nrows() instead
+        return int(A.nrows() if shape is None else shape[0])
 
     @property
     def p(self) -> int:
         return len(self.oracles)  # type: ignore[attr-defined]
 
 
-@dataclass(frozen=True)
-class OracleMethod(CallShape):
-    """A numeric method of the oracle model (see the module docstring).
+@dataclass(frozen=True, eq=False)
+class Method(CallShape):
+    """The one method of the oracle model (see the module docstring), over any number type
+    of :data:`NUMBER_TYPES` (``numbers``): its matrices A, B, C, D, E (E None when the
+    output is a call's point), its functions with their class parameters, and m, L, the
+    spec's parameter values ``params``, all of that number type.
 
     ``oracles[i]`` is the index in ``functions`` of the function call i queries; ``output``
     the call whose point is the output (None: x = E xi); ``m``, ``L`` the spec's (they set
-    kappa and the units of the certificate). Checked on creation (:class:`ModelError`).
+    kappa and the units of the certificate).
 
-    The one float method: the seed's form (one gradient call on f in F(m, L)) is the
-    subclass :class:`sosalgo.model.Algorithm`, whose :attr:`has_seed_form` is True.
+    Over floats it is :class:`OracleMethod` (checked on creation), in the seed's form
+    :class:`sosalgo.model.Algorithm`. The other number types are bound by
+    :func:`sosalgo.method.bind` (``numbers=``); a binding in exact numbers also keeps the
+    spec's matrices with exact (sympy) entries, in the spec's layout (A, B, C, E, and D
+    where the spec writes one), in ``matrices``, and the rational ``theta`` it was bound
+    at; one over a box of parameter values keeps the box in ``box``.
     """
 
     # whether the method is in the seed's form, so that its certificates are built on
     # (A, B, C, E) alone (Theorem 1, the seed's interpolation windows, the seed's noise
     # sensitivity); False here: the constructions of the oracle model
     has_seed_form = False
+
+    A: Any
+    B: Any
+    C: Any
+    D: Any
+    E: Any | None
+    m: Any
+    L: Any
+    functions: tuple[BoundFunction, ...]
+    oracles: tuple[int, ...]
+    output: int | None = None
+    measure: str = "function"
+    params: dict[str, Any] = field(default_factory=dict)
+    # inexact gradient calls: call index -> eps in [0, 1) (the answer d of the call has
+    # |d - grad f(y)| <= eps |grad f(y)|); only ``sosalgo pep`` models them
+    errors: dict[int, float] = field(default_factory=dict)
+    # linear minimization calls: call index -> the gradient call giving the direction (the
+    # call answers s - y, 0 at the fixed point; only ``sosalgo pep`` models them)
+    lmo: dict[int, int] = field(default_factory=dict)
+    numbers: str = "float"
+    # exact bindings: the spec's matrices with exact entries (sympy; polynomials in the
+    # box coordinates over ``poly``) and the rational parameter values set
+    matrices: dict[str, Any] | None = None
+    theta: dict[str, Any] | None = None
+    # ``poly``: the box of the free parameters (:class:`sosalgo.exact_method.ParameterBox`)
+    box: Any = None
+
+    @property
+    def kappa(self) -> Any:
+        """L / m (inf when m = 0: a sublinear spec has no condition number); exact over
+        exact numbers."""
+        return self.L / self.m if self.m > 0 else float("inf")
+
+    @property
+    def balls(self) -> dict[str, list[list[Any]]]:
+        """The enclosures of ``matrices`` (a binding in exact numbers), in its layout:
+        name -> rows of balls."""
+        assert self.matrices is not None, "a method bound in exact numbers"
+        return {k: getattr(self, k).tolist() for k in self.matrices}
+
+    def enclosures(self) -> dict[str, list[list[list[str]]]]:
+        """[lo, hi] of every entry of ``balls`` as exact decimal/rational strings (lo ==
+        hi if exact)."""
+        from sosalgo.kernel.exact import fraction_str
+
+        return {k: [[[fraction_str(b.lo), fraction_str(b.hi)] for b in row] for row in mat]
+                for k, mat in self.balls.items()}
+
+    def optimal_map(self) -> np.ndarray:
+        """S (p x (J - 1)): u* = S s~ for the free optimal subgradients s~ = (s_1*, ...,
+        s_{J-1}*), s_J* = -(s_1* + ... + s_{J-1}*). Indicators alone (a feasibility
+        problem): x* lies in every set, where 0 is a normal vector of each, so s_j* = 0
+        (S = 0: the fixed point does not move with them, and the PEP leaves them out)."""
+        J = len(self.functions)
+        S = np.zeros((self.p, max(J - 1, 0)))
+        if pinned_optimum(self.functions):
+            return S
+        lmo = getattr(self, "lmo", None) or {}  # the seed's Algorithm has none
+        for i, j in enumerate(self.oracles):
+            if i in lmo:  # answers s - y: 0 at the fixed point (s = y = x*)
+                continue
+            if j < J - 1:
+                S[i, j] = 1.0
+            else:
+                S[i, :] = -1.0
+        return S
+
+
+@dataclass(frozen=True)
+class OracleMethod(Method):
+    """The one method over floats (see :class:`Method`), checked on creation
+    (:class:`ModelError`): the seed's form (one gradient call on f in F(m, L)) is the
+    subclass :class:`sosalgo.model.Algorithm`, whose :attr:`has_seed_form` is True.
+    """
 
     A: np.ndarray
     B: np.ndarray
@@ -90,17 +181,6 @@ class OracleMethod(CallShape):
     E: np.ndarray | None
     m: float
     L: float
-    functions: tuple[BoundFunction, ...]
-    oracles: tuple[int, ...]
-    output: int | None = None
-    measure: str = "function"
-    params: dict[str, float] = field(default_factory=dict)
-    # inexact gradient calls: call index -> eps in [0, 1) (the answer d of the call has
-    # |d - grad f(y)| <= eps |grad f(y)|); only ``sosalgo pep`` models them
-    errors: dict[int, float] = field(default_factory=dict)
-    # linear minimization calls: call index -> the gradient call giving the direction (the
-    # call answers s - y, 0 at the fixed point; only ``sosalgo pep`` models them)
-    lmo: dict[int, int] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         for k in ("A", "B", "C", "D", "E"):
@@ -141,30 +221,6 @@ class OracleMethod(CallShape):
             if t < 0:
                 raise ModelError(f"matrices.D[{i}][{i}]", "a diagonal entry must be -t with "
                                    f"t >= 0 (a proximal step), got {-t:g}")
-
-    @property
-    def kappa(self) -> float:
-        """L / m (inf when m = 0: a sublinear spec has no condition number)."""
-        return self.L / self.m if self.m > 0 else float("inf")
-
-    def optimal_map(self) -> np.ndarray:
-        """S (p x (J - 1)): u* = S s~ for the free optimal subgradients s~ = (s_1*, ...,
-        s_{J-1}*), s_J* = -(s_1* + ... + s_{J-1}*). Indicators alone (a feasibility
-        problem): x* lies in every set, where 0 is a normal vector of each, so s_j* = 0
-        (S = 0: the fixed point does not move with them, and the PEP leaves them out)."""
-        J = len(self.functions)
-        S = np.zeros((self.p, max(J - 1, 0)))
-        if pinned_optimum(self.functions):
-            return S
-        lmo = getattr(self, "lmo", None) or {}  # the seed's Algorithm has none
-        for i, j in enumerate(self.oracles):
-            if i in lmo:  # answers s - y: 0 at the fixed point (s = y = x*)
-                continue
-            if j < J - 1:
-                S[i, j] = 1.0
-            else:
-                S[i, :] = -1.0
-        return S
 
     def output_row(self) -> tuple[np.ndarray, np.ndarray]:
         """(row on xi, row on u) of the output point x = E xi or y_i = C_i xi + D_i u."""

@@ -122,7 +122,7 @@ def test_the_check_finds_a_cycle():
 # describes the layers.
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("kernel", ("errors", "kinds", "kernel", "polyopt")),
-    ("problem", ("classes", "spec", "oracles", "model", "exact_method", "steps",
+    ("problem", ("classes", "spec", "oracles", "model", "exact_method", "method", "steps",
                  "spec_values")),
     ("families", ("certificates",)),
     ("questions", ("symbolic", "analysis", "inputs", "sensitivity", "witnesses", "design_search",

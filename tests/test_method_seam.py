@@ -32,13 +32,25 @@ SWITCH_ATTRIBUTES = {"composite", "sublinear", "time_varying"}
 # fields a kind of method has and another lacks (asked by hasattr/getattr, a type switch)
 METHOD_FIELDS = {"oracles", "functions", "D", "output", "p", "measure", "has_seed_form",
                  "time_varying"}
-METHOD_TYPES = {"Algorithm", "OracleMethod", "ExactAlgorithm", "ExactOracleMethod"}
+# every method type left, (module, class): the one Method over any number type
+# (sosalgo.oracles.Method), its float form checked on creation (OracleMethod) and the
+# seed's form built from A, B, C, E, m, L (Algorithm); the PEP's structure around a method
+# (worstcase.structure.Method: fixed-point basis, deadbeat gain, tilted inequalities, term
+# coefficients) and its arb view (worstcase.check.ArbView)
+METHOD_TYPES = {("sosalgo.oracles", "Method"), ("sosalgo.oracles", "OracleMethod"),
+                ("sosalgo.model", "Algorithm"), ("sosalgo.worstcase.structure", "Method"),
+                ("sosalgo.worstcase.check", "ArbView")}
+# names no module above the problem layer may test ``isinstance`` against: the problem
+# layer's method types and the names its bindings keep for the Method over balls and
+# polynomials (the PEP's arb view is a number type inside the PEP's own package)
+SWITCH_TYPES = {"Method", "OracleMethod", "Algorithm", "ExactAlgorithm", "ExactOracleMethod",
+                "ExactMethod"}
 
 
 def _switches(text: str, where: str) -> list[str]:
     """The method-type switches in the Python source ``text``: the attributes
     :data:`SWITCH_ATTRIBUTES`, ``hasattr``/``getattr`` of a :data:`METHOD_FIELDS` name, and
-    ``isinstance`` with a :data:`METHOD_TYPES` class."""
+    ``isinstance`` with a :data:`SWITCH_TYPES` class."""
     found = []
     for node in ast.walk(ast.parse(text)):
         if isinstance(node, ast.Attribute) and node.attr in SWITCH_ATTRIBUTES:
@@ -54,7 +66,7 @@ def _switches(text: str, where: str) -> list[str]:
             names = {n.id if isinstance(n, ast.Name) else getattr(n, "attr", None)
                      for n in ast.walk(args[1])}
             found += [(node.lineno, node.col_offset, f"isinstance(..., {t})")
-                      for t in sorted(names & METHOD_TYPES)]
+                      for t in sorted(names & SWITCH_TYPES)]
     return [f"{where}:{line}: {what}" for line, _, what in sorted(found)]
 
 
@@ -166,3 +178,167 @@ def test_theorem1_refuses_the_oracle_model_form():
     get_family("theorem1").problem(alg)  # the seed's form: built
     with pytest.raises(InputError, match="theorem1"):
         get_family("theorem1").problem(_general_form(alg))
+
+
+# --------------------------------------------------------------------------- number types
+
+
+def _method_types(root: Path) -> set[tuple[str, str]]:
+    """(module, class) of every class under ``root`` (a package directory) that holds a
+    method's numbers: it declares the oracle model's matrices A, B, C and D, or which
+    function each call queries (``oracles`` with ``functions``), or exact matrices with m
+    and L; and every class derived from one of those by name. The spec package (a
+    method's text, not its numbers) is left out."""
+    found, bases = set(), {}
+    for path in sorted(root.rglob("*.py")):
+        rel = path.relative_to(root.parent).with_suffix("")
+        if rel.parts[1] == "spec":
+            continue
+        module = ".".join(rel.parts[:-1] if rel.name == "__init__" else rel.parts)
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if not isinstance(node, ast.ClassDef):
+                continue
+            fields = {s.target.id for s in node.body if isinstance(s, ast.AnnAssign)
+                      and isinstance(s.target, ast.Name)}
+            if ({"A", "B", "C", "D"} <= fields or {"oracles", "functions"} <= fields
+                    or {"matrices", "m", "L"} <= fields):
+                found.add((module, node.name))
+            bases[(module, node.name)] = {getattr(b, "id", getattr(b, "attr", None))
+                                          for b in node.bases}
+    grew = True
+    while grew:
+        names = {name for _, name in found}
+        more = {key for key, b in bases.items() if b & names} - found
+        found |= more
+        grew = bool(more)
+    return found
+
+
+def test_the_method_types_left():
+    """Five method types are left: the one ``Method`` over any number type, its float form
+    ``OracleMethod`` (checked on creation) and the seed's form ``Algorithm``, the PEP's
+    structure around a method (``sosalgo.worstcase.structure.Method``) and its arb view
+    (``sosalgo.worstcase.check.ArbView``). The exact twins (``ExactAlgorithm``,
+    ``ExactOracleMethod``), the arb one (``ArbMethod``), the polynomial one
+    (``polymodel.ExactMethod``) and the noisy model (``NoisyModel``) are the Method over
+    balls, arb, polynomials and floats; the names kept are the Method itself."""
+    from sosalgo.design_search.polymodel import ExactMethod
+    from sosalgo.exact_method import ExactAlgorithm, ExactOracleMethod
+    from sosalgo.oracles import Method
+
+    assert _method_types(PACKAGE) == METHOD_TYPES
+    assert len(METHOD_TYPES) == 5
+    assert ExactAlgorithm is ExactOracleMethod is ExactMethod is Method
+
+
+def test_the_scan_of_method_types_sees_each_form(tmp_path):
+    """The scan above finds a class by any of the three signs, and its subclasses."""
+    pkg = tmp_path / "pkg"
+    pkg.mkdir()
+    (pkg / "m.py").write_text(
+        "class Full:\n    A: int\n    B: int\n    C: int\n    D: int\n"
+        "class Calls:\n    oracles: tuple\n    functions: tuple\n"
+        "class Exact:\n    matrices: dict\n    m: int\n    L: int\n"
+        "class Seed(Full):\n    pass\n"
+        "class System:\n    A: int\n    B: int\n    C: int\n    E: int\n")
+    assert _method_types(pkg) == {("pkg.m", "Full"), ("pkg.m", "Calls"), ("pkg.m", "Exact"),
+                                  ("pkg.m", "Seed")}
+
+
+def _nesterov_at_10() -> dict[str, list[list[object]]]:
+    """Nesterov's method at kappa = 10 (m = 1, L = 10, h = 1/10, gamma = beta =
+    (sqrt 10 - 1)/(sqrt 10 + 1) = (11 - 2 sqrt 10)/9), its entries as mpmath numbers at
+    80 digits (a closed form, not the spec's expressions)."""
+    import mpmath
+
+    mpmath.mp.dps = 80
+    beta = (11 - 2 * mpmath.sqrt(10)) / 9
+    return {"A": [[0, 1], [-beta, 1 + beta]], "B": [[0], [-mpmath.mpf(1) / 10]],
+            "C": [[-beta, 1 + beta]], "E": [[0, 1]]}
+
+
+def _as_mpf(q):
+    import mpmath
+
+    return mpmath.mpf(q.numerator) / q.denominator
+
+
+def test_bind_over_each_number_type_encloses_the_closed_form():
+    """``sosalgo.method.bind(..., numbers=...)``: the float method is within 1e-15 of the
+    closed form, the ball and arb methods enclose it (every entry, m and L, and the
+    class parameters), the ball method keeps the exact entries."""
+    import sympy as sp
+
+    from sosalgo.kernel.arb import arb_fraction
+    from sosalgo.method import bind as bind_numbers
+
+    spec = load_spec(SPECS / "nesterov.yaml")
+    closed = _nesterov_at_10()
+    fl = bind_numbers(spec, 10.0)
+    ball = bind_numbers(spec, 10.0, numbers="ball")
+    am = bind_numbers(spec, 10.0, numbers="arb")
+    assert (fl.numbers, ball.numbers, am.numbers) == ("float", "ball", "arb")
+    for k, rows in closed.items():
+        for i, row in enumerate(rows):
+            for j, want in enumerate(row):
+                assert abs(getattr(fl, k)[i, j] - float(want)) <= 1e-15
+                b = getattr(ball, k)[i, j]
+                assert _as_mpf(b.lo) <= want <= _as_mpf(b.hi) and b.hi - b.lo < 1e-40
+                a = getattr(am, k)[i, j]
+                assert (_as_mpf(arb_fraction(a.lower())) <= want
+                        <= _as_mpf(arb_fraction(a.upper())))
+                exact = ball.matrices[k][i, j]
+                assert abs(sp.N(exact, 60) - sp.Float(str(want), 60)) < sp.Float(1e-55)
+    assert (ball.m, ball.L, ball.kappa) == (1, 10, 10)
+    (f,) = ball.functions
+    assert f.params["L"].lo == f.params["L"].hi == 10 and f.params["m"].c == 1
+    assert am.p == ball.p == fl.p == 1 and am.n == ball.n == fl.n == 2
+
+
+def test_bind_over_polynomials_is_the_method_on_its_box():
+    """``numbers="poly"``: beta free over its range [0, 1] is 1/2 + z/2 (box coordinate z
+    in [-1, 1]); at z = -1/3 (beta = 1/3) A, C are the method at beta = 1/3, h = 1/10."""
+    import sympy as sp
+
+    from sosalgo.method import bind as bind_numbers
+
+    spec = load_spec(SPECS / "nesterov.yaml")
+    pm = bind_numbers(spec, 10.0, numbers="poly", free=["beta"])
+    (z,) = pm.box.zs
+    at = {z: sp.Rational(-1, 3)}
+    third = sp.Rational(1, 3)
+    assert pm.A.xreplace(at) == sp.Matrix([[0, 1], [-third, 1 + third]])
+    assert pm.C.xreplace(at) == sp.Matrix([[-third, 1 + third]])
+    assert pm.B == sp.Matrix([[0], [sp.Rational(-1, 10)]])
+    assert pm.box.theta([-1 / 3]) == pytest.approx({"beta": 1 / 3}, abs=1e-15)
+    with pytest.raises(ValueError, match="numbers"):
+        bind_numbers(spec, 10.0, numbers="complex")
+
+
+def test_bind_of_an_m0_spec_takes_no_kappa():
+    """A spec without a condition number (``m: 0``) is bound at its own L: m = 0, and
+    kappa is infinite (no condition number)."""
+    from sosalgo.method import bind as bind_numbers
+
+    spec = load_spec(SPECS / "gradient-convex.yaml")
+    om = bind_numbers(spec)
+    assert isinstance(om, OracleMethod) and om.m == 0 and om.L == spec.L
+    assert om.kappa == float("inf")
+
+
+def test_the_method_in_other_units_scales_its_class_too():
+    """f/s is in F(m/s, L/s) and B s on its gradients gives the same iterates: at kappa
+    10 (m = 1, L = 10, h = 1/10) and s = 10, m = 1/10, L = 1, f's class parameters are
+    the same, B = [[0], [-1]]; a class other than F(m, L) is refused."""
+    from fractions import Fraction
+
+    from sosalgo.exact_method import exact_algorithm, scaled_method
+
+    ex = scaled_method(exact_algorithm(load_spec(SPECS / "nesterov.yaml"), 10), Fraction(10))
+    (f,) = ex.functions
+    assert (ex.m, ex.L) == (Fraction(1, 10), 1)
+    assert (f.params["m"].lo, f.params["m"].hi, f.params["L"].lo) == (Fraction(1, 10),) * 2 + (1,)
+    assert [[b.c for b in row] for row in ex.balls["B"]] == [[0], [-1]]
+    composite = exact_algorithm(load_spec(SPECS / "proximal-gradient.yaml"), 10)
+    with pytest.raises(ValueError, match="seed's form"):
+        scaled_method(composite, Fraction(10))

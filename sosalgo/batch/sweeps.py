@@ -271,12 +271,12 @@ def sublinear_simulation(spec: Spec, constant: float | None,
                          theta: dict[str, float] | None = None) -> dict[str, Any] | None:
     """The simulation check of a certified constant (evidence, not proof:
     :mod:`sosalgo.proofs.simulate_sublinear`), or None when nothing is certified."""
-    from sosalgo.model import bind_sublinear
+    from sosalgo.method import bind
     from sosalgo.proofs.simulate_sublinear import simulate_sublinear
 
     if constant is None:
         return None
-    return simulate_sublinear(bind_sublinear(spec, theta), constant).to_dict()
+    return simulate_sublinear(bind(spec, None, theta), constant).to_dict()
 
 
 def sublinear_row(spec: Spec) -> dict[str, Any]:

@@ -283,16 +283,15 @@ def _exact_method(spec: Spec, kappa: float, theta: Mapping[str, float] | None, d
         alg = bind(spec, float(kappa), theta)
     except ValueError as exc:
         raise Refused(f"the exact method cannot be built: {exc}") from None
-    ex = om.ex
-    res.kappa, res.m, res.L = fraction_str(ex.kappa), fraction_str(ex.m), fraction_str(ex.L)
-    res.params = {k: str(v) for k, v in ex.params.items()}
-    res.enclosures = ex.enclosures()
+    res.kappa, res.m, res.L = fraction_str(om.kappa), fraction_str(om.m), fraction_str(om.L)
+    res.params = {k: str(v) for k, v in om.params.items()}
+    res.enclosures = om.enclosures()
     res.model = {"measure": om.measure, "inputs": om.p, "oracles": list(spec.oracles),
                  "output": None if om.output is None else f"y{om.output + 1}",
                  "functions": {f: {"class": c.name, **{k: [fraction_str(b.lo), fraction_str(
                      b.hi)] for k, b in pr.items()}} for f, c, pr in om.functions}}
-    for k in (k for k in ORACLE_MATRIX_NAMES if k in ex.balls):
-        cen = np.array([[float(b.c) for b in row] for row in ex.balls[k]])
+    for k in (k for k in ORACLE_MATRIX_NAMES if k in om.balls):
+        cen = np.array([[float(b.c) for b in row] for row in om.balls[k]])
         if not np.allclose(cen, getattr(alg, k), rtol=1e-9, atol=1e-9):
             raise Refused(f"exact matrix {k} differs from sosalgo.model.bind")
     for i in range(om.p):
@@ -308,7 +307,7 @@ def _exact_method(spec: Spec, kappa: float, theta: Mapping[str, float] | None, d
 def fixed_point_failure(om: ExactOracleMethod, alg: Any) -> str | None:
     """None when xi* exists exactly for x* = 1 (s* = 0) and for x* = 0 with each free
     optimal subgradient (sympy, algebraic entries); else why not."""
-    mats = om.ex.matrices
+    mats = om.matrices
     n, p = om.n, om.p
     S = sp.Matrix(alg.optimal_map().astype(int).tolist()) if alg.optimal_map().size else \
         sp.zeros(p, 0)

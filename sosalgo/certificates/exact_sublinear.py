@@ -47,15 +47,12 @@ import numpy as np
 import scipy.linalg as sla
 import sympy as sp
 
-from sosalgo.certificates.exact_composite import (
-    ExactOracleMethod,
-    exact_class_inequalities,
-    exact_window,
-)
+from sosalgo.certificates.exact_composite import exact_class_inequalities, exact_window
 from sosalgo.certificates.exact_interpolation import Refused
-from sosalgo.exact_method import ExactAlgorithm
+from sosalgo.exact_method import ball_method
 from sosalgo.kernel.exact import Ball, Verdict, fraction_str, prove_psd
 from sosalgo.kernel.expr.parse import to_sympy
+from sosalgo.oracles import BoundFunction, Method
 from sosalgo.spec.types import BASE_SYMBOLS, ORACLE_MATRIX_NAMES, Spec, value_order
 
 __all__ = ["Lin", "SublinearExactResult", "exact_sublinear_method", "verify_exact_sublinear"]
@@ -178,7 +175,7 @@ def _rational_of(expr: sp.Expr, where: str) -> Fraction:
 
 
 def exact_sublinear_method(spec: Spec, theta: Mapping[str, float] | None = None,
-                           ) -> ExactOracleMethod:
+                           ) -> Method:
     """The method of a sublinear spec on exact rationals (m = 0, L the binary value of the
     spec's L, ``theta`` as exact binary values); :class:`Refused` when an entry or a class
     parameter is not rational."""
@@ -206,18 +203,12 @@ def exact_sublinear_method(spec: Spec, theta: Mapping[str, float] | None = None,
         balls[k] = np.array([[Ball(_rational_of(mats[k][i, j], f"matrices.{k}[{i}][{j}]"))
                               for j in range(mats[k].shape[1])]
                              for i in range(mats[k].shape[0])], dtype=object)
-    funcs = [(f, CLASSES[d.cls], {k: Ball(_rational_of(to_sympy(e).xreplace(values),
-                                                        f"functions.{f}.{k}"))
-                                  for k, e in d.params.items()})
-             for f, d in spec.functions.items()]
-    ex = ExactAlgorithm(spec.name, Fraction(0), Fraction(0), Lq, params, mats,
-                        {k: b.tolist() for k, b in balls.items()})
-    p = spec.p
-    D = balls.get("D", np.array([[Ball(0)] * p] * p, dtype=object))
-    names = list(spec.functions)
-    return ExactOracleMethod(ex, balls["A"], balls["B"], balls["C"], D, balls.get("E"), funcs,
-                             tuple(names.index(f) for f in spec.oracles), spec.output,
-                             spec.measure)
+    funcs = tuple(BoundFunction(f, CLASSES[d.cls],
+                                {k: Ball(_rational_of(to_sympy(e).xreplace(values),
+                                                      f"functions.{f}.{k}"))
+                                 for k, e in d.params.items()})
+                  for f, d in spec.functions.items())
+    return ball_method(spec, balls, Fraction(0), Lq, funcs, params, mats, {})
 
 
 def _exact(M: np.ndarray) -> np.ndarray:
@@ -231,7 +222,7 @@ def _exact(M: np.ndarray) -> np.ndarray:
     return out
 
 
-def _fixed_point(om: ExactOracleMethod) -> list[Fraction]:
+def _fixed_point(om: Method) -> list[Fraction]:
     """u with (I - A) u = 0, C u = 1 (every call at x* = 1) and the output at 1: unique."""
     n = om.n
     A = sp.Matrix(om.A.shape[0], om.A.shape[1], [b.c for b in om.A.ravel()])
@@ -249,7 +240,7 @@ def _fixed_point(om: ExactOracleMethod) -> list[Fraction]:
     return [Fraction(int(v.p), int(v.q)) for v in sol]
 
 
-def _windows(om: ExactOracleMethod, float_om: Any) -> tuple[Any, Any, ExactOracleMethod]:
+def _windows(om: Method, float_om: Any) -> tuple[Any, Any, Method]:
     """The decrease (times 0, 1) and positivity (time 0) windows of lag 0, with the output
     point shared with its call when the float builder shares it (E = C_i, D_i = 0)."""
     from sosalgo.certificates.composite import output_call
@@ -626,17 +617,18 @@ def _setup(res: SublinearExactResult, spec: Spec, cert: Mapping[str, Any], C: fl
            theta: Any) -> _Setup:
     """The exact method, its windows, the conditions in the certificate's unknowns and the
     certificate's float values."""
-    from sosalgo.model import ModelError, bind_sublinear
+    from sosalgo.errors import ModelError
+    from sosalgo.method import bind
 
     om = exact_sublinear_method(spec, theta)
-    res.L = fraction_str(om.ex.L)
-    res.params = {k: str(v) for k, v in om.ex.params.items()}
+    res.L = fraction_str(om.L)
+    res.params = {k: str(v) for k, v in om.params.items()}
     try:
-        fom = bind_sublinear(spec, theta)
+        fom = bind(spec, None, theta)
     except (ModelError, ValueError) as exc:
         raise Refused(f"the method cannot be evaluated: {exc}") from None
-    for k in (k for k in ORACLE_MATRIX_NAMES if k in om.ex.balls):
-        cen = np.array([[float(b.c) for b in row] for row in om.ex.balls[k]])
+    for k in (k for k in ORACLE_MATRIX_NAMES if k in om.balls):
+        cen = np.array([[float(b.c) for b in row] for row in om.balls[k]])
         if not np.allclose(cen, getattr(fom, k), rtol=1e-9, atol=1e-12):
             raise Refused(f"exact matrix {k} differs from the float method")
     dec, pos, om = _windows(om, fom)

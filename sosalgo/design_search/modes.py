@@ -39,7 +39,7 @@ class ModeTest:
     def __init__(self, method: ExactMethod):
         A, B, C, E = (method.matrices[k] for k in ("A", "B", "C", "E"))
         self.n = n = A.shape[0]
-        zs = method.zs
+        zs = method.box.zs
         self.ok = not any(e.free_symbols & set(zs) for e in E)
         if not self.ok:  # E depends on θ: the argument is not used
             self.degrees, self.balls, self.even = (), arb_mat(0, 0), np.array([True])

@@ -23,7 +23,6 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
-from fractions import Fraction
 
 import numpy as np
 import sympy as sp
@@ -31,13 +30,20 @@ from flint import arb, arb_mat
 
 import sosalgo.design_search.enclosure as enc
 from sosalgo.certificates.base import CertificateFamily
+from sosalgo.errors import ModelError
+from sosalgo.exact_method import check_polynomial, polynomial_method
 from sosalgo.kernel.conic import ExactBlock, LMIProblem
-from sosalgo.kernel.expr.parse import to_sympy
-from sosalgo.model import ModelError, evaluate_algorithm
+from sosalgo.model import evaluate_algorithm
+from sosalgo.oracles import Method
 from sosalgo.spec import Spec
 
 __all__ = ["ExactMethod", "ModelTimeout", "PolyLMI", "check_polynomial", "exact_method",
            "poly_lmi", "shift_tensor"]
+
+# the method with entries polynomial in the box coordinates: the one Method over ``poly``
+# (:func:`sosalgo.exact_method.polynomial_method`; the names kept for the design code)
+ExactMethod = Method
+exact_method = polynomial_method
 
 MAX_DEGREE = 12  # per free parameter; templates of higher degree are refused
 KEYS = ("c0", "c1", "l0", "l1")
@@ -46,132 +52,6 @@ KEYS = ("c0", "c1", "l0", "l1")
 class ModelTimeout(TimeoutError):
     """The expansion of the polynomial model passed its deadline (checked between
     entries: one entry's expansion is the step that may run past it)."""
-
-
-def check_polynomial(spec: Spec, free: Sequence[str]) -> None:
-    """Raise ModelError unless every template entry is a polynomial in the free parameters.
-
-    Tied parameters are checked first (naming the parameter and its expression), then the
-    matrix entries (other input parameters keep their ``value``).
-    """
-    syms = [spec.symbols[p] for p in free]
-    symset = set(syms)
-    for name, expr in spec.tied_closure().items():
-        if expr.free_symbols & symset and not expr.is_polynomial(*syms):
-            raise ModelError(
-                f"parameters.{name}",
-                f"{name} = {_show(to_sympy(spec.parameters[name].tied))} is not polynomial "
-                f"in the free parameter(s) {_names(free, syms, expr)}; design needs "
-                "polynomial dependence",
-            )
-    for key, mat in spec.templates(free).items():
-        for (i, j), entry in np.ndenumerate(np.array(mat.tolist(), dtype=object)):
-            entry = sp.sympify(entry)
-            if entry.free_symbols & symset and not entry.is_polynomial(*syms):
-                raise ModelError(
-                    f"matrices.{key}[{i}][{j}]",
-                    f"{_show(entry)} is not polynomial in the free parameter(s) "
-                    f"{_names(free, syms, entry)}; design needs polynomial dependence",
-                )
-
-
-def _names(free: Sequence[str], syms: Sequence[sp.Symbol], expr: sp.Expr) -> str:
-    return ", ".join(p for p, s in zip(free, syms, strict=True) if s in expr.free_symbols)
-
-
-def _show(expr: sp.Basic, n: int = 80) -> str:
-    """An expression as a spec would write it (min, max, abs in lower case)."""
-    text = str(expr)
-    for a, b in (("Min(", "min("), ("Max(", "max("), ("Abs(", "abs(")):
-        text = text.replace(a, b)
-    return text if len(text) <= n else text[: n - 3] + "..."
-
-
-# --------------------------------------------------------------------------- exact method
-@dataclass
-class ExactMethod:
-    """The method with exact entries, polynomial in z ∈ [-1, 1]^k (θ = mid + half·z).
-
-    ``mid``/``half`` are exact (dyadic) and the box mid ± half contains Θ; ``m``, ``L``
-    are exact rationals; ``matrices`` maps A, B, C, E to sympy matrices in ``zs``.
-    """
-
-    free: list[str]
-    zs: list[sp.Symbol]
-    mid: list[Fraction]
-    half: list[Fraction]
-    m: sp.Rational
-    L: sp.Rational
-    matrices: dict[str, sp.Matrix]
-
-    @property
-    def k(self) -> int:
-        return len(self.free)
-
-    def theta(self, z: Sequence[float]) -> dict[str, float]:
-        return {p: float(mi + hi * Fraction(float(zi)))
-                for p, mi, hi, zi in zip(self.free, self.mid, self.half, z, strict=True)}
-
-
-def _rat(x: float | Fraction) -> sp.Rational:
-    q = Fraction(x)
-    return sp.Rational(q.numerator, q.denominator)
-
-
-def _outward(lo: sp.Expr, hi: sp.Expr) -> tuple[Fraction, Fraction]:
-    """Float ends lo_f <= lo and hi_f >= hi of an exact interval."""
-    from sosalgo.kernel.exact import enclose
-
-    a, b = enclose(lo), enclose(hi)
-    lo_f, hi_f = float(a.lo), float(b.hi)
-    if Fraction(lo_f) > a.lo:
-        lo_f = float(np.nextafter(lo_f, -np.inf))
-    if Fraction(hi_f) < b.hi:
-        hi_f = float(np.nextafter(hi_f, np.inf))
-    return Fraction(lo_f), Fraction(hi_f)
-
-
-def _rational_kappa(kappa: float) -> Fraction:
-    """kappa as written (:func:`sosalgo.kernel.kappa.exact_kappa`: ``10/3`` is 10/3, a
-    float its shortest decimal); ValueError when it is irrational."""
-    from sosalgo.kernel.kappa import exact_kappa
-
-    val = exact_kappa(kappa)
-    if not val.is_Rational:
-        raise ValueError(f"kappa {val} is irrational: the lower bound takes a rational kappa")
-    return Fraction(int(val.p), int(val.q))
-
-
-def exact_method(spec: Spec, kappa: float, free: Sequence[str]) -> ExactMethod:
-    """The spec at ``kappa`` with the free parameters as scaled symbols (see class)."""
-    from sosalgo.spec.types import BASE_SYMBOLS, MATRIX_NAMES, value_order
-
-    check_polynomial(spec, free)
-    free = list(free)
-    kq = _rational_kappa(kappa)
-    mq = Fraction(float(spec.m))
-    base = {BASE_SYMBOLS["m"]: _rat(mq), BASE_SYMBOLS["L"]: _rat(kq * mq),
-            BASE_SYMBOLS["kappa"]: _rat(kq)}
-    sym = spec.symbols
-    values: dict[sp.Symbol, sp.Expr] = dict(base)
-    for p in value_order(spec.parameters, spec.source):
-        par = spec.parameters[p]
-        if p in free:
-            values[sym[p]] = sym[p]
-            continue
-        values[sym[p]] = to_sympy(par.tied if par.is_tied else par.value).xreplace(values)
-    zs = [sp.Symbol(f"z{i}", real=True) for i in range(len(free))]
-    mid, half = [], []
-    for p in free:
-        lo_e, hi_e = (to_sympy(e).xreplace(values) for e in spec.parameters[p].range)
-        lo, hi = _outward(lo_e, hi_e)
-        mid.append((lo + hi) / 2)
-        half.append((hi - lo) / 2)
-    scaled = {sym[p]: _rat(mi) + _rat(hi) * z
-              for p, mi, hi, z in zip(free, mid, half, zs, strict=True)}
-    mats = {k: spec.sympy_matrices()[k].xreplace(values).xreplace(scaled)
-            for k in MATRIX_NAMES}
-    return ExactMethod(free, zs, mid, half, _rat(mq), _rat(kq * mq), mats)
 
 
 # --------------------------------------------------------------------------- LMI data
@@ -203,7 +83,7 @@ class PolyLMI:
 
     def theta(self, z: Sequence[float]) -> dict[str, float]:
         if self.method is not None:
-            return self.method.theta(z)
+            return self.method.box.theta(z)
         th = self.mid + self.half * np.asarray(z, dtype=float)
         return dict(zip(self.free, map(float, th), strict=True))
 
@@ -238,14 +118,15 @@ def poly_lmi(method: ExactMethod, family: CertificateFamily, template: LMIProble
             for M in mats:
                 entries.extend(M)  # row-major
         layout.append(pos)
-    degrees, cols = ball_coefficients(entries, method.zs, deadline)
+    degrees, cols = ball_coefficients(entries, method.box.zs, deadline)
     balls = arb_mat(cols)
     mids = np.array([[float(x.mid()) for x in row] for row in cols])
     shape = tuple(d + 1 for d in degrees)
     coef = [{key: mids[:, s:s + int(np.prod(sh))].reshape(shape + sh)
              for key, (s, sh) in pos.items()} for pos in layout]
-    return PolyLMI(list(method.free), np.array([float(x) for x in method.mid]),
-                   np.array([float(x) for x in method.half]), degrees,
+    box = method.box
+    return PolyLMI(list(box.free), np.array([float(x) for x in box.mid]),
+                   np.array([float(x) for x in box.half]), degrees,
                    [b.name for b in blocks], [b.strict for b in blocks], coef, template,
                    balls, layout, method)
 
@@ -333,4 +214,5 @@ def shift_tensor(coef: np.ndarray, degrees: Sequence[int], center: np.ndarray,
 def numeric_template(spec: Spec, kappa: float, method: ExactMethod,
                      family: CertificateFamily) -> LMIProblem:
     """The family's numeric problem at the box center (its unpack/project, sizes)."""
-    return family.problem(evaluate_algorithm(spec, kappa, method.theta(np.zeros(method.k))))
+    box = method.box
+    return family.problem(evaluate_algorithm(spec, kappa, box.theta(np.zeros(box.k))))

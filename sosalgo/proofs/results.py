@@ -26,7 +26,7 @@ import numpy as np
 
 from sosalgo.certificates import FAMILIES, default_family, get_family, spec_family
 from sosalgo.certificates.base import CertificateFamily, check_number
-from sosalgo.errors import InputError
+from sosalgo.errors import InputError, ModelError
 from sosalgo.kernel.exact import Verdict
 from sosalgo.kernel.phases import show_phase
 from sosalgo.kinds import CERTIFICATE_KIND
@@ -413,13 +413,13 @@ def _sublinear_check(spec: Spec, fam: CertificateFamily, C: float | None,
 def _sublinear_simulation(spec: Spec, C: float | None,
                           theta: dict[str, float] | None) -> dict[str, Any] | None:
     """The simulation check of the constant (:mod:`sosalgo.proofs.simulate_sublinear`)."""
-    from sosalgo.model import ModelError, bind_sublinear
+    from sosalgo.method import bind as bind_method
     from sosalgo.proofs.simulate_sublinear import simulate_sublinear
 
     if C is None:
         return None
     try:
-        return simulate_sublinear(bind_sublinear(spec, theta), C).to_dict()
+        return simulate_sublinear(bind_method(spec, None, theta), C).to_dict()
     except (ModelError, ValueError, FloatingPointError, OverflowError) as exc:
         return {"ok": None, "skipped": f"not run: {exc}"}
 

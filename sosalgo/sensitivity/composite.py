@@ -20,17 +20,17 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
 from sosalgo.certificates.composite import composite_structure
 from sosalgo.kernel.solvers import SolverStatus, cvxpy_solve
-from sosalgo.oracles import CallShape
+from sosalgo.oracles import BoundFunction, Method
 from sosalgo.sensitivity.sdp import GAP_TOL, MARGINS, NoiseCertificate, check_lag
 
-__all__ = ["NoisyModel", "noisy_calls", "noisy_model", "composite_noise_certificate",
+__all__ = ["noisy_calls", "noisy_model", "composite_noise_certificate",
            "composite_noise_parts", "composite_noise_quadratic", "exact_noise_structure",
            "known_columns",
            "real_rows"]
@@ -48,22 +48,10 @@ class NoiseInput:
 NOISE = NoiseInput()
 
 
-@dataclass
-class NoisyModel(CallShape):
-    """An oracle method with the noises as extra calls (A, B, C, D, E augmented)."""
-
-    A: Any
-    B: Any
-    C: Any
-    D: Any
-    E: Any
-    functions: Any
-    oracles: tuple[int, ...]
-    output: int | None
-    L: float
-    p_real: int
-    noisy: list[int]
-    measure: str = "distance"
+def real_calls(nm: Method) -> int:
+    """How many calls of the noisy model ``nm`` are the method's own (the noise calls come
+    after them)."""
+    return sum(1 for j in nm.oracles if nm.functions[j].cls is not NOISE)
 
 
 def noisy_calls(om: Any) -> list[int]:
@@ -82,29 +70,29 @@ def _augment(A: Any, B: Any, C: Any, D: Any, noisy: list[int], zero: Any) -> tup
     return np.hstack([B, Bw]), np.vstack([C, Cz]), np.vstack([np.hstack([D, Dw]), Dz])
 
 
-def noisy_model(om: Any, exact: Any = None) -> NoisyModel | Any:
-    """The float model of an OracleMethod ``om`` (or, with ``exact`` an
-    :class:`~sosalgo.certificates.exact_composite.ExactOracleMethod`, the exact one)."""
+def noisy_model(om: Any, exact: Any = None) -> Method:
+    """The noisy model of an OracleMethod ``om``: the method with the noises as extra
+    calls (A, B, C, D, E augmented; a pseudo-class ``noise``, measure ``distance``), over
+    floats (or, with ``exact`` the method over balls, over balls)."""
     noisy = noisy_calls(om)
     J = len(om.functions)
+    noise = (BoundFunction("noise", NOISE, {}),)  # type: ignore[arg-type]
+    oracles = tuple(om.oracles) + (J,) * len(noisy)
     if exact is None:
-        from sosalgo.oracles import BoundFunction
-
         B, C, D = _augment(om.A, om.B, om.C, om.D, noisy, 0.0)
-        funcs = tuple(om.functions) + (BoundFunction("noise", NOISE, {}),)  # type: ignore
-        return NoisyModel(om.A, B, C, D, om.E, funcs, tuple(om.oracles) + (J,) * len(noisy),
-                          om.output, float(om.L), om.p, noisy)
+        return Method(om.A, B, C, D, om.E, om.m, float(om.L), tuple(om.functions) + noise,
+                      oracles, om.output, "distance")
     from sosalgo.kernel.exact import Ball
 
     B, C, D = _augment(exact.A, exact.B, exact.C, exact.D, noisy, Ball(0))
-    return replace(exact, B=B, C=C, D=D, functions=list(exact.functions) + [("noise", NOISE, {})],
-                   oracles=tuple(exact.oracles) + (J,) * len(noisy), measure="distance")
+    return replace(exact, B=B, C=C, D=D, functions=tuple(exact.functions) + noise,
+                   oracles=oracles, measure="distance")
 
 
-def known_columns(nm: NoisyModel, lag: int, width: int) -> list[int]:
+def known_columns(nm: Method, lag: int, width: int) -> list[int]:
     """Columns of the decrease window not depending on the new noise w_{l+1}: all but the
     noise columns at time l + 1 and the calls at l + 1 whose point depends on them."""
-    p, pr, t = nm.p, nm.p_real, lag + 1
+    p, pr, t = nm.p, real_calls(nm), lag + 1
     unknown = set(range(pr, p))
     grew = True
     while grew:
@@ -117,10 +105,11 @@ def known_columns(nm: NoisyModel, lag: int, width: int) -> list[int]:
     return [k for k in range(width) if k not in drop]
 
 
-def real_rows(nm: NoisyModel, lag: int, nphi: int) -> tuple[list[int], list[int]]:
+def real_rows(nm: Method, lag: int, nphi: int) -> tuple[list[int], list[int]]:
     """(rows of F, columns of phi) of the real calls (the noise calls carry no values)."""
-    rows = [tau * nm.p + i for tau in range(lag + 1) for i in range(nm.p_real)]
-    return rows, [q for q in range(nphi) if q % nm.p < nm.p_real]
+    pr = real_calls(nm)
+    rows = [tau * nm.p + i for tau in range(lag + 1) for i in range(pr)]
+    return rows, [q for q in range(nphi) if q % nm.p < pr]
 
 
 def composite_noise_parts(nm: Any, st: Any, cert: dict[str, Any],
@@ -135,7 +124,7 @@ def composite_noise_parts(nm: Any, st: Any, cert: dict[str, Any],
     D = Z1.T @ P @ Z1 - Z0.T @ P @ Z0 + d.meas_quad
     for e, M in zip(eta, d.Mq, strict=True):
         D = D + e * M
-    noise = [nm.n + nm.p * (lag + 1) + i for i in range(nm.p_real, nm.p)]
+    noise = [nm.n + nm.p * (lag + 1) + i for i in range(real_calls(nm), nm.p)]
     ci = iter(c)
     for w in noise:
         D[w, w] = D[w, w] - s
@@ -154,15 +143,16 @@ def composite_noise_parts(nm: Any, st: Any, cert: dict[str, Any],
     return {"D": D, "Df": Df[cols], "Pq": Pq, "Pf": Pf[real_rows(nm, lag, p.nphi)[1]]}
 
 
-def _solve(nm: NoisyModel, st: Any, known: list[int], margin: float,
+def _solve(nm: Method, st: Any, known: list[int], margin: float,
            weight: float) -> tuple[str, dict[str, Any] | None, str]:
     """One SDP (cvxpy, Clarabel) at ``margin`` with the supply weighted by ``weight``."""
     import cvxpy as cp
 
     d, p, lag = st.dec, st.pos, st.lag
     nz = d.Z[lag].shape[0]
-    nw = nm.p - nm.p_real
-    var = {"P": cp.Variable((nz, nz), symmetric=True), "p": cp.Variable((lag + 1) * nm.p_real),
+    pr = real_calls(nm)
+    nw = nm.p - pr
+    var = {"P": cp.Variable((nz, nz), symmetric=True), "p": cp.Variable((lag + 1) * pr),
            "s": cp.Variable(), "c": cp.Variable(nw * len(known)),
            "eta": cp.Variable(len(d.labels), nonneg=True),
            "lam": cp.Variable(len(p.labels), nonneg=True)}
@@ -185,7 +175,7 @@ def _solve(nm: NoisyModel, st: Any, known: list[int], margin: float,
     return "solved", vals, f"clarabel: {prob.status}, margin {margin:g}"
 
 
-def _cvx_parts(nm: NoisyModel, st: Any, var: dict[str, Any], known: list[int]) -> dict:
+def _cvx_parts(nm: Method, st: Any, var: dict[str, Any], known: list[int]) -> dict:
     """The parts as cvxpy expressions (affine in the variables)."""
     import cvxpy as cp
 
@@ -195,7 +185,7 @@ def _cvx_parts(nm: NoisyModel, st: Any, var: dict[str, Any], known: list[int]) -
     W = d.width
     D = Z1.T @ var["P"] @ Z1 - Z0.T @ var["P"] @ Z0 + d.meas_quad
     D = D + sum(var["eta"][k] * d.Mq[k] for k in range(len(d.labels)))
-    noise = [nm.n + nm.p * (lag + 1) + i for i in range(nm.p_real, nm.p)]
+    noise = [nm.n + nm.p * (lag + 1) + i for i in range(real_calls(nm), nm.p)]
     k = 0
     for w in noise:
         D = D - var["s"] * _unit(W, w, w)
@@ -246,7 +236,7 @@ def composite_noise_certificate(om: Any, lag: int = 0, quadratic: float = 1.0,
         checks = float_checks(composite_noise_parts(nm, st, vals, known))
         if (checks["max_eig_D"] <= 0 and checks["max_Df"] <= 0 and checks["min_eig_Pq"] >= 0
                 and checks["min_Pf"] >= 0 and vals["s"] > 0):
-            cert = {"lag": lag, "noisy": [f"y{i + 1}" for i in nm.noisy], "P": vals["P"],
+            cert = {"lag": lag, "noisy": [f"y{i + 1}" for i in noisy_calls(om)], "P": vals["P"],
                     "p": vals["p"].tolist(), "s": vals["s"], "c": vals["c"].tolist(),
                     "multipliers": {
                         "decrease": dict(zip(st.dec.labels, vals["eta"].tolist(), strict=True)),
@@ -259,9 +249,10 @@ def composite_noise_certificate(om: Any, lag: int = 0, quadratic: float = 1.0,
                             time.perf_counter() - start, detail)
 
 
-def _loop_gamma2(nm: NoisyModel, K: np.ndarray) -> float:
+def _loop_gamma2(nm: Method, K: np.ndarray) -> float:
     """gamma^2 per noisy call of the linear loop u = K y (K: curvature per real call)."""
-    pr, nw, n = nm.p_real, nm.p - nm.p_real, nm.n
+    pr, n = real_calls(nm), nm.n
+    nw = nm.p - pr
     C, D = nm.C[:pr], nm.D[:pr, :pr]
     Pi = nm.D[:pr, pr:]  # D Pi
     M = np.linalg.solve(np.eye(pr) - K @ D, K)  # u = M (C xi + D Pi w)

@@ -192,7 +192,11 @@ def verify_composite_noise(spec: Spec, kappa: float, cert: Mapping[str, Any],
     gamma <= sqrt(s) rounded up; the fixed points proven exactly as for the rates
     (:func:`sosalgo.certificates.exact_composite.fixed_point_failure`)."""
     from sosalgo.kernel.exact import prove_definite, symmetrize_balls
-    from sosalgo.sensitivity.composite import composite_noise_parts, exact_noise_structure
+    from sosalgo.sensitivity.composite import (
+        composite_noise_parts,
+        exact_noise_structure,
+        real_calls,
+    )
     from sosalgo.sensitivity.sdp import check_lag
 
     start = time.perf_counter()
@@ -202,7 +206,8 @@ def verify_composite_noise(spec: Spec, kappa: float, cert: Mapping[str, Any],
         check_lag(lag)
         nm, st, known = exact_noise_structure(spec, kappa, theta, lag, digits or DEFAULT_DIGITS)
         num = _composite_numbers(cert, st, st.dec.Z[lag].shape[0],
-                                 ((lag + 1) * nm.p_real, (nm.p - nm.p_real) * len(known)))
+                                 ((lag + 1) * real_calls(nm),
+                                  (nm.p - real_calls(nm)) * len(known)))
         res.certificate = {"lag": lag, "s": fraction_str(num["s"])}
         parts = composite_noise_parts(nm, st, num, known)
         bad = [i for i, v in enumerate(parts["Df"]) if Ball.of(v).hi > 0] + \

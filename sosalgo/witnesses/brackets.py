@@ -29,9 +29,9 @@ from typing import Any
 import numpy as np
 from flint import arb, arb_mat
 
-from sosalgo.classes import get_class
 from sosalgo.kernel.arb import arb_fraction, arb_of, precision
-from sosalgo.witnesses.method import ArbMethod, arb_method
+from sosalgo.method import arb_method, arb_output_row
+from sosalgo.oracles import Method
 
 __all__ = ["BRACKET_KINDS", "Bracketed", "bracketed", "has_root_outside", "output_part",
            "quadratic_bracket", "quadratic_witness_fails", "rate_bracket",
@@ -53,7 +53,7 @@ class Bracketed:
     kappa: float
     theta: Mapping[str, float] | None
     om: Any  # OracleMethod
-    am: ArbMethod
+    am: Method  # over arb balls
 
 
 def bracketed(spec: Any, kappa: float, theta: Mapping[str, float] | None = None
@@ -73,7 +73,7 @@ def _curvature_box(bk: Bracketed) -> list[tuple[Fraction, Fraction]] | None:
     has none we know."""
     out = []
     for _, cls, params in bk.am.functions:
-        cur = get_class(cls).exact_curvatures(
+        cur = cls.exact_curvatures(
             lambda k, p=params: arb_fraction(p[k].lower()),
             lambda k, p=params: arb_fraction(p[k].upper()))
         if cur is None or cur[0] > cur[1]:
@@ -164,15 +164,16 @@ def _rational_q(q: np.ndarray, box: Sequence[tuple[Fraction, Fraction]],
     return [min(max(r, lo), hi) for r, (lo, hi) in zip(out, box, strict=True)]
 
 
-def _loop_exact(am: ArbMethod, q: Sequence[Fraction]) -> tuple[arb_mat, arb_mat]:
+def _loop_exact(am: Method, q: Sequence[Fraction]) -> tuple[arb_mat, arb_mat]:
     """(M(q), output row) in balls."""
-    b, p = am.mats, len(am.oracles)
+    p = am.p
     Qd = arb_mat(p, p)
     for i, j in enumerate(am.oracles):
         Qd[i, i] = arb_of(q[j])
     eye = arb_mat([[1 if i == j else 0 for j in range(p)] for i in range(p)])
-    K = (eye - Qd * b["D"]).solve(Qd * b["C"])
-    return b["A"] + b["B"] * K, b["erow"] + b["drow"] * K
+    K = (eye - Qd * am.D).solve(Qd * am.C)
+    erow, drow = arb_output_row(am)
+    return am.A + am.B * K, erow + drow * K
 
 
 def _observable(M: arb_mat, row: arb_mat) -> bool:
