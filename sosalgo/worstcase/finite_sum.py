@@ -384,6 +384,8 @@ def finite_sum_pep(spec: Spec, kappa: float | None, steps: int, measure: str | N
     out: dict[str, Any] = {"measure": measure, "initial": initial, "status": status,
                            "tau": tau, "gap": None, "certificate": None,
                            "extra": {"outcomes": pb.leaves}}
+    if spec.finite_sum.per_step:  # step k calls f_k: one outcome, no draw
+        out["extra"]["per_step"] = spec.finite_sum.function
     if status == "unbounded":
         out["tau"] = math.inf
         out["extra"]["note"] = "the measure is unbounded for this initial condition"
