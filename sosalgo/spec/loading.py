@@ -425,7 +425,10 @@ class _Builder:
                                           "is called by the step of finite_sum:")
         fs = parse_finite_sum(data["finite_sum"], self.counts, names, self.fail,
                               lambda raw: self.expr(raw, names, "finite_sum.blocks"))
-        references = self.references(data.get("references", {}))
+        self.in_references = True  # one function per step: references may use N
+        references = self.references(data.get("references", {}),
+                                     ("N",) if fs.per_step and "N" in self.step_names else ())
+        self.in_references = False
         kappa = () if m == 0 else self.kappa(data.get("kappa", [10]))
         return Spec(
             name=name, description=description, source=self.source, parameters=params,

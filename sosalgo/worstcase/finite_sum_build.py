@@ -627,8 +627,11 @@ def own_conditions(cls: Any, params: dict[str, Ball]) -> list[tuple[Any, Any, An
     """A class's interpolation conditions on its own data (not tilted): (alpha, Q,
     constant, on one point?) each, ``alpha (f_a - f_b) + <Q X, X> + constant >= 0``;
     [] when the class has none to give (tilted only)."""
+    from sosalgo.classes.base import FunctionClass
+
     if not (cls.has_values and (cls.tilt_invariant or cls.alone
-                                or getattr(cls, "zero_values", False))):
+                                or getattr(cls, "zero_values", False))) \
+            or type(cls).blocks is not FunctionClass.blocks:  # Gram-level conditions
         return []
     exact = cls.exact_pinned(params)
     scopes = [q.scope for q in cls.pinned({k: float(v.c) for k, v in params.items()})]
@@ -638,8 +641,9 @@ def own_conditions(cls: Any, params: dict[str, Ball]) -> list[tuple[Any, Any, An
     out = []
     for (alpha, Q), c, scope in zip(exact, consts, scopes, strict=True):
         one = scope == "optimum"  # on g_a alone (|g_a| <= M): each point once
-        if one and any(Q[r][s] for r in range(4) for s in range(4) if (r, s) != (2, 2)):
-            return []
+        if one and (alpha != 0 or any(Q[r][s] for r in range(4) for s in range(4)
+                                      if (r, s) != (2, 2))):
+            return []  # a condition relative to a minimizer (quadratic growth, PL)
         out.append((alpha, Q, c, one))
     return out
 
