@@ -316,6 +316,15 @@ def prove(pb: Problem, lam: list[Fraction]) -> tuple[bool, Fraction | None, str]
     return True, t.hi, f"S ⪰ {float(delta):.3g} I ({why}), the values cancel exactly"
 
 
+def _attempts(per_step: bool) -> list[tuple[float, bool | None]]:
+    """(margin, solver tolerances) in order: a per-step program tries each margin at
+    tolerance 1e-10, then at Clarabel's defaults (the first stops early on its larger
+    PEPs); the others :func:`_solve` (the defaults only where the first fails)."""
+    if per_step:
+        return [(rel, precise) for rel in MARGINS for precise in (True, False)]
+    return [(rel, None) for rel in MARGINS]
+
+
 def _certificate(pb: Problem, tau: float, spec: Spec, kappa: float | None
                  ) -> dict[str, Any]:
     from sosalgo.worstcase.exact import class_description, decimal_up
@@ -326,8 +335,10 @@ def _certificate(pb: Problem, tau: float, spec: Spec, kappa: float | None
     detail = "no certificate solved"
     inexact = any(v.r for f in [*pb.forms, pb.measure] for v in f.g.values())
     misses = 0
-    for rel in MARGINS:
-        status, t, lam = _solve(pb, rel * max(tau, 1e-12))
+    per_step = spec.finite_sum.per_step  # its null rows are handled: every margin tried
+    for rel, precise in _attempts(per_step):
+        status, t, lam = (_solve(pb, rel * max(tau, 1e-12)) if precise is None else
+                          _solve_once(pb, rel * max(tau, 1e-12), precise))
         if status != "solved" or lam is None:
             continue
         top = float(lam.max(initial=0.0))
@@ -346,7 +357,8 @@ def _certificate(pb: Problem, tau: float, spec: Spec, kappa: float | None
         if low < (1e-12 if inexact else -1e-12) * max(1.0, float(np.abs(S).max())):
             detail = f"floating-point pre-check: S is not PSD (least eigenvalue {low:.3g})"
             misses += 1
-            if misses >= MAX_MISSES:  # S singular whatever the margin: no S > 0 exists
+            # S singular whatever the margin: no S > 0 exists
+            if misses >= MAX_MISSES and not per_step:
                 break
             continue
         ok, upper, detail = prove(pb, lq2)
