@@ -62,6 +62,17 @@ def test_sqrt_n_regret_is_the_worst_case(name, steps, M, D):
     assert want * (1 - 1e-9) <= _proven(res) <= want * (1 + 1e-6)
 
 
+def test_a_start_near_the_reference_is_zinkevichs_bound():
+    """With |x_0 - x_ref| <= r (``--initial``), online gradient descent's regret is at
+    most r^2/(2 gamma) + gamma N M^2/2 (Zinkevich 2003), attained at N = 2."""
+    spec = _spec("online-gradient-descent")
+    res = sosalgo.pep(spec, None, 2, initial="(x - xs)**2 <= 1/100")
+    gamma = 0.5 / math.sqrt(2)
+    want = 0.01 / (2 * gamma) + gamma * 2 / 2
+    assert abs(res.tau - want) <= 1e-6 * want
+    assert want * (1 - 1e-9) <= _proven(res) <= want * (1 + 1e-6)
+
+
 @pytest.mark.parametrize("name", ["follow-the-leader", "online-frank-wolfe"])
 def test_two_steps_on_a_set_of_diameter_d(name):
     """Two steps (x_1 = argmin over C of f_0 for FTL; sigma = 1, OFW's x_1 = the LMO's
