@@ -407,6 +407,10 @@ def pep_heading(rows: list[dict[str, Any]]) -> list[str]:
     bound = "" if drawn and "<=" in str(d["initial"]) else " <= 1"
     lines = [f"{d['spec']}: tau = worst case of {term_words(d['measure'], False, several)} "
              f"when {term_words(d['initial'], True, several)}{bound}, over"]
+    if d.get("per_step"):  # a per-step program: its terms as written
+        when = ("no initial condition (the classes' constants bound it)"
+                if d["initial"] == "none" else f"{d['initial']}")
+        lines = [f"{d['spec']}: tau = worst case of {d['measure']} ({when}), over"]
     for name, fn in funcs.items():
         what = getattr(CLASSES.get(fn.get("class")), "description", "") or fn.get("class")
         params = {k: ("kappa m" if many and k == "L" else v)
@@ -431,6 +435,12 @@ def pep_heading(rows: list[dict[str, Any]]) -> list[str]:
         lines.append(f"  {call}: the true subgradient at {src}'s point")
     if cls.get("line_search"):
         lines.append(f"  {cls['line_search']}: chosen at every step by exact line search")
+    if d.get("per_step"):
+        f = d["per_step"]
+        return lines + ["  start: every vector of finite_sum.state free, then "
+                        "finite_sum.start (xs: the reference point)",
+                        f"  N steps: step k = 0..N-1 calls {f}[i] = {f}_k, a new function "
+                        "of its class; sum(...): the sum over the steps"]
     if drawn:
         return lines + ["  start: every vector of finite_sum.state free",
                         "  N steps: N runs of finite_sum.step, each drawing its index i "

@@ -23,12 +23,14 @@ from typing import Any
 
 __all__ = ["FiniteSum", "VECTOR_CALLS", "check_program_text", "parse_finite_sum"]
 
-VECTOR_CALLS = ("grad", "prox", "mean", "sqrt", "block")  # the calls the program and terms may use
+VECTOR_CALLS = ("grad", "prox", "mean", "sqrt", "block", "argmin", "lmo", "sum")
+# the calls the program and terms may use
 MAX_STATEMENTS = 20
 MAX_TEXT = 2000
 _ALLOWED = (ast.Expression, ast.BinOp, ast.UnaryOp, ast.Add, ast.Sub, ast.Mult, ast.Div,
             ast.Pow, ast.USub, ast.UAdd, ast.Name, ast.Load, ast.Constant, ast.Call,
-            ast.Subscript, ast.Compare, ast.LtE, ast.GtE)
+            ast.Subscript, ast.Compare, ast.LtE, ast.GtE, ast.Slice)
+REFERENCES = ("minimizer", "free")  # xs: a minimizer of the sum, or a free common point
 
 
 @dataclass(frozen=True)
@@ -45,6 +47,14 @@ class FiniteSum:
     # ``blocks: d`` instead of a function with count: the space is cut in d orthogonal
     # blocks, ``block(v, i)`` is v's i-th, and the step draws a block (count is d)
     blocks: bool = False
+    # ``per_step: true`` on the function instead of ``count``: step k calls f_k, a new
+    # member of the class (online learning; count = the number of steps, no draw)
+    per_step: bool = False
+    # assignments run once before the first step (``x = prox(h, 1, x)``: x_0 projected)
+    start: tuple[tuple[str, bool, str], ...] = ()
+    # xs: "minimizer" (of the sum: the gradients at xs sum to 0) or "free" (a point of
+    # every function's domain, nothing else: a regret's reference point)
+    reference: str = "minimizer"
 
     def memory(self) -> frozenset[str]:
         return frozenset(name for name, per in self.state if per)
@@ -87,17 +97,31 @@ def parse_finite_sum(raw: object, counts: dict[str, Any], names: Collection[str]
                      blocks: Callable[[object], Any] | None = None) -> FiniteSum:
     """``finite_sum:`` checked against the functions' counts (exactly one function with
     ``count``) and the spec's names (parameters, m, L, kappa)."""
-    if not isinstance(raw, dict) or set(raw) - {"state", "step", "constraints", "blocks"}:
+    if not isinstance(raw, dict) or set(raw) - {"state", "step", "constraints", "blocks",
+                                                 "start", "reference"}:
         raise fail("finite_sum", "expected a mapping with state, step (and constraints, "
-                                 "blocks)")
+                                 "blocks, start, reference)")
     if len(counts) + ("blocks" in raw) != 1:
         raise fail("finite_sum", "exactly one function must have count: n (the drawn one), "
                                  "or blocks: d (a block of coordinates drawn) be given")
     function, count = next(iter(counts.items())) if counts else (None, None)
+    per_step = function is not None and count is None
     if "blocks" in raw:
         count = blocks(raw["blocks"])
     state = _state(raw.get("state"), names, fail)
     step = _step(raw.get("step"), {s for s, _ in state}, dict(state), fail)
+    start = _step(raw["start"], {s for s, _ in state}, dict(state), fail,
+                  "finite_sum.start") if "start" in raw else []
+    if any(indexed for _, indexed, _ in start):
+        raise fail("finite_sum.start", "no draw before the first step: assign whole "
+                                       "vectors (x = ...)")
+    reference = raw.get("reference", "minimizer")
+    if reference == "free" and not per_step:
+        raise fail("finite_sum.reference", "free: only with a per-step function "
+                                           "(functions.f.per_step: true)")
+    if reference not in REFERENCES:
+        raise fail("finite_sum.reference", f"must be one of {', '.join(REFERENCES)}, got "
+                                           f"{str(reference)[:40]!r}")
     cons = raw.get("constraints", [])
     if not isinstance(cons, list) or len(cons) > MAX_STATEMENTS:
         raise fail("finite_sum.constraints", f"a list of at most {MAX_STATEMENTS} "
@@ -105,7 +129,7 @@ def parse_finite_sum(raw: object, counts: dict[str, Any], names: Collection[str]
     for k, c in enumerate(cons):
         check_program_text(c, f"finite_sum.constraints[{k}]", fail, compare=True)
     return FiniteSum(function, count, tuple(state), tuple(step), tuple(str(c) for c in cons),
-                     "blocks" in raw)
+                     "blocks" in raw, per_step, tuple(start), str(reference))
 
 
 def _state(raw: object, names: Collection[str], fail: Callable[[str, str], Exception]
@@ -128,13 +152,14 @@ _RESERVED = {"E", "xs", "i", "j", "n", *VECTOR_CALLS}
 
 
 def _step(raw: object, state: set[str], per: dict[str, bool],
-          fail: Callable[[str, str], Exception]) -> list[tuple[str, bool, str]]:
+          fail: Callable[[str, str], Exception], field: str = "finite_sum.step"
+          ) -> list[tuple[str, bool, str]]:
     if not isinstance(raw, list) or not raw or len(raw) > MAX_STATEMENTS:
-        raise fail("finite_sum.step", f"a list of at most {MAX_STATEMENTS} assignments "
-                                      "'x = ...' (phi[i] = ... for the drawn index)")
+        raise fail(field, f"a list of at most {MAX_STATEMENTS} assignments "
+                          "'x = ...' (phi[i] = ... for the drawn index)")
     out = []
     for k, item in enumerate(raw):
-        where = f"finite_sum.step[{k}]"
+        where = f"{field}[{k}]"
         text = str(item)
         target, sep, expr = text.partition("=")
         tname = target.replace(" ", "")

@@ -421,11 +421,14 @@ class _Builder:
             if key in data:
                 raise self.fail(key, "not with finite_sum: (the step is its program)")
         if "finite_sum" not in data:
-            raise self.fail("finite_sum", "missing: a function with count: is drawn by "
-                                          "the step of finite_sum:")
+            raise self.fail("finite_sum", "missing: a function with count: (or per_step:) "
+                                          "is called by the step of finite_sum:")
         fs = parse_finite_sum(data["finite_sum"], self.counts, names, self.fail,
                               lambda raw: self.expr(raw, names, "finite_sum.blocks"))
-        references = self.references(data.get("references", {}))
+        self.in_references = True  # one function per step: references may use N
+        references = self.references(data.get("references", {}),
+                                     ("N",) if fs.per_step and "N" in self.step_names else ())
+        self.in_references = False
         kappa = () if m == 0 else self.kappa(data.get("kappa", [10]))
         return Spec(
             name=name, description=description, source=self.source, parameters=params,
@@ -531,6 +534,12 @@ class _Builder:
                 if key == "count":  # one of n functions drawn per step (finite_sum:)
                     self.counts[fname] = self.expr(val, spec_names | set(BASE_NAMES),
                                                    f"{where}.count")
+                    continue
+                if key == "per_step":  # a new member of the class at every step
+                    if val is not True or "count" in body:
+                        raise self.fail(f"{where}.per_step", "true (step k calls f_k, a "
+                                        "new function of the class; not with count:)")
+                    self.counts[fname] = None
                     continue
                 if key not in cls.parameters:
                     raise self.fail(f"{where}.{str(key)[:40]}", f"not a parameter of {cname} "

@@ -24,7 +24,14 @@ import sympy as sp
 from sosalgo.errors import InputError
 from sosalgo.kernel.exact import Ball, enclose, fraction_str, prove_definite, rational
 from sosalgo.spec import Spec
-from sosalgo.worstcase.finite_sum_build import Form, PointSet, Problem, build_problem
+from sosalgo.worstcase.finite_sum_build import (
+    NO_INITIAL,
+    Form,
+    PointSet,
+    Problem,
+    build_problem,
+    check_own_conditions,
+)
 
 __all__ = ["MAX_COUNT", "exact_problem", "finite_sum_pep", "finite_sum_sizes",
            "reprove_finite_sum"]
@@ -37,23 +44,31 @@ NO_WITNESS = ("no worst-case witness for a finite sum (tau_proven is the proven 
               "bound)")
 
 
-def _env(spec: Spec, kappa: float | None) -> dict[Any, sp.Expr]:
-    """m, L, kappa and every parameter's value, exactly, by symbol."""
+def _env(spec: Spec, kappa: float | None, steps: int) -> dict[Any, sp.Expr]:
+    """m, L, kappa, the horizon N (the number of steps) and every parameter's value,
+    exactly, by symbol."""
     from sosalgo.kernel.expr.parse import to_sympy
     from sosalgo.spec.types import value_order
     from sosalgo.worstcase.exact import exact_base
 
     env = dict(exact_base(spec, kappa))
+    if "N" not in spec.parameters:
+        env[sp.Symbol("N", real=True)] = sp.Integer(steps)
     for p in value_order(spec.parameters, spec.source):
         par = spec.parameters[p]
         env[spec.symbols[p]] = to_sympy(par.tied if par.is_tied else par.value).xreplace(env)
     return env
 
 
-def _count(spec: Spec, env: dict[Any, sp.Expr]) -> int:
+def _count(spec: Spec, env: dict[Any, sp.Expr], steps: int) -> int:
     from sosalgo.kernel.expr.parse import to_sympy
 
     fs = spec.finite_sum
+    if fs.per_step:  # f_1..f_N: one function per step
+        if not 1 <= steps <= MAX_COUNT:
+            raise InputError(f"--steps: must be in 1..{MAX_COUNT} (one function per step, "
+                             f"functions.{fs.function}.per_step), got {steps}")
+        return steps
     n = to_sympy(fs.count).xreplace(env)
     n = sp.nsimplify(n) if getattr(n, "is_Float", False) else n
     if not (n.is_Integer and 1 <= int(n) <= MAX_COUNT):
@@ -73,7 +88,9 @@ def _point_sets(spec: Spec, subs: dict[Any, sp.Expr], n: int) -> list[PointSet]:
     for name in drawn:
         decl = spec.functions[name]
         cls = CLASSES[decl.cls]
-        if not (cls.has_values and cls.tilt_invariant and cls.homogeneous) or \
+        if fs.per_step:
+            check_own_conditions(cls, spec.source, name)
+        elif not (cls.has_values and cls.tilt_invariant and cls.homogeneous) or \
                 cls.exact_tilted({k: Ball(1) for k in cls.parameters}) is None:
             raise InputError(f"{spec.source}: functions.{name}.class: {decl.cls} is not "
                              "taken in a finite sum (convex classes with values and "
@@ -87,8 +104,8 @@ def _point_sets(spec: Spec, subs: dict[Any, sp.Expr], n: int) -> list[PointSet]:
 def exact_problem(spec: Spec, kappa: float | None, steps: int, measure: str,
                   initial: str) -> Problem:
     """The exact PEP of the finite-sum ``spec`` (InputError for bad input)."""
-    env = _env(spec, kappa)
-    n = _count(spec, env)
+    env = _env(spec, kappa, steps)
+    n = _count(spec, env, steps)
     named = {str(k): v for k, v in env.items()}
     return build_problem(spec.finite_sum, n, named, _point_sets(spec, env, n), steps,
                          measure, initial, spec.source)
@@ -109,6 +126,29 @@ def _vector(form: Form, nv: int) -> np.ndarray:
     out = np.zeros(nv)
     for k, v in form.v.items():
         out[k] += float(v.c)
+    return out
+
+
+def null_directions(pb: Problem) -> list[int]:
+    """Basis vectors no term squares (no diagonal entry in any constraint nor in the
+    measure: a free vector, a normal vector of an indicator): S ⪰ 0 needs their rows of S
+    zero, so the margin leaves them out and the proof checks them exactly zero."""
+    diag = {a for f in [*pb.forms, pb.measure] for (a, b) in f.g if a == b}
+    return [a for a in range(pb.d) if a not in diag]
+
+
+def _pruned(pb: Problem, lam: list[Fraction], top: float) -> list[Fraction]:
+    """``lam`` with the multipliers of the constraints that touch a null direction set to
+    0 where they are solver noise (below 1e-4 of the largest: a constraint touching a
+    null direction only through cross terms must have multiplier 0 for S ⪰ 0)."""
+    null = set(null_directions(pb))
+    if not null:
+        return lam
+    out = list(lam)
+    for k, f in enumerate(pb.forms):
+        if out[k] and float(out[k]) < 1e-4 * top and any(a in null or b in null
+                                                         for a, b in f.g):
+            out[k] = Fraction(0)
     return out
 
 
@@ -151,7 +191,9 @@ def _solve_once(pb: Problem, margin: float, precise: bool
                     sps.hstack([csc(svec(Q).T), sps.eye(T)]),
                     sps.hstack([-sps.eye(K), csc((K, T))]),
                     sps.hstack([csc((T, K)), -sps.eye(T)])]).tocsc()
-    b = np.concatenate([-mv, svec(-M - margin * np.eye(d)), np.zeros(K + T)])
+    ident = np.eye(d)
+    ident[null_directions(pb), null_directions(pb)] = 0.0
+    b = np.concatenate([-mv, svec(-M - margin * ident), np.zeros(K + T)])
     settings = quiet_settings()
     if precise:
         settings.tol_gap_abs = settings.tol_gap_rel = settings.tol_feas = 1e-10
@@ -263,10 +305,24 @@ def prove(pb: Problem, lam: list[Fraction]) -> tuple[bool, Fraction | None, str]
         else:
             mat[a][b] = mat[a][b] + v * half
             mat[b][a] = mat[b][a] + v * half
+    # a row exactly 0 (centre and radius) leaves S ⪰ 0 to the others
+    keep = [a for a in range(pb.d) if any(x.c or x.r for x in mat[a])]
+    mat = [[mat[a][b] for b in keep] for a in keep]
+    if not mat:
+        return True, t.hi, "S = 0, the values cancel exactly"
     ok, delta, why = prove_definite(mat, 1)
     if not ok:
         return False, None, f"S is not proven PSD: {why}"
     return True, t.hi, f"S ⪰ {float(delta):.3g} I ({why}), the values cancel exactly"
+
+
+def _attempts(per_step: bool) -> list[tuple[float, bool | None]]:
+    """(margin, solver tolerances) in order: a per-step program tries each margin at
+    tolerance 1e-10, then at Clarabel's defaults (the first stops early on its larger
+    PEPs); the others :func:`_solve` (the defaults only where the first fails)."""
+    if per_step:
+        return [(rel, precise) for rel in MARGINS for precise in (True, False)]
+    return [(rel, None) for rel in MARGINS]
 
 
 def _certificate(pb: Problem, tau: float, spec: Spec, kappa: float | None
@@ -279,12 +335,15 @@ def _certificate(pb: Problem, tau: float, spec: Spec, kappa: float | None
     detail = "no certificate solved"
     inexact = any(v.r for f in [*pb.forms, pb.measure] for v in f.g.values())
     misses = 0
-    for rel in MARGINS:
-        status, t, lam = _solve(pb, rel * max(tau, 1e-12))
+    per_step = spec.finite_sum.per_step  # its null rows are handled: every margin tried
+    for rel, precise in _attempts(per_step):
+        status, t, lam = (_solve(pb, rel * max(tau, 1e-12)) if precise is None else
+                          _solve_once(pb, rel * max(tau, 1e-12), precise))
         if status != "solved" or lam is None:
             continue
         top = float(lam.max(initial=0.0))
-        lq = [rational(v) if v > 1e-13 * top else Fraction(0) for v in lam]
+        lq = _pruned(pb, [rational(v) if v > 1e-13 * top else Fraction(0) for v in lam],
+                     top)
         lq2 = _balanced(pb, lq)
         if lq2 is None:
             detail = "the value equalities cannot be made exact with multipliers >= 0"
@@ -292,12 +351,14 @@ def _certificate(pb: Problem, tau: float, spec: Spec, kappa: float | None
         S = -_matrix(pb.measure, pb.d) - sum(
             (float(v) * _matrix(f, pb.d) for v, f in zip(lq2, pb.forms, strict=True) if v),
             np.zeros((pb.d, pb.d)))
-        low = float(np.linalg.eigvalsh(S)[0])
+        live = [a for a in range(pb.d) if np.any(S[a])]
+        low = float(np.linalg.eigvalsh(S[np.ix_(live, live)])[0]) if live else 0.0
         # the exact proof would fail: a semidefinite S is proven only in rationals
         if low < (1e-12 if inexact else -1e-12) * max(1.0, float(np.abs(S).max())):
             detail = f"floating-point pre-check: S is not PSD (least eigenvalue {low:.3g})"
             misses += 1
-            if misses >= MAX_MISSES:  # S singular whatever the margin: no S > 0 exists
+            # S singular whatever the margin: no S > 0 exists
+            if misses >= MAX_MISSES and not per_step:
                 break
             continue
         ok, upper, detail = prove(pb, lq2)
@@ -335,6 +396,8 @@ def finite_sum_pep(spec: Spec, kappa: float | None, steps: int, measure: str | N
     out: dict[str, Any] = {"measure": measure, "initial": initial, "status": status,
                            "tau": tau, "gap": None, "certificate": None,
                            "extra": {"outcomes": pb.leaves}}
+    if spec.finite_sum.per_step:  # step k calls f_k: one outcome, no draw
+        out["extra"]["per_step"] = spec.finite_sum.function
     if status == "unbounded":
         out["tau"] = math.inf
         out["extra"]["note"] = "the measure is unbounded for this initial condition"
@@ -374,6 +437,8 @@ def finite_sum_sizes(spec: Spec, kappas: list[float | None], steps: list[int],
 def _terms(spec: Spec, measure: str | None, initial: str | None) -> tuple[str, str]:
     m = measure or spec.pep.get("measure")
     i = initial or spec.pep.get("initial")
+    if spec.finite_sum.per_step and m and not i:  # the class's constants give the scale
+        return m, NO_INITIAL
     if not m or not i:
         raise InputError(f"{spec.source}: pep: a finite-sum spec gives its measure and "
                          "initial condition (pep: {measure: 'E[...]', initial: ...})")

@@ -24,11 +24,14 @@ from sosalgo.errors import InputError
 from sosalgo.kernel.exact import Ball, enclose
 from sosalgo.spec.finite_sum import FiniteSum, check_program_text
 
-__all__ = ["Form", "MAX_LEAVES", "PointSet", "Problem", "build_problem"]
+__all__ = ["Form", "MAX_LEAVES", "NO_INITIAL", "PointSet", "Problem", "build_problem",
+           "check_own_conditions"]
 
 MAX_LEAVES = 64  # n**N leaves at most (the tree of outcomes after N steps)
 MAX_POWER = 64  # |exponent| of a power of numbers at most
 ZERO = Ball(0)
+NO_INITIAL = "none"  # a per-step program's default: no initial condition (the class's
+# constants, M and D, bound the measure)
 
 
 @dataclass
@@ -129,6 +132,8 @@ class _Builder:
         self.used: list[Vec] = []
         self.blocks: dict[Any, list[Vec]] = {}  # the decomposed vectors' blocks
         self.extra: list[tuple[str, Form]] = []  # their orthogonality (two rows each)
+        self.history: list[dict[str, Any]] = []  # per step: the state before it
+        self.lazy: dict[str, Vec] = {}  # the start's free vectors, made at their first read
 
     def inner(self, a: Vec, b: Vec) -> Form:
         return inner(a, b, self.cache, self.used)
@@ -158,6 +163,13 @@ class _Builder:
         last = Vec(_scale(acc, sp.Rational(-wl.denominator, wl.numerator)))
         for ps, g in zip(self.functions, [*gs, last], strict=True):
             ps.points.append((Vec({}), g, self.value()))
+
+    def free_reference(self) -> None:
+        """xs = 0 a point of every function that is not one per step (in its domain:
+        inside the set of an indicator), its subgradient free; a per-step function gets
+        xs when a term or the step calls it there."""
+        for ps in self.functions[self.n:]:
+            ps.points.append((Vec({}), self.new(f"g*_{ps.name}"), self.value()))
 
     def block(self, v: Vec, k: int) -> Vec:
         """The k-th of v's n orthogonal blocks (n - 1 new basis vectors, the last the
@@ -234,6 +246,12 @@ class _Eval:
     def name(self, name: str, ctx: _Ctx) -> Any:
         if name == "xs":
             return Vec({})
+        if name == "i" and self.b.fs.per_step and ctx.i is not None:
+            return sp.Integer(ctx.i)  # the step's index, 0-based
+        if name in ctx.state and ctx.state[name] is None:  # first read: a free vector
+            if name not in self.b.lazy:
+                self.b.lazy[name] = self.b.new(f"{name}_0")
+            return self.b.lazy[name]
         if name in ctx.state:
             if ctx.leaves is not None and len(ctx.leaves) > 1 and ctx.state is ctx.leaves[0] \
                     and name in self.b.fs.memory() | {s for s, _ in self.b.fs.state}:
@@ -277,6 +295,23 @@ class _Eval:
             total = v if total is None else self.add(total, v, 1, ctx)
         return self.mul(sp.Rational(1, len(ctx.leaves)), total, ctx)
 
+    def functions(self, node: ast.AST, ctx: _Ctx) -> list[int]:
+        """The functions a sum names: ``h + f[i]``, ``f[:i+1]`` (f_0 .. f_i)."""
+        if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Add):
+            return self.functions(node.left, ctx) + self.functions(node.right, ctx)
+        if isinstance(node, ast.Subscript) and isinstance(node.slice, ast.Slice):
+            sl = node.slice
+            if not (isinstance(node.value, ast.Name) and node.value.id == self.b.fs.function
+                    and sl.step is None and sl.upper is not None):
+                raise self.fail(ctx, f"a range of functions is {self.b.fs.function}[a:b]")
+            lo = self.scalar(sl.lower, ctx) if sl.lower is not None else sp.Integer(0)
+            hi = self.scalar(sl.upper, ctx)
+            if not (lo.is_Integer and hi.is_Integer and 0 <= lo < hi <= self.b.n):
+                raise self.fail(ctx, f"{self.b.fs.function}[{lo}:{hi}]: not a range of "
+                                     f"0..{self.b.n}")
+            return list(range(int(lo), int(hi)))
+        return [self.function(node, ctx)]
+
     def function(self, node: ast.AST, ctx: _Ctx) -> int:
         """The index of the function a call names: f[i], f[j] or a function's name."""
         fs = self.b.fs
@@ -294,22 +329,33 @@ class _Eval:
                                              and fn.id in self.b.index):
             return self.value_call(node, ctx)
         name, args = fn.id, node.args  # type: ignore[union-attr]
-        arity = {"grad": 2, "prox": 3, "mean": 1, "sqrt": 1, "block": 2}
+        arity = {"grad": 2, "prox": 3, "mean": 1, "sqrt": 1, "block": 2, "argmin": 1,
+                 "lmo": 2, "sum": 1}
         if name not in arity or len(args) != arity[name] or node.keywords:
             raise self.fail(ctx, f"{name}(): unknown or wrong number of arguments "
-                                 "(grad(f, x), prox(f, t, w), mean(e), sqrt(c))")
+                                 "(grad(f, x), prox(f, t, w), mean(e), sqrt(c), "
+                                 "argmin(f), lmo(h, d), sum(e))")
         if name == "mean":
             return self.mean(args[0], ctx)
+        if name == "sum":
+            return self.over_steps(args[0], ctx)
+        if name == "argmin":
+            return self.split_point(self.functions(args[0], ctx), None, Vec({}), ctx)
+        if name == "lmo":
+            return self.lmo(self.function(args[0], ctx), self.vector(args[1], ctx), ctx)
         if name == "sqrt":
             return sp.sqrt(self.scalar(args[0], ctx))
         if name == "block":
             if not self.b.fs.blocks:
                 raise self.fail(ctx, "block(v, i): only with finite_sum.blocks")
             return self.b.block(self.vector(args[0], ctx), self.index(args[1], ctx))
-        k = self.function(args[0], ctx)
         if name == "grad":
-            return self.grad(k, self.vector(args[1], ctx), ctx)
-        return self.prox(k, self.scalar(args[1], ctx), self.vector(args[2], ctx), ctx)
+            return self.grad(self.function(args[0], ctx), self.vector(args[1], ctx), ctx)
+        ks = self.functions(args[0], ctx)
+        if len(ks) > 1:
+            return self.split_point(ks, self.scalar(args[1], ctx), self.vector(args[2], ctx),
+                                    ctx)
+        return self.prox(ks[0], self.scalar(args[1], ctx), self.vector(args[2], ctx), ctx)
 
     def grad(self, k: int, x: Vec, ctx: _Ctx) -> Vec:
         if not self.b.functions[k].cls.explicit:
@@ -326,6 +372,47 @@ class _Eval:
         g = Vec(_scale(_add(w.c, y.c, -1), 1 / t))
         ps.points.append((y, g, self.b.value()))
         return y
+
+    def split_point(self, ks: list[int], t: sp.Expr | None, w: Vec, ctx: _Ctx) -> Vec:
+        """y = prox of t (f_a + f_b + ...) at w (t None: y a minimizer of the sum): a new
+        point of each, subgradients new vectors but the last, which makes them sum to
+        (w - y)/t (to 0)."""
+        for k in ks:
+            ps = self.b.functions[k]
+            if not (ps.cls.proximal or ps.cls.explicit):
+                raise self.fail(ctx, f"{ps.name}: its class {ps.cls.name} has no oracle")
+        if t is not None and not t.is_positive:
+            raise self.fail(ctx, "prox(f, t, w): a step t > 0")
+        y = self.b.new(f"{'argmin' if t is None else 'prox'}{self.b.d}")
+        rest = {} if t is None else _scale(_add(w.c, y.c, -1), 1 / t)
+        for pos, k in enumerate(ks):
+            ps = self.b.functions[k]
+            g = Vec(rest) if pos == len(ks) - 1 else self.b.new(f"g_{ps.name}{len(ps.points)}")
+            rest = _add(rest, g.c, -1)
+            ps.points.append((y, g, self.b.value()))
+        return y
+
+    def lmo(self, k: int, d: Vec, ctx: _Ctx) -> Vec:
+        """v in argmin over the set of <d, v>: a point of the indicator h, -d normal there."""
+        ps = self.b.functions[k]
+        if not getattr(ps.cls, "zero_values", False):
+            raise self.fail(ctx, f"lmo({ps.name}, d): a linear minimization over a set, "
+                                 "needs an indicator")
+        v = self.b.new(f"lmo_{ps.name}{len(ps.points)}")
+        ps.points.append((v, Vec(_scale(d.c, -1)), self.b.value()))
+        return v
+
+    def over_steps(self, node: ast.AST, ctx: _Ctx) -> Any:
+        """sum(e): e summed over the steps k = 0..N-1, its state names the state before
+        step k and i = k (a regret: sum(f[i](x) - f[i](xs)))."""
+        if not self.b.fs.per_step or ctx.leaves is None or ctx.i is not None:
+            raise self.fail(ctx, "sum(...) is a term's sum over the steps of a per-step "
+                                 "program (functions.f.per_step), not nested")
+        total: Any = None
+        for k, st in enumerate(self.b.history):
+            v = self.run(node, _Ctx(st, None, k, None, ctx.where))
+            total = v if total is None else self.add(total, v, 1, ctx)
+        return sp.Integer(0) if total is None else total
 
     def value_call(self, node: ast.Call, ctx: _Ctx) -> Form:
         if len(node.args) != 1 or node.keywords:
@@ -414,6 +501,17 @@ class _Eval:
 
 def _start(b: _Builder) -> dict[str, Any]:
     state: dict[str, Any] = {}
+    if b.fs.start:  # each vector free at its first read (none unused), then the program
+        state = {name: None for name, _ in b.fs.state}
+        ev = _Eval(b)
+        for k, (target, _, text) in enumerate(b.fs.start):
+            where = f"finite_sum.start[{k}]"
+            ctx = _Ctx(state, None, None, None, where)
+            val = ev.run(check_program_text(text, where, _fail(b.source)), ctx)
+            if not isinstance(val, Vec):
+                raise ev.fail(ctx, "the start assigns vectors")
+            state[target] = val
+        return {name: state[name] for name, _ in b.fs.state}
     for name, per in b.fs.state:
         state[name] = ([b.new(f"{name}{j + 1}_0") for j in range(b.n)] if per
                        else b.new(f"{name}_0"))
@@ -424,11 +522,14 @@ def _steps(b: _Builder, ev: _Eval, start: dict[str, Any], steps: int) -> list[di
     programs = [(t, ix, check_program_text(e, f"finite_sum.step[{k}]", _fail(b.source)))
                 for k, (t, ix, e) in enumerate(b.fs.step)]
     leaves = [start]
-    for _ in range(steps):
+    for step in range(steps):
         nxt = []
         for leaf in leaves:
-            for i in range(b.n):
+            for i in ([step] if b.fs.per_step else range(b.n)):
                 st = {k: (list(v) if isinstance(v, list) else v) for k, v in leaf.items()}
+                if b.fs.per_step:
+                    b.history.append(st)
+                    st = dict(st)
                 for k, (target, indexed, tree) in enumerate(programs):
                     ctx = _Ctx(st, None, i, None, f"finite_sum.step[{k}]")
                     val = ev.run(tree, ctx)
@@ -468,27 +569,35 @@ def build_problem(fs: FiniteSum, n: int, env: dict[str, sp.Expr], functions: lis
                   steps: int, measure: str, initial: str, source: str) -> Problem:
     """The exact PEP after ``steps`` steps (see the module): ``functions`` the drawn
     f_1..f_n then the others, each with its class and exact parameters."""
-    if n ** steps > MAX_LEAVES:
+    if not fs.per_step and n ** steps > MAX_LEAVES:
         raise InputError(f"--steps: {n}**{steps} outcomes exceed {MAX_LEAVES} (the tree "
                          "of draws); ask fewer steps or a smaller count")
-    copies = 0 if fs.blocks else n
+    copies = 0 if fs.blocks or fs.per_step else n
     weights = [Fraction(1, n)] * copies + [Fraction(1)] * (len(functions) - copies)
     b = _Builder(fs, n, env, functions, weights, source)
+    if fs.reference == "free":
+        b.free_reference()
+    else:
+        b.optimum()
     start = _start(b)
-    b.optimum()
     ev = _Eval(b)
     forms: list[Form] = []
     labels: list[str] = []
     for k, text in enumerate(fs.constraints):
         forms.append(term_form(b, text, f"finite_sum.constraints[{k}]", [start], True))
         labels.append(f"constraint{k + 1}")
-    forms.append(term_form(b, initial, "initial", [start], None))
-    labels.append("initial")
+    if initial != NO_INITIAL:
+        forms.append(term_form(b, initial, "initial", [start], None))
+        labels.append("initial")
     leaves = _steps(b, ev, start, steps)
     mform = term_form(b, measure, "measure", leaves, False)
     labels += [lab for lab, _ in b.extra]
     forms += [f for _, f in b.extra]
-    for ps in functions:
+    for ps in functions if fs.per_step else ():
+        for label, form in _own_conditions(b, ps):
+            forms.append(form)
+            labels.append(label)
+    for ps in () if fs.per_step else functions:
         for a, (xa, ga, fa) in enumerate(ps.points):
             for c, (xb, gb, fb) in enumerate(ps.points):
                 if a == c:
@@ -511,4 +620,60 @@ def _pair(b: _Builder, ps: PointSet, X: tuple[Vec, Vec, Vec, Vec], fa: int, fb: 
                 if q.c or q.r:
                     form = form.plus(b.inner(X[r], X[s]).times(q))
         out.append(form)
+    return out
+
+
+def own_conditions(cls: Any, params: dict[str, Ball]) -> list[tuple[Any, Any, Any, bool]]:
+    """A class's interpolation conditions on its own data (not tilted): (alpha, Q,
+    constant, on one point?) each, ``alpha (f_a - f_b) + <Q X, X> + constant >= 0``;
+    [] when the class has none to give (tilted only)."""
+    from sosalgo.classes.base import FunctionClass
+
+    if not (cls.has_values and (cls.tilt_invariant or cls.alone
+                                or getattr(cls, "zero_values", False))) \
+            or type(cls).blocks is not FunctionClass.blocks:  # Gram-level conditions
+        return []
+    exact = cls.exact_pinned(params)
+    scopes = [q.scope for q in cls.pinned({k: float(v.c) for k, v in params.items()})]
+    consts = cls.exact_constants(params) or [0] * len(exact or ())
+    if exact is None or len(scopes) != len(exact) or len(consts) != len(exact):
+        return []
+    out = []
+    for (alpha, Q), c, scope in zip(exact, consts, scopes, strict=True):
+        one = scope == "optimum"  # on g_a alone (|g_a| <= M): each point once
+        if one and (alpha != 0 or any(Q[r][s] for r in range(4) for s in range(4)
+                                      if (r, s) != (2, 2))):
+            return []  # a condition relative to a minimizer (quadratic growth, PL)
+        out.append((alpha, Q, c, one))
+    return out
+
+
+def check_own_conditions(cls: Any, source: str, name: str) -> None:
+    """InputError unless a per-step program may take the class (its own conditions)."""
+    if not own_conditions(cls, {k: Ball(1) for k in cls.parameters}):
+        raise InputError(f"{source}: functions.{name}.class: {cls.name} is not taken in a "
+                         "per-step program (a class with function values and its own "
+                         "interpolation conditions: convex, Lipschitz, indicators)")
+
+
+def _own_conditions(b: _Builder, ps: PointSet) -> list[tuple[str, Form]]:
+    """Every condition of ``ps``'s class among its own points (not tilted), labelled."""
+    out = []
+    pts = ps.points
+    for r, (alpha, Q, c, one) in enumerate(own_conditions(ps.cls, ps.params)):
+        pairs = [(a, a) for a in range(len(pts))] if one else \
+            [(a, e) for a in range(len(pts)) for e in range(len(pts)) if a != e]
+        for a, e in pairs:
+            (xa, ga, fa), (xb, gb, fb) = pts[a], pts[e]
+            form = Form(const=Ball.of(c)) if c else Form()
+            if alpha != 0:
+                form = form.plus(Form(v={fa: Ball.of(alpha)})).plus(
+                    Form(v={fb: Ball.of(alpha)}), -1)
+            X = (xa, xb, ga, gb)
+            for p in range(4):
+                for q in range(4):
+                    w = Ball.of(Q[p][q])
+                    if w.c or w.r:
+                        form = form.plus(b.inner(X[p], X[q]).times(w))
+            out.append((f"{ps.name}:{a}" + ("" if one else f",{e}") + f"#{r}", form))
     return out
