@@ -93,7 +93,8 @@ class ExactMethod:
     """The method with exact entries, polynomial in z ∈ [-1, 1]^k (θ = mid + half·z).
 
     ``mid``/``half`` are exact (dyadic) and the box mid ± half contains Θ; ``m``, ``L``
-    are exact rationals; ``matrices`` maps A, B, C, E to sympy matrices in ``zs``.
+    are exact rationals; ``matrices`` maps A, B, C, E (and D, absent E, in the oracle
+    model) to sympy matrices in ``zs``.
     """
 
     free: list[str]
@@ -144,7 +145,7 @@ def _rational_kappa(kappa: float) -> Fraction:
 
 def exact_method(spec: Spec, kappa: float, free: Sequence[str]) -> ExactMethod:
     """The spec at ``kappa`` with the free parameters as scaled symbols (see class)."""
-    from sosalgo.spec.types import BASE_SYMBOLS, MATRIX_NAMES, value_order
+    from sosalgo.spec.types import BASE_SYMBOLS, value_order
 
     check_polynomial(spec, free)
     free = list(free)
@@ -169,8 +170,8 @@ def exact_method(spec: Spec, kappa: float, free: Sequence[str]) -> ExactMethod:
         half.append((hi - lo) / 2)
     scaled = {sym[p]: _rat(mi) + _rat(hi) * z
               for p, mi, hi, z in zip(free, mid, half, zs, strict=True)}
-    mats = {k: spec.sympy_matrices()[k].xreplace(values).xreplace(scaled)
-            for k in MATRIX_NAMES}
+    mats = {k: mat.xreplace(values).xreplace(scaled)
+            for k, mat in spec.sympy_matrices().items()}  # D too in the oracle model
     return ExactMethod(free, zs, mid, half, _rat(mq), _rat(kq * mq), mats)
 
 
