@@ -38,7 +38,7 @@ from __future__ import annotations
 import heapq
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from fractions import Fraction
 from itertools import product
@@ -49,11 +49,15 @@ from flint import acb, arb, fmpq
 
 from sosalgo.design_search.polymodel import ExactMethod, exact_method
 
-__all__ = ["WitnessBound", "witness_bound"]
+__all__ = ["WITNESS_CERTIFICATE_KIND", "WitnessBound", "check_witness_certificate",
+           "witness_bound"]
 
 ARITHMETIC = "ball arithmetic (python-flint acb, outward rounded) on exact polynomial data"
 MARGIN = 1e-9  # instances kept this far (relative) inside their class in the float search
-SEARCH_BAND = 2e-5  # boxes whose center is this close to the target (in rho^2) search anew
+WITNESS_CERTIFICATE_KIND = "linear witnesses"
+SEARCH_BAND = 1e-6  # a box whose best instance is this close to the target (in rho^2) at
+# its center searches anew
+POOL = 16  # instances kept
 
 
 class _Dual:
@@ -444,6 +448,28 @@ class _Box:
         return out
 
 
+def _prove_box(wb: WitnessBound, box: _Box, pool: list[list[complex]], t2: float
+               ) -> tuple[list[complex], float]:
+    """(instance, proven value) of a box: the best proof of the two instances of the pool
+    slowest at its center; a new search there when none reaches ``t2`` at the center
+    (splitting cannot help then), its result added to the pool."""
+    ev = wb.matrices([complex(v) for v in box.center], balls=False)
+    ranked = sorted(pool, key=lambda inst: -wb.rate2(box.center, inst, ev))[:2]
+    best, val = ranked[0], -math.inf
+    for inst in ranked:
+        v = wb.proven(box.center, box.half, inst)
+        if v > val:
+            best, val = inst, v
+    if val < t2 and wb.rate2(box.center, ranked[0], ev) < t2 + SEARCH_BAND:
+        found = wb.instance(box.center, ranked[0])
+        v = wb.proven(box.center, box.half, found)
+        pool.append(found)
+        del pool[:-POOL]
+        if v > val:
+            best, val = found, v
+    return best, val
+
+
 def witness_bound(spec: Any, kappa: float, free: Sequence[str], target: float,
                   deadline: float, min_half: float = 1e-7) -> tuple[float | None, dict]:
     """(proven lower bound of every rate over the box, details), by branch and bound
@@ -460,16 +486,12 @@ def witness_bound(spec: Any, kappa: float, free: Sequence[str], target: float,
     heap: list[tuple[float, int, _Box]] = []
     count = 0
 
+    pool = [root.inst]  # the instances found so far (the slowest at a box is tried)
+    t2 = target * target
+
     def push(box: _Box) -> None:
         nonlocal count
-        val = wb.proven(box.center, box.half, box.inst)
-        t2 = target * target
-        if val < t2 and wb.rate2(box.center, box.inst) < t2 + SEARCH_BAND:
-            # near the target at the center: a slower instance may prove it
-            better = wb.instance(box.center, box.inst)
-            v2 = wb.proven(box.center, box.half, better)
-            if v2 > val:
-                box.inst, val = better, v2
+        box.inst, val = _prove_box(wb, box, pool, t2)
         count += 1
         heapq.heappush(heap, (val, count, box))
 
@@ -485,8 +507,45 @@ def witness_bound(spec: Any, kappa: float, free: Sequence[str], target: float,
     lb = math.sqrt(low) if low > 0 else 0.0
     lb = float(np.nextafter(lb, 0.0)) if lb > 0 else 0.0
     status = "proved" if low >= target * target else "partial"
-    leaves = [b for _, _, b in heap]
+    cert = {"kind": WITNESS_CERTIFICATE_KIND, "free": list(free),
+            "proofs": [{"z": list(b.center), "w": list(b.half), "r": min(max(v, 0.0), 1.0),
+                        "instance": [[c.real, c.imag] for c in b.inst]} for v, _, b in heap]}
     return lb, {"method": "witness", "status": status, "target": target, "boxes": count,
-                "leaves": len(leaves), "arithmetic": ARITHMETIC,
+                "leaves": len(heap), "arithmetic": ARITHMETIC,
                 "seconds": time.perf_counter() - t0,
-                "instance_at_bound": [[v.real, v.imag] for v in heap[0][2].inst]}
+                "instance_at_bound": [[v.real, v.imag] for v in heap[0][2].inst],
+                "_certificate": cert}
+
+
+def check_witness_certificate(spec: Any, kappa: float, free: Sequence[str],
+                              cert: Mapping[str, Any]) -> Any:
+    """Re-prove a witness bound certificate: each box's value in ball arithmetic on its
+    instance (exact class membership included), then what the boxes that held cover of
+    the box Θ (the walk of :mod:`sosalgo.design_search.boundcheck`). ValueError when the
+    certificate is malformed."""
+    from sosalgo.design_search.boundcheck import BoundCheck, _cover, _dyadic
+
+    if not isinstance(cert, Mapping) or cert.get("kind") != WITNESS_CERTIFICATE_KIND:
+        raise ValueError(f"kind: expected {WITNESS_CERTIFICATE_KIND!r}")
+    wb = WitnessBound(spec, kappa, free)
+    k = wb.k
+    best: dict[tuple, float] = {}
+    proofs = list(cert.get("proofs") or [])
+    failed = 0
+    for p in proofs:
+        z, w = np.asarray(p["z"], float), np.asarray(p["w"], float)
+        r = float(p["r"])
+        inst = [complex(float(a), float(b)) for a, b in p["instance"]]
+        ok = (z.shape == (k,) and w.shape == (k,) and np.all(np.isfinite(z))
+              and np.all(np.abs(z) + w <= 1) and all(map(_dyadic, w)) and 0 <= r <= 1
+              and len(inst) == len(wb.sets) and wb.proven(z, w, inst) >= r)
+        if not ok:
+            failed += 1
+            continue
+        key = (*z.tolist(), *w.tolist())
+        best[key] = max(best.get(key, 0.0), r)
+    boxes = np.array([list(key) for key in best]) if best else np.zeros((0, 2 * k))
+    r = _cover(best, boxes, np.zeros(k), np.ones(k)) if best else 0.0
+    reason = (f"{len(proofs) - failed} of {len(proofs)} witness boxes re-proven in ball "
+              f"arithmetic; every rate over Θ is at least sqrt({r!r})")
+    return BoundCheck(r, len(proofs), failed, reason)
