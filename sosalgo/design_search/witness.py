@@ -362,7 +362,7 @@ class _ClassSet:
             try:
                 forms = fn.cls.forms(params)
             except NotImplementedError:
-                raise ValueError(f"{fn.name}: class {fn.cls.name} has no pairwise forms")
+                raise ValueError(f"{fn.name}: class {fn.cls.name} has no pairwise forms") from None
             return cls([tuple(Fraction(c) for c in f) for f in forms], None)
         cur = fn.cls.curvatures(fn.params)
         if cur is None or fn.cls.has_values is False:
@@ -523,7 +523,7 @@ def check_witness_certificate(spec: Any, kappa: float, free: Sequence[str],
     instance (exact class membership included), then what the boxes that held cover of
     the box Θ (the walk of :mod:`sosalgo.design_search.boundcheck`). ValueError when the
     certificate is malformed."""
-    from sosalgo.design_search.boundcheck import BoundCheck, _cover, _dyadic
+    from sosalgo.design_search.boundcheck import BoundCheck, box_cover, dyadic_half
 
     if not isinstance(cert, Mapping) or cert.get("kind") != WITNESS_CERTIFICATE_KIND:
         raise ValueError(f"kind: expected {WITNESS_CERTIFICATE_KIND!r}")
@@ -537,7 +537,7 @@ def check_witness_certificate(spec: Any, kappa: float, free: Sequence[str],
         r = float(p["r"])
         inst = [complex(float(a), float(b)) for a, b in p["instance"]]
         ok = (z.shape == (k,) and w.shape == (k,) and np.all(np.isfinite(z))
-              and np.all(np.abs(z) + w <= 1) and all(map(_dyadic, w)) and 0 <= r <= 1
+              and np.all(np.abs(z) + w <= 1) and all(map(dyadic_half, w)) and 0 <= r <= 1
               and len(inst) == len(wb.sets) and wb.proven(z, w, inst) >= r)
         if not ok:
             failed += 1
@@ -545,7 +545,7 @@ def check_witness_certificate(spec: Any, kappa: float, free: Sequence[str],
         key = (*z.tolist(), *w.tolist())
         best[key] = max(best.get(key, 0.0), r)
     boxes = np.array([list(key) for key in best]) if best else np.zeros((0, 2 * k))
-    r = _cover(best, boxes, np.zeros(k), np.ones(k)) if best else 0.0
+    r = box_cover(best, boxes, np.zeros(k), np.ones(k)) if best else 0.0
     reason = (f"{len(proofs) - failed} of {len(proofs)} witness boxes re-proven in ball "
               f"arithmetic; every rate over Θ is at least sqrt({r!r})")
     return BoundCheck(r, len(proofs), failed, reason)
