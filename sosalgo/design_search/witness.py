@@ -423,8 +423,8 @@ class _ClassSet:
             lo, hi = float(self.interval[0]), float(self.interval[1])
             hi = hi if math.isfinite(hi) else lo + 10 * scale
             return [complex(v) for v in np.linspace(lo, hi, 5)]
-        vals = [0.0, 0.01, 0.1, 0.5, 1.0, 2.0, 10.0]
-        ims = [0.0, 0.1, 0.5, 1.0, 2.0, 10.0]
+        vals = [0.0, 0.01, 0.1, 0.25, 0.5, 0.75, 0.9, 1.0, 1.5, 2.0, 10.0]
+        ims = [0.0, 0.1, 0.25, 0.5, 0.75, 1.0, 2.0, 10.0]
         pts = [complex(a * scale, s * b * scale) for a in vals for b in ims for s in (1, -1)]
         pts = [p for p in pts if self.inside(p, scale)]
         return pts or [complex(0.0)]
