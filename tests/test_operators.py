@@ -631,6 +631,19 @@ def test_design_command_on_an_operator_spec_proves_a_lower_bound(tmp_path):
     assert v.exit_code == 0, v.output
     line = next(ln for ln in v.output.splitlines() if "lower_bound =" in ln)
     assert line.split()[0] == "backed" and "witness boxes re-proven" in line
+    # tampered: a bound above what the boxes prove, an instance outside the classes
+    high = dict(doc, lower_bound=doc["rho_certified"])
+    proofs = doc["bound_certificate"]["proofs"]
+    worst = min(range(len(proofs)), key=lambda i: proofs[i]["r"])
+    bad = json.loads(json.dumps(proofs))
+    bad[worst]["instance"][1] = [0.0, 0.0]  # B = 0: not strongly monotone
+    out_of_class = dict(doc, bound_certificate=dict(doc["bound_certificate"], proofs=bad))
+    for i, tampered in enumerate((high, out_of_class)):
+        path = tmp_path / f"tampered{i}.json"
+        path.write_text(json.dumps(tampered))
+        v = _invoke("verify", str(path), "--out", str(tmp_path / f"v{i}"))
+        line = next(ln for ln in v.output.splitlines() if "lower_bound =" in ln)
+        assert line.split()[0] == "contradicted", line
 
 
 def test_witness_values_never_exceed_the_tight_contraction_factor():
