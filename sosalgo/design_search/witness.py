@@ -58,6 +58,12 @@ WITNESS_CERTIFICATE_KIND = "linear witnesses"
 SEARCH_BAND = 1e-6  # a box whose best instance is this close to the target (in rho^2) at
 # its center searches anew
 POOL = 16  # instances kept
+# operator classes that are exactly the operators satisfying their pairwise conditions
+# (a normal linear operator satisfying them is a member); the linear operator classes are
+# not (a complex z is not a symmetric operator)
+PAIRWISE_DEFINED = frozenset({"monotone", "strongly_monotone", "cocoercive",
+                              "lipschitz_operator", "nonexpansive",
+                              "lipschitz_strongly_monotone"})
 
 
 class _Dual:
@@ -347,7 +353,7 @@ class _ClassSet:
     """The numbers z whose normal linear operator (or quadratic) is in a class."""
 
     def __init__(self, forms: list[tuple[Fraction, Fraction, Fraction]] | None,
-                 interval: tuple[Fraction, Fraction] | None):
+                 interval: tuple[Fraction, Fraction | None] | None):
         self.forms, self.interval = forms, interval
         self.complex = forms is not None
         self._anchor: complex | None = None
@@ -359,23 +365,23 @@ class _ClassSet:
         params = {k: Fraction(float(v)) for k, v in fn.params.items()
                   if isinstance(v, (int, float))}
         if isinstance(fn.cls, OperatorClass):
-            try:
-                forms = fn.cls.forms(params)
-            except NotImplementedError:
-                raise ValueError(f"{fn.name}: class {fn.cls.name} has no pairwise forms") from None
+            if fn.cls.name not in PAIRWISE_DEFINED:
+                raise ValueError(f"{fn.name}: class {fn.cls.name} is not defined by its "
+                                 "pairwise conditions alone")
+            forms = fn.cls.forms(params)
             return cls([tuple(Fraction(c) for c in f) for f in forms], None)
         cur = fn.cls.curvatures(fn.params)
-        if cur is None or fn.cls.has_values is False:
+        if cur is None or fn.cls.has_values is False or not math.isfinite(float(cur[0])):
             raise ValueError(f"{fn.name}: class {fn.cls.name} has no quadratics")
-        lo, hi = (Fraction(float(c)) for c in cur)
-        return cls(None, (lo, hi))
+        hi = Fraction(float(cur[1])) if math.isfinite(float(cur[1])) else None
+        return cls(None, (Fraction(float(cur[0])), hi))
 
     def member(self, z: complex) -> bool:
         """Exactly (rationals of the floats): the instance is in the class."""
         a, b = Fraction(z.real), Fraction(z.imag)
         if self.forms is None:
             lo, hi = self.interval
-            return b == 0 and lo <= a <= hi
+            return b == 0 and lo <= a and (hi is None or a <= hi)
         return all(cross * a + xx + uu * (a * a + b * b) >= 0
                    for cross, xx, uu in self.forms)
 
@@ -383,7 +389,8 @@ class _ClassSet:
         """In floats, at least MARGIN (relative) inside (the search's constraint)."""
         if self.forms is None:
             lo, hi = self.interval
-            return float(lo) <= z.real <= float(hi) and math.isfinite(z.real)
+            return float(lo) <= z.real <= (math.inf if hi is None else float(hi)) and \
+                math.isfinite(z.real)
         a, n2 = z.real, z.real ** 2 + z.imag ** 2
         if not math.isfinite(n2):
             return False
@@ -394,8 +401,9 @@ class _ClassSet:
         """z if inside, else the last inside point of the segment from the anchor to z
         (the sets are convex: intersections of half-planes and discs)."""
         if self.forms is None:
-            lo, hi = float(self.interval[0]), float(self.interval[1])
-            return complex(min(max(z.real, lo), hi), 0.0)
+            lo, hi = self.interval
+            top = math.inf if hi is None else float(hi)
+            return complex(min(max(z.real, float(lo)), top, 1e300), 0.0)
         if not math.isfinite(abs(z)):
             z = 0j
         if self.inside(z, scale):
@@ -420,9 +428,9 @@ class _ClassSet:
 
     def grid(self, scale: float) -> list[complex]:
         if self.forms is None:
-            lo, hi = float(self.interval[0]), float(self.interval[1])
-            hi = hi if math.isfinite(hi) else lo + 10 * scale
-            return [complex(v) for v in np.linspace(lo, hi, 5)]
+            lo, hi = self.interval
+            top = float(lo) + 10 * scale if hi is None else float(hi)
+            return [complex(v) for v in np.linspace(float(lo), top, 5)]
         vals = [0.0, 0.01, 0.1, 0.25, 0.5, 0.75, 0.9, 1.0, 1.5, 2.0, 10.0]
         ims = [0.0, 0.1, 0.25, 0.5, 0.75, 1.0, 2.0, 10.0]
         pts = [complex(a * scale, s * b * scale) for a in vals for b in ims for s in (1, -1)]
