@@ -90,6 +90,7 @@ $(AUTOLYAP_VENV)/.installed:
 	touch $@
 bench-autolyap: $(VENV)/.installed-dev $(AUTOLYAP_VENV)/.installed
 	SOSALGO_AUTOLYAP_PYTHON=$(abspath $(AUTOLYAP_VENV))/bin/python $(BIN)/python -m bench --only autolyap $(BENCH_OPTS)
+	SOSALGO_AUTOLYAP_PYTHON=$(abspath $(AUTOLYAP_VENV))/bin/python $(BIN)/python -m bench --only autolyap_operators $(BENCH_OPTS)
 
 # PEPit in its own venv, never in $(VENV): bench/pepit.py runs it in a subprocess.
 PEPIT_VENV ?= .venv-pepit

@@ -30,7 +30,6 @@ from sosalgo.kernel.expr.parse import to_sympy
 from sosalgo.oracles import BoundFunction, Method, seed_functions
 from sosalgo.spec.types import (
     BASE_SYMBOLS,
-    MATRIX_NAMES,
     ORACLE_MATRIX_NAMES,
     Spec,
     value_order,
@@ -243,10 +242,13 @@ def polynomial_method(spec: Spec, kappa: float, free: Sequence[str]) -> Method:
         half.append((hi - lo) / 2)
     scaled = {sym[p]: _rat(mi) + _rat(hi) * z
               for p, mi, hi, z in zip(free, mid, half, zs, strict=True)}
-    mats = {k: spec.sympy_matrices()[k].xreplace(values).xreplace(scaled)
-            for k in MATRIX_NAMES}
+    mats = {k: mat.xreplace(values).xreplace(scaled)
+            for k, mat in spec.sympy_matrices().items()}  # D too in the oracle model
     m, L = _rat(mq), _rat(kq * mq)
-    return Method(mats["A"], mats["B"], mats["C"], sp.zeros(1, 1), mats["E"], m, L,
+    # in the oracle model with an output call (no E), the seed-form fields below are not
+    # read: the matrices the spec gives are in ``matrices``
+    E = mats["E"] if "E" in mats else sp.zeros(1, mats["A"].shape[0])
+    return Method(mats["A"], mats["B"], mats["C"], sp.zeros(1, 1), E, m, L,
                   seed_functions(m, L), (0,), numbers="poly", matrices=mats,
                   box=ParameterBox(free, zs, mid, half))
 

@@ -52,3 +52,17 @@ def test_like_for_like_and_jobs() -> None:
 
     apg = bind(load_spec(SPECS / "accelerated-proximal-gradient.yaml"), 10.0)
     assert autolyap_job(apg, 0, 0, 0) is None
+
+
+@pytest.mark.parametrize("mu, L, gamma, lam", [(1.0, 5.0, 0.5, 1.0), (1.0, 2.0, 0.5, 2.0)])
+def test_giselsson_rate_is_attained_by_a_linear_witness(mu, L, gamma, lam):
+    """The operator bench's reference (Giselsson 2017, Thm. 6.5, tight) against an
+    independent computation: the slowest normal linear pair of the classes, its rate
+    enclosed in ball arithmetic, reaches it (1e-7) and never exceeds it."""
+    from bench.autolyap_operators import DR_GISELSSON, giselsson_rho, witness_rate
+    from sosalgo.spec.loading import spec_from_text
+
+    spec = spec_from_text(DR_GISELSSON.replace("MU", repr(mu)), "<dr>")
+    lower = witness_rate(spec, L / mu, {"gamma": gamma, "lam": lam})
+    closed = giselsson_rho(mu, L, gamma, lam)
+    assert closed - 1e-7 <= lower <= closed + 1e-12

@@ -31,8 +31,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["BOUND_CERTIFICATE_KIND", "BoundCheck", "bound_certificate",
-           "check_bound_certificate"]
+__all__ = ["BOUND_CERTIFICATE_KIND", "BoundCheck", "bound_certificate", "box_cover",
+           "check_bound_certificate", "dyadic_half"]
 
 BOUND_CERTIFICATE_KIND = "dual-boxes"
 MAX_PROOFS = 200_000
@@ -147,7 +147,7 @@ def _one_proof(model: Any, prover: Any, modes: Any, p: Mapping[str, Any]
     z, w = _finite(np.asarray(p["z"], float)), _finite(np.asarray(p["w"], float))
     r = float(p["r"])
     if z.shape != (k,) or w.shape != (k,) or not 0 <= r <= 1 or np.any(w < 0) or \
-            np.any(np.abs(z) + w > 1) or not all(map(_dyadic, w)):
+            np.any(np.abs(z) + w > 1) or not all(map(dyadic_half, w)):
         return None
     if p["how"] == "mode":
         ok = modes.proves(z, w, r)
@@ -160,14 +160,14 @@ def _one_proof(model: Any, prover: Any, modes: Any, p: Mapping[str, Any]
     return ((*z.tolist(), *w.tolist()), r) if ok else None
 
 
-def _dyadic(w: float) -> bool:
+def dyadic_half(w: float) -> bool:
     """A half-width of the search's boxes: 0 or 2^-j, j <= MAX_SPLITS (so the walk of
-    :func:`_cover` stays shallow whatever the certificate says)."""
+    :func:`box_cover` stays shallow whatever the certificate says)."""
     mant, exp = math.frexp(float(w))
     return w == 0 or (mant == 0.5 and -MAX_SPLITS <= exp - 1 <= 0)
 
 
-def _cover(best: dict[tuple, float], boxes: np.ndarray, z: np.ndarray, w: np.ndarray
+def box_cover(best: dict[tuple, float], boxes: np.ndarray, z: np.ndarray, w: np.ndarray
            ) -> float:
     """What the proven boxes inside (z, w) cover (see module docstring)."""
     own = best.get((*z.tolist(), *w.tolist()), 0.0)
@@ -183,7 +183,7 @@ def _cover(best: dict[tuple, float], boxes: np.ndarray, z: np.ndarray, w: np.nda
     for sign in (-1.0, 1.0):
         zc = z.copy()
         zc[i] += sign * half[i]
-        kids.append(_cover(best, boxes[inside], zc, half))
+        kids.append(box_cover(best, boxes[inside], zc, half))
     return max(own, min(kids))
 
 
@@ -212,7 +212,7 @@ def check_bound_certificate(model: Any, cert: Mapping[str, Any]) -> BoundCheck:
     k = model.poly.k
     root_w = np.ones(k) * (model.poly.half > 0)
     boxes = np.array([list(key) for key in best]) if best else np.zeros((0, 2 * k))
-    r = _cover(best, boxes, np.zeros(k), root_w) if best else 0.0
+    r = box_cover(best, boxes, np.zeros(k), root_w) if best else 0.0
     reason = (f"{len(proofs) - failed} of {len(proofs)} box proofs re-proven in ball "
               f"arithmetic; they cover Θ × [0, {r!r}] in ρ²")
     return BoundCheck(r, len(proofs), failed, reason)

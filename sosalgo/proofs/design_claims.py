@@ -36,6 +36,10 @@ def _reprove(L: RowLedger) -> Any:
     from sosalgo.certificates import get_family
     from sosalgo.design_search import bound_model
     from sosalgo.design_search.boundcheck import check_bound_certificate
+    from sosalgo.design_search.witness import (
+        WITNESS_CERTIFICATE_KIND,
+        check_witness_certificate,
+    )
     from sosalgo.proofs.results import row_kappa
 
     row = L.row
@@ -45,6 +49,12 @@ def _reprove(L: RowLedger) -> Any:
     if not isinstance(cert, Mapping):
         return "no bound_certificate in the document (e.g. a design read back from its CSV)"
     show_phase("re-proving the bound certificate", f"kappa {row.get('kappa')}")
+    if cert.get("kind") == WITNESS_CERTIFICATE_KIND:
+        try:
+            return check_witness_certificate(L.spec, row_kappa(row, "row"), list(row["free"]),
+                                             cert)
+        except (KeyError, TypeError, ValueError) as exc:
+            return f"the bound certificate cannot be re-proven: {exc}"
     try:
         fam = get_family(str(row.get("family") or L.spec.certificate),
                          {"lag": row.get("lag")} if row.get("lag") is not None else None)
