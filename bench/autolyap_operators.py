@@ -174,7 +174,7 @@ def witness_rate(spec: Any, kappa: float, theta: dict) -> float:
     free = list(theta)
     wb = WitnessBound(spec, kappa, free)
     z = [float((Fraction(theta[p]) - mid) / half) if half else 0.0
-         for p, mid, half in zip(free, wb.method.mid, wb.method.half, strict=True)]
+         for p, mid, half in zip(free, wb.method.box.mid, wb.method.box.half, strict=True)]
     val = wb.proven(z, [0.0] * len(z), wb.instance(z, None))
     return math.sqrt(val) if val > 0 else 0.0
 

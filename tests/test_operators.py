@@ -654,8 +654,8 @@ def test_witness_values_never_exceed_the_tight_contraction_factor():
     from sosalgo.design_search.witness import WitnessBound
 
     wb = WitnessBound(_spec("douglas-rachford-operators"), 10.0, ["alpha", "theta"])
-    mid = np.array([float(v) for v in wb.method.mid])
-    half = np.array([float(v) for v in wb.method.half])
+    mid = np.array([float(v) for v in wb.method.box.mid])
+    half = np.array([float(v) for v in wb.method.box.half])
     rng = np.random.default_rng(3)
     for _ in range(6):
         w = 2.0 ** -rng.integers(4, 9, size=2)
