@@ -170,6 +170,10 @@ class Spec:
     # inexact gradient calls (``oracles: [{function: f, relative_error: eps}]``): call index
     # (0-based) -> eps, the call answering some d with |d - grad f(y)| <= eps |grad f(y)|
     inexact: dict[int, Expr] = field(default_factory=dict)
+    # epsilon-subgradient calls (``oracles: [{function: f, epsilon: eps}]``): call index
+    # (0-based) -> eps, the call answering some g with f(z) >= f(y) + <g, z - y> - eps for
+    # every z (:mod:`sosalgo.worstcase.epsilon`)
+    epsilon: dict[int, Expr] = field(default_factory=dict)
     # linear minimization calls (``oracles: [f, {function: h, lmo: 1}]``): call index
     # (0-based) -> the index of the gradient call whose answer g is the direction; the call
     # answers u = s - y with s in argmin over the set of <g, s> (:mod:`sosalgo.worstcase.lmo`)
@@ -224,7 +228,8 @@ class Spec:
         Theorem 1; True for every other spec."""
         if self.oracles != ("f",) or self.output is not None or self.measure != "function":
             return True
-        if self.inexact or self.line_search or self.lmo or self.mirror:  # not Theorem 1
+        if (self.inexact or self.epsilon or self.line_search or self.lmo
+                or self.mirror):  # not Theorem 1
             return True
         if self.sublinear:  # no kappa: outside Theorem 1's setting
             return True

@@ -245,6 +245,11 @@ def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None
     mt.error_refs = {i: tuple(float(c) for c in ref)
                      for i, ref in (getattr(spec, "error_refs", None) or {}).items()}
     mt.twins = dict(getattr(spec, "twins", None) or {})
+    from sosalgo.worstcase.epsilon import float_epsilons
+
+    mt.epsilons = float_epsilons(spec, om, kq, mt)
+    if mt.epsilons:  # the plain basis (the exact rows keep short denominators)
+        mt.K = np.zeros_like(mt.K)
     if mt.constraints and schedule is not None:
         raise InputError(f"{spec.source}: pep.constraints: not for a method that changes "
                          "with k")
@@ -401,6 +406,9 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
                                  "(tau_proven is the proven upper bound)")
         elif witness and mt.lmo:  # no witness construction for a linear minimization call
             res.extra["note"] = ("no worst-case witness for a linear minimization oracle "
+                                 "(tau_proven is the proven upper bound)")
+        elif witness and mt.epsilons:  # no witness construction for an eps-subgradient
+            res.extra["note"] = ("no worst-case witness for epsilon-subgradient calls "
                                  "(tau_proven is the proven upper bound)")
         elif witness and mt.constraints:  # the witness check does not prove constraints
             res.extra["note"] = ("no worst-case witness for a PEP with constraints on the "

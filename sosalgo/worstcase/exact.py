@@ -134,6 +134,10 @@ def class_description(spec: Spec, kappa: float | None) -> dict[str, Any]:
         if refs:  # relative to a combination of the step's answers
             out["relative_to"] = {f"oracles[{i}]": [str(c) for c in ref]
                                   for i, ref in refs.items()}
+    if getattr(spec, "epsilon", None):  # the epsilon-subgradient calls' eps, as written
+        env = _exact_env(spec, base)
+        out["epsilon_subgradients"] = {f"oracles[{i}]": str(to_sympy(e).xreplace(env))
+                                       for i, e in spec.epsilon.items()}
     twins = getattr(spec, "twins", None) or {}
     if twins:
         out["gradient_of"] = {f"oracles[{i}]": f"oracles[{j}]" for i, j in twins.items()}
@@ -271,6 +275,9 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
     mt.out_call = _exact_output_call(mats, om)
     mt.x0_call = _exact_start_call(mats, Xq, om)
     mt.errors = _exact_errors(spec, env, enclose)
+    mt.epsilons = _exact_errors(spec, env, enclose, "epsilon")
+    if mt.epsilons:  # the plain basis, as the float method's (short denominators)
+        mt.K = np.full(K.shape, Fraction(0), dtype=object)
     mt.line_search = bool(getattr(spec, "line_search", None))
     mt.constraints = spec_constraints(spec, p)
     _call_links(mt, spec)
@@ -308,12 +315,14 @@ def class_extras(cls: Any, params: Mapping[str, Any], count: int
     return list(consts), [i.scope for i in fl]
 
 
-def _exact_errors(spec: Spec, env: dict[sp.Symbol, sp.Expr], enclose: Any) -> dict[int, Any]:
-    """The relative error of each inexact call as written (enclosed), exactly."""
+def _exact_errors(spec: Spec, env: dict[sp.Symbol, sp.Expr], enclose: Any,
+                  field: str = "inexact") -> dict[int, Any]:
+    """The relative error of each inexact call (``field`` "epsilon": the eps of each
+    epsilon-subgradient call) as written (enclosed), exactly."""
     from sosalgo.kernel.expr.parse import to_sympy
 
     return {i: enclose(to_sympy(e).xreplace(env)) for i, e in
-            getattr(spec, "inexact", {}).items()}
+            (getattr(spec, field, None) or {}).items()}
 
 
 def _proven_zero(v: sp.Expr) -> bool:
@@ -710,8 +719,7 @@ def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Frac
 
     top = float(np.max(lam, initial=0.0))
     support = [k for k, v in enumerate(lam) if v > NULL_ROW * top]
-    if not support or st.free_values or st.d > RATIONAL_MAX_D \
-            or max(support) >= len(st.pairs):  # rows beyond the pairs: not repaired here
+    if not support or st.free_values or st.d > RATIONAL_MAX_D:
         return None
     null = ([[Fraction(int(j == c)) for j in range(st.d)] for c in units] if units
             else rational_null_space(S, w, snap, null_tol))
@@ -796,7 +804,47 @@ def _prove_null_rows(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Fraction
         ok, lq2, delta, why = prove_at(mt, st, exact_lam, tq, w, repair=False)
         if ok:
             return ok, lq2, delta, why
+        for lifted, tl in _lifted(st, exact_lam, tq):
+            ok, lq2, delta, why2 = prove_at(mt, st, lifted, tl, w, repair=False)
+            if ok:
+                return ok, lq2, delta, why2
     return False, [], Fraction(0), why
+
+
+LIFTS = (Fraction(1, 10**9), Fraction(1, 10**8), Fraction(1, 10**7))  # relative to tq
+
+
+def _lifted(st: PEPStructure, lam: list[Fraction], tq: Fraction
+            ) -> list[tuple[list[Fraction], Fraction]]:
+    """Multipliers raised by delta on every extra row with a constant c > 0, no values
+    and a negative semidefinite diagonal form (|v|^2 <= c: raising its multiplier adds
+    delta |v|^2 to S), the bound raised by delta (sum c + 1) (the initial term's
+    coefficient by delta too): a certificate whose exact null rows left S a little
+    indefinite on the directions those rows bound. Empty when there are none."""
+    if st.constants is None:
+        return []
+    rows = []
+    for e, (_, _, Qc) in enumerate(st.extras):
+        k = len(st.pairs) + e
+        c = _exact_fraction(st.constants[k])
+        Q = _fraction_matrix(Qc)
+        if (c is None or c <= 0 or Q is None
+                or (e in st.extra_values
+                    and any(_nonzero_fraction(v) for v in st.extra_values[e]))
+                or any(Q[u][v] for u in range(len(Q)) for v in range(len(Q)) if u != v)
+                or any(Q[u][u] > 0 for u in range(len(Q)))):
+            continue
+        rows.append((k, c))
+    if not rows:
+        return []
+    out = []
+    for rel in LIFTS:
+        delta = rel * max(tq, Fraction(1))
+        lifted = list(lam)
+        for k, _ in rows:
+            lifted[k] += delta
+        out.append((lifted, tq + delta * (sum(c for _, c in rows) + 1)))
+    return out
 
 
 # a singular certificate's null space from an interior-point answer on a degenerate face:
@@ -876,26 +924,33 @@ def _fraction_matrix(M: Any) -> list[list[Fraction]] | None:
 
 def _exact_pair_parts(mt: Method, st: PEPStructure, support: list[int]
                       ) -> tuple[list[list[list[Fraction]]], list[list[Fraction]]] | None:
-    """(X_k' Q_k X_k on G, a_k on F) of the pairs ``support`` in Fractions; None when some
-    entry is not an exact rational."""
+    """(X_k' Q_k X_k on G, a_k on F) of the rows ``support`` (pairs, then the extra rows)
+    in Fractions; None when some entry is not an exact rational."""
     s = _exact_fraction(mt.s)
     if s is None:
         return None
     quads, lins = [], []
     for k in support:
-        alpha, av, X = st.pair_rows(mt, k)
-        j, _, _, r = st.pairs[k]
-        Xf, Qf = _fraction_matrix(X), _fraction_matrix(mt.ineqs[j][r][1])
+        if k < len(st.pairs):
+            _, av, X = st.pair_rows(mt, k)
+            j, _, _, r = st.pairs[k]
+            Q = mt.ineqs[j][r][1]
+        else:  # an extra row: its X, Qc and values (a constraint's)
+            e = k - len(st.pairs)
+            _, X, Q = st.extras[e]
+            av = st.extra_values.get(e, [Fraction(0)] * st.nF)
+        Xf, Qf = _fraction_matrix(X), _fraction_matrix(Q)
         af = _fraction_matrix([av])
         if Xf is None or Qf is None or af is None:
             return None
-        cols = [c for c in range(st.d) if any(Xf[u][c] for u in range(4))]
-        XQ = {c: [sum(Qf[u][v] * Xf[v][c] for v in range(4)) for u in range(4)]
+        n = len(Xf)
+        cols = [c for c in range(st.d) if any(Xf[u][c] for u in range(n))]
+        XQ = {c: [sum(Qf[u][v] * Xf[v][c] for v in range(n)) for u in range(n)]
               for c in cols}
         quad = [[Fraction(0)] * st.d for _ in range(st.d)]
         for a in cols:
             for c in cols:
-                quad[a][c] = sum(Xf[u][a] * XQ[c][u] for u in range(4))
+                quad[a][c] = sum(Xf[u][a] * XQ[c][u] for u in range(n))
         quads.append(quad)
         lins.append(af[0])
     return quads, lins
@@ -953,10 +1008,7 @@ def prove_at(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
 def _rational_parts(mt: Method, st: PEPStructure, lam: Sequence[Fraction]
                     ) -> tuple[list[list[Fraction]], list[Fraction]] | None:
     """(sum_k lambda_k X_k' Q_k X_k, sum_k lambda_k a_k) in Fractions, None when some
-    datum is not an exact rational or the PEP has extra rows (inexact calls, line search:
-    the ball arithmetic proves those)."""
-    if st.extras:
-        return None
+    datum is not an exact rational."""
     support = [k for k, v in enumerate(lam) if v]
     parts = _exact_pair_parts(mt, st, support)
     if parts is None:
@@ -1246,6 +1298,8 @@ def exact_step_method(spec: Any, kappa: float | None, sm: StepMethods, count: in
                      for e, fi in zip(extras, ineqs, strict=True)]
     mt.errors = _exact_errors(spec, _exact_env(spec, base),
                               lambda e: enclose(e, digits))
+    mt.epsilons = _exact_errors(spec, _exact_env(spec, base),
+                                lambda e: enclose(e, digits), "epsilon")
     mt.lmo = dict(getattr(spec, "lmo", None) or {})
     _call_links(mt, spec)
     return mt

@@ -125,6 +125,8 @@ class Method(CallShape):
     # inexact gradient calls: call index -> eps (|d - g| <= eps |g|,
     # :mod:`sosalgo.worstcase.inexact`)
     errors: dict[int, Any] = field(default_factory=dict)
+    # epsilon-subgradient calls: call index -> eps (:mod:`sosalgo.worstcase.epsilon`)
+    epsilons: dict[int, Any] = field(default_factory=dict)
     # an inexact call's reference vector (coefficients on the step's answers) and the
     # calls answering an inexact call's true subgradient (call -> that call; no point)
     error_refs: dict[int, tuple[Any, ...]] = field(default_factory=dict)
@@ -161,6 +163,9 @@ class PEPPoint:
     g: np.ndarray  # row of the tilted subgradient / s
     f: int | None  # index in F (None: x*, value 0)
     t: int | None = None  # the step of a call (None: x* or a term's extra point)
+    # the answer the method moved with when it is not this point's subgradient (an
+    # epsilon-subgradient call: :mod:`sosalgo.worstcase.epsilon`); grad(P) reads it
+    answer: np.ndarray | None = None
 
 
 @dataclass
@@ -412,7 +417,8 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
         calls = steps + 1
     extra_cap = J * (len(measure) + len(initial)) + J + 1
     g0 = mt.G0 is not None and not free
-    dmax = n0 + (J - 1) + p * calls + extra_cap + (len(mt.errors) + mt.line_search) * calls
+    dmax = n0 + (J - 1) + p * calls + extra_cap + (len(mt.errors) + mt.line_search
+                                                     + 2 * len(mt.epsilons)) * calls
     eye = np.eye(dmax) if not mt.exact else _obj_eye(dmax)
     cols = [f"xi0_{a + 1}-xi*" for a in range(n)] if free else ["x0-x*"]
     cols += [f"s*_{mt.functions[j][0]}/s" for j in range(J - 1)]
@@ -468,6 +474,13 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
     from sosalgo.worstcase.inexact import inexact_calls
 
     extras = inexact_calls(mt, pts, U, sstar, cols, eye)
+    from sosalgo.worstcase.epsilon import epsilon_calls
+
+    eps_rows, eps_values, eps_consts, nF = epsilon_calls(
+        mt, pts, cols, eye, nF, lambda lab, x, g, f: PEPPoint(lab, x, g, f))
+    extra_values = {len(extras) + e: v for e, v in eps_values.items()}
+    extra_consts = {len(extras) + e: c for e, c in eps_consts.items()}
+    extras += eps_rows
     if mt.line_search:
         from sosalgo.worstcase.linesearch import line_search_rows
 
@@ -475,7 +488,8 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
     for j in range(J):
         pts[j].append(PEPPoint("x*", zero, zero, None))
     state = {"nF": nF, "next": len(cols), "cols": cols, "eye": eye, "at": at, "origin": origin,
-             "xi": {"x": xi[steps], "x0": xi[0], REST: xi[0]}, "extras": extras}
+             "xi": {"x": xi[steps], "x0": xi[0], REST: xi[0]}, "extras": extras,
+             "extra_values": extra_values, "extra_consts": extra_consts}
     if mt.lmo:
         from sosalgo.worstcase.lmo import lmo_points
 
@@ -548,7 +562,8 @@ def _constraints(mt: Method, steps: int, xi: list[np.ndarray], Yr: list[list[np.
             out[pt.f] = out.get(pt.f, 0) + mt.s
         return out
 
-    state["extra_values"] = {}
+    state.setdefault("extra_values", {})
+    state.setdefault("extra_consts", {})
     constraint_rows(mt, steps, lambda q, opt: _point_row(mt, xi, Yr, where, q, steps, opt),
                     lambda row, key, opt: _grad_row(mt, row, pts, sstar, state, opt,
                                                     label(key), key),
@@ -664,6 +679,8 @@ def _finish(mt: Method, steps: int, calls: int, state: dict[str, Any],
     for fp in pts:
         for pt in fp:
             pt.x, pt.g = pt.x[keep], pt.g[keep]
+            if pt.answer is not None:
+                pt.answer = pt.answer[keep]
     meas_q, meas_f = _sum_forms([q for q, _ in forms["m"]], [f for _, f in forms["m"]],
                                 keep, nF, dt)
     init_q, init_f = _sum_forms([q for q, _ in forms["i"]], [f for _, f in forms["i"]],
@@ -698,11 +715,10 @@ def _finish(mt: Method, steps: int, calls: int, state: dict[str, Any],
                       state["origin"], extras=extras, extra_values=values)
     st.blocks = [(j, r, [a for a, pt in enumerate(pts[j]) if pt.label != "x*"])
                  for j, fb in enumerate(mt.blocks) for r in range(len(fb))]
-    if mt.constants is not None and any(_nonzero(c) for c in consts):
-        if extras:
-            raise InputError("functions: a class with constant terms together with inexact "
-                             "calls or a line search is not supported")
-        st.constants = np.array(consts, dtype=dt)
+    zero = Fraction(0) if mt.exact else 0.0
+    rest = [state.get("extra_consts", {}).get(e, zero) for e in range(len(extras))]
+    if any(_nonzero(c) for c in consts + rest):  # one constant per row: pairs, then extras
+        st.constants = np.array(consts + rest, dtype=dt)
     return st
 
 
@@ -734,7 +750,7 @@ def _point_at(mt: Method, j: int, row: np.ndarray, pts: list[list[PEPPoint]], la
             state["at"][(key, j)] = a
             return pt
     name, cls, _ = mt.functions[j]
-    if not cls.finite_everywhere:
+    if not cls.finite_everywhere and j not in {mt.oracles[i] for i in mt.epsilons}:
         raise InputError(f"{opt}: {name} ({cls.name}) is not evaluated at {label}: it may "
                          "be infinite there; use a point where the method queries it or "
                          "dist")
@@ -779,14 +795,15 @@ def _grad_row(mt: Method, row: np.ndarray, pts: list[list[PEPPoint]],
               key: str) -> np.ndarray:
     """The row of the gradient of the smooth part (the functions with a gradient oracle)
     at the point ``row``."""
-    smooth = [j for j, (_, cls, _) in enumerate(mt.functions) if "gradient" in cls.oracles]
+    smooth = ([j for j, (_, cls, _) in enumerate(mt.functions) if "gradient" in cls.oracles]
+              or [j for j in {mt.oracles[i] for i in mt.epsilons}])  # else the eps calls'
     if not smooth:
         raise InputError(f"{opt}: grad: no smooth function (a class with a gradient "
                          "oracle) in this spec")
     v = 0 * row
     for j in smooth:
         pt = _point_at(mt, j, row, pts, label, state, opt, key)
-        v = v + pt.g + sstar[j]
+        v = v + (pt.g if pt.answer is None else pt.answer) + sstar[j]
     return v * mt.s
 
 
