@@ -405,6 +405,7 @@ class _Builder:
             sequences=sequences, time_varying=varies,
             pep=self.pep_terms(data.get("pep")),
             line_search=self.line_search(data.get("line_search"), params, matrices, output),
+            span_search=self.span_search(data, functions, oracles),
             mirror=self.mirror(data, functions, matrices, output, inexact or lmo or epsilon),
         )
         if spec.sublinear:
@@ -735,6 +736,29 @@ class _Builder:
             raise self.fail("line_search", "exact line search is for x+ = x - gamma u: one "
                             "state and one call, A = C = E = [[1]], B = [[-gamma]], no D")
         return raw
+
+    def span_search(self, data: dict, functions: dict[str, FunctionDecl],
+                    oracles: tuple[str, ...]) -> bool:
+        """``span_search: true``: the line search's step minimizes f over x_0 + the span of
+        every gradient so far (conjugate gradient); with ``line_search`` on a gradient call
+        of a class with a (sub)gradient oracle and values."""
+        from sosalgo.classes import CLASSES
+
+        raw = data.get("span_search", False)
+        if not isinstance(raw, bool):
+            raise self.fail("span_search", "expected true or false")
+        if not raw:
+            return False
+        if data.get("line_search") is None:
+            raise self.fail("span_search", "a span search is an exact line search over the "
+                            "span of the past gradients: give line_search: NAME (the step "
+                            "parameter of x+ = x - gamma u) too")
+        cls = CLASSES[functions[oracles[0]].cls]
+        if not {"gradient", "subgradient"} & set(cls.oracles) or not cls.has_values:
+            raise self.fail("span_search", f"{oracles[0]} ({cls.name}) has no gradient "
+                            "call: a span search needs the gradients of a function with "
+                            "values")
+        return True
 
     def output(self, data: dict, raw_matrices: object, p: int) -> int | None:
         """``output: y<i>`` (top level or under matrices): the output is the point of oracle

@@ -37,7 +37,7 @@ FLOW_KEY = "flow"  # a continuous-time question (:mod:`sosalgo.spec.flow`)
 TOP_KEYS = {
     "name", "description", "parameters", "matrices", "references", "kappa", "m", "certificate",
     "functions", "oracles", "measure", "output", "L", "initial_state", "sequences", "pep",
-    "line_search", "mirror", "finite_sum",
+    "line_search", "mirror", "finite_sum", "span_search",
 }
 NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,79}$")
 PARAM_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,31}$")
@@ -186,6 +186,9 @@ class Spec:
     # ``line_search: gamma``: the step parameter of x+ = x - gamma u chosen at every step by
     # exact line search (``sosalgo pep`` only; :mod:`sosalgo.worstcase.linesearch`); None: none
     line_search: str | None = None
+    # ``span_search: true`` (with ``line_search``): x_{k+1} minimizes f over x_0 + the span
+    # of the past gradients, not only along u_k (conjugate gradient; the same module)
+    span_search: bool = False
     # ``mirror: {kernel: {class: ...}, set: true}``: the state and the call points are
     # mirror variables grad h(x) (+ a normal vector of the set): Bregman steps, ``sosalgo
     # pep`` only (:mod:`sosalgo.worstcase.mirror`); {"kernel": FunctionDecl, "set": bool}

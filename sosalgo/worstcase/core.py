@@ -255,6 +255,7 @@ def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None
                          "with k")
     mt.G0, mt.smooth = initial_gradient(spec, om, kq)
     mt.line_search = bool(spec.line_search)
+    mt.span_search = bool(getattr(spec, "span_search", False))
     if mt.line_search and schedule is not None:
         raise InputError(f"{spec.source}: line_search: not for a method that changes with k")
     try:
@@ -413,6 +414,9 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
         elif witness and mt.constraints:  # the witness check does not prove constraints
             res.extra["note"] = ("no worst-case witness for a PEP with constraints on the "
                                  "instance (tau_proven is the proven upper bound)")
+        elif witness and mt.span_search:  # no witness construction for a span search
+            res.extra["note"] = ("no worst-case witness for a span search "
+                                 "(tau_proven is the proven upper bound)")
         elif witness and mt.line_search:  # a run on the class's extremal quadratic
             from sosalgo.worstcase.linesearch_witness import line_search_witness
 

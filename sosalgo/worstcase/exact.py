@@ -143,6 +143,8 @@ def class_description(spec: Spec, kappa: float | None) -> dict[str, Any]:
         out["gradient_of"] = {f"oracles[{i}]": f"oracles[{j}]" for i, j in twins.items()}
     if getattr(spec, "line_search", None):
         out["line_search"] = spec.line_search
+    if getattr(spec, "span_search", False):
+        out["span_search"] = True
     if getattr(spec, "mirror", None):  # the kernel of the Bregman steps and the set
         k = spec.mirror["kernel"]
         out["mirror"] = {"kernel": {"class": k.cls, "params": {
@@ -279,6 +281,7 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0) -> Me
     if mt.epsilons:  # the plain basis, as the float method's (short denominators)
         mt.K = np.full(K.shape, Fraction(0), dtype=object)
     mt.line_search = bool(getattr(spec, "line_search", None))
+    mt.span_search = bool(getattr(spec, "span_search", False))
     mt.constraints = spec_constraints(spec, p)
     _call_links(mt, spec)
     mt.lmo = dict(getattr(spec, "lmo", None) or {})

@@ -60,7 +60,11 @@ def line_search_rows(mt: Any, pts: list[list[Any]], Y: list[np.ndarray],
     out = []
     for k in range(steps):
         g = calls[k + 1].g
-        for name, b in (("step", Y[k + 1][0] - Y[k][0]), ("direction", U[k][0])):
+        dirs = [("step", Y[k + 1][0] - Y[k][0]), ("direction", U[k][0])]
+        if mt.span_search:  # every past gradient and step: the span of the gradients
+            dirs += [(f"direction{j}", U[j][0]) for j in range(k)]
+            dirs += [(f"step{j}", Y[j + 1][0] - Y[j][0]) for j in range(k)]
+        for name, b in dirs:
             for sign, tag in ((1, "+"), (-1, "-")):
                 Qc = np.zeros((4, 4), dtype=object if mt.exact else float)
                 Qc[0, 1] = Qc[1, 0] = sign * half

@@ -133,6 +133,7 @@ class Method(CallShape):
     twins: dict[int, int] = field(default_factory=dict)
     # x+ = x - gamma_k u with gamma_k by exact line search (:mod:`sosalgo.worstcase.linesearch`)
     line_search: bool = False
+    span_search: bool = False  # the line search over the span of the past gradients
     # linear minimization calls: call index -> its direction's call (:mod:`sosalgo.worstcase.lmo`)
     lmo: dict[int, int] = field(default_factory=dict)
     # constraints on the instance: (relation, terms of left - right), relation ==, <= or >=
@@ -202,6 +203,10 @@ class PEPStructure:
     # case 0 or unbounded; the solver normalizes it (:mod:`sosalgo.worstcase.sdp`), the proof is
     # at tau = 0 exactly
     bare: bool = False
+    # the margin solves put no margin on the directions no form has a square of (their
+    # rows of S are 0; the proof makes them exactly 0): free points a span search ties to
+    # the run by equalities only
+    margin_seen: bool = False
     # the value coefficients a (on F) of the extras that have some (index in extras -> a;
     # the others have none: :mod:`sosalgo.worstcase.constraints`)
     extra_values: dict[int, np.ndarray] = field(default_factory=dict)
@@ -521,6 +526,7 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
         _constraints(mt, steps, xi, Yr, where, pts, sstar, state)
     st = _finish(mt, steps, calls, state, pts, forms, {"xi": xi, "y": Y, "u": U, "x": out})
     st.bare = not initial
+    st.margin_seen = mt.span_search
     return st
 
 
