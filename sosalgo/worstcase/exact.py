@@ -663,10 +663,10 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
     for step in TAU_STEPS:
         tq = above(Fraction(tau), Fraction(step))
         if units:
-            ok, lq2, delta, why = _prove_null_rows(mt, st, lam, tq, None, w, units)
+            ok, lq2, delta, why, tq = _prove_null_rows(mt, st, lam, tq, None, w, units)
         elif null is not None:
-            ok, lq2, delta, why = _prove_null_rows(mt, st, lam, tq, null, w, coarse=True,
-                                                   null_tol=null_tol)
+            ok, lq2, delta, why, tq = _prove_null_rows(mt, st, lam, tq, null, w,
+                                                       coarse=True, null_tol=null_tol)
         else:
             ok, lq2, delta, why = prove_at(mt, st, lq, tq, w, repair=True)
         if ok:
@@ -788,12 +788,14 @@ def _nonzero_fraction(v: Any) -> bool:
 
 def _prove_null_rows(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Fraction,
                      S: np.ndarray | None, w: np.ndarray, units: list[int] | None = None,
-                     coarse: bool = False, null_tol: float | None = None
-                     ) -> tuple[bool, list[Fraction], Fraction, str]:
+                     coarse: bool = False, null_tol: float | None = None,
+                     lift: bool = True) -> tuple[bool, list[Fraction], Fraction, str, Fraction]:
     """:func:`prove_at` (nothing repaired) on the multipliers of
     :func:`null_row_multipliers`, for each snap of :data:`SNAPS` until one proves
     (``coarse``: also the coarser snaps of :data:`COARSE_SNAPS`, on the float multipliers
-    with those below each of :data:`COARSE_CUTS` of the largest dropped)."""
+    with those below each of :data:`COARSE_CUTS` of the largest dropped), then on those
+    multipliers lifted (:func:`_lifted`). The last entry is the bound proven: ``tq``, or
+    a lifted one above it."""
     why = "no exact multipliers zero the certificate's null rows"
     tries = [(0.0, snap) for snap in SNAPS]
     if coarse:
@@ -806,12 +808,12 @@ def _prove_null_rows(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Fraction
             continue
         ok, lq2, delta, why = prove_at(mt, st, exact_lam, tq, w, repair=False)
         if ok:
-            return ok, lq2, delta, why
-        for lifted, tl in _lifted(st, exact_lam, tq):
+            return ok, lq2, delta, why, tq
+        for lifted, tl in _lifted(st, exact_lam, tq) if lift else ():
             ok, lq2, delta, why2 = prove_at(mt, st, lifted, tl, w, repair=False)
             if ok:
-                return ok, lq2, delta, why2
-    return False, [], Fraction(0), why
+                return ok, lq2, delta, why2, tl
+    return False, [], Fraction(0), why, tq
 
 
 LIFTS = (Fraction(1, 10**9), Fraction(1, 10**8), Fraction(1, 10**7))  # relative to tq
@@ -1387,7 +1389,8 @@ def prove_bare(spec: Spec, kappa: float | None, st_float: PEPStructure,
     lq = [rational(v) if v > 0 else zero for v in lam]
     ok, lq2, delta, why = prove_at(mt, st, lq, zero, w, repair=True)
     if not ok:  # the null rows made exactly zero
-        ok, lq2, delta, why = _prove_null_rows(mt, st, lam, zero, S, w, coarse=True)
+        ok, lq2, delta, why, _ = _prove_null_rows(mt, st, lam, zero, S, w, coarse=True,
+                                                  lift=False)
     if not ok:
         return out | {"detail": why, "seconds": time.perf_counter() - t0}
     return out | {"proven": True, "tau_proven": "0", "tau_proven_float": 0.0,
