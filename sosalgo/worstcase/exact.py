@@ -744,7 +744,8 @@ def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Frac
     for v in null:  # (tq I0 - M - sum lambda_k C_k) v = 0, row by row
         nz = [j for j in range(st.d) if v[j]]
         for i in range(st.d):
-            eqs.append([sum(q[i][j] * v[j] for j in nz) for q in quads])
+            eqs.append([sum((q[i][j] * v[j] for j in nz if j in q[i]), Fraction(0))
+                        for q in quads])
             rhs.append(sum((tq * I0[i][j] - M[i][j]) * v[j] for j in nz))
     cf = None if not units else st_value_residual(st, lam, lins, support)
     for i in range(st.nF):  # c_F[i] = -m_F[i] - sum lambda a_i: no tq to raise it (with
@@ -952,13 +953,35 @@ def _exact_pair_parts(mt: Method, st: PEPStructure, support: list[int]
         cols = [c for c in range(st.d) if any(Xf[u][c] for u in range(n))]
         XQ = {c: [sum(Qf[u][v] * Xf[v][c] for v in range(n)) for u in range(n)]
               for c in cols}
-        quad = [[Fraction(0)] * st.d for _ in range(st.d)]
+        quad = _SparseQuad()  # X' Q X on the columns X uses (the others 0)
         for a in cols:
+            row = _SparseRow()
             for c in cols:
-                quad[a][c] = sum(Xf[u][a] * XQ[c][u] for u in range(n))
+                v = sum(Xf[u][a] * XQ[c][u] for u in range(n))
+                if v:
+                    row[c] = v
+            if row:
+                quad[a] = row
         quads.append(quad)
         lins.append(af[0])
     return quads, lins
+
+
+class _SparseRow(dict):
+    """A row of a sparse exact matrix: a missing column is 0."""
+
+    def __missing__(self, key: int) -> Fraction:
+        return Fraction(0)
+
+
+_EMPTY_ROW = _SparseRow()
+
+
+class _SparseQuad(dict):
+    """A sparse exact matrix, ``q[i][j]`` (a missing row or column is 0; read only)."""
+
+    def __missing__(self, key: int) -> _SparseRow:
+        return _EMPTY_ROW
 
 
 def prove_at(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
@@ -1020,8 +1043,11 @@ def _rational_parts(mt: Method, st: PEPStructure, lam: Sequence[Fraction]
         return None
     quads, lins = parts
     d = st.d
-    quad = [[sum((lam[k] * q[i][j] for k, q in zip(support, quads, strict=True)), Fraction(0))
-             for j in range(d)] for i in range(d)]
+    quad = [[Fraction(0)] * d for _ in range(d)]
+    for k, q in zip(support, quads, strict=True):
+        for i, row in q.items():
+            for j, v in row.items():
+                quad[i][j] += lam[k] * v
     lin = [sum((lam[k] * a[i] for k, a in zip(support, lins, strict=True)), Fraction(0))
            for i in range(st.nF)]
     return quad, lin
