@@ -11,9 +11,13 @@ inequalities, X = (v_1, ..., v_4), Qc = diag(c_i), with its values a (``extra_va
     ">=": X' Qc X + a F >= 0,   "<=": -(X' Qc X + a F) >= 0,   "==": both,
 
 each with a multiplier >= 0 (an equality's free-sign multiplier is the difference of its
-two), entering the dual certificate like an interpolation pair's: S = tau I0 - M -
-sum_k lambda_k Q_k - sum_c mu_c X_c' Qc_c X_c, c_F = tau i_F - m_F - sum lambda_k a_k -
-sum_c mu_c a_c (:func:`sosalgo.worstcase.sdp.pep_data`, the exact proof
+two); a side may have a constant term c, which makes the row X' Qc X + a F + c >= 0 with
+c >= 0 (the PEP is then inhomogeneous: the bound is proven as t + sum_c mu_c c, t >= 0 the
+initial condition's multiplier); a point x_k makes one constraint per step k = 0..N
+(labels ``constraint[i]k<k>``). The multipliers enter the dual certificate like an
+interpolation pair's: S = tau I0 - M - sum_k lambda_k Q_k - sum_c mu_c X_c' Qc_c X_c,
+c_F = tau i_F - m_F - sum lambda_k a_k - sum_c mu_c a_c
+(:func:`sosalgo.worstcase.sdp.pep_data`, the exact proof
 :func:`sosalgo.worstcase.exact.prove_at`). No witness is built for a constrained PEP, and the
 witness check refuses one (it would have to prove the constraints too).
 """

@@ -10,7 +10,10 @@ Taylor 2017), every iterate x_{k+1} is a free point of its own (a basis vector
     <g_{k+1}, x_{k+1} - x_k> = 0,    <g_{k+1}, u_k> = 0,
 
 g_{k+1} the (true) gradient at x_{k+1} and u_k the answer that set the direction (the
-gradient, or an inexact one: :mod:`sosalgo.worstcase.inexact`). Every exact line search step
+gradient, or an inexact one: :mod:`sosalgo.worstcase.inexact`). A span search (spec:
+``span_search: true``, conjugate gradient: x_{k+1} minimizes f over x_0 + span{g_0, ...,
+g_k}) adds <g_{k+1}, u_j> = 0 and <g_{k+1}, x_{j+1} - x_j> = 0 for every j < k, as
+PEPit's ``exact_linesearch_step`` over a list of directions. Every exact line search step
 satisfies them, so the PEP bounds the method (a relaxation: x_{k+1} - x_k need not be
 parallel to u_k; de Klerk et al. show it is tight for gradient descent). Each equality is
 two rows of the extra constraints (``>= 0`` both ways, multipliers >= 0), in the float
