@@ -544,7 +544,7 @@ def _inner_row(mt: Method, key: str, row: np.ndarray, pts: list[list[PEPPoint]],
     v = 0 * row
     for j in range(len(mt.functions)):
         pt = _point_at(mt, j, row, pts, label, state, opt, point)
-        v = v + pt.g + sstar[j]
+        v = v + (pt.g if pt.answer is None else pt.answer) + sstar[j]
     return v * mt.s
 
 
