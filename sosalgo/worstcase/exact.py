@@ -929,42 +929,51 @@ def _fraction_matrix(M: Any) -> list[list[Fraction]] | None:
 
 
 def _exact_pair_parts(mt: Method, st: PEPStructure, support: list[int]
-                      ) -> tuple[list[list[list[Fraction]]], list[list[Fraction]]] | None:
-    """(X_k' Q_k X_k on G, a_k on F) of the rows ``support`` (pairs, then the extra rows)
-    in Fractions; None when some entry is not an exact rational."""
-    s = _exact_fraction(mt.s)
-    if s is None:
+                      ) -> tuple[list[Any], list[list[Fraction]]] | None:
+    """(X_k' Q_k X_k on G, sparse, a_k on F) of the rows ``support`` (pairs, then the
+    extra rows) in Fractions; None when some entry is not an exact rational. Each row's
+    parts are kept on ``st`` (the null-row proofs ask for the same rows again)."""
+    if _exact_fraction(mt.s) is None:
         return None
+    cache = st.__dict__.setdefault("_exact_rows", {})
     quads, lins = [], []
     for k in support:
-        if k < len(st.pairs):
-            _, av, X = st.pair_rows(mt, k)
-            j, _, _, r = st.pairs[k]
-            Q = mt.ineqs[j][r][1]
-        else:  # an extra row: its X, Qc and values (a constraint's)
-            e = k - len(st.pairs)
-            _, X, Q = st.extras[e]
-            av = st.extra_values.get(e, [Fraction(0)] * st.nF)
-        Xf, Qf = _fraction_matrix(X), _fraction_matrix(Q)
-        af = _fraction_matrix([av])
-        if Xf is None or Qf is None or af is None:
+        if k not in cache:
+            cache[k] = _exact_row_parts(mt, st, k)
+        if cache[k] is None:
             return None
-        n = len(Xf)
-        cols = [c for c in range(st.d) if any(Xf[u][c] for u in range(n))]
-        XQ = {c: [sum(Qf[u][v] * Xf[v][c] for v in range(n)) for u in range(n)]
-              for c in cols}
-        quad = _SparseQuad()  # X' Q X on the columns X uses (the others 0)
-        for a in cols:
-            row = _SparseRow()
-            for c in cols:
-                v = sum(Xf[u][a] * XQ[c][u] for u in range(n))
-                if v:
-                    row[c] = v
-            if row:
-                quad[a] = row
-        quads.append(quad)
-        lins.append(af[0])
+        quads.append(cache[k][0])
+        lins.append(cache[k][1])
     return quads, lins
+
+
+def _exact_row_parts(mt: Method, st: PEPStructure, k: int) -> tuple[Any, list[Fraction]] | None:
+    """(X_k' Q_k X_k, sparse, a_k) of row k in Fractions (None: not exact rationals)."""
+    if k < len(st.pairs):
+        _, av, X = st.pair_rows(mt, k)
+        j, _, _, r = st.pairs[k]
+        Q = mt.ineqs[j][r][1]
+    else:  # an extra row: its X, Qc and values (a constraint's)
+        e = k - len(st.pairs)
+        _, X, Q = st.extras[e]
+        av = st.extra_values.get(e, [Fraction(0)] * st.nF)
+    Xf, Qf = _fraction_matrix(X), _fraction_matrix(Q)
+    af = _fraction_matrix([av])
+    if Xf is None or Qf is None or af is None:
+        return None
+    n = len(Xf)
+    cols = [c for c in range(st.d) if any(Xf[u][c] for u in range(n))]
+    XQ = {c: [sum(Qf[u][v] * Xf[v][c] for v in range(n)) for u in range(n)] for c in cols}
+    quad = _SparseQuad()  # X' Q X on the columns X uses (the others 0)
+    for a in cols:
+        row = _SparseRow()
+        for c in cols:
+            v = sum(Xf[u][a] * XQ[c][u] for u in range(n))
+            if v:
+                row[c] = v
+        if row:
+            quad[a] = row
+    return quad, af[0]
 
 
 class _SparseRow(dict):
