@@ -128,6 +128,11 @@ def refuse_oracle_options(spec: Any) -> None:
         raise InputError(f"{spec.source}: oracles[{lmo[0]}].lmo: a linear minimization "
                          "oracle: no Lyapunov family models it (no rate is certified); "
                          "sosalgo pep bounds its worst case after N steps")
+    eps = sorted(getattr(spec, "epsilon", None) or ())
+    if eps:
+        raise InputError(f"{spec.source}: oracles[{eps[0]}].epsilon: an epsilon-subgradient "
+                         "call: no Lyapunov family models it (no rate is certified); "
+                         "sosalgo pep bounds its worst case after N steps")
     inexact = sorted(getattr(spec, "inexact", None) or ())
     if inexact:
         raise InputError(f"{spec.source}: oracles[{inexact[0]}].relative_error: an inexact "

@@ -405,6 +405,8 @@ def check_relative_error(where: str, eps: float) -> None:
 def _check_measure(spec: Spec, fail: Callable[[str, str], SpecError]) -> None:
     at_output = None if spec.output is None else spec.oracles[spec.output]
     sets = {spec.oracles[i] for i in spec.lmo}  # in the set when the steps keep it there
+    sets |= {spec.oracles[i] for i in getattr(spec, "epsilon", None) or {}}  # at every
+    # iterate (:mod:`sosalgo.worstcase.epsilon`)
     for fname, decl in spec.functions.items():
         cls = CLASSES[decl.cls]
         if fname in sets:  # decided by the PEP (:mod:`sosalgo.worstcase.lmo`)

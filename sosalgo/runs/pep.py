@@ -433,7 +433,10 @@ def pep_heading(rows: list[dict[str, Any]]) -> list[str]:
                      f"  {call}: an inexact gradient d, |d - grad f| <= {eps} |grad f|")
     for call, src in (cls.get("gradient_of") or {}).items():
         lines.append(f"  {call}: the true subgradient at {src}'s point")
-    if cls.get("line_search"):
+    if cls.get("span_search"):
+        lines.append("  x_k+1: minimizes f over x_0 + the span of the gradients so far "
+                     "(exact span search)")
+    elif cls.get("line_search"):
         lines.append(f"  {cls['line_search']}: chosen at every step by exact line search")
     if d.get("per_step"):
         f = d["per_step"]

@@ -365,6 +365,7 @@ class _Builder:
         error_refs, twins = self.oracle_links(raw_oracles)
         lmo = self.oracle_lmo(raw_oracles)
         oracles = self.oracles(_oracle_names(raw_oracles), functions)
+        epsilon = self.oracle_epsilon(raw_oracles, names, functions)
         measure = data.get("measure", "function")
         if measure not in MEASURES:
             raise self.fail("measure", f"must be one of {', '.join(MEASURES)}")
@@ -396,6 +397,7 @@ class _Builder:
             name=name, description=description, source=self.source, parameters=params,
             matrices=matrices, references=references, kappa=kappa, m=m,
             functions=functions, oracles=oracles, inexact=inexact, lmo=lmo, output=output,
+            epsilon=epsilon,
             error_refs=error_refs, twins=twins,
             measure=measure, L=L,
             initial_state=initial_state, m_expr=parse_tree(data.get("m", 1), ()),
@@ -403,7 +405,8 @@ class _Builder:
             sequences=sequences, time_varying=varies,
             pep=self.pep_terms(data.get("pep")),
             line_search=self.line_search(data.get("line_search"), params, matrices, output),
-            mirror=self.mirror(data, functions, matrices, output, inexact or lmo),
+            span_search=self.span_search(data, functions, oracles),
+            mirror=self.mirror(data, functions, matrices, output, inexact or lmo or epsilon),
         )
         if spec.sublinear:
             self.check_sublinear(spec)
@@ -580,7 +583,7 @@ class _Builder:
                 continue
             extra = [str(k)[:40] for k in entry
                      if k not in ("function", "relative_error", "lmo", "relative_to",
-                                  "gradient_of")]
+                                  "gradient_of", "epsilon")]
             if extra:
                 raise self.fail(f"oracles[{i}].{extra[0]}", "unknown key (an oracle entry is "
                                 "a function name, {function: NAME, relative_error: EPS} or "
@@ -590,6 +593,31 @@ class _Builder:
             if "relative_error" in entry:
                 out[i] = self.expr(entry["relative_error"], names,
                                    f"oracles[{i}].relative_error")
+        return out
+
+    def oracle_epsilon(self, raw: object, names: frozenset[str],
+                       functions: dict[str, FunctionDecl]) -> dict[int, Expr]:
+        """The epsilon-subgradient calls of ``oracles:``: an entry ``{function: f, epsilon:
+        eps}`` answers some g with f(z) >= f(y) + <g, z - y> - eps for every z (eps an
+        expression of m, L, kappa and the parameters, >= 0; :mod:`sosalgo.worstcase.epsilon`),
+        on a convex class with values and a (sub)gradient oracle."""
+        from sosalgo.classes import CLASSES
+
+        out: dict[int, Expr] = {}
+        for i, entry in enumerate(raw if isinstance(raw, list) else ()):
+            if not isinstance(entry, dict) or "epsilon" not in entry:
+                continue
+            where = f"oracles[{i}].epsilon"
+            if set(entry) - {"function", "epsilon"}:
+                raise self.fail(where, "an epsilon-subgradient call has no other key "
+                                "(relative_error, lmo, relative_to, gradient_of)")
+            cls = CLASSES[functions[entry["function"]].cls]
+            if (not cls.convex or not cls.has_values
+                    or not {"gradient", "subgradient"} & set(cls.oracles)):
+                raise self.fail(where, f"{cls.name} has no subgradients with function "
+                                "values: an epsilon-subgradient is for a convex class with "
+                                "a (sub)gradient oracle")
+            out[i] = self.expr(entry["epsilon"], names, where)
         return out
 
     def oracle_links(self, raw: object) -> tuple[dict[int, tuple[Fraction, ...]],
@@ -717,6 +745,29 @@ class _Builder:
             raise self.fail("line_search", "exact line search is for x+ = x - gamma u: one "
                             "state and one call, A = C = E = [[1]], B = [[-gamma]], no D")
         return raw
+
+    def span_search(self, data: dict, functions: dict[str, FunctionDecl],
+                    oracles: tuple[str, ...]) -> bool:
+        """``span_search: true``: the line search's step minimizes f over x_0 + the span of
+        every gradient so far (conjugate gradient); with ``line_search`` on a gradient call
+        of a class with a (sub)gradient oracle and values."""
+        from sosalgo.classes import CLASSES
+
+        raw = data.get("span_search", False)
+        if not isinstance(raw, bool):
+            raise self.fail("span_search", "expected true or false")
+        if not raw:
+            return False
+        if data.get("line_search") is None:
+            raise self.fail("span_search", "a span search is an exact line search over the "
+                            "span of the past gradients: give line_search: NAME (the step "
+                            "parameter of x+ = x - gamma u) too")
+        cls = CLASSES[functions[oracles[0]].cls]
+        if not {"gradient", "subgradient"} & set(cls.oracles) or not cls.has_values:
+            raise self.fail("span_search", f"{oracles[0]} ({cls.name}) has no gradient "
+                            "call: a span search needs the gradients of a function with "
+                            "values")
+        return True
 
     def output(self, data: dict, raw_matrices: object, p: int) -> int | None:
         """``output: y<i>`` (top level or under matrices): the output is the point of oracle

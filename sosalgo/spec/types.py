@@ -37,7 +37,7 @@ FLOW_KEY = "flow"  # a continuous-time question (:mod:`sosalgo.spec.flow`)
 TOP_KEYS = {
     "name", "description", "parameters", "matrices", "references", "kappa", "m", "certificate",
     "functions", "oracles", "measure", "output", "L", "initial_state", "sequences", "pep",
-    "line_search", "mirror", "finite_sum",
+    "line_search", "mirror", "finite_sum", "span_search",
 }
 NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,79}$")
 PARAM_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,31}$")
@@ -170,6 +170,10 @@ class Spec:
     # inexact gradient calls (``oracles: [{function: f, relative_error: eps}]``): call index
     # (0-based) -> eps, the call answering some d with |d - grad f(y)| <= eps |grad f(y)|
     inexact: dict[int, Expr] = field(default_factory=dict)
+    # epsilon-subgradient calls (``oracles: [{function: f, epsilon: eps}]``): call index
+    # (0-based) -> eps, the call answering some g with f(z) >= f(y) + <g, z - y> - eps for
+    # every z (:mod:`sosalgo.worstcase.epsilon`)
+    epsilon: dict[int, Expr] = field(default_factory=dict)
     # linear minimization calls (``oracles: [f, {function: h, lmo: 1}]``): call index
     # (0-based) -> the index of the gradient call whose answer g is the direction; the call
     # answers u = s - y with s in argmin over the set of <g, s> (:mod:`sosalgo.worstcase.lmo`)
@@ -182,6 +186,9 @@ class Spec:
     # ``line_search: gamma``: the step parameter of x+ = x - gamma u chosen at every step by
     # exact line search (``sosalgo pep`` only; :mod:`sosalgo.worstcase.linesearch`); None: none
     line_search: str | None = None
+    # ``span_search: true`` (with ``line_search``): x_{k+1} minimizes f over x_0 + the span
+    # of the past gradients, not only along u_k (conjugate gradient; the same module)
+    span_search: bool = False
     # ``mirror: {kernel: {class: ...}, set: true}``: the state and the call points are
     # mirror variables grad h(x) (+ a normal vector of the set): Bregman steps, ``sosalgo
     # pep`` only (:mod:`sosalgo.worstcase.mirror`); {"kernel": FunctionDecl, "set": bool}
@@ -224,7 +231,8 @@ class Spec:
         Theorem 1; True for every other spec."""
         if self.oracles != ("f",) or self.output is not None or self.measure != "function":
             return True
-        if self.inexact or self.line_search or self.lmo or self.mirror:  # not Theorem 1
+        if (self.inexact or self.epsilon or self.line_search or self.lmo
+                or self.mirror):  # not Theorem 1
             return True
         if self.sublinear:  # no kappa: outside Theorem 1's setting
             return True

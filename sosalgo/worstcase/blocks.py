@@ -123,5 +123,12 @@ def with_cuts(mt: Method, st: PEPStructure, cuts: list[tuple[int, int, list[Any]
         lab = f"{mt.functions[j][0]}:block{r + 1}.{count[(j, r)]}"
         extras.append((lab, X, Qc))
         labels.append(lab)
-    return replace(st, extras=extras, labels=labels, cuts=list(st.cuts) + list(cuts))
+    constants = st.constants
+    if constants is not None:  # one constant per row: the cuts' are 0
+        zero = Fraction(0) if mt.exact else 0.0
+        constants = np.concatenate([constants, np.array([zero] * (len(extras)
+                                                                  - len(st.extras)),
+                                                        dtype=constants.dtype)])
+    return replace(st, extras=extras, labels=labels, cuts=list(st.cuts) + list(cuts),
+                   constants=constants)
 

@@ -245,11 +245,17 @@ def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None
     mt.error_refs = {i: tuple(float(c) for c in ref)
                      for i, ref in (getattr(spec, "error_refs", None) or {}).items()}
     mt.twins = dict(getattr(spec, "twins", None) or {})
+    from sosalgo.worstcase.epsilon import float_epsilons
+
+    mt.epsilons = float_epsilons(spec, om, kq, mt)
+    if mt.epsilons:  # the plain basis (the exact rows keep short denominators)
+        mt.K = np.zeros_like(mt.K)
     if mt.constraints and schedule is not None:
         raise InputError(f"{spec.source}: pep.constraints: not for a method that changes "
                          "with k")
     mt.G0, mt.smooth = initial_gradient(spec, om, kq)
     mt.line_search = bool(spec.line_search)
+    mt.span_search = bool(getattr(spec, "span_search", False))
     if mt.line_search and schedule is not None:
         raise InputError(f"{spec.source}: line_search: not for a method that changes with k")
     try:
@@ -402,9 +408,15 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
         elif witness and mt.lmo:  # no witness construction for a linear minimization call
             res.extra["note"] = ("no worst-case witness for a linear minimization oracle "
                                  "(tau_proven is the proven upper bound)")
+        elif witness and mt.epsilons:  # no witness construction for an eps-subgradient
+            res.extra["note"] = ("no worst-case witness for epsilon-subgradient calls "
+                                 "(tau_proven is the proven upper bound)")
         elif witness and mt.constraints:  # the witness check does not prove constraints
             res.extra["note"] = ("no worst-case witness for a PEP with constraints on the "
                                  "instance (tau_proven is the proven upper bound)")
+        elif witness and mt.span_search:  # no witness construction for a span search
+            res.extra["note"] = ("no worst-case witness for a span search "
+                                 "(tau_proven is the proven upper bound)")
         elif witness and mt.line_search:  # a run on the class's extremal quadratic
             from sosalgo.worstcase.linesearch_witness import line_search_witness
 

@@ -134,11 +134,17 @@ def class_description(spec: Spec, kappa: float | None) -> dict[str, Any]:
         if refs:  # relative to a combination of the step's answers
             out["relative_to"] = {f"oracles[{i}]": [str(c) for c in ref]
                                   for i, ref in refs.items()}
+    if getattr(spec, "epsilon", None):  # the epsilon-subgradient calls' eps, as written
+        env = _exact_env(spec, base)
+        out["epsilon_subgradients"] = {f"oracles[{i}]": str(to_sympy(e).xreplace(env))
+                                       for i, e in spec.epsilon.items()}
     twins = getattr(spec, "twins", None) or {}
     if twins:
         out["gradient_of"] = {f"oracles[{i}]": f"oracles[{j}]" for i, j in twins.items()}
     if getattr(spec, "line_search", None):
         out["line_search"] = spec.line_search
+    if getattr(spec, "span_search", False):
+        out["span_search"] = True
     if getattr(spec, "mirror", None):  # the kernel of the Bregman steps and the set
         k = spec.mirror["kernel"]
         out["mirror"] = {"kernel": {"class": k.cls, "params": {
@@ -292,7 +298,11 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0,
     mt.x0_call = _exact_start_call(mats, Xq, om)
     mt.prev_call = _exact_previous_call(mats, om)
     mt.errors = _exact_errors(spec, env, enclose)
+    mt.epsilons = _exact_errors(spec, env, enclose, "epsilon")
+    if mt.epsilons:  # the plain basis, as the float method's (short denominators)
+        mt.K = np.full(K.shape, Fraction(0), dtype=object)
     mt.line_search = bool(getattr(spec, "line_search", None))
+    mt.span_search = bool(getattr(spec, "span_search", False))
     mt.constraints = spec_constraints(spec, p)
     _call_links(mt, spec)
     mt.lmo = dict(getattr(spec, "lmo", None) or {})
@@ -341,12 +351,14 @@ def class_extras(cls: Any, params: Mapping[str, Any], count: int
     return list(consts), [i.scope for i in fl]
 
 
-def _exact_errors(spec: Spec, env: dict[sp.Symbol, sp.Expr], enclose: Any) -> dict[int, Any]:
-    """The relative error of each inexact call as written (enclosed), exactly."""
+def _exact_errors(spec: Spec, env: dict[sp.Symbol, sp.Expr], enclose: Any,
+                  field: str = "inexact") -> dict[int, Any]:
+    """The relative error of each inexact call (``field`` "epsilon": the eps of each
+    epsilon-subgradient call) as written (enclosed), exactly."""
     from sosalgo.kernel.expr.parse import to_sympy
 
     return {i: enclose(to_sympy(e).xreplace(env)) for i, e in
-            getattr(spec, "inexact", {}).items()}
+            (getattr(spec, field, None) or {}).items()}
 
 
 def _proven_zero(v: sp.Expr) -> bool:
@@ -699,10 +711,10 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
     for step in TAU_STEPS:
         tq = above(Fraction(tau), Fraction(step))
         if units:
-            ok, lq2, delta, why = _prove_null_rows(mt, st, lam, tq, None, w, units)
+            ok, lq2, delta, why, tq = _prove_null_rows(mt, st, lam, tq, None, w, units)
         elif null is not None:
-            ok, lq2, delta, why = _prove_null_rows(mt, st, lam, tq, null, w, coarse=True,
-                                                   null_tol=null_tol)
+            ok, lq2, delta, why, tq = _prove_null_rows(mt, st, lam, tq, null, w,
+                                                       coarse=True, null_tol=null_tol)
         else:
             ok, lq2, delta, why = prove_at(mt, st, lq, tq, w, repair=True)
         if ok:
@@ -758,8 +770,7 @@ def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Frac
 
     top = float(np.max(lam, initial=0.0))
     support = [k for k, v in enumerate(lam) if v > NULL_ROW * top]
-    if not support or st.d > RATIONAL_MAX_D \
-            or max(support) >= len(st.pairs):  # rows beyond the pairs: not repaired here
+    if not support or st.d > RATIONAL_MAX_D:
         return None
     null = ([[Fraction(int(j == c)) for j in range(st.d)] for c in units] if units
             else rational_null_space(S, w, snap, null_tol))
@@ -769,15 +780,15 @@ def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Frac
             _nonzero_fraction(v[j]) and _nonzero_fraction(st.init_q[i][j])  # off the null
             for v in null for i in range(st.d) for j in range(st.d)):  # space only
         return None
-    parts = [_pair_part(mt, st, k) for k in support]
-    if _exact_fraction(mt.s) is None or any(part is None for part in parts):
+    rows = _exact_pair_parts(mt, st, support)
+    if rows is None:
         return None
-    lins = [part[1] for part in parts]
+    quads, lins = rows
     I0, M = _fraction_matrix(st.init_q), _fraction_matrix(st.meas_q)
     fi, fm = _fraction_matrix([st.init_f]), _fraction_matrix([st.meas_f])
     if I0 is None or M is None or fi is None or fm is None:
         return None
-    eqs, rhs = _null_equations(st, [part[0] for part in parts], null, tq, I0, M)
+    eqs, rhs = _null_equations(st, quads, null, tq, I0, M)
     if eqs is None:  # a row 0 = nonzero: no exact certificate on this support
         return None
     cf = None if not units else st_value_residual(st, lam, lins, support)
@@ -800,20 +811,21 @@ def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Frac
     return out
 
 
-def _null_equations(st: PEPStructure, quads: list[Sparse], null: list[list[Fraction]],
+def _null_equations(st: PEPStructure, quads: list[Any], null: list[list[Fraction]],
                     tq: Fraction, I0: list[list[Fraction]], M: list[list[Fraction]]
                     ) -> tuple[list[list[Fraction]] | None, list[Fraction]]:
     """The rows of (tq I0 - M - sum_k lambda_k C_k) v = 0 for each v of ``null``, linear in
-    the multipliers (C_k: the sparse ``quads``); the rows 0 = 0 left out, (None, []) when a
-    row reads 0 = nonzero."""
+    the multipliers (C_k: the sparse ``quads``, row -> column -> value); the rows 0 = 0
+    left out, (None, []) when a row reads 0 = nonzero."""
     eqs, rhs = [], []
     for v in null:
         products = []  # C_k v, by row, sparse
         for quad in quads:
             prod: dict[int, Fraction] = {}
-            for (i, j), value in quad.items():
-                if v[j]:
-                    prod[i] = prod.get(i, Fraction(0)) + value * v[j]
+            for i, row in quad.items():
+                for j, value in row.items():
+                    if v[j]:
+                        prod[i] = prod.get(i, Fraction(0)) + value * v[j]
             products.append(prod)
         nz = [j for j in range(st.d) if v[j]]
         for i in range(st.d):
@@ -847,12 +859,14 @@ def _nonzero_fraction(v: Any) -> bool:
 
 def _prove_null_rows(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Fraction,
                      S: np.ndarray | None, w: np.ndarray, units: list[int] | None = None,
-                     coarse: bool = False, null_tol: float | None = None
-                     ) -> tuple[bool, list[Fraction], Fraction, str]:
+                     coarse: bool = False, null_tol: float | None = None,
+                     lift: bool = True) -> tuple[bool, list[Fraction], Fraction, str, Fraction]:
     """:func:`prove_at` (nothing repaired) on the multipliers of
     :func:`null_row_multipliers`, for each snap of :data:`SNAPS` until one proves
     (``coarse``: also the coarser snaps of :data:`COARSE_SNAPS`, on the float multipliers
-    with those below each of :data:`COARSE_CUTS` of the largest dropped)."""
+    with those below each of :data:`COARSE_CUTS` of the largest dropped), then on those
+    multipliers lifted (:func:`_lifted`). The last entry is the bound proven: ``tq``, or
+    a lifted one above it."""
     why = "no exact multipliers zero the certificate's null rows"
     tries = [(0.0, snap) for snap in SNAPS]
     if coarse:
@@ -865,8 +879,48 @@ def _prove_null_rows(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Fraction
             continue
         ok, lq2, delta, why = prove_at(mt, st, exact_lam, tq, w, repair=False)
         if ok:
-            return ok, lq2, delta, why
-    return False, [], Fraction(0), why
+            return ok, lq2, delta, why, tq
+        for lifted, tl in _lifted(st, exact_lam, tq) if lift else ():
+            ok, lq2, delta, why2 = prove_at(mt, st, lifted, tl, w, repair=False)
+            if ok:
+                return ok, lq2, delta, why2, tl
+    return False, [], Fraction(0), why, tq
+
+
+LIFTS = (Fraction(1, 10**9), Fraction(1, 10**8), Fraction(1, 10**7))  # relative to tq
+
+
+def _lifted(st: PEPStructure, lam: list[Fraction], tq: Fraction
+            ) -> list[tuple[list[Fraction], Fraction]]:
+    """Multipliers raised by delta on every extra row with a constant c > 0, no values
+    and a negative semidefinite diagonal form (|v|^2 <= c: raising its multiplier adds
+    delta |v|^2 to S), the bound raised by delta (sum c + 1) (the initial term's
+    coefficient by delta too): a certificate whose exact null rows left S a little
+    indefinite on the directions those rows bound. Empty when there are none."""
+    if st.constants is None:
+        return []
+    rows = []
+    for e, (_, _, Qc) in enumerate(st.extras):
+        k = len(st.pairs) + e
+        c = _exact_fraction(st.constants[k])
+        Q = _fraction_matrix(Qc)
+        if (c is None or c <= 0 or Q is None
+                or (e in st.extra_values
+                    and any(_nonzero_fraction(v) for v in st.extra_values[e]))
+                or any(Q[u][v] for u in range(len(Q)) for v in range(len(Q)) if u != v)
+                or any(Q[u][u] > 0 for u in range(len(Q)))):
+            continue
+        rows.append((k, c))
+    if not rows:
+        return []
+    out = []
+    for rel in LIFTS:
+        delta = rel * max(tq, Fraction(1))
+        lifted = list(lam)
+        for k, _ in rows:
+            lifted[k] += delta
+        out.append((lifted, tq + delta * (sum(c for _, c in rows) + 1)))
+    return out
 
 
 # a singular certificate's null space from an interior-point answer on a degenerate face:
@@ -944,67 +998,69 @@ def _fraction_matrix(M: Any) -> list[list[Fraction]] | None:
     return out
 
 
-# the exact parts of the pairs of the last few (method, structure) pairs: the null-row
-# proof asks them for many supports and snaps of one PEP (each pair's part is the same)
-_PAIR_PARTS: dict[tuple[int, int], tuple[Method, PEPStructure, dict[int, Any]]] = {}
-_PAIR_PARTS_KEPT = 4
-
-Sparse = dict[tuple[int, int], Fraction]
-
-
-def _pair_part(mt: Method, st: PEPStructure, k: int
-               ) -> tuple[Sparse, list[Fraction]] | None:
-    """(X_k' Q_k X_k on G as its nonzero entries, a_k on F) of the pair ``k`` of ``st`` in
-    Fractions (cached per method and structure); None when an entry is not an exact
-    rational."""
-    key = (id(mt), id(st))
-    held = _PAIR_PARTS.get(key)
-    if held is None or held[0] is not mt or held[1] is not st:
-        while len(_PAIR_PARTS) >= _PAIR_PARTS_KEPT:
-            _PAIR_PARTS.pop(next(iter(_PAIR_PARTS)))
-        held = _PAIR_PARTS[key] = (mt, st, {})
-    parts = held[2]
-    if k not in parts:
-        parts[k] = _compute_pair_part(mt, st, k)
-    return parts[k]
+def _exact_pair_parts(mt: Method, st: PEPStructure, support: list[int]
+                      ) -> tuple[list[Any], list[list[Fraction]]] | None:
+    """(X_k' Q_k X_k on G, sparse, a_k on F) of the rows ``support`` (pairs, then the
+    extra rows) in Fractions; None when some entry is not an exact rational. Each row's
+    parts are kept on ``st`` (the null-row proofs ask for the same rows again)."""
+    if _exact_fraction(mt.s) is None:
+        return None
+    cache = st.__dict__.setdefault("_exact_rows", {})
+    quads, lins = [], []
+    for k in support:
+        if k not in cache:
+            cache[k] = _exact_row_parts(mt, st, k)
+        if cache[k] is None:
+            return None
+        quads.append(cache[k][0])
+        lins.append(cache[k][1])
+    return quads, lins
 
 
-def _compute_pair_part(mt: Method, st: PEPStructure, k: int
-                       ) -> tuple[Sparse, list[Fraction]] | None:
-    _, av, X = st.pair_rows(mt, k)
-    j, _, _, r = st.pairs[k]
-    Xf, Qf = _fraction_matrix(X), _fraction_matrix(mt.ineqs[j][r][1])
+def _exact_row_parts(mt: Method, st: PEPStructure, k: int) -> tuple[Any, list[Fraction]] | None:
+    """(X_k' Q_k X_k, sparse, a_k) of row k in Fractions (None: not exact rationals)."""
+    if k < len(st.pairs):
+        _, av, X = st.pair_rows(mt, k)
+        j, _, _, r = st.pairs[k]
+        Q = mt.ineqs[j][r][1]
+    else:  # an extra row: its X, Qc and values (a constraint's)
+        e = k - len(st.pairs)
+        _, X, Q = st.extras[e]
+        av = st.extra_values.get(e, [Fraction(0)] * st.nF)
+    Xf, Qf = _fraction_matrix(X), _fraction_matrix(Q)
     af = _fraction_matrix([av])
     if Xf is None or Qf is None or af is None:
         return None
-    cols = [c for c in range(st.d) if any(Xf[u][c] for u in range(4))]
-    XQ = {c: [sum(Qf[u][v] * Xf[v][c] for v in range(4)) for u in range(4)] for c in cols}
-    quad: Sparse = {}
+    n = len(Xf)
+    cols = [c for c in range(st.d) if any(Xf[u][c] for u in range(n))]
+    XQ = {c: [sum(Qf[u][v] * Xf[v][c] for v in range(n)) for u in range(n)] for c in cols}
+    quad = _SparseQuad()  # X' Q X on the columns X uses (the others 0)
     for a in cols:
+        row = _SparseRow()
         for c in cols:
-            value = sum(Xf[u][a] * XQ[c][u] for u in range(4))
-            if value:
-                quad[a, c] = value
+            v = sum(Xf[u][a] * XQ[c][u] for u in range(n))
+            if v:
+                row[c] = v
+        if row:
+            quad[a] = row
     return quad, af[0]
 
 
-def _exact_pair_parts(mt: Method, st: PEPStructure, support: list[int]
-                      ) -> tuple[list[list[list[Fraction]]], list[list[Fraction]]] | None:
-    """(X_k' Q_k X_k on G, a_k on F) of the pairs ``support`` in Fractions; None when some
-    entry is not an exact rational."""
-    if _exact_fraction(mt.s) is None:
-        return None
-    quads, lins = [], []
-    for k in support:
-        part = _pair_part(mt, st, k)
-        if part is None:
-            return None
-        quad = [[Fraction(0)] * st.d for _ in range(st.d)]
-        for (a, c), value in part[0].items():
-            quad[a][c] = value
-        quads.append(quad)
-        lins.append(part[1])
-    return quads, lins
+class _SparseRow(dict):
+    """A row of a sparse exact matrix: a missing column is 0."""
+
+    def __missing__(self, key: int) -> Fraction:
+        return Fraction(0)
+
+
+_EMPTY_ROW = _SparseRow()
+
+
+class _SparseQuad(dict):
+    """A sparse exact matrix, ``q[i][j]`` (a missing row or column is 0; read only)."""
+
+    def __missing__(self, key: int) -> _SparseRow:
+        return _EMPTY_ROW
 
 
 def prove_at(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
@@ -1059,24 +1115,20 @@ def prove_at(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
 def _rational_parts(mt: Method, st: PEPStructure, lam: Sequence[Fraction]
                     ) -> tuple[list[list[Fraction]], list[Fraction]] | None:
     """(sum_k lambda_k X_k' Q_k X_k, sum_k lambda_k a_k) in Fractions, None when some
-    datum is not an exact rational or the PEP has extra rows (inexact calls, line search:
-    the ball arithmetic proves those)."""
-    if st.extras:
+    datum is not an exact rational."""
+    support = [k for k, v in enumerate(lam) if v]
+    parts = _exact_pair_parts(mt, st, support)
+    if parts is None:
         return None
-    if _exact_fraction(mt.s) is None:
-        return None
-    quad = [[Fraction(0)] * st.d for _ in range(st.d)]
-    lin = [Fraction(0)] * st.nF
-    for k, v in enumerate(lam):
-        part = _pair_part(mt, st, k) if v else None
-        if v and part is None:
-            return None
-        if not v:
-            continue
-        for (i, j), value in part[0].items():
-            quad[i][j] += v * value
-        for i, a in enumerate(part[1]):
-            lin[i] += v * a
+    quads, lins = parts
+    d = st.d
+    quad = [[Fraction(0)] * d for _ in range(d)]
+    for k, q in zip(support, quads, strict=True):
+        for i, row in q.items():
+            for j, v in row.items():
+                quad[i][j] += lam[k] * v
+    lin = [sum((lam[k] * a[i] for k, a in zip(support, lins, strict=True)), Fraction(0))
+           for i in range(st.nF)]
     return quad, lin
 
 
@@ -1356,6 +1408,8 @@ def exact_step_method(spec: Any, kappa: float | None, sm: StepMethods, count: in
                      for e, fi in zip(extras, ineqs, strict=True)]
     mt.errors = _exact_errors(spec, _exact_env(spec, base),
                               lambda e: enclose(e, digits))
+    mt.epsilons = _exact_errors(spec, _exact_env(spec, base),
+                                lambda e: enclose(e, digits), "epsilon")
     mt.lmo = dict(getattr(spec, "lmo", None) or {})
     _call_links(mt, spec)
     return mt
@@ -1440,7 +1494,8 @@ def prove_bare(spec: Spec, kappa: float | None, st_float: PEPStructure,
     lq = [rational(v) if v > 0 else zero for v in lam]
     ok, lq2, delta, why = prove_at(mt, st, lq, zero, w, repair=True)
     if not ok:  # the null rows made exactly zero
-        ok, lq2, delta, why = _prove_null_rows(mt, st, lam, zero, S, w, coarse=True)
+        ok, lq2, delta, why, _ = _prove_null_rows(mt, st, lam, zero, S, w, coarse=True,
+                                                  lift=False)
     if not ok:
         return out | {"detail": why, "seconds": time.perf_counter() - t0}
     return out | {"proven": True, "tau_proven": "0", "tau_proven_float": 0.0,

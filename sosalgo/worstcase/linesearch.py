@@ -10,7 +10,10 @@ Taylor 2017), every iterate x_{k+1} is a free point of its own (a basis vector
     <g_{k+1}, x_{k+1} - x_k> = 0,    <g_{k+1}, u_k> = 0,
 
 g_{k+1} the (true) gradient at x_{k+1} and u_k the answer that set the direction (the
-gradient, or an inexact one: :mod:`sosalgo.worstcase.inexact`). Every exact line search step
+gradient, or an inexact one: :mod:`sosalgo.worstcase.inexact`). A span search (spec:
+``span_search: true``, conjugate gradient: x_{k+1} minimizes f over x_0 + span{g_0, ...,
+g_k}) adds <g_{k+1}, u_j> = 0 and <g_{k+1}, x_{j+1} - x_j> = 0 for every j < k, as
+PEPit's ``exact_linesearch_step`` over a list of directions. Every exact line search step
 satisfies them, so the PEP bounds the method (a relaxation: x_{k+1} - x_k need not be
 parallel to u_k; de Klerk et al. show it is tight for gradient descent). Each equality is
 two rows of the extra constraints (``>= 0`` both ways, multipliers >= 0), in the float
@@ -60,7 +63,11 @@ def line_search_rows(mt: Any, pts: list[list[Any]], Y: list[np.ndarray],
     out = []
     for k in range(steps):
         g = calls[k + 1].g
-        for name, b in (("step", Y[k + 1][0] - Y[k][0]), ("direction", U[k][0])):
+        dirs = [("step", Y[k + 1][0] - Y[k][0]), ("direction", U[k][0])]
+        if mt.span_search:  # every past gradient and step: the span of the gradients
+            dirs += [(f"direction{j}", U[j][0]) for j in range(k)]
+            dirs += [(f"step{j}", Y[j + 1][0] - Y[j][0]) for j in range(k)]
+        for name, b in dirs:
             for sign, tag in ((1, "+"), (-1, "-")):
                 Qc = np.zeros((4, 4), dtype=object if mt.exact else float)
                 Qc[0, 1] = Qc[1, 0] = sign * half

@@ -459,7 +459,8 @@ def _solve_dual(data: PEPData, active: np.ndarray, margin: float, unit: float,
                     sps.hstack([body[nG:], pad[K:]]), Sblk,
                     sps.hstack([sps.csr_matrix((nb, 1 + K)), -sps.identity(nb)])]).tocsc()
     A.eliminate_zeros()
-    seen = linear_only(data) if t else np.ones(d)  # with constants: no margin where S is 0
+    seen = (linear_only(data) if t or st.margin_seen  # with constants: no margin where S
+            else np.ones(d))  # is 0
     eye = np.concatenate([svec(np.diag(seen)), np.full(nF, 0.0 if st.free_values else 1.0)]
                          ) * margin  # free values: c_F = 0 (no margin there)
     b = np.concatenate([np.zeros(t + K), -(meas + eye)[nG:], -(meas + eye)[:nG],

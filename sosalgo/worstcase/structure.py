@@ -130,12 +130,15 @@ class Method(CallShape):
     # inexact gradient calls: call index -> eps (|d - g| <= eps |g|,
     # :mod:`sosalgo.worstcase.inexact`)
     errors: dict[int, Any] = field(default_factory=dict)
+    # epsilon-subgradient calls: call index -> eps (:mod:`sosalgo.worstcase.epsilon`)
+    epsilons: dict[int, Any] = field(default_factory=dict)
     # an inexact call's reference vector (coefficients on the step's answers) and the
     # calls answering an inexact call's true subgradient (call -> that call; no point)
     error_refs: dict[int, tuple[Any, ...]] = field(default_factory=dict)
     twins: dict[int, int] = field(default_factory=dict)
     # x+ = x - gamma_k u with gamma_k by exact line search (:mod:`sosalgo.worstcase.linesearch`)
     line_search: bool = False
+    span_search: bool = False  # the line search over the span of the past gradients
     # linear minimization calls: call index -> its direction's call (:mod:`sosalgo.worstcase.lmo`)
     lmo: dict[int, int] = field(default_factory=dict)
     # constraints on the instance: (relation, terms of left - right), relation ==, <= or >=
@@ -166,6 +169,9 @@ class PEPPoint:
     g: np.ndarray  # row of the tilted subgradient / s
     f: int | None  # index in F (None: x*, value 0)
     t: int | None = None  # the step of a call (None: x* or a term's extra point)
+    # the answer the method moved with when it is not this point's subgradient (an
+    # epsilon-subgradient call: :mod:`sosalgo.worstcase.epsilon`); grad(P) reads it
+    answer: np.ndarray | None = None
 
 
 @dataclass
@@ -205,6 +211,10 @@ class PEPStructure:
     # case 0 or unbounded; the solver normalizes it (:mod:`sosalgo.worstcase.sdp`), the proof is
     # at tau = 0 exactly
     bare: bool = False
+    # the margin solves put no margin on the directions no form has a square of (their
+    # rows of S are 0; the proof makes them exactly 0): free points a span search ties to
+    # the run by equalities only
+    margin_seen: bool = False
     # the value coefficients a (on F) of the extras that have some (index in extras -> a;
     # the others have none: :mod:`sosalgo.worstcase.constraints`)
     extra_values: dict[int, np.ndarray] = field(default_factory=dict)
@@ -432,7 +442,8 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
         calls = steps + 1
     extra_cap = J * (len(measure) + len(initial)) + J + 1
     g0 = mt.G0 is not None and not free
-    dmax = n0 + (J - 1) + p * calls + extra_cap + (len(mt.errors) + mt.line_search) * calls
+    dmax = n0 + (J - 1) + p * calls + extra_cap + (len(mt.errors) + mt.line_search
+                                                     + 2 * len(mt.epsilons)) * calls
     dmax += sum(cls.anchored for _, cls, _ in mt.functions)  # each origin o: a column
     eye = np.eye(dmax) if not mt.exact else _obj_eye(dmax)
     cols = [f"xi0_{a + 1}-xi*" for a in range(n)] if free else ["x0-x*"]
@@ -489,6 +500,13 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
     from sosalgo.worstcase.inexact import inexact_calls
 
     extras = inexact_calls(mt, pts, U, sstar, cols, eye)
+    from sosalgo.worstcase.epsilon import epsilon_calls
+
+    eps_rows, eps_values, eps_consts, nF = epsilon_calls(
+        mt, pts, cols, eye, nF, lambda lab, x, g, f: PEPPoint(lab, x, g, f))
+    extra_values = {len(extras) + e: v for e, v in eps_values.items()}
+    extra_consts = {len(extras) + e: c for e, c in eps_consts.items()}
+    extras += eps_rows
     if mt.line_search:
         from sosalgo.worstcase.linesearch import line_search_rows
 
@@ -500,7 +518,8 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
     for j in range(J):
         pts[j].append(PEPPoint("x*", zero, zero, None))
     state = {"nF": nF, "next": len(cols), "cols": cols, "eye": eye, "at": at, "origin": origin,
-             "xi": {"x": xi[steps], "x0": xi[0], REST: xi[0]}, "extras": extras}
+             "xi": {"x": xi[steps], "x0": xi[0], REST: xi[0]}, "extras": extras,
+             "extra_values": extra_values, "extra_consts": extra_consts}
     if mt.lmo:
         from sosalgo.worstcase.lmo import lmo_points
 
@@ -532,6 +551,7 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
         _constraints(mt, steps, xi, Yr, where, pts, sstar, state)
     st = _finish(mt, steps, calls, state, pts, forms, {"xi": xi, "y": Y, "u": U, "x": out})
     st.bare = not initial
+    st.margin_seen = mt.span_search
     return st
 
 
@@ -549,7 +569,7 @@ def _inner_row(mt: Method, key: str, row: np.ndarray, pts: list[list[PEPPoint]],
     v = 0 * row
     for j in range(len(mt.functions)):
         pt = _point_at(mt, j, row, pts, label, state, opt, point)
-        v = v + pt.g + sstar[j]
+        v = v + (pt.g if pt.answer is None else pt.answer) + sstar[j]
     return v * mt.s
 
 
@@ -573,7 +593,8 @@ def _constraints(mt: Method, steps: int, xi: list[np.ndarray], Yr: list[list[np.
             out[pt.f] = out.get(pt.f, 0) + mt.s
         return out
 
-    state["extra_values"] = {}
+    state.setdefault("extra_values", {})
+    state.setdefault("extra_consts", {})
     constraint_rows(mt, steps, lambda q, opt: _point_row(mt, xi, Yr, where, q, steps, opt),
                     lambda row, key, opt: _grad_row(mt, row, pts, sstar, state, opt,
                                                     label(key), key),
@@ -694,6 +715,8 @@ def _finish(mt: Method, steps: int, calls: int, state: dict[str, Any],
     for fp in pts:
         for pt in fp:
             pt.x, pt.g = pt.x[keep], pt.g[keep]
+            if pt.answer is not None:
+                pt.answer = pt.answer[keep]
     meas_q, meas_f = _sum_forms([q for q, _ in forms["m"]], [f for _, f in forms["m"]],
                                 keep, nF, dt)
     init_q, init_f = _sum_forms([q for q, _ in forms["i"]], [f for _, f in forms["i"]],
@@ -735,11 +758,10 @@ def _finish(mt: Method, steps: int, calls: int, state: dict[str, Any],
         st.equalities = np.array(equal + [False] * len(extras))
     st.blocks = [(j, r, [a for a, pt in enumerate(pts[j]) if pt.label != "x*"])
                  for j, fb in enumerate(mt.blocks) for r in range(len(fb))]
-    if mt.constants is not None and any(_nonzero(c) for c in consts):
-        if extras:
-            raise InputError("functions: a class with constant terms together with inexact "
-                             "calls or a line search is not supported")
-        st.constants = np.array(consts, dtype=dt)
+    zero = Fraction(0) if mt.exact else 0.0
+    rest = [state.get("extra_consts", {}).get(e, zero) for e in range(len(extras))]
+    if any(_nonzero(c) for c in consts + rest):  # one constant per row: pairs, then extras
+        st.constants = np.array(consts + rest, dtype=dt)
     return st
 
 
@@ -771,7 +793,7 @@ def _point_at(mt: Method, j: int, row: np.ndarray, pts: list[list[PEPPoint]], la
             state["at"][(key, j)] = a
             return pt
     name, cls, _ = mt.functions[j]
-    if not cls.finite_everywhere:
+    if not cls.finite_everywhere and j not in {mt.oracles[i] for i in mt.epsilons}:
         raise InputError(f"{opt}: {name} ({cls.name}) is not evaluated at {label}: it may "
                          "be infinite there; use a point where the method queries it or "
                          "dist")
@@ -816,14 +838,15 @@ def _grad_row(mt: Method, row: np.ndarray, pts: list[list[PEPPoint]],
               key: str) -> np.ndarray:
     """The row of the gradient of the smooth part (the functions with a gradient oracle)
     at the point ``row``."""
-    smooth = [j for j, (_, cls, _) in enumerate(mt.functions) if "gradient" in cls.oracles]
+    smooth = ([j for j, (_, cls, _) in enumerate(mt.functions) if "gradient" in cls.oracles]
+              or [j for j in {mt.oracles[i] for i in mt.epsilons}])  # else the eps calls'
     if not smooth:
         raise InputError(f"{opt}: grad: no smooth function (a class with a gradient "
                          "oracle) in this spec")
     v = 0 * row
     for j in smooth:
         pt = _point_at(mt, j, row, pts, label, state, opt, key)
-        v = v + pt.g + sstar[j]
+        v = v + (pt.g if pt.answer is None else pt.answer) + sstar[j]
     return v * mt.s
 
 

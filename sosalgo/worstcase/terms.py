@@ -33,9 +33,9 @@ from sosalgo.errors import InputError
 from sosalgo.kernel.expr.tree import Expr, ExprError, evaluate, parse_tree
 from sosalgo.spec.initial_state import linear_parts
 
-__all__ = ["BACK_POINT", "DIFF_KIND", "KINDS", "MINF_KIND", "MIN_KIND", "MIN_OF", "OUT0", "REST",
-           "Term", "at_steps", "describe_terms", "dominates", "expand_min", "free_start",
-           "parse_constraint", "parse_terms"]
+__all__ = ["BACK_POINT", "CONST_KIND", "DIFF_KIND", "EVERY", "KINDS", "MINF_KIND", "MIN_KIND",
+           "MIN_OF", "OUT0", "REST", "Term", "at_steps", "describe_terms", "dominates",
+           "every_step", "expand_min", "free_start", "parse_constraint", "parse_terms"]
 
 MIN_KIND = "mingrad"  # min over k = 0..N of |grad f(x_k)|^2
 MINF_KIND = "minf"  # min over k = 0..N of f(x_k) - f*
@@ -55,7 +55,9 @@ _PAIR = re.compile(r"\bdist\s*\(\s*" + _ARG + r"\s*,\s*" + _ARG + r"\s*\)")
 _ARGN = r"[A-Za-z0-9_]+(?:\s*-\s*\d+)?"
 _GARG = r"(g\s*\(\s*" + _ARGN + r"\s*\)|" + _ARGN + r")"  # a point or g(point)
 _INNER = re.compile(r"\binner\s*\(\s*" + _GARG + r"\s*,\s*" + _GARG + r"\s*\)")
-_POINT = re.compile(r"^(x|y(\d*))_(N|\d+)$")
+_POINT = re.compile(r"^(x|y(\d*))_(N|k|\d+)$")
+EVERY = "xk"  # a constraint's x_k: one constraint per step k = 0..N (:func:`every_step`)
+CONST_KIND = "const"  # a constraint's constant term (:func:`parse_constraint`)
 CALL_AT = re.compile(r"^y(\d+)t(\d+)$")  # a call's point at step k: y<i>t<k>
 GRAD_OF = "G"  # an inner term's gradient at a point: G<point key>
 _BEFORE = re.compile(r"^x_N\s*-\s*(\d+)$")  # x_N-j: the output j steps before the last
@@ -132,6 +134,10 @@ def _point_key(pt: str, option: str, initial: bool, p: int) -> str:
         raise InputError(f"{option}: unknown point {pt!r} (use x_N, x_<k>, x_N-<j>, y_N, "
                          "y<i>_N, y_<k>, y<i>_<k>)")
     step = hit.group(3)
+    if step == "k":
+        if hit.group(1) != "x":
+            raise InputError(f"{option}: {pt}: the generic step k is for x_k only")
+        return EVERY
     if hit.group(1) == "x":
         return "x" if step == "N" else f"x{int(step)}"
     i = int(hit.group(2) or (1 if p == 1 else 0))
@@ -142,10 +148,12 @@ def _point_key(pt: str, option: str, initial: bool, p: int) -> str:
 
 
 def parse_terms(text: object, option: str, initial: bool, p: int,
-                params: Collection[str] = ()) -> list[Term]:
+                params: Collection[str] = (), constraint: bool = False) -> list[Term]:
     """The terms of ``text`` (an InputError naming ``option`` for anything else);
     ``params``: the spec's parameter names, which coefficients may use besides m, L,
-    kappa. An initial condition ``none`` has no terms (a homogeneous question)."""
+    kappa. An initial condition ``none`` has no terms (a homogeneous question).
+    ``constraint``: a side of a constraint, which may have a constant term (kind
+    :data:`CONST_KIND`) and points x_k (:data:`EVERY`)."""
     if initial and isinstance(text, str) and text.strip() == NONE_TEXT:
         return []
     if not isinstance(text, str) or not text.strip():
@@ -159,8 +167,10 @@ def parse_terms(text: object, option: str, initial: bool, p: int,
     except ExprError as exc:
         raise InputError(f"{option}: {exc}") from None
     parts = linear_parts(tree, consts, option)
-    if "1" in parts:
+    if "1" in parts and not constraint:
         raise InputError(f"{option}: a constant term; every term multiplies f, dist or grad")
+    if not constraint and any(EVERY in key.split("__")[1:] for key in parts):
+        raise InputError(f"{option}: x_k: a generic step is for pep.constraints only")
     mins = [k for k in MIN_OF if k in parts]
     if mins and initial:
         raise InputError(f"{option}: {mins[0]} is a measure (the initial condition is linear)")
@@ -168,6 +178,9 @@ def parse_terms(text: object, option: str, initial: bool, p: int,
         raise InputError(f"{option}: free: an initial term (it frees the start)")
     out = []
     for key, coef in parts.items():
+        if key == "1":
+            out.append(Term(CONST_KIND, "", coef))
+            continue
         kind, _, point = key.partition("__")
         out.append(Term(kind, point or ("x0" if initial else "x"), coef))
     return out
@@ -196,12 +209,25 @@ def parse_constraint(text: object, option: str, p: int, scalars: frozenset[str]
     left, _, right = text.partition(found[0])
     if not left.strip() or not right.strip():
         raise InputError(f"{option}: a term on each side of {found[0]} (write 0 as 0*f)")
-    terms = parse_terms(f"{left} - ({right})", option, False, p, scalars)
+    terms = parse_terms(f"{left} - ({right})", option, False, p, scalars, constraint=True)
     bad = [t.kind for t in terms if t.kind in (*MIN_OF, "sdist", "contraction")]
     if bad:
         raise InputError(f"{option}: {bad[0]}: not in a constraint (f, dist, grad, "
                          "dist(P, Q))")
     return found[0], terms
+
+
+def every_step(terms: list[Term], steps: int) -> list[tuple[str, list[Term]]]:
+    """A constraint's terms at each step: [("", terms)] without a point x_k, else
+    [("k<k>", terms at x_k)] for k = 0..N (x_N the output after the last step)."""
+    if not any(EVERY in t.point.split("__") for t in terms):
+        return [("", terms)]
+
+    def at(point: str, k: int) -> str:
+        return point if point != EVERY else "x" if k == steps else f"x{k}"
+
+    return [(f"k{k}", [Term(t.kind, "__".join(at(q, k) for q in t.point.split("__")),
+                            t.coef) for t in terms]) for k in range(steps + 1)]
 
 
 def at_steps(terms: list[Term], steps: int, option: str) -> list[Term]:
