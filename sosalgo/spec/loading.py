@@ -356,11 +356,15 @@ class _Builder:
         value_order(params, self.source)
 
         self.counts: dict[str, Any] = {}
+        self.images: dict[str, str] = {}
         functions = self.functions(data.get("functions"), constant_parameters(params))
         if "finite_sum" in data or self.counts:
             return self.finite_sum_spec(data, name, description, m, L, params, functions,
                                         names)
         raw_oracles = data.get("oracles", ["f"])
+        from sosalgo.spec.adjoint import parse_adjoint
+
+        adjoint = parse_adjoint(data, raw_oracles, self.images, functions, self.fail)
         inexact = self.oracle_errors(raw_oracles, names)
         error_refs, twins = self.oracle_links(raw_oracles)
         lmo = self.oracle_lmo(raw_oracles)
@@ -404,6 +408,7 @@ class _Builder:
             pep=self.pep_terms(data.get("pep")),
             line_search=self.line_search(data.get("line_search"), params, matrices, output),
             mirror=self.mirror(data, functions, matrices, output, inexact or lmo),
+            adjoint=adjoint,
         )
         if spec.sublinear:
             self.check_sublinear(spec)
@@ -528,6 +533,9 @@ class _Builder:
             for key, val in body.items():
                 if key == "class":
                     continue
+                if key == "at":  # composed with a linear operator (sosalgo.spec.adjoint)
+                    self.images[fname] = val if isinstance(val, str) else repr(val)[:40]
+                    continue
                 if key == "count":  # one of n functions drawn per step (finite_sum:)
                     self.counts[fname] = self.expr(val, spec_names | set(BASE_NAMES),
                                                    f"{where}.count")
@@ -571,7 +579,7 @@ class _Builder:
                 continue
             extra = [str(k)[:40] for k in entry
                      if k not in ("function", "relative_error", "lmo", "relative_to",
-                                  "gradient_of")]
+                                  "gradient_of", "transpose")]
             if extra:
                 raise self.fail(f"oracles[{i}].{extra[0]}", "unknown key (an oracle entry is "
                                 "a function name, {function: NAME, relative_error: EPS} or "

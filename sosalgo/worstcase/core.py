@@ -143,6 +143,10 @@ def float_method(om: Any, kappa: float) -> Method:
     if om.output is None:
         mt.out_call = output_call(om.E, np.asarray(om.C, float), np.asarray(om.D, float),
                                   same)
+    if getattr(om, "adjoint", None) is not None:  # transpose calls
+        from sosalgo.worstcase.adjoint import split_transposes
+
+        split_transposes(mt, om)
     return mt
 
 
