@@ -409,6 +409,9 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
         elif witness and mt.constraints:  # the witness check does not prove constraints
             res.extra["note"] = ("no worst-case witness for a PEP with constraints on the "
                                  "instance (tau_proven is the proven upper bound)")
+        elif witness and mt.adjoint is not None:  # transpose calls: not in the witness file
+            res.extra["note"] = ("no worst-case witness for transpose calls (tau_proven is "
+                                 "the proven upper bound)")
         elif witness and mt.line_search:  # a run on the class's extremal quadratic
             from sosalgo.worstcase.linesearch_witness import line_search_witness
 
