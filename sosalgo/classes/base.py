@@ -126,6 +126,9 @@ class FunctionClass:
     # the PEP keeps a minimizer x* for it although it is not convex (the class has a
     # global minimizer by assumption: PL, RSI/EB)
     minimizer: bool = False
+    # a linear operator with a transpose call (``{function: M, transpose: true}``), so that
+    # functions may be composed with it (:mod:`sosalgo.spec.adjoint`)
+    transposable: bool = False
 
     def check(self, params: Mapping[str, float]) -> None:
         """Raise ValueError('<parameter>: what is wrong') for invalid values."""

@@ -3,8 +3,8 @@ M, and the optimality condition that pairs them (``sosalgo pep`` only).
 
 Three fields, all optional, describe a problem such as min_x f(x) + g(Mx):
 
-- an ``oracles:`` entry ``{function: M, transpose: true}`` calls M^T (M a
-  ``linear_operator``): its answer is M^T y at the call's point y;
+- an ``oracles:`` entry ``{function: M, transpose: true}`` calls M^T (M of a
+  linear operator class: ``linear_operator``): its answer is M^T y at the call's point y;
 - a function's ``at: M`` says its point at the solution is M x* (g is composed with M);
 - ``optimality: [f, M.T(g)]`` lists the terms whose sum vanishes at the solution:
   s_f* + M^T s_g* = 0 with s_j* the (sub)gradient of f_j at its point at the solution
@@ -24,9 +24,15 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-__all__ = ["Adjoint", "LINEAR_CLASS", "parse_adjoint"]
+__all__ = ["Adjoint", "parse_adjoint"]
 
-LINEAR_CLASS = "linear_operator"  # the class whose calls may be transposed
+
+def _linear(decl: Any) -> bool:
+    """Whether a function's class is a linear operator with a transpose call."""
+    from sosalgo.classes import CLASSES
+
+    return bool(getattr(CLASSES.get(decl.cls), "transposable", False))
+
 _TRANSPOSED = re.compile(r"^\s*([A-Za-z][A-Za-z0-9_]*)\.T\(\s*([A-Za-z][A-Za-z0-9_]*)\s*\)\s*$")
 _PLAIN = re.compile(r"^\s*([A-Za-z][A-Za-z0-9_]*)\s*$")
 
@@ -64,9 +70,9 @@ def parse_adjoint(data: Mapping[str, Any], raw_oracles: object, images: dict[str
     if not isinstance(raw, list) or not raw:
         raise fail("optimality", "must be a non-empty list of terms (NAME or M.T(NAME))")
     for fname, op in images.items():
-        if op not in functions or functions[op].cls != LINEAR_CLASS:
+        if op not in functions or not _linear(functions[op]):
             raise fail(f"functions.{fname}.at", f"{str(op)[:40]!r} is not a function of "
-                       f"class {LINEAR_CLASS}")
+                       "a linear operator class")
     plain, duals = _terms(raw, functions, images, fail)
     if len(duals) != 1:
         raise fail("optimality", "needs exactly one transposed term M.T(NAME), got "
@@ -81,15 +87,15 @@ def parse_adjoint(data: Mapping[str, Any], raw_oracles: object, images: dict[str
             raise fail(f"oracles[{i}].transpose", f"{name}.T: only {op}, the operator of "
                        "optimality:, is transposed")
     for fname, decl in functions.items():
-        if decl.cls == LINEAR_CLASS:
+        if _linear(decl):
             continue
         if fname not in (*plain, g):
             raise fail("optimality", f"{fname} is in no term (every function that is not "
                        "a linear operator appears once)")
     for fname, decl in functions.items():
-        if decl.cls == LINEAR_CLASS and fname != op:
-            raise fail(f"functions.{fname}", f"a second {LINEAR_CLASS} beside {op} is not "
-                       "supported with transpose calls")
+        if _linear(decl) and fname != op:
+            raise fail(f"functions.{fname}", f"a second linear operator beside {op} is "
+                       "not supported with transpose calls")
     return Adjoint(frozenset(transposes), dict(images), tuple(plain), (op, g))
 
 
@@ -113,9 +119,9 @@ def _transposes(raw: object, functions: Mapping[str, Any],
             continue
         name = entry.get("function")
         decl = functions.get(name) if isinstance(name, str) else None
-        if decl is not None and decl.cls != LINEAR_CLASS:
+        if decl is not None and not _linear(decl):
             raise fail(where, f"{name} ({decl.cls}) has no transpose call: only a "
-                       f"{LINEAR_CLASS} has one")
+                       "linear operator has one")
         out.add(i)
     return out
 
@@ -135,14 +141,14 @@ def _terms(raw: list, functions: Mapping[str, Any], images: dict[str, str],
             if name is not None and name not in functions:
                 raise fail(where, f"{name!r} names no function")
         fname = names[1]
-        if functions[fname].cls == LINEAR_CLASS:
+        if _linear(functions[fname]):
             raise fail(where, f"{fname} is a linear operator, not a term")
         if fname in plain or any(fname == g for _, g in duals):
             raise fail(where, f"{fname} appears twice")
         if dual:
-            if functions[names[0]].cls != LINEAR_CLASS:
+            if not _linear(functions[names[0]]):
                 raise fail(where, f"{names[0]}.T: {names[0]} ({functions[names[0]].cls}) "
-                           f"has no transpose: only a {LINEAR_CLASS} has one")
+                           f"has no transpose: only a linear operator has one")
             duals.append((names[0], fname))
         else:
             if fname in images:
