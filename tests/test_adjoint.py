@@ -89,6 +89,22 @@ def test_gradient_composition_agrees_with_pepit(mug, Lg, LM, gamma, n):
     assert ref * (1 - 1e-6) <= _proven(res) <= ref * (1 + 1e-6)
 
 
+CONF = Path(__file__).resolve().parents[1] / "bench" / "conformance" / "specs"
+
+
+@pytest.mark.parametrize("variant,sets,n,ref", [
+    pytest.param("skew", {"mug": "1/10", "Lg": "1", "gamma": "1/2"}, 3, 0.1086073163384456),
+    pytest.param("symmetric", {"muM": "1/10"}, 2, 0.2421104743887261,
+                 marks=pytest.mark.deep)])
+def test_symmetric_and_skew_transposes_agree_with_pepit(variant, sets, n, ref):
+    """M' = M (a call of M) and M' = -M (a call of M, its answer negated): PEPit's
+    gradient_descent_lc with typeM "sym" and "skew" (bench/adjoint_pepit.py)."""
+    path = CONF / f"gradient-composition-{variant}.yaml"
+    res = sosalgo.pep(_with(path, path.read_text(), sets), 10.0, n, witness=False)
+    assert res.tau == pytest.approx(ref, rel=1e-6)
+    assert ref * (1 - 1e-6) <= _proven(res) <= ref * (1 + 1e-6)
+
+
 def _logcosh(z):
     return np.logaddexp(z, -z) - np.log(2.0)
 

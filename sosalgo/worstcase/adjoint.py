@@ -62,6 +62,12 @@ def split_transposes(mt: Any, om: Any) -> None:
                              "needs a convex class closed under adding linear functions")
     op = adj.dual[0]
     name, cls, params = mt.functions[op]
+    mt.Xs = mt.Xs[:, :len(adj.free)]
+    if cls.transpose_sign:  # M' = M or -M: calls of M (negated answers for -M)
+        mt.adjoint = {"dual": adj.dual, "part": None, "plain": list(adj.plain),
+                      "negated": frozenset(adj.transposes if cls.transpose_sign < 0 else ())}
+        mt.oracles = tuple(op if i in adj.transposes else j for i, j in enumerate(mt.oracles))
+        return
     part = len(mt.functions)
     mt.functions = [*mt.functions, (name + PART, cls, params)]
     mt.ineqs = [*mt.ineqs, list(mt.ineqs[op])]
@@ -71,8 +77,8 @@ def split_transposes(mt: Any, om: Any) -> None:
         mt.constants = [*mt.constants, list(mt.constants[op])]
         mt.scopes = [*(mt.scopes or []), list((mt.scopes or [])[op])]
     mt.oracles = tuple(part if i in adj.transposes else j for i, j in enumerate(mt.oracles))
-    mt.Xs = mt.Xs[:, :len(adj.free)]
-    mt.adjoint = {"dual": adj.dual, "part": part, "plain": list(adj.plain)}
+    mt.adjoint = {"dual": adj.dual, "part": part, "plain": list(adj.plain),
+                  "negated": frozenset()}
 
 
 def check_start(mt: Any, free: bool, option: str) -> None:
@@ -94,6 +100,8 @@ def adjoint_rows(mt: Any, pts: list[list[Any]]) -> list[tuple[str, np.ndarray, n
     """The rows of the equalities <x_a, v_b> = <y_a, u_b> between every call of M and
     every call of M^T (two rows each, >= 0 and <= 0)."""
     op, part = mt.adjoint["dual"][0], mt.adjoint["part"]
+    if part is None:  # M' = M or -M: the class's own conditions over M's points
+        return []
     half = Fraction(1, 2) if mt.exact else 0.5
     Q = np.full((4, 4), half * 0, dtype=object if mt.exact else float)
     Q[0, 3] = Q[3, 0] = half

@@ -464,8 +464,9 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
         for i, j in enumerate(mt.oracles):
             if i in mt.twins:  # the true subgradient of another call's point: no point
                 continue
-            pts[j].append(PEPPoint(_call_label(i, k, p), Yr[k][i], U[k][i],
-                                   nF if valued[j] else None, k))
+            flip = mt.adjoint is not None and i in mt.adjoint["negated"]  # M' = -M
+            pts[j].append(PEPPoint(_call_label(i, k, p), Yr[k][i], -U[k][i] if flip
+                                   else U[k][i], nF if valued[j] else None, k))
             nF += valued[j]
     zero = eye[0] * 0
     at = {}
