@@ -221,6 +221,7 @@ BAD = [
     ("at: M}", "at: g}", "functions.g.at"),
     ("{function: M, transpose: true}", "{function: M, transpose: 1}",
      "oracles[2].transpose"),
+    ("oracles: [M, g,", "line_search: gamma\noracles: [M, g,", "line_search"),
 ]
 
 
@@ -239,6 +240,7 @@ def test_bad_input_is_one_line_naming_the_field(tmp_path, old, new, field):
 
 
 @pytest.mark.parametrize("args", [["--measure", "grad(x_N)"],
+                                  ["--measure", "contraction"],
                                   ["--initial", "dist(x_0)"]])
 def test_questions_the_model_cannot_answer_are_refused(tmp_path, args):
     """A gradient of g(Mx) (not a call) and a start at rest at x_0 whose solution state

@@ -412,7 +412,22 @@ class _Builder:
         )
         if spec.sublinear:
             self.check_sublinear(spec)
+        if adjoint is not None:
+            self.check_adjoint(spec, data)
         return run_checks(spec, data, self.fail)
+
+    def check_adjoint(self, spec: Spec, data: dict) -> None:
+        """Transpose calls with no other special step (:mod:`sosalgo.spec.adjoint`)."""
+        others = {"line_search": spec.line_search, "mirror": spec.mirror,
+                  "initial_state": spec.initial_state,
+                  "pep.constraints": spec.pep.get("constraints"),
+                  "oracles": spec.inexact or spec.lmo or spec.twins}
+        if spec.time_varying:
+            raise self.fail("optimality", "transpose calls: not for a method that changes "
+                            "with k")
+        for where, value in others.items():
+            if value:
+                raise self.fail(where, "not with transpose calls (optimality:)")
 
     def finite_sum_spec(self, data: dict, name: str, description: str, m: float,
                         L: float | None, params: dict[str, Parameter],

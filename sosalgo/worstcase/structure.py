@@ -374,6 +374,8 @@ def build_structure(mt: Method, steps: int, measure: Sequence[Term],
     if mt.exact and key in mt.structures:
         return mt.structures[key]
     if is_contraction(measure, initial):  # two runs (:mod:`sosalgo.worstcase.contraction`)
+        if mt.adjoint is not None:
+            raise InputError(f"{option[0]}: contraction: not with transpose calls")
         st = _contraction_structure(mt, steps, measure, initial)
     else:
         st = _build_structure(mt, steps, measure, initial, option)
