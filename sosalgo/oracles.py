@@ -16,6 +16,11 @@ sum_j s_j* = 0 there is xi* with xi* = A xi* + B u*, C xi* + D u* = x*, E xi* = 
 u*_i = s*_{j(i)} (every call to f_j returns s_j*). Everything is linear, so this is checked
 on a basis: x* = 1 with s* = 0, and x* = 0 with each free direction of s* (J - 1 of them for
 J functions; none for one function).
+
+A spec with transpose calls of a linear operator M (:mod:`sosalgo.spec.adjoint`) gives
+each call its own point at the solution instead (:meth:`OracleMethod.reference_tables`:
+x* or M x* for a function, x* for M, s_g* for M^T) and its ``optimality:`` instead of
+the sum; the fixed point is checked on x*, every s_j* and M x*.
 """
 
 from __future__ import annotations
