@@ -18,7 +18,7 @@ and so are the tilted values h_j = f_j - f_j* - <s_j*, . - y_j*> the PEP's value
 ``f`` term is the value of the one function with values, composed with M, whose tilt term
 <s_g*, M(x - x*)> = <M^T s_g*, x - x*> vanishes when the optimality has no other term).
 Only the start is not moved: a start xi_0 = u x_0 (not ``sdist``) is refused when the
-fixed point moves with the s_j* (:func:`check_start`).
+fixed point moves with the s_j* or with M x* (:func:`check_start`).
 
 At x* = 0 with optimal subgradients 0 every call's data is raw. The calls of M and those of
 M^T are two point lists: the operator (``M``) and its transpose part (``M.T``, the same
@@ -51,8 +51,9 @@ PART = ".T"  # the transpose part's name: the operator's name + PART
 def split_transposes(mt: Any, om: Any) -> None:
     """Give ``mt`` (a Method of an OracleMethod with transpose calls) the transpose part
     of its operator as a function of its own (the same class, parameters, inequalities
-    and blocks) with the transpose calls on it, no free optimal subgradient (``Xs`` kept
-    for :func:`check_start` only), and ``mt.adjoint``. InputError when a function is in a
+    and blocks) with the transpose calls on it, no free optimal subgradient (``moves``:
+    whether the solution's state moves with them or M x*, for :func:`check_start`), and
+    ``mt.adjoint``. InputError when a function is in a
     class that is not closed under adding linear functions."""
     adj = om.adjoint
     for j in adj.free:
@@ -62,10 +63,13 @@ def split_transposes(mt: Any, om: Any) -> None:
                              "needs a convex class closed under adding linear functions")
     op = adj.dual[0]
     name, cls, params = mt.functions[op]
+    # the solution's state moves with the s_j* or with M x* (the last column)
+    moves = any(_nonzero(v) for v in np.ravel(mt.Xs))
     mt.Xs = mt.Xs[:, :len(adj.free)]
     if cls.transpose_sign:  # M' = M or -M: calls of M (negated answers for -M)
         mt.adjoint = {"dual": adj.dual, "part": None, "plain": list(adj.plain),
-                      "negated": frozenset(adj.transposes if cls.transpose_sign < 0 else ())}
+                      "negated": frozenset(adj.transposes if cls.transpose_sign < 0 else ()),
+                      "moves": moves}
         mt.oracles = tuple(op if i in adj.transposes else j for i, j in enumerate(mt.oracles))
         return
     part = len(mt.functions)
@@ -78,16 +82,17 @@ def split_transposes(mt: Any, om: Any) -> None:
         mt.scopes = [*(mt.scopes or []), list((mt.scopes or [])[op])]
     mt.oracles = tuple(part if i in adj.transposes else j for i, j in enumerate(mt.oracles))
     mt.adjoint = {"dual": adj.dual, "part": part, "plain": list(adj.plain),
-                  "negated": frozenset()}
+                  "negated": frozenset(), "moves": moves}
 
 
 def check_start(mt: Any, free: bool, option: str) -> None:
     """InputError unless the start is free (``sdist``) or the solution's state does not
-    move with the optimal subgradients (Xs = 0: the start u x_0 is then tilt-invariant)."""
-    if free or not any(_nonzero(v) for v in np.ravel(mt.Xs)):
+    move with the optimal subgradients nor with M x* (their columns of the fixed point
+    are 0: the start u x_0 is then invariant under the tilt and the translation)."""
+    if free or not mt.adjoint["moves"]:
         return
     raise InputError(f"{option}: with transpose calls the state at the solution moves with "
-                     "the optimal subgradients: start anywhere (sdist)")
+                     "the optimal subgradients or M x*: start anywhere (sdist)")
 
 
 def _nonzero(v: Any) -> bool:
