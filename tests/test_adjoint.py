@@ -239,7 +239,7 @@ def test_bad_input_is_one_line_naming_the_field(tmp_path, old, new, field):
     assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())
 
 
-@pytest.mark.parametrize("args", [["--measure", "grad(x_N)"],
+@pytest.mark.parametrize("args", [["--measure", "grad(x_N)"], ["--measure", "f(x_N)"],
                                   ["--measure", "contraction"],
                                   ["--initial", "dist(x_0)"]])
 def test_questions_the_model_cannot_answer_are_refused(tmp_path, args):

@@ -783,9 +783,15 @@ def _term(mt: Method, t: Term, row: np.ndarray, pts: list[list[PEPPoint]],
             raise InputError(f"{opt}: f: with transpose calls f(P) is the value of the one "
                              "function with values, with optimality: [M.T(g)] alone (use "
                              "dist or sdist)")
-        if mt.adjoint is not None:
-            pt = _point_at(mt, valued[0], row, pts, label, state, opt, t.point)
-            return 0 * np.outer(row, row), {pt.f: c * mt.s}
+        if mt.adjoint is not None:  # g is composed with M: at its calls' points only
+            hit = [pt for pt in pts[valued[0]] if pt.label != "x*" and
+                   (pt.x is row or mt.same(pt.x, row))]
+            if not hit:
+                raise InputError(f"{opt}: f({t.point}): {mt.functions[valued[0]][0]} is "
+                                 "composed with the operator: its value is asked at the "
+                                 "points of its calls (y<i>_N)")
+            state["at"][(t.point, valued[0])] = pts[valued[0]].index(hit[0])
+            return 0 * np.outer(row, row), {hit[0].f: c * mt.s}
         if valueless:
             raise InputError(f"{opt}: f: {valueless[0]} is an operator class, it has no "
                              "function values (use dist, grad or dist(P, Q))")
