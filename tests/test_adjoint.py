@@ -64,7 +64,7 @@ def _cp(tau, sigma, theta, L, n):
 def _lc(mug, Lg, LM, gamma, n):
     sets = {"mug": str(Fraction(mug)), "Lg": str(Fraction(Lg)), "LM": str(Fraction(LM)),
             "gamma": gamma}
-    return sosalgo.pep(_with(LC, LC.read_text(), sets), 10.0, n, witness=False)
+    return sosalgo.pep(_with(LC, LC.read_text(), sets), None, n, witness=False)
 
 
 def _marks(case, fast):
@@ -100,7 +100,7 @@ def test_symmetric_and_skew_transposes_agree_with_pepit(variant, sets, n, ref):
     """M' = M (a call of M) and M' = -M (a call of M, its answer negated): PEPit's
     gradient_descent_lc with typeM "sym" and "skew" (bench/adjoint_pepit.py)."""
     path = CONF / f"gradient-composition-{variant}.yaml"
-    res = sosalgo.pep(_with(path, path.read_text(), sets), 10.0, n, witness=False)
+    res = sosalgo.pep(_with(path, path.read_text(), sets), None, n, witness=False)
     assert res.tau == pytest.approx(ref, rel=1e-6)
     assert ref * (1 - 1e-6) <= _proven(res) <= ref * (1 + 1e-6)
 
@@ -184,10 +184,10 @@ def _claim(out, suffix: str) -> str:
 
 
 def test_verify_reproves_and_refuses_tampered_certificates(tmp_path):
-    out = CliRunner().invoke(cli, ["pep", str(LC), "--kappa", "10", "--steps", "2",
-                                   "--no-plot", "--out", str(tmp_path)])
+    out = CliRunner().invoke(cli, ["pep", str(LC), "--steps", "2", "--no-plot", "--out",
+                                   str(tmp_path)])
     assert out.exit_code == 0, out.output
-    path = tmp_path / "gradient-composition-pep-k10-N2.json"
+    path = tmp_path / "gradient-composition-pep-N2.json"
     doc = json.loads(path.read_text())
     assert "transpose" in doc["certificate"].get("note", "") or doc["witness"] is None
     good = _verify(path, tmp_path)
@@ -231,8 +231,8 @@ def test_bad_input_is_one_line_naming_the_field(tmp_path, old, new, field):
     assert old in text
     path = tmp_path / "bad.yaml"
     path.write_text(text.replace(old, new))
-    out = CliRunner().invoke(cli, ["pep", str(path), "--kappa", "10", "--steps", "1",
-                                   "--out", str(tmp_path / "out")])
+    out = CliRunner().invoke(cli, ["pep", str(path), "--steps", "1", "--out",
+                                   str(tmp_path / "out")])
     assert out.exit_code == 2, out.output
     assert "bad.yaml" in out.output and field in out.output
     assert "Traceback" not in out.output
@@ -246,15 +246,13 @@ def test_questions_the_model_cannot_answer_are_refused(tmp_path, args):
     """A gradient of g(Mx) (not a call) and a start at rest at x_0 whose solution state
     moves with the optimal subgradients (Chambolle-Pock's y* = s_g*)."""
     spec = LC if args[0] == "--measure" else CP
-    kappa = ["--kappa", "10"] if spec == LC else []
-    out = CliRunner().invoke(cli, ["pep", str(spec), *kappa, "--steps", "1", *args,
+    out = CliRunner().invoke(cli, ["pep", str(spec), "--steps", "1", *args,
                                    "--out", str(tmp_path)])
     assert out.exit_code == 2, out.output
     assert args[0] in out.output and "Traceback" not in out.output
 
 
 def test_analyze_refuses_transpose_calls(tmp_path):
-    out = CliRunner().invoke(cli, ["analyze", str(LC), "--kappa", "10", "--out",
-                                   str(tmp_path)])
+    out = CliRunner().invoke(cli, ["analyze", str(LC), "--out", str(tmp_path)])
     assert out.exit_code == 2, out.output
     assert "Traceback" not in out.output
