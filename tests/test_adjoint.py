@@ -256,3 +256,17 @@ def test_analyze_refuses_transpose_calls(tmp_path):
     out = CliRunner().invoke(cli, ["analyze", str(LC), "--out", str(tmp_path)])
     assert out.exit_code == 2, out.output
     assert "Traceback" not in out.output
+
+
+def test_call_point_steps_before_the_last():
+    """``y_N-1``, the call's point one step before the last: on gradient descent the call
+    is at the output, so |y_N - y_N-1|^2 is |x_N - x_N-1|^2 (the same worst case), and
+    before the start is refused."""
+    from sosalgo.errors import InputError
+
+    spec = load_spec(SPECS / "gradient.yaml")
+    a = sosalgo.pep(spec, 10.0, 3, "dist(y_N, y_N-1)", "dist(x_0)", witness=False)
+    b = sosalgo.pep(spec, 10.0, 3, "dist(x_N, x_N-1)", "dist(x_0)", witness=False)
+    assert a.tau == pytest.approx(b.tau, rel=1e-7) and a.tau > 0
+    with pytest.raises(InputError, match="before the start"):
+        sosalgo.pep(spec, 10.0, 2, "dist(y1_N-3)", "dist(x_0)", witness=False)
