@@ -16,6 +16,11 @@ sum_j s_j* = 0 there is xi* with xi* = A xi* + B u*, C xi* + D u* = x*, E xi* = 
 u*_i = s*_{j(i)} (every call to f_j returns s_j*). Everything is linear, so this is checked
 on a basis: x* = 1 with s* = 0, and x* = 0 with each free direction of s* (J - 1 of them for
 J functions; none for one function).
+
+A spec with transpose calls of a linear operator M (:mod:`sosalgo.spec.adjoint`) gives
+each call its own point at the solution instead (:meth:`OracleMethod.reference_tables`:
+x* or M x* for a function, x* for M, s_g* for M^T) and its ``optimality:`` instead of
+the sum; the fixed point is checked on x*, every s_j* and M x*.
 """
 
 from __future__ import annotations
@@ -118,6 +123,9 @@ class Method(CallShape):
     # linear minimization calls: call index -> the gradient call giving the direction (the
     # call answers s - y, 0 at the fixed point; only ``sosalgo pep`` models them)
     lmo: dict[int, int] = field(default_factory=dict)
+    # transpose calls and the optimality condition that pairs them (:class:`BoundAdjoint`);
+    # None: every call at x*, the optimal subgradients summing to 0
+    adjoint: BoundAdjoint | None = None
     numbers: str = "float"
     # exact bindings: the spec's matrices with exact entries (sympy; polynomials in the
     # box coordinates over ``poly``) and the rational parameter values set
@@ -153,6 +161,8 @@ class Method(CallShape):
         problem): x* lies in every set, where 0 is a normal vector of each, so s_j* = 0
         (S = 0: the fixed point does not move with them, and the PEP leaves them out)."""
         J = len(self.functions)
+        if self.adjoint is not None:
+            return self.reference_tables()[1][:, 1:1 + len(self.adjoint.free)]
         S = np.zeros((self.p, max(J - 1, 0)))
         if pinned_optimum(self.functions):
             return S
@@ -165,6 +175,30 @@ class Method(CallShape):
             else:
                 S[i, :] = -1.0
         return S
+
+    def reference_tables(self) -> tuple[np.ndarray, np.ndarray]:
+        """(P, U), each p x (1 + F + 1): every call's point and answer at the solution on
+        the columns (x*, the free optimal subgradients s_j* of the F functions that are
+        not linear operators, M x*) of a spec with transpose calls
+        (:mod:`sosalgo.spec.adjoint`): a call of f_j at x* (or at M x* when f_j is
+        composed with M) answering s_j*, a call of M at x* answering M x*, a call of M^T
+        at s_g* answering M^T s_g* = minus the optimality's other terms."""
+        adj = self.adjoint
+        assert adj is not None
+        col = {j: 1 + c for c, j in enumerate(adj.free)}
+        width = 2 + len(adj.free)
+        P, U = np.zeros((self.p, width)), np.zeros((self.p, width))
+        for i, j in enumerate(self.oracles):
+            if i in adj.transposes:
+                P[i, col[adj.dual[1]]] = 1.0
+                for q in adj.plain:
+                    U[i, col[q]] = -1.0
+            elif j == adj.dual[0]:
+                P[i, 0] = U[i, width - 1] = 1.0
+            else:
+                P[i, width - 1 if j in adj.images else 0] = 1.0
+                U[i, col[j]] = 1.0
+        return P, U
 
 
 @dataclass(frozen=True)
@@ -230,6 +264,31 @@ class OracleMethod(Method):
         return self.C[self.output], self.D[self.output]
 
 
+@dataclass(frozen=True)
+class BoundAdjoint:
+    """:class:`sosalgo.spec.adjoint.Adjoint` on function indices: the transpose calls, the
+    functions composed with the operator, the optimality's plain terms and its transposed
+    term (operator, function), and the functions with a free optimal subgradient."""
+
+    transposes: frozenset[int]
+    images: frozenset[int]
+    plain: tuple[int, ...]
+    dual: tuple[int, int]
+    free: tuple[int, ...]
+
+
+def bind_adjoint(spec: Spec) -> BoundAdjoint | None:
+    """The spec's :class:`BoundAdjoint` (None without transpose calls)."""
+    adj = getattr(spec, "adjoint", None)
+    if adj is None:
+        return None
+    names = list(spec.functions)
+    return BoundAdjoint(adj.transposes, frozenset(names.index(f) for f in adj.images),
+                        tuple(names.index(f) for f in adj.plain),
+                        (names.index(adj.dual[0]), names.index(adj.dual[1])),
+                        tuple(j for j, f in enumerate(names) if f not in adj.operators))
+
+
 def pinned_optimum(functions: Sequence[Any]) -> bool:
     """Whether every optimal subgradient is 0: indicators alone (x* lies in every set, and
     0 is a normal vector of each there), so each class's :meth:`pinned` inequalities
@@ -249,9 +308,15 @@ def fixed_point_system(om: OracleMethod) -> tuple[np.ndarray, np.ndarray]:
     """(lhs, rhs) of the fixed-point conditions: the basis X of :func:`fixed_point_basis`
     solves lhs X = rhs."""
     n, p = om.n, om.p
-    S = om.optimal_map()
     erow, drow = om.output_row()
     lhs = np.vstack([np.eye(n) - om.A, om.C, erow[None, :]])
+    if getattr(om, "adjoint", None) is not None:  # every call's own reference point
+        P, U = om.reference_tables()
+        e0 = np.zeros((1, P.shape[1]))
+        e0[0, 0] = 1.0
+        with np.errstate(all="ignore"):
+            return lhs, np.vstack([om.B @ U, P - om.D @ U, e0 - drow[None, :] @ U])
+    S = om.optimal_map()
     rhs = np.zeros((n + p + 1, 1 + S.shape[1]))
     rhs[n:, 0] = 1.0
     if S.shape[1]:
@@ -463,7 +528,7 @@ def make_method(spec: Spec, mats: Mapping[str, np.ndarray], m: float, L: float,
                         bind_functions(spec, [m, L, kappa], params),
                         tuple(names.index(f) for f in spec.oracles), spec.output,
                         spec.measure, params, relative_errors(spec, m, L, kappa, params),
-                        dict(getattr(spec, "lmo", None) or {}))
+                        dict(getattr(spec, "lmo", None) or {}), bind_adjoint(spec))
 
 
 def relative_errors(spec: Spec, m: float, L: float, kappa: float,

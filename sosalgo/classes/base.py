@@ -132,6 +132,13 @@ class FunctionClass:
     # PEP adds o as a free point of the function with tilted value and subgradient 0, and
     # the inequalities of scope "anchor" hold between each point and o
     anchored: bool = False
+    # a linear operator with a transpose call (``{function: M, transpose: true}``), so that
+    # functions may be composed with it (:mod:`sosalgo.spec.adjoint`)
+    transposable: bool = False
+    # how its transpose's calls enter the PEP: 0, points of their own (with the equalities
+    # <x_a, M' u_b> = <M x_a, u_b>); 1, M' = M (points of M); -1, M' = -M (points of M,
+    # the answer negated)
+    transpose_sign: int = 0
 
     def check(self, params: Mapping[str, float]) -> None:
         """Raise ValueError('<parameter>: what is wrong') for invalid values."""

@@ -11,8 +11,10 @@ over all the points (it makes the u's a linear image of the x's, of norm at most
 Gram-level condition only (:meth:`blocks`; no pairwise inequality), on the tilted data
 (x - x*, M x - M x*): the class is that of the affine maps x -> M x + c with |M| <= L,
 which contains the linear ones (the same when M is the only operator and x* its zero).
-The transpose M' as a call of its own is not available (a method that calls M and M' is
-not expressible). ``pep`` answers; no Lyapunov family takes the matrix condition.
+With calls of the transpose M' too (``{function: M, transpose: true}``), the data of
+both are interpolated together (Thm. 3.1: <x_a, M' u_b> = <M x_a, u_b> and the same block
+over M' 's points; :mod:`sosalgo.worstcase.adjoint`). ``pep`` answers; no Lyapunov
+family takes the matrix condition.
 """
 
 from __future__ import annotations
@@ -40,6 +42,7 @@ class LinearOperator(OperatorClass):
     defaults = {"L": "L"}
     oracles = frozenset({"gradient"})
     finite_everywhere = True
+    transposable = True  # calls of M^T (:mod:`sosalgo.worstcase.adjoint`)
     homogeneous = False  # a Gram-level (matrix) condition: no Lyapunov family takes it
     tilted_text = ("[L^2 <x_a, x_b> - <u_a, u_b>]_(a,b) PSD",
                    r"\big[L^2 \langle x_a, x_b\rangle - \langle u_a, u_b\rangle\big]_{a,b}"

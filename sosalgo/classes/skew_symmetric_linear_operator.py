@@ -49,6 +49,8 @@ class SkewSymmetricLinearOperator(OperatorClass):
     defaults = {"L": "L"}
     oracles = frozenset({"gradient", "proximal"})
     finite_everywhere = True
+    transposable = True  # M' = -M: calls of M' are calls of M, negated
+    transpose_sign = -1
     homogeneous = False  # a Gram-level (matrix) condition: no Lyapunov family takes it
     tilted_text = ("<u_a, x_b> = -<u_b, x_a>, <u_a, x_a> = 0, "
                    "[L^2 <x_a, x_b> - <u_a, u_b>]_(a,b) PSD",

@@ -35,6 +35,8 @@ class SymmetricLinearOperator(OperatorClass):
     defaults = {"mu": "m", "L": "L"}
     oracles = frozenset({"gradient", "proximal"})
     finite_everywhere = True
+    transposable = True  # M' = M: calls of M' are calls of M
+    transpose_sign = 1
     homogeneous = False  # a Gram-level (matrix) condition: no Lyapunov family takes it
     tilted_text = ("<u_a, x_b> = <u_b, x_a>, [(L + mu) <u_a, x_b> - <u_a, u_b> "
                    "- mu L <x_a, x_b>]_(a,b) PSD",

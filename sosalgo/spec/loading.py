@@ -356,11 +356,15 @@ class _Builder:
         value_order(params, self.source)
 
         self.counts: dict[str, Any] = {}
+        self.images: dict[str, str] = {}
         functions = self.functions(data.get("functions"), constant_parameters(params))
         if "finite_sum" in data or self.counts:
             return self.finite_sum_spec(data, name, description, m, L, params, functions,
                                         names)
         raw_oracles = data.get("oracles", ["f"])
+        from sosalgo.spec.adjoint import parse_adjoint
+
+        adjoint = parse_adjoint(data, raw_oracles, self.images, functions, self.fail)
         inexact = self.oracle_errors(raw_oracles, names)
         error_refs, twins = self.oracle_links(raw_oracles)
         lmo = self.oracle_lmo(raw_oracles)
@@ -407,10 +411,26 @@ class _Builder:
             line_search=self.line_search(data.get("line_search"), params, matrices, output),
             span_search=self.span_search(data, functions, oracles),
             mirror=self.mirror(data, functions, matrices, output, inexact or lmo or epsilon),
+            adjoint=adjoint,
         )
         if spec.sublinear:
             self.check_sublinear(spec)
+        if adjoint is not None:
+            self.check_adjoint(spec, data)
         return run_checks(spec, data, self.fail)
+
+    def check_adjoint(self, spec: Spec, data: dict) -> None:
+        """Transpose calls with no other special step (:mod:`sosalgo.spec.adjoint`)."""
+        others = {"line_search": spec.line_search, "mirror": spec.mirror,
+                  "initial_state": spec.initial_state,
+                  "pep.constraints": spec.pep.get("constraints"),
+                  "oracles": spec.inexact or spec.lmo or spec.twins}
+        if spec.time_varying:
+            raise self.fail("optimality", "transpose calls: not for a method that changes "
+                            "with k")
+        for where, value in others.items():
+            if value:
+                raise self.fail(where, "not with transpose calls (optimality:)")
 
     def finite_sum_spec(self, data: dict, name: str, description: str, m: float,
                         L: float | None, params: dict[str, Parameter],
@@ -534,6 +554,9 @@ class _Builder:
             for key, val in body.items():
                 if key == "class":
                     continue
+                if key == "at":  # composed with a linear operator (sosalgo.spec.adjoint)
+                    self.images[fname] = val if isinstance(val, str) else repr(val)[:40]
+                    continue
                 if key == "count":  # one of n functions drawn per step (finite_sum:)
                     self.counts[fname] = self.expr(val, spec_names | set(BASE_NAMES),
                                                    f"{where}.count")
@@ -583,7 +606,7 @@ class _Builder:
                 continue
             extra = [str(k)[:40] for k in entry
                      if k not in ("function", "relative_error", "lmo", "relative_to",
-                                  "gradient_of", "epsilon")]
+                                  "gradient_of", "epsilon", "transpose")]
             if extra:
                 raise self.fail(f"oracles[{i}].{extra[0]}", "unknown key (an oracle entry is "
                                 "a function name, {function: NAME, relative_error: EPS} or "

@@ -37,7 +37,7 @@ FLOW_KEY = "flow"  # a continuous-time question (:mod:`sosalgo.spec.flow`)
 TOP_KEYS = {
     "name", "description", "parameters", "matrices", "references", "kappa", "m", "certificate",
     "functions", "oracles", "measure", "output", "L", "initial_state", "sequences", "pep",
-    "line_search", "mirror", "finite_sum", "span_search",
+    "line_search", "mirror", "finite_sum", "span_search", "optimality",
 }
 NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,79}$")
 PARAM_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,31}$")
@@ -216,6 +216,9 @@ class Spec:
     # ``finite_sum:`` a method on a finite sum, one function drawn per step
     # (:class:`sosalgo.spec.finite_sum.FiniteSum`; ``sosalgo pep`` only); None: none
     finite_sum: Any = None
+    # transpose calls, functions composed with a linear operator and the optimality
+    # condition that pairs them (:class:`sosalgo.spec.adjoint.Adjoint`); None: none
+    adjoint: Any = None
     _sympy: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     @property

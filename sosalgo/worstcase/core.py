@@ -143,6 +143,10 @@ def float_method(om: Any, kappa: float) -> Method:
     if om.output is None:
         mt.out_call = output_call(om.E, np.asarray(om.C, float), np.asarray(om.D, float),
                                   same)
+    if getattr(om, "adjoint", None) is not None:  # transpose calls
+        from sosalgo.worstcase.adjoint import split_transposes
+
+        split_transposes(mt, om)
     return mt
 
 
@@ -417,6 +421,9 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
         elif witness and mt.span_search:  # no witness construction for a span search
             res.extra["note"] = ("no worst-case witness for a span search "
                                  "(tau_proven is the proven upper bound)")
+        elif witness and mt.adjoint is not None:  # transpose calls: not in the witness file
+            res.extra["note"] = ("no worst-case witness for transpose calls (tau_proven is "
+                                 "the proven upper bound)")
         elif witness and mt.line_search:  # a run on the class's extremal quadratic
             from sosalgo.worstcase.linesearch_witness import line_search_witness
 

@@ -216,6 +216,13 @@ def _fixed_points(mats: dict[str, sp.Matrix], om: Any) -> sp.Matrix:
     erow, drow = ((mats["E"], sp.zeros(1, p)) if om.output is None
                   else (mats["C"][om.output, :], D[om.output, :]))
     lhs = sp.Matrix.vstack(sp.eye(n) - mats["A"], mats["C"], erow)
+    if getattr(om, "adjoint", None) is not None:  # each call's own reference point
+        P, U = (sp.Matrix(T.astype(int).tolist()) for T in om.reference_tables())
+        e0 = sp.zeros(1, P.shape[1])
+        e0[0, 0] = 1
+        rhs = sp.Matrix.vstack(mats["B"] * U, P - D * U, e0 - drow * U)
+        sol, free = lhs.gauss_jordan_solve(rhs)
+        return sol.xreplace({t: 0 for t in free})
     rhs = sp.zeros(n + p + 1, 1 + S.shape[1])
     for r in range(n, n + p + 1):
         rhs[r, 0] = 1
@@ -312,6 +319,10 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0,
                         for e, fi in zip(extras, ineqs, strict=True)]
         mt.scopes = [e[1] if e else ["pairs"] * len(fi)
                      for e, fi in zip(extras, ineqs, strict=True)]
+    if getattr(om, "adjoint", None) is not None:  # transpose calls
+        from sosalgo.worstcase.adjoint import split_transposes
+
+        split_transposes(mt, om)
     g0, mt.smooth = initial_gradient(spec, om, float("nan") if kappa is None else kappa)
     if g0 is not None:  # the same start as the float method, exactly
         mt.G0 = np.array([enclose(to_sympy(b).xreplace(env))

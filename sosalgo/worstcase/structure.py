@@ -147,6 +147,8 @@ class Method(CallShape):
     # per function: the K (2 x 2) of each Gram-level condition of its class
     # (:meth:`sosalgo.classes.base.FunctionClass.blocks`; :mod:`sosalgo.worstcase.blocks`)
     blocks: list[list[np.ndarray]] = field(default_factory=list)
+    # transpose calls of a linear operator (:mod:`sosalgo.worstcase.adjoint`); None: none
+    adjoint: dict[str, Any] | None = None
 
     def gain(self, k: int) -> np.ndarray:
         """The gain K_k of step k's basis vectors (:func:`_trajectory`)."""
@@ -402,6 +404,8 @@ def build_structure(mt: Method, steps: int, measure: Sequence[Term],
     if mt.exact and key in mt.structures:
         return mt.structures[key]
     if is_contraction(measure, initial):  # two runs (:mod:`sosalgo.worstcase.contraction`)
+        if mt.adjoint is not None:
+            raise InputError(f"{option[0]}: contraction: not with transpose calls")
         st = _contraction_structure(mt, steps, measure, initial)
     else:
         st = _build_structure(mt, steps, measure, initial, option)
@@ -447,10 +451,16 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
     dmax += sum(cls.anchored for _, cls, _ in mt.functions)  # each origin o: a column
     eye = np.eye(dmax) if not mt.exact else _obj_eye(dmax)
     cols = [f"xi0_{a + 1}-xi*" for a in range(n)] if free else ["x0-x*"]
-    cols += [f"s*_{mt.functions[j][0]}/s" for j in range(J - 1)]
+    nfree = J - 1 if mt.adjoint is None else 0  # transpose calls: every s_j* = 0
+    S = eye[n0:n0 + nfree]  # the free optimal subgradients / s
+    cols += [f"s*_{mt.functions[j][0]}/s" for j in range(nfree)]
+    sstar = [S[j] for j in range(nfree)] + ([-S.sum(axis=0)] if nfree else [])
+    sstar += [eye[0] * 0] * (J - len(sstar))
+    if mt.adjoint is not None:  # (:mod:`sosalgo.worstcase.adjoint`)
+        from sosalgo.worstcase.adjoint import check_start
+
+        check_start(mt, free, option[1])
     cols += [f"b_{_call_label(i, k, p)}" for k in range(calls) for i in range(p)]
-    S = eye[n0:n0 + J - 1]  # the free optimal subgradients / s
-    sstar = [S[j] for j in range(J - 1)] + ([-S.sum(axis=0)] if J > 1 else [eye[0] * 0])
     if g0:  # g_j(x0) / s: its own column
         cols.append(f"g_{mt.functions[mt.smooth][0]}(x0)/s")
     if free:
@@ -458,10 +468,10 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
     elif origin:  # no x*: the origin at x_0, the column x0-x* unused (dropped)
         xi0 = np.outer(mt.X0, eye[0] * 0)
     else:
-        xi0 = np.outer(mt.X0, eye[0]) - (mt.s * (mt.Xs @ S) if J > 1 else 0)
+        xi0 = np.outer(mt.X0, eye[0]) - (mt.s * (mt.Xs @ S) if nfree else 0)
         if g0:  # + G0 g0, g0 / s = its tilted column + s_j* / s
             xi0 = xi0 + np.outer(mt.G0, (eye[len(cols) - 1] + sstar[mt.smooth]) * mt.s)
-    base = n0 + J - 1
+    base = n0 + nfree
     new = [eye[base + p * k: base + p * (k + 1)] for k in range(calls)]
     if mt.line_search:
         from sosalgo.worstcase.linesearch import line_search_trajectory
@@ -488,8 +498,9 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
         for i, j in enumerate(mt.oracles):
             if i in mt.twins:  # the true subgradient of another call's point: no point
                 continue
-            pts[j].append(PEPPoint(_call_label(i, k, p), Yr[k][i], U[k][i],
-                                   nF if valued[j] else None, k))
+            flip = mt.adjoint is not None and i in mt.adjoint["negated"]  # M' = -M
+            pts[j].append(PEPPoint(_call_label(i, k, p), Yr[k][i], -U[k][i] if flip
+                                   else U[k][i], nF if valued[j] else None, k))
             nF += valued[j]
     zero = eye[0] * 0
     at = {}
@@ -549,6 +560,10 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
             forms[key].append(_term(mt, t, rows[0], pts, sstar, state, opt, steps))
     if mt.constraints:
         _constraints(mt, steps, xi, Yr, where, pts, sstar, state)
+    if mt.adjoint is not None:
+        from sosalgo.worstcase.adjoint import adjoint_rows
+
+        state["extras"] += adjoint_rows(mt, pts)
     st = _finish(mt, steps, calls, state, pts, forms, {"xi": xi, "y": Y, "u": U, "x": out})
     st.bare = not initial
     st.margin_seen = mt.span_search
@@ -708,7 +723,8 @@ def _finish(mt: Method, steps: int, calls: int, state: dict[str, Any],
     n0 = sum(1 for c in state["cols"] if c.startswith(("xi0_", "x0-")))
     cons = [X.T @ X for k, (_, X, _) in enumerate(state["extras"])
             if k in state.get("extra_values", {})]  # a constraint's squared terms
-    used = _used_columns(pts, [q for q, _ in forms["m"] + forms["i"]] + cons, n0, J, d)
+    used = _used_columns(pts, [q for q, _ in forms["m"] + forms["i"]] + cons, n0,
+                         J if mt.adjoint is None else 1, d)
     keep = [c for c in range(d) if used[c]]
     nF = state["nF"]
     dt = object if mt.exact else float
@@ -821,6 +837,20 @@ def _term(mt: Method, t: Term, row: np.ndarray, pts: list[list[PEPPoint]],
         return sum(np.outer(r, r) for r in X) * c, {}
     if t.kind == "f":
         valueless = [f"{n} ({cls.name})" for n, cls, _ in mt.functions if not cls.has_values]
+        valued = [j for j, (_, cls, _) in enumerate(mt.functions) if cls.has_values]
+        if mt.adjoint is not None and (len(valued) != 1 or mt.adjoint["plain"]):
+            raise InputError(f"{opt}: f: with transpose calls f(P) is the value of the one "
+                             "function with values, with optimality: [M.T(g)] alone (use "
+                             "dist or sdist)")
+        if mt.adjoint is not None:  # g is composed with M: at its calls' points only
+            hit = [pt for pt in pts[valued[0]] if pt.label != "x*" and
+                   (pt.x is row or mt.same(pt.x, row))]
+            if not hit:
+                raise InputError(f"{opt}: f({t.point}): {mt.functions[valued[0]][0]} is "
+                                 "composed with the operator: its value is asked at the "
+                                 "points of its calls (y<i>_N)")
+            state["at"][(t.point, valued[0])] = pts[valued[0]].index(hit[0])
+            return 0 * np.outer(row, row), {hit[0].f: c * mt.s}
         if valueless:
             raise InputError(f"{opt}: f: {valueless[0]} is an operator class, it has no "
                              "function values (use dist, grad or dist(P, Q))")
@@ -840,6 +870,9 @@ def _grad_row(mt: Method, row: np.ndarray, pts: list[list[PEPPoint]],
     at the point ``row``."""
     smooth = ([j for j, (_, cls, _) in enumerate(mt.functions) if "gradient" in cls.oracles]
               or [j for j in {mt.oracles[i] for i in mt.epsilons}])  # else the eps calls'
+    if mt.adjoint is not None:
+        raise InputError(f"{opt}: grad: not with transpose calls (the gradient of g(Mx) is "
+                         "M^T grad g(Mx); use dist, sdist or f)")
     if not smooth:
         raise InputError(f"{opt}: grad: no smooth function (a class with a gradient "
                          "oracle) in this spec")

@@ -9,7 +9,8 @@ f(x_k) - f* (measures only, coefficient > 0: :func:`expand_min`), ``dist(P, Q)``
 length; kind ``diff``); ``c`` is an expression in m, L, kappa. A measure term may name its
 point: ``f(x_N)`` (the output, the default), ``grad(x_3)`` (the output after 3 steps),
 ``dist(y_N)`` (the point of the single call), ``grad(y2_N)`` (the point of call 2),
-``grad(x_N-1)`` (the output one step before the last), ``f(y_k)`` / ``grad(y<i>_k)``
+``grad(x_N-1)`` (the output one step before the last), ``y<i>_N-j`` (call i's point j
+steps before the last), ``f(y_k)`` / ``grad(y<i>_k)``
 (a call's point at step k); ``inner(P, Q)`` = <P - x*, Q - x*>, a side ``g(P)`` the sum of
 the functions' (sub)gradients at P; an initial term may name any point too, and
 ``free`` (initial only) frees the start. ``sdist(x_0)`` (initial only) is |xi_0 - xi*|^2
@@ -63,6 +64,8 @@ GRAD_OF = "G"  # an inner term's gradient at a point: G<point key>
 _BEFORE = re.compile(r"^x_N\s*-\s*(\d+)$")  # x_N-j: the output j steps before the last
 STEP_POINT = re.compile(r"^x(\d+)$")  # a measure's x_k, k a number: the output at step k
 BACK_POINT = re.compile(r"^xm(\d+)$")  # a measure's x_N-j: the output at step N - j
+_CALL_BEFORE = re.compile(r"^y(\d*)_N\s*-\s*(\d+)$")  # y<i>_N-j: call i at step N - j
+CALL_BACK = re.compile(r"^y(\d+)m(\d+)$")  # its key: y<i>m<j>
 OUT0 = "x0out"  # x_N-j at step 0: the output there (the start x_0 unless an output call)
 
 
@@ -129,10 +132,16 @@ def _point_key(pt: str, option: str, initial: bool, p: int) -> str:
     back = _BEFORE.match(pt)
     if back:
         return f"xm{int(back.group(1))}" if int(back.group(1)) else "x"
+    call_back = _CALL_BEFORE.match(pt)
+    if call_back and int(call_back.group(2)):  # y<i>_N-j (j = 0: y<i>_N, below)
+        key = _point_key(f"y{call_back.group(1)}_N", option, initial, p)
+        return f"{key}m{int(call_back.group(2))}"
+    if call_back:
+        pt = f"y{call_back.group(1)}_N"
     hit = _POINT.match(pt)
     if hit is None:
         raise InputError(f"{option}: unknown point {pt!r} (use x_N, x_<k>, x_N-<j>, y_N, "
-                         "y<i>_N, y_<k>, y<i>_<k>)")
+                         "y<i>_N, y<i>_N-<j>, y_<k>, y<i>_<k>)")
     step = hit.group(3)
     if step == "k":
         if hit.group(1) != "x":
@@ -237,6 +246,13 @@ def at_steps(terms: list[Term], steps: int, option: str) -> list[Term]:
     before step 0)."""
 
     def key(point: str) -> str:
+        call = CALL_BACK.match(point)
+        if call is not None:  # call i at step N - j
+            k = steps - int(call.group(2))
+            if k < 0:
+                raise InputError(f"{option}: y{call.group(1)}_N-{call.group(2)}: before the "
+                                 f"start (N = {steps})")
+            return f"y{call.group(1)}t{k}"
         back = BACK_POINT.match(point)
         if back is None:
             return point
