@@ -139,6 +139,10 @@ class FunctionClass:
     # <x_a, M' u_b> = <M x_a, u_b>); 1, M' = M (points of M); -1, M' = -M (points of M,
     # the answer negated)
     transpose_sign: int = 0
+    # an operator class that is exactly the set of operators satisfying its pairwise
+    # conditions (so a normal linear operator satisfying them is a member: the linear
+    # witnesses of operator designs, :mod:`sosalgo.design_search.witness`)
+    pairwise_defined: bool = False
 
     def check(self, params: Mapping[str, float]) -> None:
         """Raise ValueError('<parameter>: what is wrong') for invalid values."""

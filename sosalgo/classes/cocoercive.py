@@ -21,6 +21,7 @@ from sosalgo.classes.operator import OperatorClass, linear_member, positive, rot
 
 class Cocoercive(OperatorClass):
     name = "cocoercive"
+    pairwise_defined = True  # its members: the operators meeting its pairwise conditions
     description = "beta-cocoercive operator (calls: M(y), resolvent)"
     parameters = ("beta",)
     defaults = {"beta": "1/L"}

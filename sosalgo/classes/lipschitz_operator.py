@@ -20,6 +20,7 @@ from sosalgo.classes.operator import OperatorClass, linear_member, positive, rot
 
 class LipschitzOperator(OperatorClass):
     name = "lipschitz_operator"
+    pairwise_defined = True  # its members: the operators meeting its pairwise conditions
     description = "L-Lipschitz operator, not necessarily monotone (calls: M(y))"
     parameters = ("L",)
     defaults = {"L": "L"}

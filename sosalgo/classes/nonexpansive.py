@@ -25,6 +25,7 @@ from sosalgo.classes.operator import OperatorClass, linear_member, rotation
 
 class Nonexpansive(OperatorClass):
     name = "nonexpansive"
+    pairwise_defined = True  # its members: the operators meeting its pairwise conditions
     description = "residual u = y - T y of a nonexpansive map T (calls: the residual)"
     oracles = frozenset({"gradient"})
     finite_everywhere = True

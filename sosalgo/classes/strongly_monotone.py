@@ -20,6 +20,7 @@ from sosalgo.classes.operator import OperatorClass, linear_member, positive, ske
 
 class StronglyMonotone(OperatorClass):
     name = "strongly_monotone"
+    pairwise_defined = True  # its members: the operators meeting its pairwise conditions
     description = "mu-strongly monotone maximally monotone operator (calls: M(y), resolvent)"
     parameters = ("mu",)
     defaults = {"mu": "m"}

@@ -58,12 +58,6 @@ WITNESS_CERTIFICATE_KIND = "linear witnesses"
 SEARCH_BAND = 1e-6  # a box whose best instance is this close to the target (in rho^2) at
 # its center searches anew
 POOL = 16  # instances kept
-# operator classes that are exactly the operators satisfying their pairwise conditions
-# (a normal linear operator satisfying them is a member); the linear operator classes are
-# not (a complex z is not a symmetric operator)
-PAIRWISE_DEFINED = frozenset({"monotone", "strongly_monotone", "cocoercive",
-                              "lipschitz_operator", "nonexpansive",
-                              "lipschitz_strongly_monotone"})
 
 
 class _Dual:
@@ -365,7 +359,7 @@ class _ClassSet:
         params = {k: Fraction(float(v)) for k, v in fn.params.items()
                   if isinstance(v, (int, float))}
         if isinstance(fn.cls, OperatorClass):
-            if fn.cls.name not in PAIRWISE_DEFINED:
+            if not fn.cls.pairwise_defined:  # a linear class: z is not a member
                 raise ValueError(f"{fn.name}: class {fn.cls.name} is not defined by its "
                                  "pairwise conditions alone")
             forms = fn.cls.forms(params)
