@@ -114,9 +114,13 @@ class _Robust:
 class BoxSolver:
     """The robust SDPs of boxes (floating point), one per subclass of :data:`LADDER`."""
 
-    def __init__(self, pp: ParametricPEP):
+    def __init__(self, pp: ParametricPEP, affine: bool = True):
+        from sosalgo.design_search.steps_affine import MAX_AFFINE_FREE, AffineSolver
+
         self.pp = pp
         self._robust: dict[Fraction, _Robust] = {}
+        self.affine = (AffineSolver(pp) if affine and len(pp.free) <= MAX_AFFINE_FREE
+                       else None)
 
     def solve(self, lo: Sequence[Fraction], hi: Sequence[Fraction], rung: int = 0
               ) -> tuple[float, np.ndarray | None, np.ndarray | None]:
@@ -258,7 +262,7 @@ def prove_factor(pp: ParametricPEP, V: list[list[int]], lo: Sequence[Fraction],
             if c:
                 w += min(ra * c, rb * c)
         weights.append(w)
-    best = _largest_values(pp, weights)
+    best = largest_values(pp, weights)
     if best is None:
         return None
     N = pp.measure_point
@@ -273,7 +277,7 @@ def _q(v: Any) -> Fraction:
     return Fraction(int(v.p), int(v.q))
 
 
-def _largest_values(pp: ParametricPEP, weights: list[Fraction]) -> Fraction | None:
+def largest_values(pp: ParametricPEP, weights: list[Fraction]) -> Fraction | None:
     """max F_N with F_* = 0 and F_j <= F_i + w_ij for every pair: the shortest distance
     from x* to x_N (Bellman-Ford); None when a cycle is negative (no feasible F)."""
     n = pp.npts + 1
@@ -391,7 +395,8 @@ def witness_curvatures(pp: ParametricPEP) -> list[Fraction]:
 # ------------------------------------------------------------------ branch and bound
 @dataclass
 class BoxBound:
-    """A box with its proven bound (``how``: robust-pep | quadratic | huber | none)."""
+    """A box with its proven bound (``how``: affine-pep | robust-pep | quadratic | huber |
+    none)."""
 
     lo: tuple[Fraction, ...]
     hi: tuple[Fraction, ...]
@@ -401,7 +406,8 @@ class BoxBound:
     proven_on: Box | None = None  # the box the proof is about (an ancestor), None: this
     rung: int = 0  # the robust point's rung of LADDER
     point: list[list[int]] | None = None  # the robust point's factor V (integers)
-    slopes: Slopes | None = None  # its function values' slopes F1 in θ
+    slopes: Slopes | None = None  # its function values' slopes F1 in θ (affine: in u)
+    gram: list[list[list[Fraction]]] | None = None  # the affine point's G_0, G_1, ...
 
     def proof_box(self) -> Box:
         return self.proven_on or (self.lo, self.hi)
@@ -416,10 +422,15 @@ def prove_box(pp: ParametricPEP, solver: BoxSolver | None, lo: Sequence[Fraction
     method diverges on quadratics, a box's robust point is small and its quadratic
     witness large)."""
     lo, hi = tuple(lo), tuple(hi)
-    val, got, rung = solver.proven(lo, hi) if solver is not None else (-math.inf, None, 0)
+    aval, affine = (solver.affine.proven(lo, hi) if solver is not None
+                    and solver.affine is not None else (-math.inf, None))
+    val, got, rung = (solver.proven(lo, hi) if solver is not None and affine is None
+                      else (aval, None, 0))
     best, how = Fraction(0), "none"
     pt = None if got is None else got[0]
-    if pt is not None and pt > 0:
+    if affine is not None and affine[0] > 0:
+        best, how = affine[0], "affine-pep"
+    if pt is not None and pt > best:
         best, how = pt, "robust-pep"
     hb = huber_bound(pp, lo, hi)
     if hb > best:
@@ -428,17 +439,26 @@ def prove_box(pp: ParametricPEP, solver: BoxSolver | None, lo: Sequence[Fraction
     if qb > best:
         best, how = qb, "quadratic"
     robust = how == "robust-pep"
+    if how == "affine-pep":
+        assert affine is not None
+        return BoxBound(lo, hi, best, how, val, gram=affine[1][0], slopes=affine[1][1])
     return BoxBound(lo, hi, best, how, val, rung=rung if robust else 0,
                     point=got[1] if robust and got is not None else None,
                     slopes=got[2] if robust and got is not None else None)
 
 
 def reprove(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction], how: str,
-            point: list[list[int]] | None = None, slopes: Slopes | None = None
-            ) -> Fraction:
+            point: list[list[int]] | None = None, slopes: Slopes | None = None,
+            gram: list[list[list[Fraction]]] | None = None) -> Fraction:
     """The bound of the box by the one argument ``how`` (0 when it proves nothing; the
-    robust point is the recorded factor ``point``): what ``sosalgo verify`` re-checks
-    for each leaf, exactly."""
+    robust point is the recorded factor ``point``, the affine point the recorded
+    matrices ``gram`` and ``slopes``): what ``sosalgo verify`` re-checks for each leaf,
+    exactly."""
+    if how == "affine-pep":
+        from sosalgo.design_search.steps_affine import affine_bound
+
+        got = affine_bound(pp, lo, hi, gram, slopes) if gram and slopes else None
+        return Fraction(0) if got is None else got
     if how == "robust-pep":
         pt = prove_factor(pp, point, lo, hi, slopes) if point else None
         return Fraction(0) if pt is None else pt
@@ -509,7 +529,8 @@ def branch_and_bound(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fra
             child = prove_box(pp, solver, clo, chi)
             if child.bound < box.bound:  # the parent's proof holds on the child
                 child = BoxBound(clo, chi, box.bound, box.how, child.estimate,
-                                 box.proof_box(), box.rung, box.point, box.slopes)
+                                 box.proof_box(), box.rung, box.point, box.slopes,
+                                 box.gram)
             count += 1
             heapq.heappush(heap, (child.bound, count, child))
         if on_box is not None:
