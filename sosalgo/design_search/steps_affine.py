@@ -37,8 +37,8 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.design_search.steps_model import ParametricPEP
 from sosalgo.design_search.steps_bound import LADDER, TIGHT, exact_forms, largest_values
+from sosalgo.design_search.steps_model import ParametricPEP
 from sosalgo.kernel.solvers import SolverStatus, cvxpy_solve
 
 __all__ = ["AffineSolver", "MAX_AFFINE_FREE", "affine_bound", "prove_affine"]
