@@ -20,7 +20,14 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from sosalgo.design_search.steps_bound import BoxSolver, huber_bound, prove_box, quadratic_bound
+from sosalgo.design_search.steps_bound import (
+    LADDER,
+    TIGHT,
+    BoxSolver,
+    huber_bound,
+    prove_box,
+    quadratic_bound,
+)
 from sosalgo.design_search.steps_model import parametric_pep
 from sosalgo.spec import load_spec
 from tests.conftest import spec_path
@@ -491,7 +498,7 @@ def test_affine_point_random_boxes():
     from sosalgo.design_search.steps_affine import AffineSolver
 
     pp = _schedule_model(3)
-    solver = AffineSolver(pp)
+    solver = AffineSolver(pp, LADDER, TIGHT)
     rng = random.Random(5)
     boxes = []
     for width in (Fraction(1, 2), Fraction(1, 20), Fraction(1, 500)):
@@ -530,7 +537,7 @@ def test_affine_point_refused_when_not_positive_on_the_box():
 
     pp = _schedule_model(2)
     lo, hi = (Fraction(13, 10), Fraction(17, 10)), (Fraction(14, 10), Fraction(19, 10))
-    _, got = AffineSolver(pp).proven(lo, hi)
+    _, got = AffineSolver(pp, LADDER, TIGHT).proven(lo, hi)
     assert got is not None
     bound, (gram, slopes) = got
     assert affine_bound(pp, lo, hi, gram, slopes) == bound

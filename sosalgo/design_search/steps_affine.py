@@ -20,7 +20,7 @@ The proof (:func:`prove_affine`): the float G_i rounded to exact rationals, symm
 G_i[0, 0] set to 0; G_0 + δ I with δ >= 0 such that every vertex matrix is positive
 definite, checked by an exact LDLᵀ in rational arithmetic; the least value of each pair's
 polynomial on the box, exactly; the largest F_0 for those (a shortest path from x*,
-:func:`sosalgo.design_search.steps_bound.largest_values`); the bound is the least
+:func:`sosalgo.design_search.steps_model.largest_values`); the bound is the least
 F_N(u) on the box divided by G_00. Every step is exact, about the class as written: by the
 interpolation theorem each u gives a function of the class with this value, so
 tau_N(θ) >= the bound at every θ of the box.
@@ -37,8 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.design_search.steps_bound import LADDER, TIGHT, exact_forms, largest_values
-from sosalgo.design_search.steps_model import ParametricPEP
+from sosalgo.design_search.steps_model import ParametricPEP, exact_forms, largest_values
 from sosalgo.kernel.solvers import SolverStatus, cvxpy_solve
 
 __all__ = ["AffineSolver", "MAX_AFFINE_FREE", "affine_bound", "prove_affine"]
@@ -151,8 +150,8 @@ class _AffineSDP:
         cons += [a >= self.F1[N, :], a >= -self.F1[N, :]]
         self.problem = cp.Problem(cp.Maximize(self.F0[N] - cp.sum(a)), cons)
 
-    def solve(self, lo: Sequence[Fraction], hi: Sequence[Fraction], tight: bool = False
-              ) -> tuple[float, AffinePoint | None]:
+    def solve(self, lo: Sequence[Fraction], hi: Sequence[Fraction],
+              options: dict[str, float] | None = None) -> tuple[float, AffinePoint | None]:
         """(float value, the float point as exact binary rationals) on the box, or
         (-inf, None) when the solve fails."""
         c, w = _center(lo, hi)
@@ -165,7 +164,7 @@ class _AffineSDP:
         shifted = np.einsum("ba,kaj->bkj", S, self.forms)
         for P, M in zip(self.P, shifted, strict=True):
             P.value = M
-        end = cvxpy_solve(self.problem, "CLARABEL", **(TIGHT if tight else {}))
+        end = cvxpy_solve(self.problem, "CLARABEL", **(options or {}))
         if end.status not in (SolverStatus.SOLVED, SolverStatus.ALMOST_SOLVED) \
                 or self.F1.value is None or any(G.value is None for G in self.G):
             return -math.inf, None
@@ -176,11 +175,13 @@ class _AffineSDP:
 
 
 class AffineSolver:
-    """The affine robust points of boxes: the SDP per subclass of
-    :data:`~sosalgo.design_search.steps_bound.LADDER`, built when first needed."""
+    """The affine robust points of boxes: the SDP per rung of ``ladder`` ((subclass
+    shrink s, tight tolerances), :data:`sosalgo.design_search.steps_bound.LADDER`), built
+    when first needed; ``tight``: the solver's tight tolerances."""
 
-    def __init__(self, pp: ParametricPEP):
-        self.pp = pp
+    def __init__(self, pp: ParametricPEP, ladder: Sequence[tuple[Fraction, bool]],
+                 tight: dict[str, float]):
+        self.pp, self.ladder, self.tight = pp, ladder, tight
         self._sdp: dict[Fraction, _AffineSDP] = {}
 
     def proven(self, lo: Sequence[Fraction], hi: Sequence[Fraction]
@@ -188,10 +189,10 @@ class AffineSolver:
         """(the first rung's float value, (proven bound, proven point) or None): the
         ladder's rungs in order until a proof holds (a failed first solve ends it)."""
         first = -math.inf
-        for rung, (shrink, tight) in enumerate(LADDER):
+        for rung, (shrink, tight) in enumerate(self.ladder):
             if shrink not in self._sdp:
                 self._sdp[shrink] = _AffineSDP(self.pp, shrink)
-            val, pt = self._sdp[shrink].solve(lo, hi, tight)
+            val, pt = self._sdp[shrink].solve(lo, hi, self.tight if tight else None)
             if rung == 0:
                 first = val
                 if pt is None:

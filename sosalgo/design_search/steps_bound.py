@@ -35,7 +35,14 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.design_search.steps_model import ParametricPEP, Poly, poly_range
+from sosalgo.design_search.steps_affine import MAX_AFFINE_FREE, AffineSolver, affine_bound
+from sosalgo.design_search.steps_model import (
+    ParametricPEP,
+    Poly,
+    exact_forms,
+    largest_values,
+    poly_range,
+)
 from sosalgo.kernel.solvers import SolverStatus, cvxpy_solve
 
 __all__ = ["BoxBound", "BoxSolver", "BranchResult", "branch_and_bound", "huber_bound",
@@ -115,11 +122,9 @@ class BoxSolver:
     """The robust SDPs of boxes (floating point), one per subclass of :data:`LADDER`."""
 
     def __init__(self, pp: ParametricPEP, affine: bool = True):
-        from sosalgo.design_search.steps_affine import MAX_AFFINE_FREE, AffineSolver
-
         self.pp = pp
         self._robust: dict[Fraction, _Robust] = {}
-        self.affine = (AffineSolver(pp) if affine and len(pp.free) <= MAX_AFFINE_FREE
+        self.affine = (AffineSolver(pp, LADDER, TIGHT) if affine and len(pp.free) <= MAX_AFFINE_FREE
                        else None)
 
     def solve(self, lo: Sequence[Fraction], hi: Sequence[Fraction], rung: int = 0
@@ -184,26 +189,6 @@ def _gram(V: list[list[int]]) -> Any:
     scale = 2 ** FACTOR_BITS
     Vq = fmpq_mat(len(V), len(V[0]), [fmpq(v, scale) for row in V for v in row])
     return Vq * Vq.transpose()
-
-
-def exact_forms(pp: ParametricPEP) -> Any:
-    """All pair forms as one fmpq matrix: row k * A + a is vec of pair k's monomial a."""
-    from flint import fmpq, fmpq_mat
-
-    if getattr(pp, "_exact", None) is None:
-        K, A, d = len(pp.pairs), len(pp.monomials), pp.d
-        idx = {e: a for a, e in enumerate(pp.monomials)}
-        entries = [fmpq(0)] * (K * A * d * d)
-        for k, form in enumerate(pp.forms):
-            for e, M in form.items():
-                base = (k * A + idx[e]) * d * d
-                for r in range(d):
-                    for c in range(d):
-                        if M[r, c]:
-                            entries[base + r * d + c] = fmpq(M[r, c].numerator,
-                                                             M[r, c].denominator)
-        pp._exact = fmpq_mat(K * A, d * d, entries)  # type: ignore[attr-defined]
-    return pp._exact  # type: ignore[attr-defined]
 
 
 Slopes = list[list[Fraction]]  # F1: per point, per free value (exact dyadic rationals)
@@ -275,29 +260,6 @@ def prove_factor(pp: ParametricPEP, V: list[list[int]], lo: Sequence[Fraction],
 
 def _q(v: Any) -> Fraction:
     return Fraction(int(v.p), int(v.q))
-
-
-def largest_values(pp: ParametricPEP, weights: list[Fraction]) -> Fraction | None:
-    """max F_N with F_* = 0 and F_j <= F_i + w_ij for every pair: the shortest distance
-    from x* to x_N (Bellman-Ford); None when a cycle is negative (no feasible F)."""
-    n = pp.npts + 1
-    star = pp.npts
-    dist: list[Fraction | None] = [None] * n
-    dist[star] = Fraction(0)
-    for _ in range(n):
-        changed = False
-        for (i, j), w in zip(pp.pairs, weights, strict=True):
-            di = dist[i]
-            if di is not None and (dist[j] is None or di + w < dist[j]):
-                dist[j] = di + w
-                changed = True
-        if not changed:
-            break
-    else:
-        return None
-    if dist[star] != 0:
-        return None
-    return dist[pp.measure_point]
 
 
 # ------------------------------------------------------------------ witnesses
@@ -455,8 +417,6 @@ def reprove(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction], h
     matrices ``gram`` and ``slopes``): what ``sosalgo verify`` re-checks for each leaf,
     exactly."""
     if how == "affine-pep":
-        from sosalgo.design_search.steps_affine import affine_bound
-
         got = affine_bound(pp, lo, hi, gram, slopes) if gram and slopes else None
         return Fraction(0) if got is None else got
     if how == "robust-pep":
