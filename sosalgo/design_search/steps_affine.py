@@ -184,10 +184,11 @@ class AffineSolver:
         self.pp, self.ladder, self.tight = pp, ladder, tight
         self._sdp: dict[Fraction, _AffineSDP] = {}
 
-    def proven(self, lo: Sequence[Fraction], hi: Sequence[Fraction]
+    def proven(self, lo: Sequence[Fraction], hi: Sequence[Fraction], floor: float = 0.0
                ) -> tuple[float, tuple[Fraction, AffinePoint] | None]:
         """(the first rung's float value, (proven bound, proven point) or None): the
-        ladder's rungs in order until a proof holds (a failed first solve ends it)."""
+        ladder's rungs in order until a proof holds (a failed first solve, or a first
+        value at most ``floor``, the bound in hand, ends it)."""
         first = -math.inf
         for rung, (shrink, tight) in enumerate(self.ladder):
             if shrink not in self._sdp:
@@ -195,9 +196,9 @@ class AffineSolver:
             val, pt = self._sdp[shrink].solve(lo, hi, self.tight if tight else None)
             if rung == 0:
                 first = val
-                if pt is None:
+                if pt is None or val <= floor:
                     return val, None
-            if pt is None or val <= 0:
+            if pt is None or val <= max(floor, 0.0):
                 continue
             got = prove_affine(self.pp, pt, lo, hi)
             if got is not None:

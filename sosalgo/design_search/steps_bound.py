@@ -26,6 +26,7 @@ whole box is the minimum over the leaves.
 from __future__ import annotations
 
 import heapq
+import itertools
 import math
 import time
 from collections.abc import Callable, Sequence
@@ -318,13 +319,62 @@ def _trajectory(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction
     return ys, _imatvec(E, xi)[0]
 
 
+MAX_VERTEX_FREE = 12  # exact ranges of multilinear polynomials: 2^p vertices at most
+
+
+def _exact_trajectory(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction],
+                      ys: list[Interval], xN: Interval, q: Fraction, c: Fraction,
+                      start: int = 1) -> tuple[list[Interval], Interval]:
+    """The enclosures of :func:`_trajectory` for g = q y + c, narrowed to the exact range
+    over the box where a query or the output is multilinear in θ (its extremes are at
+    the vertices; gradient descent's x_N = Π (1 - q h_k) x_0): the stepwise intervals
+    lose the correlation of the steps (x - h q x)."""
+    from sosalgo.design_search.steps_model import poly_matvec
+
+    p = len(pp.free)
+    if p > MAX_VERTEX_FREE:
+        return ys, xN
+    assert pp.step_polys is not None
+    zero = (0,) * p
+    n = len(pp.step_polys[0]["A"])
+    xi: list[Poly] = [{zero: Fraction(start)} if start else {} for _ in range(n)]
+    out = []
+    for k in range(pp.steps):
+        mats = pp.step_polys[k]
+        y = poly_matvec(mats["C"], xi)[0]
+        out.append(y)
+        g = {e: q * v for e, v in y.items()}
+        if c:
+            g[zero] = g.get(zero, Fraction(0)) + c
+        g = {e: v for e, v in g.items() if v}
+        Ax = poly_matvec(mats["A"], xi)
+        Bg = poly_matvec(mats["B"], [g])
+        xi = [poly_matvec([[{zero: Fraction(1)}, {zero: Fraction(1)}]], [a, b])[0]  # a + b
+              for a, b in zip(Ax, Bg, strict=True)]
+    out.append(poly_matvec(pp.step_polys[-1]["E"], xi)[0])
+    verts = list(itertools.product(*zip(lo, hi, strict=True)))
+    tight = [_vertex_range(P, verts, box) for P, box in zip(out, ys + [xN], strict=True)]
+    return tight[:-1], tight[-1]
+
+
+def _vertex_range(P: Poly, verts: list[tuple[Fraction, ...]], box: Interval) -> Interval:
+    """The exact range of a multilinear P over the box (its values at the vertices),
+    intersected with ``box``; ``box`` when P is not multilinear."""
+    if any(k > 1 for e in P for k in e):
+        return box
+    vals = [sum((v * math.prod(x for x, k in zip(vert, e, strict=True) if k)
+                 for e, v in P.items()), Fraction(0)) for vert in verts]
+    return max(box[0], min(vals)), min(box[1], max(vals))
+
+
 def quadratic_bound(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction],
                     qs: Sequence[Fraction]) -> Fraction:
     """max over q of the proven min over the box of f(x_N) for f = q x^2 / 2 (x_0 = 1)."""
     best = Fraction(0)
     for q in qs:
-        _, (a, b) = _trajectory(pp, lo, hi, lambda y, q=q: (q * y[0], q * y[1])
-                                if q >= 0 else (q * y[1], q * y[0]))
+        ys, xN = _trajectory(pp, lo, hi, lambda y, q=q: (q * y[0], q * y[1])
+                             if q >= 0 else (q * y[1], q * y[0]))
+        _, (a, b) = _exact_trajectory(pp, lo, hi, ys, xN, q, Fraction(0))
         low = Fraction(0) if a <= 0 <= b else min(abs(a), abs(b))
         best = max(best, q * low * low / 2)
     return best
@@ -339,10 +389,12 @@ def huber_bound(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction
         return Fraction(0)
     L = pp.L
     ys, xN = _trajectory(pp, lo, hi, lambda y: (Fraction(1), Fraction(1)), start=0)
+    ys, xN = _exact_trajectory(pp, lo, hi, ys, xN, Fraction(0), Fraction(1), start=0)
     tau = 1 / (1 / L - 2 * min(xN[0], Fraction(0)))
     for y in ys:  # y_k = 1 + tau gamma_k >= tau / L while tau <= 1 / (1/L - gamma_k)
         tau = min(tau, 1 / (1 / L - min(y[0], Fraction(0))))
-    ys, (a, _) = _trajectory(pp, lo, hi, lambda y: (tau, tau))
+    ys, xN = _trajectory(pp, lo, hi, lambda y: (tau, tau))
+    ys, (a, _) = _exact_trajectory(pp, lo, hi, ys, xN, Fraction(0), tau)
     if not all(y[0] >= tau / L for y in ys):
         return Fraction(0)
     return max(Fraction(0), tau * a - tau * tau / (2 * L))
@@ -379,34 +431,33 @@ class BoxBound:
 
 
 def prove_box(pp: ParametricPEP, solver: BoxSolver | None, lo: Sequence[Fraction],
-              hi: Sequence[Fraction]) -> BoxBound:
-    """The best proven bound of the box: the robust point and the witnesses (where the
-    method diverges on quadratics, a box's robust point is small and its quadratic
-    witness large)."""
+              hi: Sequence[Fraction], target: float | None = None) -> BoxBound:
+    """The best proven bound of the box: the witnesses first (cheap; where the method
+    diverges on quadratics a box's robust point is small and its quadratic witness
+    large), then the affine robust point, and the constant robust point where the affine
+    one is not proven although its SDP promises more. No SDP when a witness already
+    reaches ``target``, no further rung of a ladder when its float value does not beat
+    the bound in hand."""
     lo, hi = tuple(lo), tuple(hi)
-    aval, affine = (solver.affine.proven(lo, hi) if solver is not None
-                    and solver.affine is not None else (-math.inf, None))
-    val, got, rung = (solver.proven(lo, hi) if solver is not None and affine is None
-                      else (aval, None, 0))
     best, how = Fraction(0), "none"
-    pt = None if got is None else got[0]
-    if affine is not None and affine[0] > 0:
-        best, how = affine[0], "affine-pep"
-    if pt is not None and pt > best:
-        best, how = pt, "robust-pep"
-    hb = huber_bound(pp, lo, hi)
-    if hb > best:
-        best, how = hb, "huber"
-    qb = quadratic_bound(pp, lo, hi, witness_curvatures(pp))
-    if qb > best:
-        best, how = qb, "quadratic"
-    robust = how == "robust-pep"
-    if how == "affine-pep":
-        assert affine is not None
-        return BoxBound(lo, hi, best, how, val, gram=affine[1][0], slopes=affine[1][1])
-    return BoxBound(lo, hi, best, how, val, rung=rung if robust else 0,
-                    point=got[1] if robust and got is not None else None,
-                    slopes=got[2] if robust and got is not None else None)
+    for name, b in (("huber", huber_bound(pp, lo, hi)),
+                    ("quadratic", quadratic_bound(pp, lo, hi, witness_curvatures(pp)))):
+        if b > best:
+            best, how = b, name
+    if solver is None or (target is not None and best >= target):
+        return BoxBound(lo, hi, best, how, -math.inf)
+    val, affine = (solver.affine.proven(lo, hi, float(best)) if solver.affine is not None
+                   else (-math.inf, None))
+    if affine is not None and affine[0] > best:
+        return BoxBound(lo, hi, affine[0], "affine-pep", val, gram=affine[1][0],
+                        slopes=affine[1][1])
+    if solver.affine is not None and val <= float(best) and val > -math.inf:
+        return BoxBound(lo, hi, best, how, val)
+    val, got, rung = solver.proven(lo, hi)
+    if got is not None and got[0] > best:
+        return BoxBound(lo, hi, got[0], "robust-pep", val, rung=rung, point=got[1],
+                        slopes=got[2])
+    return BoxBound(lo, hi, best, how, val)
 
 
 def reprove(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction], how: str,
@@ -486,7 +537,7 @@ def branch_and_bound(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fra
         heapq.heappop(heap)
         slope = probe(box.center()) if probe is not None else None
         for clo, chi in _split(box, root, slope):
-            child = prove_box(pp, solver, clo, chi)
+            child = prove_box(pp, solver, clo, chi, upper() * (1 - gap))
             if child.bound < box.bound:  # the parent's proof holds on the child
                 child = BoxBound(clo, chi, box.bound, box.how, child.estimate,
                                  box.proof_box(), box.rung, box.point, box.slopes,

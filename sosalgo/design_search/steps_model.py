@@ -32,7 +32,7 @@ from sosalgo.classes import SEED_CLASS, get_class
 from sosalgo.spec import Spec
 
 __all__ = ["ParametricPEP", "PointSearch", "Poly", "Unsupported", "check_setting",
-           "exact_forms", "largest_values", "parametric_pep",
+           "exact_forms", "largest_values", "parametric_pep", "poly_matvec",
            "poly_range",
            "smooth_convex_q", "step_symbol", "varying_matrices"]
 
@@ -163,6 +163,18 @@ def _matvec(M: list[list[Poly]], rows: list[list[Poly]], d: int) -> list[list[Po
             for c in range(d):
                 if row[c]:
                     acc[c] = _padd(acc[c], _pmul(Mij, row[c]))
+        out.append(acc)
+    return out
+
+
+def poly_matvec(M: list[list[Poly]], v: list[Poly]) -> list[Poly]:
+    """M (polynomial entries) times the vector v of polynomials, exactly."""
+    out = []
+    for row in M:
+        acc: Poly = {}
+        for a, b in zip(row, v, strict=True):
+            if a and b:
+                acc = _padd(acc, _pmul(a, b))
         out.append(acc)
     return out
 
