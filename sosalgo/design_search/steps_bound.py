@@ -322,20 +322,19 @@ def _trajectory(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction
 MAX_VERTEX_FREE = 12  # exact ranges of multilinear polynomials: 2^p vertices at most
 
 
-def _exact_trajectory(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction],
-                      ys: list[Interval], xN: Interval, q: Fraction, c: Fraction,
-                      start: int = 1) -> tuple[list[Interval], Interval]:
-    """The enclosures of :func:`_trajectory` for g = q y + c, narrowed to the exact range
-    over the box where a query or the output is multilinear in θ (its extremes are at
-    the vertices; gradient descent's x_N = Π (1 - q h_k) x_0): the stepwise intervals
-    lose the correlation of the steps (x - h q x)."""
+def _poly_trajectory(pp: ParametricPEP, q: Fraction, c: Fraction, start: int
+                     ) -> list[Poly]:
+    """The queries y_0..y_{N-1} and x_N as exact polynomials in θ, in one dimension from
+    x_0 = ``start``, with g = q y + c (cached on ``pp``: they do not depend on the box)."""
     from sosalgo.design_search.steps_model import poly_matvec
 
-    p = len(pp.free)
-    if p > MAX_VERTEX_FREE:
-        return ys, xN
+    cache = pp.__dict__.setdefault("_trajectories", {})
+    key = (q, c, start)
+    if key in cache:
+        return cache[key]
     assert pp.step_polys is not None
-    zero = (0,) * p
+    zero = (0,) * len(pp.free)
+    one = {zero: Fraction(1)}
     n = len(pp.step_polys[0]["A"])
     xi: list[Poly] = [{zero: Fraction(start)} if start else {} for _ in range(n)]
     out = []
@@ -343,28 +342,32 @@ def _exact_trajectory(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fr
         mats = pp.step_polys[k]
         y = poly_matvec(mats["C"], xi)[0]
         out.append(y)
-        g = {e: q * v for e, v in y.items()}
-        if c:
-            g[zero] = g.get(zero, Fraction(0)) + c
-        g = {e: v for e, v in g.items() if v}
+        g = poly_matvec([[{zero: q}, {zero: c}]] if c else [[{zero: q}]],
+                        [y, one] if c else [y])[0]
         Ax = poly_matvec(mats["A"], xi)
         Bg = poly_matvec(mats["B"], [g])
-        xi = [poly_matvec([[{zero: Fraction(1)}, {zero: Fraction(1)}]], [a, b])[0]  # a + b
-              for a, b in zip(Ax, Bg, strict=True)]
+        xi = [poly_matvec([[one, one]], [a, b])[0] for a, b in zip(Ax, Bg, strict=True)]
     out.append(poly_matvec(pp.step_polys[-1]["E"], xi)[0])
+    cache[key] = out
+    return out
+
+
+def _vertex_ranges(polys: list[Poly], lo: Sequence[Fraction], hi: Sequence[Fraction]
+                   ) -> list[Interval] | None:
+    """The exact ranges over the box of multilinear polynomials: the hull of their
+    values at the vertices (a multilinear polynomial is affine in each θ_i alone);
+    None when one is not multilinear or the free values are too many for 2^p vertices
+    (the stepwise intervals of :func:`_trajectory` lose the steps' correlation,
+    x - h q x: these do not)."""
+    if len(lo) > MAX_VERTEX_FREE or any(k > 1 for P in polys for e in P for k in e):
+        return None
     verts = list(itertools.product(*zip(lo, hi, strict=True)))
-    tight = [_vertex_range(P, verts, box) for P, box in zip(out, ys + [xN], strict=True)]
-    return tight[:-1], tight[-1]
-
-
-def _vertex_range(P: Poly, verts: list[tuple[Fraction, ...]], box: Interval) -> Interval:
-    """The exact range of a multilinear P over the box (its values at the vertices),
-    intersected with ``box``; ``box`` when P is not multilinear."""
-    if any(k > 1 for e in P for k in e):
-        return box
-    vals = [sum((v * math.prod(x for x, k in zip(vert, e, strict=True) if k)
-                 for e, v in P.items()), Fraction(0)) for vert in verts]
-    return max(box[0], min(vals)), min(box[1], max(vals))
+    out = []
+    for P in polys:
+        vals = [sum((v * math.prod(x for x, k in zip(vert, e, strict=True) if k)
+                     for e, v in P.items()), Fraction(0)) for vert in verts]
+        out.append((min(vals), max(vals)))
+    return out
 
 
 def quadratic_bound(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction],
@@ -372,9 +375,12 @@ def quadratic_bound(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Frac
     """max over q of the proven min over the box of f(x_N) for f = q x^2 / 2 (x_0 = 1)."""
     best = Fraction(0)
     for q in qs:
-        ys, xN = _trajectory(pp, lo, hi, lambda y, q=q: (q * y[0], q * y[1])
-                             if q >= 0 else (q * y[1], q * y[0]))
-        _, (a, b) = _exact_trajectory(pp, lo, hi, ys, xN, q, Fraction(0))
+        exact = _vertex_ranges(_poly_trajectory(pp, q, Fraction(0), 1), lo, hi)
+        if exact is not None:
+            a, b = exact[-1]
+        else:
+            _, (a, b) = _trajectory(pp, lo, hi, lambda y, q=q: (q * y[0], q * y[1])
+                                    if q >= 0 else (q * y[1], q * y[0]))
         low = Fraction(0) if a <= 0 <= b else min(abs(a), abs(b))
         best = max(best, q * low * low / 2)
     return best
@@ -388,13 +394,19 @@ def huber_bound(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction
     if pp.m != 0:
         return Fraction(0)
     L = pp.L
-    ys, xN = _trajectory(pp, lo, hi, lambda y: (Fraction(1), Fraction(1)), start=0)
-    ys, xN = _exact_trajectory(pp, lo, hi, ys, xN, Fraction(0), Fraction(1), start=0)
+    unit = _poly_trajectory(pp, Fraction(0), Fraction(1), 0)  # gamma_k, beta
+    exact = _vertex_ranges(unit, lo, hi)
+    ys, xN = ((exact[:-1], exact[-1]) if exact is not None else
+              _trajectory(pp, lo, hi, lambda y: (Fraction(1), Fraction(1)), start=0))
     tau = 1 / (1 / L - 2 * min(xN[0], Fraction(0)))
     for y in ys:  # y_k = 1 + tau gamma_k >= tau / L while tau <= 1 / (1/L - gamma_k)
         tau = min(tau, 1 / (1 / L - min(y[0], Fraction(0))))
-    ys, xN = _trajectory(pp, lo, hi, lambda y: (tau, tau))
-    ys, (a, _) = _exact_trajectory(pp, lo, hi, ys, xN, Fraction(0), tau)
+    rest = _poly_trajectory(pp, Fraction(0), Fraction(0), 1)
+    moved = [{e: rest_p.get(e, Fraction(0)) + tau * u.get(e, Fraction(0))
+              for e in set(rest_p) | set(u)} for rest_p, u in zip(rest, unit, strict=True)]
+    exact = _vertex_ranges(moved, lo, hi)
+    ys, (a, _) = ((exact[:-1], exact[-1]) if exact is not None else
+                  _trajectory(pp, lo, hi, lambda y: (tau, tau)))
     if not all(y[0] >= tau / L for y in ys):
         return Fraction(0)
     return max(Fraction(0), tau * a - tau * tau / (2 * L))
@@ -432,32 +444,56 @@ class BoxBound:
 
 def prove_box(pp: ParametricPEP, solver: BoxSolver | None, lo: Sequence[Fraction],
               hi: Sequence[Fraction], target: float | None = None) -> BoxBound:
-    """The best proven bound of the box: the witnesses first (cheap; where the method
-    diverges on quadratics a box's robust point is small and its quadratic witness
-    large), then the affine robust point, and the constant robust point where the affine
-    one is not proven although its SDP promises more. No SDP when a witness already
-    reaches ``target``, no further rung of a ladder when its float value does not beat
-    the bound in hand."""
+    """The best proven bound of the box, cheapest first, until one reaches ``target``:
+    the witnesses (where the method diverges on quadratics a box's robust point is small
+    and its quadratic witness large), the constant robust point, then the affine robust
+    point (an SDP about ten times larger) where the constant one's float value stays
+    below ``target``. Only the witnesses where two points may coincide on the box
+    (:func:`may_coincide`: a zero step; their inequalities have no slack there, and the
+    SDPs' points fail their proofs)."""
     lo, hi = tuple(lo), tuple(hi)
-    best, how = Fraction(0), "none"
+    best = BoxBound(lo, hi, Fraction(0), "none", -math.inf)
     for name, b in (("huber", huber_bound(pp, lo, hi)),
                     ("quadratic", quadratic_bound(pp, lo, hi, witness_curvatures(pp)))):
-        if b > best:
-            best, how = b, name
-    if solver is None or (target is not None and best >= target):
-        return BoxBound(lo, hi, best, how, -math.inf)
-    val, affine = (solver.affine.proven(lo, hi, float(best)) if solver.affine is not None
-                   else (-math.inf, None))
-    if affine is not None and affine[0] > best:
-        return BoxBound(lo, hi, affine[0], "affine-pep", val, gram=affine[1][0],
-                        slopes=affine[1][1])
-    if solver.affine is not None and val <= float(best) and val > -math.inf:
-        return BoxBound(lo, hi, best, how, val)
+        if b > best.bound:
+            best = BoxBound(lo, hi, b, name, -math.inf)
+    goal = math.inf if target is None else target
+    if solver is None or best.bound >= goal or may_coincide(pp, lo, hi):
+        return best
     val, got, rung = solver.proven(lo, hi)
-    if got is not None and got[0] > best:
-        return BoxBound(lo, hi, got[0], "robust-pep", val, rung=rung, point=got[1],
+    best.estimate = val
+    if got is not None and got[0] > best.bound:
+        best = BoxBound(lo, hi, got[0], "robust-pep", val, rung=rung, point=got[1],
                         slopes=got[2])
-    return BoxBound(lo, hi, best, how, val)
+    if solver.affine is None or best.bound >= goal or (val >= goal and got is not None):
+        return best
+    aval, affine = solver.affine.proven(lo, hi, float(best.bound))
+    if affine is not None and affine[0] > best.bound:
+        return BoxBound(lo, hi, affine[0], "affine-pep", max(val, aval), gram=affine[1][0],
+                        slopes=affine[1][1])
+    return best
+
+
+def may_coincide(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction]
+                 ) -> bool:
+    """Whether two of the points (queries, output) may be equal at some θ of the box:
+    every coordinate of their difference has a range containing 0 (a necessary
+    condition, enclosed in exact interval arithmetic)."""
+    rows = [pt[0] for pt in (pp._rows or [])[:pp.npts]]
+    for i, a in enumerate(rows):
+        for b in rows[i + 1:]:
+            if all(_poly_interval(_difference(pa, pb), lo, hi)[0] <= 0
+                   <= _poly_interval(_difference(pa, pb), lo, hi)[1]
+                   for pa, pb in zip(a, b, strict=True)):
+                return True
+    return False
+
+
+def _difference(a: Poly, b: Poly) -> Poly:
+    out = dict(a)
+    for e, v in b.items():
+        out[e] = out.get(e, Fraction(0)) - v
+    return {e: v for e, v in out.items() if v}
 
 
 def reprove(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction], how: str,
