@@ -567,3 +567,21 @@ def test_obs_f_schedule_against_the_independent_pep():
     sched, rate = obs_f(3)
     assert sched == pytest.approx([math.sqrt(2), 1 + math.sqrt(2), 1.5], rel=1e-12)
     assert rate / 2 == pytest.approx((3 - 2 * math.sqrt(2)) / 4, rel=1e-12)
+
+
+def test_may_coincide_only_where_a_step_may_be_zero():
+    """Two queries of gradient descent are equal exactly where a step is 0 (y_{k+1} =
+    y_k - h_k g_k): boxes touching h_k = 0 may coincide, boxes away from 0 do not; a
+    box where the witnesses alone are tried still gets the exact vertex range of
+    x_N = Π (1 - q h_k), here the quadratic q = L on [9/4, 3]^3 x [0, 3/4]:
+    (5/4)^6 (1/4)^2 / 2 at least (|1 - h| >= 5/4, and 1/4 at h = 3/4)."""
+    from sosalgo.design_search.steps_bound import may_coincide
+
+    pp = _schedule_model(4)
+    one = Fraction(1)
+    assert may_coincide(pp, (Fraction(0), one, one, one), (one,) * 4)
+    assert not may_coincide(pp, (Fraction(1, 10),) * 4, (one,) * 4)
+    lo, hi = (Fraction(9, 4),) * 3 + (Fraction(0),), (Fraction(3),) * 3 + (Fraction(3, 4),)
+    assert quadratic_bound(pp, lo, hi, [one]) == Fraction(5, 4) ** 6 * Fraction(1, 4) ** 2 / 2
+    truth = independent_schedule_pep([2.25, 2.25, 2.25, 0.75])
+    assert float(prove_box(pp, BoxSolver(pp), lo, hi).bound) <= truth * (1 + 1e-6)
