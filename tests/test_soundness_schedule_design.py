@@ -585,3 +585,22 @@ def test_may_coincide_only_where_a_step_may_be_zero():
     assert quadratic_bound(pp, lo, hi, [one]) == Fraction(5, 4) ** 6 * Fraction(1, 4) ** 2 / 2
     truth = independent_schedule_pep([2.25, 2.25, 2.25, 0.75])
     assert float(prove_box(pp, BoxSolver(pp), lo, hi).bound) <= truth * (1 + 1e-6)
+
+
+def test_affine_leaf_round_trip_through_the_document():
+    """A box near the optimized two-step schedule is proven by the affine point; its
+    leaf document (gram, slopes as exact texts) is re-proven to the same bound by what
+    verify runs, and a changed matrix entry is not re-proven to it (or at all)."""
+    from sosalgo.design_search.steps import _leaf_doc
+    from sosalgo.design_search.steps_bound import reprove
+    from sosalgo.proofs.steps_design import _gram, _slopes
+
+    pp = _schedule_model(2)
+    lo, hi = (Fraction(141, 100), Fraction(187, 100)), (Fraction(142, 100), Fraction(188, 100))
+    leaf = prove_box(pp, BoxSolver(pp), lo, hi)
+    assert leaf.how == "affine-pep"
+    doc = json.loads(json.dumps(_leaf_doc(leaf)))
+    assert reprove(pp, lo, hi, doc["how"], None, _slopes(doc), _gram(doc)) == leaf.bound
+    assert float(leaf.bound) <= independent_schedule_pep([1.415, 1.875]) * (1 + 1e-6)
+    doc["gram"][1][1][1] = str(Fraction(doc["gram"][1][1][1]) + 1)
+    assert reprove(pp, lo, hi, doc["how"], None, _slopes(doc), _gram(doc)) != leaf.bound
