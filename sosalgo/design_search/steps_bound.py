@@ -319,7 +319,7 @@ def _trajectory(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction
     return ys, _imatvec(E, xi)[0]
 
 
-MAX_VERTEX_FREE = 12  # exact ranges of multilinear polynomials: 2^p vertices at most
+VERTEX_BUDGET = 20000  # exact ranges of multilinear polynomials: vertices x terms at most
 
 
 def _poly_trajectory(pp: ParametricPEP, q: Fraction, c: Fraction, start: int
@@ -358,8 +358,10 @@ def _vertex_ranges(polys: list[Poly], lo: Sequence[Fraction], hi: Sequence[Fract
     values at the vertices (a multilinear polynomial is affine in each θ_i alone);
     None when one is not multilinear or the free values are too many for 2^p vertices
     (the stepwise intervals of :func:`_trajectory` lose the steps' correlation,
-    x - h q x: these do not)."""
-    if len(lo) > MAX_VERTEX_FREE or any(k > 1 for P in polys for e in P for k in e):
+    x - h q x: these do not). Only within :data:`VERTEX_BUDGET` (vertices times terms):
+    gradient descent up to about 6 steps."""
+    if len(lo) > 16 or 2 ** len(lo) * sum(map(len, polys)) > VERTEX_BUDGET \
+            or any(k > 1 for P in polys for e in P for k in e):
         return None
     verts = list(itertools.product(*zip(lo, hi, strict=True)))
     out = []
