@@ -10,8 +10,8 @@ import sys
 # Every suite is a module of this package with ``run(quick)``; AutoLyap and PEPit run in a
 # subprocess (their suites skip with one line when they are not installed).
 SUITES = ("startup", "analysis", "design", "design_steps", "grid", "interpolation", "fallback",
-          "noise", "pep", "pep_scaling", "pep_time_varying", "pep_accuracy", "autolyap", "pepit", "conformance",
-          "budget")
+          "noise", "pep", "pep_scaling", "pep_time_varying", "pep_accuracy", "autolyap", "pepit",
+          "conformance", "budget")
 
 
 def main() -> None:

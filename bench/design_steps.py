@@ -37,10 +37,11 @@ def run(quick: bool = False) -> None:
     for spec, steps, extra, limit in QUICK if quick else CASES:
         with tempfile.TemporaryDirectory() as out:
             t0 = time.perf_counter()
+            cli = str(Path(sys.executable).with_name("sosalgo"))
             res = subprocess.run(
-                [str(Path(sys.executable).with_name("sosalgo")), "design", f"specs/{spec}.yaml", "--steps",
-                 str(steps), *extra, "--time-limit", str(limit), "--out", out, "--json",
-                 "--quiet", "--workers", "1"], capture_output=True, text=True)
+                [cli, "design", f"specs/{spec}.yaml", "--steps", str(steps), *extra,
+                 "--time-limit", str(limit), "--out", out, "--json", "--quiet", "--workers",
+                 "1"], capture_output=True, text=True)
             wall = time.perf_counter() - t0
         if res.returncode != 0:
             print(f"| {spec} | {steps} | {' '.join(extra)} | failed: "
