@@ -604,3 +604,20 @@ def test_affine_leaf_round_trip_through_the_document():
     assert float(leaf.bound) <= independent_schedule_pep([1.415, 1.875]) * (1 + 1e-6)
     doc["gram"][1][1][1] = str(Fraction(doc["gram"][1][1][1]) + 1)
     assert reprove(pp, lo, hi, doc["how"], None, _slopes(doc), _gram(doc)) != leaf.bound
+
+
+@pytest.mark.deep
+def test_gradient_schedule_ten_steps_reaches_obs_f(tmp_path):
+    """gradient-schedule at N = 10 with h in [0, 7/L]: the certified worst case reaches
+    Grimmer, Shu and Wang's OBS-F, 0.0106222530682 at L = 1 (their published value),
+    within 1e-4 relative and never below it; the schedule's worst case is checked by
+    the independent PEP."""
+    from sosalgo.runs.steps_design import steps_design_run
+
+    (row,) = steps_design_run(str(spec_path("gradient-schedule")), None, 10, tmp_path,
+                              time_limit=300, workers=1, progress=False, plot=False,
+                              overrides={"h.range": "[0, 7/L]"})["rows"]
+    obs = 0.0106222530682
+    assert obs * (1 - 1e-9) <= row["tau_certified"] <= obs * (1 + 1e-4)
+    indep = independent_schedule_pep(row["schedule"]["h"])
+    assert indep * (1 - 1e-6) <= row["tau_certified"] <= indep * (1 + 1e-5)
