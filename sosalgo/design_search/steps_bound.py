@@ -42,6 +42,7 @@ from sosalgo.design_search.steps_model import (
     Poly,
     exact_forms,
     largest_values,
+    poly_matvec,
     poly_range,
 )
 from sosalgo.kernel.solvers import SolverStatus, cvxpy_solve
@@ -125,8 +126,8 @@ class BoxSolver:
     def __init__(self, pp: ParametricPEP, affine: bool = True):
         self.pp = pp
         self._robust: dict[Fraction, _Robust] = {}
-        self.affine = (AffineSolver(pp, LADDER, TIGHT) if affine and len(pp.free) <= MAX_AFFINE_FREE
-                       else None)
+        self.affine = (AffineSolver(pp, LADDER, TIGHT)
+                       if affine and len(pp.free) <= MAX_AFFINE_FREE else None)
 
     def solve(self, lo: Sequence[Fraction], hi: Sequence[Fraction], rung: int = 0
               ) -> tuple[float, np.ndarray | None, np.ndarray | None]:
@@ -326,8 +327,6 @@ def _poly_trajectory(pp: ParametricPEP, q: Fraction, c: Fraction, start: int
                      ) -> list[Poly]:
     """The queries y_0..y_{N-1} and x_N as exact polynomials in θ, in one dimension from
     x_0 = ``start``, with g = q y + c (cached on ``pp``: they do not depend on the box)."""
-    from sosalgo.design_search.steps_model import poly_matvec
-
     cache = pp.__dict__.setdefault("_trajectories", {})
     key = (q, c, start)
     if key in cache:
