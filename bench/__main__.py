@@ -9,9 +9,9 @@ import sys
 
 # Every suite is a module of this package with ``run(quick)``; AutoLyap and PEPit run in a
 # subprocess (their suites skip with one line when they are not installed).
-SUITES = ("startup", "analysis", "design", "grid", "interpolation", "fallback", "noise", "pep",
-          "pep_scaling", "pep_time_varying", "pep_accuracy", "autolyap", "autolyap_operators",
-          "pepit", "conformance", "budget")
+SUITES = ("startup", "analysis", "design", "design_steps", "grid", "interpolation", "fallback",
+          "noise", "pep", "pep_scaling", "pep_time_varying", "pep_accuracy", "autolyap",
+          "autolyap_operators", "pepit", "conformance", "budget")
 
 
 def main() -> None:

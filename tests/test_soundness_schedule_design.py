@@ -20,7 +20,14 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from sosalgo.design_search.steps_bound import BoxSolver, huber_bound, prove_box, quadratic_bound
+from sosalgo.design_search.steps_bound import (
+    LADDER,
+    TIGHT,
+    BoxSolver,
+    huber_bound,
+    prove_box,
+    quadratic_bound,
+)
 from sosalgo.design_search.steps_model import parametric_pep
 from sosalgo.spec import load_spec
 from tests.conftest import spec_path
@@ -469,3 +476,148 @@ def test_long_step_start_is_the_silver_pattern():
         while i % 2 ** (nu + 1) == 0:
             nu += 1
         assert long_step(i - 1) == pytest.approx(1 + rho ** (nu - 1), rel=1e-14)
+
+
+def _schedule_model(steps: int):
+    import sympy as sp
+
+    spec = load_spec(str(spec_path("gradient-convex")))
+    hs = [sp.Symbol(f"h_{k}") for k in range(steps)]
+    return parametric_pep(spec, None, steps, [str(h) for h in hs], lambda k: {
+        "A": sp.Matrix([[1]]), "B": sp.Matrix([[-hs[k]]]), "C": sp.Matrix([[1]]),
+        "E": sp.Matrix([[1]])})
+
+
+def test_affine_point_random_boxes():
+    """The affine robust point (G and F affine in θ over the box) on random boxes of
+    per-step gradient descent, N = 3 in [0, 3]^3, wide and narrow, touching 0 and 3:
+    every proven bound is below the independent PEP at the box's corners and at random
+    θ inside; on a narrow box around the optimized schedule (sqrt 2, 1 + sqrt 2, 3/2)
+    (worst case (3 - 2 sqrt 2)/4, Grimmer-Shu-Wang) it is within 1e-3 of it, so the
+    comparison can fail."""
+    from sosalgo.design_search.steps_affine import AffineSolver
+
+    pp = _schedule_model(3)
+    solver = AffineSolver(pp, LADDER, TIGHT)
+    rng = random.Random(5)
+    boxes = []
+    for width in (Fraction(1, 2), Fraction(1, 20), Fraction(1, 500)):
+        for _ in range(2):
+            a = [Fraction(rng.randint(0, 3000), 1000) for _ in range(3)]
+            boxes.append((tuple(min(x, 3 - width) for x in a),
+                          tuple(min(x, 3 - width) + width for x in a)))
+    boxes += [((Fraction(0),) * 3, (Fraction(1, 10),) * 3),
+              ((Fraction(29, 10),) * 3, (Fraction(3),) * 3)]
+    proven = 0
+    for lo, hi in boxes:
+        _, got = solver.proven(lo, hi)
+        if got is None:
+            continue
+        proven += 1
+        pts = [[float(lo[0]), float(hi[1]), float(lo[2])], [float(x) for x in hi]]
+        pts += [[float(a) + rng.random() * float(b - a) for a, b in zip(lo, hi, strict=True)]
+                for _ in range(2)]
+        for h in pts:
+            assert float(got[0]) <= independent_schedule_pep(h) * (1 + 1e-6) + 1e-9, (lo, hi)
+    assert proven >= 4
+    r2 = math.sqrt(2)
+    opt = [Fraction(r2).limit_denominator(10 ** 6), Fraction(1 + r2).limit_denominator(10 ** 6),
+           Fraction(3, 2)]
+    w = Fraction(1, 1000)
+    _, got = solver.proven([x - w for x in opt], [x + w for x in opt])
+    best = (3 - 2 * r2) / 4
+    assert got is not None and best * (1 - 1e-3) <= float(got[0]) <= best
+
+
+def test_affine_point_refused_when_not_positive_on_the_box():
+    """The exact check of a recorded affine point: G(u) must be positive definite at
+    every vertex (a G_1 larger than G_0 is refused), G_i[0][0] = 0 for i >= 1, and a
+    bound re-proven from a tampered F slope never exceeds the worst case."""
+    from sosalgo.design_search.steps_affine import AffineSolver, affine_bound
+
+    pp = _schedule_model(2)
+    lo, hi = (Fraction(13, 10), Fraction(17, 10)), (Fraction(14, 10), Fraction(19, 10))
+    _, got = AffineSolver(pp, LADDER, TIGHT).proven(lo, hi)
+    assert got is not None
+    bound, (gram, slopes) = got
+    assert affine_bound(pp, lo, hi, gram, slopes) == bound
+    big = [[2 * v for v in row] for row in gram[0]]
+    big[0][0] = Fraction(0)
+    assert affine_bound(pp, lo, hi, [gram[0], big, gram[2]], slopes) is None
+    off = [row[:] for row in gram[1]]
+    off[0][0] = Fraction(1, 10 ** 9)
+    assert affine_bound(pp, lo, hi, [gram[0], off, gram[2]], slopes) is None
+    tampered = [[v + Fraction(1, 7) for v in row] for row in slopes]
+    low = affine_bound(pp, lo, hi, gram, tampered)
+    truth = min(independent_schedule_pep([a, b]) for a in (1.3, 1.4) for b in (1.7, 1.9))
+    assert low is None or float(low) <= truth * (1 + 1e-6)
+
+
+def test_obs_f_schedule_against_the_independent_pep():
+    """OBS-F (Grimmer, Shu, Wang), the design's long-step start: its rate r gives the
+    worst case r/2 of its schedule, checked by the independent PEP for N = 1..5, and the
+    closed forms N = 1: h = 3/2, 1/8; N = 3: (sqrt 2, 1 + sqrt 2, 3/2), (3 - 2 sqrt 2)/4."""
+    from sosalgo.design_search.steps import obs_f
+
+    for steps in range(1, 6):
+        sched, rate = obs_f(steps)
+        assert len(sched) == steps
+        assert independent_schedule_pep(sched) == pytest.approx(rate / 2, rel=1e-6)
+    assert obs_f(1) == (pytest.approx([1.5]), pytest.approx(0.25))
+    sched, rate = obs_f(3)
+    assert sched == pytest.approx([math.sqrt(2), 1 + math.sqrt(2), 1.5], rel=1e-12)
+    assert rate / 2 == pytest.approx((3 - 2 * math.sqrt(2)) / 4, rel=1e-12)
+
+
+def test_may_coincide_only_where_a_step_may_be_zero():
+    """Two queries of gradient descent are equal exactly where a step is 0 (y_{k+1} =
+    y_k - h_k g_k): boxes touching h_k = 0 may coincide, boxes away from 0 do not; a
+    box where the witnesses alone are tried still gets the exact vertex range of
+    x_N = Π (1 - q h_k), here the quadratic q = L on [9/4, 3]^3 x [0, 3/4]:
+    (5/4)^6 (1/4)^2 / 2 at least (|1 - h| >= 5/4, and 1/4 at h = 3/4)."""
+    from sosalgo.design_search.steps_bound import may_coincide
+
+    pp = _schedule_model(4)
+    one = Fraction(1)
+    assert may_coincide(pp, (Fraction(0), one, one, one), (one,) * 4)
+    assert not may_coincide(pp, (Fraction(1, 10),) * 4, (one,) * 4)
+    lo, hi = (Fraction(9, 4),) * 3 + (Fraction(0),), (Fraction(3),) * 3 + (Fraction(3, 4),)
+    assert quadratic_bound(pp, lo, hi, [one]) == Fraction(5, 4) ** 6 * Fraction(1, 4) ** 2 / 2
+    truth = independent_schedule_pep([2.25, 2.25, 2.25, 0.75])
+    assert float(prove_box(pp, BoxSolver(pp), lo, hi).bound) <= truth * (1 + 1e-6)
+
+
+def test_affine_leaf_round_trip_through_the_document():
+    """A box near the optimized two-step schedule is proven by the affine point; its
+    leaf document (gram, slopes as exact texts) is re-proven to the same bound by what
+    verify runs, and a changed matrix entry is not re-proven to it (or at all)."""
+    from sosalgo.design_search.steps import _leaf_doc
+    from sosalgo.design_search.steps_bound import reprove
+    from sosalgo.proofs.steps_design import _gram, _slopes
+
+    pp = _schedule_model(2)
+    lo, hi = (Fraction(141, 100), Fraction(187, 100)), (Fraction(142, 100), Fraction(188, 100))
+    leaf = prove_box(pp, BoxSolver(pp), lo, hi)
+    assert leaf.how == "affine-pep"
+    doc = json.loads(json.dumps(_leaf_doc(leaf)))
+    assert reprove(pp, lo, hi, doc["how"], None, _slopes(doc), _gram(doc)) == leaf.bound
+    assert float(leaf.bound) <= independent_schedule_pep([1.415, 1.875]) * (1 + 1e-6)
+    doc["gram"][1][1][1] = str(Fraction(doc["gram"][1][1][1]) + 1)
+    assert reprove(pp, lo, hi, doc["how"], None, _slopes(doc), _gram(doc)) != leaf.bound
+
+
+@pytest.mark.deep
+def test_gradient_schedule_ten_steps_reaches_obs_f(tmp_path):
+    """gradient-schedule at N = 10 with h in [0, 7/L]: the certified worst case reaches
+    Grimmer, Shu and Wang's OBS-F, 0.0106222530682 at L = 1 (their published value),
+    within 1e-4 relative and never below it; the schedule's worst case is checked by
+    the independent PEP."""
+    from sosalgo.runs.steps_design import steps_design_run
+
+    (row,) = steps_design_run(str(spec_path("gradient-schedule")), None, 10, tmp_path,
+                              time_limit=300, workers=1, progress=False, plot=False,
+                              overrides={"h.range": "[0, 7/L]"})["rows"]
+    obs = 0.0106222530682
+    assert obs * (1 - 1e-9) <= row["tau_certified"] <= obs * (1 + 1e-4)
+    indep = independent_schedule_pep(row["schedule"]["h"])
+    assert indep * (1 - 1e-6) <= row["tau_certified"] <= indep * (1 + 1e-5)

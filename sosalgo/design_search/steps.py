@@ -34,7 +34,7 @@ from sosalgo.kernel.phases import show_phase
 from sosalgo.spec import Spec
 
 __all__ = ["StepsDesign", "StepsProblem", "design_steps", "drori_floor", "exact_box",
-           "flat_names", "ogm_theta", "pack", "steps_problem",
+           "flat_names", "obs_f", "ogm_theta", "pack", "steps_problem",
            "value_text"]
 
 DIGITS = 12  # significant digits of the designed values (the exact θ of the proof)
@@ -409,6 +409,9 @@ def _leaf_doc(leaf: Any) -> dict[str, Any]:
         doc["point"] = [[str(v) for v in row] for row in leaf.point]
     if leaf.slopes is not None and any(v for row in leaf.slopes for v in row):
         doc["slopes"] = [[str(v) for v in row] for row in leaf.slopes]
+    if leaf.gram is not None:  # the affine point G_0, G_1, ..., re-checked by verify
+        doc["gram"] = [[[str(v) for v in row] for row in G] for G in leaf.gram]
+        doc.setdefault("slopes", [[str(v) for v in row] for row in leaf.slopes or []])
     if leaf.proven_on is not None:  # proven on an ancestor box, which contains it
         doc["proven_on"] = [[str(x) for x in leaf.proven_on[0]],
                             [str(x) for x in leaf.proven_on[1]]]
@@ -503,11 +506,13 @@ def steps_problem(spec: Spec, kappa: float | None, steps: int, names: Sequence[s
             for k in range(n or 1)]
     ok = all(math.isfinite(x) for x in seed)
     seeds = [seed] if ok else []
-    if ok and any(n for _, n in layout):  # a long-step start for the per-step values
-        seeds.append([min(max(x * (long_step(k) if n else 1.0), float(a)), float(b))
-                      for (x, (a, b)), k, n in zip(zip(seed, box, strict=True),
-                                                   _step_index(layout), _per(layout),
-                                                   strict=True)])
+    if ok and any(n for _, n in layout):  # long-step starts for the per-step values
+        obs = obs_f(steps)[0]
+        for pattern in (long_step, lambda k: obs[k]):
+            seeds.append([min(max(x * (pattern(k) if n else 1.0), float(a)), float(b))
+                          for (x, (a, b)), k, n in zip(zip(seed, box, strict=True),
+                                                       _step_index(layout), _per(layout),
+                                                       strict=True)])
     return StepsProblem(layout, box, model, seeds)
 
 
@@ -522,6 +527,52 @@ def long_step(k: int) -> float:
     not: at N = 10 on L-smooth convex f the search from it ends 9 % above the best known
     schedule, from this start 0.3 %)."""
     return 1 + SILVER ** (((k + 1) & -(k + 1)).bit_length() - 2)
+
+
+def _silver_block(n: int) -> tuple[list[float], float]:
+    """Grimmer, Shu and Wang's straight block of n steps (their "s-composition": the
+    two halves joined by the step that balances them) and its rate r, in units of 1/L."""
+    if n == 0:
+        return [], 1.0
+    left, a = _silver_block(n // 2)
+    right, b = _silver_block(n - 1 - n // 2)
+    sa, sb = (1 - a) / a, (1 - b) / b
+    mu = (-sa - sb + math.sqrt((4 + a * b * (2 + sa + sb) ** 2) / (a * b))) / 2
+    return left + [mu] + right, 1 / (1 + sa + sb + mu)
+
+
+def _join_rate(a: float, b: float) -> float:
+    """The rate of a straight block of rate a followed by a final block of rate b."""
+    return 2 * a * b / (a + 4 * b + math.sqrt(a * a + 8 * a * b))
+
+
+def obs_f(steps: int) -> tuple[list[float], float]:
+    """The optimized basic schedule OBS-F of Grimmer, Shu and Wang (2024) for the
+    objective gap after ``steps`` gradient steps on L-smooth convex f, in units of 1/L,
+    and its rate r: f(x_N) - f* <= r L |x_0 - x*|^2 / 2. A straight block
+    (:func:`_silver_block`) of p steps, a joining step, then OBS-F of the remaining
+    N - 1 - p steps; p chosen by their dynamic programme (the split of N - 1 grows by at
+    most one with N). A start of the design's local search, which then certifies."""
+    if steps == 0:
+        return [], 1.0
+    silver = [_silver_block(n)[1] for n in range(steps + 1)]
+    split, rate = [0, 0], [1.0, 0.25]
+    for n in range(2, steps + 1):
+        cands = [(_join_rate(silver[q], rate[n - 1 - q] if n - 1 - q else 1.0), q)
+                 for q in (split[n - 1], split[n - 1] + 1) if q <= n - 1]
+        r, q = min(cands, key=lambda t: (t[0], -t[1]))
+        split.append(q)
+        rate.append(r)
+
+    def build(n: int) -> tuple[list[float], float]:
+        if n == 0:
+            return [], 1.0
+        left, a = _silver_block(split[n])
+        right, b = build(n - 1 - split[n])
+        mu = 1 + (math.sqrt(1 + 8 * b / a) - 1) / (4 * b)
+        return left + [mu] + right, 1 / (1 / b + 2 * mu + 2 * (1 / a - 1))
+
+    return build(steps)
 
 
 def _step_index(layout: Layout) -> list[int]:

@@ -26,6 +26,7 @@ whole box is the minimum over the leaves.
 from __future__ import annotations
 
 import heapq
+import itertools
 import math
 import time
 from collections.abc import Callable, Sequence
@@ -35,7 +36,15 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.design_search.steps_model import ParametricPEP, Poly, poly_range
+from sosalgo.design_search.steps_affine import MAX_AFFINE_FREE, AffineSolver, affine_bound
+from sosalgo.design_search.steps_model import (
+    ParametricPEP,
+    Poly,
+    exact_forms,
+    largest_values,
+    poly_matvec,
+    poly_range,
+)
 from sosalgo.kernel.solvers import SolverStatus, cvxpy_solve
 
 __all__ = ["BoxBound", "BoxSolver", "BranchResult", "branch_and_bound", "huber_bound",
@@ -114,9 +123,11 @@ class _Robust:
 class BoxSolver:
     """The robust SDPs of boxes (floating point), one per subclass of :data:`LADDER`."""
 
-    def __init__(self, pp: ParametricPEP):
+    def __init__(self, pp: ParametricPEP, affine: bool = True):
         self.pp = pp
         self._robust: dict[Fraction, _Robust] = {}
+        self.affine = (AffineSolver(pp, LADDER, TIGHT)
+                       if affine and len(pp.free) <= MAX_AFFINE_FREE else None)
 
     def solve(self, lo: Sequence[Fraction], hi: Sequence[Fraction], rung: int = 0
               ) -> tuple[float, np.ndarray | None, np.ndarray | None]:
@@ -182,26 +193,6 @@ def _gram(V: list[list[int]]) -> Any:
     return Vq * Vq.transpose()
 
 
-def exact_forms(pp: ParametricPEP) -> Any:
-    """All pair forms as one fmpq matrix: row k * A + a is vec of pair k's monomial a."""
-    from flint import fmpq, fmpq_mat
-
-    if getattr(pp, "_exact", None) is None:
-        K, A, d = len(pp.pairs), len(pp.monomials), pp.d
-        idx = {e: a for a, e in enumerate(pp.monomials)}
-        entries = [fmpq(0)] * (K * A * d * d)
-        for k, form in enumerate(pp.forms):
-            for e, M in form.items():
-                base = (k * A + idx[e]) * d * d
-                for r in range(d):
-                    for c in range(d):
-                        if M[r, c]:
-                            entries[base + r * d + c] = fmpq(M[r, c].numerator,
-                                                             M[r, c].denominator)
-        pp._exact = fmpq_mat(K * A, d * d, entries)  # type: ignore[attr-defined]
-    return pp._exact  # type: ignore[attr-defined]
-
-
 Slopes = list[list[Fraction]]  # F1: per point, per free value (exact dyadic rationals)
 
 
@@ -258,7 +249,7 @@ def prove_factor(pp: ParametricPEP, V: list[list[int]], lo: Sequence[Fraction],
             if c:
                 w += min(ra * c, rb * c)
         weights.append(w)
-    best = _largest_values(pp, weights)
+    best = largest_values(pp, weights)
     if best is None:
         return None
     N = pp.measure_point
@@ -271,29 +262,6 @@ def prove_factor(pp: ParametricPEP, V: list[list[int]], lo: Sequence[Fraction],
 
 def _q(v: Any) -> Fraction:
     return Fraction(int(v.p), int(v.q))
-
-
-def _largest_values(pp: ParametricPEP, weights: list[Fraction]) -> Fraction | None:
-    """max F_N with F_* = 0 and F_j <= F_i + w_ij for every pair: the shortest distance
-    from x* to x_N (Bellman-Ford); None when a cycle is negative (no feasible F)."""
-    n = pp.npts + 1
-    star = pp.npts
-    dist: list[Fraction | None] = [None] * n
-    dist[star] = Fraction(0)
-    for _ in range(n):
-        changed = False
-        for (i, j), w in zip(pp.pairs, weights, strict=True):
-            di = dist[i]
-            if di is not None and (dist[j] is None or di + w < dist[j]):
-                dist[j] = di + w
-                changed = True
-        if not changed:
-            break
-    else:
-        return None
-    if dist[star] != 0:
-        return None
-    return dist[pp.measure_point]
 
 
 # ------------------------------------------------------------------ witnesses
@@ -352,13 +320,68 @@ def _trajectory(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction
     return ys, _imatvec(E, xi)[0]
 
 
+VERTEX_BUDGET = 20000  # exact ranges of multilinear polynomials: vertices x terms at most
+
+
+def _poly_trajectory(pp: ParametricPEP, q: Fraction, c: Fraction, start: int
+                     ) -> list[Poly]:
+    """The queries y_0..y_{N-1} and x_N as exact polynomials in θ, in one dimension from
+    x_0 = ``start``, with g = q y + c (cached on ``pp``: they do not depend on the box)."""
+    cache = pp.__dict__.setdefault("_trajectories", {})
+    key = (q, c, start)
+    if key in cache:
+        return cache[key]
+    assert pp.step_polys is not None
+    zero = (0,) * len(pp.free)
+    one = {zero: Fraction(1)}
+    n = len(pp.step_polys[0]["A"])
+    xi: list[Poly] = [{zero: Fraction(start)} if start else {} for _ in range(n)]
+    out = []
+    for k in range(pp.steps):
+        mats = pp.step_polys[k]
+        y = poly_matvec(mats["C"], xi)[0]
+        out.append(y)
+        g = poly_matvec([[{zero: q}, {zero: c}]] if c else [[{zero: q}]],
+                        [y, one] if c else [y])[0]
+        Ax = poly_matvec(mats["A"], xi)
+        Bg = poly_matvec(mats["B"], [g])
+        xi = [poly_matvec([[one, one]], [a, b])[0] for a, b in zip(Ax, Bg, strict=True)]
+    out.append(poly_matvec(pp.step_polys[-1]["E"], xi)[0])
+    cache[key] = out
+    return out
+
+
+def _vertex_ranges(polys: list[Poly], lo: Sequence[Fraction], hi: Sequence[Fraction]
+                   ) -> list[Interval] | None:
+    """The exact ranges over the box of multilinear polynomials: the hull of their
+    values at the vertices (a multilinear polynomial is affine in each θ_i alone);
+    None when one is not multilinear or the free values are too many for 2^p vertices
+    (the stepwise intervals of :func:`_trajectory` lose the steps' correlation,
+    x - h q x: these do not). Only within :data:`VERTEX_BUDGET` (vertices times terms):
+    gradient descent up to about 6 steps."""
+    if len(lo) > 16 or 2 ** len(lo) * sum(map(len, polys)) > VERTEX_BUDGET \
+            or any(k > 1 for P in polys for e in P for k in e):
+        return None
+    verts = list(itertools.product(*zip(lo, hi, strict=True)))
+    out = []
+    for P in polys:
+        vals = [sum((v * math.prod(x for x, k in zip(vert, e, strict=True) if k)
+                     for e, v in P.items()), Fraction(0)) for vert in verts]
+        out.append((min(vals), max(vals)))
+    return out
+
+
 def quadratic_bound(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction],
                     qs: Sequence[Fraction]) -> Fraction:
     """max over q of the proven min over the box of f(x_N) for f = q x^2 / 2 (x_0 = 1)."""
     best = Fraction(0)
     for q in qs:
-        _, (a, b) = _trajectory(pp, lo, hi, lambda y, q=q: (q * y[0], q * y[1])
-                                if q >= 0 else (q * y[1], q * y[0]))
+        exact = _vertex_ranges(_poly_trajectory(pp, q, Fraction(0), 1), lo, hi)
+        if exact is not None:
+            a, b = exact[-1]
+        else:
+            _, (a, b) = _trajectory(pp, lo, hi, lambda y, q=q: (q * y[0], q * y[1])
+                                    if q >= 0 else (q * y[1], q * y[0]))
         low = Fraction(0) if a <= 0 <= b else min(abs(a), abs(b))
         best = max(best, q * low * low / 2)
     return best
@@ -372,11 +395,19 @@ def huber_bound(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction
     if pp.m != 0:
         return Fraction(0)
     L = pp.L
-    ys, xN = _trajectory(pp, lo, hi, lambda y: (Fraction(1), Fraction(1)), start=0)
+    unit = _poly_trajectory(pp, Fraction(0), Fraction(1), 0)  # gamma_k, beta
+    exact = _vertex_ranges(unit, lo, hi)
+    ys, xN = ((exact[:-1], exact[-1]) if exact is not None else
+              _trajectory(pp, lo, hi, lambda y: (Fraction(1), Fraction(1)), start=0))
     tau = 1 / (1 / L - 2 * min(xN[0], Fraction(0)))
     for y in ys:  # y_k = 1 + tau gamma_k >= tau / L while tau <= 1 / (1/L - gamma_k)
         tau = min(tau, 1 / (1 / L - min(y[0], Fraction(0))))
-    ys, (a, _) = _trajectory(pp, lo, hi, lambda y: (tau, tau))
+    rest = _poly_trajectory(pp, Fraction(0), Fraction(0), 1)
+    moved = [{e: rest_p.get(e, Fraction(0)) + tau * u.get(e, Fraction(0))
+              for e in set(rest_p) | set(u)} for rest_p, u in zip(rest, unit, strict=True)]
+    exact = _vertex_ranges(moved, lo, hi)
+    ys, (a, _) = ((exact[:-1], exact[-1]) if exact is not None else
+                  _trajectory(pp, lo, hi, lambda y: (tau, tau)))
     if not all(y[0] >= tau / L for y in ys):
         return Fraction(0)
     return max(Fraction(0), tau * a - tau * tau / (2 * L))
@@ -391,7 +422,8 @@ def witness_curvatures(pp: ParametricPEP) -> list[Fraction]:
 # ------------------------------------------------------------------ branch and bound
 @dataclass
 class BoxBound:
-    """A box with its proven bound (``how``: robust-pep | quadratic | huber | none)."""
+    """A box with its proven bound (``how``: affine-pep | robust-pep | quadratic | huber |
+    none)."""
 
     lo: tuple[Fraction, ...]
     hi: tuple[Fraction, ...]
@@ -401,7 +433,8 @@ class BoxBound:
     proven_on: Box | None = None  # the box the proof is about (an ancestor), None: this
     rung: int = 0  # the robust point's rung of LADDER
     point: list[list[int]] | None = None  # the robust point's factor V (integers)
-    slopes: Slopes | None = None  # its function values' slopes F1 in θ
+    slopes: Slopes | None = None  # its function values' slopes F1 in θ (affine: in u)
+    gram: list[list[list[Fraction]]] | None = None  # the affine point's G_0, G_1, ...
 
     def proof_box(self) -> Box:
         return self.proven_on or (self.lo, self.hi)
@@ -411,34 +444,69 @@ class BoxBound:
 
 
 def prove_box(pp: ParametricPEP, solver: BoxSolver | None, lo: Sequence[Fraction],
-              hi: Sequence[Fraction]) -> BoxBound:
-    """The best proven bound of the box: the robust point and the witnesses (where the
-    method diverges on quadratics, a box's robust point is small and its quadratic
-    witness large)."""
+              hi: Sequence[Fraction], target: float | None = None) -> BoxBound:
+    """The best proven bound of the box, cheapest first, until one reaches ``target``:
+    the witnesses (where the method diverges on quadratics a box's robust point is small
+    and its quadratic witness large), the constant robust point, then the affine robust
+    point (an SDP about ten times larger) where the constant one's float value stays
+    below ``target``. Only the witnesses where two points may coincide on the box
+    (:func:`may_coincide`: a zero step; their inequalities have no slack there, and the
+    SDPs' points fail their proofs)."""
     lo, hi = tuple(lo), tuple(hi)
-    val, got, rung = solver.proven(lo, hi) if solver is not None else (-math.inf, None, 0)
-    best, how = Fraction(0), "none"
-    pt = None if got is None else got[0]
-    if pt is not None and pt > 0:
-        best, how = pt, "robust-pep"
-    hb = huber_bound(pp, lo, hi)
-    if hb > best:
-        best, how = hb, "huber"
-    qb = quadratic_bound(pp, lo, hi, witness_curvatures(pp))
-    if qb > best:
-        best, how = qb, "quadratic"
-    robust = how == "robust-pep"
-    return BoxBound(lo, hi, best, how, val, rung=rung if robust else 0,
-                    point=got[1] if robust and got is not None else None,
-                    slopes=got[2] if robust and got is not None else None)
+    best = BoxBound(lo, hi, Fraction(0), "none", -math.inf)
+    for name, b in (("huber", huber_bound(pp, lo, hi)),
+                    ("quadratic", quadratic_bound(pp, lo, hi, witness_curvatures(pp)))):
+        if b > best.bound:
+            best = BoxBound(lo, hi, b, name, -math.inf)
+    goal = math.inf if target is None else target
+    if solver is None or best.bound >= goal or may_coincide(pp, lo, hi):
+        return best
+    val, got, rung = solver.proven(lo, hi)
+    best.estimate = val
+    if got is not None and got[0] > best.bound:
+        best = BoxBound(lo, hi, got[0], "robust-pep", val, rung=rung, point=got[1],
+                        slopes=got[2])
+    if solver.affine is None or best.bound >= goal or (val >= goal and got is not None):
+        return best
+    aval, affine = solver.affine.proven(lo, hi, float(best.bound))
+    if affine is not None and affine[0] > best.bound:
+        return BoxBound(lo, hi, affine[0], "affine-pep", max(val, aval), gram=affine[1][0],
+                        slopes=affine[1][1])
+    return best
+
+
+def may_coincide(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction]
+                 ) -> bool:
+    """Whether two of the points (queries, output) may be equal at some θ of the box:
+    every coordinate of their difference has a range containing 0 (a necessary
+    condition, enclosed in exact interval arithmetic)."""
+    rows = [pt[0] for pt in (pp._rows or [])[:pp.npts]]
+    for i, a in enumerate(rows):
+        for b in rows[i + 1:]:
+            if all(_poly_interval(_difference(pa, pb), lo, hi)[0] <= 0
+                   <= _poly_interval(_difference(pa, pb), lo, hi)[1]
+                   for pa, pb in zip(a, b, strict=True)):
+                return True
+    return False
+
+
+def _difference(a: Poly, b: Poly) -> Poly:
+    out = dict(a)
+    for e, v in b.items():
+        out[e] = out.get(e, Fraction(0)) - v
+    return {e: v for e, v in out.items() if v}
 
 
 def reprove(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction], how: str,
-            point: list[list[int]] | None = None, slopes: Slopes | None = None
-            ) -> Fraction:
+            point: list[list[int]] | None = None, slopes: Slopes | None = None,
+            gram: list[list[list[Fraction]]] | None = None) -> Fraction:
     """The bound of the box by the one argument ``how`` (0 when it proves nothing; the
-    robust point is the recorded factor ``point``): what ``sosalgo verify`` re-checks
-    for each leaf, exactly."""
+    robust point is the recorded factor ``point``, the affine point the recorded
+    matrices ``gram`` and ``slopes``): what ``sosalgo verify`` re-checks for each leaf,
+    exactly."""
+    if how == "affine-pep":
+        got = affine_bound(pp, lo, hi, gram, slopes) if gram and slopes else None
+        return Fraction(0) if got is None else got
     if how == "robust-pep":
         pt = prove_factor(pp, point, lo, hi, slopes) if point else None
         return Fraction(0) if pt is None else pt
@@ -506,10 +574,11 @@ def branch_and_bound(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fra
         heapq.heappop(heap)
         slope = probe(box.center()) if probe is not None else None
         for clo, chi in _split(box, root, slope):
-            child = prove_box(pp, solver, clo, chi)
+            child = prove_box(pp, solver, clo, chi, upper() * (1 - gap))
             if child.bound < box.bound:  # the parent's proof holds on the child
                 child = BoxBound(clo, chi, box.bound, box.how, child.estimate,
-                                 box.proof_box(), box.rung, box.point, box.slopes)
+                                 box.proof_box(), box.rung, box.point, box.slopes,
+                                 box.gram)
             count += 1
             heapq.heappush(heap, (child.bound, count, child))
         if on_box is not None:

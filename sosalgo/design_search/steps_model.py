@@ -32,7 +32,7 @@ from sosalgo.classes import SEED_CLASS, get_class
 from sosalgo.spec import Spec
 
 __all__ = ["ParametricPEP", "PointSearch", "Poly", "Unsupported", "check_setting",
-           "parametric_pep",
+           "exact_forms", "largest_values", "parametric_pep", "poly_matvec",
            "poly_range",
            "smooth_convex_q", "step_symbol", "varying_matrices"]
 
@@ -163,6 +163,18 @@ def _matvec(M: list[list[Poly]], rows: list[list[Poly]], d: int) -> list[list[Po
             for c in range(d):
                 if row[c]:
                     acc[c] = _padd(acc[c], _pmul(Mij, row[c]))
+        out.append(acc)
+    return out
+
+
+def poly_matvec(M: list[list[Poly]], v: list[Poly]) -> list[Poly]:
+    """M (polynomial entries) times the vector v of polynomials, exactly."""
+    out = []
+    for row in M:
+        acc: Poly = {}
+        for a, b in zip(row, v, strict=True):
+            if a and b:
+                acc = _padd(acc, _pmul(a, b))
         out.append(acc)
     return out
 
@@ -318,6 +330,49 @@ def _check_rest(mats: dict[str, list[list[Poly]]], nvar: int) -> None:
             if s != one:
                 raise Unsupported(f"matrices.{name}: the state at the optimum is not "
                                   "1 x* for every θ (a row does not sum to 1)")
+
+
+def exact_forms(pp: ParametricPEP) -> Any:
+    """All pair forms as one fmpq matrix: row k * A + a is vec of pair k's monomial a."""
+    from flint import fmpq, fmpq_mat
+
+    if getattr(pp, "_exact", None) is None:
+        K, A, d = len(pp.pairs), len(pp.monomials), pp.d
+        idx = {e: a for a, e in enumerate(pp.monomials)}
+        entries = [fmpq(0)] * (K * A * d * d)
+        for k, form in enumerate(pp.forms):
+            for e, M in form.items():
+                base = (k * A + idx[e]) * d * d
+                for r in range(d):
+                    for c in range(d):
+                        if M[r, c]:
+                            entries[base + r * d + c] = fmpq(M[r, c].numerator,
+                                                             M[r, c].denominator)
+        pp._exact = fmpq_mat(K * A, d * d, entries)  # type: ignore[attr-defined]
+    return pp._exact  # type: ignore[attr-defined]
+
+
+def largest_values(pp: ParametricPEP, weights: list[Fraction]) -> Fraction | None:
+    """max F_N with F_* = 0 and F_j <= F_i + w_ij for every pair: the shortest distance
+    from x* to x_N (Bellman-Ford); None when a cycle is negative (no feasible F)."""
+    n = pp.npts + 1
+    star = pp.npts
+    dist: list[Fraction | None] = [None] * n
+    dist[star] = Fraction(0)
+    for _ in range(n):
+        changed = False
+        for (i, j), w in zip(pp.pairs, weights, strict=True):
+            di = dist[i]
+            if di is not None and (dist[j] is None or di + w < dist[j]):
+                dist[j] = di + w
+                changed = True
+        if not changed:
+            break
+    else:
+        return None
+    if dist[star] != 0:
+        return None
+    return dist[pp.measure_point]
 
 
 def poly_range(e: tuple[int, ...], lo: Sequence[Fraction], hi: Sequence[Fraction]

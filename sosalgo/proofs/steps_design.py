@@ -122,7 +122,7 @@ def _lower(items: list[dict[str, str]], row: Mapping[str, Any], spec: Spec,
         if not _inside((lo, hi), (plo, phi)):
             _claim(items, field, "contradicted", "a leaf is outside the box it was proven on")
             return None
-        b = reprove(pp, plo, phi, str(lf.get("how")), _point(lf), _slopes(lf))
+        b = reprove(pp, plo, phi, str(lf.get("how")), _point(lf), _slopes(lf), _gram(lf))
         low = b if low is None else min(low, b)
     assert low is not None
     if low >= Fraction(float(claim)):
@@ -144,6 +144,14 @@ def _slopes(leaf: Mapping[str, Any]) -> list[list[Fraction]] | None:
     """The robust point's slopes F1 (None: absent, i.e. constant function values)."""
     try:
         return [[Fraction(str(v)) for v in row] for row in leaf["slopes"]]
+    except (KeyError, TypeError, ValueError, ZeroDivisionError):
+        return None
+
+
+def _gram(leaf: Mapping[str, Any]) -> list[list[list[Fraction]]] | None:
+    """The affine point's matrices G_0, G_1, ... (None when missing or malformed)."""
+    try:
+        return [[[Fraction(str(v)) for v in row] for row in G] for G in leaf["gram"]]
     except (KeyError, TypeError, ValueError, ZeroDivisionError):
         return None
 
