@@ -202,14 +202,16 @@ def autolyap_job(alg: Any, h: int, tau: int, repeats: int) -> dict | None:
     return job | {"D": alg.D.tolist(), "measure": "distance", "classes": classes}
 
 
-def autolyap_rates(python: str, jobs: list[dict]) -> dict:
-    """AutoLyap's results for ``jobs`` (one subprocess): version, cores, one dict per job."""
+def autolyap_rates(python: str, jobs: list[dict], worker: str = WORKER,
+                   timeout: int = 900) -> dict:
+    """AutoLyap's results for ``jobs`` (one subprocess running ``worker``, the jobs as JSON
+    on its input): version, cores, one dict per job."""
     env = dict(os.environ, OMP_NUM_THREADS="1")
     try:
-        out = subprocess.run([python, "-c", WORKER], input=json.dumps(jobs), text=True,
-                             capture_output=True, env=env, check=False, timeout=900)
+        out = subprocess.run([python, "-c", worker], input=json.dumps(jobs), text=True,
+                             capture_output=True, env=env, check=False, timeout=timeout)
     except subprocess.TimeoutExpired as exc:
-        raise RuntimeError("AutoLyap worker timed out (900 s)") from exc
+        raise RuntimeError(f"AutoLyap worker timed out ({timeout} s)") from exc
     if out.returncode != 0:
         tail = out.stderr.strip().splitlines()[-1:] or ["no message"]
         raise RuntimeError(f"AutoLyap worker failed: {tail[0]}")

@@ -28,18 +28,16 @@ bracketed to ``TOL`` as ours). Times are medians of ``repeats`` runs after a war
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import statistics
-import subprocess
 import sys
 import time
 from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
-from bench.autolyap import autolyap_python, rho2_tolerance
+from bench.autolyap import autolyap_python, autolyap_rates, rho2_tolerance
 from bench.common import one_core, timed
 from sosalgo.analysis import analyze_algorithm
 from sosalgo.certificates.interpolation import Interpolation
@@ -235,16 +233,7 @@ def _dy_cases(quick: bool, repeats: int) -> list[dict]:
 
 
 def _autolyap(python: str, jobs: list[dict]) -> dict:
-    env = dict(os.environ, OMP_NUM_THREADS="1")
-    try:
-        out = subprocess.run([python, "-c", WORKER], input=json.dumps(jobs), text=True,
-                             capture_output=True, env=env, check=False, timeout=1800)
-    except subprocess.TimeoutExpired as exc:
-        raise RuntimeError("AutoLyap worker timed out (1800 s)") from exc
-    if out.returncode != 0:
-        tail = out.stderr.strip().splitlines()[-1:] or ["no message"]
-        raise RuntimeError(f"AutoLyap worker failed: {tail[0]}")
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    return autolyap_rates(python, jobs, WORKER, timeout=1800)
 
 
 def run(quick: bool = False) -> None:
