@@ -70,19 +70,11 @@ def field_structure(spec: Any, kappa: float | None, steps: int, mterms: list[Ter
     """(method, structure, d) of the PEP over Q(sqrt d); None when the spec is not in one
     quadratic field, or the structure differs from the float one. ``plain``: the float
     solve's basis had no deadbeat gain (K = 0)."""
-    from sosalgo.worstcase.bind import bound_method, class_kappa
-    from sosalgo.worstcase.exact import exact_method
-
     d = spec_radicand(spec, kappa, mterms + iterms)
     if d is None:
         return None
     try:
-        om, _ = bound_method(spec, class_kappa(spec, kappa))
-        mt = exact_method(spec, kappa, om, steps, field=d)
-        if plain:
-            mt.K = np.full(mt.K.shape, Fraction(0), dtype=object)
-            mt.structures.clear()
-        st = build_structure(mt, steps, mterms, iterms)
+        mt, st = _rebuilt(spec, kappa, steps, mterms, iterms, d, plain)
     except (ValueError, ArithmeticError, TypeError):
         return None
     if st.labels != st_float.labels or st.basis != st_float.basis or st.extras \
