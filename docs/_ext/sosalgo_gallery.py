@@ -161,11 +161,13 @@ def spec_numbers(path: Path, cache: Path) -> tuple[dict[str, Any], Path | None]:
     from sosalgo_gallery_render import sublinear_refused
 
     # conditions or steps no Lyapunov family takes (a mirror spec's Bregman steps, a finite
-    # sum with one function drawn per step, inexact calls, line searches, linear
-    # minimization), or an m: 0 method no sublinear family takes
+    # sum with one function drawn per step, inexact or epsilon-subgradient calls, line
+    # searches, linear minimization, transpose calls), or an m: 0 method no sublinear
+    # family takes
     pep_only = (bool(inhomogeneous_functions(spec)) or bool(spec.mirror)
                 or spec.finite_sum is not None
-                or bool(spec.inexact or spec.line_search or spec.lmo)
+                or bool(spec.inexact or spec.epsilon or spec.line_search or spec.lmo)
+                or spec.adjoint is not None
                 or bool(sublinear_refused(spec)))
     if data_file.exists() and figure.exists():
         return json.loads(data_file.read_text(encoding="utf-8")), figure
