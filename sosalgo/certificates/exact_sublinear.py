@@ -631,7 +631,9 @@ def _setup(res: SublinearExactResult, spec: Spec, cert: Mapping[str, Any], C: fl
         cen = np.array([[float(b.c) for b in row] for row in om.balls[k]])
         if not np.allclose(cen, getattr(fom, k), rtol=1e-9, atol=1e-12):
             raise Refused(f"exact matrix {k} differs from the float method")
-    dec, pos, om = _windows(om, fom)
+    from sosalgo.certificates.composite import residual_measured
+
+    dec, pos, om = _windows(residual_measured(om), residual_measured(fom))
     dec, pos = _win(dec), _win(pos)
     deg = cert.get("degree")
     if deg not in (1, 2):
