@@ -51,6 +51,7 @@ def _constant(spec):
     assert res.certified and res.measure == "residual"
     proof = verify_exact_sublinear(spec, json.loads(json.dumps(res.to_dict())))
     assert proof.ok, proof.reason
+    assert proof.to_dict()["measure"] == "residual"
     return res.constant, float(Fraction(proof.constant_proven))
 
 
@@ -125,3 +126,42 @@ def test_analyze_cli_verifies_the_residual_constant(tmp_path):
                                  "--out", str(tmp_path / "t"), "--no-plot"])
     assert r.exit_code == 0, r.output
     assert "c bounds: |u1_k|^2 <= c |x_0 - x*|^2 / k" in r.output
+
+
+@pytest.mark.parametrize("name, edit, words", [
+    ("krasnoselskii-mann", ("{class: nonexpansive}", "{class: linear_operator}"),
+     "T (linear_operator) is an operator class not given by pairwise conditions"),
+    ("forward-backward", None, "the squared residual of one operator only"),
+])
+def test_analyze_refuses_other_operator_specs(tmp_path, name, edit, words):
+    """m: 0 with an operator class the residual constant does not take (a Gram-level
+    linear operator; several functions): one line naming the file and field, exit 2,
+    nothing written."""
+    path = SPECS / f"{name}.yaml"
+    if edit is not None:
+        text = path.read_text()
+        assert edit[0] in text
+        path = tmp_path / f"{name}.yaml"
+        path.write_text(text.replace(*edit))
+    out = tmp_path / "o"
+    r = CliRunner().invoke(cli, ["analyze", str(path), "--out", str(out)])
+    assert r.exit_code == 2
+    assert "Traceback" not in r.output and len(r.output.strip().splitlines()) == 1
+    assert f"{path}: functions: " in r.output and words in r.output
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("name, L, floor, top", [
+    ("krasnoselskii-mann", "2", max(k * _km_worst(k, 0.75) for k in HORIZON), 16 / 3),
+    ("operator-proximal-point", "4", max(k * _ppm_worst(k, 2.0) for k in HORIZON), 1 / 4),
+])
+def test_constant_does_not_depend_on_units(name, L, floor, top):
+    """L is units only for these classes (the methods do not read it): the constant,
+    float and proven, stays between the same closed forms at another L (the solver's
+    scaled units: within 1e-2 of the elementary constant)."""
+    path = SPECS / f"{name}.yaml"
+    text = path.read_text()
+    assert "\nL: 1 " in text
+    c, proven = _constant(spec_from_text(text.replace("\nL: 1 ", f"\nL: {L} "), str(path)))
+    for value in (c, proven):
+        assert floor * (1 - 1e-12) <= value <= top * (1 + 1e-2)

@@ -260,6 +260,9 @@ def operator_refusal(spec: Spec) -> str | None:
     if not next(iter(classes.values())).pairwise_defined:
         return (f"{named} is an operator class not given by pairwise conditions: no "
                 "sublinear family applies to it (m: 0)")
+    if spec.time_varying:
+        return (f"{named} is an operator class and the method changes with k: the "
+                "sublinear family takes one method for every step (m: 0)")
     return None
 
 
