@@ -2,7 +2,9 @@
 
 For a method of the oracle model (:mod:`sosalgo.oracles`) on functions with m = 0, the
 certificate bounds ``measure(x_k) <= c |x_0 - x*|^2 / k`` for every k >= 1 (``measure:
-function``: sum_j f_j(x_k) - f_j*). As in Taylor and Bach (COLT 2019), the potential is
+function``: sum_j f_j(x_k) - f_j*; for one operator class, ``residual``: sum_i |u_i|^2 of
+the calls at step k, :func:`sosalgo.certificates.composite.residual_measured`). As in
+Taylor and Bach (COLT 2019), the potential is
 
     phi_k = z_k' (P + k Q) z_k + (p + k q)' psi_k,      z_k = (xi_k - xi*, u_k),
 
