@@ -122,6 +122,15 @@ def test_analyze_cli_verifies_the_residual_constant(tmp_path):
     row = json.loads(r.stdout)["rows"][0]
     assert row["measure"] == "residual" and row["verified"] == "exact"
     assert row["constant"] <= 16 / 3 * (1 + 1e-5)
+    doc = tmp_path / "km.json"
+    doc.write_text(r.stdout)
+    v = CliRunner().invoke(cli, ["verify", str(doc)])
+    assert v.exit_code == 0 and "0 contradicted" in v.output, v.output
+    false = json.loads(r.stdout)
+    false["rows"][0]["constant"] = 1.0  # below Lieder's floor 4 max_k k tau_k (about 1.96)
+    doc.write_text(json.dumps(false))
+    v = CliRunner().invoke(cli, ["verify", str(doc)])
+    assert v.exit_code == 3, v.output
     r = CliRunner().invoke(cli, ["analyze", str(SPECS / "krasnoselskii-mann.yaml"),
                                  "--out", str(tmp_path / "t"), "--no-plot"])
     assert r.exit_code == 0, r.output
