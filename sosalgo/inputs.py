@@ -50,8 +50,9 @@ def refuse_nonconvex(spec: Any, linear_rates: bool = False) -> None:
     oracle call or an exact line search: no
     certificate family certifies a rate for it (``sosalgo pep`` bounds its N-step worst
     case). ``linear_rates`` (``analyze``, ``design``): an operator spec with m > 0 passes
-    (the interpolation family certifies its linear rates; no sublinear family applies to
-    operators)."""
+    (the interpolation family certifies its linear rates), and one with m: 0 whose
+    functions are all operator classes given by pairwise conditions (the sublinear family
+    bounds its squared residual)."""
     from sosalgo.certificates import inhomogeneous_functions, nonconvex_functions
     from sosalgo.spec.loading import operator_functions, set_functions
 
@@ -62,12 +63,18 @@ def refuse_nonconvex(spec: Any, linear_rates: bool = False) -> None:
                          "linear or sublinear rate is certified for it (no Lyapunov family "
                          "applies); sosalgo pep bounds its worst case after N steps")
     ops = operator_functions(spec)
-    if ops and (not spec.has_condition_number or not linear_rates):
-        what = ("no sublinear family applies to it (m: 0)" if linear_rates else
-                "analyze and design certify its linear rates (m > 0); grid and pareto do "
-                "not take it yet")
+    if ops and not linear_rates:
         raise InputError(f"{spec.source}: functions: {', '.join(ops)} is an operator class: "
-                         f"{what}; sosalgo pep bounds its worst case after N steps")
+                         "analyze certifies its linear rates (m > 0) and its O(1/k) "
+                         "residual (m: 0, one operator); grid and pareto do not take it "
+                         "yet; sosalgo pep bounds its worst case after N steps")
+    if ops and not spec.has_condition_number:
+        from sosalgo.certificates.sublinear import operator_refusal
+
+        why = operator_refusal(spec)
+        if why is not None:
+            raise InputError(f"{spec.source}: functions: {why}; sosalgo pep bounds its "
+                             "worst case after N steps")
     sets = set_functions(spec)
     if sets and not spec.has_condition_number:
         raise InputError(f"{spec.source}: functions: {', '.join(sets)}: indicators alone with "

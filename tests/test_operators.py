@@ -282,8 +282,8 @@ def test_a_resolvent_of_an_evaluation_only_class_is_refused(tmp_path):
 
 
 def test_analyze_refuses_operator_specs_without_a_linear_rate_family(tmp_path):
-    """m: 0 operator specs (no sublinear family for operators) in analyze and design, and
-    grid on any."""
+    """m: 0 operator specs with several functions (the residual constant takes one
+    operator) in analyze and design, and grid on any."""
     out = tmp_path / "o"
     r = _invoke("analyze", str(SPECS / "forward-backward.yaml"), "--out", str(out))
     _one_line_exit_2(r, "operator class")

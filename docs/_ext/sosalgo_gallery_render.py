@@ -315,8 +315,12 @@ def operators_without_rate(spec: Any) -> list[str]:
 
 def operator_section(spec: Any) -> list[str]:
     """An m: 0 operator spec: sosalgo pep answers its question; its references."""
+    from sosalgo.certificates.sublinear import operator_refusal
+
+    rate = ("no sublinear rate family applies" if operator_refusal(spec) else
+            "`sosalgo analyze SPEC` certifies the O(1/k) constant of its squared residual")
     text = (f"{', '.join(operators_without_rate(spec))}: operator classes "
-            "(the operators page of the documentation), no sublinear rate family applies. Its "
+            f"(the operators page of the documentation), {rate}. Its "
             "question, as the spec's `pep:` field asks it, is answered after $N$ steps "
             "by `sosalgo pep SPEC --steps N`.")
     return ["## Operators", "", text, ""]

@@ -42,7 +42,8 @@ from sosalgo.certificates.base import complement_basis, compress, null_basis, re
 from sosalgo.kernel.conic import AffineBlock, LMIProblem, sym_basis, unit_quads
 
 __all__ = ["CompositeStructure", "composite_problem", "composite_parts", "composite_structure",
-           "facial_reduction", "isotropic_directions", "reduced_summary"]
+           "facial_reduction", "isotropic_directions", "reduced_summary", "residual_measured",
+           "sublinear_measure"]
 
 
 @dataclass
@@ -247,12 +248,35 @@ def facial_reduction(win: CWindow) -> tuple[np.ndarray | None, np.ndarray]:
     return complement_basis(W), drop
 
 
+def residual_measured(om: Any) -> Any:
+    """The method measured as the family measures it: for operators only (no function
+    values), ``measure: residual``, sum_i |u_i|^2 of the calls at time k (u = x - T x for a
+    nonexpansive T; x_k - x_{k+1} = alpha u for a resolvent step); else ``om`` itself."""
+    from dataclasses import replace
+
+    if om.functions and all(not fn[1].has_values for fn in om.functions):
+        return replace(om, measure="residual")
+    return om
+
+
+def sublinear_measure(spec: Any) -> str:
+    """The measure of the family's constant for ``spec``: ``residual`` (sum_i |u_i|^2 of
+    the calls at time k) when every function is an operator class, else the spec's own."""
+    from sosalgo.classes import CLASSES
+
+    if spec.functions and all(not CLASSES[d.cls].has_values for d in spec.functions.values()):
+        return "residual"
+    return spec.measure
+
+
 def _measure(om: Any, pts: list, rows: dict, t: int, nphi: int,
              s: float) -> tuple[np.ndarray, np.ndarray]:
     """The measure at time t, divided by its unit (s for function values)."""
     if om.measure == "distance":
         xo = rows["out"][t]
         return np.zeros(nphi), np.outer(xo, xo)
+    if om.measure == "residual":  # sum_i |u_i|^2 of the calls at t (u = s u~), over s
+        return np.zeros(nphi), s * rows["U"][t].T @ rows["U"][t]
     lin = np.zeros(nphi)
     oc = output_call(om)
     here = {f"x[{t}]"} | ({f"y{oc + 1}[{t}]"} if oc is not None else set())

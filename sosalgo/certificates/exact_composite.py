@@ -224,6 +224,8 @@ def exact_window(om: ExactOracleMethod, lag: int, steps: int,
     if om.measure == "distance":
         xo = rows["out"][t]
         meas_quad = np.outer(xo, xo)
+    elif om.measure == "residual":  # sum_i |u_i|^2 of the calls at t
+        meas_quad = rows["U"][t].T @ rows["U"][t]
     else:
         here = {f"x[{t}]"} | ({f"y{om.output + 1}[{t}]"} if om.output is not None else set())
         for pt in (pt for fp in pts for pt in fp if pt.label in here):

@@ -62,7 +62,8 @@ MOVE_TOL = 1e-8  # largest move (relative to max(1, |x|)) the exact projection m
 SNAP_TOL = 1e-9  # kernel entries this close to a small fraction (denominator <= 16) are it
 CONSTANT_STEPS = (0.0, 1e-12, 1e-10, 1e-8, 1e-6)  # relative increases of C tried
 STATEMENT = ("measure(x_k) <= C |x_0 - x*|^2 / k for every k >= 1, every x* minimizing the "
-             "sum of the functions and every function of the classes, the method started at "
+             "sum of the functions (an operator's zero: measure residual, sum_i |u_i|^2 of "
+             "the calls at step k) and every function of the classes, the method started at "
              "rest at x_0 (xi_0 - xi* = u (x_0 - x*)), C = constant_proven")
 
 
@@ -80,6 +81,7 @@ class SublinearExactResult:
     L: str = ""
     params: dict[str, str] = field(default_factory=dict)
     degree: int | None = None
+    measure: str | None = None  # the measure proven (residual: an operator's calls)
     equalities: int = 0  # rank of the exact equalities imposed
     kernels: dict[str, int] = field(default_factory=dict)  # dimension per block
     moved: float | None = None  # largest change made by the exact projection
@@ -98,7 +100,8 @@ class SublinearExactResult:
                 "constant_proven": self.constant_proven,
                 "constant_proven_float": self.constant_proven_float, "reason": self.reason,
                 "seconds": self.seconds, "L": self.L, "m": "0", "params": dict(self.params),
-                "degree": self.degree, "equalities": self.equalities,
+                "degree": self.degree, "measure": self.measure,
+                "equalities": self.equalities,
                 "kernels": dict(self.kernels), "moved": self.moved,
                 "proofs": dict(self.proofs), "attempts": self.attempts,
                 "statement": STATEMENT, "certificate": self.certificate}
@@ -631,7 +634,10 @@ def _setup(res: SublinearExactResult, spec: Spec, cert: Mapping[str, Any], C: fl
         cen = np.array([[float(b.c) for b in row] for row in om.balls[k]])
         if not np.allclose(cen, getattr(fom, k), rtol=1e-9, atol=1e-12):
             raise Refused(f"exact matrix {k} differs from the float method")
-    dec, pos, om = _windows(om, fom)
+    from sosalgo.certificates.composite import residual_measured
+
+    dec, pos, om = _windows(residual_measured(om), residual_measured(fom))
+    res.measure = om.measure
     dec, pos = _win(dec), _win(pos)
     deg = cert.get("degree")
     if deg not in (1, 2):

@@ -2,7 +2,9 @@
 
 For a method of the oracle model (:mod:`sosalgo.oracles`) on functions with m = 0, the
 certificate bounds ``measure(x_k) <= c |x_0 - x*|^2 / k`` for every k >= 1 (``measure:
-function``: sum_j f_j(x_k) - f_j*). As in Taylor and Bach (COLT 2019), the potential is
+function``: sum_j f_j(x_k) - f_j*; for one operator class, ``residual``: sum_i |u_i|^2 of
+the calls at step k, :func:`sosalgo.certificates.composite.residual_measured`). As in
+Taylor and Bach (COLT 2019), the potential is
 
     phi_k = z_k' (P + k Q) z_k + (p + k q)' psi_k,      z_k = (xi_k - xi*, u_k),
 
@@ -42,14 +44,15 @@ import numpy as np
 import scipy.linalg as sla
 
 from sosalgo.certificates.base import CertificateFamily, snap_basis
-from sosalgo.certificates.composite import CWindow, composite_structure
+from sosalgo.certificates.composite import CWindow, composite_structure, residual_measured
 from sosalgo.kernel.conic import AffineBlock, LMIProblem, unit_quads
 
 if TYPE_CHECKING:  # only for annotations
     from sosalgo.spec.types import Spec
 
 __all__ = ["SUBLINEAR", "SublinearFamily", "SublinearProblem", "block_kernels",
-           "full_violation", "original_kernels", "snap_basis", "sublinear_data",
+           "full_violation", "operator_refusal", "original_kernels", "snap_basis",
+           "sublinear_data",
            "sublinear_parts", "sublinear_problem"]
 
 @dataclass
@@ -243,8 +246,31 @@ def _nonneg(names: tuple[str, ...], lay: dict[str, slice], nvar: int) -> list:
             for i in range(lay[nm].start, lay[nm].stop)]
 
 
+def operator_refusal(spec: Spec) -> str | None:
+    """Why the family does not answer an ``m: 0`` spec with an operator class (None: one
+    function, an operator class that is exactly its pairwise conditions: its zero has
+    u* = 0, so the squared residual sum_i |u_i|^2 of the calls is the measure)."""
+    from sosalgo.classes import CLASSES
+
+    classes = {name: CLASSES[d.cls] for name, d in spec.functions.items()}
+    if all(c.has_values for c in classes.values()):
+        return None
+    named = ", ".join(f"{n} ({c.name})" for n, c in classes.items())
+    if len(classes) > 1:
+        return (f"{named}: an operator class among several functions: the sublinear "
+                "family bounds the squared residual of one operator only (m: 0)")
+    if not next(iter(classes.values())).pairwise_defined:
+        return (f"{named} is an operator class not given by pairwise conditions: no "
+                "sublinear family applies to it (m: 0)")
+    if spec.time_varying:
+        return (f"{named} is an operator class and the method changes with k: the "
+                "sublinear family takes one method for every step (m: 0)")
+    return None
+
+
 def sublinear_data(om: Any, deg: int = DEGREE) -> _XData:
     """The potential LMI of a method (module docstring) in units s = L, on x."""
+    om = residual_measured(om)
     s = float(om.L)
     st = composite_structure(om, 0, s, rescale=True)
     p = st.pos
@@ -472,7 +498,7 @@ class SublinearFamily(CertificateFamily):
 
     def applies_to(self, spec: Spec) -> str | None:
         """Why the family does not answer ``spec`` (None for an ``m: 0`` spec, L given)."""
-        if not spec.has_condition_number:
+        if not spec.has_condition_number:  # operators: inputs.refuse_nonconvex's operator_refusal
             return None
         return "the sublinear family answers m: 0 specs (L given, no kappa) only"
 

@@ -275,7 +275,9 @@ def references(L: RowLedger, field: str) -> None:
 
 def spec_value(L: RowLedger, field: str) -> None:
     """``L`` and ``measure`` of a sublinear row: the spec's own."""
-    want = float(L.spec.L) if field == "L" else L.spec.measure
+    from sosalgo.certificates.composite import sublinear_measure
+
+    want = float(L.spec.L) if field == "L" else sublinear_measure(L.spec)
     v = L.row.get(field)
     ok = v == want and not isinstance(v, bool)
     L.add(field, BACKED if ok else CONTRADICTED,

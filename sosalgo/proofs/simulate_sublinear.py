@@ -1,5 +1,8 @@
 """Simulation check of a sublinear constant: measure(x_k) <= c |x_0 - x*|^2 / k.
 
+For operators only (``measure: residual``, :func:`sosalgo.certificates.composite.residual_measured`)
+the measure is sum_i |u_i|^2 of the calls at time k.
+
 The method (oracle model, proximal steps included: :func:`run_method`) is started at rest,
 xi_0 = xi* + u (x_0 - x*) (u the fixed point of x* = 1), on the test problems of its
 classes (:mod:`sosalgo.proofs.prox_functions`, with m = 0: quadratics with curvatures in
@@ -31,6 +34,9 @@ TOL = 1e-11
 def _measure(om: Any, prob: ProxProblem, tr: dict[str, np.ndarray]) -> tuple[np.ndarray, ...]:
     """(measure(x_k), size of what it is computed from), k = 1..iters, each (iters, batch)."""
     n = tr["y"].shape[0] - 1  # run for n + 1 steps: y_k exists for k = 1..n
+    if om.measure == "residual":  # operators: sum_i |u_i|^2 of the calls at k (u* = 0)
+        res = np.sum(tr["u"][1: n + 1] ** 2, axis=(2, 3))
+        return res, res
     if om.output is None:
         x = np.einsum("j,kbjd->kbd", om.E[0], tr["xi"][1: n + 1])
     else:
@@ -61,6 +67,9 @@ def simulate_sublinear(om: Any, constant: float, dims: Sequence[int] = (1, 2, 5)
     """Check ``measure(x_k) <= constant |x_0 - x*|^2 / k`` along trajectories of ``om``
     (a sublinear method: m = 0) on test problems (module docstring). ``rho`` of the
     result holds the constant."""
+    from sosalgo.certificates.composite import residual_measured
+
+    om = residual_measured(om)
     start_t = time.perf_counter()
     rng = np.random.default_rng(seed)
     probs = list(problems) if problems is not None else [

@@ -83,6 +83,12 @@ def rate_meaning(spec: Spec, family: str | None, lags: Sequence[Any] = (),
 
 def sublinear_meaning(spec: Spec) -> str:
     """One line: what a sublinear spec's certified constant c bounds (m: 0)."""
+    from sosalgo.certificates.composite import sublinear_measure
+
+    if sublinear_measure(spec) == "residual":
+        calls = " + ".join(f"|u{i + 1}_k|^2" for i in range(spec.p))
+        return (f"c bounds: {calls} <= c |x_0 - x*|^2 / k for every k >= 1 (u_k: the answer "
+                "of the call at step k, e.g. x_k - T x_k), the method started at rest at x_0")
     return (f"c bounds: {measure_words(spec)} <= c |x_0 - x*|^2 / k for every k >= 1, the "
             f"method started at rest at x_0; {_output_words(spec)}")
 
