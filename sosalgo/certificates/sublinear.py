@@ -251,6 +251,7 @@ def operator_refusal(spec: Spec) -> str | None:
     function, an operator class that is exactly its pairwise conditions: its zero has
     u* = 0, so the squared residual sum_i |u_i|^2 of the calls is the measure)."""
     from sosalgo.classes import CLASSES
+    from sosalgo.steps import changes_with_k
 
     classes = {name: CLASSES[d.cls] for name, d in spec.functions.items()}
     if all(c.has_values for c in classes.values()):
@@ -262,7 +263,7 @@ def operator_refusal(spec: Spec) -> str | None:
     if not next(iter(classes.values())).pairwise_defined:
         return (f"{named} is an operator class not given by pairwise conditions: no "
                 "sublinear family applies to it (m: 0)")
-    if spec.time_varying:
+    if changes_with_k(spec):
         return (f"{named} is an operator class and the method changes with k: the "
                 "sublinear family takes one method for every step (m: 0)")
     return None
