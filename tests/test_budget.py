@@ -287,12 +287,19 @@ def _alive(pid: int) -> bool:
         return False
 
 
+def _terminal_job() -> None:
+    """In the child before it starts: Ctrl-C at its default, as in a terminal's foreground
+    job (a test run started in the background, e.g. under nohup, ignores SIGINT, and a
+    command started with SIGINT ignored keeps ignoring it, as it should)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _pep(out: Path, steps: str, quiet: bool = True, **kw) -> subprocess.Popen:
     cmd = [sys.executable, "-m", "sosalgo.cli", "pep", str(SPECS / "gradient.yaml"),
            "--kappa", "10", "--steps", steps, "--out", str(out), "--no-plot"]
     cmd += ["--quiet"] if quiet else []
     return subprocess.Popen(cmd, env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, **kw)
+                            text=True, preexec_fn=_terminal_job, **kw)
 
 
 def _rows(out: Path) -> list[dict[str, str]]:
