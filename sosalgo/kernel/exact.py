@@ -161,8 +161,12 @@ def solve_affine(eqs: Sequence[Sequence[Any]], rhs: Sequence[Any], n: int,
 
     if not eqs:
         return [Fraction(free_value(c)) for c in range(n)]
-    flat = [q(v) for row, b in zip(eqs, rhs, strict=True) for v in (*row, b)]
-    R, rank = fmpq_mat(len(eqs), n + 1, flat).rref()
+    aug = fmpq_mat(len(eqs), n + 1)  # zeros: only the nonzero entries are set
+    for i, (row, b) in enumerate(zip(eqs, rhs, strict=True)):
+        for c, v in enumerate((*row, b)):
+            if v:
+                aug[i, c] = q(v)
+    R, rank = aug.rref()
     pivots = []
     for i in range(rank):
         c = next(c for c in range(n + 1) if R[i, c] != 0)
