@@ -494,7 +494,9 @@ def _residual_parts(mt: Method, st: PEPStructure, lam: list[Fraction]
         if pb.f is not None:
             aF[pb.f] -= alpha * lb * s
     if rows:
-        R = arb_mat([[ball(v) for v in row] for row in rows])
+        if "_row_balls" not in st.__dict__:  # the points' rows as balls, once per PEP
+            st.__dict__["_row_balls"] = arb_mat([[ball(v) for v in row] for row in rows])
+        R = st.__dict__["_row_balls"]
         quad = R.transpose() * arb_mat(W) * R
     else:  # no points (the contraction measure: extra constraints only)
         quad = arb_mat(st.d, st.d)
@@ -814,11 +816,15 @@ def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Frac
     if eqs is None:  # a row 0 = nonzero: no exact certificate on this support
         return None
     cf = None if not units else st_value_residual(st, lam, lins, support)
+    # with ``units``, the c_F that count as not clearly positive (a margin solve's c_F > 0):
+    # below NULL_ROW; for a span search (free points tied by equalities only, its margin
+    # solves at tight tolerances: :func:`sosalgo.worstcase.core._ladder`) those <= 0 only,
+    # since zeroing a margin's slack there moves S by more than its margin
+    slack = 0.0 if cf is None or st.margin_seen else NULL_ROW * (1.0 + abs(cf).max())
     for i in range(st.nF):  # c_F[i] = -m_F[i] - sum lambda a_i: no tq to raise it (with
         # ``units``: where the float c_F is not clearly positive, a margin solve's c_F > 0);
         # no x* (``free_values``): every c_F[i] = tq i_F[i] - m_F[i] - sum lambda a_i is 0
-        if st.free_values or (fi[0][i] == 0 and (
-                cf is None or cf[i] <= NULL_ROW * (1.0 + abs(cf).max()))):
+        if st.free_values or (fi[0][i] == 0 and (cf is None or cf[i] <= slack)):
             eqs.append([a[i] for a in lins])
             rhs.append(tq * fi[0][i] - fm[0][i])
     values = solve_affine(eqs, rhs, len(support),
@@ -835,10 +841,11 @@ def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Frac
 
 def _null_equations(st: PEPStructure, quads: list[Any], null: list[list[Fraction]],
                     tq: Fraction, I0: list[list[Fraction]], M: list[list[Fraction]]
-                    ) -> tuple[list[list[Fraction]] | None, list[Fraction]]:
+                    ) -> tuple[list[Any] | None, list[Fraction]]:
     """The rows of (tq I0 - M - sum_k lambda_k C_k) v = 0 for each v of ``null``, linear in
-    the multipliers (C_k: the sparse ``quads``, row -> column -> value); the rows 0 = 0
-    left out, (None, []) when a row reads 0 = nonzero."""
+    the multipliers (C_k: the sparse ``quads``, row -> column -> value; each row sparse,
+    multiplier -> coefficient); the rows 0 = 0 left out, (None, []) when a row reads 0 =
+    nonzero."""
     eqs, rhs = [], []
     for v in null:
         nz = [j for j in range(st.d) if v[j]]
@@ -851,14 +858,14 @@ def _null_equations(st: PEPStructure, quads: list[Any], null: list[list[Fraction
                     if value is not None:
                         prod[i] = prod.get(i, Fraction(0)) + value * v[j]
             products.append(prod)
-        zero = Fraction(0)
+        used = set().union(*products)
         for i in range(st.d):
-            right = sum(((tq * I0[i][j] - M[i][j]) * v[j] for j in nz), zero)
-            if not any(i in prod for prod in products):  # the row is 0 = right
+            right = sum(((tq * I0[i][j] - M[i][j]) * v[j] for j in nz), Fraction(0))
+            if i not in used:  # the row is 0 = right
                 if right:
                     return None, []
                 continue
-            eqs.append([prod.get(i, zero) for prod in products])
+            eqs.append({k: prod[i] for k, prod in enumerate(products) if i in prod})
             rhs.append(right)
     return eqs, rhs
 
