@@ -53,7 +53,7 @@ def test_tight_value_proven(docs, n):
     assert abs(doc["tau"] / theory(n) - 1) <= 1e-6
     assert abs(doc["tau"] / PEPIT[n] - 1) <= 1e-6
     # the margin solves at tight tolerances: proven within 1e-6 of the tight value (at
-    # default ones the proof came only from the margin 1e-5 of tau, 7e-6 above it at n = 2)
+    # default ones only the margin 1e-5 of tau proves, 7e-6 above it at n = 2)
     assert theory(n) * (1 - 1e-9) <= proof["tau_proven_float"] <= theory(n) * (1 + 1e-6)
     assert doc["witness"] is None and "span search" in doc["note"]
 

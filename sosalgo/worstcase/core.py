@@ -757,8 +757,8 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
     # proof makes their rows of S exactly zero and each value residual the solver left
     # without slack exactly zero, moving the multipliers by the solver's error; at default
     # tolerances (1e-8) that error exceeds every margin up to 1e-6 of tau (conjugate
-    # gradient on quadratic growth, N = 12: four rungs fail, the margin 1e-5 proves 6e-6
-    # above tau), at tight ones the margin 1e-8 proves 1e-7 above it
+    # gradient on quadratic growth, N = 12: only the margin 1e-5 proves, 6e-6 above tau),
+    # at tight ones (1e-10) the margin 1e-8 proves, 1e-7 above it
     ladder = _ladder(st.steps, inner is not None, st.margin_seen)
     for rel, precise in ladder if exact else ():
         eps = rel / scale  # relative to tau: the measure is divided by tau
