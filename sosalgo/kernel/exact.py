@@ -17,7 +17,7 @@ from __future__ import annotations
 import itertools
 import math
 import numbers
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
 from fractions import Fraction
@@ -147,38 +147,46 @@ def _pivoted_ldl(a: Matrix) -> tuple[bool, list[Fraction], str]:
     return True, pivots, "all pivots > 0 or zero block"
 
 
-def solve_affine(eqs: Sequence[Sequence[Any]], rhs: Sequence[Any], n: int,
-                 free_value: Any) -> list[Fraction] | None:
-    """A solution x of ``eqs`` x = ``rhs`` (n unknowns, rational entries) in exact
+def solve_affine(eqs: Sequence[Sequence[Any] | Mapping[int, Any]], rhs: Sequence[Any],
+                 n: int, free_value: Any) -> list[Fraction] | None:
+    """A solution x of ``eqs`` x = ``rhs`` (n unknowns, rational entries; a row is a
+    sequence, or a mapping column -> entry whose missing columns are 0) in exact
     rationals: the reduced row echelon form of the augmented system (python-flint's
     ``fmpq_mat``), each free coordinate c at ``free_value(c)`` (a Fraction), the pivots
     solved from them; None when the system is inconsistent."""
     from flint import fmpq, fmpq_mat
 
     def q(v: Any) -> Any:
-        f = Fraction(v)
+        f = v if isinstance(v, Fraction) else Fraction(v)
         return fmpq(f.numerator, f.denominator)
 
     if not eqs:
         return [Fraction(free_value(c)) for c in range(n)]
-    flat = [q(v) for row, b in zip(eqs, rhs, strict=True) for v in (*row, b)]
-    R, rank = fmpq_mat(len(eqs), n + 1, flat).rref()
-    pivots = []
-    for i in range(rank):
-        c = next(c for c in range(n + 1) if R[i, c] != 0)
+    aug = fmpq_mat(len(eqs), n + 1)  # zeros: only the nonzero entries are set
+    for i, (row, b) in enumerate(zip(eqs, rhs, strict=True)):
+        for c, v in (row.items() if isinstance(row, Mapping) else enumerate(row)):
+            if v:
+                aug[i, c] = q(v)
+        if b:
+            aug[i, n] = q(b)
+    R, rank = aug.rref()
+    pivots: list[int] = []
+    for i in range(rank):  # each row's pivot right of the one above (echelon form)
+        c = next(c for c in range(pivots[-1] + 1 if pivots else 0, n + 1) if R[i, c] != 0)
         if c == n:  # a row 0 = 1
             return None
         pivots.append(c)
     x = [Fraction(0)] * n
-    free = [c for c in range(n) if c not in set(pivots)]
-    for c in free:
+    z = fmpq_mat(n + 1, 1)  # the free values, -1 on the right-hand side, 0 on the pivots
+    z[n, 0] = -1
+    for c in sorted(set(range(n)) - set(pivots)):
         x[c] = Fraction(free_value(c))
+        if x[c]:
+            z[c, 0] = q(x[c])
+    Rz = R * z  # row i: sum over free f of R[i, f] x_f - R[i, n] = -x[pivot i]
     for i, c in enumerate(pivots):
-        value = Fraction(int(R[i, n].p), int(R[i, n].q))
-        for f in free:
-            if x[f] and R[i, f] != 0:
-                value -= Fraction(int(R[i, f].p), int(R[i, f].q)) * x[f]
-        x[c] = value
+        v = Rz[i, 0]
+        x[c] = -Fraction(int(v.p), int(v.q))
     return x
 
 

@@ -546,15 +546,20 @@ def _exact_schedule(spec: Spec, kappa: float | None, schedule: StepMethods,
         return None
 
 
-def _ladder(steps: int, mixed: bool = False) -> list[tuple[float, bool]]:
+def _ladder(steps: int, mixed: bool = False, precise: bool = False
+            ) -> list[tuple[float, bool]]:
     """(relative margin, tight tolerances) of the certificate solves, in order: the first
     margin at Clarabel's default tolerances, then again at tight ones (a default solve's
     dual may miss the proof by its accuracy), then the larger margins. ``mixed`` (an
     interior certificate to mix with, :func:`_mixed`): the measure's own answer first
-    (margin 0), then every margin at default tolerances."""
+    (margin 0), then every margin at default tolerances. ``precise``: every margin at
+    tight tolerances only (a PEP whose free points are tied to the run by equalities
+    alone: :func:`_certificate`)."""
     if mixed:
         return [(0.0, False)] + [(r, False) for r in MARGINS + LONG_MARGINS]
     rels = MARGINS + LONG_MARGINS if steps <= LONG else LONG_MARGINS + (LAST_MARGIN,)
+    if precise:
+        return [(r, True) for r in rels]
     return [(rels[0], False), (rels[0], True)] + [(r, False) for r in rels[1:]]
 
 
@@ -748,7 +753,14 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
     polish_raw = True  # the polished answer as it is: tried once
     kept: tuple[dict[str, Any], SDPAnswer] | None = None  # a loose proof, while looking on
     extra = LOOSE_RUNGS
-    for rel, precise in _ladder(st.steps, inner is not None) if exact else ():
+    # a span search's iterates are free points tied to the run by equalities only: the
+    # proof makes their rows of S exactly zero and each value residual the solver left
+    # without slack exactly zero, moving the multipliers by the solver's error; at default
+    # tolerances (1e-8) that error exceeds every margin up to 1e-6 of tau (conjugate
+    # gradient on quadratic growth, N = 12: only the margin 1e-5 proves, 6e-6 above tau),
+    # at tight ones (1e-10) the margin 1e-8 proves, 1e-7 above it
+    ladder = _ladder(st.steps, inner is not None, st.margin_seen)
+    for rel, precise in ladder if exact else ():
         eps = rel / scale  # relative to tau: the measure is divided by tau
         cand = ans if rel == 0 else solve_pep(data, margin=eps, unit=tau if tau > 1e-200
                                               else 1.0, precise=precise)
@@ -760,6 +772,11 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
                               polish_raw)
         polish_raw = False
         tries.append(cand if inner is None else _mixed(cand, inner, data.w))
+        if kept is not None:  # a proof is at least its tau: none tighter than the kept one
+            tries = [c for c in tries
+                     if c.tau + c.const < float(Fraction(kept[0]["tau_proven"]))]
+            if not tries:
+                break
         for cand in tries:
             best = cand
             if _prove_candidate(spec, kappa, mt, data, cand, tau, eps, mterms, iterms, ex,

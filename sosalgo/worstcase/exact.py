@@ -494,15 +494,20 @@ def _residual_parts(mt: Method, st: PEPStructure, lam: list[Fraction]
         if pb.f is not None:
             aF[pb.f] -= alpha * lb * s
     if rows:
-        R = arb_mat([[ball(v) for v in row] for row in rows])
+        if "_row_balls" not in st.__dict__:  # the points' rows as balls, once per PEP
+            st.__dict__["_row_balls"] = arb_mat([[ball(v) for v in row] for row in rows])
+        R = st.__dict__["_row_balls"]
         quad = R.transpose() * arb_mat(W) * R
     else:  # no points (the contraction measure: extra constraints only)
         quad = arb_mat(st.d, st.d)
+    balls = st.__dict__.setdefault("_extra_balls", {})  # each extra's X, Qc as balls, once
     for e, ((_, Xe, Qe), lk) in enumerate(zip(st.extras, lam[len(st.pairs):], strict=True)):
         if lk:  # an extra constraint (:mod:`sosalgo.worstcase.inexact`): + lambda X' Qc X
-            Xb = arb_mat([[ball(v) for v in row] for row in Xe])
-            Qb = arb_mat([[ball(v) * ball(lk) for v in row] for row in Qe])
-            quad += Xb.transpose() * Qb * Xb
+            if e not in balls:
+                balls[e] = (arb_mat([[ball(v) for v in row] for row in Xe]),
+                            arb_mat([[ball(v) for v in row] for row in Qe]))
+            Xb, Qb = balls[e]
+            quad += Xb.transpose() * (Qb * ball(lk)) * Xb
             for i, v in enumerate(st.extra_values.get(e, ())):  # a constraint's values
                 if _nonzero_value(v):
                     aF[i] += ball(v) * ball(lk)
@@ -640,6 +645,12 @@ def rational_up(x: Fraction, bits: int = 64) -> Fraction:
     return Fraction(math.ceil(x / Fraction(2) ** e)) * Fraction(2) ** e
 
 
+# a least eigenvalue of the scaled S's midpoint below this (relative to its largest entry)
+# is no float round-off (about d 1e-16 of it): S is indefinite, no exact test can prove it
+INDEFINITE_REL = 1e-10
+INDEFINITE = "indefinite"
+
+
 def prove_scaled_psd(S: arb_mat, w: np.ndarray) -> tuple[bool, Fraction, str]:
     """Prove D S D ⪰ delta I (D = diag(w), powers of two; so S ⪰ 0) for every matrix in
     the balls: a floating-point Cholesky factor L of mid(D S D) - t I, then
@@ -660,7 +671,9 @@ def prove_scaled_psd(S: arb_mat, w: np.ndarray) -> tuple[bool, Fraction, str]:
     except np.linalg.LinAlgError:
         return False, Fraction(0), "eigenvalues of the scaled S failed"
     if not est > 0:
-        return False, Fraction(0), f"not proven (min eig estimate {est:.3g}, scaled)"
+        indefinite = est < -INDEFINITE_REL * max(1.0, float(np.abs(mid).max()))
+        return False, Fraction(0), (f"not proven (min eig estimate {est:.3g}, scaled"
+                                    + (f"; {INDEFINITE})" if indefinite else ")"))
     t = rational(est / 2)
     try:
         Lf = np.linalg.cholesky(mid - float(t) * np.eye(d))
@@ -803,11 +816,15 @@ def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Frac
     if eqs is None:  # a row 0 = nonzero: no exact certificate on this support
         return None
     cf = None if not units else st_value_residual(st, lam, lins, support)
+    # with ``units``, the c_F that count as not clearly positive (a margin solve's c_F > 0):
+    # below NULL_ROW; for a span search (free points tied by equalities only, its margin
+    # solves at tight tolerances: :func:`sosalgo.worstcase.core._ladder`) those <= 0 only,
+    # since zeroing a margin's slack there moves S by more than its margin
+    slack = 0.0 if cf is None or st.margin_seen else NULL_ROW * (1.0 + abs(cf).max())
     for i in range(st.nF):  # c_F[i] = -m_F[i] - sum lambda a_i: no tq to raise it (with
         # ``units``: where the float c_F is not clearly positive, a margin solve's c_F > 0);
         # no x* (``free_values``): every c_F[i] = tq i_F[i] - m_F[i] - sum lambda a_i is 0
-        if st.free_values or (fi[0][i] == 0 and (
-                cf is None or cf[i] <= NULL_ROW * (1.0 + abs(cf).max()))):
+        if st.free_values or (fi[0][i] == 0 and (cf is None or cf[i] <= slack)):
             eqs.append([a[i] for a in lins])
             rhs.append(tq * fi[0][i] - fm[0][i])
     values = solve_affine(eqs, rhs, len(support),
@@ -824,29 +841,31 @@ def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Frac
 
 def _null_equations(st: PEPStructure, quads: list[Any], null: list[list[Fraction]],
                     tq: Fraction, I0: list[list[Fraction]], M: list[list[Fraction]]
-                    ) -> tuple[list[list[Fraction]] | None, list[Fraction]]:
+                    ) -> tuple[list[Any] | None, list[Fraction]]:
     """The rows of (tq I0 - M - sum_k lambda_k C_k) v = 0 for each v of ``null``, linear in
-    the multipliers (C_k: the sparse ``quads``, row -> column -> value); the rows 0 = 0
-    left out, (None, []) when a row reads 0 = nonzero."""
+    the multipliers (C_k: the sparse ``quads``, row -> column -> value; each row sparse,
+    multiplier -> coefficient); the rows 0 = 0 left out, (None, []) when a row reads 0 =
+    nonzero."""
     eqs, rhs = [], []
     for v in null:
-        products = []  # C_k v, by row, sparse
+        nz = [j for j in range(st.d) if v[j]]
+        products = []  # C_k v, by row, sparse (only the columns where v is nonzero)
         for quad in quads:
             prod: dict[int, Fraction] = {}
             for i, row in quad.items():
-                for j, value in row.items():
-                    if v[j]:
+                for j in nz:
+                    value = dict.get(row, j)
+                    if value is not None:
                         prod[i] = prod.get(i, Fraction(0)) + value * v[j]
             products.append(prod)
-        nz = [j for j in range(st.d) if v[j]]
+        used = set().union(*products)
         for i in range(st.d):
-            row = [prod.get(i, Fraction(0)) for prod in products]
             right = sum(((tq * I0[i][j] - M[i][j]) * v[j] for j in nz), Fraction(0))
-            if not any(row):
+            if i not in used:  # the row is 0 = right
                 if right:
                     return None, []
                 continue
-            eqs.append(row)
+            eqs.append({k: prod[i] for k, prod in enumerate(products) if i in prod})
             rhs.append(right)
     return eqs, rhs
 
@@ -1112,7 +1131,7 @@ def prove_at(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
             return False, lam2, Fraction(0), ("tau - sum of multipliers x constants is not "
                                               "proven >= 0")
         ok, delta, why = prove_scaled_psd(I0 * t - M - quad, w)
-        if not ok and not repair and small:
+        if not ok and not repair and small and not why.endswith(f"{INDEFINITE})"):
             ok, why = _rational_psd(mt, st, lam2, tq) or (ok, why)
             delta = Fraction(0)
     if not ok:
@@ -1123,23 +1142,29 @@ def prove_at(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
                                   "; tau = t + sum lambda_k c_k, t >= 0 (constants)"))
 
 
-def _rational_parts(mt: Method, st: PEPStructure, lam: Sequence[Fraction]
+def _rational_parts(mt: Method, st: PEPStructure, lam: Sequence[Fraction],
+                    with_quad: bool = True
                     ) -> tuple[list[list[Fraction]], list[Fraction]] | None:
-    """(sum_k lambda_k X_k' Q_k X_k, sum_k lambda_k a_k) in Fractions, None when some
-    datum is not an exact rational."""
+    """(sum_k lambda_k X_k' Q_k X_k, sum_k lambda_k a_k) in Fractions (the first left
+    empty unless ``with_quad``), None when some datum is not an exact rational."""
     support = [k for k, v in enumerate(lam) if v]
     parts = _exact_pair_parts(mt, st, support)
     if parts is None:
         return None
     quads, lins = parts
     d = st.d
-    quad = [[Fraction(0)] * d for _ in range(d)]
-    for k, q in zip(support, quads, strict=True):
-        for i, row in q.items():
-            for j, v in row.items():
-                quad[i][j] += lam[k] * v
-    lin = [sum((lam[k] * a[i] for k, a in zip(support, lins, strict=True)), Fraction(0))
-           for i in range(st.nF)]
+    quad: list[list[Fraction]] = []
+    if with_quad:
+        quad = [[Fraction(0)] * d for _ in range(d)]
+        for k, q in zip(support, quads, strict=True):
+            for i, row in q.items():
+                for j, v in row.items():
+                    quad[i][j] += lam[k] * v
+    lin = [Fraction(0)] * st.nF
+    for k, a in zip(support, lins, strict=True):
+        for i, v in enumerate(a):
+            if v:
+                lin[i] += lam[k] * v
     return quad, lin
 
 
@@ -1147,7 +1172,7 @@ def _rational_residuals_ok(mt: Method, st: PEPStructure, lam: Sequence[Fraction]
                            tq: Fraction) -> bool:
     """c_F = t i_F - m_F - sum lambda_k a_k >= 0 in exact rationals (t: :func:`_rational_t`)."""
     fi, fm = _fraction_matrix([st.init_f]), _fraction_matrix([st.meas_f])
-    parts = _rational_parts(mt, st, lam)
+    parts = _rational_parts(mt, st, lam, with_quad=False)
     t = _rational_t(st, lam, tq)
     if parts is None or fi is None or fm is None or t is None:
         return False
