@@ -218,3 +218,40 @@ def test_pep_references_must_name_references():
     with pytest.raises(SpecError) as exc:
         spec_from_text(text, str(path))
     assert exc.value.field == "pep.references"
+
+
+def test_design_reports_a_point_whose_certificate_is_proven():
+    """Near the box's edge (alpha about 10) the degree-2 certificate of the proximal point
+    may not be provable; the design's choice of its reported point keeps the best point
+    whose certificate the exact proof accepts (else the degree-1 potential's at the same
+    point), and its constant lies between Gu and Yang's best c and the elementary 1/alpha^2."""
+    import time
+
+    from sosalgo.analysis import analyze_sublinear
+    from sosalgo.certificates.exact_sublinear import verify_exact_sublinear
+    from sosalgo.sublinear_design import _proven_best
+
+    spec = _spec("operator-proximal-point")
+    points = [(9.998064041137695,), (9.5,)]
+    done = {p: analyze_sublinear(spec, {"alpha": p[0]}) for p in points}
+    point, res = _proven_best(spec, ["alpha"], done, time.monotonic() + 600)
+    alpha = point[0]
+    proof = verify_exact_sublinear(spec, json.loads(json.dumps(res.to_dict())),
+                                   {"alpha": alpha})
+    assert proof.ok, proof.reason
+    assert 1 / (math.e * alpha ** 2) <= res.constant <= (1 + 1e-5) / alpha ** 2
+
+
+@pytest.mark.deep
+def test_design_verify_proves_what_design_claims(tmp_path):
+    """``design --verify`` on the shipped proximal point spec (the best step is the box's
+    edge): exit 0, the reported constant proven exactly, between the best c 1/(e alpha^2)
+    and 1/alpha^2 at the reported alpha, which is near the edge alpha = 10."""
+    args = ["design", str(SPECS / "operator-proximal-point.yaml"), "--verify", "--json",
+            "--out", str(tmp_path), "--quiet", "--time-limit", "60"]
+    r = CliRunner().invoke(cli, args)
+    assert r.exit_code == 0, r.output
+    row = json.loads(r.stdout)  # a design document: one row
+    alpha = row["theta"]["alpha"]
+    assert row["verified"] == "exact" and alpha > 9
+    assert 1 / (math.e * alpha ** 2) <= row["constant"] <= (1 + 1e-5) / alpha ** 2
