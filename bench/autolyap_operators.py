@@ -14,6 +14,17 @@ Both tools get the same method at the same point, the same operator classes and 
   ``rho^2 = (|1 - lambda/2| + lambda/2 delta)^2``, ``delta = sqrt(1 - 4 gamma mu /
   (1 + 2 gamma mu + gamma^2 L^2))``. The grid: AutoLyap's sweep (mu = 1, L = 2,
   lambda = 2, gamma in (0, 5]) and a grid in (mu, L, gamma, lambda) around it.
+- **Chambolle-Pock** as in AutoLyap's published example (``chambolle_pock/
+  smooth_strongly_convex``): the identity-operator case ``x+ = prox_{tau f1}(x - tau y)``,
+  ``y+ = prox_{sigma f2*}(y + sigma (x+ + theta (x+ - x)))``, ``f1`` and ``f2`` both
+  0.05-strongly convex and 50-smooth, tau = sigma, measure ``|x_k - x*|^2`` at f1's point
+  (AutoLyap's ``get_parameters_distance_to_solution(i=1)``), h = 0, its default options;
+  ours: ``bench/chambolle-pock-autolyap.yaml`` (AutoLyap's A, B, C, D; not
+  ``specs/chambolle-pock.yaml``, which is the convex case with a linear operator M and a
+  fixed-point-residual measure). The points: a spread of AutoLyap's published sweep (100
+  values of tau = sigma on [0.5, 1.75], 100 of theta on [0, 8], rho from a bisection to
+  1e-3 with MOSEK), its published rho stored beside each; ours must be proven at most its
+  square root + ``TOL``.
 - **Davis-Yin** (``specs/davis-yin.yaml``: ``A`` maximally monotone, ``B`` beta-cocoercive,
   ``C`` smooth strongly convex) passed to AutoLyap as a custom ``Algorithm`` with our
   A, B, C, D (components in our call order, ``C`` a function, ``A`` and ``B`` operators),
@@ -37,11 +48,14 @@ from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from bench.autolyap import autolyap_python, autolyap_rates, rho2_tolerance
 from bench.common import one_core, timed
 from sosalgo.analysis import analyze_algorithm
 from sosalgo.certificates.interpolation import Interpolation
 from sosalgo.model import bind
+from sosalgo.spec import load_spec
 from sosalgo.spec.loading import spec_from_text
 from sosalgo.spec.overrides import apply_overrides
 
@@ -69,13 +83,26 @@ m: MU
 kappa: [2]
 """
 
+# AutoLyap's Chambolle-Pock example: f1, f2 in F_{0.05, 50}, tau = sigma = 1/2 + (5/4) i / 99,
+# theta = 8 j / 99 (its sweep's grid, i, j = 0..99); (i, j, its published rho on
+# |x_k - x*|^2) at a spread of the feasible points, from its docs' data
+# (``docs/source/data/chambolle_pock_smooth_strongly_convex/tau_theta_rho.csv``, AutoLyap
+# 0.2.1), the smallest published rho (87, 3) among them.
+CP_SPEC = Path(__file__).resolve().parent / "chambolle-pock-autolyap.yaml"
+CP_MU, CP_L = 0.05, 50.0
+CP_PUBLISHED = ((87, 3, 0.880859375), (0, 0, 0.966796875), (33, 11, 0.9306640625),
+                (66, 0, 0.9814453125), (0, 88, 0.9638671875), (11, 33, 0.9521484375),
+                (22, 22, 0.94140625), (44, 0, 0.9482421875), (11, 55, 0.953125),
+                (55, 11, 0.9111328125))
+CP_QUICK = 4
+
 # Runs in AutoLyap's interpreter: reads jobs (JSON) on stdin, writes results (JSON).
 WORKER = r'''
 import json, os, statistics, sys, time, warnings
 import numpy as np
 from importlib.metadata import version
 from autolyap import IterationIndependent, SolverOptions
-from autolyap.algorithms import DouglasRachford
+from autolyap.algorithms import ChambollePock, DouglasRachford
 from autolyap.algorithms.algorithm import Algorithm
 from autolyap.problemclass import (Cocoercive, InclusionProblem, LipschitzOperator,
                                    MaximallyMonotone, SmoothStronglyConvex, StronglyMonotone)
@@ -114,6 +141,11 @@ def one_rate(job):
         return LC.bisection_search_rho(prob, algo, P, T, S_equals_T=True, s_equals_t=True,
                                        remove_C3=True, tol=job["tol"], solver_options=OPTS,
                                        verbosity=0)
+    if job["method"] == "cp":
+        algo = ChambollePock(tau=job["tau"], sigma=job["sigma"], theta=job["theta"])
+        P, p, T, t = LC.get_parameters_distance_to_solution(algo, i=1)
+        return LC.bisection_search_rho(prob, algo, P, T, p=p, t=t, tol=job["tol"],
+                                       solver_options=OPTS, verbosity=0)
     algo = Given(job["A"], job["B"], job["C"], job["D"], job["funcs"])
     P, p, T, t = LC.get_parameters_distance_to_solution(algo)
     return LC.bisection_search_rho(prob, algo, P, T, p, t, tol=job["tol"],
@@ -232,6 +264,47 @@ def _dy_cases(quick: bool, repeats: int) -> list[dict]:
     return cases
 
 
+def cp_point(i: int, j: int) -> dict[str, Fraction]:
+    """The parameters (tau, sigma, theta) of point (i, j) of AutoLyap's Chambolle-Pock sweep."""
+    tau = Fraction(1, 2) + Fraction(5, 4) * i / 99
+    return {"tau": tau, "sigma": tau, "theta": Fraction(8) * j / 99}
+
+
+def cp_quadratic_rate(tau: float, sigma: float, theta: float, mu: float, L: float) -> float:
+    """A lower bound of Chambolle-Pock's rate on |x_k - x*| over F_{mu, L} x F_{mu, L}: the
+    largest spectral radius of the iteration on f1 = a/2 |x|^2, f2 = b/2 |x|^2 (a, b on a
+    grid of [mu, L], its ends included), from AutoLyap's A, B, C, D, in floating point:
+    the witness column of these rows and the floor that sizes AutoLyap's bisection."""
+    A = np.array([[1.0, -tau], [0.0, 0.0]])
+    B = np.array([[-tau, 0.0], [0.0, 1.0]])
+    C = np.array([[1.0, -tau], [1.0, 1.0 / sigma - tau * (1.0 + theta)]])
+    D = np.array([[-tau, 0.0], [-tau * (1.0 + theta), -1.0 / sigma]])
+    worst = 0.0
+    for a in np.linspace(mu, L, 9):
+        for b in np.linspace(mu, L, 9):
+            G = np.diag([a, b])
+            T = A + B @ np.linalg.solve(np.eye(2) - G @ D, G @ C)
+            worst = max(worst, float(max(abs(np.linalg.eigvals(T)))))
+    return worst
+
+
+def _cp_cases(quick: bool, repeats: int) -> list[dict]:
+    spec = load_spec(CP_SPEC)
+    kappa = CP_L / CP_MU
+    cases = []
+    for i, j, published in CP_PUBLISHED[:CP_QUICK] if quick else CP_PUBLISHED:
+        theta = cp_point(i, j)
+        tau, th = float(theta["tau"]), float(theta["theta"])
+        floor = cp_quadratic_rate(tau, tau, th, CP_MU, CP_L)
+        job = {"method": "cp", "tau": tau, "sigma": tau, "theta": th, "repeats": repeats,
+               "classes": [["ssc", CP_MU, CP_L], ["ssc", CP_MU, CP_L]],
+               "tol": rho2_tolerance(floor, TOL)}
+        cases.append({"label": f"τ=σ={tau:.4f} θ={th:.4f}", "ref": math.sqrt(published),
+                      "spec": spec, "kappa": kappa, "theta": theta, "job": job,
+                      "witness": floor, "published": True})
+    return cases
+
+
 def _autolyap(python: str, jobs: list[dict]) -> dict:
     return autolyap_rates(python, jobs, WORKER, timeout=1800)
 
@@ -252,9 +325,11 @@ def run(quick: bool = False) -> None:
 def _table(python: str, origin: str, repeats: int, core: str, quick: bool) -> None:
     load = os.getloadavg()[0]
     ratios: dict[str, list[float]] = {}
+    published: list[bool] = []
     header = True
     for name, cases in (("Douglas-Rachford", _dr_cases(quick, repeats)),
-                        ("Davis-Yin", _dy_cases(quick, repeats))):
+                        ("Davis-Yin", _dy_cases(quick, repeats)),
+                        ("Chambolle-Pock", _cp_cases(quick, repeats))):
         for case in cases:  # case by case, so that both tools see the same load
             ours = _ours(bind(case["spec"], case["kappa"], case["theta"]), case["spec"],
                          case["kappa"], case["theta"], repeats)
@@ -263,7 +338,13 @@ def _table(python: str, origin: str, repeats: int, core: str, quick: bool) -> No
                 _print_header(info["version"], origin, core, repeats, load)
                 header = False
             ratios.setdefault(name, []).append(_row(name, case, ours, info["results"][0]))
+            if case.get("published"):
+                published.append(ours["proven"] == "exact" and ours["rho_proven"] is not None
+                                 and ours["rho_proven"] <= case["ref"] + TOL)
     print(f"\n(load average at the end: {os.getloadavg()[0]:.1f})")
+    if published:
+        print(f"Chambolle-Pock: {sum(published)} of {len(published)} points proven exactly at "
+              f"most √(AutoLyap's published rho) + {TOL:g}")
     for name, rs in ratios.items():
         rs = [r for r in rs if math.isfinite(r)]
         print(f"{name}: AutoLyap / sosalgo per rate = {min(rs):.1f}–{max(rs):.1f}x "
@@ -274,10 +355,13 @@ def _print_header(version: str, origin: str, core: str, repeats: int, load: floa
     print(f"AutoLyap {version} ({origin}) against sosalgo on operator rates, median time per "
           f"rate over {repeats} repeats, {core}; load average at start {load:.1f}")
     print("(ρ AutoLyap = √(its rho); reference: Douglas-Rachford Giselsson (2017) Thm. 6.5 "
-          "(tight), Davis-Yin the rate on scalar operators (a lower bound); ρ proven: the "
+          "(tight), Davis-Yin the rate on scalar operators (a lower bound), Chambolle-Pock "
+          "√(AutoLyap's published rho) (an upper bound from its docs' sweep); ρ proven: the "
           "rational rate our certificate is proven for, exactly)")
     print("(witness: the rate of the slowest normal linear instance of the classes found, "
-          "proven in ball arithmetic: no valid rate is below it)")
+          "proven in ball arithmetic: no valid rate is below it; Chambolle-Pock: the largest "
+          "spectral radius on f1 = a/2 |x|^2, f2 = b/2 |x|^2, a, b in [mu, L], in floating "
+          "point)")
     print("| method | point | reference | witness | ρ sosalgo | proof | ρ proven | "
           "ρ AutoLyap | AutoLyap − proven | sosalgo ms | AutoLyap ms | ratio | CPU ratio |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
@@ -287,11 +371,15 @@ def _row(name: str, case: dict, ours: dict, res: dict) -> float:
     theirs = res["rho2"] ** 0.5 if res["status"] == "feasible" else None
     proven = ours["rho_proven"]
     diff = "-" if theirs is None or proven is None else f"{theirs - proven:+.1e}"
-    if theirs is not None and theirs < case["witness"]:
+    witness = case["witness"]
+    if theirs is not None and witness is not None and theirs < witness:
         diff += " (AutoLyap below the witness)"
+    if case.get("published") and (proven is None or proven > case["ref"] + TOL):
+        diff += " (sosalgo above the published rho)"
     ratio = res["median"] / ours["median"]
     cratio = res["cpu"] / ours["cpu"] if ours["cpu"] > 0 else math.nan
-    print(f"| {name} | {case['label']} | {case['ref']:.7f} | {case['witness']:.7f} | "
+    print(f"| {name} | {case['label']} | {case['ref']:.7f} | "
+          f"{'-' if witness is None else f'{witness:.7f}'} | "
           f"{ours['rho']:.7f} | "
           f"{ours['proven']} | {'-' if proven is None else f'{proven:.7f}'} | "
           f"{'-' if theirs is None else f'{theirs:.7f}'} | {diff} | "

@@ -1002,9 +1002,11 @@ def _certify_constant(data: Any, r_star: float, solvers: Sequence[str],
 
 
 def analyze_sublinear(spec: Spec, theta: Mapping[str, float] | None = None,
-                      solvers: Sequence[str] = DEFAULT_SOLVERS) -> SublinearResult:
+                      solvers: Sequence[str] = DEFAULT_SOLVERS,
+                      degrees: Sequence[int] = SUBLINEAR_DEGREES) -> SublinearResult:
     """Smallest constant c certified by a potential with weights polynomial in k
-    (:mod:`sosalgo.certificates.sublinear`; degree 2, else degree 1) for a sublinear spec
+    (:mod:`sosalgo.certificates.sublinear`; degree 2, else degree 1: ``degrees``, the first
+    certified kept) for a sublinear spec
     (``m: 0``, L given): the SDP minimizes c, then c (1 + slack) is solved with a strict
     margin and its point checked in floating point; a solver status other than solved
     certifies nothing (an almost-solved optimum is only where the search starts)."""
@@ -1017,7 +1019,7 @@ def analyze_sublinear(spec: Spec, theta: Mapping[str, float] | None = None,
     count = [0]
     base = dict(L=float(om.L), params=dict(om.params), measure=om.measure)
     estimate = None
-    for deg in SUBLINEAR_DEGREES:
+    for deg in degrees:
         est, found = _sublinear_degree(om, deg, solvers, count)
         estimate = est if estimate is None or (est is not None and est < estimate) else estimate
         if found is not None:

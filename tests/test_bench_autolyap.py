@@ -66,3 +66,65 @@ def test_giselsson_rate_is_attained_by_a_linear_witness(mu, L, gamma, lam):
     lower = witness_rate(spec, L / mu, {"gamma": gamma, "lam": lam})
     closed = giselsson_rho(mu, L, gamma, lam)
     assert closed - 1e-7 <= lower <= closed + 1e-12
+
+
+def _cp_step(tau: float, sigma: float, theta: float, a: float, b: float) -> np.ndarray:
+    """Chambolle-Pock's step on f1 = a/2 |x|^2, f2 = b/2 |x|^2 from its prox formulas:
+    x+ = (x - tau y)/(1 + tau a), y+ = prox_{sigma f2*}(w) = b w/(b + sigma) (f2* = |y|^2/(2b)),
+    w = y + sigma (x+ + theta (x+ - x)); the matrix of (x, y) -> (x+, y+)."""
+    cols = []
+    for x, y in ((1.0, 0.0), (0.0, 1.0)):
+        xp = (x - tau * y) / (1 + tau * a)
+        cols.append([xp, b * (y + sigma * (xp + theta * (xp - x))) / (b + sigma)])
+    return np.array(cols).T
+
+
+@pytest.mark.parametrize("i, j", [(87, 3), (33, 11), (0, 88)])
+def test_chambolle_pock_bench_spec_is_the_method(i: int, j: int) -> None:
+    """The bench's Chambolle-Pock spec (AutoLyap's A, B, C, D) is the method: on scalar
+    quadratics its closed loop has the spectrum of the step written from the prox formulas,
+    and the bench's lower bound is the largest such spectral radius on its grid."""
+    from bench.autolyap_operators import CP_L, CP_MU, CP_SPEC, cp_point, cp_quadratic_rate
+
+    theta = cp_point(i, j)
+    tau, th = float(theta["tau"]), float(theta["theta"])
+    alg = bind(load_spec(CP_SPEC), CP_L / CP_MU, theta)
+    worst = 0.0
+    for a in np.linspace(CP_MU, CP_L, 9):
+        for b in np.linspace(CP_MU, CP_L, 9):
+            G = np.diag([a, b])
+            T = alg.A + alg.B @ np.linalg.solve(np.eye(2) - G @ alg.D, G @ alg.C)
+            step = _cp_step(tau, tau, th, a, b)
+            assert np.sort_complex(np.linalg.eigvals(T)) == pytest.approx(
+                np.sort_complex(np.linalg.eigvals(step)), abs=1e-12)
+            worst = max(worst, max(abs(np.linalg.eigvals(step))))
+    assert cp_quadratic_rate(tau, tau, th, CP_MU, CP_L) == pytest.approx(worst, abs=1e-12)
+
+
+@pytest.mark.parametrize("i, j, published", [(87, 3, 0.880859375), (33, 11, 0.9306640625)])
+def test_chambolle_pock_at_least_as_tight_as_autolyaps_published_curve(i, j, published):
+    """At points of AutoLyap's published Chambolle-Pock sweep (its stored rho on
+    |x_k - x*|^2): our rate is proven exactly, at most sqrt(its rho) + 1e-6, and not below
+    the rate on scalar quadratics (a lower bound of every valid rate)."""
+    from bench.autolyap_operators import (
+        CP_L,
+        CP_MU,
+        CP_PUBLISHED,
+        CP_SPEC,
+        TOL,
+        cp_point,
+        cp_quadratic_rate,
+    )
+    from sosalgo.analysis import analyze_algorithm
+    from sosalgo.certificates.interpolation import Interpolation
+
+    assert (i, j, published) in CP_PUBLISHED
+    spec, kappa, theta = load_spec(CP_SPEC), CP_L / CP_MU, cp_point(i, j)
+    fam = Interpolation()
+    res = analyze_algorithm(bind(spec, kappa, theta), tol=TOL, family=fam)
+    proof = fam.exact_check(spec, kappa, res.rho, res.certificate, theta)
+    assert proof.verified == "exact"
+    assert proof.rho_proven_float <= math.sqrt(published) + 1e-6
+    floor = cp_quadratic_rate(float(theta["tau"]), float(theta["sigma"]),
+                              float(theta["theta"]), CP_MU, CP_L)
+    assert proof.rho_proven_float >= floor - 1e-9

@@ -174,3 +174,84 @@ def test_constant_does_not_depend_on_units(name, L, floor, top):
     c, proven = _constant(spec_from_text(text.replace("\nL: 1 ", f"\nL: {L} "), str(path)))
     for value in (c, proven):
         assert floor * (1 - 1e-12) <= value <= top * (1 + 1e-2)
+
+
+@pytest.mark.parametrize("name, peps, comparable", [
+    ("krasnoselskii-mann", "(n/(n + 1))**n/((n + 1) 4 gamma (1 - gamma)) at n = 3",
+     {"c = 1/(gamma (1 - gamma)) at gamma = 3/4": 1 / (0.75 * 0.25)}),
+    ("operator-proximal-point", "(1 - 1/N)**(N - 1)/N at N = 10",
+     {"c = 1/alpha^2 at alpha = 2": 1 / 4, "best c = 1/(e alpha^2) at alpha = 2":
+      1 / (math.e * 4)}),
+])
+def test_analyze_shows_the_constants_closed_forms_not_peps_value(tmp_path, name, peps,
+                                                                 comparable):
+    """Beside the certified constant c the table shows the closed forms of c (computed
+    here), not the spec's pep reference (the worst measure after N steps, another
+    quantity): its CSV column is kept and empty, its column is not printed."""
+    import csv
+
+    out = tmp_path / "o"
+    r = CliRunner().invoke(cli, ["analyze", str(SPECS / f"{name}.yaml"), "--out", str(out),
+                                 "--no-plot", "--workers", "1"])
+    assert r.exit_code == 0, r.output
+    assert peps not in r.output
+    row = next(csv.DictReader((out / f"{name}-analysis.csv").open()))
+    pep_col = [c for c in row if c.startswith(peps)]
+    assert len(pep_col) == 1 and row[pep_col[0]] == ""
+    for words, value in comparable.items():
+        col = [c for c in row if c.startswith(words)]
+        assert len(col) == 1 and f"reference: {col[0]}" in r.output
+        assert float(row[col[0]]) == pytest.approx(value, rel=1e-12)
+        if words.startswith("best"):  # no valid c is below the best c
+            assert float(row["constant"]) >= value
+    if name == "operator-proximal-point":  # the best c: sup_k k * Gu-Yang's worst case
+        best = max(k * _ppm_worst(k, 2.0) for k in HORIZON)
+        assert best <= 1 / (math.e * 4) <= best * (1 + 1e-2)
+
+
+def test_pep_references_must_name_references():
+    """``pep.references`` names references of the spec, else one line naming the field."""
+    from sosalgo.spec.types import SpecError
+
+    path = SPECS / "krasnoselskii-mann.yaml"
+    text = path.read_text().replace('    - "(n/(n + 1))**n', '    - "(n/(n + 2))**n')
+    with pytest.raises(SpecError) as exc:
+        spec_from_text(text, str(path))
+    assert exc.value.field == "pep.references"
+
+
+def test_design_reports_a_point_whose_certificate_is_proven():
+    """Near the box's edge (alpha about 10) the degree-2 certificate of the proximal point
+    may not be provable; the design's choice of its reported point keeps the best point
+    whose certificate the exact proof accepts (else the degree-1 potential's at the same
+    point), and its constant lies between Gu and Yang's best c and the elementary 1/alpha^2."""
+    import time
+
+    from sosalgo.analysis import analyze_sublinear
+    from sosalgo.certificates.exact_sublinear import verify_exact_sublinear
+    from sosalgo.sublinear_design import _proven_best
+
+    spec = _spec("operator-proximal-point")
+    points = [(9.998064041137695,), (9.5,)]
+    done = {p: analyze_sublinear(spec, {"alpha": p[0]}) for p in points}
+    point, res = _proven_best(spec, ["alpha"], done, time.monotonic() + 600)
+    alpha = point[0]
+    proof = verify_exact_sublinear(spec, json.loads(json.dumps(res.to_dict())),
+                                   {"alpha": alpha})
+    assert proof.ok, proof.reason
+    assert 1 / (math.e * alpha ** 2) <= res.constant <= (1 + 1e-5) / alpha ** 2
+
+
+@pytest.mark.deep
+def test_design_verify_proves_what_design_claims(tmp_path):
+    """``design --verify`` on the shipped proximal point spec (the best step is the box's
+    edge): exit 0, the reported constant proven exactly, between the best c 1/(e alpha^2)
+    and 1/alpha^2 at the reported alpha, which is near the edge alpha = 10."""
+    args = ["design", str(SPECS / "operator-proximal-point.yaml"), "--verify", "--json",
+            "--out", str(tmp_path), "--quiet", "--time-limit", "60"]
+    r = CliRunner().invoke(cli, args)
+    assert r.exit_code == 0, r.output
+    row = json.loads(r.stdout)  # a design document: one row
+    alpha = row["theta"]["alpha"]
+    assert row["verified"] == "exact" and alpha > 9
+    assert 1 / (math.e * alpha ** 2) <= row["constant"] <= (1 + 1e-5) / alpha ** 2

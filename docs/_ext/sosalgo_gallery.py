@@ -140,8 +140,16 @@ def pep_rows(spec: Any) -> list[dict[str, Any]]:
         rows.append({"steps": n, "kappa": kappa, "tau": res.tau,
                      "proven": cert.get("tau_proven"), "measure": res.measure,
                      "initial": res.initial,
-                     "references": reference_values(spec, kappa, n)})
+                     "references": pep_references(spec, reference_values(spec, kappa,
+                                                                           n))})
     return rows
+
+
+def pep_references(spec: Any, values: dict[str, float]) -> dict[str, float]:
+    """The references of pep's question: those ``pep.references`` names when it names
+    some (the others are about analyze's constant), else all."""
+    named = spec.pep.get("references")
+    return values if named is None else {r: v for r, v in values.items() if r in named}
 
 
 def spec_numbers(path: Path, cache: Path) -> tuple[dict[str, Any], Path | None]:

@@ -417,7 +417,7 @@ def pep_section(spec: Any, rows: list[dict[str, Any]], image: str) -> list[str]:
              "forms (`references:`), rounded.", "",
              "```{list-table}", ":header-rows: 1", "", "* - $N$",
              "  - proven $\\tau_N$", "  - PEP $\\tau_N$"]
-    refs = list(spec.references)
+    refs = list(rows[0]["references"])  # pep's question's (pep.references when named)
     lines += [f"  - reference: {md_text(r)}" for r in refs]
     for row in rows:
         lines += [f"* - {row['steps']}", f"  - {rate_cell(row, 'tau')}",
@@ -508,7 +508,7 @@ def _sublinear_axes(ax: Any, style: Any, spec: Any, rows: list[dict[str, Any]]) 
 
 def _steps_axes(ax: Any, style: Any, spec: Any, rows: list[dict[str, Any]]) -> None:
     ns = [r["steps"] for r in rows]
-    for i, name in enumerate(spec.references):
+    for i, name in enumerate(rows[0]["references"]):  # pep's question's
         ys = [np.nan if r["references"].get(name) is None else r["references"][name]
               for r in rows]
         ax.plot(ns, ys, "s--", color=style.color(i), label=f"reference: {name}", zorder=4,

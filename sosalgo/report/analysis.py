@@ -146,7 +146,8 @@ def analysis_table(spec: Spec, rows: list[dict[str, Any]], columns: list[str],
     if own is not None:
         columns = own.printed_columns(columns)
     columns = printed_columns(columns, details)
-    refs = list(spec.references)
+    pep_only = set(spec.pep.get("references", ()))  # empty here (pep's question's values)
+    refs = [n for n in spec.references if n not in pep_only]
     return format_table([{**r, **r["references"]} for r in rows], columns + refs,
                         columns + [reference_header(n) for n in refs])
 

@@ -21,7 +21,7 @@ import re
 import select
 import stat
 import time
-from collections.abc import Collection
+from collections.abc import Collection, Mapping
 from fractions import Fraction
 from pathlib import Path
 from typing import Any
@@ -290,10 +290,14 @@ class _Builder:
     def fail(self, field_: str, message: str) -> SpecError:
         return SpecError(self.source, field_, message)
 
-    def pep_terms(self, raw: object) -> dict[str, str]:
-        """``pep: {measure: TERMS, initial: TERMS, constraints: [RELATION, ...]}`` (the
-        terms are parsed by ``sosalgo pep``, :mod:`sosalgo.worstcase.terms`, which names
-        pep.measure, pep.initial or pep.constraints[i]; constraints are kept as a list)."""
+    def pep_terms(self, raw: object, references: Mapping[str, Any] | None = None
+                  ) -> dict[str, Any]:
+        """``pep: {measure: TERMS, initial: TERMS, constraints: [RELATION, ...],
+        references: [NAME, ...]}`` (the terms are parsed by ``sosalgo pep``,
+        :mod:`sosalgo.worstcase.terms`, which names pep.measure, pep.initial or
+        pep.constraints[i]; constraints are kept as a list; ``references`` names the spec's
+        references that are values of pep's question, not of analyze's:
+        :func:`sosalgo.spec.references.reference_values` leaves them empty)."""
         if raw is None:
             return {}
         cons = raw.get("constraints") if isinstance(raw, dict) else None
@@ -301,18 +305,33 @@ class _Builder:
                                  or not all(isinstance(c, str) and c.strip() for c in cons)):
             raise self.fail("pep.constraints", "expected a list of relations such as "
                             "'gamma*grad(x_0) == 2*f(x_0)' (==, <= or >=)")
-        text = {k: v for k, v in raw.items() if k != "constraints"} if isinstance(
-            raw, dict) else raw
+        refs = self.pep_references(raw, references or {})
+        text = {k: v for k, v in raw.items() if k not in ("constraints", "references")
+                } if isinstance(raw, dict) else raw
         if (not isinstance(text, dict) or not raw
                 or set(text) - {"measure", "initial"}
                 or not all(isinstance(v, str) and v.strip() for v in text.values())):
-            raise self.fail("pep", "expected a mapping with measure, initial and/or "
-                                   "constraints, the first two terms such as 'mingrad', "
-                                   "'f(x_0) - f(x_N)'")
+            raise self.fail("pep", "expected a mapping with measure, initial, constraints "
+                                   "and/or references, the first two terms such as "
+                                   "'mingrad', 'f(x_0) - f(x_N)'")
         out: dict[str, Any] = {str(k): str(v) for k, v in text.items()}
         if cons is not None:
             out["constraints"] = [str(c) for c in cons]
+        if refs is not None:
+            out["references"] = refs
         return out
+
+    def pep_references(self, raw: object, references: Mapping[str, Any]) -> list[str] | None:
+        """``pep.references``: names of the spec's references (None when absent)."""
+        names = raw.get("references") if isinstance(raw, dict) else None
+        if names is None:
+            return None
+        if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+            raise self.fail("pep.references", "expected a list of the names of references")
+        for n in names:
+            if n not in references:
+                raise self.fail("pep.references", f"{n[:60]!r} is not one of references:")
+        return list(names)
 
     # -- top level -------------------------------------------------------------------
     def build(self, data: object) -> Spec:
@@ -407,7 +426,7 @@ class _Builder:
             initial_state=initial_state, m_expr=parse_tree(data.get("m", 1), ()),
             L_expr=parse_tree(data["L"], ()) if L is not None else None,
             sequences=sequences, time_varying=varies,
-            pep=self.pep_terms(data.get("pep")),
+            pep=self.pep_terms(data.get("pep"), references),
             line_search=self.line_search(data.get("line_search"), params, matrices, output),
             span_search=self.span_search(data, functions, oracles),
             mirror=self.mirror(data, functions, matrices, output, inexact or lmo or epsilon),
@@ -458,7 +477,7 @@ class _Builder:
             matrices={}, references=references, kappa=kappa, m=m, functions=functions,
             oracles=(), measure="function", L=L, m_expr=parse_tree(data.get("m", 1), ()),
             L_expr=parse_tree(data["L"], ()) if L is not None else None,
-            pep=self.pep_terms(data.get("pep")), finite_sum=fs)
+            pep=self.pep_terms(data.get("pep"), references), finite_sum=fs)
 
     def name(self, raw: object) -> str:
         if raw is None:

@@ -32,12 +32,15 @@ def _reference_fns(spec: Spec) -> dict[str, Any]:
 
 
 def reference_values(spec: Spec, kappa: float) -> dict[str, float | None]:
-    """Closed-form reference rates at kappa (None where not defined)."""
+    """Closed-form reference rates at kappa, the values beside an analysis or a design
+    (None where not defined, and for a reference that ``pep.references`` names: a value
+    of pep's question, the spec's measure after N steps, not of the rate or constant)."""
     out: dict[str, float | None] = {}
     m, L = spec.mL(kappa)
+    pep_only = set(spec.pep.get("references", ()))
     for name, fn in _reference_fns(spec).items():
         try:
-            out[name] = None if fn is None else fn([m, L, kappa])
+            out[name] = None if fn is None or name in pep_only else fn([m, L, kappa])
         except ValueError:
             out[name] = None
     return out
