@@ -155,7 +155,11 @@ def solve_affine(eqs: Sequence[Sequence[Any]], rhs: Sequence[Any], n: int,
     solved from them; None when the system is inconsistent."""
     from flint import fmpq, fmpq_mat
 
+    zero = fmpq(0)
+
     def q(v: Any) -> Any:
+        if not v:
+            return zero
         f = Fraction(v)
         return fmpq(f.numerator, f.denominator)
 

@@ -569,6 +569,8 @@ def _interior_certificate(data: PEPData, tau: float, scale: float) -> SDPAnswer 
         cand = solve_pep(data, margin=rel / scale, unit=tau if tau > 1e-200 else 1.0)
         if cand.status == "solved" and cand.S is not None and _min_eig(cand.S, data.w) > 0:
             return cand
+        if cand.status == "unbounded":  # no certificate with this margin: none with a
+            return None  # larger one either
     return None
 
 
@@ -743,7 +745,9 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
     best = ans
     raw: list[tuple[SDPAnswer, float]] = []  # the margin solves before any mixing
     units = _linear_only(data)
-    inner = _interior_certificate(data, tau, scale) if exact and data.strong else None
+    # directions no form has a square of: S is 0 on their rows, never positive definite
+    inner = (_interior_certificate(data, tau, scale) if exact and data.strong
+             and units is None else None)
     polish = _polished(data, ans, tau) if exact and units is None else None
     polish_raw = True  # the polished answer as it is: tried once
     kept: tuple[dict[str, Any], SDPAnswer] | None = None  # a loose proof, while looking on
@@ -752,6 +756,8 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
         eps = rel / scale  # relative to tau: the measure is divided by tau
         cand = ans if rel == 0 else solve_pep(data, margin=eps, unit=tau if tau > 1e-200
                                               else 1.0, precise=precise)
+        if cand.status == "unbounded":  # no certificate with this margin: none with the
+            break  # larger ones either (the ladder's margins grow)
         if cand.status != "solved" or cand.tau + cand.const > 2 * abs(tau) + 1e-9:
             continue  # not solved, or "solved" at twice tau or more (a solver's bad answer)
         if rel > 0:
