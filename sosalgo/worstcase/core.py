@@ -762,6 +762,7 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
             continue  # not solved, or "solved" at twice tau or more (a solver's bad answer)
         if rel > 0:
             raw.append((cand, eps))
+        answer = cand
         tries = _polish_tries(polish, inner if inner is not None else cand, data.w,
                               polish_raw)
         polish_raw = False
@@ -774,7 +775,9 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
         if cert.get("tau_proven"):
             if kept is None or _tighter(cert, kept[0]):
                 kept = dict(cert), best
-            if not _loose(cert, tau) or extra == 0:
+            # this rung's own answer proven (no polish, no mix): the larger margins'
+            # answers prove no less
+            if not _loose(cert, tau) or extra == 0 or best is answer:
                 break
             extra -= 1  # a loose proof (a polished mix): the next rungs' own answers
             cert["tau_proven"], polish = None, None  # may prove tighter
