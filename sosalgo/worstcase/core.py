@@ -620,6 +620,15 @@ def _loose(cert: dict[str, Any], tau: float) -> bool:
     return bool(proven) and float(Fraction(proven)) > tau + LOOSE_REL * abs(tau)
 
 
+def _own_bound(cert: dict[str, Any], answer: SDPAnswer, best: SDPAnswer, tau: float) -> bool:
+    """Whether the proven ``cert`` is this rung's own answer (no polish, no mix) proven at
+    its own bound (the first bound step): the loose proof is the margin's cost, and the
+    larger margins' answers cost more (a proof at a later bound step may still be
+    tightened by the next rung's answer)."""
+    own = max(answer.tau + answer.const, tau)
+    return best is answer and float(Fraction(cert["tau_proven"])) <= own + 1e-9 * abs(own)
+
+
 def _null_row_proof(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
                     ans: SDPAnswer, mterms: list[Term], iterms: list[Term],
                     ex: Method | None, cert: dict[str, Any], tau: float,
@@ -775,9 +784,7 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
         if cert.get("tau_proven"):
             if kept is None or _tighter(cert, kept[0]):
                 kept = dict(cert), best
-            # this rung's own answer proven (no polish, no mix): the larger margins'
-            # answers prove no less
-            if not _loose(cert, tau) or extra == 0 or best is answer:
+            if not _loose(cert, tau) or extra == 0 or _own_bound(cert, answer, best, tau):
                 break
             extra -= 1  # a loose proof (a polished mix): the next rungs' own answers
             cert["tau_proven"], polish = None, None  # may prove tighter
