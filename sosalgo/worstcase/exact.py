@@ -1159,11 +1159,13 @@ def _rational_parts(mt: Method, st: PEPStructure, lam: Sequence[Fraction],
         return None
     quads, lins = parts
     d = st.d
-    quad: list[list[Fraction]] = [] if values_only else [[Fraction(0)] * d for _ in range(d)]
-    for k, q in zip(support, quads, strict=True):
-        for i, row in q.items() if not values_only else ():
-            for j, v in row.items():
-                quad[i][j] += lam[k] * v
+    quad: list[list[Fraction]] = []
+    if not values_only:
+        quad = [[Fraction(0)] * d for _ in range(d)]
+        for k, q in zip(support, quads, strict=True):
+            for i, row in q.items():
+                for j, v in row.items():
+                    quad[i][j] += lam[k] * v
     lin = [Fraction(0)] * st.nF
     for k, a in zip(support, lins, strict=True):
         for i, v in enumerate(a):
