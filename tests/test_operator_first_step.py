@@ -129,3 +129,15 @@ def test_the_start_step_is_a_projection_and_an_evaluation():
     assert np.allclose(oms[1].C, [[1, -0.25, 0], [1, -0.25, 0]])
     assert np.allclose(oms[1].D, [[-0.25, 0], [-0.25, 0]])
     assert np.allclose(oms[0].B[0], 0) and np.allclose(oms[1].B[0], [-0.25, -0.25])
+
+
+def test_witness_lower_bound_reaches_pepit_value():
+    """The start calls the indicator twice at x_0 (two normal vectors): their pair's
+    inequalities hold with equality, so the witness search asks no slack of them, and
+    its verified lower bound comes within 1e-4 of PEPit's value (never above it)."""
+    key = ("past-extragradient", "1/4", 2)
+    res = sosalgo.pep(_spec(*key[:2]), None, _steps(key[0], key[2]))
+    check = res.witness["check"]
+    assert check["verified"]
+    low = float(Fraction(check["tau_lower"]))
+    assert PEPIT[key] * (1 - 1e-4) <= low <= PEPIT[key] * (1 + PEPIT_ACCURACY)

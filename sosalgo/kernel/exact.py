@@ -156,7 +156,11 @@ def solve_affine(eqs: Sequence[Sequence[Any] | Mapping[int, Any]], rhs: Sequence
     solved from them; None when the system is inconsistent."""
     from flint import fmpq, fmpq_mat
 
+    zero = fmpq(0)
+
     def q(v: Any) -> Any:
+        if not v:
+            return zero
         f = v if isinstance(v, Fraction) else Fraction(v)
         return fmpq(f.numerator, f.denominator)
 

@@ -574,6 +574,8 @@ def _interior_certificate(data: PEPData, tau: float, scale: float) -> SDPAnswer 
         cand = solve_pep(data, margin=rel / scale, unit=tau if tau > 1e-200 else 1.0)
         if cand.status == "solved" and cand.S is not None and _min_eig(cand.S, data.w) > 0:
             return cand
+        if cand.status == "unbounded":  # no certificate with this margin: none with a
+            return None  # larger one either
     return None
 
 
@@ -621,6 +623,15 @@ def _loose(cert: dict[str, Any], tau: float) -> bool:
     """Whether ``cert`` is proven but more than LOOSE_REL (relative) above ``tau``."""
     proven = cert.get("tau_proven")
     return bool(proven) and float(Fraction(proven)) > tau + LOOSE_REL * abs(tau)
+
+
+def _own_bound(cert: dict[str, Any], answer: SDPAnswer, best: SDPAnswer, tau: float) -> bool:
+    """Whether the proven ``cert`` is this rung's own answer (no polish, no mix) proven at
+    its own bound (the first bound step): the loose proof is the margin's cost, and the
+    larger margins' answers cost more (a proof at a later bound step may still be
+    tightened by the next rung's answer)."""
+    own = max(answer.tau + answer.const, tau)
+    return best is answer and float(Fraction(cert["tau_proven"])) <= own + 1e-9 * abs(own)
 
 
 def _null_row_proof(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
@@ -748,7 +759,9 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
     best = ans
     raw: list[tuple[SDPAnswer, float]] = []  # the margin solves before any mixing
     units = _linear_only(data)
-    inner = _interior_certificate(data, tau, scale) if exact and data.strong else None
+    # directions no form has a square of: S is 0 on their rows, never positive definite
+    inner = (_interior_certificate(data, tau, scale) if exact and data.strong
+             and units is None else None)
     polish = _polished(data, ans, tau) if exact and units is None else None
     polish_raw = True  # the polished answer as it is: tried once
     kept: tuple[dict[str, Any], SDPAnswer] | None = None  # a loose proof, while looking on
@@ -764,10 +777,13 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
         eps = rel / scale  # relative to tau: the measure is divided by tau
         cand = ans if rel == 0 else solve_pep(data, margin=eps, unit=tau if tau > 1e-200
                                               else 1.0, precise=precise)
+        if cand.status == "unbounded":  # no certificate with this margin: none with the
+            break  # larger ones either (the ladder's margins grow)
         if cand.status != "solved" or cand.tau + cand.const > 2 * abs(tau) + 1e-9:
             continue  # not solved, or "solved" at twice tau or more (a solver's bad answer)
         if rel > 0:
             raw.append((cand, eps))
+        answer = cand
         tries = _polish_tries(polish, inner if inner is not None else cand, data.w,
                               polish_raw)
         polish_raw = False
@@ -785,7 +801,7 @@ def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
         if cert.get("tau_proven"):
             if kept is None or _tighter(cert, kept[0]):
                 kept = dict(cert), best
-            if not _loose(cert, tau) or extra == 0:
+            if not _loose(cert, tau) or extra == 0 or _own_bound(cert, answer, best, tau):
                 break
             extra -= 1  # a loose proof (a polished mix): the next rungs' own answers
             cert["tau_proven"], polish = None, None  # may prove tighter

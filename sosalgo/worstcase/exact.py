@@ -26,6 +26,7 @@ rational that holds it (:func:`sosalgo.worstcase.structure.coarsen`, outward).
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Mapping, Sequence
@@ -645,17 +646,23 @@ def rational_up(x: Fraction, bits: int = 64) -> Fraction:
     return Fraction(math.ceil(x / Fraction(2) ** e)) * Fraction(2) ** e
 
 
-# a least eigenvalue of the scaled S's midpoint below this (relative to its largest entry)
-# is no float round-off (about d 1e-16 of it): S is indefinite, no exact test can prove it
-INDEFINITE_REL = 1e-10
-INDEFINITE = "indefinite"
-
-
 def prove_scaled_psd(S: arb_mat, w: np.ndarray) -> tuple[bool, Fraction, str]:
     """Prove D S D ⪰ delta I (D = diag(w), powers of two; so S ⪰ 0) for every matrix in
     the balls: a floating-point Cholesky factor L of mid(D S D) - t I, then
     D S D - t I - L L' = E in ball arithmetic and |E|_F < t, so D S D ⪰ (t - |E|_F) I.
     (A singular S is decided in exact rationals instead: :func:`prove_at`.)"""
+    return _scaled_psd(S, w)[:3]
+
+
+# a least eigenvalue estimate of the scaled S below -INDEFINITE times its largest entry:
+# S is indefinite (the float estimate errs by about d 2^-52 of that entry; d <= 40 here),
+# so no exact decision of S ⪰ 0 is tried
+INDEFINITE = 1e-10
+
+
+def _scaled_psd(S: arb_mat, w: np.ndarray) -> tuple[bool, Fraction, str, bool]:
+    """:func:`prove_scaled_psd`, and whether the scaled S is clearly indefinite (its
+    least eigenvalue estimate below -:data:`INDEFINITE` of its largest entry)."""
     from sosalgo.kernel.arb import arb_fraction
     from sosalgo.kernel.exact import rational
 
@@ -669,16 +676,16 @@ def prove_scaled_psd(S: arb_mat, w: np.ndarray) -> tuple[bool, Fraction, str]:
     try:
         est = float(np.linalg.eigvalsh(mid)[0])
     except np.linalg.LinAlgError:
-        return False, Fraction(0), "eigenvalues of the scaled S failed"
+        return False, Fraction(0), "eigenvalues of the scaled S failed", False
     if not est > 0:
-        indefinite = est < -INDEFINITE_REL * max(1.0, float(np.abs(mid).max()))
-        return False, Fraction(0), (f"not proven (min eig estimate {est:.3g}, scaled"
-                                    + (f"; {INDEFINITE})" if indefinite else ")"))
+        top = float(np.abs(mid).max(initial=0.0))
+        return (False, Fraction(0), f"not proven (min eig estimate {est:.3g}, scaled)",
+                est < -INDEFINITE * top)
     t = rational(est / 2)
     try:
         Lf = np.linalg.cholesky(mid - float(t) * np.eye(d))
     except np.linalg.LinAlgError:
-        return False, Fraction(0), "Cholesky of the scaled S failed"
+        return False, Fraction(0), "Cholesky of the scaled S failed", False
     Lb = arb_mat([[arb(float(v)) for v in row] for row in Lf])
     E = T - Lb * Lb.transpose()
     for i in range(d):
@@ -687,8 +694,8 @@ def prove_scaled_psd(S: arb_mat, w: np.ndarray) -> tuple[bool, Fraction, str]:
     delta = ball(t) - frob
     if not delta > 0:
         return False, Fraction(0), (f"not proven: residual {float(frob.upper()):.3g} >= "
-                                    f"{float(t):.3g}")
-    return True, arb_fraction(delta.lower()), "Cholesky with ball residual (scaled)"
+                                    f"{float(t):.3g}"), False
+    return True, arb_fraction(delta.lower()), "Cholesky with ball residual (scaled)", False
 
 
 def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
@@ -902,11 +909,19 @@ def _prove_null_rows(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Fraction
     if coarse:
         tries += [(cut, snap) for cut in COARSE_CUTS for snap in COARSE_SNAPS
                   if (cut, snap) not in tries]
+    seen: set[tuple[Fraction, ...]] = set()  # multipliers already tried
+    inputs: set[tuple[Fraction, ...]] = set()  # with ``units``: snapped values already tried
     for cut, snap in tries:
         kept = np.where(lam > cut * float(np.max(lam, initial=0.0)), lam, 0.0)
+        if units:  # the null space does not depend on the snap: only the values do
+            key = tuple(_snapped(float(v), snap) if v else 0 for v in kept)
+            if key in inputs:
+                continue
+            inputs.add(key)
         exact_lam = null_row_multipliers(mt, st, kept, tq, S, w, snap, units, null_tol)
-        if exact_lam is None:
+        if exact_lam is None or tuple(exact_lam) in seen:
             continue
+        seen.add(tuple(exact_lam))
         ok, lq2, delta, why = prove_at(mt, st, exact_lam, tq, w, repair=False)
         if ok:
             return ok, lq2, delta, why, tq
@@ -1006,6 +1021,7 @@ def rational_null_space(S: np.ndarray, w: np.ndarray, snap: tuple[int, float] | 
     return out
 
 
+@functools.lru_cache(maxsize=1 << 16)  # the same float multipliers meet every snap and bound
 def _snapped(v: float, snap: tuple[int, float] | None) -> Fraction:
     """The fraction of denominator <= q nearest v when within tol (relative; ``snap`` =
     (q, tol)), else v's binary value."""
@@ -1118,8 +1134,9 @@ def prove_at(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
         else:
             lam2 = list(lam)
             quad, lin = _residual_parts(mt, st, lam2)
-            cF = [coefficient(st, lam2, tb) * ball(st.init_f[k]) - ball(st.meas_f[k])
-                  - lin[k] for k in range(st.nF)]
+            t0 = coefficient(st, lam2, tb)
+            cF = [t0 * ball(st.init_f[k]) - ball(st.meas_f[k]) - lin[k]
+                  for k in range(st.nF)]
         bad = [k for k, c in enumerate(cF) if not c >= 0]
         small = st.d <= RATIONAL_MAX_D
         if bad and not repair and small and _rational_residuals_ok(mt, st, lam2, tq):
@@ -1130,8 +1147,8 @@ def prove_at(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
         if st.constants is not None and not t >= 0:
             return False, lam2, Fraction(0), ("tau - sum of multipliers x constants is not "
                                               "proven >= 0")
-        ok, delta, why = prove_scaled_psd(I0 * t - M - quad, w)
-        if not ok and not repair and small and not why.endswith(f"{INDEFINITE})"):
+        ok, delta, why, indefinite = _scaled_psd(I0 * t - M - quad, w)
+        if not ok and not repair and small and not indefinite:
             ok, why = _rational_psd(mt, st, lam2, tq) or (ok, why)
             delta = Fraction(0)
     if not ok:
@@ -1143,10 +1160,10 @@ def prove_at(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
 
 
 def _rational_parts(mt: Method, st: PEPStructure, lam: Sequence[Fraction],
-                    with_quad: bool = True
+                    values_only: bool = False
                     ) -> tuple[list[list[Fraction]], list[Fraction]] | None:
-    """(sum_k lambda_k X_k' Q_k X_k, sum_k lambda_k a_k) in Fractions (the first left
-    empty unless ``with_quad``), None when some datum is not an exact rational."""
+    """(sum_k lambda_k X_k' Q_k X_k, sum_k lambda_k a_k) in Fractions, None when some
+    datum is not an exact rational; ``values_only``: the first left empty."""
     support = [k for k, v in enumerate(lam) if v]
     parts = _exact_pair_parts(mt, st, support)
     if parts is None:
@@ -1154,7 +1171,7 @@ def _rational_parts(mt: Method, st: PEPStructure, lam: Sequence[Fraction],
     quads, lins = parts
     d = st.d
     quad: list[list[Fraction]] = []
-    if with_quad:
+    if not values_only:
         quad = [[Fraction(0)] * d for _ in range(d)]
         for k, q in zip(support, quads, strict=True):
             for i, row in q.items():
@@ -1172,7 +1189,7 @@ def _rational_residuals_ok(mt: Method, st: PEPStructure, lam: Sequence[Fraction]
                            tq: Fraction) -> bool:
     """c_F = t i_F - m_F - sum lambda_k a_k >= 0 in exact rationals (t: :func:`_rational_t`)."""
     fi, fm = _fraction_matrix([st.init_f]), _fraction_matrix([st.meas_f])
-    parts = _rational_parts(mt, st, lam, with_quad=False)
+    parts = _rational_parts(mt, st, lam, values_only=True)
     t = _rational_t(st, lam, tq)
     if parts is None or fi is None or fm is None or t is None:
         return False

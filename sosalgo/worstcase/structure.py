@@ -758,7 +758,10 @@ def _finish(mt: Method, steps: int, calls: int, state: dict[str, Any],
                         consts.append(mt.constant(j, r))
     extras = [(lab, X[:, keep], Qc) for lab, X, Qc in state["extras"]]
     anchors = {anchor_label(f) for f, cls, _ in mt.functions if cls.anchored}
-    equal = [bool(anchors & {pts[j][a].label, pts[j][b].label}) for j, a, b, _ in pairs]
+    # two calls at one point (an indicator's normal vectors at x_0 taken twice): their
+    # conditions both ways pin the values equal, no slack to give either
+    equal = [bool(anchors & {pts[j][a].label, pts[j][b].label})
+             or _same_point(pts[j][a], pts[j][b]) for j, a, b, _ in pairs]
     values = {}
     for k, fs in state.get("extra_values", {}).items():  # constraints' values, on F
         values[k] = np.zeros(nF, dtype=dt)
@@ -779,6 +782,11 @@ def _finish(mt: Method, steps: int, calls: int, state: dict[str, Any],
     if any(_nonzero(c) for c in consts + rest):  # one constant per row: pairs, then extras
         st.constants = np.array(consts + rest, dtype=dt)
     return st
+
+
+def _same_point(pa: PEPPoint, pb: PEPPoint) -> bool:
+    """Whether two points of a function have the same x (as rows on the basis)."""
+    return pa.label != pb.label and all(u == v for u, v in zip(pa.x, pb.x, strict=True))
 
 
 def _vanishes(mt: Method, j: int, r: int, pa: PEPPoint, pb: PEPPoint) -> bool:
