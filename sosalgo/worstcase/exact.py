@@ -36,6 +36,8 @@ import numpy as np
 import sympy as sp
 from flint import arb, arb_mat, fmpq
 
+from sosalgo.kernel.exact import enclose as enclose_ball
+from sosalgo.oracles import BoundFunction, Method
 from sosalgo.spec import Spec
 from sosalgo.worstcase.bind import class_kappa, has_kappa, initial_gradient
 from sosalgo.worstcase.steps import StepMethods, spec_steps
@@ -454,18 +456,15 @@ def exact_or_none(spec: Spec, kappa: float | None, steps: int = 0) -> PEPFrame |
 
 
 def frame_method(om: Any, matrices: Sequence[Any], functions: Sequence[Any],
-                 base: Mapping[sp.Symbol, sp.Expr], digits: int, numbers: str) -> Any:
+                 base: Mapping[sp.Symbol, sp.Expr], digits: int, numbers: str) -> Method:
     """The one :class:`sosalgo.oracles.Method` an exact :class:`PEPFrame` is built on: the
     exact ``matrices`` (A, B, C, D, E; E None with ``output: y<i>``) over ``numbers``
     (``ball``, or ``field``: elements of Q(sqrt d)), the call layout of the float method
     ``om``, the ``functions`` (name, class, exact class parameters), and m and L of the
     class as written (:func:`exact_base`) as balls at ``digits`` decimals."""
-    from sosalgo.kernel.exact import enclose
-    from sosalgo.oracles import BoundFunction, Method
-
     A, B, C, D, E = matrices
-    return Method(A, B, C, D, E, enclose(base[_sym("m")], digits),
-                  enclose(base[_sym("L")], digits),
+    return Method(A, B, C, D, E, enclose_ball(base[_sym("m")], digits),
+                  enclose_ball(base[_sym("L")], digits),
                   tuple(BoundFunction(*fn) for fn in functions), tuple(om.oracles),
                   om.output, om.measure, numbers=numbers)
 
