@@ -366,8 +366,9 @@ def test_bind_over_polynomials_is_the_method_on_its_box():
     assert pm.C.xreplace(at) == sp.Matrix([[-third, 1 + third]])
     assert pm.B == sp.Matrix([[0], [sp.Rational(-1, 10)]])
     assert pm.box.theta([-1 / 3]) == pytest.approx({"beta": 1 / 3}, abs=1e-15)
-    with pytest.raises(ValueError, match="numbers"):
-        bind_numbers(spec, 10.0, numbers="complex")
+    for other in ("complex", "field"):  # field: the PEP's exact proof builds it, not bind
+        with pytest.raises(ValueError, match="numbers"):
+            bind_numbers(spec, 10.0, numbers=other)
 
 
 def test_bind_of_an_m0_spec_takes_no_kappa():
@@ -379,6 +380,25 @@ def test_bind_of_an_m0_spec_takes_no_kappa():
     om = bind_numbers(spec)
     assert isinstance(om, OracleMethod) and om.m == 0 and om.L == spec.L
     assert om.kappa == float("inf")
+
+
+def test_bind_with_a_moving_optimum():
+    """Douglas-Rachford (m: 0, L = 1, alpha = 1/L) keeps (x, v) with v = alpha grad f(x): at
+    the optimum (x*, alpha s_f*), which moves with the optimal subgradient s_f*. The
+    sublinear potentials refuse it; ``moving_optimum=True`` (the PEP's binding) takes it,
+    with the fixed points [[1, 0], [0, alpha]] on (x*, s_f*) (a closed form)."""
+    from sosalgo.method import bind as bind_numbers
+    from sosalgo.model import ModelError
+    from sosalgo.oracles import fixed_point_basis
+    from sosalgo.worstcase.bind import bound_method
+
+    spec = load_spec(SPECS / "douglas-rachford-convex.yaml")
+    with pytest.raises(ModelError, match="optimal subgradients"):
+        bind_numbers(spec)
+    om = bind_numbers(spec, moving_optimum=True)
+    assert np.allclose(fixed_point_basis(om), [[1.0, 0.0], [0.0, 1.0]], atol=1e-12)
+    pep_om, kappa = bound_method(spec, None)
+    assert np.array_equal(pep_om.A, om.A) and np.isnan(kappa)
 
 
 def test_the_method_in_other_units_scales_its_class_too():
