@@ -1,11 +1,13 @@
 """Bind a spec to the one :class:`~sosalgo.oracles.Method` over a number type.
 
 :func:`bind` is the one entry point: ``numbers`` chooses the number type of the method's
-matrices and class parameters (:data:`~sosalgo.oracles.NUMBER_TYPES`):
+matrices and class parameters (:data:`~sosalgo.oracles.BOUND_NUMBER_TYPES`):
 
 - ``"float"``: :func:`sosalgo.model.bind` (the :class:`~sosalgo.oracles.OracleMethod`, checked
   on creation; a spec without a condition number, ``m: 0``, is bound at its own L,
-  :func:`sosalgo.model.bind_sublinear`);
+  :func:`sosalgo.model.bind_sublinear`, which refuses a state at the optimum that moves with
+  the optimal subgradients unless ``moving_optimum``: the PEP takes such a method, the
+  sublinear potentials do not);
 - ``"ball"``: :func:`sosalgo.exact_method.exact_algorithm` (rational kappa and theta, exact
   sympy entries and their rational ball enclosures);
 - ``"arb"``: :func:`arb_method` (python-flint balls, the spec's expression trees evaluated
@@ -25,7 +27,7 @@ from flint import arb, arb_mat
 from sosalgo.classes import CLASSES
 from sosalgo.kernel.arb import arb_fraction, arb_of, precision
 from sosalgo.model import bind_sublinear, evaluate_algorithm
-from sosalgo.oracles import NUMBER_TYPES, BoundFunction, Method
+from sosalgo.oracles import BOUND_NUMBER_TYPES, BoundFunction, Method
 from sosalgo.spec.types import Spec, value_order
 
 __all__ = ["arb_method", "arb_output_row", "bind"]
@@ -33,16 +35,17 @@ __all__ = ["arb_method", "arb_output_row", "bind"]
 
 def bind(spec: Spec, kappa: Any = None, theta: Mapping[str, float] | None = None, *,
          numbers: str = "float", digits: int | None = None,
-         free: Sequence[str] = ()) -> Method:
+         free: Sequence[str] = (), moving_optimum: bool = False) -> Method:
     """The spec's method at condition number ``kappa`` (None for a spec without one) and
     input parameter values ``theta``, over the number type ``numbers`` (module doc).
     ``digits``: the decimals of the ball enclosures (``ball``); ``free``: the parameters
-    left as polynomials over their ranges (``poly``, at ``kappa``)."""
-    if numbers not in NUMBER_TYPES:
-        raise ValueError(f"numbers: one of {', '.join(NUMBER_TYPES)}, got {numbers!r}")
+    left as polynomials over their ranges (``poly``, at ``kappa``); ``moving_optimum``: an
+    ``m: 0`` spec's state at the optimum may move with the optimal subgradients (``float``)."""
+    if numbers not in BOUND_NUMBER_TYPES:
+        raise ValueError(f"numbers: one of {', '.join(BOUND_NUMBER_TYPES)}, got {numbers!r}")
     if numbers == "float":
         if not spec.has_condition_number:
-            return bind_sublinear(spec, theta)
+            return bind_sublinear(spec, theta, moving_optimum=moving_optimum)
         return evaluate_algorithm(spec, float(kappa), theta)
     if numbers == "arb":
         return arb_method(spec, kappa, theta)

@@ -35,7 +35,8 @@ from sosalgo.classes import CLASSES, SEED_CLASS, FunctionClass
 from sosalgo.errors import ModelError
 from sosalgo.spec.types import Spec, SpecError
 
-__all__ = ["NUMBER_TYPES", "BoundFunction", "CallShape", "Method", "OracleMethod",
+__all__ = ["BOUND_NUMBER_TYPES", "NUMBER_TYPES", "BoundFunction", "CallShape", "Method",
+           "OracleMethod",
            "as_oracle_method", "check_oracle_spec",
            "check_magnitudes", "check_relative_error", "composite_quadratic_rate",
            "consistent_solution", "relative_errors",
@@ -53,8 +54,12 @@ MAX_MAGNITUDE = 1e305
 # the number types a method's entries and class parameters may have: floats, balls
 # (:class:`sosalgo.kernel.exact.Ball`, exact rationals with rational radii, the exact
 # twin), arb balls (python-flint, outward rounded) and polynomials in the coordinates of a
-# box of parameter values (sympy, exact coefficients)
-NUMBER_TYPES = ("float", "ball", "arb", "poly")
+# box of parameter values (sympy, exact coefficients); and the exact numbers of a quadratic
+# field Q(sqrt d) (:class:`sosalgo.kernel.qfield.QSqrt`), in which the PEP's exact proof
+# may build its method (class parameters, m and L then balls of radius 0)
+NUMBER_TYPES = ("float", "ball", "arb", "poly", "field")
+# the number types :func:`sosalgo.method.bind` binds a spec in
+BOUND_NUMBER_TYPES = ("float", "ball", "arb", "poly")
 
 
 class BoundFunction(NamedTuple):

@@ -207,6 +207,10 @@ def test_a_new_class_through_pep_and_verify(registered, tmp_path):
     result.write_text(res.stdout, encoding="utf-8")
     ver = CliRunner().invoke(cli, ["verify", str(result), "--json"])
     assert ver.exit_code == 0, ver.output
+    checked = json.loads(ver.stdout)
+    (check,) = checked["results"]  # verify dispatched on the document's kind, pep
+    assert (doc["kind"], checked["kind"], check["verified"]) == ("pep", "verification",
+                                                                 "exact")
 
 
 def test_unregister_keeps_the_shipped_classes():

@@ -173,6 +173,28 @@ def test_allowlisted_imports_still_exist():
     assert gone == [], "these imports now follow the layers: remove them from ALLOWED_UPWARD"
 
 
+def _unit_edges(edges: dict[str, set[str]]) -> dict[str, set[str]]:
+    """The import graph between top-level units (packages and modules under sosalgo/)."""
+    units: dict[str, set[str]] = {_unit(m): set() for m in edges}
+    for a, targets in edges.items():
+        units[_unit(a)] |= {_unit(b) for b in targets} - {_unit(a)}
+    return units
+
+
+def test_no_import_cycles_between_packages():
+    """No cycle between top-level units either, deferred imports counted (a package whose
+    modules import another package that imports it back, through different modules)."""
+    edges, _ = _imports(_modules())
+    assert _cycles(_unit_edges(edges)) == []
+
+
+def test_the_package_check_finds_a_cycle_through_different_modules():
+    edges = {"sosalgo.a.x": {"sosalgo.b.y"}, "sosalgo.b.z": {"sosalgo.a.w"},
+             "sosalgo.a.w": set(), "sosalgo.b.y": set()}
+    assert _cycles(edges) == []
+    assert _cycles(_unit_edges(edges)) == [["a", "b"]]
+
+
 def test_the_layer_check_finds_an_upward_import():
     """The checker itself: a report module importing a run is flagged, the reverse is not."""
     edges = {"sosalgo.report.x": {"sosalgo.batch.y"}, "sosalgo.batch.y": {"sosalgo.report.x"}}

@@ -34,12 +34,14 @@ METHOD_FIELDS = {"oracles", "functions", "D", "output", "p", "measure", "has_see
                  "time_varying"}
 # every method type left, (module, class): the one Method over any number type
 # (sosalgo.oracles.Method), its float form checked on creation (OracleMethod) and the
-# seed's form built from A, B, C, E, m, L (Algorithm); the PEP's structure around a method
-# (worstcase.structure.Method: fixed-point basis, deadbeat gain, tilted inequalities, term
-# coefficients) and its arb view (worstcase.check.ArbView)
+# seed's form built from A, B, C, E, m, L (Algorithm)
 METHOD_TYPES = {("sosalgo.oracles", "Method"), ("sosalgo.oracles", "OracleMethod"),
-                ("sosalgo.model", "Algorithm"), ("sosalgo.worstcase.structure", "Method"),
-                ("sosalgo.worstcase.check", "ArbView")}
+                ("sosalgo.model", "Algorithm")}
+# the data kept around the one Method, (module, class): a ``method: Method`` field and
+# their own data beside it, not a method type. The PEP's frame (fixed-point basis,
+# deadbeat gain, tilted inequalities, term coefficients) and its arb view
+METHOD_FRAMES = {("sosalgo.worstcase.structure", "PEPFrame"),
+                 ("sosalgo.worstcase.check", "ArbView")}
 # names no module above the problem layer may test ``isinstance`` against: the problem
 # layer's method types and the names its bindings keep for the Method over balls and
 # polynomials (the PEP's arb view is a number type inside the PEP's own package)
@@ -214,25 +216,43 @@ def _method_types(root: Path) -> set[tuple[str, str]]:
     return found
 
 
+def _method_frames(root: Path) -> set[tuple[str, str]]:
+    """(module, class) of every class under ``root`` that holds the one Method in a field
+    ``method: Method`` (data kept around a method, not a method type)."""
+    found = set()
+    for path in sorted(root.rglob("*.py")):
+        rel = path.relative_to(root.parent).with_suffix("")
+        module = ".".join(rel.parts[:-1] if rel.name == "__init__" else rel.parts)
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ClassDef) and any(
+                    isinstance(s, ast.AnnAssign) and isinstance(s.target, ast.Name)
+                    and s.target.id == "method" and ast.unparse(s.annotation) == "Method"
+                    for s in node.body):
+                found.add((module, node.name))
+    return found
+
+
 def test_the_method_types_left():
-    """Five method types are left: the one ``Method`` over any number type, its float form
-    ``OracleMethod`` (checked on creation) and the seed's form ``Algorithm``, the PEP's
-    structure around a method (``sosalgo.worstcase.structure.Method``) and its arb view
-    (``sosalgo.worstcase.check.ArbView``). The exact twins (``ExactAlgorithm``,
-    ``ExactOracleMethod``), the arb one (``ArbMethod``), the polynomial one
-    (``polymodel.ExactMethod``) and the noisy model (``NoisyModel``) are the Method over
-    balls, arb, polynomials and floats; the names kept are the Method itself."""
+    """Three method types are left: the one ``Method`` over any number type, its float
+    form ``OracleMethod`` (checked on creation) and the seed's form ``Algorithm``. The
+    exact twins (``ExactAlgorithm``, ``ExactOracleMethod``), the arb one (``ArbMethod``),
+    the polynomial one (``polymodel.ExactMethod``) and the noisy model (``NoisyModel``)
+    are the Method over balls, arb, polynomials and floats; the names kept are the Method
+    itself. The PEP's frame and its arb view hold the Method (``method``) beside the
+    PEP's own data: they declare none of a method's fields."""
     from sosalgo.design_search.polymodel import ExactMethod
     from sosalgo.exact_method import ExactAlgorithm, ExactOracleMethod
     from sosalgo.oracles import Method
 
     assert _method_types(PACKAGE) == METHOD_TYPES
-    assert len(METHOD_TYPES) == 5
+    assert len(METHOD_TYPES) == 3
     assert ExactAlgorithm is ExactOracleMethod is ExactMethod is Method
+    assert _method_frames(PACKAGE) == METHOD_FRAMES
 
 
 def test_the_scan_of_method_types_sees_each_form(tmp_path):
-    """The scan above finds a class by any of the three signs, and its subclasses."""
+    """The scan above finds a class by any of the three signs, and its subclasses; the
+    scan of frames a class holding a ``method: Method`` field."""
     pkg = tmp_path / "pkg"
     pkg.mkdir()
     (pkg / "m.py").write_text(
@@ -240,9 +260,44 @@ def test_the_scan_of_method_types_sees_each_form(tmp_path):
         "class Calls:\n    oracles: tuple\n    functions: tuple\n"
         "class Exact:\n    matrices: dict\n    m: int\n    L: int\n"
         "class Seed(Full):\n    pass\n"
-        "class System:\n    A: int\n    B: int\n    C: int\n    E: int\n")
+        "class System:\n    A: int\n    B: int\n    C: int\n    E: int\n"
+        "class Frame:\n    method: Method\n    X0: int\n"
+        "class Named:\n    method: str\n")
     assert _method_types(pkg) == {("pkg.m", "Full"), ("pkg.m", "Calls"), ("pkg.m", "Exact"),
                                   ("pkg.m", "Seed")}
+    assert _method_frames(pkg) == {("pkg.m", "Frame")}
+
+
+def test_the_pep_frames_hold_the_one_method():
+    """The PEP's float frame holds the bound float method itself; its exact frame and that
+    frame's arb view hold the Method over balls and over arb, whose entries enclose
+    Nesterov's method at kappa 10 (a closed form, not the spec's expressions), as the
+    frames' own A, B, C, E read them."""
+    from sosalgo.kernel.arb import arb_fraction
+    from sosalgo.method import bind as bind_numbers
+    from sosalgo.oracles import Method
+    from sosalgo.worstcase.check import arb_view
+    from sosalgo.worstcase.core import float_method
+    from sosalgo.worstcase.exact import exact_or_none
+
+    spec = load_spec(SPECS / "nesterov.yaml")
+    om = bind_numbers(spec, 10.0)
+    frame = float_method(om, 10.0)
+    assert frame.method is om and frame.A is om.A and (frame.n, frame.p) == (2, 1)
+    ex = exact_or_none(spec, 10.0, 3)
+    av = arb_view(ex)
+    assert isinstance(ex.method, Method) and isinstance(av.method, Method)
+    assert (ex.method.numbers, av.method.numbers) == ("ball", "arb")
+    assert ex.oracles == av.method.oracles == (0,) and ex.E is ex.method.E
+    for k, rows in _nesterov_at_10().items():
+        for i, row in enumerate(rows):
+            for j, want in enumerate(row):
+                b, a = getattr(ex, k)[i, j], getattr(av, k)[i, j]
+                assert _as_mpf(b.lo) <= want <= _as_mpf(b.hi)
+                assert (_as_mpf(arb_fraction(a.lower())) <= want
+                        <= _as_mpf(arb_fraction(a.upper())))
+    (f,) = av.method.functions
+    assert f.params["L"].contains(10) and av.method.L.contains(10)
 
 
 def _nesterov_at_10() -> dict[str, list[list[object]]]:
@@ -311,8 +366,9 @@ def test_bind_over_polynomials_is_the_method_on_its_box():
     assert pm.C.xreplace(at) == sp.Matrix([[-third, 1 + third]])
     assert pm.B == sp.Matrix([[0], [sp.Rational(-1, 10)]])
     assert pm.box.theta([-1 / 3]) == pytest.approx({"beta": 1 / 3}, abs=1e-15)
-    with pytest.raises(ValueError, match="numbers"):
-        bind_numbers(spec, 10.0, numbers="complex")
+    for other in ("complex", "field"):  # field: the PEP's exact proof builds it, not bind
+        with pytest.raises(ValueError, match="numbers"):
+            bind_numbers(spec, 10.0, numbers=other)
 
 
 def test_bind_of_an_m0_spec_takes_no_kappa():
@@ -324,6 +380,25 @@ def test_bind_of_an_m0_spec_takes_no_kappa():
     om = bind_numbers(spec)
     assert isinstance(om, OracleMethod) and om.m == 0 and om.L == spec.L
     assert om.kappa == float("inf")
+
+
+def test_bind_with_a_moving_optimum():
+    """Douglas-Rachford (m: 0, L = 1, alpha = 1/L) keeps (x, v) with v = alpha grad f(x): at
+    the optimum (x*, alpha s_f*), which moves with the optimal subgradient s_f*. The
+    sublinear potentials refuse it; ``moving_optimum=True`` (the PEP's binding) takes it,
+    with the fixed points [[1, 0], [0, alpha]] on (x*, s_f*) (a closed form)."""
+    from sosalgo.method import bind as bind_numbers
+    from sosalgo.model import ModelError
+    from sosalgo.oracles import fixed_point_basis
+    from sosalgo.worstcase.bind import bound_method
+
+    spec = load_spec(SPECS / "douglas-rachford-convex.yaml")
+    with pytest.raises(ModelError, match="optimal subgradients"):
+        bind_numbers(spec)
+    om = bind_numbers(spec, moving_optimum=True)
+    assert np.allclose(fixed_point_basis(om), [[1.0, 0.0], [0.0, 1.0]], atol=1e-12)
+    pep_om, kappa = bound_method(spec, None)
+    assert np.array_equal(pep_om.A, om.A) and np.isnan(kappa)
 
 
 def test_the_method_in_other_units_scales_its_class_too():

@@ -36,12 +36,14 @@ the class's Gram-level block over each list, and the equalities as extra rows
 
 from __future__ import annotations
 
+from dataclasses import fields
 from fractions import Fraction
 from typing import Any
 
 import numpy as np
 
 from sosalgo.errors import InputError
+from sosalgo.oracles import BoundFunction, Method
 
 __all__ = ["adjoint_rows", "check_start", "split_transposes"]
 
@@ -49,9 +51,9 @@ PART = ".T"  # the transpose part's name: the operator's name + PART
 
 
 def split_transposes(mt: Any, om: Any) -> None:
-    """Give ``mt`` (a Method of an OracleMethod with transpose calls) the transpose part
-    of its operator as a function of its own (the same class, parameters, inequalities
-    and blocks) with the transpose calls on it, no free optimal subgradient (``moves``:
+    """Give ``mt`` (the PEP's frame around an OracleMethod with transpose calls) the
+    transpose part of its operator as a function of its own (the same class, parameters,
+    inequalities and blocks) with the transpose calls on it, no free optimal subgradient (``moves``:
     whether the solution's state moves with them or M x*, for :func:`check_start`), and
     ``mt.adjoint``. InputError when a function is in a
     class that is not closed under adding linear functions."""
@@ -70,19 +72,28 @@ def split_transposes(mt: Any, om: Any) -> None:
         mt.adjoint = {"dual": adj.dual, "part": None, "plain": list(adj.plain),
                       "negated": frozenset(adj.transposes if cls.transpose_sign < 0 else ()),
                       "moves": moves}
-        mt.oracles = tuple(op if i in adj.transposes else j for i, j in enumerate(mt.oracles))
+        mt.method = _with_calls(mt.method, oracles=tuple(
+            op if i in adj.transposes else j for i, j in enumerate(mt.oracles)))
         return
     part = len(mt.functions)
-    mt.functions = [*mt.functions, (name + PART, cls, params)]
     mt.ineqs = [*mt.ineqs, list(mt.ineqs[op])]
     if mt.blocks:
         mt.blocks = [*mt.blocks, list(mt.blocks[op])]
     if mt.constants is not None:
         mt.constants = [*mt.constants, list(mt.constants[op])]
         mt.scopes = [*(mt.scopes or []), list((mt.scopes or [])[op])]
-    mt.oracles = tuple(part if i in adj.transposes else j for i, j in enumerate(mt.oracles))
+    mt.method = _with_calls(
+        mt.method, functions=(*mt.functions, BoundFunction(name + PART, cls, params)),
+        oracles=tuple(part if i in adj.transposes else j for i, j in enumerate(mt.oracles)))
     mt.adjoint = {"dual": adj.dual, "part": part, "plain": list(adj.plain),
                   "negated": frozenset(), "moves": moves}
+
+
+def _with_calls(method: Method, **calls: Any) -> Method:
+    """``method`` with its ``functions`` or ``oracles`` replaced (the transpose calls on
+    the operator's transpose part): the one Method of the same numbers, not re-checked
+    (the float method it comes from was)."""
+    return Method(**{f.name: getattr(method, f.name) for f in fields(Method)} | calls)
 
 
 def check_start(mt: Any, free: bool, option: str) -> None:

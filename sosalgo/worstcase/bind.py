@@ -1,5 +1,6 @@
-"""The float method of a spec for the PEP: ``evaluate_algorithm`` at kappa, or
-``bind_sublinear`` for an m: 0 spec (where kappa is refused)."""
+"""The float method of a spec for the PEP, through the one entry point
+:func:`sosalgo.method.bind`: at kappa, or for an m: 0 spec (where kappa is refused) at its
+own L with a state at the optimum that may move with the optimal subgradients."""
 
 from __future__ import annotations
 
@@ -29,19 +30,21 @@ def class_kappa(spec: Spec, kappa: float | None) -> float | None:
 
 
 def bound_method(spec: Spec, kappa: float | None) -> tuple[Any, float]:
-    """(OracleMethod, kappa used in expressions): ``bind_sublinear`` for m: 0 specs (no
-    kappa allowed), ``evaluate_algorithm`` otherwise (kappa required)."""
-    from sosalgo.model import bind_sublinear, evaluate_algorithm
+    """(OracleMethod, kappa used in expressions) bound by :func:`sosalgo.method.bind`:
+    without kappa for m: 0 specs (none allowed; ``moving_optimum``: the PEP takes a state
+    at the optimum that moves with the optimal subgradients), at kappa otherwise (kappa
+    required)."""
+    from sosalgo.method import bind
     from sosalgo.oracles import as_oracle_method
 
     if not has_kappa(spec):
         if kappa is not None:
             raise InputError(f"{spec.source}: --kappa: an m: 0 spec has no condition number "
                              f"(L = {spec.L:g} is given)")
-        return bind_sublinear(spec, moving_optimum=True), math.nan
+        return bind(spec, moving_optimum=True), math.nan
     if kappa is None:
         raise InputError(f"{spec.source}: --kappa: required (the condition number L/m)")
-    return as_oracle_method(evaluate_algorithm(spec, float(kappa))), float(kappa)
+    return as_oracle_method(bind(spec, float(kappa))), float(kappa)
 
 
 def initial_gradient(spec: Spec, om: Any, kappa: float) -> tuple[np.ndarray | None, int]:

@@ -34,14 +34,14 @@ import numpy as np
 import scipy.sparse as sps
 
 from sosalgo.kernel.conic import svec, unsvec
-from sosalgo.worstcase.structure import Method, PEPStructure
+from sosalgo.worstcase.structure import PEPFrame, PEPStructure
 
 __all__ = ["block_columns", "block_data", "block_form", "cut_vectors", "with_cuts"]
 
 CUT_BITS = 40  # significant bits of a cut vector's entries
 
 
-def block_data(mt: Method, st: PEPStructure) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+def block_data(mt: PEPFrame, st: PEPStructure) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """(K, Zx, Zg) of every block of a float PEP: Zx, Zg the rows of its points and of
     their subgradients (times s) on the basis (empty once the PEP has its cuts)."""
     if st.cuts:
@@ -92,7 +92,7 @@ def cut_vectors(st: PEPStructure, lams: list[np.ndarray]) -> list[tuple[int, int
     return cuts
 
 
-def with_cuts(mt: Method, st: PEPStructure, cuts: list[tuple[int, int, list[Any]]]
+def with_cuts(mt: PEPFrame, st: PEPStructure, cuts: list[tuple[int, int, list[Any]]]
               ) -> PEPStructure:
     """A copy of ``st`` whose extras end with the cuts v' T v >= 0 (float or exact, as
     ``mt``; the same labels either way)."""

@@ -25,10 +25,11 @@ from flint import arb, arb_mat, fmpq
 
 from sosalgo.kernel.arb import arb_fraction, precision
 from sosalgo.kernel.exact import Ball
+from sosalgo.oracles import BoundFunction, Method
 from sosalgo.spec import Spec
 from sosalgo.steps import changes_with_k
 from sosalgo.worstcase.exact import ball, exact_method, exact_steps_or_none
-from sosalgo.worstcase.structure import Method, anchor_label, last_calls
+from sosalgo.worstcase.structure import PEPFrame, anchor_label, last_calls, method_field
 from sosalgo.worstcase.terms import OUT0, Term, free_start
 
 __all__ = ["PREC", "ArbView", "arb_view", "check_witness", "fit_values", "member_interval",
@@ -50,15 +51,20 @@ def _mat(rows: Any) -> arb_mat:
 
 @dataclass
 class ArbView:
-    """An exact :class:`Method` as arb matrices (A, B, C, D, E; X0 (n x 1), Xs (n x J-1))
-    and its class inequalities (alpha, 4 x 4 Q) per function."""
+    """An exact :class:`PEPFrame` ``mt`` in arb balls: its method as the one
+    :class:`sosalgo.oracles.Method` over arb (``method``; ``A``, ``B``, ``C``, ``D``,
+    ``E`` read from it), the frame's X0 (n x 1), Xs (n x J-1) and class inequalities
+    (alpha, 4 x 4 Q) per function. Not a method type: the PEP's data in another number
+    type."""
 
-    mt: Method
-    A: arb_mat
-    B: arb_mat
-    C: arb_mat
-    D: arb_mat
-    E: arb_mat | None
+    A = method_field("A")
+    B = method_field("B")
+    C = method_field("C")
+    D = method_field("D")
+    E = method_field("E")
+
+    mt: PEPFrame
+    method: Method
     X0: arb_mat
     Xs: list[list[arb]]
     ineqs: list[list[tuple[arb, list[list[arb]]]]]
@@ -69,7 +75,7 @@ class ArbView:
         return ball(self.mt.coef(t))
 
     def step(self, k: int) -> tuple[arb_mat, arb_mat, arb_mat, arb_mat]:
-        """(A, B, C, D) of step k (:meth:`sosalgo.worstcase.structure.Method.step`)."""
+        """(A, B, C, D) of step k (:meth:`sosalgo.worstcase.structure.PEPFrame.step`)."""
         if self.per_step is None:
             return self.A, self.B, self.C, self.D
         if k >= len(self.per_step):
@@ -77,18 +83,26 @@ class ArbView:
         return self.per_step[k]
 
 
-def arb_view(mt: Method) -> ArbView:
-    """The arb form of an exact method (at :data:`PREC` bits)."""
+def arb_view(mt: PEPFrame) -> ArbView:
+    """The arb form of an exact frame (at :data:`PREC` bits)."""
     with precision(PREC):
         ineqs = [[(ball(a), [[ball(v) for v in row] for row in Q]) for a, Q in fi]
                  for fi in mt.ineqs]
         per = None if mt.per_step is None else [tuple(_mat(M) for M in mats)
                                                  for mats in mt.per_step]
-        return ArbView(mt, _mat(mt.A), _mat(mt.B), _mat(mt.C), _mat(mt.D),
-                       None if mt.E is None else _mat(mt.E), _mat([[v] for v in mt.X0]),
+        return ArbView(mt, _arb_method(mt.method), _mat([[v] for v in mt.X0]),
                        [[ball(v) for v in row] for row in mt.Xs], ineqs,
                        None if mt.G0 is None else _mat([[v] for v in mt.G0]),
                        per)  # type: ignore[arg-type]
+
+
+def _arb_method(method: Method) -> Method:
+    """The exact ``method`` (balls) over arb: matrices, m, L and class parameters."""
+    return Method(_mat(method.A), _mat(method.B), _mat(method.C), _mat(method.D),
+                  None if method.E is None else _mat(method.E), ball(method.m),
+                  ball(method.L), tuple(BoundFunction(fn.name, fn.cls, {
+                      k: ball(v) for k, v in fn.params.items()}) for fn in method.functions),
+                  method.oracles, method.output, method.measure, numbers="arb")
 
 
 def _label(i: int, k: int, p: int) -> str:
@@ -114,8 +128,8 @@ def _start(doc: dict[str, Any], av: ArbView, r: int) -> arb_mat:
     return xi + av.G0 * _mat([g0])
 
 
-def _previous_call(mt: Method, av: ArbView) -> int | None:
-    """The call whose point at step k - 1 is x_k exactly (:attr:`Method.prev_call`), for
+def _previous_call(mt: PEPFrame, av: ArbView) -> int | None:
+    """The call whose point at step k - 1 is x_k exactly (:attr:`PEPFrame.prev_call`), for
     a method with the same matrices at every step and no line search."""
     if av.per_step is not None or mt.line_search:
         return None
@@ -129,7 +143,7 @@ def positions(doc: dict[str, Any], av: ArbView) -> dict[str, Any]:
     r, p, N = int(doc["dimension"]), mt.p, int(doc["steps"])
     xi = _start(doc, av, r)
     pos: dict[str, Any] = {"xi0": xi}
-    start = None  # the call at x_0 exactly (:attr:`Method.x0_call`): the very same balls
+    start = None  # the call at x_0 exactly (:attr:`PEPFrame.x0_call`): the very same balls
     if doc.get("xi0") is None and av.G0 is None and mt.x0_call is not None:
         start = mt.x0_call
         pos["x0"] = [ball(v) for v in doc["x0"]]
@@ -201,7 +215,7 @@ def _q_mat(rows: Any) -> np.ndarray:
     return np.array([[Fraction(v) for v in row] for row in rows], dtype=object)
 
 
-def exact_points(doc: dict[str, Any], mt: Method) -> tuple[dict[str, list[Any]],
+def exact_points(doc: dict[str, Any], mt: PEPFrame) -> tuple[dict[str, list[Any]],
                                                             list[list[Any]]]:
     """(every point by label, the iterates x_0..x_N) as exact rationals (Fraction) or
     rational balls (:class:`~sosalgo.kernel.exact.Ball`, when the method has irrational
@@ -490,7 +504,7 @@ def _shortest(n: int, src: int, edges: list[tuple[int, int, Fraction]]
     return None
 
 
-def fit_values(doc: dict[str, Any], mt: Method | ArbView) -> bool:
+def fit_values(doc: dict[str, Any], mt: PEPFrame | ArbView) -> bool:
     """Replace the values h of every function by exact ones that satisfy every class
     inequality at the exactly recomputed points: the largest solution of the difference
     constraints (:func:`_edges`), shortest paths from x* (h = 0). False (doc unchanged)
@@ -710,7 +724,7 @@ def _inhomogeneous_lower(meas: arb, init: arb) -> Fraction:
     return arb_fraction(meas.lower()) / max(Fraction(1), arb_fraction(init.upper()))
 
 
-def check_witness(doc: dict[str, Any], spec: Spec, mt: Method | ArbView | None = None
+def check_witness(doc: dict[str, Any], spec: Spec, mt: PEPFrame | ArbView | None = None
                   ) -> dict[str, Any]:
     """Check a witness against ``spec`` (see the module; ``mt``: its exact method, built
     here when not given); never raises on a bad witness: ``verified`` False with the

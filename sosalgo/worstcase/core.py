@@ -23,7 +23,7 @@ from sosalgo.worstcase.constraints import spec_constraints
 from sosalgo.worstcase.sdp import PEPData, SDPAnswer, pep_data, solve_pep, value_residual
 from sosalgo.worstcase.steps import StepMethods, float_step_method, spec_steps
 from sosalgo.worstcase.structure import (
-    Method,
+    PEPFrame,
     PEPStructure,
     build_structure,
     deadbeat_gain,
@@ -102,8 +102,8 @@ def _load(spec: Spec | str | Path) -> Spec:
     return load_spec(spec)
 
 
-def float_method(om: Any, kappa: float) -> Method:
-    """The float :class:`Method` of an OracleMethod."""
+def float_method(om: Any, kappa: float) -> PEPFrame:
+    """The float :class:`PEPFrame` around an OracleMethod ``om`` (the frame's method)."""
     from sosalgo.oracles import fixed_point_basis, pinned_optimum
 
     X = fixed_point_basis(om)
@@ -127,12 +127,10 @@ def float_method(om: Any, kappa: float) -> Method:
     tilted = [fn.cls.pinned(fn.params) if pinned else fn.cls.tilted(fn.params)
               for fn in om.functions]
     ineqs = [[(float(i.alpha), np.asarray(i.Q, float)) for i in fi] for fi in tilted]
-    mt = Method(om.A, om.B, om.C, om.D, om.E, om.output,
-                [(fn.name, fn.cls, fn.params) for fn in om.functions], tuple(om.oracles),
-                X[:, 0], X[:, 1:], float(om.L), ineqs, coef, same,
-                deadbeat_gain(om.A, om.B, float(om.L)),
-                errors=dict(getattr(om, "errors", None) or {}),
-                lmo=dict(getattr(om, "lmo", None) or {}))
+    mt = PEPFrame(om, X[:, 0], X[:, 1:], float(om.L), ineqs, coef, same,
+                  deadbeat_gain(om.A, om.B, float(om.L)),
+                  errors=dict(getattr(om, "errors", None) or {}),
+                  lmo=dict(getattr(om, "lmo", None) or {}))
     mt.blocks = [list(fn.cls.blocks(fn.params)) for fn in om.functions]
     if any(i.constant or i.scope != "pairs" for fi in tilted for i in fi):
         mt.constants = [[float(i.constant) for i in fi] for fi in tilted]
@@ -207,7 +205,7 @@ def run_sizes(spec: Spec, kappas: list[float | None], steps: list[int],
 def pep_problem(spec: Spec, kappa: float | None, steps: int, measure: str | None = None,
                 initial: str | None = None, schedule: StepMethods | None = None,
                 solve_min: bool = True
-                ) -> tuple[Method, PEPStructure, list[Term], list[Term], tuple[str, str]]:
+                ) -> tuple[PEPFrame, PEPStructure, list[Term], list[Term], tuple[str, str]]:
     """The float method, structure, terms and the (measure, initial) texts, defaults
     resolved (InputError naming the option for bad input). ``schedule``: a method that
     changes with k (:mod:`sosalgo.worstcase.steps`; the spec gives its class and terms). A
@@ -288,7 +286,7 @@ def _no_expectation(spec: Spec, measure: str | None, initial: str | None) -> Non
                              "count: and finite_sum:)")
 
 
-def _resolve_min(mt: Method, steps: int, mterms: list[Term], iterms: list[Term],
+def _resolve_min(mt: PEPFrame, steps: int, mterms: list[Term], iterms: list[Term],
                  kappa: float, solve_min: bool) -> list[Term]:
     """``mterms`` with a mingrad term replaced by its weighted sum (see
     :func:`pep_problem`); the text is kept as ``mt.bound``."""
@@ -439,7 +437,7 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
     return res
 
 
-def _bare_solve(mt: Method, st: PEPStructure, data: PEPData, steps: int,
+def _bare_solve(mt: PEPFrame, st: PEPStructure, data: PEPData, steps: int,
                 mterms: list[Term], iterms: list[Term]
                 ) -> tuple[PEPStructure, PEPData, SDPAnswer]:
     """The solves of a question with no initial condition: tight tolerances first (the
@@ -464,7 +462,7 @@ def _bare_solve(mt: Method, st: PEPStructure, data: PEPData, steps: int,
 BARE_TOL = 1e-6  # with no initial condition: a normalized worst case above this is > 0
 
 
-def _bare_result(spec: Spec, kappa: float | None, steps: int, mt: Method, data: PEPData,
+def _bare_result(spec: Spec, kappa: float | None, steps: int, mt: PEPFrame, data: PEPData,
                  ans: SDPAnswer, exact: bool, mterms: list[Term], iterms: list[Term],
                  res: PEPResult) -> None:
     """A question with no initial condition (``--initial none``): the measure is
@@ -520,7 +518,7 @@ def _quadratic_terms(terms: list[Term]) -> bool:
         CALL_AT.match(q.removeprefix(GRAD_OF)) for q in t.point.split("__")) for t in terms)
 
 
-def _cut_pep(mt: Method, st: PEPStructure, data: PEPData, ans: SDPAnswer
+def _cut_pep(mt: PEPFrame, st: PEPStructure, data: PEPData, ans: SDPAnswer
              ) -> tuple[PEPStructure, PEPData, SDPAnswer]:
     """(structure, data, answer) of the PEP with the rank-one cuts of the block
     multipliers of ``ans`` (:mod:`sosalgo.worstcase.blocks`), solved again from the same pairs
@@ -535,7 +533,7 @@ def _cut_pep(mt: Method, st: PEPStructure, data: PEPData, ans: SDPAnswer
 
 
 def _exact_schedule(spec: Spec, kappa: float | None, schedule: StepMethods,
-                    count: int) -> Method | None:
+                    count: int) -> PEPFrame | None:
     """The exact method of a schedule's first ``count`` steps, None when it cannot be
     built (no exact matrices, or their fixed point not proven)."""
     from sosalgo.worstcase.exact import exact_step_method
@@ -634,9 +632,9 @@ def _own_bound(cert: dict[str, Any], answer: SDPAnswer, best: SDPAnswer, tau: fl
     return best is answer and float(Fraction(cert["tau_proven"])) <= own + 1e-9 * abs(own)
 
 
-def _null_row_proof(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
+def _null_row_proof(spec: Spec, kappa: float | None, mt: PEPFrame, data: PEPData,
                     ans: SDPAnswer, mterms: list[Term], iterms: list[Term],
-                    ex: Method | None, cert: dict[str, Any], tau: float,
+                    ex: PEPFrame | None, cert: dict[str, Any], tau: float,
                     null_tol: float | None = None) -> None:
     """The measure's own certificate with its near-zero rows of S made exactly zero in
     rationals (a PEP with a free direction has no certificate with S ≻ 0, so no margin
@@ -659,7 +657,7 @@ def _null_row_proof(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
                     tau_proven=proof["tau_proven"], tau=ans.tau, margin=0.0)
 
 
-def _field_proof(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
+def _field_proof(spec: Spec, kappa: float | None, mt: PEPFrame, data: PEPData,
                  ans: SDPAnswer, mterms: list[Term], iterms: list[Term],
                  cert: dict[str, Any], tau: float) -> None:
     """The measure's own certificate proven over the spec's quadratic field Q(sqrt d)
@@ -718,9 +716,9 @@ def _polish_tries(polish: SDPAnswer | None, toward: SDPAnswer, w: np.ndarray,
     return [polish] if raw else []
 
 
-def _prove_candidate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
+def _prove_candidate(spec: Spec, kappa: float | None, mt: PEPFrame, data: PEPData,
                      cand: SDPAnswer, tau: float, eps: float, mterms: list[Term],
-                     iterms: list[Term], ex: Method | None, units: list[int] | None,
+                     iterms: list[Term], ex: PEPFrame | None, units: list[int] | None,
                      cert: dict[str, Any]) -> bool:
     """Prove one candidate certificate exactly; ``cert`` updated (its ``proof``, and the
     proven bound when proven)."""
@@ -745,9 +743,9 @@ def _prove_candidate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
     return bool(proof["proven"])
 
 
-def _certificate(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
+def _certificate(spec: Spec, kappa: float | None, mt: PEPFrame, data: PEPData,
                  ans: SDPAnswer, exact: bool, mterms: list[Term],
-                 iterms: list[Term], ex: Method | None = None) -> dict[str, Any]:
+                 iterms: list[Term], ex: PEPFrame | None = None) -> dict[str, Any]:
     """The dual certificate (multipliers by pair, S, float checks), proven exactly when
     ``exact`` (the margin ladder :data:`MARGINS` then :data:`LONG_MARGINS`; only the
     latter past LONG; :func:`_ladder`)."""

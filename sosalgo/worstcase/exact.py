@@ -37,11 +37,13 @@ import numpy as np
 import sympy as sp
 from flint import arb, arb_mat, fmpq
 
+from sosalgo.kernel.exact import enclose as enclose_ball
+from sosalgo.oracles import BoundFunction, Method
 from sosalgo.spec import Spec
 from sosalgo.worstcase.bind import class_kappa, has_kappa, initial_gradient
 from sosalgo.worstcase.steps import StepMethods, spec_steps
 from sosalgo.worstcase.structure import (
-    Method,
+    PEPFrame,
     PEPStructure,
     build_structure,
     deadbeat_gain,
@@ -234,8 +236,8 @@ def _fixed_points(mats: dict[str, sp.Matrix], om: Any) -> sp.Matrix:
 
 
 def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0,
-                 field: int | None = None) -> Method:
-    """The exact :class:`Method` of ``spec`` (``om``: its float OracleMethod, for shapes),
+                 field: int | None = None) -> PEPFrame:
+    """The exact :class:`PEPFrame` of ``spec`` (``om``: its float OracleMethod, for shapes),
     its irrational entries enclosed precisely enough for a trajectory of ``steps`` steps
     (:func:`sosalgo.worstcase.structure.enclosure_digits`); ``field`` = d: every number
     an exact element of Q(sqrt d) instead (:mod:`sosalgo.kernel.qfield`; ValueError when
@@ -297,11 +299,11 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0,
 
     D = (entries(mats["D"]) if "D" in mats
          else np.full((p, p), Fraction(0), dtype=object))
-    mt = Method(entries(mats["A"]), entries(mats["B"]),
-                entries(mats["C"]), D,
-                entries(mats["E"]) if "E" in mats else None, om.output, funcs,
-                tuple(om.oracles), X[:, 0], X[:, 1:], L, ineqs, coef, same, K, exact=True,
-                bits=enclosure_bits(digits))
+    method = frame_method(om, (entries(mats["A"]), entries(mats["B"]), entries(mats["C"]), D,
+                               entries(mats["E"]) if "E" in mats else None),
+                          funcs, base, digits, "ball" if field is None else "field")
+    mt = PEPFrame(method, X[:, 0], X[:, 1:], L, ineqs, coef, same, K, exact=True,
+                  bits=enclosure_bits(digits))
     mt.out_call = _exact_output_call(mats, om)
     mt.x0_call = _exact_start_call(mats, Xq, om)
     mt.prev_call = _exact_previous_call(mats, om)
@@ -439,7 +441,7 @@ def ball(v: Any) -> arb:
     return arb(fmpq(q.numerator, q.denominator))
 
 
-def exact_or_none(spec: Spec, kappa: float | None, steps: int = 0) -> Method | None:
+def exact_or_none(spec: Spec, kappa: float | None, steps: int = 0) -> PEPFrame | None:
     """The exact method (:func:`sosalgo.worstcase.exact.exact_method`) for ``steps`` steps, None
     when it cannot be built (the proofs then say why)."""
     from sosalgo.steps import changes_with_k
@@ -454,13 +456,27 @@ def exact_or_none(spec: Spec, kappa: float | None, steps: int = 0) -> Method | N
         return None
 
 
+def frame_method(om: Any, matrices: Sequence[Any], functions: Sequence[Any],
+                 base: Mapping[sp.Symbol, sp.Expr], digits: int, numbers: str) -> Method:
+    """The one :class:`sosalgo.oracles.Method` an exact :class:`PEPFrame` is built on: the
+    exact ``matrices`` (A, B, C, D, E; E None with ``output: y<i>``) over ``numbers``
+    (``ball``, or ``field``: elements of Q(sqrt d)), the call layout of the float method
+    ``om``, the ``functions`` (name, class, exact class parameters), and m and L of the
+    class as written (:func:`exact_base`) as balls at ``digits`` decimals."""
+    A, B, C, D, E = matrices
+    return Method(A, B, C, D, E, enclose_ball(base[_sym("m")], digits),
+                  enclose_ball(base[_sym("L")], digits),
+                  tuple(BoundFunction(*fn) for fn in functions), tuple(om.oracles),
+                  om.output, om.measure, numbers=numbers)
+
+
 def _sym(name: str) -> sp.Symbol:
     from sosalgo.spec.types import BASE_SYMBOLS
 
     return BASE_SYMBOLS[name]
 
 
-def _residual_parts(mt: Method, st: PEPStructure, lam: list[Fraction]
+def _residual_parts(mt: PEPFrame, st: PEPStructure, lam: list[Fraction]
                     ) -> tuple[arb_mat, list[arb]]:
     """(sum lambda_k Q_k on G, sum lambda_k a_k on F) in ball arithmetic: the pairs'
     weights are gathered on the points' rows first (W), then R' W R."""
@@ -519,7 +535,7 @@ def _nonzero_value(v: Any) -> bool:
     return bool(v.c != 0 or v.r != 0) if hasattr(v, "c") else bool(v != 0)
 
 
-def _repaired(mt: Method, st: PEPStructure, lam: list[Fraction], tb: arb
+def _repaired(mt: PEPFrame, st: PEPStructure, lam: list[Fraction], tb: arb
               ) -> tuple[list[Fraction], arb_mat, list[arb]]:
     """(multipliers, sum lambda_k Q_k, c_F) after repairing c_F: an entry c_F[i] not
     proven >= 0 (the float dual's round-off) is raised by increasing the multiplier of
@@ -575,7 +591,7 @@ def _exact_fraction(v: Any) -> Fraction | None:
     return Fraction(v)
 
 
-def _balanced(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
+def _balanced(mt: PEPFrame, st: PEPStructure, lam: list[Fraction], tq: Fraction,
               repair: bool) -> tuple[list[Fraction], str]:
     """(multipliers, why not) with c_F = tau i_F - m_F - sum lambda_k a_k exactly 0, in
     rationals: the PEP's values enter only as differences (no x*), so the F_i are free up
@@ -701,7 +717,7 @@ def _scaled_psd(S: arb_mat, w: np.ndarray) -> tuple[bool, Fraction, str, bool]:
 def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
                       mterms: list[Term], iterms: list[Term], tau: float,
                       lam: np.ndarray, w: np.ndarray | None = None,
-                      mt: Method | None = None,
+                      mt: PEPFrame | None = None,
                       null: np.ndarray | None = None,
                       units: list[int] | None = None,
                       null_tol: float | None = None) -> dict[str, Any]:
@@ -763,7 +779,7 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
     return out | {"detail": detail, "seconds": time.perf_counter() - t0}
 
 
-def _cuts_field(mt: Method, st: PEPStructure) -> dict[str, Any]:
+def _cuts_field(mt: PEPFrame, st: PEPStructure) -> dict[str, Any]:
     """``cuts``: the rank-one cuts of the blocks' multipliers (function, condition,
     vector over the block's points; :mod:`sosalgo.worstcase.blocks`), for ``verify``."""
     from sosalgo.kernel.exact import fraction_str
@@ -781,7 +797,7 @@ RATIONAL_MAX_D = 40  # the rational fallbacks of a proof: on PEPs of at most thi
 SNAPS = ((100, 1e-6), (1000, 1e-7), (10 ** 4, 1e-8), None)  # (denominator, tolerance)
 
 
-def null_row_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Fraction,
+def null_row_multipliers(mt: PEPFrame, st: PEPStructure, lam: np.ndarray, tq: Fraction,
                          S: np.ndarray | None, w: np.ndarray,
                          snap: tuple[int, float] | None = None,
                          units: list[int] | None = None,
@@ -894,7 +910,7 @@ def _nonzero_fraction(v: Any) -> bool:
     return bool(Fraction(v) != 0) if not hasattr(v, "c") else bool(v.c != 0 or v.r != 0)
 
 
-def _prove_null_rows(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Fraction,
+def _prove_null_rows(mt: PEPFrame, st: PEPStructure, lam: np.ndarray, tq: Fraction,
                      S: np.ndarray | None, w: np.ndarray, units: list[int] | None = None,
                      coarse: bool = False, null_tol: float | None = None,
                      lift: bool = True) -> tuple[bool, list[Fraction], Fraction, str, Fraction]:
@@ -1044,7 +1060,7 @@ def _fraction_matrix(M: Any) -> list[list[Fraction]] | None:
     return out
 
 
-def _exact_pair_parts(mt: Method, st: PEPStructure, support: list[int]
+def _exact_pair_parts(mt: PEPFrame, st: PEPStructure, support: list[int]
                       ) -> tuple[list[Any], list[list[Fraction]]] | None:
     """(X_k' Q_k X_k on G, sparse, a_k on F) of the rows ``support`` (pairs, then the
     extra rows) in Fractions; None when some entry is not an exact rational. Each row's
@@ -1063,7 +1079,7 @@ def _exact_pair_parts(mt: Method, st: PEPStructure, support: list[int]
     return quads, lins
 
 
-def _exact_row_parts(mt: Method, st: PEPStructure, k: int) -> tuple[Any, list[Fraction]] | None:
+def _exact_row_parts(mt: PEPFrame, st: PEPStructure, k: int) -> tuple[Any, list[Fraction]] | None:
     """(X_k' Q_k X_k, sparse, a_k) of row k in Fractions (None: not exact rationals)."""
     if k < len(st.pairs):
         _, av, X = st.pair_rows(mt, k)
@@ -1109,7 +1125,7 @@ class _SparseQuad(dict):
         return _EMPTY_ROW
 
 
-def prove_at(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
+def prove_at(mt: PEPFrame, st: PEPStructure, lam: list[Fraction], tq: Fraction,
              w: np.ndarray, repair: bool = True
              ) -> tuple[bool, list[Fraction], Fraction, str]:
     """(proven, multipliers, delta, detail) of measure <= tq with the multipliers ``lam``
@@ -1159,7 +1175,7 @@ def prove_at(mt: Method, st: PEPStructure, lam: list[Fraction], tq: Fraction,
                                   "; tau = t + sum lambda_k c_k, t >= 0 (constants)"))
 
 
-def _rational_parts(mt: Method, st: PEPStructure, lam: Sequence[Fraction],
+def _rational_parts(mt: PEPFrame, st: PEPStructure, lam: Sequence[Fraction],
                     values_only: bool = False
                     ) -> tuple[list[list[Fraction]], list[Fraction]] | None:
     """(sum_k lambda_k X_k' Q_k X_k, sum_k lambda_k a_k) in Fractions, None when some
@@ -1185,7 +1201,7 @@ def _rational_parts(mt: Method, st: PEPStructure, lam: Sequence[Fraction],
     return quad, lin
 
 
-def _rational_residuals_ok(mt: Method, st: PEPStructure, lam: Sequence[Fraction],
+def _rational_residuals_ok(mt: PEPFrame, st: PEPStructure, lam: Sequence[Fraction],
                            tq: Fraction) -> bool:
     """c_F = t i_F - m_F - sum lambda_k a_k >= 0 in exact rationals (t: :func:`_rational_t`)."""
     fi, fm = _fraction_matrix([st.init_f]), _fraction_matrix([st.meas_f])
@@ -1210,7 +1226,7 @@ def _rational_t(st: PEPStructure, lam: Sequence[Fraction], tq: Fraction) -> Frac
     return t if t >= 0 else None
 
 
-def _rational_psd(mt: Method, st: PEPStructure, lam: Sequence[Fraction],
+def _rational_psd(mt: PEPFrame, st: PEPStructure, lam: Sequence[Fraction],
                   tq: Fraction) -> tuple[bool, str] | None:
     """S = t I0 - M - sum lambda_k Q_k ⪰ 0 (t: :func:`_rational_t`) decided in exact rationals
     (:func:`sosalgo.kernel.exact.prove_psd`: semidefinite allowed), None when some datum
@@ -1230,7 +1246,7 @@ def _rational_psd(mt: Method, st: PEPStructure, lam: Sequence[Fraction],
     return True, f"S ⪰ 0 in exact rationals ({proof.kind}, {proof.method}: {proof.detail})"
 
 
-def _bounding_terms(mt: Method, steps: int, mterms: list[Term], bound: Any) -> list[Term]:
+def _bounding_terms(mt: PEPFrame, steps: int, mterms: list[Term], bound: Any) -> list[Term]:
     """The terms the proof is about: ``mterms``, or for a mingrad measure the proof's
     ``measure_bound`` once it is shown to bound the measure from above in exact rationals
     (:func:`sosalgo.worstcase.terms.dominates`); ValueError otherwise."""
@@ -1302,7 +1318,7 @@ def reprove_certificate(spec: Spec, kappa: float | None, steps: int, measure: st
 # and terms as :func:`exact_method`, the per-step matrices exact, the plain basis (K = 0).
 
 
-def exact_steps_or_none(spec: Spec, kappa: float | None, steps: int) -> Method | None:
+def exact_steps_or_none(spec: Spec, kappa: float | None, steps: int) -> PEPFrame | None:
     """The exact method of a spec that changes with k over ``steps`` steps
     (:func:`sosalgo.worstcase.steps.spec_steps`), None when it cannot be built."""
     from sosalgo.errors import InputError
@@ -1400,8 +1416,8 @@ def _call_at(rows_a: list[np.ndarray], rows_b: list[np.ndarray]) -> bool:
 
 
 def exact_step_method(spec: Any, kappa: float | None, sm: StepMethods, count: int,
-                      digits: int = 60) -> Method:
-    """The exact :class:`Method` of the first ``count`` per-step methods of ``sm``: the
+                      digits: int = 60) -> PEPFrame:
+    """The exact :class:`PEPFrame` of the first ``count`` per-step methods of ``sm``: the
     class, units and terms of ``spec`` as written (:func:`sosalgo.worstcase.exact.exact_base`),
     the per-step matrices exact (sympy ones enclosed at ``digits`` decimals), K = 0.
     ValueError when they are missing or their fixed point is not proven."""
@@ -1445,10 +1461,10 @@ def exact_step_method(spec: Any, kappa: float | None, sm: StepMethods, count: in
 
     A0, B0, C0, D0 = per[0]
     E = steps[0].get("E")
-    mt = Method(A0, B0, C0, D0, E, om.output, funcs, tuple(om.oracles), Xb[:, 0], Xb[:, 1:],
-                _scale(base[_sym("L")]), ineqs, coef, same,
-                np.full((p, om.n), Fraction(0), dtype=object), exact=True,
-                bits=enclosure_bits(digits), per_step=per)
+    mt = PEPFrame(frame_method(om, (A0, B0, C0, D0, E), funcs, base, digits, "ball"),
+                  Xb[:, 0], Xb[:, 1:], _scale(base[_sym("L")]), ineqs, coef, same,
+                  np.full((p, om.n), Fraction(0), dtype=object), exact=True,
+                  bits=enclosure_bits(digits), per_step=per)
     mt.x0_call = _step_start_call(mt, per[0])
     mt.out_call = _step_output_call(mt, per)
     mt.blocks = [list(cls.exact_blocks(params) or []) for _, cls, params in funcs]
@@ -1468,7 +1484,7 @@ def exact_step_method(spec: Any, kappa: float | None, sm: StepMethods, count: in
     return mt
 
 
-def _call_links(mt: Method, spec: Spec) -> None:
+def _call_links(mt: PEPFrame, spec: Spec) -> None:
     """The inexact calls' reference vectors and the ``gradient_of`` calls, exactly
     (:mod:`sosalgo.worstcase.inexact`)."""
     mt.error_refs = {i: tuple(Fraction(c) for c in ref)
@@ -1476,7 +1492,7 @@ def _call_links(mt: Method, spec: Spec) -> None:
     mt.twins = dict(getattr(spec, "twins", None) or {})
 
 
-def _step_start_call(mt: Method, step0: tuple[np.ndarray, ...]) -> int | None:
+def _step_start_call(mt: PEPFrame, step0: tuple[np.ndarray, ...]) -> int | None:
     """The first call of step 0 at x_0 for every start xi_0 = X0 x_0 - Xs s~ (D_i = 0,
     C_i X0 = 1, C_i Xs = 0), proven exactly."""
     _, _, C, D = step0
@@ -1487,7 +1503,7 @@ def _step_start_call(mt: Method, step0: tuple[np.ndarray, ...]) -> int | None:
     return None
 
 
-def _step_output_call(mt: Method, per: list[tuple[np.ndarray, ...]]) -> int | None:
+def _step_output_call(mt: PEPFrame, per: list[tuple[np.ndarray, ...]]) -> int | None:
     """The first call i with E = C_i and D_i = 0 at every step, proven exactly."""
     if mt.output is not None or mt.E is None:
         return None
@@ -1516,7 +1532,7 @@ def symbolic_fixed_point(spec: Any, om: Any) -> sp.Matrix | None:
 
 def prove_bare(spec: Spec, kappa: float | None, st_float: PEPStructure,
                mterms: list[Term], iterms: list[Term], lam: np.ndarray, S: np.ndarray,
-               w: np.ndarray, mt: Method | None = None, plain: bool = False
+               w: np.ndarray, mt: PEPFrame | None = None, plain: bool = False
                ) -> dict[str, Any]:
     """Prove measure <= 0 for every instance of a question with no initial condition
     (``--initial none``, homogeneous: its worst case is 0 or unbounded): c_F >= 0 and

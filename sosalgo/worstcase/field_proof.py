@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from sosalgo.worstcase.structure import Method, PEPStructure, build_structure
+from sosalgo.worstcase.structure import PEPFrame, PEPStructure, build_structure
 from sosalgo.worstcase.terms import Term
 
 FIELD_CHECK = "exact (quadratic field arithmetic)"
@@ -66,7 +66,7 @@ def spec_radicand(spec: Any, kappa: float | None, terms: list[Term]) -> int | No
 
 def field_structure(spec: Any, kappa: float | None, steps: int, mterms: list[Term],
                     iterms: list[Term], st_float: PEPStructure, plain: bool
-                    ) -> tuple[Method, PEPStructure, int] | None:
+                    ) -> tuple[PEPFrame, PEPStructure, int] | None:
     """(method, structure, d) of the PEP over Q(sqrt d); None when the spec is not in one
     quadratic field, or the structure differs from the float one. ``plain``: the float
     solve's basis had no deadbeat gain (K = 0)."""
@@ -83,7 +83,7 @@ def field_structure(spec: Any, kappa: float | None, steps: int, mterms: list[Ter
     return mt, st, d
 
 
-def _pair_forms(mt: Method, st: PEPStructure, support: list[int]
+def _pair_forms(mt: PEPFrame, st: PEPStructure, support: list[int]
                 ) -> list[tuple[np.ndarray, np.ndarray]]:
     """(X' Q X on G, a on F) of the pairs ``support``, exactly."""
     out = []
@@ -271,7 +271,7 @@ def proven_at(st: PEPStructure, forms: list[tuple[np.ndarray, np.ndarray]], tq: 
 Answer = tuple[np.ndarray, float, np.ndarray, np.ndarray]  # a float (S, tau, lambda, c_F)
 
 
-def prove_in_field(spec: Any, kappa: float | None, mt_float: Method, st_float: PEPStructure,
+def prove_in_field(spec: Any, kappa: float | None, mt_float: PEPFrame, st_float: PEPStructure,
                    mterms: list[Term], iterms: list[Term], answers: list[Answer],
                    w: np.ndarray) -> dict[str, Any]:
     """The proof over Q(sqrt d) of one of the float certificates ``answers`` (S, tau,
@@ -423,7 +423,7 @@ def reprove_field(spec: Any, kappa: float | None, steps: int, mterms: list[Term]
 
 
 def _rebuilt(spec: Any, kappa: float | None, steps: int, mterms: list[Term],
-             iterms: list[Term], d: int, plain: bool) -> tuple[Method, PEPStructure]:
+             iterms: list[Term], d: int, plain: bool) -> tuple[PEPFrame, PEPStructure]:
     """The exact method and PEP over Q(sqrt d), in the basis the proof was made in
     (``plain``: no deadbeat gain, the basis :func:`sosalgo.worstcase.core.pep` falls back
     to when a free direction drifts)."""

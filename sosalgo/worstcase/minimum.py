@@ -24,7 +24,7 @@ from sosalgo.errors import InputError
 from sosalgo.kernel.conic import svec
 from sosalgo.kernel.solvers import SolverStatus, solve_attempts
 from sosalgo.worstcase.sdp import pep_data
-from sosalgo.worstcase.structure import Method, build_structure
+from sosalgo.worstcase.structure import PEPFrame, build_structure
 from sosalgo.worstcase.terms import Term, parse_terms
 
 __all__ = ["min_floors", "min_weights", "rational_weights"]
@@ -32,7 +32,7 @@ __all__ = ["min_floors", "min_weights", "rational_weights"]
 ATTEMPTS = ((True, 1e-8), (False, 1e-8), (False, 1e-7))
 
 
-def _forms(mt: Method, steps: int, mterms: list[Term], iterms: list[Term],
+def _forms(mt: PEPFrame, steps: int, mterms: list[Term], iterms: list[Term],
            option: str) -> tuple[Any, list[tuple[np.ndarray, np.ndarray]]]:
     """(structure of the whole measure, [(form on G, form on F) of c |grad f(x_k)|^2
     plus the linear terms, k = 0..N]), every structure with the same pairs and basis."""
@@ -53,13 +53,13 @@ def _forms(mt: Method, steps: int, mterms: list[Term], iterms: list[Term],
     return base, forms
 
 
-def min_floors(mt: Method, steps: int, mterms: list[Term], iterms: list[Term],
+def min_floors(mt: PEPFrame, steps: int, mterms: list[Term], iterms: list[Term],
                option: str = "--measure") -> list[tuple[np.ndarray, np.ndarray]]:
     """The forms (on G, on F) of c |grad f(x_k)|^2 + (linear terms), k = 0..N."""
     return _forms(mt, steps, mterms, iterms, option)[1]
 
 
-def min_weights(mt: Method, steps: int, mterms: list[Term], iterms: list[Term],
+def min_weights(mt: PEPFrame, steps: int, mterms: list[Term], iterms: list[Term],
                 option: str = "--measure") -> list[float]:
     """The weights w_k (>= 0, summing to 1) of the minimax (see the module), in floats;
     InputError when the epigraph PEP is unbounded or fails."""

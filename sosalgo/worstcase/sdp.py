@@ -53,7 +53,7 @@ import scipy.sparse as sps
 
 from sosalgo.kernel.conic import svec, svec_index, unsvec
 from sosalgo.kernel.solvers import SolverStatus, solve_attempts
-from sosalgo.worstcase.structure import Method, PEPStructure
+from sosalgo.worstcase.structure import PEPFrame, PEPStructure
 
 __all__ = ["PEPData", "SDPAnswer", "pep_data", "solve_pep"]
 
@@ -147,7 +147,7 @@ def _pair_svec(X: np.ndarray, Qc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return (c * (c + 1) // 2 + r).astype(np.int64), vals[keep]
 
 
-def pep_data(mt: Method, st: PEPStructure) -> PEPData:
+def pep_data(mt: PEPFrame, st: PEPStructure) -> PEPData:
     K, d = st.count, st.d
     X = np.zeros((K, 4, d))
     a = np.zeros((K, st.nF))

@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from sosalgo.errors import InputError
-from sosalgo.worstcase.structure import Method
+from sosalgo.worstcase.structure import PEPFrame
 
 __all__ = ["StepMethods", "float_step_method", "spec_steps"]
 
@@ -90,8 +90,8 @@ def _fixed_residual(om: Any, X: np.ndarray) -> float:
     return float((np.abs(lhs @ X - rhs) / np.maximum(scale, 1e-300)).max(initial=0.0))
 
 
-def float_step_method(sm: StepMethods, mt: Method, count: int) -> Method:
-    """The float :class:`Method` of the first ``count`` steps: ``mt`` (step 0's method)
+def float_step_method(sm: StepMethods, mt: PEPFrame, count: int) -> PEPFrame:
+    """The float :class:`PEPFrame` of the first ``count`` steps: ``mt`` (step 0's method)
     with the per-step matrices, the plain basis (K = 0) and the common fixed point
     (InputError when a step moves it or changes shape)."""
     from sosalgo.oracles import fixed_point_basis

@@ -48,7 +48,7 @@ import numpy as np
 
 from sosalgo.classes.base import ANCHOR
 from sosalgo.errors import InputError
-from sosalgo.oracles import CallShape
+from sosalgo.oracles import CallShape, Method
 from sosalgo.worstcase.terms import (
     CALL_AT,
     DIFF_KIND,
@@ -64,28 +64,41 @@ from sosalgo.worstcase.terms import (
     free_start,
 )
 
-__all__ = ["Method", "PEPPoint", "PEPStructure", "anchor_label", "build_structure",
-           "enclosure_bits", "enclosure_digits", "last_calls", "output_call", "pair_label",
-           "radius_growth"]
+__all__ = ["PEPFrame", "PEPPoint", "PEPStructure", "anchor_label", "build_structure",
+           "enclosure_bits", "enclosure_digits", "last_calls", "method_field", "output_call",
+           "pair_label", "radius_growth"]
+
+
+def method_field(name: str) -> property:
+    """The read of a method's field ``name`` by the PEP's data around it (``frame.A`` is
+    ``frame.method.A``)."""
+    return property(lambda frame: getattr(frame.method, name),
+                    doc=f"The method's ``{name}`` (its ``method``).")
 
 
 @dataclass
-class Method(CallShape):
-    """A method on some number type: float arrays, or object arrays of exact numbers.
+class PEPFrame(CallShape):
+    """The PEP's own data around a method: not a method type, but the one
+    :class:`sosalgo.oracles.Method` (``method``: over floats, or exact numbers: balls, or
+    a quadratic field's numbers) with what the PEP builds on it. ``A``, ``B``, ``C``,
+    ``D``, ``E``, ``output``, ``functions`` (name, class, params) and ``oracles`` are read
+    from ``method`` (the PEP splitting a transpose part off replaces ``method``).
 
-    ``functions``: (name, class, params); ``coef(term)`` the number of a term's c;
-    ``X0``, ``Xs``: the fixed-point direction and the fixed points of the free optimal
-    subgradients (columns); ``same(a, b)``: whether two rows are the same point; ``K``:
-    the gain that defines the basis (the same binary numbers in both number types)."""
+    ``coef(term)`` the number of a term's c; ``X0``, ``Xs``: the fixed-point direction and
+    the fixed points of the free optimal subgradients (columns); ``same(a, b)``: whether
+    two rows are the same point; ``K``: the gain that defines the basis (the same binary
+    numbers in both number types)."""
 
-    A: np.ndarray
-    B: np.ndarray
-    C: np.ndarray
-    D: np.ndarray
-    E: np.ndarray | None
-    output: int | None
-    functions: list[tuple[str, Any, Any]]
-    oracles: tuple[int, ...]
+    A = method_field("A")
+    B = method_field("B")
+    C = method_field("C")
+    D = method_field("D")
+    E = method_field("E")
+    output = method_field("output")
+    functions = method_field("functions")
+    oracles = method_field("oracles")
+
+    method: Method
     X0: np.ndarray
     Xs: np.ndarray
     s: Any
@@ -244,7 +257,7 @@ class PEPStructure:
         """The constraints with a multiplier: the pairs, then the extras."""
         return len(self.pairs) + len(self.extras)
 
-    def pair_rows(self, method: Method, k: int) -> tuple[Any, np.ndarray, np.ndarray]:
+    def pair_rows(self, method: PEPFrame, k: int) -> tuple[Any, np.ndarray, np.ndarray]:
         """(alpha, a on F, X (4 x d)) of pair k: alpha (F_a - F_b) + X' Q X >= 0."""
         j, a, b, r = self.pairs[k]
         pa, pb = self.points[j][a], self.points[j][b]
@@ -347,7 +360,7 @@ def coarsen(v: Any, bits: int = 160) -> Any:
     return Ball(c, Fraction(math.ceil(err * 2 ** kr), 2 ** kr))
 
 
-def _trajectory(mt: Method, xi0: np.ndarray, new: list[np.ndarray],
+def _trajectory(mt: PEPFrame, xi0: np.ndarray, new: list[np.ndarray],
                 calls: int) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
     """(xi, y, u/s) rows: u~_k/s = K xi~_k + b_k (b_k the new basis vectors ``new[k]``),
     y~_k = C xi~_k + s D u~_k/s, xi~_{k+1} = A xi~_k + s B u~_k/s. With K deadbeat, every
@@ -366,7 +379,7 @@ def _trajectory(mt: Method, xi0: np.ndarray, new: list[np.ndarray],
     return xi, Y, U
 
 
-def _exact_trajectory(mt: Method, xi0: np.ndarray, new: list[np.ndarray],
+def _exact_trajectory(mt: PEPFrame, xi0: np.ndarray, new: list[np.ndarray],
                       calls: int) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
     """:func:`_trajectory` on exact numbers, computed on the columns in use only (the
     others are exact zeros, a product of exact zeros included: Ball(c, r) * 0 = 0), so
@@ -392,7 +405,7 @@ def _exact_trajectory(mt: Method, xi0: np.ndarray, new: list[np.ndarray],
     return xi, Y, U
 
 
-def build_structure(mt: Method, steps: int, measure: Sequence[Term],
+def build_structure(mt: PEPFrame, steps: int, measure: Sequence[Term],
                     initial: Sequence[Term], option: tuple[str, str] = ("--measure",
                                                                        "--initial")
                     ) -> PEPStructure:
@@ -414,7 +427,7 @@ def build_structure(mt: Method, steps: int, measure: Sequence[Term],
     return st
 
 
-def _contraction_structure(mt: Method, steps: int, measure: Sequence[Term],
+def _contraction_structure(mt: PEPFrame, steps: int, measure: Sequence[Term],
                            initial: Sequence[Term]) -> PEPStructure:
     """The PEP of the contraction measure (:mod:`sosalgo.worstcase.contraction`): no points,
     no values, the two-point conditions as extra rows."""
@@ -431,7 +444,7 @@ def _contraction_structure(mt: Method, steps: int, measure: Sequence[Term],
                         extras=c["extras"])
 
 
-def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
+def _build_structure(mt: PEPFrame, steps: int, measure: Sequence[Term],
                      initial: Sequence[Term], option: tuple[str, str]) -> PEPStructure:
     p, J, n = mt.p, len(mt.functions), mt.n
     free = free_start(initial)
@@ -570,7 +583,7 @@ def _build_structure(mt: Method, steps: int, measure: Sequence[Term],
     return st
 
 
-def _inner_row(mt: Method, key: str, row: np.ndarray, pts: list[list[PEPPoint]],
+def _inner_row(mt: PEPFrame, key: str, row: np.ndarray, pts: list[list[PEPPoint]],
                sstar: list[np.ndarray], state: dict[str, Any], opt: str,
                steps: int) -> np.ndarray:
     """The vector of one side of an inner term: the point's row (x - x*), or for
@@ -588,7 +601,7 @@ def _inner_row(mt: Method, key: str, row: np.ndarray, pts: list[list[PEPPoint]],
     return v * mt.s
 
 
-def _constraints(mt: Method, steps: int, xi: list[np.ndarray], Yr: list[list[np.ndarray]],
+def _constraints(mt: PEPFrame, steps: int, xi: list[np.ndarray], Yr: list[list[np.ndarray]],
                  where: dict[str, np.ndarray], pts: list[list[PEPPoint]],
                  sstar: list[np.ndarray], state: dict[str, Any]) -> None:
     """The rows of the constraints on the instance (:mod:`sosalgo.worstcase.constraints`)."""
@@ -616,7 +629,7 @@ def _constraints(mt: Method, steps: int, xi: list[np.ndarray], Yr: list[list[np.
                     value_at, state)
 
 
-def _point_row(mt: Method, xi: list[np.ndarray], Yr: list[list[np.ndarray]],
+def _point_row(mt: PEPFrame, xi: list[np.ndarray], Yr: list[list[np.ndarray]],
                where: dict[str, np.ndarray], point: str, steps: int, opt: str) -> np.ndarray:
     """The row of a term's point (``where``: the points known so far, extended by the
     outputs x_k a term names)."""
@@ -639,7 +652,7 @@ def _point_row(mt: Method, xi: list[np.ndarray], Yr: list[list[np.ndarray]],
     return where[point]
 
 
-def _check_alone(mt: Method) -> None:
+def _check_alone(mt: PEPFrame) -> None:
     """InputError unless a class whose conditions hold for the function itself (not the
     tilted one: ``alone``) is the only function, started at x_0 (its optimal subgradient
     is then 0, so its tilted data are its own)."""
@@ -650,7 +663,7 @@ def _check_alone(mt: Method) -> None:
                          "started at x_0 (no initial_state gradient)")
 
 
-def _check_nonconvex(mt: Method, measure: Sequence[Term], initial: Sequence[Term],
+def _check_nonconvex(mt: PEPFrame, measure: Sequence[Term], initial: Sequence[Term],
                      option: tuple[str, str]) -> bool:
     """Whether the PEP has no x* (a nonconvex class: a stationary point below the points
     is not a minimizer, :mod:`sosalgo.classes.smooth`): then one function, no term about
@@ -676,10 +689,10 @@ def _check_nonconvex(mt: Method, measure: Sequence[Term], initial: Sequence[Term
     return True
 
 
-def _output_row(mt: Method, xi: list[np.ndarray], Yr: list[list[np.ndarray]],
+def _output_row(mt: PEPFrame, xi: list[np.ndarray], Yr: list[list[np.ndarray]],
                 k: int) -> np.ndarray:
     """The output's row at step k: the very row object of the output call when the
-    output is a call (``output: y<i>``, or E = C_i with D_i = 0: :attr:`Method.out_call`)
+    output is a call (``output: y<i>``, or E = C_i with D_i = 0: :attr:`PEPFrame.out_call`)
     and that call is made at step k — the same point by construction, so a term there
     reads the call's subgradient and value, in floats and in exact numbers alike (a
     numerical comparison of ball rows cannot prove them equal) — else E xi_k."""
@@ -696,7 +709,7 @@ def anchor_label(fname: str) -> str:
     return f"{ANCHOR}_{fname}"
 
 
-def last_calls(mt: Method) -> bool:
+def last_calls(mt: PEPFrame) -> bool:
     """Whether the output call and the ``y`` terms after N steps are the calls of step
     N - 1 (a method that changes with k: its N per-step methods make N calls, the N-th
     one's prox point is x_N, as PEPit counts FISTA), not those of a step N."""
@@ -714,7 +727,7 @@ def output_call(E: Any, C: Any, D: Any, same: Callable[[Any, Any], bool]) -> int
     return None
 
 
-def _finish(mt: Method, steps: int, calls: int, state: dict[str, Any],
+def _finish(mt: PEPFrame, steps: int, calls: int, state: dict[str, Any],
             pts: list[list[PEPPoint]], forms: dict[str, list[Any]],
             rows: dict[str, Any]) -> PEPStructure:
     """Drop the unused columns, sum the terms' forms, list the pairs."""
@@ -789,7 +802,7 @@ def _same_point(pa: PEPPoint, pb: PEPPoint) -> bool:
     return pa.label != pb.label and all(u == v for u, v in zip(pa.x, pb.x, strict=True))
 
 
-def _vanishes(mt: Method, j: int, r: int, pa: PEPPoint, pb: PEPPoint) -> bool:
+def _vanishes(mt: PEPFrame, j: int, r: int, pa: PEPPoint, pb: PEPPoint) -> bool:
     """Whether function j's inequality r between points a and b is 0 >= 0 whatever G
     and F: no value (alpha 0), no constant, and each entry of its Q meets a zero row of
     (x_a, x_b, g_a, g_b) (a subgradient pinned at 0 at x*: indicators alone)."""
@@ -808,7 +821,7 @@ def _obj_eye(k: int) -> np.ndarray:
     return out
 
 
-def _point_at(mt: Method, j: int, row: np.ndarray, pts: list[list[PEPPoint]], label: str,
+def _point_at(mt: PEPFrame, j: int, row: np.ndarray, pts: list[list[PEPPoint]], label: str,
               state: dict[str, Any], opt: str, key: str) -> PEPPoint:
     """Function j's point at ``row``: one of its points there, or a new one (a new
     subgradient column and value) when the function is finite everywhere."""
@@ -831,7 +844,7 @@ def _point_at(mt: Method, j: int, row: np.ndarray, pts: list[list[PEPPoint]], la
     return pt
 
 
-def _term(mt: Method, t: Term, row: np.ndarray, pts: list[list[PEPPoint]],
+def _term(mt: PEPFrame, t: Term, row: np.ndarray, pts: list[list[PEPPoint]],
           sstar: list[np.ndarray], state: dict[str, Any], opt: str,
           steps: int) -> tuple[np.ndarray, dict[int, Any]]:
     """(quadratic form on the basis, {F index: coefficient}) of one term."""
@@ -871,7 +884,7 @@ def _term(mt: Method, t: Term, row: np.ndarray, pts: list[list[PEPPoint]],
     return np.outer(v, v) * c, {}
 
 
-def _grad_row(mt: Method, row: np.ndarray, pts: list[list[PEPPoint]],
+def _grad_row(mt: PEPFrame, row: np.ndarray, pts: list[list[PEPPoint]],
               sstar: list[np.ndarray], state: dict[str, Any], opt: str, label: str,
               key: str) -> np.ndarray:
     """The row of the gradient of the smooth part (the functions with a gradient oracle)

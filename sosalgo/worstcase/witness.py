@@ -55,7 +55,7 @@ from sosalgo.worstcase.check import (
     set_quadratic_calls,
 )
 from sosalgo.worstcase.sdp import PEPData, SDPAnswer, solve_pep
-from sosalgo.worstcase.structure import Method, last_calls
+from sosalgo.worstcase.structure import PEPFrame, last_calls
 from sosalgo.worstcase.terms import Term
 
 __all__ = ["WITNESS_KIND", "check_witness", "finish_witness", "fit_values", "interior_point",
@@ -112,7 +112,7 @@ def _factors(G: np.ndarray, slack: float) -> list[np.ndarray]:
     return out
 
 
-def _candidates(mt: Method, st: Any, G: np.ndarray, slack: float,
+def _candidates(mt: PEPFrame, st: Any, G: np.ndarray, slack: float,
                 interior: Callable[[], np.ndarray | None]) -> Iterator[tuple[np.ndarray, float]]:
     """(V, theta), smallest dimension first (see the module): the factors of G
     (:func:`_factors`); G mixed with the quadratic trajectory of :func:`quadratic_point`
@@ -129,7 +129,7 @@ def _candidates(mt: Method, st: Any, G: np.ndarray, slack: float,
             yield np.hstack([math.sqrt(1 - theta) * V, math.sqrt(theta) * V0]), theta
 
 
-def _curvatures(mt: Method, at: float) -> list[float]:
+def _curvatures(mt: PEPFrame, at: float) -> list[float]:
     """q_j strictly inside each function's class: lo + at (hi - lo) of [m, L] (or lo + s/2
     for a class without an upper curvature)."""
     s, q = float(mt.s), []
@@ -139,7 +139,7 @@ def _curvatures(mt: Method, at: float) -> list[float]:
     return q
 
 
-def quadratic_point(mt: Method, st: Any, at: float = 0.5,
+def quadratic_point(mt: PEPFrame, st: Any, at: float = 0.5,
                     curvatures: list[float] | None = None) -> np.ndarray | None:
     """The basis coordinates (one dimension) of the method run from x_0 = 1 (xi_0 = u, or
     the fixed-point direction for a free start) on f_j = q_j/2 x^2, q_j strictly inside
@@ -181,7 +181,7 @@ def quadratic_point(mt: Method, st: Any, at: float = 0.5,
     return v
 
 
-def quadratic_candidates(mt: Method, st: Any, tries: int = QUADRATIC_TRIES
+def quadratic_candidates(mt: PEPFrame, st: Any, tries: int = QUADRATIC_TRIES
                          ) -> list[tuple[list[Fraction], np.ndarray]]:
     """The one-dimensional trajectories (d x 1) of the quadratics f_j = q_j/2 x^2, q_j at
     one position of every class's interval (:data:`QUADRATIC_AT`), the ``tries`` with the
@@ -200,15 +200,15 @@ def quadratic_candidates(mt: Method, st: Any, tries: int = QUADRATIC_TRIES
             for _, at, v in scored[:tries]]
 
 
-def _quadratic_ratio(mt: Method, st: Any, v: np.ndarray, at: float) -> float | None:
+def _quadratic_ratio(mt: PEPFrame, st: Any, v: np.ndarray, at: float) -> float | None:
     """measure / initial of the quadratic trajectory ``v`` (values q_j/2 x^2, tilted by
     nothing: every f_j is least at x* = 0), None when it is not finite and positive."""
     return _member_ratio(mt, st, v, _curvatures(mt, at))
 
 
-def make_witness(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
+def make_witness(spec: Spec, kappa: float | None, mt: PEPFrame, data: PEPData,
                  ans: SDPAnswer, mterms: list[Term], iterms: list[Term],
-                 res: Any, exact_mt: Method | None = None, spent: float = 0.0
+                 res: Any, exact_mt: PEPFrame | None = None, spent: float = 0.0
                  ) -> dict[str, Any] | None:
     """The witness document in the smallest dimension that passes the exact check with a
     lower bound within :data:`ACCEPT` of tau (else the best verified one, else the last
@@ -258,7 +258,7 @@ class _Search:
     """The state of :func:`make_witness`'s search: the counts (:data:`SEARCH`), the last
     document tried, the best verified one, and the time its solves may start by."""
 
-    def __init__(self, spec: Spec, mt: Method, data: PEPData, res: Any,
+    def __init__(self, spec: Spec, mt: PEPFrame, data: PEPData, res: Any,
                  ex: ArbView | None, tau: float, coef: np.ndarray) -> None:
         self.spec, self.mt, self.data, self.res, self.ex = spec, mt, data, res, ex
         self.tau, self.coef = tau, coef
@@ -308,7 +308,7 @@ class _Search:
         return None
 
 
-def _quadratic_witness(spec: Spec, mt: Method, st: Any, ex: ArbView | None,
+def _quadratic_witness(spec: Spec, mt: PEPFrame, st: Any, ex: ArbView | None,
                        solved: tuple[float, Any], tally: dict[str, Any]
                        ) -> dict[str, Any] | None:
     """When no geometry of the SDP's answer passes the exact check (its float answer is
@@ -423,7 +423,7 @@ def plausible(data: PEPData, coef: np.ndarray, V: np.ndarray,
 
 
 def finish_witness(doc: dict[str, Any], spec: Spec, kappa: float | None,
-            exact_mt: Method | None, res: Any) -> dict[str, Any]:
+            exact_mt: PEPFrame | None, res: Any) -> dict[str, Any]:
     """The chosen witness: the class it is about (exact strings), the proven upper bound
     of the same PEP (``upper``: its exact multipliers, re-proven by ``sosalgo verify``),
     every point and iterate exactly (:func:`add_exact_points`), the 1-d interpolant."""
@@ -446,7 +446,7 @@ def finish_witness(doc: dict[str, Any], spec: Spec, kappa: float | None,
     return doc
 
 
-def add_exact_points(doc: dict[str, Any], exact_mt: Method) -> None:
+def add_exact_points(doc: dict[str, Any], exact_mt: PEPFrame) -> None:
     """``x_exact`` on every point and ``iterates_exact``: the coordinates recomputed from
     the start and the calls in exact arithmetic (rationals ``p/q``; ``[lo, hi]`` where the
     method's irrational entries leave a ball), so that the class inequalities can be
@@ -469,7 +469,7 @@ def _call_of(label: str, p: int) -> int:
     return 0 if p == 1 else int(label[1:].split("_")[0]) - 1
 
 
-def _document(spec: Spec, mt: Method, st: Any, V: np.ndarray, F: np.ndarray,
+def _document(spec: Spec, mt: PEPFrame, st: Any, V: np.ndarray, F: np.ndarray,
               res: Any) -> dict[str, Any]:
     """The witness JSON of the factor V (see the module docstring)."""
     s = Fraction(mt.s)
@@ -523,7 +523,7 @@ def _document(spec: Spec, mt: Method, st: Any, V: np.ndarray, F: np.ndarray,
                          for k in range(st.steps + 1)]}
 
 
-def _out(mt: Method, st: Any, k: int) -> np.ndarray:
+def _out(mt: PEPFrame, st: Any, k: int) -> np.ndarray:
     """The output row at step k (x_k = E xi_k, or the output call's point)."""
     if mt.output is None:
         return (mt.E @ st.rows["xi"][k])[0]
@@ -563,7 +563,7 @@ MEMBER_STEP = 1.0 / 200  # the spacing of MEMBER_AT: the refinement's bracket
 GOLD = (np.sqrt(5.0) - 1) / 2
 
 
-def _member_curvatures(exact_mt: Method, at: float) -> list[Fraction] | None:
+def _member_curvatures(exact_mt: PEPFrame, at: float) -> list[Fraction] | None:
     """q_j = lo + at (hi - lo) of each function's exact interval (a binary rational,
     clamped into it), None when a class has none."""
     out = []
@@ -577,7 +577,7 @@ def _member_curvatures(exact_mt: Method, at: float) -> list[Fraction] | None:
     return out
 
 
-def member_witness(spec: Any, mt: Method, st: Any, ex: Any, exact_mt: Method | None,
+def member_witness(spec: Any, mt: PEPFrame, st: Any, ex: Any, exact_mt: PEPFrame | None,
                    solved: tuple[float, Any]) -> dict[str, Any] | None:
     """The witness of explicit quadratics with the largest proven measure / initial
     among the :data:`MEMBER_TRIES` best of :data:`MEMBER_AT` (floating point first);
@@ -624,7 +624,7 @@ def member_witness(spec: Any, mt: Method, st: Any, ex: Any, exact_mt: Method | N
     return best
 
 
-def _member_ratio(mt: Method, st: Any, v: np.ndarray, q: list[float]) -> float | None:
+def _member_ratio(mt: PEPFrame, st: Any, v: np.ndarray, q: list[float]) -> float | None:
     """measure / initial of the quadratics' one-dimensional run (floating point)."""
     s = float(mt.s)
     G, F = np.outer(v, v), np.zeros(st.nF)
