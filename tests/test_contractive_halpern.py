@@ -166,8 +166,9 @@ def test_verify_accepts_the_document_and_refuses_tampered_ones(tmp_path):
 
 
 def test_a_tampered_witness_is_refused(tmp_path):
-    """The witness verifies; with T's answer at the first call turned around (u -> -u:
-    the pair with x* is no longer (2/3)-Lipschitz for T) it does not."""
+    """The witness verifies (its check and ``sosalgo verify``); with T's answer at the
+    first call turned around (u -> -u: the pair with x* is no longer (2/3)-Lipschitz for
+    T) it does not."""
     from sosalgo.worstcase.check import check_witness
 
     _pep_document(tmp_path)
@@ -182,6 +183,9 @@ def test_a_tampered_witness_is_refused(tmp_path):
         if pt["label"] == "y0":
             pt["g"] = list(bad["calls"][0][0])
     assert not check_witness(bad, spec)["verified"]
+    ok = CliRunner().invoke(cli, ["verify", str(witness), "--out", str(tmp_path / "v")])
+    assert ok.exit_code == 0, ok.output
+    _refused(tmp_path, bad)
 
 
 def _one_line_exit_2(r, *words: str) -> None:
