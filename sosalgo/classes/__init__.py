@@ -19,6 +19,7 @@ from sosalgo.classes import (
     convex_support,
     indicator,
     linear_operator,
+    lipschitz_map,
     lipschitz_operator,
     lipschitz_strongly_monotone,
     monotone,
@@ -93,6 +94,7 @@ register_class(skew_symmetric_linear_operator.CLASS)
 register_class(weakly_convex.CLASS)
 register_class(weakly_convex.SMOOTH)
 register_class(convex_support.CLASS)
+register_class(lipschitz_map.CLASS)
 _SHIPPED = tuple(CLASSES.values())
 
 SEED_CLASS: FunctionClass = smooth_strongly_convex.CLASS  # F(m, L): a spec without functions:
