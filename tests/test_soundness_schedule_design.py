@@ -621,3 +621,34 @@ def test_gradient_schedule_ten_steps_reaches_obs_f(tmp_path):
     assert obs * (1 - 1e-9) <= row["tau_certified"] <= obs * (1 + 1e-4)
     indep = independent_schedule_pep(row["schedule"]["h"])
     assert indep * (1 - 1e-6) <= row["tau_certified"] <= indep * (1 + 1e-5)
+
+
+def test_quadratic_witness_on_random_schedule_boxes():
+    """Gradient descent's schedule on f = q x^2 / 2 from x_0 = 1: x_N = prod (1 - q h_k),
+    each factor with its own h_k, so min |x_N| over a box is the product of each factor's
+    least |1 - q h_k| over its interval, and the witness is max over q of q/2 times its
+    square (exact, computed here apart from the code's vertex ranges and the float order
+    it uses to skip curvatures)."""
+    from sosalgo.design_search.steps import steps_problem
+    from sosalgo.design_search.steps_bound import witness_curvatures
+
+    spec = load_spec(str(spec_path("gradient-schedule")))
+    rng = random.Random(7)
+    for steps in (2, 3, 4):
+        pp = steps_problem(spec, None, steps, ["h"]).model
+        qs = witness_curvatures(pp)
+        for _ in range(12):
+            lo, hi = [], []
+            for _ in range(steps):
+                w = Fraction(3, 2 ** rng.randint(0, 9))
+                a = rng.randint(0, int(3 / w) - 1) * w
+                lo.append(a)
+                hi.append(a + w)
+            best = Fraction(0)
+            for q in qs:
+                low = Fraction(1)
+                for a, b in zip(lo, hi, strict=True):
+                    f0, f1 = 1 - q * a, 1 - q * b  # decreasing in h
+                    low *= 0 if f1 <= 0 <= f0 else min(abs(f0), abs(f1))
+                best = max(best, q * low * low / 2)
+            assert quadratic_bound(pp, lo, hi, qs) == best, (lo, hi)

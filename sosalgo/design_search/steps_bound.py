@@ -358,33 +358,82 @@ def _vertex_ranges(polys: list[Poly], lo: Sequence[Fraction], hi: Sequence[Fract
     None when one is not multilinear or the free values are too many for 2^p vertices
     (the stepwise intervals of :func:`_trajectory` lose the steps' correlation,
     x - h q x: these do not). Only within :data:`VERTEX_BUDGET` (vertices times terms):
-    gradient descent up to about 6 steps."""
+    gradient descent up to about 6 steps. The values are exact (flint's rationals); each
+    monomial's value at a vertex is computed once for all the polynomials."""
     if len(lo) > 16 or 2 ** len(lo) * sum(map(len, polys)) > VERTEX_BUDGET \
             or any(k > 1 for P in polys for e in P for k in e):
         return None
-    verts = list(itertools.product(*zip(lo, hi, strict=True)))
+    from flint import fmpq
+
+    def q(x: Fraction) -> Any:
+        return fmpq(x.numerator, x.denominator)
+
+    verts = list(itertools.product(*((q(a), q(b)) for a, b in zip(lo, hi, strict=True))))
+    mono: dict[tuple[int, ...], list[Any]] = {}
+    for P in polys:
+        for e in P:
+            if e not in mono:
+                mono[e] = [math.prod((x for x, k in zip(v, e, strict=True) if k), start=fmpq(1))
+                           for v in verts]
     out = []
     for P in polys:
-        vals = [sum((v * math.prod(x for x, k in zip(vert, e, strict=True) if k)
-                     for e, v in P.items()), Fraction(0)) for vert in verts]
-        out.append((min(vals), max(vals)))
+        vals = [fmpq(0)] * len(verts)
+        for e, c in P.items():
+            cq, me = q(c), mono[e]
+            vals = [v + cq * m for v, m in zip(vals, me, strict=True)]
+        out.append((_q(min(vals)), _q(max(vals))))
     return out
+
+
+def _float_last(polys: list[Poly], lo: Sequence[Fraction], hi: Sequence[Fraction]
+                ) -> tuple[float, float] | None:
+    """The float range of the last polynomial at the box's vertices (multilinear, within
+    :data:`VERTEX_BUDGET`; else None): a cheap estimate that only orders the exact
+    computations, never a bound."""
+    P = polys[-1]
+    if len(lo) > 16 or 2 ** len(lo) * len(P) > VERTEX_BUDGET \
+            or any(k > 1 for e in P for k in e):
+        return None
+    V = np.array(list(itertools.product(*zip(map(float, lo), map(float, hi), strict=True))))
+    vals = np.zeros(len(V))
+    for e, c in P.items():
+        vals += float(c) * np.prod(np.where(np.array(e, bool), V, 1.0), axis=1)
+    return float(vals.min()), float(vals.max())
 
 
 def quadratic_bound(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction],
                     qs: Sequence[Fraction]) -> Fraction:
-    """max over q of the proven min over the box of f(x_N) for f = q x^2 / 2 (x_0 = 1)."""
+    """max over q of the proven min over the box of f(x_N) for f = q x^2 / 2 (x_0 = 1).
+    Float estimates at the box's vertices order the curvatures; a curvature whose
+    estimate stays below the exact best so far (by a margin far above float error) is
+    not computed exactly: it cannot raise the max."""
     best = Fraction(0)
+    order: list[tuple[float, Fraction]] = []
     for q in qs:
-        exact = _vertex_ranges(_poly_trajectory(pp, q, Fraction(0), 1), lo, hi)
-        if exact is not None:
-            a, b = exact[-1]
-        else:
-            _, (a, b) = _trajectory(pp, lo, hi, lambda y, q=q: (q * y[0], q * y[1])
-                                    if q >= 0 else (q * y[1], q * y[0]))
-        low = Fraction(0) if a <= 0 <= b else min(abs(a), abs(b))
-        best = max(best, q * low * low / 2)
+        est = _float_last(_poly_trajectory(pp, q, Fraction(0), 1), lo, hi)
+        low = math.inf if est is None else (0.0 if est[0] <= 0 <= est[1]
+                                            else min(abs(est[0]), abs(est[1])))
+        order.append((float(q) * low * low / 2, q))
+    order.sort(key=lambda t: -t[0])
+    for est, q in order:
+        if est < float(best) * (1 - 1e-6) or (est == 0 and best > 0):
+            continue
+        best = max(best, _quadratic_at(pp, lo, hi, q))
     return best
+
+
+def _quadratic_at(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction],
+                  q: Fraction) -> Fraction:
+    """The proven min over the box of f(x_N) for f = q x^2 / 2 (x_0 = 1)."""
+    trajectory = _poly_trajectory(pp, q, Fraction(0), 1)
+    exact = _vertex_ranges(trajectory[-1:], lo, hi)
+    if exact is not None:
+        a, b = exact[-1]
+    else:
+        _, (a, b) = _trajectory(pp, lo, hi, lambda y, q=q: (q * y[0], q * y[1])
+                                if q >= 0 else (q * y[1], q * y[0]))
+    low = Fraction(0) if a <= 0 <= b else min(abs(a), abs(b))
+    return q * low * low / 2
 
 
 def huber_bound(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction]
