@@ -652,3 +652,28 @@ def test_quadratic_witness_on_random_schedule_boxes():
                     low *= 0 if f1 <= 0 <= f0 else min(abs(f0), abs(f1))
                 best = max(best, q * low * low / 2)
             assert quadratic_bound(pp, lo, hi, qs) == best, (lo, hi)
+
+
+def test_bound_on_two_processes_covers_the_box_below_the_closed_form(gd_models):
+    """branch_and_bound with workers = 2 (children proven on a worker process and here):
+    its leaves tile [0, 2] (sorted, end to end), each re-proven exactly at its bound or
+    above by the recorded argument alone, and the bound over the box is at most the
+    closed form's minimum over h of gradient descent's worst case (Drori-Teboulle) and
+    within 1e-2 of it."""
+    import time as _time
+
+    from sosalgo.design_search.steps_bound import branch_and_bound, reprove
+
+    pp = gd_models[2]
+    best = _closed_form_minimum(2)
+    res = branch_and_bound(pp, [Fraction(0)], [Fraction(2)], lambda: best,
+                           _time.time() + 300, 1e-2, workers=2, max_boxes=400)
+    leaves = sorted(res.leaves, key=lambda b: b.lo)
+    assert leaves[0].lo == (0,) and leaves[-1].hi == (2,)
+    assert all(a.hi == b.lo for a, b in zip(leaves[:-1], leaves[1:], strict=True))
+    assert res.finished and float(res.lower_bound) <= best
+    assert float(res.lower_bound) >= best * (1 - 1e-2)
+    for leaf in leaves:
+        lo, hi = leaf.proof_box()
+        got = reprove(pp, lo, hi, leaf.how, leaf.point, leaf.slopes, leaf.gram)
+        assert got >= leaf.bound, leaf

@@ -365,7 +365,9 @@ def _bound(pp: Any, box: Sequence[tuple[Fraction, Fraction]], search: _Search,
                            lambda: search.best, deadline - 0.15 * (deadline - time.time()),
                            STOP_SHARE * gap, probe, report, workers=workers)
     return res, (f"bound: {res.boxes} boxes in {res.seconds:.1f} s"
-                 + (f" on {workers} processes" if workers > 1 else "") + ", leaves proven by "
+                 + (f" on {workers} processes" if workers > 1 else "")
+                 + (f" ({res.lost} lost by a worker, proven here)" if res.lost else "")
+                 + ", leaves proven by "
                  + ", ".join(f"{k} {v}" for k, v in sorted(res.hows.items())))
 
 

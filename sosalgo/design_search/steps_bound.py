@@ -579,6 +579,7 @@ class BranchResult:
     seconds: float
     finished: bool  # the target gap was reached (else: the time ran out)
     hows: dict[str, int] = field(default_factory=dict)
+    lost: int = 0  # boxes a worker process failed on (proven again in this one)
 
 
 def _split(b: BoxBound, root: Box, slope: Sequence[float] | None = None
@@ -650,7 +651,7 @@ def branch_and_bound(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fra
     for b in leaves:
         hows[b.how] = hows.get(b.how, 0) + 1
     return BranchResult(min(b.bound for b in leaves), leaves, count,
-                        time.perf_counter() - t0, finished, hows)
+                        time.perf_counter() - t0, finished, hows, provers.lost)
 
 
 class _Provers:
@@ -664,7 +665,7 @@ class _Provers:
         import uuid
 
         self.pp, self.solver = pp, BoxSolver(pp)
-        self.pool = None
+        self.pool, self.lost = None, 0
         if workers > 1:
             from sosalgo.kernel.parallel import worker_pool
 
@@ -684,6 +685,7 @@ class _Provers:
             try:
                 out.append(fut.result())
             except Exception:  # noqa: BLE001 - a lost worker: proven here instead
+                self.lost += 1
                 out.append(prove_box(self.pp, self.solver, *job))
         out += [prove_box(self.pp, self.solver, *job) for job in jobs[len(out):-1]]
         return out + [last]
