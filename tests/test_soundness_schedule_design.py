@@ -350,6 +350,25 @@ def test_gradient_schedule_gap(tmp_path, steps):
     assert row["gap_relative"] <= 1e-3
 
 
+@pytest.mark.deep
+def test_gradient_schedule_four_steps_gap_on_two_workers(tmp_path):
+    """gradient-schedule, N = 4, --workers 2 (the bound's boxes on both cores): proven
+    relative gap <= 1e-3 within its 600 s limit, the schedule's worst case checked by the
+    independent PEP, and the lower bound at most the worst case of the best known schedule
+    with its third step clipped to the box's 3/L (OBS-F's is 3.005), by the same PEP."""
+    from sosalgo.design_search.steps import obs_f
+    from sosalgo.runs.steps_design import steps_design_run
+
+    doc = steps_design_run(str(spec_path("gradient-schedule")), None, "4", tmp_path,
+                           time_limit=600, workers=2, progress=False, plot=False)
+    (row,) = doc["rows"]
+    indep = independent_schedule_pep(row["schedule"]["h"])
+    assert indep * (1 - 1e-6) <= row["tau_certified"] <= indep * (1 + 1e-5)
+    assert row["gap_relative"] <= 1e-3
+    clipped = [min(h, 3.0) for h in obs_f(4)[0]]
+    assert row["lower_bound"] <= independent_schedule_pep(clipped) * (1 + 1e-6)
+
+
 def _closed_form_minimum(steps: int) -> float:
     from scipy.optimize import minimize_scalar
 

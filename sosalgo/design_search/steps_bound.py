@@ -585,13 +585,15 @@ class BranchResult:
 def _split(b: BoxBound, root: Box, slope: Sequence[float] | None = None
            ) -> list[tuple[tuple[Fraction, ...], tuple[Fraction, ...]]]:
     """Halve the box along the side that costs the bound most: width times |slope| of
-    the worst case at the centre (``slope``, when known; plus a tenth of the largest so
-    that no side is never split), else the widest side relative to the root."""
+    the worst case at the centre (``slope``, when known; plus the largest, so that a
+    wide side with a small slope is split too: the affine point's loss grows with every
+    side's width; at N = 4 this took 1007 boxes to the gap where a tenth of the largest
+    took 1163), else the widest side relative to the root."""
     widths = [float((h - lo_) / max(rh - rl, Fraction(1, 10 ** 30)))
               for lo_, h, rl, rh in zip(b.lo, b.hi, root[0], root[1], strict=True)]
     if slope is not None and len(slope) == len(widths) and all(map(math.isfinite, slope)):
         top = max(abs(float(g)) for g in slope) or 1.0
-        cost = [float(h - lo_) * (abs(float(g)) + 0.1 * top)
+        cost = [float(h - lo_) * (abs(float(g)) + top)
                 for lo_, h, g in zip(b.lo, b.hi, slope, strict=True)]
         if max(cost) > 0:
             widths = cost
