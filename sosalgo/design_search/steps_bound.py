@@ -587,8 +587,7 @@ def _split(b: BoxBound, root: Box, slope: Sequence[float] | None = None
     """Halve the box along the side that costs the bound most: width times |slope| of
     the worst case at the centre (``slope``, when known; plus the largest, so that a
     wide side with a small slope is split too: the affine point's loss grows with every
-    side's width; at N = 4 this took 1007 boxes to the gap where a tenth of the largest
-    took 1163), else the widest side relative to the root."""
+    side's width), else the widest side relative to the root."""
     widths = [float((h - lo_) / max(rh - rl, Fraction(1, 10 ** 30)))
               for lo_, h, rl, rh in zip(b.lo, b.hi, root[0], root[1], strict=True)]
     if slope is not None and len(slope) == len(widths) and all(map(math.isfinite, slope)):
