@@ -662,6 +662,7 @@ class _Provers:
     leaves its box to this process."""
 
     def __init__(self, pp: ParametricPEP, workers: int):
+        import copy
         import pickle
         import uuid
 
@@ -670,8 +671,14 @@ class _Provers:
         if workers > 1:
             from sosalgo.kernel.parallel import worker_pool
 
+            portable = copy.copy(pp)  # without the exact forms' flint matrix (rebuilt there)
+            portable.__dict__ = {k: v for k, v in pp.__dict__.items() if k != "_exact"}
+            try:
+                self.blob = pickle.dumps(portable)
+            except (TypeError, pickle.PicklingError):  # a model that cannot travel: here
+                return
+            self.token = uuid.uuid4().hex
             self.pool = worker_pool(workers - 1)
-            self.token, self.blob = uuid.uuid4().hex, pickle.dumps(pp)
 
     def prove(self, boxes: Sequence[Box], target: float | None,
               inherited: Sequence[Fraction]) -> list[BoxBound]:
