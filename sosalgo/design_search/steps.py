@@ -39,6 +39,9 @@ __all__ = ["StepsDesign", "StepsProblem", "design_steps", "drori_floor", "exact_
 
 DIGITS = 12  # significant digits of the designed values (the exact θ of the proof)
 SEARCH_SHARE = 0.3  # of the time limit, for the upper bound's search before the bound
+STOP_SHARE = 0.9  # the bound search stops at a relative gap of this share of --gap (the
+# rest: the certificate's margin over the float worst case, about 1e-6 relative)
+STALL_HOPS = 12  # up to 4 free values: the random restarts end after this many fail
 
 
 @dataclass
@@ -192,12 +195,14 @@ class _Search:
     def hop(self, deadline: float, scale: float = 0.05, seed: int = 0) -> int:
         """Restarts of the gradient descent from random points near the best (a normal
         step of ``scale`` times the box, wider after failures) until ``deadline``: the
-        worst case is a max over functions, its kinks stop a descent early."""
+        worst case is a max over functions, its kinks stop a descent early. Up to 4 free
+        values, :data:`STALL_HOPS` restarts in a row that improve nothing end it (the
+        bound's time then starts sooner; the bound's probes keep searching)."""
         from scipy.optimize import minimize
 
         rng = np.random.default_rng(seed)
         bounds = list(zip(self.lo, self.hi, strict=True))
-        hops, sigma = 0, scale
+        hops, sigma, failed = 0, scale, 0
         self.stop = deadline
         while time.time() < deadline and self.best_z is not None:
             before = self.best
@@ -211,8 +216,11 @@ class _Search:
             finally:
                 self.stop = deadline
             hops += 1
-            sigma = scale if self.best < before * (1 - 1e-9) else min(4 * scale,
-                                                                        sigma * 1.5)
+            better = self.best < before * (1 - 1e-9)
+            failed = 0 if better else failed + 1
+            if failed >= STALL_HOPS and len(self.lo) <= 4:
+                break
+            sigma = scale if better else min(4 * scale, sigma * 1.5)
         self.stop = math.inf
         return hops
 
@@ -288,7 +296,8 @@ def design_steps(spec: Spec, text: str, kappa: float | None, steps: int, layout:
                  box: Sequence[tuple[Fraction, Fraction]],
                  evaluator: tuple[Callable, Callable], time_limit: float = 120.0,
                  gap: float = 1e-3, seeds: Sequence[Sequence[float]] = (),
-                 model: Any = None, no_model: str | None = None) -> StepsDesign:
+                 model: Any = None, no_model: str | None = None,
+                 box_workers: int = 1) -> StepsDesign:
     """The N-step design of ``spec`` over ``box`` (exact ends, one per flat free value,
     :func:`flat_names` of ``layout``): schedule, tau_certified, lower_bound, floor (see
     the module). ``evaluator``: (float worst case at θ, proven worst case at θ), θ a dict
@@ -296,7 +305,8 @@ def design_steps(spec: Spec, text: str, kappa: float | None, steps: int, layout:
     the parametric PEP (:func:`sosalgo.design_search.steps_model.parametric_pep`; built here for
     a time-invariant spec when None, unless ``no_model`` says why there is none: then no
     box-wide bound, and the search uses the evaluator's values); ``gap``: the relative
-    gap at which the bound search stops."""
+    gap at which the bound search stops; ``box_workers``: the processes the bound proves
+    boxes on (:func:`sosalgo.design_search.steps_bound.branch_and_bound`)."""
     t0 = time.time()
     deadline = t0 + time_limit
     names = flat_names(layout)
@@ -330,7 +340,7 @@ def design_steps(spec: Spec, text: str, kappa: float | None, steps: int, layout:
         + f", best {search.best:.12g}")
     bound = None
     if model is not None:
-        bound, reason = _bound(model, box, search, deadline, gap)
+        bound, reason = _bound(model, box, search, deadline, gap, box_workers)
         log.append(reason)
     if search.best_z is not None:
         search.polish(search.best_z, deadline - 0.1 * time_limit)
@@ -338,7 +348,7 @@ def design_steps(spec: Spec, text: str, kappa: float | None, steps: int, layout:
 
 
 def _bound(pp: Any, box: Sequence[tuple[Fraction, Fraction]], search: _Search,
-           deadline: float, gap: float) -> tuple[BranchResult, str]:
+           deadline: float, gap: float, workers: int = 1) -> tuple[BranchResult, str]:
     def report(boxes: int, low: float) -> None:
         show_phase("lower bound", f"{boxes} boxes, bound {low:.6g}, best {search.best:.6g}")
 
@@ -353,8 +363,11 @@ def _bound(pp: Any, box: Sequence[tuple[Fraction, Fraction]], search: _Search,
 
     res = branch_and_bound(pp, [a for a, _ in box], [b for _, b in box],
                            lambda: search.best, deadline - 0.15 * (deadline - time.time()),
-                           gap / 2, probe, report)
-    return res, (f"bound: {res.boxes} boxes in {res.seconds:.1f} s, leaves proven by "
+                           STOP_SHARE * gap, probe, report, workers=workers)
+    return res, (f"bound: {res.boxes} boxes in {res.seconds:.1f} s"
+                 + (f" on {workers} processes" if workers > 1 else "")
+                 + (f" ({res.lost} lost by a worker, proven here)" if res.lost else "")
+                 + ", leaves proven by "
                  + ", ".join(f"{k} {v}" for k, v in sorted(res.hows.items())))
 
 

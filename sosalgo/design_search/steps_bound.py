@@ -147,17 +147,17 @@ class BoxSolver:
             return -math.inf, None, None
         return float(rb.problem.value), np.array(rb.G.value), np.array(rb.F1.value)
 
-    def proven(self, lo: Sequence[Fraction], hi: Sequence[Fraction]
+    def proven(self, lo: Sequence[Fraction], hi: Sequence[Fraction], floor: float = 0.0
                ) -> tuple[float, tuple[Fraction, list[list[int]], Slopes] | None, int]:
         """(float value, (proven bound, its factor V, its slopes F1) or None, rung): the
         ladder's rungs in order until a proof holds (a failed first solve, or a value
-        <= 0, ends it)."""
+        at most ``floor``, a bound already in hand, or 0, ends it)."""
         first = -math.inf
         for rung in range(len(LADDER)):
             val, G, F1 = self.solve(lo, hi, rung)
             if rung == 0:
                 first = val
-            if G is None or val <= 0:
+            if G is None or val <= max(floor, 0.0):
                 if rung == 0:
                     return val, None, 0
                 continue
@@ -358,33 +358,82 @@ def _vertex_ranges(polys: list[Poly], lo: Sequence[Fraction], hi: Sequence[Fract
     None when one is not multilinear or the free values are too many for 2^p vertices
     (the stepwise intervals of :func:`_trajectory` lose the steps' correlation,
     x - h q x: these do not). Only within :data:`VERTEX_BUDGET` (vertices times terms):
-    gradient descent up to about 6 steps."""
+    gradient descent up to about 6 steps. The values are exact (flint's rationals); each
+    monomial's value at a vertex is computed once for all the polynomials."""
     if len(lo) > 16 or 2 ** len(lo) * sum(map(len, polys)) > VERTEX_BUDGET \
             or any(k > 1 for P in polys for e in P for k in e):
         return None
-    verts = list(itertools.product(*zip(lo, hi, strict=True)))
+    from flint import fmpq
+
+    def q(x: Fraction) -> Any:
+        return fmpq(x.numerator, x.denominator)
+
+    verts = list(itertools.product(*((q(a), q(b)) for a, b in zip(lo, hi, strict=True))))
+    mono: dict[tuple[int, ...], list[Any]] = {}
+    for P in polys:
+        for e in P:
+            if e not in mono:
+                mono[e] = [math.prod((x for x, k in zip(v, e, strict=True) if k), start=fmpq(1))
+                           for v in verts]
     out = []
     for P in polys:
-        vals = [sum((v * math.prod(x for x, k in zip(vert, e, strict=True) if k)
-                     for e, v in P.items()), Fraction(0)) for vert in verts]
-        out.append((min(vals), max(vals)))
+        vals = [fmpq(0)] * len(verts)
+        for e, c in P.items():
+            cq, me = q(c), mono[e]
+            vals = [v + cq * m for v, m in zip(vals, me, strict=True)]
+        out.append((_q(min(vals)), _q(max(vals))))
     return out
+
+
+def _float_last(polys: list[Poly], lo: Sequence[Fraction], hi: Sequence[Fraction]
+                ) -> tuple[float, float] | None:
+    """The float range of the last polynomial at the box's vertices (multilinear, within
+    :data:`VERTEX_BUDGET`; else None): a cheap estimate that only orders the exact
+    computations, never a bound."""
+    P = polys[-1]
+    if len(lo) > 16 or 2 ** len(lo) * len(P) > VERTEX_BUDGET \
+            or any(k > 1 for e in P for k in e):
+        return None
+    V = np.array(list(itertools.product(*zip(map(float, lo), map(float, hi), strict=True))))
+    vals = np.zeros(len(V))
+    for e, c in P.items():
+        vals += float(c) * np.prod(np.where(np.array(e, bool), V, 1.0), axis=1)
+    return float(vals.min()), float(vals.max())
 
 
 def quadratic_bound(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction],
                     qs: Sequence[Fraction]) -> Fraction:
-    """max over q of the proven min over the box of f(x_N) for f = q x^2 / 2 (x_0 = 1)."""
+    """max over q of the proven min over the box of f(x_N) for f = q x^2 / 2 (x_0 = 1).
+    Float estimates at the box's vertices order the curvatures; a curvature whose
+    estimate stays below the exact best so far (by a margin far above float error) is
+    not computed exactly: it cannot raise the max."""
     best = Fraction(0)
+    order: list[tuple[float, Fraction]] = []
     for q in qs:
-        exact = _vertex_ranges(_poly_trajectory(pp, q, Fraction(0), 1), lo, hi)
-        if exact is not None:
-            a, b = exact[-1]
-        else:
-            _, (a, b) = _trajectory(pp, lo, hi, lambda y, q=q: (q * y[0], q * y[1])
-                                    if q >= 0 else (q * y[1], q * y[0]))
-        low = Fraction(0) if a <= 0 <= b else min(abs(a), abs(b))
-        best = max(best, q * low * low / 2)
+        est = _float_last(_poly_trajectory(pp, q, Fraction(0), 1), lo, hi)
+        low = math.inf if est is None else (0.0 if est[0] <= 0 <= est[1]
+                                            else min(abs(est[0]), abs(est[1])))
+        order.append((float(q) * low * low / 2, q))
+    order.sort(key=lambda t: -t[0])
+    for est, q in order:
+        if est < float(best) * (1 - 1e-6) or (est == 0 and best > 0):
+            continue
+        best = max(best, _quadratic_at(pp, lo, hi, q))
     return best
+
+
+def _quadratic_at(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction],
+                  q: Fraction) -> Fraction:
+    """The proven min over the box of f(x_N) for f = q x^2 / 2 (x_0 = 1)."""
+    trajectory = _poly_trajectory(pp, q, Fraction(0), 1)
+    exact = _vertex_ranges(trajectory[-1:], lo, hi)
+    if exact is not None:
+        a, b = exact[-1]
+    else:
+        _, (a, b) = _trajectory(pp, lo, hi, lambda y, q=q: (q * y[0], q * y[1])
+                                if q >= 0 else (q * y[1], q * y[0]))
+    low = Fraction(0) if a <= 0 <= b else min(abs(a), abs(b))
+    return q * low * low / 2
 
 
 def huber_bound(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fraction]
@@ -444,14 +493,17 @@ class BoxBound:
 
 
 def prove_box(pp: ParametricPEP, solver: BoxSolver | None, lo: Sequence[Fraction],
-              hi: Sequence[Fraction], target: float | None = None) -> BoxBound:
+              hi: Sequence[Fraction], target: float | None = None,
+              inherited: Fraction = Fraction(0)) -> BoxBound:
     """The best proven bound of the box, cheapest first, until one reaches ``target``:
     the witnesses (where the method diverges on quadratics a box's robust point is small
     and its quadratic witness large), the constant robust point, then the affine robust
     point (an SDP about ten times larger) where the constant one's float value stays
     below ``target``. Only the witnesses where two points may coincide on the box
     (:func:`may_coincide`: a zero step; their inequalities have no slack there, and the
-    SDPs' points fail their proofs)."""
+    SDPs' points fail their proofs). ``inherited``: a bound the box has already (its
+    parent's, whose proof holds on it): an SDP point whose float value stays below it is
+    not proven exactly."""
     lo, hi = tuple(lo), tuple(hi)
     best = BoxBound(lo, hi, Fraction(0), "none", -math.inf)
     for name, b in (("huber", huber_bound(pp, lo, hi)),
@@ -461,14 +513,14 @@ def prove_box(pp: ParametricPEP, solver: BoxSolver | None, lo: Sequence[Fraction
     goal = math.inf if target is None else target
     if solver is None or best.bound >= goal or may_coincide(pp, lo, hi):
         return best
-    val, got, rung = solver.proven(lo, hi)
+    val, got, rung = solver.proven(lo, hi, max(float(best.bound), float(inherited)))
     best.estimate = val
     if got is not None and got[0] > best.bound:
         best = BoxBound(lo, hi, got[0], "robust-pep", val, rung=rung, point=got[1],
                         slopes=got[2])
     if solver.affine is None or best.bound >= goal or (val >= goal and got is not None):
         return best
-    aval, affine = solver.affine.proven(lo, hi, float(best.bound))
+    aval, affine = solver.affine.proven(lo, hi, max(float(best.bound), float(inherited)))
     if affine is not None and affine[0] > best.bound:
         return BoxBound(lo, hi, affine[0], "affine-pep", max(val, aval), gram=affine[1][0],
                         slopes=affine[1][1])
@@ -527,18 +579,20 @@ class BranchResult:
     seconds: float
     finished: bool  # the target gap was reached (else: the time ran out)
     hows: dict[str, int] = field(default_factory=dict)
+    lost: int = 0  # boxes a worker process failed on (proven again in this one)
 
 
 def _split(b: BoxBound, root: Box, slope: Sequence[float] | None = None
            ) -> list[tuple[tuple[Fraction, ...], tuple[Fraction, ...]]]:
     """Halve the box along the side that costs the bound most: width times |slope| of
-    the worst case at the centre (``slope``, when known; plus a tenth of the largest so
-    that no side is never split), else the widest side relative to the root."""
+    the worst case at the centre (``slope``, when known; plus the largest, so that a
+    wide side with a small slope is split too: the affine point's loss grows with every
+    side's width), else the widest side relative to the root."""
     widths = [float((h - lo_) / max(rh - rl, Fraction(1, 10 ** 30)))
               for lo_, h, rl, rh in zip(b.lo, b.hi, root[0], root[1], strict=True)]
     if slope is not None and len(slope) == len(widths) and all(map(math.isfinite, slope)):
         top = max(abs(float(g)) for g in slope) or 1.0
-        cost = [float(h - lo_) * (abs(float(g)) + 0.1 * top)
+        cost = [float(h - lo_) * (abs(float(g)) + top)
                 for lo_, h, g in zip(b.lo, b.hi, slope, strict=True)]
         if max(cost) > 0:
             widths = cost
@@ -553,39 +607,117 @@ def branch_and_bound(pp: ParametricPEP, lo: Sequence[Fraction], hi: Sequence[Fra
                      upper: Callable[[], float], deadline: float, gap: float,
                      probe: Callable[[list[float]], Any] | None = None,
                      on_box: Callable[[int, float], None] | None = None,
-                     max_boxes: int = 100000) -> BranchResult:
+                     max_boxes: int = 100000, workers: int = 1) -> BranchResult:
     """Split the box with the lowest proven bound until min bound >= upper() (1 - gap)
     or the deadline; ``probe(theta)`` is offered each split box's centre (the upper
     bound's search; it may return the worst case's gradient there, which chooses the
-    side to split), ``on_box(boxes, lower)`` reports progress."""
+    side to split), ``on_box(boxes, lower)`` reports progress. ``workers`` > 1: the
+    children of ``workers // 2`` boxes (at least one) are proven at once, this process
+    and ``workers - 1`` worker processes (:class:`_Provers`)."""
     t0 = time.perf_counter()
-    solver = BoxSolver(pp)
+    provers = _Provers(pp, workers)
     root: Box = (tuple(lo), tuple(hi))
-    first = prove_box(pp, solver, *root)
-    heap: list[tuple[Fraction, int, BoxBound]] = [(first.bound, 0, first)]
-    count, finished = 1, False
-    while heap:
-        low, _, box = heap[0]
-        if float(low) >= upper() * (1 - gap):
-            finished = True
-            break
-        if time.time() >= deadline or count >= max_boxes:
-            break
-        heapq.heappop(heap)
-        slope = probe(box.center()) if probe is not None else None
-        for clo, chi in _split(box, root, slope):
-            child = prove_box(pp, solver, clo, chi, upper() * (1 - gap))
-            if child.bound < box.bound:  # the parent's proof holds on the child
-                child = BoxBound(clo, chi, box.bound, box.how, child.estimate,
-                                 box.proof_box(), box.rung, box.point, box.slopes,
-                                 box.gram)
-            count += 1
-            heapq.heappush(heap, (child.bound, count, child))
-        if on_box is not None:
-            on_box(count, float(heap[0][0]))
+    try:
+        (first,) = provers.prove([root], None, [Fraction(0)])
+        heap: list[tuple[Fraction, int, BoxBound]] = [(first.bound, 0, first)]
+        count, finished = 1, False
+        while heap:
+            if float(heap[0][0]) >= upper() * (1 - gap):
+                finished = True
+                break
+            if time.time() >= deadline or count >= max_boxes:
+                break
+            parents, kids = [], []
+            while heap and len(parents) < max(1, workers // 2) \
+                    and float(heap[0][0]) < upper() * (1 - gap):
+                box = heapq.heappop(heap)[2]
+                slope = probe(box.center()) if probe is not None else None
+                for kid in _split(box, root, slope):
+                    parents.append(box)
+                    kids.append(kid)
+            proven = provers.prove(kids, upper() * (1 - gap), [b.bound for b in parents])
+            for box, child in zip(parents, proven, strict=True):
+                if child.bound < box.bound:  # the parent's proof holds on the child
+                    child = BoxBound(child.lo, child.hi, box.bound, box.how,
+                                     child.estimate, box.proof_box(), box.rung, box.point,
+                                     box.slopes, box.gram)
+                count += 1
+                heapq.heappush(heap, (child.bound, count, child))
+            if on_box is not None:
+                on_box(count, float(heap[0][0]))
+    finally:
+        provers.close()
     leaves = [b for _, _, b in heap]
     hows: dict[str, int] = {}
     for b in leaves:
         hows[b.how] = hows.get(b.how, 0) + 1
     return BranchResult(min(b.bound for b in leaves), leaves, count,
-                        time.perf_counter() - t0, finished, hows)
+                        time.perf_counter() - t0, finished, hows, provers.lost)
+
+
+class _Provers:
+    """:func:`prove_box` of several boxes at once: the last in this process, the others
+    on a pool of ``workers - 1`` processes (none when ``workers`` is 1), each holding the
+    model and its own :class:`BoxSolver` (built on its first box). A worker that fails
+    leaves its box to this process."""
+
+    def __init__(self, pp: ParametricPEP, workers: int):
+        import copy
+        import pickle
+        import uuid
+
+        self.pp, self.solver = pp, BoxSolver(pp)
+        self.pool, self.lost = None, 0
+        if workers > 1:
+            from sosalgo.kernel.parallel import worker_pool
+
+            portable = copy.copy(pp)  # without the exact forms' flint matrix (rebuilt there)
+            portable.__dict__ = {k: v for k, v in pp.__dict__.items() if k != "_exact"}
+            try:
+                self.blob = pickle.dumps(portable)
+            except (TypeError, pickle.PicklingError):  # a model that cannot travel: here
+                return
+            self.token = uuid.uuid4().hex
+            self.pool = worker_pool(workers - 1)
+
+    def prove(self, boxes: Sequence[Box], target: float | None,
+              inherited: Sequence[Fraction]) -> list[BoxBound]:
+        """:func:`prove_box` of each box (``inherited``: the bound each has already)."""
+        jobs = [(lo_, hi_, target, b) for (lo_, hi_), b in zip(boxes, inherited, strict=True)]
+        futures = ([] if self.pool is None else
+                   [self.pool.submit(_prove_remote, self.token, self.blob, *job)
+                    for job in jobs[:-1]])
+        last = prove_box(self.pp, self.solver, *jobs[-1])
+        out = []
+        for job, fut in zip(jobs, futures, strict=False):
+            try:
+                out.append(fut.result())
+            except Exception:  # noqa: BLE001 - a lost worker: proven here instead
+                self.lost += 1
+                out.append(prove_box(self.pp, self.solver, *job))
+        out += [prove_box(self.pp, self.solver, *job) for job in jobs[len(out):-1]]
+        return out + [last]
+
+    def close(self) -> None:
+        if self.pool is not None:
+            from sosalgo.kernel.parallel import kill_pool
+
+            kill_pool(self.pool)
+            self.pool = None
+
+
+_REMOTE: dict[str, tuple[ParametricPEP, BoxSolver]] = {}  # a worker's model and solver
+
+
+def _prove_remote(token: str, blob: bytes, lo: Sequence[Fraction], hi: Sequence[Fraction],
+                  target: float | None, inherited: Fraction) -> BoxBound:
+    """:func:`prove_box` in a worker process: the model ``blob`` (pickled by this run's
+    :class:`_Provers`, ``token`` names it) unpickled and its solver built once."""
+    if token not in _REMOTE:
+        import pickle
+
+        _REMOTE.clear()
+        pp = pickle.loads(blob)  # noqa: S301 - pickled by the process that owns this pool
+        _REMOTE[token] = (pp, BoxSolver(pp))
+    pp, solver = _REMOTE[token]
+    return prove_box(pp, solver, lo, hi, target, inherited)

@@ -34,7 +34,7 @@ def steps_design_chunk(spec_text: str, source: str, options: dict[str, Any],
         res = design_steps(spec, spec_text, kappa, steps, prob.layout, prob.box,
                            steps_evaluator(spec, spec_text, kappa, steps, prob),
                            options["time_limit"], options["gap"], prob.seeds, prob.model,
-                           prob.reason)
+                           prob.reason, box_workers=options.get("box_workers", 1))
         doc = res.to_dict()
         rows.append({"kappa": "" if kappa is None else kappa, "steps": res.steps,
                      "schedule": json.dumps(doc["schedule"]),
@@ -46,6 +46,18 @@ def steps_design_chunk(spec_text: str, source: str, options: dict[str, Any],
 
 
 steps_design_chunk.max_chunk = 1  # type: ignore[attr-defined]  # a design takes minutes
+
+
+def _box_workers(workers: int | None, scheduler: str | None,
+                 todo: Sequence[Any]) -> int:
+    """The processes each design's bound proves boxes on: the local workers that the
+    designs leave free, shared among them (``--workers 2`` and one N: both cores prove
+    boxes); one on a Dask scheduler."""
+    if scheduler is not None or not todo:
+        return 1
+    from sosalgo.kernel.budget import usable_workers
+
+    return max(1, usable_workers(workers) // len(todo))
 
 
 def _kappas(spec: Spec, kappa: float | Sequence[float] | None) -> list[float | None]:
@@ -113,8 +125,9 @@ def steps_design_run(spec: Spec | str | Path, kappa: float | Sequence[float] | N
             def persist(row: dict[str, Any]) -> None:  # the document's file, then its row
                 store.write(_persist(spec, text, row, out, set_field(overrides)))
 
-            run_batch(steps_design_chunk, text, spec.source, options, todo, persist,
-                      workers, scheduler, bar, isolate=True)
+            run_batch(steps_design_chunk, text, spec.source,
+                      {**options, "box_workers": _box_workers(workers, scheduler, todo)},
+                      todo, persist, workers, scheduler, bar, isolate=True)
         finally:
             bar.close()
         keys = {store.row_key(t) for t in tasks}
