@@ -684,7 +684,8 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
                       mt: Method | None = None,
                       null: np.ndarray | None = None,
                       units: list[int] | None = None,
-                      null_tol: float | None = None) -> dict[str, Any]:
+                      null_tol: float | None = None,
+                      centered: Any = None) -> dict[str, Any]:
     """Prove measure <= tau' for a rational tau' >= tau (see the module); a dict with
     ``proven``, ``tau_proven`` (p/q), ``tau_proven_float``, ``detail``, ``seconds``.
     ``w``: the scale of the basis (powers of two, default 1); ``mt``: the exact method
@@ -694,7 +695,8 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
     directions no form has a square of, :func:`sosalgo.worstcase.sdp.linear_only`);
     ``null_tol``: the eigenvalues of the scaled ``null`` that count as its null space
     (default :data:`NULL_ROW` of its largest entry; a margin certificate's: below its
-    margin)."""
+    margin); ``centered``: the float PEP data of a centered certificate
+    (:mod:`sosalgo.worstcase.centered`), its multipliers projected exactly."""
     from sosalgo.kernel.exact import fraction_str, rational
     from sosalgo.worstcase.bind import bound_method
 
@@ -721,7 +723,11 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
     detail = ""
     for step in TAU_STEPS:
         tq = above(Fraction(tau), Fraction(step))
-        if units:
+        if centered is not None:
+            from sosalgo.worstcase.centered import prove_centered
+
+            ok, lq2, delta, why = prove_centered(mt, st, centered, lam, tq)
+        elif units:
             ok, lq2, delta, why, tq = _prove_null_rows(mt, st, lam, tq, None, w, units)
         elif null is not None:
             ok, lq2, delta, why, tq = _prove_null_rows(mt, st, lam, tq, null, w,
