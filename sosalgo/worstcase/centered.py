@@ -10,11 +10,11 @@ tau' = tau (1 + rel) is proven instead, from a certificate pushed into the inter
    least eigenvalue t of the scaled S on the complement of its structural null space
    (the basis directions no form has a square of, where S is 0 whatever the multipliers,
    :func:`sosalgo.worstcase.sdp.linear_only`), with c_F >= 0;
-2. :func:`projected_multipliers`: the multipliers as rationals, projected exactly (in
-   rationals, weighted by the multipliers themselves so that small ones move little)
-   onto the affine space where S's structural rows are exactly 0 and the value residuals
-   the float certificate leaves at about 0 are exactly 0; a multiplier that the
-   projection makes negative is dropped and the projection repeated;
+2. :func:`projected_multipliers`: the multipliers as rationals, moved exactly (in
+   rationals, the largest ones solved from the others) onto the affine space where S's
+   structural rows are exactly 0 and the value residuals the float certificate leaves at
+   about 0 are exactly 0; a multiplier that this makes negative is dropped, a value
+   residual it makes negative is held at 0, and the step repeated;
 3. the exact check of :func:`sosalgo.worstcase.exact.prove_at`, nothing repaired: every
    multiplier >= 0, c_F >= 0 and S ⪰ 0 (a Cholesky factor with a ball residual, or LDL^T
    in exact rationals when S keeps its structural zero rows).
@@ -132,20 +132,20 @@ def projected_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Fra
         for i in sorted(tight):
             eqs[0].append([a[i] for a in lins])
             eqs[1].append(rhs_f[i])
-        got = _weighted_projection(*eqs, [values[k] for k in support])
+        got = _pivot_projection(*eqs, [values[k] for k in support])
         if got is None:
             return None
         values = dict(zip(support, got, strict=True))
-        negative = {k for k in support if values[k] < 0}
         low = {i for i in range(st.nF) if i not in tight and rhs_f[i] < sum(
             (values[k] * a[i] for k, a in zip(support, lins, strict=True)), Fraction(0))}
-        if not negative and not low:
-            out = [Fraction(0)] * len(lam)
-            for k in support:
-                out[k] = values[k]
-            return out
-        support = [k for k in support if k not in negative]
-        tight |= low
+        if low or any(values[k] < 0 for k in support):  # again without the multipliers
+            support = [k for k in support if values[k] > 0]  # made <= 0 (a 0 has no
+            tight |= low  # weight), with c_F held at 0 where it went negative
+            continue
+        out = [Fraction(0)] * len(lam)
+        for k in support:
+            out[k] = values[k]
+        return out
     return None
 
 
@@ -165,37 +165,26 @@ def _unit_rows(st: PEPStructure, quads: list[Any], units: list[int], tq: Fractio
     return None if eqs is None else (eqs, rhs)
 
 
-def _weighted_projection(eqs: list[list[Fraction]], rhs: list[Fraction],
-                         x: list[Fraction]) -> list[Fraction] | None:
-    """x + D A' y with A (x + D A' y) = b, D = diag(|x|) (the projection of x onto
-    {A x = b} in the metric D^-1, in exact rationals; the dependent equations dropped);
-    None when the system is inconsistent or D A' has no solution."""
-    from flint import fmpq, fmpq_mat
+def _pivot_projection(eqs: list[list[Fraction]], rhs: list[Fraction],
+                      x: list[Fraction]) -> list[Fraction] | None:
+    """A solution of ``eqs`` x = ``rhs`` near x, in exact rationals: the reduced row
+    echelon form with the columns in decreasing order of x, so that the pivots (solved
+    from the others, which keep their values) are the largest multipliers, whose
+    relative change is the least; the denominators stay those of the data and of x.
+    None when the system is inconsistent."""
+    from sosalgo.kernel.exact import solve_affine
 
-    n = len(x)
     if not eqs:
         return list(x)
-
-    def q(v: Fraction) -> Any:
-        return fmpq(v.numerator, v.denominator)
-
-    r = [b - sum((a * v for a, v in zip(row, x, strict=True) if a), Fraction(0))
-         for row, b in zip(eqs, rhs, strict=True)]
-    R, rank = fmpq_mat(len(eqs), n + 1, [q(v) for row, b in zip(eqs, r, strict=True)
-                                          for v in (*row, b)]).rref()
-    if any(all(R[i, c] == 0 for c in range(n)) for i in range(rank)):
-        return None  # a row 0 = nonzero: inconsistent
-    if rank == 0:
-        return list(x)
-    A = fmpq_mat(rank, n, [R[i, c] for i in range(rank) for c in range(n)])
-    D = [q(abs(v)) for v in x]
-    AD = fmpq_mat(rank, n, [A[i, c] * D[c] for i in range(rank) for c in range(n)])
-    try:
-        y = (AD * A.transpose()).solve(fmpq_mat(rank, 1, [R[i, n] for i in range(rank)]))
-    except ZeroDivisionError:
+    order = sorted(range(len(x)), key=lambda c: -x[c])
+    got = solve_affine([[row[c] for c in order] for row in eqs], rhs, len(x),
+                       lambda i: x[order[i]])
+    if got is None:
         return None
-    step = AD.transpose() * y
-    return [v + Fraction(int(step[c, 0].p), int(step[c, 0].q)) for c, v in enumerate(x)]
+    out = [Fraction(0)] * len(x)
+    for i, c in enumerate(order):
+        out[c] = got[i]
+    return out
 
 
 def prove_centered(mt: Method, st: PEPStructure, data: PEPData, lam: np.ndarray,
