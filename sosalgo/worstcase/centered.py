@@ -46,10 +46,13 @@ CENTER_MAX_PAIRS = 2000  # rows of the centered SDP (all pairs up to this, else 
 
 def centerable(data: PEPData) -> bool:
     """Whether the centered proof applies: a PEP with x*, an initial condition, no
-    constants (the bound is tau itself) and no block multipliers."""
+    constants (the bound is tau itself), no block multipliers, and a basis of at most
+    RATIONAL_MAX_D columns (the exact check's; the centered SDP holds every Q_k dense)."""
+    from sosalgo.worstcase.exact import RATIONAL_MAX_D
+
     st = data.st
     return not (st.bare or st.free_values or st.constants is not None or data.blocks
-                or np.any(data.consts()))
+                or np.any(data.consts()) or st.d > RATIONAL_MAX_D)
 
 
 def centered_multipliers(data: PEPData, tau: float, values: bool
@@ -113,18 +116,18 @@ def projected_multipliers(mt: Method, st: PEPStructure, lam: np.ndarray, tq: Fra
     data are not exact rationals or the system has no solution on the multipliers'
     support."""
     from sosalgo.kernel.exact import rational
-    from sosalgo.worstcase.exact import _exact_pair_parts, _fraction_matrix
+    from sosalgo.worstcase.exact import exact_pair_parts, fraction_matrix
 
     top = float(np.max(lam, initial=0.0))
     support = [k for k, v in enumerate(lam) if v > DROP * top]
-    fi, fm = _fraction_matrix([st.init_f]), _fraction_matrix([st.meas_f])
+    fi, fm = fraction_matrix([st.init_f]), fraction_matrix([st.meas_f])
     if not support or fi is None or fm is None:
         return None
     rhs_f = [tq * a - b for a, b in zip(fi[0], fm[0], strict=True)]  # c_F = rhs_f - A lam
     values = {k: rational(float(lam[k])) for k in support}
     tight = {i for i in range(st.nF) if cf[i] <= zero * max(1.0, float(np.abs(cf).max()))}
     for _ in range(PROJECTIONS):
-        parts = _exact_pair_parts(mt, st, support)
+        parts = exact_pair_parts(mt, st, support)
         eqs = None if parts is None else _unit_rows(st, parts[0], units, tq)
         if eqs is None:
             return None
@@ -153,15 +156,15 @@ def _unit_rows(st: PEPStructure, quads: list[Any], units: list[int], tq: Fractio
                ) -> tuple[list[list[Fraction]], list[Fraction]] | None:
     """The equations S e_u = 0 (u in ``units``), linear in the multipliers of ``quads``;
     None when the data are not exact or a row reads 0 = nonzero."""
-    from sosalgo.worstcase.exact import _fraction_matrix, _null_equations
+    from sosalgo.worstcase.exact import fraction_matrix, null_equations
 
-    I0, M = _fraction_matrix(st.init_q), _fraction_matrix(st.meas_q)
+    I0, M = fraction_matrix(st.init_q), fraction_matrix(st.meas_q)
     if I0 is None or M is None:
         return None
     if not units:
         return [], []
     null = [[Fraction(int(j == u)) for j in range(st.d)] for u in units]
-    eqs, rhs = _null_equations(st, quads, null, tq, I0, M)
+    eqs, rhs = null_equations(st, quads, null, tq, I0, M)
     return None if eqs is None else (eqs, rhs)
 
 

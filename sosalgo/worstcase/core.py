@@ -675,7 +675,12 @@ def _centered_proof(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
     interior (:mod:`sosalgo.worstcase.centered`: an optimum of high degree whose S is
     singular on a large subspace), for each rel of its CENTER_RELS until one proves;
     ``cert`` updated when proven."""
-    from sosalgo.worstcase.centered import CENTER_RELS, centerable, centered_multipliers
+    from sosalgo.worstcase.centered import (
+        CENTER_RELS,
+        centerable,
+        centered_multipliers,
+        prove_centered,
+    )
     from sosalgo.worstcase.exact import prove_certificate
 
     if not tau > 0 or not centerable(data):
@@ -684,8 +689,9 @@ def _centered_proof(spec: Spec, kappa: float | None, mt: Method, data: PEPData,
         got = centered_multipliers(data, tau * (1 + rel), values)
         if got is None:
             continue
-        proof = prove_certificate(spec, kappa, data.st, mterms, iterms, tau * (1 + rel),
-                                  got[0], data.w, ex, centered=data)
+        proof = prove_certificate(
+            spec, kappa, data.st, mterms, iterms, tau * (1 + rel), got[0], data.w, ex,
+            prover=lambda mx, sx, tq, lam=got[0]: prove_centered(mx, sx, data, lam, tq))
         if mt.bound is not None:
             proof["measure_bound"] = mt.bound
         if proof["proven"]:
