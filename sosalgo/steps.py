@@ -342,12 +342,17 @@ def _exact_env(spec: Spec, kappa: Any, N: int, theta: Theta | None) -> list[dict
     given = _theta_at(spec, theta, N)
     env0 = {**base, "N": sp.Integer(N)}
     seqs: dict[str, list] = {}
+    used = _used_sequences(spec, given)
     for s, decl in spec.sequences.items():
+        if s not in used:
+            continue
         seqs[s] = [_sympy_value(decl.first, {**env0, **{e: v[0] for e, v in seqs.items()}},
                                 spec, f"sequences.{s}.first", None, True)]
     for k in range(N):
         env = {**env0, "k": sp.Integer(k), **{s: v[k] for s, v in seqs.items()}}
         for s, decl in spec.sequences.items():
+            if s not in used:
+                continue
             rule, key = ((decl.last, "last") if k == N - 1 and decl.last is not None
                          else (decl.next, "next"))
             env[s + NEXT_SUFFIX] = _sympy_value(rule, env, spec, f"sequences.{s}.{key}", k,
@@ -362,6 +367,38 @@ def _exact_env(spec: Spec, kappa: Any, N: int, theta: Theta | None) -> list[dict
             env[p] = _exact_parameter(spec, p, k, env, base, given)
         out.append(env)
     return out
+
+
+def _used_sequences(spec: Spec, given: Mapping[str, list]) -> set[str]:
+    """The sequences the matrices and parameters refer to (directly, through parameters
+    or through other sequences); a parameter set by ``given`` refers to none. A sequence
+    kept for the references only (OGM's theta beside a given schedule) is not computed,
+    so its closed form cannot make the exact matrices give way to balls."""
+    names: set[str] = set()
+    for rows in spec.matrices.values():
+        names.update(n for row in rows for e in row for n in e.names())
+    for p, par in spec.parameters.items():
+        if p in given:
+            continue
+        for e in (par.value, par.tied, *(par.schedule or ())):
+            if e is not None:
+                names.update(e.names())
+    def sequence(n: str) -> str | None:  # s and s_next are both about sequence s
+        base = n.removesuffix(NEXT_SUFFIX)
+        return base if base in spec.sequences else None
+
+    used: set[str] = set()
+    todo = [s for s in map(sequence, names) if s is not None]
+    while todo:
+        s = todo.pop()
+        if s in used:
+            continue
+        used.add(s)
+        decl = spec.sequences[s]
+        for e in (decl.first, decl.next, decl.last):
+            if e is not None:
+                todo.extend(t for t in map(sequence, e.names()) if t is not None)
+    return used
 
 
 def _exact_parameter(spec: Spec, p: str, k: int, env: dict[str, Any], base: dict[str, Any],

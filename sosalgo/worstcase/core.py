@@ -682,6 +682,40 @@ def _field_proof(spec: Spec, kappa: float | None, mt: PEPFrame, data: PEPData,
         cert["proof"] = proof
 
 
+def _centered_proof(spec: Spec, kappa: float | None, mt: PEPFrame, data: PEPData,
+                    ans: SDPAnswer, mterms: list[Term], iterms: list[Term],
+                    ex: PEPFrame | None, cert: dict[str, Any], tau: float) -> None:
+    """A slightly larger bound tau (1 + rel) proven from a certificate pushed into the
+    interior (:mod:`sosalgo.worstcase.centered`: an optimum of high degree whose S is
+    singular on a large subspace), for each rel of its CENTER_RELS until one proves;
+    ``cert`` updated when proven."""
+    from sosalgo.worstcase.centered import (
+        CENTER_RELS,
+        centerable,
+        centered_multipliers,
+        prove_centered,
+    )
+    from sosalgo.worstcase.exact import prove_certificate
+
+    if not tau > 0 or not centerable(data):
+        return
+    for rel, values in ((r, v) for r in CENTER_RELS for v in (True, False)):
+        got = centered_multipliers(data, tau * (1 + rel), values)
+        if got is None:
+            continue
+        proof = prove_certificate(
+            spec, kappa, data.st, mterms, iterms, tau * (1 + rel), got[0], data.w, ex,
+            prover=lambda mx, sx, tq, lam=got[0]: prove_centered(mx, sx, data, lam, tq))
+        if mt.bound is not None:
+            proof["measure_bound"] = mt.bound
+        if proof["proven"]:
+            proof["centered_margin"] = got[1]
+            cert.update(proof=proof, check_kind="exact (rational and ball arithmetic)",
+                        tau_proven=proof["tau_proven"], tau=ans.tau + ans.const,
+                        margin=rel * tau)
+            return
+
+
 def _linear_only(data: PEPData) -> list[int] | None:
     """With constants, the basis directions no form has a square of (S is 0 on their
     diagonal: its rows there are made exactly zero in the proof,
@@ -820,6 +854,8 @@ def _certificate(spec: Spec, kappa: float | None, mt: PEPFrame, data: PEPData,
                             None if eps is None else 0.1 * eps)
     if exact and not cert.get("tau_proven") and ans.S is not None and mt.per_step is None:
         _field_proof(spec, kappa, mt, data, ans, mterms, iterms, cert, tau)
+    if exact and not cert.get("tau_proven"):
+        _centered_proof(spec, kappa, mt, data, ans, mterms, iterms, ex, cert, tau)
     lam = best.lam
     S = best.S
     assert lam is not None and S is not None

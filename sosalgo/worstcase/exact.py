@@ -720,7 +720,8 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
                       mt: PEPFrame | None = None,
                       null: np.ndarray | None = None,
                       units: list[int] | None = None,
-                      null_tol: float | None = None) -> dict[str, Any]:
+                      null_tol: float | None = None,
+                      prover: Any = None) -> dict[str, Any]:
     """Prove measure <= tau' for a rational tau' >= tau (see the module); a dict with
     ``proven``, ``tau_proven`` (p/q), ``tau_proven_float``, ``detail``, ``seconds``.
     ``w``: the scale of the basis (powers of two, default 1); ``mt``: the exact method
@@ -730,7 +731,9 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
     directions no form has a square of, :func:`sosalgo.worstcase.sdp.linear_only`);
     ``null_tol``: the eigenvalues of the scaled ``null`` that count as its null space
     (default :data:`NULL_ROW` of its largest entry; a margin certificate's: below its
-    margin)."""
+    margin); ``prover``: (exact method, exact structure, tq) -> (proven, multipliers,
+    delta, detail), the proof of the bound tq from ``lam`` instead (a centered
+    certificate's, :mod:`sosalgo.worstcase.centered`)."""
     from sosalgo.kernel.exact import fraction_str, rational
     from sosalgo.worstcase.bind import bound_method
 
@@ -757,7 +760,9 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
     detail = ""
     for step in TAU_STEPS:
         tq = above(Fraction(tau), Fraction(step))
-        if units:
+        if prover is not None:
+            ok, lq2, delta, why = prover(mt, st, tq)
+        elif units:
             ok, lq2, delta, why, tq = _prove_null_rows(mt, st, lam, tq, None, w, units)
         elif null is not None:
             ok, lq2, delta, why, tq = _prove_null_rows(mt, st, lam, tq, null, w,
@@ -827,15 +832,15 @@ def null_row_multipliers(mt: PEPFrame, st: PEPStructure, lam: np.ndarray, tq: Fr
             _nonzero_fraction(v[j]) and _nonzero_fraction(st.init_q[i][j])  # off the null
             for v in null for i in range(st.d) for j in range(st.d)):  # space only
         return None
-    rows = _exact_pair_parts(mt, st, support)
+    rows = exact_pair_parts(mt, st, support)
     if rows is None:
         return None
     quads, lins = rows
-    I0, M = _fraction_matrix(st.init_q), _fraction_matrix(st.meas_q)
-    fi, fm = _fraction_matrix([st.init_f]), _fraction_matrix([st.meas_f])
+    I0, M = fraction_matrix(st.init_q), fraction_matrix(st.meas_q)
+    fi, fm = fraction_matrix([st.init_f]), fraction_matrix([st.meas_f])
     if I0 is None or M is None or fi is None or fm is None:
         return None
-    eqs, rhs = _null_equations(st, quads, null, tq, I0, M)
+    eqs, rhs = null_equations(st, quads, null, tq, I0, M)
     if eqs is None:  # a row 0 = nonzero: no exact certificate on this support
         return None
     cf = None if not units else st_value_residual(st, lam, lins, support)
@@ -862,7 +867,7 @@ def null_row_multipliers(mt: PEPFrame, st: PEPStructure, lam: np.ndarray, tq: Fr
     return out
 
 
-def _null_equations(st: PEPStructure, quads: list[Any], null: list[list[Fraction]],
+def null_equations(st: PEPStructure, quads: list[Any], null: list[list[Fraction]],
                     tq: Fraction, I0: list[list[Fraction]], M: list[list[Fraction]]
                     ) -> tuple[list[Any] | None, list[Fraction]]:
     """The rows of (tq I0 - M - sum_k lambda_k C_k) v = 0 for each v of ``null``, linear in
@@ -964,7 +969,7 @@ def _lifted(st: PEPStructure, lam: list[Fraction], tq: Fraction
     for e, (_, _, Qc) in enumerate(st.extras):
         k = len(st.pairs) + e
         c = _exact_fraction(st.constants[k])
-        Q = _fraction_matrix(Qc)
+        Q = fraction_matrix(Qc)
         if (c is None or c <= 0 or Q is None
                 or (e in st.extra_values
                     and any(_nonzero_fraction(v) for v in st.extra_values[e]))
@@ -1049,7 +1054,7 @@ def _snapped(v: float, snap: tuple[int, float] | None) -> Fraction:
     return short if abs(short - Fraction(v)) <= snap[1] * abs(v) else rational(v)
 
 
-def _fraction_matrix(M: Any) -> list[list[Fraction]] | None:
+def fraction_matrix(M: Any) -> list[list[Fraction]] | None:
     """An exact matrix (rationals or radius-0 balls) as Fractions; None otherwise."""
     out = []
     for row in M:
@@ -1060,7 +1065,7 @@ def _fraction_matrix(M: Any) -> list[list[Fraction]] | None:
     return out
 
 
-def _exact_pair_parts(mt: PEPFrame, st: PEPStructure, support: list[int]
+def exact_pair_parts(mt: PEPFrame, st: PEPStructure, support: list[int]
                       ) -> tuple[list[Any], list[list[Fraction]]] | None:
     """(X_k' Q_k X_k on G, sparse, a_k on F) of the rows ``support`` (pairs, then the
     extra rows) in Fractions; None when some entry is not an exact rational. Each row's
@@ -1089,8 +1094,8 @@ def _exact_row_parts(mt: PEPFrame, st: PEPStructure, k: int) -> tuple[Any, list[
         e = k - len(st.pairs)
         _, X, Q = st.extras[e]
         av = st.extra_values.get(e, [Fraction(0)] * st.nF)
-    Xf, Qf = _fraction_matrix(X), _fraction_matrix(Q)
-    af = _fraction_matrix([av])
+    Xf, Qf = fraction_matrix(X), fraction_matrix(Q)
+    af = fraction_matrix([av])
     if Xf is None or Qf is None or af is None:
         return None
     n = len(Xf)
@@ -1181,7 +1186,7 @@ def _rational_parts(mt: PEPFrame, st: PEPStructure, lam: Sequence[Fraction],
     """(sum_k lambda_k X_k' Q_k X_k, sum_k lambda_k a_k) in Fractions, None when some
     datum is not an exact rational; ``values_only``: the first left empty."""
     support = [k for k, v in enumerate(lam) if v]
-    parts = _exact_pair_parts(mt, st, support)
+    parts = exact_pair_parts(mt, st, support)
     if parts is None:
         return None
     quads, lins = parts
@@ -1204,7 +1209,7 @@ def _rational_parts(mt: PEPFrame, st: PEPStructure, lam: Sequence[Fraction],
 def _rational_residuals_ok(mt: PEPFrame, st: PEPStructure, lam: Sequence[Fraction],
                            tq: Fraction) -> bool:
     """c_F = t i_F - m_F - sum lambda_k a_k >= 0 in exact rationals (t: :func:`_rational_t`)."""
-    fi, fm = _fraction_matrix([st.init_f]), _fraction_matrix([st.meas_f])
+    fi, fm = fraction_matrix([st.init_f]), fraction_matrix([st.meas_f])
     parts = _rational_parts(mt, st, lam, values_only=True)
     t = _rational_t(st, lam, tq)
     if parts is None or fi is None or fm is None or t is None:
@@ -1218,7 +1223,7 @@ def _rational_t(st: PEPStructure, lam: Sequence[Fraction], tq: Fraction) -> Frac
     t initial + sum lambda_k c_k needs t >= 0 under initial <= 1)."""
     if st.constants is None:
         return tq
-    c = _fraction_matrix([list(st.constants)])
+    c = fraction_matrix([list(st.constants)])
     if c is None:
         return None
     t = tq - sum((Fraction(v) * ck for v, ck in zip(lam, c[0], strict=True) if v),
@@ -1233,7 +1238,7 @@ def _rational_psd(mt: PEPFrame, st: PEPStructure, lam: Sequence[Fraction],
     is irrational or S is not proven."""
     from sosalgo.kernel.exact import prove_psd
 
-    I0, M = _fraction_matrix(st.init_q), _fraction_matrix(st.meas_q)
+    I0, M = fraction_matrix(st.init_q), fraction_matrix(st.meas_q)
     parts = _rational_parts(mt, st, lam)
     t = _rational_t(st, lam, tq)
     if parts is None or I0 is None or M is None or t is None:

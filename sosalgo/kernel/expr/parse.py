@@ -8,7 +8,9 @@ the user wrote.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
+from fractions import Fraction
 
 import sympy as sp
 
@@ -77,9 +79,17 @@ def _convert(e: Expr, symbols: Mapping[str, sp.Symbol]) -> sp.Expr:
 
 
 def _number(value: int | float) -> sp.Expr:
+    """A literal exactly as written: a decimal is the shortest decimal that reads back as
+    its float (``0.1`` is 1/10, ``0.5092387589007107`` keeps its 16 digits; a rounding
+    to 15 digits would make the exact method another one)."""
     if isinstance(value, int):
         return sp.Integer(value)
-    return sp.nsimplify(value, rational=True) if abs(value) >= 1e-300 or value == 0 else sp.Float(0)
+    if not (abs(value) >= 1e-300 or value == 0):
+        return sp.Float(0)
+    if not math.isfinite(value):
+        return sp.nsimplify(value, rational=True)
+    q = Fraction(repr(value))
+    return sp.Rational(q.numerator, q.denominator)
 
 
 def _check_finite(expr: sp.Expr) -> sp.Expr:
