@@ -25,6 +25,7 @@ Any guess is safe: step 3 decides, in exact or outward-rounded arithmetic.
 from __future__ import annotations
 
 import warnings
+from collections.abc import Mapping
 from fractions import Fraction
 from typing import Any
 
@@ -168,7 +169,7 @@ def _unit_rows(st: PEPStructure, quads: list[Any], units: list[int], tq: Fractio
     return None if eqs is None else (eqs, rhs)
 
 
-def _pivot_projection(eqs: list[list[Fraction]], rhs: list[Fraction],
+def _pivot_projection(eqs: list[Any], rhs: list[Fraction],
                       x: list[Fraction]) -> list[Fraction] | None:
     """A solution of ``eqs`` x = ``rhs`` near x, in exact rationals: the reduced row
     echelon form with the columns in decreasing order of x, so that the pivots (solved
@@ -180,7 +181,9 @@ def _pivot_projection(eqs: list[list[Fraction]], rhs: list[Fraction],
     if not eqs:
         return list(x)
     order = sorted(range(len(x)), key=lambda c: -x[c])
-    got = solve_affine([[row[c] for c in order] for row in eqs], rhs, len(x),
+    rows = [row if isinstance(row, Mapping) else dict(enumerate(row)) for row in eqs]
+    got = solve_affine([{i: row[c] for i, c in enumerate(order) if c in row} for row in rows],
+                       rhs, len(x),
                        lambda i: x[order[i]])
     if got is None:
         return None
