@@ -29,6 +29,8 @@ from sosalgo.classes import (
     smooth,
     smooth_convex_lipschitz,
     smooth_lojasiewicz,
+    smooth_lojasiewicz_expensive,
+    smooth_lojasiewicz_intermediate,
     smooth_strongly_convex,
     smooth_strongly_convex_quadratic,
     strongly_convex,
@@ -82,6 +84,8 @@ register_class(convex_lipschitz.CLASS)
 register_class(convex_qg.CLASS)
 register_class(rsi_eb.CLASS)
 register_class(smooth_lojasiewicz.CLASS)
+register_class(smooth_lojasiewicz_intermediate.CLASS)
+register_class(smooth_lojasiewicz_expensive.CLASS)
 register_class(smooth_convex_lipschitz.CLASS)
 register_class(bounded_indicator.CLASS)
 register_class(relatively_smooth.CLASS)

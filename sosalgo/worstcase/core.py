@@ -134,6 +134,7 @@ def float_method(om: Any, kappa: float) -> Method:
                 errors=dict(getattr(om, "errors", None) or {}),
                 lmo=dict(getattr(om, "lmo", None) or {}))
     mt.blocks = [list(fn.cls.blocks(fn.params)) for fn in om.functions]
+    mt.lmis = [list(fn.cls.lmis(fn.params)) for fn in om.functions]
     if any(i.constant or i.scope != "pairs" for fi in tilted for i in fi):
         mt.constants = [[float(i.constant) for i in fi] for fi in tilted]
         mt.scopes = [[i.scope for i in fi] for fi in tilted]
@@ -366,6 +367,8 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
             ans = solve_pep(data, rescale=False)
         if data.blocks and ans.status == "solved":  # Gram-level conditions: their cuts
             st, data, ans = _cut_pep(mt, st, data, ans)
+        if data.lmis and ans.status == "solved":  # class LMIs on tuples: their cuts
+            st, data, ans = _lmi_cut_pep(mt, st, data, ans)
     k = class_kappa(spec, kappa)
     kf = None if k is None else (  # a Kappa keeps its exact value
         k if isinstance(k, Kappa) else float(k))  # type: ignore[arg-type]
@@ -528,6 +531,23 @@ def _cut_pep(mt: Method, st: PEPStructure, data: PEPData, ans: SDPAnswer
     from sosalgo.worstcase.blocks import cut_vectors, with_cuts
 
     cut = with_cuts(mt, st, cut_vectors(st, ans.blocks))
+    new = pep_data(mt, cut)
+    new.w, new.v, new.strong, new.violation = data.w, data.v, data.strong, data.violation
+    new.active = np.union1d(data.active, np.arange(len(cut.pairs), cut.count))
+    return cut, new, solve_pep(new)
+
+
+def _lmi_cut_pep(mt: Method, st: PEPStructure, data: PEPData, ans: SDPAnswer
+                 ) -> tuple[PEPStructure, PEPData, SDPAnswer]:
+    """(structure, data, answer) of the PEP with one cut per class LMI from the
+    multipliers of ``ans`` (:mod:`sosalgo.worstcase.lmis`), solved again from the same
+    pairs and scale."""
+    from sosalgo.worstcase.lmis import lmi_cuts, with_lmi_cuts
+
+    tight = solve_pep(data, precise=True)  # the cuts are as good as the multipliers
+    if tight.status == "solved":
+        ans = tight
+    cut = with_lmi_cuts(mt, st, lmi_cuts(st, mt, ans.lmis))
     new = pep_data(mt, cut)
     new.w, new.v, new.strong, new.violation = data.w, data.v, data.strong, data.violation
     new.active = np.union1d(data.active, np.arange(len(cut.pairs), cut.count))

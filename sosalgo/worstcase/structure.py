@@ -147,6 +147,9 @@ class Method(CallShape):
     # per function: the K (2 x 2) of each Gram-level condition of its class
     # (:meth:`sosalgo.classes.base.FunctionClass.blocks`; :mod:`sosalgo.worstcase.blocks`)
     blocks: list[list[np.ndarray]] = field(default_factory=list)
+    # per function: its class's LMIs on tuples of points (:class:`TupleLMI`,
+    # :mod:`sosalgo.worstcase.lmis`)
+    lmis: list[list[Any]] = field(default_factory=list)
     # transpose calls of a linear operator (:mod:`sosalgo.worstcase.adjoint`); None: none
     adjoint: dict[str, Any] | None = None
 
@@ -225,6 +228,12 @@ class PEPStructure:
     # the rank-one cuts of the blocks' multipliers, appended to the extras:
     # (function, condition, vector over the block's points)
     cuts: list[tuple[int, int, list[Any]]] = field(default_factory=list)
+    # the class LMIs on tuples of points (:mod:`sosalgo.worstcase.lmis`): (function, LMI,
+    # the tuple's points), and their cuts, appended to the extras: (function, LMI,
+    # tuple, the cut's stored entries)
+    lmis: list[tuple[int, int, tuple[int, ...]]] = field(default_factory=list)
+    lmi_cuts: list[tuple[int, int, tuple[int, ...], list[Any]]] = field(
+        default_factory=list)
 
     @property
     def d(self) -> int:
@@ -774,11 +783,34 @@ def _finish(mt: Method, steps: int, calls: int, state: dict[str, Any],
         st.equalities = np.array(equal + [False] * len(extras))
     st.blocks = [(j, r, [a for a, pt in enumerate(pts[j]) if pt.label != "x*"])
                  for j, fb in enumerate(mt.blocks) for r in range(len(fb))]
+    st.lmis = _lmi_tuples(mt, pts)
     zero = Fraction(0) if mt.exact else 0.0
     rest = [state.get("extra_consts", {}).get(e, zero) for e in range(len(extras))]
     if any(_nonzero(c) for c in consts + rest):  # one constant per row: pairs, then extras
         st.constants = np.array(consts + rest, dtype=dt)
     return st
+
+
+def _lmi_tuples(mt: Method, pts: list[list[PEPPoint]]
+                ) -> list[tuple[int, int, tuple[int, ...]]]:
+    """(function, LMI, tuple) of every class LMI: each ordered tuple of the function's
+    points (x* among them when the PEP keeps it for the class) that are not all the
+    same point, x* appended when the LMI asks for it."""
+    from itertools import product
+
+    out = []
+    for j, fl in enumerate(mt.lmis):
+        cls = mt.functions[j][1]
+        star = [a for a, pt in enumerate(pts[j]) if pt.label == "x*"]
+        keep = [a for a, pt in enumerate(pts[j])
+                if pt.label != "x*" or cls.convex or cls.minimizer]
+        for r, lmi in enumerate(fl):
+            if lmi.optimum and not star:
+                continue
+            for idx in product(keep, repeat=lmi.arity):
+                if len(set(idx)) > 1:
+                    out.append((j, r, idx + ((star[0],) if lmi.optimum else ())))
+    return out
 
 
 def _vanishes(mt: Method, j: int, r: int, pa: PEPPoint, pb: PEPPoint) -> bool:
