@@ -13,6 +13,7 @@ from __future__ import annotations
 from sosalgo.classes import (
     bounded_indicator,
     cocoercive,
+    cocoercive_strongly_monotone_expensive,
     convex,
     convex_lipschitz,
     convex_qg,
@@ -21,6 +22,7 @@ from sosalgo.classes import (
     linear_operator,
     lipschitz_operator,
     lipschitz_strongly_monotone,
+    lipschitz_strongly_monotone_expensive,
     monotone,
     nonexpansive,
     relatively_smooth,
@@ -86,6 +88,8 @@ register_class(rsi_eb.CLASS)
 register_class(smooth_lojasiewicz.CLASS)
 register_class(smooth_lojasiewicz_intermediate.CLASS)
 register_class(smooth_lojasiewicz_expensive.CLASS)
+register_class(lipschitz_strongly_monotone_expensive.CLASS)
+register_class(cocoercive_strongly_monotone_expensive.CLASS)
 register_class(smooth_convex_lipschitz.CLASS)
 register_class(bounded_indicator.CLASS)
 register_class(relatively_smooth.CLASS)

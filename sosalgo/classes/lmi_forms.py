@@ -19,7 +19,7 @@ import numpy as np
 
 from sosalgo.classes.base import TupleLMI
 
-__all__ = ["Form", "Tuple", "Vec"]
+__all__ = ["Form", "Tuple", "Vec", "three_point_lmi"]
 
 HALF = Fraction(1, 2)
 
@@ -152,3 +152,22 @@ class Tuple:
         if not exact:
             gram, values, free = (a.astype(float) for a in (gram, values, free))
         return TupleLMI(self.arity, gram, values, free, self.optimum)
+
+
+def three_point_lmi(t: Tuple, A: dict[str, Form], B: dict[str, Form], c: Any,
+                    exact: bool) -> TupleLMI:
+    """The 7 x 7 LMI of a triple (i, j, k) of Rubbens, Hendrickx, Taylor 2025 (Prop.
+    3.15, App. F; PEPit's strongly monotone "expensive" operators): A, B the pairwise
+    forms at "ij", "ik", "jk", nine free multipliers, and the centre entry
+    ``A_ij + c B_ij - A_jk - A_ik - 2 (M17 + M26 + M34)``."""
+    m14, m15, m16, m17, m26, m27, m34, m37, m46 = (t.free() for _ in range(9))
+    m55 = A["ij"] + B["ij"] * c - A["jk"] - A["ik"] - (m17 + m26 + m34) * 2
+    z = 0
+    rows = [[-B["ij"], z, z, m14, m15, m16, m17],
+            [z, -A["jk"], -m15, z, -m14, m26, m27],
+            [z, -m15, -B["ij"], m34, -m16, z, m37],
+            [m14, z, m34, -B["jk"], -m27, m46, z],
+            [m15, -m14, -m16, -m27, m55, -m37, -m46],
+            [m16, m26, z, m46, -m37, -A["ik"], z],
+            [m17, m27, m37, z, -m46, z, -B["ik"]]]
+    return t.lmi(rows, exact)

@@ -249,6 +249,7 @@ def with_lmi_cuts(mt: Method, st: PEPStructure,
     values = dict(st.extra_values)
     known = {(j, r, tuple(idx)) for j, r, idx in st.lmis}
     zero = Fraction(0) if mt.exact else 0.0
+    count: dict[tuple[int, int, tuple[int, ...]], int] = {}
     for j, r, idx, entries in cuts:
         if (j, r, tuple(idx)) not in known:
             raise ValueError(f"cut of LMI {j}.{r} at {tuple(idx)}: the PEP has no such LMI")
@@ -265,7 +266,9 @@ def with_lmi_cuts(mt: Method, st: PEPStructure,
                 av[f] = av[f] + mt.s * sum((Lam[u, v] * lmi.values[u, v, i]
                                             for u in range(n) for v in range(n)), zero)
         names = ",".join(st.points[j][a].label for a in idx)
-        lab = f"{mt.functions[j][0]}:lmi{r + 1}({names})"
+        key = (j, r, tuple(idx))
+        count[key] = count.get(key, 0) + 1
+        lab = f"{mt.functions[j][0]}:lmi{r + 1}({names}).{count[key]}"
         values[len(extras)] = av
         extras.append((lab, Z, Qc))
         labels.append(lab)
