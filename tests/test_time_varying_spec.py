@@ -30,7 +30,8 @@ SPECS = Path(__file__).resolve().parents[1] / "specs"
 VARYING = ("ogm", "fista", "gradient-schedule", "momentum-schedule", "silver", "heavy-ball-qg",
            "gradient-qg-decreasing", "accelerated-k", "halpern",
            "operator-accelerated-proximal-point", "ogm-k", "frank-wolfe",
-           "inexact-proximal-point", "optimistic-gradient", "past-extragradient")
+           "inexact-proximal-point", "optimistic-gradient", "past-extragradient",
+           "optimistic-gradient-refined", "optimistic-gradient-refined-cocoercive")
 GD = """
 name: t
 functions:

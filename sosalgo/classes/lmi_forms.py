@@ -96,6 +96,10 @@ class Form:
     __rmul__ = __mul__
 
 
+def _rational(x: Any) -> Any:
+    return Fraction(x.c) if getattr(x, "r", None) == 0 else x
+
+
 def _pad(v: np.ndarray, n: int) -> np.ndarray:
     return np.concatenate([v, _zeros(n - len(v))]) if len(v) < n else v
 
@@ -149,7 +153,10 @@ class Tuple:
                 if isinstance(e, Form):
                     gram[u, v], values[u, v] = e.gram, e.values
                     free[:, u, v] = _pad(e.free, self.nfree)
-        if not exact:
+        if exact:  # an exact ball (radius 0) as its rational: faster sums
+            gram, values, free = (np.vectorize(_rational, otypes=[object])(a)
+                                  for a in (gram, values, free))
+        else:
             gram, values, free = (a.astype(float) for a in (gram, values, free))
         return TupleLMI(self.arity, gram, values, free, self.optimum)
 

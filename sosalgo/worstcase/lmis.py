@@ -240,6 +240,41 @@ def _binary(x: float) -> Fraction:
     return Fraction(float(np.round(x * 2.0 ** CUT_BITS) / 2.0 ** CUT_BITS))
 
 
+def _cut_row(mt: Method, j: int, r: int, entries: list[Any]) -> tuple[np.ndarray, list[Any]]:
+    """(sum_uv Lambda_uv gram_uv, sum_uv Lambda_uv values_uv) of a cut, its Lambda proven
+    PSD first; kept on the method (the exact proof rebuilds its structure per attempt).
+    Sums over the nonzero coefficients only."""
+    key = (j, r, tuple(entries))
+    if key in mt.lmi_rows:
+        return mt.lmi_rows[key]
+    lmi = mt.lmis[j][r]
+    Lam = cut_matrix(lmi, entries, mt.exact)
+    zero = Fraction(0) if mt.exact else 0.0
+    p2, p = lmi.gram.shape[2], lmi.values.shape[2]
+    Qc = np.full((p2, p2), zero, dtype=object if mt.exact else float)
+    vals = [zero] * p
+    for u in range(lmi.size):
+        for v in range(lmi.size):
+            lam = Lam[u, v]
+            if _is_zero(lam):
+                continue
+            for a, b in zip(*np.nonzero(_nonzero_mask(lmi.gram[u, v])), strict=True):
+                Qc[a, b] = Qc[a, b] + lmi.gram[u, v, a, b] * lam
+            for i in np.flatnonzero(_nonzero_mask(lmi.values[u, v])):
+                vals[i] = vals[i] + lmi.values[u, v, i] * lam
+    mt.lmi_rows[key] = (Qc, vals)
+    return Qc, vals
+
+
+def _is_zero(x: Any) -> bool:
+    return x == 0 if not hasattr(x, "r") else (x.c == 0 and x.r == 0)
+
+
+def _nonzero_mask(a: np.ndarray) -> np.ndarray:
+    return np.vectorize(lambda x: not _is_zero(x), otypes=[bool])(a) if a.dtype == object \
+        else a != 0
+
+
 def with_lmi_cuts(mt: Method, st: PEPStructure,
                   cuts: list[tuple[int, int, tuple[int, ...], list[Any]]]) -> PEPStructure:
     """A copy of ``st`` whose extras end with the cuts <Lambda, T0(G, F)> >= 0 (float or
@@ -253,18 +288,12 @@ def with_lmi_cuts(mt: Method, st: PEPStructure,
     for j, r, idx, entries in cuts:
         if (j, r, tuple(idx)) not in known:
             raise ValueError(f"cut of LMI {j}.{r} at {tuple(idx)}: the PEP has no such LMI")
-        lmi = mt.lmis[j][r]
-        Lam = cut_matrix(lmi, list(entries), mt.exact)
         Z, fidx = tuple_rows(mt, st, j, tuple(idx))
-        n, p2 = lmi.size, lmi.gram.shape[2]
-        Qc = np.array([[sum((Lam[u, v] * lmi.gram[u, v, a, b] for u in range(n)
-                             for v in range(n)), zero) for b in range(p2)]
-                       for a in range(p2)], dtype=object if mt.exact else float)
+        Qc, vals = _cut_row(mt, j, r, list(entries))
         av = np.full(st.nF, zero, dtype=object if mt.exact else float)
         for i, f in enumerate(fidx):
             if f is not None:
-                av[f] = av[f] + mt.s * sum((Lam[u, v] * lmi.values[u, v, i]
-                                            for u in range(n) for v in range(n)), zero)
+                av[f] = av[f] + mt.s * vals[i]
         names = ",".join(st.points[j][a].label for a in idx)
         key = (j, r, tuple(idx))
         count[key] = count.get(key, 0) + 1

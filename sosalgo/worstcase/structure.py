@@ -150,6 +150,8 @@ class Method(CallShape):
     # per function: its class's LMIs on tuples of points (:class:`TupleLMI`,
     # :mod:`sosalgo.worstcase.lmis`)
     lmis: list[list[Any]] = field(default_factory=list)
+    # their cuts' rows, computed once per method (function, LMI, entries) -> (Qc, values)
+    lmi_rows: dict[Any, Any] = field(default_factory=dict)
     # transpose calls of a linear operator (:mod:`sosalgo.worstcase.adjoint`); None: none
     adjoint: dict[str, Any] | None = None
 
