@@ -56,7 +56,8 @@ MARGINS = (1e-9, 1e-8, 1e-7, 1e-6)  # relative margins of the certificate solve,
 # up to LONG they follow MARGINS when those fail (Nesterov and triple momentum at N = 16:
 # an error of 5e-8 tau in one direction that a margin up to 1e-6 does not cover)
 LONG, LONG_MARGINS = 30, (1e-5, 1e-4)
-LMI_CUT_MARGIN = 1e-6  # the relative margin of the certificate whose class-LMI cuts the PEP keeps
+# the relative margins of the certificate whose class-LMI cuts the PEP keeps, in order
+LMI_CUT_MARGINS = (1e-6, 1e-5, 1e-4)
 # past LONG, when those fail (Nesterov at N = 80: with the margin 1e-4 the exact S
 # still had a least eigenvalue of -9e-8 tau, scaled); below verify's UPPER_REL (a proof
 # at most 1e-3 above its tau)
@@ -552,10 +553,12 @@ def _lmi_cut_pep(mt: Method, st: PEPStructure, data: PEPData, ans: SDPAnswer
     # and the cuts of a certificate with a margin (S ⪰ eps): the margin solves of the
     # cut PEP can then reach one (a cut's direction is fixed)
     tau = float(ans.primal)  # type: ignore[arg-type]
-    margin = solve_pep(data, margin=LMI_CUT_MARGIN / max(1.0, ans.size),
-                       unit=tau if tau > 1e-200 else 1.0)
-    if margin.status == "solved":  # (a cut already kept is not repeated)
-        cuts += [c for c in lmi_cuts(st, mt, margin.lmis) if c not in cuts]
+    for rel in LMI_CUT_MARGINS:  # the first that solves near tau
+        margin = solve_pep(data, margin=rel / max(1.0, ans.size),
+                           unit=tau if tau > 1e-200 else 1.0)
+        if margin.status == "solved":
+            cuts += [c for c in lmi_cuts(st, mt, margin.lmis) if c not in cuts]
+            break
     cut = with_lmi_cuts(mt, st, cuts)
     new = pep_data(mt, cut)
     new.w, new.v, new.strong, new.violation = data.w, data.v, data.strong, data.violation
