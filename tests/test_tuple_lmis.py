@@ -182,3 +182,25 @@ def test_optimistic_gradient_on_operators_stays_below_the_proven_bound(kind, spe
         x0 = rng.normal(size=d)
         worst = max(worst, _optimistic(F, proj, x0, 0.25, 1) / float(np.sum(x0 ** 2)))
     assert 0 < worst <= tau * (1 + 1e-12), (worst, tau)
+
+
+def test_cut_pivots_make_the_multiplier_orthogonal_exactly():
+    """A cut's pivot entries are solved for: <Lambda, E_k> = 0 in exact rationals for every
+    free multiplier of the 7 x 7 operator LMI, whatever the stored entries; a stored
+    negative diagonal entry is refused."""
+    from sosalgo.classes.lipschitz_strongly_monotone_expensive import lipschitz_lmis
+    from sosalgo.worstcase.lmis import _others, cut_matrix
+
+    lmi = lipschitz_lmis(Fraction(0), Fraction(1), exact=True)[0]
+    assert lmi.size == 7 and len(lmi.free) == 9
+    rng = np.random.default_rng(1)
+    n = len(_others(lmi))
+    B = rng.integers(-3, 4, size=(7, 7))
+    P = B @ B.T + 40 * np.eye(7, dtype=int)  # diagonally dominant: PSD after the pivots
+    entries = [Fraction(int(P[u, v])) for u, v in _others(lmi)]
+    Lam = cut_matrix(lmi, entries, exact=True)
+    for E in lmi.free:
+        assert sum(Lam[u, v] * E[u, v] for u in range(7) for v in range(7)) == 0
+    with pytest.raises(ValueError, match="positive semidefinite"):
+        cut_matrix(lmi, [Fraction(-1)] + entries[1:], exact=True)
+    assert n == 28 - 9

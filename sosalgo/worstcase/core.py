@@ -349,6 +349,7 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
     if steps > LONG:  # its proof is about LONG_MARGINS above tau anyway
         data.violation = LONG_VIOLATION
     show_phase("solving the PEP", f"{len(st.pairs)} interpolation pairs")
+    others: list[Any] = []  # the class LMIs' other cut sets (:func:`_lmi_cut_pep`)
     if st.bare:  # no initial condition: its own solves
         st, data, ans = _bare_solve(mt, st, data, steps, mterms, iterms)
     else:
@@ -370,7 +371,7 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
         if data.blocks and ans.status == "solved":  # Gram-level conditions: their cuts
             st, data, ans = _cut_pep(mt, st, data, ans)
         if data.lmis and ans.status == "solved":  # class LMIs on tuples: their cuts
-            st, data, ans = _lmi_cut_pep(mt, st, data, ans)
+            (st, data, ans), others = _lmi_cut_pep(mt, st, data, ans)
     k = class_kappa(spec, kappa)
     kf = None if k is None else (  # a Kappa keeps its exact value
         k if isinstance(k, Kappa) else float(k))  # type: ignore[arg-type]
@@ -402,6 +403,12 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
                 res.extra["note"] = "no exact per-step matrices: the certificate is not proven"
         show_phase("proving the certificate" if exact else "checking the certificate")
         res.certificate = _certificate(spec, kappa, mt, data, ans, exact, mterms, iterms, ex)
+        for alt in others if exact else ():  # the class LMIs' other cut sets
+            if res.certificate.get("tau_proven"):
+                break
+            cert = _certificate(spec, kappa, mt, alt[1], alt[2], exact, mterms, iterms, ex)
+            if cert.get("tau_proven"):
+                (st, data, ans), res.certificate = alt, cert
         if witness and any(t.kind == "contraction" for t in mterms):  # two runs
             from sosalgo.worstcase.contraction_witness import contraction_witness
             from sosalgo.worstcase.witness import check_witness, finish_witness
@@ -540,11 +547,11 @@ def _cut_pep(mt: Method, st: PEPStructure, data: PEPData, ans: SDPAnswer
 
 
 def _lmi_cut_pep(mt: Method, st: PEPStructure, data: PEPData, ans: SDPAnswer
-                 ) -> tuple[PEPStructure, PEPData, SDPAnswer]:
-    """(structure, data, answer) of the PEP with one cut per class LMI from the
+                 ) -> tuple[tuple[PEPStructure, PEPData, SDPAnswer], list[Any]]:
+    """(structure, data, answer) of the PEP with cuts of the class LMIs from the
     multipliers of ``ans`` (:mod:`sosalgo.worstcase.lmis`), solved again from the same
-    pairs and scale."""
-    from sosalgo.worstcase.lmis import lmi_cuts, with_lmi_cuts
+    pairs and scale; and the other cut sets' (tried when the first is not proven)."""
+    from sosalgo.worstcase.lmis import lmi_cuts
 
     tight = solve_pep(data, precise=True)  # the cuts are as good as the multipliers
     if tight.status == "solved":
@@ -553,12 +560,25 @@ def _lmi_cut_pep(mt: Method, st: PEPStructure, data: PEPData, ans: SDPAnswer
     # and the cuts of a certificate with a margin (S ⪰ eps): the margin solves of the
     # cut PEP can then reach one (a cut's direction is fixed)
     tau = float(ans.primal)  # type: ignore[arg-type]
-    for rel in LMI_CUT_MARGINS:  # the first that solves near tau
+    more: list[Any] = []
+    for rel in LMI_CUT_MARGINS:  # the first that solves
         margin = solve_pep(data, margin=rel / max(1.0, ans.size),
                            unit=tau if tau > 1e-200 else 1.0)
         if margin.status == "solved":
-            cuts += [c for c in lmi_cuts(st, mt, margin.lmis) if c not in cuts]
+            more = [c for c in lmi_cuts(st, mt, margin.lmis) if c not in cuts]
             break
+    # with them, then without (the other cut set's certificate is tried when the first
+    # one's is not proven: either proof may fail where the other holds)
+    found = [_cut_try(mt, st, data, c) for c in ([cuts + more, cuts] if more else [cuts])]
+    found = [f for f in found if f[2].status == "solved"] or found[:1]
+    return found[0], found[1:]
+
+
+def _cut_try(mt: Method, st: PEPStructure, data: PEPData, cuts: list[Any]
+             ) -> tuple[PEPStructure, PEPData, SDPAnswer]:
+    """The PEP with these cuts, solved from the same pairs and scale."""
+    from sosalgo.worstcase.lmis import with_lmi_cuts
+
     cut = with_lmi_cuts(mt, st, cuts)
     new = pep_data(mt, cut)
     new.w, new.v, new.strong, new.violation = data.w, data.v, data.strong, data.violation
