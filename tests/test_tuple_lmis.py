@@ -195,8 +195,11 @@ def test_cut_pivots_make_the_multiplier_orthogonal_exactly():
     assert lmi.size == 7 and len(lmi.free) == 9
     rng = np.random.default_rng(1)
     n = len(_others(lmi))
-    B = rng.integers(-3, 4, size=(7, 7))
-    P = B @ B.T + 40 * np.eye(7, dtype=int)  # diagonally dominant: PSD after the pivots
+    # diagonally dominant after the pivots: the three pivots tied to the centre entry
+    # (4, 4) equal it, the others are entries of size <= 1
+    P = rng.integers(-1, 2, size=(7, 7))
+    P[4, :] = P[:, 4] = 0
+    P = P + P.T + np.diag([100, 100, 100, 100, 10, 100, 100])
     entries = [Fraction(int(P[u, v])) for u, v in _others(lmi)]
     Lam = cut_matrix(lmi, entries, exact=True)
     for E in lmi.free:
