@@ -30,8 +30,7 @@ SPECS = Path(__file__).resolve().parents[1] / "specs"
 VARYING = ("ogm", "fista", "gradient-schedule", "momentum-schedule", "silver", "heavy-ball-qg",
            "gradient-qg-decreasing", "accelerated-k", "halpern",
            "operator-accelerated-proximal-point", "ogm-k", "frank-wolfe",
-           "inexact-proximal-point", "optimistic-gradient", "past-extragradient",
-           "optimistic-gradient-refined", "optimistic-gradient-refined-cocoercive")
+           "inexact-proximal-point", "optimistic-gradient", "past-extragradient")
 GD = """
 name: t
 functions:

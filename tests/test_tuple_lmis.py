@@ -19,6 +19,7 @@ from sosalgo.spec.loading import load_spec, spec_from_text
 from sosalgo.worstcase.exact import reprove_certificate
 
 SPECS = Path(__file__).resolve().parents[1] / "specs"
+BENCH = Path(__file__).resolve().parents[1] / "bench" / "conformance" / "specs"
 PL = {v: SPECS / f"gradient-pl-{v}.yaml" for v in ("intermediate", "expensive")}
 
 
@@ -173,7 +174,7 @@ def _orthant_members(rng: np.random.Generator, d: int, kind: str):
     ("lipschitz", "optimistic-gradient-refined.yaml"),
     ("cocoercive", "optimistic-gradient-refined-cocoercive.yaml")])
 def test_optimistic_gradient_on_operators_stays_below_the_proven_bound(kind, spec_name):
-    tau = float(_proven(load_spec(SPECS / spec_name), 2))  # PEPit's n = 1
+    tau = float(_proven(load_spec(BENCH / spec_name), 2))  # PEPit's n = 1
     rng = np.random.default_rng(3)
     worst = 0.0
     for _ in range(400):
