@@ -169,7 +169,6 @@ def _orthant_members(rng: np.random.Generator, d: int, kind: str):
     return (lambda x: M @ x + q), (lambda y: np.maximum(y, 0.0))
 
 
-@pytest.mark.deep
 @pytest.mark.parametrize("kind,spec_name", [
     ("lipschitz", "optimistic-gradient-refined.yaml"),
     ("cocoercive", "optimistic-gradient-refined-cocoercive.yaml")])
