@@ -163,8 +163,9 @@ KNOWN_GAPS = {
      1): "the proven 1.33333363 is 1.3e-6 above PEPit's Clarabel value 1.33333194 (its n = 1 "
          "values are up to 6e-7 below the proven ones): not judged without a closed form",
     ("monotone_inclusions_variational_inequalities/optimistic_gradient_refined", 2):
-        "tau agrees (0.1235169), no exact proof: the margin solves of the cut PEP leave S "
-        "indefinite (least eigenvalue about -1e-6, scaled)",
+        "PEPit's Clarabel solve takes over 600 s here (no committed value; an earlier run "
+        "gave 0.12351681, which tau 0.1235169 agrees with) and no exact proof: the margin "
+        "solves of the cut PEP leave S indefinite (least eigenvalue about -1e-6, scaled)",
     **{("low_dimensional_worst_cases_scenarios/dykstra", i):
        "tau agrees with PEPit within 1e-6, but the proven bound is 1.2e-6 above PEPit's "
        "value (no closed form to judge which is nearer the worst case)" for i in range(2)},
