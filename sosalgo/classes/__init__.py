@@ -13,6 +13,7 @@ from __future__ import annotations
 from sosalgo.classes import (
     bounded_indicator,
     cocoercive,
+    cocoercive_strongly_monotone_expensive,
     convex,
     convex_lipschitz,
     convex_qg,
@@ -22,6 +23,7 @@ from sosalgo.classes import (
     lipschitz_map,
     lipschitz_operator,
     lipschitz_strongly_monotone,
+    lipschitz_strongly_monotone_expensive,
     monotone,
     nonexpansive,
     relatively_smooth,
@@ -30,6 +32,8 @@ from sosalgo.classes import (
     smooth,
     smooth_convex_lipschitz,
     smooth_lojasiewicz,
+    smooth_lojasiewicz_expensive,
+    smooth_lojasiewicz_intermediate,
     smooth_strongly_convex,
     smooth_strongly_convex_quadratic,
     strongly_convex,
@@ -83,6 +87,10 @@ register_class(convex_lipschitz.CLASS)
 register_class(convex_qg.CLASS)
 register_class(rsi_eb.CLASS)
 register_class(smooth_lojasiewicz.CLASS)
+register_class(smooth_lojasiewicz_intermediate.CLASS)
+register_class(smooth_lojasiewicz_expensive.CLASS)
+register_class(lipschitz_strongly_monotone_expensive.CLASS)
+register_class(cocoercive_strongly_monotone_expensive.CLASS)
 register_class(smooth_convex_lipschitz.CLASS)
 register_class(bounded_indicator.CLASS)
 register_class(relatively_smooth.CLASS)

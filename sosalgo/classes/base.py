@@ -44,6 +44,11 @@ interpolation certificate family only reads the data declared here:
   entry ``[x_a; g_a]' K [x_b; g_b]`` (K 2 x 2, tilted data); :meth:`exact_blocks` their
   exact twin. A class with blocks is not ``homogeneous`` (no Lyapunov family takes
   them; ``pep`` answers, :mod:`sosalgo.worstcase.blocks`).
+- :meth:`FunctionClass.lmis`: small LMIs on tuples of points (:class:`TupleLMI`, built
+  with :mod:`sosalgo.classes.lmi_forms`), each entry linear in the tuple's Gram entries
+  and values plus free multipliers of its own (the "expensive" conditions of
+  Rubbens, Hendrickx, Taylor 2025); :meth:`exact_lmis` their exact twin
+  (:mod:`sosalgo.worstcase.lmis`). A class with LMIs is not ``homogeneous``.
 
 :data:`sosalgo.classes.SEED_CLASS` is F(m, L), the class of a spec without ``functions:``.
 """
@@ -60,7 +65,7 @@ import numpy as np
 from sosalgo.classes.members import ProxFunction, quadratic
 
 __all__ = ["ANCHOR", "FunctionClass", "Inequality", "ORACLE_KINDS", "PAIR_SCOPES",
-           "check_mu_below_L", "convex_form", "exact_convex_form"]
+           "TupleLMI", "check_mu_below_L", "convex_form", "exact_convex_form"]
 
 ORACLE_KINDS = ("gradient", "subgradient", "proximal")
 
@@ -96,6 +101,26 @@ class Inequality:
     Q: np.ndarray
     constant: float = 0.0
     scope: str = "pairs"
+
+
+@dataclass(frozen=True)
+class TupleLMI:
+    """``T = T0(z, f) + sum_k M_k E_k ⪰ 0`` for some real M_k (the free multipliers), for
+    every ordered tuple of ``arity`` points of one function that are not all the same
+    point (x* among them), with x* appended as its last point when ``optimum``. On the
+    tuple's p points, z = (x_1, ..., x_p, g_1, ..., g_p) and f = (f_1, ..., f_p):
+    ``T0[u, v] = z' gram[u, v] z + values[u, v] . f``; ``free[k]`` is E_k (m x m,
+    symmetric). Entries are floats, or rationals and balls in the exact twin."""
+
+    arity: int
+    gram: np.ndarray  # (m, m, 2p, 2p)
+    values: np.ndarray  # (m, m, p)
+    free: np.ndarray  # (nfree, m, m)
+    optimum: bool = False
+
+    @property
+    def size(self) -> int:
+        return int(self.gram.shape[0])
 
 
 class FunctionClass:
@@ -202,6 +227,16 @@ class FunctionClass:
     def exact_blocks(self, params: Mapping[str, Any]) -> list[np.ndarray] | None:
         """The exact twin of :meth:`blocks` (object arrays of rationals or balls, from
         the exact parameters); None: no blocks."""
+        return None
+
+    def lmis(self, params: Mapping[str, float]) -> list[TupleLMI]:
+        """The LMI conditions on tuples of points ([] by default: scalar conditions only;
+        :mod:`sosalgo.worstcase.lmis`)."""
+        return []
+
+    def exact_lmis(self, params: Mapping[str, Any]) -> list[TupleLMI] | None:
+        """The exact twin of :meth:`lmis` (object arrays of rationals or balls, from the
+        exact parameters; each free direction E_k rational); None: none."""
         return None
 
     def strong_convexity(self, params: Mapping[str, float]) -> float:

@@ -56,6 +56,8 @@ MARGINS = (1e-9, 1e-8, 1e-7, 1e-6)  # relative margins of the certificate solve,
 # up to LONG they follow MARGINS when those fail (Nesterov and triple momentum at N = 16:
 # an error of 5e-8 tau in one direction that a margin up to 1e-6 does not cover)
 LONG, LONG_MARGINS = 30, (1e-5, 1e-4)
+# the relative margins of the certificate whose class-LMI cuts the PEP keeps, in order
+LMI_CUT_MARGINS = (1e-6, 1e-5, 1e-4)
 # past LONG, when those fail (Nesterov at N = 80: with the margin 1e-4 the exact S
 # still had a least eigenvalue of -9e-8 tau, scaled); below verify's UPPER_REL (a proof
 # at most 1e-3 above its tau)
@@ -132,6 +134,7 @@ def float_method(om: Any, kappa: float) -> PEPFrame:
                   errors=dict(getattr(om, "errors", None) or {}),
                   lmo=dict(getattr(om, "lmo", None) or {}))
     mt.blocks = [list(fn.cls.blocks(fn.params)) for fn in om.functions]
+    mt.lmis = [list(fn.cls.lmis(fn.params)) for fn in om.functions]
     if any(i.constant or i.scope != "pairs" for fi in tilted for i in fi):
         mt.constants = [[float(i.constant) for i in fi] for fi in tilted]
         mt.scopes = [[i.scope for i in fi] for fi in tilted]
@@ -344,6 +347,7 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
     if steps > LONG:  # its proof is about LONG_MARGINS above tau anyway
         data.violation = LONG_VIOLATION
     show_phase("solving the PEP", f"{len(st.pairs)} interpolation pairs")
+    others: list[Any] = []  # the class LMIs' other cut sets (:func:`_lmi_cut_pep`)
     if st.bare:  # no initial condition: its own solves
         st, data, ans = _bare_solve(mt, st, data, steps, mterms, iterms)
     else:
@@ -364,6 +368,8 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
             ans = solve_pep(data, rescale=False)
         if data.blocks and ans.status == "solved":  # Gram-level conditions: their cuts
             st, data, ans = _cut_pep(mt, st, data, ans)
+        if data.lmis and ans.status == "solved":  # class LMIs on tuples: their cuts
+            (st, data, ans), others = _lmi_cut_pep(mt, st, data, ans)
     k = class_kappa(spec, kappa)
     kf = None if k is None else (  # a Kappa keeps its exact value
         k if isinstance(k, Kappa) else float(k))  # type: ignore[arg-type]
@@ -395,6 +401,12 @@ def pep(spec: Spec | str | Path, kappa: float | None = None, steps: int = 1,
                 res.extra["note"] = "no exact per-step matrices: the certificate is not proven"
         show_phase("proving the certificate" if exact else "checking the certificate")
         res.certificate = _certificate(spec, kappa, mt, data, ans, exact, mterms, iterms, ex)
+        for alt in others if exact else ():  # the class LMIs' other cut sets
+            if res.certificate.get("tau_proven"):
+                break
+            cert = _certificate(spec, kappa, mt, alt[1], alt[2], exact, mterms, iterms, ex)
+            if cert.get("tau_proven"):
+                (st, data, ans), res.certificate = alt, cert
         if witness and any(t.kind == "contraction" for t in mterms):  # two runs
             from sosalgo.worstcase.contraction_witness import contraction_witness
             from sosalgo.worstcase.witness import check_witness, finish_witness
@@ -526,6 +538,46 @@ def _cut_pep(mt: PEPFrame, st: PEPStructure, data: PEPData, ans: SDPAnswer
     from sosalgo.worstcase.blocks import cut_vectors, with_cuts
 
     cut = with_cuts(mt, st, cut_vectors(st, ans.blocks))
+    new = pep_data(mt, cut)
+    new.w, new.v, new.strong, new.violation = data.w, data.v, data.strong, data.violation
+    new.active = np.union1d(data.active, np.arange(len(cut.pairs), cut.count))
+    return cut, new, solve_pep(new)
+
+
+def _lmi_cut_pep(mt: PEPFrame, st: PEPStructure, data: PEPData, ans: SDPAnswer
+                 ) -> tuple[tuple[PEPStructure, PEPData, SDPAnswer], list[Any]]:
+    """(structure, data, answer) of the PEP with cuts of the class LMIs from the
+    multipliers of ``ans`` (:mod:`sosalgo.worstcase.lmis`), solved again from the same
+    pairs and scale; and the other cut sets' (tried when the first is not proven)."""
+    from sosalgo.worstcase.lmis import lmi_cuts
+
+    tight = solve_pep(data, precise=True)  # the cuts are as good as the multipliers
+    if tight.status == "solved":
+        ans = tight
+    cuts = lmi_cuts(st, mt, ans.lmis)
+    # and the cuts of a certificate with a margin (S ⪰ eps): the margin solves of the
+    # cut PEP can then reach one (a cut's direction is fixed)
+    tau = float(ans.primal)  # type: ignore[arg-type]
+    more: list[Any] = []
+    for rel in LMI_CUT_MARGINS:  # the first that solves
+        margin = solve_pep(data, margin=rel / max(1.0, ans.size),
+                           unit=tau if tau > 1e-200 else 1.0)
+        if margin.status == "solved":
+            more = [c for c in lmi_cuts(st, mt, margin.lmis) if c not in cuts]
+            break
+    # with them, then without (the other cut set's certificate is tried when the first
+    # one's is not proven: either proof may fail where the other holds)
+    found = [_cut_try(mt, st, data, c) for c in ([cuts + more, cuts] if more else [cuts])]
+    found = [f for f in found if f[2].status == "solved"] or found[:1]
+    return found[0], found[1:]
+
+
+def _cut_try(mt: PEPFrame, st: PEPStructure, data: PEPData, cuts: list[Any]
+             ) -> tuple[PEPStructure, PEPData, SDPAnswer]:
+    """The PEP with these cuts, solved from the same pairs and scale."""
+    from sosalgo.worstcase.lmis import with_lmi_cuts
+
+    cut = with_lmi_cuts(mt, st, cuts)
     new = pep_data(mt, cut)
     new.w, new.v, new.strong, new.violation = data.w, data.v, data.strong, data.violation
     new.active = np.union1d(data.active, np.arange(len(cut.pairs), cut.count))

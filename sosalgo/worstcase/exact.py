@@ -317,6 +317,7 @@ def exact_method(spec: Spec, kappa: float | None, om: Any, steps: int = 0,
     _call_links(mt, spec)
     mt.lmo = dict(getattr(spec, "lmo", None) or {})
     mt.blocks = [list(cls.exact_blocks(params) or []) for _, cls, params in funcs]
+    mt.lmis = [list(cls.exact_lmis(params) or []) for _, cls, params in funcs]
     if any(e is not None for e in extras):
         mt.constants = [e[0] if e else [Fraction(0)] * len(fi)
                         for e, fi in zip(extras, ineqs, strict=True)]
@@ -748,6 +749,10 @@ def prove_certificate(spec: Spec, kappa: float | None, st_float: PEPStructure,
             from sosalgo.worstcase.blocks import with_cuts
 
             st = with_cuts(mt, st, st_float.cuts)
+        if st_float.lmi_cuts:  # the class LMIs' cuts, the same rationals
+            from sosalgo.worstcase.lmis import with_lmi_cuts
+
+            st = with_lmi_cuts(mt, st, st_float.lmi_cuts)
     except (ValueError, ArithmeticError) as exc:
         return out | {"detail": f"exact method: {exc}", "seconds": time.perf_counter() - t0}
     if st.labels != st_float.labels or st.basis != st_float.basis:
@@ -789,10 +794,14 @@ def _cuts_field(mt: PEPFrame, st: PEPStructure) -> dict[str, Any]:
     vector over the block's points; :mod:`sosalgo.worstcase.blocks`), for ``verify``."""
     from sosalgo.kernel.exact import fraction_str
 
-    if not st.cuts:
-        return {}
-    return {"cuts": [[j, r, [fraction_str(Fraction(v)) for v in vec]]
-                     for j, r, vec in st.cuts]}
+    out: dict[str, Any] = {}
+    if st.cuts:
+        out["cuts"] = [[j, r, [fraction_str(Fraction(v)) for v in vec]]
+                       for j, r, vec in st.cuts]
+    if st.lmi_cuts:  # the class LMIs' cuts (:mod:`sosalgo.worstcase.lmis`)
+        out["lmi_cuts"] = [[j, r, list(idx), [fraction_str(Fraction(v)) for v in vec]]
+                           for j, r, idx, vec in st.lmi_cuts]
+    return out
 
 
 NULL_ROW = 1e-7  # a row of the scaled S this small (relative) is one the dual must zero
@@ -1300,6 +1309,12 @@ def reprove_certificate(spec: Spec, kappa: float | None, steps: int, measure: st
 
             st = with_cuts(mt, st, [(int(j), int(r), [Fraction(v) for v in vec])
                                     for j, r, vec in proof["cuts"]])
+        if proof.get("lmi_cuts"):  # the class LMIs' cuts, checked PSD again
+            from sosalgo.worstcase.lmis import with_lmi_cuts
+
+            st = with_lmi_cuts(mt, st, [(int(j), int(r), tuple(int(a) for a in idx),
+                                         [Fraction(v) for v in vec])
+                                        for j, r, idx, vec in proof["lmi_cuts"]])
         index = {name: k for k, name in enumerate(st.labels)}
         unknown = [k for k in lab if k not in index]
         if unknown:
@@ -1473,6 +1488,7 @@ def exact_step_method(spec: Any, kappa: float | None, sm: StepMethods, count: in
     mt.x0_call = _step_start_call(mt, per[0])
     mt.out_call = _step_output_call(mt, per)
     mt.blocks = [list(cls.exact_blocks(params) or []) for _, cls, params in funcs]
+    mt.lmis = [list(cls.exact_lmis(params) or []) for _, cls, params in funcs]
     extras = [class_extras(cls, params, len(fi)) for (_, cls, params), fi in zip(
         funcs, ineqs, strict=True)]
     if any(e is not None for e in extras):

@@ -85,6 +85,10 @@ class PEPData:
     # Gram-level conditions (K, Zx, Zg) with a matrix multiplier in the dual
     # (:mod:`sosalgo.worstcase.blocks`; empty once the PEP carries their rank-one cuts)
     blocks: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=list)
+    # class LMIs on tuples of points (TupleLMI, Z, F indices) with a matrix multiplier in
+    # the dual (:mod:`sosalgo.worstcase.lmis`; empty once the PEP carries their cuts)
+    lmis: list[tuple[Any, np.ndarray, list[int | None]]] = field(default_factory=list)
+    s: float = 1.0  # the subgradients' unit (the LMIs' value rows)
     _svec: dict[int, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
 
     def q(self, idx: np.ndarray, scaled: bool = False) -> np.ndarray:
@@ -149,22 +153,25 @@ def _pair_svec(X: np.ndarray, Qc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def pep_data(mt: PEPFrame, st: PEPStructure) -> PEPData:
     K, d = st.count, st.d
-    X = np.zeros((K, 4, d))
+    R = max([4] + [len(Xe) for _, Xe, _ in st.extras])  # an LMI cut's rows: up to 2p
+    X = np.zeros((K, R, d))
     a = np.zeros((K, st.nF))
-    Qc = np.zeros((K, 4, 4))
+    Qc = np.zeros((K, R, R))
     for k in range(len(st.pairs)):
-        _, a[k], X[k] = st.pair_rows(mt, k)
+        _, a[k], X[k, :4] = st.pair_rows(mt, k)
         j, _, _, r = st.pairs[k]
-        Qc[k] = mt.ineqs[j][r][1]
+        Qc[k, :4, :4] = mt.ineqs[j][r][1]
     for e, (_, Xe, Qe) in enumerate(st.extras):  # values: a constraint's only
         k = len(st.pairs) + e
-        X[k], Qc[k] = np.asarray(Xe, float), np.asarray(Qe, float)
+        n = len(Xe)
+        X[k, :n], Qc[k, :n, :n] = np.asarray(Xe, float), np.asarray(Qe, float)
         if e in st.extra_values:
             a[k] = np.asarray(st.extra_values[e], float)
     from sosalgo.worstcase.blocks import block_data
+    from sosalgo.worstcase.lmis import lmi_data
 
     return PEPData(st, X, Qc, a, seed_pairs(st), np.ones(d), np.ones(st.nF),
-                   blocks=block_data(mt, st))
+                   blocks=block_data(mt, st), lmis=lmi_data(mt, st), s=float(mt.s))
 
 
 def seed_pairs(st: PEPStructure) -> np.ndarray:
@@ -194,6 +201,7 @@ class SDPAnswer:
     size: float = 1.0  # tr H + sum F' (the solver's units): the margin's scale
     rounds: int = 0  # solves of the constraint generation
     blocks: list[np.ndarray] = field(default_factory=list)  # the blocks' multipliers
+    lmis: list[np.ndarray] = field(default_factory=list)  # the class LMIs' multipliers
 
 
 # tight tolerances; Clarabel's defaults; then a stronger static regularization, which
@@ -448,27 +456,39 @@ def _solve_dual(data: PEPData, active: np.ndarray, margin: float, unit: float,
     # tau >= 0: the PEP under initial <= 1, not = 1 (where its sup may be below)
     t = int(bool(np.any(data.consts())))
     from sosalgo.worstcase.blocks import block_columns
+    from sosalgo.worstcase.lmis import lmi_columns
 
     blk = block_columns(data.blocks, data.w)
-    nb = sum(c.shape[1] for c, _ in blk)
+    lmi = lmi_columns(data.lmis, data.w, data.v, nF, data.s)
+    # the matrix multipliers: the blocks' (on S), then the LMIs' (on S and c_F, with
+    # <Lambda, E_k> = 0 for their free multipliers: a zero cone)
+    mats = [(c, sps.csr_matrix((nF, c.shape[1])), n) for c, n in blk] + [
+        (c, f, n) for c, f, _, n in lmi]
+    nb = sum(c.shape[1] for c, _, _ in mats)
+    ne = sum(e.shape[0] for _, _, e, _ in lmi)
     sign = sps.csr_matrix(([-1.0] * t, ([0] * t, [0] * t)), shape=(t, 1 + K + nb))
-    pad = sps.csr_matrix((K + nF, nb))
-    Sblk = sps.hstack([body[:nG]] + [c for c, _ in blk]).tocsr()
-    A = sps.vstack([sign, sps.hstack([sps.csr_matrix((K, 1)), -sps.identity(K),
-                                      pad[:K]]),
-                    sps.hstack([body[nG:], pad[K:]]), Sblk,
-                    sps.hstack([sps.csr_matrix((nb, 1 + K)), -sps.identity(nb)])]).tocsc()
+    Sblk = sps.hstack([body[:nG]] + [c for c, _, _ in mats]).tocsr()
+    Fblk = sps.hstack([body[nG:]] + [f for _, f, _ in mats]).tocsr()
+    rows = [sign, sps.hstack([sps.csr_matrix((K, 1)), -sps.identity(K),
+                              sps.csr_matrix((K, nb))]),
+            Fblk, Sblk, sps.hstack([sps.csr_matrix((nb, 1 + K)), -sps.identity(nb)])]
+    if ne:
+        nbk = sum(c.shape[1] for c, _ in blk)
+        rows.append(sps.hstack([sps.csr_matrix((ne, 1 + K + nbk)),
+                                sps.block_diag([e for _, _, e, _ in lmi])]))
+    A = sps.vstack(rows).tocsc()
     A.eliminate_zeros()
     seen = (linear_only(data) if t or st.margin_seen  # with constants: no margin where S
             else np.ones(d))  # is 0
     eye = np.concatenate([svec(np.diag(seen)), np.full(nF, 0.0 if st.free_values else 1.0)]
                          ) * margin  # free values: c_F = 0 (no margin there)
     b = np.concatenate([np.zeros(t + K), -(meas + eye)[nG:], -(meas + eye)[:nG],
-                        np.zeros(nb)])
+                        np.zeros(nb + ne)])
     q = np.zeros(1 + K + nb)
     q[0] = 1.0
     q[1:1 + K] = data.consts()[active] / sig  # bound / unit = tau' + sum_k x_k c_k / sig_k
-    cones = [("nonneg", t + K + nF), ("psd", d)] + [("psd", n) for _, n in blk]
+    cones = [("nonneg", t + K + nF), ("psd", d)] + [("psd", n) for _, _, n in mats] + (
+        [("zero", ne)] if ne else [])
     sol, raw, st_ = solve_attempts(A, q, b, cones, attempts, final=(
         "PrimalInfeasible", "DualInfeasible") + (("AlmostSolved",) if rough else ()))
     if raw == "PrimalInfeasible":  # no certificate: the measure is unbounded
@@ -494,9 +514,9 @@ def _solve_dual(data: PEPData, active: np.ndarray, margin: float, unit: float,
                     const=float(lam @ data.consts()))
     ans.S = residual(data, ans.tau, lam)
     at = 1 + K
-    for _, n in blk:  # the blocks' multipliers, in the original units
+    for k, (_, _, n) in enumerate(mats):  # the multipliers, in the original units
         m = n * (n + 1) // 2
-        ans.blocks.append(unsvec(x[at:at + m], n) * unit)
+        (ans.blocks if k < len(blk) else ans.lmis).append(unsvec(x[at:at + m], n) * unit)
         at += m
     return ans
 

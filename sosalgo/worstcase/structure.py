@@ -160,6 +160,11 @@ class PEPFrame(CallShape):
     # per function: the K (2 x 2) of each Gram-level condition of its class
     # (:meth:`sosalgo.classes.base.FunctionClass.blocks`; :mod:`sosalgo.worstcase.blocks`)
     blocks: list[list[np.ndarray]] = field(default_factory=list)
+    # per function: its class's LMIs on tuples of points (:class:`TupleLMI`,
+    # :mod:`sosalgo.worstcase.lmis`)
+    lmis: list[list[Any]] = field(default_factory=list)
+    # their cuts' rows, computed once per method (function, LMI, entries) -> (Qc, values)
+    lmi_rows: dict[Any, Any] = field(default_factory=dict)
     # transpose calls of a linear operator (:mod:`sosalgo.worstcase.adjoint`); None: none
     adjoint: dict[str, Any] | None = None
 
@@ -238,6 +243,12 @@ class PEPStructure:
     # the rank-one cuts of the blocks' multipliers, appended to the extras:
     # (function, condition, vector over the block's points)
     cuts: list[tuple[int, int, list[Any]]] = field(default_factory=list)
+    # the class LMIs on tuples of points (:mod:`sosalgo.worstcase.lmis`): (function, LMI,
+    # the tuple's points), and their cuts, appended to the extras: (function, LMI,
+    # tuple, the cut's stored entries)
+    lmis: list[tuple[int, int, tuple[int, ...]]] = field(default_factory=list)
+    lmi_cuts: list[tuple[int, int, tuple[int, ...], list[Any]]] = field(
+        default_factory=list)
 
     @property
     def d(self) -> int:
@@ -790,6 +801,7 @@ def _finish(mt: PEPFrame, steps: int, calls: int, state: dict[str, Any],
         st.equalities = np.array(equal + [False] * len(extras))
     st.blocks = [(j, r, [a for a, pt in enumerate(pts[j]) if pt.label != "x*"])
                  for j, fb in enumerate(mt.blocks) for r in range(len(fb))]
+    st.lmis = _lmi_tuples(mt, pts)
     zero = Fraction(0) if mt.exact else 0.0
     rest = [state.get("extra_consts", {}).get(e, zero) for e in range(len(extras))]
     if any(_nonzero(c) for c in consts + rest):  # one constant per row: pairs, then extras
@@ -800,6 +812,28 @@ def _finish(mt: PEPFrame, steps: int, calls: int, state: dict[str, Any],
 def _same_point(pa: PEPPoint, pb: PEPPoint) -> bool:
     """Whether two points of a function have the same x (as rows on the basis)."""
     return pa.label != pb.label and all(u == v for u, v in zip(pa.x, pb.x, strict=True))
+
+
+def _lmi_tuples(mt: PEPFrame, pts: list[list[PEPPoint]]
+                ) -> list[tuple[int, int, tuple[int, ...]]]:
+    """(function, LMI, tuple) of every class LMI: each ordered tuple of the function's
+    points (x* among them when the PEP keeps it for the class) that are not all the
+    same point, x* appended when the LMI asks for it."""
+    from itertools import product
+
+    out = []
+    for j, fl in enumerate(mt.lmis):
+        cls = mt.functions[j][1]
+        star = [a for a, pt in enumerate(pts[j]) if pt.label == "x*"]
+        keep = [a for a, pt in enumerate(pts[j])
+                if pt.label != "x*" or cls.convex or cls.minimizer]
+        for r, lmi in enumerate(fl):
+            if lmi.optimum and not star:
+                continue
+            for idx in product(keep, repeat=lmi.arity):
+                if len(set(idx)) > 1:
+                    out.append((j, r, idx + ((star[0],) if lmi.optimum else ())))
+    return out
 
 
 def _vanishes(mt: PEPFrame, j: int, r: int, pa: PEPPoint, pb: PEPPoint) -> bool:

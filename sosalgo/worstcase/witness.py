@@ -218,6 +218,8 @@ def make_witness(spec: Spec, kappa: float | None, mt: PEPFrame, data: PEPData,
     seconds the PEP took), at least :data:`FLOOR` CPU seconds."""
     from sosalgo.worstcase.exact import exact_or_none
 
+    if any(mt.lmis):  # the check cannot verify a class's tuple LMIs: no witness
+        return None
     tau = float(ans.primal)  # type: ignore[arg-type]
     unit = tau if tau > 1e-200 else 1.0
     exact_mt = (exact_mt if exact_mt is not None
