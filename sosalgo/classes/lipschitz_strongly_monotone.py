@@ -25,6 +25,7 @@ from sosalgo.classes.operator import OperatorClass, linear_member, skew_unit
 class LipschitzStronglyMonotone(OperatorClass):
     name = "lipschitz_strongly_monotone"
     pairwise_defined = True  # its members: the operators meeting its pairwise conditions
+    interpolating = False  # necessary conditions: the PEP is an upper bound
     description = ("L-Lipschitz mu-strongly monotone operator (necessary conditions: "
                    "upper bounds, not known tight)")
     parameters = ("mu", "L")

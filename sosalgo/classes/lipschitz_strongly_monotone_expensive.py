@@ -46,6 +46,7 @@ class LipschitzStronglyMonotoneExpensive(LipschitzStronglyMonotone):
     name = "lipschitz_strongly_monotone_expensive"
     pairwise_defined = False  # the LMIs too: a pairwise member is not known to be one
     homogeneous = False  # no Lyapunov family takes the LMIs: ``pep`` answers
+    interpolating = False  # necessary conditions: the PEP is an upper bound
     description = ("L-Lipschitz mu-strongly monotone operator, PEPit's expensive "
                    "conditions (7 x 7 LMIs per triple; necessary: an upper bound, not "
                    "known tight)")

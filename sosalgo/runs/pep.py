@@ -349,6 +349,11 @@ def witness_notes(rows: list[dict[str, Any]]) -> list[str]:
             out.append(f"{where}: no witness verified ({chk.get('detail', 'not checked')}): "
                        "tau has no proven lower bound here (the witness file's search says "
                        "what was tried)")
+        elif w.get("necessary_only"):
+            out.append(f"{where}: {', '.join(w['necessary_only'])}: necessary conditions "
+                       "only (no interpolation theorem); witness_lower bounds this PEP "
+                       "from below, not the class's worst case, and tau_proven is an "
+                       "upper bound of that worst case")
         elif (w.get("search") or {}).get("quadratic"):
             low, tau = chk.get("tau_lower_float"), d.get("tau")
             ratio = f", {low / tau:.2g} of tau" if low and tau else ""

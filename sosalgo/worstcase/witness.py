@@ -437,6 +437,10 @@ def finish_witness(doc: dict[str, Any], spec: Spec, kappa: float | None,
     except (ValueError, ArithmeticError):  # no exact class: the check fails and says why
         pass
     doc |= kappa_fields(kappa)  # the exact kappa the witness is about
+    loose = necessary_only_classes(spec)
+    if loose:  # its points meet necessary conditions: a lower bound of this PEP only
+        doc["interpolating"] = False
+        doc["necessary_only"] = loose
     proof = ((getattr(res, "certificate", None) or {}).get("proof")) or {}
     if proof.get("proven"):
         doc["upper"] = {k: proof[k] for k in ("tau_proven", "multipliers_exact", "scale",
@@ -446,6 +450,16 @@ def finish_witness(doc: dict[str, Any], spec: Spec, kappa: float | None,
     if doc["dimension"] == 1:
         doc["interpolant"] = interpolant_1d(doc)
     return doc
+
+
+def necessary_only_classes(spec: Spec) -> list[str]:
+    """The spec's function classes whose conditions are necessary only (no interpolation
+    theorem): a witness meeting them bounds this PEP from below, not the class's worst
+    case (the PEP itself is then an upper bound of that worst case)."""
+    from sosalgo.classes import get_class
+
+    names = sorted({decl.cls for decl in (getattr(spec, "functions", None) or {}).values()})
+    return [n for n in names if not get_class(n).interpolating]
 
 
 def add_exact_points(doc: dict[str, Any], exact_mt: PEPFrame) -> None:
