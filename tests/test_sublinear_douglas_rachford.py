@@ -130,7 +130,7 @@ def test_soundness_on_random_operators(kind):
         d = 2 + trial % 5
         JB, JA, x_star, s = _problem(rng, d, kind)
 
-        def step(w: np.ndarray) -> np.ndarray:
+        def step(w: np.ndarray, JB=JB, JA=JA) -> np.ndarray:
             x = JB(w, alpha)
             return w - theta * (x - JA(2 * x - w, alpha))
 
