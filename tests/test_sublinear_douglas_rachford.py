@@ -48,6 +48,7 @@ def _constant(spec, theta=None):
     assert res.certified and res.measure == "state_change"
     proof = verify_exact_sublinear(spec, json.loads(json.dumps(res.to_dict())), theta)
     assert proof.ok, proof.reason
+    assert proof.to_dict()["statement"].startswith("|xi_k+1 - xi_k|^2 <= C |xi_0 - xi*|^2")
     return res.constant, float(Fraction(proof.constant_proven))
 
 

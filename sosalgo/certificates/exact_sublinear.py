@@ -66,6 +66,10 @@ STATEMENT = ("measure(x_k) <= C |x_0 - x*|^2 / k for every k >= 1, every x* mini
              "sum of the functions (an operator's zero: measure residual, sum_i |u_i|^2 of "
              "the calls at step k) and every function of the classes, the method started at "
              "rest at x_0 (xi_0 - xi* = u (x_0 - x*)), C = constant_proven")
+STATE_STATEMENT = ("|xi_k+1 - xi_k|^2 <= C |xi_0 - xi*|^2 / k for every k >= 1, every start "
+                   "xi_0, every zero x* of the sum of the operators with its answers s_j* "
+                   "(sum 0) and xi* the fixed point they give (measure state_change: several "
+                   "operators), and every operator of the classes, C = constant_proven")
 
 
 @dataclass
@@ -82,7 +86,8 @@ class SublinearExactResult:
     L: str = ""
     params: dict[str, str] = field(default_factory=dict)
     degree: int | None = None
-    measure: str | None = None  # the measure proven (residual: an operator's calls)
+    measure: str | None = None  # the measure proven (residual: an operator's calls;
+    # state_change: |xi_k+1 - xi_k|^2 of several operators, from a free start)
     equalities: int = 0  # rank of the exact equalities imposed
     kernels: dict[str, int] = field(default_factory=dict)  # dimension per block
     moved: float | None = None  # largest change made by the exact projection
@@ -105,7 +110,8 @@ class SublinearExactResult:
                 "equalities": self.equalities,
                 "kernels": dict(self.kernels), "moved": self.moved,
                 "proofs": dict(self.proofs), "attempts": self.attempts,
-                "statement": STATEMENT, "certificate": self.certificate}
+                "statement": (STATE_STATEMENT if self.measure == STATE_CHANGE
+                              else STATEMENT), "certificate": self.certificate}
 
 
 # --------------------------------------------------------------------------- affine forms

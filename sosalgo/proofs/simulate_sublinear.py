@@ -1,7 +1,8 @@
 """Simulation check of a sublinear constant: measure(x_k) <= c |x_0 - x*|^2 / k.
 
 For operators only (``measure: residual``, :func:`sosalgo.certificates.composite.residual_measured`)
-the measure is sum_i |u_i|^2 of the calls at time k.
+the measure is sum_i |u_i|^2 of the calls at time k; for several operators (``measure:
+state_change``) it is |xi_{k+1} - xi_k|^2 against |xi_0 - xi*|^2 from random free starts.
 
 The method (oracle model, proximal steps included: :func:`run_method`) is started at rest,
 xi_0 = xi* + u (x_0 - x*) (u the fixed point of x* = 1), on the test problems of its
