@@ -110,17 +110,29 @@ def _problem(rng, d: int, kind: str):
 
         def JB(v: np.ndarray, alpha: float) -> np.ndarray:
             return x_star + V @ (V.T @ (v - x_star))
+    elif kind == "rotation":  # B = s (constant), A a rotation generator: near-worst cases
+        s = rng.standard_normal(d)
+        G = np.zeros((d, d))
+        G[0, 1], G[1, 0] = -1.0, 1.0
+        M = G * 10.0 ** rng.uniform(-2, 1)
+
+        def JB(v: np.ndarray, alpha: float) -> np.ndarray:
+            return v - alpha * s
+
+        def JA(v: np.ndarray, alpha: float) -> np.ndarray:  # A x = M (x - x*) - s
+            return np.linalg.solve(np.eye(d) + alpha * M, v + alpha * (M @ x_star + s))
+        return JB, JA, x_star, s
     else:  # B affine monotone too
         s = rng.standard_normal(d) * 3
         JB = _affine_monotone(rng, d, x_star, -s)  # B x* = s
     return JB, _affine_monotone(rng, d, x_star, s), x_star, s
 
 
-@pytest.mark.parametrize("kind", ["affine", "subspace", "box"])
+@pytest.mark.parametrize("kind", ["affine", "subspace", "box", "rotation"])
 def test_soundness_on_random_operators(kind):
     """DR run in numpy on random maximally monotone pairs (affine monotone maps, normal
-    cones of subspaces and boxes; the solution's answers s, -s nonzero, so w* = x* +
-    alpha s moves with them), from random starts: k |w_{k+1} - w_k|^2 / |w_0 - w*|^2 <= c
+    cones of subspaces and boxes, a constant B with a rotation generator A; the solution's
+    answers s, -s nonzero, so w* = x* + alpha s moves with them), from random starts: k |w_{k+1} - w_k|^2 / |w_0 - w*|^2 <= c
     for k = 1..150, c the proven constant; w* is checked to be a fixed point first."""
     alpha, theta = 1.3, 1.0
     c, proven = _constant(_spec(alpha="13/10"))
@@ -145,6 +157,8 @@ def test_soundness_on_random_operators(kind):
             worst = max(worst, k * float(np.sum((nxt - w) ** 2)) / r0)
             w = nxt
     assert 0 < worst <= bound * (1 + 1e-9)
+    if kind == "rotation":  # slow rotations nearly reach the tight worst case: a sharp check
+        assert worst >= 0.9 * max(k * _worst_step(k, theta) for k in range(1, 151))
 
 
 def test_analyze_cli_verifies_the_state_change_constant(tmp_path):
