@@ -132,8 +132,9 @@ def _problem(rng, d: int, kind: str):
 def test_soundness_on_random_operators(kind):
     """DR run in numpy on random maximally monotone pairs (affine monotone maps, normal
     cones of subspaces and boxes, a constant B with a rotation generator A; the solution's
-    answers s, -s nonzero, so w* = x* + alpha s moves with them), from random starts: k |w_{k+1} - w_k|^2 / |w_0 - w*|^2 <= c
-    for k = 1..150, c the proven constant; w* is checked to be a fixed point first."""
+    answers s, -s nonzero, so w* = x* + alpha s moves with them), from random starts:
+    k |w_{k+1} - w_k|^2 / |w_0 - w*|^2 <= c for k = 1..150, c the proven constant; w* is
+    checked to be a fixed point first."""
     alpha, theta = 1.3, 1.0
     c, proven = _constant(_spec(alpha="13/10"))
     bound = min(c, proven)
