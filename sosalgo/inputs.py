@@ -66,7 +66,8 @@ def refuse_nonconvex(spec: Any, linear_rates: bool = False) -> None:
     if ops and not linear_rates:
         raise InputError(f"{spec.source}: functions: {', '.join(ops)} is an operator class: "
                          "analyze certifies its linear rates (m > 0) and its O(1/k) "
-                         "residual (m: 0, one operator); grid and pareto do not take it "
+                         "residual (m: 0, one operator; several maximally monotone: "
+                         "the state change); grid and pareto do not take it "
                          "yet; sosalgo pep bounds its worst case after N steps")
     if ops and not spec.has_condition_number:
         from sosalgo.certificates.sublinear import operator_refusal

@@ -264,7 +264,8 @@ def bind_sublinear(spec: Spec, theta: Mapping[str, float] | None = None,
     parameter values (``theta`` overrides input parameters); ModelError names the field.
     ``moving_optimum``: a state at the optimum that moves with the optimal subgradients
     (Douglas-Rachford) is accepted (the PEP takes it; the sublinear potentials, started
-    at rest at x_0, do not)."""
+    at rest at x_0, do not, except for several operators: their state change is bounded
+    from a free start)."""
     if spec.has_condition_number or spec.L is None:
         raise ModelError("m", "not a sublinear spec (m: 0, L given)")
     comp = _compiled(spec)
@@ -273,6 +274,9 @@ def bind_sublinear(spec: Spec, theta: Mapping[str, float] | None = None,
     mats = _matrices(comp, [0.0, spec.L, nan] + [params[p] for p in comp.names])
     om = make_method(spec, mats, 0.0, spec.L, nan, params)
     basis = fixed_point_basis(om)
+    several_operators = len(om.functions) > 1 and not any(fn[1].has_values
+                                                         for fn in om.functions)
+    moving_optimum = moving_optimum or several_operators  # measured by the state change
     if (not moving_optimum and basis is not None and basis.shape[1] > 1
             and np.abs(basis[:, 1:]).max() > 1e-12):
         raise ModelError("functions", "m: 0 (sublinear rates) needs a state at the optimum "

@@ -41,8 +41,9 @@ import numpy as np
 from sosalgo.certificates.base import complement_basis, compress, null_basis, restricted_eigenvalues
 from sosalgo.kernel.conic import AffineBlock, LMIProblem, sym_basis, unit_quads
 
-__all__ = ["CompositeStructure", "composite_problem", "composite_parts", "composite_structure",
-           "facial_reduction", "isotropic_directions", "reduced_summary", "residual_measured",
+__all__ = ["STATE_CHANGE", "CompositeStructure", "composite_problem", "composite_parts",
+           "composite_structure", "facial_reduction", "isotropic_directions",
+           "reduced_summary", "residual_measured",
            "sublinear_measure"]
 
 
@@ -248,14 +249,19 @@ def facial_reduction(win: CWindow) -> tuple[np.ndarray | None, np.ndarray]:
     return complement_basis(W), drop
 
 
+STATE_CHANGE = "state_change"  # |xi_k+1 - xi_k|^2: several operators (optimum moves)
+
+
 def residual_measured(om: Any) -> Any:
-    """The method measured as the family measures it: for operators only (no function
+    """The method measured as the family measures it: for one operator only (no function
     values), ``measure: residual``, sum_i |u_i|^2 of the calls at time k (u = x - T x for a
-    nonexpansive T; x_k - x_{k+1} = alpha u for a resolvent step); else ``om`` itself."""
+    nonexpansive T; x_k - x_{k+1} = alpha u for a resolvent step); for several operators
+    (their optimal answers s_j* sum to 0 but need not be 0) :data:`STATE_CHANGE`,
+    |xi_{k+1} - xi_k|^2, which does not see s*; else ``om`` itself."""
     from dataclasses import replace
 
     if om.functions and all(not fn[1].has_values for fn in om.functions):
-        return replace(om, measure="residual")
+        return replace(om, measure="residual" if len(om.functions) == 1 else STATE_CHANGE)
     return om
 
 
@@ -265,7 +271,7 @@ def sublinear_measure(spec: Any) -> str:
     from sosalgo.classes import CLASSES
 
     if spec.functions and all(not CLASSES[d.cls].has_values for d in spec.functions.values()):
-        return "residual"
+        return "residual" if len(spec.functions) == 1 else STATE_CHANGE
     return spec.measure
 
 
@@ -277,6 +283,9 @@ def _measure(om: Any, pts: list, rows: dict, t: int, nphi: int,
         return np.zeros(nphi), np.outer(xo, xo)
     if om.measure == "residual":  # sum_i |u_i|^2 of the calls at t (u = s u~), over s
         return np.zeros(nphi), s * rows["U"][t].T @ rows["U"][t]
+    if om.measure == STATE_CHANGE:  # |xi_t+1 - xi_t|^2 = |(A - I) xi~_t + B u~_t|^2
+        dx = (om.A - np.eye(om.n)) @ rows["Xi"][t] + (s * om.B) @ rows["U"][t]
+        return np.zeros(nphi), dx.T @ dx
     lin = np.zeros(nphi)
     oc = output_call(om)
     here = {f"x[{t}]"} | ({f"y{oc + 1}[{t}]"} if oc is not None else set())

@@ -226,6 +226,9 @@ def exact_window(om: ExactOracleMethod, lag: int, steps: int,
         meas_quad = np.outer(xo, xo)
     elif om.measure == "residual":  # sum_i |u_i|^2 of the calls at t
         meas_quad = rows["U"][t].T @ rows["U"][t]
+    elif om.measure == "state_change":  # |xi_t+1 - xi_t|^2 (several operators)
+        dx = om.A @ rows["Xi"][t] - rows["Xi"][t] + om.B @ rows["U"][t]
+        meas_quad = dx.T @ dx
     else:
         here = {f"x[{t}]"} | ({f"y{om.output + 1}[{t}]"} if om.output is not None else set())
         for pt in (pt for fp in pts for pt in fp if pt.label in here):

@@ -47,6 +47,7 @@ import numpy as np
 import scipy.linalg as sla
 import sympy as sp
 
+from sosalgo.certificates.composite import STATE_CHANGE
 from sosalgo.certificates.exact_composite import exact_class_inequalities, exact_window
 from sosalgo.certificates.exact_interpolation import Refused
 from sosalgo.exact_method import ball_method
@@ -65,6 +66,10 @@ STATEMENT = ("measure(x_k) <= C |x_0 - x*|^2 / k for every k >= 1, every x* mini
              "sum of the functions (an operator's zero: measure residual, sum_i |u_i|^2 of "
              "the calls at step k) and every function of the classes, the method started at "
              "rest at x_0 (xi_0 - xi* = u (x_0 - x*)), C = constant_proven")
+STATE_STATEMENT = ("|xi_k+1 - xi_k|^2 <= C |xi_0 - xi*|^2 / k for every k >= 1, every start "
+                   "xi_0, every zero x* of the sum of the operators with its answers s_j* "
+                   "(sum 0) and xi* the fixed point they give (measure state_change: several "
+                   "operators), and every operator of the classes, C = constant_proven")
 
 
 @dataclass
@@ -81,7 +86,8 @@ class SublinearExactResult:
     L: str = ""
     params: dict[str, str] = field(default_factory=dict)
     degree: int | None = None
-    measure: str | None = None  # the measure proven (residual: an operator's calls)
+    measure: str | None = None  # the measure proven (residual: an operator's calls;
+    # state_change: |xi_k+1 - xi_k|^2 of several operators, from a free start)
     equalities: int = 0  # rank of the exact equalities imposed
     kernels: dict[str, int] = field(default_factory=dict)  # dimension per block
     moved: float | None = None  # largest change made by the exact projection
@@ -104,7 +110,8 @@ class SublinearExactResult:
                 "equalities": self.equalities,
                 "kernels": dict(self.kernels), "moved": self.moved,
                 "proofs": dict(self.proofs), "attempts": self.attempts,
-                "statement": STATEMENT, "certificate": self.certificate}
+                "statement": (STATE_STATEMENT if self.measure == STATE_CHANGE
+                              else STATEMENT), "certificate": self.certificate}
 
 
 # --------------------------------------------------------------------------- affine forms
@@ -241,6 +248,41 @@ def _fixed_point(om: Method) -> list[Fraction]:
     if free.shape[0]:
         raise Refused("the start at rest (fixed point of x* = 1) is not unique")
     return [Fraction(int(v.p), int(v.q)) for v in sol]
+
+
+def _moving(om: Method, dec: Any, pos: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Exact (decrease, positivity) window directions of a stationary point moved with the
+    optimal answers, as :func:`sosalgo.certificates.sublinear._moving_directions` (several
+    operators, measured by the state change): (A - I) xi + B u = 0, C xi + D u = 0, the
+    same answers at every time, on whose span every class form vanishes."""
+    n = om.n
+    none = (np.zeros((dec.width, 0), dtype=object), np.zeros((pos.width, 0), dtype=object))
+
+    def mat(M: np.ndarray) -> sp.Matrix:
+        return sp.Matrix(M.shape[0], M.shape[1], [Ball.of(b).c for b in M.ravel()])
+
+    M = sp.Matrix.vstack(sp.Matrix.hstack(mat(om.A) - sp.eye(n), mat(om.B)),
+                         sp.Matrix.hstack(mat(om.C), mat(om.D)))
+    base = M.nullspace()
+    if not base:
+        return none
+    Bm = sp.Matrix.hstack(*base)
+
+    def lift(steps: int) -> sp.Matrix:
+        return sp.Matrix.vstack(Bm[:n, :], *([Bm[n:, :]] * steps))
+
+    Wd = lift(2)
+    forms = [Wd.T * sp.Matrix(Mq.tolist()) * Wd for Mq in dec.Mq]
+    keep = sp.Matrix.vstack(*forms).nullspace() if forms else [sp.eye(Wd.shape[1])]
+    if not keep:
+        return none
+    K = sp.Matrix.hstack(*keep)
+
+    def frac(A: sp.Matrix) -> np.ndarray:
+        return np.array([[Fraction(int(sp.fraction(v)[0]), int(sp.fraction(v)[1]))
+                          for v in row] for row in A.tolist()], dtype=object)
+
+    return frac(Wd * K), frac(lift(1) * K)
 
 
 def _windows(om: Method, float_om: Any) -> tuple[Any, Any, Method]:
@@ -386,29 +428,37 @@ def _halfline(name: str, A: list, S: np.ndarray, K: np.ndarray) -> list[tuple[st
 
 
 def _conditions(dec: Any, pos: Any, u: list[Fraction], X: dict[str, np.ndarray],
-                deg: int, n: int) -> tuple[list, list, dict[str, np.ndarray]]:
+                deg: int, n: int, moving: tuple[np.ndarray, np.ndarray] | None = None,
+                ) -> tuple[list, list, dict[str, np.ndarray]]:
     """Matrix blocks (each <= 0), rows (each <= 0) and the exact directions every
-    certificate's block is singular along (the minimizer moving with zero gradients)."""
+    certificate's block is singular along (the minimizer moving with zero gradients, and
+    with the optimal answers: ``moving``, whose presence also frees the start: the initial
+    block bounds phi_0 by C |xi_0 - xi*|^2 on the whole positivity window)."""
     P = _polys(dec, pos, X, deg)
     wd, wp = dec.width, pos.width
-    vd = np.array(u + [Fraction(0)] * (wd - n), dtype=object)
-    vp = np.array(u + [Fraction(0)] * (wp - n), dtype=object)
+    vd = np.array(u + [Fraction(0)] * (wd - n), dtype=object)[:, None]
+    vp = np.array(u + [Fraction(0)] * (wp - n), dtype=object)[:, None]
+    free = moving is not None
+    if free:
+        vd, vp = np.hstack([vd, moving[0]]), np.hstack([vp, moving[1]])
     zd, zp = vd * 0, vp * 0
     if deg == 2:
         blocks = _halfline("D", P["Dm"], X["S_D"], X["K_D"]) + _halfline("P", P["Pm"],
                                                                          X["S_P"], X["K_P"])
-        known = {"D": np.column_stack([np.concatenate([vd, zd]), np.concatenate([zd, vd])]),
-                 "D-S": vd[:, None], "P": np.concatenate([zp, vp])[:, None],
-                 "P-S": vp[:, None]}
+        known = {"D": np.hstack([np.vstack([vd, zd]), np.vstack([zd, vd])]),
+                 "D-S": vd, "P": np.vstack([zp, vp]), "P-S": vp}
     else:
         blocks = [(f"{t}{j}", P[f"{t}m"][j]) for t in "DP" for j in (0, 1)]
-        known = {"D0": vd[:, None], "D1": vd[:, None], "P1": vp[:, None]}
-    T = np.full((wp, wp - n + 1), Fraction(0), dtype=object)  # (x_0, rest) -> window
-    T[:n, 0] = u
+        known = {"D0": vd, "D1": vd, "P1": vp}
+    head = n if free else 1  # the state xi_0 - xi* (a free start), or x_0 - x*
+    T = np.full((wp, wp - n + head), Fraction(0), dtype=object)  # (start, rest) -> window
+    for i in range(n):
+        T[i, i if free else 0] = Fraction(1) if free else u[i]
     for i in range(wp - n):
-        T[n + i, 1 + i] = Fraction(1)
+        T[n + i, head + i] = Fraction(1)
     Im = T.T @ (_quad(pos.Z[0], X["P"]) + _combo(X["nu"], pos.Mq)) @ T
-    Im[0, 0] = Im[0, 0] - X["C"][0]
+    for i in range(head):
+        Im[i, i] = Im[i, i] - X["C"][0]
     blocks.append(("I", Im))
     Iv = pos.F[0].T @ X["p"] + _combo(X["nu"], pos.mq)
     rows = [(f"{t}{j}-f[{i}]", e) for t in "DP" for j in range(deg + 1)
@@ -647,7 +697,8 @@ def _setup(res: SublinearExactResult, spec: Spec, cert: Mapping[str, Any], C: fl
     X, _ = _symbols(unk)
     x = _read(cert, unk, {"eta": dec.labels, "lam": pos.labels, "nu": pos.labels}, C)
     u = _fixed_point(om)
-    blocks, rows, known = _conditions(dec, pos, u, X, deg, om.n)
+    moving = _moving(om, dec, pos) if om.measure == STATE_CHANGE else None
+    blocks, rows, known = _conditions(dec, pos, u, X, deg, om.n, moving)
     return _Setup(blocks, rows, known, x, unk, u)
 
 

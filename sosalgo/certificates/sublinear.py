@@ -51,7 +51,7 @@ if TYPE_CHECKING:  # only for annotations
     from sosalgo.spec.types import Spec
 
 __all__ = ["SUBLINEAR", "SublinearFamily", "SublinearProblem", "block_kernels",
-           "full_violation", "operator_refusal", "original_kernels", "snap_basis",
+           "full_violation", "moving_optimum", "operator_refusal", "original_kernels", "snap_basis",
            "sublinear_data",
            "sublinear_parts", "sublinear_problem"]
 
@@ -170,11 +170,51 @@ def _polys(st: Any, lay: dict[str, slice], nvar: int, deg: int) -> dict[str, _Po
     return {"D": D, "P": P}
 
 
+def moving_optimum(om: Any) -> bool:
+    """Whether the fixed point moves with the optimal answers (several operators, measured
+    by the state change): then the start is free, |xi_0 - xi*|^2 bounds phi_0."""
+    from sosalgo.certificates.composite import STATE_CHANGE
+
+    return om.measure == STATE_CHANGE
+
+
+def _moving_directions(om: Any, st: Any) -> tuple[np.ndarray, np.ndarray]:
+    """(decrease, positivity) window directions (columns) of a stationary point that has
+    moved with the optimal answers: (A - I) xi + B u = 0, every call at x* (C xi + D u =
+    0), the same answers at every time, on whose span every class inequality's form
+    vanishes (Douglas-Rachford: xi = alpha d, u = (d, -d)); none unless
+    :func:`moving_optimum`."""
+    n = om.n
+    if not moving_optimum(om):
+        return np.zeros((st.dec.width, 0)), np.zeros((st.pos.width, 0))
+    s = float(om.L)
+    M = np.block([[om.A - np.eye(n), s * om.B], [om.C, s * om.D]])
+    base = sla.null_space(M)
+
+    def lift(steps: int) -> np.ndarray:
+        return np.vstack([base[:n]] + [base[n:]] * steps)
+
+    Wd = lift(2)
+    forms = [Wd.T @ Mq @ Wd for Mq in st.dec.Mq]  # zero on the span kept: every form 0
+    keep = _null_abs(np.vstack(forms)) if forms else np.eye(Wd.shape[1])
+    return snap_basis(Wd @ keep), snap_basis(lift(1) @ keep)
+
+
+def _null_abs(F: np.ndarray, tol: float = 1e-10) -> np.ndarray:
+    """Null space of F with an absolute tolerance (forms of unit-scaled inequalities)."""
+    _, sv, Vt = np.linalg.svd(F)
+    rank = int(np.sum(sv > tol))
+    return Vt[rank:].T
+
+
 def _initial_map(om: Any, pos: CWindow) -> tuple[np.ndarray, np.ndarray]:
     """T (w x w'): the positivity window with xi_0 = u x_0 (w' = (x_0, the rest)), and the
-    form |x_0|^2 on w'."""
+    form |x_0|^2 on w'; a free start (:func:`moving_optimum`): T = I and |xi_0 - xi*|^2."""
     from sosalgo.oracles import fixed_point_basis
 
+    if moving_optimum(om):
+        w = pos.width
+        return np.eye(w), np.diag(np.r_[np.ones(om.n), np.zeros(w - om.n)])
     basis = fixed_point_basis(om)
     assert basis is not None
     w = pos.width
@@ -200,6 +240,7 @@ class _XData:
     st: Any
     s: float
     deg: int
+    om: Any = None  # the method measured (its measure says whether the start is free)
 
 
 def _halfline(name: str, poly: _Poly, lay: dict[str, slice], tag: str,
@@ -249,7 +290,9 @@ def _nonneg(names: tuple[str, ...], lay: dict[str, slice], nvar: int) -> list:
 def operator_refusal(spec: Spec) -> str | None:
     """Why the family does not answer an ``m: 0`` spec with an operator class (None: one
     function, an operator class that is exactly its pairwise conditions: its zero has
-    u* = 0, so the squared residual sum_i |u_i|^2 of the calls is the measure)."""
+    u* = 0, so the squared residual sum_i |u_i|^2 of the calls is the measure; or several
+    maximally monotone operators (Douglas-Rachford), measured by the state change
+    |xi_{k+1} - xi_k|^2 from a free start, the fixed point moving with the optimal answers)."""
     from sosalgo.classes import CLASSES
     from sosalgo.steps import changes_with_k
 
@@ -257,9 +300,10 @@ def operator_refusal(spec: Spec) -> str | None:
     if all(c.has_values for c in classes.values()):
         return None
     named = ", ".join(f"{n} ({c.name})" for n, c in classes.items())
-    if len(classes) > 1:
+    if len(classes) > 1 and not all(c.name == "monotone" for c in classes.values()):
         return (f"{named}: an operator class among several functions: the sublinear "
-                "family bounds the squared residual of one operator only (m: 0)")
+                "family bounds the squared residual of one operator only, or the state "
+                "change of several maximally monotone ones (m: 0)")
     if not next(iter(classes.values())).pairwise_defined:
         return (f"{named} is an operator class not given by pairwise conditions: no "
                 "sublinear family applies to it (m: 0)")
@@ -294,19 +338,21 @@ def sublinear_data(om: Any, deg: int = DEGREE) -> _XData:
     for group in ("eta", "lam"):
         rows += _nonneg(tuple(f"{group}{j}" for j in range(deg + 1)), lay, nvar)
     rows += _nonneg(("nu",), lay, nvar)
-    return _XData(mats, rows, _known(om, st, deg), lay, st, s, deg)
+    return _XData(mats, rows, _known(om, st, deg), lay, st, s, deg, om)
 
 
 def _known(om: Any, st: Any, deg: int) -> dict[str, np.ndarray]:
     """Block directions singular for every certificate: v = the minimizer moving with zero
     gradients (xi = u t, every input 0) in every coefficient of (D) and in the growing
     coefficients of (P)."""
-    vd, vp = _fixed_direction(om, st.dec.width), _fixed_direction(om, st.pos.width)
+    md, mp = _moving_directions(om, st)
+    vd = np.column_stack([_fixed_direction(om, st.dec.width), md])
+    vp = np.column_stack([_fixed_direction(om, st.pos.width), mp])
     if deg == 1:
-        return {"D0": vd[:, None], "D1": vd[:, None], "P1": vp[:, None]}
+        return {"D0": vd, "D1": vd, "P1": vp}
     zd, zp = np.zeros_like(vd), np.zeros_like(vp)
-    return {"D": np.column_stack([np.concatenate([vd, zd]), np.concatenate([zd, vd])]),
-            "D-S": vd[:, None], "P": np.concatenate([zp, vp])[:, None], "P-S": vp[:, None]}
+    return {"D": np.hstack([np.vstack([vd, zd]), np.vstack([zd, vd])]),
+            "D-S": vd, "P": np.vstack([zp, vp]), "P-S": vp}
 
 
 def sublinear_problem(data: _XData, tight: frozenset[int] = frozenset(),
@@ -387,7 +433,8 @@ def original_kernels(data: _XData, kernels: dict[str, np.ndarray]) -> dict[str, 
         if not K.shape[1]:
             continue
         if name == "I":
-            scale = np.concatenate([[1.0], np.full(K.shape[0] - 1, s)])
+            head = n if moving_optimum(data.om) else 1  # the state (free start) or x_0
+            scale = np.concatenate([np.ones(head), np.full(K.shape[0] - head, s)])
         else:
             w = (data.st.dec if name.startswith("D") else data.st.pos).width
             scale = np.tile(np.concatenate([np.ones(n), np.full(w - n, s)]), K.shape[0] // w)

@@ -1,7 +1,8 @@
 """Simulation check of a sublinear constant: measure(x_k) <= c |x_0 - x*|^2 / k.
 
 For operators only (``measure: residual``, :func:`sosalgo.certificates.composite.residual_measured`)
-the measure is sum_i |u_i|^2 of the calls at time k.
+the measure is sum_i |u_i|^2 of the calls at time k; for several operators (``measure:
+state_change``) it is |xi_{k+1} - xi_k|^2 against |xi_0 - xi*|^2 from random free starts.
 
 The method (oracle model, proximal steps included: :func:`run_method`) is started at rest,
 xi_0 = xi* + u (x_0 - x*) (u the fixed point of x* = 1), on the test problems of its
@@ -21,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from sosalgo.certificates.composite import STATE_CHANGE
 from sosalgo.oracles import fixed_point_basis
 from sosalgo.proofs.prox_functions import ProxProblem, composite_problems
 from sosalgo.proofs.simulate import SimulationResult, Tally, Violation
@@ -37,6 +39,10 @@ def _measure(om: Any, prob: ProxProblem, tr: dict[str, np.ndarray]) -> tuple[np.
     if om.measure == "residual":  # operators: sum_i |u_i|^2 of the calls at k (u* = 0)
         res = np.sum(tr["u"][1: n + 1] ** 2, axis=(2, 3))
         return res, res
+    if om.measure == STATE_CHANGE:  # several operators: |xi_k+1 - xi_k|^2
+        step = tr["xi"][2: n + 2] - tr["xi"][1: n + 1]
+        size = np.sum(tr["xi"][1: n + 2] ** 2, axis=(2, 3))
+        return np.sum(step ** 2, axis=(2, 3)), size[1:] + size[:-1]
     if om.output is None:
         x = np.einsum("j,kbjd->kbd", om.E[0], tr["xi"][1: n + 1])
     else:
@@ -54,9 +60,14 @@ def _measure(om: Any, prob: ProxProblem, tr: dict[str, np.ndarray]) -> tuple[np.
 
 
 def _starts(om: Any, prob: ProxProblem, starts: int, rng: np.random.Generator) -> np.ndarray:
-    """xi_0 = xi* + u (x_0 - x*), x_0 - x* at random directions and distances 1e-2..1e2."""
+    """xi_0 = xi* + u (x_0 - x*), x_0 - x* at random directions and distances 1e-2..1e2;
+    for :data:`STATE_CHANGE` a free start, xi_0 - xi* at random (its squared norm returned)."""
     u = fixed_point_basis(om)[:, 0]
     xi_s = fixed_point_state(om, prob)
+    if om.measure == STATE_CHANGE:
+        e = rng.standard_normal((starts,) + xi_s.shape)
+        e *= np.logspace(-2, 2, starts)[:, None, None]
+        return xi_s[None] + e, np.sum(e ** 2, axis=(1, 2))
     e = rng.standard_normal((starts, prob.d)) * np.logspace(-2, 2, starts)[:, None]
     return xi_s[None] + u[None, :, None] * e[:, None, :], np.sum(e ** 2, axis=1)
 

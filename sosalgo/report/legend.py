@@ -85,6 +85,10 @@ def sublinear_meaning(spec: Spec) -> str:
     """One line: what a sublinear spec's certified constant c bounds (m: 0)."""
     from sosalgo.certificates.composite import sublinear_measure
 
+    if sublinear_measure(spec) == "state_change":
+        return ("c bounds: |xi_k+1 - xi_k|^2 <= c |xi_0 - xi*|^2 / k for every k >= 1 (xi: "
+                "the state, e.g. Douglas-Rachford's w; xi* a fixed point, moving with the "
+                "operators' answers at the solution), from any start xi_0")
     if sublinear_measure(spec) == "residual":
         calls = " + ".join(f"|u{i + 1}_k|^2" for i in range(spec.p))
         return (f"c bounds: {calls} <= c |x_0 - x*|^2 / k for every k >= 1 (u_k: the answer "
