@@ -93,6 +93,29 @@ def test_expensive_bound_is_below_the_naive_one_and_above_quadratics():
     assert naive >= Fraction(8, 11) * (1 - Fraction(1, 10**6))
 
 
+@pytest.mark.parametrize("name,pepit", [("gradient-pl", 0.7346938775),
+                                         ("gradient-pl-expensive", 0.6947617)])
+def test_two_steps_at_mu_one_tenth_are_proven_at_pepits_value(tmp_path, name, pepit):
+    """PEPit's third argument set (mu = 0.1, gamma = 1/L, n = 2; its values): proven
+    exactly, at or above PEPit's and within 1e-6 of it. Their certificates are singular
+    (the naive one's S is 0 on every direction, the expensive one's exactly 0 once its
+    null row is zeroed): the null-row proof must reach them and decide S in rationals."""
+    import json
+
+    from click.testing import CliRunner
+
+    from sosalgo.cli import cli
+
+    out = CliRunner().invoke(cli, [
+        "pep", str(SPECS / f"{name}.yaml"), "--steps", "2", "--set", "mu=0.1",
+        "--set", "gamma=1/L", "--no-witness", "--json", "--out", str(tmp_path / "o")])
+    assert out.exit_code == 0, out.output
+    cert = json.loads(out.stdout)["certificate"]
+    assert cert["check_kind"] == "exact (rational and ball arithmetic)", cert["proof"]
+    proven = float(Fraction(cert["tau_proven"]))
+    assert pepit <= proven <= pepit + 1e-6, (proven, pepit)
+
+
 def test_tampered_lmi_cuts_are_refused():
     spec = load_spec(PL["expensive"])
     res = sosalgo.pep(spec, None, 1, witness=False)

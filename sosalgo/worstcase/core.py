@@ -655,7 +655,8 @@ def _mixed(cand: SDPAnswer, inner: SDPAnswer, w: np.ndarray,
                    const=const)
 
 
-NULL_DIRECTIONS = 3  # the null-row proof on S with at most this many free directions
+NULL_DIRECTIONS = 3  # the null-row proof on S with at most this many free directions,
+NULL_EQUATIONS = 16  # or more when its exact system (d equations per direction) is this small
 
 
 LOOSE_REL = 1e-7  # a proven bound further above tau than this invites a tighter proof
@@ -698,8 +699,11 @@ def _null_row_proof(spec: Spec, kappa: float | None, mt: PEPFrame, data: PEPData
     scale = max(1.0, float(np.abs(Sh).max()))
     free = int(np.sum(np.abs(np.linalg.eigvalsh(0.5 * (Sh + Sh.T)))
                       <= (NULL_ROW * scale if null_tol is None else null_tol)))
-    if not 1 <= free <= NULL_DIRECTIONS:  # none, or a tight worst case's (a margin's job;
-        return  # each null vector multiplies the exact system's rows)
+    # none: a margin's job; many on a large S: a tight worst case's large exact system
+    # (each null vector brings d equations); on a small S even all of its directions (the
+    # gradient method on PL functions, N = 2: S = 0 on d = 4)
+    if free < 1 or (free > NULL_DIRECTIONS and free * len(Sh) > NULL_EQUATIONS):
+        return
     proof = prove_certificate(spec, kappa, data.st, mterms, iterms, tau, ans.lam, data.w,
                               ex, null=ans.S, null_tol=null_tol)  # type: ignore[arg-type]
     if mt.bound is not None:

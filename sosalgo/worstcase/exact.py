@@ -671,15 +671,17 @@ def prove_scaled_psd(S: arb_mat, w: np.ndarray) -> tuple[bool, Fraction, str]:
     return _scaled_psd(S, w)[:3]
 
 
-# a least eigenvalue estimate of the scaled S below -INDEFINITE times its largest entry:
-# S is indefinite (the float estimate errs by about d 2^-52 of that entry; d <= 40 here),
-# so no exact decision of S ⪰ 0 is tried
+# a least eigenvalue estimate of the scaled S below -INDEFINITE times its largest entry,
+# beyond what the balls' radii can move it: S is indefinite (the float estimate errs by
+# about d 2^-52 of that entry; d <= 40 here), so no exact decision of S ⪰ 0 is tried
 INDEFINITE = 1e-10
 
 
 def _scaled_psd(S: arb_mat, w: np.ndarray) -> tuple[bool, Fraction, str, bool]:
     """:func:`prove_scaled_psd`, and whether the scaled S is clearly indefinite (its
-    least eigenvalue estimate below -:data:`INDEFINITE` of its largest entry)."""
+    least eigenvalue estimate below -:data:`INDEFINITE` of its largest entry and below
+    -d times the largest radius: an S that is exactly 0, its balls' midpoints rounding
+    noise, is not)."""
     from sosalgo.kernel.arb import arb_fraction
     from sosalgo.kernel.exact import rational
 
@@ -696,8 +698,11 @@ def _scaled_psd(S: arb_mat, w: np.ndarray) -> tuple[bool, Fraction, str, bool]:
         return False, Fraction(0), "eigenvalues of the scaled S failed", False
     if not est > 0:
         top = float(np.abs(mid).max(initial=0.0))
+        # each matrix in the balls is within d * (largest radius) of mid in norm
+        spread = d * max((float(T[i, j].rad()) for i in range(d) for j in range(d)),
+                         default=0.0)
         return (False, Fraction(0), f"not proven (min eig estimate {est:.3g}, scaled)",
-                est < -INDEFINITE * top)
+                est < -INDEFINITE * top - spread)
     t = rational(est / 2)
     try:
         Lf = np.linalg.cholesky(mid - float(t) * np.eye(d))
