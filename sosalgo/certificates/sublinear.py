@@ -300,7 +300,7 @@ def operator_refusal(spec: Spec) -> str | None:
     if all(c.has_values for c in classes.values()):
         return None
     named = ", ".join(f"{n} ({c.name})" for n, c in classes.items())
-    if len(classes) > 1 and not all(c.name == "monotone" for c in classes.values()):
+    if len(classes) > 1 and not all(c.state_change_rates for c in classes.values()):
         return (f"{named}: an operator class among several functions: the sublinear "
                 "family bounds the squared residual of one operator only, or the state "
                 "change of several maximally monotone ones (m: 0)")

@@ -150,6 +150,10 @@ class FunctionClass:
     # its conditions are necessary but not sufficient for interpolation: a PEP over them
     # is an upper bound of the worst case, not necessarily tight (said in the output)
     interpolating: bool = True
+    # several operators of this class (and no other) take the sublinear family's state
+    # change |xi_{k+1} - xi_k|^2 from a free start: each of its inequalities vanishes on
+    # the fixed points that move with the optimal answers (maximally monotone operators)
+    state_change_rates: bool = False
     # the PEP keeps a minimizer x* for it although it is not convex (the class has a
     # global minimizer by assumption: PL, RSI/EB)
     minimizer: bool = False

@@ -24,6 +24,7 @@ from sosalgo.classes.operator import OperatorClass, linear_member, skew_unit
 class Monotone(OperatorClass):
     name = "monotone"
     pairwise_defined = True  # its members: the operators meeting its pairwise conditions
+    state_change_rates = True  # Douglas-Rachford on two of them: the state change
     description = "maximally monotone operator (calls: M(y), resolvent)"
     oracles = frozenset({"subgradient", "proximal"})
     tilted_text = ("<u_a - u_b, x_a - x_b> >= 0  (monotone operator)",

@@ -458,7 +458,7 @@ def necessary_only_classes(spec: Spec) -> list[str]:
     case (the PEP itself is then an upper bound of that worst case)."""
     from sosalgo.classes import get_class
 
-    names = sorted({decl.cls for decl in (getattr(spec, "functions", None) or {}).values()})
+    names = sorted({decl.cls for decl in spec.functions.values()})
     return [n for n in names if not get_class(n).interpolating]
 
 
