@@ -1,7 +1,7 @@
 """House rules of the source tree that no other test keeps: the package ``sosalgo`` is a
 plain module (its Python API functions are attributes, not a callable module), files are
-named for what they hold or test, no issue numbers or dates in the code, its docstrings and
-the tests, and the removed scalar-SOS branch stays removed."""
+named for what they hold or test, no issue numbers or dates in the code, its docstrings,
+the tests and the pages users read, and the removed scalar-SOS branch stays removed."""
 
 from __future__ import annotations
 
@@ -16,6 +16,10 @@ ROOT = Path(__file__).resolve().parents[1]
 SOURCES = sorted(p for p in [*(ROOT / "sosalgo").rglob("*.py"), *(ROOT / "tests").rglob("*.py"),
                              *(ROOT / "bench").rglob("*.py")]
                  if p != Path(__file__).resolve())  # this file spells what it looks for
+# the pages a user reads (history goes in CHANGELOG.md, which docs/changelog.md includes)
+PAGES = sorted([ROOT / "README.md", *(p for p in (ROOT / "docs").rglob("*.md")
+                                     if not {"_build", "_generated"} & set(p.parts)
+                                     and p.name != "changelog.md")])
 # a stem that says when or in which round a file was written, not what it tests
 UNNAMED = re.compile(r"(^|_)(new|old|tmp|v\d+)$")
 # an issue number or a date of the project's history (a fuzz input's 2001 date is data)
@@ -43,7 +47,7 @@ def test_files_are_named_for_their_subject():
 
 
 def test_no_issue_numbers_or_dates():
-    found = [f"{p.relative_to(ROOT)}:{i}: {m.group(0)}" for p in SOURCES
+    found = [f"{p.relative_to(ROOT)}:{i}: {m.group(0)}" for p in [*SOURCES, *PAGES]
              for i, line in enumerate(p.read_text(encoding="utf-8").splitlines(), 1)
              for m in HISTORY.finditer(line)]
     assert found == [], "\n".join(found)
