@@ -24,25 +24,16 @@ from typing import Any
 import numpy as np
 
 from sosalgo.classes.base import TupleLMI
-from sosalgo.classes.lmi_forms import Tuple, three_point_lmi
+from sosalgo.classes.lmi_forms import three_point_lmis
 from sosalgo.classes.operator import OperatorClass, positive
-
-PAIRS = {"ij": (0, 1), "ik": (0, 2), "jk": (2, 1)}  # PEPit's orientation of each pair
 
 
 def cocoercive_lmis(mu: Any, beta: Any, exact: bool) -> list[TupleLMI]:
-    """The two LMIs of a triple (floats or exact numbers)."""
-    out = []
-    for swap in (False, True):
-        t = Tuple(3)
-        mono, coco = {}, {}
-        for key, (a, b) in PAIRS.items():
-            dx, du = t.x(a) - t.x(b), t.g(a) - t.g(b)
-            mono[key] = dx.sq() * mu - du.dot(dx)
-            coco[key] = du.sq() * beta - du.dot(dx)
-        A, B = (coco, mono) if swap else (mono, coco)
-        out.append(three_point_lmi(t, A, B, (1 - 2 * beta * mu) * (-2), exact))
-    return out
+    """The two LMIs of a triple (floats or exact numbers): A the strong monotonicity, B
+    the cocoercivity form of each pair."""
+    return three_point_lmis(lambda dx, du: (dx.sq() * mu - du.dot(dx),
+                                            du.sq() * beta - du.dot(dx)),
+                            (1 - 2 * beta * mu) * (-2), exact)
 
 
 class CocoerciveStronglyMonotoneExpensive(OperatorClass):

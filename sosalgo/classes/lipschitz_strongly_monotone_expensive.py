@@ -22,24 +22,15 @@ from typing import Any
 
 from sosalgo.classes.base import TupleLMI
 from sosalgo.classes.lipschitz_strongly_monotone import LipschitzStronglyMonotone
-from sosalgo.classes.lmi_forms import Tuple, three_point_lmi
-
-PAIRS = {"ij": (0, 1), "ik": (0, 2), "jk": (2, 1)}  # PEPit's orientation of each pair
+from sosalgo.classes.lmi_forms import three_point_lmis
 
 
 def lipschitz_lmis(mu: Any, L: Any, exact: bool) -> list[TupleLMI]:
-    """The two LMIs of a triple (floats or exact numbers)."""
-    out = []
-    for swap in (False, True):
-        t = Tuple(3)
-        lip, mono = {}, {}
-        for key, (a, b) in PAIRS.items():
-            dx, du = t.x(a) - t.x(b), t.g(a) - t.g(b)
-            lip[key] = du.sq() - dx.sq() * (L * L)
-            mono[key] = (dx.sq() * mu - du.dot(dx)) * (2 * L)
-        A, B = (mono, lip) if swap else (lip, mono)
-        out.append(three_point_lmi(t, A, B, 2 * mu, exact))
-    return out
+    """The two LMIs of a triple (floats or exact numbers): A the Lipschitz, B the strong
+    monotonicity form of each pair."""
+    return three_point_lmis(lambda dx, du: (du.sq() - dx.sq() * (L * L),
+                                            (dx.sq() * mu - du.dot(dx)) * (2 * L)),
+                            2 * mu, exact)
 
 
 class LipschitzStronglyMonotoneExpensive(LipschitzStronglyMonotone):

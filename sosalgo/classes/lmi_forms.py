@@ -12,6 +12,7 @@ number that may be a ball goes on the right: ``form * k``).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from fractions import Fraction
 from typing import Any
 
@@ -178,3 +179,24 @@ def three_point_lmi(t: Tuple, A: dict[str, Form], B: dict[str, Form], c: Any,
             [m16, m26, z, m46, -m37, -A["ik"], z],
             [m17, m27, m37, z, -m46, z, -B["ik"]]]
     return t.lmi(rows, exact)
+
+
+# PEPit's orientation (a, b) of each pair of a triple (i, j, k)
+TRIPLE_PAIRS = {"ij": (0, 1), "ik": (0, 2), "jk": (2, 1)}
+
+
+def three_point_lmis(pair_forms: Callable[[Vec, Vec], tuple[Form, Form]], c: Any,
+                     exact: bool) -> list[TupleLMI]:
+    """The two LMIs of a triple, (A, B) and (B, A) in their places
+    (:func:`three_point_lmi`): ``pair_forms(dx, du)`` gives (A_ab, B_ab) from the pair's
+    x_a - x_b and u_a - u_b."""
+    out = []
+    for swap in (False, True):
+        t = Tuple(3)
+        A: dict[str, Form] = {}
+        B: dict[str, Form] = {}
+        for key, (a, b) in TRIPLE_PAIRS.items():
+            A[key], B[key] = pair_forms(t.x(a) - t.x(b), t.g(a) - t.g(b))
+        out.append(three_point_lmi(t, B, A, c, exact) if swap
+                   else three_point_lmi(t, A, B, c, exact))
+    return out
