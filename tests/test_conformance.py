@@ -143,9 +143,6 @@ KNOWN_GAPS = {
     ("monotone_inclusions_variational_inequalities/optimistic_gradient", 2):
         "the exact proof is 2.2e-6 above PEPit's value; PEPit's default solver is off by "
         "1e-5 to 1e-4 on these problems (which side is nearer the worst case is not shown)",
-    ("stochastic_and_randomized_convex_minimization/sgd", 2):
-        "tau agrees, no exact proof: the rounded certificate's S has a least eigenvalue "
-        "of -4.8e-8 (floating-point pre-check)",
     ("composite_convex_minimization/frank_wolfe", 0): _LOOSE.format("2.3e-4"),
     ("composite_convex_minimization/frank_wolfe", 1): _LOOSE.format("5.2e-4"),
     ("low_dimensional_worst_cases_scenarios/frank_wolfe", 0): _LOOSE.format("2.3e-4"),

@@ -8,6 +8,7 @@ proven bound."""
 from __future__ import annotations
 
 import copy
+import json
 from fractions import Fraction
 
 import numpy as np
@@ -55,6 +56,25 @@ def test_sgd_is_the_pesto_bound(sgd):
                                            + g ** 2 * v ** 2)) ** 2
     assert sgd.tau == pytest.approx(want, rel=1e-6)
     assert want * (1 - 1e-9) <= _proven(sgd) <= want * (1 + 1e-6)
+
+
+def test_sgd_at_a_long_step_is_proven_at_pepits_value(tmp_path):
+    """gamma = 2, v = 1/4, R = 1, n = 4 at kappa = 5 (m = 1/10, L = 1/2; wc_sgd's third
+    argument set): proven exactly, at or above the worst case 1.0822499484563826 (PEPit's
+    committed Clarabel value is 1.0822499401875032, the PESTO closed form (0.4 +
+    sqrt(0.41))^2 = 1.0822499390) and within 1e-6 of it."""
+    r = CliRunner().invoke(cli, ["pep", str(SPECS / "sgd.yaml"), "--kappa", "5", "--steps",
+                                 "1", "--set", "gamma=2", "--set", "v=0.25", "--set", "R=1",
+                                 "--set", "n=4", "--no-witness", "--no-plot", "--json",
+                                 "--out", str(tmp_path / "o")])
+    assert r.exit_code == 0, r.output
+    worst = 1.0822499484563826
+    for peer in (1.0822499401875032, (0.4 + np.sqrt(0.41)) ** 2):
+        assert peer == pytest.approx(worst, rel=1e-7)
+    cert = json.loads(r.stdout)["certificate"]
+    assert cert["check_kind"] == "exact (rational and ball arithmetic)"
+    proven = float(Fraction(cert["tau_proven"]))
+    assert worst <= proven <= worst + 1e-6
 
 
 @pytest.mark.parametrize("gamma", ["2.3", "1"])
