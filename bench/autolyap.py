@@ -231,7 +231,7 @@ def run(quick: bool = False) -> None:
             print(f"skipped: {exc}")
 
 
-def _rate(alg: Any, fam: Interpolation, repeats: int) -> tuple[float, Any, float]:
+def timed_rate(alg: Any, fam: Interpolation, repeats: int) -> tuple[float, Any, float]:
     """(median seconds, result, median processor seconds of this thread) of one analysis
     at ``TOL`` after a warm-up; (nan, result, nan) with no timing when ``repeats`` is 0."""
     res = analyze_algorithm(alg, tol=TOL, family=fam)
@@ -263,9 +263,9 @@ def _measure_rows(python: str, repeats: int, quick: bool) -> list[dict]:
                 continue
             row: dict[str, Any] = {"name": name, "k": k, "seed": name in METHODS}
             if row["seed"]:
-                row["auto"] = _rate(alg, Interpolation(), repeats)
-                row["lag0"] = _rate(alg, Interpolation(0), repeats)
-            row["like"] = [_rate(same, Interpolation(h), repeats) for h in LIKE_LAGS]
+                row["auto"] = timed_rate(alg, Interpolation(), repeats)
+                row["lag0"] = timed_rate(alg, Interpolation(0), repeats)
+            row["like"] = [timed_rate(same, Interpolation(h), repeats) for h in LIKE_LAGS]
             row["theirs"] = autolyap_rates(python, jobs)
             rows.append(row)
     return rows

@@ -43,16 +43,14 @@ import math
 import os
 import statistics
 import sys
-import time
 from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from bench.autolyap import autolyap_python, autolyap_rates, rho2_tolerance
-from bench.common import one_core, timed
-from sosalgo.analysis import analyze_algorithm
+from bench.autolyap import autolyap_python, autolyap_rates, rho2_tolerance, timed_rate
+from bench.common import one_core
 from sosalgo.certificates.interpolation import Interpolation
 from sosalgo.model import bind
 from sosalgo.spec import load_spec
@@ -212,19 +210,10 @@ def witness_rate(spec: Any, kappa: float, theta: dict) -> float:
 def _ours(alg: Any, spec: Any, kappa: float, theta: dict, repeats: int) -> dict:
     """Our rate, its exact proof, and (median wall, median CPU) seconds of one rate."""
     fam = Interpolation()
-    res = analyze_algorithm(alg, tol=TOL, family=fam)
+    t, res, cpu = timed_rate(alg, fam, repeats)
     proof = fam.exact_check(spec, kappa, res.rho, res.certificate, theta)
-    cpu: list[float] = []
-
-    def one() -> object:
-        c0 = time.thread_time()
-        out = analyze_algorithm(alg, tol=TOL, family=fam)
-        cpu.append(time.thread_time() - c0)
-        return out
-
-    t, _, _ = timed(one, repeats)
     return {"rho": res.rho, "proven": str(proof.verified), "rho_proven": proof.rho_proven_float,
-            "median": t, "cpu": statistics.median(cpu)}
+            "median": t, "cpu": cpu}
 
 
 def _dr_cases(quick: bool, repeats: int) -> list[dict]:
